@@ -1,0 +1,105 @@
+# collide-bench: build every variant into build/, test, benchmark, set up the environment.
+#
+#   make all              every variant, double precision: build/seq build/p1 ... build/grid
+#   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
+#                         the other pair-time formulas (the accuracy study's builds)
+#   make test             C tests (also under ASan+UBSan), Python tests, ruff
+#   make bench            the performance benchmarks of the issues, saved under results/
+#   make setup            Python environment (.venv) and hyperfine
+#
+# A variant is a file variants/NAME.c; adding one needs no change here.
+
+.DEFAULT_GOAL := all
+SHELL := /bin/bash
+
+VARIANTS := $(sort $(basename $(notdir $(wildcard variants/*.c))))
+CORE_SRC := $(wildcard variants/core/*.c)
+HEADERS := $(wildcard variants/core/*.h)
+PYTHON := .venv/bin/python
+
+# Exact builds: IEEE double evaluated as written. No FMA contraction, never -ffast-math: the
+# variants must agree byte for byte, and SPEC fixes the order of every operation.
+EXACT := -std=c11 -ffp-contract=off -fno-fast-math
+OPT ?= -O3 -march=native
+WARN := -Wall -Wextra -Wpedantic -Werror
+SANITIZE := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
+BASE_CFLAGS = $(EXACT) $(OPT) $(WARN) -fopenmp -D_POSIX_C_SOURCE=200809L
+BASE_LDLIBS = -lm
+
+# The builds beside the default double one: name, compile flags, libraries.
+FLAGS_f32 := -DSIM_REAL_F32
+FLAGS_f128 := -DSIM_REAL_F128
+LIBS_f128 := -lquadmath
+FLAGS_textbook := -DSIM_PAIR_TEXTBOOK
+FLAGS_report := -DSIM_PAIR_REPORT
+BUILDS := f32 f128 textbook report
+
+# $(1) object directory, $(2) binary pattern, $(3) extra compile flags, $(4) extra libraries.
+define build_rules
+build/obj/$(1)/core/%.o: variants/core/%.c $$(HEADERS)
+	@mkdir -p $$(@D)
+	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
+build/obj/$(1)/%.o: variants/%.c $$(HEADERS)
+	@mkdir -p $$(@D)
+	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
+$(2): build/obj/$(1)/%.o $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_SRC))
+	@mkdir -p $$(@D)
+	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) $$^ -o $$@ $$(BASE_LDLIBS) $(4) $$(LDLIBS)
+endef
+
+$(eval $(call build_rules,f64,build/%,,))
+$(foreach b,$(BUILDS),$(eval $(call build_rules,$(b),build/%-$(b),$(FLAGS_$(b)),$(LIBS_$(b)))))
+$(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
+
+# Keep the objects: they are prerequisites of many binaries.
+.SECONDARY:
+
+.PHONY: all asan test test-c test-python lint bench setup clean print-flags print-variants
+
+all: $(addprefix build/,$(VARIANTS))
+
+asan: $(addprefix build/asan/,$(VARIANTS))
+
+print-flags:
+	@echo "$(CC) $(BASE_CFLAGS) $(CFLAGS)"
+
+print-variants:
+	@echo "$(VARIANTS)"
+
+# ---- tests ----
+C_TESTS := $(sort $(basename $(notdir $(wildcard tests/c/test_*.c))))
+CORE_LIB_SRC := $(filter-out variants/core/sim_main.c,$(CORE_SRC))
+
+build/tests/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/f64/core/%.o,$(CORE_LIB_SRC)) $(HEADERS)
+	@mkdir -p $(@D)
+	$(CC) $(BASE_CFLAGS) -Ivariants/core $(CFLAGS) $(filter %.c %.o,$^) -o $@ $(BASE_LDLIBS)
+
+build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core/%.o,$(CORE_LIB_SRC)) $(HEADERS)
+	@mkdir -p $(@D)
+	$(CC) $(BASE_CFLAGS) $(SANITIZE) -Ivariants/core $(CFLAGS) $(filter %.c %.o,$^) -o $@ $(BASE_LDLIBS)
+
+test-c: all asan $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS))
+	@set -e; for t in $(C_TESTS); do build/tests/$$t; build/tests-asan/$$t; done
+	tests/c/run_scenes.sh build
+	tests/c/run_scenes.sh build/asan
+
+test-python: $(PYTHON) all
+	$(PYTHON) -m pytest -q
+
+lint: $(PYTHON)
+	$(PYTHON) -m ruff check harness tests
+
+test: test-c lint test-python
+
+# ---- environment ----
+$(PYTHON): requirements.txt
+	scripts/setup.sh
+
+setup:
+	scripts/setup.sh
+
+bench: all $(PYTHON)
+	$(PYTHON) bench/bench.py
+
+clean:
+	rm -rf build

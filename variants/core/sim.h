@@ -1,0 +1,129 @@
+/*
+ * sim.h: what a variant sees of the core.
+ *
+ * The core (variants/core/) owns the model once: input, particle generation, contact times,
+ * sorting and greedy resolution, motion, counters, output and the command line. A variant
+ * (variants/NAME.c) contributes one thing: how candidate *pairs* are found in a step. It
+ * defines `const sim_variant sim_variant_def` and nothing else that is global.
+ *
+ * Determinism: a finder may find candidates in any order and on any thread, into any of the
+ * candidate buffers it was given. The core merges the buffers and sorts them by the total
+ * SPEC key (t, pair before wall, i, j) before resolving, so the result is the same for every
+ * thread count and schedule. A finder must report each pair at most once, with i < j.
+ */
+#ifndef SIM_H
+#define SIM_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <omp.h>
+
+#include "sim_real.h"
+
+/* Largest particle count: indices are int32_t so a candidate stays 16 bytes in double. */
+#define SIM_N_MAX INT32_MAX
+
+/* The j of a wall candidate. Pairs have 0 <= i < j. */
+#define SIM_WALL ((int32_t)-1)
+
+/* Length of the j-range one call of sim_scan_tile covers: long enough for the vectorised
+ * kernel to amortise its setup, short enough to spread a row over many threads. */
+#define SIM_TILE 256
+
+/* The simulated system, structure of arrays so the pair kernel vectorises.
+ * Units: lengths in the input's length unit, time in steps, velocities in length per step. */
+typedef struct sim_world {
+    int32_t n;
+    sim_real L;     /* side of the square box */
+    sim_real r;     /* radius of every disc */
+    sim_real lo;    /* r: the smallest allowed centre coordinate */
+    sim_real hi;    /* L - r: the largest allowed centre coordinate */
+    sim_real diam2; /* (2r)*(2r), computed once exactly as SPEC writes it */
+    sim_real *x, *y, *vx, *vy;
+    int64_t *pcoll, *wcoll; /* accepted pair / wall collisions per particle */
+} sim_world;
+
+/* One candidate collision of this step: contact time t in [0, 1] (steps), particles i < j,
+ * or j == SIM_WALL for a wall. */
+typedef struct sim_cand {
+    sim_real t;
+    int32_t i;
+    int32_t j;
+} sim_cand;
+
+/* A growable candidate buffer written by one thread at a time. Aligned to a cache line so
+ * that threads appending to neighbouring buffers do not share lines. */
+typedef struct sim_cand_buf {
+    _Alignas(64) sim_cand *items;
+    size_t len, cap;
+    uint64_t pair_tests; /* pairs examined, for --timing */
+    bool failed;         /* an allocation failed: the core ends the run with status 1 */
+} sim_cand_buf;
+
+/* What a finder writes into: `count` buffers, one per concurrent writer. */
+typedef struct sim_pair_sink {
+    sim_cand_buf *bufs;
+    int count;
+    int threads;   /* the thread count of this run (--threads / OMP_NUM_THREADS) */
+    void *scratch; /* the variant's own per-run memory (see scratch_create) */
+} sim_pair_sink;
+
+typedef struct sim_variant {
+    const char *name;
+    bool exact;    /* promises output byte-identical to seq */
+    bool parallel; /* uses threads; seq and friends run on one */
+    /* Candidate buffers the finder needs for `threads` threads; NULL means `threads`. */
+    int (*buffer_count)(int threads);
+    /* Optional per-run memory, e.g. a grid. Return NULL on allocation failure. */
+    void *(*scratch_create)(const sim_world *w, int threads);
+    void (*scratch_destroy)(void *scratch);
+    /* Append every pair candidate of the current state (SPEC §2) to the sink's buffers. */
+    void (*find_pairs)(const sim_world *w, sim_pair_sink *sink);
+} sim_variant;
+
+/* Defined by exactly one variant file per binary. */
+extern const sim_variant sim_variant_def;
+
+/* ---- The shared kernel, for finders ---- */
+
+/* SPEC §2 pair test for i < j. True and *t set when the pair is a candidate (t <= 1). */
+bool sim_pair_time(const sim_world *w, int32_t i, int32_t j, sim_real *t);
+
+/* Append a candidate; on allocation failure marks the buffer failed and drops it. */
+void sim_cand_push(sim_cand_buf *buf, sim_real t, int32_t i, int32_t j);
+
+/* Test particle i against every j in [j_begin, j_end) (all j > i) and append candidates.
+ * Vectorised; counts the pairs in buf->pair_tests. */
+void sim_scan_row(const sim_world *w, int32_t i, int32_t j_begin, int32_t j_end,
+                  sim_cand_buf *buf);
+
+/* The number of SIM_TILE-long tiles of row i (j in [i+1, n)), and one tile's scan: lets a
+ * finder hand out a row's j-range to threads without calling the kernel once per j. */
+int32_t sim_row_tiles(const sim_world *w, int32_t i);
+void sim_scan_tile(const sim_world *w, int32_t i, int32_t tile, sim_cand_buf *buf);
+
+/* ---- The seed's loop shapes (sim_loops.c), for finders that use one ---- */
+
+/* How a finder tests one row: particle i against the j it is responsible for. */
+typedef void sim_row_scan_fn(const sim_world *w, int32_t i, sim_cand_buf *buf);
+
+/* Row i against every j > i with the shared kernel. */
+void sim_scan_full_row(const sim_world *w, int32_t i, sim_cand_buf *buf);
+
+/* Outer loop parallel: rows shared out over the team with `schedule` (static or dynamic) and
+ * `chunk` (0: the schedule's default), each thread writing buffer omp_get_thread_num(). */
+void sim_for_rows(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule, int chunk,
+                  sim_row_scan_fn *scan);
+
+/* Outer loop sequential, inner loop parallel: each row's j-tiles shared out with `schedule`. */
+void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule);
+
+/* The buffer a writer uses; `slot` in [0, sink->count). */
+static inline sim_cand_buf *sim_sink_buf(sim_pair_sink *sink, int slot)
+{
+    return &sink->bufs[slot];
+}
+
+#endif /* SIM_H */

@@ -1,0 +1,91 @@
+/*
+ * sim_core.h: the core's own interfaces (input, generator, stepping, output), used by the
+ * command line (sim_main.c) and by the C tests. Variants include only sim.h.
+ */
+#ifndef SIM_CORE_H
+#define SIM_CORE_H
+
+#include <stdio.h>
+
+#include "sim.h"
+
+/* Exit statuses (SPEC §1). */
+enum { SIM_EXIT_OK = 0, SIM_EXIT_RUNTIME = 1, SIM_EXIT_USAGE = 2 };
+
+/* Message buffer length: one line of stderr. */
+#define SIM_MSG_LEN 256
+
+typedef enum sim_mode { SIM_MODE_PRINT, SIM_MODE_PERF } sim_mode;
+
+/* The first two lines of the input, in the types SPEC gives them. */
+typedef struct sim_header {
+    int32_t n;
+    double L, r;
+    int64_t steps;
+    sim_mode mode;
+} sim_header;
+
+/* An input error: the line it is on (from 1) and what rule was broken. */
+typedef struct sim_error {
+    long line;
+    char what[SIM_MSG_LEN];
+} sim_error;
+
+/* A tokenizer over the whole input text that remembers line numbers. */
+typedef struct sim_lexer {
+    const char *text, *end;
+    long line;
+} sim_lexer;
+
+void sim_lexer_init(sim_lexer *lx, const char *text, size_t len);
+
+/* Parse "N L r S" and MODE. Returns 0, or -1 with *err set. */
+int sim_parse_header(sim_lexer *lx, sim_header *h, sim_error *err);
+
+/* Parse the listed particles into w (already allocated for h->n) and mark them in `listed`.
+ * Returns 0, or -1 with *err set. */
+int sim_parse_particles(sim_lexer *lx, const sim_header *h, sim_world *w, unsigned char *listed,
+                        sim_error *err);
+
+/* SPEC §4: fill every particle not marked in `listed`, in increasing index order, from one
+ * splitmix64 stream seeded with `seed`. Generation is done in double for every build, so all
+ * builds start from the same state rounded to their real type. */
+void sim_generate(sim_world *w, const sim_header *h, const unsigned char *listed, uint64_t seed);
+
+/* The generator itself, exposed for the tests. */
+uint64_t sim_splitmix64_next(uint64_t *state);
+double sim_uniform(uint64_t *state);
+
+/* World memory. Returns 0, or -1 when memory is short (nothing leaked). */
+int sim_world_alloc(sim_world *w, const sim_header *h);
+void sim_world_free(sim_world *w);
+/* Bytes the simulation needs per particle, for refusing an N this machine cannot hold. */
+size_t sim_bytes_per_particle(void);
+
+/* Counters a run accumulates, for --timing. */
+typedef struct sim_stats {
+    uint64_t pair_tests;
+    uint64_t candidates;
+    uint64_t pair_collisions;
+    uint64_t wall_collisions;
+} sim_stats;
+
+/* Per-run stepping state: candidate buffers, the merged list, scratch arrays. */
+typedef struct sim_stepper sim_stepper;
+
+sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int threads);
+void sim_stepper_destroy(sim_stepper *s);
+/* Advance the world by one step (SPEC §2). Returns 0, or -1 when memory ran out. */
+int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
+
+/* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. */
+sim_real sim_wall_time(const sim_world *w, int32_t i);
+
+/* Output (SPEC §3). Return 0, or -1 on a write error. */
+int sim_write_state(FILE *out, const sim_world *w, int64_t step, bool precise);
+int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
+
+/* Format one real with %.8f, or %.17g when precise, into buf. */
+void sim_format_real(char *buf, size_t len, sim_real v, bool precise);
+
+#endif /* SIM_CORE_H */

@@ -1,0 +1,283 @@
+/*
+ * sim_main.c: SPEC §5, the command line every variant shares. Links against one variant's
+ * `sim_variant_def`; a variant file has no main() of its own.
+ */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <omp.h>
+
+#include "sim_core.h"
+
+/* stdout buffer: big enough that print mode's millions of lines cost few write calls. */
+#define SIM_STDOUT_BUFFER (1 << 20)
+/* Read chunk of the input. */
+#define SIM_READ_CHUNK (1 << 16)
+#define SIM_DEFAULT_SEED 1
+
+typedef struct sim_options {
+    int threads; /* 0: OMP_NUM_THREADS / the runtime's default */
+    uint64_t seed;
+    bool precise, timing, help;
+    const char *input; /* NULL: stdin */
+} sim_options;
+
+/* Seconds spent in each phase, and what was done, for --timing. */
+typedef struct sim_report {
+    double input_s, sim_s, output_s;
+    sim_stats stats;
+} sim_report;
+
+static const char *const usage_text =
+    "usage: %s [--threads N] [--seed N] [--precise] [--timing] [INPUT]\n"
+    "  Simulate hard discs colliding in a square box (the contract: SPEC.md; the model:\n"
+    "  docs/model.md). Reads INPUT, or stdin when INPUT is absent or '-'.\n"
+    "  --threads N  threads to use (overrides OMP_NUM_THREADS; ignored by seq)\n"
+    "  --seed N     seed of the generator for particles the input does not list (default 1)\n"
+    "  --precise    print reals with %%.17g instead of %%.8f\n"
+    "  --timing     write one JSON line of timings and counts to stderr after the run\n"
+    "  --help       print this text\n";
+
+static int usage_error(const char *name, const char *what, const char *arg)
+{
+    fprintf(stderr, "%s: usage: %s '%s' (try --help)\n", name, what, arg);
+    return SIM_EXIT_USAGE;
+}
+
+static bool parse_u64(const char *s, uint64_t max, uint64_t *out)
+{
+    if (*s < '0' || *s > '9')
+        return false;
+    char *end;
+    errno = 0;
+    const unsigned long long v = strtoull(s, &end, 10);
+    if (errno == ERANGE || *end != '\0' || v > max)
+        return false;
+    *out = v;
+    return true;
+}
+
+/* Returns SIM_EXIT_OK or SIM_EXIT_USAGE (after printing the one-line error). */
+static int parse_options(const char *name, int argc, char **argv, sim_options *o)
+{
+    *o = (sim_options){.seed = SIM_DEFAULT_SEED};
+    for (int k = 1; k < argc; k++) {
+        const char *a = argv[k];
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            o->help = true;
+        } else if (strcmp(a, "--precise") == 0) {
+            o->precise = true;
+        } else if (strcmp(a, "--timing") == 0) {
+            o->timing = true;
+        } else if (strcmp(a, "--threads") == 0 || strcmp(a, "--seed") == 0) {
+            if (k + 1 == argc)
+                return usage_error(name, "missing value after", a);
+            const char *v = argv[++k];
+            uint64_t value;
+            if (a[2] == 't') {
+                if (!parse_u64(v, 4096, &value) || value == 0)
+                    return usage_error(name, "--threads expects an integer in [1, 4096], got", v);
+                o->threads = (int)value;
+            } else {
+                if (!parse_u64(v, UINT64_MAX, &value))
+                    return usage_error(name, "--seed expects an integer in [0, 2^64), got", v);
+                o->seed = value;
+            }
+        } else if (a[0] == '-' && a[1] != '\0') {
+            return usage_error(name, "unknown option", a);
+        } else if (o->input) {
+            return usage_error(name, "more than one INPUT:", a);
+        } else {
+            o->input = strcmp(a, "-") == 0 ? NULL : a;
+            if (!o->input && k + 1 < argc && argv[k + 1][0] != '-')
+                return usage_error(name, "more than one INPUT:", argv[k + 1]);
+        }
+    }
+    return SIM_EXIT_OK;
+}
+
+/* The whole input, NUL-terminated. Returns NULL after printing why. */
+static char *read_all(const char *name, const char *path, size_t *len)
+{
+    FILE *f = path ? fopen(path, "rb") : stdin;
+    if (!f) {
+        fprintf(stderr, "%s: cannot read '%s': %s\n", name, path, strerror(errno));
+        return NULL;
+    }
+    size_t cap = SIM_READ_CHUNK, n = 0;
+    char *buf = malloc(cap + 1);
+    while (buf) {
+        n += fread(buf + n, 1, cap - n, f);
+        if (n < cap)
+            break;
+        char *grown = realloc(buf, 2 * cap + 1);
+        if (!grown) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = grown;
+        cap *= 2;
+    }
+    const bool bad = ferror(f);
+    if (path)
+        fclose(f);
+    if (!buf || bad) {
+        fprintf(stderr, "%s: cannot read '%s': %s\n", name, path ? path : "stdin",
+                buf ? "read error" : "out of memory");
+        free(buf);
+        return NULL;
+    }
+    buf[n] = '\0';
+    *len = n;
+    return buf;
+}
+
+/* Physical memory, to refuse up front an N this machine cannot hold (SPEC §1). */
+static double physical_bytes(void)
+{
+    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (double)pages * (double)size : 0;
+}
+
+/* Read (or generate) the scene into w. Returns an exit status. */
+static int load_scene(const char *name, const sim_options *o, sim_header *h, sim_world *w)
+{
+    size_t len;
+    char *text = read_all(name, o->input, &len);
+    if (!text)
+        return SIM_EXIT_USAGE;
+    sim_lexer lx;
+    sim_error err;
+    sim_lexer_init(&lx, text, len);
+    if (sim_parse_header(&lx, h, &err)) {
+        free(text);
+        fprintf(stderr, "%s: input: line %ld: %s\n", name, err.line, err.what);
+        return SIM_EXIT_USAGE;
+    }
+    const double need = (double)h->n * (double)sim_bytes_per_particle(), have = physical_bytes();
+    if (have > 0 && need > have) {
+        free(text);
+        fprintf(stderr, "%s: input: line 1: N=%ld needs about %.1f GiB, more than this machine's "
+                        "%.1f GiB\n", name, (long)h->n, need / (1 << 30), have / (1 << 30));
+        return SIM_EXIT_USAGE;
+    }
+    unsigned char *listed = calloc((size_t)h->n + 1, 1);
+    if (!listed || sim_world_alloc(w, h)) {
+        free(text);
+        free(listed);
+        fprintf(stderr, "%s: out of memory for N=%ld particles\n", name, (long)h->n);
+        return SIM_EXIT_RUNTIME;
+    }
+    const int rc = sim_parse_particles(&lx, h, w, listed, &err);
+    free(text);
+    if (rc) {
+        free(listed);
+        sim_world_free(w);
+        fprintf(stderr, "%s: input: line %ld: %s\n", name, err.line, err.what);
+        return SIM_EXIT_USAGE;
+    }
+    sim_generate(w, h, listed, o->seed);
+    free(listed);
+    return SIM_EXIT_OK;
+}
+
+/* Run the steps, writing states in print mode, then the final block. Returns an exit status. */
+static int simulate(const char *name, const sim_options *o, const sim_header *h, sim_world *w,
+                    int threads, sim_report *rep)
+{
+    sim_stepper *s = sim_stepper_create(w, &sim_variant_def, threads);
+    if (!s) {
+        fprintf(stderr, "%s: out of memory for N=%ld particles\n", name, (long)h->n);
+        return SIM_EXIT_RUNTIME;
+    }
+    int rc = SIM_EXIT_OK;
+    for (int64_t step = 0; step < h->steps && rc == SIM_EXIT_OK; step++) {
+        if (h->mode == SIM_MODE_PRINT) {
+            const double t0 = omp_get_wtime();
+            if (sim_write_state(stdout, w, step, o->precise))
+                rc = SIM_EXIT_RUNTIME;
+            rep->output_s += omp_get_wtime() - t0;
+        }
+        const double t0 = omp_get_wtime();
+        if (rc == SIM_EXIT_OK && sim_step(s, w, &rep->stats)) {
+            fprintf(stderr, "%s: out of memory for the candidates of step %lld\n", name,
+                    (long long)step);
+            rc = SIM_EXIT_RUNTIME;
+        }
+        rep->sim_s += omp_get_wtime() - t0;
+    }
+    sim_stepper_destroy(s);
+    if (rc == SIM_EXIT_OK) {
+        const double t0 = omp_get_wtime();
+        if (sim_write_final(stdout, w, h->steps, o->precise) || fflush(stdout))
+            rc = SIM_EXIT_RUNTIME;
+        rep->output_s += omp_get_wtime() - t0;
+    }
+    if (ferror(stdout)) {
+        fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
+        rc = SIM_EXIT_RUNTIME;
+    }
+    return rc;
+}
+
+/* "f64", or the real type and/or pair formula this binary was built with, e.g. "f32". */
+static void build_name(char *buf, size_t len)
+{
+    const bool real = strcmp(SIM_REAL_NAME, "f64") != 0;
+    const bool formula = strcmp(SIM_FORMULA_NAME, "spec") != 0;
+    snprintf(buf, len, "%s%s%s", real || !formula ? SIM_REAL_NAME : "",
+             real && formula ? "-" : "", formula ? SIM_FORMULA_NAME : "");
+}
+
+static void print_timing(const sim_header *h, int threads, const sim_report *r)
+{
+    char build[32];
+    build_name(build, sizeof build);
+    fprintf(stderr,
+            "{\"variant\": \"%s\", \"build\": \"%s\", \"real\": \"%s\", \"formula\": \"%s\", "
+            "\"threads\": %d, \"n\": %ld, \"steps\": %lld, \"input_s\": %.6f, \"sim_s\": %.6f, "
+            "\"output_s\": %.6f, \"pair_tests\": %llu, \"candidates\": %llu, "
+            "\"pair_collisions\": %llu, \"wall_collisions\": %llu}\n",
+            sim_variant_def.name, build, SIM_REAL_NAME, SIM_FORMULA_NAME, threads, (long)h->n,
+            (long long)h->steps, r->input_s, r->sim_s, r->output_s,
+            (unsigned long long)r->stats.pair_tests, (unsigned long long)r->stats.candidates,
+            (unsigned long long)r->stats.pair_collisions,
+            (unsigned long long)r->stats.wall_collisions);
+}
+
+int main(int argc, char **argv)
+{
+    const char *name = sim_variant_def.name;
+    sim_options o;
+    int rc = parse_options(name, argc, argv, &o);
+    if (rc != SIM_EXIT_OK)
+        return rc;
+    if (o.help) {
+        printf(usage_text, argv[0]);
+        return SIM_EXIT_OK;
+    }
+    static char stdout_buffer[SIM_STDOUT_BUFFER];
+    setvbuf(stdout, stdout_buffer, _IOFBF, sizeof stdout_buffer);
+
+    const int threads = !sim_variant_def.parallel ? 1 : o.threads > 0 ? o.threads
+                                                                      : omp_get_max_threads();
+    omp_set_num_threads(threads);
+
+    sim_report rep = {0};
+    sim_header h;
+    sim_world w;
+    const double t0 = omp_get_wtime();
+    rc = load_scene(name, &o, &h, &w);
+    if (rc != SIM_EXIT_OK)
+        return rc;
+    rep.input_s = omp_get_wtime() - t0;
+    rc = simulate(name, &o, &h, &w, threads, &rep);
+    sim_world_free(&w);
+    if (rc == SIM_EXIT_OK && o.timing)
+        print_timing(&h, threads, &rep);
+    return rc;
+}

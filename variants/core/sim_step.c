@@ -1,0 +1,324 @@
+/*
+ * sim_step.c: one step of SPEC §2, shared by every variant.
+ *
+ *   1. wall candidates (here) and pair candidates (the variant's finder, into per-writer
+ *      buffers);
+ *   2. merge and sort by the total key (t, pair before wall, i, j);
+ *   3. one greedy walk accepts a candidate when neither particle has been accepted yet;
+ *   4. every particle moves exactly once, reading the old state and writing a new one, so the
+ *      motion loop can run in parallel without races and with thread-independent results.
+ *
+ * Why per-writer buffers and not the seed's shared array behind `omp critical`: the critical
+ * section serialised every candidate append (the report's bottleneck), and the order in which
+ * threads entered it was the order candidates were found, which is not reproducible. Private
+ * buffers need no lock; the sort makes the order irrelevant.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include <omp.h>
+
+#include "sim_core.h"
+
+/* event[] of a particle with no accepted collision this step. */
+#define SIM_EVENT_NONE ((int32_t)-2)
+
+/* Below this many particles the motion loop is not worth a parallel region. */
+#define SIM_PARALLEL_MOTION_MIN 4096
+
+struct sim_stepper {
+    const sim_variant *variant;
+    int threads;
+    bool parallel;
+    sim_pair_sink sink;
+    sim_cand_buf walls;
+    sim_cand *merged;
+    size_t merged_cap;
+    int32_t *event;    /* accepted event per particle: SIM_EVENT_NONE, SIM_WALL or the partner */
+    sim_real *event_t; /* its time */
+    sim_real *nx, *ny, *nvx, *nvy; /* the next state, swapped with the world's arrays */
+};
+
+/* Time for a centre at q moving at w to reach the wall ahead (SPEC §2); infinite when w == 0. */
+static inline sim_real axis_time(sim_real q, sim_real w, sim_real lo, sim_real hi)
+{
+    if (w > 0)
+        return (hi - q) / w;
+    if (w < 0)
+        return (lo - q) / w;
+    return SIM_REAL_INF;
+}
+
+/* The wall a centre moving at w reaches. */
+static inline sim_real axis_wall(sim_real w, sim_real lo, sim_real hi)
+{
+    return w > 0 ? hi : lo;
+}
+
+static inline sim_real clamp(sim_real q, sim_real lo, sim_real hi)
+{
+    return q < lo ? lo : (q > hi ? hi : q);
+}
+
+sim_real sim_wall_time(const sim_world *w, int32_t i)
+{
+    const sim_real tx = axis_time(w->x[i], w->vx[i], w->lo, w->hi);
+    const sim_real ty = axis_time(w->y[i], w->vy[i], w->lo, w->hi);
+    return tx < ty ? tx : ty;
+}
+
+/* A particle that has had its collision moves on for `rest` of the step; a wall it meets now
+ * stops it there (SPEC: seed assumption 3), keeping its velocity, until the next step. */
+static void finish(sim_real *x, sim_real *y, sim_real vx, sim_real vy, sim_real rest,
+                   sim_real lo, sim_real hi)
+{
+    sim_real tx = axis_time(*x, vx, lo, hi), ty = axis_time(*y, vy, lo, hi);
+    if (tx < 0) /* rounding can put the centre a hair past the wall it moves towards */
+        tx = 0;
+    if (ty < 0)
+        ty = 0;
+    const sim_real tw = tx < ty ? tx : ty;
+    if (tw < rest) {
+        *x += tw * vx;
+        *y += tw * vy;
+        if (tx == tw)
+            *x = axis_wall(vx, lo, hi);
+        if (ty == tw)
+            *y = axis_wall(vy, lo, hi);
+    } else {
+        *x += rest * vx;
+        *y += rest * vy;
+    }
+}
+
+static bool buf_reserve(sim_cand **items, size_t *cap, size_t need)
+{
+    if (need <= *cap)
+        return true;
+    size_t c = *cap ? *cap : 1;
+    while (c < need)
+        c *= 2;
+    sim_cand *p = realloc(*items, c * sizeof *p);
+    if (!p)
+        return false;
+    *items = p;
+    *cap = c;
+    return true;
+}
+
+sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int threads)
+{
+    sim_stepper *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->variant = v;
+    s->threads = v->parallel ? threads : 1;
+    s->parallel = v->parallel && threads > 1;
+    int count = v->buffer_count ? v->buffer_count(s->threads) : s->threads;
+    if (count < 1)
+        count = 1;
+    s->sink.count = count;
+    s->sink.threads = s->threads;
+    /* sizeof(sim_cand_buf) is a multiple of its 64-byte alignment, as aligned_alloc needs. */
+    s->sink.bufs = aligned_alloc(_Alignof(sim_cand_buf), (size_t)count * sizeof(sim_cand_buf));
+    const size_t n = (size_t)w->n;
+    s->event = malloc(n * sizeof *s->event + 1);
+    s->event_t = malloc(n * sizeof *s->event_t + 1);
+    s->nx = malloc(n * sizeof(sim_real) + 1);
+    s->ny = malloc(n * sizeof(sim_real) + 1);
+    s->nvx = malloc(n * sizeof(sim_real) + 1);
+    s->nvy = malloc(n * sizeof(sim_real) + 1);
+    if (!s->sink.bufs || !s->event || !s->event_t || !s->nx || !s->ny || !s->nvx || !s->nvy) {
+        sim_stepper_destroy(s);
+        return NULL;
+    }
+    memset(s->sink.bufs, 0, (size_t)count * sizeof(sim_cand_buf));
+    if (v->scratch_create) {
+        s->sink.scratch = v->scratch_create(w, s->threads);
+        if (!s->sink.scratch) {
+            sim_stepper_destroy(s);
+            return NULL;
+        }
+    }
+    return s;
+}
+
+void sim_stepper_destroy(sim_stepper *s)
+{
+    if (!s)
+        return;
+    if (s->sink.scratch && s->variant->scratch_destroy)
+        s->variant->scratch_destroy(s->sink.scratch);
+    if (s->sink.bufs)
+        for (int k = 0; k < s->sink.count; k++)
+            free(s->sink.bufs[k].items);
+    free(s->sink.bufs);
+    free(s->walls.items);
+    free(s->merged);
+    free(s->event);
+    free(s->event_t);
+    free(s->nx);
+    free(s->ny);
+    free(s->nvx);
+    free(s->nvy);
+    free(s);
+}
+
+/* The SPEC §2 key: t ascending; pair before wall; smaller i; smaller j. Total, so qsort's
+ * instability cannot show. */
+static int cand_cmp(const void *pa, const void *pb)
+{
+    const sim_cand *a = pa, *b = pb;
+    if (a->t < b->t)
+        return -1;
+    if (a->t > b->t)
+        return 1;
+    const int a_wall = a->j == SIM_WALL, b_wall = b->j == SIM_WALL;
+    if (a_wall != b_wall)
+        return a_wall - b_wall;
+    if (a->i != b->i)
+        return a->i < b->i ? -1 : 1;
+    if (a->j != b->j)
+        return a->j < b->j ? -1 : 1;
+    return 0;
+}
+
+static void find_walls(sim_stepper *s, const sim_world *w)
+{
+    s->walls.len = 0;
+    for (int32_t i = 0; i < w->n; i++) {
+        const sim_real tw = sim_wall_time(w, i);
+        if (tw <= 1)
+            sim_cand_push(&s->walls, tw, i, SIM_WALL);
+    }
+}
+
+/* Gather the wall buffer and every finder buffer into one sorted list. Returns its length, or
+ * (size_t)-1 when memory ran out. */
+static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
+{
+    size_t total = s->walls.len;
+    bool failed = s->walls.failed;
+    for (int k = 0; k < s->sink.count; k++) {
+        total += s->sink.bufs[k].len;
+        failed |= s->sink.bufs[k].failed;
+        stats->pair_tests += s->sink.bufs[k].pair_tests;
+        s->sink.bufs[k].pair_tests = 0;
+    }
+    if (failed || !buf_reserve(&s->merged, &s->merged_cap, total))
+        return (size_t)-1;
+    size_t at = 0;
+    memcpy(s->merged + at, s->walls.items, s->walls.len * sizeof(sim_cand));
+    at += s->walls.len;
+    for (int k = 0; k < s->sink.count; k++) {
+        memcpy(s->merged + at, s->sink.bufs[k].items, s->sink.bufs[k].len * sizeof(sim_cand));
+        at += s->sink.bufs[k].len;
+        s->sink.bufs[k].len = 0;
+    }
+    qsort(s->merged, total, sizeof(sim_cand), cand_cmp);
+    stats->candidates += total;
+    return total;
+}
+
+static void resolve(sim_stepper *s, int32_t n, size_t count, sim_stats *stats)
+{
+    for (int32_t i = 0; i < n; i++)
+        s->event[i] = SIM_EVENT_NONE;
+    for (size_t k = 0; k < count; k++) {
+        const sim_cand c = s->merged[k];
+        if (s->event[c.i] != SIM_EVENT_NONE)
+            continue;
+        if (c.j == SIM_WALL) {
+            s->event[c.i] = SIM_WALL;
+            s->event_t[c.i] = c.t;
+            stats->wall_collisions++;
+        } else if (s->event[c.j] == SIM_EVENT_NONE) {
+            s->event[c.i] = c.j;
+            s->event[c.j] = c.i;
+            s->event_t[c.i] = c.t;
+            s->event_t[c.j] = c.t;
+            stats->pair_collisions++;
+        }
+    }
+}
+
+/* Move particle i for the whole step, from the world's state into the stepper's next state. */
+static void move_one(sim_stepper *s, sim_world *w, int32_t i)
+{
+    const sim_real lo = w->lo, hi = w->hi;
+    sim_real x = w->x[i], y = w->y[i], vx = w->vx[i], vy = w->vy[i];
+    const int32_t e = s->event[i];
+    if (e == SIM_EVENT_NONE) {
+        x += vx;
+        y += vy;
+    } else if (e == SIM_WALL) {
+        const sim_real t = s->event_t[i];
+        const sim_real tx = axis_time(x, vx, lo, hi), ty = axis_time(y, vy, lo, hi);
+        x += t * vx;
+        y += t * vy;
+        if (tx == t) {
+            x = axis_wall(vx, lo, hi);
+            vx = -vx;
+        }
+        if (ty == t) {
+            y = axis_wall(vy, lo, hi);
+            vy = -vy;
+        }
+        w->wcoll[i]++;
+        finish(&x, &y, vx, vy, 1 - t, lo, hi);
+    } else {
+        /* Both partners evaluate the same expressions on the same old state, in the pair's
+         * (lower, higher) order, so each computes bit-identical n, ua and ub on its own. */
+        const sim_real t = s->event_t[i];
+        const int32_t a = i < e ? i : e, b = i < e ? e : i;
+        const sim_real xa = w->x[a] + t * w->vx[a], ya = w->y[a] + t * w->vy[a];
+        const sim_real xb = w->x[b] + t * w->vx[b], yb = w->y[b] + t * w->vy[b];
+        const sim_real dx = xb - xa, dy = yb - ya;
+        const sim_real dist = SIM_SQRT(dx * dx + dy * dy);
+        x += t * vx;
+        y += t * vy;
+        /* dist is about 2r > 0 at contact; it is 0 only if 2r underflows, and then no normal
+         * exists: the discs keep their velocities. */
+        if (dist > 0) {
+            const sim_real nx = dx / dist, ny = dy / dist;
+            const sim_real ua = w->vx[a] * nx + w->vy[a] * ny;
+            const sim_real ub = w->vx[b] * nx + w->vy[b] * ny;
+            const sim_real du = i == a ? ub - ua : ua - ub;
+            vx = vx + du * nx;
+            vy = vy + du * ny;
+        }
+        w->pcoll[i]++;
+        finish(&x, &y, vx, vy, 1 - t, lo, hi);
+    }
+    s->nx[i] = clamp(x, lo, hi);
+    s->ny[i] = clamp(y, lo, hi);
+    s->nvx[i] = vx;
+    s->nvy[i] = vy;
+}
+
+static void swap_arrays(sim_real **a, sim_real **b)
+{
+    sim_real *t = *a;
+    *a = *b;
+    *b = t;
+}
+
+int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
+{
+    const int32_t n = w->n;
+    find_walls(s, w);
+    s->variant->find_pairs(w, &s->sink);
+    const size_t count = merge_candidates(s, stats);
+    if (count == (size_t)-1)
+        return -1;
+    resolve(s, n, count, stats);
+    /* Every particle costs about the same here, so a static schedule balances. */
+#pragma omp parallel for schedule(static) if (s->parallel && n >= SIM_PARALLEL_MOTION_MIN)
+    for (int32_t i = 0; i < n; i++)
+        move_one(s, w, i);
+    swap_arrays(&w->x, &s->nx);
+    swap_arrays(&w->y, &s->ny);
+    swap_arrays(&w->vx, &s->nvx);
+    swap_arrays(&w->vy, &s->nvy);
+    return 0;
+}

@@ -1,0 +1,14 @@
+/*
+ * p2d: p2 with `schedule(dynamic)` (the seed's fifth strategy): each row's j-tiles go one at a
+ * time to whichever thread is free, then the row's barrier.
+ */
+#include "core/sim.h"
+
+static void find_pairs(const sim_world *w, sim_pair_sink *sink)
+{
+    sim_for_row_tiles(w, sink, omp_sched_dynamic);
+}
+
+const sim_variant sim_variant_def = {
+    .name = "p2d", .exact = true, .parallel = true, .find_pairs = find_pairs,
+};
