@@ -78,10 +78,12 @@ build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core
 	@mkdir -p $(@D)
 	$(CC) $(BASE_CFLAGS) $(SANITIZE) -Ivariants/core $(CFLAGS) $(filter %.c %.o,$^) -o $@ $(BASE_LDLIBS)
 
+SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
+
+# Unit tests, then every scene script against the optimised and the sanitizer builds.
 test-c: all asan $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS))
-	@set -e; for t in $(C_TESTS); do build/tests/$$t; build/tests-asan/$$t; done
-	tests/c/run_scenes.sh build
-	tests/c/run_scenes.sh build/asan
+	@set -e; for t in $(C_TESTS); do echo "== $$t"; build/tests/$$t; echo "== $$t (asan)"; build/tests-asan/$$t; done
+	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
 
 test-python: $(PYTHON) all
 	$(PYTHON) -m pytest -q

@@ -1,0 +1,1 @@
+"""The issues' performance benchmarks (make bench)."""

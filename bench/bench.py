@@ -1,0 +1,236 @@
+"""The issues' performance benchmarks: `make bench` (or `python bench/bench.py [GROUP ...]`).
+
+Each case runs its binary with `--timing`; cases of a group run interleaved, round after round,
+so that the ratios between them come from one stretch of machine time (this machine is noisy).
+Reported: the median wall time, the median simulation time from `--timing`, pair tests per
+second and the speedup against the group's reference case. Saved, never overwritten in place,
+to results/bench/bench-<group>-<UTC time>.{json,md} beside the machine's description.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bench.scenes_dense import write_dense_slow  # noqa: E402
+
+OUT_DIR = ROOT / "results" / "bench"
+REPORT_SCENE = "10000 20000 1 50\nperf\n"  # the seed report's benchmark: N, L, r, S
+MILLION_SCENE = "1000000 200000 1 10\nperf\n"  # same density, 100x the particles
+RELATIVE_SCENE = "4000 200 1 100\nperf\n"  # the seed report's Section 7.1 scene
+
+
+@dataclass(frozen=True)
+class Case:
+    label: str
+    variant: str
+    threads: int
+    scene: str  # name of an input in the group's inputs
+
+
+@dataclass(frozen=True)
+class Group:
+    name: str
+    title: str
+    inputs: dict[str, str]  # scene name -> input text, or "@dense:N:L:S" for a generated file
+    cases: tuple[Case, ...]
+    reference: str  # label of the case speedups are measured against
+    rounds: int = 3
+
+
+@dataclass
+class Result:
+    case: Case
+    wall_s: list[float] = field(default_factory=list)
+    sim_s: list[float] = field(default_factory=list)
+    pair_tests: int = 0
+    max_rss_kib: int = 0
+
+
+GROUPS = {
+    "core": Group(
+        name="core",
+        title="Report benchmark (N=10000, L=20000, r=1, S=50): strategies",
+        inputs={"report": REPORT_SCENE},
+        cases=(
+            Case("seq", "seq", 1, "report"),
+            Case("p1 x2", "p1", 2, "report"),
+            Case("p2 x2", "p2", 2, "report"),
+            Case("p1d x2", "p1d", 2, "report"),
+            Case("p2d x2", "p2d", 2, "report"),
+        ),
+        reference="seq",
+    ),
+    "grid": Group(
+        name="grid",
+        title="grid against seq on the report benchmark",
+        inputs={"report": REPORT_SCENE},
+        cases=(
+            Case("seq", "seq", 1, "report"),
+            Case("grid x1", "grid", 1, "report"),
+            Case("grid x2", "grid", 2, "report"),
+        ),
+        reference="seq",
+        rounds=2,
+    ),
+    "million": Group(
+        name="million",
+        title="grid at N=1,000,000, L=200000, r=1, S=10 (same density)",
+        inputs={"million": MILLION_SCENE},
+        cases=(Case("grid x2", "grid", 2, "million"),),
+        reference="grid x2",
+        rounds=1,
+    ),
+    "dense": Group(
+        name="dense",
+        title="Dense slow scene (N=100000, L=2000, r=1, |v|~1, S=100) and a cut for seq",
+        inputs={"dense": "@dense:100000:2000:100", "cut": "@dense:5000:447.2135955:100"},
+        cases=(
+            Case("seq cut", "seq", 1, "cut"),
+            Case("grid cut x1", "grid", 1, "cut"),
+            Case("grid x2", "grid", 2, "dense"),
+        ),
+        reference="seq cut",
+        rounds=1,
+    ),
+    "relative": Group(
+        name="relative",
+        title="relative against seq on the report's Section 7.1 scene (N=4000, L=200, r=1, S=100)",
+        inputs={"s71": RELATIVE_SCENE},
+        cases=(Case("seq", "seq", 1, "s71"), Case("relative x1", "relative", 1, "s71")),
+        reference="seq",
+    ),
+}
+
+
+def materialise(inputs: dict[str, str], where: Path) -> dict[str, Path]:
+    paths = {}
+    for name, text in inputs.items():
+        path = where / f"{name}.in"
+        if text.startswith("@dense:"):
+            _, n, side, steps = text.split(":")
+            write_dense_slow(path, int(n), float(side), int(steps))
+        else:
+            path.write_text(text)
+        paths[name] = path
+    return paths
+
+
+def run_case(case: Case, path: Path) -> tuple[float, dict, int]:
+    """One run: wall seconds, the --timing record, peak RSS (KiB) of the child."""
+    binary = ROOT / "build" / case.variant
+    cmd = [str(binary), "--threads", str(case.threads), "--timing", str(path)]
+    env = dict(os.environ, OMP_NUM_THREADS=str(case.threads))
+    with tempfile.TemporaryFile() as err:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=env)
+        _, status, usage = os.wait4(proc.pid, 0)  # wait4: this child's own peak RSS
+        wall = time.perf_counter() - start
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        stderr = err.read().decode(errors="replace").strip()
+    if proc.returncode != 0:
+        raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {stderr}")
+    return wall, json.loads(stderr.splitlines()[-1]), usage.ru_maxrss
+
+
+def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
+    results = [Result(c) for c in group.cases]
+    for rnd in range(group.rounds):
+        for res in results:
+            wall, timing, rss = run_case(res.case, paths[res.case.scene])
+            res.max_rss_kib = max(res.max_rss_kib, rss)
+            res.wall_s.append(wall)
+            res.sim_s.append(timing["sim_s"])
+            res.pair_tests = timing["pair_tests"]
+            print(f"  round {rnd + 1}/{group.rounds}  {res.case.label:<14} {wall:8.3f} s",
+                  file=sys.stderr, flush=True)
+    return results
+
+
+def table(group: Group, results: list[Result]) -> str:
+    ref = next(r for r in results if r.case.label == group.reference)
+    ref_wall = statistics.median(ref.wall_s)
+    lines = [
+        f"### {group.title}",
+        "",
+        "| case | variant | threads | wall median (s) | sim median (s) | pair tests/s | "
+        "speedup vs " + group.reference + " | peak RSS (MiB) |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for r in results:
+        wall, sim = statistics.median(r.wall_s), statistics.median(r.sim_s)
+        rate = r.pair_tests / sim if sim > 0 else float("nan")
+        lines.append(
+            f"| {r.case.label} | {r.case.variant} | {r.case.threads} | {wall:.3f} | {sim:.3f} | "
+            f"{rate:.3g} | {ref_wall / wall:.2f} | {r.max_rss_kib / 1024:.0f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def machine() -> dict[str, str]:
+    cpu = next((line.split(":", 1)[1].strip() for line in
+                Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("model name")),
+               "unknown")
+    flags = subprocess.run(["make", "-s", "print-flags"], cwd=ROOT, capture_output=True,
+                           text=True, check=False).stdout.strip()
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                            capture_output=True, text=True, check=False).stdout.strip()
+    return {"cpu": cpu, "cores": str(os.cpu_count()), "flags": flags, "commit": commit,
+            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def save(group: Group, results: list[Result], text: str, env: dict[str, str]) -> Path:
+    OUT_DIR.mkdir(parents=True, exist_ok=True)
+    stem = OUT_DIR / f"bench-{group.name}-{env['date'].replace(':', '')}"
+    record = {"group": group.name, "title": group.title, "machine": env,
+              "results": [asdict(r) for r in results]}
+    for suffix, body in ((".json", json.dumps(record, indent=2) + "\n"), (".md", text)):
+        tmp = stem.with_suffix(suffix + ".tmp")
+        tmp.write_text(body)
+        os.replace(tmp, stem.with_suffix(suffix))
+    return stem
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("groups", nargs="*", default=["core", "grid", "relative"],
+                    help=f"groups to run (default: core grid relative; all: {', '.join(GROUPS)})")
+    args = ap.parse_args(argv)
+    unknown = [g for g in args.groups if g not in GROUPS]
+    if unknown:
+        print(f"error: unknown group {unknown[0]!r}; choose from {', '.join(GROUPS)}",
+              file=sys.stderr)
+        return 2
+    env = machine()
+    print(f"machine: {env['cpu']}, {env['cores']} cores; {env['flags']}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.groups:
+            group = GROUPS[name]
+            missing = [c.variant for c in group.cases if not (ROOT / "build" / c.variant).exists()]
+            if missing:
+                print(f"skip {name}: build/{missing[0]} is not built")
+                continue
+            print(f"== {group.title}", file=sys.stderr)
+            paths = materialise(group.inputs, Path(tmp))
+            results = measure(group, paths)
+            text = table(group, results)
+            stem = save(group, results, text, env)
+            print(text)
+            print(f"saved {stem.relative_to(ROOT)}.{{json,md}}\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

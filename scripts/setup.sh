@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Set up what collide-bench needs beyond gcc, make and python3: the Python environment
+# (.venv, pinned requirements.txt) and hyperfine (Debian's package). Safe to run again: it does
+# only what is missing. Used by `make setup`, the quick start and CI.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+venv=.venv
+stamp=$venv/.requirements.sha256
+want=$(sha256sum requirements.txt | cut -d' ' -f1)
+
+as_root() { [ "$(id -u)" = 0 ]; }
+apt_install() {
+    # apt-get update only when the package is unknown to the local lists.
+    if ! apt-cache show "$1" >/dev/null 2>&1; then apt-get update -q >/dev/null; fi
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -q "$1" >/dev/null
+}
+
+# Python environment.
+if [ ! -x "$venv/bin/python" ]; then
+    if ! python3 -m venv "$venv" 2>/dev/null; then
+        rm -rf "$venv"
+        if as_root; then
+            apt_install python3-venv
+            python3 -m venv "$venv"
+        else
+            echo "setup: python3 cannot create a virtual environment; run: sudo apt-get install python3-venv" >&2
+            exit 1
+        fi
+    fi
+fi
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+    echo "setup: installing Python packages into $venv (requirements.txt)"
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check -r requirements.txt
+    echo "$want" > "$stamp"
+fi
+
+# hyperfine.
+if ! command -v hyperfine >/dev/null 2>&1; then
+    if as_root && command -v apt-get >/dev/null 2>&1; then
+        echo "setup: installing hyperfine (Debian package)"
+        apt_install hyperfine
+    else
+        echo "setup: hyperfine is missing; run: sudo apt-get install hyperfine" >&2
+        exit 1
+    fi
+fi
+echo "setup: ready ($("$venv/bin/python" --version), $(hyperfine --version))"
