@@ -1,0 +1,1 @@
+"""collide-bench experiment harness: configs, scenes, measurement, validation, results."""

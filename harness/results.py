@@ -1,0 +1,231 @@
+"""What a measurement leaves behind: cell ids, per-cell records, hyperfine JSON, results.csv.
+
+Layout of `results/<name>/`:
+  cells/<cell_id>.json             the harness's record of one cell (every CSV field and more)
+  cells/<cell_id>.hyperfine.json   hyperfine's export, as written
+  inputs/<sha>.in                  the input files the cells read
+  outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
+  env.json                         the machine, tools and flags
+  results.csv                      one row per cell, CSV_COLUMNS first
+
+Every file is written to a temporary file in its directory and os.replace'd into place.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+RECORD_VERSION = 1
+CELL_ID_CHARS = 16
+STATUSES = ("ok", "invalid", "failed", "crashed", "timeout")
+UNSTABLE_RELATIVE_STDDEV = 0.10
+
+# The contract with the report: these columns, in this order, start every results.csv.
+CSV_COLUMNS = (
+    "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed",
+    "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s", "wall_min_s",
+    "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status", "exit_code",
+    "identical", "max_pos_err", "max_vel_err", "count_mismatches", "oversubscribed", "unstable",
+    "cores", "cell_id", "binary_sha256",
+)
+EXTRA_COLUMNS = (
+    "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",
+    "validated", "exact", "baseline_sha256", "input_sha256", "note",
+)
+TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair_collisions",
+               "wall_collisions")
+
+Record = dict[str, object]
+
+
+# --- cell ids -----------------------------------------------------------------------------
+
+
+def cell_id(key: Mapping[str, object]) -> str:
+    """A content address: the same measurement inputs give the same id, any change a new one."""
+    canonical = json.dumps({"version": RECORD_VERSION, **key}, sort_keys=True,
+                           separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()[:CELL_ID_CHARS]
+
+
+def sha256_file(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+# --- hyperfine and --timing ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HyperfineStats:
+    command: str
+    mean: float
+    stddev: float | None  # null with a single run
+    median: float
+    min: float
+    max: float
+    user: float
+    system: float
+    times: tuple[float, ...]
+    exit_codes: tuple[int | None, ...]
+
+    @property
+    def runs(self) -> int:
+        return len(self.times)
+
+    @property
+    def unstable(self) -> bool:
+        """stddev >= 10% of the mean."""
+        return (self.stddev is not None and self.mean > 0
+                and self.stddev >= UNSTABLE_RELATIVE_STDDEV * self.mean)
+
+
+class ResultFormatError(ValueError):
+    """A hyperfine export or a --timing line that cannot be read."""
+
+
+def parse_hyperfine(data: Mapping[str, object]) -> HyperfineStats:
+    """The single benchmark of a hyperfine --export-json document."""
+    results = data.get("results")
+    if not isinstance(results, list) or len(results) != 1 or not isinstance(results[0], dict):
+        raise ResultFormatError("expected one entry under 'results'")
+    entry = results[0]
+    try:
+        return HyperfineStats(
+            command=str(entry["command"]),
+            mean=float(entry["mean"]),
+            stddev=None if entry.get("stddev") is None else float(entry["stddev"]),
+            median=float(entry["median"]),
+            min=float(entry["min"]),
+            max=float(entry["max"]),
+            user=float(entry["user"]),
+            system=float(entry["system"]),
+            times=tuple(float(t) for t in entry["times"]),
+            exit_codes=tuple(None if c is None else int(c) for c in entry.get("exit_codes", [])),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ResultFormatError(f"bad hyperfine entry: {exc!r}") from None
+
+
+def load_hyperfine(path: Path) -> HyperfineStats:
+    try:
+        return parse_hyperfine(json.loads(path.read_text()))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ResultFormatError(f"{path}: {exc}") from None
+
+
+HYPERFINE_EXIT = re.compile(r"non-zero exit code: (-?\d+)")
+HYPERFINE_SIGNAL = "terminated by a signal"
+
+
+def hyperfine_failure(stderr: str) -> tuple[str, int | None]:
+    """Status and exit code of the benchmarked command from hyperfine's error message."""
+    match = HYPERFINE_EXIT.search(stderr)
+    if match:
+        return "failed", int(match.group(1))
+    if HYPERFINE_SIGNAL in stderr:
+        return "crashed", None
+    return "failed", None
+
+
+def parse_timing(stderr: str) -> dict[str, object] | None:
+    """The --timing JSON object: the last stderr line that parses as one."""
+    for line in reversed(stderr.splitlines()):
+        text = line.strip()
+        if text.startswith("{"):
+            try:
+                value = json.loads(text)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(value, dict):
+                return value
+    return None
+
+
+# --- files --------------------------------------------------------------------------------
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode())
+
+
+def atomic_write_json(path: Path, value: object) -> None:
+    atomic_write_text(path, json.dumps(value, indent=2, sort_keys=True, default=str) + "\n")
+
+
+def temp_path(path: Path) -> Path:
+    """A fresh name beside `path` for a file a subprocess writes before it is os.replace'd."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    return Path(tmp)
+
+
+def read_record(path: Path, expected_id: str) -> Record | None:
+    """A stored cell record, or None when absent, unreadable or from another harness version."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    if not isinstance(record, dict):
+        return None
+    if record.get("version") != RECORD_VERSION or record.get("cell_id") != expected_id:
+        return None
+    return record
+
+
+# --- results.csv --------------------------------------------------------------------------
+
+
+def csv_row(record: Mapping[str, object], experiment: str, title: str) -> dict[str, object]:
+    row: dict[str, object] = {"experiment": experiment, "title": title}
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS):
+        row[column] = record.get(column)
+    return row
+
+
+def format_cell(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "inf" if math.isinf(value) and value > 0 else repr(value)
+    return str(value)
+
+
+def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
+    columns = (*CSV_COLUMNS, *EXTRA_COLUMNS)
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        writer.writerow([format_cell(row.get(c)) for c in columns])
+    return buffer.getvalue()
+
+
+def write_results_csv(path: Path, rows: Iterable[Mapping[str, object]]) -> None:
+    atomic_write_text(path, render_csv(rows))

@@ -1,0 +1,480 @@
+"""Table builders for the report: pure functions from a results DataFrame to a table DataFrame.
+
+The input is one experiment's results.csv as loaded by `harness.report.read_results` (typed
+columns, one row per measured cell). Builders return numbers, not strings; `format_table`
+turns a built table into display strings with unit-bearing headers for Markdown and HTML.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+# The columns that identify a measured cell, in the order tables show them.
+CELL_KEYS: tuple[str, ...] = (
+    "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
+)
+# The columns that identify a simulated input: cells sharing them simulate the same thing,
+# so one may serve as the other's speedup baseline.
+SCENE_KEYS: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "mode", "seed")
+# Parameters a section can sweep, in the order the course report's tables take them.
+SWEEP_AXES: tuple[str, ...] = ("n", "L", "r", "threads")
+
+OK = "ok"
+INVALID = "invalid"
+# Statuses whose timings exist and mean something: an invalid cell ran to the end, only its
+# output disagrees with the baseline.
+TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
+STATUSES: frozenset[str] = frozenset({OK, INVALID, "failed", "crashed", "timeout"})
+
+SEQ = "seq"
+BASELINE_BUILD = "f64"
+# Canonical orders (SPEC section 6 for variants); anything else sorts after, alphabetically.
+VARIANT_ORDER: tuple[str, ...] = ("seq", "p1", "p2", "p3", "p1d", "p2d", "relative", "grid")
+BUILD_ORDER: tuple[str, ...] = ("f64", "f32", "f128", "textbook", "report")
+
+# The variants that test all pairs like seq: their speedup over seq is parallelism alone.
+ALL_PAIRS_VARIANTS: frozenset[str] = frozenset({"seq", "p1", "p2", "p3", "p1d", "p2d"})
+# Variants that run one thread whatever `--threads` says: a thread count is nominal for them.
+SINGLE_THREADED_VARIANTS: frozenset[str] = frozenset({"seq"})
+
+BASELINE_SEQ = "seq"
+BASELINE_ONE_THREAD = "1 thread"
+
+# Display headers for every column a builder can produce.
+DISPLAY_NAMES: dict[str, str] = {
+    "experiment": "experiment",
+    "variant": "variant",
+    "build": "build",
+    "scene": "scene",
+    "n": "N",
+    "L": "L",
+    "r": "r",
+    "steps": "S",
+    "mode": "mode",
+    "seed": "seed",
+    "threads": "threads",
+    "cores": "cores",
+    "runs": "runs",
+    "median_s": "median [s]",
+    "min_s": "min [s]",
+    "stddev_s": "stddev [s]",
+    "speedup": "speedup",
+    "efficiency": "efficiency",
+    "serial_fraction": "serial fraction e",
+    "baseline": "speedup vs",
+    "validation": "validation",
+    "series": "series",
+    "exponent": "exponent k",
+    "prefactor_s": "a [s]",
+    "points": "points",
+    "x_min": "from",
+    "x_max": "to",
+    "max_pos_err": "max position error (÷L)",
+    "max_vel_err": "max velocity error",
+    "count_mismatches": "count mismatches",
+    "pareto": "Pareto",
+    "status": "status",
+    "issue": "issue",
+}
+
+
+def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]:
+    """The keys that take more than one value across the rows: what the experiment varies."""
+    return [k for k in keys if k in df.columns and df[k].nunique(dropna=False) > 1]
+
+
+def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str, object]:
+    """The keys that take exactly one value across the rows, with that value."""
+    fixed: dict[str, object] = {}
+    for key in keys:
+        if key in df.columns and len(df) and df[key].nunique(dropna=False) == 1:
+            fixed[key] = df[key].iloc[0]
+    return fixed
+
+
+def _follows(df: pd.DataFrame, key: str, x: str) -> bool:
+    """Whether `key` and `x` determine each other (e.g. a scene file per N, or S chosen per N):
+    such a key names the point, not the series."""
+    return bool(
+        df.groupby(key, dropna=False)[x].nunique(dropna=False).max() == 1
+        and df.groupby(x, dropna=False)[key].nunique(dropna=False).max() == 1
+    )
+
+
+def series_keys(df: pd.DataFrame, x: str) -> list[str]:
+    """The keys that split the rows into one plotted series each, for a plot against `x`."""
+    return [k for k in varying_keys(df) if k != x and not _follows(df, k, x)]
+
+
+def sweep_axes(df: pd.DataFrame) -> list[str]:
+    """The parameters some variant and build was measured at several values of.
+
+    Judged within each variant and build so that seq at 1 thread beside p1 at 8 is not
+    mistaken for a thread sweep.
+    """
+    groups = df.groupby(["variant", "build"], dropna=False)
+    return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
+
+
+def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
+    """A legend label such as `p1d · f32 · threads=8` (variant and build go bare)."""
+    if not keys:
+        return "all cells"
+    parts = []
+    for key, value in zip(keys, values, strict=True):
+        text = format_value(key, value)
+        if key in ("variant", "build", "scene"):
+            parts.append(text)
+        elif key == "threads":
+            parts.append(f"{text} thread{'' if text == '1' else 's'}")
+        else:
+            parts.append(f"{DISPLAY_NAMES[key]}={text}")
+    return " · ".join(parts)
+
+
+def _rank(order: Sequence[str]) -> Callable[[pd.Series], pd.Series]:
+    """A sort key that puts the names of `order` first, in that order, then the rest."""
+
+    def key(col: pd.Series) -> pd.Series:
+        ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
+        return col.map(lambda v: ranks.get(v, f"999{v}"))
+
+    return key
+
+
+def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """Rows sorted by `keys`: variants and builds in their canonical order, numbers by value."""
+    keys = [k for k in keys if k in df.columns]
+    if not keys:
+        return df.reset_index(drop=True)
+
+    def key(col: pd.Series) -> pd.Series:
+        if col.name == "variant":
+            return _rank(VARIANT_ORDER)(col)
+        if col.name == "build":
+            return _rank(BUILD_ORDER)(col)
+        return col
+
+    return df.sort_values(list(keys), key=key, kind="stable").reset_index(drop=True)
+
+
+def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
+    """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
+    build (the validation baseline) where measured, else seq of the row's own build.
+
+    Returns columns `base_s` (seq's median) and `base_build`. seq is single-threaded whatever
+    `threads` says, so its lowest-thread cell stands for all.
+    """
+    seq = df[(df["variant"] == SEQ) & (df["status"] == OK) & df["wall_median_s"].notna()]
+    seq = seq.sort_values("threads", kind="stable")
+    keys = list(SCENE_KEYS)
+    reference = (
+        seq[seq["build"] == BASELINE_BUILD]
+        .drop_duplicates(keys)[[*keys, "wall_median_s", "build"]]
+        .rename(columns={"wall_median_s": "_ref_s", "build": "_ref_build"})
+    )
+    same_build = (
+        seq.drop_duplicates([*keys, "build"])[[*keys, "build", "wall_median_s"]]
+        .rename(columns={"wall_median_s": "_same_s"})
+    )
+    merged = df[[*keys, "build"]].merge(reference, how="left", on=keys)
+    merged = merged.merge(same_build, how="left", on=[*keys, "build"])
+    has_ref = merged["_ref_s"].notna()
+    base = pd.DataFrame(
+        {
+            "base_s": merged["_ref_s"].where(has_ref, merged["_same_s"]),
+            "base_build": merged["_ref_build"].where(has_ref, merged["build"]),
+        }
+    )
+    base.index = df.index
+    return base
+
+
+def _one_thread_baseline(df: pd.DataFrame) -> pd.Series:
+    """Per row, the median of the same variant and build at 1 thread on the same scene."""
+    keys = [*SCENE_KEYS, "variant", "build"]
+    one = df[(df["threads"] == 1) & (df["status"] == OK) & df["wall_median_s"].notna()]
+    one = one.drop_duplicates(keys)[[*keys, "wall_median_s"]].rename(
+        columns={"wall_median_s": "_one"}
+    )
+    base = df[keys].merge(one, how="left", on=keys)["_one"]
+    base.index = df.index
+    return base
+
+
+def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
+    """The Karp-Flatt experimentally determined serial fraction e = (1/S - 1/p) / (1 - 1/p).
+
+    Defined for p > 1 only (at p = 1 it is 0/0); NaN elsewhere and where S is unknown.
+    """
+    p = threads.astype("float64")
+    inv_p = 1.0 / p
+    e = (1.0 / speedup - inv_p) / (1.0 - inv_p)
+    return e.where(p > 1)
+
+
+def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataFrame:
+    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
+
+    Speedup is the ok seq median on the same scene over the cell's median. With
+    `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
+    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads.
+    """
+    out = df.copy()
+    seq = _seq_baseline(df)
+    base = seq["base_s"]
+    label = pd.Series(np.where(base.notna(), BASELINE_SEQ, ""), index=df.index, dtype=object)
+    # Parallel efficiency and the serial fraction read a speedup as the work of one thread
+    # spread over p: true against seq for the all-pairs family in seq's build, or against
+    # the variant's own single thread; a grid's or an f32 build's gain is another algorithm.
+    same_work = df["variant"].isin(ALL_PAIRS_VARIANTS) & (df["build"] == seq["base_build"])
+    # seq told to use p threads still uses one: S/p would charge it for threads it never ran.
+    same_work &= ~(df["variant"].isin(SINGLE_THREADED_VARIANTS) & (df["threads"] > 1))
+    if thread_baseline:
+        own = _one_thread_baseline(df)
+        use_own = base.isna() & own.notna()
+        base = base.where(~use_own, own)
+        label[use_own] = BASELINE_ONE_THREAD
+        same_work |= use_own
+    timed = out["status"].isin(TIMED_STATUSES)
+    out["baseline"] = label.where(base.notna(), "")
+    out["baseline_s"] = base
+    out["speedup"] = (base / out["wall_median_s"]).where(timed)
+    out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
+    out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
+    return out
+
+
+def _is_false(value: object) -> bool:
+    """Whether a nullable boolean is a known False (not missing)."""
+    return value is not None and not pd.isna(value) and not bool(value)
+
+
+def validation_text(row: pd.Series) -> str:
+    """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
+    status = str(row["status"])
+    parts = [status]
+    exit_code = row.get("exit_code")
+    if status in ("failed", "crashed") and exit_code is not None and pd.notna(exit_code):
+        parts[0] = f"{status} (exit {int(exit_code)})"
+    if _is_false(row.get("identical")) and status == OK:
+        parts.append("differs from seq")
+    if bool(row.get("oversubscribed")):
+        parts.append("oversubscribed")
+    if bool(row.get("unstable")):
+        parts.append("unstable timing")
+    return " · ".join(parts)
+
+
+def cell_table(
+    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False
+) -> pd.DataFrame:
+    """One row per cell: its keys, runs, median/min/stddev, speedup, efficiency, validation.
+
+    The shape of the course report's Tables 2-6 with our statistics in place of its
+    "first/second/third time, shortest". When `threads` is among the keys, the Karp-Flatt
+    serial fraction and the speedup baseline of each row are added.
+    """
+    rows = with_speedup(df, thread_baseline=thread_baseline)
+    table = pd.DataFrame({k: rows[k] for k in keys})
+    table["runs"] = rows["runs"]
+    table["median_s"] = rows["wall_median_s"]
+    table["min_s"] = rows["wall_min_s"]
+    table["stddev_s"] = rows["wall_stddev_s"]
+    table["speedup"] = rows["speedup"]
+    table["efficiency"] = rows["efficiency"]
+    if "threads" in keys:
+        table["serial_fraction"] = rows["serial_fraction"]
+        table["baseline"] = rows["baseline"]
+    table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
+    return sort_cells(table, keys)
+
+
+def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
+    """Per series, the least-squares fit of log t = k log x + log a over its ok cells.
+
+    An all-pairs variant does Θ(N²) pair tests per step, so its time grows like a power law
+    with k ≈ 2: a straight line on log-log axes, where an exponential would curve upward.
+    Series with fewer than two distinct x are left out.
+    """
+    keys = series_keys(df, x)
+    ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df[x] > 0)]
+    rows: list[dict[str, object]] = []
+    groups = ok.groupby(keys, sort=False, dropna=False) if keys else [((), ok)]
+    for values, group in groups:
+        if group[x].nunique() < 2:
+            continue
+        k, log_a = np.polyfit(np.log(group[x].astype(float)), np.log(group["wall_median_s"]), 1)
+        label_values = values if isinstance(values, tuple) else (values,)
+        row: dict[str, object] = dict(zip(keys, label_values, strict=True))
+        row.update(
+            exponent=float(k),
+            prefactor_s=float(math.exp(log_a)),
+            points=len(group),
+            x_min=group[x].min(),
+            x_max=group[x].max(),
+        )
+        rows.append(row)
+    columns = [*keys, "exponent", "prefactor_s", "points", "x_min", "x_max"]
+    return sort_cells(pd.DataFrame(rows, columns=columns), keys)
+
+
+def pareto_mask(times: pd.Series, errors: pd.Series) -> pd.Series:
+    """True for the cells no other cell beats on both time and error (lower is better)."""
+    order = sorted(range(len(times)), key=lambda i: (times.iloc[i], errors.iloc[i]))
+    mask = pd.Series(False, index=times.index)
+    best = math.inf
+    for i in order:
+        # Walking by increasing time, a cell is on the front when it is more accurate than
+        # every faster one (ties in time go to the more accurate cell, seen first).
+        if errors.iloc[i] < best:
+            best = errors.iloc[i]
+            mask.iloc[i] = True
+    return mask
+
+
+def has_error_data(df: pd.DataFrame) -> bool:
+    """Whether the rows carry a deviation worth plotting: several builds, or a nonzero error
+    in an ok cell. An invalid cell's error is a defect, listed with the warnings, not a
+    trade-off between speed and accuracy."""
+    ok = df[(df["status"] == OK) & df["max_pos_err"].notna()]
+    if ok.empty:
+        return False
+    return ok["build"].nunique() > 1 or bool((ok["max_pos_err"] > 0).any())
+
+
+def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """Per timed cell with a measured error: time, errors and whether it is on the Pareto front."""
+    rows = df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
+    rows = rows[rows["max_pos_err"].notna()]
+    table = pd.DataFrame({k: rows[k] for k in keys})
+    table["median_s"] = rows["wall_median_s"]
+    table["max_pos_err"] = rows["max_pos_err"]
+    table["max_vel_err"] = rows["max_vel_err"]
+    table["count_mismatches"] = rows["count_mismatches"]
+    table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
+    # Cells of different scenes are not comparable, so each scene has its own front.
+    table["pareto"] = False
+    for _, group in rows.groupby(list(SCENE_KEYS), dropna=False):
+        front = pareto_mask(group["wall_median_s"], group["max_pos_err"])
+        table.loc[front.index, "pareto"] = front
+    return sort_cells(table, keys)
+
+
+def issue_text(row: pd.Series) -> str:
+    """Why a cell is flagged in the warnings: its status and any flags."""
+    issues = []
+    status = str(row["status"])
+    if status == INVALID:
+        issues.append("invalid output")
+    elif status != OK:
+        issues.append(validation_text(row).split(" · ")[0])
+    if bool(row.get("oversubscribed")):
+        cores = row.get("cores")
+        cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
+        issues.append(f"oversubscribed ({int(row['threads'])} threads{cores_text})")
+    if bool(row.get("unstable")):
+        issues.append("unstable timing")
+    return "; ".join(issues)
+
+
+def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
+    """The cells a reader must know about: not ok, oversubscribed, or with unstable timings."""
+    flagged = df[(df["status"] != OK) | df["oversubscribed"] | df["unstable"]]
+    keys = ["experiment", "variant", "build", "scene", "n", "L", "r", "threads"]
+    table = pd.DataFrame({k: flagged[k] for k in keys})
+    table["issue"] = flagged.apply(issue_text, axis=1) if len(flagged) else []
+    return sort_cells(table, ["experiment", "variant", "build", "n", "L", "r", "threads"])
+
+
+# --- display formatting -------------------------------------------------------------------
+
+MISSING_TEXT = "—"
+WHOLE_LIMIT = 1e12  # whole numbers below this are written out in full
+TIME_DIGITS = 4  # significant digits of a time: hyperfine's spread rarely supports more
+
+
+def _fmt_time(v: object) -> str:
+    return f"{float(v):.{TIME_DIGITS}g}"
+
+
+def _fmt_ratio(v: object) -> str:
+    return f"{float(v):.2f}"
+
+
+def _fmt_fraction(v: object) -> str:
+    return f"{float(v):.3f}"
+
+
+def _fmt_error(v: object) -> str:
+    return "0" if float(v) == 0 else f"{float(v):.2e}"
+
+
+def _fmt_int(v: object) -> str:
+    return f"{int(v)}"
+
+
+def _fmt_general(v: object) -> str:
+    if isinstance(v, float | np.floating):
+        # Whole numbers (L = 1e7, N = 1e6) read better written out than as 1e+07.
+        return f"{v:.0f}" if float(v).is_integer() and abs(v) < WHOLE_LIMIT else f"{v:g}"
+    return str(v)
+
+
+def _fmt_bool(v: object) -> str:
+    return "✓" if bool(v) else ""
+
+
+FORMATTERS: dict[str, Callable[[object], str]] = {
+    "median_s": _fmt_time,
+    "min_s": _fmt_time,
+    "stddev_s": _fmt_time,
+    "prefactor_s": lambda v: f"{float(v):.3e}",
+    "speedup": _fmt_ratio,
+    "efficiency": _fmt_ratio,
+    "exponent": _fmt_ratio,
+    "serial_fraction": _fmt_fraction,
+    "max_pos_err": _fmt_error,
+    "max_vel_err": _fmt_error,
+    "runs": _fmt_int,
+    "points": _fmt_int,
+    "count_mismatches": _fmt_int,
+    "n": _fmt_int,
+    "steps": _fmt_int,
+    "seed": _fmt_int,
+    "threads": _fmt_int,
+    "cores": _fmt_int,
+    "pareto": _fmt_bool,
+}
+
+
+def format_value(column: str, value: object) -> str:
+    """One value as the tables show it; missing values as a dash."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return MISSING_TEXT
+    if isinstance(value, str):
+        return value if value else MISSING_TEXT
+    return FORMATTERS.get(column, _fmt_general)(value)
+
+
+def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
+    """Whether a built table's column holds numbers (right-aligned when shown)."""
+    return column != "pareto" and pd.api.types.is_numeric_dtype(df[column].dtype) and not (
+        pd.api.types.is_bool_dtype(df[column].dtype)
+    )
+
+
+def format_table(df: pd.DataFrame) -> pd.DataFrame:
+    """A built table as strings under display headers, ready for Markdown or HTML."""
+    shown = pd.DataFrame(
+        {
+            DISPLAY_NAMES.get(col, col): [format_value(str(col), v) for v in df[col]]
+            for col in df.columns
+        },
+        dtype=object,
+    )
+    return shown

@@ -1,0 +1,60 @@
+"""Shared fixtures. Append new fixtures at the end; keep this file small."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
+E2E_BINARIES = ("seq", "p1", "p1d")
+
+
+@pytest.fixture
+def write_config(tmp_path: Path) -> Callable[[str, str], Path]:
+    """Write YAML text to tmp_path/<name>.yaml and return its path."""
+
+    def write(text: str, name: str = "exp") -> Path:
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(text)
+        return path
+
+    return write
+
+
+def build_or_skip(*names: str) -> Path:
+    """Build build/NAME for each name; skip the test (fail it under CI) when that cannot be."""
+    problem = None
+    if shutil.which("hyperfine") is None:
+        problem = "hyperfine is not installed"
+    else:
+        targets = [f"build/{name}" for name in names]
+        try:
+            done = subprocess.run(["make", "-s", *targets], cwd=REPO_ROOT, capture_output=True,
+                                  text=True, check=False)
+            if done.returncode != 0:
+                problem = f"cannot build {' '.join(targets)}: {done.stderr.strip()[-500:]}"
+        except OSError as exc:
+            problem = f"cannot run make: {exc}"
+    if problem is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"end-to-end tests must run in CI: {problem}")
+        pytest.skip(problem)
+    return REPO_ROOT / "build"
+
+
+@pytest.fixture(scope="session")
+def real_binaries() -> Path:
+    """The build/ directory with seq, p1 and p1d built (the end-to-end tests' binaries)."""
+    return build_or_skip(*E2E_BINARIES)
+
+
+@pytest.fixture(scope="session")
+def build_binaries() -> Callable[..., Path]:
+    """`build_binaries("relative", ...)`: build more binaries, or skip as `real_binaries` does."""
+    return build_or_skip

@@ -1,0 +1,155 @@
+"""End to end: real binaries, real hyperfine, configs/smoke.yaml, both entry points."""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from harness import results, validate
+from harness.run import main
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+SMOKE = REPO_ROOT / "configs" / "smoke.yaml"
+EXACT = ("seq", "p1", "p1d")
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(path.read_text())))
+
+
+def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    build_binaries("relative")
+    root = tmp_path / "results"
+    assert main([str(SMOKE), "--results-dir", str(root), "--no-report"]) == 0
+    first = capsys.readouterr().err
+    assert "smoke: 8 cells (8 measured, 0 cached): 8 ok" in first
+    table = root / "smoke" / "results.csv"
+    header = table.read_text().splitlines()[0].split(",")
+    assert tuple(header[:len(results.CSV_COLUMNS)]) == results.CSV_COLUMNS
+    rows = read_csv(table)
+    assert [(r["variant"], r["threads"]) for r in rows] == [
+        (v, t) for t in ("1", "2") for v in ("seq", "p1", "p1d", "relative")]
+    for row in rows:
+        assert row["status"] == "ok", row
+        assert (row["experiment"], row["scene"], row["n"], row["runs"]) == (
+            "smoke", "random", "200", "2")
+        assert float(row["wall_mean_s"]) > 0 and float(row["sim_s"]) >= 0
+        assert int(row["pair_tests"]) > 0 and row["cores"] and len(row["binary_sha256"]) == 64
+        assert float(row["max_pos_err"]) < 1e-6
+        assert (root / "smoke" / "cells" / f"{row['cell_id']}.hyperfine.json").is_file()
+        if row["variant"] in EXACT:
+            assert row["identical"] == "True" and row["max_pos_err"] == "0.0"
+    assert (root / "smoke" / "env.json").is_file()
+    cells = root / "smoke" / "cells"
+    stamps = {p.name: p.stat().st_mtime_ns for p in cells.iterdir()}
+
+    assert main([str(SMOKE), "--results-dir", str(root), "--no-report"]) == 0
+    second = capsys.readouterr().err
+    assert "smoke: 8 cells (0 measured, 8 cached): 8 ok" in second
+    assert "elapsed" not in second
+    assert stamps == {p.name: p.stat().st_mtime_ns for p in cells.iterdir()}
+    assert read_csv(table) == rows
+
+
+def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path) -> None:
+    fakes = tmp_path / "fakes"
+    fakes.mkdir()
+    crash = fakes / "crash.sh"
+    crash.write_text("#!/bin/sh\nkill -SEGV $$\n")
+    liar = fakes / "liar.sh"  # the real seq, one wall collision too many on the first line
+    liar.write_text(f"#!/bin/sh\nset -e\n{real_binaries / 'seq'} \"$@\" | "
+                    "awk 'NR == 1 { $NF = $NF + 1 } { print }'\n")
+    for path in (crash, liar):
+        path.chmod(0o755)
+    config = tmp_path / "mixed.yaml"
+    config.write_text("name: mixed\nvariants: [seq, crash, liar, p1]\n"
+                      "scene: {n: 100, L: 1000, r: 1, steps: 3}\n"
+                      "measure: {warmup: 0, runs: 1, timeout_s: 30}\nvalidate: true\n"
+                      "binaries: {crash: fakes/crash.sh, liar: fakes/liar.sh}\n")
+    root = tmp_path / "results"
+    assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0
+    rows = {r["variant"]: r for r in read_csv(root / "mixed" / "results.csv")}
+    assert {v: r["status"] for v, r in rows.items()} == {
+        "seq": "ok", "crash": "crashed", "liar": "invalid", "p1": "ok"}
+    assert rows["crash"]["exit_code"] == "-11"
+    assert rows["liar"]["identical"] == "False" and rows["liar"]["count_mismatches"] == "1"
+    assert rows["liar"]["max_pos_err"] == "0.0" and rows["liar"]["wall_mean_s"]
+    assert rows["p1"]["identical"] == "True"
+
+
+def test_report_is_rendered_after_a_run(real_binaries: Path, tmp_path: Path) -> None:
+    pytest.importorskip("harness.report", reason="harness/report.py is not written yet")
+    config = tmp_path / "tiny.yaml"
+    config.write_text("variants: [seq, p1]\nscene: {n: 50, L: 500, r: 1, steps: 2}\n"
+                      "threads: [1, 2]\nmeasure: {warmup: 0, runs: 1}\nvalidate: true\n")
+    report = tmp_path / "report"
+    assert main([str(config), "--results-dir", str(tmp_path / "results"),
+                 "--report-dir", str(report)]) == 0
+    assert (report / "report.md").is_file()
+
+
+def run_script(python: str, *args: str, env: dict[str, str] | None = None,
+               module: bool = False) -> subprocess.CompletedProcess[str]:
+    entry = ["-m", "harness.run"] if module else ["harness/run.py"]
+    return subprocess.run([python, *entry, *args], cwd=REPO_ROOT, capture_output=True,
+                          text=True, check=False, env=env, timeout=120)
+
+
+def test_entry_points(real_binaries: Path, tmp_path: Path) -> None:
+    root = str(tmp_path / "results")
+    plain = shutil.which("python3") or sys.executable
+    as_script = run_script(plain, str(SMOKE), "--dry-run", "--results-dir", root)
+    assert as_script.returncode == 0, as_script.stderr
+    assert as_script.stdout.startswith("smoke: 8 cells (0 cached, 8 to run, 0 excluded)")
+    as_module = run_script(sys.executable, str(SMOKE), "--dry-run", "--quick",
+                           "--results-dir", root, module=True)
+    assert as_module.returncode == 0, as_module.stderr
+    assert f"-> {root}/smoke-quick" in as_module.stdout
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n")
+    failed = run_script(plain, str(bad), "--results-dir", root)
+    assert failed.returncode == 2
+    assert failed.stderr == (f"error: {bad}: key 'scene.n': expected a positive integer or a "
+                             "non-empty list of them, got 'abc'\n")
+
+
+def test_missing_packages_message(tmp_path: Path) -> None:
+    plain = shutil.which("python3")
+    probe = subprocess.run([plain or sys.executable, "-c", "import pandas"],
+                           capture_output=True, check=False)
+    if plain is None or probe.returncode == 0:
+        pytest.skip("no python3 without pandas on PATH to try")
+    env = {**os.environ, "COLLIDE_BENCH_REEXEC": "1"}  # as if the venv had been tried
+    done = run_script(plain, str(SMOKE), "--dry-run", env=env)
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: missing Python packages (")
+    assert done.stderr.endswith("); run 'make setup'\n") and done.stderr.count("\n") == 1
+
+
+def test_generated_scene_and_builds(real_binaries: Path, build_binaries, tmp_path: Path) -> None:
+    build_binaries("seq-f32")
+    config = tmp_path / "gen.yaml"
+    config.write_text("name: gen\nvariants: [seq, p1]\nbuilds: [f64, f32]\n"
+                      "scene: {generator: head_on, gap: 10, speed: 2, steps: 20, mode: print}\n"
+                      "exclude: [{variant: p1, build: f32}]\n"
+                      "measure: {warmup: 0, runs: 1}\nvalidate: true\nkeep_output: true\n")
+    root = tmp_path / "results"
+    assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0
+    rows = read_csv(root / "gen" / "results.csv")
+    assert [(r["variant"], r["build"], r["scene"], r["n"], r["mode"]) for r in rows] == [
+        ("seq", "f64", "head_on", "2", "print"), ("seq", "f32", "head_on", "2", "print"),
+        ("p1", "f64", "head_on", "2", "print")]
+    assert all(r["status"] == "ok" for r in rows)  # f32 is compared, not required identical
+    assert rows[0]["identical"] == "True" and rows[2]["identical"] == "True"
+    assert float(rows[1]["max_pos_err"]) < 1e-3
+    kept = validate.parse_output((root / "gen" / "outputs" / f"{rows[0]['cell_id']}.txt")
+                                 .read_text())
+    assert kept.final.pcoll.tolist() == [1, 1]  # the head-on collision
+    assert kept.history.shape == (2 * 20, 6)

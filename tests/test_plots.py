@@ -1,0 +1,131 @@
+"""Every figure is written, as PNG and SVG, and the PNG is a valid image."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from harness import plots, report, tables
+from PIL import Image
+
+FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+GIF_SIGNATURE = b"GIF89a"
+
+
+def load(name: str) -> pd.DataFrame:
+    return report.read_results(FIXTURE_RESULTS / name / "results.csv")
+
+
+def assert_valid_png(path: Path) -> None:
+    assert path.read_bytes()[:8] == PNG_SIGNATURE
+    with Image.open(path) as image:
+        image.verify()
+    with Image.open(path) as image:
+        assert image.format == "PNG"
+        width, height = image.size
+        # figsize (7, 4.5) at 120 dpi: readable at 100% zoom.
+        assert (width, height) == (840, 540)
+
+
+def assert_figure_files(paths: list[Path], stem: Path) -> None:
+    assert paths == [stem.with_name(f"{stem.name}.png"), stem.with_name(f"{stem.name}.svg")]
+    assert_valid_png(paths[0])
+    svg = paths[1].read_text(encoding="utf-8")
+    assert svg.lstrip().startswith("<?xml") and "</svg>" in svg
+    assert not list(stem.parent.glob(".*.tmp")), "a temporary file was left behind"
+
+
+SWEEP_FIGURES: list[tuple[Callable[..., list[Path]], str]] = [
+    (plots.fig_particles, "particles"),
+    (plots.fig_particles, "grid"),
+    (plots.fig_square, "square"),
+    (plots.fig_radius, "radius"),
+    (plots.fig_threads, "threads"),
+]
+
+
+@pytest.mark.parametrize(("figure", "experiment"), SWEEP_FIGURES)
+def test_time_figures_are_written(
+    figure: Callable[..., list[Path]], experiment: str, tmp_path: Path
+) -> None:
+    stem = tmp_path / "figures" / f"{experiment}-time"
+    assert_figure_files(figure(load(experiment), stem), stem)
+
+
+@pytest.mark.parametrize(
+    "figure", [plots.fig_speedup, plots.fig_efficiency, plots.fig_karp_flatt]
+)
+def test_thread_metric_figures_are_written(
+    figure: Callable[..., list[Path]], tmp_path: Path
+) -> None:
+    rows = tables.with_speedup(load("threads"), thread_baseline=True)
+    stem = tmp_path / "metric"
+    assert_figure_files(figure(rows, stem, title="Thread scaling"), stem)
+
+
+@pytest.mark.parametrize("experiment", ["accuracy", "relative"])
+def test_error_figure_is_written(experiment: str, tmp_path: Path) -> None:
+    stem = tmp_path / f"{experiment}-error"
+    df = load(experiment)
+    df = df[df["n"] == df["n"].max()]
+    assert_figure_files(plots.fig_error_time(df, stem), stem)
+
+
+def test_error_floor_is_a_decade_below_the_smallest_error() -> None:
+    assert plots.error_floor(pd.Series([0.0, 3.1e-13, 2e-4])) == pytest.approx(1e-14)
+    assert plots.error_floor(pd.Series([0.0, 0.0])) == pytest.approx(1e-17)
+
+
+def trajectory() -> tuple[pd.DataFrame, float]:
+    df = load("trajectory")
+    row = df.iloc[0]
+    path = FIXTURE_RESULTS / "trajectory" / "outputs" / f"{row['cell_id']}.txt"
+    return report.read_trajectory(path), float(row["L"])
+
+
+def test_trajectory_figure_and_animation_are_written(tmp_path: Path) -> None:
+    traj, box = trajectory()
+    assert traj["step"].nunique() == 10  # states 0..8 and the final block after 9 steps
+    stem = tmp_path / "trajectory"
+    assert_figure_files(plots.fig_trajectory(traj, stem, box=box), stem)
+    gif = plots.gif_trajectory(traj, tmp_path / "animation", box=box)
+    assert gif.read_bytes()[:6] == GIF_SIGNATURE
+    with Image.open(gif) as image:
+        assert image.n_frames == 10
+
+
+def test_trajectory_subsamples_many_particles(tmp_path: Path) -> None:
+    many = plots.MAX_TRAJECTORY_PARTICLES + 500
+    traj = pd.DataFrame({
+        "step": [0] * many + [1] * many,
+        "particle": list(range(many)) * 2,
+        "x": [float(i % 100) for i in range(2 * many)],
+        "y": [float(i % 37) for i in range(2 * many)],
+    })
+    ids, x, _ = plots._trajectory_arrays(traj)
+    assert len(ids) == plots.MAX_TRAJECTORY_PARTICLES and x.shape == (len(ids), 2)
+    assert_valid_png(plots.fig_trajectory(traj, tmp_path / "many", box=100.0)[0])
+
+
+def test_compact_numbers_for_ticks() -> None:
+    assert [plots.compact_number(v) for v in (5000, 20000, 1e5, 1e6, 1e7, 0.5, 64)] == [
+        "5000", "20k", "100k", "1M", "10M", "0.5", "64",
+    ]
+
+
+def test_atomic_write_replaces_and_cleans_up(tmp_path: Path) -> None:
+    target = tmp_path / "out.bin"
+    target.write_bytes(b"old")
+    plots.atomic_write(target, lambda handle: handle.write(b"new"))
+    assert target.read_bytes() == b"new"
+
+    def fail(handle: object) -> None:
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        plots.atomic_write(target, fail)
+    assert target.read_bytes() == b"new"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.bin"]

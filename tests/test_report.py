@@ -1,0 +1,314 @@
+"""The rendered report: sections follow the data, files are complete, bad input is named."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from harness import report
+from harness.errors import HarnessError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+ALL_EXPERIMENTS = (
+    "strategies", "particles", "square", "radius", "threads", "relative", "grid", "trajectory",
+    "accuracy",
+)
+
+
+def results_with(tmp_path: Path, *names: str) -> Path:
+    """A results directory holding copies of the named fixture experiments."""
+    root = tmp_path / "results"
+    root.mkdir(exist_ok=True)
+    for name in names:
+        shutil.copytree(FIXTURE_RESULTS / name, root / name)
+    return root
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The whole fixture report, rendered once for the tests that only read it."""
+    out = tmp_path_factory.mktemp("report")
+    report.render(FIXTURE_RESULTS, out)
+    return out
+
+
+def headings(markdown: str) -> list[str]:
+    return re.findall(r"^#+ (.*)$", markdown, flags=re.MULTILINE)
+
+
+def test_render_writes_markdown_html_and_figures(rendered: Path) -> None:
+    assert (rendered / "report.md").is_file()
+    assert (rendered / "report.html").is_file()
+    figures = sorted(p.name for p in (rendered / "figures").iterdir())
+    for name in ("particles-time-vs-n", "square-time-vs-l", "radius-time-vs-r",
+                 "threads-time-vs-threads", "threads-speedup", "threads-efficiency",
+                 "threads-karp-flatt", "accuracy-error-vs-time", "trajectory-trajectory"):
+        assert f"{name}.png" in figures and f"{name}.svg" in figures
+    assert "trajectory-trajectory-animation.gif" in figures
+    assert not [n for n in figures if n.endswith(".tmp")]
+
+
+def test_every_markdown_image_exists(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\((figures/[^)]+)\)", markdown)
+    assert links
+    for link in links:
+        assert (rendered / link).is_file(), link
+
+
+def test_sections_are_titled_from_the_experiments(rendered: Path) -> None:
+    titles = headings((rendered / "report.md").read_text(encoding="utf-8"))
+    expected = [
+        "Warnings", "Parallelisation strategies", "Particle count", "Square size",
+        "Particle radius", "Thread scaling", "Relative-velocity collision test", "Spatial grid",
+        "Trajectory of a nine-step run", "Accuracy against run time",
+    ]
+    assert [t for t in titles if t in expected] == expected
+    assert "Smoke" not in titles  # the -quick experiment is left out by default
+
+
+def test_header_names_machine_compiler_and_commit(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    for text in ("AMD EPYC 7763", "gcc (Ubuntu 13.2.0", "-ffp-contract=off", "hyperfine 1.18.0",
+                 "42fb7f7c0d1e", "OMP_PROC_BIND=close"):
+        assert text in markdown
+
+
+def test_warnings_list_the_flagged_cells(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    warnings = markdown.split("## Warnings", 1)[1].split("\n## ", 1)[0]
+    assert "invalid output" in warnings
+    assert "timeout" in warnings
+    assert "oversubscribed (128 threads > 16 cores)" in warnings
+    assert "unstable timing" in warnings
+
+
+def test_html_is_self_contained(rendered: Path) -> None:
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    sources = re.findall(r'<img src="([^"]+)"', page)
+    assert sources and all(s.startswith("data:image/") for s in sources)
+    assert "figures/" not in page.replace("figures/</", "")
+    assert "<table>" in page and "Thread scaling" in page
+
+
+def test_a_section_without_data_is_absent(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    report.render(results_with(tmp_path, "particles"), out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    titles = headings(markdown)
+    assert "Particle count" in titles
+    assert "Time against particles N" in titles
+    for absent in ("Warnings", "Thread scaling", "Speedup, efficiency and serial fraction",
+                   "Error against run time", "Trajectories", "Time against threads p"):
+        assert absent not in titles
+    figures = {p.name for p in (out / "figures").iterdir()}
+    assert figures == {"particles-time-vs-n.png", "particles-time-vs-n.svg"}
+
+
+def test_a_thread_sweep_is_recognised_by_its_data_not_its_name(tmp_path: Path) -> None:
+    root = results_with(tmp_path)
+    shutil.copytree(FIXTURE_RESULTS / "threads", root / "scaling-study")
+    out = tmp_path / "report"
+    report.render(root, out)
+    titles = headings((out / "report.md").read_text(encoding="utf-8"))
+    assert "Thread scaling" in titles
+    assert "Speedup, efficiency and serial fraction" in titles
+    assert (out / "figures" / "scaling-study-karp-flatt.png").is_file()
+
+
+def test_an_experiment_without_times_gets_its_table_but_no_figure(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "particles")
+    csv = root / "particles" / "results.csv"
+    lines = csv.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    blank = {header.index(c) for c in header if c.startswith("wall_")}
+    status = header.index("status")
+    rows = []
+    for line in lines[1:]:
+        values = line.split(",")
+        values = ["" if i in blank else v for i, v in enumerate(values)]
+        values[status] = "timeout"
+        rows.append(",".join(values))
+    csv.write_text("\n".join([lines[0], *rows]) + "\n", encoding="utf-8")
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "Measurements" in headings(markdown)
+    assert "Time against particles N" not in headings(markdown)
+    section = markdown.split("## Particle count", 1)[1]
+    assert section.count("| timeout |") == 8
+    assert not list((out / "figures").glob("*.png"))
+
+
+def test_quick_experiments_only_on_request(tmp_path: Path) -> None:
+    out = tmp_path / "quick"
+    report.render(FIXTURE_RESULTS, out, include_quick=True, experiments=["strategies-quick"])
+    titles = headings((out / "report.md").read_text(encoding="utf-8"))
+    assert "Smoke" in titles
+    assert "Particle count" not in titles
+
+
+def test_stale_figures_are_removed(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    (out / "figures").mkdir(parents=True)
+    stale = out / "figures" / "old-section.png"
+    stale.write_bytes(b"old")
+    report.render(results_with(tmp_path, "square"), out)
+    assert not stale.exists()
+    assert (out / "figures" / "square-time-vs-l.png").exists()
+
+
+def test_empty_results_give_a_short_report(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    report.render(results_with(tmp_path), out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "No results" in markdown
+    assert headings(markdown) == ["collide-bench report"]
+
+
+def test_differing_environments_are_listed_per_experiment(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "square", "radius")
+    env_path = root / "radius" / "env.json"
+    env = json.loads(env_path.read_text())
+    env["git_commit"] = "0123456789abcdef"
+    env_path.write_text(json.dumps(env))
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "`0123456789abcdef` (radius)" in markdown
+    assert "(square)" in markdown
+
+
+def test_nested_environment_fields_are_understood(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "square")
+    env = {
+        "cpu_model": "AMD EPYC", "cores": 2, "hostname": "vm", "hyperfine": "hyperfine 1.15.0",
+        "compiler": {"cc_version": "cc (Debian 12.2.0) 12.2.0", "print_flags": "cc -O3 -fopenmp"},
+        "git": {"commit": "eb3d3173", "dirty": True}, "omp_env": {}, "date": "2026-01-01",
+    }
+    (root / "square" / "env.json").write_text(json.dumps(env))
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "compiler: `cc (Debian 12.2.0) 12.2.0`" in markdown
+    assert "flags: `cc -O3 -fopenmp`" in markdown
+    assert "git commit: `eb3d3173 (dirty)`" in markdown
+    assert "OpenMP environment: `(none set)`" in markdown
+
+
+# --- malformed input -----------------------------------------------------------------------
+
+
+def rewrite_csv(path: Path, transform: object) -> None:
+    lines = path.read_text(encoding="utf-8").splitlines()
+    path.write_text("\n".join(transform(lines)) + "\n", encoding="utf-8")  # type: ignore[operator]
+
+
+def drop_column(lines: list[str], column: str) -> list[str]:
+    header = lines[0].split(",")
+    index = header.index(column)
+    return [",".join(v for i, v in enumerate(line.split(",")) if i != index) for line in lines]
+
+
+def test_missing_column_names_the_file_and_column(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    rewrite_csv(csv, lambda lines: drop_column(lines, "wall_median_s"))
+    with pytest.raises(HarnessError, match=r"results\.csv: missing column\(s\): wall_median_s"):
+        report.render(root, tmp_path / "report")
+    with pytest.raises(HarnessError) as info:
+        report.read_results(csv)
+    assert str(csv) in str(info.value)
+
+
+def test_non_numeric_time_names_the_file_line_and_column(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    rewrite_csv(csv, lambda lines: [lines[0], lines[1], lines[2].replace(",0.625,", ",fast,", 1),
+                                    *lines[3:]])
+    with pytest.raises(HarnessError) as info:
+        report.render(root, tmp_path / "report")
+    message = str(info.value)
+    assert str(csv) in message
+    assert "line 3" in message and "'wall_median_s'" in message and "'fast'" in message
+
+
+def test_unknown_status_and_untimed_ok_cells_are_errors(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    original = csv.read_text(encoding="utf-8")
+    csv.write_text(original.replace(",ok,", ",fine,", 1), encoding="utf-8")
+    with pytest.raises(HarnessError, match="status 'fine' is not one of"):
+        report.read_results(csv)
+    rewrite_csv(csv, lambda lines: [lines[0], lines[1].replace(",fine,", ",ok,", 1)
+                                    .replace(",2.5,", ",,", 1), *lines[2:]])
+    with pytest.raises(HarnessError, match="line 2: status 'ok' but no wall_median_s"):
+        report.read_results(csv)
+
+
+def test_malformed_trajectory_output_names_the_file(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "trajectory")
+    output = next((root / "trajectory" / "outputs").iterdir())
+    output.write_text("0 0 1.0 2.0 3.0\n", encoding="utf-8")
+    with pytest.raises(HarnessError, match=rf"{re.escape(str(output))}: line 1: expected 6 or 8"):
+        report.render(root, tmp_path / "report")
+
+
+def test_main_prints_error_and_returns_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    root = results_with(tmp_path, "strategies")
+    rewrite_csv(root / "strategies" / "results.csv", lambda lines: drop_column(lines, "status"))
+    code = report.main(["--results-dir", str(root), "--out", str(tmp_path / "report")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "results.csv" in err and "status" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_main_on_a_missing_results_dir(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    code = report.main(["--results-dir", str(tmp_path / "nowhere"), "--out", str(tmp_path)])
+    assert code == 2
+    assert "results directory not found" in capsys.readouterr().err
+
+
+def test_main_renders(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    root = results_with(tmp_path, "radius")
+    assert report.main(["--results-dir", str(root), "--out", str(tmp_path / "r")]) == 0
+    assert "report.md" in capsys.readouterr().out
+
+
+# --- running as a script --------------------------------------------------------------------
+
+
+def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
+    """`python -S` has no site-packages, so no pandas: the script must re-exec under .venv."""
+    venv_python = REPO_ROOT / ".venv" / "bin" / "python"
+    if not venv_python.exists():
+        pytest.skip("no .venv to re-exec into")
+    root = results_with(tmp_path, "radius")
+    done = subprocess.run(
+        [sys.executable, "-S", str(REPO_ROOT / "harness" / "report.py"), "--results-dir",
+         str(root), "--out", str(tmp_path / "r")],
+        capture_output=True, text=True, check=False, cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "r" / "report.md").is_file()
+
+
+def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
+    copy = tmp_path / "repo" / "harness"
+    copy.mkdir(parents=True)
+    shutil.copy(REPO_ROOT / "harness" / "report.py", copy / "report.py")
+    done = subprocess.run(
+        [sys.executable, "-S", str(copy / "report.py")],
+        capture_output=True, text=True, check=False, cwd=tmp_path,
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip() == (
+        "error: missing Python packages (pandas, numpy, matplotlib, PIL); run 'make setup'"
+    )

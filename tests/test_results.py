@@ -1,0 +1,128 @@
+"""Cell ids, hyperfine and --timing parsing, records and results.csv."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import pytest
+from harness import results
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
+KEY = {
+    "variant": "p1d", "build": "f64", "binary_sha256": "ab" * 32, "input_sha256": "cd" * 32,
+    "seed": 1, "threads": 2, "warmup": 1, "runs": 3, "timeout_s": 600.0, "validate": True,
+    "exact": True, "baseline_sha256": "ef" * 32, "keep_output": False,
+}
+
+
+def test_cell_id_is_stable() -> None:
+    assert results.cell_id(KEY) == results.cell_id(dict(reversed(list(KEY.items()))))
+    assert len(results.cell_id(KEY)) == results.CELL_ID_CHARS
+
+
+@pytest.mark.parametrize("field", sorted(KEY))
+def test_changing_any_input_changes_the_cell_id(field: str) -> None:
+    value = KEY[field]
+    if isinstance(value, bool):
+        changed = not value
+    elif isinstance(value, int | float):
+        changed = value + 1
+    else:
+        changed = str(value) + "x"
+    assert results.cell_id({**KEY, field: changed}) != results.cell_id(KEY)
+
+
+def test_sha256_file(tmp_path: Path) -> None:
+    path = tmp_path / "f"
+    path.write_bytes(b"abc")
+    assert results.sha256_file(path) == (
+        "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad")
+
+
+def test_parse_hyperfine_fixture() -> None:
+    stats = results.load_hyperfine(FIXTURES / "hyperfine_seq.json")
+    assert stats.command.startswith("build/seq")
+    assert stats.runs == 3 and len(stats.exit_codes) == 3
+    assert stats.min <= stats.median <= stats.max
+    assert stats.stddev is not None and stats.stddev > 0
+    assert stats.mean == pytest.approx(sum(stats.times) / 3)
+    assert not stats.unstable
+
+
+def test_parse_hyperfine_single_run_has_no_stddev() -> None:
+    stats = results.load_hyperfine(FIXTURES / "hyperfine_single.json")
+    assert stats.runs == 1 and stats.stddev is None and not stats.unstable
+
+
+def test_unstable_threshold() -> None:
+    data = json.loads((FIXTURES / "hyperfine_seq.json").read_text())
+    data["results"][0]["mean"] = 1.0
+    data["results"][0]["stddev"] = 0.1
+    assert results.parse_hyperfine(data).unstable
+    data["results"][0]["stddev"] = 0.0999
+    assert not results.parse_hyperfine(data).unstable
+
+
+@pytest.mark.parametrize("data", [{}, {"results": []}, {"results": [{"mean": 1}]}])
+def test_bad_hyperfine_documents(data: dict[str, object]) -> None:
+    with pytest.raises(results.ResultFormatError):
+        results.parse_hyperfine(data)
+
+
+def test_hyperfine_failures() -> None:
+    assert results.hyperfine_failure(
+        "Error: Command terminated with non-zero exit code: 3. Use the '-i'") == ("failed", 3)
+    assert results.hyperfine_failure(
+        "Error: The process has been terminated by a signal.") == ("crashed", None)
+    assert results.hyperfine_failure("Error: something else") == ("failed", None)
+
+
+def test_parse_timing_takes_the_json_line() -> None:
+    stderr = 'warning: x\n{"variant": "seq", "sim_s": 0.5, "pair_tests": 10}\n'
+    assert results.parse_timing(stderr) == {"variant": "seq", "sim_s": 0.5, "pair_tests": 10}
+    assert results.parse_timing("seq: input: line 1: bad\n") is None
+    assert results.parse_timing("{not json\n") is None
+
+
+def test_csv_columns_contract() -> None:
+    text = results.render_csv([])
+    header = next(csv.reader(io.StringIO(text)))
+    assert tuple(header[:len(results.CSV_COLUMNS)]) == (
+        "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode",
+        "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s",
+        "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status",
+        "exit_code", "identical", "max_pos_err", "max_vel_err", "count_mismatches",
+        "oversubscribed", "unstable", "cores", "cell_id", "binary_sha256")
+
+
+def test_csv_rows_format_values() -> None:
+    record = {"variant": "seq", "n": 10, "L": 2000.0, "identical": None, "unstable": False,
+              "max_pos_err": float("inf"), "status": "ok"}
+    row = results.csv_row(record, "exp", "A title, with a comma")
+    parsed = list(csv.DictReader(io.StringIO(results.render_csv([row]))))
+    assert parsed[0]["experiment"] == "exp" and parsed[0]["title"] == "A title, with a comma"
+    assert parsed[0]["L"] == "2000.0" and parsed[0]["identical"] == ""
+    assert parsed[0]["unstable"] == "False" and parsed[0]["max_pos_err"] == "inf"
+
+
+def test_atomic_write_leaves_no_temporary_files(tmp_path: Path) -> None:
+    target = tmp_path / "sub" / "x.json"
+    results.atomic_write_json(target, {"a": 1})
+    results.atomic_write_json(target, {"a": 2})
+    assert json.loads(target.read_text()) == {"a": 2}
+    assert [p.name for p in target.parent.iterdir()] == ["x.json"]
+
+
+def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
+    path = tmp_path / "c.json"
+    results.atomic_write_json(path, {"version": results.RECORD_VERSION, "cell_id": "abc"})
+    assert results.read_record(path, "abc") is not None
+    assert results.read_record(path, "abd") is None
+    results.atomic_write_json(path, {"version": -1, "cell_id": "abc"})
+    assert results.read_record(path, "abc") is None
+    path.write_text("{truncated")
+    assert results.read_record(path, "abc") is None
+    assert results.read_record(tmp_path / "none.json", "abc") is None

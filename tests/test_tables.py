@@ -1,0 +1,201 @@
+"""Table builders of the report, checked against hand computations on the fixture results."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from harness import report, tables
+
+FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+
+
+def load(name: str) -> pd.DataFrame:
+    return report.read_results(FIXTURE_RESULTS / name / "results.csv")
+
+
+def raw_medians(name: str) -> dict[tuple[str, int], float]:
+    """(variant, threads) -> wall_median_s, read with the csv module, not the code under test."""
+    with open(FIXTURE_RESULTS / name / "results.csv", newline="") as handle:
+        return {
+            (row["variant"], int(row["threads"])): float(row["wall_median_s"])
+            for row in csv.DictReader(handle)
+            if row["wall_median_s"]
+        }
+
+
+def test_strategies_table_has_one_row_per_variant_in_spec_order() -> None:
+    table = tables.cell_table(load("strategies"), ["variant", "threads"])
+    assert list(table["variant"]) == ["seq", "p1", "p2", "p3", "p1d", "p2d"]
+    assert list(table.columns[:3]) == ["variant", "threads", "runs"]
+    assert {"median_s", "min_s", "stddev_s", "speedup", "efficiency", "validation"} <= set(
+        table.columns
+    )
+
+
+def test_strategies_speedup_and_efficiency_are_against_seq() -> None:
+    medians = raw_medians("strategies")
+    seq = medians[("seq", 1)]
+    table = tables.cell_table(load("strategies"), ["variant", "threads"]).set_index("variant")
+    for variant in ("p1", "p2", "p3", "p1d", "p2d"):
+        expected = seq / medians[(variant, 8)]
+        assert table.loc[variant, "speedup"] == pytest.approx(expected)
+        assert table.loc[variant, "efficiency"] == pytest.approx(expected / 8)
+    # By hand: seq 2.5 s, p1 0.625 s at 8 threads -> 4x, efficiency 0.5, and
+    # Karp-Flatt e = (1/4 - 1/8) / (1 - 1/8) = 1/7.
+    assert table.loc["p1", "speedup"] == pytest.approx(4.0)
+    assert table.loc["p1", "efficiency"] == pytest.approx(0.5)
+    assert table.loc["p1", "serial_fraction"] == pytest.approx(1 / 7)
+    assert table.loc["seq", "speedup"] == pytest.approx(1.0)
+    assert table.loc["p1d", "median_s"] == pytest.approx(0.4)
+    assert table.loc["p1d", "runs"] == 10
+
+
+def test_validation_column_carries_status_and_flags() -> None:
+    table = tables.cell_table(load("strategies"), ["variant", "threads"]).set_index("variant")
+    assert table.loc["p3", "validation"] == "invalid"
+    assert table.loc["p1", "validation"] == "ok"
+    threads = tables.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    by_cell = threads.set_index(["variant", "threads"])["validation"]
+    assert by_cell[("p1d", 64)] == "ok · oversubscribed · unstable timing"
+    assert by_cell[("p1", 128)] == "timeout · oversubscribed"
+
+
+def test_thread_table_without_seq_uses_the_variant_at_one_thread() -> None:
+    medians = raw_medians("threads")
+    table = tables.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    assert len(table) == 16
+    assert list(table["threads"][:8]) == [1, 2, 4, 8, 16, 32, 64, 128]
+    rows = table.set_index(["variant", "threads"])
+    for (variant, p), median in medians.items():
+        speedup = medians[(variant, 1)] / median
+        assert rows.loc[(variant, p), "speedup"] == pytest.approx(speedup)
+        assert rows.loc[(variant, p), "efficiency"] == pytest.approx(speedup / p)
+        assert rows.loc[(variant, p), "baseline"] == tables.BASELINE_ONE_THREAD
+        if p > 1:
+            karp_flatt = (1 / speedup - 1 / p) / (1 - 1 / p)
+            assert rows.loc[(variant, p), "serial_fraction"] == pytest.approx(karp_flatt)
+        else:
+            assert math.isnan(rows.loc[(variant, p), "serial_fraction"])
+    # The timed-out cell has no time, hence no speedup.
+    assert math.isnan(rows.loc[("p1", 128), "speedup"])
+
+
+def test_seq_told_to_use_threads_gets_no_efficiency() -> None:
+    df = load("threads")
+    seq = df[(df["variant"] == "p1") & (df["threads"].isin([1, 4]))].assign(variant="seq")
+    rows = tables.with_speedup(pd.concat([df, seq], ignore_index=True), thread_baseline=True)
+    seq_rows = rows[rows["variant"] == "seq"].set_index("threads")
+    assert seq_rows.loc[1, "efficiency"] == pytest.approx(1.0)
+    assert math.isnan(seq_rows.loc[4, "efficiency"])  # seq ran one thread, not four
+    assert math.isnan(seq_rows.loc[4, "serial_fraction"])
+    # With seq on the scene, the parallel variants are measured against it.
+    p1 = rows[rows["variant"] == "p1"].set_index("threads")
+    assert p1.loc[8, "baseline"] == tables.BASELINE_SEQ
+    assert p1.loc[8, "speedup"] == pytest.approx(2.6 / 0.42)
+
+
+def test_speedup_matches_seq_on_the_same_scene_only() -> None:
+    table = tables.cell_table(load("grid"), ["variant", "n"]).set_index(["variant", "n"])
+    assert table.loc[("p1d", 50000), "speedup"] == pytest.approx(62.5 / 10.1)
+    # seq timed out at N = 100000: no baseline there.
+    assert math.isnan(table.loc[("p1d", 100000), "speedup"])
+    # The grid is another algorithm: a speedup, but no parallel efficiency.
+    assert table.loc[("grid", 10000), "speedup"] == pytest.approx(2.5 / 0.051)
+    assert math.isnan(table.loc[("grid", 10000), "efficiency"])
+
+
+def test_other_builds_are_measured_against_seq_f64() -> None:
+    table = tables.cell_table(load("accuracy"), ["variant", "build"]).set_index(
+        ["variant", "build"]
+    )
+    assert table.loc[("seq", "f32"), "speedup"] == pytest.approx(2.5 / 1.6)
+    assert table.loc[("grid", "f64"), "speedup"] == pytest.approx(2.5 / 0.35)
+
+
+def test_karp_flatt_is_undefined_at_one_thread() -> None:
+    e = tables.karp_flatt(pd.Series([1.0, 2.0, 3.0]), pd.Series([1, 2, 4]))
+    assert math.isnan(e[0])
+    assert e[1] == pytest.approx(0.0)
+    assert e[2] == pytest.approx((1 / 3 - 1 / 4) / (1 - 1 / 4))
+
+
+def test_growth_exponents_match_a_log_log_fit() -> None:
+    df = load("particles")
+    exponents = tables.growth_exponents(df, "n").set_index("variant")
+    seq = df[df["variant"] == "seq"]
+    k, _ = np.polyfit(np.log(seq["n"]), np.log(seq["wall_median_s"]), 1)
+    assert exponents.loc["seq", "exponent"] == pytest.approx(k)
+    assert exponents.loc["seq", "exponent"] == pytest.approx(2.0, abs=0.05)
+    assert exponents.loc["seq", "points"] == 4
+    grid = tables.growth_exponents(load("grid"), "n").set_index("variant")
+    assert grid.loc["grid", "exponent"] == pytest.approx(1.0, abs=0.05)
+    assert grid.loc["seq", "points"] == 2  # the timed-out cell is not fitted
+
+
+def test_sweep_axes_follow_what_each_variant_varies() -> None:
+    assert tables.sweep_axes(load("strategies")) == []  # seq at 1, p1 at 8: no sweep
+    assert tables.sweep_axes(load("threads")) == ["threads"]
+    assert tables.sweep_axes(load("particles")) == ["n"]
+    assert tables.sweep_axes(load("square")) == ["L"]
+    assert tables.sweep_axes(load("radius")) == ["r"]
+
+
+def test_series_keys_drop_a_key_that_names_the_point() -> None:
+    df = pd.DataFrame({
+        "variant": ["seq", "seq", "p1", "p1"], "scene": ["a5", "a10", "a5", "a10"],
+        "n": [5.0, 10.0, 5.0, 10.0],
+    })
+    assert tables.series_keys(df, "n") == ["variant"]
+
+
+def test_pareto_mask_keeps_the_non_dominated_cells() -> None:
+    times = pd.Series([1.0, 2.0, 3.0, 0.5, 2.0])
+    errors = pd.Series([1e-3, 0.0, 1e-6, 1e-2, 1e-9])
+    assert list(tables.pareto_mask(times, errors)) == [True, True, False, True, False]
+
+
+def test_error_table_marks_the_front_per_scene() -> None:
+    table = tables.error_table(load("accuracy"), ["variant", "build"])
+    front = table[table["pareto"]]
+    assert sorted(zip(front["variant"], front["build"], strict=True)) == [
+        ("grid", "f32"), ("grid", "f64"),
+    ]
+    relative = tables.error_table(load("relative"), ["variant", "n"])
+    assert relative["pareto"].all()  # per N, seq is exact and relative is faster
+
+
+def test_error_data_needs_an_ok_cell_with_a_deviation() -> None:
+    assert tables.has_error_data(load("accuracy"))
+    assert tables.has_error_data(load("relative"))
+    assert not tables.has_error_data(load("strategies"))  # only the invalid p3 deviates
+    assert not tables.has_error_data(load("particles"))
+
+
+def test_flagged_cells_list_every_problem() -> None:
+    frames = [load(n).assign(experiment=n) for n in ("strategies", "threads", "grid")]
+    flagged = tables.flagged_cells(pd.concat(frames, ignore_index=True))
+    issues = dict(zip(zip(flagged["experiment"], flagged["variant"], flagged["threads"],
+                          flagged["n"], strict=True), flagged["issue"], strict=True))
+    assert issues[("strategies", "p3", 8, 10000)] == "invalid output"
+    assert issues[("grid", "seq", 1, 100000)] == "timeout"
+    assert issues[("threads", "p1", 128, 10000)] == (
+        "timeout; oversubscribed (128 threads > 16 cores)"
+    )
+    assert len(flagged) == 9
+
+
+def test_format_table_writes_units_and_dashes() -> None:
+    table = tables.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    shown = tables.format_table(table)
+    assert "median [s]" in shown.columns
+    assert "serial fraction e" in shown.columns
+    row = shown[(shown["variant"] == "p1") & (shown["threads"] == "128")].iloc[0]
+    assert row["median [s]"] == tables.MISSING_TEXT
+    assert tables.format_value("L", 1e7) == "10000000"
+    assert tables.format_value("max_pos_err", 0.0) == "0"
+    assert tables.format_value("max_pos_err", 2.1e-4) == "2.10e-04"
