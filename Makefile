@@ -6,6 +6,7 @@
 #   make test             C tests (also under ASan+UBSan), Python tests, ruff
 #   make bench            the performance benchmarks of the issues, saved under results/
 #   make setup            Python environment (.venv) and hyperfine
+#   make quickstart       setup, build, run configs/quickstart.yaml and render report/
 #
 # A variant is a file variants/NAME.c; adding one needs no change here.
 
@@ -54,7 +55,7 @@ $(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan test test-c test-python lint bench setup clean print-flags print-variants
+.PHONY: all asan test test-c test-python lint bench setup quickstart clean print-flags print-variants
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -81,7 +82,7 @@ build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
 # Unit tests, then every scene script against the optimised and the sanitizer builds.
-test-c: all asan $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS))
+test-c: all asan build/seq-f32 build/seq-f128 $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS))
 	@set -e; for t in $(C_TESTS); do echo "== $$t"; build/tests/$$t; echo "== $$t (asan)"; build/tests-asan/$$t; done
 	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
 
@@ -99,6 +100,10 @@ $(PYTHON): requirements.txt
 
 setup:
 	scripts/setup.sh
+
+quickstart: setup
+	$(MAKE) all
+	$(PYTHON) harness/run.py configs/quickstart.yaml
 
 bench: all $(PYTHON)
 	$(PYTHON) bench/bench.py

@@ -115,6 +115,10 @@ static int parse_real(sim_lexer *lx, const char *what, double *out, long *line, 
     if (!isfinite(v))
         return fail(err, t.line, "%s: expected a finite real, got '%s'", what,
                     quote(t, q, sizeof q));
+    /* strtod also reads C's hexadecimal floats; the format is decimal. */
+    if (memchr(t.p, 'x', t.len) || memchr(t.p, 'X', t.len))
+        return fail(err, t.line, "%s: expected a decimal real, got '%s'", what,
+                    quote(t, q, sizeof q));
     *out = v;
     if (line)
         *line = t.line;

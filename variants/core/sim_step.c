@@ -193,6 +193,14 @@ static void find_walls(sim_stepper *s, const sim_world *w)
     }
 }
 
+static void append_items(sim_cand *dst, size_t *at, const sim_cand_buf *buf)
+{
+    if (buf->len == 0)
+        return;
+    memcpy(dst + *at, buf->items, buf->len * sizeof(sim_cand));
+    *at += buf->len;
+}
+
 /* Gather the wall buffer and every finder buffer into one sorted list. Returns its length, or
  * (size_t)-1 when memory ran out. */
 static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
@@ -207,15 +215,16 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
     }
     if (failed || !buf_reserve(&s->merged, &s->merged_cap, total))
         return (size_t)-1;
+    /* An empty buffer may never have been allocated: memcpy and qsort must not see its NULL
+     * pointer, even for zero items (undefined behaviour, and UBSan stops the run). */
     size_t at = 0;
-    memcpy(s->merged + at, s->walls.items, s->walls.len * sizeof(sim_cand));
-    at += s->walls.len;
+    append_items(s->merged, &at, &s->walls);
     for (int k = 0; k < s->sink.count; k++) {
-        memcpy(s->merged + at, s->sink.bufs[k].items, s->sink.bufs[k].len * sizeof(sim_cand));
-        at += s->sink.bufs[k].len;
+        append_items(s->merged, &at, &s->sink.bufs[k]);
         s->sink.bufs[k].len = 0;
     }
-    qsort(s->merged, total, sizeof(sim_cand), cand_cmp);
+    if (total > 0)
+        qsort(s->merged, total, sizeof(sim_cand), cand_cmp);
     stats->candidates += total;
     return total;
 }

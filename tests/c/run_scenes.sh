@@ -1,0 +1,557 @@
+#!/usr/bin/env bash
+# run_scenes.sh BUILD_DIR: end-to-end tests of the variant binaries in BUILD_DIR (build, or
+# build/asan for the ASan+UBSan builds), against SPEC.md.
+#
+#   1. hand-computed scenes (tests/c/scenes/*.in, derivations in *.md) through every exact
+#      variant at 1 and 4 threads, in %.8f and (exact in binary) in --precise;
+#   2. print vs perf output;
+#   3. for BUILD_DIR = build: the f32 and f128 builds give the same output on those scenes;
+#   4. the generator's first particles for --seed 1 (values computed in Python);
+#   5. every class of bad input and bad command line: status 2, one line on stderr, no stdout;
+#   6. --timing's JSON line;
+#   7. the SPEC §7 invariants on random scenes (dense and sparse, slow and fast);
+#   8. every exact variant byte-identical to seq on 20+ random scenes at 1, 2, 3 and 4 threads.
+#
+# Prints one FAIL line per failed check, a time per part, and last `N passed, M failed`;
+# exits 1 when anything failed. EXACT_VARIANTS overrides the variants compared with seq.
+set -euo pipefail
+
+if [ $# -ne 1 ]; then
+    echo "usage: $0 BUILD_DIR" >&2
+    exit 2
+fi
+B=$1
+HERE=$(cd "$(dirname "$0")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+SCENES=$HERE/scenes
+EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d"}
+read -r -a VARIANTS <<<"$EXACT_VARIANTS"
+TMP=$(mktemp -d)
+trap 'rm -rf "$TMP"' EXIT
+# The runs must not depend on the caller's OpenMP settings (one check sets its own).
+unset OMP_NUM_THREADS OMP_SCHEDULE OMP_DYNAMIC OMP_MAX_ACTIVE_LEVELS || true
+
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); }
+bad() {
+    fail=$((fail + 1))
+    echo "FAIL: $*"
+}
+
+part_start=0
+part() {
+    local now
+    now=$(date +%s%N)
+    if [ "$part_start" != 0 ]; then
+        printf '# %-28s %6.2f s\n' "$part_name" "$(((now - part_start) / 1000000))e-3"
+    fi
+    part_name=${1:-}
+    part_start=$now
+}
+
+# run OUT ERR BIN ARGS...: runs a binary, never failing the script; sets $rc.
+run() {
+    local out=$1 err=$2
+    shift 2
+    rc=0
+    "$@" >"$out" 2>"$err" || rc=$?
+}
+
+# A successful run: status 0, nothing on stderr.
+run_ok() {
+    local what=$1
+    shift
+    run "$TMP/out" "$TMP/err" "$@"
+    if [ "$rc" != 0 ] || [ -s "$TMP/err" ]; then
+        bad "$what: status $rc, stderr: $(head -c 300 "$TMP/err")"
+        return 1
+    fi
+    return 0
+}
+
+# same_file WHAT GOT EXPECTED
+same_file() {
+    if cmp -s "$2" "$3"; then
+        ok
+    else
+        bad "$1: output differs from $(basename "$3"):"
+        diff "$3" "$2" | head -n 5 | sed 's/^/    /' || true
+    fi
+}
+
+# The %.17g text of a %.8f expectation whose values are exact in binary with at most 8
+# decimals: %.8f with the trailing zeros (and a bare point) removed.
+strip_zeros() {
+    awk '{ for (k = 3; k <= 6 && k <= NF; k++) { if ($k ~ /\./) { sub(/0+$/, "", $k); sub(/\.$/, "", $k) } } print }' "$1"
+}
+
+for v in "${VARIANTS[@]}"; do
+    if [ ! -x "$B/$v" ]; then
+        bad "$B/$v is missing (make all asan)"
+    fi
+done
+if [ "$fail" != 0 ]; then
+    echo "$pass passed, $fail failed"
+    exit 1
+fi
+
+# ---------------------------------------------------------------------------------------------
+part "hand scenes"
+# Every scene through seq (%.8f, and --precise for the exact ones), then through every exact
+# variant at 1 and 4 threads.
+for input in "$SCENES"/*.in; do
+    name=$(basename "$input" .in)
+    exp=$SCENES/$name.out
+    args=()
+    if [ -f "$SCENES/$name.args" ]; then
+        read -r -a args <"$SCENES/$name.args" || true
+    fi
+    if run_ok "seq $name" "$B/seq" "${args[@]}" "$input"; then
+        same_file "seq $name" "$TMP/out" "$exp"
+    fi
+    case $name in
+    gen_*) ;; # generated values are not exact in binary
+    *)
+        strip_zeros "$exp" >"$TMP/precise.exp"
+        if run_ok "seq --precise $name" "$B/seq" --precise "${args[@]}" "$input"; then
+            same_file "seq --precise $name (exact values)" "$TMP/out" "$TMP/precise.exp"
+        fi
+        ;;
+    esac
+    for v in "${VARIANTS[@]}"; do
+        [ "$v" = seq ] && continue
+        for t in 1 4; do
+            if run_ok "$v --threads $t $name" "$B/$v" --threads "$t" "${args[@]}" "$input"; then
+                same_file "$v --threads $t $name" "$TMP/out" "$exp"
+            fi
+        done
+    done
+done
+
+# ---------------------------------------------------------------------------------------------
+part "print vs perf"
+# perf writes exactly print's final block; print writes S+1 blocks of N lines.
+if run_ok "seq head_on" "$B/seq" "$SCENES/head_on.in"; then
+    tail -n 2 "$TMP/out" >"$TMP/tail"
+    same_file "print's final block = perf (head_on)" "$TMP/tail" "$SCENES/head_on_perf.out"
+fi
+printf '300 100 1 6\nprint\n' >"$TMP/print.in"
+printf '300 100 1 6\nperf\n' >"$TMP/perf.in"
+if run_ok "seq print" "$B/seq" --seed 11 --precise "$TMP/print.in"; then
+    mv "$TMP/out" "$TMP/print.out"
+    if [ "$(wc -l <"$TMP/print.out")" = $((300 * 7)) ]; then ok; else bad "print: $(wc -l <"$TMP/print.out") lines, expected 2100"; fi
+    if run_ok "seq perf" "$B/seq" --seed 11 --precise "$TMP/perf.in"; then
+        tail -n 300 "$TMP/print.out" >"$TMP/tail"
+        same_file "print's final block = perf (random)" "$TMP/tail" "$TMP/out"
+    fi
+fi
+
+# ---------------------------------------------------------------------------------------------
+if [ "$(cd "$B" && pwd)" = "$ROOT/build" ]; then
+    part "f32 and f128 builds"
+    # Every value of the hand scenes is exact in binary, so float and __float128 must print the
+    # same %.8f and --precise text as double.
+    if (cd "$ROOT" && make -s build/seq-f32 build/seq-f128 >"$TMP/make.log" 2>&1); then
+        ok
+        for p in f32 f128; do
+            for input in "$SCENES"/*.in; do
+                name=$(basename "$input" .in)
+                case $name in gen_*) continue ;; esac
+                if run_ok "seq-$p $name" "$B/seq-$p" "$input"; then
+                    same_file "seq-$p $name" "$TMP/out" "$SCENES/$name.out"
+                fi
+                strip_zeros "$SCENES/$name.out" >"$TMP/precise.exp"
+                if run_ok "seq-$p --precise $name" "$B/seq-$p" --precise "$input"; then
+                    same_file "seq-$p --precise $name" "$TMP/out" "$TMP/precise.exp"
+                fi
+            done
+        done
+    else
+        bad "make build/seq-f32 build/seq-f128 failed: $(tail -3 "$TMP/make.log")"
+    fi
+fi
+
+# ---------------------------------------------------------------------------------------------
+part "generator"
+# The hand scenes gen_seed1, gen_listed, gen_seed42 check %.8f (see gen_seed1.md); here the
+# positions of --seed 1 in full precision. x = 1 + 98*u is computed the same way in Python,
+# so it is exact (the velocities go through a libm cos/sin and are left to %.8f).
+#   python3 -c 'M=(1<<64)-1; s=1  (then as in scenes/gen_seed1.md) ... print("%.17g"%(1+u[0]*98))'
+printf '3 100 1 0\nperf\n' >"$TMP/gen.in"
+if run_ok "seq gen" "$B/seq" --precise "$TMP/gen.in"; then
+    awk '{ print $1, $2, $3, $4, $7, $8 }' "$TMP/out" >"$TMP/got"
+    printf '%s\n' "0 0 56.523034366883529 74.086612211744708 0 0" \
+        "0 1 44.537940680983091 75.763650407352571 0 0" \
+        "0 2 28.979851070902729 78.81166735490595 0 0" >"$TMP/want"
+    same_file "generated positions, --seed 1" "$TMP/got" "$TMP/want"
+fi
+# The default seed is 1; --seed 0 and --seed 2^64-1 are accepted and differ from it.
+if run_ok "seq --seed 1" "$B/seq" --seed 1 --precise "$TMP/gen.in"; then
+    mv "$TMP/out" "$TMP/seed1"
+    run_ok "seq" "$B/seq" --precise "$TMP/gen.in" && same_file "default seed is 1" "$TMP/out" "$TMP/seed1"
+    for s in 0 18446744073709551615; do
+        if run_ok "seq --seed $s" "$B/seq" --seed "$s" --precise "$TMP/gen.in"; then
+            if cmp -s "$TMP/out" "$TMP/seed1"; then bad "--seed $s gives seed 1's scene"; else ok; fi
+        fi
+    done
+fi
+
+# ---------------------------------------------------------------------------------------------
+part "bad input"
+# expect_input_error NAME K BIN [ARGS...] < (input in $TMP/bad.in): status 2, nothing on stdout,
+# exactly one line on stderr, starting "VARIANT: input: line K: ".
+expect_input_error() {
+    local name=$1 line=$2 bin=$3
+    shift 3
+    local variant
+    variant=$(basename "$bin")
+    run "$TMP/out" "$TMP/err" "$bin" "$@"
+    local lines
+    lines=$(wc -l <"$TMP/err")
+    if [ "$rc" = 2 ] && [ ! -s "$TMP/out" ] && [ "$lines" = 1 ] &&
+        head -n 1 "$TMP/err" | grep -q "^$variant: input: line $line: ."; then
+        ok
+    else
+        bad "$name: expected status 2, no stdout, one line '$variant: input: line $line: ...';" \
+            "got status $rc, $(wc -c <"$TMP/out") bytes of stdout, $lines lines of stderr:" \
+            "$(head -c 300 "$TMP/err")"
+    fi
+}
+
+# bad_input NAME K PRINTF-FORMAT: the input is printf's output, the message must name line K.
+bad_input() {
+    printf -- "$3" >"$TMP/bad.in"
+    expect_input_error "$1" "$2" "$B/seq" "$TMP/bad.in"
+}
+
+bad_input "N not a number" 1 'abc 100 1 1\nperf\n'
+bad_input "N negative" 1 '-1 100 1 1\nperf\n'
+bad_input "N not an integer" 1 '2.5 100 1 1\nperf\n'
+bad_input "N over 2^31-1" 1 '2147483648 100 1 1\nperf\n'
+# 2e9 particles need ~300 GB (sim_bytes_per_particle), more than any test machine has.
+bad_input "N huge (refused up front)" 1 '2000000000 100 1 1\nperf\n'
+bad_input "L NaN" 1 '2 nan 1 1\nperf\n'
+bad_input "L Inf" 1 '2 inf 1 1\nperf\n'
+bad_input "L overflows to Inf" 1 '2 1e999 1 1\nperf\n'
+bad_input "r NaN" 1 '2 100 NaN 1\nperf\n'
+bad_input "r = 0" 1 '2 100 0 1\nperf\n'
+bad_input "r < 0" 1 '2 100 -1 1\nperf\n'
+bad_input "2r > L" 1 '2 100 50.5 1\nperf\n'
+bad_input "S negative" 1 '2 100 1 -1\nperf\n'
+bad_input "S not an integer" 1 '2 100 1 1.5\nperf\n'
+bad_input "S too large" 1 '2 100 1 99999999999999999999\nperf\n'
+bad_input "header on several lines, S missing" 3 '2\n100\n1'
+bad_input "MODE missing" 1 '2 100 1 1\n'
+bad_input "MODE bad" 2 '2 100 1 1\nfast\n'
+bad_input "MODE wrong case" 2 '2 100 1 1\nPerf\n'
+bad_input "empty file" 1 ''
+bad_input "only whitespace" 2 '\n \n'
+bad_input "truncated particle line (last)" 3 '2 100 1 1\nperf\n0 10 10 1\n'
+# Tokens are whitespace-separated, so a short line takes its vy from the next line, whose
+# second token then fails as an index (20 >= N) on line 4.
+bad_input "truncated particle line (middle)" 4 '3 100 1 1\nperf\n0 10 10 1\n1 20 20 1 1\n'
+bad_input "trailing garbage on a particle line" 3 '2 100 1 1\nperf\n0 10 10 1 1 x\n'
+bad_input "trailing garbage after the mode" 2 '2 100 1 1\nperf x\n'
+bad_input "garbage glued to a number" 3 '2 100 1 1\nperf\n0 10 10 1 1x\n'
+bad_input "NUL byte in a number" 3 '2 100 1 1\nperf\n0 10\000 10 1 1\n'
+bad_input "particle x NaN" 3 '2 100 1 1\nperf\n0 nan 10 1 1\n'
+bad_input "particle vx Inf" 3 '2 100 1 1\nperf\n0 10 10 inf 1\n'
+bad_input "particle vy -Inf" 3 '2 100 1 1\nperf\n0 10 10 1 -inf\n'
+bad_input "particle vy NaN on line 5" 5 '2 100 1 1\nperf\n0 10 10 1 1\n\n1 10 10 1 NaN\n'
+bad_input "duplicate index" 4 '2 100 1 1\nperf\n0 10 10 1 1\n0 20 20 1 1\n'
+bad_input "index = N" 3 '2 100 1 1\nperf\n2 10 10 1 1\n'
+bad_input "index negative" 3 '2 100 1 1\nperf\n-1 10 10 1 1\n'
+bad_input "index not an integer" 3 '2 100 1 1\nperf\n0.5 10 10 1 1\n'
+bad_input "x < r" 3 '2 100 1 1\nperf\n0 0.5 10 1 1\n'
+bad_input "x > L-r" 3 '2 100 1 1\nperf\n0 99.5 10 1 1\n'
+bad_input "y < r" 3 '2 100 1 1\nperf\n0 10 0.999 1 1\n'
+bad_input "y > L-r" 4 '2 100 1 1\nperf\n0 10 10 1 1\n1 10 99.0001 1 1\n'
+bad_input "more particle lines than N" 4 '1 100 1 1\nperf\n0 10 10 1 1\n0 10 10 1 1\n'
+bad_input "a particle line with N = 0" 3 '0 100 1 1\nperf\n0 10 10 1 1\n'
+bad_input "CRLF line ends, error on line 3" 3 '2 100 1 1\r\nperf\r\n0 0 10 1 1\r\n'
+# The same through stdin, and the variant's own name in the message.
+printf '2 100 1 1\nfast\n' >"$TMP/bad.in"
+expect_input_error "bad MODE from stdin" 2 "$B/seq" <"$TMP/bad.in"
+expect_input_error "bad MODE from '-'" 2 "$B/seq" - <"$TMP/bad.in"
+expect_input_error "bad MODE, p1" 2 "$B/p1" --threads 2 "$TMP/bad.in"
+expect_input_error "bad MODE, p3" 2 "$B/p3" --threads 2 "$TMP/bad.in"
+
+# An N that passes the up-front check but whose memory runs out: status 1 and one line, never a
+# signal (SPEC §1). Address-space limits and the sanitizers' shadow memory do not mix, so only
+# for the plain build; `timeout` in case the allocation unexpectedly succeeds.
+if [ "$(cd "$B" && pwd)" = "$ROOT/build" ] && command -v timeout >/dev/null; then
+    printf '50000000 100 1 1\nperf\n' >"$TMP/big.in"
+    for v in seq p3; do
+        run "$TMP/out" "$TMP/err" bash -c 'ulimit -v 500000 && exec timeout 20 "$@"' _ "$B/$v" --threads 2 "$TMP/big.in"
+        if [ "$rc" = 1 ] && [ ! -s "$TMP/out" ] && [ "$(wc -l <"$TMP/err")" = 1 ] && grep -q "^$v: " "$TMP/err"; then
+            ok
+        else
+            bad "$v, N = 5e7 in 500 MB of address space: expected status 1 and one line, got status $rc: $(head -c 300 "$TMP/err")"
+        fi
+    done
+fi
+
+# Command-line errors: status 2, no stdout, one line on stderr naming the variant.
+expect_usage_error() {
+    local name=$1
+    shift
+    run "$TMP/out" "$TMP/err" "$B/seq" "$@" <"$SCENES/head_on.in"
+    local lines
+    lines=$(wc -l <"$TMP/err")
+    if [ "$rc" = 2 ] && [ ! -s "$TMP/out" ] && [ "$lines" = 1 ] && grep -q '^seq: ' "$TMP/err"; then
+        ok
+    else
+        bad "$name: expected status 2, no stdout, one line 'seq: ...'; got status $rc," \
+            "$(wc -c <"$TMP/out") bytes of stdout, $lines lines of stderr: $(head -c 300 "$TMP/err")"
+    fi
+}
+expect_usage_error "unknown option" --bogus
+expect_usage_error "unknown short option" -x
+expect_usage_error "--threads 0" --threads 0
+expect_usage_error "--threads abc" --threads abc
+expect_usage_error "--threads -2" --threads -2
+expect_usage_error "--threads missing value" --threads
+expect_usage_error "--seed -1" --seed -1
+expect_usage_error "--seed 2^64" --seed 18446744073709551616
+expect_usage_error "--seed abc" --seed abc
+expect_usage_error "two inputs" "$SCENES/head_on.in" "$SCENES/touching.in"
+expect_usage_error "missing input file" "$TMP/no-such-file.in"
+expect_usage_error "input is a directory" "$TMP"
+# --help: status 0, the usage on stdout, nothing on stderr, no simulation.
+run "$TMP/out" "$TMP/err" "$B/seq" --help
+if [ "$rc" = 0 ] && [ ! -s "$TMP/err" ] && head -n 1 "$TMP/out" | grep -q '^usage: .*--threads N.*--seed N.*--precise.*--timing.*INPUT'; then
+    ok
+else
+    bad "--help: status $rc, stdout: $(head -c 200 "$TMP/out"), stderr: $(head -c 200 "$TMP/err")"
+fi
+
+# ---------------------------------------------------------------------------------------------
+part "--timing"
+# json_field NAME FILE: the value of "NAME": in a one-line JSON object.
+json_field() {
+    sed -n 's/.*"'"$1"'": *"\{0,1\}\([^,"}]*\)"\{0,1\}[,}].*/\1/p' "$2"
+}
+# check_timing WHAT VARIANT THREADS N S: the stderr of the last run holds the timing line.
+check_timing() {
+    local what=$1 variant=$2 threads=$3 n=$4 s=$5 k problems=""
+    if [ "$(wc -l <"$TMP/err")" != 1 ]; then
+        bad "$what: --timing wrote $(wc -l <"$TMP/err") lines to stderr, expected 1"
+        return
+    fi
+    if [ "$variant" = seq ] && command -v python3 >/dev/null && ! python3 -c 'import json, sys; json.loads(sys.stdin.read())' <"$TMP/err" 2>/dev/null; then
+        problems+=" not valid JSON;"
+    fi
+    for k in variant threads n steps input_s sim_s output_s pair_tests candidates pair_collisions wall_collisions; do
+        [ -n "$(json_field "$k" "$TMP/err")" ] || problems+=" no key $k;"
+    done
+    [ "$(json_field variant "$TMP/err")" = "$variant" ] || problems+=" variant;"
+    [ "$(json_field threads "$TMP/err")" = "$threads" ] || problems+=" threads;"
+    [ "$(json_field n "$TMP/err")" = "$n" ] || problems+=" n;"
+    [ "$(json_field steps "$TMP/err")" = "$s" ] || problems+=" steps;"
+    # Every pair i < j is tested once per step by an all-pairs variant.
+    [ "$(json_field pair_tests "$TMP/err")" = $((s * n * (n - 1) / 2)) ] || problems+=" pair_tests != S*N*(N-1)/2;"
+    # The counters agree with the per-particle counts of the final block.
+    local pc wc
+    pc=$(awk '{ p += $7 } END { print p / 2 }' "$TMP/out")
+    wc=$(awk '{ w += $8 } END { print w + 0 }' "$TMP/out")
+    [ "$(json_field pair_collisions "$TMP/err")" = "$pc" ] || problems+=" pair_collisions != sum(pcoll)/2;"
+    [ "$(json_field wall_collisions "$TMP/err")" = "$wc" ] || problems+=" wall_collisions != sum(wcoll);"
+    if [ -z "$problems" ]; then ok; else bad "$what:$problems $(head -c 400 "$TMP/err")"; fi
+}
+printf '120 60 1 5\nperf\n' >"$TMP/timing.in"
+run "$TMP/out" "$TMP/err" "$B/seq" --timing "$TMP/timing.in"
+check_timing "seq --timing" seq 1 120 5
+run "$TMP/out" "$TMP/err" "$B/p1" --timing --threads 3 "$TMP/timing.in"
+check_timing "p1 --timing --threads 3" p1 3 120 5
+run "$TMP/out" "$TMP/err" "$B/p3" --timing --threads 2 "$TMP/timing.in"
+check_timing "p3 --timing --threads 2" p3 2 120 5
+# --threads overrides OMP_NUM_THREADS; OMP_NUM_THREADS applies without it; seq uses 1.
+run "$TMP/out" "$TMP/err" env OMP_NUM_THREADS=1 "$B/p2" --timing --threads 2 "$TMP/timing.in"
+check_timing "p2 OMP_NUM_THREADS=1 --threads 2" p2 2 120 5
+run "$TMP/out" "$TMP/err" env OMP_NUM_THREADS=3 "$B/p1d" --timing "$TMP/timing.in"
+check_timing "p1d OMP_NUM_THREADS=3" p1d 3 120 5
+run "$TMP/out" "$TMP/err" "$B/seq" --timing --threads 4 "$TMP/timing.in"
+check_timing "seq --threads 4 runs one thread" seq 1 120 5
+# No timing line without --timing (the other runs check an empty stderr).
+
+# ---------------------------------------------------------------------------------------------
+# Random scenes. Generated ones ("N L r S" and a mode, particles from --seed) move fast: speeds
+# between L/(8r) and L/4 per step. Slow ones list their particles, drawn by this awk script
+# with its own Lehmer generator (exact in doubles, so every awk draws the same scene):
+#   slow_scene N L r S MODE SEED VMAX [EVERY]: speeds up to VMAX per step on each axis;
+#   with EVERY > 1 only every EVERY-th particle is listed and the rest are generated.
+slow_scene() {
+    awk -v n="$1" -v L="$2" -v r="$3" -v S="$4" -v mode="$5" -v s="$6" -v vmax="$7" -v every="${8:-1}" '
+        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
+        function coord(  q) { q = r + rnd() * (L - 2 * r); return q > L - r ? L - r : q }
+        BEGIN {
+            print n, L, r, S; print mode
+            for (i = 0; i < n; i++) {
+                x = coord(); y = coord(); vx = vmax * (2 * rnd() - 1); vy = vmax * (2 * rnd() - 1)
+                if (i % every == 0) printf "%d %.17g %.17g %.17g %.17g\n", i, x, y, vx, vy
+            }
+        }'
+}
+# lattice_scene K SPACING S MODE SEED: K*K discs (r = 1) on a square lattice, velocities in
+# multiples of 1/4 up to 1: with SPACING 2 every neighbour touches (c == 0), so many contact
+# times are exactly equal and the tie-break decides.
+lattice_scene() {
+    awk -v k="$1" -v d="$2" -v S="$3" -v mode="$4" -v s="$5" '
+        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
+        BEGIN {
+            L = 2 + d * (k - 1) + 2; print k * k, L, 1, S; print mode
+            for (i = 0; i < k * k; i++)
+                printf "%d %.17g %.17g %.17g %.17g\n", i, 2 + d * (i % k), 2 + d * int(i / k), int(9 * rnd() - 4.5) / 4, int(9 * rnd() - 4.5) / 4
+        }'
+}
+
+# ---------------------------------------------------------------------------------------------
+part "invariants"
+# SPEC §7 on every step of print --precise runs of seq:
+#  * every line well-formed, in order; every coordinate finite and in [r, L-r];
+#  * kinetic energy sum |v|^2 equal to step 0's within eps*(32*C + 4*N), C the run's pair
+#    collisions: a wall bounce negates a component (exact) and the motion does not touch
+#    velocities, while one pair collision changes the energy by at most ~26 eps of the pair's
+#    energy, itself <= the total (the computed normal has |n|^2 = 1 + O(8u), giving
+#    2 du^2 (|n|^2 - 1) <= 32u KE_pair; rounding du, shared exactly by both partners, adds
+#    <= 16u KE_pair; the last additions <= 4u KE_pair; u = eps/2); awk's two sums of N positive
+#    terms add <= 2 N eps each. test_core.c checks the per-collision bound on 10^4 collisions;
+#  * sum of pcoll even and equal to 2 * pair_collisions, sum of wcoll = wall_collisions.
+check_invariants() {
+    local name=$1 input=$2
+    shift 2
+    run "$TMP/out" "$TMP/err" "$B/seq" --precise --timing "$@" "$input"
+    if [ "$rc" != 0 ] || [ "$(wc -l <"$TMP/err")" != 1 ]; then
+        bad "invariants $name: status $rc, stderr: $(head -c 300 "$TMP/err")"
+        return
+    fi
+    local n L r S C W
+    read -r n L r S <"$input"
+    C=$(json_field pair_collisions "$TMP/err")
+    W=$(json_field wall_collisions "$TMP/err")
+    if awk -v n="$n" -v L="$L" -v r="$r" -v S="$S" -v C="$C" -v W="$W" -v name="$name" '
+        function problem(what) { if (bad++ < 5) printf "    %s: line %d: %s\n", name, NR, what }
+        BEGIN { eps = 2 ^ -52; hi = L - r; num = "^-?[0-9]+(\\.[0-9]*)?(e[-+][0-9]+)?$" }
+        {
+            s = int((NR - 1) / n); i = (NR - 1) % n
+            if ($1 != s || $2 != i || NF != (s < S ? 6 : 8)) problem("expected step " s " particle " i ": " $0)
+            for (k = 3; k <= 6; k++) if ($k !~ num) problem("not a finite number: " $k)
+            if (!($3 >= r && $3 <= hi && $4 >= r && $4 <= hi)) problem("outside [r, L-r]: " $0)
+            e[s] += $5 * $5 + $6 * $6
+            if (s == S) { p += $7; w += $8 }
+        }
+        END {
+            if (NR != n * (S + 1)) problem("output has " NR " lines, expected " n * (S + 1))
+            tol = eps * (32 * C + 4 * n)
+            worst = 0
+            for (s = 1; s <= S; s++) {
+                d = e[s] - e[0]; d = d < 0 ? -d : d
+                rel = e[0] > 0 ? d / e[0] : d
+                if (rel > worst) worst = rel
+                if (rel > tol) problem("step " s ": kinetic energy " e[s] " vs " e[0] " (relative " rel " > " tol ")")
+            }
+            if (p % 2 != 0) problem("sum of pcoll " p " is odd")
+            if (p != 2 * C) problem("sum of pcoll " p " != 2 * pair_collisions " C)
+            if (w != W) problem("sum of wcoll " w " != wall_collisions " W)
+            exit (bad > 0)
+        }' "$TMP/out"; then
+        ok
+    else
+        bad "invariants $name (n=$n L=$L r=$r S=$S, $C pair and $W wall collisions)"
+    fi
+}
+
+# Fast (generated): dense, sparse, tiny box, 2r == L (a single column of centres).
+printf '600 100 1 8\nprint\n' >"$TMP/inv1.in"
+check_invariants "generated, dense fast" "$TMP/inv1.in" --seed 21
+printf '1500 150 1 4\nprint\n' >"$TMP/inv2.in"
+check_invariants "generated, dense fast, larger" "$TMP/inv2.in" --seed 22
+printf '300 5000 1 20\nprint\n' >"$TMP/inv3.in"
+check_invariants "generated, sparse, very fast" "$TMP/inv3.in" --seed 23
+printf '200 10 0.25 20\nprint\n' >"$TMP/inv4.in"
+check_invariants "generated, small box, overlapping" "$TMP/inv4.in" --seed 24
+printf '50 4 2 10\nprint\n' >"$TMP/inv5.in"
+check_invariants "generated, 2r == L" "$TMP/inv5.in" --seed 25
+# Slow (listed): dense with many collisions per step, sparse, and half generated half slow.
+slow_scene 800 80 1 30 print 31 0.5 >"$TMP/inv6.in"
+check_invariants "slow, dense" "$TMP/inv6.in"
+slow_scene 300 600 1 40 print 32 2 >"$TMP/inv7.in"
+check_invariants "slow, sparse" "$TMP/inv7.in"
+slow_scene 500 100 1 15 print 33 0.25 2 >"$TMP/inv8.in"
+check_invariants "half slow half fast" "$TMP/inv8.in" --seed 26
+lattice_scene 20 2 25 print 34 >"$TMP/inv9.in"
+check_invariants "touching lattice" "$TMP/inv9.in"
+
+# ---------------------------------------------------------------------------------------------
+part "variants = seq"
+# Every exact variant, at 1, 2, 3 and 4 threads, byte-identical (--precise) to seq on random
+# scenes. N in 200..2000 with few steps: p3 at 4 threads runs 16 threads on this 2-core machine.
+i=0
+add_gen() { # N L r S SEED
+    i=$((i + 1))
+    printf '%s %s %s %s\nperf\n' "$1" "$2" "$3" "$4" >"$TMP/x$i.in"
+    echo "--seed $5" >"$TMP/x$i.args"
+}
+add_slow() { # slow_scene arguments (mode perf)
+    i=$((i + 1))
+    slow_scene "$1" "$2" "$3" "$4" perf "$5" "$6" "${7:-1}" >"$TMP/x$i.in"
+    echo "--seed $5" >"$TMP/x$i.args"
+}
+add_lattice() { # K SPACING S SEED
+    i=$((i + 1))
+    lattice_scene "$1" "$2" "$3" perf "$4" >"$TMP/x$i.in"
+    : >"$TMP/x$i.args"
+}
+add_gen 200 100 1 3 1       # dense, fast
+add_gen 400 100 1 1 2
+add_gen 1000 200 1 1 3
+add_gen 2000 100 0.5 1 4    # very dense: most discs overlap
+add_gen 300 1000 1 1 5      # sparse, fast
+add_gen 300 10000 2 1 6     # sparse, crosses the box in a step
+add_gen 250 50 1 1 7
+add_gen 300 30 0.5 1 8
+add_gen 300 100 2 1 9       # r = 2: heavy overlap
+add_gen 200 12 1 2 10       # tiny box: walls everywhere
+add_gen 200 400 1 2 11
+add_slow 300 60 1 2 41 0.5  # slow, dense
+add_slow 400 100 1 1 42 0.3
+add_slow 300 400 1 1 43 1   # slow, sparse
+add_slow 1000 150 1 1 44 0.2
+add_slow 300 100 1 1 45 0.25 2   # half listed slow, half generated fast
+add_slow 400 250 1 1 46 0.5 3
+add_slow 200 20 1 2 47 0.5  # 200 discs in a 20 x 20 box: everything overlaps
+add_slow 300 50 1 1 50 4    # fast listed
+add_lattice 15 2 2 48       # 225 touching discs, exact ties
+add_lattice 15 2.5 1 49     # 225 discs with gaps of 1/2
+n_cross=$i
+for k in $(seq 1 "$n_cross"); do
+    read -r -a args <"$TMP/x$k.args" || args=()
+    if ! run_ok "seq x$k" "$B/seq" --precise "${args[@]}" "$TMP/x$k.in"; then
+        continue
+    fi
+    mv "$TMP/out" "$TMP/ref"
+    for v in "${VARIANTS[@]}"; do
+        [ "$v" = seq ] && continue
+        for t in 1 2 3 4; do
+            # Parallel runs oversubscribe the 2 cores (p3: up to 16 threads) and, with the
+            # default policy, spinning waiters starve each other: several times slower, and
+            # far more when other jobs share the machine. Passive waiting keeps the time down;
+            # the output must not depend on it either. (The hand scenes and --timing checks
+            # above run parallel variants with the default policy.)
+            policy=()
+            [ "$t" -ge 2 ] && policy=(env OMP_WAIT_POLICY=passive)
+            if run_ok "$v --threads $t x$k" "${policy[@]}" "$B/$v" --threads "$t" --precise "${args[@]}" "$TMP/x$k.in"; then
+                if cmp -s "$TMP/out" "$TMP/ref"; then
+                    ok
+                else
+                    bad "$v --threads $t differs from seq on random scene x$k ($(head -n 1 "$TMP/x$k.in"), ${args[*]:-listed}): $(cmp "$TMP/out" "$TMP/ref" 2>&1 | head -1)"
+                fi
+            fi
+        done
+    done
+done
+part
+
+echo "$pass passed, $fail failed"
+[ "$fail" = 0 ]
