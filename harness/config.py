@@ -10,6 +10,11 @@ A config names the experiment, the variants and builds, a base scene whose keys 
     measure: {warmup: 1, runs: 3, timeout_s: 600}
     validate: true
 
+The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
+settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
+max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
+`scene: {generator: [A, B, ...]}` (several named scenes as one more axis).
+
 Every mistake is a `HarnessError` naming the file, the key and what was expected.
 """
 
@@ -33,16 +38,27 @@ INEXACT_VARIANTS = frozenset({"relative"})
 BUILDS = ("f64", "f32", "f128", "textbook", "report")
 DEFAULT_BUILD = "f64"
 BASELINE_VARIANT = "seq"
-BASELINE_CHOICES = ("f64", "same")  # compare with build/seq, or with seq of the cell's build
+# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
+BASELINE_CHOICES = ("f64", "same", "f128")
+TRUTH_BUILD = "f128"
 
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
-    "validate", "keep_output", "exclude", "binaries",
+    "validate", "keep_output", "exclude", "binaries", "checks", "accuracy",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
 MEASURE_KEYS = ("warmup", "runs", "timeout_s")
 VALIDATE_KEYS = ("max_n", "baseline")
+# The accuracy and stability checks a config may turn on (harness/invariants.py and
+# harness/accuracy.py); `accuracy:` holds their settings.
+CHECK_NAMES = ("invariants", "shadow", "divergence")
+ACCURACY_KEYS = ("truth", "shadow_steps", "energy_ulps", "shadow_ulps", "thread_counts", "max_n")
+DEFAULT_TRUTH = "grid"  # build/grid-f128: byte-identical to seq-f128, and far faster
+DEFAULT_SHADOW_STEPS = 20
+DEFAULT_ENERGY_ULPS = 32.0
+DEFAULT_SHADOW_ULPS = 64.0
+DEFAULT_THREAD_COUNTS = (1,)
 COMBINE_MODES = ("product", "zip")
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed")
 EXCLUDE_OPS = {
@@ -77,6 +93,39 @@ class Validation:
 
     def applies_to(self, n: int) -> bool:
         return self.enabled and (self.max_n is None or n <= self.max_n)
+
+    @property
+    def baseline_build(self) -> str | None:
+        """The build of seq the cells are compared with; None: each cell's own build."""
+        return None if self.baseline == "same" else self.baseline
+
+
+@dataclass(frozen=True)
+class Checks:
+    """The accuracy and stability checks run on each cell (`checks:` and `accuracy:`).
+
+    The truth is build/<truth>-f128. `shadow_steps` states of the cell's print-mode run are
+    each stepped once by the cell's binary and by the truth; `energy_ulps` and `shadow_ulps`
+    are the k of the bounds in harness/invariants.py and harness/accuracy.py; the cell's
+    print-mode output must equal its runs at each of `thread_counts`.
+    """
+
+    names: tuple[str, ...] = ()
+    truth: str = DEFAULT_TRUTH
+    shadow_steps: int = DEFAULT_SHADOW_STEPS
+    energy_ulps: float = DEFAULT_ENERGY_ULPS
+    shadow_ulps: float = DEFAULT_SHADOW_ULPS
+    thread_counts: tuple[int, ...] = DEFAULT_THREAD_COUNTS
+    max_n: int | None = None
+
+    def applies_to(self, n: int) -> bool:
+        return bool(self.names) and (self.max_n is None or n <= self.max_n)
+
+    def key(self) -> dict[str, object]:
+        """What the checks' results depend on (part of a checked cell's id)."""
+        return {"names": list(self.names), "truth": self.truth,
+                "shadow_steps": self.shadow_steps, "energy_ulps": self.energy_ulps,
+                "shadow_ulps": self.shadow_ulps, "thread_counts": list(self.thread_counts)}
 
 
 @dataclass(frozen=True)
@@ -128,6 +177,7 @@ class Config:
     keep_output: bool
     exclude: tuple[ExcludeRule, ...]
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
+    checks: Checks = Checks()
 
     @property
     def directory(self) -> Path:
@@ -140,7 +190,8 @@ class Config:
         """Whether the cell must match its baseline byte for byte (SPEC section 6)."""
         if variant in INEXACT_VARIANTS:
             return False
-        return self.validate.baseline == "same" or build == DEFAULT_BUILD
+        baseline = self.validate.baseline_build
+        return baseline is None or build == baseline
 
 
 # --- value kinds --------------------------------------------------------------------------
@@ -270,6 +321,8 @@ def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     result.setdefault("keep_output", False)
     result.setdefault("exclude", [])
     result.setdefault("binaries", {})
+    result.setdefault("checks", [])
+    result.setdefault("accuracy", {})
     return result
 
 
@@ -306,6 +359,7 @@ def parse_config(raw: Mapping[str, object], source: Path) -> Config:
         keep_output=bool(_scalar(raw, "keep_output", "keep_output", BOOLEAN, source)),
         exclude=_parse_exclude(raw["exclude"], source),
         binaries=binaries,
+        checks=_parse_checks(raw["checks"], raw["accuracy"], source),
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config
@@ -370,15 +424,28 @@ def _parse_scene(value: object, source: Path) -> SceneSpec:
     if "generator" in raw and "file" in raw:
         raise config_error(source, "scene.file", "either 'generator' or 'file', not both",
                            raw["file"])
+    generators: tuple[str, ...] = ()
     if "generator" in raw:
-        name = raw.pop("generator")
-        if name not in scenes.REGISTRY:
-            raise config_error(source, "scene.generator",
-                               "one of " + ", ".join(scenes.REGISTRY.names()), name)
-        info = scenes.REGISTRY.get(str(name))
-        kinds = {k: _generator_kind(k, d) for k, d in info.defaults.items()}
+        value = raw.pop("generator")
+        names = value if isinstance(value, list) else [value]
+        expected = "one of " + ", ".join(scenes.REGISTRY.names())
+        if not names:
+            raise config_error(source, "scene.generator", f"{expected}, or a non-empty list",
+                               value)
+        for name in names:
+            if not isinstance(name, str) or name not in scenes.REGISTRY:
+                raise config_error(source, "scene.generator", expected, name)
+        if len(set(names)) != len(names):
+            raise config_error(source, "scene.generator", "names without repeats", value)
+        infos = [scenes.REGISTRY.get(str(name)) for name in names]
+        # With several generators, a key must be one every one of them takes.
+        kinds = {k: _generator_kind(k, d) for k, d in infos[0].defaults.items()
+                 if all(k in info.defaults for info in infos[1:])}
         kinds["seed"] = SEED
-        kind_name, generator_name = "generator", str(name)
+        kind_name = "generator"
+        generator_name = str(names[0]) if not isinstance(value, list) else None
+        if isinstance(value, list):
+            generators = tuple(str(n) for n in names)
     elif "file" in raw:
         kinds = {"file": STRING, "seed": SEED}
         kind_name, generator_name = "file", None
@@ -391,8 +458,11 @@ def _parse_scene(value: object, source: Path) -> SceneSpec:
         kind_name, generator_name = "random", None
     raw.setdefault("seed", scenes.DEFAULT_SEED)
     _reject_unknown(raw, tuple(kinds), "scene.", source)
-    axes = []
+    axes: list[tuple[str, tuple[object, ...]]] = []
     listed = set()
+    if generators:  # a list of generators is one more axis
+        axes.append(("generator", generators))
+        listed.add("generator")
     for key, values in raw.items():
         parsed, is_list = _axis(values, f"scene.{key}", kinds[key], source)
         if key == "file":
@@ -444,15 +514,49 @@ def _parse_validate(value: object, source: Path) -> Validation:
     if isinstance(value, bool):
         return Validation(enabled=value)
     if not isinstance(value, dict):
-        raise config_error(source, "validate", "true, false or {max_n: N, baseline: f64|same}",
-                           value)
+        raise config_error(source, "validate",
+                           "true, false or {max_n: N, baseline: f64|same|f128}", value)
     _reject_unknown(value, VALIDATE_KEYS, "validate.", source)
     max_n = None
     if value.get("max_n") is not None:
         max_n = cast(int, _scalar(value, "max_n", "validate.max_n", POSITIVE_INT, source))
     baseline = _check(value.get("baseline", "f64"), "validate.baseline",
-                      Kind("one of f64, same", _choice(BASELINE_CHOICES)), source)
+                      Kind("one of " + ", ".join(BASELINE_CHOICES), _choice(BASELINE_CHOICES)),
+                      source)
     return Validation(True, max_n, str(baseline))
+
+
+def _parse_checks(names: object, options: object, source: Path) -> Checks:
+    expected = "a list of " + ", ".join(CHECK_NAMES)
+    items = [names] if isinstance(names, str) else names
+    if not isinstance(items, list):
+        raise config_error(source, "checks", expected, names)
+    for item in items:
+        if item not in CHECK_NAMES:
+            raise config_error(source, "checks", "names among " + ", ".join(CHECK_NAMES), item)
+    if len(set(items)) != len(items):
+        raise config_error(source, "checks", "names without repeats", names)
+    raw = _mapping(options, "accuracy", source)
+    _reject_unknown(raw, ACCURACY_KEYS, "accuracy.", source)
+    if raw and not items:
+        raise config_error(source, "checks", "a non-empty list of " + ", ".join(CHECK_NAMES)
+                           + " where 'accuracy' is set", items)
+    truth = _check(raw.get("truth", DEFAULT_TRUTH), "accuracy.truth",
+                   Kind("one of " + ", ".join(VARIANTS), _choice(VARIANTS)), source)
+    steps = _check(raw.get("shadow_steps", DEFAULT_SHADOW_STEPS), "accuracy.shadow_steps",
+                   NON_NEGATIVE_INT, source)
+    energy = _check(raw.get("energy_ulps", DEFAULT_ENERGY_ULPS), "accuracy.energy_ulps",
+                    POSITIVE_REAL, source)
+    shadow = _check(raw.get("shadow_ulps", DEFAULT_SHADOW_ULPS), "accuracy.shadow_ulps",
+                    POSITIVE_REAL, source)
+    counts, _ = _axis(raw.get("thread_counts", list(DEFAULT_THREAD_COUNTS)),
+                      "accuracy.thread_counts", POSITIVE_INT, source)
+    max_n = None
+    if raw.get("max_n") is not None:
+        max_n = cast(int, _scalar(raw, "max_n", "accuracy.max_n", POSITIVE_INT, source))
+    return Checks(tuple(str(i) for i in items), str(truth), cast(int, steps),
+                  float(cast(float, energy)), float(cast(float, shadow)),
+                  tuple(cast(int, c) for c in counts), max_n)
 
 
 def _parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:

@@ -29,7 +29,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
-from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter, NullLocator
 from PIL import Image, ImageDraw, ImageFont
 
 from harness import tables
@@ -405,7 +405,7 @@ def _draw_ideal_threads(ax: Axes, rows: pd.DataFrame, color: str) -> bool:
 
 def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
     """A dashed N² line through the slowest series' smallest-N cell, for comparing slopes."""
-    ok = df[(df["status"] == tables.OK) & (df["wall_median_s"] > 0)]
+    ok = df[(df["status"] == tables.OK) & (df["wall_median_s"] > 0) & (df["n"] > 0)]
     if ok["n"].nunique() < 2:
         return False
     anchor = ok.sort_values(["n", "wall_median_s"], ascending=[True, False]).iloc[0]
@@ -515,6 +515,9 @@ def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
 # --- error against run time ---------------------------------------------------------------
 
 
+ERROR_PAD = 10.0  # around a single error level, the y axis spans this factor either way
+
+
 def error_floor(errors: pd.Series) -> float:
     """Where zero errors are drawn on a log axis: a decade below the smallest nonzero error
     (or 1e-17, below double rounding relative to L, when every error is zero)."""
@@ -524,22 +527,23 @@ def error_floor(errors: pd.Series) -> float:
     return 10.0 ** (math.floor(math.log10(positive.min())) - 1)
 
 
-def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
+                   error: str = "max_pos_err", ylabel: str | None = None) -> list[Path]:
     """Time against deviation from the baseline per variant and build, Pareto front marked.
 
     Colors tell variants apart and hollow marker shapes builds; the cells on the Pareto front
     are ringed, joined and named. Exact cells (zero error) sit on a dotted floor line a decade
     below the smallest nonzero error. Pass the cells of one scene: fronts across scenes mean
-    nothing.
+    nothing. `error` names the error column (e.g. the shadow-step error `shadow_pos_err`).
     """
     rows = df[
         df["status"].isin(tables.TIMED_STATUSES)
         & df["wall_median_s"].notna()
-        & np.isfinite(df["max_pos_err"])  # an infinite error (diverged) has no place on it
+        & np.isfinite(df[error])  # an infinite error (diverged) has no place on it
     ]
     rows = tables.sort_cells(rows, ["variant", "build", "threads"])
-    floor = error_floor(rows["max_pos_err"])
-    shown = rows["max_pos_err"].where(rows["max_pos_err"] > 0, floor)
+    floor = error_floor(rows[error])
+    shown = rows[error].where(rows[error] > 0, floor)
     times = rows["wall_median_s"]
     builds = list(dict.fromkeys(rows["build"]))
     markers = {b: BUILD_MARKERS[i % len(BUILD_MARKERS)] for i, b in enumerate(builds)}
@@ -551,7 +555,7 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
                 color=variant_color(str(row["variant"])), mec="black", mew=0.6)
         if row["status"] == tables.INVALID:
             ax.plot(times.iloc[i], shown.iloc[i], "x", color="black", ms=9, mew=2)
-    front = tables.pareto_mask(times, rows["max_pos_err"]).to_numpy(dtype=bool)
+    front = tables.pareto_mask(times, rows[error]).to_numpy(dtype=bool)
     order = np.argsort(times.to_numpy(dtype=float)[front])
     front_t = times.to_numpy(dtype=float)[front][order]
     front_e = shown.to_numpy(dtype=float)[front][order]
@@ -564,15 +568,17 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
             text += f" ({tables.format_value('threads', row['threads'])} threads)"
         ax.annotate(text, (times.iloc[i], shown.iloc[i]), xytext=(8, 6),
                     textcoords="offset points", fontsize="small")
-    has_zero = bool((rows["max_pos_err"] == 0).any())
+    has_zero = bool((rows[error] == 0).any())
     if has_zero:
         ax.axhline(floor, ls=":", color="gray")
     if _wants_log(times):
         log_axis(ax, "x", times)
+    if len(shown) and shown.min() == shown.max():  # one error level: give the log axis a decade
+        ax.set_ylim(float(shown.min()) / ERROR_PAD, float(shown.max()) * ERROR_PAD)
     log_axis(ax, "y", shown)
     ax.margins(x=0.08, y=0.12)
     ax.set_xlabel(TIME_LABEL)
-    ax.set_ylabel("max position error vs baseline [÷ L]")
+    ax.set_ylabel(ylabel or "max position error vs baseline [÷ L]")
     set_title(ax, title or "Error against run time")
     ax.grid(True, which="major", alpha=0.3)
     handles = [
@@ -595,6 +601,84 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
                               label="invalid output"))
     ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
               borderaxespad=0)
+    return save_figure(fig, out)
+
+
+# --- divergence curves --------------------------------------------------------------------
+
+DIVERGENCE_REFERENCES: dict[str, str] = {
+    "f64": "against seq in double", "truth": "against the truth (__float128)",
+}
+DIVERGENCE_FIGSIZE = (10.0, 4.5)
+DIVERGENCE_MARGINS: dict[str, float] = {**MARGINS, "left": 0.08, "right": 0.74,
+                                        "bottom": 0.12, "top": 0.86}
+BUILD_LINESTYLES: tuple[str, ...] = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
+
+
+def _identical_curves(div: pd.DataFrame) -> list[tuple[str, str, str]]:
+    """(variant, build, label) per group of variant/builds whose curves are identical against
+    every reference: one line stands for the group, named after its first member."""
+    ordered = tables.sort_cells(div, ["variant", "build", "reference", "step"])
+    groups: dict[tuple[float, ...], list[tuple[str, str]]] = {}
+    for (variant, build), rows in ordered.groupby(["variant", "build"], sort=False):
+        key = tuple(np.nan_to_num(rows["max_pos_dev"].to_numpy(dtype=float), nan=-1.0))
+        groups.setdefault((*key, len(rows)), []).append((str(variant), str(build)))
+    result = []
+    for members in groups.values():
+        names = [f"{v}/{b}" for v, b in members]
+        label = names[0]
+        if len(names) == 2:
+            label += f" = {names[1]}"
+        elif len(names) > 2:
+            label += f" and {len(names) - 1} identical"
+        result.append((*members[0], label))
+    return result
+
+
+def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
+                   title: str | None = None) -> list[Path]:
+    """The largest position deviation (÷ L) at each printed step, one line per variant/build
+    (identical curves drawn once), one panel per reference (seq in double; the __float128
+    truth). Pass one scene's rows of divergence.csv. Zero deviations sit on a dotted floor a
+    decade below the smallest nonzero one; a dashed line marks a deviation of one radius."""
+    references = [r for r in DIVERGENCE_REFERENCES if (div["reference"] == r).any()]
+    fig = Figure(figsize=DIVERGENCE_FIGSIZE, dpi=DPI)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(**DIVERGENCE_MARGINS, wspace=0.25)
+    axes = fig.subplots(1, max(1, len(references)), sharey=True, squeeze=False)[0]
+    values = div["max_pos_dev"].to_numpy(dtype=float)
+    finite = values[np.isfinite(values)]
+    floor = error_floor(pd.Series(finite))
+    top = max(float(finite.max()) if len(finite) else 1.0, radius / box) * 3
+    builds = list(dict.fromkeys(tables.sort_cells(div, ["build"])["build"]))
+    styles = {b: BUILD_LINESTYLES[i % len(BUILD_LINESTYLES)] for i, b in enumerate(builds)}
+    curves = _identical_curves(div)
+    for ax, reference in zip(axes, references, strict=False):
+        rows = div[div["reference"] == reference]
+        for variant, build, label in curves:
+            curve = rows[(rows["variant"] == variant) & (rows["build"] == build)]
+            curve = curve.sort_values("step")
+            y = curve["max_pos_dev"].to_numpy(dtype=float)
+            y = np.where(np.isfinite(y), np.maximum(y, floor), top)
+            ax.plot(curve["step"], y, ls=styles[build], marker="o", ms=3, lw=1.5, alpha=0.8,
+                    color=variant_color(variant), label=label)
+        ax.axhline(radius / box, ls="--", color="gray", lw=1)
+        ax.axhline(floor, ls=":", color="gray", lw=1)
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FuncFormatter(_plain_tick))
+        ax.set_ylim(floor / 3, top)
+        ax.set_xlabel("step")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_title(DIVERGENCE_REFERENCES[reference], fontsize="medium")
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0].set_ylabel("max position deviation [÷ L]")
+    if title:
+        fig.suptitle(textwrap.fill(title, TITLE_CHARS + 30), fontsize="large", y=0.99)
+    handles, _labels = axes[0].get_legend_handles_labels()
+    handles += [Line2D([], [], ls="--", color="gray", label="one radius (r / L)"),
+                Line2D([], [], ls=":", color="gray", label=f"zero (drawn at {floor:.0e})")]
+    fig.legend(handles=handles, fontsize="small", loc="upper left",
+               bbox_to_anchor=(DIVERGENCE_MARGINS["right"] + 0.01, DIVERGENCE_MARGINS["top"]))
     return save_figure(fig, out)
 
 

@@ -42,6 +42,22 @@ EXTRA_COLUMNS = (
     "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",
     "validated", "exact", "baseline_sha256", "input_sha256", "note",
 )
+# The accuracy and stability checks (`checks:` in a config): after the columns above, and only
+# in a results.csv where some cell was checked. chk_* are True/False, or empty where a check
+# does not apply (chk_exact for relative, chk_shadow without `shadow`).
+CHECK_COLUMNS = (
+    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
+    "chk_exact", "chk_shadow", "energy_drift", "energy_drift_max", "energy_bound",
+    "pair_collisions_run", "box_excess", "shadow_states", "shadow_pos_err",
+    "shadow_pos_err_max", "shadow_vel_err", "shadow_vel_err_max", "shadow_set_diff",
+    "shadow_bound", "shadow_err_r", "div_f64_max", "div_truth_max", "div_truth_final",
+    "div_steps_to_r", "checks_failed", "checks_note", "checks_s",
+)
+# divergence.csv beside results.csv: one row per checked cell, reference and printed step.
+DIVERGENCE_COLUMNS = (
+    "cell_id", "variant", "build", "scene", "n", "L", "r", "steps", "seed", "threads",
+    "reference", "step", "max_pos_dev",
+)
 TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair_collisions",
                "wall_collisions")
 
@@ -204,7 +220,7 @@ def read_record(path: Path, expected_id: str) -> Record | None:
 
 def csv_row(record: Mapping[str, object], experiment: str, title: str) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS):
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *CHECK_COLUMNS):
         row[column] = record.get(column)
     return row
 
@@ -218,7 +234,12 @@ def format_cell(value: object) -> str:
 
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
-    columns = (*CSV_COLUMNS, *EXTRA_COLUMNS)
+    """results.csv text: the contract and extra columns, then the check columns when some row
+    has a check value."""
+    rows = list(rows)
+    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS)
+    if any(row.get(c) is not None for row in rows for c in CHECK_COLUMNS):
+        columns = (*columns, *CHECK_COLUMNS)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(columns)
@@ -229,3 +250,30 @@ def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
 
 def write_results_csv(path: Path, rows: Iterable[Mapping[str, object]]) -> None:
     atomic_write_text(path, render_csv(rows))
+
+
+def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
+    """The divergence.csv rows of one cell record: its curve against each reference."""
+    curves = record.get("divergence")
+    if not isinstance(curves, dict):
+        return []
+    base = {c: record.get(c) for c in DIVERGENCE_COLUMNS[:10]}
+    rows = []
+    for reference, curve in curves.items():
+        for step, value in enumerate(curve if isinstance(curve, list) else []):
+            rows.append({**base, "reference": reference, "step": step, "max_pos_dev": value})
+    return rows
+
+
+def write_divergence_csv(path: Path, records: Iterable[Mapping[str, object]]) -> None:
+    """divergence.csv from the records that have curves; removed when none has."""
+    rows = [row for record in records for row in divergence_rows(record)]
+    if not rows:
+        path.unlink(missing_ok=True)
+        return
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(DIVERGENCE_COLUMNS)
+    for row in rows:
+        writer.writerow([format_cell(row.get(c)) for c in DIVERGENCE_COLUMNS])
+    atomic_write_text(path, buffer.getvalue())

@@ -5,7 +5,8 @@ A cell is one variant x build x scene point x thread count. Measuring a cell:
   2. when validating, compare that output with `build/seq --precise` on the same input;
   3. hyperfine (`-N --warmup W --runs R --export-json`), killed as a process group if it runs
      past (warmup + runs) timeouts;
-  4. the record `cells/<cell_id>.json`, then results.csv is rebuilt.
+  4. with `checks:`, the accuracy and stability checks on a print-mode run (run_checks);
+  5. the record `cells/<cell_id>.json`, then results.csv (and divergence.csv) is rebuilt.
 A cell whose id (binary hash, input, seed, threads, settings) has a record is not measured
 again unless forced, so an interrupted grid resumes where it stopped.
 """
@@ -13,6 +14,7 @@ again unless forced, so an interrupted grid resumes where it stopped.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime
 import os
 import shlex
@@ -26,10 +28,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO, cast
 
-from harness import envinfo, results, scenes, validate
+from harness import accuracy, envinfo, invariants, results, scenes, validate
 from harness.config import (
     BASELINE_VARIANT,
     DEFAULT_BUILD,
+    INEXACT_VARIANTS,
+    TRUTH_BUILD,
     Config,
     expand_points,
 )
@@ -40,6 +44,7 @@ QUICK_MAX_STEPS = 5
 QUICK_SUFFIX = "-quick"
 BUILD_DIR = "build"
 CACHE_DIR = ".cache"
+DIVERGENCE_CSV = "divergence.csv"
 HYPERFINE_SLACK_S = 30.0
 STDERR_TAIL_CHARS = 2000
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
@@ -56,6 +61,7 @@ class Cell:
     threads: int
     validate: bool  # compared with the baseline
     exact: bool  # must match it byte for byte
+    checked: bool = False  # the accuracy and stability checks run on it
 
     @property
     def variant_label(self) -> str:
@@ -90,17 +96,21 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
     params = {k: v for k, v in point.items() if k != "threads"}
     seed = cast(int, params.pop("seed"))
     if quick:
+        defaults: Mapping[str, object] = {}
+        if config.scene.kind == "generator":  # a generator's own default counts as given
+            name = str(params.get("generator", config.scene.generator))
+            defaults = scenes.REGISTRY.get(name).defaults
         for key, limit in (("n", QUICK_MAX_N), ("steps", QUICK_MAX_STEPS)):
-            value = params.get(key)
-            if isinstance(value, int):
+            value = params.get(key, defaults.get(key))
+            if isinstance(value, int) and not isinstance(value, bool):
                 params[key] = min(value, limit)
     kind = config.scene.kind
     if kind == "file":
         return scenes.file_point(Path(str(params["file"])), seed)
     if kind == "generator":
-        assert config.scene.generator is not None
+        name = str(params.pop("generator", config.scene.generator))
         try:
-            return scenes.generated_point(config.scene.generator, params, seed)
+            return scenes.generated_point(name, params, seed)
         except HarnessError as exc:
             raise HarnessError(f"{config.source}: key 'scene': {exc}") from None
     n, L, r = cast(int, params["n"]), cast(float, params["L"]), cast(float, params["r"])
@@ -130,7 +140,7 @@ def plan_cells(config: Config, quick: bool = False) -> Plan:
                     continue
                 seen.add(key)
                 cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
-                            config.is_exact(variant, build))
+                            config.is_exact(variant, build), config.checks.applies_to(scene.n))
                 rules = config.exclude
                 (excluded if any(r.matches(cell.fields()) for r in rules) else cells).append(cell)
     return Plan(config, quick, tuple(cells), tuple(excluded))
@@ -145,8 +155,18 @@ def binary_path(config: Config, repo_root: Path, variant: str, build: str) -> Pa
 
 
 def baseline_path(config: Config, repo_root: Path, build: str) -> Path:
-    baseline_build = DEFAULT_BUILD if config.validate.baseline == "f64" else build
+    baseline_build = config.validate.baseline_build or build
     return binary_path(config, repo_root, BASELINE_VARIANT, baseline_build)
+
+
+def check_references(config: Config, repo_root: Path, build: str) -> dict[str, Path]:
+    """The binaries the checks of a cell of `build` compare with: the truth (build/<truth>-f128),
+    seq f64 (divergence) and seq of the cell's build (the exact-variant check)."""
+    return {
+        "truth": binary_path(config, repo_root, config.checks.truth, TRUTH_BUILD),
+        "f64": binary_path(config, repo_root, BASELINE_VARIANT, DEFAULT_BUILD),
+        "seq": binary_path(config, repo_root, BASELINE_VARIANT, build),
+    }
 
 
 def needed_binaries(plan: Plan, repo_root: Path) -> list[Path]:
@@ -157,6 +177,9 @@ def needed_binaries(plan: Plan, repo_root: Path) -> list[Path]:
             needed[binary_path(plan.config, repo_root, cell.variant, cell.build)] = None
         if cell.validate:
             needed[baseline_path(plan.config, repo_root, cell.build)] = None
+        if cell.checked:
+            for path in check_references(plan.config, repo_root, cell.build).values():
+                needed[path] = None
     return list(needed)
 
 
@@ -262,6 +285,7 @@ class Experiment:
     log: TextIO
     hashes: dict[Path, str | None] = field(default_factory=dict)
     baselines: dict[str, str | None] = field(default_factory=dict)  # key -> output; None: failed
+    prints: dict[str, str | None] = field(default_factory=dict)  # print-mode reference outputs
     records: dict[str, results.Record] = field(default_factory=dict)
     cores: int = field(default_factory=envinfo.available_cores)
 
@@ -292,6 +316,9 @@ class Experiment:
             return None
         return self.sha(baseline_path(self.config, self.options.repo_root, cell.build))
 
+    def check_references(self, cell: Cell) -> dict[str, Path]:
+        return check_references(self.config, self.options.repo_root, cell.build)
+
     def cell_key(self, cell: Cell) -> dict[str, object] | None:
         """Everything a measurement depends on; None while a binary is missing."""
         binary_sha = self.sha(self.binary(cell))
@@ -299,7 +326,13 @@ class Experiment:
         if binary_sha is None or (cell.validate and baseline_sha is None):
             return None
         measure = self.config.measure
-        return {
+        extra: dict[str, object] = {}
+        if cell.checked:  # only then: the ids of unchecked cells stay what they were
+            shas = {name: self.sha(path) for name, path in self.check_references(cell).items()}
+            if None in shas.values():
+                return None
+            extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
+        return {**extra,
             "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
             "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
             "threads": cell.threads, "warmup": measure.warmup, "runs": measure.runs,
@@ -334,12 +367,16 @@ class Experiment:
 
     def write_csv(self) -> None:
         rows = []
+        records = []
         for cell in self.plan.cells:
             cid = self.cell_id(cell)
             if cid is not None and cid in self.records:
+                records.append(self.records[cid])
                 rows.append(results.csv_row(self.records[cid], self.config.name,
                                             self.config.title))
         results.write_results_csv(self.directory / "results.csv", rows)
+        if self.config.checks.names:
+            results.write_divergence_csv(self.directory / DIVERGENCE_CSV, records)
 
     # --- measuring ---
 
@@ -430,6 +467,8 @@ class Experiment:
                     status = self.validate_cell(cell, output, record)
                 if config.keep_output:
                     os.replace(output_tmp, keep)
+            if status in ("ok", "invalid") and cell.checked:
+                self.run_checks(cell, record)
             if status in ("ok", "invalid"):
                 status, exit_code = self.run_hyperfine(command, env, hyperfine_json, record,
                                                        status, exit_code)
@@ -465,6 +504,128 @@ class Experiment:
             record["note"] = "output differs from the sequential baseline"
             return "invalid"
         return "ok"
+
+    # --- the accuracy and stability checks ---
+
+    def print_output(self, binary: Path, scene: scenes.ScenePoint, threads: int,
+                     cache: bool) -> str | None:
+        """`binary --precise` on the print-mode form of `scene`; with `cache`, kept under
+        results/.cache/prints/ (references: seq, the truth), keyed by binary and input."""
+        key = results.cell_id({"binary_sha256": self.sha(binary), "threads": threads,
+                               "input_sha256": scene.input_sha256, "seed": scene.seed})
+        path = self.options.results_root / CACHE_DIR / "prints" / f"{key}.txt"
+        if cache and key in self.prints:
+            return self.prints[key]
+        if cache and path.is_file():
+            self.prints[key] = path.read_text()
+            return self.prints[key]
+        argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
+                str(self.input_file(scene))]
+        tmp = results.temp_path(path)
+        try:
+            done = run_process(argv, self.environment(threads), self.config.measure.timeout_s,
+                               tmp)
+            text = tmp.read_text() if done.returncode == 0 else None
+            if cache and text is not None:
+                os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
+        if cache:
+            self.prints[key] = text
+        return text
+
+    def run_checks(self, cell: Cell, record: results.Record) -> None:
+        """The configured checks on the cell's print-mode run; values into the record."""
+        started = time.monotonic()
+        checks = self.config.checks
+        scene = cell.scene
+        printed = dataclasses.replace(scene, text=accuracy.with_mode(scene.text, "print"),
+                                      mode="print")
+        binary = self.binary(cell)
+        refs = self.check_references(cell)
+        values: dict[str, object] = {}
+        failed: list[str] = []
+        notes: list[str] = []
+        text = self.print_output(binary, printed, cell.threads, cache=False)
+        output = None
+        if text is not None:
+            try:
+                output = validate.parse_output(text)
+            except validate.OutputFormatError as exc:
+                notes.append(f"print-mode output unreadable: {exc}")
+        else:
+            notes.append("print-mode run failed")
+        if output is None:
+            failed.append("run")
+        if output is not None and "invariants" in checks.names:
+            inv = invariants.check(output, scene.L, scene.r, cell.build, checks.energy_ulps)
+            values.update({
+                "chk_finite": inv.finite, "chk_in_box": inv.in_box, "chk_energy": inv.energy,
+                "chk_pcoll_even": inv.pcoll_even, "energy_drift": inv.energy_drift,
+                "energy_drift_max": inv.energy_drift_max, "energy_bound": inv.energy_bound,
+                "pair_collisions_run": inv.pair_collisions, "box_excess": inv.box_excess,
+            })
+            failed += inv.failures()
+            others = [t for t in checks.thread_counts if t != cell.threads]
+            same = all(self.print_output(binary, printed, t, cache=False) == text for t in others)
+            values["chk_threads"] = same
+            if not same:
+                failed.append("threads")
+            if cell.variant not in INEXACT_VARIANTS and self.config.custom_binary(
+                    cell.variant) is None:
+                exact = binary == refs["seq"] or self.print_output(
+                    refs["seq"], printed, 1, cache=True) == text
+                values["chk_exact"] = exact
+                if not exact:
+                    failed.append("exact")
+        if output is not None and "divergence" in checks.names:
+            curves: dict[str, list[float]] = {}
+            for name in ("f64", "truth"):
+                reference = self.print_output(refs[name], printed, 1, cache=True)
+                if reference is None:
+                    notes.append(f"{name} reference run failed")
+                    continue
+                curve = accuracy.divergence_curve(output, validate.parse_output(reference),
+                                                  scene.L)
+                if len(curve):
+                    curves[name] = [float(v) for v in curve]
+                    values[f"div_{name}_max"] = float(curve.max())
+            if "truth" in curves:
+                values["div_truth_final"] = curves["truth"][-1]
+                values["div_steps_to_r"] = accuracy.first_step_at(curves["truth"],
+                                                                  scene.r / scene.L)
+            record["divergence"] = curves
+        if output is not None and "shadow" in checks.names:
+            timeout = self.config.measure.timeout_s
+
+            def runner(path: Path, text: str, threads: int) -> str | None:
+                return accuracy.run_binary(path, text, threads, timeout)
+
+            truth_text = self.print_output(refs["truth"], printed, 1, cache=True)
+            initial = None
+            if truth_text is not None:
+                with contextlib.suppress(validate.OutputFormatError):
+                    initial = validate.parse_output(truth_text)
+            shade = accuracy.shadow(output, scene.text, scene.L, scene.r, cell.build, binary,
+                                    refs["truth"], cell.threads, checks.shadow_steps,
+                                    checks.shadow_ulps, runner, initial)
+            values.update({
+                "chk_shadow": shade.passed, "shadow_states": shade.states,
+                "shadow_pos_err": shade.pos_err_mean, "shadow_pos_err_max": shade.pos_err_max,
+                "shadow_vel_err": shade.vel_err_mean, "shadow_vel_err_max": shade.vel_err_max,
+                "shadow_set_diff": shade.set_diff_rate, "shadow_bound": shade.bound,
+                "shadow_err_r": shade.pos_err_max * scene.L / scene.r,
+            })
+            if shade.failed:
+                notes.append(f"{shade.failed} shadow step(s) could not be compared")
+            if not shade.passed:
+                failed.append("shadow")
+            record["shadow_per_step"] = [dataclasses.asdict(s) for s in shade.steps]
+        values["checks_passed"] = not failed
+        values["checks_failed"] = " ".join(failed)
+        values["checks_note"] = "; ".join(notes)
+        values["checks_s"] = time.monotonic() - started
+        record.update(values)
 
     def run_hyperfine(self, command: Sequence[str], env: Mapping[str, str], target: Path,
                       record: results.Record, status: str,
@@ -595,7 +756,7 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
             what, cached = f"cached {cid}", cached + 1
         else:
             what = f"run {cid}"
-        check = " +validate" if cell.validate else ""
+        check = (" +validate" if cell.validate else "") + (" +checks" if cell.checked else "")
         lines.append(f"  [{k}/{len(plan.cells)}] {cell.label}{check}  {what}\n")
     for cell in plan.excluded:
         lines.append(f"  excluded: {cell.label}\n")

@@ -256,3 +256,7 @@ def corner(
     start = L / 2
     diagonal = speed / math.sqrt(2.0)
     return make_scene(L, r, steps, mode, [(start, start, diagonal, diagonal)])
+
+
+# The stiff and extreme scene catalog registers its generators on import.
+from harness import catalog as _catalog  # noqa: E402, F401
