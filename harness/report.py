@@ -839,13 +839,17 @@ def experiment_section(exp: Experiment, fig_dir: Path) -> Section:
     timed = exp.frame["status"].isin(tables.TIMED_STATUSES).any()
     swept = tables.sweep_axes(exp.frame)
     axes = swept if timed else []
+    # A checked catalog of scenes (the stability study) is read through its scene x variant
+    # matrix; a per-cell timing table and per-scene error figures of hundreds of one-run cells
+    # would bury it.
+    catalog = tables.has_check_data(exp.frame) and exp.frame["scene"].nunique() > 1
     parts: list[Section] = []
     for axis in ("n", "L", "r", "threads"):
         if axis in axes:
             parts.append(sweep_subsection(exp, axis, fig_dir))
     if "threads" in axes:
         parts.append(threads_subsection(exp, fig_dir))
-    if tables.has_error_data(exp.frame):
+    if tables.has_error_data(exp.frame) and not catalog:
         parts.append(error_subsection(exp, fig_dir))
     traj_row = trajectory_cell(exp)
     if traj_row is not None:
@@ -853,7 +857,7 @@ def experiment_section(exp: Experiment, fig_dir: Path) -> Section:
     if tables.has_check_data(exp.frame):
         parts += checks_subsections(exp, fig_dir)
     # The cell table leads whenever something varies; a lone cell only when nothing else shows.
-    if tables.varying_keys(exp.frame) or not parts:
+    if (tables.varying_keys(exp.frame) and not catalog) or not parts:
         parts.insert(0, cells_subsection(exp, swept))
     parts = [p for p in parts if p.blocks]
     intro = Paragraph(f"Experiment `{exp.name}`: {len(exp.frame)} cell(s). "
