@@ -24,7 +24,7 @@ B=$1
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 SCENES=$HERE/scenes
-EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d"}
+EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d grid"}
 read -r -a VARIANTS <<<"$EXACT_VARIANTS"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT

@@ -1,0 +1,394 @@
+/*
+ * test_grid.c: unit tests of the grid variant (variants/grid.c, included below so that its
+ * static functions can be tested), against the shared all-pairs kernel.
+ *
+ * Plain C, no framework, as test_core.c: every failed check prints `file:line: what`; the last
+ * line is `P passed, F failed` counting test functions; exit status 1 when any failed.
+ * `build/tests/test_grid NAME...` runs only the tests whose names contain NAME.
+ *
+ * The main test builds thousands of small random worlds (slow and fast, sparse and dense,
+ * overlapping, on integer lattices so that contact times tie and fall on slice boundaries,
+ * huge L, outlier speeds), runs the grid's finder at 1 to 4 threads and checks that it finds
+ * exactly the candidates of the all-pairs kernel, with the same t, each once.
+ */
+#include <inttypes.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../variants/grid.c"
+#include "sim_core.h"
+
+/* ---- a tiny assertion set ---- */
+
+static int checks_failed; /* in the current test */
+
+static void fail_at(const char *file, int line, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    printf("%s:%d: ", file, line);
+    vprintf(fmt, ap);
+    printf("\n");
+    va_end(ap);
+    checks_failed++;
+}
+
+#define CHECK(cond)                                                                           \
+    do {                                                                                      \
+        if (!(cond))                                                                          \
+            fail_at(__FILE__, __LINE__, "CHECK(%s) failed", #cond);                           \
+    } while (0)
+
+#define CHECK_INT(got, want)                                                                  \
+    do {                                                                                      \
+        const long long got_ = (long long)(got), want_ = (long long)(want);                  \
+        if (got_ != want_)                                                                    \
+            fail_at(__FILE__, __LINE__, "%s: got %lld, expected %lld", #got, got_, want_);    \
+    } while (0)
+
+/* ---- helpers ---- */
+
+#define PI 3.14159265358979323846
+
+static uint64_t rng_state = 12345;
+
+static double uniform(void) /* [0, 1) */
+{
+    return sim_uniform(&rng_state);
+}
+
+static int32_t below(int32_t n) /* [0, n) */
+{
+    return (int32_t)(uniform() * n);
+}
+
+static int cand_cmp_t(const void *pa, const void *pb)
+{
+    const sim_cand *a = pa, *b = pb;
+    if (a->t != b->t)
+        return a->t < b->t ? -1 : 1;
+    if (a->i != b->i)
+        return a->i < b->i ? -1 : 1;
+    return (a->j > b->j) - (a->j < b->j);
+}
+
+/* A world of n particles in a box of side L, radius r, state left to the caller. */
+static void world_make(sim_world *w, int32_t n, double L, double r)
+{
+    const sim_header h = {.n = n, .L = L, .r = r, .steps = 1, .mode = SIM_MODE_PERF};
+    if (sim_world_alloc(w, &h)) {
+        fprintf(stderr, "out of memory\n");
+        exit(2);
+    }
+}
+
+static double clamp_to(double v, double lo, double hi)
+{
+    return v < lo ? lo : v > hi ? hi : v;
+}
+
+/* The grid's candidates for the state of w, with `threads` threads and the given scratch
+ * (NULL: a fresh one), sorted; *count set. */
+static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scratch,
+                                      size_t *count)
+{
+    sim_pair_sink sink = {.count = threads, .threads = threads};
+    /* The buffers are 64-byte aligned types (a multiple of 64 bytes long, as aligned_alloc
+     * needs). */
+    sink.bufs = aligned_alloc(_Alignof(sim_cand_buf), (size_t)threads * sizeof *sink.bufs);
+    sink.scratch = scratch ? scratch : sim_variant_def.scratch_create(w, threads);
+    if (!sink.bufs || !sink.scratch) {
+        fprintf(stderr, "out of memory\n");
+        exit(2);
+    }
+    memset(sink.bufs, 0, (size_t)threads * sizeof *sink.bufs);
+    sim_variant_def.find_pairs(w, &sink);
+    size_t total = 0;
+    for (int k = 0; k < threads; k++) {
+        CHECK(!sink.bufs[k].failed);
+        total += sink.bufs[k].len;
+    }
+    sim_cand *all = malloc((total + 1) * sizeof *all);
+    size_t at = 0;
+    for (int k = 0; k < threads; k++) {
+        if (sink.bufs[k].len)
+            memcpy(all + at, sink.bufs[k].items, sink.bufs[k].len * sizeof *all);
+        at += sink.bufs[k].len;
+        free(sink.bufs[k].items);
+    }
+    if (!scratch)
+        sim_variant_def.scratch_destroy(sink.scratch);
+    free(sink.bufs);
+    qsort(all, total, sizeof *all, cand_cmp_t);
+    *count = total;
+    return all;
+}
+
+static sim_cand *grid_candidates(const sim_world *w, int threads, size_t *count)
+{
+    return grid_candidates_with(w, threads, NULL, count);
+}
+
+/* Exactly the same list, t bit for bit? */
+static int same_candidates(const sim_cand *a, size_t na, const sim_cand *b, size_t nb)
+{
+    if (na != nb)
+        return 0;
+    for (size_t k = 0; k < na; k++)
+        if (a[k].i != b[k].i || a[k].j != b[k].j || memcmp(&a[k].t, &b[k].t, sizeof a[k].t))
+            return 0;
+    return 1;
+}
+
+/* The all-pairs kernel's candidates, sorted. */
+static sim_cand *reference_candidates(const sim_world *w, size_t *count)
+{
+    sim_cand_buf buf = {0};
+    for (int32_t i = 0; i < w->n; i++)
+        sim_scan_full_row(w, i, &buf);
+    CHECK(!buf.failed);
+    if (buf.len)
+        qsort(buf.items, buf.len, sizeof *buf.items, cand_cmp_t);
+    *count = buf.len;
+    return buf.items ? buf.items : calloc(1, sizeof(sim_cand));
+}
+
+/* Does the grid find exactly the reference's candidates, at 1..4 threads? Returns the number
+ * of candidates (for the callers' statistics). */
+static size_t check_world(const sim_world *w, const char *what)
+{
+    size_t nref;
+    sim_cand *ref = reference_candidates(w, &nref);
+    for (int threads = 1; threads <= 4; threads++) {
+        size_t ngot;
+        sim_cand *got = grid_candidates(w, threads, &ngot);
+        if (!same_candidates(got, ngot, ref, nref)) {
+            fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads): %zu candidates, "
+                    "expected %zu", what, w->n, (double)w->L, (double)w->r, threads, ngot, nref);
+            free(got);
+            break;
+        }
+        free(got);
+    }
+    free(ref);
+    return nref;
+}
+
+/* ---- the tests ---- */
+
+/* Swapping the two particles negates every input of the slice test exactly: same answer. */
+static void test_near_is_symmetric(void)
+{
+    for (int k = 0; k < 200000; k++) {
+        const double s = pow(10, 6 * uniform() - 3);
+        const double dx = s * (2 * uniform() - 1), dy = s * (2 * uniform() - 1);
+        const double ddx = s * (2 * uniform() - 1), ddy = s * (2 * uniform() - 1);
+        const double t0 = below(8) / 8.0, t1 = t0 + 0.125, r2 = s * s * uniform();
+        CHECK_INT(near_in_slice(dx, dy, ddx, ddy, t0, t1, r2),
+                  near_in_slice(-dx, -dy, -ddx, -ddy, t0, t1, r2));
+    }
+}
+
+/* The cell of a coordinate never decreases as the coordinate grows, infinities included. */
+static void test_cell_is_monotone(void)
+{
+    const double inv_h[] = {1.0 / 3, 1e-7, 1e7, 0};
+    for (size_t m = 0; m < sizeof inv_h / sizeof inv_h[0]; m++)
+        for (int k = 0; k < 100000; k++) {
+            double a = (2 * uniform() - 1) * pow(10, 12 * uniform()), b = a + uniform() * 10;
+            if (k % 1000 == 0)
+                a = -HUGE_VAL;
+            if (k % 1000 == 1)
+                b = HUGE_VAL;
+            CHECK(cell_of(a, -5, inv_h[m], 1000) <= cell_of(b, -5, inv_h[m], 1000));
+        }
+}
+
+/* Every pair the kernel accepts is near in some slice, whatever K: built to meet at a chosen
+ * time, often exactly on a slice boundary, head-on, oblique or grazing (tangent). */
+static void test_accepted_pairs_are_near_in_some_slice(void)
+{
+    const int ks[] = {1, 2, 3, 4, 7, 8, 16, 64, 250, 4096};
+    sim_world w;
+    world_make(&w, 2, 1000, 1);
+    void *scratch = sim_variant_def.scratch_create(&w, 1);
+    grid_scratch *s = scratch;
+    int accepted = 0;
+    for (int trial = 0; trial < 20000; trial++) {
+        /* Contact at time tc with the line of centres at angle phi; relative velocity at angle
+         * psi from the normal (|psi| close to 90 degrees: grazing). */
+        const double tc = trial % 3 ? below(9) / 8.0 : uniform();
+        const double phi = 2 * PI * uniform();
+        const double psi = (trial % 5 == 0 ? 0.5 * PI * (1 - 1e-9 * uniform())
+                                           : 0.5 * PI * (2 * uniform() - 1));
+        const double speed = pow(10, 4 * uniform() - 1);
+        const double nx = cos(phi), ny = sin(phi);
+        const double dvx = -speed * (nx * cos(psi) - ny * sin(psi));
+        const double dvy = -speed * (ny * cos(psi) + nx * sin(psi));
+        const double cx = 500, cy = 500, vx0 = 100 * (2 * uniform() - 1);
+        const double vy0 = 100 * (2 * uniform() - 1);
+        w.x[0] = cx - tc * vx0, w.y[0] = cy - tc * vy0, w.vx[0] = vx0, w.vy[0] = vy0;
+        w.x[1] = cx + 2 * nx - tc * (vx0 + dvx), w.y[1] = cy + 2 * ny - tc * (vy0 + dvy);
+        w.vx[1] = vx0 + dvx, w.vy[1] = vy0 + dvy;
+        sim_real t;
+        if (!sim_pair_time(&w, 0, 1, &t))
+            continue;
+        accepted++;
+        grid_plan g;
+        plan_step(&w, s, &g, 1);
+        for (size_t m = 0; m < sizeof ks / sizeof ks[0]; m++) {
+            for (int k = 0; k <= ks[m]; k++)
+                s->tk[k] = (double)k / ks[m];
+            int near = 0;
+            for (int k = 0; k < ks[m] && !near; k++)
+                near = near_pair(s->part, s->tk, g.reach2, 0, 1, k);
+            if (!near)
+                fail_at(__FILE__, __LINE__, "accepted pair (t=%.17g) near in no slice of %d",
+                        (double)t, ks[m]);
+        }
+    }
+    CHECK(accepted > 5000);
+    sim_variant_def.scratch_destroy(scratch);
+    sim_world_free(&w);
+}
+
+/* The main test: random worlds of every kind, the grid against all pairs. */
+static void test_finds_exactly_the_all_pairs_candidates(void)
+{
+    size_t candidates = 0;
+    for (int trial = 0; trial < 600; trial++) {
+        const int kind = trial % 6;
+        const int32_t n = kind == 5 ? 2 + below(6) : below(300);
+        const double L = kind == 3 ? 1e7 : pow(10, 1 + 2.5 * uniform());
+        const double r = kind == 4 ? 0.25 * L / (1 + n) : 0.5 + uniform();
+        if (2 * r > L)
+            continue;
+        sim_world w;
+        world_make(&w, n, L, r);
+        for (int32_t i = 0; i < n; i++) {
+            double x = r + uniform() * (L - 2 * r), y = r + uniform() * (L - 2 * r);
+            double speed;
+            switch (kind) {
+            case 0: /* slow: |v| ~ r */
+                speed = r * (0.5 + uniform());
+                break;
+            case 1: /* the report's: L/8r .. L/4 */
+                speed = L / 8 + uniform() * L / 8;
+                break;
+            case 2: /* mixed, outliers */
+                speed = pow(10, 6 * uniform() - 3) * (i % 17 == 0 ? 1e4 : 1);
+                break;
+            case 3: /* huge L, slow */
+                speed = 1 + uniform();
+                break;
+            default: /* integer lattice: ties and contact times on slice boundaries */
+                x = clamp_to(r + 2 * r * below((int32_t)(L / (2 * r))), r, L - r);
+                y = clamp_to(r + 2 * r * below((int32_t)(L / (2 * r))), r, L - r);
+                speed = r * (1 + below(4));
+                break;
+            }
+            const double a = kind >= 4 ? 0.5 * PI * below(4) : 2 * PI * uniform();
+            w.x[i] = x, w.y[i] = y;
+            w.vx[i] = speed * cos(a), w.vy[i] = speed * sin(a);
+            if (kind >= 4) /* axis-aligned, exactly */
+                w.vx[i] = round(w.vx[i]), w.vy[i] = round(w.vy[i]);
+        }
+        char what[64];
+        snprintf(what, sizeof what, "trial %d kind %d", trial, kind);
+        candidates += check_world(&w, what);
+        sim_world_free(&w);
+    }
+    CHECK(candidates > 1000);
+}
+
+/* Hand-built: every pair of a row meets exactly at t = 1/2 (slice boundary for even K), with
+ * contact points on a regular lattice; and discs resting in contact (t = 0 or never). */
+static void test_ties_on_boundaries(void)
+{
+    sim_world w;
+    world_make(&w, 400, 400, 1);
+    for (int32_t i = 0; i < 400; i++) {
+        const int32_t gx = i % 20, gy = i / 20;
+        w.x[i] = 10 + 19 * gx + (gx % 2 ? 0 : 2), w.y[i] = 10 + 19 * gy;
+        w.vx[i] = gx % 2 ? -2 : 2, w.vy[i] = gy % 3 == 0 ? 0 : gy % 3 == 1 ? 17.5 : -17.5;
+    }
+    check_world(&w, "lattice ties");
+    for (int32_t i = 0; i < 400; i++) {
+        w.x[i] = 2 + 2 * (i % 100), w.y[i] = 2 + 2 * (i / 100);
+        w.vx[i] = i % 2 ? -1 : 1, w.vy[i] = 0;
+    }
+    check_world(&w, "resting contacts");
+    sim_world_free(&w);
+}
+
+/* One scratch through many steps, as in a run (it keeps the particles' order from step to
+ * step): the candidates must still be exactly the all-pairs ones. */
+static void test_repeated_steps_on_one_scratch(void)
+{
+    for (int threads = 1; threads <= 3; threads++) {
+        sim_world w;
+        world_make(&w, 3000, 500, 1);
+        for (int32_t i = 0; i < w.n; i++) {
+            w.x[i] = 1 + uniform() * 498, w.y[i] = 1 + uniform() * 498;
+            const double a = 2 * PI * uniform(), sp = 20 + 40 * uniform();
+            w.vx[i] = sp * cos(a), w.vy[i] = sp * sin(a);
+        }
+        void *scratch = sim_variant_def.scratch_create(&w, threads);
+        sim_stepper *st = sim_stepper_create(&w, &sim_variant_def, 1);
+        sim_stats stats = {0};
+        for (int step = 0; step < 5; step++) {
+            size_t nref, ngot;
+            sim_cand *ref = reference_candidates(&w, &nref);
+            sim_cand *got = grid_candidates_with(&w, threads, scratch, &ngot);
+            if (!same_candidates(got, ngot, ref, nref))
+                fail_at(__FILE__, __LINE__, "step %d, %d threads: %zu candidates, expected %zu",
+                        step, threads, ngot, nref);
+            free(ref);
+            free(got);
+            CHECK(sim_step(st, &w, &stats) == 0);
+        }
+        sim_stepper_destroy(st);
+        sim_variant_def.scratch_destroy(scratch);
+        sim_world_free(&w);
+    }
+}
+
+typedef struct test_case {
+    const char *name;
+    void (*fn)(void);
+} test_case;
+
+static const test_case tests[] = {
+    {"near_is_symmetric", test_near_is_symmetric},
+    {"cell_is_monotone", test_cell_is_monotone},
+    {"accepted_pairs_are_near_in_some_slice", test_accepted_pairs_are_near_in_some_slice},
+    {"finds_exactly_the_all_pairs_candidates", test_finds_exactly_the_all_pairs_candidates},
+    {"ties_on_boundaries", test_ties_on_boundaries},
+    {"repeated_steps_on_one_scratch", test_repeated_steps_on_one_scratch},
+};
+
+int main(int argc, char **argv)
+{
+    int passed = 0, failed = 0;
+    for (size_t k = 0; k < sizeof tests / sizeof tests[0]; k++) {
+        bool selected = argc < 2;
+        for (int a = 1; a < argc; a++)
+            selected |= strstr(tests[k].name, argv[a]) != NULL;
+        if (!selected)
+            continue;
+        checks_failed = 0;
+        fflush(stdout);
+        tests[k].fn();
+        if (checks_failed) {
+            printf("FAILED %s (%d checks)\n", tests[k].name, checks_failed);
+            failed++;
+        } else {
+            passed++;
+        }
+    }
+    printf("%d passed, %d failed\n", passed, failed);
+    return failed ? 1 : 0;
+}
