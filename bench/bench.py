@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -27,6 +28,7 @@ from bench.scenes_dense import write_dense_slow  # noqa: E402
 
 OUT_DIR = ROOT / "results" / "bench"
 REPORT_SCENE = "10000 20000 1 50\nperf\n"  # the seed report's benchmark: N, L, r, S
+GNU_TIME = shutil.which("/usr/bin/time")  # for peak memory; optional (Debian package time)
 MILLION_SCENE = "1000000 200000 1 10\nperf\n"  # same density, 100x the particles
 RELATIVE_SCENE = "4000 200 1 100\nperf\n"  # the seed report's Section 7.1 scene
 
@@ -128,21 +130,24 @@ def materialise(inputs: dict[str, str], where: Path) -> dict[str, Path]:
 
 
 def run_case(case: Case, path: Path) -> tuple[float, dict, int]:
-    """One run: wall seconds, the --timing record, peak RSS (KiB) of the child."""
+    """One run: wall seconds, the --timing record, peak RSS (KiB; 0 when unknown).
+
+    Peak RSS comes from GNU time when it is installed: the rusage of a child forked from
+    Python counts the launcher's own pages before exec, so it cannot be read from wait4."""
     binary = ROOT / "build" / case.variant
     cmd = [str(binary), "--threads", str(case.threads), "--timing", str(path)]
     env = dict(os.environ, OMP_NUM_THREADS=str(case.threads))
-    with tempfile.TemporaryFile() as err:
+    with tempfile.NamedTemporaryFile("r") as rss_file:
+        wrapped = [GNU_TIME, "-f", "%M", "-o", rss_file.name, *cmd] if GNU_TIME else cmd
         start = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=env)
-        _, status, usage = os.wait4(proc.pid, 0)  # wait4: this child's own peak RSS
+        proc = subprocess.run(wrapped, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              text=True, env=env, check=False)
         wall = time.perf_counter() - start
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        err.seek(0)
-        stderr = err.read().decode(errors="replace").strip()
+        rss_text = rss_file.read().strip()
     if proc.returncode != 0:
-        raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {stderr}")
-    return wall, json.loads(stderr.splitlines()[-1]), usage.ru_maxrss
+        raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {proc.stderr.strip()}")
+    rss = int(rss_text.splitlines()[-1]) if rss_text else 0
+    return wall, json.loads(proc.stderr.strip().splitlines()[-1]), rss
 
 
 def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
@@ -174,7 +179,8 @@ def table(group: Group, results: list[Result]) -> str:
         rate = r.pair_tests / sim if sim > 0 else float("nan")
         lines.append(
             f"| {r.case.label} | {r.case.variant} | {r.case.threads} | {wall:.3f} | {sim:.3f} | "
-            f"{rate:.3g} | {ref_wall / wall:.2f} | {r.max_rss_kib / 1024:.0f} |"
+            f"{rate:.3g} | {ref_wall / wall:.2f} | "
+            f"{f'{r.max_rss_kib / 1024:.0f}' if r.max_rss_kib else 'n/a'} |"
         )
     return "\n".join(lines) + "\n"
 

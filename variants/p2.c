@@ -1,7 +1,7 @@
 /*
  * p2: the outer i loop sequential, `omp for` over the inner j loop, static schedule (the seed's
- * second strategy). Every row ends in a barrier: the synchronisation cost this strategy is
- * measured for. The j loop is dealt out in tiles of SIM_TILE pairs rather than single j so the
+ * second strategy). Each row is one worksharing loop (see sim_for_row_tiles for why it has no
+ * barrier). The j loop is dealt out in tiles of SIM_TILE pairs rather than single j so the
  * shared kernel still vectorises; which tiles a thread tests is the schedule's decision.
  */
 #include "core/sim.h"

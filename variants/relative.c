@@ -61,14 +61,17 @@ static inline bool phl_time(sim_real dx, sim_real dy, sim_real ddx, sim_real ddy
     const sim_real b = dx * ddx + dy * ddy;
     if (!(b < 0))
         return false; /* 2. not approaching */
+    if (c == 0) {
+        /* Touching and approaching: contact now. Decided before the closest approach, whose
+         * cross^2 / a is 0/0 when |D|^2 underflows to 0 (SPEC: touching discs that approach
+         * collide at t = 0, however slowly). */
+        *t = 0;
+        return true;
+    }
     const sim_real cross = dx * ddy - dy * ddx;
     const sim_real closest2 = cross * cross / a;
     if (!(closest2 <= diam2))
         return false; /* 3. they miss */
-    if (c == 0) {
-        *t = 0; /* touching and approaching: contact now */
-        return true;
-    }
     const sim_real along = -b / move;                         /* to the closest approach */
     const sim_real travel = along - SIM_SQRT(diam2 - closest2); /* to the first contact */
     if (!(travel <= move))
