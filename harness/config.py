@@ -33,7 +33,12 @@ import yaml
 from harness import scenes
 from harness.errors import MISSING, HarnessError, config_error
 
-VARIANTS = ("seq", "p1", "p2", "p3", "p1d", "p2d", "relative", "grid")
+# The seed's variants in the report's order, then any other variants/NAME.c (a new variant is
+# a new file; it is taken as exact unless listed in INEXACT_VARIANTS).
+_SEED_VARIANTS = ("seq", "p1", "p2", "p3", "p1d", "p2d", "relative", "grid")
+_VARIANT_SOURCES = Path(__file__).resolve().parent.parent / "variants"
+VARIANTS = _SEED_VARIANTS + tuple(sorted(
+    {p.stem for p in _VARIANT_SOURCES.glob("*.c")} - set(_SEED_VARIANTS)))
 INEXACT_VARIANTS = frozenset({"relative"})
 BUILDS = ("f64", "f32", "f128", "textbook", "report")
 DEFAULT_BUILD = "f64"
