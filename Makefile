@@ -71,14 +71,14 @@ print-variants:
 C_TESTS := $(sort $(basename $(notdir $(wildcard tests/c/test_*.c))))
 CORE_LIB_SRC := $(filter-out variants/core/sim_main.c,$(CORE_SRC))
 
-# Tests may include a variant's source (test_grid.c includes variants/grid.c): depend on them.
-VARIANT_SRC := $(wildcard variants/*.c)
+# Tests include variant sources (test_grid.c includes variants/grid.c) and tests/c/check.h.
+TEST_INCLUDES := $(wildcard variants/*.c) $(wildcard tests/c/*.h)
 
-build/tests/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/f64/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(VARIANT_SRC)
+build/tests/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/f64/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
 	@mkdir -p $(@D)
 	$(CC) $(BASE_CFLAGS) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
 
-build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(VARIANT_SRC)
+build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
 	@mkdir -p $(@D)
 	$(CC) $(BASE_CFLAGS) $(SANITIZE) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
 

@@ -21,33 +21,7 @@
 #include "../../variants/grid.c"
 #include "sim_core.h"
 
-/* ---- a tiny assertion set ---- */
-
-static int checks_failed; /* in the current test */
-
-static void fail_at(const char *file, int line, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    printf("%s:%d: ", file, line);
-    vprintf(fmt, ap);
-    printf("\n");
-    va_end(ap);
-    checks_failed++;
-}
-
-#define CHECK(cond)                                                                           \
-    do {                                                                                      \
-        if (!(cond))                                                                          \
-            fail_at(__FILE__, __LINE__, "CHECK(%s) failed", #cond);                           \
-    } while (0)
-
-#define CHECK_INT(got, want)                                                                  \
-    do {                                                                                      \
-        const long long got_ = (long long)(got), want_ = (long long)(want);                  \
-        if (got_ != want_)                                                                    \
-            fail_at(__FILE__, __LINE__, "%s: got %lld, expected %lld", #got, got_, want_);    \
-    } while (0)
+#include "check.h"
 
 /* ---- helpers ---- */
 
@@ -356,11 +330,6 @@ static void test_repeated_steps_on_one_scratch(void)
     }
 }
 
-typedef struct test_case {
-    const char *name;
-    void (*fn)(void);
-} test_case;
-
 static const test_case tests[] = {
     {"near_is_symmetric", test_near_is_symmetric},
     {"cell_is_monotone", test_cell_is_monotone},
@@ -372,23 +341,5 @@ static const test_case tests[] = {
 
 int main(int argc, char **argv)
 {
-    int passed = 0, failed = 0;
-    for (size_t k = 0; k < sizeof tests / sizeof tests[0]; k++) {
-        bool selected = argc < 2;
-        for (int a = 1; a < argc; a++)
-            selected |= strstr(tests[k].name, argv[a]) != NULL;
-        if (!selected)
-            continue;
-        checks_failed = 0;
-        fflush(stdout);
-        tests[k].fn();
-        if (checks_failed) {
-            printf("FAILED %s (%d checks)\n", tests[k].name, checks_failed);
-            failed++;
-        } else {
-            passed++;
-        }
-    }
-    printf("%d passed, %d failed\n", passed, failed);
-    return failed ? 1 : 0;
+    return run_tests(tests, TEST_COUNT(tests), argc, argv);
 }

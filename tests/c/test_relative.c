@@ -16,26 +16,7 @@
 #include "../../variants/relative.c"
 #include "sim_core.h"
 
-/* ---- a tiny assertion set ---- */
-
-static int checks_failed; /* in the current test */
-
-static void fail_at(const char *file, int line, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    printf("%s:%d: ", file, line);
-    vprintf(fmt, ap);
-    printf("\n");
-    va_end(ap);
-    checks_failed++;
-}
-
-#define CHECK(cond)                                                                           \
-    do {                                                                                      \
-        if (!(cond))                                                                          \
-            fail_at(__FILE__, __LINE__, "CHECK(%s) failed", #cond);                           \
-    } while (0)
+#include "check.h"
 
 #define PI 3.14159265358979323846
 
@@ -196,11 +177,6 @@ static void test_agrees_with_spec_up_to_rounding(void)
     CHECK(worst < 1e-6);
 }
 
-typedef struct test_case {
-    const char *name;
-    void (*fn)(void);
-} test_case;
-
 static const test_case tests[] = {
     {"hand_computed_pairs", test_hand_computed_pairs},
     {"filter_is_conservative", test_filter_is_conservative},
@@ -209,23 +185,5 @@ static const test_case tests[] = {
 
 int main(int argc, char **argv)
 {
-    int passed = 0, failed = 0;
-    for (size_t k = 0; k < sizeof tests / sizeof tests[0]; k++) {
-        bool selected = argc < 2;
-        for (int a = 1; a < argc; a++)
-            selected |= strstr(tests[k].name, argv[a]) != NULL;
-        if (!selected)
-            continue;
-        checks_failed = 0;
-        fflush(stdout);
-        tests[k].fn();
-        if (checks_failed) {
-            printf("FAILED %s (%d checks)\n", tests[k].name, checks_failed);
-            failed++;
-        } else {
-            passed++;
-        }
-    }
-    printf("%d passed, %d failed\n", passed, failed);
-    return failed ? 1 : 0;
+    return run_tests(tests, TEST_COUNT(tests), argc, argv);
 }
