@@ -35,17 +35,11 @@ void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t sche
 #pragma omp parallel
     {
         sim_cand_buf *buf = sim_sink_buf(sink, omp_get_thread_num());
-        const int32_t team = omp_get_num_threads();
         for (int32_t i = 0; i < w->n; i++) {
-            /* About SIM_TILE pairs a part, rounded up to a multiple of the team and cut evenly:
-             * fixed-size tiles gave the first thread the extra tile of every row, 5% more work
-             * on two threads. */
-            const int32_t len = w->n - (i + 1);
-            const int32_t parts = (sim_row_tiles(w, i) + team - 1) / team * team;
+            const int32_t tiles = sim_row_tiles(w, i);
 #pragma omp for schedule(runtime) nowait
-            for (int32_t k = 0; k < parts; k++)
-                sim_scan_row(w, i, i + 1 + (int32_t)((int64_t)len * k / parts),
-                             i + 1 + (int32_t)((int64_t)len * (k + 1) / parts), buf);
+            for (int32_t k = 0; k < tiles; k++)
+                sim_scan_tile(w, i, k, buf);
         }
     }
 }
