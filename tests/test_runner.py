@@ -36,7 +36,7 @@ FAKES = {
     # --precise runs fine, the plain runs hyperfine times exit 3
     "flaky": GOOD.replace("exit 0", 'case "$*" in *--precise*) exit 0;; esac\nexit 3'),
 }
-TIMEOUT_S = 1
+TIMEOUT_S = 3  # generous: CI runs these beside the ASan scene tests
 
 
 def executable(path: Path, text: str) -> Path:
@@ -81,7 +81,7 @@ def test_failures_are_recorded_and_the_grid_goes_on(tmp_path: Path, fake_repo: P
     log, out = io.StringIO(), io.StringIO()
     started = time.monotonic()
     summary = runner.run_experiment(config, options(tmp_path, fake_repo), log, out)
-    assert time.monotonic() - started < 20  # the slow fake was cut at its 1 s timeout
+    assert time.monotonic() - started < 40  # the slow fake was cut at its timeout
     rows = {r["variant"]: r for r in read_csv(summary.directory / "results.csv")}
     assert list(rows) == ["seq", "liar", "crash", "fail", "slow", "flaky", "p1"]
     assert {v: r["status"] for v, r in rows.items()} == {
@@ -187,11 +187,23 @@ def test_run_process_kills_the_whole_group_at_the_timeout(tmp_path: Path) -> Non
     script = executable(tmp_path / "tree.sh", f"#!/bin/sh\nsleep 30 &\necho $! > {pid_file}\n"
                         "wait\n")
     started = time.monotonic()
-    done = runner.run_process([str(script)], dict(os.environ), 0.5)
-    assert done.returncode is None and time.monotonic() - started < 5
-    child = int(pid_file.read_text())
-    status = Path(f"/proc/{child}/status")
-    assert not status.exists() or "State:\tZ" in status.read_text()
+    # 2 s leaves the shell time to write the pid even on a loaded CI machine.
+    done = runner.run_process([str(script)], dict(os.environ), 2.0)
+    assert done.returncode is None and time.monotonic() - started < 10
+    status = Path(f"/proc/{int(pid_file.read_text())}/status")
+
+    def gone() -> bool:
+        # SIGKILL to an orphaned grandchild is delivered asynchronously: it may still show
+        # as running for a moment, then it is gone (or a zombie if pid 1 does not reap).
+        try:
+            return "State:\tZ" in status.read_text()
+        except FileNotFoundError:
+            return True
+
+    deadline = time.monotonic() + 10
+    while not gone() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert gone(), "the background sleep outlived the timeout"
 
 
 @pytest.mark.parametrize(("code", "expected"), [
