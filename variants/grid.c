@@ -70,8 +70,11 @@
 /* Most time slices per step. */
 #define GRID_K_MAX 4096
 /* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum on the report benchmark (the
- * vectorised slice test makes a pair check several times cheaper than binning a particle). */
+ * vectorised slice test makes a pair check several times cheaper than binning a particle).
+ * -DGRID_K_FACTOR=... overrides it for tuning sweeps. */
+#ifndef GRID_K_FACTOR
 #define GRID_K_FACTOR 0.3
+#endif
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
 /* Widest radix digit: a 2^16-entry histogram. */

@@ -770,6 +770,45 @@ static void test_world_alloc(void)
     CHECK(sim_bytes_per_particle() >= 4 * sizeof(sim_real) + 2 * sizeof(int64_t));
 }
 
+/* ---- candidate order (SPEC §2) ---- */
+
+/* The SPEC key, written here independently of the core. */
+static int spec_key_cmp(const void *pa, const void *pb)
+{
+    const sim_cand *a = pa, *b = pb;
+    if (a->t != b->t)
+        return a->t < b->t ? -1 : 1;
+    if ((a->j == SIM_WALL) != (b->j == SIM_WALL))
+        return a->j == SIM_WALL ? 1 : -1;
+    if (a->i != b->i)
+        return a->i < b->i ? -1 : 1;
+    return a->j < b->j ? -1 : a->j > b->j;
+}
+
+/* The radix sort gives the order of the full key, on lists full of ties (few distinct times,
+ * -0.0 beside 0.0, negative times from rounding, walls and pairs of the same particle). */
+static void test_sort_candidates_matches_the_spec_key(void)
+{
+    enum { LEN = 3000 };
+    static sim_cand got[LEN], want[LEN], tmp[LEN];
+    static const sim_real times[] = {0.0, -0.0, 1.0, 0.5, 0.25, -1e-17, 1e-300, 0.75};
+    for (int round = 0; round < 40; round++) {
+        const size_t n = round < 4 ? (size_t)round : (size_t)(rnd() * LEN);
+        for (size_t k = 0; k < n; k++) {
+            const sim_real t = round % 2 ? times[(int)(rnd() * 8)] : (sim_real)rnd();
+            const int32_t i = (int32_t)(rnd() * 50);
+            const int32_t j = rnd() < 0.3 ? SIM_WALL : i + 1 + (int32_t)(rnd() * 50);
+            got[k] = want[k] = (sim_cand){t, i, j};
+        }
+        qsort(want, n, sizeof *want, spec_key_cmp);
+        sim_sort_candidates(got, tmp, n);
+        size_t same = 0;
+        for (size_t k = 0; k < n; k++)
+            same += got[k].t == want[k].t && got[k].i == want[k].i && got[k].j == want[k].j;
+        CHECK_INT(same, n);
+    }
+}
+
 /* ---- output (SPEC §3) ---- */
 
 static void test_format_real(void)
@@ -794,6 +833,52 @@ static void test_format_real(void)
         /* %.17g round-trips a double exactly. */
         CHECK_REAL(strtod(buf, NULL), cases[k].v);
     }
+}
+
+/* sim_fixed8 against the C library's %.8f: one value; returns whether they agree. */
+static bool fixed8_agrees(double v)
+{
+    char got[80], want[80];
+    const size_t k = sim_fixed8(got, v);
+    snprintf(want, sizeof want, "%.8f", v);
+    if (k == 0) /* outside the fast path: only where it says so */
+        return !(fabs(v) < 1e10);
+    got[k] = '\0';
+    if (strcmp(got, want) != 0) {
+        CHECK_STR(got, want);
+        return false;
+    }
+    return true;
+}
+
+/* Random bit patterns, random magnitudes, every kind of exact tie (v * 10^8 = n + 1/2 exactly
+ * when v = odd / 512) and its neighbours, carries into a new digit, zeros and subnormals. */
+static void test_fixed8_matches_printf(void)
+{
+    static const double special[] = {0.0, -0.0, 0x1p-1074, -0x1p-1074, 0x1p-1022, 1e-300,
+                                     -1e-9, 5e-9, 4.9999999999999999e-9, 0.999999995,
+                                     9.999999995, 0.1, 1.0, 20000.0, 9999999999.9999981};
+    bool ok = true;
+    for (size_t k = 0; k < sizeof special / sizeof special[0] && ok; k++)
+        ok = fixed8_agrees(special[k]) && fixed8_agrees(nextafter(special[k], 1e300)) &&
+             fixed8_agrees(nextafter(special[k], -1e300));
+    for (int k = 0; k < 300000 && ok; k++) {
+        uint64_t bits = rng_state * 0x9E3779B97F4A7C15ULL;
+        rnd();
+        double v;
+        memcpy(&v, &bits, sizeof v);
+        const double sign = rnd() < 0.5 ? -1 : 1;
+        const double scaled = sign * rnd() * pow(10, (int)(rnd() * 24) - 13);
+        const double tie = sign * (2 * floor(rnd() * 1e9) + 1) / 512;
+        ok = fixed8_agrees(v) && fixed8_agrees(scaled) && fixed8_agrees(tie) &&
+             fixed8_agrees(nextafter(tie, 0)) && fixed8_agrees(nextafter(tie, 2 * tie)) &&
+             fixed8_agrees(sign * rnd() * 20000);
+    }
+    CHECK(ok);
+    char buf[80];
+    CHECK_INT(sim_fixed8(buf, 1e10), 0);
+    CHECK_INT(sim_fixed8(buf, NAN), 0);
+    CHECK_INT(sim_fixed8(buf, -INFINITY), 0);
 }
 
 static void test_write_blocks(void)
@@ -1089,7 +1174,9 @@ static const test_case tests[] = {
     TEST(test_row_tiles),
     TEST(test_cand_push_grows),
     TEST(test_world_alloc),
+    TEST(test_sort_candidates_matches_the_spec_key),
     TEST(test_format_real),
+    TEST(test_fixed8_matches_printf),
     TEST(test_write_blocks),
     TEST(test_step_head_on),
     TEST(test_step_pair_before_wall),

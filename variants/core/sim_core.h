@@ -77,6 +77,8 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
 void sim_stepper_destroy(sim_stepper *s);
 /* Advance the world by one step (SPEC §2). Returns 0, or -1 when memory ran out. */
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
+/* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. */
+void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
 
 /* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. */
 sim_real sim_wall_time(const sim_world *w, int32_t i);
@@ -87,5 +89,8 @@ int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
 
 /* Format one real with %.8f, or %.17g when precise, into buf. */
 void sim_format_real(char *buf, size_t len, sim_real v, bool precise);
+/* printf("%.8f", v) at p, unterminated; returns the length, or 0 outside its exact fast path
+ * (|v| >= 1e10, NaN, infinities), where the caller uses the C library. */
+size_t sim_fixed8(char *p, double v);
 
 #endif /* SIM_CORE_H */
