@@ -1,8 +1,7 @@
 /*
  * p2: the outer i loop sequential, `omp for` over the inner j loop, static schedule (the seed's
- * second strategy). Each row is one worksharing loop (see sim_for_row_tiles for why it has no
- * barrier). The j loop is dealt out in tiles of SIM_TILE pairs rather than single j so the
- * shared kernel still vectorises; which tiles a thread tests is the schedule's decision.
+ * second strategy). Each thread tests its static block of every row's j range, with no barrier
+ * after a row (see sim_for_row_tiles for why), and the shared kernel vectorises over the block.
  */
 #include "core/sim.h"
 

@@ -117,7 +117,8 @@ void sim_scan_full_row(const sim_world *w, int32_t i, sim_cand_buf *buf);
 void sim_for_rows(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule, int chunk,
                   sim_row_scan_fn *scan);
 
-/* Outer loop sequential, inner loop parallel: each row's j-tiles shared out with `schedule`. */
+/* Outer loop sequential, inner loop parallel: each row's j range shared out by `schedule`,
+ * omp_sched_static (one contiguous block per thread) or omp_sched_dynamic (SIM_TILE tiles). */
 void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule);
 
 /* The buffer a writer uses; `slot` in [0, sink->count). */
