@@ -1,6 +1,6 @@
 /*
- * p2d: p2 with `schedule(dynamic)` (the seed's fifth strategy): each row's j-tiles go one at a
- * time to whichever thread is free.
+ * p2d: p2 with `schedule(dynamic)` (the seed's fifth strategy): each row's j range goes out in
+ * tiles, one at a time, to whichever thread is free.
  */
 #include "core/sim.h"
 

@@ -118,7 +118,7 @@ void sim_for_rows(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule,
                   sim_row_scan_fn *scan);
 
 /* Outer loop sequential, inner loop parallel: each row's j range shared out by `schedule`,
- * omp_sched_static (one contiguous block per thread) or omp_sched_dynamic (SIM_TILE tiles). */
+ * omp_sched_static (one contiguous block per thread) or omp_sched_dynamic (tiles of 4096 j). */
 void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule);
 
 /* The buffer a writer uses; `slot` in [0, sink->count). */

@@ -6,6 +6,12 @@
  */
 #include "sim.h"
 
+/* j per tile of p2d's dynamic schedule. Every tile is one grab from the team's shared counter,
+ * and between cores that costs far more than testing a few hundred pairs: with 256-j tiles p2d
+ * took 3.19 s on the benchmark with 2 threads, with 1024 2.61 s, with 4096 2.43 s (p1d: 2.38 s).
+ * Rows longer than a few tiles still balance. */
+#define SIM_DYNAMIC_TILE 4096
+
 void sim_scan_full_row(const sim_world *w, int32_t i, sim_cand_buf *buf)
 {
     sim_scan_row(w, i, i + 1, w->n, buf);
@@ -37,8 +43,8 @@ void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t sche
      * not by `omp for` over tiles, because tiles of SIM_TILE leave the first thread one tile
      * more in half of the rows (the blocks of a row differ by a tile; without barriers that adds
      * up to 5% of the work) and the runtime call per row costs more than the arithmetic:
-     * 2.48 s -> 2.28 s on the benchmark with 2 threads, as fast as p1. Dynamic: the tiles are
-     * dealt out by `omp for schedule(dynamic) nowait`, one at a time. */
+     * 2.48 s -> 2.28 s on the benchmark with 2 threads, as fast as p1. Dynamic: tiles of
+     * SIM_DYNAMIC_TILE j are dealt out by `omp for schedule(dynamic) nowait`, one at a time. */
 #pragma omp parallel
     {
         const int t = omp_get_thread_num(), team = omp_get_num_threads();
@@ -50,10 +56,14 @@ void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t sche
                              i + 1 + (int32_t)(len * (t + 1) / team), buf);
                 continue;
             }
-            const int32_t tiles = sim_row_tiles(w, i);
+            const int32_t j_begin = i + 1;
+            const int32_t tiles = (w->n - j_begin + SIM_DYNAMIC_TILE - 1) / SIM_DYNAMIC_TILE;
 #pragma omp for schedule(dynamic) nowait
-            for (int32_t k = 0; k < tiles; k++)
-                sim_scan_tile(w, i, k, buf);
+            for (int32_t k = 0; k < tiles; k++) {
+                const int32_t j0 = j_begin + k * SIM_DYNAMIC_TILE;
+                sim_scan_row(w, i, j0, w->n - j0 < SIM_DYNAMIC_TILE ? w->n : j0 + SIM_DYNAMIC_TILE,
+                             buf);
+            }
         }
     }
 }
