@@ -39,6 +39,10 @@ class Case:
     variant: str
     threads: int
     scene: str  # name of an input in the group's inputs
+    # > 1: that many independent processes at once, the wall time until the last ends. With
+    # seq this measures the machine's ceiling: what two busy cores give on a shared VM, whose
+    # clock and caches are not those of one busy core.
+    copies: int = 1
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,7 @@ GROUPS = {
             Case("p2 x2", "p2", 2, "report"),
             Case("p1d x2", "p1d", 2, "report"),
             Case("p2d x2", "p2d", 2, "report"),
+            Case("2 seqs at once", "seq", 1, "report", copies=2),
         ),
         reference="seq",
     ),
@@ -82,9 +87,10 @@ GROUPS = {
             Case("seq", "seq", 1, "report"),
             Case("grid x1", "grid", 1, "report"),
             Case("grid x2", "grid", 2, "report"),
+            Case("2 grid x1 at once", "grid", 1, "report", copies=2),
         ),
         reference="seq",
-        rounds=2,
+        rounds=3,
     ),
     "million": Group(
         name="million",
@@ -133,21 +139,26 @@ def run_case(case: Case, path: Path) -> tuple[float, dict, int]:
     """One run: wall seconds, the --timing record, peak RSS (KiB; 0 when unknown).
 
     Peak RSS comes from GNU time when it is installed: the rusage of a child forked from
-    Python counts the launcher's own pages before exec, so it cannot be read from wait4."""
+    Python counts the launcher's own pages before exec, so it cannot be read from wait4.
+    With case.copies > 1, that many processes start together and the wall time is the last
+    one's end; the record and RSS are the first one's."""
     binary = ROOT / "build" / case.variant
     cmd = [str(binary), "--threads", str(case.threads), "--timing", str(path)]
     env = dict(os.environ, OMP_NUM_THREADS=str(case.threads))
     with tempfile.NamedTemporaryFile("r") as rss_file:
         wrapped = [GNU_TIME, "-f", "%M", "-o", rss_file.name, *cmd] if GNU_TIME else cmd
         start = time.perf_counter()
-        proc = subprocess.run(wrapped, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                              text=True, env=env, check=False)
+        procs = [subprocess.Popen(wrapped if k == 0 else cmd, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.PIPE, text=True, env=env)
+                 for k in range(case.copies)]
+        errs = [proc.communicate()[1] for proc in procs]
         wall = time.perf_counter() - start
         rss_text = rss_file.read().strip()
-    if proc.returncode != 0:
-        raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {proc.stderr.strip()}")
+    for proc, err in zip(procs, errs, strict=True):
+        if proc.returncode != 0:
+            raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {err.strip()}")
     rss = int(rss_text.splitlines()[-1]) if rss_text else 0
-    return wall, json.loads(proc.stderr.strip().splitlines()[-1]), rss
+    return wall, json.loads(errs[0].strip().splitlines()[-1]), rss
 
 
 def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
@@ -158,7 +169,7 @@ def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
             res.max_rss_kib = max(res.max_rss_kib, rss)
             res.wall_s.append(wall)
             res.sim_s.append(timing["sim_s"])
-            res.pair_tests = timing["pair_tests"]
+            res.pair_tests = timing["pair_tests"] * res.case.copies
             print(f"  round {rnd + 1}/{group.rounds}  {res.case.label:<14} {wall:8.3f} s",
                   file=sys.stderr, flush=True)
     return results
@@ -167,6 +178,7 @@ def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
 def table(group: Group, results: list[Result]) -> str:
     ref = next(r for r in results if r.case.label == group.reference)
     ref_wall = statistics.median(ref.wall_s)
+    # Speedup is throughput: copies processes' work against one reference run.
     lines = [
         f"### {group.title}",
         "",
@@ -179,9 +191,27 @@ def table(group: Group, results: list[Result]) -> str:
         rate = r.pair_tests / sim if sim > 0 else float("nan")
         lines.append(
             f"| {r.case.label} | {r.case.variant} | {r.case.threads} | {wall:.3f} | {sim:.3f} | "
-            f"{rate:.3g} | {ref_wall / wall:.2f} | "
+            f"{rate:.3g} | {r.case.copies * ref_wall / wall:.2f} | "
             f"{f'{r.max_rss_kib / 1024:.0f}' if r.max_rss_kib else 'n/a'} |"
         )
+    for ceiling in (r for r in results if r.case.copies > 1):
+        # Its base: one process of the same variant and thread count. The parallel cases of
+        # that variant (all of them when the base is the reference) are set against it.
+        base = next((r for r in results if r.case.copies == 1
+                     and (r.case.variant, r.case.threads) == (ceiling.case.variant,
+                                                             ceiling.case.threads)), None)
+        if base is None:
+            continue
+        base_wall = statistics.median(base.wall_s)
+        top = ceiling.case.copies * base_wall / statistics.median(ceiling.wall_s)
+        shares = ", ".join(
+            f"{r.case.label} {base_wall / statistics.median(r.wall_s) / top:.0%}"
+            for r in results if (r.case.variant == base.case.variant or base is ref)
+            and r.case.threads == ceiling.case.copies * base.case.threads and r.case.copies == 1)
+        lines += ["", f"The machine's ceiling: {ceiling.case.copies} independent "
+                  f"{base.case.label} processes at once give {top:.2f}x the throughput of one."]
+        if shares:
+            lines[-1] += f" {base.case.label}'s parallel speedups as shares of it: {shares}."
     return "\n".join(lines) + "\n"
 
 
@@ -214,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("groups", nargs="*", default=["core", "grid", "relative"],
                     help=f"groups to run (default: core grid relative; all: {', '.join(GROUPS)})")
     args = ap.parse_args(argv)
+    if "all" in args.groups:
+        args.groups = list(GROUPS)
     unknown = [g for g in args.groups if g not in GROUPS]
     if unknown:
         print(f"error: unknown group {unknown[0]!r}; choose from {', '.join(GROUPS)}",
