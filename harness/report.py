@@ -867,6 +867,10 @@ def experiment_section(exp: Experiment, fig_dir: Path) -> Section:
 
 def build_document(experiments: Sequence[Experiment], results_dir: Path, fig_dir: Path) -> Document:
     """The whole report: header, warnings, one section per experiment with data."""
+    # Inside the repository the path is shown relative to it, so a committed report does not
+    # carry the path of the machine that rendered it.
+    if results_dir.resolve().is_relative_to(REPO_ROOT):
+        results_dir = results_dir.resolve().relative_to(REPO_ROOT)
     if experiments:
         names = ", ".join(f"`{e.name}`" for e in experiments)
         preamble: list[Block] = [

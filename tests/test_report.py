@@ -172,6 +172,13 @@ def test_empty_results_give_a_short_report(tmp_path: Path) -> None:
     assert headings(markdown) == ["collide-bench report"]
 
 
+def test_results_path_is_shown_relative_to_the_repository(tmp_path: Path) -> None:
+    inside = report.build_document([], report.REPO_ROOT / "results", tmp_path)
+    outside = report.build_document([], tmp_path / "results", tmp_path)
+    assert "`results`" in str(inside) and str(report.REPO_ROOT) not in str(inside)
+    assert str(tmp_path / "results") in str(outside)
+
+
 def test_differing_environments_are_listed_per_experiment(tmp_path: Path) -> None:
     root = results_with(tmp_path, "square", "radius")
     env_path = root / "radius" / "env.json"
