@@ -105,14 +105,30 @@
 #define GRID_EPS DBL_EPSILON
 #endif
 
+/* The float prefilter (see "The slice test" above): a run of entries is tested four at a time
+ * in float, one 128-bit vector (Zen1's FP width), with the reach grown by
+ * GRID_F32_MARGIN * FLT_EPSILON * B, where B bounds every float it reads (|coordinate| and
+ * |displacement| <= B / 2): a generous multiple of the float rounding, which is about 12
+ * FLT_EPSILON B on each end of the relative segment. Above GRID_F32_SPAN_MAX the squares could
+ * overflow, and the prefilter passes everything (the double test still decides). */
+#define GRID_LANES 4
+#define GRID_F32_MARGIN 32
+#define GRID_F32_SPAN_MAX 1e18
+typedef float grid_vf __attribute__((vector_size(GRID_LANES * sizeof(float))));
+typedef int32_t grid_vi __attribute__((vector_size(GRID_LANES * sizeof(int32_t))));
+
 /* A particle's state in double, for gathers by index. */
 typedef struct grid_particle {
     double x, y, vx, vy;
 } grid_particle;
 
-/* The non-wide particles of one slice in cell order. */
+/* The non-wide particles of one slice in cell order: the state in double (what the next slice
+ * bins), and for the prefilter, in float, the position at the slice's start relative to the
+ * grid's corner and the displacement over the slice (GRID_LANES - 1 more, for reads past a run's
+ * end). */
 typedef struct grid_set {
     double *x, *y, *vx, *vy;
+    float *fx, *fy, *fwx, *fwy;
     int32_t *id;
 } grid_set;
 
@@ -151,6 +167,8 @@ typedef struct grid_plan {
     double inv_h;     /* 1 / cell size; 0 puts everything in one cell */
     double rpad;      /* r + delta: how far a box reaches beyond the centre's path */
     double reach2;    /* (2r + delta)^2: centres closer than this in a slice are near */
+    float freach2;    /* the prefilter's reach squared, rounded up; f32_off: it passes all */
+    int f32_off;
     int pbits;        /* bits of an item index in a radix word */
 } grid_plan;
 
@@ -160,6 +178,7 @@ static void thread_free(grid_thread *t)
 {
     for (int b = 0; b < 2; b++) {
         free(t->set[b].x), free(t->set[b].y), free(t->set[b].vx), free(t->set[b].vy);
+        free(t->set[b].fx), free(t->set[b].fy), free(t->set[b].fwx), free(t->set[b].fwy);
         free(t->set[b].id), free(t->wide[b]);
     }
     free(t->cx0), free(t->cy0), free(t->flag), free(t->scell), free(t->sext), free(t->pos);
@@ -187,8 +206,13 @@ static int thread_alloc(grid_thread *t, size_t n)
     for (int b = 0; b < 2; b++) {
         grid_set *z = &t->set[b];
         z->x = malloc(d), z->y = malloc(d), z->vx = malloc(d), z->vy = malloc(d);
+        /* Zeroed: the lanes read past the last entry are always finite. */
+        z->fx = calloc(n + GRID_LANES, sizeof(float)), z->fy = calloc(n + GRID_LANES, sizeof(float));
+        z->fwx = calloc(n + GRID_LANES, sizeof(float));
+        z->fwy = calloc(n + GRID_LANES, sizeof(float));
         z->id = malloc(i), t->wide[b] = malloc(i);
-        ok &= z->x && z->y && z->vx && z->vy && z->id && t->wide[b];
+        ok &= z->x && z->y && z->vx && z->vy && z->fx && z->fy && z->fwx && z->fwy && z->id &&
+              t->wide[b];
     }
     t->cx0 = malloc(i), t->cy0 = malloc(i), t->flag = malloc(i), t->scell = malloc(i);
     t->sext = malloc(n);
@@ -295,6 +319,27 @@ static inline long near_pair(const grid_particle *restrict part, const double *r
                          reach2);
 }
 
+/* A coordinate and its velocity in the prefilter's terms: the position at the slice's start t0,
+ * relative to the grid's corner o, and the displacement over the slice's length dt. */
+static inline void slice_f32(double x, double vx, double o, double t0, double dt, float *p,
+                             float *w)
+{
+    *p = (float)((x - o) + t0 * vx);
+    *w = (float)(vx * dt);
+}
+
+/* The prefilter, four pairs at once: do the relative segments from p to p + w come within
+ * sqrt(r2) of the origin? An end within reach, or the closest point inside the segment (moving
+ * closer at p, away at p + w) with |p x w|^2 <= r2 |w|^2: no division, and the cross product
+ * only loses to rounding what the margin covers (its error over |w| is about FLT_EPSILON |p|).
+ * All lanes -1 or 0. */
+static inline grid_vi near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2)
+{
+    const grid_vf qx = px + wx, qy = py + wy, cr = px * wy - py * wx;
+    return (px * px + py * py <= r2) | (qx * qx + qy * qy <= r2) |
+           ((px * wx + py * wy < 0) & (qx * wx + qy * wy > 0) & (cr * cr <= r2 * (wx * wx + wy * wy)));
+}
+
 /* ---- the plan of a step ---- */
 
 static int bits_for(uint64_t v) /* bits needed to hold values < v (v >= 1) */
@@ -394,6 +439,14 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
         g->inv_h = 0;
         g->gx = g->gy = 1;
     }
+    /* The prefilter reads positions within [-vmax, span + vmax] of the corner and
+     * displacements up to vmax: B = 2 (span + vmax) + 4r bounds every float it computes. */
+    const double bound = 2 * (span + vmax) + 4 * r;
+    const double freach = 2 * r + delta + GRID_F32_MARGIN * (double)FLT_EPSILON * bound;
+    /* (1 + 8 FLT_EPSILON): the conversion to float may round down by half an ulp. */
+    const double freach2 = freach * freach * (1 + 8 * (double)FLT_EPSILON);
+    g->f32_off = !(sane && bound < GRID_F32_SPAN_MAX && freach2 < FLT_MAX);
+    g->freach2 = g->f32_off ? 1 : (float)freach2;
 
     /* Work items. */
     int bands = 1;
@@ -427,6 +480,24 @@ static void slice_cells(int32_t m, const double *restrict x, const double *restr
         cy0[p] = c;
         flag[p] = (b > a) * GRID_EXT_X + (d > c) * GRID_EXT_Y +
                   ((b - a > 1) | (d - c > 1)) * GRID_WIDE;
+    }
+}
+
+/* The prefilter's floats of entries [0, ne) (zeros, which pass everything, when it is off).
+ * One loop the compiler vectorises. */
+static void slice_entries_f32(grid_set *z, int32_t ne, const grid_plan *g, double t0, double t1)
+{
+    if (g->f32_off) {
+        memset(z->fx, 0, (size_t)ne * sizeof(float)), memset(z->fy, 0, (size_t)ne * sizeof(float));
+        memset(z->fwx, 0, (size_t)ne * sizeof(float)), memset(z->fwy, 0, (size_t)ne * sizeof(float));
+        return;
+    }
+    const double dt = t1 - t0, x0 = g->x0, y0 = g->y0;
+    const double *restrict x = z->x, *restrict y = z->y, *restrict vx = z->vx, *restrict vy = z->vy;
+    float *restrict fx = z->fx, *restrict fy = z->fy, *restrict fwx = z->fwx, *restrict fwy = z->fwy;
+    for (int32_t d = 0; d < ne; d++) {
+        slice_f32(x[d], vx[d], x0, t0, dt, &fx[d], &fwx[d]);
+        slice_f32(y[d], vy[d], y0, t0, dt, &fy[d], &fwy[d]);
     }
 }
 
@@ -520,6 +591,51 @@ static void pair_found(const grid_ctx *cx, int32_t a, int32_t b)
                 return; /* an earlier slice pushes it */
     }
     sim_cand_push(cx->buf, t, i, j);
+}
+
+/* One particle looked at against runs of entries: its prefilter floats and its id. */
+typedef struct grid_probe {
+    float x, y, wx, wy;
+    int32_t id;
+} grid_probe;
+
+/* The prefilter chunk at entry b of z against probe a, lanes at or past lim masked off. */
+static inline grid_vi chunk_near(const grid_set *z, int32_t b, int32_t lim, const grid_probe *a,
+                                 float r2)
+{
+    const grid_vi lane = {0, 1, 2, 3};
+    grid_vf X, Y, WX, WY;
+    memcpy(&X, z->fx + b, sizeof X), memcpy(&Y, z->fy + b, sizeof Y);
+    memcpy(&WX, z->fwx + b, sizeof WX), memcpy(&WY, z->fwy + b, sizeof WY);
+    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2) & (lane < lim - b);
+}
+
+/* The prefilter over two runs of entries of z, [lo1, hi1) and [lo2, hi2) (either may be
+ * empty), against probe a: every pair it passes goes to pair_found, which decides. One loop
+ * over the chunks of both, because a run is short (a dozen entries on the report benchmark) and
+ * a mispredicted loop exit costs as much as a dozen pair checks. Reads up to GRID_LANES - 1
+ * entries past a run's end, masked off. Returns the pairs looked at. */
+static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32_t lo1,
+                                    int32_t hi1, int32_t lo2, int32_t hi2, const grid_probe *a)
+{
+    const float r2 = cx->g->freach2;
+    const int32_t len1 = hi1 > lo1 ? hi1 - lo1 : 0, len2 = hi2 > lo2 ? hi2 - lo2 : 0;
+    const int32_t n1 = (len1 + GRID_LANES - 1) / GRID_LANES;
+    const int32_t n = n1 + (len2 + GRID_LANES - 1) / GRID_LANES;
+    grid_vi any = {0, 0, 0, 0};
+    for (int32_t c = 0; c < n; c++) {
+        const int32_t b = c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
+        any |= chunk_near(z, b, c < n1 ? hi1 : hi2, a, r2);
+    }
+    if (any[0] | any[1] | any[2] | any[3])
+        for (int32_t c = 0; c < n; c++) {
+            const int32_t b = c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
+            const grid_vi hit = chunk_near(z, b, c < n1 ? hi1 : hi2, a, r2);
+            for (int l = 0; l < GRID_LANES; l++)
+                if (hit[l])
+                    pair_found(cx, a->id, z->id[b + l]);
+        }
+    return len1 + len2;
 }
 
 /* Slice k, band `band`: bin the source into th->set[out] / th->wide[out] (returning their
@@ -628,6 +744,7 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
 #undef GRID_ID
     *ne_out = ne;
     *nw_out = nw;
+    slice_entries_f32(dst, ne, g, t0, t1);
     const uint64_t base_end = (uint64_t)(row1 - row0) * spanx;
     const int32_t nbase = dense ? pos[2 * base_end] : lower_bound(th->skey, ne, base_end);
     if (cx->ord_next) {
@@ -638,9 +755,6 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
             memcpy(cx->ord_next + (s->n - nw), wide, (size_t)nw * sizeof(int32_t));
     }
 
-    const double *restrict sx = dst->x, *restrict sy = dst->y;
-    const double *restrict svx = dst->vx, *restrict svy = dst->vy;
-    const int32_t *restrict sp = dst->id;
     const uint8_t *restrict sext = th->sext;
 
     /* Normal pairs, from the base cells of this band. Entry a of cell c = (cx, row) is looked
@@ -648,22 +762,12 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
      * the next column; then, when it reaches the next row, the cells (cx-1 .. cx+1) of the row
      * above (cx+1 only when it reaches the next column). A pair of a run that cannot intersect
      * (a cx-1 box that does not reach column cx) is never near, and no pair is in a run of both
-     * of its entries, so each is looked at once. A run is filtered branch-free (vectorised),
-     * then tested one by one only where the filter fired. */
-#define GRID_RUN(A, LO, HI)                                                                   \
+     * of its entries, so each is looked at once. A run goes through the float prefilter, then
+     * pair_found decides where it fired. */
+#define GRID_RUNS(A, LO1, HI1, LO2, HI2)                                                      \
     do {                                                                                      \
-        const int32_t lo_ = (LO), hi_ = (HI);                                                 \
-        const double ax_ = sx[A], ay_ = sy[A], avx_ = svx[A], avy_ = svy[A];                  \
-        long any_ = 0;                                                                        \
-        for (int32_t b_ = lo_; b_ < hi_; b_++)                                                \
-            any_ |= near_in_slice(sx[b_] - ax_, sy[b_] - ay_, svx[b_] - avx_, svy[b_] - avy_, \
-                                  t0, t1, reach2);                                            \
-        if (any_)                                                                             \
-            for (int32_t b_ = lo_; b_ < hi_; b_++)                                            \
-                if (near_in_slice(sx[b_] - ax_, sy[b_] - ay_, svx[b_] - avx_,                 \
-                                  svy[b_] - avy_, t0, t1, reach2))                            \
-                    pair_found(cx, sp[A], sp[b_]);                                            \
-        tests += (uint64_t)(hi_ > lo_ ? hi_ - lo_ : 0);                                       \
+        const grid_probe p_ = {dst->fx[A], dst->fy[A], dst->fwx[A], dst->fwy[A], dst->id[A]}; \
+        tests += (uint64_t)run_prefilter(cx, dst, (LO1), (HI1), (LO2), (HI2), &p_);           \
     } while (0)
 
     if (dense) {
@@ -674,9 +778,9 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
             const unsigned ex = sext[a], xr = ex & GRID_EXT_X;
             /* The rest of cell c (and cell c + 1); the up-left cell's entries that reach its
              * next column, the up cell (and the up-right one). */
-            GRID_RUN(a, a + 1, pos[2 * (c + 1 + xr)]);
-            if (ex & GRID_EXT_Y)
-                GRID_RUN(a, pos[2 * (c + w1 - 1) + 1], pos[2 * (c + w1 + 1 + xr)]);
+            const int up = (ex & GRID_EXT_Y) != 0;
+            GRID_RUNS(a, a + 1, pos[2 * (c + 1 + xr)], up ? pos[2 * (c + w1 - 1) + 1] : 0,
+                      up ? pos[2 * (c + w1 + 1 + xr)] : 0);
         }
     } else {
         /* The same runs, found in the list of keys: the start of the cell's run (run_beg), the
@@ -702,14 +806,13 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
             const int32_t up_end_x = q;
             for (int32_t a = beg; a < end; a++) {
                 const unsigned ex = sext[a];
-                GRID_RUN(a, a + 1, ex & GRID_EXT_X ? right_end : end);
-                if (ex & GRID_EXT_Y)
-                    GRID_RUN(a, up, ex & GRID_EXT_X ? up_end_x : up_end);
+                GRID_RUNS(a, a + 1, ex & GRID_EXT_X ? right_end : end, up,
+                          ex & GRID_EXT_Y ? (ex & GRID_EXT_X ? up_end_x : up_end) : up);
             }
             beg = end;
         }
     }
-#undef GRID_RUN
+#undef GRID_RUNS
 
     /* Wide boxes against the entries whose base cell is in this band: those with a corner cell
      * in the wide box's range or one column / row before it. */
@@ -724,6 +827,11 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
         const int32_t cyb = cell_of(hy, g->y0, g->inv_h, topy);
         const int32_t ra = cya - 1 > row0 ? cya - 1 : row0;
         const int32_t rb = cyb < row1 - 1 ? cyb : row1 - 1;
+        grid_probe pa = {0, 0, 0, 0, p}; /* zeros when the prefilter is off */
+        if (!g->f32_off) {
+            slice_f32(a.x, a.vx, g->x0, t0, t1 - t0, &pa.x, &pa.wx);
+            slice_f32(a.y, a.vy, g->y0, t0, t1 - t0, &pa.y, &pa.wy);
+        }
         for (int32_t row = ra; row <= rb; row++) {
             /* Cells (cxa - 1 .. cxb, row): numbers base + cxa .. base + cxb + 1. */
             const uint64_t base = (uint64_t)(row - row0) * spanx;
@@ -735,11 +843,7 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
                 lo = lower_bound(th->skey, ne, base + (uint64_t)cxa);
                 hi = lower_bound(th->skey, ne, base + (uint64_t)cxb + 2);
             }
-            tests += (uint64_t)(hi - lo);
-            for (int32_t b = lo; b < hi; b++)
-                if (near_in_slice(sx[b] - a.x, sy[b] - a.y, svx[b] - a.vx, svy[b] - a.vy, t0, t1,
-                                  reach2))
-                    pair_found(cx, p, sp[b]);
+            tests += (uint64_t)run_prefilter(cx, dst, lo, hi, 0, 0, &pa);
         }
     }
     /* Wide boxes against each other, once per slice. */
