@@ -6,11 +6,21 @@
  * Why time as well as space: in the report's scenes a particle moves L/8 to L/4 per step, so
  * the boxes swept over a whole step overlap for a large fraction of all pairs. The step is cut
  * into K time slices [k/K, (k+1)/K]; in each, a particle's box is the box its disc sweeps in
- * that slice, padded by a small margin delta (below). Boxes are binned into a uniform grid of
+ * that slice, padded (below). Boxes are binned into a uniform grid of
  * cell size h, the box width of a particle at the reference speed v_ref, so such a box spans at
  * most 2 cells per axis. K = GRID_K_FACTOR * v_ref * sqrt(N) / L (at least 1, at most
  * v_ref / 2r): it balances the N*K binning work against the pair checks, which fall as 1/K
- * (measured optimum: flat between 0.25 and 0.5 on the report benchmark and at N = 10^6).
+ * (factor 0.2 measured best of 0.2-0.35 on the report benchmark, and of 0.2 and 0.3 at
+ * N = 10^6, where it took 40 s against 46 s).
+ *
+ * In float: the binning and the prefilter (below) work on floats relative to the grid's corner
+ * (position at time 0, displacement per slice, position at the slice's start), half the bytes
+ * of doubles and twice the lanes of a vector. Every float is within a few FLT_EPSILON * bound
+ * of its exact value (bound: twice the largest coordinate or displacement), and the boxes and
+ * the prefilter's reach are padded by GRID_F32_MARGIN times that, so near (in double) in a
+ * slice implies that the float boxes overlap and that the prefilter passes. Only the decisions
+ * (near, sim_pair_time) are taken in double, on the particles' own state. Scenes whose bound
+ * floats cannot square (about 1e18) get one slice and one cell, every pair looked at.
  *
  * Binning ("lo corner"): a box whose cell range is at most 2x2 is entered once, in the cell of
  * its lower-left corner, with two bits saying whether it reaches into the next column / row.
@@ -31,11 +41,11 @@
  * the step before's last slice.
  *
  * The slice test: a pair looked at in slice k goes on only if the centres come within
- * 2r + delta of each other during [k/K, (k+1)/K] (closest point of the relative segment; a
- * vectorised filter over the run of candidates, then the scalar test where it fired). "Near in
+ * 2r + delta of each other during [k/K, (k+1)/K] (closest point of the relative segment, in
+ * double; the float prefilter, four pairs a vector, over the runs of candidates first). "Near in
  * slice k" is one function of the pair and k, so the set S of slices where it holds is well
- * defined, and near in k implies that the boxes (padded by r + delta each) overlap in k, hence
- * that the pair is looked at in k.
+ * defined, and near in k implies that the float boxes overlap in k, hence that the pair is
+ * looked at in k.
  *
  * Exactly once: a near pair is tested with sim_pair_time; an accepted pair with time t is pushed
  * from the slice kt = min(K-1, floor(t*K)) when kt is in S, else (rounding in a degenerate,
@@ -45,8 +55,8 @@
  * Never missed: if sim_pair_time accepts a pair, the discs come within 2r (up to its rounding,
  * orders of magnitude below delta = 4 sqrt(eps) (L + 2 vmax + 4r)) at some time in [0, 1], so
  * the pair is near in that time's slice, so S is not empty. Cells are a monotone function of
- * the coordinate (floor of a scaled difference, clamped to the grid: a particle outside the
- * grid's region lands in its border cells), so overlapping boxes have intersecting cell ranges.
+ * the coordinate (floor of a scaled float, clamped to the grid: a particle outside the grid's
+ * region lands in its border cells), so overlapping boxes have intersecting cell ranges.
  *
  * Parallel: threads take work items dynamically, each with its own scratch and candidate buffer;
  * an item is one slice (N <= GRID_SMALL_N; K is then rounded up to a multiple of the thread
@@ -69,11 +79,11 @@
 
 /* Most time slices per step. */
 #define GRID_K_MAX 4096
-/* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum on the report benchmark (the
- * vectorised slice test makes a pair check several times cheaper than binning a particle).
- * -DGRID_K_FACTOR=... overrides it for tuning sweeps. */
+/* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum (see the top; the prefilter
+ * makes a pair check several times cheaper than binning a particle). -DGRID_K_FACTOR=...
+ * overrides it for tuning sweeps. */
 #ifndef GRID_K_FACTOR
-#define GRID_K_FACTOR 0.3
+#define GRID_K_FACTOR 0.2
 #endif
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
@@ -122,13 +132,12 @@ typedef struct grid_particle {
     double x, y, vx, vy;
 } grid_particle;
 
-/* The non-wide particles of one slice in cell order: the state in double (what the next slice
- * bins), and for the prefilter, in float, the position at the slice's start relative to the
- * grid's corner and the displacement over the slice (GRID_LANES - 1 more, for reads past a run's
- * end). */
+/* The non-wide particles of one slice in cell order, in float (the binning's terms): position
+ * at time 0 relative to the grid's corner and displacement over one slice (what the next slice
+ * bins), position at this slice's start (what the prefilter reads with the displacement), id.
+ * GRID_LANES - 1 more of each, for the prefilter's reads past a run's end. */
 typedef struct grid_set {
-    double *x, *y, *vx, *vy;
-    float *fx, *fy, *fwx, *fwy;
+    float *bx, *by, *ux, *uy, *px, *py;
     int32_t *id;
 } grid_set;
 
@@ -148,7 +157,7 @@ typedef struct grid_thread {
 typedef struct grid_scratch {
     int32_t n;
     int threads;
-    double *x, *y, *vx, *vy; /* the state in double, in the order ord, for the binning pass */
+    float *bx, *by, *ux, *uy; /* the state in the binning's terms (grid_set), in the order ord */
     int32_t *ord, *ord_next; /* particles in the cell order of the last slice of the step before:
                               * the first slice of a step finds them almost sorted */
     grid_particle *part;     /* the state in double, by particle, for gathers */
@@ -163,12 +172,13 @@ typedef struct grid_plan {
     int blocks;       /* bands == 1: items are blocks of consecutive slices */
     int32_t band_rows;
     int32_t gx, gy;   /* cells per axis */
-    double x0, y0;    /* the grid's lower-left corner */
-    double inv_h;     /* 1 / cell size; 0 puts everything in one cell */
-    double rpad;      /* r + delta: how far a box reaches beyond the centre's path */
+    double x0, y0;    /* the grid's lower-left corner: the origin of the binning's floats */
+    float inv_h;      /* 1 / cell size; 0 puts everything in one cell */
+    float topx, topy; /* the last column and row */
+    float rpad;       /* how far a box reaches beyond the centre's path (r, delta, margin) */
     double reach2;    /* (2r + delta)^2: centres closer than this in a slice are near */
-    float freach2;    /* the prefilter's reach squared, rounded up; f32_off: it passes all */
-    int f32_off;
+    float freach2;    /* the prefilter's reach squared (2r, delta, margin), rounded up */
+    int f32_off;      /* magnitudes floats cannot carry: one slice, one cell, zeros that pass */
     int pbits;        /* bits of an item index in a radix word */
 } grid_plan;
 
@@ -177,8 +187,8 @@ typedef struct grid_plan {
 static void thread_free(grid_thread *t)
 {
     for (int b = 0; b < 2; b++) {
-        free(t->set[b].x), free(t->set[b].y), free(t->set[b].vx), free(t->set[b].vy);
-        free(t->set[b].fx), free(t->set[b].fy), free(t->set[b].fwx), free(t->set[b].fwy);
+        free(t->set[b].bx), free(t->set[b].by), free(t->set[b].ux), free(t->set[b].uy);
+        free(t->set[b].px), free(t->set[b].py);
         free(t->set[b].id), free(t->wide[b]);
     }
     free(t->cx0), free(t->cy0), free(t->flag), free(t->scell), free(t->sext), free(t->pos);
@@ -194,25 +204,23 @@ static void scratch_destroy(void *p)
         for (int k = 0; k < s->threads; k++)
             thread_free(&s->th[k]);
     free(s->th);
-    free(s->x), free(s->y), free(s->vx), free(s->vy), free(s->part), free(s->tk);
+    free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->part), free(s->tk);
     free(s->ord), free(s->ord_next);
     free(s);
 }
 
 static int thread_alloc(grid_thread *t, size_t n)
 {
-    const size_t d = n * sizeof(double), i = n * sizeof(int32_t), u = n * sizeof(uint64_t);
+    const size_t i = n * sizeof(int32_t), u = n * sizeof(uint64_t), f = n + GRID_LANES;
     int ok = 1;
     for (int b = 0; b < 2; b++) {
         grid_set *z = &t->set[b];
-        z->x = malloc(d), z->y = malloc(d), z->vx = malloc(d), z->vy = malloc(d);
         /* Zeroed: the lanes read past the last entry are always finite. */
-        z->fx = calloc(n + GRID_LANES, sizeof(float)), z->fy = calloc(n + GRID_LANES, sizeof(float));
-        z->fwx = calloc(n + GRID_LANES, sizeof(float));
-        z->fwy = calloc(n + GRID_LANES, sizeof(float));
-        z->id = malloc(i), t->wide[b] = malloc(i);
-        ok &= z->x && z->y && z->vx && z->vy && z->fx && z->fy && z->fwx && z->fwy && z->id &&
-              t->wide[b];
+        z->bx = calloc(f, sizeof(float)), z->by = calloc(f, sizeof(float));
+        z->ux = calloc(f, sizeof(float)), z->uy = calloc(f, sizeof(float));
+        z->px = calloc(f, sizeof(float)), z->py = calloc(f, sizeof(float));
+        z->id = calloc(f, sizeof(int32_t)), t->wide[b] = malloc(i);
+        ok &= z->bx && z->by && z->ux && z->uy && z->px && z->py && z->id && t->wide[b];
     }
     t->cx0 = malloc(i), t->cy0 = malloc(i), t->flag = malloc(i), t->scell = malloc(i);
     t->sext = malloc(n);
@@ -233,13 +241,13 @@ static void *scratch_create(const sim_world *w, int threads)
     const size_t n = (size_t)w->n + 1;
     s->n = w->n;
     s->threads = threads;
-    s->x = malloc(n * sizeof(double)), s->y = malloc(n * sizeof(double));
-    s->vx = malloc(n * sizeof(double)), s->vy = malloc(n * sizeof(double));
+    s->bx = malloc(n * sizeof(float)), s->by = malloc(n * sizeof(float));
+    s->ux = malloc(n * sizeof(float)), s->uy = malloc(n * sizeof(float));
     s->part = malloc(n * sizeof *s->part);
     s->ord = malloc(n * sizeof(int32_t)), s->ord_next = malloc(n * sizeof(int32_t));
     s->tk = malloc((GRID_K_MAX + 1) * sizeof(double));
     s->th = calloc((size_t)threads, sizeof *s->th);
-    if (!s->x || !s->y || !s->vx || !s->vy || !s->part || !s->ord || !s->ord_next || !s->tk ||
+    if (!s->bx || !s->by || !s->ux || !s->uy || !s->part || !s->ord || !s->ord_next || !s->tk ||
         !s->th) {
         scratch_destroy(s);
         return NULL;
@@ -256,39 +264,49 @@ static void *scratch_create(const sim_world *w, int threads)
 
 /* ---- geometry: one function each, used for binning and for every later decision ---- */
 
-/* The box a centre sweeps over [t0, t1], grown by rpad. */
-static inline void slice_box(double x, double y, double vx, double vy, double t0, double t1,
-                             double rpad, double *lox, double *hix, double *loy, double *hiy)
+/* A particle in the binning's terms (grid_set): position at time 0 relative to the grid's
+ * corner, displacement over one slice of 1/K step; zeros when floats cannot carry the scene. */
+static inline void particle_f32(const grid_particle *q, const grid_plan *g, float *bx, float *by,
+                                float *ux, float *uy)
 {
-    const double xa = x + t0 * vx, xb = x + t1 * vx;
-    const double ya = y + t0 * vy, yb = y + t1 * vy;
+    const int off = g->f32_off;
+    *bx = off ? 0 : (float)(q->x - g->x0), *by = off ? 0 : (float)(q->y - g->y0);
+    *ux = off ? 0 : (float)(q->vx / g->K), *uy = off ? 0 : (float)(q->vy / g->K);
+}
+
+/* Position at the start of slice k (k as a float). */
+static inline float slice_start(float b, float u, float k)
+{
+    return b + k * u;
+}
+
+/* The cell of coordinate v: floor(v / h) clamped to [0, top]. Monotone in v, so boxes that
+ * overlap have cell ranges that intersect. */
+static inline int32_t cell_of(float v, float inv_h, float top)
+{
+    float c = v * inv_h;
+    c = c > 0 ? c : 0;
+    c = c < top ? c : top;
+    return (int32_t)c;
+}
+
+/* The cells of the box a centre sweeps in a slice from p to p + u, grown by rpad: [*a, *b]. */
+static inline void axis_cells(float p, float u, float rpad, float inv_h, float top, int32_t *a,
+                              int32_t *b)
+{
+    const float q = p + u;
     /* min and max written so that the compiler turns them into vector min/max. */
-    *lox = (xa < xb ? xa : xb) - rpad;
-    *hix = (xb < xa ? xa : xb) + rpad;
-    *loy = (ya < yb ? ya : yb) - rpad;
-    *hiy = (yb < ya ? ya : yb) + rpad;
+    *a = cell_of((p < q ? p : q) - rpad, inv_h, top);
+    *b = cell_of((q < p ? p : q) + rpad, inv_h, top);
 }
 
-/* The cell of coordinate v: floor((v - o) / h) clamped to [0, top]. Monotone in v, so boxes
- * that overlap have cell ranges that intersect; NaN (only from an infinite coordinate in the
- * degenerate one-cell grid) lands in cell 0. */
-static inline int32_t cell_of(double v, double o, double inv_h, double top)
+/* Corner cell and flags of the box from slice-start position (px, py), displacement (ux, uy). */
+static inline void box_cells(float px, float py, float ux, float uy, const grid_plan *g,
+                             int32_t *cx, int32_t *cy, int32_t *flag)
 {
-    double u = (v - o) * inv_h;
-    u = u > 0 ? u : 0;
-    u = u < top ? u : top;
-    return (int32_t)u;
-}
-
-/* Corner cell and flags of the box of (x, y, vx, vy) in [t0, t1]. */
-static inline void box_cells(double x, double y, double vx, double vy, double t0, double t1,
-                             const grid_plan *g, int32_t *cx, int32_t *cy, int32_t *flag)
-{
-    double lx, hx, ly, hy;
-    slice_box(x, y, vx, vy, t0, t1, g->rpad, &lx, &hx, &ly, &hy);
-    const double topx = g->gx - 1, topy = g->gy - 1;
-    const int32_t a = cell_of(lx, g->x0, g->inv_h, topx), b = cell_of(hx, g->x0, g->inv_h, topx);
-    const int32_t c = cell_of(ly, g->y0, g->inv_h, topy), d = cell_of(hy, g->y0, g->inv_h, topy);
+    int32_t a, b, c, d;
+    axis_cells(px, ux, g->rpad, g->inv_h, g->topx, &a, &b);
+    axis_cells(py, uy, g->rpad, g->inv_h, g->topy, &c, &d);
     *cx = a;
     *cy = c;
     *flag = (b > a) * GRID_EXT_X + (d > c) * GRID_EXT_Y + ((b - a > 1) | (d - c > 1)) * GRID_WIDE;
@@ -319,15 +337,6 @@ static inline long near_pair(const grid_particle *restrict part, const double *r
                          reach2);
 }
 
-/* A coordinate and its velocity in the prefilter's terms: the position at the slice's start t0,
- * relative to the grid's corner o, and the displacement over the slice's length dt. */
-static inline void slice_f32(double x, double vx, double o, double t0, double dt, float *p,
-                             float *w)
-{
-    *p = (float)((x - o) + t0 * vx);
-    *w = (float)(vx * dt);
-}
-
 /* The prefilter, four pairs at once: do the relative segments from p to p + w come within
  * sqrt(r2) of the origin? An end within reach, or the closest point inside the segment (moving
  * closer at p, away at p + w) with |p x w|^2 <= r2 |w|^2: no division, and the cross product
@@ -336,8 +345,11 @@ static inline void slice_f32(double x, double vx, double o, double t0, double dt
 static inline grid_vi near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2)
 {
     const grid_vf qx = px + wx, qy = py + wy, cr = px * wy - py * wx;
+    const grid_vf ww = wx * wx + wy * wy, pw = px * wx + py * wy;
+    /* q.w = p.w + |w|^2: off by a few FLT_EPSILON (|p| + |w|) |w|, which moves the split
+     * between an end and the inside by a distance the margin covers. */
     return (px * px + py * py <= r2) | (qx * qx + qy * qy <= r2) |
-           ((px * wx + py * wy < 0) & (qx * wx + qy * wy > 0) & (cr * cr <= r2 * (wx * wx + wy * wy)));
+           ((pw < 0) & (pw + ww > 0) & (cr * cr <= r2 * ww));
 }
 
 /* ---- the plan of a step ---- */
@@ -363,16 +375,23 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
         const double ax = fabs(vx), ay = fabs(vy), a = ax > ay ? ax : ay;
         vmax = a > vmax ? a : vmax;
     }
-    for (int32_t e = 0; e < n; e++) {
-        const grid_particle q = s->part[s->ord[e]];
-        s->x[e] = q.x, s->y[e] = q.y, s->vx[e] = q.vx, s->vy[e] = q.vy;
-    }
     const double L = (double)w->L, r = (double)w->r;
-    /* Padding: far above the rounding of the pair kernel, of the slice times and of the boxes;
-     * near in a slice (2r + delta) implies that the boxes (r + delta each) overlap. */
+    /* Padding: far above the rounding of the pair kernel and of the slice times. */
     const double delta = 4 * sqrt(GRID_EPS) * (L + 2 * vmax + 4 * r);
-    /* Absurd magnitudes (an overflowing padding): one slice and one cell; still exact. */
-    const int sane = delta < HUGE_VAL;
+    /* The binning and the prefilter work in float, relative to the grid's corner. Every float
+     * they compute (positions within [-vmax, span + vmax] of the corner, displacements, their
+     * differences) is at most `bound` / 2 in magnitude: span <= extent + 2 vmax + 2 rpad, and
+     * rpad's margin (below) is under 1e-5 bound. Each such float is within a few FLT_EPSILON
+     * bound of its exact value, so a margin of GRID_F32_MARGIN FLT_EPSILON bound on the boxes
+     * and on the prefilter's reach covers the rounding many times over: near in a slice (2r +
+     * delta, in double) implies that the float boxes overlap and that the prefilter passes. */
+    const double extent = maxx - minx > maxy - miny ? maxx - minx : maxy - miny;
+    const double bound = 1.001 * (2 * (extent + 3 * vmax + 2 * delta) + 8 * r);
+    const double margin = GRID_F32_MARGIN * (double)FLT_EPSILON * bound;
+    /* Magnitudes floats cannot carry, or an overflowing padding: one slice and one cell, and
+     * zeros that the prefilter passes; still exact (every pair is looked at). */
+    g->f32_off = !(bound < GRID_F32_SPAN_MAX);
+    const int sane = !g->f32_off;
 
     /* v_ref: the axis speed that at most N / GRID_WIDE_SHARE particles exceed, to a bin. */
     double vref = vmax;
@@ -413,40 +432,44 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     for (int k = 0; k <= g->K; k++)
         s->tk[k] = (double)k / g->K;
 
-    g->rpad = r + delta;
     g->reach2 = (2 * r + delta) * (2 * r + delta);
+    /* Rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an ulp. */
+    const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
+    const double freach = 2 * r + delta + margin;
+    g->rpad = (float)rpad;
+    g->freach2 = (float)(freach * freach * (1 + 8 * (double)FLT_EPSILON));
 
     /* Cell size: the box width of a particle at v_ref. Region: where such particles go. */
-    double h = vref / g->K + 2 * g->rpad;
-    g->x0 = minx - vref - g->rpad;
-    g->y0 = miny - vref - g->rpad;
-    const double spanx = (maxx + vref + g->rpad) - g->x0;
-    const double spany = (maxy + vref + g->rpad) - g->y0;
+    double h = vref / g->K + 2 * rpad;
+    g->x0 = minx - vref - rpad;
+    g->y0 = miny - vref - rpad;
+    const double spanx = (maxx + vref + rpad) - g->x0;
+    const double spany = (maxy + vref + rpad) - g->y0;
     const double span = spanx > spany ? spanx : spany;
-    /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + 2) * (columns + 3). */
+    /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + 2) * (columns + 3);
+     * and a float holds every cell number of an axis exactly. */
     g->pbits = bits_for((uint64_t)n);
     int axis_bits = (64 - g->pbits - GRID_EXT_BITS - 4) / 2;
-    if (axis_bits > 30)
-        axis_bits = 30;
+    if (axis_bits > FLT_MANT_DIG)
+        axis_bits = FLT_MANT_DIG;
     const double cells_max = (double)((int64_t)1 << axis_bits) - 4;
     if (!(span / h <= cells_max))
         h = span / cells_max;
-    if (sane && h > 0 && h < HUGE_VAL && span < HUGE_VAL) {
-        g->inv_h = 1 / h;
+    if (sane && h > 0) {
+        g->inv_h = (float)(1 / h);
         g->gx = (int32_t)(spanx * g->inv_h) + 1;
         g->gy = (int32_t)(spany * g->inv_h) + 1;
-    } else { /* absurd magnitudes: one cell, every pair looked at; still exact */
+        if (g->gx > cells_max)
+            g->gx = (int32_t)cells_max;
+        if (g->gy > cells_max)
+            g->gy = (int32_t)cells_max;
+    } else { /* one cell, every pair looked at; still exact */
         g->inv_h = 0;
         g->gx = g->gy = 1;
     }
-    /* The prefilter reads positions within [-vmax, span + vmax] of the corner and
-     * displacements up to vmax: B = 2 (span + vmax) + 4r bounds every float it computes. */
-    const double bound = 2 * (span + vmax) + 4 * r;
-    const double freach = 2 * r + delta + GRID_F32_MARGIN * (double)FLT_EPSILON * bound;
-    /* (1 + 8 FLT_EPSILON): the conversion to float may round down by half an ulp. */
-    const double freach2 = freach * freach * (1 + 8 * (double)FLT_EPSILON);
-    g->f32_off = !(sane && bound < GRID_F32_SPAN_MAX && freach2 < FLT_MAX);
-    g->freach2 = g->f32_off ? 1 : (float)freach2;
+    g->topx = (float)(g->gx - 1), g->topy = (float)(g->gy - 1);
+    for (int32_t e = 0; e < n; e++)
+        particle_f32(&s->part[s->ord[e]], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
 
     /* Work items. */
     int bands = 1;
@@ -464,41 +487,16 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
 
 /* ---- one slice ---- */
 
-/* Every item's corner cell and flags in slice [t0, t1]. One loop the compiler vectorises. */
-static void slice_cells(int32_t m, const double *restrict x, const double *restrict y,
-                        const double *restrict vx, const double *restrict vy, double t0,
-                        double t1, double rpad, double x0, double y0, double inv_h, double topx,
-                        double topy, int32_t *restrict cx0, int32_t *restrict cy0,
+/* Every item's corner cell and flags in slice k (as a float). One loop the compiler
+ * vectorises. */
+static void slice_cells(int32_t m, const float *restrict bx, const float *restrict by,
+                        const float *restrict ux, const float *restrict uy, float k,
+                        const grid_plan *g, int32_t *restrict cx0, int32_t *restrict cy0,
                         int32_t *restrict flag)
 {
-    for (int32_t p = 0; p < m; p++) {
-        double lx, hx, ly, hy;
-        slice_box(x[p], y[p], vx[p], vy[p], t0, t1, rpad, &lx, &hx, &ly, &hy);
-        const int32_t a = cell_of(lx, x0, inv_h, topx), b = cell_of(hx, x0, inv_h, topx);
-        const int32_t c = cell_of(ly, y0, inv_h, topy), d = cell_of(hy, y0, inv_h, topy);
-        cx0[p] = a;
-        cy0[p] = c;
-        flag[p] = (b > a) * GRID_EXT_X + (d > c) * GRID_EXT_Y +
-                  ((b - a > 1) | (d - c > 1)) * GRID_WIDE;
-    }
-}
-
-/* The prefilter's floats of entries [0, ne) (zeros, which pass everything, when it is off).
- * One loop the compiler vectorises. */
-static void slice_entries_f32(grid_set *z, int32_t ne, const grid_plan *g, double t0, double t1)
-{
-    if (g->f32_off) {
-        memset(z->fx, 0, (size_t)ne * sizeof(float)), memset(z->fy, 0, (size_t)ne * sizeof(float));
-        memset(z->fwx, 0, (size_t)ne * sizeof(float)), memset(z->fwy, 0, (size_t)ne * sizeof(float));
-        return;
-    }
-    const double dt = t1 - t0, x0 = g->x0, y0 = g->y0;
-    const double *restrict x = z->x, *restrict y = z->y, *restrict vx = z->vx, *restrict vy = z->vy;
-    float *restrict fx = z->fx, *restrict fy = z->fy, *restrict fwx = z->fwx, *restrict fwy = z->fwy;
-    for (int32_t d = 0; d < ne; d++) {
-        slice_f32(x[d], vx[d], x0, t0, dt, &fx[d], &fwx[d]);
-        slice_f32(y[d], vy[d], y0, t0, dt, &fy[d], &fwy[d]);
-    }
+    for (int32_t p = 0; p < m; p++)
+        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
+                  &cx0[p], &cy0[p], &flag[p]);
 }
 
 /* LSD radix sort of a[0, n) on bits [shift, shift + kb); returns the buffer holding the
@@ -551,7 +549,7 @@ static int32_t lower_bound(const uint64_t *key, int32_t n, uint64_t v)
 /* What a slice reads: items [0, m) from arrays (ids: id[e], or e itself when id is NULL), then
  * items [m, m + nwide) are the particles wide[] (read from the scratch's particle array). */
 typedef struct grid_src {
-    const double *x, *y, *vx, *vy;
+    const float *bx, *by, *ux, *uy;
     const int32_t *id;
     int32_t m;
     const int32_t *wide;
@@ -599,15 +597,13 @@ typedef struct grid_probe {
     int32_t id;
 } grid_probe;
 
-/* The prefilter chunk at entry b of z against probe a, lanes at or past lim masked off. */
-static inline grid_vi chunk_near(const grid_set *z, int32_t b, int32_t lim, const grid_probe *a,
-                                 float r2)
+/* The prefilter on the chunk of entries [b, b + GRID_LANES) of z against probe a. */
+static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe *a, float r2)
 {
-    const grid_vi lane = {0, 1, 2, 3};
     grid_vf X, Y, WX, WY;
-    memcpy(&X, z->fx + b, sizeof X), memcpy(&Y, z->fy + b, sizeof Y);
-    memcpy(&WX, z->fwx + b, sizeof WX), memcpy(&WY, z->fwy + b, sizeof WY);
-    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2) & (lane < lim - b);
+    memcpy(&X, z->px + b, sizeof X), memcpy(&Y, z->py + b, sizeof Y);
+    memcpy(&WX, z->ux + b, sizeof WX), memcpy(&WY, z->uy + b, sizeof WY);
+    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2);
 }
 
 /* The prefilter over two runs of entries of z, [lo1, hi1) and [lo2, hi2) (either may be
@@ -623,14 +619,15 @@ static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32
     const int32_t n1 = (len1 + GRID_LANES - 1) / GRID_LANES;
     const int32_t n = n1 + (len2 + GRID_LANES - 1) / GRID_LANES;
     grid_vi any = {0, 0, 0, 0};
-    for (int32_t c = 0; c < n; c++) {
-        const int32_t b = c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
-        any |= chunk_near(z, b, c < n1 ? hi1 : hi2, a, r2);
-    }
+    /* Lanes past a run's end are not masked here: they are entries of the slice or the zeroed
+     * padding, and at worst make a run fire; the second pass masks them. */
+    for (int32_t c = 0; c < n; c++)
+        any |= chunk_near(z, c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES, a, r2);
     if (any[0] | any[1] | any[2] | any[3])
         for (int32_t c = 0; c < n; c++) {
             const int32_t b = c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
-            const grid_vi hit = chunk_near(z, b, c < n1 ? hi1 : hi2, a, r2);
+            const grid_vi lane = {0, 1, 2, 3};
+            const grid_vi hit = chunk_near(z, b, a, r2) & (lane < (c < n1 ? hi1 : hi2) - b);
             for (int l = 0; l < GRID_LANES; l++)
                 if (hit[l])
                     pair_found(cx, a->id, z->id[b + l]);
@@ -645,8 +642,8 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
 {
     const grid_scratch *s = cx->s;
     const grid_plan *g = cx->g;
-    const double t0 = s->tk[cx->k], t1 = s->tk[cx->k + 1], reach2 = g->reach2;
-    const double topx = g->gx - 1, topy = g->gy - 1;
+    const double reach2 = g->reach2;
+    const float kf = (float)cx->k;
     const int32_t row0 = band * g->band_rows;
     const int32_t row1 = row0 + g->band_rows < g->gy ? row0 + g->band_rows : g->gy;
     /* Entries of row row1 take part as upper neighbours of the band's last row. */
@@ -661,25 +658,27 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
     uint64_t tests = 0;
 
     /* Corner cells and flags of every item: the arrays vectorised, the few wide ones apart. */
-    slice_cells(m, src->x, src->y, src->vx, src->vy, t0, t1, g->rpad, g->x0, g->y0, g->inv_h,
-                topx, topy, th->cx0, th->cy0, th->flag);
+    slice_cells(m, src->bx, src->by, src->ux, src->uy, kf, g, th->cx0, th->cy0, th->flag);
     for (int32_t e = m; e < items; e++) {
-        const grid_particle q = part[src->wide[e - m]];
-        box_cells(q.x, q.y, q.vx, q.vy, t0, t1, g, &th->cx0[e], &th->cy0[e], &th->flag[e]);
+        float bx, by, ux, uy;
+        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &th->cx0[e],
+                  &th->cy0[e], &th->flag[e]);
     }
 #define GRID_ID(E) ((E) < m ? (src->id ? src->id[E] : (E)) : src->wide[(E) - m])
 #define GRID_PUT(D, E)                                                                        \
     do {                                                                                      \
+        float bx_, by_, ux_, uy_;                                                             \
         if ((E) < m) {                                                                        \
-            dst->x[D] = src->x[E], dst->y[D] = src->y[E];                                     \
-            dst->vx[D] = src->vx[E], dst->vy[D] = src->vy[E];                                 \
+            bx_ = src->bx[E], by_ = src->by[E], ux_ = src->ux[E], uy_ = src->uy[E];           \
             dst->id[D] = src->id ? src->id[E] : (E);                                          \
         } else {                                                                              \
             const int32_t p_ = src->wide[(E) - m];                                            \
-            const grid_particle q_ = part[p_];                                                \
-            dst->x[D] = q_.x, dst->y[D] = q_.y, dst->vx[D] = q_.vx, dst->vy[D] = q_.vy;       \
+            particle_f32(&part[p_], g, &bx_, &by_, &ux_, &uy_);                               \
             dst->id[D] = p_;                                                                  \
         }                                                                                     \
+        dst->bx[D] = bx_, dst->by[D] = by_, dst->ux[D] = ux_, dst->uy[D] = uy_;               \
+        dst->px[D] = slice_start(bx_, ux_, kf), dst->py[D] = slice_start(by_, uy_, kf);       \
     } while (0)
 
     /* The entries of this band's rows (and of the row above it) in cell order. Cells are
@@ -744,7 +743,6 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
 #undef GRID_ID
     *ne_out = ne;
     *nw_out = nw;
-    slice_entries_f32(dst, ne, g, t0, t1);
     const uint64_t base_end = (uint64_t)(row1 - row0) * spanx;
     const int32_t nbase = dense ? pos[2 * base_end] : lower_bound(th->skey, ne, base_end);
     if (cx->ord_next) {
@@ -766,7 +764,7 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
      * pair_found decides where it fired. */
 #define GRID_RUNS(A, LO1, HI1, LO2, HI2)                                                      \
     do {                                                                                      \
-        const grid_probe p_ = {dst->fx[A], dst->fy[A], dst->fwx[A], dst->fwy[A], dst->id[A]}; \
+        const grid_probe p_ = {dst->px[A], dst->py[A], dst->ux[A], dst->uy[A], dst->id[A]};   \
         tests += (uint64_t)run_prefilter(cx, dst, (LO1), (HI1), (LO2), (HI2), &p_);           \
     } while (0)
 
@@ -818,20 +816,15 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
      * in the wide box's range or one column / row before it. */
     for (int32_t m2 = 0; m2 < nw; m2++) {
         const int32_t p = wide[m2];
-        const grid_particle a = part[p];
-        double lx, hx, ly, hy;
-        slice_box(a.x, a.y, a.vx, a.vy, t0, t1, g->rpad, &lx, &hx, &ly, &hy);
-        const int32_t cxa = cell_of(lx, g->x0, g->inv_h, topx);
-        const int32_t cxb = cell_of(hx, g->x0, g->inv_h, topx);
-        const int32_t cya = cell_of(ly, g->y0, g->inv_h, topy);
-        const int32_t cyb = cell_of(hy, g->y0, g->inv_h, topy);
+        float bx, by;
+        grid_probe pa = {.id = p};
+        particle_f32(&part[p], g, &bx, &by, &pa.wx, &pa.wy);
+        pa.x = slice_start(bx, pa.wx, kf), pa.y = slice_start(by, pa.wy, kf);
+        int32_t cxa, cxb, cya, cyb;
+        axis_cells(pa.x, pa.wx, g->rpad, g->inv_h, g->topx, &cxa, &cxb);
+        axis_cells(pa.y, pa.wy, g->rpad, g->inv_h, g->topy, &cya, &cyb);
         const int32_t ra = cya - 1 > row0 ? cya - 1 : row0;
         const int32_t rb = cyb < row1 - 1 ? cyb : row1 - 1;
-        grid_probe pa = {0, 0, 0, 0, p}; /* zeros when the prefilter is off */
-        if (!g->f32_off) {
-            slice_f32(a.x, a.vx, g->x0, t0, t1 - t0, &pa.x, &pa.wx);
-            slice_f32(a.y, a.vy, g->y0, t0, t1 - t0, &pa.y, &pa.wy);
-        }
         for (int32_t row = ra; row <= rb; row++) {
             /* Cells (cxa - 1 .. cxb, row): numbers base + cxa .. base + cxb + 1. */
             const uint64_t base = (uint64_t)(row - row0) * spanx;
@@ -862,7 +855,7 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
 static void run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
                      const grid_plan *g, int k0, int k1, int band, sim_cand_buf *buf)
 {
-    grid_src src = {.x = s->x, .y = s->y, .vx = s->vx, .vy = s->vy, .id = s->ord, .m = s->n,
+    grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
                     .wide = NULL, .nwide = 0};
     int out = 0;
     for (int k = k0; k < k1; k++) {
@@ -871,7 +864,7 @@ static void run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
         int32_t ne, nw;
         run_slice(&cx, th, band, &src, out, &ne, &nw);
         const grid_set *z = &th->set[out];
-        src = (grid_src){.x = z->x, .y = z->y, .vx = z->vx, .vy = z->vy, .id = z->id, .m = ne,
+        src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id, .m = ne,
                          .wide = th->wide[out], .nwide = nw};
         out ^= 1;
     }

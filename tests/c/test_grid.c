@@ -166,19 +166,93 @@ static void test_near_is_symmetric(void)
     }
 }
 
-/* The cell of a coordinate never decreases as the coordinate grows, infinities included. */
+/* The cell of a coordinate never decreases as the coordinate grows, infinities included, and
+ * stays within [0, top]. */
 static void test_cell_is_monotone(void)
 {
-    const double inv_h[] = {1.0 / 3, 1e-7, 1e7, 0};
+    const float inv_h[] = {1.0f / 3, 1e-7f, 1e7f, 0};
     for (size_t m = 0; m < sizeof inv_h / sizeof inv_h[0]; m++)
         for (int k = 0; k < 100000; k++) {
-            double a = (2 * uniform() - 1) * pow(10, 12 * uniform()), b = a + uniform() * 10;
+            float a = (float)((2 * uniform() - 1) * pow(10, 12 * uniform()));
+            float b = a + (float)(uniform() * 10);
             if (k % 1000 == 0)
-                a = -HUGE_VAL;
+                a = -HUGE_VALF;
             if (k % 1000 == 1)
-                b = HUGE_VAL;
-            CHECK(cell_of(a, -5, inv_h[m], 1000) <= cell_of(b, -5, inv_h[m], 1000));
+                b = HUGE_VALF;
+            const int32_t ca = cell_of(a, inv_h[m], 1000), cb = cell_of(b, inv_h[m], 1000);
+            CHECK(ca <= cb);
+            CHECK(ca >= 0 && cb <= 1000);
         }
+}
+
+/* The two facts the float binning rests on, for pairs built to pass within 2r + delta * u
+ * (u in [0, 1]: up to the edge of "near") at a chosen time, in scenes from L = 10 to 10^7: in
+ * every slice where the pair is near (in double), the float prefilter passes it and the float
+ * boxes' cell ranges intersect. */
+static void test_near_pairs_pass_the_float_binning(void)
+{
+    const int ks[] = {1, 3, 8, 64, 1000};
+    sim_world w;
+    world_make(&w, 3, 10, 1);
+    void *scratch = sim_variant_def.scratch_create(&w, 1);
+    grid_scratch *s = scratch;
+    int near_slices = 0;
+    for (int trial = 0; trial < 20000; trial++) {
+        const double L = pow(10, 1 + 6 * uniform()), r = 0.5 + uniform();
+        w.L = (sim_real)L, w.r = (sim_real)r;
+        const double speed = L * pow(10, -4 * uniform()), tc = trial % 2 ? below(9) / 8.0 : uniform();
+        const double phi = 2 * PI * uniform(), psi = 2 * PI * uniform();
+        /* Particle 2 only sets the extent: somewhere in the box. */
+        w.x[2] = (sim_real)(L * uniform()), w.y[2] = (sim_real)(L * uniform());
+        w.vx[2] = w.vy[2] = 0;
+        const double cx = L * uniform(), cy = L * uniform();
+        const double vax = speed * (2 * uniform() - 1), vay = speed * (2 * uniform() - 1);
+        const double vbx = speed * cos(psi), vby = speed * sin(psi);
+        w.x[0] = (sim_real)(cx - tc * vax), w.y[0] = (sim_real)(cy - tc * vay);
+        w.vx[0] = (sim_real)vax, w.vy[0] = (sim_real)vay;
+        grid_plan g;
+        plan_step(&w, s, &g, 1); /* for delta: the separation needs it */
+        const double delta = sqrt(g.reach2) - 2 * r;
+        const double sep = 2 * r + delta * uniform();
+        w.x[1] = (sim_real)(cx + sep * cos(phi) - tc * vbx);
+        w.y[1] = (sim_real)(cy + sep * sin(phi) - tc * vby);
+        w.vx[1] = (sim_real)vbx, w.vy[1] = (sim_real)vby;
+        plan_step(&w, s, &g, 1);
+        for (size_t m = 0; m < sizeof ks / sizeof ks[0]; m++) {
+            g.K = ks[m];
+            for (int k = 0; k <= g.K; k++)
+                s->tk[k] = (double)k / g.K;
+            float b[2][4];
+            for (int i = 0; i < 2; i++)
+                particle_f32(&s->part[i], &g, &b[i][0], &b[i][1], &b[i][2], &b[i][3]);
+            for (int k = 0; k < g.K; k++) {
+                if (!near_pair(s->part, s->tk, g.reach2, 0, 1, k))
+                    continue;
+                near_slices++;
+                const float kf = (float)k;
+                float p[2][2];
+                int32_t lo[2][2], hi[2][2];
+                for (int i = 0; i < 2; i++)
+                    for (int ax = 0; ax < 2; ax++) {
+                        p[i][ax] = slice_start(b[i][ax], b[i][2 + ax], kf);
+                        axis_cells(p[i][ax], b[i][2 + ax], g.rpad, g.inv_h,
+                                   ax ? g.topy : g.topx, &lo[i][ax], &hi[i][ax]);
+                    }
+                const grid_vf px = {p[1][0] - p[0][0]}, py = {p[1][1] - p[0][1]};
+                const grid_vf wx = {b[1][2] - b[0][2]}, wy = {b[1][3] - b[0][3]};
+                if (!near_f32(px, py, wx, wy, g.freach2)[0])
+                    fail_at(__FILE__, __LINE__, "near pair (L=%g, K=%d, k=%d) fails the prefilter",
+                            L, g.K, k);
+                for (int ax = 0; ax < 2; ax++)
+                    if (lo[0][ax] > hi[1][ax] || lo[1][ax] > hi[0][ax])
+                        fail_at(__FILE__, __LINE__, "near pair (L=%g, K=%d, k=%d): float boxes "
+                                "apart on axis %d", L, g.K, k, ax);
+            }
+        }
+    }
+    CHECK(near_slices > 20000);
+    sim_variant_def.scratch_destroy(scratch);
+    sim_world_free(&w);
 }
 
 /* Every pair the kernel accepts is near in some slice, whatever K: built to meet at a chosen
@@ -333,6 +407,7 @@ static void test_repeated_steps_on_one_scratch(void)
 static const test_case tests[] = {
     {"near_is_symmetric", test_near_is_symmetric},
     {"cell_is_monotone", test_cell_is_monotone},
+    {"near_pairs_pass_the_float_binning", test_near_pairs_pass_the_float_binning},
     {"accepted_pairs_are_near_in_some_slice", test_accepted_pairs_are_near_in_some_slice},
     {"finds_exactly_the_all_pairs_candidates", test_finds_exactly_the_all_pairs_candidates},
     {"ties_on_boundaries", test_ties_on_boundaries},
