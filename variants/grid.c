@@ -119,8 +119,10 @@
  * in float, one 128-bit vector (Zen1's FP width), with the reach grown by
  * GRID_F32_MARGIN * FLT_EPSILON * B, where B bounds every float it reads (|coordinate| and
  * |displacement| <= B / 2): a generous multiple of the float rounding, which is about 12
- * FLT_EPSILON B on each end of the relative segment. Above GRID_F32_SPAN_MAX the squares could
- * overflow, and the prefilter passes everything (the double test still decides). */
+ * FLT_EPSILON B on each end of the relative segment. Below GRID_F32_SPAN_MAX every square of a
+ * coordinate is finite; a product that overflows (|p x w|^2 or r2 |w|^2 of a far pair) is
+ * +inf, which only ever rejects a far pair or passes one. Above it, the scene gets one slice
+ * and one cell, and zeros that pass (the double test decides). */
 #define GRID_LANES 4
 #define GRID_F32_MARGIN 32
 #define GRID_F32_SPAN_MAX 1e18
