@@ -107,8 +107,8 @@
 #define GRID_WIDE 4
 #define GRID_EXT_BITS 2
 
-/* The rounding the padding must cover: the pair kernel's type, or double, whichever is coarser
- * (the binning works in double). */
+/* The rounding delta must cover: the pair kernel's type, or double, whichever is coarser (the
+ * slice times and the near test are double; the float binning has its own margin, below). */
 #if defined(SIM_REAL_F32)
 #define GRID_EPS ((double)FLT_EPSILON)
 #else
@@ -608,11 +608,16 @@ static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe 
     return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2);
 }
 
+/* Where chunk c of two runs begins: the n1 chunks of the run at lo1, then those at lo2. */
+static inline int32_t chunk_start(int32_t c, int32_t n1, int32_t lo1, int32_t lo2)
+{
+    return c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
+}
+
 /* The prefilter over two runs of entries of z, [lo1, hi1) and [lo2, hi2) (either may be
  * empty), against probe a: every pair it passes goes to pair_found, which decides. One loop
- * over the chunks of both, because a run is short (a dozen entries on the report benchmark) and
- * a mispredicted loop exit costs as much as a dozen pair checks. Reads up to GRID_LANES - 1
- * entries past a run's end, masked off. Returns the pairs looked at. */
+ * over the chunks of both (measured as fast as two loops; one place for the bookkeeping). Reads
+ * up to GRID_LANES - 1 entries past a run's end. Returns the pairs looked at. */
 static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32_t lo1,
                                     int32_t hi1, int32_t lo2, int32_t hi2, const grid_probe *a)
 {
@@ -624,10 +629,10 @@ static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32
     /* Lanes past a run's end are not masked here: they are entries of the slice or the zeroed
      * padding, and at worst make a run fire; the second pass masks them. */
     for (int32_t c = 0; c < n; c++)
-        any |= chunk_near(z, c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES, a, r2);
+        any |= chunk_near(z, chunk_start(c, n1, lo1, lo2), a, r2);
     if (any[0] | any[1] | any[2] | any[3])
         for (int32_t c = 0; c < n; c++) {
-            const int32_t b = c < n1 ? lo1 + c * GRID_LANES : lo2 + (c - n1) * GRID_LANES;
+            const int32_t b = chunk_start(c, n1, lo1, lo2);
             const grid_vi lane = {0, 1, 2, 3};
             const grid_vi hit = chunk_near(z, b, a, r2) & (lane < (c < n1 ? hi1 : hi2) - b);
             for (int l = 0; l < GRID_LANES; l++)
