@@ -591,6 +591,19 @@ static int cand_order(const void *pa, const void *pb)
     return (a->j > b->j) - (a->j < b->j);
 }
 
+/* Particles whose state or counts differ between two worlds of the same size, bit for bit. */
+static int32_t particles_differing(const sim_world *a, const sim_world *b)
+{
+    int32_t differ = 0;
+    for (int32_t i = 0; i < a->n; i++)
+        differ += memcmp(&a->x[i], &b->x[i], sizeof a->x[i]) ||
+                  memcmp(&a->y[i], &b->y[i], sizeof a->y[i]) ||
+                  memcmp(&a->vx[i], &b->vx[i], sizeof a->vx[i]) ||
+                  memcmp(&a->vy[i], &b->vy[i], sizeof a->vy[i]) || a->pcoll[i] != b->pcoll[i] ||
+                  a->wcoll[i] != b->wcoll[i];
+    return differ;
+}
+
 /* A dense, slow world: many near contacts, touching and grazing pairs, overlaps. */
 static void dense_world(sim_world *w, int32_t n, double L)
 {
@@ -1069,18 +1082,45 @@ static void test_step_order_independent(void)
     sim_stats sa = {0}, sb = {0};
     run_steps(&a, &sim_variant_def, 6, &sa);
     run_steps(&b, &reversed_variant, 6, &sb);
-    int differ = 0;
-    for (int32_t i = 0; i < a.n; i++)
-        differ += memcmp(&a.x[i], &b.x[i], sizeof a.x[i]) || memcmp(&a.y[i], &b.y[i], sizeof a.y[i]) ||
-                  memcmp(&a.vx[i], &b.vx[i], sizeof a.vx[i]) ||
-                  memcmp(&a.vy[i], &b.vy[i], sizeof a.vy[i]) || a.pcoll[i] != b.pcoll[i] ||
-                  a.wcoll[i] != b.wcoll[i];
-    CHECK_INT(differ, 0);
+    CHECK_INT(particles_differing(&a, &b), 0);
     CHECK_U64(sb.pair_tests, sa.pair_tests);
     CHECK_U64(sb.candidates, sa.candidates);
     CHECK_U64(sb.pair_collisions, sa.pair_collisions);
     CHECK_U64(sb.wall_collisions, sa.wall_collisions);
     CHECK(sa.pair_collisions > 50);
+    sim_world_free(&a);
+    sim_world_free(&b);
+}
+
+/* The test finder, run by a parallel stepper: its wall candidates come from its threads. */
+static const sim_variant parallel_variant = {
+    .name = "parallel", .exact = true, .parallel = true, .find_pairs = find_all_pairs,
+};
+
+/* A stepper keeps the wall candidates its motion loop found for the next step (one buffer per
+ * thread). Stepping on with them must give what a fresh stepper gives, which finds the walls
+ * of the state it is handed: the same world stepped by one 3-thread stepper (enough particles
+ * for the parallel loops) and by a new 1-thread stepper each step. */
+static void test_step_carries_wall_candidates(void)
+{
+    enum { N = 5000, STEPS = 4 };
+    sim_world a, b;
+    dense_world(&a, N, 300);
+    world_init(&b, N, 300, 1);
+    for (int32_t i = 0; i < N; i++)
+        put(&b, i, a.x[i], a.y[i], a.vx[i], a.vy[i]);
+    sim_stats sa = {0}, sb = {0};
+    sim_stepper *s = sim_stepper_create(&a, &parallel_variant, 3);
+    CHECK(s != NULL);
+    for (int k = 0; s && k < STEPS; k++)
+        CHECK_INT(sim_step(s, &a, &sa), 0);
+    sim_stepper_destroy(s);
+    for (int k = 0; k < STEPS; k++)
+        run_steps(&b, &sim_variant_def, 1, &sb);
+    CHECK_INT(particles_differing(&a, &b), 0);
+    CHECK_U64(sa.candidates, sb.candidates);
+    CHECK_U64(sa.wall_collisions, sb.wall_collisions);
+    CHECK(sa.wall_collisions > 20);
     sim_world_free(&a);
     sim_world_free(&b);
 }
@@ -1184,6 +1224,7 @@ static const test_case tests[] = {
     TEST(test_step_tie_order),
     TEST(test_step_stats),
     TEST(test_step_order_independent),
+    TEST(test_step_carries_wall_candidates),
     TEST(test_step_collision_conserves),
     TEST(test_step_empty_world),
 };

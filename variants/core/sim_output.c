@@ -114,13 +114,6 @@ void sim_format_real(char *buf, size_t len, sim_real v, bool precise)
 static size_t put_real(char *p, sim_real v, bool precise)
 {
     *p = ' ';
-#if !defined(SIM_REAL_F128)
-    if (!precise) {
-        const size_t k = sim_fixed8(p + 1, (double)v);
-        if (k)
-            return 1 + k;
-    }
-#endif
     sim_format_real(p + 1, SIM_REAL_TEXT_MAX, v, precise);
     return 1 + strlen(p + 1);
 }

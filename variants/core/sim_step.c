@@ -1,8 +1,8 @@
 /*
  * sim_step.c: one step of SPEC §2, shared by every variant.
  *
- *   1. wall candidates (here) and pair candidates (the variant's finder, into per-writer
- *      buffers);
+ *   1. wall candidates (here, in parallel, one buffer per thread) and pair candidates (the
+ *      variant's finder, into per-writer buffers);
  *   2. merge and sort by the total key (t, pair before wall, i, j);
  *   3. one greedy walk accepts a candidate when neither particle has been accepted yet;
  *   4. every particle moves exactly once, reading the old state and writing a new one, so the
@@ -24,15 +24,17 @@
 /* event[] of a particle with no accepted collision this step. */
 #define SIM_EVENT_NONE ((int32_t)-2)
 
-/* Below this many particles the motion loop is not worth a parallel region. */
-#define SIM_PARALLEL_MOTION_MIN 4096
+/* Below this many particles the per-particle loops (wall times, motion) are not worth a
+ * parallel region. */
+#define SIM_PARALLEL_MIN 4096
 
 struct sim_stepper {
     const sim_variant *variant;
     int threads;
     bool parallel;
     sim_pair_sink sink;
-    sim_cand_buf walls;
+    sim_cand_buf *walls; /* the wall candidates of the world's state, one buffer per thread */
+    bool walls_ready;    /* walls were found by the last step's motion loop (see sim_step) */
     sim_cand *merged, *merged_tmp; /* the sorted list and the radix sort's other buffer */
     size_t merged_cap, merged_tmp_cap;
     int32_t *event;    /* accepted event per particle: SIM_EVENT_NONE, SIM_WALL or the partner */
@@ -61,11 +63,17 @@ static inline sim_real clamp(sim_real q, sim_real lo, sim_real hi)
     return q < lo ? lo : (q > hi ? hi : q);
 }
 
+/* SPEC §2 wall time of a centre at (x, y) moving at (vx, vy). */
+static inline sim_real wall_time(sim_real x, sim_real y, sim_real vx, sim_real vy, sim_real lo,
+                                 sim_real hi)
+{
+    const sim_real tx = axis_time(x, vx, lo, hi), ty = axis_time(y, vy, lo, hi);
+    return tx < ty ? tx : ty;
+}
+
 sim_real sim_wall_time(const sim_world *w, int32_t i)
 {
-    const sim_real tx = axis_time(w->x[i], w->vx[i], w->lo, w->hi);
-    const sim_real ty = axis_time(w->y[i], w->vy[i], w->lo, w->hi);
-    return tx < ty ? tx : ty;
+    return wall_time(w->x[i], w->y[i], w->vx[i], w->vy[i], w->lo, w->hi);
 }
 
 /* A particle that has had its collision moves on for `rest` of the step; a wall it meets now
@@ -122,6 +130,7 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->sink.threads = s->threads;
     /* sizeof(sim_cand_buf) is a multiple of its 64-byte alignment, as aligned_alloc needs. */
     s->sink.bufs = aligned_alloc(_Alignof(sim_cand_buf), (size_t)count * sizeof(sim_cand_buf));
+    s->walls = aligned_alloc(_Alignof(sim_cand_buf), (size_t)s->threads * sizeof(sim_cand_buf));
     const size_t n = (size_t)w->n;
     s->event = malloc(n * sizeof *s->event + 1);
     s->event_t = malloc(n * sizeof *s->event_t + 1);
@@ -129,11 +138,13 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->ny = malloc(n * sizeof(sim_real) + 1);
     s->nvx = malloc(n * sizeof(sim_real) + 1);
     s->nvy = malloc(n * sizeof(sim_real) + 1);
-    if (!s->sink.bufs || !s->event || !s->event_t || !s->nx || !s->ny || !s->nvx || !s->nvy) {
+    if (!s->sink.bufs || !s->walls || !s->event || !s->event_t || !s->nx || !s->ny || !s->nvx ||
+        !s->nvy) {
         sim_stepper_destroy(s);
         return NULL;
     }
     memset(s->sink.bufs, 0, (size_t)count * sizeof(sim_cand_buf));
+    memset(s->walls, 0, (size_t)s->threads * sizeof(sim_cand_buf));
     if (v->scratch_create) {
         s->sink.scratch = v->scratch_create(w, s->threads);
         if (!s->sink.scratch) {
@@ -154,7 +165,10 @@ void sim_stepper_destroy(sim_stepper *s)
         for (int k = 0; k < s->sink.count; k++)
             free(s->sink.bufs[k].items);
     free(s->sink.bufs);
-    free(s->walls.items);
+    if (s->walls)
+        for (int k = 0; k < s->threads; k++)
+            free(s->walls[k].items);
+    free(s->walls);
     free(s->merged);
     free(s->merged_tmp);
     free(s->event);
@@ -196,29 +210,33 @@ static inline uint64_t cand_key(sim_real t)
     return b >> 63 ? ~b : b | UINT64_C(1) << 63;
 }
 
+/* The radix sort orders the top SIM_RADIX_PASSES * SIM_RADIX_BITS = 33 bits of cand_key: sign,
+ * exponent and 21 bits of mantissa, a relative resolution of 2^-21. A step's few thousand
+ * times rarely share them, and the runs that do are finished by cand_cmp; three passes instead
+ * of the six that the whole key takes. */
 #define SIM_RADIX_BITS 11
-#define SIM_RADIX_PASSES ((64 + SIM_RADIX_BITS - 1) / SIM_RADIX_BITS)
+#define SIM_RADIX_PASSES 3
 #define SIM_RADIX_BUCKETS (1u << SIM_RADIX_BITS)
+#define SIM_RADIX_LOW (64 - SIM_RADIX_PASSES * SIM_RADIX_BITS) /* key bits left to cand_cmp */
 
-/* Sort a[0, n) by cand_cmp: an LSD radix sort on cand_key (stable, O(n); a step's few thousand
- * candidates took 0.6 ms in qsort's merge sort, longer than grid's binning of a slice), then
- * cand_cmp on the runs of equal keys (ties in t, or f128 times equal in double), which are rare
- * and short. tmp holds n items. */
+/* Sort a[0, n) by cand_cmp: an LSD radix sort on the top bits of cand_key (stable, O(n); a
+ * step's few thousand candidates took 0.6 ms in qsort's merge sort, longer than grid's binning
+ * of a slice), then cand_cmp on the runs of equal top bits (close or tied times, or f128 times
+ * equal in double), which are rare and short. tmp holds n items. */
 void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
 {
     if (n < 2)
         return;
-    _Static_assert(SIM_RADIX_PASSES * SIM_RADIX_BITS >= 64, "digits cover the key");
     uint32_t hist[SIM_RADIX_PASSES][SIM_RADIX_BUCKETS];
     memset(hist, 0, sizeof hist);
     for (size_t k = 0; k < n; k++) {
         const uint64_t key = cand_key(a[k].t);
         for (int p = 0; p < SIM_RADIX_PASSES; p++)
-            hist[p][key >> (p * SIM_RADIX_BITS) & (SIM_RADIX_BUCKETS - 1)]++;
+            hist[p][key >> (SIM_RADIX_LOW + p * SIM_RADIX_BITS) & (SIM_RADIX_BUCKETS - 1)]++;
     }
     sim_cand *src = a, *dst = tmp;
     for (int p = 0; p < SIM_RADIX_PASSES; p++) {
-        const int shift = p * SIM_RADIX_BITS;
+        const int shift = SIM_RADIX_LOW + p * SIM_RADIX_BITS;
         uint32_t *h = hist[p];
         if (h[cand_key(src[0].t) >> shift & (SIM_RADIX_BUCKETS - 1)] == n)
             continue; /* one digit value: this pass would not move anything */
@@ -237,9 +255,9 @@ void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
     if (src != a)
         memcpy(a, src, n * sizeof *a);
     for (size_t lo = 0; lo < n;) {
-        const uint64_t key = cand_key(a[lo].t);
+        const uint64_t top = cand_key(a[lo].t) >> SIM_RADIX_LOW;
         size_t hi = lo + 1;
-        while (hi < n && cand_key(a[hi].t) == key)
+        while (hi < n && cand_key(a[hi].t) >> SIM_RADIX_LOW == top)
             hi++;
         if (hi - lo > 1)
             qsort(a + lo, hi - lo, sizeof *a, cand_cmp);
@@ -247,13 +265,34 @@ void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
     }
 }
 
+static void clear_walls(sim_stepper *s)
+{
+    for (int k = 0; k < s->threads; k++)
+        s->walls[k].len = 0;
+}
+
+/* Push a wall candidate of the state (x, y, vx, vy) of particle i when it falls within the
+ * step. */
+static inline void push_wall(sim_cand_buf *buf, sim_real x, sim_real y, sim_real vx, sim_real vy,
+                             sim_real lo, sim_real hi, int32_t i)
+{
+    const sim_real tw = wall_time(x, y, vx, vy, lo, hi);
+    if (tw <= 1)
+        sim_cand_push(buf, tw, i, SIM_WALL);
+}
+
+/* The wall candidates of the world's state, for a first step; later steps get them from the
+ * motion loop of the step before. */
 static void find_walls(sim_stepper *s, const sim_world *w)
 {
-    s->walls.len = 0;
-    for (int32_t i = 0; i < w->n; i++) {
-        const sim_real tw = sim_wall_time(w, i);
-        if (tw <= 1)
-            sim_cand_push(&s->walls, tw, i, SIM_WALL);
+    const int32_t n = w->n;
+    clear_walls(s);
+#pragma omp parallel num_threads(s->threads) if (s->parallel && n >= SIM_PARALLEL_MIN)
+    {
+        sim_cand_buf *buf = &s->walls[omp_get_thread_num()];
+#pragma omp for schedule(static)
+        for (int32_t i = 0; i < n; i++)
+            push_wall(buf, w->x[i], w->y[i], w->vx[i], w->vy[i], w->lo, w->hi, i);
     }
 }
 
@@ -269,8 +308,12 @@ static void append_items(sim_cand *dst, size_t *at, const sim_cand_buf *buf)
  * (size_t)-1 when memory ran out. */
 static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
 {
-    size_t total = s->walls.len;
-    bool failed = s->walls.failed;
+    size_t total = 0;
+    bool failed = false;
+    for (int k = 0; k < s->threads; k++) {
+        total += s->walls[k].len;
+        failed |= s->walls[k].failed;
+    }
     for (int k = 0; k < s->sink.count; k++) {
         total += s->sink.bufs[k].len;
         failed |= s->sink.bufs[k].failed;
@@ -283,7 +326,8 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
     /* An empty buffer may never have been allocated: memcpy and qsort must not see its NULL
      * pointer, even for zero items (undefined behaviour, and UBSan stops the run). */
     size_t at = 0;
-    append_items(s->merged, &at, &s->walls);
+    for (int k = 0; k < s->threads; k++)
+        append_items(s->merged, &at, &s->walls[k]);
     for (int k = 0; k < s->sink.count; k++) {
         append_items(s->merged, &at, &s->sink.bufs[k]);
         s->sink.bufs[k].len = 0;
@@ -379,19 +423,31 @@ static void swap_arrays(sim_real **a, sim_real **b)
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
 {
     const int32_t n = w->n;
-    find_walls(s, w);
+    if (!s->walls_ready)
+        find_walls(s, w);
+    s->walls_ready = false;
     s->variant->find_pairs(w, &s->sink);
     const size_t count = merge_candidates(s, stats);
     if (count == (size_t)-1)
         return -1;
     resolve(s, n, count, stats);
-    /* Every particle costs about the same here, so a static schedule balances. */
-#pragma omp parallel for schedule(static) if (s->parallel && n >= SIM_PARALLEL_MOTION_MIN)
-    for (int32_t i = 0; i < n; i++)
-        move_one(s, w, i);
+    /* Motion, and the next step's wall candidates from each new state while it is at hand: one
+     * pass and one parallel region fewer a step. Every particle costs about the same here, so
+     * a static schedule balances. */
+    clear_walls(s);
+#pragma omp parallel num_threads(s->threads) if (s->parallel && n >= SIM_PARALLEL_MIN)
+    {
+        sim_cand_buf *buf = &s->walls[omp_get_thread_num()];
+#pragma omp for schedule(static)
+        for (int32_t i = 0; i < n; i++) {
+            move_one(s, w, i);
+            push_wall(buf, s->nx[i], s->ny[i], s->nvx[i], s->nvy[i], w->lo, w->hi, i);
+        }
+    }
     swap_arrays(&w->x, &s->nx);
     swap_arrays(&w->y, &s->ny);
     swap_arrays(&w->vx, &s->nvx);
     swap_arrays(&w->vy, &s->nvy);
+    s->walls_ready = true;
     return 0;
 }

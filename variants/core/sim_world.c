@@ -12,9 +12,9 @@
 size_t sim_bytes_per_particle(void)
 {
     /* world: x y vx vy + pcoll wcoll; stepper: next x y vx vy, event, event_t; input bitmap;
-     * candidates (one list per writer plus the merged copy). */
+     * candidates, three times: the writers' lists, the merged list and the sort's buffer. */
     return 8 * sizeof(sim_real) + 2 * sizeof(int64_t) + sizeof(int32_t) + sizeof(sim_real) + 1 +
-           2 * SIM_CANDS_PER_PARTICLE_ESTIMATE * sizeof(sim_cand);
+           3 * SIM_CANDS_PER_PARTICLE_ESTIMATE * sizeof(sim_cand);
 }
 
 int sim_world_alloc(sim_world *w, const sim_header *h)
