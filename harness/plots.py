@@ -60,6 +60,7 @@ PALETTE: tuple[str, ...] = tuple(mpl.colormaps["tab10"].colors)  # type: ignore[
 BUILD_MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "*")
 TIME_LABEL = "wall time, median of runs [s]"
 TITLE_CHARS = 64  # longer titles wrap: at 12 pt more would overrun a 7-inch figure
+TITLE_MARGIN_PT = 4  # between a wrapped title and the figure's top edge
 
 # Trajectory pictures.
 TRAJECTORY_CMAP = "turbo"
@@ -235,11 +236,20 @@ def _legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:
 
 
 def set_title(ax: Axes, text: str) -> None:
-    """A title that fits: long ones wrap onto two smaller lines instead of running off."""
+    """A title that fits: long ones wrap onto smaller lines instead of running off, and the
+    axes move down to leave those lines room (the fixed top margin holds one line)."""
     if len(text) <= TITLE_CHARS:
         ax.set_title(text)
-    else:
-        ax.set_title(textwrap.fill(text, TITLE_CHARS), fontsize="medium")
+        return
+    wrapped = textwrap.fill(text, TITLE_CHARS)
+    title = ax.set_title(wrapped, fontsize="medium")
+    fig = ax.figure
+    # Points above the axes: the lines at 1.2x the font size, the title's pad, and a margin.
+    lines = wrapped.count("\n") + 1
+    needed_pt = lines * 1.2 * title.get_fontsize() + mpl.rcParams["axes.titlepad"] + TITLE_MARGIN_PT
+    top = 1 - needed_pt / 72 / fig.get_figheight()
+    if top < fig.subplotpars.top:
+        fig.subplots_adjust(top=top)
 
 
 def _positive(values: pd.Series | np.ndarray) -> np.ndarray:

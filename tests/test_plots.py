@@ -129,3 +129,15 @@ def test_atomic_write_replaces_and_cleans_up(tmp_path: Path) -> None:
         plots.atomic_write(target, fail)
     assert target.read_bytes() == b"new"
     assert [p.name for p in tmp_path.iterdir()] == ["out.bin"]
+
+
+def test_a_wrapped_title_stays_inside_the_figure() -> None:
+    fig, ax = plots.new_figure()
+    ax.plot([1, 2], [1, 2])
+    plots.set_title(ax, "A title long enough to wrap onto two lines: " * 2)
+    fig.canvas.draw()
+    title = ax.title.get_window_extent(fig.canvas.get_renderer())
+    assert "\n" in ax.get_title()
+    assert title.y1 <= fig.bbox.height
+    axes_top = ax.get_window_extent(fig.canvas.get_renderer()).y1
+    assert title.y0 >= axes_top  # and above the axes, not over the plot
