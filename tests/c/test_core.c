@@ -8,12 +8,17 @@
  * The tests that step a world use this file's own all-pairs finder (sim_variant_def below) and
  * a second finder that finds the same pairs in reverse order into several buffers.
  */
+#define _GNU_SOURCE /* sched_getaffinity and the CPU_* macros, for the team test */
 #include <inttypes.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#if defined(__linux__)
+#include <sched.h>
+#endif
 
 #include "sim_core.h"
 
@@ -1125,6 +1130,26 @@ static void test_step_carries_wall_candidates(void)
     sim_world_free(&b);
 }
 
+/* sim_team_spread moves each thread once and hands it back the process's whole mask: every
+ * thread of a later team may run on every CPU the process could before. */
+static void test_team_spread_restores_the_mask(void)
+{
+#if defined(__linux__)
+    cpu_set_t before;
+    CPU_ZERO(&before);
+    CHECK_INT(sched_getaffinity(0, sizeof before, &before), 0);
+    sim_team_spread(3);
+    int differ = 0;
+#pragma omp parallel num_threads(3) reduction(+ : differ)
+    {
+        cpu_set_t now;
+        CPU_ZERO(&now);
+        differ += sched_getaffinity(0, sizeof now, &now) != 0 || !CPU_EQUAL(&now, &before);
+    }
+    CHECK_INT(differ, 0);
+#endif
+}
+
 /* The 4-body tie resolves by (i, j): (0,1) and (2,3) collide (scenes/tie4.md). */
 static void test_step_tie_order(void)
 {
@@ -1225,6 +1250,7 @@ static const test_case tests[] = {
     TEST(test_step_stats),
     TEST(test_step_order_independent),
     TEST(test_step_carries_wall_candidates),
+    TEST(test_team_spread_restores_the_mask),
     TEST(test_step_collision_conserves),
     TEST(test_step_empty_world),
 };

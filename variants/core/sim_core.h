@@ -74,6 +74,9 @@ typedef struct sim_stats {
 typedef struct sim_stepper sim_stepper;
 
 sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int threads);
+/* Start the OpenMP team of `threads` threads and move each once to its own CPU, then let it
+ * move freely again (sim_team.c says why). Nothing for fewer than 2 threads or off Linux. */
+void sim_team_spread(int threads);
 void sim_stepper_destroy(sim_stepper *s);
 /* Advance the world by one step (SPEC §2). Returns 0, or -1 when memory ran out. The stepper
  * keeps the wall candidates of the state it leaves, for the next step: between steps, change

@@ -145,6 +145,8 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     }
     memset(s->sink.bufs, 0, (size_t)count * sizeof(sim_cand_buf));
     memset(s->walls, 0, (size_t)s->threads * sizeof(sim_cand_buf));
+    if (s->parallel)
+        sim_team_spread(s->threads);
     if (v->scratch_create) {
         s->sink.scratch = v->scratch_create(w, s->threads);
         if (!s->sink.scratch) {
