@@ -1,12 +1,13 @@
 /*
  * sim_step.c: one step of SPEC §2, shared by every variant.
  *
- *   1. wall candidates (here, in parallel, one buffer per thread) and pair candidates (the
- *      variant's finder, into per-writer buffers);
+ *   1. wall candidates (one buffer per thread; found by the step before's motion loop, or here
+ *      for a first step) and pair candidates (the variant's finder, into per-writer buffers);
  *   2. merge and sort by the total key (t, pair before wall, i, j);
  *   3. one greedy walk accepts a candidate when neither particle has been accepted yet;
  *   4. every particle moves exactly once, reading the old state and writing a new one, so the
- *      motion loop can run in parallel without races and with thread-independent results.
+ *      motion loop can run in parallel without races and with thread-independent results; the
+ *      new state's wall candidate is found there too, for the next step.
  *
  * Why per-writer buffers and not the seed's shared array behind `omp critical`: the critical
  * section serialised every candidate append (the report's bottleneck), and the order in which
