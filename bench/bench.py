@@ -53,6 +53,10 @@ class Group:
     cases: tuple[Case, ...]
     reference: str  # label of the case speedups are measured against
     rounds: int = 3
+    # Unrecorded runs of a case just before each recorded one (hyperfine's --warmup, case by
+    # case): on this VM a CPU left idle through a long single-thread run comes back slowly, and
+    # the 2-thread grid run after seq's 4.4 s measured 0.18-0.24 s cold, 0.171-0.177 s warm.
+    warmup: int = 0
 
 
 @dataclass
@@ -90,7 +94,9 @@ GROUPS = {
             Case("2 grid x1 at once", "grid", 1, "report", copies=2),
         ),
         reference="seq",
-        rounds=3,
+        # grid's runs take 0.2-0.3 s, where one scheduler hiccup moves a median of 3: 7 rounds.
+        rounds=7,
+        warmup=1,
     ),
     "million": Group(
         name="million",
@@ -165,6 +171,8 @@ def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
     results = [Result(c) for c in group.cases]
     for rnd in range(group.rounds):
         for res in results:
+            for _ in range(group.warmup):
+                run_case(res.case, paths[res.case.scene])
             wall, timing, rss = run_case(res.case, paths[res.case.scene])
             res.max_rss_kib = max(res.max_rss_kib, rss)
             res.wall_s.append(wall)
@@ -179,8 +187,11 @@ def table(group: Group, results: list[Result]) -> str:
     ref = next(r for r in results if r.case.label == group.reference)
     ref_wall = statistics.median(ref.wall_s)
     # Speedup is throughput: copies processes' work against one reference run.
+    warm = f", each after {group.warmup} unrecorded run(s) of its case" if group.warmup else ""
     lines = [
         f"### {group.title}",
+        "",
+        f"Medians of {group.rounds} interleaved round(s){warm}.",
         "",
         "| case | variant | threads | wall median (s) | sim median (s) | pair tests/s | "
         "speedup vs " + group.reference + " | peak RSS (MiB) |",
@@ -230,7 +241,8 @@ def machine() -> dict[str, str]:
 def save(group: Group, results: list[Result], text: str, env: dict[str, str]) -> Path:
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     stem = OUT_DIR / f"bench-{group.name}-{env['date'].replace(':', '')}"
-    record = {"group": group.name, "title": group.title, "machine": env,
+    record = {"group": group.name, "title": group.title, "rounds": group.rounds,
+              "warmup": group.warmup, "machine": env,
               "results": [asdict(r) for r in results]}
     for suffix, body in ((".json", json.dumps(record, indent=2) + "\n"), (".md", text)):
         tmp = stem.with_suffix(suffix + ".tmp")

@@ -1131,22 +1131,27 @@ static void test_step_carries_wall_candidates(void)
 }
 
 /* sim_team_spread moves each thread once and hands it back the process's whole mask: every
- * thread of a later team may run on every CPU the process could before. */
+ * thread of a later team may run on every CPU the process could before. Team sizes of 2, the
+ * CPU count (both of sim_team.c's regions run) and one more (the second alone). */
 static void test_team_spread_restores_the_mask(void)
 {
 #if defined(__linux__)
     cpu_set_t before;
     CPU_ZERO(&before);
     CHECK_INT(sched_getaffinity(0, sizeof before, &before), 0);
-    sim_team_spread(3);
-    int differ = 0;
-#pragma omp parallel num_threads(3) reduction(+ : differ)
-    {
-        cpu_set_t now;
-        CPU_ZERO(&now);
-        differ += sched_getaffinity(0, sizeof now, &now) != 0 || !CPU_EQUAL(&now, &before);
+    const int cpus = CPU_COUNT(&before);
+    const int sizes[] = {2, cpus > 2 ? cpus : 3, (cpus > 2 ? cpus : 3) + 1};
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
+        sim_team_spread(sizes[k]);
+        int differ = 0;
+#pragma omp parallel num_threads(sizes[k]) reduction(+ : differ)
+        {
+            cpu_set_t now;
+            CPU_ZERO(&now);
+            differ += sched_getaffinity(0, sizeof now, &now) != 0 || !CPU_EQUAL(&now, &before);
+        }
+        CHECK_INT(differ, 0);
     }
-    CHECK_INT(differ, 0);
 #endif
 }
 
