@@ -16,10 +16,12 @@
  *     only briefly before it sleeps ("throttled"), so a queued new thread gets the CPU at once.
  *  2. A team of the run's own size: libgomp ends the extra thread and spins normally again
  *     (fast region starts for the rest of the run), and every thread of the team is placed.
- * Measured there (hyperfine, 100 runs, the 10-particle scene, 2 threads): 7.9 ms median with
- * region 2 alone, 1.7 ms with both. Region 1 is skipped where the team already outnumbers the
- * CPUs (the runtime throttles by itself) and on machines of more than SIM_TEAM_OVER_MAX_CPUS
- * CPUs, where a thread per CPU would cost more to start than the stall it avoids.
+ * Measured there (hyperfine, 100 runs of `grid --threads 2` on the 10-particle scene): 7.9 ms
+ * median with region 2 alone, 1.4 ms with both; a run in progress holds 2 threads, not 3.
+ * Region 1 is skipped where the team already outnumbers the CPUs (the runtime throttles by
+ * itself), and on machines of more than SIM_TEAM_OVER_MAX_CPUS CPUs: there a thread per CPU
+ * might cost more to start than the stall it avoids (not measured: the development machine has
+ * 2 CPUs).
  */
 #define _GNU_SOURCE /* sched_setaffinity and the CPU_* macros */
 #include <omp.h>
