@@ -54,8 +54,9 @@ class Group:
     reference: str  # label of the case speedups are measured against
     rounds: int = 3
     # Unrecorded runs of a case just before each recorded one (hyperfine's --warmup, case by
-    # case): on this VM a CPU left idle through a long single-thread run comes back slowly, and
-    # the 2-thread grid run after seq's 4.4 s measured 0.18-0.24 s cold, 0.171-0.177 s warm.
+    # case): on this VM a CPU left idle through a long single-thread run comes back slowly. In 6
+    # rounds each, the 2-thread grid run after seq's 4.4 s took a median 0.186 s (quartiles
+    # 0.172-0.193) cold, 0.174 s (0.172-0.177) warm.
     warmup: int = 0
 
 
