@@ -1,8 +1,8 @@
 """How much work any space-time broad phase faces on the report benchmark (docs/grid_bound.md).
 
 `python bench/crossings.py [--slices K]` takes the first step of the report benchmark (N=10000,
-L=20000, r=1; the state `build/seq` generates, read back from a 0-step run) and counts, over
-every pair, brute force:
+L=20000, r=1; the state `build/seq` generates, read back in full precision from a 0-step run)
+and counts, over every pair, brute force:
   - the pairs whose centre paths over the whole step cross (free flight, walls ignored);
   - the pairs whose paths cross within the same one of K equal time slices (summed);
   - the pairs whose centres come within 2r of each other at the same moment of the step.
@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -22,17 +21,25 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from harness.accuracy import run_binary  # noqa: E402
+from harness.validate import parse_output  # noqa: E402
+
 OUT_DIR = ROOT / "results" / "bench"
 SCENE = "10000 20000 1 0\nperf\n"  # the report benchmark's scene, no steps: its initial state
 RADIUS = 1.0
 BLOCK = 500  # rows of the pair matrix at a time (BLOCK x N doubles per array)
 
 
-def initial_state(binary: Path) -> np.ndarray:
-    """x, y, vx, vy of every particle (one row each) as `binary` generates them."""
-    out = subprocess.run([str(binary)], input=SCENE, capture_output=True, text=True, check=True)
-    rows = [line.split() for line in out.stdout.splitlines()]
-    return np.array([[float(v) for v in row[2:6]] for row in rows])
+def initial_state(binary: Path) -> np.ndarray | None:
+    """x, y, vx, vy of every particle (one row each) as `binary` generates them, printed in full
+    precision; None when the binary fails."""
+    text = run_binary(binary, SCENE, threads=1)
+    if text is None:
+        return None
+    final = parse_output(text).final
+    return np.hstack([final.position, final.velocity])
 
 
 def _orient(px, py, qx, qy, rx, ry):
@@ -83,6 +90,10 @@ def main(argv: list[str] | None = None) -> int:
         print("error: build/seq is not built (run make all)", file=sys.stderr)
         return 2
     state = initial_state(binary)
+    if state is None:
+        print(f"error: {binary.relative_to(ROOT)} failed on the scene {SCENE.splitlines()[0]!r}",
+              file=sys.stderr)
+        return 2
     k = args.slices
     record = {
         "scene": SCENE.splitlines()[0],
