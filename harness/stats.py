@@ -1,0 +1,166 @@
+"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
+
+Everything here is scipy.stats: a percentile bootstrap for medians and for ratios of medians
+(speedup, NEW/OLD), a rank test, and a least-squares fit with its standard error. The
+bootstrap's generator is seeded from the data itself, so the same times always give the same
+interval: results.csv and the report do not change when nothing was re-measured.
+
+Why the percentile bootstrap and not BCa: with the 3-5 runs most configs take, BCa's jackknife
+acceleration is degenerate (and scipy warns); the percentile interval of a median of n runs
+is the span of the middle order statistics, which is what a reader expects.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as sps
+
+CONFIDENCE = 0.95
+N_RESAMPLES = 4000
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its confidence interval (low <= point <= high, or NaN)."""
+
+    point: float
+    low: float
+    high: float
+
+    def excludes(self, value: float) -> bool:
+        return not (self.low <= value <= self.high)
+
+    def map(self, function: object) -> Interval:
+        """The interval of a monotone function of the estimate (endpoints re-ordered)."""
+        f = function  # type: ignore[assignment]
+        ends = sorted((f(self.low), f(self.high)))  # type: ignore[operator]
+        return Interval(f(self.point), ends[0], ends[1])  # type: ignore[operator]
+
+    def format(self, digits: int = 3) -> str:
+        """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
+        def fmt(value: float) -> str:
+            return f"{value:.{digits}g}"
+        if not (math.isfinite(self.low) and math.isfinite(self.high)):
+            return fmt(self.point)
+        return f"{fmt(self.point)} [{fmt(self.low)}, {fmt(self.high)}]"
+
+
+def _seed(*samples: Sequence[float]) -> int:
+    digest = hashlib.sha256()
+    for sample in samples:
+        digest.update(struct.pack(f"<{len(sample)}d", *sample))
+        digest.update(b"|")
+    return int.from_bytes(digest.digest()[:8], "little")
+
+
+def _clean(times: Sequence[float]) -> np.ndarray:
+    array = np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
+    return array
+
+
+def _bootstrap(samples: tuple[np.ndarray, ...], statistic: object) -> tuple[float, float]:
+    result = sps.bootstrap(samples, statistic, vectorized=True, paired=False,  # type: ignore[arg-type]
+                           confidence_level=CONFIDENCE, n_resamples=N_RESAMPLES,
+                           method="percentile", rng=np.random.default_rng(_seed(*samples)))
+    low, high = result.confidence_interval
+    return float(low), float(high)
+
+
+def median_ci(times: Sequence[float]) -> Interval:
+    """The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs)."""
+    data = _clean(times)
+    if data.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(np.median(data))
+    if data.size < 2 or np.all(data == data[0]):
+        return Interval(point, point if data.size >= 2 else math.nan,
+                        point if data.size >= 2 else math.nan)
+    low, high = _bootstrap((data,), lambda x, axis=-1: np.median(x, axis=axis))
+    return Interval(point, min(low, point), max(high, point))
+
+
+def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
+    """median(numerator) / median(denominator), each resampled on its own (independent runs).
+
+    compare.py's NEW/OLD is ratio_ci(new, old); a speedup over a baseline is
+    ratio_ci(baseline, cell)."""
+    a, b = _clean(numerator), _clean(denominator)
+    if a.size == 0 or b.size == 0 or float(np.median(b)) == 0.0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(np.median(a) / np.median(b))
+    if a.size < 2 or b.size < 2:
+        return Interval(point, math.nan, math.nan)
+
+    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.median(x, axis=axis) / np.median(y, axis=axis)
+
+    if np.all(a == a[0]) and np.all(b == b[0]):
+        return Interval(point, point, point)
+    low, high = _bootstrap((a, b), statistic)
+    return Interval(point, min(low, point), max(high, point))
+
+
+def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
+    """How many times faster `times` is than `baseline` (median over median)."""
+    return ratio_ci(baseline, times)
+
+
+def efficiency(speedup: Interval, threads: int) -> Interval:
+    """Parallel efficiency S/p with its interval."""
+    return speedup.map(lambda s: s / threads)
+
+
+def karp_flatt(speedup: Interval, threads: int) -> Interval:
+    """The Karp-Flatt experimentally determined serial fraction (1/S - 1/p) / (1 - 1/p).
+
+    Undefined (NaN) on one thread. Decreasing in S, so the interval's ends swap."""
+    if threads <= 1:
+        return Interval(math.nan, math.nan, math.nan)
+
+    def fraction(s: float) -> float:
+        if not math.isfinite(s) or s <= 0:
+            return math.nan
+        return (1.0 / s - 1.0 / threads) / (1.0 - 1.0 / threads)
+
+    return speedup.map(fraction)
+
+
+@dataclass(frozen=True)
+class PowerFit:
+    """time ~ c * x^exponent, fitted on log-log axes."""
+
+    exponent: float
+    stderr: float  # standard error of the exponent; NaN with two points
+    coefficient: float
+    points: int
+
+
+def power_fit(x: Sequence[float], y: Sequence[float]) -> PowerFit | None:
+    """Least squares on log x, log y (scipy.stats.linregress); None with fewer than 2 points."""
+    pairs = [(a, b) for a, b in zip(x, y, strict=True)
+             if a is not None and b is not None and a > 0 and b > 0]
+    if len({a for a, _ in pairs}) < 2:
+        return None
+    lx = np.log([a for a, _ in pairs])
+    ly = np.log([b for _, b in pairs])
+    fit = sps.linregress(lx, ly)
+    stderr = float(fit.stderr) if len(pairs) > 2 else math.nan
+    return PowerFit(float(fit.slope), stderr, float(math.exp(fit.intercept)), len(pairs))
+
+
+def rank_test(old: Sequence[float], new: Sequence[float]) -> float:
+    """Two-sided Mann-Whitney U p-value that the two run-time samples share a distribution.
+
+    NaN with fewer than 2 runs on a side. With 3 runs each the smallest possible p is 0.1: a
+    rank test alone cannot call a difference at the default runs, which is why compare.py's
+    verdict rests on the bootstrap interval and reports this p-value beside it."""
+    a, b = _clean(old), _clean(new)
+    if a.size < 2 or b.size < 2:
+        return math.nan
+    return float(sps.mannwhitneyu(a, b, alternative="two-sided").pvalue)
