@@ -62,6 +62,9 @@ SCENE_COLUMNS = ("scene", "n", "L", "r", "steps", "mode", "seed")
 MATCH_COLUMNS = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
 # The figure switches to a log ratio axis when the plotted span exceeds this factor.
 LOG_SPAN = 2.0
+# At most this many cells in the figure (it grows 0.28 inch a cell): beyond it, the
+# significant ones and then the largest changes; the title says how many are shown.
+MAX_FIGURE_CELLS = 40
 
 
 # --- loading ------------------------------------------------------------------------------
@@ -472,15 +475,27 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
 VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", SAME: "#555555"}
 
 
+def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]:
+    """The rows a figure shows, in table order: all when they fit, else the significant ones
+    first and then the largest |log ratio|."""
+    if len(rows) <= limit:
+        return list(rows)
+    ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind == SAME,
+                                                      -abs(math.log(rows[i].ratio))))
+    keep = set(ranked[:limit])
+    return [row for i, row in enumerate(rows) if i in keep]
+
+
 def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path]:
     """NEW/OLD per compared cell with its interval, the line at 1 and the threshold band."""
     from matplotlib.lines import Line2D
 
     from harness import plots
 
-    shown = [r for r in rows if r.compared and math.isfinite(r.ratio) and r.ratio > 0]
-    if not shown:
+    plottable = [r for r in rows if r.compared and math.isfinite(r.ratio) and r.ratio > 0]
+    if not plottable:
         return []
+    shown = figure_rows(plottable)
     height = max(2.5, 1.2 + 0.28 * len(shown))
     width = 7.0 + 0.04 * max(len(r.key.label()) for r in shown)
     left = min(0.6, 0.06 + 0.075 * max(len(r.key.label()) for r in shown) / width)
@@ -507,7 +522,11 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
     ax.set_yticklabels([r.key.label() for r in shown], fontsize=8)
     ax.set_ylim(-0.7, len(shown) - 0.3)
     ax.set_xlabel("NEW / OLD median wall time (95% bootstrap interval); > 1 is slower")
-    ax.set_title("Comparison per cell", fontsize=10)
+    title = "NEW against OLD per cell"
+    if len(shown) < len(plottable):
+        title += (f": {len(shown)} of {len(plottable)} compared cells "
+                  "(the significant ones, then the largest changes)")
+    ax.set_title(title, fontsize=10)
     handles = [Line2D([], [], marker="o", color=c, ls="", label=k)
                for k, c in VERDICT_COLORS.items() if any(r.kind == k for r in shown)]
     ax.legend(handles=[*handles, *ax.get_legend_handles_labels()[0]], fontsize=7,
