@@ -62,9 +62,12 @@ SCENE_COLUMNS = ("scene", "n", "L", "r", "steps", "mode", "seed")
 MATCH_COLUMNS = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
 # The figure switches to a log ratio axis when the plotted span exceeds this factor.
 LOG_SPAN = 2.0
-# At most this many cells in the figure (it grows 0.28 inch a cell): beyond it, the
+# At most this many cells in the figure (it grows a row per cell): beyond it, the
 # significant ones and then the largest changes; the title says how many are shown.
 MAX_FIGURE_CELLS = 40
+CELL_HEIGHT_IN = 0.28  # inches per cell row
+LABEL_CHAR_IN = 0.068  # inches per character of an 8-point cell label, with room
+PLOT_WIDTH_IN = 5.5  # inches of axes beside the labels
 
 
 # --- loading ------------------------------------------------------------------------------
@@ -155,7 +158,7 @@ class Cell:
     def machine_text(self) -> str:
         if self.machine_id and self.machine:
             return f"{self.machine} ({self.machine_id})"
-        return self.machine or self.machine_id or "unknown machine"
+        return self.machine or self.machine_id or "unknown"
 
 
 def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
@@ -496,9 +499,10 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
     if not plottable:
         return []
     shown = figure_rows(plottable)
-    height = max(2.5, 1.2 + 0.28 * len(shown))
-    width = 7.0 + 0.04 * max(len(r.key.label()) for r in shown)
-    left = min(0.6, 0.06 + 0.075 * max(len(r.key.label()) for r in shown) / width)
+    label_in = LABEL_CHAR_IN * max(len(r.key.label()) for r in shown)
+    height = max(2.5, 1.2 + CELL_HEIGHT_IN * len(shown))
+    width = PLOT_WIDTH_IN + label_in
+    left = (label_in + 0.15) / width
     fig, ax = plots.new_figure((width, height),
                                margins={"left": left, "right": 0.97, "top": 1 - 0.5 / height,
                                         "bottom": 0.6 / height})
