@@ -57,6 +57,8 @@ NOT_OK = "not compared (status)"
 OLD_ONLY = "old only"
 NEW_ONLY = "new only"
 
+# Flags of the shared results.csv contract that make a cell's times suspect; a row names them.
+FLAG_COLUMNS = ("loaded", "outliers", "unstable", "oversubscribed")
 # The columns a cell is matched on; numeric ones compare as numbers ("20000" == "20000.0").
 SCENE_COLUMNS = ("scene", "n", "L", "r", "steps", "mode", "seed")
 MATCH_COLUMNS = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
@@ -153,6 +155,7 @@ class Cell:
     measured_at: str
     git_commit: str
     input_sha256: str
+    flags: tuple[str, ...] = ()  # the FLAG_COLUMNS that are True
 
     @property
     def machine_text(self) -> str:
@@ -253,7 +256,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             machine_id=(row.get("machine_id") or "").strip(), machine=machine,
             measured_at=(row.get("measured_at") or "").strip(),
             git_commit=(row.get("git_commit") or "").strip(),
-            input_sha256=(row.get("input_sha256") or "").strip()))
+            input_sha256=(row.get("input_sha256") or "").strip(),
+            flags=tuple(f for f in FLAG_COLUMNS if (row.get(f) or "").strip() == "True")))
     return cells
 
 
@@ -353,6 +357,8 @@ def compare_cells(old: Cell, new: Cell, threshold: float, note: str = "") -> Row
     from harness import stats
 
     notes = [note] if note else []
+    notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in (("OLD", old), ("NEW", new))
+              if cell.flags]
     if old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256:
         notes.append("the input files differ")
     if old.times and new.times:

@@ -19,7 +19,8 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 SCENE = {"scene": "random", "n": "200", "L": "2000.0", "r": "1.0", "steps": "5", "mode": "perf",
          "seed": "1"}
 COLUMNS = ("experiment", "variant", "build", *SCENE, "threads", "runs", "wall_median_s",
-           "status", "cell_id", "input_sha256", "wall_times_s", "machine_id", "machine")
+           "status", "cell_id", "input_sha256", "wall_times_s", "machine_id", "machine", "loaded",
+           "outliers", "unstable")
 
 
 # --- verdicts -----------------------------------------------------------------------------
@@ -139,7 +140,8 @@ def pair(tmp_path: Path) -> tuple[Path, Path]:
     ], hyperfine={"a1": BASE, "b1": BASE, "d1": BASE})
     new = write_experiment(tmp_path / "new" / "exp", [
         {"variant": "seq", "L": "2000", "cell_id": "a2", "wall_median_s": "1.3",
-         "wall_times_s": times_text(SLOW), "machine_id": "0123456789abcdef", "machine": "M"},
+         "wall_times_s": times_text(SLOW), "machine_id": "0123456789abcdef", "machine": "M",
+         "loaded": "True", "outliers": "False", "unstable": "True"},
         {"variant": "p1", "threads": "1.0", "cell_id": "b2", "wall_median_s": "1.0",
          "wall_times_s": times_text(BASE[::-1])},
         {"variant": "p1d", "cell_id": "c2", "wall_median_s": "1.0",
@@ -171,6 +173,7 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert "## Only in OLD" in text and "## Only in NEW" in text
     assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 1.3 | 1.300 [" in text
     assert "**slower**" in text and "M (0123456789abcdef)" in text
+    assert seq.note == "NEW: loaded, unstable" and kinds["p1"].note == ""
     for suffix in ("png", "svg"):
         assert (out / f"compare.{suffix}").stat().st_size > 1000
     assert not list(out.glob(".*tmp"))  # atomic writes leave no temporary files
