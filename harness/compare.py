@@ -449,6 +449,12 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
         f"excludes 1 and the ratio is beyond the threshold ({threshold:.0%}: above "
         f"{1 + threshold:.3f} or below {1 / (1 + threshold):.3f}).",
         "", f"**{summary(rows)}.**", ""]
+    flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
+    if flagged:
+        lines += [f"Caution: {len(flagged)} of the compared cells carry a flag on a side "
+                  f"({', '.join(FLAG_COLUMNS)}; see the note column): their times spread "
+                  "widely or were taken under load, so their verdicts are weak; re-measure them "
+                  "on a quiet machine before acting on them.", ""]
     compared = [r for r in rows if r.compared]
     if compared:
         lines += _table(

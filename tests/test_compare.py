@@ -174,6 +174,7 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 1.3 | 1.300 [" in text
     assert "**slower**" in text and "M (0123456789abcdef)" in text
     assert seq.note == "NEW: loaded, unstable" and kinds["p1"].note == ""
+    assert "Caution: 1 of the compared cells carry a flag on a side" in text
     for suffix in ("png", "svg"):
         assert (out / f"compare.{suffix}").stat().st_size > 1000
     assert not list(out.glob(".*tmp"))  # atomic writes leave no temporary files
