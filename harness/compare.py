@@ -68,6 +68,8 @@ LOG_SPAN = 2.0
 # significant ones and then the largest changes; the title says how many are shown.
 MAX_FIGURE_CELLS = 40
 CELL_HEIGHT_IN = 0.28  # inches per cell row
+FIGURE_FRAME_IN = 1.5  # inches of title, axis labels and legend around the rows
+LEGEND_BAND_IN = 0.85  # inches at the bottom for the x label and the legend below it
 LABEL_CHAR_IN = 0.068  # inches per character of an 8-point cell label, with room
 PLOT_WIDTH_IN = 5.5  # inches of axes beside the labels
 
@@ -504,6 +506,7 @@ def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]
 def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path]:
     """NEW/OLD per compared cell with its interval, the line at 1 and the threshold band."""
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     from harness import plots
 
@@ -512,23 +515,23 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
         return []
     shown = figure_rows(plottable)
     label_in = LABEL_CHAR_IN * max(len(r.key.label()) for r in shown)
-    height = max(2.5, 1.2 + CELL_HEIGHT_IN * len(shown))
+    height = FIGURE_FRAME_IN + CELL_HEIGHT_IN * max(len(shown), 3)
     width = PLOT_WIDTH_IN + label_in
-    left = (label_in + 0.15) / width
-    fig, ax = plots.new_figure((width, height),
-                               margins={"left": left, "right": 0.97, "top": 1 - 0.5 / height,
-                                        "bottom": 0.6 / height})
+    fig, ax = plots.new_figure((width, height), margins={
+        "left": (label_in + 0.15) / width, "right": 0.97, "top": 1 - 0.45 / height,
+        "bottom": LEGEND_BAND_IN / height})
     ys = list(range(len(shown)))[::-1]
     for y, row in zip(ys, shown, strict=True):
         color = VERDICT_COLORS[row.kind]
+        # a hollow marker: the cell is flagged on a side (loaded, unstable, ...)
+        face = "white" if row.old.flags or row.new.flags else color  # type: ignore[union-attr]
         if math.isfinite(row.low) and math.isfinite(row.high):
             ax.errorbar([row.ratio], [y], xerr=[[row.ratio - row.low], [row.high - row.ratio]],
-                        fmt="o", color=color, capsize=3, markersize=5)
+                        fmt="o", color=color, markerfacecolor=face, capsize=3, markersize=5)
         else:
-            ax.plot([row.ratio], [y], "o", color=color, markerfacecolor="none", markersize=5)
+            ax.plot([row.ratio], [y], "x", color=color, markersize=6)
     band = (1.0 / (1.0 + threshold), 1.0 + threshold)
-    ax.axvspan(*band, color="#999999", alpha=0.2, lw=0,
-               label=f"within the threshold (\u00b1{threshold:.0%})")
+    ax.axvspan(*band, color="#999999", alpha=0.2, lw=0)
     ax.axvline(1.0, color="black", lw=1)
     ends = [v for r in shown for v in (r.ratio, r.low, r.high) if math.isfinite(v) and v > 0]
     ends += list(band)
@@ -537,7 +540,8 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
     ax.set_yticks(ys)
     ax.set_yticklabels([r.key.label() for r in shown], fontsize=8)
     ax.set_ylim(-0.7, len(shown) - 0.3)
-    ax.set_xlabel("NEW / OLD median wall time (95% bootstrap interval); > 1 is slower")
+    ax.set_xlabel("NEW / OLD median wall time, with its 95% bootstrap interval (> 1: slower)",
+                  fontsize=9)
     title = "NEW against OLD per cell"
     if len(shown) < len(plottable):
         title += (f": {len(shown)} of {len(plottable)} compared cells "
@@ -545,8 +549,16 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
     ax.set_title(title, fontsize=10)
     handles = [Line2D([], [], marker="o", color=c, ls="", label=k)
                for k, c in VERDICT_COLORS.items() if any(r.kind == k for r in shown)]
-    ax.legend(handles=[*handles, *ax.get_legend_handles_labels()[0]], fontsize=7,
-              loc="best")
+    if any(r.old.flags or r.new.flags for r in shown):  # type: ignore[union-attr]
+        handles.append(Line2D([], [], marker="o", color="#555555", markerfacecolor="white",
+                              ls="", label="hollow: flagged on a side"))
+    if any(not math.isfinite(r.low) for r in shown):
+        handles.append(Line2D([], [], marker="x", color="#555555", ls="",
+                              label="no interval"))
+    handles.append(Patch(color="#999999", alpha=0.2,
+                         label=f"within the threshold ({threshold:.0%})"))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7,
+               frameon=False)
     ax.grid(axis="x", alpha=0.3)
     return plots.save_figure(fig, stem)
 
