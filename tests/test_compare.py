@@ -337,3 +337,21 @@ def test_real_runs_find_the_slowed_binary(real_binaries: Path, tmp_path: Path,
     assert rows["seq"].compared and math.isfinite(rows["seq"].low)
     assert all(len(r.old.times) == 5 for r in rows.values())  # type: ignore[union-attr]
     assert (out / "compare.png").is_file()
+
+
+def test_figure_keeps_significant_cells_first() -> None:
+    cells = [synthetic(BASE)] * 3
+    rows = [compare.Row(cells[0].key, compare.SAME, cells[0], cells[0], ratio=r)
+            for r in (1.01, 0.90, 1.03)]
+    rows.insert(1, compare.Row(cells[0].key, compare.SLOWER, cells[0], cells[0], ratio=1.06))
+    assert compare.figure_rows(rows, limit=10) == rows
+    kept = compare.figure_rows(rows, limit=2)  # the slower one, then the largest change
+    assert [r.ratio for r in kept] == [1.06, 0.90]
+
+
+def test_different_inputs_are_noted(tmp_path: Path) -> None:
+    old, new = (write_experiment(tmp_path / side, [
+        {"variant": "seq", "cell_id": side, "input_sha256": sha, "wall_median_s": "1.0",
+         "wall_times_s": times_text(BASE)}]) for side, sha in (("o", "aa"), ("n", "bb")))
+    rows = compare.compare(*sides(old, new), compare.DEFAULT_THRESHOLD)
+    assert [(r.kind, r.note) for r in rows] == [(compare.SAME, "the input files differ")]
