@@ -17,6 +17,7 @@ import argparse
 import csv
 import importlib.util
 import io
+import json
 import math
 import os
 import statistics
@@ -99,7 +100,8 @@ class MatchKey:
         return tuple(_order(getattr(self, name)) for name in ("experiment", *MATCH_COLUMNS))
 
     def label(self) -> str:
-        """`p1d f64 random n=10000 L=20000 r=1 S=50 seed=1 T=2` (+ schedule, experiment)."""
+        """`p1d random n=10000 L=20000 r=1 S=50 T=2`; the build, mode and seed where they are
+        not f64, perf and 1, the schedule where set, the experiment first where keyed on it."""
         parts = [self.variant]
         if self.build and self.build != "f64":
             parts.append(self.build)
@@ -181,8 +183,6 @@ def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
 
 def _env_machine(directory: Path) -> str:
     """A label for results written before the `machine` column: env.json's CPU and host."""
-    import json
-
     try:
         env = json.loads((directory / ENV_JSON).read_text())
     except (OSError, ValueError):
@@ -448,7 +448,7 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     lines += [
         f"- Ratio = NEW median / OLD median, with its 95% bootstrap interval; p = two-sided "
         f"Mann-Whitney rank test. A verdict is *slower* or *faster* only when the interval "
-        f"excludes 1 and the ratio is beyond the threshold ({threshold:.0%}: above "
+        f"excludes 1 and the ratio is beyond the threshold ({threshold * 100:g}%: above "
         f"{1 + threshold:.3f} or below {1 / (1 + threshold):.3f}).",
         "", f"**{summary(rows)}.**", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
@@ -556,7 +556,7 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
         handles.append(Line2D([], [], marker="x", color="#555555", ls="",
                               label="no interval"))
     handles.append(Patch(color="#999999", alpha=0.2,
-                         label=f"within the threshold ({threshold:.0%})"))
+                         label=f"within the threshold ({threshold * 100:g}%)"))
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7,
                frameon=False)
     ax.grid(axis="x", alpha=0.3)
