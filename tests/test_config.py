@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -209,3 +210,25 @@ def test_quick_dedupes_shrunk_points(write_config) -> None:
         "variants: [p1]\nscene: {n: [1000, 2000], L: 100000, r: 1, steps: 50}\n"))
     plan = plan_cells(config, quick=True)
     assert [(c.scene.n, c.scene.steps) for c in plan.cells] == [(400, 5)]
+
+
+@pytest.mark.parametrize(("text", "key", "lines"), [
+    ("name: a\nvariants: [seq]\nname: b\n", "name", (1, 3)),
+    ("variants: [seq]\nmeasure:\n  runs: 3\n  warmup: 1\n  runs: 5\n", "runs", (3, 5)),
+    ("variants: [seq]\nscene: {n: 10, n: 20}\n", "n", (2, 2)),
+])
+def test_a_duplicate_key_names_file_key_and_lines(
+        write_config: Callable[[str], Path], text: str, key: str,
+        lines: tuple[int, int]) -> None:
+    path = write_config(text)
+    with pytest.raises(HarnessError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: key '{key}' appears twice")
+    assert f"line {lines[0]} and on line {lines[1]}" in message
+
+
+def test_the_same_key_in_different_mappings_is_not_a_duplicate() -> None:
+    from harness.config import load_yaml
+    assert load_yaml("a: {x: 1}\nb: {x: 2}\nc: [{x: 1}, {x: 2}]\n") == {
+        "a": {"x": 1}, "b": {"x": 2}, "c": [{"x": 1}, {"x": 2}]}
