@@ -139,3 +139,34 @@ def is_loaded(load: dict[str, object], cores: int) -> bool:
     if not isinstance(runnable, int):
         return False
     return runnable - 1 >= LOADED_RUNNABLE_PER_CORE * cores
+
+
+class RunLock:
+    """The measuring lock of one run.py process: taken when its first experiment has cells to
+    measure (a run of cached cells or --dry-run takes none), held until the run ends, so the
+    configs of one run are not interleaved with another run's."""
+
+    def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
+                 path: Path | None = None) -> None:
+        self.configs = configs
+        self.wait = wait
+        self.log = log
+        self.path = path
+        self._stack = contextlib.ExitStack()
+        self.held = False
+
+    def acquire(self) -> None:
+        if not self.held:
+            self._stack.enter_context(measuring_lock(self.configs, self.wait, self.log,
+                                                     self.path))
+            self.held = True
+
+    def release(self) -> None:
+        self._stack.close()
+        self.held = False
+
+    def __enter__(self) -> RunLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()

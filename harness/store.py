@@ -44,6 +44,7 @@ HYPERFINE_SUFFIX = ".hyperfine.json"
 HASH_KEYS = ("binary_sha256", "baseline_sha256", "machine_id")
 CHECK_HASH_KEY = "reference_sha256"
 UNKNOWN_MACHINE = ""
+RESULTS_CSV = "results.csv"
 
 
 @dataclass(frozen=True)
@@ -230,14 +231,20 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
 
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
-                experiment: str, title: str) -> list[results.Record]:
-    """Rewrite results.csv from the records on disk, under the directory lock; the records
-    listed are returned (for divergence.csv)."""
+                experiment: str, title: str, prune_first: bool = False) -> list[results.Record]:
+    """Rewrite results.csv from the records on disk, under the directory lock (with
+    `prune_first`, after moving the superseded records to history/, as a run ends); the
+    records listed are returned (for divergence.csv)."""
     cells_dir = experiment_dir / CELLS
     with lock.directory_lock(experiment_dir):
-        rows = current_rows(load_records(cells_dir), planned, machine_id, cells_dir)
+        stored = load_records(cells_dir)
+        if prune_first:
+            old = superseded(stored)
+            move_to_history(experiment_dir, old)
+            stored = [s for s in stored if s not in old]
+        rows = current_rows(stored, planned, machine_id, cells_dir)
         results.write_results_csv(
-            experiment_dir / "results.csv",
+            experiment_dir / RESULTS_CSV,
             [results.csv_row(r.record, experiment, title, r.hyperfine_json, r.stale)
              for r in rows])
     return [r.record for r in rows]
