@@ -9,17 +9,16 @@ is rebuilt from records, never kept from a measurement in this process.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness import results, scenes
+from harness import envinfo, results, scenes, store
 from harness.config import Config
 from harness.plan import Cell, Plan, baseline_path, binary_path, check_references, experiment_dir
 
 CACHE_DIR = ".cache"
 DIVERGENCE_CSV = "divergence.csv"
-RESULTS_CSV = "results.csv"
+RESULTS_CSV = store.RESULTS_CSV
 
 
 @dataclass
@@ -82,13 +81,19 @@ class CellStore:
             if None in shas.values():
                 return None
             extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
-        return {**extra,
+        return {**extra, "machine_id": self.machine_id,
             "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
             "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
             "threads": cell.threads, "warmup": measure.warmup, "runs": measure.runs,
             "timeout_s": measure.timeout_s, "validate": cell.validate, "exact": cell.exact,
             "baseline_sha256": baseline_sha, "keep_output": self.config.keep_output,
         }
+
+    @property
+    def machine_id(self) -> str:
+        """This machine's id (envinfo.machine): a cached cell is reused only where it was
+        measured, and records of several machines sit side by side in cells/."""
+        return str(envinfo.machine(self.repo_root)["machine_id"])
 
     def cell_id(self, cell: Cell) -> str | None:
         key = self.cell_key(cell)
@@ -119,17 +124,18 @@ class CellStore:
     def save(self, cell_id: str, record: results.Record) -> None:
         results.atomic_write_json(self.record_path(cell_id), record)
 
-    def write_csv(self, records: Mapping[str, results.Record]) -> None:
-        """results.csv (and divergence.csv with checks) of the plan's cells that have a
-        record, in plan order."""
-        rows = []
-        kept = []
+    def write_csv(self, prune: bool = False) -> None:
+        """results.csv (and divergence.csv with checks) rebuilt from the records on disk under
+        the directory's lock (harness.store): per planned cell, this machine's record (or its
+        newest, marked stale) and every other machine's newest. With `prune`, the superseded
+        records move to history/ first."""
+        planned = []
         for cell in self.plan.cells:
-            cid = self.cell_id(cell)
-            if cid is not None and cid in records:
-                kept.append(records[cid])
-                rows.append(results.csv_row(records[cid], self.config.name, self.config.title))
-        results.write_results_csv(self.directory / RESULTS_CSV, rows)
+            key = self.cell_key(cell)
+            if key is not None:
+                planned.append(store.PlannedCell(key, results.cell_id(key)))
+        kept = store.rebuild_csv(self.directory, planned, self.machine_id, self.config.name,
+                                 self.config.title, prune_first=prune)
         if self.config.checks.names:
             results.write_divergence_csv(self.directory / DIVERGENCE_CSV, kept)
 

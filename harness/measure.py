@@ -21,7 +21,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness import accuracy, envinfo, invariants, results, scenes, validate
+from harness import accuracy, envinfo, invariants, lock, results, scenes, validate
 from harness.cellstore import CellStore
 from harness.config import BASELINE_VARIANT, INEXACT_VARIANTS, Config
 from harness.plan import Cell
@@ -116,6 +116,9 @@ class Measurer:
             "exact": cell.exact, "baseline_sha256": key["baseline_sha256"],
             "identical": None, "note": "", "command": shlex.join(command),
             "measured_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "machine_id": key["machine_id"],
+            "machine": envinfo.machine(self.store.repo_root),
+            "git_commit": envinfo.git_commit(self.store.repo_root),
         }
         hyperfine_json = self.store.hyperfine_path(cell_id)
         hyperfine_json.unlink(missing_ok=True)
@@ -311,8 +314,13 @@ class Measurer:
                 "--warmup", str(measure.warmup), "--runs", str(measure.runs),
                 "--export-json", str(tmp), shlex.join(command)]
         timeout = measure.timeout_s * (measure.warmup + measure.runs) + HYPERFINE_SLACK_S
+        load_before = lock.sample_load()
+        record["load_before"] = load_before
+        record["loaded"] = lock.is_loaded(load_before, self.cores)
         try:
             done = run_process(argv, env, timeout)
+            record["load_after"] = envinfo.load()
+            record["hyperfine_warnings"] = results.hyperfine_warnings(done.stderr)
             if done.returncode is None:
                 record["note"] = f"hyperfine passed its {timeout:g} s timeout"
                 return "timeout", None
@@ -327,6 +335,6 @@ class Measurer:
             "runs": stats.runs, "wall_mean_s": stats.mean, "wall_stddev_s": stats.stddev,
             "wall_median_s": stats.median, "wall_min_s": stats.min, "wall_max_s": stats.max,
             "wall_user_s": stats.user, "wall_system_s": stats.system,
-            "unstable": stats.unstable,
+            "unstable": stats.unstable, **results.uncertainty(stats.times),
         })
         return status, exit_code

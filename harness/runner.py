@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from harness import envinfo, results
+from harness import envinfo, lock, results, store
 from harness.cellstore import RESULTS_CSV, CellStore
 from harness.config import Config
 from harness.errors import HarnessError
@@ -40,6 +40,9 @@ class Options:
     hyperfine: str = "hyperfine"
     make: str = "make"
     executor: str = "local"  # a name in harness.executor.EXECUTORS
+    # The machine-wide measuring lock of this run (harness.lock), taken before the first cell
+    # is measured; None: measure without it (tests that fake hyperfine).
+    run_lock: lock.RunLock | None = None
 
 
 @dataclass(frozen=True)
@@ -81,8 +84,8 @@ class Experiment:
     def cached(self, cell_id: str) -> results.Record | None:
         return self.store.cached(cell_id)
 
-    def write_csv(self) -> None:
-        self.store.write_csv(self.records)
+    def write_csv(self, prune: bool = False) -> None:
+        self.store.write_csv(prune)
 
 
 def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -> Summary:
@@ -108,9 +111,20 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
     warn_oversubscribed(plan, experiment.cores, log)
     pending = [(cell, cid) for cell, cid in order if cid not in experiment.records]
     env_file = experiment.directory / ENV_JSON
-    if pending or not env_file.is_file():  # the machine and tools of the latest measurements
-        results.atomic_write_json(env_file, envinfo.collect(options.repo_root, options.make,
-                                                            options.hyperfine))
+    env: dict[str, object] | None = None
+    if pending and options.run_lock is not None and not options.run_lock.held:
+        options.run_lock.acquire()  # may wait for another run; the load is sampled after
+        for _, cid in pending:  # the run we waited for may have measured some of them
+            record = experiment.cached(cid)
+            if record is not None:
+                experiment.records[cid] = record
+        pending = [(cell, cid) for cell, cid in pending if cid not in experiment.records]
+    if pending:
+        env = envinfo.collect(options.repo_root, options.make, options.hyperfine)
+        store.write_env(experiment.directory, env)
+    elif not env_file.is_file():
+        store.write_env(experiment.directory, envinfo.collect(
+            options.repo_root, options.make, options.hyperfine))
     measured: set[str] = set()
 
     def on_record(cell: Cell, cid: str, record: results.Record) -> None:
@@ -122,7 +136,9 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
     progress = Progress(config.name, order, frozenset(cid for _, cid in pending), log)
     executor.run(experiment, pending, on_record, progress)
     progress.close()
-    experiment.write_csv()
+    experiment.write_csv(prune=True)
+    if env is not None:  # the machine and tools of the latest measurements, and the load after
+        store.write_env(experiment.directory, {**env, "load_after": envinfo.load()})
     missing = [cid for _, cid in pending if cid not in measured]
     if missing:
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
