@@ -259,6 +259,9 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     """PROVENANCE_COLUMNS of a record: its own fields, else derived (times from its hyperfine
     JSON, the interval from the times, outliers from kept warnings)."""
     values: dict[str, object] = {c: record.get(c) for c in PROVENANCE_COLUMNS}
+    key = record.get("key")
+    if values["machine_id"] is None and isinstance(key, dict):
+        values["machine_id"] = key.get("machine_id")
     described = record.get("machine")
     values["machine"] = described.get("label") if isinstance(described, dict) else None
     times = record.get("wall_times_s")
