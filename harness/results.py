@@ -5,8 +5,10 @@ Layout of `results/<name>/`:
   cells/<cell_id>.hyperfine.json   hyperfine's export, as written
   inputs/<sha>.in                  the input files the cells read
   outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
-  env.json                         the machine, tools and flags
-  results.csv                      one row per cell, CSV_COLUMNS first
+  env.json                         the machine, tools and flags of the latest measuring run
+  machines/<machine_id>.json       the same, the latest of each machine
+  history/                         superseded records with their hyperfine JSON (harness.store)
+  results.csv                      one row per cell and machine, CSV_COLUMNS first
 
 Every file is written to a temporary file in its directory and os.replace'd into place.
 """
