@@ -5,15 +5,19 @@ Layout of `results/<name>/`:
   cells/<cell_id>.hyperfine.json   hyperfine's export, as written
   inputs/<sha>.in                  the input files the cells read
   outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
-  env.json                         the machine, tools and flags
-  results.csv                      one row per cell, CSV_COLUMNS first
+  env.json                         the machine, tools and flags of the latest measuring run
+  machines/<machine_id>.json       the same, the latest of each machine
+  history/                         superseded records with their hyperfine JSON (harness.store)
+  results.csv                      one row per cell and machine, CSV_COLUMNS first
 
 Every file is written to a temporary file in its directory and os.replace'd into place.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import functools
 import hashlib
 import io
 import json
@@ -21,7 +25,7 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +45,15 @@ CSV_COLUMNS = (
 EXTRA_COLUMNS = (
     "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",
     "validated", "exact", "baseline_sha256", "input_sha256", "note",
+)
+# Where, on what and how surely a cell was measured (issue 13). Computed from the record (and
+# its hyperfine JSON) when results.csv is written, so older records gain them without being
+# measured again; empty where an older record cannot tell (outliers, loaded, machine).
+# stale: True when the cell's binary changed since it was measured on this machine (empty for
+# another machine's record, whose build this run cannot see).
+PROVENANCE_COLUMNS = (
+    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", "wall_times_s",
+    "outliers", "loaded", "stale", "git_commit", "measured_at",
 )
 # The accuracy and stability checks (`checks:` in a config): after the columns above, and only
 # in a results.csv where some cell was checked. chk_* are True/False, or empty where a check
@@ -218,10 +231,64 @@ def read_record(path: Path, expected_id: str) -> Record | None:
 # --- results.csv --------------------------------------------------------------------------
 
 
-def csv_row(record: Mapping[str, object], experiment: str, title: str) -> dict[str, object]:
+HYPERFINE_OUTLIERS = "Statistical outliers were detected"
+
+
+def hyperfine_warnings(stderr: str) -> list[str]:
+    """hyperfine's `Warning: ...` lines (with --style none it prints them to stderr)."""
+    return [line.strip() for line in stderr.splitlines() if line.strip().startswith("Warning:")]
+
+
+def uncertainty(times: Sequence[float]) -> dict[str, object]:
+    """The record fields derived from hyperfine's per-run times: the times as a list and the
+    95% bootstrap interval of their median."""
+    interval = _median_ci(tuple(times))
+    return {"wall_times_s": list(times),
+            "wall_median_ci_low_s": interval[0], "wall_median_ci_high_s": interval[1]}
+
+
+@functools.lru_cache(maxsize=4096)
+def _median_ci(times: tuple[float, ...]) -> tuple[float | None, float | None]:
+    from harness import stats  # scipy: only when an interval is computed
+
+    interval = stats.median_ci(times)
+    return (interval.low if math.isfinite(interval.low) else None,
+            interval.high if math.isfinite(interval.high) else None)
+
+
+def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
+               ) -> dict[str, object]:
+    """PROVENANCE_COLUMNS of a record: its own fields, else derived (times from its hyperfine
+    JSON, the interval from the times, outliers from kept warnings)."""
+    values: dict[str, object] = {c: record.get(c) for c in PROVENANCE_COLUMNS}
+    key = record.get("key")
+    if values["machine_id"] is None and isinstance(key, dict):
+        values["machine_id"] = key.get("machine_id")
+    described = record.get("machine")
+    values["machine"] = described.get("label") if isinstance(described, dict) else None
+    times = record.get("wall_times_s")
+    if not isinstance(times, list) and hyperfine_json is not None and hyperfine_json.is_file():
+        with contextlib.suppress(ResultFormatError):
+            times = list(load_hyperfine(hyperfine_json).times)
+    if isinstance(times, list) and times:
+        if record.get("wall_median_ci_low_s") is None:
+            values.update(uncertainty(times))
+        values["wall_times_s"] = " ".join(repr(float(t)) for t in times)
+    else:
+        values["wall_times_s"] = None
+    warnings = record.get("hyperfine_warnings")
+    if isinstance(warnings, list):
+        values["outliers"] = any(HYPERFINE_OUTLIERS in str(w) for w in warnings)
+    return values
+
+
+def csv_row(record: Mapping[str, object], experiment: str, title: str,
+            hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
     for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *CHECK_COLUMNS):
         row[column] = record.get(column)
+    row.update(provenance(record, hyperfine_json))
+    row["stale"] = stale
     return row
 
 
@@ -234,10 +301,10 @@ def format_cell(value: object) -> str:
 
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
-    """results.csv text: the contract and extra columns, then the check columns when some row
-    has a check value."""
+    """results.csv text: the contract, extra and provenance columns, then the check columns
+    when some row has a check value."""
     rows = list(rows)
-    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS)
+    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
     if any(row.get(c) is not None for row in rows for c in CHECK_COLUMNS):
         columns = (*columns, *CHECK_COLUMNS)
     buffer = io.StringIO()

@@ -58,23 +58,30 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--report-dir", type=Path, default=REPO_ROOT / "report",
                         help="where the report is rendered (default: <repo>/report; "
                         "--quick runs go to <report-dir>/report-quick)")
+    parser.add_argument("--no-wait", action="store_true",
+                        help="when another run is measuring on this machine, stop with an "
+                        "error instead of waiting for it")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
     return parser.parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from harness import runner
+    from harness import lock, runner
     from harness.config import load_config
     from harness.errors import HarnessError
 
     args = parse_args(sys.argv[1:] if argv is None else argv)
     signal.signal(signal.SIGTERM, _terminate)
+    run_lock = lock.RunLock(" ".join(str(p) for p in args.configs), wait=not args.no_wait,
+                            log=sys.stderr)
     options = runner.Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
                              quick=args.quick, force=args.force, dry_run=args.dry_run,
-                             hyperfine=args.hyperfine)
+                             hyperfine=args.hyperfine, run_lock=run_lock)
     try:
         configs = [load_config(path) for path in args.configs]
-        summaries = [runner.run_experiment(c, options, sys.stderr, sys.stdout) for c in configs]
+        with run_lock:
+            summaries = [runner.run_experiment(c, options, sys.stderr, sys.stdout)
+                         for c in configs]
         if not (args.dry_run or args.no_report):
             render_report(options, args.report_dir, [s.directory.name for s in summaries])
     except HarnessError as exc:

@@ -58,3 +58,11 @@ def real_binaries() -> Path:
 def build_binaries() -> Callable[..., Path]:
     """`build_binaries("relative", ...)`: build more binaries, or skip as `real_binaries` does."""
     return build_or_skip
+
+
+@pytest.fixture(autouse=True)
+def private_measuring_lock(tmp_path_factory: pytest.TempPathFactory,
+                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tests take their own measuring lock (harness.lock), never the machine-wide one: a test
+    run neither waits for a real benchmark nor holds one up."""
+    monkeypatch.setenv("COLLIDE_BENCH_LOCK_DIR", str(tmp_path_factory.getbasetemp()))

@@ -181,7 +181,7 @@ def test_check_columns_only_when_checked() -> None:
     assert "checks_passed" not in plain
     checked = results.render_csv([{"variant": "seq", "checks_passed": True}])
     header = checked.splitlines()[0].split(",")
-    base = (*results.CSV_COLUMNS, *results.EXTRA_COLUMNS)
+    base = (*results.CSV_COLUMNS, *results.EXTRA_COLUMNS, *results.PROVENANCE_COLUMNS)
     assert tuple(header[:len(base)]) == base and header[len(base):] == list(
         results.CHECK_COLUMNS)
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from harness import runner
 from harness.config import (
     DEFAULT_RUNS,
     DEFAULT_TIMEOUT_S,
@@ -14,6 +14,7 @@ from harness.config import (
     load_config,
 )
 from harness.errors import HarnessError
+from harness.plan import QUICK_MAX_N, QUICK_MAX_STEPS, plan_cells
 from harness.run import main
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -36,12 +37,12 @@ def test_threads_config_loads_as_written() -> None:
 @pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
 def test_shipped_configs_load_and_plan(path: Path) -> None:
     config = load_config(path)
-    plan = runner.plan_cells(config)
+    plan = plan_cells(config)
     assert plan.cells
     assert config.name == path.stem
-    quick = runner.plan_cells(config, quick=True)
-    assert all(c.scene.n <= runner.QUICK_MAX_N for c in quick.cells)
-    assert all(c.scene.steps <= runner.QUICK_MAX_STEPS for c in quick.cells)
+    quick = plan_cells(config, quick=True)
+    assert all(c.scene.n <= QUICK_MAX_N for c in quick.cells)
+    assert all(c.scene.steps <= QUICK_MAX_STEPS for c in quick.cells)
 
 
 def test_defaults(write_config) -> None:
@@ -137,7 +138,7 @@ def test_exact_message_for_bad_n(write_config) -> None:
 def test_radius_too_large_is_reported_at_plan_time(write_config) -> None:
     path = write_config("variants: [p1d]\nscene: {n: 10, L: 10, r: [1, 6], steps: 1}\n")
     with pytest.raises(HarnessError, match=r"key 'scene.r': expected a radius with 2r <= L"):
-        runner.plan_cells(load_config(path))
+        plan_cells(load_config(path))
 
 
 @pytest.mark.parametrize("text", ["a: [1,\n", "- just\n- a list\n"])
@@ -197,7 +198,7 @@ def test_cells_cross_variants_builds_and_apply_excludes(write_config) -> None:
         "variants: [seq, p1]\nbuilds: [f64, f32]\n"
         "scene: {n: [10, 100], L: 1000, r: 1, steps: 1}\n"
         "exclude: [{variant: seq, n_gt: 50}, {build: f32, variant: [p1]}]\n"))
-    plan = runner.plan_cells(config)
+    plan = plan_cells(config)
     kept = [(c.variant, c.build, c.scene.n) for c in plan.cells]
     assert kept == [("seq", "f64", 10), ("seq", "f32", 10), ("p1", "f64", 10),
                     ("p1", "f64", 100)]
@@ -207,5 +208,27 @@ def test_cells_cross_variants_builds_and_apply_excludes(write_config) -> None:
 def test_quick_dedupes_shrunk_points(write_config) -> None:
     config = load_config(write_config(
         "variants: [p1]\nscene: {n: [1000, 2000], L: 100000, r: 1, steps: 50}\n"))
-    plan = runner.plan_cells(config, quick=True)
+    plan = plan_cells(config, quick=True)
     assert [(c.scene.n, c.scene.steps) for c in plan.cells] == [(400, 5)]
+
+
+@pytest.mark.parametrize(("text", "key", "lines"), [
+    ("name: a\nvariants: [seq]\nname: b\n", "name", (1, 3)),
+    ("variants: [seq]\nmeasure:\n  runs: 3\n  warmup: 1\n  runs: 5\n", "runs", (3, 5)),
+    ("variants: [seq]\nscene: {n: 10, n: 20}\n", "n", (2, 2)),
+])
+def test_a_duplicate_key_names_file_key_and_lines(
+        write_config: Callable[[str], Path], text: str, key: str,
+        lines: tuple[int, int]) -> None:
+    path = write_config(text)
+    with pytest.raises(HarnessError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: key '{key}' appears twice")
+    assert f"line {lines[0]} and on line {lines[1]}" in message
+
+
+def test_the_same_key_in_different_mappings_is_not_a_duplicate() -> None:
+    from harness.config import load_yaml
+    assert load_yaml("a: {x: 1}\nb: {x: 2}\nc: [{x: 1}, {x: 2}]\n") == {
+        "a": {"x": 1}, "b": {"x": 2}, "c": [{"x": 1}, {"x": 2}]}

@@ -126,3 +126,34 @@ def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
     path.write_text("{truncated")
     assert results.read_record(path, "abc") is None
     assert results.read_record(tmp_path / "none.json", "abc") is None
+
+
+# hyperfine 1.15 with `-N --style none`, on stderr, when a run is far from the others
+OUTLIER_STDERR = (" \n  Warning: Statistical outliers were detected. Consider re-running this "
+                  "benchmark on a quiet PC without any interferences from other programs. It "
+                  "might help to use the '--warmup' or '--prepare' options.\n")
+
+
+def test_hyperfine_warnings_are_kept_and_flag_outliers() -> None:
+    warnings = results.hyperfine_warnings(OUTLIER_STDERR)
+    assert len(warnings) == 1 and warnings[0].startswith("Warning: Statistical outliers")
+    assert results.hyperfine_warnings("") == []
+    assert results.provenance({"hyperfine_warnings": warnings})["outliers"] is True
+    assert results.provenance({"hyperfine_warnings": []})["outliers"] is False
+    assert results.provenance({})["outliers"] is None  # an older record cannot tell
+
+
+def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
+    measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
+                **results.uncertainty([1.0, 1.2, 1.1]), "loaded": False,
+                "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
+    values = results.provenance(measured)
+    assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == "1.0 1.2 1.1"
+    assert values["wall_median_ci_low_s"] <= 1.1 <= values["wall_median_ci_high_s"]
+    assert values["git_commit"].endswith("-dirty") and values["loaded"] is False
+    older = results.provenance({}, FIXTURES / "hyperfine_seq.json")
+    times = results.load_hyperfine(FIXTURES / "hyperfine_seq.json").times
+    assert older["wall_times_s"] == " ".join(repr(t) for t in times)
+    assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
+    assert tuple(results.render_csv([older]).splitlines()[0].split(",")[
+        -len(results.PROVENANCE_COLUMNS):]) == results.PROVENANCE_COLUMNS

@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 from harness import results, runner
 from harness.config import load_config
+from harness.plan import plan_cells
+from harness.proc import exit_status, run_process
 
 pytestmark = pytest.mark.skipif(shutil.which("hyperfine") is None,
                                 reason="hyperfine is not installed (run 'make setup')")
@@ -165,7 +167,7 @@ def test_cell_ids_follow_every_input(tmp_path: Path, fake_repo: Path) -> None:
         path = tmp_path / "ids.yaml"
         path.write_text(text)
         config = load_config(path)
-        plan = runner.plan_cells(config)
+        plan = plan_cells(config)
         experiment = runner.Experiment(plan, options(tmp_path, fake_repo), io.StringIO())
         return [experiment.cell_id(c) for c in plan.cells]
 
@@ -188,7 +190,7 @@ def test_run_process_kills_the_whole_group_at_the_timeout(tmp_path: Path) -> Non
                         "wait\n")
     started = time.monotonic()
     # 2 s leaves the shell time to write the pid even on a loaded CI machine.
-    done = runner.run_process([str(script)], dict(os.environ), 2.0)
+    done = run_process([str(script)], dict(os.environ), 2.0)
     assert done.returncode is None and time.monotonic() - started < 10
     status = Path(f"/proc/{int(pid_file.read_text())}/status")
 
@@ -209,4 +211,4 @@ def test_run_process_kills_the_whole_group_at_the_timeout(tmp_path: Path) -> Non
 @pytest.mark.parametrize(("code", "expected"), [
     (0, ("ok", 0)), (2, ("failed", 2)), (-11, ("crashed", -11)), (None, ("timeout", None))])
 def test_exit_status(code: int | None, expected: tuple[str, int | None]) -> None:
-    assert runner.exit_status(code) == expected
+    assert exit_status(code) == expected

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 
 import pytest
-from harness import runner, scenes
+from harness import scenes
 from harness.config import load_config
 from harness.errors import HarnessError
+from harness.plan import plan_cells
 
 
 def test_random_point_is_a_two_line_header() -> None:
@@ -73,7 +74,7 @@ def test_adding_a_generator_is_one_decorated_function() -> None:
 
 def test_generator_scene_in_config(write_config) -> None:
     path = write_config("variants: [seq]\nscene: {generator: head_on, gap: [2, 4], steps: 3}\n")
-    plan = runner.plan_cells(load_config(path))
+    plan = plan_cells(load_config(path))
     assert [c.scene.label for c in plan.cells] == ["head_on", "head_on"]
     assert [dict(c.scene.params)["gap"] for c in plan.cells] == [2.0, 4.0]
     assert all(c.scene.steps == 3 and c.scene.n == 2 for c in plan.cells)
@@ -84,7 +85,7 @@ def test_file_scene_relative_to_config(write_config, tmp_path) -> None:
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "two.in").write_text("2 100 1 4\nprint\n0 10 10 1 0\n1 20 10 -1 0\n")
     path = write_config("variants: [seq]\nscene: {file: scenes/two.in, seed: 3}\n")
-    (cell,) = runner.plan_cells(load_config(path)).cells
+    (cell,) = plan_cells(load_config(path)).cells
     assert cell.scene.label == "two.in"
     assert (cell.scene.n, cell.scene.L, cell.scene.r, cell.scene.steps) == (2, 100.0, 1.0, 4)
     assert cell.scene.mode == "print" and cell.scene.seed == 3
