@@ -160,6 +160,7 @@ class Cell:
     git_commit: str
     input_sha256: str
     flags: tuple[str, ...] = ()  # the FLAG_COLUMNS that are True
+    stale: bool = False  # the binary changed since this cell was measured (results.csv)
 
     @property
     def machine_text(self) -> str:
@@ -259,7 +260,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             measured_at=(row.get("measured_at") or "").strip(),
             git_commit=(row.get("git_commit") or "").strip(),
             input_sha256=(row.get("input_sha256") or "").strip(),
-            flags=tuple(f for f in FLAG_COLUMNS if (row.get(f) or "").strip() == "True")))
+            flags=tuple(f for f in FLAG_COLUMNS if (row.get(f) or "").strip() == "True"),
+            stale=(row.get("stale") or "").strip() == "True"))
     return cells
 
 
@@ -283,7 +285,16 @@ class Side:
         return sorted({c.machine_text for c in self.cells.values()})
 
     def commits(self) -> list[str]:
-        return sorted({c.git_commit for c in self.cells.values() if c.git_commit})
+        """The commits that measured the cells, abbreviated (keeping "-dirty")."""
+        return sorted({_abbreviate(c.git_commit) for c in self.cells.values() if c.git_commit})
+
+
+COMMIT_CHARS = 12
+
+
+def _abbreviate(commit: str) -> str:
+    head, dirty, _ = commit.partition("-dirty")
+    return head[:COMMIT_CHARS] + dirty
 
 
 def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: bool,
@@ -361,6 +372,8 @@ def compare_cells(old: Cell, new: Cell, threshold: float, note: str = "") -> Row
     notes = [note] if note else []
     notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in (("OLD", old), ("NEW", new))
               if cell.flags]
+    notes += [f"{side}: stale (its binary changed since)" for side, cell
+              in (("OLD", old), ("NEW", new)) if cell.stale]
     if old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256:
         notes.append("the input files differ")
     if old.times and new.times:

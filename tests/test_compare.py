@@ -20,7 +20,7 @@ SCENE = {"scene": "random", "n": "200", "L": "2000.0", "r": "1.0", "steps": "5",
          "seed": "1"}
 COLUMNS = ("experiment", "variant", "build", *SCENE, "threads", "runs", "wall_median_s",
            "status", "cell_id", "input_sha256", "wall_times_s", "machine_id", "machine", "loaded",
-           "outliers", "unstable")
+           "outliers", "unstable", "stale", "git_commit")
 
 
 # --- verdicts -----------------------------------------------------------------------------
@@ -134,7 +134,8 @@ def pair(tmp_path: Path) -> tuple[Path, Path]:
     """OLD from before the wall_times_s column (times in hyperfine JSON), NEW with it."""
     old = write_experiment(tmp_path / "old" / "exp", [
         {"variant": "seq", "cell_id": "a1", "wall_median_s": "1.0"},
-        {"variant": "p1", "cell_id": "b1", "wall_median_s": "1.0"},
+        {"variant": "p1", "cell_id": "b1", "wall_median_s": "1.0", "stale": "True",
+         "git_commit": "0123456789abcdef0123456789abcdef01234567-dirty"},
         {"variant": "p1d", "cell_id": "c1", "status": "failed"},
         {"variant": "grid", "cell_id": "d1", "wall_median_s": "1.0"},
     ], hyperfine={"a1": BASE, "b1": BASE, "d1": BASE})
@@ -173,7 +174,9 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert "## Only in OLD" in text and "## Only in NEW" in text
     assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 1.3 | 1.300 [" in text
     assert "**slower**" in text and "M (0123456789abcdef)" in text
-    assert seq.note == "NEW: loaded, unstable" and kinds["p1"].note == ""
+    assert seq.note == "NEW: loaded, unstable"
+    assert kinds["p1"].note == "OLD: stale (its binary changed since)"
+    assert "commit 0123456789ab-dirty" in text
     assert "Caution: 1 of the compared cells carry a flag on a side" in text
     for suffix in ("png", "svg"):
         assert (out / f"compare.{suffix}").stat().st_size > 1000
