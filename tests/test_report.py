@@ -299,9 +299,9 @@ def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
         pytest.skip("no .venv to re-exec into")
     root = results_with(tmp_path, "radius")
     done = subprocess.run(
-        [sys.executable, "-S", str(REPO_ROOT / "harness" / "report.py"), "--results-dir",
+        [sys.executable, "-S", "-m", "harness.report", "--results-dir",
          str(root), "--out", str(tmp_path / "r")],
-        capture_output=True, text=True, check=False, cwd=tmp_path,
+        capture_output=True, text=True, check=False, cwd=REPO_ROOT,
     )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "r" / "report.md").is_file()
@@ -310,12 +310,13 @@ def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
 def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
     copy = tmp_path / "repo" / "harness"
     copy.mkdir(parents=True)
-    shutil.copy(REPO_ROOT / "harness" / "report.py", copy / "report.py")
+    (copy / "__init__.py").write_text("")
+    shutil.copytree(REPO_ROOT / "harness" / "report", copy / "report")
     done = subprocess.run(
-        [sys.executable, "-S", str(copy / "report.py")],
-        capture_output=True, text=True, check=False, cwd=tmp_path,
+        [sys.executable, "-S", "-m", "harness.report"],
+        capture_output=True, text=True, check=False, cwd=tmp_path / "repo",
     )
     assert done.returncode == 2
     assert done.stderr.strip() == (
-        "error: missing Python packages (pandas, numpy, matplotlib, PIL); run 'make setup'"
+        "error: missing Python packages (pandas, numpy, matplotlib, PIL, scipy); run 'make setup'"
     )
