@@ -13,7 +13,7 @@ from harness.report.document import Figure, Table
 
 def table_block(table: pd.DataFrame, caption: str) -> Table:
     """A built table formatted for display, numbers right-aligned."""
-    align = tuple(tables.is_numeric_column(table, str(c)) for c in table.columns)
+    align = tuple(tables.is_numeric_column(table, c) for c in tables.display_columns(table))
     shown = tables.format_table(table)
     rows = tuple(tuple(str(v) for v in row) for row in shown.itertuples(index=False))
     return Table(tuple(str(c) for c in shown.columns), rows, align, caption)

@@ -4,13 +4,13 @@ shadow error against time and divergence curves."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from harness import plots, tables
 from harness.report.blocks import figure_block, table_block
+from harness.report.cache import Manifest
 from harness.report.document import Block, Paragraph, Section, slug
 from harness.report.load import DIVERGENCE_REQUIRED, Experiment
 
@@ -71,7 +71,7 @@ def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
     return chosen[:MAX_CHECK_FIGURES]
 
 
-def checks_subsections(exp: Experiment, fig_dir: Path) -> list[Section]:
+def checks_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
     """Stability (pass/fail per scene and check, which build to trust) and accuracy (shadow
     error against time, divergence curves) from the check columns and divergence.csv."""
     df = exp.frame
@@ -112,8 +112,8 @@ def checks_subsections(exp: Experiment, fig_dir: Path) -> list[Section]:
         suffix = f"-{index + 1}" if len(scenes) > 1 else ""
         cells = scene.cells[timed.loc[scene.cells.index]]
         if not cells.empty and cells["shadow_pos_err"].notna().any():
-            stem = fig_dir / f"{base}-shadow-vs-time{suffix}"
-            paths = plots.fig_error_time(
+            stem = figs.fig_dir / f"{base}-shadow-vs-time{suffix}"
+            paths = figs.draw(plots.fig_error_time,
                 cells[cells["shadow_pos_err"].notna()], stem,
                 title=f"Shadow-step error against time ({scene.label})",
                 error="shadow_pos_err", ylabel="shadow-step error, mean [÷ L]")
@@ -122,10 +122,10 @@ def checks_subsections(exp: Experiment, fig_dir: Path) -> list[Section]:
                 f"{scene.label}; the ringed cells joined by the line form the Pareto front."))
         if not scene.divergence.empty:
             first = scene.cells.iloc[0]
-            stem = fig_dir / f"{base}-divergence{suffix}"
-            paths = plots.fig_divergence(scene.divergence, stem, box=float(first["L"]),
-                                         radius=float(first["r"]),
-                                         title=f"Divergence ({scene.label})")
+            stem = figs.fig_dir / f"{base}-divergence{suffix}"
+            paths = figs.draw(plots.fig_divergence, scene.divergence, stem,
+                              box=float(first["L"]), radius=float(first["r"]),
+                              title=f"Divergence ({scene.label})")
             accuracy_blocks.append(figure_block(
                 paths, f"Step-by-step growth of the largest position deviation (÷ L) at "
                 f"{scene.label}, against seq in double (left) and the __float128 truth "

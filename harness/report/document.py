@@ -64,6 +64,7 @@ class Document:
     title: str
     preamble: tuple[Block, ...]
     sections: tuple[Section, ...] = field(default_factory=tuple)
+    summary: Section | None = None  # the headline, shown first, right under the title
 
 
 def slug(text: str) -> str:
@@ -82,7 +83,7 @@ def section_blocks(section: Section) -> list[Block]:
 def document_files(doc: Document) -> set[Path]:
     """Every figure file the document shows or links."""
     blocks = [*doc.preamble]
-    for section in doc.sections:
+    for section in (*doc.sections, *([doc.summary] if doc.summary else [])):
         blocks += section_blocks(section)
     files: set[Path] = set()
     for block in blocks:

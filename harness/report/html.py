@@ -96,7 +96,10 @@ def _contents(doc: Document) -> str:
 
 def render_html(doc: Document) -> str:
     """The whole document as one HTML page."""
-    body = [f"<h1>{inline(doc.title)}</h1>", *(render_block(b) for b in doc.preamble)]
+    body = [f"<h1>{inline(doc.title)}</h1>"]
+    if doc.summary is not None:
+        body += ['<div class="summary">', *_section(doc.summary, 2), "</div>"]
+    body += [render_block(b) for b in doc.preamble]
     body.append(_contents(doc))
     for section in doc.sections:
         body += _section(section, 2)

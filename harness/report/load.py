@@ -3,7 +3,6 @@ env.json, divergence.csv and print-mode outputs."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,7 +11,14 @@ import pandas as pd
 
 from harness import tables
 from harness.errors import HarnessError
-from harness.report.paths import QUICK_SUFFIX
+from harness.report.discover import (
+    DIVERGENCE_FILE,
+    ENV_FILE,
+    RESULTS_FILE,
+    ExperimentDir,
+    find_experiments,
+    read_env,
+)
 
 # --- the results.csv contract with the harness --------------------------------------------
 
@@ -42,7 +48,17 @@ CHECK_NUMERIC_COLUMNS: tuple[str, ...] = (
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s",
 )
-DIVERGENCE_FILE = "divergence.csv"
+# The shared contract's newer columns (machine identity, uncertainty, provenance, issue 16's
+# schedules): read when present; results from before them render without.
+CONTRACT_NUMERIC_COLUMNS: tuple[str, ...] = (
+    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance",
+)
+CONTRACT_BOOL_COLUMNS: tuple[str, ...] = ("outliers", "loaded", "stale")
+CONTRACT_TEXT_COLUMNS: tuple[str, ...] = (
+    "machine_id", "machine", "wall_times_s", "git_commit", "measured_at", "schedule",
+    "threads_busy_s", "threads_pairs",
+)
+MACHINE_ID_SHOWN = 8  # hex digits of machine_id that tell machines with one label apart
 DIVERGENCE_REQUIRED: tuple[str, ...] = ("variant", "build", "scene", "L", "r", "reference",
                                         "step", "max_pos_dev")
 # Columns every row must fill in: without them a cell cannot be placed in any table.
@@ -51,12 +67,6 @@ MISSING_TOKENS: frozenset[str] = frozenset({"", "nan", "na", "none", "null"})
 TRUE_TOKENS: frozenset[str] = frozenset({"true", "1", "yes"})
 FALSE_TOKENS: frozenset[str] = frozenset({"false", "0", "no"})
 HEADER_LINES = 1  # a row's line number in the file is its position + this + 1
-
-# Experiments the course report presents in this order; any other follows alphabetically.
-PREFERRED_ORDER: tuple[str, ...] = (
-    "strategies", "particles", "square", "radius", "threads", "relative", "grid",
-    "trajectory", "accuracy", "stability",
-)
 
 TRAJECTORY_FIELDS = (6, 8)  # `s i x y vx vy` per state, `S i x y vx vy pcoll wcoll` at the end
 
@@ -117,22 +127,41 @@ def read_results(path: Path) -> pd.DataFrame:
     missing = [c for c in RESULT_COLUMNS if c not in raw.columns]
     if missing:
         raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
-    optional = [c for c in (*CHECK_BOOL_COLUMNS, *CHECK_TEXT_COLUMNS, *CHECK_NUMERIC_COLUMNS)
-                if c in raw.columns]
+    # Every other column is kept (as text unless typed below), so a newer column reaches the
+    # tables without a change here.
+    optional = [c for c in raw.columns if c not in RESULT_COLUMNS]
     df = pd.DataFrame({c: raw[c].str.strip() for c in (*RESULT_COLUMNS, *optional)})
     for column in NUMERIC_COLUMNS:
         df[column] = _parse_numeric(df[column], path, column)
     for column in BOOL_COLUMNS:
         df[column] = _parse_bool(df[column], path, column)
     for column in optional:
-        if column in CHECK_NUMERIC_COLUMNS:
+        if column in (*CHECK_NUMERIC_COLUMNS, *CONTRACT_NUMERIC_COLUMNS):
             df[column] = _parse_numeric(df[column], path, column)
-        elif column in CHECK_BOOL_COLUMNS:
+        elif column in (*CHECK_BOOL_COLUMNS, *CONTRACT_BOOL_COLUMNS):
             df[column] = _parse_bool(df[column], path, column)
-    for column in ("oversubscribed", "unstable"):
-        df[column] = df[column].fillna(False).astype(bool)
+    for column in ("oversubscribed", "unstable", *CONTRACT_BOOL_COLUMNS):
+        if column in df.columns:
+            df[column] = df[column].fillna(False).astype(bool)
     _check_rows(df, path)
+    df[tables.MACHINE] = machine_labels(df)
     return df
+
+
+def machine_labels(df: pd.DataFrame) -> pd.Series:
+    """Per row, the machine's label: `machine` where given, else the start of `machine_id`,
+    with the id's start appended where one label names several machines; empty where the row
+    predates machine identity."""
+    def column(name: str) -> pd.Series:
+        if name not in df.columns:
+            return pd.Series("", index=df.index, dtype=object)
+        return df[name].fillna("").astype(str).str.strip()
+
+    ids, labels = column("machine_id"), column(tables.MACHINE)
+    short = ids.str[:MACHINE_ID_SHOWN]
+    labels = labels.where(labels != "", short)
+    shared = ids.groupby(labels).transform("nunique") > 1
+    return labels.where(~shared | (ids == ""), labels + " (" + short + ")")
 
 
 def _check_rows(df: pd.DataFrame, path: Path) -> None:
@@ -154,19 +183,6 @@ def _check_rows(df: pd.DataFrame, path: Path) -> None:
             f"{path}: line {_line(untimed.idxmax())}: status "
             f"{df['status'][untimed.idxmax()]!r} but no wall_median_s"
         )
-
-
-def read_env(path: Path) -> dict[str, object]:
-    """env.json as a dict; an absent file is an empty dict (the header says so)."""
-    if not path.exists():
-        return {}
-    try:
-        env = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise HarnessError(f"{path}: cannot read environment: {e}") from e
-    if not isinstance(env, dict):
-        raise HarnessError(f"{path}: expected a JSON object, got {type(env).__name__}")
-    return env
 
 
 def read_divergence(path: Path) -> pd.DataFrame | None:
@@ -213,28 +229,19 @@ def read_trajectory(path: Path) -> pd.DataFrame:
     return traj
 
 
+def load_experiment(found: ExperimentDir) -> Experiment:
+    """One experiment directory read and checked (HarnessError naming the file otherwise)."""
+    frame = read_results(found.path / RESULTS_FILE)
+    titles = [t for t in frame["title"] if t]
+    title = titles[0] if titles else found.name
+    return Experiment(found.name, found.path, title, frame,
+                      read_env(found.path / ENV_FILE),
+                      read_divergence(found.path / DIVERGENCE_FILE))
+
+
 def load_experiments(
     results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
 ) -> list[Experiment]:
     """Every results/<name>/results.csv with at least one row, in the course report's order."""
-    if not results_dir.is_dir():
-        raise HarnessError(f"{results_dir}: results directory not found")
-    found = []
-    for path in sorted(results_dir.iterdir()):
-        csv = path / "results.csv"
-        if path.name.startswith(".") or not csv.is_file():
-            continue  # .cache, or an experiment still running its first cell
-        if path.name.endswith(QUICK_SUFFIX) and not include_quick:
-            continue
-        if only is not None and path.name not in only:
-            continue
-        frame = read_results(csv)
-        if frame.empty:
-            continue
-        titles = [t for t in frame["title"] if t]
-        title = titles[0] if titles else path.name
-        found.append(Experiment(path.name, path, title, frame, read_env(path / "env.json"),
-                                read_divergence(path / DIVERGENCE_FILE)))
-    rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
-    return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
-
+    return [load_experiment(found) for found in
+            find_experiments(results_dir, include_quick=include_quick, only=only)]

@@ -49,7 +49,10 @@ def _heading(section: Section, level: int) -> list[str]:
 
 
 def render_markdown(doc: Document, out_dir: Path) -> str:
-    lines = [f"# {doc.title}", "", *markdown_blocks(doc.preamble, out_dir)]
+    lines = [f"# {doc.title}", ""]
+    if doc.summary is not None:
+        lines += [*_heading(doc.summary, 2), *markdown_blocks(doc.summary.blocks, out_dir)]
+    lines += markdown_blocks(doc.preamble, out_dir)
     for section in doc.sections:
         lines += [*_heading(section, 2), *markdown_blocks(section.blocks, out_dir)]
         for sub in section.subsections:

@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness import plots, tables
 from harness.report.blocks import figure_block, table_block
+from harness.report.cache import Manifest
 from harness.report.checks import checks_subsections
 from harness.report.document import Block, Figure, Paragraph, Section, slug
 from harness.report.load import Experiment, read_trajectory
@@ -20,9 +21,13 @@ COURSE_FIGURE: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
 MAX_ERROR_FIGURES = 4  # error-vs-time figures per experiment (one per scene)
 MAX_TRAJECTORY_BYTES = 64 * 1024 * 1024  # larger print-mode outputs are not plotted
 PRINT_MODE = "print"
+SWEEP_FIGURES = {"n": plots.fig_particles, "L": plots.fig_square, "r": plots.fig_radius,
+                 "threads": plots.fig_threads}
 
 def _fixed_text(df: pd.DataFrame) -> str:
-    fixed = tables.fixed_params(df)
+    # An empty machine is a results.csv from before machine identity: nothing to name.
+    fixed = {k: v for k, v in tables.fixed_params(df).items()
+             if not (k == tables.MACHINE and v == "")}
     fixed_parts = [
         f"{tables.DISPLAY_NAMES[k]} = {tables.format_value(k, v)}" for k, v in fixed.items()
     ]
@@ -55,10 +60,10 @@ def cells_subsection(exp: Experiment, axes: Sequence[str]) -> Section:
                 blocks.append(Paragraph(f"Speedup is against {_baseline_words(baselines[0])}."))
     if table["speedup"].isna().all():
         unused = ("speedup", "efficiency", "serial_fraction")
-        table = table.drop(columns=[c for c in unused if c in table.columns])
+        table = tables.drop_columns(table, unused)
         blocks.append(Paragraph("No ok seq cell on the same scene: no speedups."))
     elif (df["threads"] == 1).all():
-        table = table.drop(columns="efficiency")  # at one thread it repeats the speedup
+        table = tables.drop_columns(table, ["efficiency"])  # at one thread: the speedup again
     elif not df["variant"].isin(tables.ALL_PAIRS_VARIANTS).all() or df["build"].nunique() > 1:
         blocks.append(Paragraph(
             "Efficiency and serial fraction are left blank where the speedup also counts a "
@@ -75,12 +80,12 @@ def _baseline_words(baseline: str) -> str:
     return "the same variant's median at 1 thread"
 
 
-def sweep_subsection(exp: Experiment, axis: str, fig_dir: Path) -> Section:
+def sweep_subsection(exp: Experiment, axis: str, figs: Manifest) -> Section:
     """Time against one swept parameter (Figures 3-5), with growth exponents against N."""
     sweep = plots.SWEEPS[axis]
-    stem = fig_dir / f"{slug(exp.name)}-time-vs-{axis.lower()}"
+    stem = figs.fig_dir / f"{slug(exp.name)}-time-vs-{axis.lower()}"
     title = f"{exp.title}: time against {sweep.label}"
-    paths = plots.fig_time_vs(exp.frame, axis, stem, title=title)
+    paths = figs.draw(SWEEP_FIGURES[axis], exp.frame, stem, title=title)
     caption = (
         f"Median wall time against {sweep.label} (cf. the course report's Figure "
         f"{COURSE_FIGURE[axis]})."
@@ -102,25 +107,25 @@ def sweep_subsection(exp: Experiment, axis: str, fig_dir: Path) -> Section:
                    tuple(blocks))
 
 
-def threads_subsection(exp: Experiment, fig_dir: Path) -> Section:
+def threads_subsection(exp: Experiment, figs: Manifest) -> Section:
     """Figure 6 plus speedup, efficiency and Karp-Flatt serial fraction against threads."""
     rows = tables.with_speedup(exp.frame, thread_baseline=True)
-    base = fig_dir / slug(exp.name)
+    base = figs.fig_dir / slug(exp.name)
     blocks: list[Block] = []
     if rows["speedup"].notna().any():
         blocks.append(figure_block(
-            plots.fig_speedup(rows, base.with_name(f"{base.name}-speedup"),
+            figs.draw(plots.fig_speedup, rows, base.with_name(f"{base.name}-speedup"),
                               title=f"{exp.title}: speedup"),
             "Speedup against threads; dashed: ideal S = p.",
         ))
         blocks.append(figure_block(
-            plots.fig_efficiency(rows, base.with_name(f"{base.name}-efficiency"),
+            figs.draw(plots.fig_efficiency, rows, base.with_name(f"{base.name}-efficiency"),
                                  title=f"{exp.title}: efficiency"),
             "Parallel efficiency S/p against threads; dashed: ideal 1.",
         ))
     if rows["serial_fraction"].notna().any():
         blocks.append(figure_block(
-            plots.fig_karp_flatt(rows, base.with_name(f"{base.name}-karp-flatt"),
+            figs.draw(plots.fig_karp_flatt, rows, base.with_name(f"{base.name}-karp-flatt"),
                                  title=f"{exp.title}: Karp–Flatt serial fraction"),
             "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
             "parallel overhead rather than a fixed serial part.",
@@ -144,7 +149,7 @@ def error_scenes(df: pd.DataFrame) -> list[pd.DataFrame]:
     return chosen
 
 
-def error_subsection(exp: Experiment, fig_dir: Path) -> Section:
+def error_subsection(exp: Experiment, figs: Manifest) -> Section:
     """Error against run time per variant and build, Pareto front marked, one figure a scene."""
     df = exp.frame
     shown = {"variant", "build", *tables.varying_keys(df)}
@@ -160,8 +165,8 @@ def error_subsection(exp: Experiment, fig_dir: Path) -> Section:
         label = tables.series_label(tuple(group[k].iloc[0] for k in varying), varying)
         suffix = f"-{index + 1}" if len(scenes) > 1 else ""
         title = f"{exp.title}: error against time" + (f" ({label})" if varying else "")
-        paths = plots.fig_error_time(group, fig_dir / f"{slug(exp.name)}-error-vs-time{suffix}",
-                                     title=title)
+        stem = figs.fig_dir / f"{slug(exp.name)}-error-vs-time{suffix}"
+        paths = figs.draw(plots.fig_error_time, group, stem, title=title)
         floor = plots.error_floor(group["max_pos_err"])
         zero_note = (f" Exact cells (error 0) are drawn at {floor:.0e}."
                      if (group["max_pos_err"] == 0).any() else "")
@@ -194,7 +199,7 @@ def _output_path(exp: Experiment, row: pd.Series) -> Path:
     return exp.path / "outputs" / f"{row['cell_id']}.txt"
 
 
-def trajectory_subsection(exp: Experiment, row: pd.Series, fig_dir: Path) -> Section:
+def trajectory_subsection(exp: Experiment, row: pd.Series, figs: Manifest) -> Section:
     """Figure 7: every particle's path through a print-mode run, plus an animated GIF."""
     path = _output_path(exp, row)
     anchor = f"{slug(exp.name)}-trajectory"
@@ -203,7 +208,7 @@ def trajectory_subsection(exp: Experiment, row: pd.Series, fig_dir: Path) -> Sec
         return Section(title, anchor, (Paragraph(f"`{path.name}` is too large to plot."),))
     traj = read_trajectory(path)
     box = float(row["L"])
-    stem = fig_dir / f"{slug(exp.name)}-trajectory"
+    stem = figs.fig_dir / f"{slug(exp.name)}-trajectory"
     steps = int(traj["step"].max()) if len(traj) else 0
     caption = (
         f"Positions after each of the {steps} steps of `{row['variant']}` "
@@ -212,14 +217,16 @@ def trajectory_subsection(exp: Experiment, row: pd.Series, fig_dir: Path) -> Sec
         "states joined by straight segments (cf. the course report's Figure 7)."
     )
     blocks: list[Block] = [
-        figure_block(plots.fig_trajectory(traj, stem, box=box, title=f"{exp.title}"), caption)
+        figure_block(figs.draw(plots.fig_trajectory, traj, stem, box=box, title=exp.title),
+                     caption)
     ]
-    gif = plots.gif_trajectory(traj, stem.with_name(f"{stem.name}-animation"), box=box)
-    blocks.append(Figure(gif, "The same run, one frame per step."))
+    gif = figs.draw(plots.gif_trajectory, traj, stem.with_name(f"{stem.name}-animation"),
+                    box=box)
+    blocks.append(Figure(gif[0], "The same run, one frame per step."))
     return Section(title, anchor, tuple(blocks))
 
 
-def experiment_section(exp: Experiment, fig_dir: Path) -> Section:
+def experiment_section(exp: Experiment, figs: Manifest) -> Section:
     """Everything the experiment's data supports, each part driven by what the rows vary."""
     # With no timed cell a figure would be an empty frame; the table shows the statuses.
     timed = exp.frame["status"].isin(tables.TIMED_STATUSES).any()
@@ -232,16 +239,16 @@ def experiment_section(exp: Experiment, fig_dir: Path) -> Section:
     parts: list[Section] = []
     for axis in ("n", "L", "r", "threads"):
         if axis in axes:
-            parts.append(sweep_subsection(exp, axis, fig_dir))
+            parts.append(sweep_subsection(exp, axis, figs))
     if "threads" in axes:
-        parts.append(threads_subsection(exp, fig_dir))
+        parts.append(threads_subsection(exp, figs))
     if tables.has_error_data(exp.frame) and not catalog:
-        parts.append(error_subsection(exp, fig_dir))
+        parts.append(error_subsection(exp, figs))
     traj_row = trajectory_cell(exp)
     if traj_row is not None:
-        parts.append(trajectory_subsection(exp, traj_row, fig_dir))
+        parts.append(trajectory_subsection(exp, traj_row, figs))
     if tables.has_check_data(exp.frame):
-        parts += checks_subsections(exp, fig_dir)
+        parts += checks_subsections(exp, figs)
     # The cell table leads whenever something varies; a lone cell only when nothing else shows.
     if (tables.varying_keys(exp.frame) and not catalog) or not parts:
         parts.insert(0, cells_subsection(exp, swept))
