@@ -507,6 +507,40 @@ def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     return sort_cells(table, ["experiment", "variant", "build", "n", "L", "r", "threads"])
 
 
+COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)
+DIRTY_SUFFIX = "-dirty"
+
+
+def _short_commit(commit: str) -> str:
+    dirty = commit.endswith(DIRTY_SUFFIX)
+    core = commit[: -len(DIRTY_SUFFIX)] if dirty else commit
+    return core[:COMMIT_SHOWN] + (DIRTY_SUFFIX if dirty else "")
+
+
+def provenance(df: pd.DataFrame) -> str:
+    """Which commit(s) measured these cells, and how many are stale (their binary changed
+    since), as a sentence for a table's caption; empty for results without the columns."""
+    sentences = []
+    if "git_commit" in df.columns:
+        commits = df["git_commit"].fillna("").astype(str).str.strip()
+        counts = commits[commits != ""].map(_short_commit).value_counts(sort=False)
+        if len(counts) == 1:
+            sentences.append(f"Measured at commit `{counts.index[0]}`.")
+        elif len(counts) > 1:
+            listed = ", ".join(f"`{c}` ({n} cell{'s' if n > 1 else ''})"
+                               for c, n in sorted(counts.items()))
+            sentences.append(f"Measured at commits {listed}.")
+        unknown = int((commits == "").sum())
+        if counts.any() and unknown:
+            sentences.append(f"{unknown} cell(s) from before commits were recorded.")
+    if "stale" in df.columns:
+        stale = int(df["stale"].fillna(False).astype(bool).sum())
+        if stale:
+            sentences.append(f"{stale} stale cell(s): their binary changed since they were "
+                             "measured.")
+    return " ".join(sentences)
+
+
 # --- display formatting -------------------------------------------------------------------
 
 MISSING_TEXT = "—"

@@ -11,8 +11,11 @@ from harness import tables
 from harness.report.document import Figure, Table
 
 
-def table_block(table: pd.DataFrame, caption: str) -> Table:
-    """A built table formatted for display, numbers right-aligned."""
+def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None) -> Table:
+    """A built table formatted for display, numbers right-aligned; with `source` (the cells
+    it was built from) the caption says which commit(s) measured them."""
+    if source is not None:
+        caption = " ".join(t for t in (caption, tables.provenance(source)) if t)
     align = tuple(tables.is_numeric_column(table, c) for c in tables.display_columns(table))
     shown = tables.format_table(table)
     rows = tuple(tuple(str(v) for v in row) for row in shown.itertuples(index=False))

@@ -80,7 +80,7 @@ def checks_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
     blocks.append(table_block(
         tables.stability_matrix(df),
         f"Scene × variant/build: {tables.PASS_MARK} every check passed, {tables.FAIL_MARK} the "
-        "checks that failed.",
+        "checks that failed.", source=df,
     ))
     blocks.append(table_block(tables.check_summary(df), "Each check over all checked cells."))
     trust = tables.trust_table(df)
@@ -92,6 +92,7 @@ def checks_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
         f"is within {tables.TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median and "
         "worst over the scenes). How soon a whole run is a radius off the truth is in the "
         "accuracy table, not judged: chaos takes every precision there in a dense scene.",
+        source=df,
     ))
     sections = [Section("Stability checks", f"{base}-stability", tuple(blocks))]
     timed = df["runs"].fillna(0) >= MIN_TIMED_RUNS
@@ -105,7 +106,7 @@ def checks_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
             "shadow-step error (one step against __float128, ÷ L) and its worst in radii, the "
             "share of steps whose accepted collisions differ, the energy drift and the steps "
             "until the run is a radius from the truth; ✓ marks the Pareto front of time "
-            "against shadow error.",
+            "against shadow error.", source=df[timed],
         ))
     scenes = _checked_scenes(exp)
     for index, scene in enumerate(scenes):

@@ -71,7 +71,7 @@ def cells_subsection(exp: Experiment, axes: Sequence[str]) -> Section:
         ))
     caption = f"Per-cell statistics{_course_table(axes, df)}."
     return Section("Measurements", f"{slug(exp.name)}-cells",
-                   (table_block(table, caption), *blocks))
+                   (table_block(table, caption, source=df), *blocks))
 
 
 def _baseline_words(baseline: str) -> str:
@@ -101,7 +101,8 @@ def sweep_subsection(exp: Experiment, axis: str, figs: Manifest) -> Section:
                 "step, so k ≈ 2 is expected of them, and less of the grid."
             ))
             blocks.append(table_block(
-                exponents, "Fitted growth t ≈ a·N^k over N = from … to, per series."
+                exponents, "Fitted growth t ≈ a·N^k over N = from … to, per series; k with "
+                "its standard error from the fit.", source=exp.frame,
             ))
     return Section(f"Time against {sweep.label}", f"{slug(exp.name)}-{axis.lower()}",
                    tuple(blocks))
@@ -157,7 +158,7 @@ def error_subsection(exp: Experiment, figs: Manifest) -> Section:
     blocks: list[Block] = [table_block(
         tables.error_table(df, keys),
         "Deviation from the baseline output (maximum over particles; positions relative to L) "
-        "and median time; ✓ marks the Pareto front of each scene.",
+        "and median time; ✓ marks the Pareto front of each scene.", source=df,
     )]
     scenes = error_scenes(df)
     varying = [k for k in tables.SCENE_KEYS if k in tables.varying_keys(df)]
