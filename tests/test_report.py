@@ -333,7 +333,7 @@ def test_the_report_opens_with_a_summary_before_the_warnings(rendered: Path) -> 
     for start in ("- Best strategy: ", "- Grid against seq: ", "- Largest N measured: ",
                   "- Fidelity: "):
         assert start in summary
-    assert "invalid** of" in summary  # the fixtures have an invalid cell: the verdict says so
+    assert "1 INVALID of" in summary  # the fixtures have an invalid cell: the verdict says so
     # The largest N of the fixtures is grid's, and the best strategy is not seq or grid.
     assert "`grid`" in summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
     best = summary.split("- Best strategy: ", 1)[1].split("\n", 1)[0]

@@ -136,7 +136,7 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     sentences = []
     if total.validated:
         if total.invalid:
-            verdict = (f"**{total.invalid} invalid** of {total.validated} validated cells "
+            verdict = (f"{total.invalid} INVALID of {total.validated} validated cells "
                        f"([warnings](#{WARNINGS_ANCHOR}))")
         else:
             verdict = f"no invalid cell among {total.validated} validated"
