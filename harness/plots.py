@@ -134,6 +134,31 @@ class _Marks:
     oversubscribed: bool = False
     invalid: bool = False
     failed: bool = False
+    intervals: bool = False  # error bars were drawn
+
+
+# Where a plotted column's 95% interval lives: a cell's median has the bootstrap interval of
+# results.csv; a speedup-derived metric has the `_low`/`_high` of tables.with_speedup.
+INTERVAL_COLUMNS: dict[str, tuple[str, str]] = {
+    "wall_median_s": ("wall_median_ci_low_s", "wall_median_ci_high_s"),
+}
+
+
+def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
+    """Error-bar lengths (2 x rows: below, above) of column `y` from its interval columns;
+    zero where a row has no interval; None when no row has one."""
+    low, high = INTERVAL_COLUMNS.get(y, (f"{y}_low", f"{y}_high"))
+    if low not in rows.columns or high not in rows.columns:
+        return None
+    values = rows[y].to_numpy(dtype=float)
+    lows = rows[low].to_numpy(dtype=float)
+    highs = rows[high].to_numpy(dtype=float)
+    known = np.isfinite(lows) & np.isfinite(highs)
+    if not known.any():
+        return None
+    below = np.where(known, np.clip(values - lows, 0, None), 0.0)
+    above = np.where(known, np.clip(highs - values, 0, None), 0.0)
+    return np.vstack([below, above])
 
 
 def variant_color(variant: str) -> str:
@@ -176,6 +201,10 @@ def _plot_series(
     over = timed["oversubscribed"].to_numpy(dtype=bool)
     invalid = (timed["status"] == tables.INVALID).to_numpy(dtype=bool)
     ax.plot(xs, ys, "-o", color=color, label=label, markevery=list(np.flatnonzero(~over)))
+    bars = interval_errors(timed, y)
+    if bars is not None:
+        marks.intervals = True
+        ax.errorbar(xs, ys, yerr=bars, fmt="none", ecolor=color, elinewidth=1, capsize=3)
     if over.any():
         marks.oversubscribed = True
         ax.plot(xs[over], ys[over], "o", ls="none", mfc="white", mec=color, mew=1.5)
@@ -211,6 +240,10 @@ def _marker_handles(marks: _Marks) -> list[Line2D]:
         handles.append(
             Line2D([], [], ls="none", marker="x", color="black", ms=8, mew=2,
                    label="invalid output")
+        )
+    if marks.intervals:
+        handles.append(
+            Line2D([], [], ls="none", marker="|", color="gray", ms=10, label="95% interval")
         )
     if marks.failed:
         handles.append(
@@ -398,7 +431,10 @@ def _exponent_suffix(exponents: pd.DataFrame, keys: Sequence[str], values: tuple
     if not match.any():
         return ""
     k = float(exponents.loc[match, "exponent"].iloc[0])
-    return rf" (t$\propto$N$^{{{k:.2f}}}$)"
+    se = float(exponents.loc[match, "exponent_se"].iloc[0]) if (
+        "exponent_se" in exponents.columns) else math.nan
+    error = f" ± {se:.2g}" if math.isfinite(se) else ""
+    return rf" (t$\propto$N$^{{{k:.2f}}}${error})"
 
 
 def _draw_ideal_threads(ax: Axes, rows: pd.DataFrame, color: str) -> bool:

@@ -13,13 +13,16 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-# The columns that identify a measured cell, in the order tables show them.
+MACHINE = "machine"  # the machine's label; one label per machine_id (harness.report.load)
+# The columns that identify a measured cell, in the order tables show them. A results
+# directory may hold several machines' cells side by side: the machine is then a dimension
+# like any other (a table column, one plotted series each).
 CELL_KEYS: tuple[str, ...] = (
-    "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
+    MACHINE, "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
 )
 # The columns that identify a simulated input: cells sharing them simulate the same thing,
-# so one may serve as the other's speedup baseline.
-SCENE_KEYS: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "mode", "seed")
+# so one may serve as the other's speedup baseline (never across machines).
+SCENE_KEYS: tuple[str, ...] = (MACHINE, "scene", "n", "L", "r", "steps", "mode", "seed")
 # Parameters a section can sweep, in the order the course report's tables take them.
 SWEEP_AXES: tuple[str, ...] = ("n", "L", "r", "threads")
 
@@ -47,6 +50,7 @@ BASELINE_ONE_THREAD = "1 thread"
 # Display headers for every column a builder can produce.
 DISPLAY_NAMES: dict[str, str] = {
     "experiment": "experiment",
+    MACHINE: "machine",
     "variant": "variant",
     "build": "build",
     "scene": "scene",
@@ -102,6 +106,11 @@ DISPLAY_NAMES: dict[str, str] = {
 }
 
 
+def present(df: pd.DataFrame, keys: Iterable[str]) -> list[str]:
+    """The keys that are columns of `df` (a frame from before the machine column has none)."""
+    return [k for k in keys if k in df.columns]
+
+
 def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]:
     """The keys that take more than one value across the rows: what the experiment varies."""
     return [k for k in keys if k in df.columns and df[k].nunique(dropna=False) > 1]
@@ -147,7 +156,7 @@ def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
     parts = []
     for key, value in zip(keys, values, strict=True):
         text = format_value(key, value)
-        if key in ("variant", "build", "scene"):
+        if key in ("variant", "build", "scene", MACHINE):
             parts.append(text)
         elif key == "threads":
             parts.append(f"{text} thread{'' if text == '1' else 's'}")
@@ -186,20 +195,22 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
     build (the validation baseline) where measured, else seq of the row's own build.
 
-    Returns columns `base_s` (seq's median) and `base_build`. seq is single-threaded whatever
-    `threads` says, so its lowest-thread cell stands for all.
+    Returns columns `base_s` (seq's median), `base_times` (its per-run times, text) and
+    `base_build`. seq is single-threaded whatever `threads` says, so its lowest-thread cell
+    stands for all.
     """
+    df = _with_times(df)
     seq = df[(df["variant"] == SEQ) & (df["status"] == OK) & df["wall_median_s"].notna()]
     seq = seq.sort_values("threads", kind="stable")
-    keys = list(SCENE_KEYS)
+    keys = present(df, SCENE_KEYS)
     reference = (
         seq[seq["build"] == BASELINE_BUILD]
-        .drop_duplicates(keys)[[*keys, "wall_median_s", "build"]]
-        .rename(columns={"wall_median_s": "_ref_s", "build": "_ref_build"})
+        .drop_duplicates(keys)[[*keys, "wall_median_s", TIMES, "build"]]
+        .rename(columns={"wall_median_s": "_ref_s", TIMES: "_ref_t", "build": "_ref_build"})
     )
     same_build = (
-        seq.drop_duplicates([*keys, "build"])[[*keys, "build", "wall_median_s"]]
-        .rename(columns={"wall_median_s": "_same_s"})
+        seq.drop_duplicates([*keys, "build"])[[*keys, "build", "wall_median_s", TIMES]]
+        .rename(columns={"wall_median_s": "_same_s", TIMES: "_same_t"})
     )
     merged = df[[*keys, "build"]].merge(reference, how="left", on=keys)
     merged = merged.merge(same_build, how="left", on=[*keys, "build"])
@@ -207,6 +218,7 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     base = pd.DataFrame(
         {
             "base_s": merged["_ref_s"].where(has_ref, merged["_same_s"]),
+            "base_times": merged["_ref_t"].where(has_ref, merged["_same_t"]),
             "base_build": merged["_ref_build"].where(has_ref, merged["build"]),
         }
     )
@@ -214,16 +226,63 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     return base
 
 
-def _one_thread_baseline(df: pd.DataFrame) -> pd.Series:
-    """Per row, the median of the same variant and build at 1 thread on the same scene."""
-    keys = [*SCENE_KEYS, "variant", "build"]
+def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
+    """Per row, the median (`base_s`) and run times (`base_times`) of the same variant and
+    build at 1 thread on the same scene."""
+    df = _with_times(df)
+    keys = [*present(df, SCENE_KEYS), "variant", "build"]
     one = df[(df["threads"] == 1) & (df["status"] == OK) & df["wall_median_s"].notna()]
-    one = one.drop_duplicates(keys)[[*keys, "wall_median_s"]].rename(
-        columns={"wall_median_s": "_one"}
+    one = one.drop_duplicates(keys)[[*keys, "wall_median_s", TIMES]].rename(
+        columns={"wall_median_s": "base_s", TIMES: "base_times"}
     )
-    base = df[keys].merge(one, how="left", on=keys)["_one"]
+    base = df[keys].merge(one, how="left", on=keys)[["base_s", "base_times"]]
     base.index = df.index
     return base
+
+
+TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
+INTERVAL_SUFFIXES: tuple[str, str] = ("_low", "_high")  # a column's 95% interval ends
+
+
+def _with_times(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows with a `wall_times_s` column (empty where older results lack it)."""
+    return df if TIMES in df.columns else df.assign(**{TIMES: ""})
+
+
+def parse_times(text: object) -> list[float]:
+    """`wall_times_s` as floats; no times for a missing or empty cell."""
+    if not isinstance(text, str) or not text.strip():
+        return []
+    return [float(t) for t in text.split()]
+
+
+def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
+    """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
+    intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
+    either cell has fewer than two times, so tables fall back to the point value."""
+    columns = {f"{m}{s}": np.full(len(out), np.nan)
+               for m in ("speedup", "efficiency", "serial_fraction") for s in INTERVAL_SUFFIXES}
+    own_times = out[TIMES] if TIMES in out.columns else pd.Series("", index=out.index)
+    pairs = [(i, parse_times(b), parse_times(t))
+             for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
+    pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
+             and pd.notna(out["speedup"].iloc[p[0]])]
+    if pairs:
+        from harness import stats  # scipy: imported only when there are times to bootstrap
+
+        for i, base, own in pairs:
+            speedup = stats.speedup_ci(base, own)
+            threads = int(out["threads"].iloc[i])
+            metrics = {"speedup": speedup}
+            if pd.notna(out["efficiency"].iloc[i]):
+                metrics["efficiency"] = stats.efficiency(speedup, threads)
+            if pd.notna(out["serial_fraction"].iloc[i]):
+                metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
+            for name, interval in metrics.items():
+                columns[f"{name}_low"][i] = interval.low
+                columns[f"{name}_high"][i] = interval.high
+    for name, values in columns.items():
+        out[name] = values
 
 
 def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
@@ -247,6 +306,7 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataF
     out = df.copy()
     seq = _seq_baseline(df)
     base = seq["base_s"]
+    base_times = seq["base_times"]
     label = pd.Series(np.where(base.notna(), BASELINE_SEQ, ""), index=df.index, dtype=object)
     # Parallel efficiency and the serial fraction read a speedup as the work of one thread
     # spread over p: true against seq for the all-pairs family in seq's build, or against
@@ -256,8 +316,9 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataF
     same_work &= ~(df["variant"].isin(SINGLE_THREADED_VARIANTS) & (df["threads"] > 1))
     if thread_baseline:
         own = _one_thread_baseline(df)
-        use_own = base.isna() & own.notna()
-        base = base.where(~use_own, own)
+        use_own = base.isna() & own["base_s"].notna()
+        base = base.where(~use_own, own["base_s"])
+        base_times = base_times.where(~use_own, own["base_times"])
         label[use_own] = BASELINE_ONE_THREAD
         same_work |= use_own
     timed = out["status"].isin(TIMED_STATUSES)
@@ -266,7 +327,21 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataF
     out["speedup"] = (base / out["wall_median_s"]).where(timed)
     out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
     out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
+    _speedup_intervals(out, base_times)
     return out
+
+
+# Flags of the shared results.csv contract that qualify a cell's timing, and how they read.
+TIMING_FLAGS: dict[str, str] = {
+    "outliers": "outliers",  # hyperfine warned about statistical outliers
+    "loaded": "loaded machine",  # other processes loaded the machine when the cell started
+    "stale": "stale binary",  # its binary changed since it was measured
+}
+
+
+def _is_true(value: object) -> bool:
+    """Whether a nullable boolean is a known True."""
+    return value is not None and not pd.isna(value) and bool(value)
 
 
 def _is_false(value: object) -> bool:
@@ -287,6 +362,9 @@ def validation_text(row: pd.Series) -> str:
         parts.append("oversubscribed")
     if bool(row.get("unstable")):
         parts.append("unstable timing")
+    for flag, words in TIMING_FLAGS.items():
+        if _is_true(row.get(flag)):
+            parts.append(words)
     return " · ".join(parts)
 
 
@@ -306,9 +384,14 @@ def cell_table(
     table["min_s"] = rows["wall_min_s"]
     table["stddev_s"] = rows["wall_stddev_s"]
     table["speedup"] = rows["speedup"]
+    table["speedup_low"], table["speedup_high"] = rows["speedup_low"], rows["speedup_high"]
     table["efficiency"] = rows["efficiency"]
+    table["efficiency_low"] = rows["efficiency_low"]
+    table["efficiency_high"] = rows["efficiency_high"]
     if "threads" in keys:
         table["serial_fraction"] = rows["serial_fraction"]
+        table["serial_fraction_low"] = rows["serial_fraction_low"]
+        table["serial_fraction_high"] = rows["serial_fraction_high"]
         table["baseline"] = rows["baseline"]
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     return sort_cells(table, keys)
@@ -328,18 +411,24 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
     for values, group in groups:
         if group[x].nunique() < 2:
             continue
-        k, log_a = np.polyfit(np.log(group[x].astype(float)), np.log(group["wall_median_s"]), 1)
+        from harness import stats  # scipy, only when there is a fit to make
+
+        fit = stats.power_fit(group[x].astype(float).tolist(),
+                              group["wall_median_s"].astype(float).tolist())
+        if fit is None:
+            continue
         label_values = values if isinstance(values, tuple) else (values,)
         row: dict[str, object] = dict(zip(keys, label_values, strict=True))
         row.update(
-            exponent=float(k),
-            prefactor_s=float(math.exp(log_a)),
+            exponent=fit.exponent,
+            exponent_se=fit.stderr,
+            prefactor_s=fit.coefficient,
             points=len(group),
             x_min=group[x].min(),
             x_max=group[x].max(),
         )
         rows.append(row)
-    columns = [*keys, "exponent", "prefactor_s", "points", "x_min", "x_max"]
+    columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
     return sort_cells(pd.DataFrame(rows, columns=columns), keys)
 
 
@@ -379,7 +468,7 @@ def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     # Cells of different scenes are not comparable, so each scene has its own front.
     table["pareto"] = False
-    for _, group in rows.groupby(list(SCENE_KEYS), dropna=False):
+    for _, group in rows.groupby(present(rows, SCENE_KEYS), dropna=False):
         front = pareto_mask(group["wall_median_s"], group["max_pos_err"])
         table.loc[front.index, "pareto"] = front
     return sort_cells(table, keys)
@@ -399,16 +488,57 @@ def issue_text(row: pd.Series) -> str:
         issues.append(f"oversubscribed ({int(row['threads'])} threads{cores_text})")
     if bool(row.get("unstable")):
         issues.append("unstable timing")
+    for flag, words in TIMING_FLAGS.items():
+        if _is_true(row.get(flag)):
+            issues.append(words)
     return "; ".join(issues)
 
 
 def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     """The cells a reader must know about: not ok, oversubscribed, or with unstable timings."""
-    flagged = df[(df["status"] != OK) | df["oversubscribed"] | df["unstable"]]
+    mask = (df["status"] != OK) | df["oversubscribed"] | df["unstable"]
+    for flag in TIMING_FLAGS:
+        if flag in df.columns:
+            mask |= df[flag].fillna(False).astype(bool)
+    flagged = df[mask]
     keys = ["experiment", "variant", "build", "scene", "n", "L", "r", "threads"]
     table = pd.DataFrame({k: flagged[k] for k in keys})
     table["issue"] = flagged.apply(issue_text, axis=1) if len(flagged) else []
     return sort_cells(table, ["experiment", "variant", "build", "n", "L", "r", "threads"])
+
+
+COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)
+DIRTY_SUFFIX = "-dirty"
+
+
+def _short_commit(commit: str) -> str:
+    dirty = commit.endswith(DIRTY_SUFFIX)
+    core = commit[: -len(DIRTY_SUFFIX)] if dirty else commit
+    return core[:COMMIT_SHOWN] + (DIRTY_SUFFIX if dirty else "")
+
+
+def provenance(df: pd.DataFrame) -> str:
+    """Which commit(s) measured these cells, and how many are stale (their binary changed
+    since), as a sentence for a table's caption; empty for results without the columns."""
+    sentences = []
+    if "git_commit" in df.columns:
+        commits = df["git_commit"].fillna("").astype(str).str.strip()
+        counts = commits[commits != ""].map(_short_commit).value_counts(sort=False)
+        if len(counts) == 1:
+            sentences.append(f"Measured at commit `{counts.index[0]}`.")
+        elif len(counts) > 1:
+            listed = ", ".join(f"`{c}` ({n} cell{'s' if n > 1 else ''})"
+                               for c, n in sorted(counts.items()))
+            sentences.append(f"Measured at commits {listed}.")
+        unknown = int((commits == "").sum())
+        if counts.any() and unknown:
+            sentences.append(f"{unknown} cell(s) from before commits were recorded.")
+    if "stale" in df.columns:
+        stale = int(df["stale"].fillna(False).astype(bool).sum())
+        if stale:
+            sentences.append(f"{stale} stale cell(s): their binary changed since they were "
+                             "measured.")
+    return " ".join(sentences)
 
 
 # --- display formatting -------------------------------------------------------------------
@@ -457,6 +587,7 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "speedup": _fmt_ratio,
     "efficiency": _fmt_ratio,
     "exponent": _fmt_ratio,
+    "exponent_se": lambda v: f"{float(v):.2g}",
     "serial_fraction": _fmt_fraction,
     "max_pos_err": _fmt_error,
     "max_vel_err": _fmt_error,
@@ -501,12 +632,53 @@ def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
     )
 
 
+SE_SUFFIX = "_se"  # a column's standard error
+
+
+def _companions(column: str) -> tuple[str, ...]:
+    return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}")
+
+
+def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """The table without `columns` and their intervals and standard errors."""
+    gone = {c for col in columns for c in (col, *_companions(col))}
+    return df.drop(columns=[c for c in df.columns if c in gone])
+
+
+def display_columns(df: pd.DataFrame) -> list[str]:
+    """The columns a table shows: an interval's ends and a standard error are written into
+    the column they qualify, not beside it."""
+    hidden = {c for col in df.columns for c in _companions(str(col)) if c in df.columns}
+    return [str(c) for c in df.columns if c not in hidden]
+
+
+def format_with_uncertainty(df: pd.DataFrame, column: str, index: int) -> str:
+    """`1.98 [1.95, 2.01]` where the row has an interval, `1.98 ± 0.02` where it has a
+    standard error, else the value alone."""
+    value = df[column].iloc[index]
+    text = format_value(column, value)
+    if text == MISSING_TEXT:
+        return text
+    low, high = (f"{column}{s}" for s in INTERVAL_SUFFIXES)
+    if low in df.columns and high in df.columns:
+        a, b = df[low].iloc[index], df[high].iloc[index]
+        if pd.notna(a) and pd.notna(b) and math.isfinite(a) and math.isfinite(b):
+            return f"{text} [{format_value(column, a)}, {format_value(column, b)}]"
+    se = f"{column}{SE_SUFFIX}"
+    if se in df.columns:
+        error = df[se].iloc[index]
+        if pd.notna(error) and math.isfinite(error):
+            return f"{text} ± {format_value(se, error)}"
+    return text
+
+
 def format_table(df: pd.DataFrame) -> pd.DataFrame:
     """A built table as strings under display headers, ready for Markdown or HTML."""
     shown = pd.DataFrame(
         {
-            DISPLAY_NAMES.get(col, col): [format_value(str(col), v) for v in df[col]]
-            for col in df.columns
+            DISPLAY_NAMES.get(col, col): [format_with_uncertainty(df, col, i)
+                                          for i in range(len(df))]
+            for col in display_columns(df)
         },
         dtype=object,
     )
@@ -546,7 +718,7 @@ def variant_build(row: pd.Series) -> str:
 def scene_names(df: pd.DataFrame) -> pd.Series:
     """Per row, the name of its input: the scene label, plus the parameters that tell apart
     the inputs sharing that label (e.g. `random N=4000 L=12649.1 S=3`)."""
-    keys = [k for k in SCENE_KEYS[1:] if k in df.columns
+    keys = [k for k in SCENE_KEYS if k not in (MACHINE, "scene") and k in df.columns
             and df.groupby("scene", dropna=False)[k].nunique(dropna=False).max() > 1]
     if not keys:
         return df["scene"].astype(str)
@@ -630,8 +802,8 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
         table[column] = rows[column] if column in rows.columns else np.nan
     table["pareto"] = False
     if "shadow_pos_err" in rows.columns:
-        for _, group in rows[rows["shadow_pos_err"].notna()].groupby(list(SCENE_KEYS),
-                                                                      dropna=False):
+        for _, group in rows[rows["shadow_pos_err"].notna()].groupby(
+                present(rows, SCENE_KEYS), dropna=False):
             front = pareto_mask(group["wall_median_s"], group["shadow_pos_err"])
             table.loc[front.index, "pareto"] = front
     return sort_cells(table, keys)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from harness import plots, report, tables
@@ -141,3 +142,50 @@ def test_a_wrapped_title_stays_inside_the_figure() -> None:
     assert title.y1 <= fig.bbox.height
     axes_top = ax.get_window_extent(fig.canvas.get_renderer()).y1
     assert title.y0 >= axes_top  # and above the axes, not over the plot
+
+
+# --- uncertainty and machines ---------------------------------------------------------------
+
+
+def svg_text(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+def test_interval_errors_are_the_distances_to_the_interval_ends() -> None:
+    rows = pd.DataFrame({"speedup": [2.0, 3.0, 4.0], "speedup_low": [1.5, np.nan, 4.0],
+                         "speedup_high": [2.5, np.nan, 4.5]})
+    bars = plots.interval_errors(rows, "speedup")
+    assert bars is not None
+    assert bars.tolist() == [[0.5, 0.0, 0.0], [0.5, 0.0, 0.5]]
+    assert plots.interval_errors(rows.drop(columns=["speedup_low"]), "speedup") is None
+    medians = pd.DataFrame({"wall_median_s": [1.0], "wall_median_ci_low_s": [0.9],
+                            "wall_median_ci_high_s": [1.2]})
+    bars = plots.interval_errors(medians, "wall_median_s")
+    assert bars is not None and np.allclose(bars.ravel(), [0.1, 0.2])
+
+
+def with_two_machines(frame: pd.DataFrame) -> pd.DataFrame:
+    """The cells as measured on two machines, the second 1.5x slower with known CIs."""
+    fast = frame.assign(machine="fast box")
+    slow = frame.assign(machine="slow box", wall_median_s=frame["wall_median_s"] * 1.5)
+    both = pd.concat([fast, slow], ignore_index=True)
+    both["wall_median_ci_low_s"] = both["wall_median_s"] * 0.95
+    both["wall_median_ci_high_s"] = both["wall_median_s"] * 1.05
+    return both
+
+
+def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: Path) -> None:
+    import matplotlib as mpl
+
+    frame = with_two_machines(load("threads"))
+    assert tables.series_keys(frame, "threads")[0] == "machine"
+    with mpl.rc_context({"svg.fonttype": "none"}):  # text as <text>, so it can be read back
+        time_paths = plots.fig_threads(frame, tmp_path / "time")
+        speed_paths = plots.fig_speedup(tables.with_speedup(frame, thread_baseline=True),
+                                        tmp_path / "speedup")
+        single = plots.fig_threads(load("threads"), tmp_path / "single")
+    for paths in (time_paths, speed_paths):
+        svg = svg_text(paths[1])
+        assert "fast box" in svg and "slow box" in svg
+    assert "95% interval" in svg_text(time_paths[1])
+    assert "95% interval" not in svg_text(single[1]) and "threads p" in svg_text(single[1])

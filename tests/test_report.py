@@ -107,7 +107,7 @@ def test_a_section_without_data_is_absent(tmp_path: Path) -> None:
     for absent in ("Warnings", "Thread scaling", "Speedup, efficiency and serial fraction",
                    "Error against run time", "Trajectories", "Time against threads p"):
         assert absent not in titles
-    figures = {p.name for p in (out / "figures").iterdir()}
+    figures = {p.name for p in (out / "figures").iterdir() if not p.name.startswith(".")}
     assert figures == {"particles-time-vs-n.png", "particles-time-vs-n.svg"}
 
 
@@ -173,8 +173,8 @@ def test_empty_results_give_a_short_report(tmp_path: Path) -> None:
 
 
 def test_results_path_is_shown_relative_to_the_repository(tmp_path: Path) -> None:
-    inside = report.build_document([], report.REPO_ROOT / "results", tmp_path)
-    outside = report.build_document([], tmp_path / "results", tmp_path)
+    inside = report.build_document([], report.REPO_ROOT / "results")
+    outside = report.build_document([], tmp_path / "results")
     assert "`results`" in str(inside) and str(report.REPO_ROOT) not in str(inside)
     assert str(tmp_path / "results") in str(outside)
 
@@ -299,9 +299,9 @@ def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
         pytest.skip("no .venv to re-exec into")
     root = results_with(tmp_path, "radius")
     done = subprocess.run(
-        [sys.executable, "-S", str(REPO_ROOT / "harness" / "report.py"), "--results-dir",
+        [sys.executable, "-S", "-m", "harness.report", "--results-dir",
          str(root), "--out", str(tmp_path / "r")],
-        capture_output=True, text=True, check=False, cwd=tmp_path,
+        capture_output=True, text=True, check=False, cwd=REPO_ROOT,
     )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "r" / "report.md").is_file()
@@ -310,12 +310,117 @@ def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
 def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
     copy = tmp_path / "repo" / "harness"
     copy.mkdir(parents=True)
-    shutil.copy(REPO_ROOT / "harness" / "report.py", copy / "report.py")
+    (copy / "__init__.py").write_text("")
+    shutil.copytree(REPO_ROOT / "harness" / "report", copy / "report")
     done = subprocess.run(
-        [sys.executable, "-S", str(copy / "report.py")],
-        capture_output=True, text=True, check=False, cwd=tmp_path,
+        [sys.executable, "-S", "-m", "harness.report"],
+        capture_output=True, text=True, check=False, cwd=tmp_path / "repo",
     )
     assert done.returncode == 2
     assert done.stderr.strip() == (
-        "error: missing Python packages (pandas, numpy, matplotlib, PIL); run 'make setup'"
+        "error: missing Python packages (pandas, numpy, matplotlib, PIL, scipy); run 'make setup'"
     )
+
+
+# --- the summary, links and layout ----------------------------------------------------------
+
+
+def test_the_report_opens_with_a_summary_before_the_warnings(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    titles = headings(markdown)
+    assert titles[:3] == ["collide-bench report", "Summary", "Warnings"]
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    for start in ("- Best strategy: ", "- Grid against seq: ", "- Largest N measured: ",
+                  "- Fidelity: "):
+        assert start in summary
+    assert "1 INVALID of" in summary  # the fixtures have an invalid cell: the verdict says so
+    # The largest N of the fixtures is grid's, and the best strategy is not seq or grid.
+    assert "`grid`" in summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
+    best = summary.split("- Best strategy: ", 1)[1].split("\n", 1)[0]
+    assert not best.startswith(("`seq`", "`grid`"))
+
+
+def test_every_summary_link_lands_on_an_anchor(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    targets = re.findall(r"\]\(#([^)]+)\)", summary)
+    assert len(targets) >= 4
+    md_anchors = set(re.findall(r'<a id="([^"]+)"></a>', markdown))
+    html_ids = set(re.findall(r'id="([^"]+)"', page))
+    for target in targets:
+        assert target in md_anchors and target in html_ids, target
+        assert f'href="#{target}"' in page
+
+
+def test_wide_tables_scroll_inside_their_own_box(rendered: Path) -> None:
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    assert page.count("<table>") == page.count('<div class="table-wrap"><table>')
+    assert re.search(r"\.table-wrap \{[^}]*overflow-x: auto", page)
+
+
+# --- the shared contract's columns, when a results.csv has them ----------------------------
+
+
+def add_columns(csv_path: Path, values: object) -> None:
+    """Append columns to every row: `values(row) -> dict` (rows as csv.DictReader gives)."""
+    import csv
+
+    with csv_path.open(newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    extra = [{**row, **values(row)} for row in rows]  # type: ignore[operator]
+    with csv_path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(extra[0]))
+        writer.writeheader()
+        writer.writerows(extra)
+
+
+def run_times(row: dict[str, str]) -> str:
+    """Three run times around the row's median: median, 2% below, 3% above."""
+    median = float(row["wall_median_s"]) if row["wall_median_s"] else 0.0
+    return " ".join(repr(t) for t in (median * 0.98, median, median * 1.03)) if median else ""
+
+
+def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    add_columns(root / "strategies" / "results.csv", lambda row: {
+        "machine_id": "0123456789abcdef", "machine": "AMD EPYC 7B13 (Zen3) x2",
+        "wall_times_s": run_times(row), "git_commit": "abcdef0123456789",
+        "outliers": "True" if row["variant"] == "p2" else "False", "loaded": "False",
+        "stale": "False"})
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "machine = AMD EPYC 7B13 (Zen3) x2" in markdown
+    table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
+    assert "| machine |" not in table
+    assert re.search(r"\| p1 \|.*\| \d\.\d\d \[\d\.\d\d, \d\.\d\d\] \|", table)
+    assert "Measured at commit `abcdef0123`." in markdown
+    assert "ok · outliers" in table
+    assert "1 outliers" in markdown.split("## Warnings", 1)[1]
+    best = markdown.split("- Best strategy: ", 1)[1].split("\n", 1)[0]
+    assert re.search(r"\d\.\d\d× \[\d\.\d\d, \d\.\d\d\] faster than seq", best)
+
+
+def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "threads")
+    csv_path = root / "threads" / "results.csv"
+    lines = csv_path.read_text(encoding="utf-8").splitlines()
+    csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
+    seen: dict[str, int] = {}
+
+    def machine(row: dict[str, str]) -> dict[str, str]:
+        seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
+        first = seen[row["cell_id"]] == 1
+        return {"machine_id": ("aa" if first else "bb") * 8, "machine": "AMD EPYC",
+                "git_commit": "c0ffee" if first else "decade"}
+
+    add_columns(csv_path, machine)
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
+    # One label, two machine ids: the label is told apart by the id's start.
+    assert "| machine |" in table
+    assert "AMD EPYC (aaaaaaaa)" in table and "AMD EPYC (bbbbbbbb)" in table
+    assert "Measured at commits `c0ffee` (16 cells), `decade` (16 cells)." in markdown

@@ -199,3 +199,129 @@ def test_format_table_writes_units_and_dashes() -> None:
     assert tables.format_value("L", 1e7) == "10000000"
     assert tables.format_value("max_pos_err", 0.0) == "0"
     assert tables.format_value("max_pos_err", 2.1e-4) == "2.10e-04"
+
+
+# --- uncertainty, machines and provenance (the shared results.csv contract) ----------------
+
+
+def contract_frame(rows: list[dict[str, object]]) -> pd.DataFrame:
+    """Cells as report.read_results types them, from a few keys per row."""
+    base = {"title": "t", "build": "f64", "scene": "random", "n": 1000.0, "L": 2000.0,
+            "r": 1.0, "steps": 5.0, "mode": "perf", "seed": 1.0, "runs": 3.0,
+            "wall_min_s": np.nan, "wall_stddev_s": 0.0, "status": "ok", "exit_code": 0.0,
+            "identical": True, "oversubscribed": False, "unstable": False, "cores": 2.0,
+            "machine": ""}
+    frame = pd.DataFrame([{**base, **row} for row in rows])
+    frame["identical"] = frame["identical"].astype("boolean")
+    if "wall_times_s" in frame.columns:
+        frame["wall_median_s"] = [float(np.median(tables.parse_times(t)))
+                                  for t in frame["wall_times_s"]]
+    return frame
+
+
+SEQ_TIMES = [4.0, 4.1, 4.2]
+P1_TIMES = [2.0, 2.05, 2.1]
+
+
+def times_text(times: list[float]) -> str:
+    return " ".join(repr(t) for t in times)
+
+
+def test_speedup_efficiency_and_karp_flatt_carry_bootstrap_intervals() -> None:
+    from harness import stats
+
+    df = contract_frame([
+        {"variant": "seq", "threads": 1.0, "wall_times_s": times_text(SEQ_TIMES)},
+        {"variant": "p1", "threads": 2.0, "wall_times_s": times_text(P1_TIMES)},
+    ])
+    table = tables.cell_table(df, ["variant", "threads"])
+    p1 = table[table["variant"] == "p1"].iloc[0]
+    expected = stats.speedup_ci(SEQ_TIMES, P1_TIMES)
+    assert p1["speedup"] == pytest.approx(4.1 / 2.05)
+    assert (p1["speedup_low"], p1["speedup_high"]) == (expected.low, expected.high)
+    # The median of three runs lies between the extremes: so does any resampled ratio.
+    assert 4.0 / 2.1 <= p1["speedup_low"] < p1["speedup"] < p1["speedup_high"] <= 4.2 / 2.0
+    assert p1["efficiency_low"] == pytest.approx(expected.low / 2)
+    assert p1["efficiency_high"] == pytest.approx(expected.high / 2)
+    # Karp-Flatt falls as the speedup rises: the interval's ends swap.
+    assert p1["serial_fraction_low"] == pytest.approx(2 / expected.high - 1)
+    assert p1["serial_fraction_high"] == pytest.approx(2 / expected.low - 1)
+    shown = tables.format_table(table)
+    text = shown.loc[table["variant"] == "p1", "speedup"].iloc[0]
+    assert text == f"2.00 [{expected.low:.2f}, {expected.high:.2f}]"
+    assert "speedup_low" not in shown.columns
+
+
+def test_without_run_times_the_point_value_stands_alone() -> None:
+    df = contract_frame([
+        {"variant": "seq", "threads": 1.0, "wall_median_s": 4.1},
+        {"variant": "p1", "threads": 2.0, "wall_median_s": 2.05},
+    ])
+    table = tables.cell_table(df, ["variant", "threads"])
+    assert table["speedup_low"].isna().all()
+    shown = tables.format_table(table)
+    assert list(shown["speedup"]) == ["1.00", "2.00"]
+
+
+def test_growth_exponent_has_the_standard_error_of_the_fit() -> None:
+    from scipy import stats as sps
+
+    n = np.array([1000.0, 2000.0, 4000.0, 8000.0])
+    times = 1e-8 * n**2 * np.array([1.0, 1.05, 0.97, 1.02])
+    df = contract_frame([{"variant": "seq", "threads": 1.0, "n": float(k), "wall_median_s": t}
+                         for k, t in zip(n, times, strict=True)])
+    fit = tables.growth_exponents(df, "n").iloc[0]
+    reference = sps.linregress(np.log(n), np.log(times))
+    assert fit["exponent"] == pytest.approx(reference.slope)
+    assert fit["exponent_se"] == pytest.approx(reference.stderr)
+    text = tables.format_table(tables.growth_exponents(df, "n"))["exponent k"].iloc[0]
+    assert text == f"{reference.slope:.2f} ± {reference.stderr:.2g}"
+
+
+def test_speedup_is_measured_against_seq_on_the_same_machine() -> None:
+    df = contract_frame([
+        {"machine": "fast", "variant": "seq", "threads": 1.0, "wall_median_s": 2.0},
+        {"machine": "fast", "variant": "p1", "threads": 2.0, "wall_median_s": 1.0},
+        {"machine": "slow", "variant": "seq", "threads": 1.0, "wall_median_s": 4.0},
+        {"machine": "slow", "variant": "p1", "threads": 2.0, "wall_median_s": 2.5},
+    ])
+    keys = tables.varying_keys(df)
+    assert keys[0] == "machine"
+    table = tables.cell_table(df, keys)
+    p1 = table[table["variant"] == "p1"].set_index("machine")
+    assert p1.loc["fast", "speedup"] == pytest.approx(2.0)
+    assert p1.loc["slow", "speedup"] == pytest.approx(1.6)
+    assert "machine" in tables.series_keys(df, "threads")
+
+
+def test_provenance_names_commits_and_counts_stale_cells() -> None:
+    df = contract_frame([
+        {"variant": "seq", "threads": 1.0, "wall_median_s": 1.0, "git_commit": "a" * 40,
+         "stale": False},
+        {"variant": "p1", "threads": 2.0, "wall_median_s": 1.0,
+         "git_commit": "b" * 40 + "-dirty", "stale": True},
+        {"variant": "p2", "threads": 2.0, "wall_median_s": 1.0, "git_commit": "b" * 40 + "-dirty",
+         "stale": True},
+    ])
+    text = tables.provenance(df)
+    assert f"`{'a' * 10}` (1 cell)" in text and f"`{'b' * 10}-dirty` (2 cells)" in text
+    assert "2 stale cell(s)" in text
+    one = tables.provenance(df.iloc[:1])
+    assert one == f"Measured at commit `{'a' * 10}`."
+    assert tables.provenance(df.drop(columns=["git_commit", "stale"])) == ""
+
+
+def test_outliers_loaded_and_stale_cells_are_flagged_like_unstable_ones() -> None:
+    df = contract_frame([
+        {"variant": "seq", "threads": 1.0, "wall_median_s": 1.0, "outliers": False,
+         "loaded": False, "stale": False},
+        {"variant": "p1", "threads": 2.0, "wall_median_s": 1.0, "outliers": True,
+         "loaded": False, "stale": False},
+        {"variant": "p2", "threads": 2.0, "wall_median_s": 1.0, "outliers": False,
+         "loaded": True, "stale": True},
+    ]).assign(experiment="x")
+    texts = [tables.validation_text(row) for _, row in df.iterrows()]
+    assert texts == ["ok", "ok · outliers", "ok · loaded machine · stale binary"]
+    flagged = tables.flagged_cells(df)
+    assert list(flagged["variant"]) == ["p1", "p2"]
+    assert list(flagged["issue"]) == ["outliers", "loaded machine; stale binary"]

@@ -1,0 +1,28 @@
+"""Turning built tables and drawn figures into document blocks."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from harness import tables
+from harness.report.document import Figure, Table
+
+
+def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None) -> Table:
+    """A built table formatted for display, numbers right-aligned; with `source` (the cells
+    it was built from) the caption says which commit(s) measured them."""
+    if source is not None:
+        caption = " ".join(t for t in (caption, tables.provenance(source)) if t)
+    align = tuple(tables.is_numeric_column(table, c) for c in tables.display_columns(table))
+    shown = tables.format_table(table)
+    rows = tuple(tuple(str(v) for v in row) for row in shown.itertuples(index=False))
+    return Table(tuple(str(c) for c in shown.columns), rows, align, caption)
+
+
+def figure_block(paths: Sequence[Path], caption: str) -> Figure:
+    """The PNG of a figure shown, its other files offered as links."""
+    image = next(p for p in paths if p.suffix == ".png")
+    return Figure(image, caption, tuple(p for p in paths if p != image))

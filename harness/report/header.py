@@ -1,0 +1,161 @@
+"""The parts of the report that span experiments: the summary, the environment header, how
+to read the tables, and the warnings. Built from the experiments' parts (plain data), so
+standard library only."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+
+from harness.report.document import Block, Bullets, Paragraph, Section, Table
+from harness.report.parts import ExperimentPart, Fidelity
+
+MAX_WARNING_ROWS = 60  # beyond this the warnings table is cut, with a count of the rest
+WARNINGS_ANCHOR = "warnings"
+SUMMARY_ANCHOR = "summary"
+
+
+# Each header line and where env.json keeps it: the contract's flat key first, then the
+# nested places the harness's envinfo also uses (compiler.cc_version, git.commit, ...).
+ENV_FIELDS: tuple[tuple[str, tuple[tuple[str, ...], ...]], ...] = (
+    ("machine", (("cpu_model",),)),
+    ("cores", (("cores",),)),
+    ("host", (("hostname",),)),
+    ("compiler", (("compiler", "cc_version"), ("compiler",))),
+    ("flags", (("cflags",), ("compiler", "print_flags"))),
+    ("hyperfine", (("hyperfine",),)),
+    ("git commit", (("git_commit",), ("git", "commit"))),
+    ("OpenMP environment", (("omp_env",),)),
+)
+
+
+def _lookup(env: dict[str, object], path: tuple[str, ...]) -> object | None:
+    value: object = env
+    for key in path:
+        if not isinstance(value, dict) or key not in value:
+            return None
+        value = value[key]
+    return value
+
+
+def env_value(env: dict[str, object], paths: tuple[tuple[str, ...], ...]) -> str | None:
+    """The first of `paths` that env.json has, as header text; None when it has none."""
+    for path in paths:
+        value = _lookup(env, path)
+        if value is None:
+            continue
+        if isinstance(value, dict):
+            return ", ".join(f"{k}={v}" for k, v in sorted(value.items())) or "(none set)"
+        text = str(value)
+        if path == ("git", "commit") and _lookup(env, ("git", "dirty")) is True:
+            text += " (dirty)"  # results measured from uncommitted sources
+        return text
+    return None
+
+
+def environment_bullets(experiments: Sequence[tuple[str, dict[str, object]]]
+                        ) -> tuple[str, ...]:
+    """One bullet per env.json field: its value, or per experiment where they differ."""
+    with_env = [(name, env) for name, env in experiments if env]
+    items = []
+    for label, paths in ENV_FIELDS:
+        by_value: dict[str, list[str]] = {}
+        for name, env in with_env:
+            value = env_value(env, paths)
+            if value is not None:
+                by_value.setdefault(value, []).append(name)
+        if len(by_value) == 1:
+            items.append(f"{label}: `{next(iter(by_value))}`")
+        elif by_value:
+            parts = [f"`{v}` ({', '.join(names)})" for v, names in by_value.items()]
+            items.append(f"{label}: " + "; ".join(parts))
+    dates = sorted(str(env["date"]) for _, env in with_env if env.get("date"))
+    if dates:
+        span = dates[0] if dates[0] == dates[-1] else f"{dates[0]} … {dates[-1]}"
+        items.append(f"measured: `{span}`")
+    without = [name for name, env in experiments if not env]
+    if without:
+        items.append(f"no env.json for: {', '.join(without)}")
+    return tuple(items)
+
+
+HOW_TO_READ = (
+    "Times are wall-clock seconds measured by hyperfine over `runs` runs: the median, the "
+    "minimum and the standard deviation. Speedup is seq's median on the same scene divided by "
+    "the cell's median (in thread sweeps without seq: the same variant at 1 thread); "
+    "efficiency is speedup ÷ threads; the serial fraction is Karp–Flatt's "
+    "e = (1/S − 1/p)/(1 − 1/p) for p > 1. Where hyperfine's per-run times were kept, each "
+    "of the three carries its 95% bootstrap interval, `2.02 [1.98, 2.05]` (medians resampled "
+    "independently), and the figures draw error bars; without them the point value stands "
+    "alone. A growth exponent carries its standard error, `1.98 ± 0.02`. Validation is the "
+    "cell's status against the baseline output (ok, invalid, failed, crashed, timeout) with "
+    "its flags: oversubscribed, unstable timing (stddev ≥ 10% of the mean), outliers "
+    "(hyperfine warned), loaded machine (other processes were running), stale binary "
+    "(rebuilt since)."
+)
+
+
+def warnings_section(parts: Sequence[ExperimentPart]) -> Section | None:
+    """The flagged cells of every experiment (experiments in alphabetical order), or nothing
+    when all cells are clean."""
+    ordered = sorted((p for p in parts if p.warning_rows), key=lambda p: p.name)
+    if not ordered:
+        return None
+    rows = [row for part in ordered for row in part.warning_rows]
+    counts = Counter(issue for part in ordered for issues in part.warning_issues
+                     for issue in issues)
+    summary = ", ".join(f"{n} {issue}" for issue, n in
+                        sorted(counts.items(), key=lambda item: -item[1]))
+    first = ordered[0]
+    table = Table(first.warning_columns, tuple(rows[:MAX_WARNING_ROWS]),
+                  tuple(c in NUMERIC_WARNING_COLUMNS for c in first.warning_columns),
+                  "Flagged cells.")
+    blocks: list[Block] = [Paragraph(f"{len(rows)} cell(s) need a second look: {summary}."),
+                           table]
+    if len(rows) > MAX_WARNING_ROWS:
+        blocks.append(Paragraph(f"… and {len(rows) - MAX_WARNING_ROWS} more."))
+    return Section("Warnings", WARNINGS_ANCHOR, tuple(blocks))
+
+
+NUMERIC_WARNING_COLUMNS: frozenset[str] = frozenset({"N", "L", "r", "threads"})
+
+
+def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
+    candidates = [p.highlights[kind] for p in parts if kind in p.highlights]
+    if not candidates:
+        return None
+    # max() keeps the first of equal values: the experiment the report shows first.
+    return max(candidates, key=lambda h: h.value).text
+
+
+def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
+    """The verdict on correctness: invalid cells, byte identity, the checks."""
+    total = sum((p.fidelity for p in parts), Fidelity())
+    if not total.validated and not total.checked:
+        return None
+    sentences = []
+    if total.validated:
+        if total.invalid:
+            verdict = (f"{total.invalid} INVALID of {total.validated} validated cells "
+                       f"([warnings](#{WARNINGS_ANCHOR}))")
+        else:
+            verdict = f"no invalid cell among {total.validated} validated"
+        anchor = next((p.fidelity_anchor for p in parts if p.fidelity.validated), "")
+        sentences.append(f"{verdict}; {total.identical} byte-identical to their baseline, the "
+                         "others from variants or builds not exact by design "
+                         f"([validation](#{anchor}))")
+    if total.checked:
+        anchor = next((p.fidelity_anchor for p in parts if p.fidelity.checked), "")
+        sentences.append(f"{total.checks_passed} of {total.checked} checked cells pass every "
+                         f"accuracy and stability check ([checks](#{anchor}))")
+    return "fidelity: " + "; ".join(sentences)
+
+
+def summary_section(parts: Sequence[ExperimentPart]) -> Section | None:
+    """The headline: what a reader came for, each point linking to where it is shown."""
+    items = [text for text in (*(_best(parts, k) for k in ("best", "grid", "largest")),
+                               fidelity_text(parts)) if text]
+    if not items:
+        return None
+    items = [f"{text[0].upper()}{text[1:]}." for text in items]
+    return Section("Summary", SUMMARY_ANCHOR, (Bullets(tuple(items)),))

@@ -1,0 +1,60 @@
+"""The document model as Markdown (report.md). Standard library only."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+
+from harness.report.document import Block, Bullets, Document, Paragraph, Section, Table
+
+
+def _md_cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def markdown_table(table: Table) -> list[str]:
+    header = [_md_cell(c) for c in table.columns]
+    rule = ["---:" if right else "---" for right in table.align_right]
+    lines = [f"*{table.caption}*", "", "| " + " | ".join(header) + " |",
+             "| " + " | ".join(rule) + " |"]
+    for row in table.rows:
+        lines.append("| " + " | ".join(_md_cell(v) for v in row) + " |")
+    return lines
+
+
+def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
+    lines: list[str] = []
+    for block in blocks:
+        if isinstance(block, Paragraph):
+            lines.append(block.text)
+        elif isinstance(block, Bullets):
+            lines.extend(f"- {item}" for item in block.items)
+        elif isinstance(block, Table):
+            lines.extend(markdown_table(block))
+        else:
+            image = block.image.relative_to(out_dir).as_posix()
+            links = " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
+                             for p in block.alternates)
+            lines.append(f"![{block.caption}]({image})")
+            lines.append("")
+            lines.append(f"*{block.caption}* {links}".rstrip())
+        lines.append("")
+    return lines
+
+
+def _heading(section: Section, level: int) -> list[str]:
+    # An explicit anchor, so that the summary's links land on the same ids in Markdown as in
+    # HTML; Markdown viewers derive their own ids from the heading text, which repeats.
+    return [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", ""]
+
+
+def render_markdown(doc: Document, out_dir: Path) -> str:
+    lines = [f"# {doc.title}", ""]
+    if doc.summary is not None:
+        lines += [*_heading(doc.summary, 2), *markdown_blocks(doc.summary.blocks, out_dir)]
+    lines += markdown_blocks(doc.preamble, out_dir)
+    for section in doc.sections:
+        lines += [*_heading(section, 2), *markdown_blocks(section.blocks, out_dir)]
+        for sub in section.subsections:
+            lines += [*_heading(sub, 3), *markdown_blocks(sub.blocks, out_dir)]
+    return "\n".join(lines).rstrip() + "\n"

@@ -1,0 +1,74 @@
+"""What each experiment contributes to the report, as plain data: its section, its rows of
+the warnings table and its candidates for the headline. The parts that span experiments
+(summary, warnings) are assembled from these, so an experiment whose inputs did not change
+is read back from the manifest instead of rebuilt. Standard library only."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from harness.report.document import Section, section_from_json, section_to_json
+
+
+@dataclass(frozen=True)
+class Highlight:
+    """A headline candidate: `value` ranks candidates of one kind across experiments (the
+    largest wins), `text` is the sentence, linking to `anchor`."""
+
+    value: float
+    text: str
+    anchor: str
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """Counts over an experiment's validated and checked cells."""
+
+    validated: int = 0  # cells compared with their baseline output
+    identical: int = 0  # byte-identical to it
+    invalid: int = 0  # an exact variant that differs
+    checked: int = 0  # cells with the accuracy and stability checks
+    checks_passed: int = 0
+
+    def __add__(self, other: Fidelity) -> Fidelity:
+        return Fidelity(*(a + b for a, b in zip(self.counts(), other.counts(), strict=True)))
+
+    def counts(self) -> tuple[int, ...]:
+        return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed)
+
+
+HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "largest")
+
+
+@dataclass(frozen=True)
+class ExperimentPart:
+    name: str
+    section: Section
+    warning_columns: tuple[str, ...] = ()
+    warning_rows: tuple[tuple[str, ...], ...] = ()
+    warning_issues: tuple[tuple[str, ...], ...] = ()  # per row, the kinds of issue it has
+    highlights: dict[str, Highlight] = field(default_factory=dict)  # by HIGHLIGHT_KINDS
+    fidelity: Fidelity = Fidelity()
+    fidelity_anchor: str = ""  # where the checks or validation of this experiment are shown
+
+    def to_json(self, base: Path) -> dict[str, Any]:
+        return {
+            "name": self.name, "section": section_to_json(self.section, base),
+            "warning_columns": list(self.warning_columns),
+            "warning_rows": [list(r) for r in self.warning_rows],
+            "warning_issues": [list(r) for r in self.warning_issues],
+            "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
+            "fidelity": list(self.fidelity.counts()), "fidelity_anchor": self.fidelity_anchor,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], base: Path) -> ExperimentPart:
+        return cls(
+            data["name"], section_from_json(data["section"], base),
+            tuple(data["warning_columns"]), tuple(tuple(r) for r in data["warning_rows"]),
+            tuple(tuple(r) for r in data["warning_issues"]),
+            {k: Highlight(*v) for k, v in data["highlights"].items()},
+            Fidelity(*data["fidelity"]), data["fidelity_anchor"],
+        )

@@ -1,0 +1,111 @@
+"""An experiment's contribution to the report's headline and warnings, computed from its rows
+when its section is built (harness.report.parts holds the result as plain data)."""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from harness import tables
+from harness.report.blocks import table_block
+from harness.report.document import Section
+from harness.report.load import Experiment
+from harness.report.parts import ExperimentPart, Fidelity, Highlight
+
+GRID = "grid"
+# A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
+# oversubscribed, against seq on the same scene and machine.
+NOT_STRATEGIES: frozenset[str] = frozenset({tables.SEQ, GRID})
+ISSUE_DETAIL = " ("  # an issue's kind is the text before its detail, e.g. "oversubscribed (4..."
+
+
+def _anchor(section: Section, suffix: str) -> str:
+    """The anchor of the subsection ending in `suffix`, else the section's own."""
+    for sub in section.subsections:
+        if sub.anchor.endswith(suffix):
+            return sub.anchor
+    return section.anchor
+
+
+def ratio_text(row: pd.Series, column: str = "speedup") -> str:
+    """`2.02×`, or `2.02× [1.98, 2.05]` with the 95% interval where the runs give one."""
+    point = f"{float(row[column]):.2f}×"
+    low, high = row.get(f"{column}_low"), row.get(f"{column}_high")
+    if low is not None and high is not None and pd.notna(low) and pd.notna(high) and (
+            math.isfinite(low) and math.isfinite(high)):
+        return f"{point} [{float(low):.2f}, {float(high):.2f}]"
+    return point
+
+
+def _where(row: pd.Series) -> str:
+    threads = int(row["threads"])
+    text = f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
+    machine = row.get(tables.MACHINE)
+    return text + (f", {machine}" if isinstance(machine, str) and machine else "")
+
+
+def _fair(rows: pd.DataFrame) -> pd.DataFrame:
+    return rows[(rows["status"] == tables.OK) & ~rows["oversubscribed"]
+                & (rows["baseline"] == tables.BASELINE_SEQ) & rows["speedup"].notna()]
+
+
+def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
+    """The best strategy, grid against seq and the largest N, where this experiment has them."""
+    rows = tables.with_speedup(exp.frame)
+    link = f"[{exp.name}](#{_anchor(section, '-cells')})"
+    found: dict[str, Highlight] = {}
+    fair = _fair(rows)
+    strategies = fair[~fair["variant"].isin(NOT_STRATEGIES)]
+    if not strategies.empty:
+        best = strategies.loc[strategies["speedup"].idxmax()]
+        found["best"] = Highlight(
+            float(best["speedup"]),
+            f"best strategy: `{best['variant']}`, {ratio_text(best)} faster than seq "
+            f"({_where(best)}; {link})", _anchor(section, "-cells"))
+    grid = fair[fair["variant"] == GRID]
+    if not grid.empty:
+        largest = grid.sort_values(["n", "speedup"], kind="stable").iloc[-1]
+        found["grid"] = Highlight(
+            float(largest["n"]),
+            f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
+            _anchor(section, "-cells"))
+    timed = rows[(rows["status"] == tables.OK) & rows["wall_median_s"].notna()]
+    if not timed.empty:
+        top = timed.sort_values(["n", "wall_median_s"], kind="stable").iloc[-1]
+        found["largest"] = Highlight(
+            float(top["n"]),
+            f"largest N measured: {int(top['n']):,} particles, `{top['variant']}` in "
+            f"{tables.format_value('median_s', top['wall_median_s'])} s "
+            f"({_where(top).split(', ', 1)[1]}; {link})", section.anchor)
+    return found
+
+
+def fidelity(exp: Experiment) -> Fidelity:
+    df = exp.frame
+    validated = df["identical"].notna() | (df["status"] == tables.INVALID)
+    checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
+               else pd.Series(False, index=df.index))
+    return Fidelity(
+        validated=int(validated.sum()),
+        identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),
+        invalid=int((df["status"] == tables.INVALID).sum()),
+        checked=int(checked.sum()),
+        checks_passed=int(df.loc[checked, "checks_passed"].astype(bool).sum()) if checked.any()
+        else 0,
+    )
+
+
+def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
+    """The section with the experiment's warnings rows and headline candidates."""
+    flagged = tables.flagged_cells(exp.frame.assign(experiment=exp.name))
+    table = table_block(flagged, "")
+    issues = tuple(
+        tuple(issue.split(ISSUE_DETAIL)[0] for issue in text.split("; "))
+        for text in flagged["issue"]
+    )
+    anchor = _anchor(section, "-stability")
+    if anchor == section.anchor:
+        anchor = _anchor(section, "-cells")
+    return ExperimentPart(exp.name, section, table.columns, table.rows, issues,
+                          highlights(exp, section), fidelity(exp), anchor)
