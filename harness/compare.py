@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib.util
 import io
 import json
 import math
-import os
 import statistics
 import sys
 from collections.abc import Iterable, Sequence
@@ -32,8 +30,6 @@ if not __package__:  # run as a script: make `harness` importable (errors.py nee
 
 from harness.errors import HarnessError  # noqa: E402
 
-VENV_PYTHON = REPO_ROOT / ".venv" / "bin" / "python"
-REEXEC_MARKER = "COLLIDE_BENCH_REEXEC"
 REQUIRED_MODULES = ("numpy", "scipy", "matplotlib", "pandas")
 
 EXIT_OK = 0
@@ -658,18 +654,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
 
 
-def ensure_packages() -> None:
-    """Re-exec under the repository's .venv when this Python lacks the packages."""
-    missing = [m for m in REQUIRED_MODULES if importlib.util.find_spec(m) is None]
-    if not missing:
-        return
-    if VENV_PYTHON.exists() and os.environ.get(REEXEC_MARKER) != "1":
-        argv = [str(VENV_PYTHON), str(Path(__file__).resolve()), *sys.argv[1:]]
-        os.execve(argv[0], argv, {**os.environ, REEXEC_MARKER: "1"})
-    sys.stderr.write(f"error: missing Python packages ({', '.join(missing)}); run 'make setup'\n")
-    sys.exit(EXIT_USAGE)
-
-
 if __name__ == "__main__":
-    ensure_packages()
+    from harness.reexec import ensure_packages
+
+    ensure_packages(REQUIRED_MODULES, [str(Path(__file__).resolve())])
     sys.exit(main())

@@ -7,7 +7,6 @@ packages it re-executes itself with the repository's .venv/bin/python.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import signal
 import sys
@@ -19,28 +18,10 @@ if TYPE_CHECKING:
     from harness import runner
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-VENV_PYTHON = REPO_ROOT / ".venv" / "bin" / "python"
-REEXEC_MARKER = "COLLIDE_BENCH_REEXEC"
-# import name -> package name, for the message when one is missing
-REQUIRED_PACKAGES = {"yaml": "PyYAML", "numpy": "numpy", "pandas": "pandas",
-                     "matplotlib": "matplotlib"}
+REQUIRED_MODULES = ("yaml", "numpy", "pandas", "matplotlib", "scipy", "psutil")
 QUICK_REPORT = "report-quick"
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
-
-
-def ensure_packages() -> None:
-    """Re-exec under the repo's venv when packages are missing; else one error line, exit 2."""
-    missing = [pkg for module, pkg in REQUIRED_PACKAGES.items()
-               if importlib.util.find_spec(module) is None]
-    if not missing:
-        return
-    if VENV_PYTHON.exists() and os.environ.get(REEXEC_MARKER) != "1":
-        env = {**os.environ, REEXEC_MARKER: "1"}
-        argv = [str(VENV_PYTHON), str(Path(__file__).resolve()), *sys.argv[1:]]
-        os.execve(argv[0], argv, env)
-    sys.stderr.write(f"error: missing Python packages ({', '.join(missing)}); run 'make setup'\n")
-    sys.exit(EXIT_ERROR)
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
@@ -123,7 +104,9 @@ def render_report(options: runner.Options, report_dir: Path, names: Sequence[str
 
 
 if __name__ == "__main__":
-    ensure_packages()
     if not __package__:
         sys.path.insert(0, str(REPO_ROOT))
+    from harness.reexec import ensure_packages
+
+    ensure_packages(REQUIRED_MODULES, [str(Path(__file__).resolve())])
     sys.exit(main())
