@@ -66,3 +66,20 @@ def private_measuring_lock(tmp_path_factory: pytest.TempPathFactory,
     """Tests take their own measuring lock (harness.lock), never the machine-wide one: a test
     run neither waits for a real benchmark nor holds one up."""
     monkeypatch.setenv("COLLIDE_BENCH_LOCK_DIR", str(tmp_path_factory.getbasetemp()))
+
+
+@pytest.fixture(scope="session")
+def slurm_cluster():  # -> tests/slurm_cluster.SlurmCluster
+    """A single-node Slurm cluster for the session (tests/slurm_cluster.py), stopped by pid at
+    the end; skipped, with the reason, only where Slurm's packages cannot be installed."""
+    import slurm_cluster
+
+    try:
+        cluster = slurm_cluster.start_cluster()
+    except slurm_cluster.ClusterUnavailable as exc:
+        pytest.skip(str(exc))
+    try:
+        yield cluster
+    finally:
+        cluster.stop()
+        shutil.rmtree(cluster.root, ignore_errors=True)
