@@ -49,7 +49,7 @@ TRUTH_BUILD = "f128"
 
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
-    "validate", "keep_output", "exclude", "binaries", "checks", "accuracy",
+    "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
@@ -133,6 +133,32 @@ class Checks:
                 "shadow_ulps": self.shadow_ulps, "thread_counts": list(self.thread_counts)}
 
 
+EXECUTOR_KINDS = ("local", "slurm")
+EXECUTOR_KEYS = ("kind", "partition", "exclusive", "time_limit_min", "extra", "proc_bind",
+                 "places", "poll_s")
+DEFAULT_POLL_S = 2.0  # seconds between two looks at the Slurm queue
+
+
+@dataclass(frozen=True)
+class ExecutorSpec:
+    """Where cells are measured (`executor:`); run.py's --executor overrides `kind`.
+
+    For Slurm (harness/slurm.py): the partition (None: the cluster's default), a whole node per
+    cell (`exclusive`, the default, so no two measurements share a node), the task time limit
+    in minutes (None: derived from `measure:`), sbatch options added as given (`extra`), and
+    OMP_PROC_BIND / OMP_PLACES exported to each task when set.
+    """
+
+    kind: str = "local"
+    partition: str | None = None
+    exclusive: bool = True
+    time_limit_min: int | None = None
+    extra: tuple[str, ...] = ()
+    proc_bind: str | None = None
+    places: str | None = None
+    poll_s: float = DEFAULT_POLL_S
+
+
 @dataclass(frozen=True)
 class Condition:
     field: str
@@ -183,6 +209,7 @@ class Config:
     exclude: tuple[ExcludeRule, ...]
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
+    executor: ExecutorSpec = ExecutorSpec()
 
     @property
     def directory(self) -> Path:
@@ -399,6 +426,7 @@ def parse_config(raw: Mapping[str, object], source: Path) -> Config:
         exclude=_parse_exclude(raw["exclude"], source),
         binaries=binaries,
         checks=_parse_checks(raw["checks"], raw["accuracy"], source),
+        executor=_parse_executor(raw.get("executor", {}), source),
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config
@@ -627,6 +655,34 @@ def _parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
                                    "with _gt, _ge, _lt or _le", "an unknown key")
         rules.append(ExcludeRule(tuple(conditions)))
     return tuple(rules)
+
+
+def _parse_executor(value: object, source: Path) -> ExecutorSpec:
+    raw = _mapping(value, "executor", source)
+    _reject_unknown(raw, EXECUTOR_KEYS, "executor.", source)
+
+    def get(key: str, kind: Kind) -> object:
+        return _check(raw[key], f"executor.{key}", kind, source) if key in raw else None
+
+    extra = raw.get("extra", [])
+    if not isinstance(extra, list) or not all(isinstance(e, str) and e for e in extra):
+        raise config_error(source, "executor.extra", "a list of sbatch options (strings)",
+                           extra)
+    kind = get("kind", Kind("one of " + ", ".join(EXECUTOR_KINDS), _choice(EXECUTOR_KINDS)))
+    exclusive = get("exclusive", BOOLEAN)
+    limit = get("time_limit_min", POSITIVE_INT)
+    poll = get("poll_s", POSITIVE_REAL)
+    partition, proc_bind, places = (get(k, STRING) for k in ("partition", "proc_bind", "places"))
+    return ExecutorSpec(
+        kind=str(kind or "local"),
+        partition=None if partition is None else str(partition),
+        exclusive=True if exclusive is None else bool(exclusive),
+        time_limit_min=None if limit is None else int(cast(int, limit)),
+        extra=tuple(str(e) for e in extra),
+        proc_bind=None if proc_bind is None else str(proc_bind),
+        places=None if places is None else str(places),
+        poll_s=DEFAULT_POLL_S if poll is None else float(cast(float, poll)),
+    )
 
 
 def _parse_binaries(value: object, source: Path) -> tuple[tuple[str, Path], ...]:

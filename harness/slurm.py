@@ -1,0 +1,533 @@
+"""Slurm as an executor: each pending cell is one task of a Slurm job array.
+
+A task runs `python -m harness.worker --config C --results-dir R [--quick] CELL_ID` on its
+compute node, which measures the cell there exactly as a local run does (the precise run,
+validation against seq's output, the checks, hyperfine) and writes the cell's record into the
+shared results directory. Validation therefore runs on the node: seq's baseline output is
+cached under results/.cache/ on the shared file system, so the first task that needs it
+computes it (two tasks racing for it both compute it; os.replace keeps one). The submitter
+only waits, reads the records back, and rebuilds results.csv and the report.
+
+The client is plain `sbatch --array` / `squeue` / `scontrol` / `sacct` through subprocess,
+not submitit. submitit learns that a job ended from sacct; without Slurm's accounting
+database (slurmdbd + MariaDB, which many small clusters and our test cluster do not run) it
+never sees a cancelled job finish and waits forever. It would also pickle a Python callable
+per task, where we already have a command line (harness.worker) that is the contract.
+Here a task's state comes from, in order: its record on disk (the truth for every task that
+ran to the end); squeue, which shows a finished task with its final state (TIMEOUT,
+CANCELLED, NODE_FAIL, ...) for MinJobAge (300 s by default) after it ended; then the
+jobcomp/filetxt completion file when the cluster keeps one (it needs no database); then sacct
+where accounting exists.
+
+Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
+kept like a local timeout (not measured again unless --force or the record is removed); a
+task cancelled (scancel), lost with its node, or ended without a record is shown as `failed`
+with the reason in `note`, in this run's results.csv only: no record is written, so the next
+run submits it again.
+
+What is running lives in <experiment>/slurm/jobs.json (job id, the cell id of each array
+task, when and by whom it was submitted). Submitters take <experiment>/slurm/lock (flock)
+while they read Slurm's view of those jobs and submit, so two submitters never submit the
+same cell; a submitter killed mid-sweep loses nothing, since the tasks write their records
+themselves: `--collect` (or running the same command again) adopts the jobs still in flight
+and submits nothing new (`--collect`) or only the cells neither recorded nor in flight.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import fcntl
+import json
+import math
+import os
+import re
+import shlex
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from harness import results
+from harness.config import ExecutorSpec
+from harness.errors import HarnessError
+from harness.executor import OnRecord, Progress, format_seconds
+from harness.plan import Cell
+
+if TYPE_CHECKING:
+    from harness.runner import Experiment
+
+SLURM_DIR = "slurm"
+JOBS_FILE = "jobs.json"
+LOCK_FILE = "lock"
+JOBS_VERSION = 1
+COMMAND_TIMEOUT_S = 60.0  # one sbatch/squeue/scontrol call; a hung controller is an error
+# A task that Slurm reports COMPLETED has written its record before it exited; on a network
+# file system the file may appear to the submitter a little later.
+RECORD_GRACE_S = 15.0
+# Slurm kills a task at its time limit; the harness's own timeouts (each run's timeout_s, and
+# hyperfine's) should fire first, so the default limit leaves this much above them.
+TIME_LIMIT_SLACK_S = 120.0
+STATUS_EVERY_S = 30.0  # a progress line at least this often while nothing changes
+
+# Slurm job states (squeue %T, scontrol JobState, jobcomp JobState, sacct State).
+ACTIVE_STATES = frozenset({
+    "PENDING", "CONFIGURING", "RUNNING", "COMPLETING", "SUSPENDED", "REQUEUED",
+    "REQUEUE_FED", "REQUEUE_HOLD", "RESIZING", "SIGNALING", "STAGE_OUT", "RESV_DEL_HOLD",
+    "STOPPED",
+})
+RUNNING_STATES = frozenset({"RUNNING", "COMPLETING", "SIGNALING", "STAGE_OUT"})
+TIMEOUT_STATES = frozenset({"TIMEOUT", "DEADLINE"})
+# final state -> why a task without a record failed
+FAULT_REASONS = {
+    "CANCELLED": "cancelled (scancel) before it finished",
+    "NODE_FAIL": "lost with its node (NODE_FAIL)",
+    "BOOT_FAIL": "its node failed to boot (BOOT_FAIL)",
+    "FAILED": "the task's script failed before writing a record",
+    "OUT_OF_MEMORY": "killed for exceeding its memory (OUT_OF_MEMORY)",
+    "PREEMPTED": "preempted by another job",
+    "COMPLETED": "the task ended without writing a record",
+}
+SLURM_STATUS_FAILED = "failed"
+SLURM_STATUS_TIMEOUT = "timeout"
+
+
+class SlurmError(HarnessError):
+    """A Slurm command failed (the message names it and quotes its stderr)."""
+
+
+# --- the client: commands ------------------------------------------------------------------
+
+
+def slurm_command(argv: Sequence[str], check: bool = True) -> subprocess.CompletedProcess[str]:
+    """Run one Slurm client command; a missing command or (with check) a failure is an error."""
+    try:
+        done = subprocess.run(list(argv), capture_output=True, text=True, check=False,
+                              stdin=subprocess.DEVNULL, timeout=COMMAND_TIMEOUT_S)
+    except FileNotFoundError:
+        raise SlurmError(f"{argv[0]} not found: the Slurm executor needs Slurm's client "
+                         "commands (sbatch, squeue, scontrol) on this machine") from None
+    except subprocess.TimeoutExpired:
+        raise SlurmError(f"{shlex.join(argv)} did not answer within "
+                         f"{COMMAND_TIMEOUT_S:g} s") from None
+    if check and done.returncode != 0:
+        raise SlurmError(f"{shlex.join(argv)} failed (exit {done.returncode}): "
+                         f"{' '.join(done.stderr.split())[-500:]}")
+    return done
+
+
+def partition_cpus(partition: str | None) -> int | None:
+    """The most CPUs of any node in the partition (the default one when None), or None."""
+    argv = ["sinfo", "-h", "-o", "%c"] + (["-p", partition] if partition else [])
+    done = slurm_command(argv, check=False)
+    counts = [int(m) for m in re.findall(r"\d+", done.stdout)] if done.returncode == 0 else []
+    return max(counts) if counts else None
+
+
+def submit_array(script: Path, tasks: int, args: Sequence[str]) -> str:
+    """`sbatch --parsable --array=0-(tasks-1) ARGS SCRIPT`; the job id."""
+    done = slurm_command(["sbatch", "--parsable", f"--array=0-{tasks - 1}", *args, str(script)])
+    job_id = done.stdout.strip().split(";")[0]
+    if not job_id.isdigit():
+        raise SlurmError(f"sbatch answered {done.stdout.strip()!r}, not a job id")
+    return job_id
+
+
+def cancel(job_id: str, task: int | None = None) -> None:
+    slurm_command(["scancel", job_id if task is None else f"{job_id}_{task}"])
+
+
+def queue_states(job_id: str) -> dict[int, tuple[str, str]] | None:
+    """task -> (state, reason) of an array job's tasks as squeue shows them (finished ones
+    too, for MinJobAge); None when squeue no longer knows the job."""
+    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T|%r"],
+                         check=False)
+    if done.returncode != 0:
+        if "Invalid job id" in done.stderr:
+            return None
+        raise SlurmError(f"squeue -j {job_id} failed (exit {done.returncode}): "
+                         f"{' '.join(done.stderr.split())[-500:]}")
+    states: dict[int, tuple[str, str]] = {}
+    for line in done.stdout.splitlines():
+        ident, _, rest = line.strip().partition("|")
+        state, _, reason = rest.partition("|")
+        job, _, task = ident.partition("_")
+        if job == job_id and task.isdigit():
+            states[int(task)] = (state.split()[0] if state else "", reason)
+    return states if states else None
+
+
+def jobcomp_file() -> Path | None:
+    """The jobcomp/filetxt completion file of the cluster, when it keeps one we can read."""
+    done = slurm_command(["scontrol", "show", "config"], check=False)
+    values = dict(re.findall(r"^(\w+)\s*=\s*(.*?)\s*$", done.stdout, re.MULTILINE))
+    if values.get("JobCompType") != "jobcomp/filetxt":
+        return None
+    path = Path(values.get("JobCompLoc", ""))
+    return path if path.is_file() else None
+
+
+def completed_states(job_id: str) -> dict[int, str]:
+    """task -> final state, from the jobcomp/filetxt file or else sacct (empty when neither
+    knows the job)."""
+    states: dict[int, str] = {}
+    path = jobcomp_file()
+    if path is not None:
+        with contextlib.suppress(OSError):
+            for line in path.read_text(errors="replace").splitlines():
+                fields = dict(re.findall(r"(\w+)=(\S*)", line))
+                if fields.get("ArrayJobId") == job_id and fields.get("ArrayTaskId", "").isdigit():
+                    states[int(fields["ArrayTaskId"])] = fields.get("JobState", "")
+    if states:
+        return states
+    done = slurm_command(["sacct", "-n", "-P", "-X", "-j", job_id, "-o", "JobID,State"],
+                         check=False)
+    if done.returncode == 0:
+        for line in done.stdout.splitlines():
+            ident, _, state = line.partition("|")
+            job, _, task = ident.partition("_")
+            if job == job_id and task.isdigit():
+                states[int(task)] = state.split()[0] if state else ""
+    return states
+
+
+# --- the job-state file --------------------------------------------------------------------
+
+
+@dataclass
+class Job:
+    job_id: str
+    cells: list[str]  # array task index -> cell id
+    submitted_at: str
+    submitter: str  # host:pid
+
+    def to_json(self) -> dict[str, object]:
+        return {"job_id": self.job_id, "cells": self.cells, "submitted_at": self.submitted_at,
+                "submitter": self.submitter}
+
+
+@dataclass
+class JobState:
+    """<experiment>/slurm/jobs.json: every array job submitted for the experiment."""
+
+    path: Path
+    jobs: list[Job] = field(default_factory=list)
+
+    @classmethod
+    def load(cls, path: Path) -> JobState:
+        try:
+            data = json.loads(path.read_text())
+        except FileNotFoundError:
+            return cls(path)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise HarnessError(f"{path}: unreadable Slurm job state ({exc}); remove it once "
+                               "no job of this experiment runs") from None
+        jobs = [Job(str(j["job_id"]), [str(c) for c in j["cells"]], str(j["submitted_at"]),
+                    str(j["submitter"])) for j in data.get("jobs", [])]
+        return cls(path, jobs)
+
+    def save(self) -> None:
+        results.atomic_write_json(self.path, {"version": JOBS_VERSION,
+                                              "jobs": [j.to_json() for j in self.jobs]})
+
+
+@contextlib.contextmanager
+def locked(path: Path) -> Iterator[None]:
+    """An exclusive flock on `path` (created), so two submitters take turns."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+# --- the executor --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Task:
+    job_id: str
+    index: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.job_id}_{self.index}"
+
+
+def now_iso() -> str:
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
+def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
+    """The configured limit, or enough for the harness's own timeouts to fire first: the
+    precise run, the checks' runs and hyperfine's warmup + runs, each up to timeout_s."""
+    if spec.time_limit_min is not None:
+        return spec.time_limit_min
+    measure = experiment.config.measure
+    seconds = measure.timeout_s * (measure.warmup + measure.runs + 2) + TIME_LIMIT_SLACK_S
+    return max(1, math.ceil(seconds / 60))
+
+
+def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
+                 note: str) -> results.Record:
+    """The record of a cell whose task ended without one: the cell's identity, the status and
+    the reason (the columns a measurement would fill stay empty)."""
+    store = experiment.store
+    key = store.cell_key(cell)
+    assert key is not None
+    return {
+        "version": results.RECORD_VERSION, "cell_id": cid, "key": key,
+        "variant": cell.variant, "build": cell.build, "scene": cell.scene.label,
+        "n": cell.scene.n, "L": cell.scene.L, "r": cell.scene.r, "steps": cell.scene.steps,
+        "mode": cell.scene.mode, "seed": cell.scene.seed, "threads": cell.threads,
+        "params": dict(cell.scene.params), "runs": 0, "unstable": False,
+        "binary_sha256": key["binary_sha256"], "binary": str(store.binary(cell)),
+        "input_sha256": cell.scene.input_sha256, "validated": cell.validate,
+        "exact": cell.exact, "baseline_sha256": key["baseline_sha256"], "identical": None,
+        "status": status, "exit_code": None, "note": note, "executor": "slurm",
+        "measured_at": now_iso(),
+    }
+
+
+@dataclass
+class SlurmExecutor:
+    """Runs the pending cells as Slurm array tasks and waits for their records."""
+
+    spec: ExecutorSpec
+    collect: bool = False  # adopt the jobs in flight; submit nothing
+    poll_s: float | None = None  # None: spec.poll_s
+    name: str = "slurm"
+    stale: dict[str, int | None] = field(default_factory=dict)  # cell id -> its old record's stamp
+
+    def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
+            on_record: OnRecord, progress: Progress) -> None:
+        if shutil.which("sbatch") is None:
+            raise SlurmError("sbatch not found: the Slurm executor needs Slurm's client "
+                             "commands (sbatch, squeue, scontrol) on this machine")
+        slurm_dir = experiment.directory / SLURM_DIR
+        cells = dict((cid, cell) for cell, cid in pending)
+        log = experiment.log
+        # With --force the old records are still there: only a record written after this
+        # point (another file) counts as the cell's new one.
+        self.stale = {cid: self.stamp(experiment, cid) for cid in cells}
+        with locked(slurm_dir / LOCK_FILE):
+            state = JobState.load(slurm_dir / JOBS_FILE)
+            tasks, ended = self.adopt(state, cells)
+            for cid in list(ended):
+                if self.fresh(experiment, cid) is not None:
+                    ended.pop(cid)
+            # a timeout while nobody watched is recorded now; other faults are submitted again
+            for cid, (task, final) in list(ended.items()):
+                if final in TIMEOUT_STATES or self.collect:
+                    self.record_fault(experiment, cells[cid], cid, task, final, on_record)
+                    cells.pop(cid)
+            todo = [(cell, cid) for cid, cell in cells.items()
+                    if cid not in tasks and self.fresh(experiment, cid) is None]
+            if tasks:
+                log.write(f"slurm: {len(tasks)} cell(s) already in flight "
+                          f"(job {', '.join(sorted({t.job_id for t in tasks.values()}))}); "
+                          "not submitted again\n")
+            if todo and not self.collect:
+                tasks.update(self.submit(experiment, state, todo))
+            elif todo:
+                log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
+                          "flight; run without --collect to submit them\n")
+        self.wait(experiment, {cid: cells[cid] for cid in tasks}, tasks, on_record, progress)
+
+    @staticmethod
+    def stamp(experiment: Experiment, cid: str) -> int | None:
+        try:
+            stat = experiment.store.record_path(cid).stat()
+        except FileNotFoundError:
+            return None
+        return stat.st_mtime_ns ^ stat.st_ino
+
+    def fresh(self, experiment: Experiment, cid: str) -> results.Record | None:
+        """The cell's record when it was written after this run started, else None."""
+        stamp = self.stamp(experiment, cid)
+        if stamp is None or stamp == self.stale.get(cid):
+            return None
+        return experiment.store.read(cid)
+
+    # --- submission ---
+
+    def adopt(self, state: JobState, cells: Mapping[str, Cell]
+              ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
+        """The pending cells with a task still in flight, and those whose latest task ended
+        (with its final state), from the jobs in the state file."""
+        in_flight: dict[str, Task] = {}
+        ended: dict[str, tuple[Task, str]] = {}
+        for job in state.jobs:
+            if not set(job.cells) & set(cells):
+                continue
+            queued = queue_states(job.job_id)
+            final = completed_states(job.job_id) if queued is None else {}
+            for index, cid in enumerate(job.cells):
+                if cid not in cells:
+                    continue
+                task = Task(job.job_id, index)
+                seen = queued.get(index) if queued is not None else None
+                slurm_state = seen[0] if seen is not None else final.get(index, "")
+                if slurm_state in ACTIVE_STATES:
+                    in_flight[cid] = task
+                    ended.pop(cid, None)
+                elif cid not in in_flight:
+                    ended[cid] = (task, slurm_state)
+        return in_flight, ended
+
+    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
+        spec = self.spec
+        args = [f"--job-name=collide-{experiment.config.name}",
+                f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", "--ntasks=1",
+                f"--time={time_limit_minutes(spec, experiment)}",
+                f"--chdir={experiment.options.repo_root}"]
+        if spec.partition:
+            args.append(f"--partition={spec.partition}")
+        if spec.exclusive:
+            args.append("--exclusive")
+        return [*args, *spec.extra]
+
+    def job_script(self, experiment: Experiment, cells: Sequence[str]) -> str:
+        options = experiment.options
+        worker = [sys.executable, "-m", "harness.worker",
+                  "--config", str(experiment.config.source.resolve()),
+                  "--results-dir", str(options.results_root),
+                  "--repo-root", str(options.repo_root), "--hyperfine", options.hyperfine,
+                  *(["--quick"] if options.quick else [])]
+        omp = [f"export {name}={shlex.quote(value)}" for name, value in
+               (("OMP_PROC_BIND", self.spec.proc_bind), ("OMP_PLACES", self.spec.places))
+               if value is not None]
+        return "\n".join([
+            "#!/bin/bash",
+            f"# collide-bench: experiment {experiment.config.name}, one cell per array task",
+            f"# (written by harness/slurm.py at {now_iso()})",
+            "set -u",
+            f"cells=({' '.join(cells)})",
+            *omp,
+            f"export PYTHONPATH={shlex.quote(str(options.repo_root))}",
+            f'exec {shlex.join(worker)} "${{cells[$SLURM_ARRAY_TASK_ID]}}"',
+            "",
+        ])
+
+    def submit(self, experiment: Experiment, state: JobState,
+               todo: Sequence[tuple[Cell, str]]) -> dict[str, Task]:
+        """One array job per distinct --cpus-per-task (each cell gets at least its thread
+        count, up to the largest node of the partition); the tasks by cell id."""
+        slurm_dir = state.path.parent
+        logs = slurm_dir / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        largest = partition_cpus(self.spec.partition)
+        groups: dict[int, list[str]] = {}
+        for cell, cid in todo:
+            cpus = cell.threads if largest is None else min(cell.threads, largest)
+            groups.setdefault(cpus, []).append(cid)
+        tasks: dict[str, Task] = {}
+        for cpus, cids in sorted(groups.items()):
+            stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%S.%f")
+            script = slurm_dir / f"job-{stamp}-c{cpus}.sh"
+            results.atomic_write_text(script, self.job_script(experiment, cids))
+            job_id = submit_array(script, len(cids), self.sbatch_args(experiment, cpus, logs))
+            state.jobs.append(Job(job_id, list(cids), now_iso(),
+                                  f"{socket.gethostname()}:{os.getpid()}"))
+            state.save()  # at once: a submitter killed now has its job on file
+            tasks.update({cid: Task(job_id, k) for k, cid in enumerate(cids)})
+            experiment.log.write(f"slurm: submitted job {job_id}: {len(cids)} cell(s), "
+                                 f"--cpus-per-task={cpus}; task logs in {logs}\n")
+        return tasks
+
+    # --- waiting ---
+
+    def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
+                     slurm_state: str, on_record: OnRecord) -> None:
+        if slurm_state in TIMEOUT_STATES:
+            limit = self.spec.time_limit_min
+            note = (f"slurm task {task.name} passed its time limit"
+                    + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
+            record = fault_record(experiment, cell, cid, SLURM_STATUS_TIMEOUT, note)
+            experiment.store.save(cid, record)  # kept, as a local timeout is
+        else:
+            reason = FAULT_REASONS.get(slurm_state, f"ended in state {slurm_state or 'unknown'} "
+                                       "without a record (Slurm no longer knows it)")
+            note = (f"slurm task {task.name}: {reason}; not recorded, so the next run "
+                    "submits it again")
+            record = fault_record(experiment, cell, cid, SLURM_STATUS_FAILED, note)
+        record["slurm_task"] = task.name
+        record["slurm_state"] = slurm_state
+        on_record(cell, cid, record)
+
+    def wait(self, experiment: Experiment, cells: Mapping[str, Cell], tasks: Mapping[str, Task],
+             on_record: OnRecord, progress: Progress) -> None:
+        poll = self.spec.poll_s if self.poll_s is None else self.poll_s
+        log = experiment.log
+        started = time.monotonic()
+        open_tasks = dict(tasks)
+        announced: set[str] = set()
+        ended_at: dict[str, float] = {}
+        durations: list[float] = []
+        last_line, last_at = "", 0.0
+        while open_tasks:
+            states: dict[str, dict[int, tuple[str, str]] | None] = {}
+            for job_id in sorted({t.job_id for t in open_tasks.values()}):
+                states[job_id] = queue_states(job_id)
+            finals: dict[str, dict[int, str]] = {}
+            running = waiting = 0
+            for cid, task in list(open_tasks.items()):
+                cell = cells[cid]
+                record = self.fresh(experiment, cid)
+                queued = states[task.job_id]
+                seen = queued.get(task.index) if queued is not None else None
+                if seen is None and record is None:
+                    if task.job_id not in finals:
+                        finals[task.job_id] = completed_states(task.job_id)
+                    slurm_state = finals[task.job_id].get(task.index, "")
+                else:
+                    slurm_state = seen[0] if seen is not None else ""
+                if (record is not None or slurm_state in RUNNING_STATES) and \
+                        cid not in announced:
+                    announced.add(cid)
+                    progress.starting(cid)
+                if record is not None:
+                    del open_tasks[cid]
+                    seconds = record.get("seconds")
+                    if isinstance(seconds, int | float):
+                        durations.append(float(seconds))
+                        progress.finished(float(seconds))
+                    on_record(cell, cid, record)
+                elif slurm_state in ACTIVE_STATES:
+                    if slurm_state in RUNNING_STATES:
+                        running += 1
+                    else:
+                        waiting += 1
+                else:
+                    # ended without a record; COMPLETED may still be in flight on the file system
+                    first = ended_at.setdefault(cid, time.monotonic())
+                    if slurm_state == "COMPLETED" and time.monotonic() - first < RECORD_GRACE_S:
+                        running += 1
+                        continue
+                    if cid not in announced:
+                        announced.add(cid)
+                        progress.starting(cid)
+                    del open_tasks[cid]
+                    self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
+            done = len(tasks) - len(open_tasks)
+            elapsed = time.monotonic() - started
+            eta = "?"
+            if durations and open_tasks:
+                per_cell = sum(durations) / len(durations)
+                eta = format_seconds(per_cell * len(open_tasks) / max(1, running))
+            line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
+                    f"running, {waiting} pending")
+            if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:
+                log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
+                          f"{eta if open_tasks else '0.0s'}\n")
+                log.flush()
+                last_line, last_at = line, time.monotonic()
+            if open_tasks:
+                time.sleep(poll)
