@@ -108,7 +108,13 @@ class LocalExecutor:
             progress.finished(time.monotonic() - started)
 
 
-EXECUTORS: dict[str, Callable[[], Executor]] = {"local": LocalExecutor}
+def _slurm() -> Executor:
+    from harness.slurm import SlurmExecutor  # imports this module: loaded only when chosen
+
+    return SlurmExecutor()
+
+
+EXECUTORS: dict[str, Callable[[], Executor]] = {"local": LocalExecutor, "slurm": _slurm}
 
 
 def make_executor(name: str) -> Executor:

@@ -43,6 +43,15 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--executor", choices=("local", "slurm"), default=None,
+                        help="where cells are measured: local (one after another here; the "
+                        "default) or slurm (one job-array task per cell); overrides the "
+                        "config's executor.kind")
+    parser.add_argument("--collect", action="store_true",
+                        help="slurm: wait for the cells already submitted (e.g. by a killed "
+                        "run) and record them; submit nothing")
+    parser.add_argument("--partition", default=None,
+                        help="slurm: the partition (overrides the config's executor.partition)")
     return parser.parse_args(argv)
 
 
@@ -57,7 +66,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                             log=sys.stderr)
     options = runner.Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
                              quick=args.quick, force=args.force, dry_run=args.dry_run,
-                             hyperfine=args.hyperfine, run_lock=run_lock)
+                             hyperfine=args.hyperfine, executor=args.executor,
+                             collect=args.collect, partition=args.partition,
+                             run_lock=run_lock)
     try:
         configs = [load_config(path) for path in args.configs]
         with run_lock:

@@ -39,7 +39,9 @@ class Options:
     dry_run: bool = False
     hyperfine: str = "hyperfine"
     make: str = "make"
-    executor: str = "local"  # a name in harness.executor.EXECUTORS
+    executor: str | None = None  # a name in harness.executor.EXECUTORS; None: the config's
+    collect: bool = False  # slurm: adopt the jobs in flight, submit nothing
+    partition: str | None = None  # slurm: overrides the config's executor.partition
     # The machine-wide measuring lock of this run (harness.lock), taken before the first cell
     # is measured; None: measure without it (tests that fake hyperfine).
     run_lock: lock.RunLock | None = None
@@ -95,7 +97,10 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
     binaries = needed_binaries(plan, options.repo_root)
     if options.dry_run:
         return dry_run(experiment, binaries, out)
-    executor = make_executor(options.executor)
+    executor = make_executor(options.executor or config.executor.kind)
+    if options.collect and executor.name == "local":
+        raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
+                           "executor: {kind: slurm} in the config)")
     if shutil.which(options.hyperfine) is None:
         raise HarnessError(f"{options.hyperfine} not found; run 'make setup'")
     build_binaries(options.repo_root, binaries, options.make)
@@ -112,7 +117,10 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
     pending = [(cell, cid) for cell, cid in order if cid not in experiment.records]
     env_file = experiment.directory / ENV_JSON
     env: dict[str, object] | None = None
-    if pending and options.run_lock is not None and not options.run_lock.held:
+    # The measuring lock guards this machine's measurements; a remote executor measures
+    # elsewhere (each Slurm task has its node to itself by default).
+    if pending and executor.name == "local" and options.run_lock is not None \
+            and not options.run_lock.held:
         options.run_lock.acquire()  # may wait for another run; the load is sampled after
         for _, cid in pending:  # the run we waited for may have measured some of them
             record = experiment.cached(cid)
@@ -140,15 +148,18 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
     if env is not None:  # the machine and tools of the latest measurements, and the load after
         store.write_env(experiment.directory, {**env, "load_after": envinfo.load()})
     missing = [cid for _, cid in pending if cid not in measured]
-    if missing:
+    if missing and options.collect:  # --collect submits nothing: they are simply not there
+        log.write(f"{config.name}: {len(missing)} cell(s) not measured yet\n")
+    elif missing:
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
     statuses: dict[str, int] = {}
     for _, cid in order:
-        status = str(experiment.records[cid]["status"])
-        statuses[status] = statuses.get(status, 0) + 1
+        if cid in experiment.records:  # all of them, but after --collect
+            status = str(experiment.records[cid]["status"])
+            statuses[status] = statuses.get(status, 0) + 1
     summary = Summary(config.name, experiment.directory, len(order), len(measured),
-                      len(order) - len(measured), statuses)
+                      len(order) - len(measured) - len(missing), statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
     log.write(f"{config.name}: {summary.cells} cells ({summary.measured} measured, "
               f"{summary.cached} cached): {counts or 'none'}; results in "

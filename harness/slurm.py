@@ -36,6 +36,7 @@ and submits nothing new (`--collect`) or only the cells neither recorded nor in 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import datetime
 import fcntl
 import json
@@ -298,11 +299,12 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
 
 @dataclass
 class SlurmExecutor:
-    """Runs the pending cells as Slurm array tasks and waits for their records."""
+    """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
+    are the config's `executor:` section with run.py's --partition over it; --collect adopts
+    the jobs in flight and submits nothing."""
 
-    spec: ExecutorSpec
-    collect: bool = False  # adopt the jobs in flight; submit nothing
-    poll_s: float | None = None  # None: spec.poll_s
+    spec: ExecutorSpec = field(default_factory=ExecutorSpec)
+    collect: bool = False
     name: str = "slurm"
     stale: dict[str, int | None] = field(default_factory=dict)  # cell id -> its old record's stamp
 
@@ -311,6 +313,10 @@ class SlurmExecutor:
         if shutil.which("sbatch") is None:
             raise SlurmError("sbatch not found: the Slurm executor needs Slurm's client "
                              "commands (sbatch, squeue, scontrol) on this machine")
+        options = experiment.options
+        self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
+            options.partition or experiment.config.executor.partition))
+        self.collect = options.collect
         slurm_dir = experiment.directory / SLURM_DIR
         cells = dict((cid, cell) for cell, cid in pending)
         log = experiment.log
@@ -451,7 +457,6 @@ class SlurmExecutor:
             note = (f"slurm task {task.name} passed its time limit"
                     + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
             record = fault_record(experiment, cell, cid, SLURM_STATUS_TIMEOUT, note)
-            experiment.store.save(cid, record)  # kept, as a local timeout is
         else:
             reason = FAULT_REASONS.get(slurm_state, f"ended in state {slurm_state or 'unknown'} "
                                        "without a record (Slurm no longer knows it)")
@@ -460,18 +465,20 @@ class SlurmExecutor:
             record = fault_record(experiment, cell, cid, SLURM_STATUS_FAILED, note)
         record["slurm_task"] = task.name
         record["slurm_state"] = slurm_state
+        if slurm_state in TIMEOUT_STATES:
+            experiment.store.save(cid, record)  # kept, as a local timeout is
         on_record(cell, cid, record)
 
     def wait(self, experiment: Experiment, cells: Mapping[str, Cell], tasks: Mapping[str, Task],
              on_record: OnRecord, progress: Progress) -> None:
-        poll = self.spec.poll_s if self.poll_s is None else self.poll_s
+        poll = self.spec.poll_s
         log = experiment.log
         started = time.monotonic()
         open_tasks = dict(tasks)
         announced: set[str] = set()
         ended_at: dict[str, float] = {}
-        durations: list[float] = []
         last_line, last_at = "", 0.0
+        last_done_at = started
         while open_tasks:
             states: dict[str, dict[int, tuple[str, str]] | None] = {}
             for job_id in sorted({t.job_id for t in open_tasks.values()}):
@@ -495,10 +502,10 @@ class SlurmExecutor:
                     progress.starting(cid)
                 if record is not None:
                     del open_tasks[cid]
-                    seconds = record.get("seconds")
-                    if isinstance(seconds, int | float):
-                        durations.append(float(seconds))
-                        progress.finished(float(seconds))
+                    # the time a cell costs the sweep (queueing included), so that the
+                    # progress lines' ETA follows the throughput
+                    progress.finished(time.monotonic() - last_done_at)
+                    last_done_at = time.monotonic()
                     on_record(cell, cid, record)
                 elif slurm_state in ACTIVE_STATES:
                     if slurm_state in RUNNING_STATES:
@@ -518,10 +525,10 @@ class SlurmExecutor:
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
             done = len(tasks) - len(open_tasks)
             elapsed = time.monotonic() - started
+            # from the throughput so far: queueing and start-up on the nodes included
             eta = "?"
-            if durations and open_tasks:
-                per_cell = sum(durations) / len(durations)
-                eta = format_seconds(per_cell * len(open_tasks) / max(1, running))
+            if done and open_tasks:
+                eta = format_seconds(elapsed / done * len(open_tasks))
             line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
                     f"running, {waiting} pending")
             if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:

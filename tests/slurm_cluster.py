@@ -174,7 +174,8 @@ class SlurmCluster:
                 return
             time.sleep(POLL_S)
         raise RuntimeError(f"timed out waiting for {what}; slurmctld log: "
-                           f"{self.log('slurmctld')[-1500:]} slurmd log: {self.log('slurmd')[-1500:]}")
+                           f"{self.log('slurmctld')[-1500:]} slurmd log: "
+                           f"{self.log('slurmd')[-1500:]}")
 
     def start(self) -> None:
         started = time.monotonic()
@@ -182,7 +183,8 @@ class SlurmCluster:
         m = self.root / "munge"
         self.spawn("munged", ["munged", "--foreground", "--force", f"--socket={m}/munge.socket",
                               f"--key-file={m}/munge.key", f"--pid-file={m}/munged.pid",
-                              f"--seed-file={m}/munged.seed", f"--log-file={self.root}/log/munged.log"])
+                              f"--seed-file={m}/munged.seed",
+                              f"--log-file={self.root}/log/munged.log"])
         self.wait_for("munged's socket", (m / "munge.socket").exists)
         self.spawn("slurmctld", ["slurmctld", "-D", "-i"])
         self.wait_for("slurmctld", lambda: self.scontrol_ok(["ping"], "UP"))
@@ -245,3 +247,23 @@ def start_cluster(parent: Path | None = None) -> SlurmCluster:
         cluster.stop()
         raise
     return cluster
+
+
+def main() -> None:
+    """`python tests/slurm_cluster.py`: start a cluster, print its SLURM_CONF, keep it until
+    SIGTERM or Ctrl-C (for trying the Slurm executor by hand)."""
+    cluster = start_cluster()
+    print(f"SLURM_CONF={cluster.conf}  (started in {cluster.started_s:.2f} s)", flush=True)
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt))
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        print(f"stopped in {cluster.stop():.2f} s", flush=True)
+        shutil.rmtree(cluster.root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
