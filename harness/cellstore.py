@@ -81,6 +81,9 @@ class CellStore:
             if None in shas.values():
                 return None
             extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
+        omp = self.config.executor.omp_env()
+        if omp:  # only then, as with checks
+            extra["omp"] = omp
         return {**extra, "machine_id": self.machine_id,
             "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
             "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,

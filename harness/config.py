@@ -145,8 +145,9 @@ class ExecutorSpec:
 
     For Slurm (harness/slurm.py): the partition (None: the cluster's default), a whole node per
     cell (`exclusive`, the default, so no two measurements share a node), the task time limit
-    in minutes (None: derived from `measure:`), sbatch options added as given (`extra`), and
-    OMP_PROC_BIND / OMP_PLACES exported to each task when set.
+    in minutes (None: derived from `measure:`), sbatch options added as given (`extra`). Under
+    either executor, OMP_PROC_BIND / OMP_PLACES are set for every cell when given (`proc_bind`,
+    `places`); they are then part of the cell's id and its record.
     """
 
     kind: str = "local"
@@ -157,6 +158,11 @@ class ExecutorSpec:
     proc_bind: str | None = None
     places: str | None = None
     poll_s: float = DEFAULT_POLL_S
+
+    def omp_env(self) -> dict[str, str]:
+        """OMP_PROC_BIND / OMP_PLACES as asked (each cell runs with them, either executor)."""
+        pairs = (("OMP_PROC_BIND", self.proc_bind), ("OMP_PLACES", self.places))
+        return {name: value for name, value in pairs if value is not None}
 
 
 @dataclass(frozen=True)

@@ -56,7 +56,7 @@ class Measurer:
     # --- measuring ---
 
     def environment(self, threads: int) -> dict[str, str]:
-        return {**os.environ, OMP_THREADS_VAR: str(threads)}
+        return {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
 
     def baseline_output(self, cell: Cell) -> tuple[str | None, str]:
         """The sequential baseline's --precise output for the cell's input (cached)."""
@@ -115,6 +115,7 @@ class Measurer:
             "input_sha256": cell.scene.input_sha256, "validated": cell.validate,
             "exact": cell.exact, "baseline_sha256": key["baseline_sha256"],
             "identical": None, "note": "", "command": shlex.join(command),
+            "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
             "measured_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "machine_id": key["machine_id"],
             "machine": envinfo.machine(self.store.repo_root),

@@ -407,16 +407,12 @@ class SlurmExecutor:
                   "--results-dir", str(options.results_root),
                   "--repo-root", str(options.repo_root), "--hyperfine", options.hyperfine,
                   *(["--quick"] if options.quick else [])]
-        omp = [f"export {name}={shlex.quote(value)}" for name, value in
-               (("OMP_PROC_BIND", self.spec.proc_bind), ("OMP_PLACES", self.spec.places))
-               if value is not None]
         return "\n".join([
             "#!/bin/bash",
             f"# collide-bench: experiment {experiment.config.name}, one cell per array task",
             f"# (written by harness/slurm.py at {now_iso()})",
             "set -u",
             f"cells=({' '.join(cells)})",
-            *omp,
             f"export PYTHONPATH={shlex.quote(str(options.repo_root))}",
             f'exec {shlex.join(worker)} "${{cells[$SLURM_ARRAY_TASK_ID]}}"',
             "",

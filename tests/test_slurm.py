@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 from harness import results, slurm
 from harness.cellstore import CellStore
-from harness.config import load_config
+from harness.config import ExecutorSpec, load_config
+from harness.errors import HarnessError
 from harness.plan import plan_cells
 from harness.run import main
 
@@ -253,3 +254,44 @@ def test_collect_needs_the_slurm_executor(tmp_path: Path,
     config.write_text(SIX)
     assert main([str(config), "--results-dir", str(tmp_path), "--collect"]) == 2
     assert "error: --collect needs the slurm executor" in capsys.readouterr().err
+
+
+def test_executor_section_is_checked(write_config) -> None:
+    base = SIX.replace("name: six\n", "name: bad\n")
+    for section, message in (
+            ("{kind: pbs}", "key 'executor.kind': expected one of local, slurm, got 'pbs'"),
+            ("{partition: p, nodes: 2}", "key 'executor.nodes': expected one of kind,"),
+            ("{extra: --qos=x}", "key 'executor.extra': expected a list of sbatch options"),
+            ("{exclusive: 'yes'}", "key 'executor.exclusive': expected true or false"),
+            ("{time_limit_min: 0}", "key 'executor.time_limit_min': expected a positive integer"),
+            ("[slurm]", "key 'executor': expected a mapping")):
+        path = write_config(f"{base}executor: {section}\n")
+        with pytest.raises(HarnessError) as caught:
+            load_config(path)
+        assert str(caught.value).startswith(f"{path}: {message}"), caught.value
+    spec = load_config(write_config(
+        f"{base}executor: {{kind: slurm, partition: gpu, exclusive: false, time_limit_min: 5, "
+        "extra: ['--qos=low'], proc_bind: close}\n")).executor
+    assert (spec.kind, spec.partition, spec.exclusive, spec.time_limit_min, spec.extra) == (
+        "slurm", "gpu", False, 5, ("--qos=low",))
+    assert spec.omp_env() == {"OMP_PROC_BIND": "close"}
+    assert load_config(write_config(base)).executor == ExecutorSpec()  # local, by default
+
+
+def test_omp_binding_is_set_recorded_and_part_of_the_cell_id(
+        real_binaries: Path, tmp_path: Path) -> None:
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("name: bind\nvariants: [p1]\nscene: {n: 60, L: 600, r: 1, steps: 2}\n"
+                     "threads: 2\nmeasure: {warmup: 0, runs: 1, timeout_s: 30}\n")
+    bound = tmp_path / "bound.yaml"
+    bound.write_text(plain.read_text() + "executor: {proc_bind: close, places: cores}\n")
+    root = tmp_path / "results"
+    assert main([str(bound), "--results-dir", str(root), "--no-report"]) == 0
+    row = read_csv(root / "bind" / "results.csv")[0]
+    record = results.read_record(root / "bind" / "cells" / f"{row['cell_id']}.json",
+                                 row["cell_id"])
+    assert record is not None and record["status"] == "ok"
+    expected = {"OMP_NUM_THREADS": "2", "OMP_PLACES": "cores", "OMP_PROC_BIND": "close"}
+    assert {k: record["omp_env"].get(k) for k in expected} == expected
+    store = CellStore(plan_cells(load_config(plain)), REPO_ROOT, root)
+    assert store.cell_id(store.plan.cells[0]) != row["cell_id"]
