@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from harness import results, slurm
+from harness import report, results, slurm
 from harness.cellstore import CellStore
 from harness.config import ExecutorSpec, load_config
 from harness.errors import HarnessError
@@ -93,6 +93,12 @@ def test_six_cells_give_the_rows_of_a_local_run(cluster, real_binaries: Path, tm
     local, remote = tmp_path / "local", tmp_path / "remote"
     assert main([str(config), "--results-dir", str(local), "--no-report"]) == 0
     capsys.readouterr()
+    # --collect with nothing in flight submits nothing and says so
+    assert main([str(config), "--results-dir", str(remote), "--no-report",
+                 "--executor", "slurm", "--collect"]) == 0
+    log = capsys.readouterr().err
+    assert "--collect: 6 cell(s) neither recorded nor in flight" in log
+    assert "six: 6 cell(s) not measured yet" in log and not jobs(remote, "six")
     assert main([str(config), "--results-dir", str(remote), "--no-report",
                  "--executor", "slurm"]) == 0
     log = capsys.readouterr().err
@@ -186,6 +192,7 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
         "seq": "ok", "held": "failed", "p1": "ok"}
     assert "cancelled (scancel)" in rows["held"]["note"]
     assert not store.record_path(held_id).exists()  # not kept: the next run tries again
+    assert report.render(root, tmp_path / "report").is_file()  # the failed row renders
     others = {cid: store.record_path(cid).stat().st_mtime_ns
               for cid in (rows["seq"]["cell_id"], rows["p1"]["cell_id"])}
     marker.unlink()
