@@ -75,6 +75,8 @@ RECORD_GRACE_S = 15.0
 # hyperfine's) should fire first, so the default limit leaves this much above them.
 TIME_LIMIT_SLACK_S = 120.0
 STATUS_EVERY_S = 30.0  # a progress line at least this often while nothing changes
+# Slurm's default MaxArraySize is 1001 (indices 0-1000); larger sweeps go in several arrays.
+MAX_ARRAY_TASKS = 1000
 
 # Slurm job states (squeue %T, scontrol JobState, jobcomp JobState, sacct State).
 ACTIVE_STATES = frozenset({
@@ -430,8 +432,10 @@ class SlurmExecutor:
         for cell, cid in todo:
             cpus = cell.threads if largest is None else min(cell.threads, largest)
             groups.setdefault(cpus, []).append(cid)
+        chunks = [(cpus, cids[k:k + MAX_ARRAY_TASKS]) for cpus, cids in sorted(groups.items())
+                  for k in range(0, len(cids), MAX_ARRAY_TASKS)]
         tasks: dict[str, Task] = {}
-        for cpus, cids in sorted(groups.items()):
+        for cpus, cids in chunks:
             stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%S.%f")
             script = slurm_dir / f"job-{stamp}-c{cpus}.sh"
             results.atomic_write_text(script, self.job_script(experiment, cids))
@@ -456,8 +460,9 @@ class SlurmExecutor:
         else:
             reason = FAULT_REASONS.get(slurm_state, f"ended in state {slurm_state or 'unknown'} "
                                        "without a record (Slurm no longer knows it)")
-            note = (f"slurm task {task.name}: {reason}; not recorded, so the next run "
-                    "submits it again")
+            logfile = experiment.directory / SLURM_DIR / "logs" / f"{task.name}.out"
+            note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
+                    "next run submits it again")
             record = fault_record(experiment, cell, cid, SLURM_STATUS_FAILED, note)
         record["slurm_task"] = task.name
         record["slurm_state"] = slurm_state
