@@ -59,6 +59,7 @@ from harness.config import ExecutorSpec
 from harness.errors import HarnessError
 from harness.executor import OnRecord, Progress, format_seconds
 from harness.plan import Cell
+from harness.worker import portable_id
 
 if TYPE_CHECKING:
     from harness.runner import Experiment
@@ -300,15 +301,73 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
 
 
 @dataclass
+class RecordWatch:
+    """The records that appear in cells/ while we wait, by the portable id of their key.
+
+    A node writes a cell's record under the cell id of its own machine (the key holds the
+    machine's id), which the submitter cannot know beforehand; so it looks for new or
+    rewritten record files and matches them on the key without the machine (portable_id).
+    Files present when the run started count only once rewritten (--force).
+    """
+
+    cells_dir: Path
+    seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
+
+    def snapshot(self) -> None:
+        self.seen = dict(self._stamps())
+
+    def _stamps(self) -> Iterator[tuple[str, tuple[int, int]]]:
+        try:
+            entries = list(os.scandir(self.cells_dir))
+        except FileNotFoundError:
+            return
+        for entry in entries:
+            name = entry.name
+            if name.endswith(".json") and not name.endswith(".hyperfine.json") \
+                    and not name.startswith("."):
+                with contextlib.suppress(FileNotFoundError):
+                    stat = entry.stat()
+                    yield name, (stat.st_mtime_ns, stat.st_ino)
+
+    def new_records(self) -> dict[str, results.Record]:
+        """portable id -> record, for each record file new or rewritten since the last call."""
+        found: dict[str, results.Record] = {}
+        for name, stamp in self._stamps():
+            if self.seen.get(name) == stamp:
+                continue
+            self.seen[name] = stamp
+            record = results.read_record(self.cells_dir / name, name.removesuffix(".json"))
+            key = record.get("key") if record is not None else None
+            if record is not None and isinstance(key, dict):
+                found[portable_id(key)] = record
+        return found
+
+    def existing(self) -> dict[str, list[results.Record]]:
+        """portable id -> every record in cells/ now (for cells finished while no submitter
+        watched)."""
+        found: dict[str, list[results.Record]] = {}
+        for name, _ in self._stamps():
+            record = results.read_record(self.cells_dir / name, name.removesuffix(".json"))
+            key = record.get("key") if record is not None else None
+            if record is not None and isinstance(key, dict):
+                found.setdefault(portable_id(key), []).append(record)
+        return found
+
+
+@dataclass
 class SlurmExecutor:
     """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
     are the config's `executor:` section with run.py's --partition over it; --collect adopts
-    the jobs in flight and submits nothing."""
+    the jobs in flight and submits nothing.
+
+    Cells are named by their portable id (worker.portable_id: the key without the machine) in
+    the job scripts and jobs.json, and matched to the records the nodes write by the same id;
+    on_record still gets the cell id the runner planned with.
+    """
 
     spec: ExecutorSpec = field(default_factory=ExecutorSpec)
     collect: bool = False
     name: str = "slurm"
-    stale: dict[str, int | None] = field(default_factory=dict)  # cell id -> its old record's stamp
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
@@ -320,56 +379,65 @@ class SlurmExecutor:
             options.partition or experiment.config.executor.partition))
         self.collect = options.collect
         slurm_dir = experiment.directory / SLURM_DIR
-        cells = dict((cid, cell) for cell, cid in pending)
+        cells: dict[str, tuple[Cell, str]] = {}  # portable id -> (cell, planned cell id)
+        for cell, cid in pending:
+            key = experiment.store.cell_key(cell)
+            assert key is not None
+            cells[portable_id(key)] = (cell, cid)
         log = experiment.log
-        # With --force the old records are still there: only a record written after this
-        # point (another file) counts as the cell's new one.
-        self.stale = {cid: self.stamp(experiment, cid) for cid in cells}
+        watch = RecordWatch(experiment.store.cells_dir)
+        watch.snapshot()
         with locked(slurm_dir / LOCK_FILE):
             state = JobState.load(slurm_dir / JOBS_FILE)
+            if not options.force:
+                self.adopt_finished(experiment, state, watch, cells, on_record, progress)
             tasks, ended = self.adopt(state, cells)
-            for cid in list(ended):
-                if self.fresh(experiment, cid) is not None:
-                    ended.pop(cid)
             # a timeout while nobody watched is recorded now; other faults are submitted again
-            for cid, (task, final) in list(ended.items()):
+            for pid, (task, final) in list(ended.items()):
                 if final in TIMEOUT_STATES or self.collect:
-                    self.record_fault(experiment, cells[cid], cid, task, final, on_record)
-                    cells.pop(cid)
-            todo = [(cell, cid) for cid, cell in cells.items()
-                    if cid not in tasks and self.fresh(experiment, cid) is None]
+                    cell, cid = cells.pop(pid)
+                    self.record_fault(experiment, cell, cid, task, final, on_record)
+            todo = [pid for pid in cells if pid not in tasks]
             if tasks:
                 log.write(f"slurm: {len(tasks)} cell(s) already in flight "
                           f"(job {', '.join(sorted({t.job_id for t in tasks.values()}))}); "
                           "not submitted again\n")
             if todo and not self.collect:
-                tasks.update(self.submit(experiment, state, todo))
+                tasks.update(self.submit(experiment, state, cells, todo))
             elif todo:
                 log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
                           "flight; run without --collect to submit them\n")
-        self.wait(experiment, {cid: cells[cid] for cid in tasks}, tasks, on_record, progress)
+        self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
+                  progress)
 
-    @staticmethod
-    def stamp(experiment: Experiment, cid: str) -> int | None:
-        try:
-            stat = experiment.store.record_path(cid).stat()
-        except FileNotFoundError:
-            return None
-        return stat.st_mtime_ns ^ stat.st_ino
+    # --- what is already there ---
 
-    def fresh(self, experiment: Experiment, cid: str) -> results.Record | None:
-        """The cell's record when it was written after this run started, else None."""
-        stamp = self.stamp(experiment, cid)
-        if stamp is None or stamp == self.stale.get(cid):
-            return None
-        return experiment.store.read(cid)
+    def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
+                       cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
+                       progress: Progress) -> None:
+        """Cells a task of ours measured after its submission (e.g. while the submitter was
+        dead), whose record carries the node's machine and so escaped the runner's cache:
+        recorded now, not submitted again."""
+        submitted: dict[str, str] = {}  # portable id -> when its latest job was submitted
+        for job in state.jobs:
+            for pid in job.cells:
+                if pid in cells:
+                    submitted[pid] = job.submitted_at
+        if not submitted:
+            return
+        existing = watch.existing()
+        for pid, since in submitted.items():
+            mine = [r for r in existing.get(pid, []) if str(r.get("measured_at", "")) >= since]
+            if mine:
+                record = max(mine, key=lambda r: str(r.get("measured_at", "")))
+                cell, cid = cells.pop(pid)
+                progress.starting(cid)
+                on_record(cell, cid, record)
 
-    # --- submission ---
-
-    def adopt(self, state: JobState, cells: Mapping[str, Cell]
+    def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
               ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
         """The pending cells with a task still in flight, and those whose latest task ended
-        (with its final state), from the jobs in the state file."""
+        (with its final state), from the jobs in the state file; by portable id."""
         in_flight: dict[str, Task] = {}
         ended: dict[str, tuple[Task, str]] = {}
         for job in state.jobs:
@@ -377,18 +445,20 @@ class SlurmExecutor:
                 continue
             queued = queue_states(job.job_id)
             final = completed_states(job.job_id) if queued is None else {}
-            for index, cid in enumerate(job.cells):
-                if cid not in cells:
+            for index, pid in enumerate(job.cells):
+                if pid not in cells:
                     continue
                 task = Task(job.job_id, index)
                 seen = queued.get(index) if queued is not None else None
                 slurm_state = seen[0] if seen is not None else final.get(index, "")
                 if slurm_state in ACTIVE_STATES:
-                    in_flight[cid] = task
-                    ended.pop(cid, None)
-                elif cid not in in_flight:
-                    ended[cid] = (task, slurm_state)
+                    in_flight[pid] = task
+                    ended.pop(pid, None)
+                elif pid not in in_flight:
+                    ended[pid] = (task, slurm_state)
         return in_flight, ended
+
+    # --- submission ---
 
     def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
         spec = self.spec
@@ -402,7 +472,7 @@ class SlurmExecutor:
             args.append("--exclusive")
         return [*args, *spec.extra]
 
-    def job_script(self, experiment: Experiment, cells: Sequence[str]) -> str:
+    def job_script(self, experiment: Experiment, ids: Sequence[str]) -> str:
         options = experiment.options
         worker = [sys.executable, "-m", "harness.worker",
                   "--config", str(experiment.config.source.resolve()),
@@ -414,37 +484,39 @@ class SlurmExecutor:
             f"# collide-bench: experiment {experiment.config.name}, one cell per array task",
             f"# (written by harness/slurm.py at {now_iso()})",
             "set -u",
-            f"cells=({' '.join(cells)})",
+            f"cells=({' '.join(ids)})",
             f"export PYTHONPATH={shlex.quote(str(options.repo_root))}",
             f'exec {shlex.join(worker)} "${{cells[$SLURM_ARRAY_TASK_ID]}}"',
             "",
         ])
 
     def submit(self, experiment: Experiment, state: JobState,
-               todo: Sequence[tuple[Cell, str]]) -> dict[str, Task]:
+               cells: Mapping[str, tuple[Cell, str]], todo: Sequence[str]) -> dict[str, Task]:
         """One array job per distinct --cpus-per-task (each cell gets at least its thread
-        count, up to the largest node of the partition); the tasks by cell id."""
+        count, up to the largest node of the partition); the tasks by portable id."""
         slurm_dir = state.path.parent
         logs = slurm_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         largest = partition_cpus(self.spec.partition)
         groups: dict[int, list[str]] = {}
-        for cell, cid in todo:
-            cpus = cell.threads if largest is None else min(cell.threads, largest)
-            groups.setdefault(cpus, []).append(cid)
-        chunks = [(cpus, cids[k:k + MAX_ARRAY_TASKS]) for cpus, cids in sorted(groups.items())
-                  for k in range(0, len(cids), MAX_ARRAY_TASKS)]
+        for pid in todo:
+            threads = cells[pid][0].threads
+            cpus = threads if largest is None else min(threads, largest)
+            groups.setdefault(cpus, []).append(pid)
+        chunks = [(cpus, ids[k:k + MAX_ARRAY_TASKS]) for cpus, ids in sorted(groups.items())
+                  for k in range(0, len(ids), MAX_ARRAY_TASKS)]
         tasks: dict[str, Task] = {}
-        for cpus, cids in chunks:
+        for cpus, ids in chunks:
             stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%S.%f")
             script = slurm_dir / f"job-{stamp}-c{cpus}.sh"
-            results.atomic_write_text(script, self.job_script(experiment, cids))
-            job_id = submit_array(script, len(cids), self.sbatch_args(experiment, cpus, logs))
-            state.jobs.append(Job(job_id, list(cids), now_iso(),
+            results.atomic_write_text(script, self.job_script(experiment, ids))
+            submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
+            job_id = submit_array(script, len(ids), self.sbatch_args(experiment, cpus, logs))
+            state.jobs.append(Job(job_id, list(ids), submitted_at,
                                   f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
-            tasks.update({cid: Task(job_id, k) for k, cid in enumerate(cids)})
-            experiment.log.write(f"slurm: submitted job {job_id}: {len(cids)} cell(s), "
+            tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
+            experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
                                  f"--cpus-per-task={cpus}; task logs in {logs}\n")
         return tasks
 
@@ -470,25 +542,29 @@ class SlurmExecutor:
             experiment.store.save(cid, record)  # kept, as a local timeout is
         on_record(cell, cid, record)
 
-    def wait(self, experiment: Experiment, cells: Mapping[str, Cell], tasks: Mapping[str, Task],
-             on_record: OnRecord, progress: Progress) -> None:
+    def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
+             tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
+             progress: Progress) -> None:
         poll = self.spec.poll_s
         log = experiment.log
         started = time.monotonic()
         open_tasks = dict(tasks)
         announced: set[str] = set()
         ended_at: dict[str, float] = {}
+        arrived: dict[str, results.Record] = {}
         last_line, last_at = "", 0.0
         last_done_at = started
         while open_tasks:
             states: dict[str, dict[int, tuple[str, str]] | None] = {}
             for job_id in sorted({t.job_id for t in open_tasks.values()}):
                 states[job_id] = queue_states(job_id)
+            # after squeue: a task it shows ended has written its record by now
+            arrived.update(watch.new_records())
             finals: dict[str, dict[int, str]] = {}
             running = waiting = 0
-            for cid, task in list(open_tasks.items()):
-                cell = cells[cid]
-                record = self.fresh(experiment, cid)
+            for pid, task in list(open_tasks.items()):
+                cell, cid = cells[pid]
+                record = arrived.get(pid)
                 queued = states[task.job_id]
                 seen = queued.get(task.index) if queued is not None else None
                 if seen is None and record is None:
@@ -498,11 +574,11 @@ class SlurmExecutor:
                 else:
                     slurm_state = seen[0] if seen is not None else ""
                 if (record is not None or slurm_state in RUNNING_STATES) and \
-                        cid not in announced:
-                    announced.add(cid)
+                        pid not in announced:
+                    announced.add(pid)
                     progress.starting(cid)
                 if record is not None:
-                    del open_tasks[cid]
+                    del open_tasks[pid]
                     # the time a cell costs the sweep (queueing included), so that the
                     # progress lines' ETA follows the throughput
                     progress.finished(time.monotonic() - last_done_at)
@@ -515,14 +591,14 @@ class SlurmExecutor:
                         waiting += 1
                 else:
                     # ended without a record; COMPLETED may still be in flight on the file system
-                    first = ended_at.setdefault(cid, time.monotonic())
+                    first = ended_at.setdefault(pid, time.monotonic())
                     if slurm_state == "COMPLETED" and time.monotonic() - first < RECORD_GRACE_S:
                         running += 1
                         continue
-                    if cid not in announced:
-                        announced.add(cid)
+                    if pid not in announced:
+                        announced.add(pid)
                         progress.starting(cid)
-                    del open_tasks[cid]
+                    del open_tasks[pid]
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
             done = len(tasks) - len(open_tasks)
             elapsed = time.monotonic() - started

@@ -15,9 +15,11 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import cast
 
+from harness import results
 from harness.cellstore import CellStore
 from harness.config import load_config
 from harness.errors import HarnessError
@@ -26,6 +28,7 @@ from harness.plan import plan_cells
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 EXIT_ERROR = 2
+MACHINE_KEY = "machine_id"  # the part of a cell key that names the machine (when present)
 EXIT_INTERRUPTED = 130
 
 
@@ -38,7 +41,8 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--repo-root", type=Path, default=REPO_ROOT,
                         help="repository whose build/ holds the binaries (default: this one)")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
-    parser.add_argument("cell_ids", nargs="+", metavar="CELL_ID")
+    parser.add_argument("cell_ids", nargs="+", metavar="CELL_ID",
+                        help="cell ids, or their machine-independent ids (portable_id)")
     return parser.parse_args(argv)
 
 
@@ -47,13 +51,25 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     config = load_config(config_path)
     store = CellStore(plan_cells(config, quick), repo_root.resolve(), results_root.resolve())
     cells = store.cells_by_id()
-    unknown = [cid for cid in cell_ids if cid not in cells]
+    portable = {portable_id(cast(dict[str, object], store.cell_key(cell))): cid
+                for cid, cell in cells.items()}
+    chosen = [cid if cid in cells else portable.get(cid) for cid in cell_ids]
+    unknown = [given for given, cid in zip(cell_ids, chosen, strict=True) if cid is None]
     if unknown:
         raise HarnessError(f"{config_path}: no planned cell with id {' '.join(unknown)}"
                            f"{' (--quick)' if quick else ''}")
     measurer = Measurer(store, hyperfine)
-    for cid in cell_ids:
+    for cid in chosen:
+        assert cid is not None
         measurer.measure_and_save(cells[cid], cid)
+
+
+def portable_id(key: Mapping[str, object]) -> str:
+    """A cell's id computed without the machine it is measured on (a key's `machine_id`):
+    what a submitter names a cell by before it knows which node will measure it (Slurm). The
+    worker takes it as well as a cell id; the record is written under the cell id of the
+    machine that measured it."""
+    return results.cell_id({k: v for k, v in key.items() if k != MACHINE_KEY})
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -24,6 +24,7 @@ from harness.config import ExecutorSpec, load_config
 from harness.errors import HarnessError
 from harness.plan import plan_cells
 from harness.run import main
+from harness.worker import portable_id
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 RUN_PY = REPO_ROOT / "harness" / "run.py"
@@ -302,3 +303,31 @@ def test_omp_binding_is_set_recorded_and_part_of_the_cell_id(
     assert {k: record["omp_env"].get(k) for k in expected} == expected
     store = CellStore(plan_cells(load_config(plain)), REPO_ROOT, root)
     assert store.cell_id(store.plan.cells[0]) != row["cell_id"]
+
+
+def test_records_are_matched_without_their_machine(tmp_path: Path) -> None:
+    """A node writes its record under the id of its own machine: the submitter finds it by
+    the key without the machine (worker.portable_id), and counts only new or rewritten files."""
+    key = {"variant": "p1", "threads": 2, "binary_sha256": "ab" * 32}
+    cells = tmp_path / "cells"
+
+    def write(machine: str, stamp: str) -> str:
+        full = {**key, "machine_id": machine}
+        cid = results.cell_id(full)
+        results.atomic_write_json(cells / f"{cid}.json", {
+            "version": results.RECORD_VERSION, "cell_id": cid, "key": full,
+            "measured_at": stamp})
+        return cid
+
+    old = write("0" * 16, "2026-01-01T00:00:00+00:00")
+    watch = slurm.RecordWatch(cells)
+    watch.snapshot()
+    assert watch.new_records() == {}  # there before: not this run's
+    node = write("1" * 16, "2026-01-02T00:00:00+00:00")
+    assert node != old and portable_id({**key, "machine_id": "1" * 16}) == portable_id(key)
+    found = watch.new_records()
+    assert list(found) == [portable_id(key)] and found[portable_id(key)]["cell_id"] == node
+    assert watch.new_records() == {}  # each file once
+    assert sorted(r["cell_id"] for r in watch.existing()[portable_id(key)]) == sorted(
+        [old, node])
+    assert portable_id({**key, "threads": 1}) != portable_id(key)
