@@ -19,6 +19,7 @@ from harness.plan import Cell, Plan, baseline_path, binary_path, check_reference
 CACHE_DIR = ".cache"
 DIVERGENCE_CSV = "divergence.csv"
 RESULTS_CSV = store.RESULTS_CSV
+RETRY_KEY = "retry"
 
 
 @dataclass
@@ -116,9 +117,13 @@ class CellStore:
         return self.cells_dir / f"{cell_id}.hyperfine.json"
 
     def cached(self, cell_id: str) -> results.Record | None:
+        """The record that spares measuring the cell again. A record marked `retry` (a Slurm
+        task cancelled or lost with its node: no fault of the cell's) is listed in
+        results.csv but measured again by the next run."""
         if self.force:
             return None
-        return self.read(cell_id)
+        record = self.read(cell_id)
+        return None if record is None or record.get(RETRY_KEY) else record
 
     def read(self, cell_id: str) -> results.Record | None:
         """The record on disk, whoever wrote it; None when absent or unreadable."""

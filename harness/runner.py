@@ -127,7 +127,9 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
             if record is not None:
                 experiment.records[cid] = record
         pending = [(cell, cid) for cell, cid in pending if cid not in experiment.records]
-    if pending:
+    if pending and executor.name != "local":
+        pass  # measured elsewhere: each worker writes its machine's env (harness.worker)
+    elif pending:
         env = envinfo.collect(options.repo_root, options.make, options.hyperfine)
         store.write_env(experiment.directory, env)
     elif not env_file.is_file():

@@ -21,9 +21,10 @@ where accounting exists.
 
 Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
 kept like a local timeout (not measured again unless --force or the record is removed); a
-task cancelled (scancel), lost with its node, or ended without a record is shown as `failed`
-with the reason in `note`, in this run's results.csv only: no record is written, so the next
-run submits it again.
+task cancelled (scancel), lost with its node, or ended without a record gets a `failed` record
+with the reason in `note`, marked `retry` (cellstore.RETRY_KEY): results.csv lists it, and the
+next run submits the cell again (its new record replaces the fault record). Both are written
+by the submitter, under the cell id it planned with.
 
 What is running lives in <experiment>/slurm/jobs.json (job id, the cell id of each array
 task, when and by whom it was submitted). Submitters take <experiment>/slurm/lock (flock)
@@ -55,6 +56,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from harness import results
+from harness.cellstore import RETRY_KEY
 from harness.config import ExecutorSpec
 from harness.errors import HarnessError
 from harness.executor import OnRecord, Progress, format_seconds
@@ -300,6 +302,11 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
     }
 
 
+def is_fault(record: Mapping[str, object]) -> bool:
+    """A record the submitter wrote for a task that ended without one (fault_record)."""
+    return "slurm_state" in record
+
+
 @dataclass
 class RecordWatch:
     """The records that appear in cells/ while we wait, by the portable id of their key.
@@ -338,7 +345,7 @@ class RecordWatch:
             self.seen[name] = stamp
             record = results.read_record(self.cells_dir / name, name.removesuffix(".json"))
             key = record.get("key") if record is not None else None
-            if record is not None and isinstance(key, dict):
+            if record is not None and isinstance(key, dict) and not is_fault(record):
                 found[portable_id(key)] = record
         return found
 
@@ -349,7 +356,7 @@ class RecordWatch:
         for name, _ in self._stamps():
             record = results.read_record(self.cells_dir / name, name.removesuffix(".json"))
             key = record.get("key") if record is not None else None
-            if record is not None and isinstance(key, dict):
+            if record is not None and isinstance(key, dict) and not record.get(RETRY_KEY):
                 found.setdefault(portable_id(key), []).append(record)
         return found
 
@@ -432,6 +439,7 @@ class SlurmExecutor:
                 record = max(mine, key=lambda r: str(r.get("measured_at", "")))
                 cell, cid = cells.pop(pid)
                 progress.starting(cid)
+                self.drop_fault(experiment, cid, record)
                 on_record(cell, cid, record)
 
     def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
@@ -522,6 +530,16 @@ class SlurmExecutor:
 
     # --- waiting ---
 
+    @staticmethod
+    def drop_fault(experiment: Experiment, cid: str, record: results.Record) -> None:
+        """The retry record of a cell that a node has now measured under another id (its own
+        machine's) goes: results.csv shows the measurement only."""
+        if record.get("cell_id") == cid:
+            return
+        old = experiment.store.read(cid)
+        if old is not None and old.get(RETRY_KEY):
+            experiment.store.record_path(cid).unlink(missing_ok=True)
+
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
                      slurm_state: str, on_record: OnRecord) -> None:
         if slurm_state in TIMEOUT_STATES:
@@ -538,8 +556,9 @@ class SlurmExecutor:
             record = fault_record(experiment, cell, cid, SLURM_STATUS_FAILED, note)
         record["slurm_task"] = task.name
         record["slurm_state"] = slurm_state
-        if slurm_state in TIMEOUT_STATES:
-            experiment.store.save(cid, record)  # kept, as a local timeout is
+        if slurm_state not in TIMEOUT_STATES:
+            record[RETRY_KEY] = True
+        experiment.store.save(cid, record)
         on_record(cell, cid, record)
 
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
@@ -583,6 +602,7 @@ class SlurmExecutor:
                     # progress lines' ETA follows the throughput
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
+                    self.drop_fault(experiment, cid, record)
                     on_record(cell, cid, record)
                 elif slurm_state in ACTIVE_STATES:
                     if slurm_state in RUNNING_STATES:

@@ -19,12 +19,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import cast
 
-from harness import results
+from harness import envinfo, results
 from harness.cellstore import CellStore
 from harness.config import load_config
 from harness.errors import HarnessError
 from harness.measure import Measurer
 from harness.plan import plan_cells
+from harness.store import MACHINES, write_env
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 EXIT_ERROR = 2
@@ -62,6 +63,9 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     for cid in chosen:
         assert cid is not None
         measurer.measure_and_save(cells[cid], cid)
+    # the machine and tools of this node, once per machine (a submitter elsewhere cannot)
+    if not (store.directory / MACHINES / f"{store.machine_id}.json").is_file():
+        write_env(store.directory, envinfo.collect(repo_root.resolve(), hyperfine=hyperfine))
 
 
 def portable_id(key: Mapping[str, object]) -> str:

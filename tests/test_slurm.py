@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from harness import report, results, slurm
+from harness import envinfo, report, results, slurm
 from harness.cellstore import CellStore
 from harness.config import ExecutorSpec, load_config
 from harness.errors import HarnessError
@@ -113,9 +113,14 @@ def test_six_cells_give_the_rows_of_a_local_run(cluster, real_binaries: Path, tm
     assert [stable(r) for r in remote_rows] == [stable(r) for r in local_rows]
     assert all(r["status"] == "ok" and r["identical"] == "True" for r in remote_rows)
     assert all(float(r["wall_median_s"]) > 0 for r in remote_rows)
+    # the records and the env carry the machine of the node that measured them
+    machine = envinfo.machine(REPO_ROOT)
+    assert {r["machine_id"] for r in remote_rows} == {str(machine["machine_id"])}
+    assert (remote / "six" / "machines" / f"{machine['machine_id']}.json").is_file()
     submitted = jobs(remote, "six")
+    store = CellStore(plan_cells(load_config(config)), REPO_ROOT, remote)
     assert sorted(c for j in submitted for c in j["cells"]) == sorted(
-        r["cell_id"] for r in remote_rows)
+        portable_id(dict(store.cell_key(cell) or {})) for cell in store.plan.cells)
     # one array per --cpus-per-task: 1 and 2 threads
     assert sorted(len(j["cells"]) for j in submitted) == [3, 3]
     # the same command again measures nothing and submits nothing
@@ -174,12 +179,13 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     root = tmp_path / "results"
     store = CellStore(plan_cells(load_config(config)), REPO_ROOT, root)
     held_id = str(store.cell_id(store.plan.cells[1]))
+    held_portable = portable_id(dict(store.cell_key(store.plan.cells[1]) or {}))
     log = tmp_path / "submitter.log"
     proc = submitter(config, root, log)
     try:
         wait_until("the job on file", lambda: bool(jobs(root, "cancel")))
         job = jobs(root, "cancel")[0]
-        index = list(job["cells"]).index(held_id)
+        index = list(job["cells"]).index(held_portable)
         wait_until("the held task running",
                    lambda: task_state(str(job["job_id"]), index) == "RUNNING")
         slurm.cancel(str(job["job_id"]), index)
@@ -192,7 +198,9 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     assert {v: r["status"] for v, r in rows.items()} == {
         "seq": "ok", "held": "failed", "p1": "ok"}
     assert "cancelled (scancel)" in rows["held"]["note"]
-    assert not store.record_path(held_id).exists()  # not kept: the next run tries again
+    kept = store.read(held_id)  # listed, and marked to be measured again
+    assert kept is not None and kept["retry"] is True and kept["slurm_state"] == "CANCELLED"
+    assert store.cached(held_id) is None
     assert report.render(root, tmp_path / "report").is_file()  # the failed row renders
     others = {cid: store.record_path(cid).stat().st_mtime_ns
               for cid in (rows["seq"]["cell_id"], rows["p1"]["cell_id"])}
@@ -200,8 +208,10 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0
     assert "cancel: 3 cells (1 measured, 2 cached): 3 ok" in capsys.readouterr().err
     rerun = jobs(root, "cancel")
-    assert len(rerun) == 2 and rerun[1]["cells"] == [held_id]
+    assert len(rerun) == 2 and rerun[1]["cells"] == [held_portable]
     assert others == {cid: store.record_path(cid).stat().st_mtime_ns for cid in others}
+    measured = store.read(held_id)
+    assert measured is not None and measured["status"] == "ok" and "retry" not in measured
 
 
 def test_a_killed_submitter_is_resumed_without_duplicate_submissions(
