@@ -9,6 +9,7 @@ interrupted grid resumes where it stopped. The pieces live beside this module:
   harness/measure.py    measuring one cell (precise run, validation, checks, hyperfine);
   harness/executor.py   who measures the pending cells (LocalExecutor: this process);
   harness/worker.py     `python -m harness.worker`: measure cells by id in a fresh process;
+  harness/slurm.py      SlurmExecutor: the pending cells as Slurm array tasks running the worker;
   harness/proc.py       child processes under a timeout.
 """
 
