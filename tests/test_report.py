@@ -312,6 +312,7 @@ def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
     copy.mkdir(parents=True)
     (copy / "__init__.py").write_text("")
     shutil.copytree(REPO_ROOT / "harness" / "report", copy / "report")
+    shutil.copy(REPO_ROOT / "harness" / "reexec.py", copy / "reexec.py")
     done = subprocess.run(
         [sys.executable, "-S", "-m", "harness.report"],
         capture_output=True, text=True, check=False, cwd=tmp_path / "repo",
