@@ -897,14 +897,17 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     {
         const int tid = omp_get_thread_num();
         sim_cand_buf *buf = sim_sink_buf(sink, tid);
-#pragma omp for schedule(dynamic, 1)
+        const double t0 = sim_busy_start();
+#pragma omp for schedule(dynamic, 1) nowait
         for (int i = 0; i < items; i++) {
+            buf->chunks++;
             if (g.bands > 1)
                 run_item(w, s, &s->th[tid], &g, i / g.bands, i / g.bands + 1, i % g.bands, buf);
             else
                 run_item(w, s, &s->th[tid], &g, (int)((int64_t)i * g.K / items),
                          (int)((int64_t)(i + 1) * g.K / items), 0, buf);
         }
+        sim_busy_stop(buf, t0);
     }
     int32_t *t = s->ord;
     s->ord = s->ord_next;

@@ -1,9 +1,11 @@
 /*
- * p3: both loops parallel, nested, two active levels (the seed's third strategy). As in the
- * seed, the outer team and every inner team each ask for the run's thread count T, so up to
- * T*T threads compete for T cores: the oversubscription is what this strategy is measured for.
+ * p3, the seed's third strategy as written: "both loops parallel, nested, two active levels":
+ * `#pragma omp parallel for` over i and, inside it, `#pragma omp parallel for` over j (static).
+ * Shows oversubscription and region cost: the outer team and every inner team each ask for the
+ * run's thread count T, so T*T threads compete for T cores, and every row creates a team.
  * Each (outer, inner) thread pair writes its own buffer: omp_get_thread_num() alone repeats
- * across inner teams.
+ * across inner teams. The j loop runs over tiles of SIM_TILE j (as in p2), and the inner `omp
+ * for` is `nowait` inside its region so that each inner thread's timer stops when it is done.
  */
 #include <omp.h>
 
@@ -22,9 +24,19 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     for (int32_t i = 0; i < w->n; i++) {
         const int32_t tiles = sim_row_tiles(w, i);
         const int outer = omp_get_thread_num();
-#pragma omp parallel for schedule(static) num_threads(team)
-        for (int32_t k = 0; k < tiles; k++)
-            sim_scan_tile(w, i, k, sim_sink_buf(sink, outer * team + omp_get_thread_num()));
+#pragma omp parallel num_threads(team)
+        {
+            sim_cand_buf *buf = sim_sink_buf(sink, outer * team + omp_get_thread_num());
+            const double t0 = sim_busy_start();
+            int32_t last = -2;
+#pragma omp for schedule(static) nowait
+            for (int32_t k = 0; k < tiles; k++) {
+                buf->chunks += k != last + 1;
+                last = k;
+                sim_scan_tile(w, i, k, buf);
+            }
+            sim_busy_stop(buf, t0);
+        }
     }
 }
 

@@ -118,7 +118,7 @@ static void scan_row(const sim_world *w, int32_t i, sim_cand_buf *buf)
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
-    sim_for_rows(w, sink, omp_sched_dynamic, 0, scan_row);
+    sim_rows_dynamic(w, sink, scan_row); /* omp for schedule(dynamic) */
 }
 
 const sim_variant sim_variant_def = {

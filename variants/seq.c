@@ -5,8 +5,12 @@
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
+    sim_cand_buf *buf = sim_sink_buf(sink, 0);
+    const double t0 = sim_busy_start();
     for (int32_t i = 0; i < w->n; i++)
-        sim_scan_full_row(w, i, sim_sink_buf(sink, 0));
+        sim_scan_full_row(w, i, buf);
+    buf->chunks++;
+    sim_busy_stop(buf, t0);
 }
 
 const sim_variant sim_variant_def = {

@@ -24,7 +24,7 @@ B=$1
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 SCENES=$HERE/scenes
-EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d grid"}
+EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d p1_cyclic p1_runtime p2_blocks p2d_tiles grid"}
 read -r -a VARIANTS <<<"$EXACT_VARIANTS"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
@@ -357,7 +357,28 @@ check_timing() {
     wc=$(awk '{ w += $8 } END { print w + 0 }' "$TMP/out")
     [ "$(json_field pair_collisions "$TMP/err")" = "$pc" ] || problems+=" pair_collisions != sum(pcoll)/2;"
     [ "$(json_field wall_collisions "$TMP/err")" = "$wc" ] || problems+=" wall_collisions != sum(wcoll);"
+    # Per-thread figures: one entry per candidate writer (T, or T*T for p3), busy seconds >= 0,
+    # the pairs summing to pair_tests, and a chunk for every writer that tested a pair.
+    local writers=$threads
+    [ "$variant" = p3 ] && writers=$((threads * threads))
+    if command -v python3 >/dev/null; then
+        problems+=$(python3 -c '
+import json, sys
+t = json.loads(open(sys.argv[1]).read()); w = int(sys.argv[2])
+busy, pairs, chunks = t.get("threads_busy_s"), t.get("threads_pairs"), t.get("threads_chunks")
+if not all(isinstance(v, list) and len(v) == w for v in (busy, pairs, chunks)):
+    print(" per-thread lists missing or not %d long;" % w)
+elif min(busy) < 0 or sum(pairs) != t["pair_tests"] or any(p > 0 and c == 0 for p, c in zip(pairs, chunks)):
+    print(" per-thread busy < 0, pairs not summing to pair_tests, or pairs without a chunk;")
+' "$TMP/err" "$writers")
+    fi
     if [ -z "$problems" ]; then ok; else bad "$what:$problems $(head -c 400 "$TMP/err")"; fi
+}
+# check_work WHAT KEY EXPECTED: the per-thread list KEY of the last run, e.g. "[1, 2]".
+check_work() {
+    local got
+    got=$(sed -n 's/.*"'"$2"'": \(\[[^]]*\]\).*/\1/p' "$TMP/err")
+    if [ "$got" = "$3" ]; then ok; else bad "$1: $2 = $got, expected $3"; fi
 }
 printf '120 60 1 5\nperf\n' >"$TMP/timing.in"
 run "$TMP/out" "$TMP/err" "$B/seq" --timing "$TMP/timing.in"
@@ -373,6 +394,32 @@ run "$TMP/out" "$TMP/err" env OMP_NUM_THREADS=3 "$B/p1d" --timing "$TMP/timing.i
 check_timing "p1d OMP_NUM_THREADS=3" p1d 3 120 5
 run "$TMP/out" "$TMP/err" "$B/seq" --timing --threads 4 "$TMP/timing.in"
 check_timing "seq --threads 4 runs one thread" seq 1 120 5
+# Who tests which row, from the per-thread pairs (5 steps of 120 particles, 2 threads): the
+# seed's p1 deals two blocks of 60 rows, 5 * (119 + ... + 60) and 5 * (59 + ... + 0) pairs;
+# round-robin rows give thread 0 the rows of 119, 117, ..., 1 pairs: 5 * 60^2 and 5 * 59 * 60.
+# One chunk a step for a block; one a row (or a pair for p2d) otherwise.
+run "$TMP/out" "$TMP/err" "$B/p1" --timing --threads 2 "$TMP/timing.in"
+check_work "p1 rows in two blocks" threads_pairs "[26850, 8850]"
+check_work "p1 one chunk per step" threads_chunks "[5, 5]"
+run "$TMP/out" "$TMP/err" "$B/p1_cyclic" --timing --threads 2 "$TMP/timing.in"
+check_work "p1_cyclic rows round-robin" threads_pairs "[18000, 17700]"
+check_work "p1_cyclic one chunk per row" threads_chunks "[300, 300]"
+# p1_runtime takes its schedule from OMP_SCHEDULE.
+run "$TMP/out" "$TMP/err" env OMP_SCHEDULE=static "$B/p1_runtime" --timing --threads 2 "$TMP/timing.in"
+check_work "p1_runtime OMP_SCHEDULE=static" threads_pairs "[26850, 8850]"
+run "$TMP/out" "$TMP/err" env OMP_SCHEDULE=static,1 "$B/p1_runtime" --timing --threads 2 "$TMP/timing.in"
+check_work "p1_runtime OMP_SCHEDULE=static,1" threads_pairs "[18000, 17700]"
+run "$TMP/out" "$TMP/err" env OMP_SCHEDULE=static,30 "$B/p1_runtime" --timing --threads 2 "$TMP/timing.in"
+check_work "p1_runtime OMP_SCHEDULE=static,30 chunks" threads_chunks "[10, 10]"
+run "$TMP/out" "$TMP/err" env OMP_SCHEDULE=dynamic,7 "$B/p1_runtime" --timing --threads 2 "$TMP/timing.in"
+check_timing "p1_runtime OMP_SCHEDULE=dynamic,7" p1_runtime 2 120 5
+chunks=$(sed -n 's/.*"threads_chunks": \[\([0-9]*\), \([0-9]*\)\].*/\1 + \2/p' "$TMP/err")
+[ -n "$chunks" ] && [ $((chunks)) = $((5 * 18)) ] && ok || bad "p1_runtime dynamic,7: chunks $chunks, expected 5 * ceil(120/7) = 90"
+# p2d deals single j: a chunk per pair test.
+run "$TMP/out" "$TMP/err" "$B/p2d" --timing --threads 2 "$TMP/timing.in"
+check_timing "p2d --timing --threads 2" p2d 2 120 5
+pairs=$(sed -n 's/.*"threads_pairs": \(\[[^]]*\]\).*/\1/p' "$TMP/err")
+check_work "p2d a chunk per pair" threads_chunks "$pairs"
 # No timing line without --timing (the other runs check an empty stderr).
 
 # ---------------------------------------------------------------------------------------------

@@ -58,8 +58,14 @@ typedef struct sim_cand {
 typedef struct sim_cand_buf {
     _Alignas(64) sim_cand *items;
     size_t len, cap;
-    uint64_t pair_tests; /* pairs examined, for --timing */
+    uint64_t pair_tests; /* pairs examined this step, for --timing */
     bool failed;         /* an allocation failed: the core ends the run with status 1 */
+    /* For --timing's per-thread figures, summed over the run (never reset by the core): the
+     * seconds this buffer's writer spent in the finder's loops (sim_busy_start/stop, once per
+     * thread per region, so the timers cost nothing per pair) and the chunks of iterations the
+     * OpenMP runtime handed it. */
+    double busy_s;
+    uint64_t chunks;
 } sim_cand_buf;
 
 /* What a finder writes into: `count` buffers, one per concurrent writer. */
@@ -104,6 +110,21 @@ void sim_scan_row(const sim_world *w, int32_t i, int32_t j_begin, int32_t j_end,
 int32_t sim_row_tiles(const sim_world *w, int32_t i);
 void sim_scan_tile(const sim_world *w, int32_t i, int32_t tile, sim_cand_buf *buf);
 
+/* ---- Per-thread work, for --timing ---- */
+
+/* A thread's share of a parallel region: t0 = sim_busy_start() before its loop, and
+ * sim_busy_stop(buf, t0) after it, before any barrier (so the loop is `omp for ... nowait` and
+ * the region's end is the barrier): waiting is not work. */
+static inline double sim_busy_start(void)
+{
+    return omp_get_wtime();
+}
+
+static inline void sim_busy_stop(sim_cand_buf *buf, double t0)
+{
+    buf->busy_s += omp_get_wtime() - t0;
+}
+
 /* ---- The seed's loop shapes (sim_loops.c), for finders that use one ---- */
 
 /* How a finder tests one row: particle i against the j it is responsible for. */
@@ -112,14 +133,16 @@ typedef void sim_row_scan_fn(const sim_world *w, int32_t i, sim_cand_buf *buf);
 /* Row i against every j > i with the shared kernel. */
 void sim_scan_full_row(const sim_world *w, int32_t i, sim_cand_buf *buf);
 
-/* Outer loop parallel: rows shared out over the team with `schedule` (static or dynamic) and
- * `chunk` (0: the schedule's default), each thread writing buffer omp_get_thread_num(). */
-void sim_for_rows(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule, int chunk,
-                  sim_row_scan_fn *scan);
-
-/* Outer loop sequential, inner loop parallel: each row's j range shared out by `schedule`,
- * omp_sched_static (one contiguous block per thread) or omp_sched_dynamic (tiles of 4096 j). */
-void sim_for_row_tiles(const sim_world *w, sim_pair_sink *sink, omp_sched_t schedule);
+/* Outer loop parallel: one region, rows shared out by the `omp for` schedule each name says,
+ * each thread writing buffer omp_get_thread_num():
+ *   sim_rows_static   schedule(static)     one contiguous block of rows per thread (the seed's p1)
+ *   sim_rows_cyclic   schedule(static, 1)  rows dealt round-robin
+ *   sim_rows_dynamic  schedule(dynamic)    one row per grab from a shared counter (p1d)
+ *   sim_rows_runtime  schedule(runtime)    whatever OMP_SCHEDULE says (the schedule study) */
+void sim_rows_static(const sim_world *w, sim_pair_sink *sink, sim_row_scan_fn *scan);
+void sim_rows_cyclic(const sim_world *w, sim_pair_sink *sink, sim_row_scan_fn *scan);
+void sim_rows_dynamic(const sim_world *w, sim_pair_sink *sink, sim_row_scan_fn *scan);
+void sim_rows_runtime(const sim_world *w, sim_pair_sink *sink, sim_row_scan_fn *scan);
 
 /* The buffer a writer uses; `slot` in [0, sink->count). */
 static inline sim_cand_buf *sim_sink_buf(sim_pair_sink *sink, int slot)

@@ -74,6 +74,19 @@ typedef struct sim_stats {
 typedef struct sim_stepper sim_stepper;
 
 sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int threads);
+
+/* One candidate writer's work over the run so far, for --timing: seconds in the finder's loops
+ * (as the variant timed them; 0 where it does not), pairs tested, chunks it was dealt. */
+typedef struct sim_thread_work {
+    double busy_s;
+    uint64_t pairs;
+    uint64_t chunks;
+} sim_thread_work;
+
+/* The number of candidate writers (the sink's buffers: the threads, or T*T for p3). */
+int sim_stepper_writers(const sim_stepper *s);
+/* Writer k's work so far, k in [0, sim_stepper_writers(s)). */
+sim_thread_work sim_stepper_work(const sim_stepper *s, int k);
 /* Start the OpenMP team of `threads` threads and move each once to its own CPU, then let it
  * move freely again (sim_team.c says why). Nothing for fewer than 2 threads or off Linux. */
 void sim_team_spread(int threads);

@@ -29,6 +29,8 @@ typedef struct sim_options {
 typedef struct sim_report {
     double input_s, sim_s, output_s;
     sim_stats stats;
+    sim_thread_work *work; /* per candidate writer (thread), `writers` of them; NULL if none */
+    int writers;
 } sim_report;
 
 static const char *const usage_text =
@@ -195,6 +197,12 @@ static int simulate(const char *name, const sim_options *o, const sim_header *h,
         return SIM_EXIT_RUNTIME;
     }
     int rc = SIM_EXIT_OK;
+    if (o->timing) {
+        rep->writers = sim_stepper_writers(s);
+        rep->work = calloc((size_t)rep->writers, sizeof *rep->work);
+        if (!rep->work)
+            rep->writers = 0;
+    }
     for (int64_t step = 0; step < h->steps && rc == SIM_EXIT_OK; step++) {
         if (h->mode == SIM_MODE_PRINT) {
             const double t0 = omp_get_wtime();
@@ -210,6 +218,8 @@ static int simulate(const char *name, const sim_options *o, const sim_header *h,
         }
         rep->sim_s += omp_get_wtime() - t0;
     }
+    for (int k = 0; k < rep->writers; k++)
+        rep->work[k] = sim_stepper_work(s, k);
     sim_stepper_destroy(s);
     if (rc == SIM_EXIT_OK) {
         const double t0 = omp_get_wtime();
@@ -233,6 +243,22 @@ static void build_name(char *buf, size_t len)
              real && formula ? "-" : "", formula ? SIM_FORMULA_NAME : "");
 }
 
+/* ", \"KEY\": [v0, v1, ...]" of one field of every writer's work. */
+static void print_work(const sim_report *r, const char *key, int field)
+{
+    fprintf(stderr, ", \"%s\": [", key);
+    for (int k = 0; k < r->writers; k++) {
+        const sim_thread_work *t = &r->work[k];
+        if (k)
+            fputs(", ", stderr);
+        if (field == 0)
+            fprintf(stderr, "%.6f", t->busy_s);
+        else
+            fprintf(stderr, "%llu", (unsigned long long)(field == 1 ? t->pairs : t->chunks));
+    }
+    fputc(']', stderr);
+}
+
 static void print_timing(const sim_header *h, int threads, const sim_report *r)
 {
     char build[32];
@@ -241,12 +267,18 @@ static void print_timing(const sim_header *h, int threads, const sim_report *r)
             "{\"variant\": \"%s\", \"build\": \"%s\", \"real\": \"%s\", \"formula\": \"%s\", "
             "\"threads\": %d, \"n\": %ld, \"steps\": %lld, \"input_s\": %.6f, \"sim_s\": %.6f, "
             "\"output_s\": %.6f, \"pair_tests\": %llu, \"candidates\": %llu, "
-            "\"pair_collisions\": %llu, \"wall_collisions\": %llu}\n",
+            "\"pair_collisions\": %llu, \"wall_collisions\": %llu",
             sim_variant_def.name, build, SIM_REAL_NAME, SIM_FORMULA_NAME, threads, (long)h->n,
             (long long)h->steps, r->input_s, r->sim_s, r->output_s,
             (unsigned long long)r->stats.pair_tests, (unsigned long long)r->stats.candidates,
             (unsigned long long)r->stats.pair_collisions,
             (unsigned long long)r->stats.wall_collisions);
+    /* Per candidate writer (the threads; T*T for p3): busy seconds in the pair finder, pair
+     * tests and chunks dealt, in thread order. */
+    print_work(r, "threads_busy_s", 0);
+    print_work(r, "threads_pairs", 1);
+    print_work(r, "threads_chunks", 2);
+    fputs("}\n", stderr);
 }
 
 int main(int argc, char **argv)
@@ -279,5 +311,6 @@ int main(int argc, char **argv)
     sim_world_free(&w);
     if (rc == SIM_EXIT_OK && o.timing)
         print_timing(&h, threads, &rep);
+    free(rep.work);
     return rc;
 }

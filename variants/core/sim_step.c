@@ -41,6 +41,7 @@ struct sim_stepper {
     int32_t *event;    /* accepted event per particle: SIM_EVENT_NONE, SIM_WALL or the partner */
     sim_real *event_t; /* its time */
     sim_real *nx, *ny, *nvx, *nvy; /* the next state, swapped with the world's arrays */
+    uint64_t *writer_pairs;        /* pair tests per candidate buffer over the run */
 };
 
 /* Time for a centre at q moving at w to reach the wall ahead (SPEC §2); infinite when w == 0. */
@@ -139,8 +140,9 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->ny = malloc(n * sizeof(sim_real) + 1);
     s->nvx = malloc(n * sizeof(sim_real) + 1);
     s->nvy = malloc(n * sizeof(sim_real) + 1);
+    s->writer_pairs = calloc((size_t)count, sizeof *s->writer_pairs);
     if (!s->sink.bufs || !s->walls || !s->event || !s->event_t || !s->nx || !s->ny || !s->nvx ||
-        !s->nvy) {
+        !s->nvy || !s->writer_pairs) {
         sim_stepper_destroy(s);
         return NULL;
     }
@@ -180,7 +182,20 @@ void sim_stepper_destroy(sim_stepper *s)
     free(s->ny);
     free(s->nvx);
     free(s->nvy);
+    free(s->writer_pairs);
     free(s);
+}
+
+int sim_stepper_writers(const sim_stepper *s)
+{
+    return s->sink.count;
+}
+
+sim_thread_work sim_stepper_work(const sim_stepper *s, int k)
+{
+    return (sim_thread_work){.busy_s = s->sink.bufs[k].busy_s,
+                             .pairs = s->writer_pairs[k],
+                             .chunks = s->sink.bufs[k].chunks};
 }
 
 /* The SPEC §2 key: t ascending; pair before wall; smaller i; smaller j. Total, so qsort's
@@ -321,6 +336,7 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
         total += s->sink.bufs[k].len;
         failed |= s->sink.bufs[k].failed;
         stats->pair_tests += s->sink.bufs[k].pair_tests;
+        s->writer_pairs[k] += s->sink.bufs[k].pair_tests;
         s->sink.bufs[k].pair_tests = 0;
     }
     if (failed || !buf_reserve(&s->merged, &s->merged_cap, total) ||
