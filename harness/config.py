@@ -50,6 +50,7 @@ TRUTH_BUILD = "f128"
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
+    "schedule",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
@@ -73,6 +74,10 @@ EXCLUDE_OPS = {
     "le": lambda a, b: a <= b,
 }
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+# `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers `schedule(runtime)` loops,
+# i.e. p1_runtime): a kind, and for all but auto an optional positive chunk, as OpenMP spells it.
+SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
+SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
 MAX_SEED = 2**64 - 1
 
 DEFAULT_WARMUP = 1
@@ -216,6 +221,8 @@ class Config:
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()
+    # OMP_SCHEDULE values to sweep (`schedule:`); empty: not set, and cells keep their old ids
+    schedules: tuple[str, ...] = ()
 
     @property
     def directory(self) -> Path:
@@ -433,6 +440,7 @@ def parse_config(raw: Mapping[str, object], source: Path) -> Config:
         binaries=binaries,
         checks=_parse_checks(raw["checks"], raw["accuracy"], source),
         executor=_parse_executor(raw.get("executor", {}), source),
+        schedules=parse_schedules(raw.get("schedule"), source),
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config
@@ -597,6 +605,29 @@ def _parse_validate(value: object, source: Path) -> Validation:
                       Kind("one of " + ", ".join(BASELINE_CHOICES), _choice(BASELINE_CHOICES)),
                       source)
     return Validation(True, max_n, str(baseline))
+
+
+def _schedule(value: object) -> object:
+    if not isinstance(value, str):
+        raise ValueError
+    text = value.replace(" ", "").lower()
+    if not SCHEDULE_PATTERN.match(text):
+        raise ValueError
+    return text
+
+
+SCHEDULE = Kind("an OpenMP schedule: " + ", ".join(SCHEDULE_KINDS)
+                + ", the first three optionally with ',CHUNK' (e.g. \"dynamic,64\")", _schedule)
+
+
+def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
+    """The `schedule:` axis: () when absent, else its normalised OMP_SCHEDULE values."""
+    if value is None:
+        return ()
+    values, _ = _axis(value, "schedule", SCHEDULE, source)
+    if len(set(values)) != len(values):
+        raise config_error(source, "schedule", "schedules without repeats", value)
+    return tuple(str(v) for v in values)
 
 
 def _parse_checks(names: object, options: object, source: Path) -> Checks:

@@ -57,6 +57,11 @@ MINOR_LABEL_DECADES = 2.0
 MAX_VALUE_TICKS = 12
 
 PALETTE: tuple[str, ...] = tuple(mpl.colormaps["tab10"].colors)  # type: ignore[attr-defined]
+# tab20's light shade of each PALETTE color: a repaired strategy is drawn in its seed's hue.
+LIGHT_PALETTE: tuple[str, ...] = tuple(mpl.colormaps["tab20"].colors[1::2])  # type: ignore[attr-defined]
+# The variants with a color of their own (a repair borrows its seed's, lighter).
+_OWN_COLOR: tuple[str, ...] = tuple(v for v in tables.VARIANT_ORDER
+                                    if v not in tables.REPAIRED_FROM)
 BUILD_MARKERS: tuple[str, ...] = ("o", "s", "^", "D", "v", "P", "X", "*")
 TIME_LABEL = "wall time, median of runs [s]"
 TITLE_CHARS = 64  # longer titles wrap: at 12 pt more would overrun a 7-inch figure
@@ -163,12 +168,15 @@ def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
 
 def variant_color(variant: str) -> str:
     """A fixed color per variant, the same in every figure."""
-    order = tables.VARIANT_ORDER
+    order = _OWN_COLOR
+    seed = tables.REPAIRED_FROM.get(variant)
+    if seed in order:
+        return LIGHT_PALETTE[order.index(seed) % len(LIGHT_PALETTE)]
     if variant in order:
         return PALETTE[order.index(variant) % len(PALETTE)]
     # Unknown variants share the colors left over, picked by a hash stable across processes.
-    spare = len(PALETTE) - len(order)
-    return PALETTE[len(order) + zlib.crc32(variant.encode()) % spare]
+    spare = max(1, len(PALETTE) - len(order))
+    return PALETTE[(len(order) + zlib.crc32(variant.encode()) % spare) % len(PALETTE)]
 
 
 def _series_colors(groups: Sequence[tuple[tuple, pd.DataFrame]], keys: Sequence[str]) -> list:

@@ -73,6 +73,12 @@ DIVERGENCE_COLUMNS = (
 )
 TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair_collisions",
                "wall_collisions")
+# Issue 16: the OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its
+# --timing run (one entry per candidate writer: the threads, T*T for p3), space-separated;
+# `imbalance` is max over mean busy seconds (1 = perfectly even). After PROVENANCE_COLUMNS.
+THREAD_COLUMNS = ("schedule", "imbalance", "threads_busy_s", "threads_pairs", "threads_chunks")
+# --timing's per-thread lists, stored as the columns of the same name.
+THREAD_TIMING_KEYS = ("threads_busy_s", "threads_pairs", "threads_chunks")
 
 Record = dict[str, object]
 
@@ -184,6 +190,41 @@ def parse_timing(stderr: str) -> dict[str, object] | None:
     return None
 
 
+def imbalance(busy_s: Iterable[float]) -> float | None:
+    """Max over mean of the per-thread busy seconds; None without a positive mean."""
+    values = [float(v) for v in busy_s]
+    if not values or not all(math.isfinite(v) and v >= 0 for v in values):
+        return None
+    mean = math.fsum(values) / len(values)
+    return max(values) / mean if mean > 0 else None
+
+
+def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
+    """The THREAD_COLUMNS a --timing object gives (None for what it lacks, e.g. an older
+    binary): its per-thread lists space-separated, and their imbalance."""
+    fields: dict[str, object] = {}
+    busy: list[float] | None = None
+    for key in THREAD_TIMING_KEYS:
+        value = timing.get(key)
+        ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
+        fields[key] = " ".join(repr(v) for v in value) if ok and value else None
+        if key == "threads_busy_s" and ok:
+            busy = [float(v) for v in value]
+    fields["imbalance"] = imbalance(busy) if busy else None
+    return fields
+
+
+def split_floats(text: object) -> list[float]:
+    """A space-separated column (threads_busy_s, wall_times_s ...) back as floats; [] when empty
+    or malformed (older results)."""
+    if not isinstance(text, str) or not text.strip():
+        return []
+    try:
+        return [float(v) for v in text.split()]
+    except ValueError:
+        return []
+
+
 # --- files --------------------------------------------------------------------------------
 
 
@@ -285,7 +326,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *CHECK_COLUMNS):
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *THREAD_COLUMNS, *CHECK_COLUMNS):
         row[column] = record.get(column)
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
@@ -304,7 +345,8 @@ def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
     """results.csv text: the contract, extra and provenance columns, then the check columns
     when some row has a check value."""
     rows = list(rows)
-    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
+    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS,
+                                *THREAD_COLUMNS)
     if any(row.get(c) is not None for row in rows for c in CHECK_COLUMNS):
         columns = (*columns, *CHECK_COLUMNS)
     buffer = io.StringIO()

@@ -175,3 +175,22 @@ def rank_test(old: Sequence[float], new: Sequence[float]) -> float:
     if a.size < 2 or b.size < 2:
         return math.nan
     return float(sps.mannwhitneyu(a, b, alternative="two-sided").pvalue)
+
+
+def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
+    """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
+    e.g. the time a strategy adds over its repair."""
+    a, b = _clean(minuend), _clean(subtrahend)
+    if a.size == 0 or b.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(np.median(a) - np.median(b))
+    if a.size < 2 or b.size < 2:
+        return Interval(point, math.nan, math.nan)
+    if np.all(a == a[0]) and np.all(b == b[0]):
+        return Interval(point, point, point)
+
+    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.median(x, axis=axis) - np.median(y, axis=axis)
+
+    low, high = _bootstrap((a, b), statistic)
+    return Interval(point, min(low, point), max(high, point))

@@ -19,6 +19,7 @@ MACHINE = "machine"  # the machine's label; one label per machine_id (harness.re
 # like any other (a table column, one plotted series each).
 CELL_KEYS: tuple[str, ...] = (
     MACHINE, "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
+    "schedule",
 )
 # The columns that identify a simulated input: cells sharing them simulate the same thing,
 # so one may serve as the other's speedup baseline (never across machines).
@@ -36,11 +37,17 @@ STATUSES: frozenset[str] = frozenset({OK, INVALID, "failed", "crashed", "timeout
 SEQ = "seq"
 BASELINE_BUILD = "f64"
 # Canonical orders (SPEC section 6 for variants); anything else sorts after, alphabetically.
-VARIANT_ORDER: tuple[str, ...] = ("seq", "p1", "p2", "p3", "p1d", "p2d", "relative", "grid")
+# Each of the seed's strategies followed by its repair (issue 16), so a table shows them side by
+# side; the schedule study's p1_runtime last.
+VARIANT_ORDER: tuple[str, ...] = ("seq", "p1", "p1_cyclic", "p2", "p2_blocks", "p3", "p1d", "p2d",
+                                  "p2d_tiles", "relative", "grid", "p1_runtime")
+# The seed's strategy each tuned variant repairs (variants/NAME.c says how).
+REPAIRED_FROM: dict[str, str] = {"p1_cyclic": "p1", "p2_blocks": "p2", "p2d_tiles": "p2d"}
 BUILD_ORDER: tuple[str, ...] = ("f64", "f32", "f128", "textbook", "report")
 
 # The variants that test all pairs like seq: their speedup over seq is parallelism alone.
-ALL_PAIRS_VARIANTS: frozenset[str] = frozenset({"seq", "p1", "p2", "p3", "p1d", "p2d"})
+ALL_PAIRS_VARIANTS: frozenset[str] = frozenset({"seq", "p1", "p2", "p3", "p1d", "p2d", "p1_cyclic",
+                                                "p2_blocks", "p2d_tiles", "p1_runtime"})
 # Variants that run one thread whatever `--threads` says: a thread count is nominal for them.
 SINGLE_THREADED_VARIANTS: frozenset[str] = frozenset({"seq"})
 
@@ -61,6 +68,8 @@ DISPLAY_NAMES: dict[str, str] = {
     "mode": "mode",
     "seed": "seed",
     "threads": "threads",
+    "schedule": "OMP_SCHEDULE",
+    "imbalance": "imbalance (max/mean busy)",
     "cores": "cores",
     "runs": "runs",
     "median_s": "median [s]",
@@ -121,6 +130,8 @@ def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str,
     fixed: dict[str, object] = {}
     for key in keys:
         if key in df.columns and len(df) and df[key].nunique(dropna=False) == 1:
+            if df[key].iloc[0] == "":  # an axis the config did not set (schedule)
+                continue
             fixed[key] = df[key].iloc[0]
     return fixed
 
@@ -393,6 +404,8 @@ def cell_table(
         table["serial_fraction_low"] = rows["serial_fraction_low"]
         table["serial_fraction_high"] = rows["serial_fraction_high"]
         table["baseline"] = rows["baseline"]
+    if "imbalance" in rows.columns and rows["imbalance"].notna().any():
+        table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     return sort_cells(table, keys)
 
@@ -586,6 +599,7 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "prefactor_s": lambda v: f"{float(v):.3e}",
     "speedup": _fmt_ratio,
     "efficiency": _fmt_ratio,
+    "imbalance": _fmt_ratio,
     "exponent": _fmt_ratio,
     "exponent_se": lambda v: f"{float(v):.2g}",
     "serial_fraction": _fmt_fraction,

@@ -232,3 +232,27 @@ def test_the_same_key_in_different_mappings_is_not_a_duplicate() -> None:
     from harness.config import load_yaml
     assert load_yaml("a: {x: 1}\nb: {x: 2}\nc: [{x: 1}, {x: 2}]\n") == {
         "a": {"x": 1}, "b": {"x": 2}, "c": [{"x": 1}, {"x": 2}]}
+
+
+# --- the schedule axis (issue 16) ---------------------------------------------------------
+
+
+def test_schedule_axis_is_normalised(write_config) -> None:
+    text = BASE + 'schedule: [static, "static,1", "Dynamic, 64", guided, auto]\n'
+    config = load_config(write_config(text))
+    assert config.schedules == ("static", "static,1", "dynamic,64", "guided", "auto")
+
+
+def test_schedule_absent_is_empty(write_config) -> None:
+    assert load_config(write_config(BASE)).schedules == ()
+
+
+@pytest.mark.parametrize("value", ['"static,0"', "fast", "[]", '["auto,4"]', "7",
+                                   "[static, static]", '"dynamic,"'])
+def test_bad_schedule_names_file_key_and_expectation(write_config, value: str) -> None:
+    path = write_config(BASE + f"schedule: {value}\n")
+    with pytest.raises(HarnessError) as err:
+        load_config(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: key 'schedule': expected ")
+    assert "schedule" in message.split("expected", 1)[1] or "repeats" in message

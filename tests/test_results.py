@@ -157,3 +157,40 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
     assert tuple(results.render_csv([older]).splitlines()[0].split(",")[
         -len(results.PROVENANCE_COLUMNS):]) == results.PROVENANCE_COLUMNS
+
+
+# --- per-thread work (issue 16) -----------------------------------------------------------
+
+
+def test_thread_work_from_timing() -> None:
+    fields = results.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
+                                  "threads_chunks": [5, 5]})
+    assert fields["threads_busy_s"] == "0.3 0.1"
+    assert fields["threads_pairs"] == "30 10"
+    assert fields["threads_chunks"] == "5 5"
+    assert fields["imbalance"] == pytest.approx(0.3 / 0.2)
+
+
+def test_thread_work_of_an_older_binary_is_empty() -> None:
+    fields = results.thread_work({"sim_s": 1.0})
+    assert set(fields) == {*results.THREAD_TIMING_KEYS, "imbalance"}
+    assert all(v is None for v in fields.values())
+
+
+@pytest.mark.parametrize(("busy", "expected"), [
+    ([1.0, 1.0, 1.0], 1.0), ([2.0, 0.0], 2.0), ([0.0, 0.0], None), ([], None),
+    ([1.0, float("nan")], None),
+])
+def test_imbalance(busy: list[float], expected: float | None) -> None:
+    assert results.imbalance(busy) == (None if expected is None else pytest.approx(expected))
+
+
+def test_thread_columns_are_in_results_csv() -> None:
+    record = {"variant": "p1", "schedule": "static,1", "imbalance": 1.25,
+              "threads_busy_s": "0.5 0.3", "threads_pairs": "3 1", "threads_chunks": "1 1"}
+    text = results.render_csv([results.csv_row(record, "e", "t")])
+    row = next(csv.DictReader(io.StringIO(text)))
+    assert row["schedule"] == "static,1" and row["imbalance"] == "1.25"
+    assert row["threads_busy_s"] == "0.5 0.3" and row["threads_chunks"] == "1 1"
+    assert results.split_floats(row["threads_pairs"]) == [3.0, 1.0]
+    assert results.split_floats("") == [] and results.split_floats("a b") == []
