@@ -50,7 +50,7 @@ TRUTH_BUILD = "f128"
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
-    "schedule",
+    "schedule", "measure_by_variant",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
@@ -223,6 +223,13 @@ class Config:
     executor: ExecutorSpec = ExecutorSpec()
     # OMP_SCHEDULE values to sweep (`schedule:`); empty: not set, and cells keep their old ids
     schedules: tuple[str, ...] = ()
+    # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that
+    # takes minutes), each unset key taken from `measure`
+    variant_measures: tuple[tuple[str, Measure], ...] = ()
+
+    def measure_for(self, variant: str) -> Measure:
+        """The measure settings of a variant's cells."""
+        return dict(self.variant_measures).get(variant, self.measure)
 
     @property
     def directory(self) -> Path:
@@ -441,6 +448,8 @@ def parse_config(raw: Mapping[str, object], source: Path) -> Config:
         checks=_parse_checks(raw["checks"], raw["accuracy"], source),
         executor=_parse_executor(raw.get("executor", {}), source),
         schedules=parse_schedules(raw.get("schedule"), source),
+        variant_measures=_parse_variant_measures(raw.get("measure_by_variant", {}),
+                                                 raw["measure"], variants, source),
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config
@@ -580,15 +589,34 @@ def _parse_combine(value: object, scene: SceneSpec, threads_listed: bool,
     raise config_error(source, "combine", "product, zip, or {zip: [keys]}", value)
 
 
-def _parse_measure(value: object, source: Path) -> Measure:
-    raw = _mapping(value, "measure", source)
-    _reject_unknown(raw, MEASURE_KEYS, "measure.", source)
-    warmup = _check(raw.get("warmup", DEFAULT_WARMUP), "measure.warmup", NON_NEGATIVE_INT,
+def _parse_measure(value: object, source: Path, label: str = "measure") -> Measure:
+    raw = _mapping(value, label, source)
+    _reject_unknown(raw, MEASURE_KEYS, f"{label}.", source)
+    warmup = _check(raw.get("warmup", DEFAULT_WARMUP), f"{label}.warmup", NON_NEGATIVE_INT,
                     source)
-    runs = _check(raw.get("runs", DEFAULT_RUNS), "measure.runs", POSITIVE_INT, source)
-    timeout = _check(raw.get("timeout_s", DEFAULT_TIMEOUT_S), "measure.timeout_s", POSITIVE_REAL,
-                     source)
+    runs = _check(raw.get("runs", DEFAULT_RUNS), f"{label}.runs", POSITIVE_INT, source)
+    timeout = _check(raw.get("timeout_s", DEFAULT_TIMEOUT_S), f"{label}.timeout_s",
+                     POSITIVE_REAL, source)
     return Measure(warmup=cast(int, warmup), runs=cast(int, runs), timeout_s=cast(float, timeout))
+
+
+def _parse_variant_measures(value: object, base: object, variants: Sequence[str],
+                            source: Path) -> tuple[tuple[str, Measure], ...]:
+    """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s}}`, over `measure`'s keys."""
+    raw = _mapping(value, "measure_by_variant", source)
+    result = []
+    for variant, settings in raw.items():
+        label = f"measure_by_variant.{variant}"
+        if variant not in variants:
+            raise config_error(source, label, "one of the config's variants ("
+                               + ", ".join(variants) + ")", variant)
+        merged = {**_mapping(base, "measure", source), **_mapping(settings, label, source)}
+        for key in settings:  # name the key as written, not as merged
+            if key not in MEASURE_KEYS:
+                raise config_error(source, f"{label}.{key}", "one of " + ", ".join(MEASURE_KEYS),
+                                   "an unknown key")
+        result.append((str(variant), _parse_measure(merged, source, label)))
+    return tuple(result)
 
 
 def _parse_validate(value: object, source: Path) -> Validation:

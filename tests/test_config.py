@@ -256,3 +256,26 @@ def test_bad_schedule_names_file_key_and_expectation(write_config, value: str) -
     message = str(err.value)
     assert message.startswith(f"{path}: key 'schedule': expected ")
     assert "schedule" in message.split("expected", 1)[1] or "repeats" in message
+
+
+def test_measure_by_variant_overrides_measure_keys(write_config) -> None:
+    text = ("variants: [p1d, p2d]\nscene: {n: 100, L: 1000, r: 1, steps: 5}\n"
+            "measure: {warmup: 2, runs: 5, timeout_s: 60}\n"
+            "measure_by_variant: {p2d: {warmup: 0, runs: 1}}\n")
+    config = load_config(write_config(text))
+    assert config.measure_for("p1d") == config.measure
+    slow = config.measure_for("p2d")
+    assert (slow.warmup, slow.runs, slow.timeout_s) == (0, 1, 60.0)
+
+
+@pytest.mark.parametrize(("value", "key", "expected"), [
+    ("{p3: {runs: 1}}", "measure_by_variant.p3", "one of the config's variants"),
+    ("{p1d: {runs: 0}}", "measure_by_variant.p1d.runs", "a positive integer"),
+    ("{p1d: {fast: 1}}", "measure_by_variant.p1d.fast", "one of warmup, runs, timeout_s"),
+    ("{p1d: 3}", "measure_by_variant.p1d", "a mapping"),
+])
+def test_bad_measure_by_variant(write_config, value: str, key: str, expected: str) -> None:
+    path = write_config(BASE + f"measure_by_variant: {value}\n")
+    with pytest.raises(HarnessError) as err:
+        load_config(path)
+    assert str(err.value).startswith(f"{path}: key '{key}': expected {expected}")
