@@ -75,8 +75,10 @@ class CellStore:
         baseline_sha = self.baseline_sha(cell)
         if binary_sha is None or (cell.validate and baseline_sha is None):
             return None
-        measure = self.config.measure
+        measure = self.config.measure_for(cell.variant)
         extra: dict[str, object] = {}
+        if cell.schedule:  # only then: cells without a schedule axis keep their ids
+            extra["schedule"] = cell.schedule
         if cell.checked:  # only then: the ids of unchecked cells stay what they were
             shas = {name: self.sha(path) for name, path in self.check_references(cell).items()}
             if None in shas.values():

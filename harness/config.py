@@ -66,7 +66,8 @@ DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
 DEFAULT_THREAD_COUNTS = (1,)
 COMBINE_MODES = ("product", "zip")
-EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed")
+EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
+                  "schedule")
 EXCLUDE_OPS = {
     "gt": lambda a, b: a > b,
     "ge": lambda a, b: a >= b,

@@ -23,12 +23,14 @@ from pathlib import Path
 
 from harness import accuracy, envinfo, invariants, lock, results, scenes, validate
 from harness.cellstore import CellStore
-from harness.config import BASELINE_VARIANT, INEXACT_VARIANTS, Config
+from harness.config import BASELINE_VARIANT, INEXACT_VARIANTS, Config, Measure
 from harness.plan import Cell
 from harness.proc import exit_status, run_process, tail
 
 HYPERFINE_SLACK_S = 30.0
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
+# A cell's `schedule` (the config's schedule axis) reaches `schedule(runtime)` loops through it.
+OMP_SCHEDULE_VAR = "OMP_SCHEDULE"
 
 
 @dataclass
@@ -55,8 +57,11 @@ class Measurer:
 
     # --- measuring ---
 
-    def environment(self, threads: int) -> dict[str, str]:
-        return {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
+    def environment(self, threads: int, schedule: str = "") -> dict[str, str]:
+        env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
+        if schedule:
+            env[OMP_SCHEDULE_VAR] = schedule
+        return env
 
     def baseline_output(self, cell: Cell) -> tuple[str | None, str]:
         """The sequential baseline's --precise output for the cell's input (cached)."""
@@ -97,13 +102,13 @@ class Measurer:
             self.baselines[key] = output
 
     def measure(self, cell: Cell, cell_id: str) -> results.Record:
-        config, measure = self.config, self.config.measure
+        config, measure = self.config, self.config.measure_for(cell.variant)
         key = self.store.cell_key(cell)
         assert key is not None
         binary = self.store.binary(cell)
         command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
                    str(self.store.input_file(cell.scene))]
-        env = self.environment(cell.threads)
+        env = self.environment(cell.threads, cell.schedule)
         record: results.Record = {
             "version": results.RECORD_VERSION, "cell_id": cell_id, "key": key,
             "variant": cell.variant, "build": cell.build, "scene": cell.scene.label,
@@ -135,6 +140,8 @@ class Measurer:
             status, exit_code = exit_status(precise.returncode)
             timing = results.parse_timing(precise.stderr) or {}
             record.update({k: timing.get(k) for k in results.TIMING_KEYS})
+            record.update(results.thread_work(timing))
+            record["schedule"] = cell.schedule
             record["stderr_tail"] = tail(precise.stderr)
             if status == "timeout":
                 record["note"] = f"--precise run passed the {measure.timeout_s:g} s timeout"
@@ -150,7 +157,7 @@ class Measurer:
                 self.run_checks(cell, record)
             if status in ("ok", "invalid"):
                 status, exit_code = self.run_hyperfine(command, env, hyperfine_json, record,
-                                                       status, exit_code)
+                                                       status, exit_code, settings=measure)
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
@@ -308,8 +315,9 @@ class Measurer:
 
     def run_hyperfine(self, command: Sequence[str], env: Mapping[str, str], target: Path,
                       record: results.Record, status: str,
-                      exit_code: int | None) -> tuple[str, int | None]:
-        measure = self.config.measure
+                      exit_code: int | None, *,
+                      settings: Measure | None = None) -> tuple[str, int | None]:
+        measure = settings or self.config.measure
         tmp = results.temp_path(target)
         argv = [self.hyperfine, "-N", "--style", "none",
                 "--warmup", str(measure.warmup), "--runs", str(measure.runs),

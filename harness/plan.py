@@ -4,6 +4,7 @@ building them. Nothing here runs a measurement or reads a result."""
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ class Cell:
     validate: bool  # compared with the baseline
     exact: bool  # must match it byte for byte
     checked: bool = False  # the accuracy and stability checks run on it
+    schedule: str = ""  # OMP_SCHEDULE of the cell (the config's schedule axis); "": not set
 
     @property
     def variant_label(self) -> str:
@@ -42,14 +44,15 @@ class Cell:
 
     @property
     def label(self) -> str:
-        return f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        return f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
 
     def fields(self) -> dict[str, object]:
         """The values exclude rules test."""
         s = self.scene
         return {"variant": self.variant, "build": self.build, "scene": s.label,
                 "threads": self.threads, "n": s.n, "L": s.L, "r": s.r, "steps": s.steps,
-                "mode": s.mode, "seed": s.seed}
+                "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
 
 
 @dataclass(frozen=True)
@@ -94,7 +97,7 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
 
 
 def plan_cells(config: Config, quick: bool = False) -> Plan:
-    """Every cell of the grid, in order (scene point, then variant, then build), minus
+    """Every cell of the grid, in order (scene point, then variant, build, schedule), minus
     repeats (--quick can map several points onto one) and excluded cells."""
     cells: list[Cell] = []
     excluded: list[Cell] = []
@@ -106,16 +109,17 @@ def plan_cells(config: Config, quick: bool = False) -> Plan:
             points[scene_key] = scene_point(config, point, quick)
         scene = points[scene_key]
         threads = cast(int, point["threads"])
-        for variant in config.variants:
-            for build in config.builds:
-                key = (variant, build, scene.input_sha256, scene.seed, threads)
-                if key in seen:
-                    continue
-                seen.add(key)
-                cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
-                            config.is_exact(variant, build), config.checks.applies_to(scene.n))
-                rules = config.exclude
-                (excluded if any(r.matches(cell.fields()) for r in rules) else cells).append(cell)
+        for variant, build, schedule in itertools.product(config.variants, config.builds,
+                                                          config.schedules or ("",)):
+            key = (variant, build, scene.input_sha256, scene.seed, threads, schedule)
+            if key in seen:
+                continue
+            seen.add(key)
+            cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
+                        config.is_exact(variant, build), config.checks.applies_to(scene.n),
+                        schedule)
+            rules = config.exclude
+            (excluded if any(r.matches(cell.fields()) for r in rules) else cells).append(cell)
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 
