@@ -75,7 +75,8 @@ TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair
                "wall_collisions")
 # Issue 16: the OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its
 # --timing run (one entry per candidate writer: the threads, T*T for p3), space-separated;
-# `imbalance` is max over mean busy seconds (1 = perfectly even). After PROVENANCE_COLUMNS.
+# `imbalance` is max over mean busy seconds (1 = perfectly even). Last in results.csv, and
+# only where some cell has them (results of binaries from before --timing's per-thread lists).
 THREAD_COLUMNS = ("schedule", "imbalance", "threads_busy_s", "threads_pairs", "threads_chunks")
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS = ("threads_busy_s", "threads_pairs", "threads_chunks")
@@ -343,12 +344,13 @@ def format_cell(value: object) -> str:
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
     """results.csv text: the contract, extra and provenance columns, then the check columns
-    when some row has a check value."""
+    when some row has a check value, then the per-thread columns when some row has them."""
     rows = list(rows)
-    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS,
-                                *THREAD_COLUMNS)
+    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
     if any(row.get(c) is not None for row in rows for c in CHECK_COLUMNS):
         columns = (*columns, *CHECK_COLUMNS)
+    if any(row.get(c) not in (None, "") for row in rows for c in THREAD_COLUMNS):
+        columns = (*columns, *THREAD_COLUMNS)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(columns)

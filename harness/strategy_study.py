@@ -215,7 +215,7 @@ def work_figure(work: pd.DataFrame, stem: Path) -> list[Path]:
         panel.set_ylabel(label)
         panel.set_xticks(sorted(work["thread"].unique()))
     panels[0].legend(frameon=False)
-    fig.suptitle("Work per thread: the seed's p1 (static blocks of rows) and its repair")
+    fig.suptitle("Work per thread: the seed's p1 (static blocks of rows) against its repairs")
     return plots.save_figure(fig, stem)
 
 
