@@ -14,14 +14,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from harness import plots, results, stats, tables
 
 # The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
 # its machine, a 20-thread Xeon, in seconds; and its sequential code on the same benchmark.
-SEED_MACHINE = "the seed's 20-thread Xeon"
+SEED_MACHINE = "its 20-thread Xeon"
 SEED_THREADS = 20
 SEED_SEQ_S = 41.94
 SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24,
@@ -96,8 +95,9 @@ def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
     if len(ours) < 2:
         return None
     seq = cells["wall_median_s"].get("seq", math.nan)
-    our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank()
-    seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank()
+    our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank(
+        method="min")
+    seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank(method="min")
     repairs = {seed: fix for fix, seed in tables.REPAIRED_FROM.items()}
     rows = []
     for v in ours:
@@ -128,7 +128,7 @@ def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
     places, and the measured figures that say why."""
     ours, seed = _order(table, "median_s"), _order(table, "seed_s")
     threads = int(table["threads"].max())
-    text = (f"Fastest first, ours on {threads} thread(s): {' < '.join(ours)}; the seed's on "
+    text = (f"Fastest first, ours on {threads} thread(s): {' < '.join(ours)}; the seed's, on "
             f"{SEED_MACHINE}: {' < '.join(seed)}. ")
     if ours == seed:
         return text + "The ranking agrees."
@@ -168,6 +168,9 @@ def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
     if repair in cells.index:
         extra = cell["wall_median_s"] - cells.at[repair, "wall_median_s"]
         parts.append(f"{extra:+.3g} s over {repair}")
+        if variant == "p2":  # a region per row and step is what the repair removes
+            regions = float(cell["n"]) * float(cell["steps"])
+            parts.append(f"{extra / regions * 1e6:.3g} µs per row's region")
     chunks = sum(thread_list(cell, "threads_chunks"))
     if variant in ("p1d", "p2d") and chunks:
         parts.append(f"{chunks:.3g} chunks dealt")
@@ -199,8 +202,8 @@ def work_table(df: pd.DataFrame) -> pd.DataFrame | None:
 
 def work_figure(work: pd.DataFrame, stem: Path) -> list[Path]:
     """Two panels of grouped bars: busy seconds and pair tests per thread, per variant."""
-    fig, ax = plots.new_figure(margins={"left": 0.09, "right": 0.98, "bottom": 0.14,
-                                        "top": 0.86, "wspace": 0.3})
+    fig, ax = plots.new_figure(margins={"left": 0.1, "right": 0.98, "bottom": 0.12,
+                                        "top": 0.8, "wspace": 0.4})
     ax.remove()
     panels = fig.subplots(1, 2)
     variants = list(dict.fromkeys(work["variant"]))
@@ -214,7 +217,10 @@ def work_figure(work: pd.DataFrame, stem: Path) -> list[Path]:
         panel.set_xlabel("thread")
         panel.set_ylabel(label)
         panel.set_xticks(sorted(work["thread"].unique()))
-    panels[0].legend(frameon=False)
+        panel.yaxis.set_major_formatter(lambda value, _pos: plots.compact_number(value))
+    handles, labels = panels[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(variants), frameon=False,
+               bbox_to_anchor=(0.5, 0.92))
     fig.suptitle("Work per thread: the seed's p1 (static blocks of rows) against its repairs")
     return plots.save_figure(fig, stem)
 
@@ -254,12 +260,52 @@ def chunk_costs(df: pd.DataFrame, exp_path: Path | None = None) -> list[ChunkCos
     return found
 
 
+def _with_interval(name: str, intervals: Sequence[stats.Interval]) -> dict[str, list[float]]:
+    """A numeric column and its 95% interval ends (shown as `x [low, high]` by the tables)."""
+    return {name: [i.point for i in intervals],
+            **{f"{name}{suffix}": [getattr(i, end) for i in intervals]
+               for suffix, end in zip(tables.INTERVAL_SUFFIXES, ("low", "high"), strict=True)}}
+
+
 def chunk_table(costs: Sequence[ChunkCost]) -> pd.DataFrame:
-    return pd.DataFrame([{
-        "variant": c.variant, "compared with": c.reference, "chunks dealt": f"{c.chunks:.4g}",
-        "extra time [s] (95% CI)": c.extra.format(3),
-        "per chunk [ns] (95% CI)": c.per_chunk_ns.format(3),
-    } for c in costs])
+    return pd.DataFrame({
+        "variant": [c.variant for c in costs],
+        "compared with": [c.reference for c in costs],
+        "chunks dealt": [c.chunks for c in costs],
+        **_with_interval("extra_s", [c.extra for c in costs]),
+        **_with_interval("per_chunk_ns", [c.per_chunk_ns for c in costs]),
+    })
+
+
+def chunk_sentence(costs: Sequence[ChunkCost]) -> str:
+    """Each cost the runs resolve (an interval that excludes 0), each from single runs (no
+    interval), and which the runs cannot tell from their reference."""
+    parts, unresolved = [], []
+    for c in costs:
+        single = not (math.isfinite(c.extra.low) and math.isfinite(c.extra.high))
+        if single or c.extra.excludes(0.0):
+            parts.append(f"{c.variant} costs {c.per_chunk_ns.format(3)} ns a chunk more than "
+                         f"{c.reference} takes for the same pairs"
+                         + (" (a single run: no interval)" if single else ""))
+        else:
+            unresolved.append(f"{c.variant} from {c.reference}")
+    if unresolved:
+        parts.append("the runs do not tell " + ", ".join(unresolved) + " (an interval that "
+                     "holds 0)")
+    return "Measured: " + "; ".join(parts) + "." if parts else ""
+
+
+def seed_display(table: pd.DataFrame) -> pd.DataFrame:
+    """seed_table under the report's headers (numbers stay numbers, right-aligned)."""
+    return pd.DataFrame({
+        "variant": table["variant"], "threads": table["threads"],
+        "median_s": table["median_s"], "rank here": table["rank"],
+        "speedup": table["speedup"],
+        f"seed's time [s] ({SEED_THREADS} threads)": table["seed_s"],
+        "seed's rank": table["seed_rank"],
+        f"seed's speedup (its seq: {SEED_SEQ_S:g} s)": table["seed_speedup"].round(2),
+        "imbalance": table["imbalance"], "repaired by": table["repair"],
+    })
 
 
 # --- the schedule study -------------------------------------------------------------------
@@ -292,9 +338,9 @@ def schedule_rows(df: pd.DataFrame, exp_path: Path | None = None) -> pd.DataFram
 def schedule_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame({
         "variant": rows["variant"], "threads": rows["threads"], "schedule": rows["schedule"],
-        "median [s] (95% CI)": [c.format(4) for c in rows["median"]],
+        **_with_interval("median_s", list(rows["median"])),
         "imbalance": rows["imbalance"].astype("float64"),
-        "chunks dealt": [f"{c:.4g}" if np.isfinite(c) else "" for c in rows["chunks"]],
+        "chunks dealt": rows["chunks"].astype("float64"),
     })
 
 
@@ -310,7 +356,7 @@ def schedule_sentence(rows: pd.DataFrame) -> str:
                  if best["times"] and worst["times"] else
                  stats.Interval(worst["median_s"] / best["median_s"], math.nan, math.nan))
         # Schedules whose interval overlaps the fastest one's are not told apart by the data.
-        tied = [s for s, c in zip(group["schedule"], group["median"], strict=True)
+        tied = [s for s, c in zip(group["schedule"][1:], group["median"][1:], strict=True)
                 if math.isfinite(c.low) and c.low <= best["median"].high]
         little = ratio.high < 1 + LITTLE_DIFFERENCE if math.isfinite(ratio.high) else (
             ratio.point < 1 + LITTLE_DIFFERENCE)
@@ -320,6 +366,6 @@ def schedule_sentence(rows: pd.DataFrame) -> str:
             f"{variant} on {int(threads)} thread(s): fastest `{best['schedule']}` "
             f"({best['median'].format(4)} s), slowest `{worst['schedule']}` "
             f"({worst['median'].format(4)} s), {ratio.format(3)} times as long: {verdict}. "
-            + (f"Not told apart from the fastest by their intervals: "
-               f"{', '.join(f'`{s}`' for s in tied)}." if len(tied) > 1 else ""))
+            + (f"Not told apart from `{best['schedule']}` by their intervals: "
+               f"{', '.join(f'`{s}`' for s in tied)}." if tied else ""))
     return " ".join(sentences)

@@ -73,6 +73,8 @@ DISPLAY_NAMES: dict[str, str] = {
     "cores": "cores",
     "runs": "runs",
     "median_s": "median [s]",
+    "extra_s": "extra time [s]",
+    "per_chunk_ns": "per chunk [ns]",
     "min_s": "min [s]",
     "stddev_s": "stddev [s]",
     "speedup": "speedup",
@@ -594,6 +596,8 @@ def _fmt_bool(v: object) -> str:
 
 FORMATTERS: dict[str, Callable[[object], str]] = {
     "median_s": _fmt_time,
+    "extra_s": _fmt_time,
+    "per_chunk_ns": lambda v: f"{float(v):.3g}",
     "min_s": _fmt_time,
     "stddev_s": _fmt_time,
     "prefactor_s": lambda v: f"{float(v):.3e}",

@@ -14,6 +14,7 @@ from harness.report.cache import Manifest
 from harness.report.checks import checks_subsections
 from harness.report.document import Block, Figure, Paragraph, Section, slug
 from harness.report.load import Experiment, read_trajectory
+from harness.report.strategies import strategy_subsections
 
 # Which table and figure of the course report a treatment reproduces.
 COURSE_TABLE: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
@@ -253,6 +254,8 @@ def experiment_section(exp: Experiment, figs: Manifest) -> Section:
     # The cell table leads whenever something varies; a lone cell only when nothing else shows.
     if (tables.varying_keys(exp.frame) and not catalog) or not parts:
         parts.insert(0, cells_subsection(exp, swept))
+    # Beside Table 2: the seed's times, per-thread work, chunk costs, schedules (issue 16).
+    parts[1:1] = strategy_subsections(exp, figs)
     parts = [p for p in parts if p.blocks]
     intro = Paragraph(f"Experiment `{exp.name}`: {len(exp.frame)} cell(s). "
                       + _fixed_text(exp.frame))
