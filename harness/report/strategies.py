@@ -69,7 +69,8 @@ def strategy_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
             parts.append(Section("Schedules", f"{name}-schedules", (
                 Paragraph(SCHEDULE_INTRO),
                 table_block(study.schedule_table(rows), "Median time per OMP_SCHEDULE, fastest "
-                            "first; chunks dealt over the --timing run."),
+                            "first; chunks dealt over the --timing run (for guided a lower "
+                            "bound: chunks one thread takes back to back count once)."),
                 Paragraph(study.schedule_sentence(rows)),
             )))
     return parts
