@@ -76,6 +76,14 @@ def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
     return rows.drop_duplicates("variant", keep="last").set_index("variant", drop=False)
 
 
+def one_scene(df: pd.DataFrame) -> bool:
+    """Whether the timed cells simulate one input in one build: cells of different scenes
+    (a stability catalog, an N sweep) are not each other's references."""
+    keys = [k for k in (*tables.SCENE_KEYS, "build") if k in df.columns]
+    timed = _timed(df)
+    return len(timed) > 0 and len(timed.drop_duplicates(keys)) == 1
+
+
 def is_seed_benchmark(df: pd.DataFrame) -> bool:
     """Whether every row simulates the seed's benchmark scene (its times compare with ours)."""
     return bool(len(df)) and all(

@@ -163,3 +163,11 @@ def test_has_schedules() -> None:
     assert not study.has_schedules(frame(row("p1", 1.0)))
     assert study.has_schedules(frame(row("p1_runtime", 1.0, schedule="guided")))
     assert not study.has_schedules(frame(row("p1", 1.0)).drop(columns="schedule"))
+
+
+def test_one_scene() -> None:
+    df = frame(row("p1", 3.0), row("p1_cyclic", 2.0))
+    assert study.one_scene(df)
+    assert not study.one_scene(pd.concat([df, frame(row("p1", 1.0)).assign(n=2000)]))
+    assert not study.one_scene(pd.concat([df, frame(row("p1", 1.0)).assign(build="f32")]))
+    assert study.one_scene(pd.concat([df, frame(row("p1", 1.0, status="failed")).assign(n=5)]))

@@ -43,6 +43,8 @@ def strategy_subsections(exp: Experiment, figs: Manifest) -> list[Section]:
     """The subsections the experiment's rows support, in reading order (none for most)."""
     df, name = exp.frame, slug(exp.name)
     parts: list[Section] = []
+    if not study.one_scene(df):
+        return parts
     seed = study.seed_table(df)
     if seed is not None:
         parts.append(Section("Against the seed's Table 2", f"{name}-seed", (
