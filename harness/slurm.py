@@ -276,8 +276,11 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
     precise run, the checks' runs and hyperfine's warmup + runs, each up to timeout_s."""
     if spec.time_limit_min is not None:
         return spec.time_limit_min
-    measure = experiment.config.measure
-    seconds = measure.timeout_s * (measure.warmup + measure.runs + 2) + TIME_LIMIT_SLACK_S
+    config = experiment.config
+    # The slowest variant's settings (measure_by_variant) bound every task of the array.
+    seconds = max(m.timeout_s * (m.warmup + m.runs + 2)
+                  for m in (config.measure, *map(config.measure_for, config.variants)))
+    seconds += TIME_LIMIT_SLACK_S
     return max(1, math.ceil(seconds / 60))
 
 

@@ -97,3 +97,17 @@ def test_omp_schedule_reaches_the_binary(build_binaries, tmp_path: Path) -> None
         assert float(row["imbalance"]) == pytest.approx(max(busy) / (sum(busy) / 2), rel=1e-6)
     (p1,) = read_csv(root / "plain" / "results.csv")
     assert p1["schedule"] == "" and p1["threads_pairs"] == STATIC_PAIRS
+
+
+def test_slurm_time_limit_covers_the_slowest_variant(write_config) -> None:
+    from types import SimpleNamespace
+
+    from harness import slurm
+    from harness.config import ExecutorSpec
+
+    text = (BASE + "measure: {warmup: 1, runs: 3, timeout_s: 10}\n"
+            "measure_by_variant: {seq: {warmup: 0, runs: 1, timeout_s: 600}}\n")
+    experiment = SimpleNamespace(config=load_config(write_config(text)))
+    minutes = slurm.time_limit_minutes(ExecutorSpec(), experiment)  # type: ignore[arg-type]
+    expected = (600 * (0 + 1 + 2) + slurm.TIME_LIMIT_SLACK_S) / 60
+    assert minutes == int(-(-expected // 1))  # seq's 600 s runs, not the default's 10 s
