@@ -11,7 +11,8 @@ import pytest
 from harness import plots, report, tables
 from PIL import Image
 
-FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+from fixture_results import FIXTURE_RESULTS
+
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 GIF_SIGNATURE = b"GIF89a"
 

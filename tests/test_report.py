@@ -13,21 +13,14 @@ import pytest
 from harness import report
 from harness.errors import HarnessError
 
+from fixture_results import FIXTURE_RESULTS, results_with
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
-FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
 ALL_EXPERIMENTS = (
     "strategies", "particles", "square", "radius", "threads", "relative", "grid", "trajectory",
     "accuracy",
 )
 
-
-def results_with(tmp_path: Path, *names: str) -> Path:
-    """A results directory holding copies of the named fixture experiments."""
-    root = tmp_path / "results"
-    root.mkdir(exist_ok=True)
-    for name in names:
-        shutil.copytree(FIXTURE_RESULTS / name, root / name)
-    return root
 
 
 @pytest.fixture(scope="module")

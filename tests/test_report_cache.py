@@ -14,16 +14,10 @@ import pytest
 from harness import report
 from harness.report.cache import MANIFEST_NAME
 
+from fixture_results import results_with
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
-FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
 
-
-def results_with(tmp_path: Path, *names: str) -> Path:
-    root = tmp_path / "results"
-    root.mkdir(exist_ok=True)
-    for name in names:
-        shutil.copytree(FIXTURE_RESULTS / name, root / name)
-    return root
 
 
 def figure_state(out: Path) -> dict[str, tuple[int, int, bytes]]:

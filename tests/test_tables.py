@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import csv
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from harness import report, tables
 
-FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+from fixture_results import FIXTURE_RESULTS
 
 
 def load(name: str) -> pd.DataFrame:

@@ -1,0 +1,17 @@
+"""The committed fixture results (tests/fixtures/results) and copies of them for a test."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
+
+
+def results_with(tmp_path: Path, *names: str) -> Path:
+    """A results directory holding copies of the named fixture experiments."""
+    root = tmp_path / "results"
+    root.mkdir(exist_ok=True)
+    for name in names:
+        shutil.copytree(FIXTURE_RESULTS / name, root / name)
+    return root
