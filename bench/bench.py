@@ -24,6 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from harness import envinfo  # noqa: E402
+
 from bench.scenes_dense import write_dense_slow  # noqa: E402
 
 OUT_DIR = ROOT / "results" / "bench"
@@ -231,14 +233,13 @@ def table(group: Group, results: list[Result]) -> str:
 
 
 def machine() -> dict[str, str]:
-    cpu = next((line.split(":", 1)[1].strip() for line in
-                Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("model name")),
-               "unknown")
+    described = envinfo.machine(ROOT)  # the harness's machine identity: label and machine_id
     flags = subprocess.run(["make", "-s", "print-flags"], cwd=ROOT, capture_output=True,
                            text=True, check=False).stdout.strip()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
                             capture_output=True, text=True, check=False).stdout.strip()
-    return {"cpu": cpu, "cores": str(os.cpu_count()), "flags": flags, "commit": commit,
+    return {"cpu": str(described["label"]), "machine_id": str(described["machine_id"]),
+            "cores": str(os.cpu_count()), "flags": flags, "commit": commit,
             "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
@@ -268,7 +269,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     env = machine()
-    print(f"machine: {env['cpu']}, {env['cores']} cores; {env['flags']}")
+    print(f"machine: {env['cpu']} ({env['machine_id']}), {env['cores']} cores; {env['flags']}")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.groups:
             group = GROUPS[name]

@@ -268,10 +268,15 @@ def compiler_info(repo_root: Path, make: str) -> dict[str, str | None]:
     }
 
 
+GENERATED_PATHS = ("results", "report")
+
+
 def git_info(repo_root: Path) -> dict[str, object]:
     commit = command_output(["git", "rev-parse", "HEAD"], cwd=repo_root)
-    status = command_output(["git", "status", "--porcelain", "--untracked-files=no"],
-                            cwd=repo_root)
+    # results/ and report/ are what measuring writes: a run's own output must not make the
+    # sources it measured look modified.
+    status = command_output(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                             *(f":!{path}" for path in GENERATED_PATHS)], cwd=repo_root)
     return {"commit": commit, "dirty": bool(status) if status is not None else None}
 
 

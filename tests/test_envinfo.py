@@ -92,3 +92,21 @@ def test_git_commit_marks_a_dirty_tree(tmp_path: Path, dirty: bool, suffix: str)
         (repo / "f").write_text("b")
     commit = envinfo.git_commit(repo)
     assert commit is not None and re.fullmatch(r"[0-9a-f]{40}" + suffix, commit)
+
+
+def test_results_and_report_written_by_a_run_do_not_make_the_tree_dirty(tmp_path: Path) -> None:
+    import subprocess
+    repo = tmp_path / "repo"
+    (repo / "results" / "x").mkdir(parents=True)
+    (repo / "report").mkdir()
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(repo)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    for name in ("src.c", "results/x/results.csv", "report/report.md"):
+        (repo / name).write_text("a")
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "c"], check=True)
+    (repo / "results" / "x" / "results.csv").write_text("b")
+    (repo / "report" / "report.md").write_text("b")
+    assert envinfo.git_info(repo)["dirty"] is False
+    (repo / "src.c").write_text("b")
+    assert envinfo.git_info(repo)["dirty"] is True

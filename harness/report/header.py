@@ -18,7 +18,9 @@ SUMMARY_ANCHOR = "summary"
 # Each header line and where env.json keeps it: the contract's flat key first, then the
 # nested places the harness's envinfo also uses (compiler.cc_version, git.commit, ...).
 ENV_FIELDS: tuple[tuple[str, tuple[tuple[str, ...], ...]], ...] = (
-    ("machine", (("cpu_model",),)),
+    ("machine", (("machine", "label"), ("cpu_model",))),
+    ("machine id", (("machine_id",),)),
+    ("ISA", (("machine", "isa"),)),
     ("cores", (("cores",),)),
     ("host", (("hostname",),)),
     ("compiler", (("compiler", "cc_version"), ("compiler",))),
@@ -46,6 +48,8 @@ def env_value(env: dict[str, object], paths: tuple[tuple[str, ...], ...]) -> str
             continue
         if isinstance(value, dict):
             return ", ".join(f"{k}={v}" for k, v in sorted(value.items())) or "(none set)"
+        if isinstance(value, list):
+            return " ".join(str(v) for v in value)
         text = str(value)
         if path == ("git", "commit") and _lookup(env, ("git", "dirty")) is True:
             text += " (dirty)"  # results measured from uncommitted sources
