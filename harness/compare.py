@@ -245,14 +245,15 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
         if not math.isfinite(median) and times:
             median = statistics.median(times)
         machine = (row.get("machine") or "").strip()
-        if not machine and not (row.get("machine_id") or "").strip():
+        machine_id = (row.get("machine_id") or "").strip()
+        if not machine and not machine_id:
             if env_machine is None:
                 env_machine = _env_machine(directory)
             machine = env_machine
         cells.append(Cell(
             key=key, directory=directory, cell_id=cell_id,
             status=(row.get("status") or "").strip() or "unknown", median=median, times=times,
-            machine_id=(row.get("machine_id") or "").strip(), machine=machine,
+            machine_id=machine_id, machine=machine,
             measured_at=(row.get("measured_at") or "").strip(),
             git_commit=(row.get("git_commit") or "").strip(),
             input_sha256=(row.get("input_sha256") or "").strip(),
@@ -310,8 +311,7 @@ def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: 
         groups.setdefault(cell.key, []).append(cell)
     side = Side(name, path, {})
     for key, group in groups.items():
-        machines = sorted({c.machine_id or c.machine for c in group})
-        if len(machines) > 1:
+        if len({c.machine_id or c.machine for c in group}) > 1:
             shown = ", ".join(sorted({c.machine_text for c in group}))
             raise HarnessError(f"{name} holds cells of several machines ({shown}), e.g. for "
                                f"{key.label()}; choose one with {option} ID-PREFIX-OR-LABEL")

@@ -611,11 +611,8 @@ def _parse_variant_measures(value: object, base: object, variants: Sequence[str]
         if variant not in variants:
             raise config_error(source, label, "one of the config's variants ("
                                + ", ".join(variants) + ")", variant)
+        # `measure`'s keys are checked already: an unknown key here is the variant's own
         merged = {**_mapping(base, "measure", source), **_mapping(settings, label, source)}
-        for key in settings:  # name the key as written, not as merged
-            if key not in MEASURE_KEYS:
-                raise config_error(source, f"{label}.{key}", "one of " + ", ".join(MEASURE_KEYS),
-                                   "an unknown key")
         result.append((str(variant), _parse_measure(merged, source, label)))
     return tuple(result)
 

@@ -23,6 +23,7 @@ import json
 import os
 import platform
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -158,17 +159,12 @@ def virtualization(hypervisor_flag: bool) -> str | None:
     detected = command_output(["systemd-detect-virt", "--vm"])
     if detected:
         return detected
-    if detected is None and systemd_detect_virt_exists():
+    if detected is None and shutil.which("systemd-detect-virt") is not None:
         return None  # it ran and said "none" (exit 1)
     vendor = read_text(DMI_SYS_VENDOR) or ""
     if any(vendor.startswith(v) for v in VM_VENDORS):
         return vendor
     return "vm" if hypervisor_flag else None
-
-
-def systemd_detect_virt_exists() -> bool:
-    return any((Path(d) / "systemd-detect-virt").exists()
-               for d in os.environ.get("PATH", "").split(os.pathsep) if d)
 
 
 def container() -> str | None:

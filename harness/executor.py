@@ -7,9 +7,9 @@ and calls on_record(cell, cell_id, record) once per cell as its record appears; 
 keeps the record and rebuilds results.csv from all records. Nothing on the recording side
 assumes the measurement ran in this process.
 
-LocalExecutor measures the cells one after another in this process. A remote executor (e.g.
-Slurm) would run `python -m harness.worker --config PATH --results-dir DIR [--quick]
-CELL_ID ...` elsewhere, then read each record back with CellStore.read and call on_record.
+LocalExecutor measures the cells one after another in this process. A remote executor
+(SlurmExecutor, harness/slurm.py) runs `python -m harness.worker --config PATH --results-dir
+DIR [--quick] CELL_ID ...` elsewhere, then reads each record back and calls on_record.
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ class Progress:
     log: TextIO
     started: float = field(default_factory=time.monotonic)
     durations: list[float] = field(default_factory=list)
-    _next: int = 0  # the plan index of the first cell not yet announced
-    _index: dict[str, int] = field(default_factory=dict)
+    _next: int = field(default=0, init=False)  # the plan index of the first cell not announced
+    _index: dict[str, int] = field(init=False)
 
     def __post_init__(self) -> None:
         self._index = {cid: k for k, (_, cid) in enumerate(self.order)}

@@ -157,7 +157,7 @@ class Measurer:
                 self.run_checks(cell, record)
             if status in ("ok", "invalid"):
                 status, exit_code = self.run_hyperfine(command, env, hyperfine_json, record,
-                                                       status, exit_code, settings=measure)
+                                                       status, exit_code, measure)
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
@@ -314,10 +314,8 @@ class Measurer:
         record.update(values)
 
     def run_hyperfine(self, command: Sequence[str], env: Mapping[str, str], target: Path,
-                      record: results.Record, status: str,
-                      exit_code: int | None, *,
-                      settings: Measure | None = None) -> tuple[str, int | None]:
-        measure = settings or self.config.measure
+                      record: results.Record, status: str, exit_code: int | None,
+                      measure: Measure) -> tuple[str, int | None]:
         tmp = results.temp_path(target)
         argv = [self.hyperfine, "-N", "--style", "none",
                 "--warmup", str(measure.warmup), "--runs", str(measure.runs),

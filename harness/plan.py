@@ -118,8 +118,8 @@ def plan_cells(config: Config, quick: bool = False) -> Plan:
             cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
                         config.is_exact(variant, build), config.checks.applies_to(scene.n),
                         schedule)
-            rules = config.exclude
-            (excluded if any(r.matches(cell.fields()) for r in rules) else cells).append(cell)
+            fields = cell.fields()
+            (excluded if any(r.matches(fields) for r in config.exclude) else cells).append(cell)
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 

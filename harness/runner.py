@@ -111,29 +111,20 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
         if cid is None:
             raise HarnessError(f"{experiment.store.binary(cell)} does not exist after the build")
         order.append((cell, cid))
-        record = experiment.cached(cid)
-        if record is not None:
-            experiment.records[cid] = record
+    pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)
-    pending = [(cell, cid) for cell, cid in order if cid not in experiment.records]
-    env_file = experiment.directory / ENV_JSON
+    here = executor.name == "local"
     env: dict[str, object] | None = None
     # The measuring lock guards this machine's measurements; a remote executor measures
     # elsewhere (each Slurm task has its node to itself by default).
-    if pending and executor.name == "local" and options.run_lock is not None \
-            and not options.run_lock.held:
+    if pending and here and options.run_lock is not None and not options.run_lock.held:
         options.run_lock.acquire()  # may wait for another run; the load is sampled after
-        for _, cid in pending:  # the run we waited for may have measured some of them
-            record = experiment.cached(cid)
-            if record is not None:
-                experiment.records[cid] = record
-        pending = [(cell, cid) for cell, cid in pending if cid not in experiment.records]
-    if pending and executor.name != "local":
-        pass  # measured elsewhere: each worker writes its machine's env (harness.worker)
-    elif pending:
+        pending = not_cached(experiment, pending)  # that run may have measured some of them
+    # A remote executor's workers write the env of their machines (harness.worker).
+    if pending and here:
         env = envinfo.collect(options.repo_root, options.make, options.hyperfine)
         store.write_env(experiment.directory, env)
-    elif not env_file.is_file():
+    elif not pending and not (experiment.directory / ENV_JSON).is_file():
         store.write_env(experiment.directory, envinfo.collect(
             options.repo_root, options.make, options.hyperfine))
     measured: set[str] = set()
@@ -168,6 +159,20 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO) -
               f"{summary.cached} cached): {counts or 'none'}; results in "
               f"{experiment.directory / RESULTS_CSV}\n")
     return summary
+
+
+def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]]
+               ) -> list[tuple[Cell, str]]:
+    """The (cell, cell_id)s without a cached record; the cached records go into
+    experiment.records."""
+    pending = []
+    for cell, cid in cells:
+        record = experiment.cached(cid)
+        if record is None:
+            pending.append((cell, cid))
+        else:
+            experiment.records[cid] = record
+    return pending
 
 
 def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from harness import results
+from harness import results, store
 from harness.cellstore import RETRY_KEY
 from harness.config import ExecutorSpec
 from harness.errors import HarnessError
@@ -100,6 +100,8 @@ FAULT_REASONS = {
     "COMPLETED": "the task ended without writing a record",
 }
 SLURM_STATUS_FAILED = "failed"
+NEEDS_CLIENT = ("the Slurm executor needs Slurm's client commands (sbatch, squeue, scontrol) on "
+                "this machine")
 SLURM_STATUS_TIMEOUT = "timeout"
 
 
@@ -116,8 +118,7 @@ def slurm_command(argv: Sequence[str], check: bool = True) -> subprocess.Complet
         done = subprocess.run(list(argv), capture_output=True, text=True, check=False,
                               stdin=subprocess.DEVNULL, timeout=COMMAND_TIMEOUT_S)
     except FileNotFoundError:
-        raise SlurmError(f"{argv[0]} not found: the Slurm executor needs Slurm's client "
-                         "commands (sbatch, squeue, scontrol) on this machine") from None
+        raise SlurmError(f"{argv[0]} not found: {NEEDS_CLIENT}") from None
     except subprocess.TimeoutExpired:
         raise SlurmError(f"{shlex.join(argv)} did not answer within "
                          f"{COMMAND_TIMEOUT_S:g} s") from None
@@ -288,8 +289,7 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
                  note: str) -> results.Record:
     """The record of a cell whose task ended without one: the cell's identity, the status and
     the reason (the columns a measurement would fill stay empty)."""
-    store = experiment.store
-    key = store.cell_key(cell)
+    key = experiment.store.cell_key(cell)
     assert key is not None
     return {
         "version": results.RECORD_VERSION, "cell_id": cid, "key": key,
@@ -297,7 +297,7 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
         "n": cell.scene.n, "L": cell.scene.L, "r": cell.scene.r, "steps": cell.scene.steps,
         "mode": cell.scene.mode, "seed": cell.scene.seed, "threads": cell.threads,
         "params": dict(cell.scene.params), "runs": 0, "unstable": False,
-        "binary_sha256": key["binary_sha256"], "binary": str(store.binary(cell)),
+        "binary_sha256": key["binary_sha256"], "binary": str(experiment.store.binary(cell)),
         "input_sha256": cell.scene.input_sha256, "validated": cell.validate,
         "exact": cell.exact, "baseline_sha256": key["baseline_sha256"], "identical": None,
         "status": status, "exit_code": None, "note": note, "executor": "slurm",
@@ -327,17 +327,10 @@ class RecordWatch:
         self.seen = dict(self._stamps())
 
     def _stamps(self) -> Iterator[tuple[str, tuple[int, int]]]:
-        try:
-            entries = list(os.scandir(self.cells_dir))
-        except FileNotFoundError:
-            return
-        for entry in entries:
-            name = entry.name
-            if name.endswith(".json") and not name.endswith(".hyperfine.json") \
-                    and not name.startswith("."):
-                with contextlib.suppress(FileNotFoundError):
-                    stat = entry.stat()
-                    yield name, (stat.st_mtime_ns, stat.st_ino)
+        for path in store.record_paths(self.cells_dir):
+            with contextlib.suppress(FileNotFoundError):
+                stat = path.stat()
+                yield path.name, (stat.st_mtime_ns, stat.st_ino)
 
     def new_records(self) -> dict[str, results.Record]:
         """portable id -> record, for each record file new or rewritten since the last call."""
@@ -356,11 +349,10 @@ class RecordWatch:
         """portable id -> every record in cells/ now (for cells finished while no submitter
         watched)."""
         found: dict[str, list[results.Record]] = {}
-        for name, _ in self._stamps():
-            record = results.read_record(self.cells_dir / name, name.removesuffix(".json"))
-            key = record.get("key") if record is not None else None
-            if record is not None and isinstance(key, dict) and not record.get(RETRY_KEY):
-                found.setdefault(portable_id(key), []).append(record)
+        for stored in store.load_records(self.cells_dir):
+            key = stored.record.get("key")
+            if isinstance(key, dict) and not stored.record.get(RETRY_KEY):
+                found.setdefault(portable_id(key), []).append(stored.record)
         return found
 
 
@@ -382,8 +374,7 @@ class SlurmExecutor:
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         if shutil.which("sbatch") is None:
-            raise SlurmError("sbatch not found: the Slurm executor needs Slurm's client "
-                             "commands (sbatch, squeue, scontrol) on this machine")
+            raise SlurmError(f"sbatch not found: {NEEDS_CLIENT}")
         options = experiment.options
         self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
             options.partition or experiment.config.executor.partition))
@@ -557,10 +548,9 @@ class SlurmExecutor:
             note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
                     "next run submits it again")
             record = fault_record(experiment, cell, cid, SLURM_STATUS_FAILED, note)
+            record[RETRY_KEY] = True
         record["slurm_task"] = task.name
         record["slurm_state"] = slurm_state
-        if slurm_state not in TIMEOUT_STATES:
-            record[RETRY_KEY] = True
         experiment.store.save(cid, record)
         on_record(cell, cid, record)
 
@@ -572,6 +562,12 @@ class SlurmExecutor:
         started = time.monotonic()
         open_tasks = dict(tasks)
         announced: set[str] = set()
+
+        def announce(pid: str, cid: str) -> None:  # its progress line, once
+            if pid not in announced:
+                announced.add(pid)
+                progress.starting(cid)
+
         ended_at: dict[str, float] = {}
         arrived: dict[str, results.Record] = {}
         last_line, last_at = "", 0.0
@@ -595,10 +591,8 @@ class SlurmExecutor:
                     slurm_state = finals[task.job_id].get(task.index, "")
                 else:
                     slurm_state = seen[0] if seen is not None else ""
-                if (record is not None or slurm_state in RUNNING_STATES) and \
-                        pid not in announced:
-                    announced.add(pid)
-                    progress.starting(cid)
+                if record is not None or slurm_state in RUNNING_STATES:
+                    announce(pid, cid)
                 if record is not None:
                     del open_tasks[pid]
                     # the time a cell costs the sweep (queueing included), so that the
@@ -618,9 +612,7 @@ class SlurmExecutor:
                     if slurm_state == "COMPLETED" and time.monotonic() - first < RECORD_GRACE_S:
                         running += 1
                         continue
-                    if pid not in announced:
-                        announced.add(pid)
-                        progress.starting(cid)
+                    announce(pid, cid)
                     del open_tasks[pid]
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
             done = len(tasks) - len(open_tasks)

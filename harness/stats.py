@@ -22,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import math
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,11 +47,10 @@ class Interval:
             return False
         return not (self.low <= value <= self.high)
 
-    def map(self, function: object) -> Interval:
+    def map(self, function: Callable[[float], float]) -> Interval:
         """The interval of a monotone function of the estimate (endpoints re-ordered)."""
-        f = function  # type: ignore[assignment]
-        ends = sorted((f(self.low), f(self.high)))  # type: ignore[operator]
-        return Interval(f(self.point), ends[0], ends[1])  # type: ignore[operator]
+        low, high = sorted((function(self.low), function(self.high)))
+        return Interval(function(self.point), low, high)
 
     def format(self, digits: int = 3) -> str:
         """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
@@ -71,16 +70,22 @@ def _seed(*samples: Sequence[float]) -> int:
 
 
 def _clean(times: Sequence[float]) -> np.ndarray:
-    array = np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
-    return array
+    return np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
 
 
-def _bootstrap(samples: tuple[np.ndarray, ...], statistic: object) -> tuple[float, float]:
-    result = sps.bootstrap(samples, statistic, vectorized=True, paired=False,  # type: ignore[arg-type]
+def _interval(point: float, samples: tuple[np.ndarray, ...],
+              statistic: Callable[..., np.ndarray]) -> Interval:
+    """`point` with the percentile bootstrap interval of `statistic` over the samples (each
+    resampled on its own), widened to hold the point."""
+    result = sps.bootstrap(samples, statistic, vectorized=True, paired=False,
                            confidence_level=CONFIDENCE, n_resamples=N_RESAMPLES,
                            method="percentile", rng=np.random.default_rng(_seed(*samples)))
-    low, high = result.confidence_interval
-    return float(low), float(high)
+    low, high = (float(end) for end in result.confidence_interval)
+    return Interval(point, min(low, point), max(high, point))
+
+
+def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis)
 
 
 def median_ci(times: Sequence[float]) -> Interval:
@@ -89,11 +94,29 @@ def median_ci(times: Sequence[float]) -> Interval:
     if data.size == 0:
         return Interval(math.nan, math.nan, math.nan)
     point = float(np.median(data))
-    if data.size < 2 or np.all(data == data[0]):
-        return Interval(point, point if data.size >= 2 else math.nan,
-                        point if data.size >= 2 else math.nan)
-    low, high = _bootstrap((data,), lambda x, axis=-1: np.median(x, axis=axis))
-    return Interval(point, min(low, point), max(high, point))
+    if data.size < 2:
+        return Interval(point, math.nan, math.nan)
+    if np.all(data == data[0]):
+        return Interval(point, point, point)
+    return _interval(point, (data,), _median)
+
+
+def _two_medians(a: np.ndarray, b: np.ndarray,
+                 combine: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> Interval:
+    """combine(median(a), median(b)) of two cleaned samples, each resampled on its own
+    (independent runs): NaN without runs on a side, no interval with one run on a side."""
+    if a.size == 0 or b.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(combine(np.median(a), np.median(b)))
+    if a.size < 2 or b.size < 2:
+        return Interval(point, math.nan, math.nan)
+    if np.all(a == a[0]) and np.all(b == b[0]):
+        return Interval(point, point, point)
+
+    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+        return combine(np.median(x, axis=axis), np.median(y, axis=axis))
+
+    return _interval(point, (a, b), statistic)
 
 
 def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
@@ -102,19 +125,9 @@ def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interv
     compare.py's NEW/OLD is ratio_ci(new, old); a speedup over a baseline is
     ratio_ci(baseline, cell)."""
     a, b = _clean(numerator), _clean(denominator)
-    if a.size == 0 or b.size == 0 or float(np.median(b)) == 0.0:
+    if b.size and float(np.median(b)) == 0.0:
         return Interval(math.nan, math.nan, math.nan)
-    point = float(np.median(a) / np.median(b))
-    if a.size < 2 or b.size < 2:
-        return Interval(point, math.nan, math.nan)
-
-    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
-        return np.median(x, axis=axis) / np.median(y, axis=axis)
-
-    if np.all(a == a[0]) and np.all(b == b[0]):
-        return Interval(point, point, point)
-    low, high = _bootstrap((a, b), statistic)
-    return Interval(point, min(low, point), max(high, point))
+    return _two_medians(a, b, np.divide)
 
 
 def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
@@ -180,17 +193,4 @@ def rank_test(old: Sequence[float], new: Sequence[float]) -> float:
 def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
     """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
     e.g. the time a strategy adds over its repair."""
-    a, b = _clean(minuend), _clean(subtrahend)
-    if a.size == 0 or b.size == 0:
-        return Interval(math.nan, math.nan, math.nan)
-    point = float(np.median(a) - np.median(b))
-    if a.size < 2 or b.size < 2:
-        return Interval(point, math.nan, math.nan)
-    if np.all(a == a[0]) and np.all(b == b[0]):
-        return Interval(point, point, point)
-
-    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
-        return np.median(x, axis=axis) - np.median(y, axis=axis)
-
-    low, high = _bootstrap((a, b), statistic)
-    return Interval(point, min(low, point), max(high, point))
+    return _two_medians(_clean(minuend), _clean(subtrahend), np.subtract)

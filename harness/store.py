@@ -25,6 +25,7 @@ root) to history/ and says how many remain.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
@@ -64,12 +65,12 @@ class Stored:
         value = key.get("machine_id") if isinstance(key, dict) else None
         return str(value) if value else UNKNOWN_MACHINE
 
-    @property
+    @functools.cached_property
     def group(self) -> str:
         key = self.record.get("key")
         return group_of(key if isinstance(key, dict) else {})
 
-    @property
+    @functools.cached_property
     def age(self) -> tuple[str, float]:
         """Sorts oldest first: measured_at (ISO seconds), then the file's mtime."""
         try:
@@ -171,9 +172,17 @@ def prune(experiment_dir: Path) -> PruneResult:
     """Move an experiment's superseded records to history/, under its directory lock."""
     with lock.directory_lock(experiment_dir):
         stored = load_records(experiment_dir / CELLS)
-        old = superseded(stored)
-        moved = move_to_history(experiment_dir, old)
-    return PruneResult(experiment_dir, moved, len(stored) - moved)
+        kept = _prune_locked(experiment_dir, stored)
+    return PruneResult(experiment_dir, len(stored) - len(kept), len(kept))
+
+
+def _prune_locked(experiment_dir: Path, stored: Sequence[Stored]) -> list[Stored]:
+    """Move the superseded among `stored` to history/ (the caller holds the directory lock);
+    the records that stay in cells/."""
+    old = superseded(stored)
+    move_to_history(experiment_dir, old)
+    gone = {id(s) for s in old}
+    return [s for s in stored if id(s) not in gone]
 
 
 # --- results.csv --------------------------------------------------------------------------
@@ -239,9 +248,7 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
     with lock.directory_lock(experiment_dir):
         stored = load_records(cells_dir)
         if prune_first:
-            old = superseded(stored)
-            move_to_history(experiment_dir, old)
-            stored = [s for s in stored if s not in old]
+            stored = _prune_locked(experiment_dir, stored)
         rows = current_rows(stored, planned, machine_id, cells_dir)
         results.write_results_csv(
             experiment_dir / RESULTS_CSV,

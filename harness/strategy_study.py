@@ -43,15 +43,13 @@ CHUNK_COST_PAIRS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("p2d_tiles", ("p2_blocks", "p2")),
     ("p1d", ("p1_cyclic",)),
 )
+# The reverse of tables.REPAIRED_FROM: the tuned variant that repairs each seed strategy.
+REPAIRED_BY: dict[str, str] = {seed: fix for fix, seed in tables.REPAIRED_FROM.items()}
 # The per-thread work figure: the seed's p1 against its repair (and p1d where measured).
 WORK_VARIANTS: tuple[str, ...] = ("p1", "p1_cyclic", "p1d")
 NS_PER_S = 1e9
 # Differences between schedules smaller than this share of the median are called "little".
 LITTLE_DIFFERENCE = 0.05
-
-
-def _timed(df: pd.DataFrame) -> pd.DataFrame:
-    return df[df["status"].isin(tables.TIMED_STATUSES) & df["wall_median_s"].notna()]
 
 
 def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
@@ -72,7 +70,7 @@ def thread_list(row: pd.Series, column: str) -> list[float]:
 
 def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
     """The timed cells, one per variant: the one with the most threads (closest to the seed's)."""
-    rows = _timed(df).sort_values("threads", kind="stable")
+    rows = tables.timed_rows(df).sort_values("threads", kind="stable")
     return rows.drop_duplicates("variant", keep="last").set_index("variant", drop=False)
 
 
@@ -80,7 +78,7 @@ def one_scene(df: pd.DataFrame) -> bool:
     """Whether the timed cells simulate one input in one build: cells of different scenes
     (a stability catalog, an N sweep) are not each other's references."""
     keys = [k for k in (*tables.SCENE_KEYS, "build") if k in df.columns]
-    timed = _timed(df)
+    timed = tables.timed_rows(df)
     return len(timed) > 0 and len(timed.drop_duplicates(keys)) == 1
 
 
@@ -106,11 +104,10 @@ def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
     our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank(
         method="min")
     seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank(method="min")
-    repairs = {seed: fix for fix, seed in tables.REPAIRED_FROM.items()}
     rows = []
     for v in ours:
         cell = cells.loc[v]
-        repair = repairs.get(v)
+        repair = REPAIRED_BY.get(v)
         rows.append({
             "variant": v,
             "threads": cell["threads"],
@@ -172,7 +169,7 @@ def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
                      f"{SEED_THREADS}")
     if isinstance(imbalance, float) and math.isfinite(imbalance):
         parts.append(f"busy imbalance {imbalance:.2f} measured")
-    repair = {s: f for f, s in tables.REPAIRED_FROM.items()}.get(variant)
+    repair = REPAIRED_BY.get(variant)
     if repair in cells.index:
         extra = cell["wall_median_s"] - cells.at[repair, "wall_median_s"]
         parts.append(f"{extra:+.3g} s over {repair}")
@@ -327,7 +324,7 @@ def schedule_rows(df: pd.DataFrame, exp_path: Path | None = None) -> pd.DataFram
     """Per (variant, threads, schedule) cell: its median with a 95% bootstrap interval, the
     imbalance and the chunks dealt, fastest first."""
     rows = []
-    for _, cell in _timed(df[df["schedule"].fillna("") != ""]).iterrows():
+    for _, cell in tables.timed_rows(df[df["schedule"].fillna("") != ""]).iterrows():
         times = run_times(cell, exp_path)
         ci = stats.median_ci(times) if times else stats.Interval(
             float(cell["wall_median_s"]), math.nan, math.nan)

@@ -7,11 +7,16 @@ turns a built table into display strings with unit-bearing headers for Markdown 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+
+if TYPE_CHECKING:
+    from harness.stats import Interval
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.report.load)
 # The columns that identify a measured cell, in the order tables show them. A results
@@ -120,6 +125,11 @@ DISPLAY_NAMES: dict[str, str] = {
 def present(df: pd.DataFrame, keys: Iterable[str]) -> list[str]:
     """The keys that are columns of `df` (a frame from before the machine column has none)."""
     return [k for k in keys if k in df.columns]
+
+
+def timed_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows of cells that were timed (ok or invalid) and have a median time."""
+    return df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
 
 
 def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]:
@@ -269,6 +279,17 @@ def parse_times(text: object) -> list[float]:
     return [float(t) for t in text.split()]
 
 
+@functools.lru_cache(maxsize=4096)
+def _speedup_ci(base: tuple[float, ...], own: tuple[float, ...]) -> Interval:
+    """stats.speedup_ci, remembered: one render asks for a cell's speedup over the same
+    baseline from several places (the cell table, the thread figures, the summary), and each
+    asks for a 9999-resample bootstrap. Deterministic (seeded by the samples), so a repeat is
+    the same interval."""
+    from harness import stats  # scipy: imported only when there are times to bootstrap
+
+    return stats.speedup_ci(base, own)
+
+
 def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
     """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
     intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
@@ -280,20 +301,19 @@ def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
              for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
     pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
              and pd.notna(out["speedup"].iloc[p[0]])]
-    if pairs:
+    for i, base, own in pairs:
         from harness import stats  # scipy: imported only when there are times to bootstrap
 
-        for i, base, own in pairs:
-            speedup = stats.speedup_ci(base, own)
-            threads = int(out["threads"].iloc[i])
-            metrics = {"speedup": speedup}
-            if pd.notna(out["efficiency"].iloc[i]):
-                metrics["efficiency"] = stats.efficiency(speedup, threads)
-            if pd.notna(out["serial_fraction"].iloc[i]):
-                metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
-            for name, interval in metrics.items():
-                columns[f"{name}_low"][i] = interval.low
-                columns[f"{name}_high"][i] = interval.high
+        speedup = _speedup_ci(tuple(base), tuple(own))
+        threads = int(out["threads"].iloc[i])
+        metrics = {"speedup": speedup}
+        if pd.notna(out["efficiency"].iloc[i]):
+            metrics["efficiency"] = stats.efficiency(speedup, threads)
+        if pd.notna(out["serial_fraction"].iloc[i]):
+            metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
+        for name, interval in metrics.items():
+            columns[f"{name}_low"][i] = interval.low
+            columns[f"{name}_high"][i] = interval.high
     for name, values in columns.items():
         out[name] = values
 
@@ -473,7 +493,7 @@ def has_error_data(df: pd.DataFrame) -> bool:
 
 def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     """Per timed cell with a measured error: time, errors and whether it is on the Pareto front."""
-    rows = df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
+    rows = timed_rows(df)
     rows = rows[rows["max_pos_err"].notna()]
     table = pd.DataFrame({k: rows[k] for k in keys})
     table["median_s"] = rows["wall_median_s"]
@@ -811,7 +831,7 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     error, collision-set differences, energy drift and steps until r apart from the truth;
     ✓ marks each scene's Pareto front of time against the mean shadow error."""
     rows = _checked(df)
-    rows = rows[rows["status"].isin(TIMED_STATUSES) & rows["wall_median_s"].notna()]
+    rows = timed_rows(rows)
     table = pd.DataFrame({k: rows[k] for k in keys})
     table["median_s"] = rows["wall_median_s"]
     table["max_pos_err"] = rows["max_pos_err"]

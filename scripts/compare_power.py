@@ -3,7 +3,7 @@
     .venv/bin/python scripts/compare_power.py [--seeds 2000] [--results results]
 
 1. The noise of today's results: the standard deviation of log(run time) of every cell with at
-   least 3 runs, from its hyperfine JSON (cells/<cell_id>.hyperfine.json), as quantiles.
+   least 3 runs (wall_times_s, else cells/<cell_id>.hyperfine.json), as quantiles.
 2. Synthetic pairs of samples (OLD and NEW) drawn with that noise: lognormal run times, and with
    probability OUTLIER_P a run slowed by 10-50% (a neighbour's burst on this shared VM). For
    NEW = OLD (the false-positive rate) and NEW = OLD x (1 + s), the share of seeds that
@@ -17,7 +17,7 @@ The numbers in docs/compare.md come from this script; it prints Markdown tables.
 from __future__ import annotations
 
 import argparse
-import csv
+import functools
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,7 +27,7 @@ import numpy as np
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
 
-from harness import compare, results, stats  # noqa: E402
+from harness import compare, stats  # noqa: E402
 
 # Share of runs hit by an outlier: measured, 11 of the 370 runs of committed cells with >= 3
 # runs are more than 10% above their cell's median.
@@ -41,19 +41,13 @@ MEDIAN_SECONDS = 1.0  # the scale is irrelevant: only ratios matter
 
 
 def committed_noise(root: Path) -> np.ndarray:
-    """sd of log(run time) per cell with >= 3 runs, over every results.csv under root."""
-    sigmas = []
-    for table in sorted(root.glob("*/results.csv")):
-        with table.open() as handle:
-            for row in csv.DictReader(handle):
-                path = table.parent / "cells" / f"{row['cell_id']}.hyperfine.json"
-                try:
-                    times = results.load_hyperfine(path).times
-                except results.ResultFormatError:
-                    continue
-                if len(times) >= 3 and row.get("status") == "ok":
-                    sigmas.append(float(np.std(np.log(times), ddof=1)))
-    return np.asarray(sigmas)
+    """sd of log(run time) per ok cell with >= 3 runs, over every experiment under root (its
+    times read as compare.py reads them: wall_times_s, else the hyperfine JSON)."""
+    directories, _ = compare.experiment_dirs(root, "--results")
+    return np.asarray([float(np.std(np.log(cell.times), ddof=1))
+                       for directory in directories
+                       for cell in compare.read_cells(directory, keyed_on_experiment=False)
+                       if len(cell.times) >= 3 and cell.status == compare.OK])
 
 
 def sample(rng: np.random.Generator, runs: int, sigma: float, scale: float) -> list[float]:
@@ -63,15 +57,25 @@ def sample(rng: np.random.Generator, runs: int, sigma: float, scale: float) -> l
     return [float(t) for t in times]
 
 
-def verdict_shares(seeds: int, runs: int, sigma: float, slowdown: float,
-                   threshold: float) -> dict[str, float]:
-    """Share of seeds per verdict for NEW = OLD x (1 + slowdown)."""
-    counts = dict.fromkeys(compare.VERDICTS, 0)
+@functools.cache
+def ratio_intervals(seeds: int, runs: int, sigma: float,
+                    slowdown: float) -> tuple[stats.Interval, ...]:
+    """NEW/OLD with its interval per seed for NEW = OLD x (1 + slowdown); cached, since both
+    thresholds (and the bisections) ask for the same draws."""
+    intervals = []
     for seed in range(seeds):
         rng = np.random.default_rng([seed, runs, int(sigma * 1e6), int(slowdown * 1e4)])
         old = sample(rng, runs, sigma, 1.0)
         new = sample(rng, runs, sigma, 1.0 + slowdown)
-        ratio = stats.ratio_ci(new, old)
+        intervals.append(stats.ratio_ci(new, old))
+    return tuple(intervals)
+
+
+def verdict_shares(seeds: int, runs: int, sigma: float, slowdown: float,
+                   threshold: float) -> dict[str, float]:
+    """Share of seeds per verdict for NEW = OLD x (1 + slowdown)."""
+    counts = dict.fromkeys(compare.VERDICTS, 0)
+    for ratio in ratio_intervals(seeds, runs, sigma, slowdown):
         counts[compare.verdict(ratio.point, ratio.low, ratio.high, threshold)] += 1
     return {k: v / seeds for k, v in counts.items()}
 

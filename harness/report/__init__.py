@@ -27,7 +27,6 @@ _EXPORTS: dict[str, str] = {
     "main": "harness.report.cli",
     "read_results": "harness.report.load",
     "read_trajectory": "harness.report.load",
-    "load_experiments": "harness.report.load",
     "REPO_ROOT": "harness.report.paths",
 }
 

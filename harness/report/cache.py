@@ -9,7 +9,8 @@ by a hash of their input files, both remembered in one manifest beside the figur
   pandas nor matplotlib.
 
 Both are keyed by content, never by time, so the rendered report is the same whether a figure
-was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
+was drawn or reused. Standard library only (pandas is imported when a frame is hashed;
+harness.results needs no packages).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
+
+from harness.results import sha256_file
 
 MANIFEST_NAME = ".manifest.json"
 MANIFEST_VERSION = 1
@@ -38,10 +41,6 @@ def code_version(files: Iterable[Path]) -> str:
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
-
-
-def file_sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _digest_value(value: object, digest: Any) -> None:
@@ -97,7 +96,7 @@ class Manifest:
     def _intact(self, entry: dict[str, Any]) -> bool:
         files = entry.get("files", {})
         return bool(files) and all(
-            (self.fig_dir / name).is_file() and file_sha256(self.fig_dir / name) == sha
+            (self.fig_dir / name).is_file() and sha256_file(self.fig_dir / name) == sha
             for name, sha in files.items())
 
     def draw(self, function: Callable[..., Any], data: object, stem: Path, *more: object,
@@ -115,7 +114,7 @@ class Manifest:
         result = function(data, stem, *more, **kwargs)
         paths = [result] if isinstance(result, Path) else list(result)
         self.figures[stem.name] = {"key": key,
-                                   "files": {p.name: file_sha256(p) for p in paths}}
+                                   "files": {p.name: sha256_file(p) for p in paths}}
         self.drawn.append(stem.name)
         return paths
 

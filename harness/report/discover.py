@@ -11,6 +11,7 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.report.paths import QUICK_SUFFIX
+from harness.results import sha256_file
 
 RESULTS_FILE = "results.csv"
 ENV_FILE = "env.json"
@@ -66,7 +67,7 @@ def find_experiments(
 
 
 def _file_digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else "absent"
+    return sha256_file(path) if path.is_file() else "absent"
 
 
 def input_digest(exp: ExperimentDir) -> str:

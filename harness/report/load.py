@@ -3,7 +3,6 @@ env.json, divergence.csv and print-mode outputs."""
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,7 +15,6 @@ from harness.report.discover import (
     ENV_FILE,
     RESULTS_FILE,
     ExperimentDir,
-    find_experiments,
     read_env,
 )
 
@@ -236,10 +234,3 @@ def load_experiment(found: ExperimentDir) -> Experiment:
                       read_env(found.path / ENV_FILE),
                       read_divergence(found.path / DIVERGENCE_FILE))
 
-
-def load_experiments(
-    results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
-) -> list[Experiment]:
-    """Every results/<name>/results.csv with at least one row, in the course report's order."""
-    return [load_experiment(found) for found in
-            find_experiments(results_dir, include_quick=include_quick, only=only)]
