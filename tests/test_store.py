@@ -111,3 +111,17 @@ def test_env_is_kept_per_machine(tmp_path: Path) -> None:
     store.write_env(tmp_path, {"machine_id": "m2", "x": 2})
     assert json.loads((tmp_path / "env.json").read_text())["x"] == 2
     assert sorted(os.listdir(tmp_path / "machines")) == ["m1.json", "m2.json"]
+
+
+def test_records_read_again_only_when_their_file_was_replaced(tmp_path: Path) -> None:
+    cid = put(tmp_path, "2026-11-23T10:00:00+00:00")
+    cells = tmp_path / "cells"
+    first = store.load_records(cells)
+    assert [s.record["status"] for s in first] == ["ok"]
+    assert store.load_records(cells)[0] is first[0]  # unchanged file: not parsed again
+    record = json.loads((cells / f"{cid}.json").read_text())
+    results.atomic_write_json(cells / f"{cid}.json", {**record, "status": "invalid"})
+    again = store.load_records(cells)
+    assert [s.record["status"] for s in again] == ["invalid"]  # a replaced record is re-read
+    (cells / f"{cid}.json").unlink()
+    assert store.load_records(cells) == []
