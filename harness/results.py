@@ -71,8 +71,14 @@ DIVERGENCE_COLUMNS = (
     "cell_id", "variant", "build", "scene", "n", "L", "r", "steps", "seed", "threads",
     "reference", "step", "max_pos_dev",
 )
+# Issue 15: where the simulation time goes, from --timing, seconds summed over the run: the
+# variant's pair finder (broad phase and pair tests), wall candidates, merging and sorting the
+# candidates, the greedy resolution walk, moving the discs. Their sum is at most sim_s (the
+# rest is loop overhead). After the provenance columns, and only where some cell has them
+# (results of binaries from before the phase timers have none).
+PHASE_COLUMNS = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
 TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair_collisions",
-               "wall_collisions")
+               "wall_collisions", *PHASE_COLUMNS)
 # Issue 16: the OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its
 # --timing run (one entry per candidate writer: the threads, T*T for p3), space-separated;
 # `imbalance` is max over mean busy seconds (1 = perfectly even). Last in results.csv, and
@@ -327,7 +333,8 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *THREAD_COLUMNS, *CHECK_COLUMNS):
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *PHASE_COLUMNS, *THREAD_COLUMNS,
+                   *CHECK_COLUMNS):
         row[column] = record.get(column)
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
@@ -343,10 +350,12 @@ def format_cell(value: object) -> str:
 
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
-    """results.csv text: the contract, extra and provenance columns, then the check columns
-    when some row has a check value, then the per-thread columns when some row has them."""
+    """results.csv text: the contract, extra and provenance columns, then the phase columns,
+    the check columns and the per-thread columns, each group when some row has a value."""
     rows = list(rows)
     columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
+    if any(row.get(c) is not None for row in rows for c in PHASE_COLUMNS):
+        columns = (*columns, *PHASE_COLUMNS)
     if any(row.get(c) is not None for row in rows for c in CHECK_COLUMNS):
         columns = (*columns, *CHECK_COLUMNS)
     if any(row.get(c) not in (None, "") for row in rows for c in THREAD_COLUMNS):

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from harness.results import PHASE_COLUMNS
+
 if TYPE_CHECKING:
     from harness.stats import Interval
 
@@ -58,6 +60,14 @@ SINGLE_THREADED_VARIANTS: frozenset[str] = frozenset({"seq"})
 
 BASELINE_SEQ = "seq"
 BASELINE_ONE_THREAD = "1 thread"
+
+# Where a --timing run's time goes (issue 15), in drawing order: results.csv's phase columns,
+# the output, and what sim_s holds beyond its phases (loop overhead). harness/phases.py.
+OTHER_PHASE = "other_s"
+PHASE_NAMES: dict[str, str] = dict(zip(
+    (*PHASE_COLUMNS, "output_s", OTHER_PHASE),
+    ("broad phase", "wall candidates", "sort", "resolution", "motion", "output", "other"),
+    strict=True))
 
 # Display headers for every column a builder can produce.
 DISPLAY_NAMES: dict[str, str] = {
@@ -119,6 +129,10 @@ DISPLAY_NAMES: dict[str, str] = {
     "typical_err_r": "shadow error, median (÷r)",
     "worst": "worst scene",
     "not_trusted": "not trusted for",
+    # where the time goes (issue 15)
+    "phases_s": "simulation + output [s]",
+    **{column: f"{name} [s]" for column, name in PHASE_NAMES.items()},
+    "rest_ns": "outside the broad phase [ns per particle-step]",
 }
 
 
@@ -651,6 +665,9 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "threads": _fmt_int,
     "cores": _fmt_int,
     "pareto": _fmt_bool,
+    "phases_s": _fmt_time,
+    **{column: _fmt_time for column in PHASE_NAMES},
+    "rest_ns": lambda v: format_sig3(float(v)),
 }
 
 
@@ -671,10 +688,28 @@ def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
 
 
 SE_SUFFIX = "_se"  # a column's standard error
+SHARE_SUFFIX = "_share"  # a column's share of its row's total, in percent
 
 
 def _companions(column: str) -> tuple[str, ...]:
-    return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}")
+    return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}",
+            f"{column}{SHARE_SUFFIX}")
+
+
+SHARE_WHOLE = (10.0, 99.5)  # between these a share is written in whole percent
+
+
+def format_share(percent: float) -> str:
+    """`61%`, and `0.6%` or `99.7%` with one decimal where whole percent would blur a small
+    phase or the rest beside a large one; 0 and 100 exactly as they are."""
+    if percent in (0.0, 100.0) or SHARE_WHOLE[0] <= percent < SHARE_WHOLE[1]:
+        return f"{percent:.0f}%"
+    return f"{percent:.1f}%"
+
+
+def format_sig3(value: float) -> str:
+    """Three significant digits, whole numbers written out (2040, not 2.04e+03)."""
+    return f"{value:.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
 def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
@@ -692,11 +727,14 @@ def display_columns(df: pd.DataFrame) -> list[str]:
 
 def format_with_uncertainty(df: pd.DataFrame, column: str, index: int) -> str:
     """`1.98 [1.95, 2.01]` where the row has an interval, `1.98 ± 0.02` where it has a
-    standard error, else the value alone."""
+    standard error, `1.98 (61%)` where it has a share, else the value alone."""
     value = df[column].iloc[index]
     text = format_value(column, value)
     if text == MISSING_TEXT:
         return text
+    share = f"{column}{SHARE_SUFFIX}"
+    if share in df.columns and pd.notna(df[share].iloc[index]):
+        return f"{text} ({format_share(float(df[share].iloc[index]))})"
     low, high = (f"{column}{s}" for s in INTERVAL_SUFFIXES)
     if low in df.columns and high in df.columns:
         a, b = df[low].iloc[index], df[high].iloc[index]

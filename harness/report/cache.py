@@ -30,7 +30,8 @@ MANIFEST_VERSION = 1
 HARNESS_DIR = Path(__file__).resolve().parents[1]
 # The code a figure's pixels depend on; any other change keeps the figures.
 PLOT_CODE: tuple[Path, ...] = (HARNESS_DIR / "plots.py", HARNESS_DIR / "tables.py",
-                               HARNESS_DIR / "stats.py", HARNESS_DIR / "strategy_study.py")
+                               HARNESS_DIR / "stats.py", HARNESS_DIR / "strategy_study.py",
+                               HARNESS_DIR / "phases.py")
 # The code an experiment's part depends on: all of the report, and what it calls.
 REPORT_CODE: tuple[Path, ...] = (*PLOT_CODE, *sorted((HARNESS_DIR / "report").glob("*.py")))
 

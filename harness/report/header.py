@@ -8,7 +8,7 @@ from collections import Counter
 from collections.abc import Sequence
 
 from harness.report.document import Block, Bullets, Paragraph, Section, Table
-from harness.report.parts import ExperimentPart, Fidelity
+from harness.report.parts import HIGHLIGHT_KINDS, ExperimentPart, Fidelity
 
 MAX_WARNING_ROWS = 60  # beyond this the warnings table is cut, with a count of the rest
 WARNINGS_ANCHOR = "warnings"
@@ -157,7 +157,7 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
 
 def summary_section(parts: Sequence[ExperimentPart]) -> Section | None:
     """The headline: what a reader came for, each point linking to where it is shown."""
-    items = [text for text in (*(_best(parts, k) for k in ("best", "grid", "largest")),
+    items = [text for text in (*(_best(parts, k) for k in HIGHLIGHT_KINDS),
                                fidelity_text(parts)) if text]
     if not items:
         return None

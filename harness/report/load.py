@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness import tables
+from harness import results, tables
 from harness.errors import HarnessError
 from harness.report.discover import (
     DIVERGENCE_FILE,
@@ -46,10 +46,10 @@ CHECK_NUMERIC_COLUMNS: tuple[str, ...] = (
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s",
 )
-# The shared contract's newer columns (machine identity, uncertainty, provenance, issue 16's
-# schedules): read when present; results from before them render without.
+# The shared contract's newer columns (machine identity, uncertainty, provenance, issue 15's
+# phases, issue 16's schedules): read when present; results from before them render without.
 CONTRACT_NUMERIC_COLUMNS: tuple[str, ...] = (
-    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance",
+    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance", *results.PHASE_COLUMNS,
 )
 CONTRACT_BOOL_COLUMNS: tuple[str, ...] = ("outliers", "loaded", "stale")
 # The others (machine_id, machine, wall_times_s, git_commit, measured_at, schedule,

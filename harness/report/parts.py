@@ -39,7 +39,8 @@ class Fidelity:
         return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed)
 
 
-HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "largest")
+# In the summary's order; "phases": where grid's time goes (issue 15).
+HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "phases", "largest")
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from harness.report.cache import Manifest
 from harness.report.checks import checks_subsections
 from harness.report.document import Block, Figure, Paragraph, Section, slug
 from harness.report.load import Experiment, read_trajectory
+from harness.report.phases import phase_subsection
 from harness.report.strategies import strategy_subsections
 
 # Which table and figure of the course report a treatment reproduces.
@@ -254,8 +255,13 @@ def experiment_section(exp: Experiment, figs: Manifest) -> Section:
     # The cell table leads whenever something varies; a lone cell only when nothing else shows.
     if (tables.varying_keys(exp.frame) and not catalog) or not parts:
         parts.insert(0, cells_subsection(exp, swept))
-    # Beside Table 2: the seed's times, per-thread work, chunk costs, schedules (issue 16).
-    parts[1:1] = strategy_subsections(exp, figs)
+    # Beside Table 2: the seed's times, per-thread work, chunk costs, schedules (issue 16),
+    # then where the time goes (issue 15).
+    beside = strategy_subsections(exp, figs)
+    phase_part = phase_subsection(exp, figs)
+    if phase_part is not None:
+        beside.append(phase_part)
+    parts[1:1] = beside
     parts = [p for p in parts if p.blocks]
     intro = Paragraph(f"Experiment `{exp.name}`: {len(exp.frame)} cell(s). "
                       + _fixed_text(exp.frame))

@@ -7,11 +7,12 @@ import math
 
 import pandas as pd
 
-from harness import tables
+from harness import phases, tables
 from harness.report.blocks import table_block
 from harness.report.document import Section
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
+from harness.report.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
 
 GRID = "grid"
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
@@ -70,6 +71,12 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
             float(largest["n"]),
             f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
             _anchor(section, "-cells"))
+    selection = phases.select(exp.frame)
+    if selection is not None:
+        anchor = _anchor(section, PHASES_SUFFIX)
+        headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
+        if headline is not None:
+            found["phases"] = Highlight(*headline, anchor)
     timed = rows[(rows["status"] == tables.OK) & rows["wall_median_s"].notna()]
     if not timed.empty:
         top = timed.sort_values(["n", "wall_median_s"], kind="stable").iloc[-1]

@@ -1,0 +1,72 @@
+"""Issue 15's "Where the time goes": a figure and a table of every shown cell's --timing run
+split into its phases. harness/phases.py computes the numbers and draws the figure; this module
+lays them out, and only for an experiment whose cells have the phase columns."""
+
+from __future__ import annotations
+
+from harness import phases
+from harness.report.blocks import figure_block, table_block
+from harness.report.cache import Manifest
+from harness.report.document import Block, Paragraph, Section, slug
+from harness.report.load import Experiment
+
+TITLE = "Where the time goes"
+ANCHOR_SUFFIX = "-phases"
+INTRO = (
+    "Each cell's `--timing` run (one run with `--precise` output, beside hyperfine's timed "
+    "runs) splits its time into phases, summed over the steps: the **broad phase** (the "
+    "variant's own pair finder with its pair tests: all pairs, or the grid's cells), **wall "
+    "candidates**, merging and **sorting** the candidates, the greedy **resolution** walk, "
+    "**motion** of the discs, writing the **output**, and **other**: the simulation time "
+    "(`sim_s`) beyond its phases, loop overhead. Reading the input and starting the process "
+    "are not counted. The parallel variants differ only in the broad phase; the rest is the "
+    "shared core's."
+)
+
+
+def _thread_words(threads: int) -> str:
+    return f"{threads} thread{'' if threads == 1 else 's'}"
+
+
+def _left_out(sel: phases.Selection) -> str:
+    notes = []
+    if sel.other_threads:
+        notes.append(f"{sel.other_threads} cell(s) at other thread counts are not shown")
+    if sel.scenes_left_out:
+        notes.append(f"{sel.scenes_left_out} more scene(s) are left out (at most "
+                     f"{phases.MAX_BARS} bars)")
+    if sel.without_phases:
+        notes.append(f"{sel.without_phases} timed cell(s) were measured by a binary without "
+                     "phase timers")
+    return "; ".join(notes) + "." if notes else ""
+
+
+def phase_subsection(exp: Experiment, figs: Manifest) -> Section | None:
+    """The figure and the table, or None when no timed cell has phases."""
+    sel = phases.select(exp.frame)
+    if sel is None:
+        return None
+    name = slug(exp.name)
+    paths = figs.draw(phases.fig_phases, phases.plot_frame(sel),
+                      figs.fig_dir / f"{name}-phases",
+                      title=f"{exp.title}: where the time goes")
+    rule = (f"at {_thread_words(sel.threads)}, the thread count most of the experiment's "
+            "cells with phases ran at (the fewest on a tie)")
+    caption = (
+        f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the whole "
+        "(simulation + output) written at the bar's end"
+        + ("; each scene has its own scale" if sel.scene_keys else "")
+        + ". Right: the same as shares of the whole, the broad phase's written on it."
+    )
+    blocks: list[Block] = [Paragraph(INTRO), figure_block(paths, caption)]
+    table = phases.phase_table(sel)
+    blocks.append(table_block(
+        table,
+        "Seconds per phase of the cells in the figure, each with its share of simulation + "
+        "output in parentheses; the last column is everything outside the broad phase per "
+        "particle and step.", source=sel.cells))
+    left_out = _left_out(sel)
+    if left_out:
+        blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
+    return Section(TITLE, f"{name}{ANCHOR_SUFFIX}", tuple(blocks))
+
