@@ -342,7 +342,7 @@ check_timing() {
     if [ "$variant" = seq ] && command -v python3 >/dev/null && ! python3 -c 'import json, sys; json.loads(sys.stdin.read())' <"$TMP/err" 2>/dev/null; then
         problems+=" not valid JSON;"
     fi
-    for k in variant threads n steps input_s sim_s output_s pair_tests candidates pair_collisions wall_collisions; do
+    for k in variant threads n steps input_s sim_s $PHASE_KEYS output_s pair_tests candidates pair_collisions wall_collisions; do
         [ -n "$(json_field "$k" "$TMP/err")" ] || problems+=" no key $k;"
     done
     [ "$(json_field variant "$TMP/err")" = "$variant" ] || problems+=" variant;"
@@ -373,6 +373,24 @@ elif min(busy) < 0 or sum(pairs) != t["pair_tests"] or any(p > 0 and c == 0 for 
 ' "$TMP/err" "$writers")
     fi
     if [ -z "$problems" ]; then ok; else bad "$what:$problems $(head -c 400 "$TMP/err")"; fi
+}
+# check_phases WHAT: the stderr of the last run holds issue 15's phase split, right after
+# sim_s and in this order, each >= 0 and together at most sim_s (each printed to 1e-6 s).
+PHASE_KEYS="broad_s walls_s sort_s resolve_s motion_s"
+check_phases() {
+    local problems
+    problems=$(python3 -c '
+import json, sys
+text = open(sys.argv[1]).read(); keys = sys.argv[2].split()
+t = json.loads(text); names = list(t)
+if any(k not in t for k in keys):
+    print(" phase keys missing: %s;" % " ".join(k for k in keys if k not in t))
+elif names[names.index("sim_s") + 1:names.index("sim_s") + 1 + len(keys)] != keys:
+    print(" phase keys not right after sim_s in the order %s;" % sys.argv[2])
+elif min(t[k] for k in keys) < 0 or sum(t[k] for k in keys) > t["sim_s"] + 5e-6:
+    print(" a phase < 0 or the phases summing to more than sim_s;")
+' "$TMP/err" "$PHASE_KEYS")
+    if [ -z "$problems" ]; then ok; else bad "$1:$problems $(head -c 400 "$TMP/err")"; fi
 }
 # check_work WHAT KEY EXPECTED: the per-thread list KEY of the last run, e.g. "[1, 2]".
 check_work() {
@@ -420,6 +438,19 @@ run "$TMP/out" "$TMP/err" "$B/p2d" --timing --threads 2 "$TMP/timing.in"
 check_timing "p2d --timing --threads 2" p2d 2 120 5
 pairs=$(sed -n 's/.*"threads_pairs": \(\[[^]]*\]\).*/\1/p' "$TMP/err")
 check_work "p2d a chunk per pair" threads_chunks "$pairs"
+# Every variant built (the core times the phases, so each prints them), on 1 and 2 threads.
+for src in "$ROOT"/variants/*.c; do
+    v=$(basename "$src" .c)
+    bin=$B/$v
+    if [ ! -x "$bin" ]; then
+        bad "--timing phases: $bin is not built"
+        continue
+    fi
+    for threads in 1 2; do
+        run "$TMP/out" "$TMP/err" "$bin" --timing --threads "$threads" "$TMP/timing.in"
+        check_phases "$v --timing --threads $threads"
+    done
+done
 # No timing line without --timing (the other runs check an empty stderr).
 
 # ---------------------------------------------------------------------------------------------

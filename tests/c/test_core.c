@@ -1130,6 +1130,36 @@ static void test_step_carries_wall_candidates(void)
     sim_world_free(&b);
 }
 
+/* --timing's phase split (issue 15): every phase is timed (>= 0, and the finder, sorting,
+ * resolution and motion of a scene with collisions take some time over 20 steps) and the
+ * phases together fit inside the time spent in sim_step, on one thread and on three. */
+static void test_step_phase_times(void)
+{
+    for (int threads = 1; threads <= 3; threads += 2) {
+        enum { N = 5000, STEPS = 20 };
+        sim_world w;
+        dense_world(&w, N, 300);
+        sim_stats st = {0};
+        sim_stepper *s = sim_stepper_create(&w, &parallel_variant, threads);
+        CHECK(s != NULL);
+        const double t0 = omp_get_wtime();
+        for (int k = 0; s && k < STEPS; k++)
+            CHECK_INT(sim_step(s, &w, &st), 0);
+        const double stepping = omp_get_wtime() - t0;
+        sim_stepper_destroy(s);
+        const double phases[] = {st.broad_s, st.walls_s, st.sort_s, st.resolve_s, st.motion_s};
+        double sum = 0;
+        for (size_t k = 0; k < sizeof phases / sizeof *phases; k++) {
+            CHECK(phases[k] >= 0);
+            sum += phases[k];
+        }
+        CHECK(st.broad_s > 0 && st.sort_s > 0 && st.motion_s > 0 && st.walls_s > 0);
+        CHECK(st.pair_collisions > 0 && st.wall_collisions > 0);
+        CHECK(sum <= stepping);
+        sim_world_free(&w);
+    }
+}
+
 /* sim_team_spread moves each thread once and hands it back the process's whole mask: every
  * thread of a later team may run on every CPU the process could before. Team sizes of 2, the
  * CPU count (both of sim_team.c's regions run) and one more (the second alone). */
@@ -1255,6 +1285,7 @@ static const test_case tests[] = {
     TEST(test_step_stats),
     TEST(test_step_order_independent),
     TEST(test_step_carries_wall_candidates),
+    TEST(test_step_phase_times),
     TEST(test_team_spread_restores_the_mask),
     TEST(test_step_collision_conserves),
     TEST(test_step_empty_world),

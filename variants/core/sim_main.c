@@ -266,10 +266,12 @@ static void print_timing(const sim_header *h, int threads, const sim_report *r)
     fprintf(stderr,
             "{\"variant\": \"%s\", \"build\": \"%s\", \"real\": \"%s\", \"formula\": \"%s\", "
             "\"threads\": %d, \"n\": %ld, \"steps\": %lld, \"input_s\": %.6f, \"sim_s\": %.6f, "
-            "\"output_s\": %.6f, \"pair_tests\": %llu, \"candidates\": %llu, "
+            "\"broad_s\": %.6f, \"walls_s\": %.6f, \"sort_s\": %.6f, \"resolve_s\": %.6f, "
+            "\"motion_s\": %.6f, \"output_s\": %.6f, \"pair_tests\": %llu, \"candidates\": %llu, "
             "\"pair_collisions\": %llu, \"wall_collisions\": %llu",
             sim_variant_def.name, build, SIM_REAL_NAME, SIM_FORMULA_NAME, threads, (long)h->n,
-            (long long)h->steps, r->input_s, r->sim_s, r->output_s,
+            (long long)h->steps, r->input_s, r->sim_s, r->stats.broad_s, r->stats.walls_s,
+            r->stats.sort_s, r->stats.resolve_s, r->stats.motion_s, r->output_s,
             (unsigned long long)r->stats.pair_tests, (unsigned long long)r->stats.candidates,
             (unsigned long long)r->stats.pair_collisions,
             (unsigned long long)r->stats.wall_collisions);
