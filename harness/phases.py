@@ -1,8 +1,13 @@
 """Issue 15's reading of where the time goes: each cell's `--timing` run split into its phases
-(the columns harness/results.py PHASE_COLUMNS, the output, and what sim_s holds beyond them),
-in seconds and as shares of the whole, as a table, a figure and a headline sentence. Tables are
-DataFrames and sentences strings, computed from results rows as the report reads results.csv;
-the report lays them out (harness/report/phases.py).
+(the columns harness/results.py PHASE_COLUMNS and what sim_s holds beyond them), in seconds and
+as shares of the simulation time, and its output in seconds, as a table, a figure and a
+headline sentence. Tables are DataFrames and sentences strings, computed from results rows as
+the report reads results.csv; the report lays them out (harness/report/phases.py).
+
+The output gets no share: the --timing run writes it with --precise (every digit, for the
+validation), which costs some 20x the timed runs' output (`build/grid --threads 1 --timing`,
+N = 2000, 20 steps, two runs each: 0.0120 and 0.0143 s with --precise, 0.00046 and 0.00061 s
+without), so as a share it would shrink every other phase.
 
 Which cells: the timed ones with phases, at one thread count per experiment, the count most
 of those cells ran at (the fewest on a tie): a thread sweep shows its single-thread cells, a
@@ -23,9 +28,10 @@ from matplotlib.patches import Patch
 from harness import plots, tables
 from harness.results import PHASE_COLUMNS
 
-PHASES: tuple[str, ...] = tuple(tables.PHASE_NAMES)  # drawing order: the columns, output, other
-TOTAL = "phases_s"  # simulation + output of the --timing run, the whole the shares are of
-REST_NS = "rest_ns"  # everything outside the broad phase, ns per particle-step
+PHASES: tuple[str, ...] = tuple(tables.PHASE_NAMES)  # drawing order: sim_s's, then output
+SIM_PHASES: tuple[str, ...] = (*PHASE_COLUMNS, tables.OTHER_PHASE)  # they make up sim_s
+TOTAL = "sim_s"  # the simulation time of the --timing run, the whole the shares are of
+REST_NS = "rest_ns"  # the simulation outside the broad phase, ns per particle-step
 BROAD = PHASE_COLUMNS[0]
 NS_PER_S = 1e9
 PERCENT = 100.0
@@ -36,9 +42,11 @@ ROW_KEYS: tuple[str, ...] = (tables.MACHINE, "variant", "build", "schedule")
 MAX_BARS = 36
 PHASE_COLORS: dict[str, str] = dict(zip(PHASES, (
     "#1f77b4",  # broad phase: the blue the eye reads first
-    "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
+    "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
     "#c7c7c7",  # other: grey, it is overhead
+    "#8c564b",  # output, drawn hatched: outside sim_s
 ), strict=True))
+OUTPUT_HATCH = "////"
 GROUP = "group"  # a plotted frame's scene label
 BAR = "bar"  # a plotted frame's bar label
 
@@ -74,20 +82,18 @@ def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def with_phases(rows: pd.DataFrame) -> pd.DataFrame:
-    """The rows with every phase in seconds (output, and `other` = sim_s less the phases), the
-    whole they make, each phase's share of it in percent, and the rest per particle-step."""
+    """The rows with `other` (sim_s less its phases), each of sim_s's phases' share of their
+    sum in percent, and the simulation outside the broad phase per particle-step."""
     out = rows.copy()
     # Each phase is printed rounded to the microsecond, so their sum may pass sim_s by a few:
     # that is no negative overhead.
-    out[tables.OTHER_PHASE] = (out["sim_s"] - out[list(PHASE_COLUMNS)].sum(axis=1)).clip(lower=0)
-    out["output_s"] = out["output_s"].fillna(0.0)
-    out[TOTAL] = out[list(PHASES)].sum(axis=1)
-    for phase in PHASES:
-        out[f"{phase}{tables.SHARE_SUFFIX}"] = (out[phase] / out[TOTAL] * PERCENT).where(
-            out[TOTAL] > 0)
+    out[tables.OTHER_PHASE] = (out[TOTAL] - out[list(PHASE_COLUMNS)].sum(axis=1)).clip(lower=0)
+    out[tables.OUTPUT_PHASE] = out[tables.OUTPUT_PHASE].fillna(0.0)
+    whole = out[list(SIM_PHASES)].sum(axis=1)  # sim_s, or a few microseconds above it
+    for phase in SIM_PHASES:
+        out[f"{phase}{tables.SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
     particle_steps = out["n"] * out["steps"]
-    out[REST_NS] = ((out[TOTAL] - out[BROAD]) / particle_steps * NS_PER_S).where(
-        particle_steps > 0)
+    out[REST_NS] = ((whole - out[BROAD]) / particle_steps * NS_PER_S).where(particle_steps > 0)
     return out
 
 
@@ -144,15 +150,17 @@ def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
-    """Per shown cell: its scene and bar keys, the whole, every phase in seconds with its share
-    (the `_share` companions, shown in parentheses), and the rest per particle-step."""
+    """Per shown cell: its scene and bar keys, sim_s, each of its phases in seconds with its
+    share (the `_share` companions, shown in parentheses), the simulation outside the broad
+    phase per particle-step, and the output in seconds."""
     cells = sel.cells
     table = cells[[*sel.scene_keys, *sel.row_keys]].copy()
     table[TOTAL] = cells[TOTAL]
-    for phase in PHASES:
+    for phase in SIM_PHASES:
         table[phase] = cells[phase]
         table[f"{phase}{tables.SHARE_SUFFIX}"] = cells[f"{phase}{tables.SHARE_SUFFIX}"]
     table[REST_NS] = cells[REST_NS]
+    table[tables.OUTPUT_PHASE] = cells[tables.OUTPUT_PHASE]
     return table
 
 
@@ -172,12 +180,18 @@ def plot_frame(sel: Selection) -> pd.DataFrame:
 
 
 def _stack(ax: Axes, values: np.ndarray, y: np.ndarray) -> None:
-    """One horizontal bar per row of `values` (rows x PHASES), its phases end to end."""
+    """One horizontal bar per row of `values` (rows x the first phases), phases end to end."""
     left = np.zeros(len(y))
-    for k, phase in enumerate(PHASES):
-        ax.barh(y, values[:, k], left=left, height=0.7, color=PHASE_COLORS[phase],
-                edgecolor="white", linewidth=0.4)
+    for k, phase in enumerate(PHASES[:values.shape[1]]):
+        ax.barh(y, values[:, k], left=left, height=0.7, **_style(phase))
         left += values[:, k]
+
+
+def _style(phase: str) -> dict[str, object]:
+    if phase == tables.OUTPUT_PHASE:
+        return {"facecolor": "white", "edgecolor": PHASE_COLORS[phase],
+                "hatch": OUTPUT_HATCH, "linewidth": 0.6}
+    return {"facecolor": PHASE_COLORS[phase], "edgecolor": "white", "linewidth": 0.4}
 
 
 def _seconds_text(value: float) -> str:
@@ -190,8 +204,8 @@ def _share_text(percent: float) -> str:
 
 def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
     """Stacked horizontal bars per bar label, one pair of panels per scene: seconds (each
-    scene on its own axis, the total written at the bar's end) and shares of the whole (the
-    broad phase's share written on it)."""
+    scene on its own axis; sim_s's phases, then the output hatched; sim_s written at the end)
+    and shares of sim_s (the broad phase's written on it)."""
     groups = [g for _, g in frame.groupby(GROUP, sort=False)]
     bars = len(frame)
     titled = len(groups) > 1
@@ -212,14 +226,15 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
         hspace=gap / (bars * BAR_IN / len(groups)))
     for k, group in enumerate(groups):
         values = group[list(PHASES)].to_numpy(dtype=float)
+        sim = values[:, :len(SIM_PHASES)].sum(axis=1)
+        shares = values[:, :len(SIM_PHASES)] / np.where(sim > 0, sim, 1.0)[:, None] * PERCENT
         totals = values.sum(axis=1)
-        shares = values / np.where(totals > 0, totals, 1.0)[:, None] * PERCENT
         y = np.arange(len(group))[::-1]  # the first bar on top
         seconds, percent = fig.add_subplot(grid[k, 0]), fig.add_subplot(grid[k, 1])
         _stack(seconds, values, y)
         _stack(percent, shares, y)
-        for yi, total in zip(y, totals, strict=True):
-            seconds.text(total, yi, " " + _seconds_text(total), va="center", fontsize="small")
+        for yi, total, whole in zip(y, totals, sim, strict=True):
+            seconds.text(total, yi, " " + _seconds_text(whole), va="center", fontsize="small")
         for yi, share in zip(y, shares[:, 0], strict=True):
             if share >= SHARE_LABEL_MIN:
                 percent.text(share / 2, yi, _share_text(share), va="center", ha="center",
@@ -238,8 +253,8 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
         if k == len(groups) - 1:
             seconds.set_xlabel("time in the --timing run [s]"
                                + (" (each scene its own scale)" if titled else ""))
-            percent.set_xlabel("share of simulation + output [%]")
-    handles = [Patch(color=PHASE_COLORS[p], label=tables.PHASE_NAMES[p]) for p in PHASES]
+            percent.set_xlabel("share of the simulation time [%]")
+    handles = [Patch(label=tables.PHASE_NAMES[p], **_style(p)) for p in PHASES]
     fig.legend(handles=handles, loc="upper center", ncol=len(PHASES), frameon=False,
                fontsize="small", bbox_to_anchor=(0.5, 1 - title_in / height),
                handlelength=1.2, columnspacing=1.0)
@@ -263,5 +278,5 @@ def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
     threads = int(cell["threads"])
     return float(cell["n"]), (
         f"where grid's time goes: the broad phase is {_share_text(share)} of its simulation "
-        f"and output, the rest {tables.format_sig3(cell[REST_NS])} ns per particle-step "
+        f"time, the rest of it {tables.format_sig3(cell[REST_NS])} ns per particle-step "
         f"(N = {int(cell['n'])}, {threads} thread{'' if threads == 1 else 's'}; {link})")

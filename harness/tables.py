@@ -61,12 +61,16 @@ SINGLE_THREADED_VARIANTS: frozenset[str] = frozenset({"seq"})
 BASELINE_SEQ = "seq"
 BASELINE_ONE_THREAD = "1 thread"
 
-# Where a --timing run's time goes (issue 15), in drawing order: results.csv's phase columns,
-# the output, and what sim_s holds beyond its phases (loop overhead). harness/phases.py.
+# Where a --timing run's time goes (issue 15), in drawing order: results.csv's phase columns
+# and what sim_s holds beyond them (loop overhead), which make up sim_s; then the output, which
+# that run writes with --precise (every digit), far slower than the timed runs' output.
+# harness/phases.py.
 OTHER_PHASE = "other_s"
+OUTPUT_PHASE = "output_s"
 PHASE_NAMES: dict[str, str] = dict(zip(
-    (*PHASE_COLUMNS, "output_s", OTHER_PHASE),
-    ("broad phase", "wall candidates", "sort", "resolution", "motion", "output", "other"),
+    (*PHASE_COLUMNS, OTHER_PHASE, OUTPUT_PHASE),
+    ("broad phase", "wall candidates", "sort", "resolution", "motion", "other",
+     "output (--precise)"),
     strict=True))
 
 # Display headers for every column a builder can produce.
@@ -130,9 +134,9 @@ DISPLAY_NAMES: dict[str, str] = {
     "worst": "worst scene",
     "not_trusted": "not trusted for",
     # where the time goes (issue 15)
-    "phases_s": "simulation + output [s]",
+    "sim_s": "simulation [s]",
     **{column: f"{name} [s]" for column, name in PHASE_NAMES.items()},
-    "rest_ns": "outside the broad phase [ns per particle-step]",
+    "rest_ns": "simulation outside the broad phase [ns per particle-step]",
 }
 
 
@@ -665,7 +669,7 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "threads": _fmt_int,
     "cores": _fmt_int,
     "pareto": _fmt_bool,
-    "phases_s": _fmt_time,
+    "sim_s": _fmt_time,
     **{column: _fmt_time for column in PHASE_NAMES},
     "rest_ns": lambda v: format_sig3(float(v)),
 }
@@ -697,13 +701,16 @@ def _companions(column: str) -> tuple[str, ...]:
 
 
 SHARE_WHOLE = (10.0, 99.5)  # between these a share is written in whole percent
+SHARE_TINY = 0.05  # a positive share below this would read 0.0%
 
 
 def format_share(percent: float) -> str:
     """`61%`, and `0.6%` or `99.7%` with one decimal where whole percent would blur a small
-    phase or the rest beside a large one; 0 and 100 exactly as they are."""
+    phase or the rest beside a large one; `<0.1%` for a sliver; 0 and 100 as they are."""
     if percent in (0.0, 100.0) or SHARE_WHOLE[0] <= percent < SHARE_WHOLE[1]:
         return f"{percent:.0f}%"
+    if 0 < percent < SHARE_TINY:
+        return "<0.1%"
     return f"{percent:.1f}%"
 
 

@@ -80,14 +80,15 @@ def rendered(results_root: Path, tmp_path_factory: pytest.TempPathFactory) -> Pa
 
 
 def test_columns_are_stored_from_the_timing_line() -> None:
-    # The line as variants/core/sim_main.c prints it (issue 15's keys right after sim_s).
+    # A real line: `build/grid --threads 1 --timing` on the report benchmark
+    # ("10000 20000 1 50 perf"), as variants/core/sim_main.c prints it.
     stderr = (
-        'seq: some warning\n{"variant": "grid", "build": "f64", "real": "f64", "formula": '
-        '"spec", "threads": 2, "n": 10000, "steps": 50, "input_s": 0.001237, "sim_s": 0.213981, '
-        '"broad_s": 0.130512, "walls_s": 0.020877, "sort_s": 0.017630, "resolve_s": 0.016002, '
-        '"motion_s": 0.016804, "output_s": 0.019211, "pair_tests": 7612412, "candidates": 9110, '
-        '"pair_collisions": 4230, "wall_collisions": 12, "threads_busy_s": [0.1, 0.09], '
-        '"threads_pairs": [3806206, 3806206], "threads_chunks": [50, 50]}\n')
+        '{"variant": "grid", "build": "f64", "real": "f64", "formula": "spec", "threads": 1, '
+        '"n": 10000, "steps": 50, "input_s": 0.000716, "sim_s": 0.315136, "broad_s": 0.275751, '
+        '"walls_s": 0.009274, "sort_s": 0.007148, "resolve_s": 0.003061, "motion_s": 0.019577, '
+        '"output_s": 0.003255, "pair_tests": 90632684, "candidates": 211160, '
+        '"pair_collisions": 61168, "wall_collisions": 106602, "threads_busy_s": [0.270327], '
+        '"threads_pairs": [90632684], "threads_chunks": [50]}\n')
     timing = results.parse_timing(stderr)
     assert timing is not None
     record = {k: timing.get(k) for k in results.TIMING_KEYS}
@@ -123,27 +124,26 @@ def test_table_shows_the_columns_numbers(rendered: Path) -> None:
     rows = {row[0]: row for row in table_rows(text)}
     assert list(rows) == ["seq", "p1d", "grid"]  # the canonical variant order
     for variant, (sim, output, phase) in CELLS.items():
-        seconds = {**phase, "output_s": output,
-                   tables.OTHER_PHASE: sim - math.fsum(phase.values())}
-        total = sim + output
+        seconds = {**phase, tables.OTHER_PHASE: sim - math.fsum(phase.values())}
         row = rows[variant]
-        assert row[1] == tables.format_value(phases.TOTAL, total)
-        for k, name in enumerate(phases.PHASES):
-            share = tables.format_share(seconds[name] / total * 100)
+        assert row[1] == tables.format_value("sim_s", sim)
+        for k, name in enumerate(phases.SIM_PHASES):
+            share = tables.format_share(seconds[name] / sim * 100)
             assert row[2 + k] == f"{tables.format_value(name, seconds[name])} ({share})", name
-        rest = (total - phase["broad_s"]) / (10000 * 50) * 1e9
-        assert row[-1] == tables.format_sig3(rest)
+        rest = (sim - phase["broad_s"]) / (10000 * 50) * 1e9
+        assert row[-2] == tables.format_sig3(rest)
+        assert row[-1] == tables.format_value("output_s", output)  # no share: not in sim_s
 
 
 def test_shares_sum_to_100_percent(results_root: Path) -> None:
     sel = phases.select(read_results(results_root / "bench" / "results.csv"))
     assert sel is not None
     table = phases.phase_table(sel)
-    shares = table[[f"{p}{tables.SHARE_SUFFIX}" for p in phases.PHASES]].sum(axis=1)
+    shares = table[[f"{p}{tables.SHARE_SUFFIX}" for p in phases.SIM_PHASES]].sum(axis=1)
     assert len(shares) == len(CELLS)
     assert shares.to_numpy() == pytest.approx(100.0, abs=1e-9)
-    assert table[list(phases.PHASES)].sum(axis=1).to_numpy() == pytest.approx(
-        table[phases.TOTAL].to_numpy(), abs=0)
+    assert table[list(phases.SIM_PHASES)].sum(axis=1).to_numpy() == pytest.approx(
+        table["sim_s"].to_numpy(), rel=1e-12)
 
 
 def test_rounding_above_sim_s_is_no_negative_overhead(tmp_path: Path) -> None:
@@ -152,20 +152,20 @@ def test_rounding_above_sim_s_is_no_negative_overhead(tmp_path: Path) -> None:
     path = write_experiment(tmp_path, "e", [record("grid", 0.999997, 0.0, phase)])
     frame = phases.with_phases(phases.phase_rows(read_results(path)))
     assert frame[tables.OTHER_PHASE].iloc[0] == 0
-    shares = frame[[f"{p}{tables.SHARE_SUFFIX}" for p in phases.PHASES]].sum(axis=1)
+    shares = frame[[f"{p}{tables.SHARE_SUFFIX}" for p in phases.SIM_PHASES]].sum(axis=1)
     assert shares.iloc[0] == pytest.approx(100.0)
 
 
 def test_the_summary_says_where_grids_time_goes(rendered: Path) -> None:
     markdown = (rendered / "report.md").read_text(encoding="utf-8")
     summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
-    sim, output, phase = CELLS["grid"]
-    share = tables.format_share(phase["broad_s"] / (sim + output) * 100)
-    rest = (sim + output - phase["broad_s"]) / (10000 * 50) * 1e9
+    sim, _, phase = CELLS["grid"]
+    share = tables.format_share(phase["broad_s"] / sim * 100)
+    rest = (sim - phase["broad_s"]) / (10000 * 50) * 1e9
     line = next(line for line in summary.splitlines() if "grid's time" in line)
-    assert f"the broad phase is {share} of its simulation and output" in line
-    assert (f"the rest {tables.format_sig3(rest)} ns per particle-step (N = 10000, 2 threads"
-            in line)
+    assert f"the broad phase is {share} of its simulation time" in line
+    assert (f"the rest of it {tables.format_sig3(rest)} ns per particle-step (N = 10000, "
+            "2 threads" in line)
     assert "(#bench-phases)" in line
 
 
@@ -230,9 +230,11 @@ def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
     sel = phases.select(read_results(path))
     assert sel is not None
     table = phases.phase_table(sel)
-    assert table[phases.TOTAL].iloc[0] == pytest.approx(3.5)
+    assert table["sim_s"].iloc[0] == 3.0 and table["output_s"].iloc[0] == 0.5
     assert table["broad_s"].iloc[0] == 1.5
-    assert table[f"broad_s{tables.SHARE_SUFFIX}"].iloc[0] == pytest.approx(1.5 / 3.5 * 100)
+    assert table[f"broad_s{tables.SHARE_SUFFIX}"].iloc[0] == pytest.approx(50.0)
     assert table[tables.OTHER_PHASE].iloc[0] == pytest.approx(0.5)
+    assert table[phases.REST_NS].iloc[0] == pytest.approx(1.5 / (10000 * 50) * 1e9)
     shown = tables.format_table(table)
-    assert re.fullmatch(r"1\.5 \(43%\)", shown.iloc[0]["broad phase [s]"])
+    assert re.fullmatch(r"1\.5 \(50%\)", shown.iloc[0]["broad phase [s]"])
+    assert shown.iloc[0]["output (--precise) [s]"] == "0.5"

@@ -327,6 +327,7 @@ def test_outliers_loaded_and_stale_cells_are_flagged_like_unstable_ones() -> Non
 
 
 def test_shares_keep_a_decimal_where_whole_percent_would_blur_them() -> None:
-    assert [tables.format_share(p) for p in (0.0, 0.58, 9.96, 10.0, 61.4, 99.4, 99.6, 100.0)] \
-        == ["0%", "0.6%", "10.0%", "10%", "61%", "99%", "99.6%", "100%"]
+    shares = (0.0, 0.018, 0.58, 9.96, 10.0, 61.4, 99.4, 99.6, 100.0)
+    assert [tables.format_share(p) for p in shares] == [
+        "0%", "<0.1%", "0.6%", "10.0%", "10%", "61%", "99%", "99.6%", "100%"]
     assert [tables.format_sig3(v) for v in (0.01234, 11.84, 2041.6)] == ["0.0123", "11.8", "2042"]

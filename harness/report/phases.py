@@ -13,14 +13,15 @@ from harness.report.load import Experiment
 TITLE = "Where the time goes"
 ANCHOR_SUFFIX = "-phases"
 INTRO = (
-    "Each cell's `--timing` run (one run with `--precise` output, beside hyperfine's timed "
-    "runs) splits its time into phases, summed over the steps: the **broad phase** (the "
-    "variant's own pair finder with its pair tests: all pairs, or the grid's cells), **wall "
-    "candidates**, merging and **sorting** the candidates, the greedy **resolution** walk, "
-    "**motion** of the discs, writing the **output**, and **other**: the simulation time "
-    "(`sim_s`) beyond its phases, loop overhead. Reading the input and starting the process "
-    "are not counted. The parallel variants differ only in the broad phase; the rest is the "
-    "shared core's."
+    "Each cell's `--timing` run (one run beside hyperfine's timed runs) splits its simulation "
+    "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
+    "pair finder with its pair tests: all pairs, or the grid's cells), **wall candidates**, "
+    "merging and **sorting** the candidates, the greedy **resolution** walk, **motion** of the "
+    "discs, and **other**, what `sim_s` holds beyond them (loop overhead). The parallel "
+    "variants differ only in the broad phase; the rest is the shared core's. That run also "
+    "writes the **output**, with `--precise` (every digit, for the validation), some 20 "
+    "times slower than the timed runs' output: it is drawn hatched after the simulation and "
+    "is left out of the shares. Reading the input and starting the process are not counted."
 )
 
 
@@ -53,18 +54,18 @@ def phase_subsection(exp: Experiment, figs: Manifest) -> Section | None:
     rule = (f"at {_thread_words(sel.threads)}, the thread count most of the experiment's "
             "cells with phases ran at (the fewest on a tie)")
     caption = (
-        f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the whole "
-        "(simulation + output) written at the bar's end"
+        f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the output "
+        "hatched after the simulation, the simulation time written at the bar's end"
         + ("; each scene has its own scale" if sel.scene_keys else "")
-        + ". Right: the same as shares of the whole, the broad phase's written on it."
+        + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
     )
     blocks: list[Block] = [Paragraph(INTRO), figure_block(paths, caption)]
     table = phases.phase_table(sel)
     blocks.append(table_block(
         table,
-        "Seconds per phase of the cells in the figure, each with its share of simulation + "
-        "output in parentheses; the last column is everything outside the broad phase per "
-        "particle and step.", source=sel.cells))
+        "Seconds per phase of the cells in the figure, each with its share of the "
+        "simulation time in parentheses; then the simulation outside the broad phase per "
+        "particle and step, and the `--precise` output.", source=sel.cells))
     left_out = _left_out(sel)
     if left_out:
         blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
