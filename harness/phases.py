@@ -38,7 +38,7 @@ PERCENT = 100.0
 # The dimensions a bar is one of within a scene (the thread count is fixed by the rule above).
 ROW_KEYS: tuple[str, ...] = (tables.MACHINE, "variant", "build", "schedule")
 # Bars beyond this make a figure too tall to read next to its table: whole scenes are left out,
-# in table order, until the rest fits (at least one scene is always shown).
+# the cheapest (least simulation time) first, until the rest fits (one is always shown).
 MAX_BARS = 36
 PHASE_COLORS: dict[str, str] = dict(zip(PHASES, (
     "#1f77b4",  # broad phase: the blue the eye reads first
@@ -107,7 +107,7 @@ class Selection:
     row_keys: tuple[str, ...]  # the bar dimensions that vary
     other_threads: int  # cells with phases at other thread counts
     without_phases: int  # timed cells with no phases (measured by an older binary)
-    scenes_left_out: int  # scenes beyond MAX_BARS
+    scenes_left_out: int  # the cheapest scenes, beyond MAX_BARS
 
 
 def select(df: pd.DataFrame) -> Selection | None:
@@ -124,12 +124,14 @@ def select(df: pd.DataFrame) -> Selection | None:
     ordered = tables.sort_cells(chosen, [*scene_keys, *row_keys])
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
         if scene_keys else [ordered]
-    shown, bars = [], 0
-    for scene in scenes:
-        if shown and bars + len(scene) > MAX_BARS:
-            break
-        shown.append(scene)
-        bars += len(scene)
+    # The costliest scenes are where the time matters: those are kept, shown in table order.
+    kept, bars = set(), 0
+    for index in sorted(range(len(scenes)), key=lambda i: -float(scenes[i][TOTAL].sum())):
+        if kept and bars + len(scenes[index]) > MAX_BARS:
+            continue
+        kept.add(index)
+        bars += len(scenes[index])
+    shown = [scene for index, scene in enumerate(scenes) if index in kept]
     return Selection(
         cells=with_phases(pd.concat(shown).reset_index(drop=True)),
         threads=threads,
@@ -208,7 +210,7 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
     and shares of sim_s (the broad phase's written on it)."""
     groups = [g for _, g in frame.groupby(GROUP, sort=False)]
     bars = len(frame)
-    titled = len(groups) > 1
+    titled = any(str(label) for label in frame[GROUP])  # scenes vary, though one may be shown
     gap = TICKS_IN + (SCENE_TITLE_IN if titled else 0.0)
     heading = textwrap.fill(title, TITLE_CHARS)
     title_in = TITLE_IN * (heading.count("\n") + 1)
@@ -252,7 +254,7 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
             seconds.set_title(str(group[GROUP].iloc[0]), loc="left", fontsize="medium")
         if k == len(groups) - 1:
             seconds.set_xlabel("time in the --timing run [s]"
-                               + (" (each scene its own scale)" if titled else ""))
+                               + (" (each scene its own scale)" if len(groups) > 1 else ""))
             percent.set_xlabel("share of the simulation time [%]")
     handles = [Patch(label=tables.PHASE_NAMES[p], **_style(p)) for p in PHASES]
     fig.legend(handles=handles, loc="upper center", ncol=len(PHASES), frameon=False,

@@ -34,8 +34,8 @@ def _left_out(sel: phases.Selection) -> str:
     if sel.other_threads:
         notes.append(f"{sel.other_threads} cell(s) at other thread counts are not shown")
     if sel.scenes_left_out:
-        notes.append(f"{sel.scenes_left_out} more scene(s) are left out (at most "
-                     f"{phases.MAX_BARS} bars)")
+        notes.append(f"{sel.scenes_left_out} more scene(s), those with the least simulation "
+                     f"time, are left out (at most {phases.MAX_BARS} bars)")
     if sel.without_phases:
         notes.append(f"{sel.without_phases} timed cell(s) were measured by a binary without "
                      "phase timers")
@@ -48,7 +48,8 @@ def phase_subsection(exp: Experiment, figs: Manifest) -> Section | None:
     if sel is None:
         return None
     name = slug(exp.name)
-    paths = figs.draw(phases.fig_phases, phases.plot_frame(sel),
+    frame = phases.plot_frame(sel)
+    paths = figs.draw(phases.fig_phases, frame,
                       figs.fig_dir / f"{name}-phases",
                       title=f"{exp.title}: where the time goes")
     rule = (f"at {_thread_words(sel.threads)}, the thread count most of the experiment's "
@@ -56,7 +57,7 @@ def phase_subsection(exp: Experiment, figs: Manifest) -> Section | None:
     caption = (
         f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the output "
         "hatched after the simulation, the simulation time written at the bar's end"
-        + ("; each scene has its own scale" if sel.scene_keys else "")
+        + ("; each scene has its own scale" if frame[phases.GROUP].nunique() > 1 else "")
         + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
     )
     blocks: list[Block] = [Paragraph(INTRO), figure_block(paths, caption)]
