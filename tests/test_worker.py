@@ -18,7 +18,8 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 # machine's load and hyperfine's outlier warnings
 VOLATILE = {"measured_at", "seconds", "stderr_tail", "input_s", "sim_s", "output_s", "unstable",
             "load_before", "load_after", "loaded", "hyperfine_warnings",
-            "threads_busy_s", "imbalance"}  # --timing's per-thread seconds
+            "threads_busy_s", "imbalance",  # --timing's per-thread seconds
+            *results.PHASE_COLUMNS}  # and its phases' (issue 15)
 TINY = ("name: tiny\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 3, seed: 4}\n"
         "threads: [1, 2]\nmeasure: {warmup: 0, runs: 2, timeout_s: 30}\nvalidate: true\n")
 
