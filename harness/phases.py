@@ -119,7 +119,9 @@ def select(df: pd.DataFrame) -> Selection | None:
     counts = rows["threads"].value_counts()
     threads = int(min(counts[counts == counts.max()].index))
     chosen = rows[rows["threads"] == threads]
-    scene_keys = tuple(k for k in tables.SCENE_KEYS if k in tables.varying_keys(chosen))
+    # A machine is a bar of its own (ROW_KEYS), not a scene.
+    scene_keys = tuple(k for k in tables.SCENE_KEYS
+                       if k != tables.MACHINE and k in tables.varying_keys(chosen))
     row_keys = tuple(k for k in ROW_KEYS if k in tables.varying_keys(chosen)) or ("variant",)
     ordered = tables.sort_cells(chosen, [*scene_keys, *row_keys])
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \

@@ -245,3 +245,14 @@ def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
     shown = tables.format_table(table)
     assert re.fullmatch(r"1\.5 \(50%\)", shown.iloc[0]["broad phase [s]"])
     assert shown.iloc[0]["output (--precise) [s]"] == "0.5"
+
+
+def test_machines_are_bars_beside_each_other_not_scenes(tmp_path: Path) -> None:
+    records = [{**record(v, *CELLS[v]), "machine_id": machine * 8, "cell_id": f"{v}{machine}",
+                "machine": {"label": f"box {machine}"}}
+               for v in ("seq", "grid") for machine in ("aa", "bb")]
+    sel = phases.select(read_results(write_experiment(tmp_path, "two", records)))
+    assert sel is not None
+    assert sel.scene_keys == () and sel.row_keys == (tables.MACHINE, "variant")
+    assert list(phases.plot_frame(sel)[phases.BAR]) == [
+        "box aa · seq", "box aa · grid", "box bb · seq", "box bb · grid"]
