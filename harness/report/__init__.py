@@ -9,8 +9,8 @@ vary (particles, square size, radius, threads, builds, machines, print-mode outp
 by the experiment's `title`. `harness/run.py` calls `render()` after every run.
 
 Modules: paths (where), load (results.csv contract), document (the model), blocks, header,
-sections, checks (building the model), markdown and html (writing it), pipeline (render under
-a lock), cli and __main__ (the command).
+sections, checks, strategies and phases (building the model), markdown and html (writing it),
+pipeline (render under a lock), cli and __main__ (the command).
 
 The package itself imports nothing heavy: `render` and `main` are loaded on first use, so that
 `python -m harness.report` can check for its packages (and re-execute under .venv) first.
