@@ -1,5 +1,5 @@
 /*
- * test_grid.c: unit tests of the grid variant (variants/grid.c, included below so that its
+ * test_grid.c: unit tests of the grid variant (variants/grid.c and its pieces under variants/grid/,
  * static functions can be tested), against the shared all-pairs kernel.
  *
  * Plain C, no framework, as test_core.c: every failed check prints `file:line: what`; the last
