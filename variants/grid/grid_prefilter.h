@@ -62,6 +62,15 @@ static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe 
     return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2);
 }
 
+/* Is any lane set? */
+static inline int vi_any(grid_vi v)
+{
+    int32_t r = 0;
+    for (int l = 0; l < GRID_LANES; l++)
+        r |= v[l];
+    return r != 0;
+}
+
 /* Where chunk c of two runs begins: the n1 chunks of the run at lo1, then those at lo2. */
 static inline int32_t chunk_start(int32_t c, int32_t n1, int32_t lo1, int32_t lo2)
 {
@@ -79,15 +88,15 @@ static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32
     const int32_t len1 = hi1 > lo1 ? hi1 - lo1 : 0, len2 = hi2 > lo2 ? hi2 - lo2 : 0;
     const int32_t n1 = (len1 + GRID_LANES - 1) / GRID_LANES;
     const int32_t n = n1 + (len2 + GRID_LANES - 1) / GRID_LANES;
-    grid_vi any = {0, 0, 0, 0};
+    grid_vi any = {0};
     /* Lanes past a run's end are not masked here: they are entries of the slice or the zeroed
      * padding, and at worst make a run fire; the second pass masks them. */
     for (int32_t c = 0; c < n; c++)
         any |= chunk_near(z, chunk_start(c, n1, lo1, lo2), a, r2);
-    if (any[0] | any[1] | any[2] | any[3])
+    if (vi_any(any))
         for (int32_t c = 0; c < n; c++) {
             const int32_t b = chunk_start(c, n1, lo1, lo2);
-            const grid_vi lane = {0, 1, 2, 3};
+            const grid_vi lane = GRID_LANE_IDS;
             const grid_vi hit = chunk_near(z, b, a, r2) & (lane < (c < n1 ? hi1 : hi2) - b);
             for (int l = 0; l < GRID_LANES; l++)
                 if (hit[l])

@@ -41,7 +41,16 @@
  * coordinate is finite; a product that overflows (|p x w|^2 or r2 |w|^2 of a far pair) is
  * +inf, which only ever rejects a far pair or passes one. Above it, the scene gets one slice
  * and one cell, and zeros that pass (the double test decides). */
-#define GRID_LANES 4
+#ifndef GRID_LANES
+#define GRID_LANES 8
+#endif
+#if GRID_LANES == 8
+#define GRID_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
+#elif GRID_LANES == 4
+#define GRID_LANE_IDS {0, 1, 2, 3}
+#else
+#error "GRID_LANES must be 4 or 8"
+#endif
 #define GRID_F32_MARGIN 32
 #define GRID_F32_SPAN_MAX 1e18
 typedef float grid_vf __attribute__((vector_size(GRID_LANES * sizeof(float))));
