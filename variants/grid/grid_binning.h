@@ -147,28 +147,35 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
     const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
     const uint64_t spanx = b->spanx;
     int32_t *restrict pos = th->pos;
+    const int32_t *restrict flag = th->flag, *restrict cy0 = th->cy0, *restrict cx0 = th->cx0;
     int32_t nw = 0, below = 0;
     memset(pos, 0, (size_t)(2 * b->ncell + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
-        const int32_t f = th->flag[e], cy = th->cy0[e];
+        const int32_t f = flag[e], cy = cy0[e];
         if (f & GRID_WIDE)
             wide[nw++] = src_id(src, e);
         else if (cy >= row0 && cy <= rowlast)
-            pos[2 * ((uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + 1) +
+            pos[2 * ((uint64_t)(cy - row0) * spanx + (uint64_t)cx0[e] + 1) +
                 (uint64_t)(f & GRID_EXT_X) + 2]++;
         else
             below += cy < row0;
     }
     for (uint64_t c = 1; c < 2 * b->ncell + 2; c++)
         pos[c] += pos[c - 1];
+    /* Local copies of the pointers: stores through them cannot change them, so the loop keeps
+     * them in registers (through dst and th it reloaded every one on every entry). */
+    const grid_src in = *src;
+    grid_set out = *dst;
+    int32_t *restrict scell = th->scell;
+    uint8_t *restrict sext = th->sext;
     for (int32_t e = 0; e < items; e++) {
-        const int32_t f = th->flag[e], cy = th->cy0[e];
+        const int32_t f = flag[e], cy = cy0[e];
         if (!(f & GRID_WIDE) && cy >= row0 && cy <= rowlast) {
-            const int32_t c = (int32_t)((cy - row0) * (int64_t)spanx + th->cx0[e] + 1);
+            const int32_t c = (int32_t)((cy - row0) * (int64_t)spanx + cx0[e] + 1);
             const int32_t d = pos[2 * c + (f & GRID_EXT_X) + 1]++;
-            put_entry(dst, src, part, g, kf, d, e);
-            th->scell[d] = c;
-            th->sext[d] = (uint8_t)(f & (GRID_EXT_X | GRID_EXT_Y));
+            put_entry(&out, &in, part, g, kf, d, e);
+            scell[d] = c;
+            sext[d] = (uint8_t)(f & (GRID_EXT_X | GRID_EXT_Y));
         }
     }
     b->ne = pos[2 * b->ncell];
@@ -199,13 +206,19 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
             below += cy < row0;
         }
     }
-    const uint64_t *ent = radix_sort(th->ent, th->tmp, ne, kshift, bits_for(b->ncell), th->hist);
+    const uint64_t *restrict ent =
+        radix_sort(th->ent, th->tmp, ne, kshift, bits_for(b->ncell), th->hist);
+    /* Local copies of the pointers, as in bin_dense. */
+    const grid_src in = *src;
+    grid_set out = *dst;
+    uint64_t *restrict skey = th->skey;
+    uint8_t *restrict sext = th->sext;
     for (int32_t d = 0; d < ne; d++) {
         const uint64_t v = ent[d];
         const int32_t e = (int32_t)(v & pmask);
-        put_entry(dst, src, part, g, kf, d, e);
-        th->skey[d] = v >> kshift;
-        th->sext[d] = (uint8_t)(v >> pbits & ((1u << GRID_EXT_BITS) - 1));
+        put_entry(&out, &in, part, g, kf, d, e);
+        skey[d] = v >> kshift;
+        sext[d] = (uint8_t)(v >> pbits & ((1u << GRID_EXT_BITS) - 1));
     }
     b->ne = ne;
     b->nw = nw;
