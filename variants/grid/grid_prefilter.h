@@ -8,6 +8,9 @@
 #define GRID_PREFILTER_H
 
 #include <string.h>
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
 
 #include "grid_geometry.h"
 
@@ -62,13 +65,18 @@ static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe 
     return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2);
 }
 
-/* Is any lane set? */
+/* Is any lane set? One vptest where AVX has it: a lane-by-lane OR became a chain of lane
+ * extractions after every run, several percent of the finder's time. */
 static inline int vi_any(grid_vi v)
 {
+#if defined(__AVX__) && GRID_LANES == 8
+    return !_mm256_testz_si256((__m256i)v, (__m256i)v);
+#else
     int32_t r = 0;
     for (int l = 0; l < GRID_LANES; l++)
         r |= v[l];
     return r != 0;
+#endif
 }
 
 /* Where chunk c of two runs begins: the n1 chunks of the run at lo1, then those at lo2. */
