@@ -82,7 +82,7 @@ static inline long near_pair(const grid_particle *restrict part, const double *r
                          reach2);
 }
 
-/* The prefilter, four pairs at once: do the relative segments from p to p + w come within
+/* The prefilter, GRID_LANES pairs at once: do the relative segments from p to p + w come within
  * sqrt(r2) of the origin? An end within reach, or the closest point inside the segment (moving
  * closer at p, away at p + w) with |p x w|^2 <= r2 |w|^2: no division, and the cross product
  * only loses to rounding what the margin covers (its error over |w| is about FLT_EPSILON |p|).

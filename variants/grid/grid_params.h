@@ -16,7 +16,8 @@
  * stays in cache and the 8-lane prefilter made pair checks cheaper, 0.15 (report benchmark, one
  * thread, medians of 21 interleaved runs: finder 0.164 s against 0.190 s at 0.2 and 0.192 s at
  * 0.17; 0.12 and 0.25 slower than 0.2 in 15 runs); above it, where binning misses the cache, 0.2
- * stays (measured before the 8-lane prefilter: N = 10^6 took 40 s against 46 s at 0.3). -DGRID_K_FACTOR=... overrides both for tuning sweeps. */
+ * stays (measured before the 8-lane prefilter: N = 10^6 took 40 s against 46 s at 0.3).
+ * -DGRID_K_FACTOR=... overrides both for tuning sweeps. */
 #ifdef GRID_K_FACTOR
 #define GRID_K_FACTOR_CACHED GRID_K_FACTOR
 #else
