@@ -1,9 +1,9 @@
 /*
- * grid_binning.h: one slice's entries in cell order. Every item's corner cell and flags
- * (item_cells, vectorised), then either a counting sort into per-half-cell starts (dense grids,
- * bin_dense) or an LSD radix sort of (cell, reach bits, index) words (sparse grids, bin_sparse),
- * writing the entries' floats, ids and reach bits into the thread's output set; wide particles
- * go to a list of their own. The result is a grid_bins, which grid_runs.h reads.
+ * grid_binning.h: one slice's entries in cell order. Every item's half-cell key (dense grids,
+ * slice_keys) or corner cell and flags (sparse grids, item_cells), vectorised, then either a
+ * counting sort into per-half-cell starts (bin_dense) or an LSD radix sort of (cell, reach bits,
+ * index) words (bin_sparse), writing the entries' floats, ids and reach bits into the thread's
+ * output set; wide particles go to a list of their own. The result is a grid_bins, which grid_runs.h reads.
  */
 #ifndef GRID_BINNING_H
 #define GRID_BINNING_H
@@ -22,6 +22,36 @@ static void slice_cells(int32_t m, const float *restrict bx, const float *restri
     for (int32_t p = 0; p < m; p++)
         box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
                   &cx0[p], &cy0[p], &flag[p]);
+}
+
+/* Dense grids: every item's half-cell key in slice k (as a float), 2c + (reaches the next
+ * column) for cell number c (grid_bins), or GRID_KEY_WIDE / _BELOW / _ABOVE, and its flags. One
+ * loop the compiler vectorises: the counting sort's two passes then read one key an item. */
+#define GRID_KEY_WIDE (-1)
+#define GRID_KEY_BELOW (-2)
+#define GRID_KEY_ABOVE (-3)
+static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, int32_t rowlast,
+                               int32_t spanx)
+{
+    const int32_t h = 2 * ((cy - row0) * spanx + cx + 1) + (f & GRID_EXT_X);
+    return f & GRID_WIDE ? GRID_KEY_WIDE
+           : cy < row0   ? GRID_KEY_BELOW
+           : cy > rowlast ? GRID_KEY_ABOVE
+                          : h;
+}
+
+static void slice_keys(int32_t m, const float *restrict bx, const float *restrict by,
+                       const float *restrict ux, const float *restrict uy, float k,
+                       const grid_plan *g, int32_t row0, int32_t rowlast, int32_t spanx,
+                       int32_t *restrict key, int32_t *restrict flag)
+{
+    for (int32_t p = 0; p < m; p++) {
+        int32_t cx, cy, f;
+        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
+                  &cx, &cy, &f);
+        key[p] = item_key(cx, cy, f, row0, rowlast, spanx);
+        flag[p] = f;
+    }
 }
 
 /* LSD radix sort of a[0, n) on bits [shift, shift + kb); returns the buffer holding the
@@ -135,30 +165,38 @@ static void item_cells(const grid_src *src, const grid_particle *part, const gri
     }
 }
 
-/* Dense: a counting sort on the half-cell h = 2c + (reaches the next column), so that in every
- * cell the entries reaching the next column come last. pos[h + 2] counts half-cell h; after the
- * prefix sum pos[h + 1] is where h begins; the scatter advances it to where h ends, which
- * leaves h's entries in [pos[h], pos[h + 1]) and cell c's in [pos[2c], pos[2c + 2]). */
+/* Dense: a counting sort on the half-cell keys (slice_keys), so that in every cell the entries
+ * reaching the next column come last. pos[h + 2] counts half-cell h; after the prefix sum
+ * pos[h + 1] is where h begins; the scatter advances it to where h ends, which leaves h's
+ * entries in [pos[h], pos[h + 1]) and cell c's in [pos[2c], pos[2c + 2]). */
 static void bin_dense(const grid_src *src, const grid_particle *part, const grid_plan *g,
                       float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
                       grid_bins *b)
 {
-    const int32_t items = src->m + src->nwide, row0 = b->row0;
+    const int32_t m = src->m, items = src->m + src->nwide, row0 = b->row0;
     const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
-    const uint64_t spanx = b->spanx;
+    const int32_t spanx = (int32_t)b->spanx;
     int32_t *restrict pos = th->pos;
-    const int32_t *restrict flag = th->flag, *restrict cy0 = th->cy0, *restrict cx0 = th->cx0;
+    int32_t *restrict key = th->cx0, *restrict flag = th->flag;
+    slice_keys(m, src->bx, src->by, src->ux, src->uy, kf, g, row0, rowlast, spanx, key, flag);
+    for (int32_t e = m; e < items; e++) {
+        float bx, by, ux, uy;
+        int32_t cx, cy;
+        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &cx, &cy,
+                  &flag[e]);
+        key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx);
+    }
     int32_t nw = 0, below = 0;
     memset(pos, 0, (size_t)(2 * b->ncell + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
-        const int32_t f = flag[e], cy = cy0[e];
-        if (f & GRID_WIDE)
+        const int32_t h = key[e];
+        if (h >= 0)
+            pos[h + 2]++;
+        else if (h == GRID_KEY_WIDE)
             wide[nw++] = src_id(src, e);
-        else if (cy >= row0 && cy <= rowlast)
-            pos[2 * ((uint64_t)(cy - row0) * spanx + (uint64_t)cx0[e] + 1) +
-                (uint64_t)(f & GRID_EXT_X) + 2]++;
         else
-            below += cy < row0;
+            below += h == GRID_KEY_BELOW;
     }
     for (uint64_t c = 1; c < 2 * b->ncell + 2; c++)
         pos[c] += pos[c - 1];
@@ -169,13 +207,12 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
     int32_t *restrict scell = th->scell;
     uint8_t *restrict sext = th->sext;
     for (int32_t e = 0; e < items; e++) {
-        const int32_t f = flag[e], cy = cy0[e];
-        if (!(f & GRID_WIDE) && cy >= row0 && cy <= rowlast) {
-            const int32_t c = (int32_t)((cy - row0) * (int64_t)spanx + cx0[e] + 1);
-            const int32_t d = pos[2 * c + (f & GRID_EXT_X) + 1]++;
+        const int32_t h = key[e];
+        if (h >= 0) {
+            const int32_t d = pos[h + 1]++;
             put_entry(&out, &in, part, g, kf, d, e);
-            scell[d] = c;
-            sext[d] = (uint8_t)(f & (GRID_EXT_X | GRID_EXT_Y));
+            scell[d] = h >> 1;
+            sext[d] = (uint8_t)(flag[e] & (GRID_EXT_X | GRID_EXT_Y));
         }
     }
     b->ne = pos[2 * b->ncell];
@@ -238,12 +275,14 @@ static void bin_slice(const grid_src *src, const grid_particle *part, const grid
     b->spanx = (uint64_t)g->gx + 3;
     b->ncell = (uint64_t)(rowlast - b->row0 + 2) * b->spanx + 3;
     b->base_end = (uint64_t)(b->row1 - b->row0) * b->spanx;
-    b->dense = 2 * b->ncell <= th->pos_cap;
-    item_cells(src, part, g, kf, th);
-    if (b->dense)
+    /* Dense also needs every half-cell key in an int32_t. */
+    b->dense = 2 * b->ncell <= th->pos_cap && 2 * b->ncell + 2 <= INT32_MAX;
+    if (b->dense) {
         bin_dense(src, part, g, kf, th, dst, wide, b);
-    else
+    } else {
+        item_cells(src, part, g, kf, th);
         bin_sparse(src, part, g, kf, th, dst, wide, b);
+    }
 }
 
 #endif /* GRID_BINNING_H */

@@ -76,7 +76,8 @@ typedef struct grid_set {
 typedef struct grid_thread {
     grid_set set[2];             /* this slice's entries, and the previous slice's */
     int32_t *wide[2];            /* this slice's wide particles, and the previous slice's */
-    int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags */
+    int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags (dense grids: the
+                                  * half-cell key in cx0) */
     int32_t *scell;              /* dense grids: cell of each entry */
     uint8_t *sext;               /* reach bits of each entry */
     int32_t *pos;                /* dense grids: where each half-cell's entries begin */
