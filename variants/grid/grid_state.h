@@ -35,8 +35,8 @@
 
 /* The float prefilter (docs/grid_design.md, "The slice test"): a run of entries is tested
  * GRID_LANES at a time in float, one 256-bit AVX2 vector (Zen 3 executes it whole; against 4
- * lanes the finder took 15% less time on the report benchmark, 21 interleaved runs; -DGRID_LANES=4
- * for 128-bit machines), with the reach grown by
+ * lanes the finder took 15% less time on the report benchmark, 21 interleaved runs; 4 lanes
+ * without AVX), with the reach grown by
  * GRID_F32_MARGIN * FLT_EPSILON * B, where B bounds every float it reads (|coordinate| and
  * |displacement| <= B / 2): a generous multiple of the float rounding, which is about 12
  * FLT_EPSILON B on each end of the relative segment. Below GRID_F32_SPAN_MAX every square of a
@@ -44,7 +44,11 @@
  * +inf, which only ever rejects a far pair or passes one. Above it, the scene gets one slice
  * and one cell, and zeros that pass (the double test decides). */
 #ifndef GRID_LANES
+#if defined(__AVX__)
 #define GRID_LANES 8
+#else
+#define GRID_LANES 4 /* 256-bit vectors need AVX (without it gcc warns of an ABI change) */
+#endif
 #endif
 #if GRID_LANES == 8
 #define GRID_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
