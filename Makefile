@@ -16,6 +16,9 @@ SHELL := /bin/bash
 VARIANTS := $(sort $(basename $(notdir $(wildcard variants/*.c))))
 CORE_SRC := $(wildcard variants/core/*.c)
 HEADERS := $(wildcard variants/core/*.h)
+# A variant's own headers live in variants/NAME/ (grid's pieces); its objects and the tests that
+# include its source depend on them.
+VARIANT_HEADERS = $(wildcard variants/$(1)/*.h)
 PYTHON := .venv/bin/python
 
 # Exact builds: IEEE double evaluated as written. No FMA contraction, never -ffast-math: the
@@ -35,12 +38,15 @@ FLAGS_textbook := -DSIM_PAIR_TEXTBOOK
 FLAGS_report := -DSIM_PAIR_REPORT
 BUILDS := f32 f128 textbook report
 
+# Variant objects list their own headers through a second expansion of $*.
+.SECONDEXPANSION:
+
 # $(1) object directory, $(2) binary pattern, $(3) extra compile flags, $(4) extra libraries.
 define build_rules
 build/obj/$(1)/core/%.o: variants/core/%.c $$(HEADERS)
 	@mkdir -p $$(@D)
 	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
-build/obj/$(1)/%.o: variants/%.c $$(HEADERS)
+build/obj/$(1)/%.o: variants/%.c $$(HEADERS) $$$$(call VARIANT_HEADERS,$$$$*)
 	@mkdir -p $$(@D)
 	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
 $(2): build/obj/$(1)/%.o $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_SRC))
@@ -72,7 +78,7 @@ C_TESTS := $(sort $(basename $(notdir $(wildcard tests/c/test_*.c))))
 CORE_LIB_SRC := $(filter-out variants/core/sim_main.c,$(CORE_SRC))
 
 # Tests include variant sources (test_grid.c includes variants/grid.c) and tests/c/check.h.
-TEST_INCLUDES := $(wildcard variants/*.c) $(wildcard tests/c/*.h)
+TEST_INCLUDES := $(wildcard variants/*.c) $(wildcard variants/*/*.h) $(wildcard tests/c/*.h)
 
 build/tests/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/f64/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
 	@mkdir -p $(@D)

@@ -76,8 +76,9 @@ elif kind == "lattice":
     out(n, L, r, S, parts, "print")
 elif kind == "edges":
     # Background: particles moving on the axes at exactly V, so that v_ref = V; with N = 1600,
-    # L = 1000: K = round(0.3 * V * sqrt(N) / L) = 4 and slices end at 1/4, 1/2, 3/4, 1.
-    L, r, V, n = 1000.0, 1.0, 320.0, 1600
+    # L = 1000: K = round(0.15 * V * sqrt(N) / L) = 4 (grid_params.h: GRID_K_FACTOR_CACHED; at 1,
+    # 2 and 4 threads) and slices end at 1/4, 1/2, 3/4, 1.
+    L, r, V, n = 1000.0, 1.0, 640.0, 1600
     rng = random.Random(7)
     eps = 2.0 ** -52
     delta = 4 * math.sqrt(eps) * (L + 2 * V + 4 * r)

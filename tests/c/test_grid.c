@@ -1,6 +1,7 @@
 /*
- * test_grid.c: unit tests of the grid variant (variants/grid.c, included below so that its
- * static functions can be tested), against the shared all-pairs kernel.
+ * test_grid.c: unit tests of the grid variant (variants/grid.c, with its pieces under
+ * variants/grid/, included below so that its static functions can be tested), against the
+ * shared all-pairs kernel.
  *
  * Plain C, no framework, as test_core.c: every failed check prints `file:line: what`; the last
  * line is `P passed, F failed` counting test functions; exit status 1 when any failed.

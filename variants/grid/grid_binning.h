@@ -1,0 +1,288 @@
+/*
+ * grid_binning.h: one slice's entries in cell order. Every item's half-cell key (dense grids,
+ * slice_keys) or corner cell and flags (sparse grids, item_cells), vectorised, then either a
+ * counting sort into per-half-cell starts (bin_dense) or an LSD radix sort of (cell, reach bits,
+ * index) words (bin_sparse), writing the entries' floats, ids and reach bits into the thread's
+ * output set; wide particles go to a list of their own. The result is a grid_bins, which grid_runs.h reads.
+ */
+#ifndef GRID_BINNING_H
+#define GRID_BINNING_H
+
+#include <string.h>
+
+#include "grid_params.h"
+
+/* Every item's corner cell and flags in slice k (as a float). One loop the compiler
+ * vectorises. */
+static void slice_cells(int32_t m, const float *restrict bx, const float *restrict by,
+                        const float *restrict ux, const float *restrict uy, float k,
+                        const grid_plan *g, int32_t *restrict cx0, int32_t *restrict cy0,
+                        int32_t *restrict flag)
+{
+    for (int32_t p = 0; p < m; p++)
+        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
+                  &cx0[p], &cy0[p], &flag[p]);
+}
+
+/* Dense grids: every item's half-cell key in slice k (as a float), 2c + (reaches the next
+ * column) for cell number c (grid_bins), or GRID_KEY_WIDE / _BELOW / _ABOVE, and its flags. One
+ * loop the compiler vectorises: the counting sort's two passes then read one key an item. */
+#define GRID_KEY_WIDE (-1)
+#define GRID_KEY_BELOW (-2)
+#define GRID_KEY_ABOVE (-3)
+static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, int32_t rowlast,
+                               int32_t spanx)
+{
+    const int32_t h = 2 * ((cy - row0) * spanx + cx + 1) + (f & GRID_EXT_X);
+    return f & GRID_WIDE ? GRID_KEY_WIDE
+           : cy < row0   ? GRID_KEY_BELOW
+           : cy > rowlast ? GRID_KEY_ABOVE
+                          : h;
+}
+
+static void slice_keys(int32_t m, const float *restrict bx, const float *restrict by,
+                       const float *restrict ux, const float *restrict uy, float k,
+                       const grid_plan *g, int32_t row0, int32_t rowlast, int32_t spanx,
+                       int32_t *restrict key, int32_t *restrict flag)
+{
+    for (int32_t p = 0; p < m; p++) {
+        int32_t cx, cy, f;
+        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
+                  &cx, &cy, &f);
+        key[p] = item_key(cx, cy, f, row0, rowlast, spanx);
+        flag[p] = f;
+    }
+}
+
+/* LSD radix sort of a[0, n) on bits [shift, shift + kb); returns the buffer holding the
+ * result (a or tmp). Stable. */
+static uint64_t *radix_sort(uint64_t *a, uint64_t *tmp, int32_t n, int shift, int kb,
+                            uint32_t *hist)
+{
+    if (kb <= 0 || n < 2)
+        return a;
+    /* Digits of about log2(n) - 1 bits: the histogram stays smaller than the data. */
+    int dmax = bits_for((uint64_t)n) - 1;
+    dmax = dmax < 6 ? 6 : dmax > GRID_RADIX_MAX_BITS ? GRID_RADIX_MAX_BITS : dmax;
+    const int passes = (kb + dmax - 1) / dmax, d = (kb + passes - 1) / passes;
+    const uint64_t mask = ((uint64_t)1 << d) - 1;
+    for (int pass = 0; pass < passes; pass++) {
+        const int sh = shift + pass * d;
+        memset(hist, 0, ((size_t)1 << d) * sizeof *hist);
+        for (int32_t i = 0; i < n; i++)
+            hist[(a[i] >> sh) & mask]++;
+        if (hist[(a[0] >> sh) & mask] == (uint32_t)n)
+            continue;
+        uint32_t sum = 0;
+        for (uint64_t b = 0; b <= mask; b++) {
+            const uint32_t c = hist[b];
+            hist[b] = sum;
+            sum += c;
+        }
+        for (int32_t i = 0; i < n; i++)
+            tmp[hist[(a[i] >> sh) & mask]++] = a[i];
+        uint64_t *t = a;
+        a = tmp;
+        tmp = t;
+    }
+    return a;
+}
+
+static int32_t lower_bound(const uint64_t *key, int32_t n, uint64_t v)
+{
+    int32_t lo = 0, hi = n;
+    while (lo < hi) {
+        const int32_t mid = lo + (hi - lo) / 2;
+        if (key[mid] < v)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* What a slice reads: items [0, m) from arrays (ids: id[e], or e itself when id is NULL), then
+ * items [m, m + nwide) are the particles wide[] (read from the scratch's particle array). */
+typedef struct grid_src {
+    const float *bx, *by, *ux, *uy;
+    const int32_t *id;
+    int32_t m;
+    const int32_t *wide;
+    int32_t nwide;
+} grid_src;
+
+/* The id of item e of the source. */
+static inline int32_t src_id(const grid_src *src, int32_t e)
+{
+    return e < src->m ? (src->id ? src->id[e] : e) : src->wide[e - src->m];
+}
+
+/* Item e of the source becomes entry d of dst: its binning floats, its id, and its position at
+ * the start of slice kf (what the prefilter reads). */
+static inline void put_entry(grid_set *restrict dst, const grid_src *src,
+                             const grid_particle *restrict part, const grid_plan *g, float kf,
+                             int32_t d, int32_t e)
+{
+    float bx, by, ux, uy;
+    if (e < src->m) {
+        bx = src->bx[e], by = src->by[e], ux = src->ux[e], uy = src->uy[e];
+        dst->id[d] = src->id ? src->id[e] : e;
+    } else {
+        const int32_t p = src->wide[e - src->m];
+        particle_f32(&part[p], g, &bx, &by, &ux, &uy);
+        dst->id[d] = p;
+    }
+    dst->bx[d] = bx, dst->by[d] = by, dst->ux[d] = ux, dst->uy[d] = uy;
+    dst->px[d] = slice_start(bx, ux, kf), dst->py[d] = slice_start(by, uy, kf);
+}
+
+/* One band of one binned slice. Cells are numbered row-major with stride spanx from (row0,
+ * column -1), so that every neighbour of a base cell has a number; the band's base cells are
+ * [0, base_end), and the row above it (row1) takes part as upper neighbours. */
+typedef struct grid_bins {
+    int dense;         /* counting-sorted: th->pos and th->scell; else th->skey */
+    int32_t ne, nw;    /* entries (base rows and the row above), wide particles */
+    int32_t nbase;     /* entries whose base cell is in the band: the first nbase */
+    int32_t below;     /* entries in rows below the band: where its ids go in ord_next */
+    int32_t row0, row1;
+    uint64_t spanx;    /* cells per numbered row: columns + 3 */
+    uint64_t ncell;    /* cells numbered */
+    uint64_t base_end; /* the first cell number above the band's base rows */
+} grid_bins;
+
+/* Corner cells and flags of every item of the source in slice kf into th->cx0, th->cy0,
+ * th->flag: the arrays vectorised, the few wide ones apart. */
+static void item_cells(const grid_src *src, const grid_particle *part, const grid_plan *g,
+                       float kf, grid_thread *th)
+{
+    const int32_t m = src->m, items = src->m + src->nwide;
+    slice_cells(m, src->bx, src->by, src->ux, src->uy, kf, g, th->cx0, th->cy0, th->flag);
+    for (int32_t e = m; e < items; e++) {
+        float bx, by, ux, uy;
+        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &th->cx0[e],
+                  &th->cy0[e], &th->flag[e]);
+    }
+}
+
+/* Dense: a counting sort on the half-cell keys (slice_keys), so that in every cell the entries
+ * reaching the next column come last. pos[h + 2] counts half-cell h; after the prefix sum
+ * pos[h + 1] is where h begins; the scatter advances it to where h ends, which leaves h's
+ * entries in [pos[h], pos[h + 1]) and cell c's in [pos[2c], pos[2c + 2]). */
+static void bin_dense(const grid_src *src, const grid_particle *part, const grid_plan *g,
+                      float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
+                      grid_bins *b)
+{
+    const int32_t m = src->m, items = src->m + src->nwide, row0 = b->row0;
+    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
+    const int32_t spanx = (int32_t)b->spanx;
+    int32_t *restrict pos = th->pos;
+    int32_t *restrict key = th->cx0, *restrict flag = th->flag;
+    slice_keys(m, src->bx, src->by, src->ux, src->uy, kf, g, row0, rowlast, spanx, key, flag);
+    for (int32_t e = m; e < items; e++) {
+        float bx, by, ux, uy;
+        int32_t cx, cy;
+        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &cx, &cy,
+                  &flag[e]);
+        key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx);
+    }
+    int32_t nw = 0, below = 0;
+    memset(pos, 0, (size_t)(2 * b->ncell + 2) * sizeof *pos);
+    for (int32_t e = 0; e < items; e++) {
+        const int32_t h = key[e];
+        if (h >= 0)
+            pos[h + 2]++;
+        else if (h == GRID_KEY_WIDE)
+            wide[nw++] = src_id(src, e);
+        else
+            below += h == GRID_KEY_BELOW;
+    }
+    for (uint64_t c = 1; c < 2 * b->ncell + 2; c++)
+        pos[c] += pos[c - 1];
+    /* Local copies of the pointers: stores through them cannot change them, so the loop keeps
+     * them in registers (through dst and th it reloaded every one on every entry). */
+    const grid_src in = *src;
+    grid_set out = *dst;
+    int32_t *restrict scell = th->scell;
+    uint8_t *restrict sext = th->sext;
+    for (int32_t e = 0; e < items; e++) {
+        const int32_t h = key[e];
+        if (h >= 0) {
+            const int32_t d = pos[h + 1]++;
+            put_entry(&out, &in, part, g, kf, d, e);
+            scell[d] = h >> 1;
+            sext[d] = (uint8_t)(flag[e] & (GRID_EXT_X | GRID_EXT_Y));
+        }
+    }
+    b->ne = pos[2 * b->ncell];
+    b->nw = nw;
+    b->below = below;
+    b->nbase = pos[2 * b->base_end];
+}
+
+/* Sparse: radix words (cell, reach bits, index), sorted; the cell of each entry in th->skey. */
+static void bin_sparse(const grid_src *src, const grid_particle *part, const grid_plan *g,
+                       float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
+                       grid_bins *b)
+{
+    const int32_t items = src->m + src->nwide, row0 = b->row0;
+    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
+    const uint64_t spanx = b->spanx;
+    const int pbits = g->pbits, kshift = pbits + GRID_EXT_BITS;
+    const uint64_t pmask = ((uint64_t)1 << pbits) - 1;
+    int32_t ne = 0, nw = 0, below = 0;
+    for (int32_t e = 0; e < items; e++) {
+        const int32_t f = th->flag[e], cy = th->cy0[e];
+        if (f & GRID_WIDE) {
+            wide[nw++] = src_id(src, e);
+        } else if (cy >= row0 && cy <= rowlast) {
+            const uint64_t key = (uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + 1;
+            th->ent[ne++] = key << kshift | (uint64_t)f << pbits | (uint64_t)e;
+        } else {
+            below += cy < row0;
+        }
+    }
+    const uint64_t *restrict ent =
+        radix_sort(th->ent, th->tmp, ne, kshift, bits_for(b->ncell), th->hist);
+    /* Local copies of the pointers, as in bin_dense. */
+    const grid_src in = *src;
+    grid_set out = *dst;
+    uint64_t *restrict skey = th->skey;
+    uint8_t *restrict sext = th->sext;
+    for (int32_t d = 0; d < ne; d++) {
+        const uint64_t v = ent[d];
+        const int32_t e = (int32_t)(v & pmask);
+        put_entry(&out, &in, part, g, kf, d, e);
+        skey[d] = v >> kshift;
+        sext[d] = (uint8_t)(v >> pbits & ((1u << GRID_EXT_BITS) - 1));
+    }
+    b->ne = ne;
+    b->nw = nw;
+    b->below = below;
+    b->nbase = lower_bound(th->skey, ne, b->base_end);
+}
+
+/* Bin slice kf, band `band`, from src into dst / wide; *b describes the result. */
+static void bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g,
+                      float kf, int band, grid_thread *th, grid_set *dst, int32_t *wide,
+                      grid_bins *b)
+{
+    b->row0 = band * g->band_rows;
+    b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
+    /* Entries of row row1 take part as upper neighbours of the band's last row. */
+    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
+    b->spanx = (uint64_t)g->gx + 3;
+    b->ncell = (uint64_t)(rowlast - b->row0 + 2) * b->spanx + 3;
+    b->base_end = (uint64_t)(b->row1 - b->row0) * b->spanx;
+    /* Dense also needs every half-cell key in an int32_t. */
+    b->dense = 2 * b->ncell <= th->pos_cap && 2 * b->ncell + 2 <= INT32_MAX;
+    if (b->dense) {
+        bin_dense(src, part, g, kf, th, dst, wide, b);
+    } else {
+        item_cells(src, part, g, kf, th);
+        bin_sparse(src, part, g, kf, th, dst, wide, b);
+    }
+}
+
+#endif /* GRID_BINNING_H */

@@ -1,0 +1,100 @@
+/*
+ * grid_geometry.h: the few functions every decision of the grid is made with, one each: a
+ * particle in the binning's float terms, its cells in a slice, "near in slice k" in double
+ * (near_pair), and the float prefilter's test of a vector of pairs (near_f32). Binning, the
+ * prefilter and pair_found all call these, so they agree by construction.
+ */
+#ifndef GRID_GEOMETRY_H
+#define GRID_GEOMETRY_H
+
+#include "grid_state.h"
+
+/* A particle in the binning's terms (grid_set): position at time 0 relative to the grid's
+ * corner, displacement over one slice of 1/K step; zeros when floats cannot carry the scene. */
+static inline void particle_f32(const grid_particle *q, const grid_plan *g, float *bx, float *by,
+                                float *ux, float *uy)
+{
+    const int off = g->f32_off;
+    *bx = off ? 0 : (float)(q->x - g->x0), *by = off ? 0 : (float)(q->y - g->y0);
+    *ux = off ? 0 : (float)(q->vx / g->K), *uy = off ? 0 : (float)(q->vy / g->K);
+}
+
+/* Position at the start of slice k (k as a float). */
+static inline float slice_start(float b, float u, float k)
+{
+    return b + k * u;
+}
+
+/* The cell of coordinate v: floor(v / h) clamped to [0, top]. Monotone in v, so boxes that
+ * overlap have cell ranges that intersect. */
+static inline int32_t cell_of(float v, float inv_h, float top)
+{
+    float c = v * inv_h;
+    c = c > 0 ? c : 0;
+    c = c < top ? c : top;
+    return (int32_t)c;
+}
+
+/* The cells of the box a centre sweeps in a slice from p to p + u, grown by rpad: [*a, *b]. */
+static inline void axis_cells(float p, float u, float rpad, float inv_h, float top, int32_t *a,
+                              int32_t *b)
+{
+    const float q = p + u;
+    /* min and max written so that the compiler turns them into vector min/max. */
+    *a = cell_of((p < q ? p : q) - rpad, inv_h, top);
+    *b = cell_of((q < p ? p : q) + rpad, inv_h, top);
+}
+
+/* Corner cell and flags of the box from slice-start position (px, py), displacement (ux, uy). */
+static inline void box_cells(float px, float py, float ux, float uy, const grid_plan *g,
+                             int32_t *cx, int32_t *cy, int32_t *flag)
+{
+    int32_t a, b, c, d;
+    axis_cells(px, ux, g->rpad, g->inv_h, g->topx, &a, &b);
+    axis_cells(py, uy, g->rpad, g->inv_h, g->topy, &c, &d);
+    *cx = a;
+    *cy = c;
+    *flag = (b > a) * GRID_EXT_X + (d > c) * GRID_EXT_Y + ((b - a > 1) | (d - c > 1)) * GRID_WIDE;
+}
+
+/* Do centres at relative position (dx, dy) and velocity (ddx, ddy) at time 0 come within
+ * sqrt(reach2) of each other at some time in [t0, t1]? The closest point of the relative
+ * segment; dd == 0 gives NaN or an infinity, which the clamps turn into t0 or t1. Symmetric:
+ * swapping the particles negates dx..ddy exactly and changes no rounding. A long, so that a
+ * vectorised loop keeps 64-bit lanes. */
+static inline long near_in_slice(double dx, double dy, double ddx, double ddy, double t0,
+                                 double t1, double reach2)
+{
+    const double dd = ddx * ddx + ddy * ddy;
+    double s = -(dx * ddx + dy * ddy) / dd;
+    s = s > t0 ? s : t0;
+    s = s < t1 ? s : t1;
+    const double px = dx + s * ddx, py = dy + s * ddy;
+    return px * px + py * py <= reach2;
+}
+
+/* Is slice k in the set S of the pair (i, j)? */
+static inline long near_pair(const grid_particle *restrict part, const double *restrict tk,
+                             double reach2, int32_t i, int32_t j, int k)
+{
+    const grid_particle a = part[i], b = part[j];
+    return near_in_slice(b.x - a.x, b.y - a.y, b.vx - a.vx, b.vy - a.vy, tk[k], tk[k + 1],
+                         reach2);
+}
+
+/* The prefilter, GRID_LANES pairs at once: do the relative segments from p to p + w come within
+ * sqrt(r2) of the origin? An end within reach, or the closest point inside the segment (moving
+ * closer at p, away at p + w) with |p x w|^2 <= r2 |w|^2: no division, and the cross product
+ * only loses to rounding what the margin covers (its error over |w| is about FLT_EPSILON |p|).
+ * All lanes -1 or 0. */
+static inline grid_vi near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2)
+{
+    const grid_vf qx = px + wx, qy = py + wy, cr = px * wy - py * wx;
+    const grid_vf ww = wx * wx + wy * wy, pw = px * wx + py * wy;
+    /* q.w = p.w + |w|^2: off by a few FLT_EPSILON (|p| + |w|) |w|, which moves the split
+     * between an end and the inside by a distance the margin covers. */
+    return (px * px + py * py <= r2) | (qx * qx + qy * qy <= r2) |
+           ((pw < 0) & (pw + ww > 0) & (cr * cr <= r2 * ww));
+}
+
+#endif /* GRID_GEOMETRY_H */

@@ -1,0 +1,177 @@
+/*
+ * grid_params.h: the plan of one step (plan_step): the reference speed v_ref, the number of
+ * time slices K, the cell size and the grid's extent, the padding that makes the float binning
+ * safe (delta, margin), and how the work is cut into items for the threads.
+ */
+#ifndef GRID_PARAMS_H
+#define GRID_PARAMS_H
+
+#include <math.h>
+
+#include "grid_geometry.h"
+
+/* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum (docs/grid_design.md). The cell
+ * size is then L / (factor sqrt(N)) whatever the speeds, about 1 / factor^2 discs a cell, and the
+ * best factor is about sqrt(pair-check cost / binning cost): up to GRID_SMALL_N, where a slice
+ * stays in cache and the 8-lane prefilter made pair checks cheaper, 0.15 (report benchmark, one
+ * thread, medians of 21 interleaved runs: finder 0.164 s against 0.190 s at 0.2 and 0.192 s at
+ * 0.17; 0.12 and 0.25 slower than 0.2 in 15 runs); above it, where binning misses the cache, 0.2
+ * stays (measured before the 8-lane prefilter: N = 10^6 took 40 s against 46 s at 0.3).
+ * -DGRID_K_FACTOR=... overrides both for tuning sweeps. */
+#ifdef GRID_K_FACTOR
+#define GRID_K_FACTOR_CACHED GRID_K_FACTOR
+#else
+#define GRID_K_FACTOR 0.2
+#define GRID_K_FACTOR_CACHED 0.15
+#endif
+/* At most N / GRID_K_PER_N slices. */
+#define GRID_K_PER_N 16
+/* Bins of the speed histogram that picks v_ref. */
+#define GRID_SPEED_BINS 1024
+/* v_ref leaves at most N / GRID_WIDE_SHARE particles faster than itself ("wide"). */
+#define GRID_WIDE_SHARE 128
+/* Bands of rows are used when slices are fewer than this many per thread. */
+#define GRID_ITEMS_PER_THREAD 1
+/* With more than one thread, up to this N a work item is one slice (the state fits in cache;
+ * finest load balance); above, a thread takes a few long blocks of slices, which keeps memory
+ * access sequential. One thread takes all the slices as one block: each slice's binning then
+ * starts from the slice before's order, which on the report benchmark took 0.236 s against
+ * 0.246 s for slices from the step's order (the order a second block would have to start from,
+ * so with two threads single slices balance better). */
+#define GRID_SMALL_N 32768
+
+static int bits_for(uint64_t v) /* bits needed to hold values < v (v >= 1) */
+{
+    int b = 0;
+    while (b < 64 && (v - 1) >> b)
+        b++;
+    return b;
+}
+
+static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
+{
+    const int32_t n = w->n;
+    double minx = HUGE_VAL, maxx = -HUGE_VAL, miny = HUGE_VAL, maxy = -HUGE_VAL, vmax = 0;
+    for (int32_t i = 0; i < n; i++) {
+        const double x = (double)w->x[i], y = (double)w->y[i];
+        const double vx = (double)w->vx[i], vy = (double)w->vy[i];
+        s->part[i] = (grid_particle){x, y, vx, vy};
+        minx = x < minx ? x : minx, maxx = x > maxx ? x : maxx;
+        miny = y < miny ? y : miny, maxy = y > maxy ? y : maxy;
+        const double ax = fabs(vx), ay = fabs(vy), a = ax > ay ? ax : ay;
+        vmax = a > vmax ? a : vmax;
+    }
+    const double L = (double)w->L, r = (double)w->r;
+    /* Padding: far above the rounding of the pair kernel and of the slice times. */
+    const double delta = 4 * sqrt(GRID_EPS) * (L + 2 * vmax + 4 * r);
+    /* The binning and the prefilter work in float, relative to the grid's corner. Every float
+     * they compute (positions within [-vmax, span + vmax] of the corner, displacements, their
+     * differences) is at most `bound` / 2 in magnitude: span <= extent + 2 vmax + 2 rpad, and
+     * rpad's margin (below) is under 1e-5 bound. Each such float is within a few FLT_EPSILON
+     * bound of its exact value, so a margin of GRID_F32_MARGIN FLT_EPSILON bound on the boxes
+     * and on the prefilter's reach covers the rounding many times over: near in a slice (2r +
+     * delta, in double) implies that the float boxes overlap and that the prefilter passes. */
+    const double extent = maxx - minx > maxy - miny ? maxx - minx : maxy - miny;
+    const double bound = 1.001 * (2 * (extent + 3 * vmax + 2 * delta) + 8 * r);
+    const double margin = GRID_F32_MARGIN * (double)FLT_EPSILON * bound;
+    /* Magnitudes floats cannot carry, or an overflowing padding: one slice and one cell, and
+     * zeros that the prefilter passes; still exact (every pair is looked at). */
+    g->f32_off = !(bound < GRID_F32_SPAN_MAX);
+    const int sane = !g->f32_off;
+
+    /* v_ref: the axis speed that at most N / GRID_WIDE_SHARE particles exceed, to a bin. */
+    double vref = vmax;
+    if (vmax > 0 && sane) {
+        uint32_t count[GRID_SPEED_BINS] = {0};
+        const double scale = (GRID_SPEED_BINS - 1) / vmax;
+        for (int32_t i = 0; i < n; i++) {
+            const double ax = fabs(s->part[i].vx), ay = fabs(s->part[i].vy);
+            count[(int)((ax > ay ? ax : ay) * scale)]++;
+        }
+        const int32_t allow = n / GRID_WIDE_SHARE;
+        int32_t above = 0;
+        int b = GRID_SPEED_BINS - 1;
+        while (b > 0 && above + (int32_t)count[b] <= allow)
+            above += (int32_t)count[b--];
+        vref = (b + 1) / scale;
+        if (vref > vmax)
+            vref = vmax;
+    }
+
+    /* Slices: K ~ v_ref sqrt(N) / L, at least 1, at most v_ref / 2r. */
+    const double factor = n <= GRID_SMALL_N ? GRID_K_FACTOR_CACHED : GRID_K_FACTOR;
+    double kf = factor * vref * sqrt((double)n) / L;
+    const double kcap = vref / (2 * r);
+    if (kf > kcap)
+        kf = kcap;
+    if (kf > GRID_K_MAX)
+        kf = GRID_K_MAX;
+    /* A slice costs about N binning steps; past N / GRID_K_PER_N slices (reached only when an
+     * outlier drives v_ref far above the bulk) slicing costs more than testing all pairs. */
+    if (kf > (double)n / GRID_K_PER_N)
+        kf = (double)n / GRID_K_PER_N;
+    g->K = sane && kf >= 1 ? (int)(kf + 0.5) : 1;
+    /* Small N: one slice per work item, so a multiple of the thread count balances them (the
+     * candidates found do not depend on K, only the work does). */
+    if (threads > 1 && n <= GRID_SMALL_N && g->K >= threads && g->K % threads &&
+        g->K + threads <= GRID_K_MAX)
+        g->K += threads - g->K % threads;
+    for (int k = 0; k <= g->K; k++)
+        s->tk[k] = (double)k / g->K;
+
+    g->reach2 = (2 * r + delta) * (2 * r + delta);
+    /* Rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an ulp. */
+    const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
+    const double freach = 2 * r + delta + margin;
+    g->rpad = (float)rpad;
+    g->freach2 = (float)(freach * freach * (1 + 8 * (double)FLT_EPSILON));
+
+    /* Cell size: the box width of a particle at v_ref. Region: where such particles go. */
+    double h = vref / g->K + 2 * rpad;
+    g->x0 = minx - vref - rpad;
+    g->y0 = miny - vref - rpad;
+    const double spanx = (maxx + vref + rpad) - g->x0;
+    const double spany = (maxy + vref + rpad) - g->y0;
+    const double span = spanx > spany ? spanx : spany;
+    /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + 2) * (columns + 3);
+     * and a float holds every cell number of an axis exactly. */
+    g->pbits = bits_for((uint64_t)n);
+    int axis_bits = (64 - g->pbits - GRID_EXT_BITS - 4) / 2;
+    if (axis_bits > FLT_MANT_DIG)
+        axis_bits = FLT_MANT_DIG;
+    const double cells_max = (double)((int64_t)1 << axis_bits) - 4;
+    if (!(span / h <= cells_max))
+        h = span / cells_max;
+    if (sane && h > 0) {
+        g->inv_h = (float)(1 / h);
+        g->gx = (int32_t)(spanx * g->inv_h) + 1;
+        g->gy = (int32_t)(spany * g->inv_h) + 1;
+        if (g->gx > cells_max)
+            g->gx = (int32_t)cells_max;
+        if (g->gy > cells_max)
+            g->gy = (int32_t)cells_max;
+    } else { /* one cell, every pair looked at; still exact */
+        g->inv_h = 0;
+        g->gx = g->gy = 1;
+    }
+    g->topx = (float)(g->gx - 1), g->topy = (float)(g->gy - 1);
+    for (int32_t e = 0; e < n; e++)
+        particle_f32(&s->part[s->ord[e]], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+
+    /* Work items. */
+    int bands = 1;
+    if (threads > 1 && g->K < GRID_ITEMS_PER_THREAD * threads)
+        bands = (GRID_ITEMS_PER_THREAD * threads + g->K - 1) / g->K;
+    if (bands > g->gy)
+        bands = g->gy;
+    g->band_rows = (g->gy + bands - 1) / bands;
+    g->bands = (g->gy + g->band_rows - 1) / g->band_rows;
+    if (threads == 1)
+        g->blocks = 1; /* every slice from the one before */
+    else if (g->bands > 1 || n <= GRID_SMALL_N)
+        g->blocks = g->K;
+    else
+        g->blocks = g->K < 2 * threads ? g->K : 2 * threads;
+}
+
+#endif /* GRID_PARAMS_H */
