@@ -106,14 +106,14 @@ void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
 
 /* The moves of accepted collisions (sim_motion.c): events[k0, k0 + sim_event_block()) of the
  * `count` accepted wall candidates (sim_move_walls) or pair candidates (sim_move_pairs) move
- * their particles from the world's state into the next state (nx, ny, nvx, nvy); the caller
- * counts the collisions in pcoll / wcoll. Blocks touch only their own particles, so they may run on any
- * threads in any order. */
+ * their particles from the world's state: the new positions into nx, ny, the new velocities
+ * into the world's vx, vy; the caller counts the collisions in pcoll / wcoll. Blocks touch
+ * only their own particles, so they may run on any threads in any order. */
 size_t sim_event_block(void);
 void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
-                    sim_real *nx, sim_real *ny, sim_real *nvx, sim_real *nvy);
+                    sim_real *nx, sim_real *ny);
 void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
-                    sim_real *nx, sim_real *ny, sim_real *nvx, sim_real *nvy);
+                    sim_real *nx, sim_real *ny);
 
 /* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. */
 sim_real sim_wall_time(const sim_world *w, int32_t i);

@@ -117,23 +117,25 @@ static void put_lane(lanes_state *st, int k, sim_real x, sim_real y, sim_real vx
     SIM_LANE(st->vy[k / SIM_LANES], k % SIM_LANES) = vy;
 }
 
-static void take_lane(const lanes_state *st, int k, sim_real *nx, sim_real *ny, sim_real *nvx,
-                      sim_real *nvy, int32_t i)
+static void take_lane(const lanes_state *st, int k, const sim_world *w, sim_real *nx,
+                      sim_real *ny, int32_t i)
 {
     nx[i] = SIM_LANE(st->x[k / SIM_LANES], k % SIM_LANES);
     ny[i] = SIM_LANE(st->y[k / SIM_LANES], k % SIM_LANES);
-    nvx[i] = SIM_LANE(st->vx[k / SIM_LANES], k % SIM_LANES);
-    nvy[i] = SIM_LANE(st->vy[k / SIM_LANES], k % SIM_LANES);
+    w->vx[i] = SIM_LANE(st->vx[k / SIM_LANES], k % SIM_LANES);
+    w->vy[i] = SIM_LANE(st->vy[k / SIM_LANES], k % SIM_LANES);
 }
 
-/* The lanes past the last event of a block get a copy of it: their results are dropped. */
+/* The lanes past the last event of a block get a copy of it: their results are dropped. A
+ * block reads all its particles' state before it writes any, and blocks share no particle, so
+ * the new velocities can go straight into the world's arrays. */
 static int block_len(size_t count, size_t k0)
 {
     return count - k0 < SIM_EVENT_BLOCK ? (int)(count - k0) : SIM_EVENT_BLOCK;
 }
 
 void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
-                    sim_real *nx, sim_real *ny, sim_real *nvx, sim_real *nvy)
+                    sim_real *nx, sim_real *ny)
 {
     const lanes_const c = lanes_of(w);
     const int len = block_len(count, k0);
@@ -162,12 +164,12 @@ void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, si
         st.vy[v] = vy;
     }
     for (int k = 0; k < len; k++) {
-        take_lane(&st, k, nx, ny, nvx, nvy, events[k0 + (size_t)k].i);
+        take_lane(&st, k, w, nx, ny, events[k0 + (size_t)k].i);
     }
 }
 
 void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
-                    sim_real *nx, sim_real *ny, sim_real *nvx, sim_real *nvy)
+                    sim_real *nx, sim_real *ny)
 {
     const lanes_const c = lanes_of(w);
     const int len = block_len(count, k0);
@@ -209,8 +211,8 @@ void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, si
     }
     for (int k = 0; k < len; k++) {
         const sim_cand e = events[k0 + (size_t)k];
-        take_lane(&sa, k, nx, ny, nvx, nvy, e.i);
-        take_lane(&sb, k, nx, ny, nvx, nvy, e.j);
+        take_lane(&sa, k, w, nx, ny, e.i);
+        take_lane(&sb, k, w, nx, ny, e.j);
     }
 }
 

@@ -37,13 +37,18 @@ struct sim_stepper {
     sim_pair_sink sink;
     sim_cand_buf *walls; /* the wall candidates of the world's state, one buffer per thread */
     bool walls_ready;    /* walls were found by the last step's wall pass (see sim_step) */
-    sim_cand *merged, *merged_tmp; /* the sorted list and the radix sort's other buffer */
-    size_t merged_cap, merged_tmp_cap;
+    sim_cand *merged; /* this step's candidates, sorted */
+    size_t merged_cap;
+    /* The candidate buffers as the sort reads them: the finder's, then the walls'. */
+    const sim_cand **sources;
+    size_t *source_len;
     /* The candidates the greedy walk accepted, walls and pairs apart, in walk order. */
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
     unsigned char *taken;          /* n + 1 flags, all 0 between walks (see resolve) */
-    sim_real *nx, *ny, *nvx, *nvy; /* the next state, swapped with the world's arrays */
+    /* The next positions, swapped with the world's arrays. Velocities change in place: only
+     * the moves of accepted collisions change them, each its own particles' (sim_motion.c). */
+    sim_real *nx, *ny;
     uint64_t *writer_pairs;        /* pair tests per candidate buffer over the run */
 };
 
@@ -110,11 +115,11 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->taken = calloc(n + 1, 1);
     s->nx = malloc(n * sizeof(sim_real) + 1);
     s->ny = malloc(n * sizeof(sim_real) + 1);
-    s->nvx = malloc(n * sizeof(sim_real) + 1);
-    s->nvy = malloc(n * sizeof(sim_real) + 1);
     s->writer_pairs = calloc((size_t)count, sizeof *s->writer_pairs);
-    if (!s->sink.bufs || !s->walls || !s->taken || !s->nx || !s->ny || !s->nvx || !s->nvy ||
-        !s->writer_pairs) {
+    s->sources = malloc((size_t)(count + s->threads) * sizeof *s->sources);
+    s->source_len = malloc((size_t)(count + s->threads) * sizeof *s->source_len);
+    if (!s->sink.bufs || !s->walls || !s->taken || !s->nx || !s->ny ||
+        !s->writer_pairs || !s->sources || !s->source_len) {
         sim_stepper_destroy(s);
         return NULL;
     }
@@ -147,14 +152,13 @@ void sim_stepper_destroy(sim_stepper *s)
             free(s->walls[k].items);
     free(s->walls);
     free(s->merged);
-    free(s->merged_tmp);
+    free(s->sources);
+    free(s->source_len);
     free(s->wall_moves);
     free(s->pair_moves);
     free(s->taken);
     free(s->nx);
     free(s->ny);
-    free(s->nvx);
-    free(s->nvy);
     free(s->writer_pairs);
     free(s);
 }
@@ -200,23 +204,22 @@ static int cand_cmp(const void *pa, const void *pb)
 /* Buckets up to this long are finished by insertion sort, longer ones by qsort. */
 #define SIM_INSERTION_MAX 16
 
-/* floor(t * buckets) clipped to [0, buckets - 1]: monotone in t (a t outside [0, 1], -0.0 or
- * 1 itself only lands in an end bucket, where cand_cmp orders it), so sorting by bucket and
- * then by cand_cmp within buckets is sorting by cand_cmp. Every candidate time is in [0, 1]
- * (SPEC §2), where the buckets are equally wide. Selects, not branches: GCC makes them
- * maxsd/minsd. */
+/* The bucket of t among `top` + 1: 0 for t <= 0 (exactly 0 is common: the walls of the
+ * particles a wall stopped the step before), else 1 + floor(t * scale) clipped to `top`.
+ * Monotone in t (a t outside [0, 1] or 1 itself only lands in an end bucket, where cand_cmp
+ * orders it), so sorting by bucket and then by cand_cmp within buckets is sorting by
+ * cand_cmp. Every candidate time is in [0, 1] (SPEC §2), where the buckets past 0 are equally
+ * wide. Selects, not branches: GCC makes them maxsd/minsd-like blends. */
 static inline uint32_t cand_bucket(sim_real t, double scale, double top)
 {
-    double d = (double)t;
-    d = d > 0 ? d : 0;
-    d *= scale;
-    d = d < top ? d : top;
-    return (uint32_t)d;
+    const double d = (double)t;
+    const double v = d > 0 ? d * scale + 1 : 0;
+    return (uint32_t)(v < top ? v : top);
 }
 
 /* Order a[lo, hi), one bucket, by cand_cmp. Already in order is the common case of a long
- * bucket: the walls of the particles stopped at a wall the step before (t = 0), which
- * merge_candidates puts after the pairs in increasing i, and the scatter is stable. */
+ * bucket: bucket 0 holds the walls at t = 0, which the scatter keeps in the order
+ * merge_candidates reads them (pairs first, then walls in increasing i). */
 static void finish_bucket(sim_cand *a, size_t lo, size_t hi)
 {
     size_t k = lo + 1;
@@ -239,34 +242,44 @@ static void finish_bucket(sim_cand *a, size_t lo, size_t hi)
     }
 }
 
-/* Sort a[0, n) by cand_cmp: a counting sort into about n buckets of t (stable, O(n); a step's
- * few thousand candidates took 0.6 ms in qsort's merge sort, and 43 us in the two passes of
- * an 11-bit radix sort that this replaced), then cand_cmp within the buckets, which are short
- * but for the walls at t = 0. tmp holds n items. */
-void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
+/* Sort the n candidates of src[0..sources) (src[s] holding len[s]) into dst by cand_cmp: a
+ * counting sort into about n/2 buckets of t (stable, O(n): a step's few thousand candidates
+ * took 0.6 ms in qsort's merge sort, and 43 us in the two passes of the 11-bit radix sort this
+ * replaced), straight from the writers' buffers, then cand_cmp within the buckets, which are
+ * short but for the walls at t = 0. */
+static void sort_candidates(const sim_cand *const *src, const size_t *len, int sources,
+                            sim_cand *dst, size_t n)
 {
-    if (n < 2)
-        return;
     int bits = SIM_SORT_MIN_BITS;
     while (bits < SIM_SORT_MAX_BITS && ((size_t)2 << bits) < n)
         bits++;
     const uint32_t buckets = UINT32_C(1) << bits;
-    const double scale = (double)buckets, top = (double)(buckets - 1);
+    const double scale = (double)(buckets - 1), top = (double)(buckets - 1);
     uint32_t start[(1u << SIM_SORT_MAX_BITS) + 1];
     memset(start, 0, (buckets + 1) * sizeof *start);
-    for (size_t k = 0; k < n; k++)
-        start[cand_bucket(a[k].t, scale, top) + 1]++;
+    for (int s = 0; s < sources; s++)
+        for (size_t k = 0; k < len[s]; k++)
+            start[cand_bucket(src[s][k].t, scale, top) + 1]++;
     for (uint32_t b = 0; b < buckets; b++)
         start[b + 1] += start[b];
-    /* start[b] is now where bucket b begins; `at` runs through it as the bucket fills. */
+    /* start[b] is where bucket b begins; `at` runs through it as the bucket fills. */
     uint32_t at[1u << SIM_SORT_MAX_BITS];
     memcpy(at, start, buckets * sizeof *at);
-    for (size_t k = 0; k < n; k++)
-        tmp[at[cand_bucket(a[k].t, scale, top)]++] = a[k];
-    memcpy(a, tmp, n * sizeof *a);
+    for (int s = 0; s < sources; s++)
+        for (size_t k = 0; k < len[s]; k++)
+            dst[at[cand_bucket(src[s][k].t, scale, top)]++] = src[s][k];
     for (uint32_t b = 0; b < buckets; b++)
         if (start[b + 1] - start[b] > 1)
-            finish_bucket(a, start[b], start[b + 1]);
+            finish_bucket(dst, start[b], start[b + 1]);
+}
+
+void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
+{
+    if (n < 2)
+        return;
+    memcpy(tmp, a, n * sizeof *a);
+    const sim_cand *src = tmp;
+    sort_candidates(&src, &n, 1, a, n);
 }
 
 static void clear_walls(sim_stepper *s)
@@ -344,46 +357,36 @@ static void find_walls(sim_stepper *s, const sim_world *w)
     find_walls_shared(s, w, w->x, w->y, w->vx, w->vy);
 }
 
-static void append_items(sim_cand *dst, size_t *at, const sim_cand_buf *buf)
-{
-    if (buf->len == 0)
-        return;
-    memcpy(dst + *at, buf->items, buf->len * sizeof(sim_cand));
-    *at += buf->len;
-}
-
-/* Gather every finder buffer and then the wall buffers (in particle order: see finish_run)
- * into one sorted list. Returns its length, or (size_t)-1 when memory ran out. */
+/* Sort every finder buffer and then the wall buffers (in particle order: see finish_bucket)
+ * into one list. Returns its length, or (size_t)-1 when memory ran out. */
 static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
 {
     size_t total = 0;
     bool failed = false;
+    int sources = 0;
+    for (int k = 0; k < s->sink.count; k++) {
+        sim_cand_buf *b = &s->sink.bufs[k];
+        total += b->len;
+        failed |= b->failed;
+        stats->pair_tests += b->pair_tests;
+        s->writer_pairs[k] += b->pair_tests;
+        b->pair_tests = 0;
+        s->sources[sources] = b->items;
+        s->source_len[sources++] = b->len;
+    }
     for (int k = 0; k < s->threads; k++) {
         total += s->walls[k].len;
         failed |= s->walls[k].failed;
-    }
-    for (int k = 0; k < s->sink.count; k++) {
-        total += s->sink.bufs[k].len;
-        failed |= s->sink.bufs[k].failed;
-        stats->pair_tests += s->sink.bufs[k].pair_tests;
-        s->writer_pairs[k] += s->sink.bufs[k].pair_tests;
-        s->sink.bufs[k].pair_tests = 0;
+        s->sources[sources] = s->walls[k].items;
+        s->source_len[sources++] = s->walls[k].len;
     }
     if (failed || !buf_reserve(&s->merged, &s->merged_cap, total) ||
-        !buf_reserve(&s->merged_tmp, &s->merged_tmp_cap, total) ||
         !buf_reserve(&s->wall_moves, &s->wall_moves_cap, total) ||
         !buf_reserve(&s->pair_moves, &s->pair_moves_cap, total))
         return (size_t)-1;
-    /* An empty buffer may never have been allocated: memcpy and qsort must not see its NULL
-     * pointer, even for zero items (undefined behaviour, and UBSan stops the run). */
-    size_t at = 0;
-    for (int k = 0; k < s->sink.count; k++) {
-        append_items(s->merged, &at, &s->sink.bufs[k]);
+    sort_candidates(s->sources, s->source_len, sources, s->merged, total);
+    for (int k = 0; k < s->sink.count; k++)
         s->sink.bufs[k].len = 0;
-    }
-    for (int k = 0; k < s->threads; k++)
-        append_items(s->merged, &at, &s->walls[k]);
-    sim_sort_candidates(s->merged, s->merged_tmp, total);
     stats->candidates += total;
     return total;
 }
@@ -423,13 +426,12 @@ static void resolve(sim_stepper *s, int32_t n, size_t count, sim_stats *stats)
 }
 
 /* Particles [0, len) of the given arrays move by their whole velocity (no collision), from
- * the world's state into the next state; the collisions the walk accepted are counted (a
+ * the world's positions into the next ones; the collisions the walk accepted are counted (a
  * streaming pass here costs less than an increment per event: pcoll and wcoll are touched by
  * nothing else in a step, so every event's increment missed the cache) and their flags
  * cleared for the next walk. A function of its own so that GCC sees restrict pointers (in the
  * parallel region they are loads from the region's shared data) and vectorises. */
-static void move_free(sim_real *restrict nx, sim_real *restrict ny, sim_real *restrict nvx,
-                      sim_real *restrict nvy, const sim_real *restrict x,
+static void move_free(sim_real *restrict nx, sim_real *restrict ny, const sim_real *restrict x,
                       const sim_real *restrict y, const sim_real *restrict vx,
                       const sim_real *restrict vy, int64_t *restrict pcoll,
                       int64_t *restrict wcoll, unsigned char *restrict taken, int32_t len,
@@ -438,8 +440,6 @@ static void move_free(sim_real *restrict nx, sim_real *restrict ny, sim_real *re
     for (int32_t i = 0; i < len; i++) {
         nx[i] = clamp(x[i] + vx[i], lo, hi);
         ny[i] = clamp(y[i] + vy[i], lo, hi);
-        nvx[i] = vx[i];
-        nvy[i] = vy[i];
     }
     for (int32_t i = 0; i < len; i++) {
         pcoll[i] += taken[i] & SIM_TAKEN_PAIR;
@@ -503,21 +503,19 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
         for (int32_t b = 0; b < blocks; b++) {
             const int32_t i0 = b * SIM_WALL_BLOCK;
             const int32_t i1 = n - i0 < SIM_WALL_BLOCK ? n : i0 + SIM_WALL_BLOCK;
-            move_free(s->nx + i0, s->ny + i0, s->nvx + i0, s->nvy + i0, w->x + i0, w->y + i0,
-                      w->vx + i0, w->vy + i0, w->pcoll + i0, w->wcoll + i0, s->taken + i0,
-                      i1 - i0, lo, hi);
+            move_free(s->nx + i0, s->ny + i0, w->x + i0, w->y + i0, w->vx + i0, w->vy + i0,
+                      w->pcoll + i0, w->wcoll + i0, s->taken + i0, i1 - i0, lo, hi);
         }
 #pragma omp for schedule(static)
         for (int32_t b = 0; b < event_blocks; b++) {
             if (b < wall_blocks)
-                sim_move_walls(w, s->wall_moves, nw, (size_t)b * eb, s->nx, s->ny, s->nvx,
-                               s->nvy);
+                sim_move_walls(w, s->wall_moves, nw, (size_t)b * eb, s->nx, s->ny);
             else
                 sim_move_pairs(w, s->pair_moves, np, (size_t)(b - wall_blocks) * eb, s->nx,
-                               s->ny, s->nvx, s->nvy);
+                               s->ny);
         }
         const double m1 = timer ? omp_get_wtime() : 0;
-        find_walls_shared(s, w, s->nx, s->ny, s->nvx, s->nvy);
+        find_walls_shared(s, w, s->nx, s->ny, w->vx, w->vy);
         if (timer) {
             motion_s = m1 - m0;
             walls_s = omp_get_wtime() - m1;
@@ -527,8 +525,6 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
     stats->walls_s += walls_s;
     swap_arrays(&w->x, &s->nx);
     swap_arrays(&w->y, &s->ny);
-    swap_arrays(&w->vx, &s->nvx);
-    swap_arrays(&w->vy, &s->nvy);
     s->walls_ready = true;
     return 0;
 }
