@@ -99,7 +99,8 @@ void sim_team_spread(int threads);
 void sim_stepper_destroy(sim_stepper *s);
 /* Advance the world by one step (SPEC §2). Returns 0, or -1 when memory ran out. The stepper
  * keeps the wall candidates of the state it leaves, for the next step: between steps, change
- * the world only through sim_step (or make a new stepper). */
+ * the world only through sim_step (or make a new stepper). The world's pcoll and wcoll are
+ * complete once the stepper is destroyed (it keeps the latest steps' counts until then). */
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
 /* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. */
 void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
