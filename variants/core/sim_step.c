@@ -26,6 +26,9 @@
  * parallel region. */
 #define SIM_PARALLEL_MIN 4096
 
+/* Bytes per cache line, for prefetching a whole array. */
+#define SIM_CACHE_LINE 64
+
 /* Steps after which the byte counts of collisions are added to the world's (a particle has
  * at most one collision a step, so a byte holds this many). */
 #define SIM_COUNT_FLUSH 255
@@ -41,8 +44,10 @@ struct sim_stepper {
     sim_pair_sink sink;
     sim_cand_buf *walls; /* the wall candidates of the world's state, one buffer per thread */
     bool walls_ready;    /* walls were found by the last step's wall pass (see sim_step) */
-    sim_cand *merged; /* this step's candidates, sorted */
+    sim_cand *merged; /* this step's pair candidates, sorted */
     size_t merged_cap;
+    unsigned char *walled; /* per merged pair: a wall of one of its particles comes first */
+    size_t walled_cap;
     /* The candidate buffers as the sort reads them: the finder's, then the walls'. */
     const sim_cand **sources;
     size_t *source_len;
@@ -50,6 +55,7 @@ struct sim_stepper {
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
     unsigned char *taken; /* n + 1 flags, all 0 between walks (see resolve) */
+    sim_real *wall_t;     /* each particle's wall time in the world's state (see resolve) */
     /* Collisions of each kind per particle not yet added to the world's pcoll / wcoll (see
      * move_free), added every SIM_COUNT_FLUSH steps and by sim_stepper_destroy. */
     unsigned char *pair_count, *wall_count;
@@ -123,6 +129,7 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->walls = aligned_alloc(_Alignof(sim_cand_buf), (size_t)s->threads * sizeof(sim_cand_buf));
     const size_t n = (size_t)w->n;
     s->taken = calloc(n + 1, 1);
+    s->wall_t = malloc((n + 1) * sizeof *s->wall_t);
     s->pair_count = calloc(n + 1, 1);
     s->wall_count = calloc(n + 1, 1);
     s->pcoll = w->pcoll;
@@ -133,7 +140,7 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->writer_pairs = calloc((size_t)count, sizeof *s->writer_pairs);
     s->sources = malloc((size_t)(count + s->threads) * sizeof *s->sources);
     s->source_len = malloc((size_t)(count + s->threads) * sizeof *s->source_len);
-    if (!s->sink.bufs || !s->walls || !s->taken || !s->pair_count || !s->wall_count || !s->nx ||
+    if (!s->sink.bufs || !s->walls || !s->taken || !s->wall_t || !s->pair_count || !s->wall_count || !s->nx ||
         !s->ny ||
         !s->writer_pairs || !s->sources || !s->source_len) {
         sim_stepper_destroy(s);
@@ -182,11 +189,13 @@ void sim_stepper_destroy(sim_stepper *s)
             free(s->walls[k].items);
     free(s->walls);
     free(s->merged);
+    free(s->walled);
     free(s->sources);
     free(s->source_len);
     free(s->wall_moves);
     free(s->pair_moves);
     free(s->taken);
+    free(s->wall_t);
     free(s->pair_count);
     free(s->wall_count);
     free(s->nx);
@@ -353,16 +362,17 @@ static void clear_walls(sim_stepper *s)
  *     are one loop in the source that GCC 12 does not vectorise: jump threading turns the two
  *     selects on w into branches;
  *  3. an append that writes every particle and advances only past candidates. */
-static void find_walls_range(sim_cand_buf *buf, const sim_real *restrict x,
-                             const sim_real *restrict y, const sim_real *restrict vx,
-                             const sim_real *restrict vy, sim_real lo, sim_real hi, int32_t i0,
-                             int32_t i1)
+static void find_walls_range(sim_cand_buf *buf, sim_real *restrict wall_t,
+                             const sim_real *restrict x, const sim_real *restrict y,
+                             const sim_real *restrict vx, const sim_real *restrict vy,
+                             sim_real lo, sim_real hi, int32_t i0, int32_t i1)
 {
-    sim_real ax[SIM_WALL_BLOCK], ay[SIM_WALL_BLOCK], tw[SIM_WALL_BLOCK];
+    sim_real ax[SIM_WALL_BLOCK], ay[SIM_WALL_BLOCK];
     for (int32_t b = i0; b < i1; b += SIM_WALL_BLOCK) {
         const int32_t len = i1 - b < SIM_WALL_BLOCK ? i1 - b : SIM_WALL_BLOCK;
         const sim_real *restrict xb = x + b, *restrict yb = y + b;
         const sim_real *restrict vxb = vx + b, *restrict vyb = vy + b;
+        sim_real *restrict tw = wall_t + b;
         for (int32_t k = 0; k < len; k++) {
             ax[k] = (vxb[k] > 0 ? hi : lo) - xb[k];
             ay[k] = (vyb[k] > 0 ? hi : lo) - yb[k];
@@ -399,7 +409,7 @@ static void find_walls_shared(sim_stepper *s, const sim_world *w, const sim_real
     for (int32_t b = 0; b < blocks; b++) {
         const int32_t i0 = b * SIM_WALL_BLOCK;
         const int32_t i1 = n - i0 < SIM_WALL_BLOCK ? n : i0 + SIM_WALL_BLOCK;
-        find_walls_range(buf, x, y, vx, vy, w->lo, w->hi, i0, i1);
+        find_walls_range(buf, s->wall_t, x, y, vx, vy, w->lo, w->hi, i0, i1);
     }
 }
 
@@ -412,67 +422,96 @@ static void find_walls(sim_stepper *s, const sim_world *w)
     find_walls_shared(s, w, w->x, w->y, w->vx, w->vy);
 }
 
-/* Sort every finder buffer and then the wall buffers (in particle order: see finish_bucket)
- * into one list. Returns its length, or (size_t)-1 when memory ran out. */
+/* Sort the finder's pair candidates into one list (the walls need no sorting: see resolve).
+ * Returns the number of pairs, or (size_t)-1 when memory ran out. */
 static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
 {
-    size_t total = 0;
+    size_t pairs = 0, walls = 0;
     bool failed = false;
-    int sources = 0;
     for (int k = 0; k < s->sink.count; k++) {
         sim_cand_buf *b = &s->sink.bufs[k];
-        total += b->len;
+        pairs += b->len;
         failed |= b->failed;
         stats->pair_tests += b->pair_tests;
         s->writer_pairs[k] += b->pair_tests;
         b->pair_tests = 0;
-        s->sources[sources] = b->items;
-        s->source_len[sources++] = b->len;
+        s->sources[k] = b->items;
+        s->source_len[k] = b->len;
     }
     for (int k = 0; k < s->threads; k++) {
-        total += s->walls[k].len;
+        walls += s->walls[k].len;
         failed |= s->walls[k].failed;
-        s->sources[sources] = s->walls[k].items;
-        s->source_len[sources++] = s->walls[k].len;
     }
-    if (failed || !buf_reserve(&s->merged, &s->merged_cap, total) ||
-        !buf_reserve(&s->wall_moves, &s->wall_moves_cap, total) ||
-        !buf_reserve(&s->pair_moves, &s->pair_moves_cap, total))
+    if (pairs > s->walled_cap) {
+        unsigned char *p = realloc(s->walled, pairs);
+        if (!p)
+            return (size_t)-1;
+        s->walled = p;
+        s->walled_cap = pairs;
+    }
+    if (failed || !buf_reserve(&s->merged, &s->merged_cap, pairs) ||
+        !buf_reserve(&s->wall_moves, &s->wall_moves_cap, walls) ||
+        !buf_reserve(&s->pair_moves, &s->pair_moves_cap, pairs))
         return (size_t)-1;
-    sort_candidates(s->sources, s->source_len, sources, s->merged, total);
+    sort_candidates(s->sources, s->source_len, s->sink.count, s->merged, pairs);
     for (int k = 0; k < s->sink.count; k++)
         s->sink.bufs[k].len = 0;
-    stats->candidates += total;
-    return total;
+    stats->candidates += pairs + walls;
+    return pairs;
 }
 
 /* taken[i] after the greedy walk: the kind of particle i's accepted collision, if any. */
 #define SIM_TAKEN_PAIR 1
 #define SIM_TAKEN_WALL 2
 
-/* The greedy walk: accept a candidate when neither of its particles is taken yet. Branch-free
- * (which candidates are accepted, and whether each is a wall, is random: branches on it
- * mispredicted): a wall's "partner" is the flag at n, which stays 0, and every candidate is
- * written to both lists of accepted moves, of which only the one of its kind advances, and
- * only when it is accepted. The flags are counted into pcoll / wcoll and cleared by the
- * motion's pass over every particle (move_free), not here. */
-static void resolve(sim_stepper *s, int32_t n, size_t count, sim_stats *stats)
+/* SPEC §2's greedy walk over all candidates in key order (t; pair before wall; i; j), accepting
+ * a candidate when neither of its particles is taken yet, done without sorting the walls:
+ *  1. the pairs, in key order: particle a is taken when an accepted pair took it, or when its
+ *     wall candidate comes first (wall_t[a] < t: at equal times the pair comes first). That
+ *     wall was accepted then, unless a pair took a before it, and then a is taken anyway; a
+ *     wall time above 1 (no candidate) never comes first;
+ *  2. the walls, in particle order: a wall is accepted when no accepted pair took its particle
+ *     (a pair after the wall that takes its particle would have been refused in 1).
+ * Branch-free (what is accepted, and which particles are free, is random: branches on it
+ * mispredicted): every candidate is written to its list of accepted moves, which advances only
+ * past accepted ones. The flags are counted and cleared by the motion's pass over every
+ * particle (move_free). */
+static void resolve(sim_stepper *s, size_t count, sim_stats *stats)
 {
     unsigned char *restrict taken = s->taken;
+    const sim_real *restrict wall_t = s->wall_t;
     const sim_cand *restrict cand = s->merged;
-    sim_cand *restrict walls = s->wall_moves, *restrict pairs = s->pair_moves;
-    size_t nw = 0, np = 0;
+    sim_cand *restrict pairs = s->pair_moves, *restrict walls = s->wall_moves;
+    unsigned char *restrict walled = s->walled;
+    size_t np = 0, nw = 0;
+    /* Which pairs a wall comes first for, in a pass of its own: its loads of wall_t are
+     * independent, where in the walk each waited behind the flags the candidate before had
+     * stored. wall_t was written before the broad phase, which pushed it out of the caches:
+     * it is read in whole first, a stream the hardware prefetches, not a miss per pair. */
+#if defined(__GNUC__)
+    if (count > 0)
+        for (int32_t i = 0; i < s->n; i += SIM_CACHE_LINE / (int32_t)sizeof *wall_t)
+            __builtin_prefetch(&wall_t[i]);
+#endif
+    for (size_t k = 0; k < count; k++)
+        walled[k] = (wall_t[cand[k].i] < cand[k].t) | (wall_t[cand[k].j] < cand[k].t);
     for (size_t k = 0; k < count; k++) {
         const sim_cand c = cand[k];
-        const unsigned wall = c.j == SIM_WALL;
-        const int32_t j = wall ? n : c.j;
-        const unsigned ok = !(taken[c.i] | taken[j]);
-        taken[c.i] |= (unsigned char)(ok * (wall ? SIM_TAKEN_WALL : SIM_TAKEN_PAIR));
-        taken[j] |= (unsigned char)((ok & !wall) * SIM_TAKEN_PAIR);
-        walls[nw] = c;
+        const unsigned ok = !(taken[c.i] | taken[c.j] | walled[k]);
+        taken[c.i] |= (unsigned char)(ok * SIM_TAKEN_PAIR);
+        taken[c.j] |= (unsigned char)(ok * SIM_TAKEN_PAIR);
         pairs[np] = c;
-        nw += ok & wall;
-        np += ok & !wall;
+        np += ok;
+    }
+    for (int b = 0; b < s->threads; b++) {
+        const sim_cand *restrict wall = s->walls[b].items;
+        for (size_t k = 0; k < s->walls[b].len; k++) {
+            const sim_cand c = wall[k];
+            const unsigned ok = !taken[c.i];
+            taken[c.i] |= (unsigned char)(ok * SIM_TAKEN_WALL);
+            walls[nw] = c;
+            nw += ok;
+        }
     }
     s->wall_moves_len = nw;
     s->pair_moves_len = np;
@@ -531,7 +570,7 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
         return -1;
     t0 = omp_get_wtime();
     stats->sort_s += t0 - t1;
-    resolve(s, n, count, stats);
+    resolve(s, count, stats);
     t1 = omp_get_wtime();
     stats->resolve_s += t1 - t0;
     /* Motion, then the next step's wall candidates, in one parallel region. Every particle
