@@ -56,6 +56,7 @@ struct sim_stepper {
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
     unsigned char *taken; /* n + 1 flags, all 0 between walks (see resolve) */
     sim_real *wall_t;     /* each particle's wall time in the world's state (see resolve) */
+    uint64_t wall_t_seen; /* a by-product of reading wall_t in whole (resolve) */
     /* Collisions of each kind per particle not yet added to the world's pcoll / wcoll (see
      * move_free), added every SIM_COUNT_FLUSH steps and by sim_stepper_destroy. */
     unsigned char *pair_count, *wall_count;
@@ -494,11 +495,18 @@ static void resolve(sim_stepper *s, size_t count, sim_stats *stats)
      * independent, where in the walk each waited behind the flags the candidate before had
      * stored. wall_t was written before the broad phase, which pushed it out of the caches:
      * it is read in whole first, a stream the hardware prefetches, not a miss per pair. */
-#if defined(__GNUC__)
-    if (count > 0)
-        for (int32_t i = 0; i < s->n; i += SIM_CACHE_LINE / (int32_t)sizeof *wall_t)
-            __builtin_prefetch(&wall_t[i]);
-#endif
+    if (count > 0) {
+        /* An integer reduction, which vectorises (a floating-point minimum would not), kept
+         * in the stepper so that the stream is not optimised away. */
+        const unsigned char *bytes = (const unsigned char *)wall_t;
+        uint64_t seen = 0;
+        for (size_t b = 0; b < (size_t)s->n * sizeof *wall_t; b += 8) {
+            uint64_t word;
+            memcpy(&word, bytes + b, sizeof word);
+            seen |= word;
+        }
+        s->wall_t_seen = seen;
+    }
     for (size_t k = 0; k < count; k++)
         walled[k] = (wall_t[cand[k].i] < cand[k].t) | (wall_t[cand[k].j] < cand[k].t);
     for (size_t k = 0; k < count; k++) {
