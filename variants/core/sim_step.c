@@ -1,13 +1,22 @@
 /*
  * sim_step.c: one step of SPEC §2, shared by every variant.
  *
- *   1. wall candidates (one buffer per thread; found by the step before's motion loop, or here
- *      for a first step) and pair candidates (the variant's finder, into per-writer buffers);
- *   2. merge and sort by the total key (t, pair before wall, i, j);
- *   3. one greedy walk accepts a candidate when neither particle has been accepted yet;
+ *   1. wall candidates (one buffer per thread, in particle order, and every particle's wall
+ *      time in wall_t; found by the wall pass at the end of the step before, or here for a
+ *      first step) and pair candidates (the variant's finder, into per-writer buffers);
+ *   2. the pairs sorted by the total key (t, i, j);
+ *   3. the greedy walk over all candidates in key order (t, pair before wall, i, j), accepting
+ *      a candidate when neither particle has been accepted yet, done as a walk over the sorted
+ *      pairs that knows each particle's wall time, then a pass over the walls (resolve says
+ *      why that is the same walk);
  *   4. every particle moves exactly once, reading the old state and writing a new one, so the
- *      motion loop can run in parallel without races and with thread-independent results; the
- *      new state's wall candidates are found right after, in the same region, for the next step.
+ *      motion can run in parallel without races and with thread-independent results: all by
+ *      their velocity, then the accepted collisions over their own particles (sim_motion.c);
+ *      the new state's wall candidates are found right after, in the same region.
+ * Issue 15 made 2-4 cheap (about 60 -> 17 ns per particle-step outside the broad phase on the
+ * report benchmark, input and output included): no branch on a random outcome in a loop over
+ * particles or candidates, vectorised passes over particles, streams instead of scattered
+ * accesses to cold memory.
  *
  * Why per-writer buffers and not the seed's shared array behind `omp critical`: the critical
  * section serialised every candidate append (the report's bottleneck), and the order in which
@@ -33,8 +42,8 @@
  * at most one collision a step, so a byte holds this many). */
 #define SIM_COUNT_FLUSH 255
 
-/* Particles per block of the wall pass: its wall times stay in a stack array (L1) between the
- * vectorised pass that computes them and the branch-free append that reads them. */
+/* Particles per block of the wall pass and of the motion's pass over every particle: the
+ * wall pass's distances stay in stack arrays (L1) between its vectorised loops. */
 #define SIM_WALL_BLOCK 256
 
 struct sim_stepper {
@@ -360,13 +369,13 @@ static void clear_walls(sim_stepper *s)
 }
 
 /* Append the wall candidates of particles [i0, i1) of the state (x, y, vx, vy) to buf, in
- * increasing i. Blocks of SIM_WALL_BLOCK, in three passes that each vectorise or need no
+ * increasing i, and write every particle's wall time to wall_t. Blocks of SIM_WALL_BLOCK, in three passes that each vectorise or need no
  * branch (a fifth of the particles on the report benchmark are candidates, at random: a
  * branch on it mispredicts):
  *  1. the distance to the wall ahead on each axis (the wall is hi when w > 0, else lo);
  *  2. the axis times, the same IEEE operations as axis_time where w != 0, infinity where
- *     w == 0 (the division by 0 is computed and discarded), and their minimum. Passes 1 and 2
- *     are one loop in the source that GCC 12 does not vectorise: jump threading turns the two
+ *     w == 0 (the division by 0 is computed and discarded), and their minimum, into wall_t.
+ *     Passes 1 and 2 as one loop GCC 12 does not vectorise: jump threading turns the two
  *     selects on w into branches;
  *  3. an append that writes every particle and advances only past candidates. */
 static void find_walls_range(sim_cand_buf *buf, sim_real *restrict wall_t,
