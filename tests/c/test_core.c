@@ -1302,13 +1302,49 @@ static void test_event_moves_match_scalar_spec(void)
             walls[nw++] = (sim_cand){t, i, SIM_WALL};
     }
     CHECK(nw > 500 && np > 400);
-    static sim_real nx[N], ny[N];
+    static sim_real nx[N], ny[N], out[SIM_PAIR_OUT * N];
     const size_t block = sim_event_block();
     CHECK(block > 0);
     for (size_t k0 = 0; k0 < nw; k0 += block)
         sim_move_walls(&w, walls, nw, k0, nx, ny);
     for (size_t k0 = 0; k0 < np; k0 += block)
-        sim_move_pairs(&w, pairs, np, k0, nx, ny);
+        sim_move_pairs(&w, pairs, np, k0, out, NULL, NULL);
+    /* sim_move_pairs changes nothing in the world: its partners' velocities are still the old
+     * ones until copied from out, as sim_step does. */
+    int kept = 0;
+    for (size_t k = 0; k < np; k++) {
+        kept += w.vx[pairs[k].i] == before.vx[pairs[k].i] &&
+                w.vx[pairs[k].j] == before.vx[pairs[k].j];
+        for (int side = 0; side < 2; side++) {
+            const int32_t i = side ? pairs[k].j : pairs[k].i;
+            const sim_real *o = out + SIM_PAIR_OUT * k + 4 * side;
+            nx[i] = o[0];
+            ny[i] = o[1];
+            w.vx[i] = o[2];
+            w.vy[i] = o[3];
+        }
+    }
+    CHECK_INT(kept, (int)np);
+    /* Without out, the pairs' new states go straight into nx, ny and the world's velocities:
+     * the same bits. */
+    sim_world direct;
+    world_init(&direct, N, 100, 1);
+    for (int32_t i = 0; i < N; i++)
+        put(&direct, i, before.x[i], before.y[i], before.vx[i], before.vy[i]);
+    static sim_real dnx[N], dny[N];
+    for (size_t k0 = 0; k0 < np; k0 += block)
+        sim_move_pairs(&direct, pairs, np, k0, NULL, dnx, dny);
+    int same = 0;
+    for (size_t k = 0; k < np; k++)
+        for (int side = 0; side < 2; side++) {
+            const int32_t i = side ? pairs[k].j : pairs[k].i;
+            same += !memcmp(&dnx[i], &nx[i], sizeof nx[i]) &&
+                    !memcmp(&dny[i], &ny[i], sizeof ny[i]) &&
+                    !memcmp(&direct.vx[i], &w.vx[i], sizeof w.vx[i]) &&
+                    !memcmp(&direct.vy[i], &w.vy[i], sizeof w.vy[i]);
+        }
+    CHECK_INT(same, 2 * (int)np);
+    sim_world_free(&direct);
     int differ = 0, turned = 0;
     for (size_t k = 0; k < nw + np; k++) {
         const sim_cand c = k < nw ? walls[k] : pairs[k - nw];

@@ -169,7 +169,7 @@ void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, si
 }
 
 void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
-                    sim_real *nx, sim_real *ny)
+                    sim_real *out, sim_real *nx, sim_real *ny)
 {
     const lanes_const c = lanes_of(w);
     const int len = block_len(count, k0);
@@ -209,10 +209,23 @@ void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, si
         finish_v(&sa.x[v], &sa.y[v], sa.vx[v], sa.vy[v], rest, &c);
         finish_v(&sb.x[v], &sb.y[v], sb.vx[v], sb.vy[v], rest, &c);
     }
+    if (!out) {
+        for (int k = 0; k < len; k++) {
+            const sim_cand e = events[k0 + (size_t)k];
+            take_lane(&sa, k, w, nx, ny, e.i);
+            take_lane(&sb, k, w, nx, ny, e.j);
+        }
+        return;
+    }
     for (int k = 0; k < len; k++) {
-        const sim_cand e = events[k0 + (size_t)k];
-        take_lane(&sa, k, w, nx, ny, e.i);
-        take_lane(&sb, k, w, nx, ny, e.j);
+        sim_real *o = out + SIM_PAIR_OUT * (k0 + (size_t)k);
+        const lanes_state *side[2] = {&sa, &sb};
+        for (int p = 0; p < 2; p++) {
+            o[4 * p] = SIM_LANE(side[p]->x[k / SIM_LANES], k % SIM_LANES);
+            o[4 * p + 1] = SIM_LANE(side[p]->y[k / SIM_LANES], k % SIM_LANES);
+            o[4 * p + 2] = SIM_LANE(side[p]->vx[k / SIM_LANES], k % SIM_LANES);
+            o[4 * p + 3] = SIM_LANE(side[p]->vy[k / SIM_LANES], k % SIM_LANES);
+        }
     }
 }
 

@@ -63,6 +63,8 @@ struct sim_stepper {
     /* The candidates the greedy walk accepted, walls and pairs apart, in walk order. */
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
+    sim_real *pair_out; /* the accepted pairs' new states, SIM_PAIR_OUT reals each */
+    size_t pair_out_cap; /* in pairs */
     unsigned char *taken; /* n + 1 flags, all 0 between walks (see resolve) */
     sim_real *wall_t;     /* each particle's wall time in the world's state (see resolve) */
     uint64_t wall_t_seen; /* a by-product of reading wall_t in whole (resolve) */
@@ -150,8 +152,8 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->writer_pairs = calloc((size_t)count, sizeof *s->writer_pairs);
     s->sources = malloc((size_t)(count + s->threads) * sizeof *s->sources);
     s->source_len = malloc((size_t)(count + s->threads) * sizeof *s->source_len);
-    if (!s->sink.bufs || !s->walls || !s->taken || !s->wall_t || !s->pair_count || !s->wall_count || !s->nx ||
-        !s->ny ||
+    if (!s->sink.bufs || !s->walls || !s->taken || !s->wall_t || !s->pair_count ||
+        !s->wall_count || !s->nx || !s->ny ||
         !s->writer_pairs || !s->sources || !s->source_len) {
         sim_stepper_destroy(s);
         return NULL;
@@ -203,6 +205,7 @@ void sim_stepper_destroy(sim_stepper *s)
     free(s->sources);
     free(s->source_len);
     free(s->wall_moves);
+    free(s->pair_out);
     free(s->pair_moves);
     free(s->taken);
     free(s->wall_t);
@@ -369,9 +372,9 @@ static void clear_walls(sim_stepper *s)
 }
 
 /* Append the wall candidates of particles [i0, i1) of the state (x, y, vx, vy) to buf, in
- * increasing i, and write every particle's wall time to wall_t. Blocks of SIM_WALL_BLOCK, in three passes that each vectorise or need no
- * branch (a fifth of the particles on the report benchmark are candidates, at random: a
- * branch on it mispredicts):
+ * increasing i, and write every particle's wall time to wall_t. Blocks of SIM_WALL_BLOCK, in
+ * three passes that each vectorise or need no branch (a fifth of the particles on the report
+ * benchmark are candidates, at random: a branch on it mispredicts):
  *  1. the distance to the wall ahead on each axis (the wall is hi when w > 0, else lo);
  *  2. the axis times, the same IEEE operations as axis_time where w != 0, infinity where
  *     w == 0 (the division by 0 is computed and discarded), and their minimum, into wall_t.
@@ -413,29 +416,39 @@ static void find_walls_range(sim_cand_buf *buf, sim_real *restrict wall_t,
     }
 }
 
-/* The wall candidates of the state (x, y, vx, vy): inside a parallel region, each thread
- * appends those of its static share of the blocks to its own buffer (thread order is particle
- * order); outside one, thread 0 does all. */
-static void find_walls_shared(sim_stepper *s, const sim_world *w, const sim_real *x,
-                              const sim_real *y, const sim_real *vx, const sim_real *vy)
+/* Thread `me` of `team`'s share of [0, blocks): [*b0, *b1), contiguous and in thread order, so
+ * that each thread's wall buffer holds a run of particles and the buffers follow each other
+ * in particle order. */
+static void share(int32_t blocks, int me, int team, int32_t *b0, int32_t *b1)
 {
-    const int32_t n = w->n, blocks = (n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
-    sim_cand_buf *buf = &s->walls[omp_get_thread_num()];
-#pragma omp for schedule(static) nowait
-    for (int32_t b = 0; b < blocks; b++) {
-        const int32_t i0 = b * SIM_WALL_BLOCK;
-        const int32_t i1 = n - i0 < SIM_WALL_BLOCK ? n : i0 + SIM_WALL_BLOCK;
-        find_walls_range(buf, s->wall_t, x, y, vx, vy, w->lo, w->hi, i0, i1);
-    }
+    *b0 = (int32_t)((int64_t)blocks * me / team);
+    *b1 = (int32_t)((int64_t)blocks * (me + 1) / team);
 }
 
-/* The wall candidates of the world's state, for a first step; later steps get them from the
- * wall pass at the end of the step before. */
+/* Particles [i0, i1) of the block range [b0, b1) of n particles. */
+static void block_span(int32_t n, int32_t b0, int32_t b1, int32_t *i0, int32_t *i1)
+{
+    *i0 = b0 * SIM_WALL_BLOCK;
+    *i1 = (int64_t)b1 * SIM_WALL_BLOCK < n ? b1 * SIM_WALL_BLOCK : n;
+    if (*i0 > *i1)
+        *i0 = *i1;
+}
+
+/* The wall candidates of the world's state, for a first step, each thread for its share;
+ * later steps get them from the wall pass at the end of the step before. */
 static void find_walls(sim_stepper *s, const sim_world *w)
 {
     clear_walls(s);
+    const int32_t blocks = (w->n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
 #pragma omp parallel num_threads(s->threads) if (s->parallel && w->n >= SIM_PARALLEL_MIN)
-    find_walls_shared(s, w, w->x, w->y, w->vx, w->vy);
+    {
+        const int me = omp_get_thread_num();
+        int32_t b0, b1, i0, i1;
+        share(blocks, me, omp_get_num_threads(), &b0, &b1);
+        block_span(w->n, b0, b1, &i0, &i1);
+        find_walls_range(&s->walls[me], s->wall_t, w->x, w->y, w->vx, w->vy, w->lo, w->hi, i0,
+                         i1);
+    }
 }
 
 /* Sort the finder's pair candidates into one list (the walls need no sorting: see resolve).
@@ -464,6 +477,13 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
             return (size_t)-1;
         s->walled = p;
         s->walled_cap = pairs;
+    }
+    if (pairs > s->pair_out_cap) {
+        sim_real *p = realloc(s->pair_out, pairs * SIM_PAIR_OUT * sizeof *p);
+        if (!p)
+            return (size_t)-1;
+        s->pair_out = p;
+        s->pair_out_cap = pairs;
     }
     if (failed || !buf_reserve(&s->merged, &s->merged_cap, pairs) ||
         !buf_reserve(&s->wall_moves, &s->wall_moves_cap, walls) ||
@@ -596,46 +616,94 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
     resolve(s, count, stats);
     t1 = omp_get_wtime();
     stats->resolve_s += t1 - t0;
-    /* Motion, then the next step's wall candidates, in one parallel region. Every particle
-     * reads the old state and writes the new one, so the loops need no order among particles:
-     *  1. every particle moves by its velocity (vectorised; most have no collision: 55% on the
-     *     report benchmark);
-     *  2. the accepted collisions overwrite their particles' new state (a pair both of its
-     *     particles, so each partner's normal is computed once);
-     *  3. the wall candidates of the new state, each thread for its static share of blocks.
-     * The barriers after 1 and 2 keep 2's writes after 1's and before 3's reads. Timed on
-     * thread 0, the thread that calls sim_step: motion_s from the region's start to the end
-     * of 2 (its barriers included), walls_s its share of 3; the region's start-up before
-     * thread 0 runs and the closing barrier are in neither, but in sim_s. */
+    /* Motion, then the next step's wall candidates, in one parallel region with one barrier
+     * (on a loaded machine a barrier can wait a scheduler tick for a descheduled thread):
+     *  1. each thread for its own run of particles (share): all move by their velocity into
+     *     the next positions (vectorised; most have no collision: 55% on the report
+     *     benchmark), which also brings the old state into the caches for 2;
+     *  2. the accepted pairs' new states, into pair_out (reading the old state only), shared
+     *     out by blocks of pairs; the barrier;
+     *  3. each thread for its own particles: the accepted walls move (the wall list is in
+     *     particle order), the pair states are copied from pair_out;
+     *  4. the same thread, the wall candidates of its particles' new state.
+     * Before the barrier nothing writes the old state; after it a thread writes only its own
+     * particles and reads nothing another wrote after the barrier, so 3 and 4 need none.
+     * Timed on thread 0, the thread that calls sim_step: motion_s from the region's start to
+     * the end of its 3 (the barrier included), walls_s its 4; the region's start-up before
+     * thread 0 runs and the closing barrier are in neither, but in sim_s. One thread takes
+     * the same steps without a region (below), the pairs written straight into the next
+     * state. */
     clear_walls(s);
     double motion_s = 0, walls_s = 0;
     const sim_real lo = w->lo, hi = w->hi;
     const size_t nw = s->wall_moves_len, np = s->pair_moves_len, eb = sim_event_block();
     const int32_t blocks = (n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
-    const int32_t wall_blocks = (int32_t)((nw + eb - 1) / eb);
-    const int32_t event_blocks = wall_blocks + (int32_t)((np + eb - 1) / eb);
-#pragma omp parallel num_threads(s->threads) if (s->parallel && n >= SIM_PARALLEL_MIN)
-    {
-        const bool timer = omp_get_thread_num() == 0;
-        const double m0 = timer ? omp_get_wtime() : 0;
-#pragma omp for schedule(static)
+    const int32_t pair_blocks = (int32_t)((np + eb - 1) / eb);
+    const sim_cand *wall_moves = s->wall_moves, *pair_moves = s->pair_moves;
+    if (!(s->parallel && n >= SIM_PARALLEL_MIN)) {
+        /* One thread: the same moves in the same order with no barrier to spare, the pairs
+         * written straight into the next state (the copy through pair_out cost 1 ms of the
+         * report benchmark). */
+        const double m0 = omp_get_wtime();
         for (int32_t b = 0; b < blocks; b++) {
-            const int32_t i0 = b * SIM_WALL_BLOCK;
-            const int32_t i1 = n - i0 < SIM_WALL_BLOCK ? n : i0 + SIM_WALL_BLOCK;
-            move_free(s->nx + i0, s->ny + i0, w->x + i0, w->y + i0, w->vx + i0, w->vy + i0,
-                      s->pair_count + i0, s->wall_count + i0, s->taken + i0, i1 - i0, lo, hi);
+            int32_t j0, j1;
+            block_span(n, b, b + 1, &j0, &j1);
+            move_free(s->nx + j0, s->ny + j0, w->x + j0, w->y + j0, w->vx + j0, w->vy + j0,
+                      s->pair_count + j0, s->wall_count + j0, s->taken + j0, j1 - j0, lo, hi);
+        }
+        for (size_t k = 0; k < nw; k += eb)
+            sim_move_walls(w, wall_moves, nw, k, s->nx, s->ny);
+        for (size_t k = 0; k < np; k += eb)
+            sim_move_pairs(w, pair_moves, np, k, NULL, s->nx, s->ny);
+        const double m1 = omp_get_wtime();
+        find_walls_range(&s->walls[0], s->wall_t, s->nx, s->ny, w->vx, w->vy, lo, hi, 0, n);
+        motion_s = m1 - m0;
+        walls_s = omp_get_wtime() - m1;
+    } else
+#pragma omp parallel num_threads(s->threads)
+    {
+        const int me = omp_get_thread_num();
+        const double m0 = me == 0 ? omp_get_wtime() : 0;
+        int32_t b0, b1, i0, i1;
+        share(blocks, me, omp_get_num_threads(), &b0, &b1);
+        block_span(n, b0, b1, &i0, &i1);
+        for (int32_t b = b0; b < b1; b++) {
+            int32_t j0, j1;
+            block_span(n, b, b + 1, &j0, &j1);
+            move_free(s->nx + j0, s->ny + j0, w->x + j0, w->y + j0, w->vx + j0, w->vy + j0,
+                      s->pair_count + j0, s->wall_count + j0, s->taken + j0, j1 - j0, lo, hi);
         }
 #pragma omp for schedule(static)
-        for (int32_t b = 0; b < event_blocks; b++) {
-            if (b < wall_blocks)
-                sim_move_walls(w, s->wall_moves, nw, (size_t)b * eb, s->nx, s->ny);
+        for (int32_t b = 0; b < pair_blocks; b++)
+            sim_move_pairs(w, pair_moves, np, (size_t)b * eb, s->pair_out, NULL, NULL);
+        /* My walls: the run of the particle-ordered list with i in [i0, i1). */
+        size_t k0 = 0, k1 = nw;
+        while (k0 < k1) { /* first k with i >= i0 */
+            const size_t mid = k0 + (k1 - k0) / 2;
+            if (wall_moves[mid].i < i0)
+                k0 = mid + 1;
             else
-                sim_move_pairs(w, s->pair_moves, np, (size_t)(b - wall_blocks) * eb, s->nx,
-                               s->ny);
+                k1 = mid;
         }
-        const double m1 = timer ? omp_get_wtime() : 0;
-        find_walls_shared(s, w, s->nx, s->ny, w->vx, w->vy);
-        if (timer) {
+        for (k1 = k0; k1 < nw && wall_moves[k1].i < i1;)
+            k1++;
+        for (size_t k = k0; k < k1; k += eb)
+            sim_move_walls(w, wall_moves, k1, k, s->nx, s->ny);
+        for (size_t k = 0; k < np; k++)
+            for (int side = 0; side < 2; side++) {
+                const int32_t i = side ? pair_moves[k].j : pair_moves[k].i;
+                if (i < i0 || i >= i1)
+                    continue;
+                const sim_real *o = s->pair_out + SIM_PAIR_OUT * k + 4 * side;
+                s->nx[i] = o[0];
+                s->ny[i] = o[1];
+                w->vx[i] = o[2];
+                w->vy[i] = o[3];
+            }
+        const double m1 = me == 0 ? omp_get_wtime() : 0;
+        find_walls_range(&s->walls[me], s->wall_t, s->nx, s->ny, w->vx, w->vy, lo, hi, i0,
+                         i1);
+        if (me == 0) {
             motion_s = m1 - m0;
             walls_s = omp_get_wtime() - m1;
         }
