@@ -3,8 +3,11 @@
 Each case runs its binary with `--timing`; cases of a group run interleaved, round after round,
 so that the ratios between them come from one stretch of machine time (this machine is noisy).
 Reported: the median wall time, the median simulation time from `--timing`, pair tests per
-second and the speedup against the group's reference case. Saved, never overwritten in place,
-to results/bench/bench-<group>-<UTC time>.{json,md} beside the machine's description.
+second and the speedup against the group's reference case; for the groups that ask, where the
+simulation time goes (`--timing`'s phases) and issue 15's figure, the nanoseconds per
+particle-step spent outside the broad phase, with and without the process's start (hyperfine
+of a 10-particle scene). Saved, never overwritten in place, to
+results/bench/bench-<group>-<UTC time>.{json,md} beside the machine's description.
 """
 
 from __future__ import annotations
@@ -33,6 +36,18 @@ REPORT_SCENE = "10000 20000 1 50\nperf\n"  # the seed report's benchmark: N, L, 
 GNU_TIME = shutil.which("/usr/bin/time")  # for peak memory; optional (Debian package time)
 MILLION_SCENE = "1000000 200000 1 10\nperf\n"  # same density, 100x the particles
 RELATIVE_SCENE = "4000 200 1 100\nperf\n"  # the seed report's Section 7.1 scene
+# --timing's split of sim_s (issue 15), then the times outside it that issue 15 counts.
+PHASES = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
+OUTSIDE_KEYS = ("input_s", "output_s")
+# Issue 15's target: (sim_s - broad_s + input_s + output_s) / (N * S) for grid on one thread on
+# the report benchmark, in nanoseconds per particle-step.
+OUTSIDE_TARGET_NS = 15.0
+OUTSIDE_TARGET_CASE = "grid x1"
+# A scene so small that its run is the process's start and exit: what a run costs besides its
+# work. hyperfine, its runs and warmup.
+START_SCENE = "10 100 1 1\nperf\n"
+START_RUNS = 30
+START_WARMUP = 3
 
 
 @dataclass(frozen=True)
@@ -60,6 +75,8 @@ class Group:
     # rounds each, the 2-thread grid run after seq's 4.4 s took a median 0.186 s (quartiles
     # 0.172-0.193) cold, 0.174 s (0.172-0.177) warm.
     warmup: int = 0
+    # Report where the time goes: --timing's phases and issue 15's ns per particle-step.
+    phases: bool = False
 
 
 @dataclass
@@ -69,6 +86,18 @@ class Result:
     sim_s: list[float] = field(default_factory=list)
     pair_tests: int = 0
     max_rss_kib: int = 0
+    # Per run, each of PHASES and OUTSIDE_KEYS as --timing wrote it (absent keys: nan).
+    phases: dict[str, list[float]] = field(default_factory=dict)
+    particle_steps: int = 0  # n * steps of the scene
+    start_s: float | None = None  # median wall of the variant on START_SCENE (hyperfine)
+
+    def outside_ns(self) -> float:
+        """Median over runs of issue 15's figure: ns per particle-step outside the broad phase."""
+        runs = [(sim - broad + inp + out) / self.particle_steps * 1e9
+                for sim, broad, inp, out in zip(self.sim_s, *(self.phases.get(k, [])
+                                                              for k in ("broad_s", *OUTSIDE_KEYS)),
+                                                strict=False)]
+        return statistics.median(runs) if runs and self.particle_steps else float("nan")
 
 
 GROUPS = {
@@ -88,6 +117,7 @@ GROUPS = {
             Case("2 seqs at once", "seq", 1, "report", copies=2),
         ),
         reference="seq",
+        phases=True,
     ),
     "grid": Group(
         name="grid",
@@ -103,6 +133,7 @@ GROUPS = {
         # grid's runs take 0.2-0.3 s, where one scheduler hiccup moves a median of 3: 7 rounds.
         rounds=7,
         warmup=1,
+        phases=True,
     ),
     "million": Group(
         name="million",
@@ -184,6 +215,9 @@ def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
             res.wall_s.append(wall)
             res.sim_s.append(timing["sim_s"])
             res.pair_tests = timing["pair_tests"] * res.case.copies
+            res.particle_steps = int(timing["n"]) * int(timing["steps"])
+            for key in (*PHASES, *OUTSIDE_KEYS):
+                res.phases.setdefault(key, []).append(float(timing.get(key, "nan")))
             print(f"  round {rnd + 1}/{group.rounds}  {res.case.label:<14} {wall:8.3f} s",
                   file=sys.stderr, flush=True)
     return results
@@ -229,6 +263,51 @@ def table(group: Group, results: list[Result]) -> str:
                   f"{base.case.label} processes at once give {top:.2f}x the throughput of one."]
         if shares:
             lines[-1] += f" {base.case.label}'s parallel speedups as shares of it: {shares}."
+    return "\n".join(lines) + "\n"
+
+
+def process_start(variant: str, where: Path) -> float | None:
+    """Median wall seconds of `variant` on START_SCENE under hyperfine (None without it)."""
+    hyperfine = shutil.which("hyperfine")
+    if hyperfine is None:
+        return None
+    scene, out = where / "start.in", where / f"start-{variant}.json"
+    scene.write_text(START_SCENE)
+    done = subprocess.run([hyperfine, "-N", "--style", "none", "--warmup", str(START_WARMUP),
+                           "--runs", str(START_RUNS), "--export-json", str(out),
+                           f"{ROOT / 'build' / variant} --threads 1 {scene}"],
+                          capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"error: hyperfine on {variant}: {done.stderr.strip()}")
+    return float(json.loads(out.read_text())["results"][0]["median"])
+
+
+def phase_table(group: Group, results: list[Result]) -> str:
+    """Where each case's time goes (medians of --timing's seconds) and issue 15's figure."""
+    keys = (*PHASES, *OUTSIDE_KEYS)
+    lines = [
+        "",
+        f"Where the time goes (medians of {group.rounds} runs, seconds; `outside` = (sim_s - "
+        "broad_s + input_s + output_s) / (N*S), ns per particle-step; `+ start` adds the "
+        f"median wall of a {START_SCENE.split()[0]}-particle run, hyperfine, {START_RUNS} runs):",
+        "",
+        "| case | sim | " + " | ".join(k.removesuffix("_s") for k in keys)
+        + " | outside (ns) | + start (ns) |",
+        "|---|" + "---:|" * (len(keys) + 3),
+    ]
+    for r in results:
+        med = [statistics.median(r.phases.get(k) or [float("nan")]) for k in keys]
+        outside = r.outside_ns()
+        start = (f"{outside + r.start_s / r.particle_steps * 1e9:.1f}"
+                 if r.start_s is not None and r.particle_steps else "n/a")
+        lines.append(f"| {r.case.label} | {statistics.median(r.sim_s):.4f} | "
+                     + " | ".join(f"{m:.4f}" for m in med) + f" | {outside:.1f} | {start} |")
+    target = next((r for r in results if r.case.label == OUTSIDE_TARGET_CASE), None)
+    if target is not None:
+        outside = target.outside_ns()
+        verdict = "met" if outside <= OUTSIDE_TARGET_NS else "not met"
+        lines += ["", f"Issue 15's target, at most {OUTSIDE_TARGET_NS:g} ns per particle-step "
+                  f"outside the broad phase ({OUTSIDE_TARGET_CASE}): {outside:.1f} ns, {verdict}."]
     return "\n".join(lines) + "\n"
 
 
@@ -281,6 +360,13 @@ def main(argv: list[str] | None = None) -> int:
             paths = materialise(group.inputs, Path(tmp))
             results = measure(group, paths)
             text = table(group, results)
+            if group.phases:
+                for variant in sorted({r.case.variant for r in results}):
+                    start = process_start(variant, Path(tmp))
+                    for r in results:
+                        if r.case.variant == variant:
+                            r.start_s = start
+                text += phase_table(group, results)
             stem = save(group, results, text, env)
             print(text)
             print(f"saved {stem.relative_to(ROOT)}.{{json,md}}\n")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from bench import bench
 from bench.bench import Case, Group, Result
 
@@ -46,3 +48,53 @@ def test_table_without_a_copies_case_has_no_ceiling_line() -> None:
 def test_unknown_group_is_one_error_line(capsys) -> None:
     assert bench.main(["nope"]) == 2
     assert capsys.readouterr().err.strip().startswith("error: unknown group 'nope'")
+
+
+def phased(case: Case, sim: float, broad: float, inp: float, out: float) -> Result:
+    r = result(case, sim, sim, 10)
+    r.sim_s = [sim, sim, sim]
+    r.particle_steps = 1000
+    r.phases = {"broad_s": [broad] * 3, "walls_s": [1e-6] * 3, "sort_s": [2e-6] * 3,
+                "resolve_s": [3e-6] * 3, "motion_s": [4e-6] * 3, "input_s": [inp] * 3,
+                "output_s": [out] * 3}
+    return r
+
+
+def test_phase_table_reports_issue_15s_figure_and_verdict() -> None:
+    one, seq = Case("grid x1", "grid", 1, "s"), Case("seq", "seq", 1, "s")
+    group = Group("g", "A title", {"s": ""}, (seq, one), reference="seq", phases=True)
+    # grid: (0.00010 - 0.00009 + 0.000002 + 0.000003) / 1000 particle-steps = 15 ns: met
+    fast = phased(one, 1e-4, 9e-5, 2e-6, 3e-6)
+    fast.start_s = 1e-6  # + 1 ns per particle-step
+    slow = phased(seq, 1e-3, 9e-4, 5e-6, 5e-6)  # 110 ns; no start measured
+    text = bench.phase_table(group, [slow, fast])
+    rows = {line.split(" | ")[0].lstrip("| "): line.rstrip(" |").split(" | ")
+            for line in text.splitlines() if line.startswith("| ") and "case" not in line}
+    assert rows["grid x1"][-2:] == ["15.0", "16.0"]
+    assert rows["seq"][-2:] == ["110.0", "n/a"]
+    assert rows["grid x1"][2] == "0.0001"  # broad_s, after the case and sim_s
+    assert "(grid x1): 15.0 ns, met." in text
+    text = bench.phase_table(group, [slow, phased(one, 1e-4, 8e-5, 2e-6, 3e-6)])
+    assert "(grid x1): 25.0 ns, not met." in text
+
+
+def test_outside_ns_is_nan_without_phases() -> None:
+    r = result(Case("seq", "seq", 1, "s"), 1.0, 1.0, 10)
+    r.particle_steps = 100
+    assert r.outside_ns() != r.outside_ns()
+
+
+def test_a_real_run_records_every_phase(real_binaries: Path, tmp_path: Path) -> None:
+    """The real seq binary's --timing through run_case and measure: all phases, n * S, and a
+    hyperfine start time when hyperfine is installed."""
+    case = Case("seq", "seq", 1, "s")
+    group = Group("g", "t", {"s": "60 600 1 4\nperf\n"}, (case,), reference="seq", rounds=2,
+                  phases=True)
+    results = bench.measure(group, bench.materialise(group.inputs, tmp_path))
+    r = results[0]
+    assert r.particle_steps == 240
+    assert set(r.phases) == {*bench.PHASES, *bench.OUTSIDE_KEYS}
+    assert all(len(v) == 2 and min(v) >= 0 for v in r.phases.values())
+    assert r.outside_ns() > 0
+    start = bench.process_start("seq", tmp_path)
+    assert start is None or 0 < start < 1

@@ -809,15 +809,23 @@ static void test_sort_candidates_matches_the_spec_key(void)
 {
     enum { LEN = 3000 };
     static sim_cand got[LEN], want[LEN], tmp[LEN];
-    static const sim_real times[] = {0.0, -0.0, 1.0, 0.5, 0.25, -1e-17, 1e-300, 0.75};
-    for (int round = 0; round < 40; round++) {
+    static const sim_real times[] = {0.0, -0.0, 1.0, 0.5, 0.25, -1e-17, 1e-300, 0.75,
+                                     2.0, 0x1.fffffffffffffp-1, 1e-4, 1.5e-4};
+    enum { TIMES = sizeof times / sizeof *times };
+    for (int round = 0; round < 60; round++) {
         const size_t n = round < 4 ? (size_t)round : (size_t)(rnd() * LEN);
         for (size_t k = 0; k < n; k++) {
-            const sim_real t = round % 2 ? times[(int)(rnd() * 8)] : (sim_real)rnd();
+            const sim_real t = round % 2 ? times[(int)(rnd() * TIMES)] : (sim_real)rnd();
             const int32_t i = (int32_t)(rnd() * 50);
             const int32_t j = rnd() < 0.3 ? SIM_WALL : i + 1 + (int32_t)(rnd() * 50);
             got[k] = want[k] = (sim_cand){t, i, j};
         }
+        /* As the stepper lists a step: pairs first, then walls in increasing i, many at t = 0
+         * (particles a wall stopped) beside a few very early pairs. */
+        if (round % 3 == 2)
+            for (size_t k = n / 2; k < n; k++)
+                got[k] = want[k] = (sim_cand){rnd() < 0.3 ? (sim_real)rnd() : 0, (int32_t)k,
+                                              SIM_WALL};
         qsort(want, n, sizeof *want, spec_key_cmp);
         sim_sort_candidates(got, tmp, n);
         size_t same = 0;
@@ -1160,6 +1168,204 @@ static void test_step_phase_times(void)
     }
 }
 
+/* ---- the moves of accepted collisions, against SPEC §2 written out as scalar code ---- */
+
+static double ref_axis_time(double q, double w, double lo, double hi)
+{
+    if (w > 0)
+        return (hi - q) / w;
+    if (w < 0)
+        return (lo - q) / w;
+    return HUGE_VAL;
+}
+
+static double ref_wall(double w, double lo, double hi)
+{
+    return w > 0 ? hi : lo;
+}
+
+static double ref_clamp(double q, double lo, double hi)
+{
+    return q < lo ? lo : (q > hi ? hi : q);
+}
+
+/* SPEC §2 finish(rest), then the clamp into the box. */
+static void ref_finish(double *x, double *y, double vx, double vy, double rest, double lo,
+                       double hi)
+{
+    double tx = ref_axis_time(*x, vx, lo, hi), ty = ref_axis_time(*y, vy, lo, hi);
+    if (tx < 0)
+        tx = 0;
+    if (ty < 0)
+        ty = 0;
+    const double tw = tx < ty ? tx : ty;
+    if (tw < rest) {
+        *x += tw * vx;
+        *y += tw * vy;
+        if (tx == tw)
+            *x = ref_wall(vx, lo, hi);
+        if (ty == tw)
+            *y = ref_wall(vy, lo, hi);
+    } else {
+        *x += rest * vx;
+        *y += rest * vy;
+    }
+    *x = ref_clamp(*x, lo, hi);
+    *y = ref_clamp(*y, lo, hi);
+}
+
+/* Particle i's new state (x, y, vx, vy) after its accepted collision with e (SIM_WALL or the
+ * partner) at t, from the state of w, as SPEC §2 words it for one particle. */
+static void ref_move(const sim_world *w, int32_t i, int32_t e, double t, double out[4])
+{
+    const double lo = w->lo, hi = w->hi;
+    double x = w->x[i], y = w->y[i], vx = w->vx[i], vy = w->vy[i];
+    if (e == SIM_WALL) {
+        const double tx = ref_axis_time(x, vx, lo, hi), ty = ref_axis_time(y, vy, lo, hi);
+        x += t * vx;
+        y += t * vy;
+        if (tx == t) {
+            x = ref_wall(vx, lo, hi);
+            vx = -vx;
+        }
+        if (ty == t) {
+            y = ref_wall(vy, lo, hi);
+            vy = -vy;
+        }
+    } else {
+        const int32_t a = i < e ? i : e, b = i < e ? e : i;
+        const double xa = w->x[a] + t * w->vx[a], ya = w->y[a] + t * w->vy[a];
+        const double xb = w->x[b] + t * w->vx[b], yb = w->y[b] + t * w->vy[b];
+        const double dx = xb - xa, dy = yb - ya, dist = sqrt(dx * dx + dy * dy);
+        x += t * vx;
+        y += t * vy;
+        if (dist > 0) {
+            const double nx = dx / dist, ny = dy / dist;
+            const double ua = w->vx[a] * nx + w->vy[a] * ny;
+            const double ub = w->vx[b] * nx + w->vy[b] * ny;
+            const double du = i == a ? ub - ua : ua - ub;
+            vx = vx + du * nx;
+            vy = vy + du * ny;
+        }
+    }
+    ref_finish(&x, &y, vx, vy, 1 - t, lo, hi);
+    out[0] = x;
+    out[1] = y;
+    out[2] = vx;
+    out[3] = vy;
+}
+
+/* sim_move_walls and sim_move_pairs give, bit for bit, what the scalar SPEC code gives, on
+ * random events in partial and full blocks: fast and slow particles, particles on a wall or in
+ * a corner, zero and -0.0 velocity components, t = 0 and t = 1, a pair with no normal
+ * (coincident centres at t). */
+static void test_event_moves_match_scalar_spec(void)
+{
+    enum { N = 3000 };
+    sim_world w, before;
+    world_init(&w, N, 100, 1);
+    world_init(&before, N, 100, 1);
+    for (int32_t i = 0; i < N; i++) {
+        const double speed = rnd() < 0.5 ? 3 : 80;
+        double x = 1 + rnd() * 98, y = 1 + rnd() * 98;
+        double vx = speed * (2 * rnd() - 1), vy = speed * (2 * rnd() - 1);
+        const double kind = rnd();
+        if (kind < 0.1)
+            x = rnd() < 0.5 ? 1 : 99;
+        else if (kind < 0.15)
+            x = y = 99;
+        if (rnd() < 0.1)
+            vx = rnd() < 0.5 ? 0.0 : -0.0;
+        if (rnd() < 0.05)
+            vy = rnd() < 0.5 ? 0.0 : -0.0;
+        put(&w, i, x, y, vx, vy);
+    }
+    /* Particles 0-1: coincident at t = 0.5 (no normal). */
+    put(&w, 0, 50, 50, 1, 0);
+    put(&w, 1, 51, 50, -1, 0);
+    sim_world_free(&before);
+    world_init(&before, N, 100, 1);
+    for (int32_t i = 0; i < N; i++)
+        put(&before, i, w.x[i], w.y[i], w.vx[i], w.vy[i]);
+    /* Events over disjoint particles: pairs (2k, 2k+1) for the first third, walls (those
+     * whose wall time is within the step) among the rest. */
+    static sim_cand walls[N], pairs[N];
+    size_t nw = 0, np = 0;
+    for (int32_t i = 0; i + 1 < N / 3; i += 2) {
+        const double u = rnd();
+        const double t = i == 0 ? 0.5 : u < 0.05 ? 0.0 : u < 0.1 ? 1.0 : rnd();
+        pairs[np++] = (sim_cand){t, i, i + 1};
+    }
+    for (int32_t i = N / 3; i < N; i++) {
+        const sim_real t = sim_wall_time(&w, i);
+        if (t <= 1)
+            walls[nw++] = (sim_cand){t, i, SIM_WALL};
+    }
+    CHECK(nw > 500 && np > 400);
+    static sim_real nx[N], ny[N], out[SIM_PAIR_OUT * N];
+    const size_t block = sim_event_block();
+    CHECK(block > 0);
+    for (size_t k0 = 0; k0 < nw; k0 += block)
+        sim_move_walls(&w, walls, nw, k0, nx, ny);
+    for (size_t k0 = 0; k0 < np; k0 += block)
+        sim_move_pairs(&w, pairs, np, k0, out, NULL, NULL);
+    /* sim_move_pairs changes nothing in the world: its partners' velocities are still the old
+     * ones until copied from out, as sim_step does. */
+    int kept = 0;
+    for (size_t k = 0; k < np; k++) {
+        kept += w.vx[pairs[k].i] == before.vx[pairs[k].i] &&
+                w.vx[pairs[k].j] == before.vx[pairs[k].j];
+        for (int side = 0; side < 2; side++) {
+            const int32_t i = side ? pairs[k].j : pairs[k].i;
+            const sim_real *o = out + SIM_PAIR_OUT * k + 4 * side;
+            nx[i] = o[0];
+            ny[i] = o[1];
+            w.vx[i] = o[2];
+            w.vy[i] = o[3];
+        }
+    }
+    CHECK_INT(kept, (int)np);
+    /* Without out, the pairs' new states go straight into nx, ny and the world's velocities:
+     * the same bits. */
+    sim_world direct;
+    world_init(&direct, N, 100, 1);
+    for (int32_t i = 0; i < N; i++)
+        put(&direct, i, before.x[i], before.y[i], before.vx[i], before.vy[i]);
+    static sim_real dnx[N], dny[N];
+    for (size_t k0 = 0; k0 < np; k0 += block)
+        sim_move_pairs(&direct, pairs, np, k0, NULL, dnx, dny);
+    int same = 0;
+    for (size_t k = 0; k < np; k++)
+        for (int side = 0; side < 2; side++) {
+            const int32_t i = side ? pairs[k].j : pairs[k].i;
+            same += !memcmp(&dnx[i], &nx[i], sizeof nx[i]) &&
+                    !memcmp(&dny[i], &ny[i], sizeof ny[i]) &&
+                    !memcmp(&direct.vx[i], &w.vx[i], sizeof w.vx[i]) &&
+                    !memcmp(&direct.vy[i], &w.vy[i], sizeof w.vy[i]);
+        }
+    CHECK_INT(same, 2 * (int)np);
+    sim_world_free(&direct);
+    int differ = 0, turned = 0;
+    for (size_t k = 0; k < nw + np; k++) {
+        const sim_cand c = k < nw ? walls[k] : pairs[k - nw];
+        for (int side = 0; side < (c.j == SIM_WALL ? 1 : 2); side++) {
+            const int32_t i = side ? c.j : c.i, e = c.j == SIM_WALL ? SIM_WALL : side ? c.i : c.j;
+            double want[4];
+            ref_move(&before, i, e, c.t, want);
+            const double got[4] = {nx[i], ny[i], w.vx[i], w.vy[i]};
+            differ += memcmp(got, want, sizeof got) != 0;
+            turned += want[2] != before.vx[i] || want[3] != before.vy[i];
+        }
+    }
+    CHECK_INT(differ, 0);
+    CHECK(turned > 1000);
+    /* The pair without a normal keeps its velocities. */
+    CHECK_REAL(w.vx[0], 1);
+    CHECK_REAL(w.vx[1], -1);
+    sim_world_free(&w);
+    sim_world_free(&before);
+}
+
 /* sim_team_spread moves each thread once and hands it back the process's whole mask: every
  * thread of a later team may run on every CPU the process could before. Team sizes of 2, the
  * CPU count (both of sim_team.c's regions run) and one more (the second alone). */
@@ -1286,6 +1492,7 @@ static const test_case tests[] = {
     TEST(test_step_order_independent),
     TEST(test_step_carries_wall_candidates),
     TEST(test_step_phase_times),
+    TEST(test_event_moves_match_scalar_spec),
     TEST(test_team_spread_restores_the_mask),
     TEST(test_step_collision_conserves),
     TEST(test_step_empty_world),

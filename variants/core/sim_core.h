@@ -99,10 +99,27 @@ void sim_team_spread(int threads);
 void sim_stepper_destroy(sim_stepper *s);
 /* Advance the world by one step (SPEC §2). Returns 0, or -1 when memory ran out. The stepper
  * keeps the wall candidates of the state it leaves, for the next step: between steps, change
- * the world only through sim_step (or make a new stepper). */
+ * the world only through sim_step (or make a new stepper). The world's pcoll and wcoll are
+ * complete once the stepper is destroyed (it keeps the latest steps' counts until then). */
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
 /* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. */
 void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
+
+/* The moves of accepted collisions (sim_motion.c), events[k0, k0 + sim_event_block()) of
+ * `count` accepted wall candidates (sim_move_walls) or pair candidates (sim_move_pairs), from
+ * the world's state. sim_move_walls writes the new positions into nx, ny and the new
+ * velocities into the world's vx, vy; so does sim_move_pairs when out is NULL, and otherwise
+ * it writes pair k's new states to out[SIM_PAIR_OUT * k ...] (x, y, vx, vy of its i, then of
+ * its j) and changes nothing else.
+ * The caller counts the collisions in pcoll / wcoll. Blocks touch only their own particles
+ * and read a particle's state before they write it, so they may run on any threads in any
+ * order. */
+#define SIM_PAIR_OUT 8
+size_t sim_event_block(void);
+void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
+                    sim_real *nx, sim_real *ny);
+void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
+                    sim_real *out, sim_real *nx, sim_real *ny);
 
 /* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. */
 sim_real sim_wall_time(const sim_world *w, int32_t i);

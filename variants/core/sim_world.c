@@ -11,9 +11,10 @@
 
 size_t sim_bytes_per_particle(void)
 {
-    /* world: x y vx vy + pcoll wcoll; stepper: next x y vx vy, event, event_t; input bitmap;
-     * candidates, three times: the writers' lists, the merged list and the sort's buffer. */
-    return 8 * sizeof(sim_real) + 2 * sizeof(int64_t) + sizeof(int32_t) + sizeof(sim_real) + 1 +
+    /* world: x y vx vy + pcoll wcoll; stepper: next x y, wall_t, the walk's flag and two byte
+     * counts; input bitmap; candidates, three times: the writers' lists, the sorted pairs and
+     * the accepted moves. */
+    return 7 * sizeof(sim_real) + 2 * sizeof(int64_t) + 3 + 1 +
            3 * SIM_CANDS_PER_PARTICLE_ESTIMATE * sizeof(sim_cand);
 }
 
