@@ -352,6 +352,7 @@ if ((SMALL)); then
     listed_scene mixed_speeds 200 tol mixed 300 200 1 3 14
     listed_scene outliers 300 tol outliers 300 300 1 3 15
     grid_only_scene fast_blocks slow 34000 2400 1 1 16 350 700
+    grid_only_scene outliers_blocks outliers 33000 3000 1 1 17
 else
     listed_scene slow_dense 150 tol slow 3000 150 1 8 11
     listed_scene slow_huge_L 1e7 tol slow 3000 1e7 1 5 12
@@ -360,6 +361,9 @@ else
     listed_scene outliers 1000 tol outliers 2000 1000 1 4 15
     # Above 32768 particles a thread works through blocks of slices (the large-N path; K = 16).
     listed_scene fast_blocks 2400 none slow 34000 2400 1 2 16 350 700
+    # The same path with wide particles (every 50th), whose pairs also go through the
+    # prefetch queue that grid uses only above 32768 particles.
+    listed_scene outliers_blocks 3000 tol outliers 33000 3000 1 2 17
 fi
 
 # ---- random scenes (the binaries' generator: fast, L/8r .. L/4 per step) ----

@@ -130,7 +130,7 @@ static uint64_t wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw)
         for (int32_t q = m + 1; q < nw; q++) {
             tests++;
             if (near_pair(cx->s->part, cx->s->tk, cx->g->reach2, wide[m], wide[q], cx->k))
-                pair_found(cx, wide[m], wide[q]);
+                pair_passed(cx, wide[m], wide[q]);
         }
     return tests;
 }
