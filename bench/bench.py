@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from harness import envinfo  # noqa: E402
+from harness.results import PHASE_COLUMNS, outside_broad_ns  # noqa: E402
 
 from bench.scenes_dense import write_dense_slow  # noqa: E402
 
@@ -37,7 +38,7 @@ GNU_TIME = shutil.which("/usr/bin/time")  # for peak memory; optional (Debian pa
 MILLION_SCENE = "1000000 200000 1 10\nperf\n"  # same density, 100x the particles
 RELATIVE_SCENE = "4000 200 1 100\nperf\n"  # the seed report's Section 7.1 scene
 # --timing's split of sim_s (issue 15), then the times outside it that issue 15 counts.
-PHASES = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
+PHASES = PHASE_COLUMNS
 OUTSIDE_KEYS = ("input_s", "output_s")
 # Issue 15's target: (sim_s - broad_s + input_s + output_s) / (N * S) for grid on one thread on
 # the report benchmark, in nanoseconds per particle-step.
@@ -92,12 +93,15 @@ class Result:
     start_s: float | None = None  # median wall of the variant on START_SCENE (hyperfine)
 
     def outside_ns(self) -> float:
-        """Median over runs of issue 15's figure: ns per particle-step outside the broad phase."""
-        runs = [(sim - broad + inp + out) / self.particle_steps * 1e9
-                for sim, broad, inp, out in zip(self.sim_s, *(self.phases.get(k, [])
-                                                              for k in ("broad_s", *OUTSIDE_KEYS)),
-                                                strict=False)]
-        return statistics.median(runs) if runs and self.particle_steps else float("nan")
+        """Median over runs of issue 15's figure: ns per particle-step outside the broad phase,
+        input and output included (nan where the runs lack a phase)."""
+        keys = ("broad_s", *OUTSIDE_KEYS)
+        if not self.particle_steps or not all(self.phases.get(k) for k in keys):
+            return float("nan")
+        runs = [outside_broad_ns(sim, broad, self.particle_steps, inp, out)
+                for sim, broad, inp, out in zip(self.sim_s, *(self.phases[k] for k in keys),
+                                                strict=True)]
+        return statistics.median(runs)
 
 
 GROUPS = {
@@ -267,7 +271,9 @@ def table(group: Group, results: list[Result]) -> str:
 
 
 def process_start(variant: str, where: Path) -> float | None:
-    """Median wall seconds of `variant` on START_SCENE under hyperfine (None without it)."""
+    """Median wall seconds of `variant` on START_SCENE under hyperfine (None without it), on
+    one thread whatever the case's count: the process's own start and exit (a team's start-up
+    is in the case's sim_s)."""
     hyperfine = shutil.which("hyperfine")
     if hyperfine is None:
         return None

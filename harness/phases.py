@@ -26,14 +26,13 @@ from matplotlib.axes import Axes
 from matplotlib.patches import Patch
 
 from harness import plots, tables
-from harness.results import PHASE_COLUMNS
+from harness.results import PHASE_COLUMNS, outside_broad_ns
 
 PHASES: tuple[str, ...] = tuple(tables.PHASE_NAMES)  # drawing order: sim_s's, then output
 SIM_PHASES: tuple[str, ...] = (*PHASE_COLUMNS, tables.OTHER_PHASE)  # they make up sim_s
 TOTAL = "sim_s"  # the simulation time of the --timing run, the whole the shares are of
 REST_NS = "rest_ns"  # the simulation outside the broad phase, ns per particle-step
 BROAD = PHASE_COLUMNS[0]
-NS_PER_S = 1e9
 PERCENT = 100.0
 # The dimensions a bar is one of within a scene (the thread count is fixed by the rule above).
 ROW_KEYS: tuple[str, ...] = (tables.MACHINE, "variant", "build", "schedule")
@@ -93,7 +92,7 @@ def with_phases(rows: pd.DataFrame) -> pd.DataFrame:
     for phase in SIM_PHASES:
         out[f"{phase}{tables.SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
     particle_steps = out["n"] * out["steps"]
-    out[REST_NS] = ((whole - out[BROAD]) / particle_steps * NS_PER_S).where(particle_steps > 0)
+    out[REST_NS] = outside_broad_ns(whole, out[BROAD], particle_steps).where(particle_steps > 0)
     return out
 
 

@@ -74,11 +74,23 @@ DIVERGENCE_COLUMNS = (
 # Issue 15: where the simulation time goes, from --timing, seconds summed over the run: the
 # variant's pair finder (broad phase and pair tests), wall candidates, merging and sorting the
 # candidates, the greedy resolution walk, moving the discs. Their sum is at most sim_s (the
-# rest is loop overhead). After the provenance columns, and only where some cell has them
-# (results of binaries from before the phase timers have none).
+# rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
+# After the provenance columns, and only where some cell has them (results of binaries from
+# before the phase timers have none).
 PHASE_COLUMNS = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
+NS_PER_S = 1e9
 TIMING_KEYS = ("input_s", "sim_s", "output_s", "pair_tests", "candidates", "pair_collisions",
                "wall_collisions", *PHASE_COLUMNS)
+
+
+def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
+    """Nanoseconds per particle-step spent outside the broad phase: sim_s - broad_s, plus the
+    input and output where they are given. Issue 15's target counts them (bench/bench.py,
+    the timed runs' plain output); the report leaves them out (its --timing run writes the
+    output with --precise, some 20x slower). Floats or pandas Series alike; the caller guards
+    particle_steps > 0."""
+    return (sim_s - broad_s + input_s + output_s) / particle_steps * NS_PER_S
+
 # Issue 16: the OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its
 # --timing run (one entry per candidate writer: the threads, T*T for p3), space-separated;
 # `imbalance` is max over mean busy seconds (1 = perfectly even). Last in results.csv, and

@@ -62,8 +62,9 @@ BASELINE_SEQ = "seq"
 BASELINE_ONE_THREAD = "1 thread"
 
 # Where a --timing run's time goes (issue 15), in drawing order: results.csv's phase columns
-# and what sim_s holds beyond them (loop overhead), which make up sim_s; then the output, which
-# that run writes with --precise (every digit), far slower than the timed runs' output.
+# and what sim_s holds beyond them (parallel regions' start-ups and closing barriers, the
+# step's bookkeeping), which make up sim_s; then the output, which that run writes with
+# --precise (every digit), far slower than the timed runs' output.
 # harness/phases.py.
 OTHER_PHASE = "other_s"
 OUTPUT_PHASE = "output_s"

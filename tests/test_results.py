@@ -194,3 +194,10 @@ def test_thread_columns_are_in_results_csv() -> None:
     assert row["threads_busy_s"] == "0.5 0.3" and row["threads_chunks"] == "1 1"
     assert results.split_floats(row["threads_pairs"]) == [3.0, 1.0]
     assert results.split_floats("") == [] and results.split_floats("a b") == []
+
+
+def test_outside_broad_ns_counts_input_and_output_only_when_given() -> None:
+    # 0.2 s of simulation of which 0.1 s broad phase, over a million particle-steps: 100 ns;
+    # issue 15's figure adds input and output.
+    assert results.outside_broad_ns(0.2, 0.1, 1_000_000) == pytest.approx(100.0)
+    assert results.outside_broad_ns(0.2, 0.1, 1_000_000, 0.01, 0.02) == pytest.approx(130.0)

@@ -17,11 +17,12 @@ INTRO = (
     "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
     "pair finder with its pair tests: all pairs, or the grid's cells), **wall candidates**, "
     "merging and **sorting** the candidates, the greedy **resolution** walk, **motion** of the "
-    "discs, and **other**, what `sim_s` holds beyond them (loop overhead). The parallel "
-    "variants differ only in the broad phase; the rest is the shared core's. That run also "
-    "writes the **output**, with `--precise` (every digit, for the validation), some 20 "
-    "times slower than the timed runs' output: it is drawn hatched after the simulation and "
-    "is left out of the shares. Reading the input and starting the process are not counted."
+    "discs, and **other**, what `sim_s` holds beyond them (the parallel regions' start-ups "
+    "and closing barriers, the step's bookkeeping). The parallel variants differ only in "
+    "the broad phase; the rest is the shared core's. That run also writes the **output**, "
+    "with `--precise` (every digit, for the validation), some 20 times slower than the "
+    "timed runs' output: it is drawn hatched after the simulation and is left out of the "
+    "shares. Reading the input and starting the process are not counted."
 )
 
 

@@ -560,6 +560,11 @@ slow_scene 500 100 1 15 print 33 0.25 2 >"$TMP/inv8.in"
 check_invariants "half slow half fast" "$TMP/inv8.in" --seed 26
 lattice_scene 20 2 25 print 34 >"$TMP/inv9.in"
 check_invariants "touching lattice" "$TMP/inv9.in"
+# Over 255 steps: the core keeps the collision counts in bytes and flushes them every
+# SIM_COUNT_FLUSH (255) steps; dense, so that some discs have over 255 collisions (291
+# pair collisions for the busiest with seed 27).
+printf '30 20 1 600\nprint\n' >"$TMP/inv10.in"
+check_invariants "600 steps, counts past a byte" "$TMP/inv10.in" --seed 27
 
 # ---------------------------------------------------------------------------------------------
 part "variants = seq"
