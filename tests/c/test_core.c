@@ -827,7 +827,7 @@ static void test_sort_candidates_matches_the_spec_key(void)
                 got[k] = want[k] = (sim_cand){rnd() < 0.3 ? (sim_real)rnd() : 0, (int32_t)k,
                                               SIM_WALL};
         qsort(want, n, sizeof *want, spec_key_cmp);
-        sim_sort_candidates(got, tmp, n);
+        CHECK_INT(sim_sort_candidates(got, tmp, n), 0);
         size_t same = 0;
         for (size_t k = 0; k < n; k++)
             same += got[k].t == want[k].t && got[k].i == want[k].i && got[k].j == want[k].j;
@@ -1136,6 +1136,42 @@ static void test_step_carries_wall_candidates(void)
     CHECK(sa.wall_collisions > 20);
     sim_world_free(&a);
     sim_world_free(&b);
+}
+
+/* The wall times of the stepper's vectorised wall pass are sim_wall_time's, bit for bit, on one
+ * thread and on a team (each thread its own blocks), for the cases the scalar form singles out:
+ * velocities of +0 and -0 on either axis, at rest, centres on a wall moving in or out, corners;
+ * among particles that move anywhere and collide. */
+static void test_step_wall_times_are_scalar(void)
+{
+    enum { N = 5000 };
+    static const double special[][4] = {
+        {50, 50, 0, 0},        {50, 50, -0.0, 0}, {50, 50, 0, -0.0},  {1, 50, -1, 0},
+        {1, 50, 1, 0},         {299, 50, 0.5, 0}, {299, 50, -0.5, 0}, {150, 1, 0, -2},
+        {150, 299, -0.0, 3},   {298.5, 298.5, 1, 1}, {1, 1, -1, -1},  {2, 298, -4, 2},
+    };
+    enum { SPECIAL = sizeof special / sizeof special[0] };
+    for (int threads = 1; threads <= 3; threads += 2) {
+        sim_world w;
+        dense_world(&w, N, 300);
+        for (int32_t k = 0; k < SPECIAL; k++) /* spread over the blocks of the pass */
+            put(&w, k * (N / SPECIAL), special[k][0], special[k][1], special[k][2],
+                special[k][3]);
+        sim_stats st = {0};
+        sim_stepper *s = sim_stepper_create(&w, &parallel_variant, threads);
+        CHECK(s != NULL);
+        for (int step = 0; s && step < 2; step++) {
+            CHECK_INT(sim_step(s, &w, &st), 0);
+            int32_t differ = 0;
+            for (int32_t i = 0; i < N; i++) {
+                const sim_real got = sim_stepper_wall_time(s, i), want = sim_wall_time(&w, i);
+                differ += memcmp(&got, &want, sizeof got) != 0;
+            }
+            CHECK_INT(differ, 0);
+        }
+        sim_stepper_destroy(s);
+        sim_world_free(&w);
+    }
 }
 
 /* --timing's phase split (issue 15): every phase is timed (>= 0, and the finder, sorting,
@@ -1491,6 +1527,7 @@ static const test_case tests[] = {
     TEST(test_step_stats),
     TEST(test_step_order_independent),
     TEST(test_step_carries_wall_candidates),
+    TEST(test_step_wall_times_are_scalar),
     TEST(test_step_phase_times),
     TEST(test_event_moves_match_scalar_spec),
     TEST(test_team_spread_restores_the_mask),

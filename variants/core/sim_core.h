@@ -102,8 +102,9 @@ void sim_stepper_destroy(sim_stepper *s);
  * the world only through sim_step (or make a new stepper). The world's pcoll and wcoll are
  * complete once the stepper is destroyed (it keeps the latest steps' counts until then). */
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
-/* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. */
-void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
+/* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. Returns
+ * 0, or -1 when memory ran out (a in its order then). */
+int sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);
 
 /* The moves of accepted collisions (sim_motion.c), events[k0, k0 + sim_event_block()) of
  * `count` accepted wall candidates (sim_move_walls) or pair candidates (sim_move_pairs), from
@@ -121,8 +122,12 @@ void sim_move_walls(const sim_world *w, const sim_cand *events, size_t count, si
 void sim_move_pairs(const sim_world *w, const sim_cand *events, size_t count, size_t k0,
                     sim_real *out, sim_real *nx, sim_real *ny);
 
-/* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. */
+/* SPEC §2 wall time of one particle: min over the axes; SIM_REAL_INF when it never hits. The
+ * scalar reference: the stepper finds every particle's in a vectorised pass of its own, which
+ * the tests hold to this one (sim_stepper_wall_time). */
 sim_real sim_wall_time(const sim_world *w, int32_t i);
+/* Particle i's wall time as the stepper holds it for the world's state after a sim_step. */
+sim_real sim_stepper_wall_time(const sim_stepper *s, int32_t i);
 
 /* Output (SPEC §3). Return 0, or -1 on a write error. */
 int sim_write_state(FILE *out, const sim_world *w, int64_t step, bool precise);

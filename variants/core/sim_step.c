@@ -32,7 +32,7 @@
 #include "sim_core.h"
 
 /* Below this many particles the per-particle loops (wall times, motion) are not worth a
- * parallel region. */
+ * parallel region (see team_pays). */
 #define SIM_PARALLEL_MIN 4096
 
 /* Bytes per cache line, for prefetching a whole array. */
@@ -53,21 +53,22 @@ struct sim_stepper {
     sim_pair_sink sink;
     sim_cand_buf *walls; /* the wall candidates of the world's state, one buffer per thread */
     bool walls_ready;    /* walls were found by the last step's wall pass (see sim_step) */
-    sim_cand *merged; /* this step's pair candidates, sorted */
+    sim_cand *merged; /* this step's pair candidates that a wall does not come first for, sorted */
     size_t merged_cap;
-    unsigned char *walled; /* per merged pair: a wall of one of its particles comes first */
-    size_t walled_cap;
-    /* The candidate buffers as the sort reads them: the finder's, then the walls'. */
-    const sim_cand **sources;
+    uint32_t *hist; /* the sort's histogram (sort_candidates) */
+    size_t hist_cap;
+    /* The finder's candidate buffers as the sort reads them. */
+    sim_cand **sources;
     size_t *source_len;
     /* The candidates the greedy walk accepted, walls and pairs apart, in walk order. */
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
-    sim_real *pair_out; /* the accepted pairs' new states, SIM_PAIR_OUT reals each */
+    /* The accepted pairs' new states, SIM_PAIR_OUT reals each, where a team moves them (see
+     * sim_step). */
+    sim_real *pair_out;
     size_t pair_out_cap; /* in pairs */
     unsigned char *taken; /* n + 1 flags, all 0 between walks (see resolve) */
     sim_real *wall_t;     /* each particle's wall time in the world's state (see resolve) */
-    uint64_t wall_t_seen; /* a by-product of reading wall_t in whole (resolve) */
     /* Collisions of each kind per particle not yet added to the world's pcoll / wcoll (see
      * move_free), added every SIM_COUNT_FLUSH steps and by sim_stepper_destroy. */
     unsigned char *pair_count, *wall_count;
@@ -106,6 +107,11 @@ static inline sim_real wall_time(sim_real x, sim_real y, sim_real vx, sim_real v
 sim_real sim_wall_time(const sim_world *w, int32_t i)
 {
     return wall_time(w->x[i], w->y[i], w->vx[i], w->vy[i], w->lo, w->hi);
+}
+
+sim_real sim_stepper_wall_time(const sim_stepper *s, int32_t i)
+{
+    return s->wall_t[i];
 }
 
 static bool buf_reserve(sim_cand **items, size_t *cap, size_t need)
@@ -150,8 +156,8 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     s->nx = malloc(n * sizeof(sim_real) + 1);
     s->ny = malloc(n * sizeof(sim_real) + 1);
     s->writer_pairs = calloc((size_t)count, sizeof *s->writer_pairs);
-    s->sources = malloc((size_t)(count + s->threads) * sizeof *s->sources);
-    s->source_len = malloc((size_t)(count + s->threads) * sizeof *s->source_len);
+    s->sources = malloc((size_t)count * sizeof *s->sources);
+    s->source_len = malloc((size_t)count * sizeof *s->source_len);
     if (!s->sink.bufs || !s->walls || !s->taken || !s->wall_t || !s->pair_count ||
         !s->wall_count || !s->nx || !s->ny ||
         !s->writer_pairs || !s->sources || !s->source_len) {
@@ -170,6 +176,13 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
         }
     }
     return s;
+}
+
+/* Whether the per-particle loops of a world of n particles run on the stepper's team: a
+ * region's start-up and barrier cost more than half of 4096 particles' wall times or motion. */
+static bool team_pays(const sim_stepper *s, int32_t n)
+{
+    return s->parallel && n >= SIM_PARALLEL_MIN;
 }
 
 /* Add the counts of the steps since the last flush to the world's pcoll and wcoll. */
@@ -201,7 +214,7 @@ void sim_stepper_destroy(sim_stepper *s)
             free(s->walls[k].items);
     free(s->walls);
     free(s->merged);
-    free(s->walled);
+    free(s->hist);
     free(s->sources);
     free(s->source_len);
     free(s->wall_moves);
@@ -229,35 +242,44 @@ sim_thread_work sim_stepper_work(const sim_stepper *s, int k)
                              .chunks = s->sink.bufs[k].chunks};
 }
 
-/* The SPEC §2 key: t ascending; pair before wall; smaller i; smaller j. Total, so qsort's
- * instability cannot show. */
+/* cand_cmp(a, b) < 0: the SPEC §2 key, t ascending; pair before wall; smaller i; smaller j.
+ * Total, so no sort's instability can show. The one definition of the key; cand_cmp is its
+ * qsort form. */
+static inline bool cand_before(const sim_cand *a, const sim_cand *b)
+{
+    if (a->t != b->t)
+        return a->t < b->t;
+    const int a_wall = a->j == SIM_WALL, b_wall = b->j == SIM_WALL;
+    if (a_wall != b_wall)
+        return a_wall < b_wall;
+    if (a->i != b->i)
+        return a->i < b->i;
+    return a->j < b->j;
+}
+
 static int cand_cmp(const void *pa, const void *pb)
 {
     const sim_cand *a = pa, *b = pb;
-    if (a->t < b->t)
-        return -1;
-    if (a->t > b->t)
-        return 1;
-    const int a_wall = a->j == SIM_WALL, b_wall = b->j == SIM_WALL;
-    if (a_wall != b_wall)
-        return a_wall - b_wall;
-    if (a->i != b->i)
-        return a->i < b->i ? -1 : 1;
-    if (a->j != b->j)
-        return a->j < b->j ? -1 : 1;
-    return 0;
+    return cand_before(a, b) ? -1 : cand_before(b, a);
 }
 
 /* The sort's buckets: sorting by bucket is one counting pass over the candidates (histogram,
- * prefix sums, scatter), and a step's candidates spread over about as many buckets as there
- * are candidates, so a bucket holds one or two: cand_cmp orders those in place. Between
- * SIM_SORT_MIN_BITS and SIM_SORT_MAX_BITS bits (the histogram, 4 bytes a bucket, lives on
- * the stack). */
+ * prefix sums, scatter), and a step's candidates spread over about half as many buckets as
+ * there are candidates, so a bucket holds one to three: cand_cmp orders those in place.
+ * Between SIM_SORT_MIN_BITS and SIM_SORT_MAX_BITS bits; the histogram, 4 bytes a bucket, is
+ * an eighth of the candidates' own size. The fixed 2^13 buckets this replaced left a million
+ * particles' 1.8 million pair candidates a step about 220 to a bucket, each sorted by qsort:
+ * sort_s 1.66 s of the million's 10 steps (`1000000 200000 1 10`, 2 threads), 0.44 s now,
+ * with the drop below. */
 #define SIM_SORT_MIN_BITS 8
-#define SIM_SORT_MAX_BITS 13
+#define SIM_SORT_MAX_BITS 26
 /* Buckets longer than this are checked for order, and sorted by qsort if need be, before the
  * insertion pass. */
 #define SIM_INSERTION_MAX 16
+/* Candidates ahead whose particles' wall times are prefetched while the sort drops the pairs
+ * a wall comes first for (sort_candidates): wall_t is 8 MB at a million particles, read at
+ * random. */
+#define SIM_WALL_T_AHEAD 32
 
 /* The bucket of t among 2^bits + 1: 0 for t <= 0 (exactly 0 is common: the walls of the
  * particles a wall stopped the step before), then 2^bits equally wide buckets over (0, 1].
@@ -278,19 +300,6 @@ static inline uint32_t cand_bucket(sim_real t, int shift, int64_t top)
     return (uint32_t)(k < top ? k : top);
 }
 
-/* cand_cmp(a, b) < 0, inline for the insertion pass. */
-static inline bool cand_before(const sim_cand *a, const sim_cand *b)
-{
-    if (a->t != b->t)
-        return a->t < b->t;
-    const int a_wall = a->j == SIM_WALL, b_wall = b->j == SIM_WALL;
-    if (a_wall != b_wall)
-        return a_wall < b_wall;
-    if (a->i != b->i)
-        return a->i < b->i;
-    return a->j < b->j;
-}
-
 /* Order a[lo, hi), a long bucket, by cand_cmp. Already in order is the common case: bucket 0
  * holds the walls at t = 0 (particles a wall stopped the step before), which the scatter keeps
  * in the order merge_candidates reads them (pairs first, then walls in increasing i). */
@@ -303,13 +312,36 @@ static void finish_long_bucket(sim_cand *a, size_t lo, size_t hi)
         qsort(a + lo, hi - lo, sizeof *a, cand_cmp);
 }
 
-/* Sort the n candidates of src[0..sources) (src[s] holding len[s]) into dst by cand_cmp: a
- * counting sort into about n/2 buckets of t (stable, O(n): a step's few thousand candidates
- * took 0.6 ms in qsort's merge sort, and 43 us in the two passes of the 11-bit radix sort this
- * replaced), straight from the writers' buffers, then cand_cmp within the buckets, which are
- * short but for the walls at t = 0. */
-static void sort_candidates(const sim_cand *const *src, const size_t *len, int sources,
-                            sim_cand *dst, size_t n)
+/* The sort's bits for n candidates: 2^bits buckets over (0, 1], at least n/2. */
+static int sort_bits(size_t n)
+{
+    int bits = SIM_SORT_MIN_BITS;
+    while (bits < SIM_SORT_MAX_BITS && ((size_t)2 << bits) < n)
+        bits++;
+    return bits;
+}
+
+/* The entries of sort_candidates' histogram for n candidates. */
+static size_t sort_hist_len(size_t n)
+{
+    return ((size_t)1 << sort_bits(n)) + 2;
+}
+
+/* Sort the candidates of src[0..sources) (src[s] holding len[s], n in all) into dst by
+ * cand_cmp, and return how many there are in dst: a counting sort into about n/2 buckets of t
+ * (stable, O(n): a step's few thousand candidates took 0.6 ms in qsort's merge sort, and 43 us
+ * in the two passes of the 11-bit radix sort this replaced), straight from the writers'
+ * buffers, then cand_cmp within the buckets, which are short but for the walls at t = 0.
+ * Where wall_t is not NULL the sources are pairs, and the pass that counts them first drops
+ * every pair that a wall of one of its particles comes before (wall_t[i] or wall_t[j] < t:
+ * at equal times the pair comes first), compacting each source in place and shortening
+ * len[s]: the greedy walk would refuse it (resolve says why) and it changes nothing else, and
+ * the sort, the walk and the motion then see only the pairs that can be accepted (about a
+ * sixth of the million particles' pairs after the first step, a twentieth of the report
+ * benchmark's). hist holds sort_hist_len(n) entries. */
+static size_t sort_candidates(sim_cand *const *src, size_t *len, int sources,
+                              const sim_real *restrict wall_t, uint32_t *restrict hist,
+                              sim_cand *restrict dst, size_t n)
 {
     /* The scatter's stores land anywhere in dst, cold since the last step: fetched first in
      * one stream (for writing), while the histogram is counted. */
@@ -317,33 +349,55 @@ static void sort_candidates(const sim_cand *const *src, const size_t *len, int s
     for (size_t k = 0; k < n; k += SIM_CACHE_LINE / sizeof *dst)
         __builtin_prefetch(&dst[k], 1);
 #endif
-    int bits = SIM_SORT_MIN_BITS;
-    while (bits < SIM_SORT_MAX_BITS && ((size_t)2 << bits) < n)
-        bits++;
+    const int bits = sort_bits(n);
     const uint32_t buckets = (UINT32_C(1) << bits) + 1;
     const int shift = 52 - bits;
     const int64_t top = (int64_t)buckets - 1;
-    uint32_t start[(1u << SIM_SORT_MAX_BITS) + 2];
-    memset(start, 0, (buckets + 1) * sizeof *start);
-    for (int s = 0; s < sources; s++)
-        for (size_t k = 0; k < len[s]; k++)
-            start[cand_bucket(src[s][k].t, shift, top) + 1]++;
+    /* hist[b + 1] counts bucket b; the prefix sums make hist[b] where bucket b begins, and
+     * the scatter advances it to where bucket b ends. */
+    memset(hist, 0, (buckets + 1) * sizeof *hist);
+    size_t kept = 0;
+    for (int s = 0; s < sources; s++) {
+        sim_cand *restrict c = src[s];
+        const size_t m = len[s];
+        if (!wall_t) {
+            for (size_t k = 0; k < m; k++)
+                hist[cand_bucket(c[k].t, shift, top) + 1]++;
+            kept += m;
+            continue;
+        }
+        size_t out = 0;
+        for (size_t k = 0; k < m; k++) {
+#if defined(__GNUC__)
+            if (k + SIM_WALL_T_AHEAD < m) {
+                __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].i]);
+                __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].j]);
+            }
+#endif
+            const sim_cand e = c[k];
+            const unsigned keep = !((wall_t[e.i] < e.t) | (wall_t[e.j] < e.t));
+            c[out] = e;
+            out += keep;
+            hist[cand_bucket(e.t, shift, top) + 1] += keep;
+        }
+        len[s] = out;
+        kept += out;
+    }
     for (uint32_t b = 0; b < buckets; b++)
-        start[b + 1] += start[b];
-    /* start[b] is where bucket b begins; `at` runs through it as the bucket fills. */
-    uint32_t at[(1u << SIM_SORT_MAX_BITS) + 1];
-    memcpy(at, start, buckets * sizeof *at);
+        hist[b + 1] += hist[b];
     for (int s = 0; s < sources; s++)
         for (size_t k = 0; k < len[s]; k++)
-            dst[at[cand_bucket(src[s][k].t, shift, top)]++] = src[s][k];
+            dst[hist[cand_bucket(src[s][k].t, shift, top)]++] = src[s][k];
     /* Long buckets first (rare: see finish_long_bucket), then one insertion pass over the
-     * whole list: buckets hold one or two candidates, and an insertion never crosses into an
+     * whole list: buckets hold a few candidates, and an insertion never crosses into an
      * earlier bucket (its times are all smaller), so the pass costs one comparison a
      * candidate and a move per pair out of order. */
-    for (uint32_t b = 0; b < buckets; b++)
-        if (start[b + 1] - start[b] > SIM_INSERTION_MAX)
-            finish_long_bucket(dst, start[b], start[b + 1]);
-    for (size_t k = 1; k < n; k++) {
+    for (uint32_t b = 0; b < buckets; b++) {
+        const uint32_t lo = b ? hist[b - 1] : 0;
+        if (hist[b] - lo > SIM_INSERTION_MAX)
+            finish_long_bucket(dst, lo, hist[b]);
+    }
+    for (size_t k = 1; k < kept; k++) {
         if (!cand_before(&dst[k], &dst[k - 1]))
             continue;
         const sim_cand c = dst[k];
@@ -354,15 +408,20 @@ static void sort_candidates(const sim_cand *const *src, const size_t *len, int s
         } while (m > 0 && cand_before(&c, &dst[m - 1]));
         dst[m] = c;
     }
+    return kept;
 }
 
-void sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
+int sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
 {
     if (n < 2)
-        return;
+        return 0;
+    uint32_t *hist = malloc(sort_hist_len(n) * sizeof *hist);
+    if (!hist)
+        return -1;
     memcpy(tmp, a, n * sizeof *a);
-    const sim_cand *src = tmp;
-    sort_candidates(&src, &n, 1, a, n);
+    sort_candidates(&tmp, &n, 1, NULL, hist, a, n);
+    free(hist);
+    return 0;
 }
 
 static void clear_walls(sim_stepper *s)
@@ -440,7 +499,7 @@ static void find_walls(sim_stepper *s, const sim_world *w)
 {
     clear_walls(s);
     const int32_t blocks = (w->n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
-#pragma omp parallel num_threads(s->threads) if (s->parallel && w->n >= SIM_PARALLEL_MIN)
+#pragma omp parallel num_threads(s->threads) if (team_pays(s, w->n))
     {
         const int me = omp_get_thread_num();
         int32_t b0, b1, i0, i1;
@@ -451,8 +510,9 @@ static void find_walls(sim_stepper *s, const sim_world *w)
     }
 }
 
-/* Sort the finder's pair candidates into one list (the walls need no sorting: see resolve).
- * Returns the number of pairs, or (size_t)-1 when memory ran out. */
+/* Sort the finder's pair candidates into one list, less those a wall comes first for (the
+ * walls need no sorting: see resolve). Returns the number of pairs in it, or (size_t)-1 when
+ * memory ran out. */
 static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
 {
     size_t pairs = 0, walls = 0;
@@ -471,29 +531,24 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
         walls += s->walls[k].len;
         failed |= s->walls[k].failed;
     }
-    if (pairs > s->walled_cap) {
-        unsigned char *p = realloc(s->walled, pairs);
+    const size_t hist_len = sort_hist_len(pairs);
+    if (hist_len > s->hist_cap) {
+        uint32_t *p = realloc(s->hist, hist_len * sizeof *p);
         if (!p)
             return (size_t)-1;
-        s->walled = p;
-        s->walled_cap = pairs;
-    }
-    if (pairs > s->pair_out_cap) {
-        sim_real *p = realloc(s->pair_out, pairs * SIM_PAIR_OUT * sizeof *p);
-        if (!p)
-            return (size_t)-1;
-        s->pair_out = p;
-        s->pair_out_cap = pairs;
+        s->hist = p;
+        s->hist_cap = hist_len;
     }
     if (failed || !buf_reserve(&s->merged, &s->merged_cap, pairs) ||
         !buf_reserve(&s->wall_moves, &s->wall_moves_cap, walls) ||
         !buf_reserve(&s->pair_moves, &s->pair_moves_cap, pairs))
         return (size_t)-1;
-    sort_candidates(s->sources, s->source_len, s->sink.count, s->merged, pairs);
+    const size_t kept = sort_candidates(s->sources, s->source_len, s->sink.count, s->wall_t,
+                                        s->hist, s->merged, pairs);
     for (int k = 0; k < s->sink.count; k++)
         s->sink.bufs[k].len = 0;
     stats->candidates += pairs + walls;
-    return pairs;
+    return kept;
 }
 
 /* taken[i] after the greedy walk: the kind of particle i's accepted collision, if any. */
@@ -505,7 +560,9 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
  *  1. the pairs, in key order: particle a is taken when an accepted pair took it, or when its
  *     wall candidate comes first (wall_t[a] < t: at equal times the pair comes first). That
  *     wall was accepted then, unless a pair took a before it, and then a is taken anyway; a
- *     wall time above 1 (no candidate) never comes first;
+ *     wall time above 1 (no candidate) never comes first. Such a pair is refused and changes
+ *     nothing, so the sort dropped it already (sort_candidates): here a pair is accepted when
+ *     no accepted pair took either particle;
  *  2. the walls, in particle order: a wall is accepted when no accepted pair took its particle
  *     (a pair after the wall that takes its particle would have been refused in 1).
  * Branch-free (what is accepted, and which particles are free, is random: branches on it
@@ -515,32 +572,12 @@ static size_t merge_candidates(sim_stepper *s, sim_stats *stats)
 static void resolve(sim_stepper *s, size_t count, sim_stats *stats)
 {
     unsigned char *restrict taken = s->taken;
-    const sim_real *restrict wall_t = s->wall_t;
     const sim_cand *restrict cand = s->merged;
     sim_cand *restrict pairs = s->pair_moves, *restrict walls = s->wall_moves;
-    unsigned char *restrict walled = s->walled;
     size_t np = 0, nw = 0;
-    /* Which pairs a wall comes first for, in a pass of its own: its loads of wall_t are
-     * independent, where in the walk each waited behind the flags the candidate before had
-     * stored. wall_t was written before the broad phase, which pushed it out of the caches:
-     * it is read in whole first, a stream the hardware prefetches, not a miss per pair. */
-    if (count > 0) {
-        /* An integer reduction, which vectorises (a floating-point minimum would not), kept
-         * in the stepper so that the stream is not optimised away. */
-        const unsigned char *bytes = (const unsigned char *)wall_t;
-        uint64_t seen = 0;
-        for (size_t b = 0; b < (size_t)s->n * sizeof *wall_t; b += 8) {
-            uint64_t word;
-            memcpy(&word, bytes + b, sizeof word);
-            seen |= word;
-        }
-        s->wall_t_seen = seen;
-    }
-    for (size_t k = 0; k < count; k++)
-        walled[k] = (wall_t[cand[k].i] < cand[k].t) | (wall_t[cand[k].j] < cand[k].t);
     for (size_t k = 0; k < count; k++) {
         const sim_cand c = cand[k];
-        const unsigned ok = !(taken[c.i] | taken[c.j] | walled[k]);
+        const unsigned ok = !(taken[c.i] | taken[c.j]);
         taken[c.i] |= (unsigned char)(ok * SIM_TAKEN_PAIR);
         taken[c.j] |= (unsigned char)(ok * SIM_TAKEN_PAIR);
         pairs[np] = c;
@@ -640,7 +677,7 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
     const int32_t blocks = (n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
     const int32_t pair_blocks = (int32_t)((np + eb - 1) / eb);
     const sim_cand *wall_moves = s->wall_moves, *pair_moves = s->pair_moves;
-    if (!(s->parallel && n >= SIM_PARALLEL_MIN)) {
+    if (!team_pays(s, n)) {
         /* One thread: the same moves in the same order with no barrier to spare, the pairs
          * written straight into the next state (the copy through pair_out cost 1 ms of the
          * report benchmark). */
@@ -659,53 +696,61 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
         find_walls_range(&s->walls[0], s->wall_t, s->nx, s->ny, w->vx, w->vy, lo, hi, 0, n);
         motion_s = m1 - m0;
         walls_s = omp_get_wtime() - m1;
-    } else
+    } else {
+        if (np > s->pair_out_cap) {
+            sim_real *p = realloc(s->pair_out, np * SIM_PAIR_OUT * sizeof *p);
+            if (!p)
+                return -1;
+            s->pair_out = p;
+            s->pair_out_cap = np;
+        }
 #pragma omp parallel num_threads(s->threads)
-    {
-        const int me = omp_get_thread_num();
-        const double m0 = me == 0 ? omp_get_wtime() : 0;
-        int32_t b0, b1, i0, i1;
-        share(blocks, me, omp_get_num_threads(), &b0, &b1);
-        block_span(n, b0, b1, &i0, &i1);
-        for (int32_t b = b0; b < b1; b++) {
-            int32_t j0, j1;
-            block_span(n, b, b + 1, &j0, &j1);
-            move_free(s->nx + j0, s->ny + j0, w->x + j0, w->y + j0, w->vx + j0, w->vy + j0,
-                      s->pair_count + j0, s->wall_count + j0, s->taken + j0, j1 - j0, lo, hi);
-        }
-#pragma omp for schedule(static)
-        for (int32_t b = 0; b < pair_blocks; b++)
-            sim_move_pairs(w, pair_moves, np, (size_t)b * eb, s->pair_out, NULL, NULL);
-        /* My walls: the run of the particle-ordered list with i in [i0, i1). */
-        size_t k0 = 0, k1 = nw;
-        while (k0 < k1) { /* first k with i >= i0 */
-            const size_t mid = k0 + (k1 - k0) / 2;
-            if (wall_moves[mid].i < i0)
-                k0 = mid + 1;
-            else
-                k1 = mid;
-        }
-        for (k1 = k0; k1 < nw && wall_moves[k1].i < i1;)
-            k1++;
-        for (size_t k = k0; k < k1; k += eb)
-            sim_move_walls(w, wall_moves, k1, k, s->nx, s->ny);
-        for (size_t k = 0; k < np; k++)
-            for (int side = 0; side < 2; side++) {
-                const int32_t i = side ? pair_moves[k].j : pair_moves[k].i;
-                if (i < i0 || i >= i1)
-                    continue;
-                const sim_real *o = s->pair_out + SIM_PAIR_OUT * k + 4 * side;
-                s->nx[i] = o[0];
-                s->ny[i] = o[1];
-                w->vx[i] = o[2];
-                w->vy[i] = o[3];
+        {
+            const int me = omp_get_thread_num();
+            const double m0 = me == 0 ? omp_get_wtime() : 0;
+            int32_t b0, b1, i0, i1;
+            share(blocks, me, omp_get_num_threads(), &b0, &b1);
+            block_span(n, b0, b1, &i0, &i1);
+            for (int32_t b = b0; b < b1; b++) {
+                int32_t j0, j1;
+                block_span(n, b, b + 1, &j0, &j1);
+                move_free(s->nx + j0, s->ny + j0, w->x + j0, w->y + j0, w->vx + j0, w->vy + j0,
+                          s->pair_count + j0, s->wall_count + j0, s->taken + j0, j1 - j0, lo, hi);
             }
-        const double m1 = me == 0 ? omp_get_wtime() : 0;
-        find_walls_range(&s->walls[me], s->wall_t, s->nx, s->ny, w->vx, w->vy, lo, hi, i0,
-                         i1);
-        if (me == 0) {
-            motion_s = m1 - m0;
-            walls_s = omp_get_wtime() - m1;
+#pragma omp for schedule(static)
+            for (int32_t b = 0; b < pair_blocks; b++)
+                sim_move_pairs(w, pair_moves, np, (size_t)b * eb, s->pair_out, NULL, NULL);
+            /* My walls: the run of the particle-ordered list with i in [i0, i1). */
+            size_t k0 = 0, k1 = nw;
+            while (k0 < k1) { /* first k with i >= i0 */
+                const size_t mid = k0 + (k1 - k0) / 2;
+                if (wall_moves[mid].i < i0)
+                    k0 = mid + 1;
+                else
+                    k1 = mid;
+            }
+            for (k1 = k0; k1 < nw && wall_moves[k1].i < i1;)
+                k1++;
+            for (size_t k = k0; k < k1; k += eb)
+                sim_move_walls(w, wall_moves, k1, k, s->nx, s->ny);
+            for (size_t k = 0; k < np; k++)
+                for (int side = 0; side < 2; side++) {
+                    const int32_t i = side ? pair_moves[k].j : pair_moves[k].i;
+                    if (i < i0 || i >= i1)
+                        continue;
+                    const sim_real *o = s->pair_out + SIM_PAIR_OUT * k + 4 * side;
+                    s->nx[i] = o[0];
+                    s->ny[i] = o[1];
+                    w->vx[i] = o[2];
+                    w->vy[i] = o[3];
+                }
+            const double m1 = me == 0 ? omp_get_wtime() : 0;
+            find_walls_range(&s->walls[me], s->wall_t, s->nx, s->ny, w->vx, w->vy, lo, hi, i0,
+                             i1);
+            if (me == 0) {
+                motion_s = m1 - m0;
+                walls_s = omp_get_wtime() - m1;
+            }
         }
     }
     stats->motion_s += motion_s;

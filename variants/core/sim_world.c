@@ -13,7 +13,10 @@ size_t sim_bytes_per_particle(void)
 {
     /* world: x y vx vy + pcoll wcoll; stepper: next x y, wall_t, the walk's flag and two byte
      * counts; input bitmap; candidates, three times: the writers' lists, the sorted pairs and
-     * the accepted moves. */
+     * the accepted moves. An estimate, for refusing an N up front: not counted are the sort's
+     * histogram (half a word per candidate), the accepted pairs' new states on a team (64
+     * bytes an accepted pair) and the variant's scratch (grid's float copies and bins);
+     * a million particles peaked at 363 MiB (bench.py million), 380 bytes a particle. */
     return 7 * sizeof(sim_real) + 2 * sizeof(int64_t) + 3 + 1 +
            3 * SIM_CANDS_PER_PARTICLE_ESTIMATE * sizeof(sim_cand);
 }

@@ -12,17 +12,16 @@
 
 /* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum (docs/grid_design.md). The cell
  * size is then L / (factor sqrt(N)) whatever the speeds, about 1 / factor^2 discs a cell, and the
- * best factor is about sqrt(pair-check cost / binning cost): up to GRID_SMALL_N, where a slice
- * stays in cache and the 8-lane prefilter made pair checks cheaper, 0.15 (report benchmark, one
- * thread, medians of 21 interleaved runs: finder 0.164 s against 0.190 s at 0.2 and 0.192 s at
- * 0.17; 0.12 and 0.25 slower than 0.2 in 15 runs); above it, where binning misses the cache, 0.2
- * stays (measured before the 8-lane prefilter: N = 10^6 took 40 s against 46 s at 0.3).
- * -DGRID_K_FACTOR=... overrides both for tuning sweeps. */
-#ifdef GRID_K_FACTOR
-#define GRID_K_FACTOR_CACHED GRID_K_FACTOR
-#else
-#define GRID_K_FACTOR 0.2
-#define GRID_K_FACTOR_CACHED 0.15
+ * best factor is about sqrt(pair-check cost / binning cost). On the report benchmark (one
+ * thread, medians of 21 interleaved runs) the finder took 0.164 s at 0.15 against 0.190 s at 0.2
+ * and 0.192 s at 0.17, 0.12 and 0.25 slower than 0.2; at N = 10^6 (`1000000 200000 1 10`, two
+ * threads, 2026-11-24, four runs each, alternating) sim_s 24.4, 22.0, 25.7, 24.7 s at 0.15
+ * against 27.4, 23.8, 27.5, 24.7 s at 0.2 (0.1 28.2 s, 0.12 26.0 s, 0.25 29.5 s, 0.3 28.2 s,
+ * one run each), where an earlier sweep on another machine had them level (grid_bound.md).
+ * One factor, then, where there were two (0.15 up to GRID_SMALL_N, 0.2 above).
+ * -DGRID_K_FACTOR=... overrides it for tuning sweeps. */
+#ifndef GRID_K_FACTOR
+#define GRID_K_FACTOR 0.15
 #endif
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
@@ -99,8 +98,7 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     }
 
     /* Slices: K ~ v_ref sqrt(N) / L, at least 1, at most v_ref / 2r. */
-    const double factor = n <= GRID_SMALL_N ? GRID_K_FACTOR_CACHED : GRID_K_FACTOR;
-    double kf = factor * vref * sqrt((double)n) / L;
+    double kf = GRID_K_FACTOR * vref * sqrt((double)n) / L;
     const double kcap = vref / (2 * r);
     if (kf > kcap)
         kf = kcap;

@@ -45,7 +45,7 @@ static void run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
     grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
                     .wide = NULL, .nwide = 0};
     int out = 0;
-    grid_queue queue = {.n = 0, .on = s->n > GRID_SMALL_N};
+    grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     for (int k = k0; k < k1; k++) {
         const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf,
                              .ord_next = k == g->K - 1 ? s->ord_next : NULL, .queue = &queue};
