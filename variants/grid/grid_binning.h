@@ -33,10 +33,12 @@ static void slice_cells(int32_t m, const float *restrict bx, const float *restri
 static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, int32_t rowlast,
                                int32_t spanx)
 {
-    /* From a row clipped into the band: a row far outside it (a wide grid cut into bands)
-     * could overflow (cy - row0) * spanx, and the key of such an item is not h anyway. */
-    const int32_t row = cy < row0 ? row0 : (cy > rowlast ? rowlast : cy);
-    const int32_t h = 2 * ((row - row0) * spanx + cx + 1) + (f & GRID_EXT_X);
+    /* In unsigned arithmetic, which wraps where int32 would overflow: for a row far outside
+     * the band (a wide grid cut into bands) (cy - row0) * spanx can, and then the key is not
+     * h anyway. The same instructions as in int32; clipping the row first cost 7% of the
+     * report benchmark's finder (one thread, medians of 9 interleaved runs). */
+    const int32_t h = (int32_t)(2u * ((uint32_t)(cy - row0) * (uint32_t)spanx + (uint32_t)cx + 1u) +
+                                (uint32_t)(f & GRID_EXT_X));
     return f & GRID_WIDE ? GRID_KEY_WIDE
            : cy < row0   ? GRID_KEY_BELOW
            : cy > rowlast ? GRID_KEY_ABOVE
