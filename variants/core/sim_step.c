@@ -178,8 +178,8 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
     return s;
 }
 
-/* Whether the per-particle loops of a world of n particles run on the stepper's team: a
- * region's start-up and barrier cost more than half of 4096 particles' wall times or motion. */
+/* Whether the per-particle loops of a world of n particles (wall times, motion) run on the
+ * stepper's team: the one home of the SIM_PARALLEL_MIN rule. */
 static bool team_pays(const sim_stepper *s, int32_t n)
 {
     return s->parallel && n >= SIM_PARALLEL_MIN;
@@ -300,9 +300,9 @@ static inline uint32_t cand_bucket(sim_real t, int shift, int64_t top)
     return (uint32_t)(k < top ? k : top);
 }
 
-/* Order a[lo, hi), a long bucket, by cand_cmp. Already in order is the common case: bucket 0
- * holds the walls at t = 0 (particles a wall stopped the step before), which the scatter keeps
- * in the order merge_candidates reads them (pairs first, then walls in increasing i). */
+/* Order a[lo, hi), a long bucket, by cand_cmp. Long buckets are many equal times (t = 0:
+ * touching discs, or in a list with walls those of particles a wall stopped the step before),
+ * which the stable scatter often leaves in order already: checked first, qsort only if not. */
 static void finish_long_bucket(sim_cand *a, size_t lo, size_t hi)
 {
     size_t k = lo + 1;
@@ -331,7 +331,7 @@ static size_t sort_hist_len(size_t n)
  * cand_cmp, and return how many there are in dst: a counting sort into about n/2 buckets of t
  * (stable, O(n): a step's few thousand candidates took 0.6 ms in qsort's merge sort, and 43 us
  * in the two passes of the 11-bit radix sort this replaced), straight from the writers'
- * buffers, then cand_cmp within the buckets, which are short but for the walls at t = 0.
+ * buffers, then cand_cmp within the buckets, which are short (finish_long_bucket takes the rest).
  * Where wall_t is not NULL the sources are pairs, and the pass that counts them first drops
  * every pair that a wall of one of its particles comes before (wall_t[i] or wall_t[j] < t:
  * at equal times the pair comes first), compacting each source in place and shortening
