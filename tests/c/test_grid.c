@@ -241,7 +241,7 @@ static void test_near_pairs_pass_the_float_binning(void)
                     }
                 const grid_vf px = {p[1][0] - p[0][0]}, py = {p[1][1] - p[0][1]};
                 const grid_vf wx = {b[1][2] - b[0][2]}, wy = {b[1][3] - b[0][3]};
-                if (!near_f32(px, py, wx, wy, g.freach2)[0])
+                if (!near_f32(px, py, wx, wy, g.freach2, g.fend)[0])
                     fail_at(__FILE__, __LINE__, "near pair (L=%g, K=%d, k=%d) fails the prefilter",
                             L, g.K, k);
                 for (int ax = 0; ax < 2; ax++)
@@ -254,6 +254,56 @@ static void test_near_pairs_pass_the_float_binning(void)
     CHECK(near_slices > 20000);
     sim_variant_def.scratch_destroy(scratch);
     sim_world_free(&w);
+}
+
+/* near_f32 on its own, lane by lane, against the segment distance in double: relative
+ * segments from p to p + w (|w| up to the slice's longest) built to pass within R (1 - 1e-4)
+ * of the origin at an end, inside, or standing still (w == 0) must pass; lines that pass
+ * further than 1.01 times the padded reach from the origin, and still pairs beyond it, must not. The
+ * far end q = p + w is tested without its own distance (near_f32's comment), so the "at q"
+ * cases are the ones a wrong end slack would lose. */
+static void test_prefilter_passes_near_and_rejects_far_segments(void)
+{
+    int passed_near = 0, rejected_far = 0;
+    for (int trial = 0; trial < 200000; trial++) {
+        const double R = pow(10, 3 * uniform() - 1), wmax = R * pow(10, 4 * uniform());
+        /* The reach with a float margin in the plan's style (plan_step): the floats here are
+         * up to 2 wmax + R in magnitude. */
+        const double Rf = R + GRID_F32_MARGIN * (double)FLT_EPSILON * 4 * (2 * wmax + R);
+        const float r2 = (float)(Rf * Rf * (1 + 8 * (double)FLT_EPSILON));
+        const float tend = (float)(Rf * wmax * (1 + 64 * (double)FLT_EPSILON));
+        const double phi = 2 * PI * uniform(), wl = trial % 7 ? wmax * uniform() : 0;
+        const double ux = cos(phi), uy = sin(phi); /* w's direction */
+        double px, py;
+        const int kind = trial % 4;
+        if (kind < 3) { /* near: the closest point at p (0), inside (1) or at q (2) */
+            const double d = R * (1 - 1e-4) * uniform(), psi = 2 * PI * uniform();
+            const double cx = d * cos(psi), cy = d * sin(psi); /* the closest point */
+            const double s = kind == 0 ? 0 : kind == 1 ? uniform() : 1;
+            px = cx - s * wl * ux, py = cy - s * wl * uy;
+        } else { /* far: the whole line at distance in (1.01 Rf, 10 Rf); w == 0: p beyond */
+            const double d = Rf * (1.01 + 9 * uniform()), s = 3 * uniform() - 1;
+            px = -d * uy - s * wl * ux, py = d * ux - s * wl * uy;
+            if (wl == 0)
+                px = Rf * (1.01 + uniform()), py = 0;
+        }
+        grid_vf vpx = {0}, vpy = {0}, vwx = {0}, vwy = {0};
+        const int l = trial % GRID_LANES; /* every lane in turn; the others far apart */
+        for (int m = 0; m < GRID_LANES; m++)
+            vpx[m] = (float)(1e3 * R), vwx[m] = (float)(wmax / 2);
+        vpx[l] = (float)px, vpy[l] = (float)py, vwx[l] = (float)(wl * ux), vwy[l] = (float)(wl * uy);
+        const grid_vi got = near_f32(vpx, vpy, vwx, vwy, r2, tend);
+        for (int m = 0; m < GRID_LANES; m++)
+            if (m != l && got[m])
+                fail_at(__FILE__, __LINE__, "lane %d: a pair 1000 R apart passed", m);
+        if (kind < 3 && !got[l])
+            fail_at(__FILE__, __LINE__, "near segment (kind %d, R=%g, |w|=%g) rejected", kind, R, wl);
+        if (kind == 3 && got[l])
+            fail_at(__FILE__, __LINE__, "far segment (R=%g, |w|=%g) passed", R, wl);
+        passed_near += kind < 3 && got[l];
+        rejected_far += kind == 3 && !got[l];
+    }
+    CHECK(passed_near == 150000 && rejected_far == 50000);
 }
 
 /* Every pair the kernel accepts is near in some slice, whatever K: built to meet at a chosen
@@ -407,6 +457,8 @@ static void test_repeated_steps_on_one_scratch(void)
 
 static const test_case tests[] = {
     {"near_is_symmetric", test_near_is_symmetric},
+    {"prefilter_passes_near_and_rejects_far_segments",
+     test_prefilter_passes_near_and_rejects_far_segments},
     {"cell_is_monotone", test_cell_is_monotone},
     {"near_pairs_pass_the_float_binning", test_near_pairs_pass_the_float_binning},
     {"accepted_pairs_are_near_in_some_slice", test_accepted_pairs_are_near_in_some_slice},

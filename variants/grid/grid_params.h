@@ -123,6 +123,9 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     const double freach = 2 * r + delta + margin;
     g->rpad = (float)rpad;
     g->freach2 = (float)(freach * freach * (1 + 8 * (double)FLT_EPSILON));
+    /* Every float displacement over a slice is at most vmax / K per axis (up to an ulp), so a
+     * relative one at most 2 sqrt(2) vmax / K long. */
+    g->fend = (float)(freach * 2 * 1.4142135623730951 * vmax / g->K * (1 + 64 * (double)FLT_EPSILON));
 
     /* Cell size: the box width of a particle at v_ref. Region: where such particles go. */
     double h = vref / g->K + 2 * rpad;

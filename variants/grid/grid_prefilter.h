@@ -123,19 +123,22 @@ typedef struct grid_probe {
 } grid_probe;
 
 /* The prefilter on the chunk of entries [b, b + GRID_LANES) of z against probe a. */
-static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe *a, float r2)
+static inline grid_vi chunk_near(const grid_set *z, int32_t b, const grid_probe *a, float r2,
+                                 float tend)
 {
     grid_vf X, Y, WX, WY;
     memcpy(&X, z->px + b, sizeof X), memcpy(&Y, z->py + b, sizeof Y);
     memcpy(&WX, z->ux + b, sizeof WX), memcpy(&WY, z->uy + b, sizeof WY);
-    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2);
+    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2, tend);
 }
 
-/* Is any lane set? One vptest where AVX has it: a lane-by-lane OR became a chain of lane
+/* Is any lane set? One vptest (AVX) or vptestmd (AVX-512): a lane-by-lane OR became a chain of lane
  * extractions after every run, several percent of the finder's time. */
 static inline int vi_any(grid_vi v)
 {
-#if defined(__AVX__) && GRID_LANES == 8
+#if GRID_LANES == 16
+    return _mm512_test_epi32_mask((__m512i)v, (__m512i)v) != 0;
+#elif defined(__AVX__) && GRID_LANES == 8
     return !_mm256_testz_si256((__m256i)v, (__m256i)v);
 #else
     int32_t r = 0;
@@ -158,7 +161,7 @@ static inline int32_t chunk_start(int32_t c, int32_t n1, int32_t lo1, int32_t lo
 static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32_t lo1,
                                     int32_t hi1, int32_t lo2, int32_t hi2, const grid_probe *a)
 {
-    const float r2 = cx->g->freach2;
+    const float r2 = cx->g->freach2, tend = cx->g->fend;
     const int32_t len1 = hi1 > lo1 ? hi1 - lo1 : 0, len2 = hi2 > lo2 ? hi2 - lo2 : 0;
     const int32_t n1 = (len1 + GRID_LANES - 1) / GRID_LANES;
     const int32_t n = n1 + (len2 + GRID_LANES - 1) / GRID_LANES;
@@ -166,12 +169,12 @@ static inline int32_t run_prefilter(const grid_ctx *cx, const grid_set *z, int32
     /* Lanes past a run's end are not masked here: they are entries of the slice or the zeroed
      * padding, and at worst make a run fire; the second pass masks them. */
     for (int32_t c = 0; c < n; c++)
-        any |= chunk_near(z, chunk_start(c, n1, lo1, lo2), a, r2);
+        any |= chunk_near(z, chunk_start(c, n1, lo1, lo2), a, r2, tend);
     if (vi_any(any))
         for (int32_t c = 0; c < n; c++) {
             const int32_t b = chunk_start(c, n1, lo1, lo2);
             const grid_vi lane = GRID_LANE_IDS;
-            const grid_vi hit = chunk_near(z, b, a, r2) & (lane < (c < n1 ? hi1 : hi2) - b);
+            const grid_vi hit = chunk_near(z, b, a, r2, tend) & (lane < (c < n1 ? hi1 : hi2) - b);
             for (int l = 0; l < GRID_LANES; l++)
                 if (hit[l])
                     pair_passed(cx, a->id, z->id[b + l]);
