@@ -67,6 +67,9 @@ static double clamp_to(double v, double lo, double hi)
 
 /* The grid's candidates for the state of w, with `threads` threads and the given scratch
  * (NULL: a fresh one), sorted; *count set. */
+/* Cells per box width that grid_candidates forces (0: the finder chooses). */
+static int test_sub_force;
+
 static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scratch,
                                       size_t *count)
 {
@@ -80,6 +83,7 @@ static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scr
         exit(2);
     }
     memset(sink.bufs, 0, (size_t)threads * sizeof *sink.bufs);
+    ((grid_scratch *)sink.scratch)->sub_force = test_sub_force;
     sim_variant_def.find_pairs(w, &sink);
     size_t total = 0;
     for (int k = 0; k < threads; k++) {
@@ -137,17 +141,24 @@ static size_t check_world(const sim_world *w, const char *what)
 {
     size_t nref;
     sim_cand *ref = reference_candidates(w, &nref);
-    for (int threads = 1; threads <= 4; threads++) {
-        size_t ngot;
-        sim_cand *got = grid_candidates(w, threads, &ngot);
-        if (!same_candidates(got, ngot, ref, nref)) {
-            fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads): %zu candidates, "
-                    "expected %zu", what, w->n, (double)w->L, (double)w->r, threads, ngot, nref);
+    /* Every thread count, with the cells the finder chooses and with each subdivision forced
+     * (sub 1 .. GRID_SUB_MAX), whatever the scene would get. */
+    for (int sub = 0; sub <= GRID_SUB_MAX; sub++)
+        for (int threads = 1; threads <= 4; threads++) {
+            size_t ngot;
+            test_sub_force = sub;
+            sim_cand *got = grid_candidates(w, threads, &ngot);
+            test_sub_force = 0;
+            if (!same_candidates(got, ngot, ref, nref)) {
+                fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads, sub %d): %zu "
+                        "candidates, expected %zu", what, w->n, (double)w->L, (double)w->r,
+                        threads, sub, ngot, nref);
+                free(got);
+                sub = GRID_SUB_MAX;
+                break;
+            }
             free(got);
-            break;
         }
-        free(got);
-    }
     free(ref);
     return nref;
 }

@@ -24,21 +24,24 @@ static void slice_cells(int32_t m, const float *restrict bx, const float *restri
                   &cx0[p], &cy0[p], &flag[p]);
 }
 
-/* Dense grids: every item's half-cell key in slice k (as a float), 2c + (reaches the next
- * column) for cell number c (grid_bins), or GRID_KEY_WIDE / _BELOW / _ABOVE, and its flags. One
- * loop the compiler vectorises: the counting sort's two passes then read one key an item. */
+/* Dense grids: every item's key in slice k (as a float), 2^kshift c + (how many columns it
+ * reaches beyond its corner cell) for cell number c (grid_bins), or GRID_KEY_WIDE / _BELOW /
+ * _ABOVE, and its flags. One loop the compiler vectorises: the counting sort's two
+ * passes then read one key an item. Within a cell the entries reaching further right come
+ * later. */
 #define GRID_KEY_WIDE (-1)
 #define GRID_KEY_BELOW (-2)
 #define GRID_KEY_ABOVE (-3)
 static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, int32_t rowlast,
-                               int32_t spanx)
+                               int32_t spanx, int32_t sub, int32_t kshift)
 {
     /* In unsigned arithmetic, which wraps where int32 would overflow: for a row far outside
      * the band (a wide grid cut into bands) (cy - row0) * spanx can, and then the key is not
      * h anyway. The same instructions as in int32; clipping the row first cost 7% of the
      * report benchmark's finder (one thread, medians of 9 interleaved runs). */
-    const int32_t h = (int32_t)(2u * ((uint32_t)(cy - row0) * (uint32_t)spanx + (uint32_t)cx + 1u) +
-                                (uint32_t)(f & GRID_EXT_X));
+    const int32_t h =
+        (int32_t)(((uint32_t)(cy - row0) * (uint32_t)spanx + (uint32_t)(cx + sub)) << kshift |
+                  (uint32_t)(f & GRID_EXT_X_MASK));
     return f & GRID_WIDE ? GRID_KEY_WIDE
            : cy < row0   ? GRID_KEY_BELOW
            : cy > rowlast ? GRID_KEY_ABOVE
@@ -48,13 +51,16 @@ static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, 
 static void slice_keys(int32_t m, const float *restrict bx, const float *restrict by,
                        const float *restrict ux, const float *restrict uy, float k,
                        const grid_plan *g, int32_t row0, int32_t rowlast, int32_t spanx,
-                       int32_t *restrict key, int32_t *restrict flag)
+                       int32_t kshift, int32_t *restrict key, int32_t *restrict flag)
 {
+    /* A local copy of the plan: its fields read through g might alias the stores, which kept
+     * gcc from vectorising the loop once the reach depended on g->sub. */
+    const grid_plan gl = *g;
     for (int32_t p = 0; p < m; p++) {
         int32_t cx, cy, f;
-        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], g,
+        box_cells(slice_start(bx[p], ux[p], k), slice_start(by[p], uy[p], k), ux[p], uy[p], &gl,
                   &cx, &cy, &f);
-        key[p] = item_key(cx, cy, f, row0, rowlast, spanx);
+        key[p] = item_key(cx, cy, f, row0, rowlast, spanx, gl.sub, kshift);
         flag[p] = f;
     }
 }
@@ -142,15 +148,18 @@ static inline void put_entry(grid_set *restrict dst, const grid_src *src,
 }
 
 /* One band of one binned slice. Cells are numbered row-major with stride spanx from (row0,
- * column -1), so that every neighbour of a base cell has a number; the band's base cells are
- * [0, base_end), and the row above it (row1) takes part as upper neighbours. */
+ * column -sub), so that every cell a run reaches has a number; the band's base cells are
+ * [0, base_end), and the sub rows above it (from row1) take part as upper neighbours. */
 typedef struct grid_bins {
     int dense;         /* counting-sorted: th->pos and th->scell; else th->skey */
     int32_t ne, nw;    /* entries (base rows and the row above), wide particles */
     int32_t nbase;     /* entries whose base cell is in the band: the first nbase */
     int32_t below;     /* entries in rows below the band: where its ids go in ord_next */
     int32_t row0, row1;
-    uint64_t spanx;    /* cells per numbered row: columns + 3 */
+    int32_t rowlast;   /* the last row whose entries are binned: row1 + sub - 1, clipped */
+    int32_t sub;       /* cells per box width (grid_plan) */
+    int32_t kshift;    /* dense: 2^kshift keys a cell, one for each reach 0 .. sub */
+    uint64_t spanx;    /* cells per numbered row: columns + 2 sub + 1 */
     uint64_t ncell;    /* cells numbered */
     uint64_t base_end; /* the first cell number above the band's base rows */
 } grid_bins;
@@ -170,30 +179,32 @@ static void item_cells(const grid_src *src, const grid_particle *part, const gri
     }
 }
 
-/* Dense: a counting sort on the half-cell keys (slice_keys), so that in every cell the entries
- * reaching the next column come last. pos[h + 2] counts half-cell h; after the prefix sum
- * pos[h + 1] is where h begins; the scatter advances it to where h ends, which leaves h's
- * entries in [pos[h], pos[h + 1]) and cell c's in [pos[2c], pos[2c + 2]). */
+/* Dense: a counting sort on the keys (slice_keys), so that in every cell the entries reaching
+ * further right come later. pos[h + 2] counts key h; after the prefix sum pos[h + 1] is where h
+ * begins; the scatter advances it to where h ends, which leaves h's entries in [pos[h],
+ * pos[h + 1]) and cell c's in [pos[c << kshift], pos[(c + 1) << kshift]). */
 static void bin_dense(const grid_src *src, const grid_particle *part, const grid_plan *g,
                       float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
                       grid_bins *b)
 {
     const int32_t m = src->m, items = src->m + src->nwide, row0 = b->row0;
-    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
-    const int32_t spanx = (int32_t)b->spanx;
+    const int32_t rowlast = b->rowlast, spanx = (int32_t)b->spanx;
+    const int32_t kshift = b->kshift;
+    const uint64_t keys = b->ncell << kshift;
     int32_t *restrict pos = th->pos;
     int32_t *restrict key = th->cx0, *restrict flag = th->flag;
-    slice_keys(m, src->bx, src->by, src->ux, src->uy, kf, g, row0, rowlast, spanx, key, flag);
+    slice_keys(m, src->bx, src->by, src->ux, src->uy, kf, g, row0, rowlast, spanx, kshift, key,
+               flag);
     for (int32_t e = m; e < items; e++) {
         float bx, by, ux, uy;
         int32_t cx, cy;
         particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
         box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &cx, &cy,
                   &flag[e]);
-        key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx);
+        key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx, g->sub, kshift);
     }
     int32_t nw = 0, below = 0;
-    memset(pos, 0, (size_t)(2 * b->ncell + 2) * sizeof *pos);
+    memset(pos, 0, (size_t)(keys + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
         const int32_t h = key[e];
         if (h >= 0)
@@ -203,7 +214,7 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
         else
             below += h == GRID_KEY_BELOW;
     }
-    for (uint64_t c = 1; c < 2 * b->ncell + 2; c++)
+    for (uint64_t c = 1; c < keys + 2; c++)
         pos[c] += pos[c - 1];
     /* Local copies of the pointers: stores through them cannot change them, so the loop keeps
      * them in registers (through dst and th it reloaded every one on every entry). */
@@ -216,14 +227,14 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
         if (h >= 0) {
             const int32_t d = pos[h + 1]++;
             put_entry(&out, &in, part, g, kf, d, e);
-            scell[d] = h >> 1;
-            sext[d] = (uint8_t)(flag[e] & (GRID_EXT_X | GRID_EXT_Y));
+            scell[d] = h >> kshift;
+            sext[d] = (uint8_t)flag[e];
         }
     }
-    b->ne = pos[2 * b->ncell];
+    b->ne = pos[keys];
     b->nw = nw;
     b->below = below;
-    b->nbase = pos[2 * b->base_end];
+    b->nbase = pos[b->base_end << kshift];
 }
 
 /* Sparse: radix words (cell, reach bits, index), sorted; the cell of each entry in th->skey. */
@@ -231,8 +242,7 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
                        float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
                        grid_bins *b)
 {
-    const int32_t items = src->m + src->nwide, row0 = b->row0;
-    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
+    const int32_t items = src->m + src->nwide, row0 = b->row0, rowlast = b->rowlast;
     const uint64_t spanx = b->spanx;
     const int pbits = g->pbits, kshift = pbits + GRID_EXT_BITS;
     const uint64_t pmask = ((uint64_t)1 << pbits) - 1;
@@ -242,7 +252,8 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
         if (f & GRID_WIDE) {
             wide[nw++] = src_id(src, e);
         } else if (cy >= row0 && cy <= rowlast) {
-            const uint64_t key = (uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + 1;
+            const uint64_t key =
+                (uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + (uint64_t)b->sub;
             th->ent[ne++] = key << kshift | (uint64_t)f << pbits | (uint64_t)e;
         } else {
             below += cy < row0;
@@ -275,13 +286,17 @@ static void bin_slice(const grid_src *src, const grid_particle *part, const grid
 {
     b->row0 = band * g->band_rows;
     b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
-    /* Entries of row row1 take part as upper neighbours of the band's last row. */
-    const int32_t rowlast = b->row1 < g->gy ? b->row1 : b->row1 - 1;
-    b->spanx = (uint64_t)g->gx + 3;
-    b->ncell = (uint64_t)(rowlast - b->row0 + 2) * b->spanx + 3;
+    /* Entries of the sub rows from row1 take part as upper neighbours of the band's rows. */
+    b->sub = g->sub;
+    b->kshift = b->sub > 1 ? 2 : 1;
+    b->rowlast = b->row1 + b->sub - 1 < g->gy ? b->row1 + b->sub - 1 : g->gy - 1;
+    b->spanx = (uint64_t)g->gx + 2 * (uint64_t)b->sub + 1;
+    /* Every cell a run of a base entry reaches, rows up to row1 + sub - 1 (empty where above
+     * the grid), and one more for the end of the last. */
+    b->ncell = (uint64_t)(b->row1 - b->row0 + b->sub) * b->spanx + 1;
     b->base_end = (uint64_t)(b->row1 - b->row0) * b->spanx;
-    /* Dense also needs every half-cell key in an int32_t. */
-    b->dense = 2 * b->ncell <= th->pos_cap && 2 * b->ncell + 2 <= INT32_MAX;
+    /* Dense also needs every key in an int32_t. */
+    b->dense = (b->ncell << b->kshift) <= th->pos_cap && (b->ncell << b->kshift) + 2 <= INT32_MAX;
     if (b->dense) {
         bin_dense(src, part, g, kf, th, dst, wide, b);
     } else {

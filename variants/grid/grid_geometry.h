@@ -58,7 +58,11 @@ static inline void box_cells(float px, float py, float ux, float uy, const grid_
     axis_cells(py, uy, g->rpad, g->inv_h, g->topy, &c, &d);
     *cx = a;
     *cy = c;
-    *flag = (b > a) * GRID_EXT_X + (d > c) * GRID_EXT_Y + ((b - a > 1) | (d - c > 1)) * GRID_WIDE;
+    /* Without a branch, so that slice_keys' loop vectorises: a wide box's reach is clipped
+     * (and never read). */
+    const int32_t ex = b - a, ey = d - c, s = g->sub;
+    const int32_t exc = ex < s ? ex : s, eyc = ey < s ? ey : s;
+    *flag = exc | eyc << GRID_EXT_Y_SHIFT | ((ex > s) | (ey > s)) * GRID_WIDE;
 }
 
 /* Do centres at relative position (dx, dy) and velocity (ddx, ddy) at time 0 come within

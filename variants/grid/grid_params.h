@@ -23,6 +23,20 @@
 #ifndef GRID_K_FACTOR
 #define GRID_K_FACTOR 0.15
 #endif
+/* With cells a third of a box wide (sub = GRID_SUB_MAX) a pair check costs less against the
+ * binning (fewer of the pairs in a neighbourhood are far apart), so slices are longer: K =
+ * GRID_K_FACTOR_SUB * v_ref * sqrt(N) / L. On the report benchmark (znver4, one thread,
+ * medians of 9 interleaved runs, 2026-11-25, finder against whole boxes at 0.15): sub 3 at
+ * 0.08 0.847x, at 0.10 0.858x, at 0.12 0.903x; sub 2 at 0.09 0.906x; sub 3 at 0.15 1.17x. At
+ * N = 10^6 (`1000000 200000 1 1`, one thread, two runs each) sub 3 at 0.10 took 0.988x. */
+#ifndef GRID_K_FACTOR_SUB
+#define GRID_K_FACTOR_SUB 0.10
+#endif
+/* Subdivide a box's cell in sub x sub where a cell a box wide would hold at least
+ * GRID_SUB_OCCUPANCY sub^2 discs: the report benchmark's hold about 150 (sub 3), the dense slow
+ * scene's (bench.py dense: speeds of a radius a step, K = 1) about 0.4, where smaller cells only
+ * add runs (sub 2 took 1.26x, sub 3 1.39x its finder's time, two threads). */
+#define GRID_SUB_OCCUPANCY 6.0
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
 /* Bins of the speed histogram that picks v_ref. */
@@ -45,6 +59,23 @@ static int bits_for(uint64_t v) /* bits needed to hold values < v (v >= 1) */
     while (b < 64 && (v - 1) >> b)
         b++;
     return b;
+}
+
+/* K = factor * v_ref * sqrt(N) / L rounded, at least 1, at most v_ref / 2r, GRID_K_MAX and
+ * N / GRID_K_PER_N; 1 where floats cannot carry the scene (sane == 0). */
+static int slice_count(double factor, double vref, int32_t n, double L, double r, int sane)
+{
+    double kf = factor * vref * sqrt((double)n) / L;
+    const double kcap = vref / (2 * r);
+    if (kf > kcap)
+        kf = kcap;
+    if (kf > GRID_K_MAX)
+        kf = GRID_K_MAX;
+    /* A slice costs about N binning steps; past N / GRID_K_PER_N slices (reached only when an
+     * outlier drives v_ref far above the bulk) slicing costs more than testing all pairs. */
+    if (kf > (double)n / GRID_K_PER_N)
+        kf = (double)n / GRID_K_PER_N;
+    return sane && kf >= 1 ? (int)(kf + 0.5) : 1;
 }
 
 static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
@@ -97,18 +128,22 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
             vref = vmax;
     }
 
-    /* Slices: K ~ v_ref sqrt(N) / L, at least 1, at most v_ref / 2r. */
-    double kf = GRID_K_FACTOR * vref * sqrt((double)n) / L;
-    const double kcap = vref / (2 * r);
-    if (kf > kcap)
-        kf = kcap;
-    if (kf > GRID_K_MAX)
-        kf = GRID_K_MAX;
-    /* A slice costs about N binning steps; past N / GRID_K_PER_N slices (reached only when an
-     * outlier drives v_ref far above the bulk) slicing costs more than testing all pairs. */
-    if (kf > (double)n / GRID_K_PER_N)
-        kf = (double)n / GRID_K_PER_N;
-    g->K = sane && kf >= 1 ? (int)(kf + 0.5) : 1;
+    const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
+    /* Cells per box width and slices (docs/grid_design.md, "Subdivided cells"): with cells of a
+     * third of a box (GRID_SUB_MAX) and GRID_K_FACTOR_SUB where a cell of a whole box would
+     * hold at least GRID_SUB_OCCUPANCY discs per subdivision, else whole boxes and
+     * GRID_K_FACTOR. */
+    g->K = slice_count(GRID_K_FACTOR_SUB, vref, n, L, r, sane);
+    const double h_sub = vref / g->K + 2 * rpad; /* the box width at v_ref */
+    const double area = (maxx - minx + h_sub) * (maxy - miny + h_sub);
+    const double per_cell = (double)n * h_sub * h_sub / area; /* discs a cell of h_sub */
+    int sub = (int)sqrt(per_cell / GRID_SUB_OCCUPANCY);
+    sub = sub < 1 ? 1 : sub > GRID_SUB_MAX ? GRID_SUB_MAX : sub;
+    if (s->sub_force)
+        sub = s->sub_force;
+    g->sub = sub;
+    if (sub == 1)
+        g->K = slice_count(GRID_K_FACTOR, vref, n, L, r, sane);
     /* Small N: one slice per work item, so a multiple of the thread count balances them (the
      * candidates found do not depend on K, only the work does). */
     if (threads > 1 && n <= GRID_SMALL_N && g->K >= threads && g->K % threads &&
@@ -118,8 +153,8 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
         s->tk[k] = (double)k / g->K;
 
     g->reach2 = (2 * r + delta) * (2 * r + delta);
-    /* Rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an ulp. */
-    const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
+    /* rpad, above, is rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an
+     * ulp. */
     const double freach = 2 * r + delta + margin;
     g->rpad = (float)rpad;
     g->freach2 = (float)(freach * freach * (1 + 8 * (double)FLT_EPSILON));
@@ -127,15 +162,17 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
      * relative one at most 2 sqrt(2) vmax / K long. */
     g->fend = (float)(freach * 2 * 1.4142135623730951 * vmax / g->K * (1 + 64 * (double)FLT_EPSILON));
 
-    /* Cell size: the box width of a particle at v_ref. Region: where such particles go. */
-    double h = vref / g->K + 2 * rpad;
+    /* Cell size: 1 / sub of the box width of a particle at v_ref. Region: where such
+     * particles go. */
+    double h = (vref / g->K + 2 * rpad) / sub;
     g->x0 = minx - vref - rpad;
     g->y0 = miny - vref - rpad;
     const double spanx = (maxx + vref + rpad) - g->x0;
     const double spany = (maxy + vref + rpad) - g->y0;
     const double span = spanx > spany ? spanx : spany;
-    /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + 2) * (columns + 3);
-     * and a float holds every cell number of an axis exactly. */
+    /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + sub + 1) *
+     * (columns + 2 sub + 1) (grid_bins); and a float holds every cell number of an axis
+     * exactly. */
     g->pbits = bits_for((uint64_t)n);
     int axis_bits = (64 - g->pbits - GRID_EXT_BITS - 4) / 2;
     if (axis_bits > FLT_MANT_DIG)

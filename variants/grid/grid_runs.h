@@ -1,14 +1,15 @@
 /*
  * grid_runs.h: which entries each entry of a binned slice is looked at against, so that every
  * pair whose boxes' cell ranges intersect is looked at exactly once per slice (the "lo corner"
- * rule of docs/grid_design.md). Entry a of cell c = (cx, row) is looked at against two runs of
- * consecutive entries: the rest of its cell, and the next cell when it reaches the next column;
- * then, when it reaches the next row, the cells (cx-1 .. cx+1) of the row above (cx+1 only when
- * it reaches the next column; of cx-1 only the entries reaching its next column, which come
- * last in their cell). A pair of a run that cannot intersect (a cx-1 box that does not reach
- * column cx) is never near, and no pair is in a run of both of its entries. Wide boxes are
- * looked at against the corner cells their range can reach, and against each other. Every
- * run goes through run_prefilter (grid_prefilter.h). Each function returns the pairs looked at.
+ * rule of docs/grid_design.md). Entry a of cell c = (cx, row), reaching ex columns right and ey
+ * rows up of its corner cell (each at most sub, grid_plan), is looked at against runs of
+ * consecutive entries: the rest of its cell and the cells up to cx + ex of its row; then, for
+ * each row u = 1 .. ey above, the cells cx - sub .. cx + ex of that row (of cx - sub only the
+ * entries reaching sub columns, which come last in their cell). A pair of a run that cannot
+ * intersect (a box of a column left of cx that does not reach column cx) is never near, and no
+ * pair is in a run of both of its entries. Wide boxes are looked at against the corner cells
+ * their range can reach, and against each other. Every run goes through run_prefilter
+ * (grid_prefilter.h). Each function returns the pairs looked at.
  */
 #ifndef GRID_RUNS_H
 #define GRID_RUNS_H
@@ -24,70 +25,106 @@ static inline int32_t entry_runs(const grid_ctx *cx, const grid_set *z, int32_t 
     return run_prefilter(cx, z, lo1, hi1, lo2, hi2, &p);
 }
 
-/* Dense grids: the runs' bounds are read from the per-half-cell starts th->pos. */
+/* Dense grids: the shape of a binned slice's key space, in registers (read through the
+ * grid_bins pointer, every probe reloaded them: 15 instructions a probe). Row u's run of an
+ * entry of cell c reaching ex columns goes from cell c + u w1 - sub's entries reaching sub
+ * columns to the end of cell c + u w1 + ex (cell c's entries reaching e columns begin at
+ * pos[(c << kshift) + e]). */
+typedef struct grid_keys {
+    const int32_t *pos;
+    int32_t w1, sub, kshift;
+} grid_keys;
+
+static inline int32_t up_lo(grid_keys k, int32_t c, int32_t u)
+{
+    return k.pos[((c + u * k.w1 - k.sub) << k.kshift) + k.sub];
+}
+
+static inline int32_t up_hi(grid_keys k, int32_t c, int32_t u, int32_t ex)
+{
+    return k.pos[(c + u * k.w1 + ex + 1) << k.kshift];
+}
+
+/* Rows 2 .. ey above entry a (sub > 1 only): out of runs_dense's loop, which stayed as fast as
+ * before subdivided cells only with one call of the prefilter in it. */
+__attribute__((noinline)) static uint64_t upper_runs_dense(const grid_ctx *cx, const grid_set *z,
+                                                           grid_keys k, int32_t a, int32_t c,
+                                                           int32_t ex, int32_t ey)
+{
+    return (uint64_t)entry_runs(cx, z, a, up_lo(k, c, 2), up_hi(k, c, 2, ex),
+                                ey > 2 ? up_lo(k, c, 3) : 0, ey > 2 ? up_hi(k, c, 3, ex) : 0);
+}
+
+/* Dense grids: the runs' bounds are read from the per-key starts th->pos. */
 static uint64_t runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                            const grid_bins *b)
 {
-    const int32_t w1 = (int32_t)b->spanx;
-    const int32_t *restrict pos = th->pos;
+    const grid_keys k = {th->pos, (int32_t)b->spanx, b->sub, b->kshift};
     const int32_t *restrict scell = th->scell;
     const uint8_t *restrict sext = th->sext;
+    const int32_t nbase = b->nbase;
     uint64_t tests = 0;
-    for (int32_t a = 0; a < b->nbase; a++) {
+    for (int32_t a = 0; a < nbase; a++) {
         const int32_t c = scell[a];
-        const unsigned ex = sext[a], xr = ex & GRID_EXT_X;
-        /* The rest of cell c (and cell c + 1); the up-left cell's entries that reach its next
-         * column, the up cell (and the up-right one). */
-        const int up = (ex & GRID_EXT_Y) != 0;
-        tests += (uint64_t)entry_runs(cx, z, a, a + 1, pos[2 * (c + 1 + xr)],
-                                      up ? pos[2 * (c + w1 - 1) + 1] : 0,
-                                      up ? pos[2 * (c + w1 + 1 + xr)] : 0);
+        const int32_t ex = sext[a] & GRID_EXT_X_MASK, ey = sext[a] >> GRID_EXT_Y_SHIFT;
+        /* The rest of cell c and the cells up to c + ex; the first row above. */
+        tests += (uint64_t)entry_runs(cx, z, a, a + 1, k.pos[(c + 1 + ex) << k.kshift],
+                                      ey ? up_lo(k, c, 1) : 0, ey ? up_hi(k, c, 1, ex) : 0);
+        if (ey > 1)
+            tests += upper_runs_dense(cx, z, k, a, c, ex, ey);
     }
     return tests;
 }
 
-/* Sparse grids: the same runs, found in the sorted list of cell keys th->skey: the start of the
- * cell's run, the end of its right neighbour, and a pointer into the row above that only moves
- * on. */
+/* The first of the n sorted keys from `at` on that is >= v (a pointer that only moves on). */
+static inline int32_t skip_below(const uint64_t *key, int32_t at, int32_t n, uint64_t v)
+{
+    while (at < n && key[at] < v)
+        at++;
+    return at;
+}
+
+/* Sparse grids: the same runs, found in the sorted list of cell keys th->skey: the ends of the
+ * cell's own row's cells, and for each row above where its run starts and ends, with pointers
+ * that only move on. */
 static uint64_t runs_sparse(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                             const grid_bins *b)
 {
     const uint64_t *restrict skey = th->skey;
     const uint8_t *restrict sext = th->sext;
     const uint64_t spanx = b->spanx, base_end = b->base_end;
-    const int32_t ne = b->ne;
+    const int32_t ne = b->ne, sub = b->sub;
     uint64_t tests = 0;
-    int32_t beg = 0, up = 0;
+    int32_t beg = 0;
+    int32_t up_lo[GRID_SUB_MAX + 1] = {0};
     while (beg < ne && skey[beg] < base_end) {
         const uint64_t key = skey[beg];
-        int32_t end = beg;
-        while (end < ne && skey[end] == key)
-            end++;
-        int32_t right_end = end;
-        while (right_end < ne && skey[right_end] == key + 1)
-            right_end++;
-        while (up < ne && skey[up] < key + spanx - 1)
-            up++;
-        int32_t q = up;
-        while (q < ne && skey[q] <= key + spanx)
-            q++;
-        const int32_t up_end = q;
-        while (q < ne && skey[q] == key + spanx + 1)
-            q++;
-        const int32_t up_end_x = q;
-        for (int32_t a = beg; a < end; a++) {
-            const unsigned ex = sext[a];
-            tests += (uint64_t)entry_runs(
-                cx, z, a, a + 1, ex & GRID_EXT_X ? right_end : end, up,
-                ex & GRID_EXT_Y ? (ex & GRID_EXT_X ? up_end_x : up_end) : up);
+        /* end[e]: the end of cell key + e's entries, in this row and (up_hi[u][e]) row u. */
+        int32_t end[GRID_SUB_MAX + 1], up_hi[GRID_SUB_MAX + 1][GRID_SUB_MAX + 1];
+        end[0] = skip_below(skey, beg, ne, key + 1);
+        for (int e = 1; e <= sub && e <= GRID_SUB_MAX; e++)
+            end[e] = skip_below(skey, end[e - 1], ne, key + (uint64_t)e + 1);
+        for (int u = 1; u <= sub && u <= GRID_SUB_MAX; u++) {
+            const uint64_t row = key + (uint64_t)u * spanx;
+            up_lo[u] = skip_below(skey, up_lo[u], ne, row - (uint64_t)sub);
+            int32_t q = up_lo[u];
+            for (int e = 0; e <= sub && e <= GRID_SUB_MAX; e++)
+                up_hi[u][e] = q = skip_below(skey, q, ne, row + (uint64_t)e + 1);
         }
-        beg = end;
+        for (int32_t a = beg; a < end[0]; a++) {
+            const int ex = sext[a] & GRID_EXT_X_MASK, ey = sext[a] >> GRID_EXT_Y_SHIFT;
+            tests += (uint64_t)entry_runs(cx, z, a, a + 1, end[ex], ey ? up_lo[1] : 0,
+                                          ey ? up_hi[1][ex] : 0);
+            for (int u = 2; u <= ey && u <= GRID_SUB_MAX; u++)
+                tests += (uint64_t)entry_runs(cx, z, a, up_lo[u], up_hi[u][ex], 0, 0);
+        }
+        beg = end[0];
     }
     return tests;
 }
 
 /* Wide boxes against the entries whose base cell is in this band: those with a corner cell in
- * the wide box's range or one column / row before it. */
+ * the wide box's range or up to sub columns / rows before it. */
 static uint64_t runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                           const int32_t *wide, const grid_bins *b)
 {
@@ -103,18 +140,20 @@ static uint64_t runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_
         int32_t cxa, cxb, cya, cyb;
         axis_cells(pa.x, pa.wx, g->rpad, g->inv_h, g->topx, &cxa, &cxb);
         axis_cells(pa.y, pa.wy, g->rpad, g->inv_h, g->topy, &cya, &cyb);
-        const int32_t ra = cya - 1 > b->row0 ? cya - 1 : b->row0;
+        const int32_t ra = cya - b->sub > b->row0 ? cya - b->sub : b->row0;
         const int32_t rb = cyb < b->row1 - 1 ? cyb : b->row1 - 1;
         for (int32_t row = ra; row <= rb; row++) {
-            /* Cells (cxa - 1 .. cxb, row): numbers base + cxa .. base + cxb + 1. */
+            /* Cells (cxa - sub .. cxb, row): numbers base + cxa .. base + cxb + sub. */
             const uint64_t base = (uint64_t)(row - b->row0) * b->spanx;
+            const uint64_t first = base + (uint64_t)cxa;
+            const uint64_t after = base + (uint64_t)cxb + (uint64_t)b->sub + 1;
             int32_t lo, hi;
             if (b->dense) {
-                lo = th->pos[2 * (base + (uint64_t)cxa)];
-                hi = th->pos[2 * (base + (uint64_t)cxb + 2)];
+                lo = th->pos[first << b->kshift];
+                hi = th->pos[after << b->kshift];
             } else {
-                lo = lower_bound(th->skey, b->ne, base + (uint64_t)cxa);
-                hi = lower_bound(th->skey, b->ne, base + (uint64_t)cxb + 2);
+                lo = lower_bound(th->skey, b->ne, first);
+                hi = lower_bound(th->skey, b->ne, after);
             }
             tests += (uint64_t)run_prefilter(cx, z, lo, hi, 0, 0, &pa);
         }

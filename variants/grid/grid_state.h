@@ -16,14 +16,19 @@
 #define GRID_K_MAX 4096
 /* Widest radix digit: a 2^16-entry histogram. */
 #define GRID_RADIX_MAX_BITS 16
-/* A grid counts as dense, and is counting-sorted, up to half this many cells per particle. */
+/* Cells per box width, `sub` (grid_plan): a cell is 1 / sub of the box of a particle at v_ref,
+ * so such a box spans at most sub + 1 cells per axis (docs/grid_design.md, "Binning"); at most
+ * GRID_SUB_MAX, so that a reach fits in 2 bits an axis. grid_params.h chooses it. */
+#define GRID_SUB_MAX 3
+/* A grid counts as dense, and is counting-sorted, up to this many keys per particle. */
 #define GRID_DENSE_CELLS_PER_PARTICLE 8
 #define GRID_DENSE_CELLS_MIN 4096
-/* Flag bits of a binned box: reaches the next column, the next row; wider than 2 cells. */
-#define GRID_EXT_X 1
-#define GRID_EXT_Y 2
-#define GRID_WIDE 4
-#define GRID_EXT_BITS 2
+/* Flags of a binned box: how many cells it reaches beyond its corner cell to the right (bits
+ * 0-1) and up (bits 2-3), each at most sub; or wide, more than that on an axis. */
+#define GRID_EXT_X_MASK 3
+#define GRID_EXT_Y_SHIFT 2
+#define GRID_WIDE 16
+#define GRID_EXT_BITS 4
 
 /* The rounding delta must cover: the pair kernel's type, or double, whichever is coarser (the
  * slice times and the near test are double; the float binning has its own margin, below). */
@@ -91,11 +96,11 @@ typedef struct grid_thread {
     grid_set set[2];             /* this slice's entries, and the previous slice's */
     int32_t *wide[2];            /* this slice's wide particles, and the previous slice's */
     int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags (dense grids: the
-                                  * half-cell key in cx0) */
+                                  * key in cx0) */
     int32_t *scell;              /* dense grids: cell of each entry */
     uint8_t *sext;               /* reach bits of each entry */
-    int32_t *pos;                /* dense grids: where each half-cell's entries begin */
-    uint64_t pos_cap;            /* half-cells pos can hold */
+    int32_t *pos;                /* dense grids: where each key's entries begin */
+    uint64_t pos_cap;            /* keys pos can hold (2^kshift a cell, grid_bins) */
     uint64_t *ent, *tmp, *skey;  /* sparse grids: radix words, radix buffer, cell of each entry */
     uint32_t *hist;              /* radix histogram */
 } grid_thread;
@@ -109,6 +114,7 @@ typedef struct grid_scratch {
     grid_particle *part;     /* the state in double, by particle, for gathers */
     double *tk;              /* slice boundaries k / K, k = 0..K */
     grid_thread *th;
+    int sub_force; /* 0: plan_step chooses the cells per box width; tests set 1 .. GRID_SUB_MAX */
 } grid_scratch;
 
 /* What one step's binning uses. */
@@ -124,6 +130,7 @@ typedef struct grid_plan {
     float rpad;       /* how far a box reaches beyond the centre's path (r, delta, margin) */
     double reach2;    /* (2r + delta)^2: centres closer than this in a slice are near */
     float freach2;    /* the prefilter's reach squared (2r, delta, margin), rounded up */
+    int32_t sub;      /* cells per box width at v_ref (1 .. GRID_SUB_MAX) */
     float fend;       /* the prefilter's end slack: its reach times the longest relative
                        * displacement in a slice, rounded up (near_f32) */
     int f32_off;      /* magnitudes floats cannot carry: one slice, one cell, zeros that pass */
