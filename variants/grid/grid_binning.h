@@ -1,9 +1,10 @@
 /*
- * grid_binning.h: one slice's entries in cell order. Every item's half-cell key (dense grids,
- * slice_keys) or corner cell and flags (sparse grids, item_cells), vectorised, then either a
- * counting sort into per-half-cell starts (bin_dense) or an LSD radix sort of (cell, reach bits,
- * index) words (bin_sparse), writing the entries' floats, ids and reach bits into the thread's
- * output set; wide particles go to a list of their own. The result is a grid_bins, which grid_runs.h reads.
+ * grid_binning.h: one slice's entries in cell order. Every item's key (dense grids, slice_keys:
+ * its cell and how far right it reaches) or corner cell and flags (sparse grids, item_cells),
+ * vectorised, then either a counting sort into per-key starts (bin_dense) or an LSD radix sort
+ * of (cell, reach bits, index) words (bin_sparse), writing the entries' floats, ids and reach
+ * bits into the thread's output set; wide particles go to a list of their own. The result is a
+ * grid_bins, which grid_runs.h reads.
  */
 #ifndef GRID_BINNING_H
 #define GRID_BINNING_H
