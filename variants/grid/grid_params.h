@@ -37,6 +37,11 @@
  * scene's (bench.py dense: speeds of a radius a step, K = 1) about 0.4, where smaller cells only
  * add runs (sub 2 took 1.26x, sub 3 1.39x its finder's time, two threads). */
 #define GRID_SUB_OCCUPANCY 6.0
+/* ... and only up to this N: above it the slices' entries are no longer in cache, and the
+ * extra runs cost more than the pairs they save. Finder time against whole-box cells (two
+ * threads, znver4, interleaved, 2026-11-25): N = 40,000 0.920x (5 runs each), 100,000 0.951x
+ * (3), 400,000 1.029x (2), 1,000,000 1.058x and 1.069x (`1000000 200000 1 10`, 1 each). */
+#define GRID_SUB_MAX_N 200000
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
 /* Bins of the speed histogram that picks v_ref. */
@@ -129,15 +134,15 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     }
 
     const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
-    /* Cells per box width and slices (docs/grid_design.md, "Subdivided cells"): with cells of a
-     * third of a box (GRID_SUB_MAX) and GRID_K_FACTOR_SUB where a cell of a whole box would
-     * hold at least GRID_SUB_OCCUPANCY discs per subdivision, else whole boxes and
-     * GRID_K_FACTOR. */
+    /* Cells per box width and slices (docs/grid_design.md, "Subdivided cells"): cells of 1 /
+     * sub of a box, sub up to GRID_SUB_MAX, with GRID_K_FACTOR_SUB where a cell of a whole box
+     * would hold at least GRID_SUB_OCCUPANCY sub^2 discs and N <= GRID_SUB_MAX_N; else whole
+     * boxes and GRID_K_FACTOR. */
     g->K = slice_count(GRID_K_FACTOR_SUB, vref, n, L, r, sane);
     const double h_sub = vref / g->K + 2 * rpad; /* the box width at v_ref */
     const double area = (maxx - minx + h_sub) * (maxy - miny + h_sub);
     const double per_cell = (double)n * h_sub * h_sub / area; /* discs a cell of h_sub */
-    int sub = (int)sqrt(per_cell / GRID_SUB_OCCUPANCY);
+    int sub = n > GRID_SUB_MAX_N ? 1 : (int)sqrt(per_cell / GRID_SUB_OCCUPANCY);
     sub = sub < 1 ? 1 : sub > GRID_SUB_MAX ? GRID_SUB_MAX : sub;
     if (s->sub_force)
         sub = s->sub_force;
