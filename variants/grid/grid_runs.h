@@ -25,10 +25,9 @@ static inline int32_t entry_runs(const grid_ctx *cx, const grid_set *z, int32_t 
     return run_prefilter(cx, z, lo1, hi1, lo2, hi2, &p);
 }
 
-/* Dense grids: the shape of a binned slice's key space, in registers (read through the
- * grid_bins pointer, every probe reloaded them: 15 instructions a probe). Row u's run of an
- * entry of cell c reaching ex columns goes from cell c + u w1 - sub's entries reaching sub
- * columns to the end of cell c + u w1 + ex (cell c's entries reaching e columns begin at
+/* Dense grids: the shape of a binned slice's key space, by value. Row u's run of an entry of
+ * cell c reaching ex columns goes from cell c + u w1 - sub's entries reaching sub columns to the
+ * end of cell c + u w1 + ex (cell c's entries reaching e columns begin at
  * pos[(c << kshift) + e]). */
 typedef struct grid_keys {
     const int32_t *pos;
@@ -108,27 +107,27 @@ static uint64_t runs_sparse(const grid_ctx *cx, const grid_thread *th, const gri
     const int32_t ne = b->ne, sub = b->sub;
     uint64_t tests = 0;
     int32_t beg = 0;
-    int32_t up_lo[GRID_SUB_MAX + 1] = {0};
+    int32_t row_lo[GRID_SUB_MAX + 1] = {0};
     while (beg < ne && skey[beg] < base_end) {
         const uint64_t key = skey[beg];
-        /* end[e]: the end of cell key + e's entries, in this row and (up_hi[u][e]) row u. */
-        int32_t end[GRID_SUB_MAX + 1], up_hi[GRID_SUB_MAX + 1][GRID_SUB_MAX + 1];
+        /* end[e]: the end of cell key + e's entries, in this row and (row_hi[u][e]) row u. */
+        int32_t end[GRID_SUB_MAX + 1], row_hi[GRID_SUB_MAX + 1][GRID_SUB_MAX + 1];
         end[0] = skip_below(skey, beg, ne, key + 1);
         for (int e = 1; e <= sub && e <= GRID_SUB_MAX; e++)
             end[e] = skip_below(skey, end[e - 1], ne, key + (uint64_t)e + 1);
         for (int u = 1; u <= sub && u <= GRID_SUB_MAX; u++) {
             const uint64_t row = key + (uint64_t)u * spanx;
-            up_lo[u] = skip_below(skey, up_lo[u], ne, row - (uint64_t)sub);
-            int32_t q = up_lo[u];
+            row_lo[u] = skip_below(skey, row_lo[u], ne, row - (uint64_t)sub);
+            int32_t q = row_lo[u];
             for (int e = 0; e <= sub && e <= GRID_SUB_MAX; e++)
-                up_hi[u][e] = q = skip_below(skey, q, ne, row + (uint64_t)e + 1);
+                row_hi[u][e] = q = skip_below(skey, q, ne, row + (uint64_t)e + 1);
         }
         for (int32_t a = beg; a < end[0]; a++) {
             const int ex = sext[a] & GRID_EXT_X_MASK, ey = sext[a] >> GRID_EXT_Y_SHIFT;
-            tests += (uint64_t)entry_runs(cx, z, a, a + 1, end[ex], ey ? up_lo[1] : 0,
-                                          ey ? up_hi[1][ex] : 0);
+            tests += (uint64_t)entry_runs(cx, z, a, a + 1, end[ex], ey ? row_lo[1] : 0,
+                                          ey ? row_hi[1][ex] : 0);
             for (int u = 2; u <= ey && u <= GRID_SUB_MAX; u++)
-                tests += (uint64_t)entry_runs(cx, z, a, up_lo[u], up_hi[u][ex], 0, 0);
+                tests += (uint64_t)entry_runs(cx, z, a, row_lo[u], row_hi[u][ex], 0, 0);
         }
         beg = end[0];
     }
