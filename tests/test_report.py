@@ -418,3 +418,33 @@ def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) 
     assert "| machine |" in table
     assert "AMD EPYC (aaaaaaaa)" in table and "AMD EPYC (bbbbbbbb)" in table
     assert "Measured at commits `c0ffee` (16 cells), `decade` (16 cells)." in markdown
+
+
+def test_the_summary_speaks_of_the_latest_machine(tmp_path: Path) -> None:
+    """Two machines' cells side by side: the headlines come from the machine that measured
+    last (env.json's machine_id), not from whichever machine was slower or faster."""
+    root = results_with(tmp_path, "grid")
+    csv_path = root / "grid" / "results.csv"
+    lines = csv_path.read_text(encoding="utf-8").splitlines()
+    csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
+    seen: dict[str, int] = {}
+
+    def machine(row: dict[str, str]) -> dict[str, str]:
+        seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
+        old = seen[row["cell_id"]] == 2
+        slower = {k: str(3 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
+                                                      "wall_min_s", "wall_max_s") if row[k]}
+        return {"machine_id": ("0d" if old else "1a") * 8,
+                "machine": "Old box x2" if old else "New box x2", **(slower if old else {})}
+
+    add_columns(csv_path, machine)
+    env_path = root / "grid" / "env.json"
+    env = json.loads(env_path.read_text(encoding="utf-8"))
+    env_path.write_text(json.dumps({**env, "machine_id": "1a" * 8}), encoding="utf-8")
+    out = tmp_path / "report"
+    report.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    largest = summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
+    assert "New box x2" in largest and "Old box x2" not in largest, largest
+    assert "Old box x2" not in summary.split("- Grid against seq: ", 1)[1].split("\n", 1)[0]

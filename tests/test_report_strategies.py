@@ -103,3 +103,30 @@ def test_schedule_section(rendered: Path) -> None:
     assert "So a real difference" in text
     html = (rendered / "report.html").read_text(encoding="utf-8")
     assert "Against the seed&#x27;s Table 2" in html and 'id="schedules-schedules"' in html
+
+
+def test_each_machine_gets_its_own_study(tmp_path: Path) -> None:
+    """Two machines' cells of the one benchmark side by side: the study is made per machine
+    (a machine's strategies against each other, never against the other's), each section and
+    figure named after its machine."""
+    boxes = {"Box A x2": ("a" * 16, 1.0), "Box B x2": ("b" * 16, 2.0)}
+    records = []
+    for label, (machine_id, scale) in boxes.items():
+        for variant, (times, *rest) in STRATEGIES.items():
+            rec = record(variant, tuple(t * scale for t in times), *rest)
+            rec.update(machine={"label": label}, machine_id=machine_id,
+                       cell_id=f"{variant}-{machine_id}")
+            records.append(rec)
+    root = tmp_path / "results"
+    write_experiment(root, "strategies", records)
+    out = tmp_path / "report"
+    render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    for label, (_, scale) in boxes.items():
+        text = section(markdown, f"Against the seed's Table 2 ({label})")
+        p1 = next(line for line in text.splitlines() if line.startswith("| p1 |"))
+        assert p1.startswith(f"| p1 | 2 | {3.3 * scale:g} |"), p1  # threads, median
+        stem = f"strategies-box-{label[4].lower()}-x2-work-per-thread"
+        assert (out / "figures" / f"{stem}.png").is_file()
+        assert f"](figures/{stem}.png)" in section(markdown, f"Work per thread ({label})")
+    assert "### Against the seed's Table 2\n" not in markdown

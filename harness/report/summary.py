@@ -51,9 +51,24 @@ def _fair(rows: pd.DataFrame) -> pd.DataFrame:
                 & (rows["baseline"] == tables.BASELINE_SEQ) & rows["speedup"].notna()]
 
 
+def latest_machine_rows(exp: Experiment) -> pd.DataFrame:
+    """The experiment's rows of the machine that measured it last (its env.json, the machine
+    the report's header describes) where several machines sit side by side and that one has
+    rows; else all of them. A headline then speaks of one machine, today's, and never picks a
+    cell because another machine was slower or its seq slower."""
+    df = exp.frame
+    latest = exp.env.get("machine_id")
+    if "machine_id" not in df.columns or df["machine_id"].nunique() < 2:
+        return df
+    mine = df[df["machine_id"] == latest]
+    return mine if len(mine) else df
+
+
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
-    """The best strategy, grid against seq and the largest N, where this experiment has them."""
-    rows = tables.with_speedup(exp.frame)
+    """The best strategy, grid against seq and the largest N, where this experiment has them:
+    from the rows of the latest machine (latest_machine_rows)."""
+    frame = latest_machine_rows(exp)
+    rows = tables.with_speedup(frame)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
     fair = _fair(rows)
@@ -71,7 +86,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
             float(largest["n"]),
             f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
             _anchor(section, "-cells"))
-    selection = phases.select(exp.frame)
+    selection = phases.select(frame)
     if selection is not None:
         anchor = _anchor(section, PHASES_SUFFIX)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
