@@ -61,7 +61,7 @@ SCENE_TITLE_IN = 0.28
 TICKS_IN = 0.32
 XLABEL_IN = 0.3
 CHAR_IN = 0.075  # a tick label character at 9-10 pt
-LEFT_IN = (0.7, 2.6)  # the label column's narrowest and widest
+LEFT_IN = (0.7, 3.2)  # the label column's narrowest and widest (a variant and a machine)
 TOTAL_ROOM = 1.28  # the seconds axis reaches past the longest bar by this factor, for its label
 SHARE_LABEL_MIN = 12.0  # a segment narrower than this (percent) carries no label
 
@@ -254,8 +254,10 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
         if titled:
             seconds.set_title(str(group[GROUP].iloc[0]), loc="left", fontsize="medium")
         if k == len(groups) - 1:
-            seconds.set_xlabel("time in the --timing run [s]"
-                               + (" (each scene its own scale)" if len(groups) > 1 else ""))
+            # Short: with a machine in the bar labels the left column is wide, and a longer
+            # label ran into the shares' one.
+            seconds.set_xlabel("--timing time [s]"
+                               + (", each scene its own scale" if len(groups) > 1 else ""))
             percent.set_xlabel("share of the simulation time [%]")
     handles = [Patch(label=tables.PHASE_NAMES[p], **_style(p)) for p in PHASES]
     fig.legend(handles=handles, loc="upper center", ncol=len(PHASES), frameon=False,

@@ -43,6 +43,9 @@ MARGINS: dict[str, float] = {"left": 0.12, "right": 0.97, "bottom": 0.12, "top":
 # The same with room on the right for a legend beside the axes.
 LEGEND_RIGHT_MARGINS: dict[str, float] = {**MARGINS, "right": 0.70}
 LEGEND_INSIDE_MAX = 4  # legend entries that fit inside the axes without hiding data
+# Characters a line of a legend entry beside the axes: longer labels wrap (a label with a
+# machine, "seq · AMD EPYC (znver3) x2 (2257f28b)", ran off the figure's edge).
+LEGEND_WRAP = 24
 # Room on the left for the trajectory legend; the square axes and its colorbar take the rest.
 TRAJECTORY_MARGINS: dict[str, float] = {**MARGINS, "left": 0.26}
 # A stable salt keeps SVG element ids, hence the files, identical between renders.
@@ -272,8 +275,16 @@ def _legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:
         ax.legend(handles=handles, fontsize="small", framealpha=0.85)
         return
     ax.figure.subplots_adjust(right=LEGEND_RIGHT_MARGINS["right"])
-    ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
-              borderaxespad=0)
+    labels = [wrap_label(str(h.get_label())) for h in handles]
+    ax.legend(handles=handles, labels=labels, fontsize="small", loc="upper left",
+              bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+
+
+def wrap_label(label: str, width: int = LEGEND_WRAP) -> str:
+    """A legend entry on lines of at most `width` characters where it can break (its own
+    line breaks kept)."""
+    return "\n".join(textwrap.fill(line, width, break_long_words=False)
+                     for line in label.split("\n"))
 
 
 def set_title(ax: Axes, text: str) -> None:

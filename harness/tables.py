@@ -192,11 +192,13 @@ def sweep_axes(df: pd.DataFrame) -> list[str]:
 
 
 def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
-    """A legend label such as `p1d · f32 · threads=8` (variant and build go bare)."""
+    """A legend label such as `p1d · f32 · threads=8` (variant and build go bare); the machine,
+    the longest part, comes last, so that what tells the series of one machine apart leads."""
     if not keys:
         return "all cells"
+    pairs = sorted(zip(keys, values, strict=True), key=lambda kv: kv[0] == MACHINE)
     parts = []
-    for key, value in zip(keys, values, strict=True):
+    for key, value in pairs:
         text = format_value(key, value)
         if key in ("variant", "build", "scene", MACHINE):
             parts.append(text)

@@ -190,3 +190,14 @@ def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: P
         assert "fast box" in svg and "slow box" in svg
     assert "95% interval" in svg_text(time_paths[1])
     assert "95% interval" not in svg_text(single[1]) and "threads p" in svg_text(single[1])
+
+
+def test_long_legend_labels_wrap_and_lead_with_the_variant() -> None:
+    """A series of one machine among several: the variant leads its label (the machine comes
+    last), and a legend beside the axes wraps it rather than running off the figure."""
+    label = tables.series_label(("AMD EPYC (znver3) x2 (2257f28b)", "seq"),
+                                (tables.MACHINE, "variant"))
+    assert label == "seq · AMD EPYC (znver3) x2 (2257f28b)"
+    wrapped = plots.wrap_label(label)
+    assert all(len(line) <= plots.LEGEND_WRAP for line in wrapped.split("\n")), wrapped
+    assert wrapped.replace("\n", " ") == label

@@ -255,4 +255,4 @@ def test_machines_are_bars_beside_each_other_not_scenes(tmp_path: Path) -> None:
     assert sel is not None
     assert sel.scene_keys == () and sel.row_keys == (tables.MACHINE, "variant")
     assert list(phases.plot_frame(sel)[phases.BAR]) == [
-        "box aa · seq", "box aa · grid", "box bb · seq", "box bb · grid"]
+        "seq · box aa", "grid · box aa", "seq · box bb", "grid · box bb"]  # machine last
