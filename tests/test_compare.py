@@ -7,6 +7,7 @@ import math
 import shutil
 import subprocess
 import sys
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -277,22 +278,25 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
 
 
 def test_script_on_committed_results(tmp_path: Path) -> None:
-    """`python3 harness/compare.py` (re-executing under .venv) on today's results, whose
-    results.csv predates wall_times_s: times come from the hyperfine JSON; a set compared
-    with itself is the same in every cell, exit 0."""
+    """`python3 harness/compare.py` (re-executing under .venv) on the committed results, some of
+    whose rows predate wall_times_s (times then come from the hyperfine JSON): each machine's
+    set compared with itself is the same in every cell, exit 0. They hold several machines side
+    by side, so each comparison names its machine (without, compare.py refuses: another test)."""
     experiment = REPO_ROOT / "results" / "threads"
     if not (experiment / "results.csv").is_file():
         pytest.skip("no committed results/threads")
     python = shutil.which("python3") or sys.executable
-    done = subprocess.run([python, "harness/compare.py", str(experiment), str(experiment),
-                           "--out", str(tmp_path)], cwd=REPO_ROOT, capture_output=True,
-                          text=True, check=False, timeout=120)
-    assert done.returncode == 0, done.stderr
     with (experiment / "results.csv").open() as handle:
-        cells = sum(1 for _ in csv.DictReader(handle))
-    assert f"{cells} cells compared: 0 slower, 0 faster, {cells} no significant change" \
-        in done.stdout
-    assert done.stdout.count("| 1.000 [") == cells  # every cell has its interval
+        machines = Counter(row["machine_id"] for row in csv.DictReader(handle))
+    for machine, cells in machines.items():
+        done = subprocess.run([python, "harness/compare.py", str(experiment), str(experiment),
+                               "--old-machine", machine, "--new-machine", machine,
+                               "--out", str(tmp_path / machine)], cwd=REPO_ROOT,
+                              capture_output=True, text=True, check=False, timeout=120)
+        assert done.returncode == 0, done.stderr
+        assert f"{cells} cells compared: 0 slower, 0 faster, {cells} no significant change" \
+            in done.stdout
+        assert done.stdout.count("| 1.000 [") == cells  # every cell has its interval
     missing = subprocess.run([python, "harness/compare.py", str(tmp_path / "x"), str(tmp_path)],
                              cwd=REPO_ROOT, capture_output=True, text=True, check=False,
                              timeout=120)
