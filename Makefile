@@ -26,7 +26,8 @@ PYTHON := .venv/bin/python
 EXACT := -std=c11 -ffp-contract=off -fno-fast-math
 OPT ?= -O3 -march=native
 WARN := -Wall -Wextra -Wpedantic -Werror
-SANITIZE := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=all
+SANITIZE := -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined,float-cast-overflow \
+            -fno-sanitize-recover=all
 BASE_CFLAGS = $(EXACT) $(OPT) $(WARN) -fopenmp -D_POSIX_C_SOURCE=200809L
 BASE_LDLIBS = -lm
 

@@ -142,8 +142,13 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     const double h_sub = vref / g->K + 2 * rpad; /* the box width at v_ref */
     const double area = (maxx - minx + h_sub) * (maxy - miny + h_sub);
     const double per_cell = (double)n * h_sub * h_sub / area; /* discs a cell of h_sub */
-    int sub = n > GRID_SUB_MAX_N ? 1 : (int)sqrt(per_cell / GRID_SUB_OCCUPANCY);
-    sub = sub < 1 ? 1 : sub > GRID_SUB_MAX ? GRID_SUB_MAX : sub;
+    /* The largest sub with per_cell >= GRID_SUB_OCCUPANCY sub^2, by comparisons: where floats
+     * cannot carry the scene, per_cell can be inf / inf, and a NaN converted to int is
+     * undefined behaviour (seen with speeds of 1e200 under -fsanitize=float-cast-overflow). */
+    int sub = 1;
+    while (sane && n <= GRID_SUB_MAX_N && sub < GRID_SUB_MAX &&
+           per_cell >= GRID_SUB_OCCUPANCY * (sub + 1) * (sub + 1))
+        sub++;
     if (s->sub_force)
         sub = s->sub_force;
     g->sub = sub;
@@ -165,7 +170,8 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     g->freach2 = (float)(freach * freach * (1 + 8 * (double)FLT_EPSILON));
     /* Every float displacement over a slice is at most vmax / K per axis (up to an ulp), so a
      * relative one at most 2 sqrt(2) vmax / K long. */
-    g->fend = (float)(freach * 2 * 1.4142135623730951 * vmax / g->K * (1 + 64 * (double)FLT_EPSILON));
+    const double sqrt2 = 1.4142135623730951;
+    g->fend = (float)(freach * 2 * sqrt2 * vmax / g->K * (1 + 64 * (double)FLT_EPSILON));
 
     /* Cell size: 1 / sub of the box width of a particle at v_ref. Region: where such
      * particles go. */
