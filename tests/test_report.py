@@ -7,6 +7,7 @@ import re
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -396,16 +397,27 @@ def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
     assert re.search(r"\d\.\d\d× \[\d\.\d\d, \d\.\d\d\] faster than seq", best)
 
 
-def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) -> None:
-    root = results_with(tmp_path, "threads")
-    csv_path = root / "threads" / "results.csv"
+def doubled(root: Path, name: str) -> tuple[Path, Callable[[dict[str, str]], int]]:
+    """results/<name>/results.csv with every row twice, and a function telling, row by row as
+    add_columns reads them, which copy (1 or 2) a row is: two machines' cells of one config."""
+    csv_path = root / name / "results.csv"
     lines = csv_path.read_text(encoding="utf-8").splitlines()
     csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
     seen: dict[str, int] = {}
 
-    def machine(row: dict[str, str]) -> dict[str, str]:
+    def copy(row: dict[str, str]) -> int:
         seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
-        first = seen[row["cell_id"]] == 1
+        return seen[row["cell_id"]]
+
+    return csv_path, copy
+
+
+def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "threads")
+    csv_path, copy = doubled(root, "threads")
+
+    def machine(row: dict[str, str]) -> dict[str, str]:
+        first = copy(row) == 1
         return {"machine_id": ("aa" if first else "bb") * 8, "machine": "AMD EPYC",
                 "git_commit": "c0ffee" if first else "decade"}
 
@@ -424,14 +436,10 @@ def test_the_summary_speaks_of_the_latest_machine(tmp_path: Path) -> None:
     """Two machines' cells side by side: the headlines come from the machine that measured
     last (env.json's machine_id), not from whichever machine was slower or faster."""
     root = results_with(tmp_path, "grid")
-    csv_path = root / "grid" / "results.csv"
-    lines = csv_path.read_text(encoding="utf-8").splitlines()
-    csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
-    seen: dict[str, int] = {}
+    csv_path, copy = doubled(root, "grid")
 
     def machine(row: dict[str, str]) -> dict[str, str]:
-        seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
-        old = seen[row["cell_id"]] == 2
+        old = copy(row) == 2
         slower = {k: str(3 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
                                                       "wall_min_s", "wall_max_s") if row[k]}
         return {"machine_id": ("0d" if old else "1a") * 8,
