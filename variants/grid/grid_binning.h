@@ -148,6 +148,13 @@ static inline void put_entry(grid_set *restrict dst, const grid_src *src,
     dst->px[d] = slice_start(bx, ux, kf), dst->py[d] = slice_start(by, uy, kf);
 }
 
+/* Dense grids: 2^keys_shift(sub) keys a cell, one for each reach to the right, 0 .. sub (two
+ * for whole-box cells, four for any subdivision). */
+static inline int32_t keys_shift(int32_t sub)
+{
+    return sub > 1 ? 2 : 1;
+}
+
 /* One band of one binned slice. Cells are numbered row-major with stride spanx from (row0,
  * column -sub), so that every cell a run reaches has a number; the band's base cells are
  * [0, base_end), and the sub rows above it (from row1) take part as upper neighbours. */
@@ -289,7 +296,7 @@ static void bin_slice(const grid_src *src, const grid_particle *part, const grid
     b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
     /* Entries of the sub rows from row1 take part as upper neighbours of the band's rows. */
     b->sub = g->sub;
-    b->kshift = b->sub > 1 ? 2 : 1;
+    b->kshift = keys_shift(b->sub);
     b->rowlast = b->row1 + b->sub - 1 < g->gy ? b->row1 + b->sub - 1 : g->gy - 1;
     b->spanx = (uint64_t)g->gx + 2 * (uint64_t)b->sub + 1;
     /* Every cell a run of a base entry reaches, rows up to row1 + sub - 1 (empty where above

@@ -83,8 +83,9 @@ runs_dense_with(const grid_ctx *cx, const grid_thread *th, const grid_set *z, co
 static uint64_t runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                            const grid_bins *b)
 {
-    return b->sub == 1 ? runs_dense_with(cx, th, z, b, 1, 1)
-                       : runs_dense_with(cx, th, z, b, b->sub, 2); /* bin_slice's kshift */
+    /* Every subdivision has the shift of GRID_SUB_MAX's, a constant here. */
+    return b->sub == 1 ? runs_dense_with(cx, th, z, b, 1, keys_shift(1))
+                       : runs_dense_with(cx, th, z, b, b->sub, keys_shift(GRID_SUB_MAX));
 }
 
 /* The first of the n sorted keys from `at` on that is >= v (a pointer that only moves on). */
