@@ -252,7 +252,7 @@ static void test_near_pairs_pass_the_float_binning(void)
                     }
                 const grid_vf px = {p[1][0] - p[0][0]}, py = {p[1][1] - p[0][1]};
                 const grid_vf wx = {b[1][2] - b[0][2]}, wy = {b[1][3] - b[0][3]};
-                if (!near_f32(px, py, wx, wy, g.freach2, g.fend)[0])
+                if (!(near_f32(px, py, wx, wy, g.freach2, g.fend) & 1))
                     fail_at(__FILE__, __LINE__, "near pair (L=%g, K=%d, k=%d) fails the prefilter",
                             L, g.K, k);
                 for (int ax = 0; ax < 2; ax++)
@@ -303,16 +303,16 @@ static void test_prefilter_passes_near_and_rejects_far_segments(void)
         for (int m = 0; m < GRID_LANES; m++)
             vpx[m] = (float)(1e3 * R), vwx[m] = (float)(wmax / 2);
         vpx[l] = (float)px, vpy[l] = (float)py, vwx[l] = (float)(wl * ux), vwy[l] = (float)(wl * uy);
-        const grid_vi got = near_f32(vpx, vpy, vwx, vwy, r2, tend);
+        const uint32_t got = near_f32(vpx, vpy, vwx, vwy, r2, tend);
         for (int m = 0; m < GRID_LANES; m++)
-            if (m != l && got[m])
+            if (m != l && got >> m & 1)
                 fail_at(__FILE__, __LINE__, "lane %d: a pair 1000 R apart passed", m);
-        if (kind < 3 && !got[l])
+        if (kind < 3 && !(got >> l & 1))
             fail_at(__FILE__, __LINE__, "near segment (kind %d, R=%g, |w|=%g) rejected", kind, R, wl);
-        if (kind == 3 && got[l])
+        if (kind == 3 && got >> l & 1)
             fail_at(__FILE__, __LINE__, "far segment (R=%g, |w|=%g) passed", R, wl);
-        passed_near += kind < 3 && got[l];
-        rejected_far += kind == 3 && !got[l];
+        passed_near += kind < 3 && got >> l & 1;
+        rejected_far += kind == 3 && !(got >> l & 1);
     }
     CHECK(passed_near == 150000 && rejected_far == 50000);
 }

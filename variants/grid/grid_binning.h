@@ -148,6 +148,46 @@ static inline void put_entry(grid_set *restrict dst, const grid_src *src,
     dst->px[d] = slice_start(bx, ux, kf), dst->py[d] = slice_start(by, uy, kf);
 }
 
+/* a[e] into out[dest[e]] for e < m. */
+static void scatter_f32(const float *restrict a, const int32_t *restrict dest, int32_t m,
+                        float *restrict out)
+{
+    for (int32_t e = 0; e < m; e++)
+        out[dest[e]] = a[e];
+}
+
+/* Dense grids: every item e of the source into entry dest[e] of dst (its binning floats and
+ * id), then every entry's position at the start of slice kf, for the ne entries. An array at a
+ * time: one loop that moved every array at once kept eleven pointers, which gcc spilled into
+ * vector registers (45 instructions an entry). */
+static void place_entries(const grid_src *src, const grid_particle *part, const grid_plan *g,
+                          float kf, const int32_t *restrict dest, int32_t ne,
+                          grid_set *restrict dst)
+{
+    const int32_t m = src->m;
+    scatter_f32(src->bx, dest, m, dst->bx), scatter_f32(src->by, dest, m, dst->by);
+    scatter_f32(src->ux, dest, m, dst->ux), scatter_f32(src->uy, dest, m, dst->uy);
+    int32_t *restrict id = dst->id;
+    if (src->id) {
+        const int32_t *restrict in = src->id;
+        for (int32_t e = 0; e < m; e++)
+            id[dest[e]] = in[e];
+    } else {
+        for (int32_t e = 0; e < m; e++)
+            id[dest[e]] = e;
+    }
+    for (int32_t e = m; e < m + src->nwide; e++) {
+        const int32_t p = src->wide[e - m], d = dest[e];
+        particle_f32(&part[p], g, &dst->bx[d], &dst->by[d], &dst->ux[d], &dst->uy[d]);
+        id[d] = p;
+    }
+    const float *restrict bx = dst->bx, *restrict by = dst->by;
+    const float *restrict ux = dst->ux, *restrict uy = dst->uy;
+    float *restrict px = dst->px, *restrict py = dst->py;
+    for (int32_t d = 0; d < ne; d++)
+        px[d] = slice_start(bx[d], ux[d], kf), py[d] = slice_start(by[d], uy[d], kf);
+}
+
 /* Dense grids: 2^keys_shift(sub) keys a cell, one for each reach to the right, 0 .. sub (two
  * for whole-box cells, four for any subdivision). */
 static inline int32_t keys_shift(int32_t sub)
@@ -224,21 +264,21 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
     }
     for (uint64_t c = 1; c < keys + 2; c++)
         pos[c] += pos[c - 1];
-    /* Local copies of the pointers: stores through them cannot change them, so the loop keeps
-     * them in registers (through dst and th it reloaded every one on every entry). */
-    const grid_src in = *src;
-    grid_set out = *dst;
-    int32_t *restrict scell = th->scell;
+    /* Where each item goes (the thread's sink slot when it is no entry here), then the
+     * entries' arrays one at a time (place_entries). */
+    int32_t *restrict scell = th->scell, *restrict dest = th->cy0;
     uint8_t *restrict sext = th->sext;
     for (int32_t e = 0; e < items; e++) {
         const int32_t h = key[e];
+        int32_t d = th->sink;
         if (h >= 0) {
-            const int32_t d = pos[h + 1]++;
-            put_entry(&out, &in, part, g, kf, d, e);
+            d = pos[h + 1]++;
             scell[d] = h >> kshift;
             sext[d] = (uint8_t)flag[e];
         }
+        dest[e] = d;
     }
+    place_entries(src, part, g, kf, dest, pos[keys], dst);
     b->ne = pos[keys];
     b->nw = nw;
     b->below = below;

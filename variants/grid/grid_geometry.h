@@ -9,7 +9,7 @@
 
 #include "grid_state.h"
 
-#if defined(__FMA__) || defined(__AVX512F__)
+#if defined(__FMA__) || defined(__AVX__) || defined(__AVX512F__)
 #include <immintrin.h>
 #endif
 
@@ -108,6 +108,62 @@ static inline grid_vf vf_fma(grid_vf a, grid_vf b, grid_vf c)
 #endif
 }
 
+/* The prefilter's comparisons, lane by lane, and their result as bits (lane l is bit l). With
+ * AVX-512 a comparison writes a mask register, and the lanes stay there to the end: written
+ * with the vector extension's operators, gcc turned the mask into a vector of -1 / 0 and back
+ * (a vmovdqa32 and a vptestmd a vector). */
+#if GRID_LANES == 16
+typedef __mmask16 grid_vm;
+static inline grid_vm vf_le(grid_vf a, grid_vf b)
+{
+    return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ);
+}
+static inline grid_vm vf_lt(grid_vf a, grid_vf b)
+{
+    return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ);
+}
+static inline grid_vm vf_gt(grid_vf a, grid_vf b)
+{
+    return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ);
+}
+static inline uint32_t vm_bits(grid_vm m)
+{
+    return m;
+}
+#else
+typedef grid_vi grid_vm;
+static inline grid_vm vf_le(grid_vf a, grid_vf b)
+{
+    return a <= b;
+}
+static inline grid_vm vf_lt(grid_vf a, grid_vf b)
+{
+    return a < b;
+}
+static inline grid_vm vf_gt(grid_vf a, grid_vf b)
+{
+    return a > b;
+}
+static inline uint32_t vm_bits(grid_vm m)
+{
+#if GRID_LANES == 8 && defined(__AVX__)
+    return (uint32_t)_mm256_movemask_ps((__m256)m);
+#else
+    uint32_t r = 0;
+    for (int l = 0; l < GRID_LANES; l++)
+        r |= (uint32_t)(m[l] != 0) << l;
+    return r;
+#endif
+}
+#endif
+
+/* Every lane x. */
+static inline grid_vf vf_splat(float x)
+{
+    const grid_vf zero = {0};
+    return zero + x;
+}
+
 /* The prefilter, GRID_LANES pairs at once: may the relative segments from p to p + w come
  * within R = sqrt(r2) of the origin? It passes every pair that does (and some that do not;
  * the double test decides): p itself within reach, or the line within reach (|p x w|^2 <= r2
@@ -119,15 +175,16 @@ static inline grid_vf vf_fma(grid_vf a, grid_vf b, grid_vf c)
  * on the report benchmark, znver4, 9 interleaved runs). w == 0 (equal displacements) leaves p
  * alone to decide, `ww > 0`. Rounding: the cross product loses about FLT_EPSILON |p| |w| to it,
  * and q.w = p.w + |w|^2 a few FLT_EPSILON (|p| + |w|) |w|; the margin in R and in tend covers
- * both. All lanes -1 or 0. */
-static inline grid_vi near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
-                               float tend)
+ * both. Lane l of the result is bit l. */
+static inline uint32_t near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
+                                float tend)
 {
     const grid_vf cr = vf_fma(px, wy, -(py * wx));
     const grid_vf ww = vf_fma(wx, wx, wy * wy), pw = vf_fma(px, wx, py * wy);
     const grid_vf zero = {0};
-    return (vf_fma(px, px, py * py) <= r2) |
-           ((pw < tend) & (pw + ww > -tend) & (ww > zero) & (cr * cr <= r2 * ww));
+    return vm_bits(vf_le(vf_fma(px, px, py * py), vf_splat(r2)) |
+                   (vf_lt(pw, vf_splat(tend)) & vf_gt(pw + ww, vf_splat(-tend)) &
+                    vf_gt(ww, zero) & vf_le(cr * cr, r2 * ww)));
 }
 
 #endif /* GRID_GEOMETRY_H */

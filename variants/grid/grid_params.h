@@ -28,9 +28,13 @@
  * GRID_K_FACTOR_SUB * v_ref * sqrt(N) / L. On the report benchmark (znver4, one thread,
  * medians of 9 interleaved runs, 2026-11-25, finder against whole boxes at 0.15): sub 3 at
  * 0.08 0.847x, at 0.10 0.858x, at 0.12 0.903x; sub 2 at 0.09 0.906x; sub 3 at 0.15 1.17x. At
- * N = 10^6 (`1000000 200000 1 1`, one thread, two runs each) sub 3 at 0.10 took 0.988x. */
+ * N = 10^6 (`1000000 200000 1 1`, one thread, two runs each) sub 3 at 0.10 took 0.988x. Once
+ * a chunk of the prefilter cost less (its lanes kept as mask bits), against 0.10 (same
+ * machine, later that day, medians of 9): 0.06 0.925x, 0.07 0.914x, 0.08 0.917x, 0.12 1.05x;
+ * N = 40,000 (`40000 40000 1 10`) and 100,000 (`100000 63245.55 1 5`), 5 runs each: 0.07
+ * 0.84x and 0.86x, 0.08 0.96x and 0.86x. */
 #ifndef GRID_K_FACTOR_SUB
-#define GRID_K_FACTOR_SUB 0.10
+#define GRID_K_FACTOR_SUB 0.07
 #endif
 /* Subdivide a box's cell in sub x sub where a cell a box wide would hold at least
  * GRID_SUB_OCCUPANCY sub^2 discs: the report benchmark's hold about 150 (sub 3), the dense slow

@@ -96,13 +96,15 @@ typedef struct grid_thread {
     grid_set set[2];             /* this slice's entries, and the previous slice's */
     int32_t *wide[2];            /* this slice's wide particles, and the previous slice's */
     int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags (dense grids: the
-                                  * key in cx0) */
+                                  * key in cx0, the entry it goes to in cy0) */
     int32_t *scell;              /* dense grids: cell of each entry */
     uint8_t *sext;               /* reach bits of each entry */
     int32_t *pos;                /* dense grids: where each key's entries begin */
     uint64_t pos_cap;            /* keys pos can hold (2^kshift a cell, grid_bins) */
     uint64_t *ent, *tmp, *skey;  /* sparse grids: radix words, radix buffer, cell of each entry */
     uint32_t *hist;              /* radix histogram */
+    int32_t sink;                /* a slot of the sets no run reads: where the dense binning
+                                  * puts items that are no entry of the slice */
 } grid_thread;
 
 typedef struct grid_scratch {
@@ -177,6 +179,9 @@ static int thread_alloc(grid_thread *t, size_t n)
         z->id = calloc(f, sizeof(int32_t)), t->wide[b] = malloc(i);
         ok &= z->bx && z->by && z->ux && z->uy && z->px && z->py && z->id && t->wide[b];
     }
+    /* The last slot, n + GRID_LANES - 1 = N + GRID_LANES: a slice has at most N entries, and
+     * the prefilter reads at most GRID_LANES - 1 slots past the last. */
+    t->sink = (int32_t)(f - 1);
     t->cx0 = malloc(i), t->cy0 = malloc(i), t->flag = malloc(i), t->scell = malloc(i);
     t->sext = malloc(n);
     t->pos_cap = GRID_DENSE_CELLS_PER_PARTICLE * (uint64_t)n + GRID_DENSE_CELLS_MIN;
