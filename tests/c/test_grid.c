@@ -252,7 +252,8 @@ static void test_near_pairs_pass_the_float_binning(void)
                     }
                 const grid_vf px = {p[1][0] - p[0][0]}, py = {p[1][1] - p[0][1]};
                 const grid_vf wx = {b[1][2] - b[0][2]}, wy = {b[1][3] - b[0][3]};
-                if (!(near_f32(px, py, wx, wy, g.freach2, g.fend) & 1))
+                if (!(near_f32(px, py, wx, wy, g.freach2, g.fend) &
+                      near_f32_line(px, py, wx, wy, g.freach2, g.fend) & 1))
                     fail_at(__FILE__, __LINE__, "near pair (L=%g, K=%d, k=%d) fails the prefilter",
                             L, g.K, k);
                 for (int ax = 0; ax < 2; ax++)
@@ -267,10 +268,11 @@ static void test_near_pairs_pass_the_float_binning(void)
     sim_world_free(&w);
 }
 
-/* near_f32 on its own, lane by lane, against the segment distance in double: relative
- * segments from p to p + w (|w| up to the slice's longest) built to pass within R (1 - 1e-4)
- * of the origin at an end, inside, or standing still (w == 0) must pass; lines that pass
- * further than 1.01 times the padded reach from the origin, and still pairs beyond it, must not. The
+/* near_f32 and near_f32_line on their own, lane by lane, against the segment distance in
+ * double: relative segments from p to p + w (|w| up to the slice's longest) built to pass
+ * within R (1 - 1e-4) of the origin at an end, inside, or standing still (w == 0) must pass
+ * both; lines that pass further than 1.01 times the padded reach from the origin must pass
+ * neither, and still pairs beyond it must fail near_f32 (the line test passes them). The
  * far end q = p + w is tested without its own distance (near_f32's comment), so the "at q"
  * cases are the ones a wrong end slack would lose. */
 static void test_prefilter_passes_near_and_rejects_far_segments(void)
@@ -304,13 +306,22 @@ static void test_prefilter_passes_near_and_rejects_far_segments(void)
             vpx[m] = (float)(1e3 * R), vwx[m] = (float)(wmax / 2);
         vpx[l] = (float)px, vpy[l] = (float)py, vwx[l] = (float)(wl * ux), vwy[l] = (float)(wl * uy);
         const uint32_t got = near_f32(vpx, vpy, vwx, vwy, r2, tend);
+        const uint32_t line = near_f32_line(vpx, vpy, vwx, vwy, r2, tend);
         for (int m = 0; m < GRID_LANES; m++)
-            if (m != l && got >> m & 1)
+            if (m != l && (got | line) >> m & 1)
                 fail_at(__FILE__, __LINE__, "lane %d: a pair 1000 R apart passed", m);
         if (kind < 3 && !(got >> l & 1))
             fail_at(__FILE__, __LINE__, "near segment (kind %d, R=%g, |w|=%g) rejected", kind, R, wl);
+        /* The runs pass a pair on only if near_f32_line passes it too. */
+        if (kind < 3 && !(line >> l & 1))
+            fail_at(__FILE__, __LINE__, "near segment (kind %d, R=%g, |w|=%g) fails the line test",
+                    kind, R, wl);
         if (kind == 3 && got >> l & 1)
             fail_at(__FILE__, __LINE__, "far segment (R=%g, |w|=%g) passed", R, wl);
+        /* The line test alone passes still pairs (w == 0) at any distance, not moving ones. */
+        if (kind == 3 && (line >> l & 1) != (wl == 0))
+            fail_at(__FILE__, __LINE__, "far segment (R=%g, |w|=%g): line test %d", R, wl,
+                    (int)(line >> l & 1));
         passed_near += kind < 3 && got >> l & 1;
         rejected_far += kind == 3 && !(got >> l & 1);
     }

@@ -126,6 +126,10 @@ static inline grid_vm vf_gt(grid_vf a, grid_vf b)
 {
     return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ);
 }
+static inline grid_vm vf_ge(grid_vf a, grid_vf b)
+{
+    return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GE_OQ);
+}
 static inline uint32_t vm_bits(grid_vm m)
 {
     return m;
@@ -143,6 +147,10 @@ static inline grid_vm vf_lt(grid_vf a, grid_vf b)
 static inline grid_vm vf_gt(grid_vf a, grid_vf b)
 {
     return a > b;
+}
+static inline grid_vm vf_ge(grid_vf a, grid_vf b)
+{
+    return a >= b;
 }
 static inline uint32_t vm_bits(grid_vm m)
 {
@@ -168,23 +176,45 @@ static inline grid_vf vf_splat(float x)
  * within R = sqrt(r2) of the origin? It passes every pair that does (and some that do not;
  * the double test decides): p itself within reach, or the line within reach (|p x w|^2 <= r2
  * |w|^2, no division) with the closest point no further than R beyond either end along w
- * (p.w < R |w| and (p + w).w > -R |w|). The two ends are tested against R |w| bounded over the
- * slice, `tend` = R * (the longest |w|), instead of |w| itself: a pair whose closest point is
- * the far end q = p + w has q.w >= -|q| |w| >= -R |w| >= -tend, so it passes without q's own
- * distance being computed (2 multiplications and 3 additions fewer a vector: 4% of the finder
- * on the report benchmark, znver4, 9 interleaved runs). w == 0 (equal displacements) leaves p
- * alone to decide, `ww > 0`. Rounding: the cross product loses about FLT_EPSILON |p| |w| to it,
- * and q.w = p.w + |w|^2 a few FLT_EPSILON (|p| + |w|) |w|; the margin in R and in tend covers
- * both. Lane l of the result is bit l. */
-static inline uint32_t near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
+ * (p.w <= R |w| and (p + w).w >= -R |w|). The two ends are tested against R |w| bounded over
+ * the slice, `tend` = R * (the longest |w|), instead of |w| itself: a pair whose closest point
+ * is the far end q = p + w has q.w >= -|q| |w| >= -R |w| >= -tend, so it passes without q's
+ * own distance being computed (2 multiplications and 3 additions fewer a vector: 4% of the
+ * finder on the report benchmark, znver4, 9 interleaved runs). Rounding: the cross product
+ * loses about FLT_EPSILON |p| |w| to it, and q.w = p.w + |w|^2 a few FLT_EPSILON (|p| + |w|)
+ * |w|; the margin in R and in tend covers both. Lane l of the result is bit l.
+ *
+ * near_f32_line is the line test alone. A pair whose closest point is its start p, |p| <= R,
+ * passes it too (|p x w| <= |p| |w| <= R |w|, and -R |w| <= p.w <= R |w| <= tend), and so does
+ * every pair with w == 0 (all three sides are 0 then). near_f32 adds p's own distance and
+ * leaves pairs with w == 0 to it (`ww > 0`): equal displacements would otherwise pass
+ * whatever their distance. The runs test near_f32_line, which has 2 multiplications and a
+ * comparison fewer, and near_f32 only on a chunk where a lane passed it (at most 1.7% of the
+ * chunks on the report benchmark): the finder took 0.91x the time of near_f32 on every chunk
+ * (report benchmark, one thread, medians of 9 interleaved runs), and a scene whose
+ * displacements are all equal, where every lane passes the line test, pays near_f32 on its
+ * chunks rather than a double test on every pair. */
+static inline grid_vm near_line(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
                                 float tend)
 {
     const grid_vf cr = vf_fma(px, wy, -(py * wx));
     const grid_vf ww = vf_fma(wx, wx, wy * wy), pw = vf_fma(px, wx, py * wy);
+    return vf_le(pw, vf_splat(tend)) & vf_ge(pw + ww, vf_splat(-tend)) &
+           vf_le(cr * cr, r2 * ww);
+}
+
+static inline uint32_t near_f32_line(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
+                                     float tend)
+{
+    return vm_bits(near_line(px, py, wx, wy, r2, tend));
+}
+
+static inline uint32_t near_f32(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
+                                float tend)
+{
     const grid_vf zero = {0};
     return vm_bits(vf_le(vf_fma(px, px, py * py), vf_splat(r2)) |
-                   (vf_lt(pw, vf_splat(tend)) & vf_gt(pw + ww, vf_splat(-tend)) &
-                    vf_gt(ww, zero) & vf_le(cr * cr, r2 * ww)));
+                   (vf_gt(vf_fma(wx, wx, wy * wy), zero) & near_line(px, py, wx, wy, r2, tend)));
 }
 
 #endif /* GRID_GEOMETRY_H */

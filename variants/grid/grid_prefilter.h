@@ -122,23 +122,30 @@ typedef struct grid_probe {
     int32_t id;
 } grid_probe;
 
-/* The prefilter on the chunk of entries [b, b + GRID_LANES) of z against probe a. */
-static inline uint32_t chunk_near(const grid_set *z, int32_t b, const grid_probe *a, float r2,
-                                 float tend)
+/* The chunk of entries [b, b + GRID_LANES) of z against probe a: relative position and
+ * displacement, lane by lane. */
+typedef struct grid_chunk {
+    grid_vf px, py, wx, wy;
+} grid_chunk;
+
+static inline grid_chunk chunk_of(const grid_set *z, int32_t b, const grid_probe *a)
 {
     grid_vf X, Y, WX, WY;
     memcpy(&X, z->px + b, sizeof X), memcpy(&Y, z->py + b, sizeof Y);
     memcpy(&WX, z->ux + b, sizeof WX), memcpy(&WY, z->uy + b, sizeof WY);
-    return near_f32(X - a->x, Y - a->y, WX - a->wx, WY - a->wy, r2, tend);
+    return (grid_chunk){X - a->x, Y - a->y, WX - a->wx, WY - a->wy};
 }
 
 /* The prefilter over the run [lo, hi) of z against probe a: every pair it passes goes to
  * pair_passed, in entry order. Reads up to GRID_LANES - 1 entries past the run's end. One
- * pass, a branch a chunk that is rarely taken (at most 1.7% of the chunks on the report benchmark):
- * the lanes are a mask, and the chunk's passed pairs its set bits. This took 0.91x the
- * finder's time of two passes, an OR of every chunk's lanes as a vector and the chunks again
- * where any was set (report benchmark, one thread, medians of 9 interleaved runs); keeping the
- * lanes in mask registers to the end (near_f32) 0.96x more. */
+ * pass, a branch a chunk that is rarely taken: the lanes are a mask, the chunk's passed pairs
+ * its set bits, near_f32_line on every chunk and near_f32 on those where a lane passed it
+ * (grid_geometry.h). The single pass took 0.91x the finder's time of two, an OR of every
+ * chunk's lanes as a vector and the chunks again where any was set (report benchmark, one
+ * thread, medians of 9 interleaved runs); keeping the lanes in mask registers to the end
+ * 0.96x more. The rare path out of line took 1.08x (a noinline function: gcc then kept the
+ * run's pointers and the chunk in memory) and 1.3x (an inner loop without the call, left at
+ * the first lane passed). */
 static inline void scan_run(const grid_ctx *cx, const grid_set *z, int32_t lo, int32_t hi,
                             const grid_probe *a, float r2, float tend)
 {
@@ -146,8 +153,10 @@ static inline void scan_run(const grid_ctx *cx, const grid_set *z, int32_t lo, i
      * on every chunk. */
     const grid_set zl = *z;
     for (int32_t b = lo; b < hi; b += GRID_LANES) {
-        uint32_t hit = chunk_near(&zl, b, a, r2, tend);
+        const grid_chunk q = chunk_of(&zl, b, a);
+        uint32_t hit = near_f32_line(q.px, q.py, q.wx, q.wy, r2, tend);
         if (__builtin_expect(hit != 0, 0)) {
+            hit &= near_f32(q.px, q.py, q.wx, q.wy, r2, tend);
             /* Lanes past the run's end: entries of the slice or the zeroed padding. */
             if (hi - b < GRID_LANES)
                 hit &= (1u << (hi - b)) - 1;
