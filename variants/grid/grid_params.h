@@ -32,9 +32,13 @@
  * a chunk of the prefilter cost less (its lanes kept as mask bits), against 0.10 (same
  * machine, later that day, medians of 9): 0.06 0.925x, 0.07 0.914x, 0.08 0.917x, 0.12 1.05x;
  * N = 40,000 (`40000 40000 1 10`) and 100,000 (`100000 63245.55 1 5`), 5 runs each: 0.07
- * 0.84x and 0.86x, 0.08 0.96x and 0.86x. */
+ * 0.84x and 0.86x, 0.08 0.96x and 0.86x. With the line test (near_f32_line), against 0.07:
+ * 0.05 0.974x, 0.06 0.966x, 0.08 1.003x (one thread; on two 0.06 took 0.924x); N = 40,000
+ * 0.06 1.003x, 0.05 1.018x; N = 100,000 0.06 0.994x, 0.05 1.053x. At fixed density K is about
+ * factor sqrt(N) / 4 (v_ref near L / 4): on the report benchmark 0.06 gives one slice a step,
+ * 0.07 two. */
 #ifndef GRID_K_FACTOR_SUB
-#define GRID_K_FACTOR_SUB 0.07
+#define GRID_K_FACTOR_SUB 0.06
 #endif
 /* Subdivide a box's cell in sub x sub where a cell a box wide would hold at least
  * GRID_SUB_OCCUPANCY sub^2 discs: the report benchmark's hold about 150 (sub 3), the dense slow
