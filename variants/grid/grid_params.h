@@ -45,11 +45,13 @@
  * scene's (bench.py dense: speeds of a radius a step, K = 1) about 0.4, where smaller cells only
  * add runs (sub 2 took 1.26x, sub 3 1.39x its finder's time, two threads). */
 #define GRID_SUB_OCCUPANCY 6.0
-/* ... and only up to this N: above it the slices' entries are no longer in cache, and the
- * extra runs cost more than the pairs they save. Finder time against whole-box cells (two
- * threads, znver4, interleaved, 2026-11-25): N = 40,000 0.920x (5 runs each), 100,000 0.951x
- * (3), 400,000 1.029x (2), 1,000,000 1.058x and 1.069x (`1000000 200000 1 10`, 1 each). */
-#define GRID_SUB_MAX_N 200000
+/* Subdivided cells pay at every N. Until the prefilter's chunk got cheaper (near_f32_line,
+ * its lanes as mask bits) they did so only up to N = 200,000: above, the slices' entries leave
+ * the cache, and the extra runs cost more than the pairs they save (finder against whole-box
+ * cells, two threads, znver4, 2026-11-25: N = 400,000 1.029x, 10^6 1.058x and 1.069x). Now,
+ * one thread, 2 runs each: N = 400,000 (`400000 126491.1 1 3`) 0.844x, 10^6 (`1000000 200000
+ * 1 1`) 0.882x; with GRID_K_FACTOR_SUB 0.05 or 0.08 instead of 0.06, 1.048x and 1.060x at
+ * 10^6. */
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
 /* Bins of the speed histogram that picks v_ref. */
@@ -144,8 +146,8 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     const double rpad = (r + delta + margin) * (1 + 8 * (double)FLT_EPSILON);
     /* Cells per box width and slices (docs/grid_design.md, "Subdivided cells"): cells of 1 /
      * sub of a box, sub up to GRID_SUB_MAX, with GRID_K_FACTOR_SUB where a cell of a whole box
-     * would hold at least GRID_SUB_OCCUPANCY sub^2 discs and N <= GRID_SUB_MAX_N; else whole
-     * boxes and GRID_K_FACTOR. */
+     * would hold at least GRID_SUB_OCCUPANCY sub^2 discs; else whole boxes and
+     * GRID_K_FACTOR. */
     g->K = slice_count(GRID_K_FACTOR_SUB, vref, n, L, r, sane);
     const double h_sub = vref / g->K + 2 * rpad; /* the box width at v_ref */
     const double area = (maxx - minx + h_sub) * (maxy - miny + h_sub);
@@ -154,8 +156,7 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
      * cannot carry the scene, per_cell can be inf / inf, and a NaN converted to int is
      * undefined behaviour (seen with speeds of 1e200 under -fsanitize=float-cast-overflow). */
     int sub = 1;
-    while (sane && n <= GRID_SUB_MAX_N && sub < GRID_SUB_MAX &&
-           per_cell >= GRID_SUB_OCCUPANCY * (sub + 1) * (sub + 1))
+    while (sane && sub < GRID_SUB_MAX && per_cell >= GRID_SUB_OCCUPANCY * (sub + 1) * (sub + 1))
         sub++;
     if (s->sub_force)
         sub = s->sub_force;
