@@ -58,15 +58,22 @@ endef
 $(eval $(call build_rules,f64,build/%,,))
 $(foreach b,$(BUILDS),$(eval $(call build_rules,$(b),build/%-$(b),$(FLAGS_$(b)),$(LIBS_$(b)))))
 $(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
+# The portable build: baseline x86-64 (SSE2, no AVX), what `make all OPT=-O3` gives on Debian
+# (README, Slurm on mixed nodes). Its vector paths are others than -march=native's (grid's
+# 4-lane prefilter, the core's 16-byte motion lanes), so the tests run it too.
+PORTABLE := $(if $(filter x86_64 i%86,$(shell uname -m)),-march=x86-64 -mtune=generic,)
+$(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan test test-c test-python lint bench setup quickstart clean print-flags print-variants
+.PHONY: all asan portable test test-c test-python lint bench setup quickstart clean print-flags print-variants
 
 all: $(addprefix build/,$(VARIANTS))
 
 asan: $(addprefix build/asan/,$(VARIANTS))
+
+portable: $(addprefix build/portable/,$(VARIANTS))
 
 print-flags:
 	@echo "$(CC) $(BASE_CFLAGS) $(CFLAGS)"
@@ -89,12 +96,19 @@ build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core
 	@mkdir -p $(@D)
 	$(CC) $(BASE_CFLAGS) $(SANITIZE) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
 
+build/tests-portable/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/portable/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
+	@mkdir -p $(@D)
+	$(CC) $(BASE_CFLAGS) $(PORTABLE) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
+
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
-# Unit tests, then every scene script against the optimised and the sanitizer builds.
-test-c: all asan build/seq-f32 build/seq-f128 $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS))
-	@set -e; for t in $(C_TESTS); do echo "== $$t"; build/tests/$$t; echo "== $$t (asan)"; build/tests-asan/$$t; done
+# Unit tests (optimised, sanitizer and portable builds), then every scene script against the
+# optimised and the sanitizer builds, and run_scenes.sh (every exact variant against seq)
+# against the portable one.
+test-c: all asan portable build/seq-f32 build/seq-f128 $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS)) $(addprefix build/tests-portable/,$(C_TESTS))
+	@set -e; for t in $(C_TESTS); do for d in tests tests-asan tests-portable; do echo "== $$t ($$d)"; build/$$d/$$t; done; done
 	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
+	@echo "== tests/c/run_scenes.sh build/portable"; bash tests/c/run_scenes.sh build/portable
 
 test-python: $(PYTHON) all
 	$(PYTHON) -m pytest -q

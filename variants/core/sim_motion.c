@@ -36,8 +36,14 @@ static inline sim_vreal sim_sel(sim_vmask m, sim_vreal a, sim_vreal b)
     return m ? a : b;
 }
 #else
-/* 32 bytes: AVX2's width; on narrower machines GCC splits each operation in two. */
+/* 32 bytes, AVX2's width, where AVX is enabled; else 16 (SSE2's): a 32-byte vector passed or
+ * returned by value without AVX changes the ABI, which GCC warns of (-Wpsabi, an error under
+ * -Werror), and a build with -march=x86-64 failed here. */
+#if defined(__AVX__) || !(defined(__x86_64__) || defined(__i386__))
 #define SIM_VECTOR_BYTES 32
+#else
+#define SIM_VECTOR_BYTES 16
+#endif
 #if defined(SIM_REAL_F32)
 typedef int32_t sim_lane_int;
 #else
