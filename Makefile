@@ -3,7 +3,8 @@
 #   make all              every variant, double precision: build/seq build/p1 ... build/grid
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
-#   make test             C tests (also under ASan+UBSan), Python tests, ruff
+#   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
+#   make test             C tests (also under ASan+UBSan and portable), Python tests, ruff
 #   make bench            the performance benchmarks of the issues, saved under results/
 #   make setup            Python environment (.venv) and hyperfine
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
