@@ -328,6 +328,35 @@ static void test_prefilter_passes_near_and_rejects_far_segments(void)
     CHECK(passed_near == 150000 && rejected_far == 50000);
 }
 
+/* Scenes floats cannot carry (speeds of 1e300, 1e200, coordinates of 1e30): the plan turns
+ * the floats off, and the zeros every entry then holds pass both prefilter tests, so every
+ * pair goes to the double test. */
+static void test_prefilter_passes_everything_where_floats_are_off(void)
+{
+    const double speeds[] = {1e300, 1e200, 1e30};
+    sim_world w;
+    world_make(&w, 3, 1000, 1);
+    void *scratch = sim_variant_def.scratch_create(&w, 1);
+    grid_scratch *s = scratch;
+    for (size_t m = 0; m < sizeof speeds / sizeof speeds[0]; m++) {
+        for (int i = 0; i < 3; i++)
+            w.x[i] = (sim_real)(100 + 300 * i), w.y[i] = 500;
+        w.vx[0] = (sim_real)speeds[m], w.vy[1] = (sim_real)-speeds[m];
+        grid_plan g;
+        plan_step(&w, s, &g, 1);
+        CHECK(g.f32_off);
+        float b[4];
+        particle_f32(&s->part[0], &g, &b[0], &b[1], &b[2], &b[3]);
+        CHECK(b[0] == 0 && b[1] == 0 && b[2] == 0 && b[3] == 0);
+        const grid_vf zero = {0};
+        const uint32_t all = (uint32_t)(((uint64_t)1 << GRID_LANES) - 1);
+        CHECK(near_f32(zero, zero, zero, zero, g.freach2, g.fend) == all);
+        CHECK(near_f32_line(zero, zero, zero, zero, g.freach2, g.fend) == all);
+    }
+    sim_variant_def.scratch_destroy(scratch);
+    sim_world_free(&w);
+}
+
 /* Every pair the kernel accepts is near in some slice, whatever K: built to meet at a chosen
  * time, often exactly on a slice boundary, head-on, oblique or grazing (tangent). */
 static void test_accepted_pairs_are_near_in_some_slice(void)
@@ -481,6 +510,8 @@ static const test_case tests[] = {
     {"near_is_symmetric", test_near_is_symmetric},
     {"prefilter_passes_near_and_rejects_far_segments",
      test_prefilter_passes_near_and_rejects_far_segments},
+    {"prefilter_passes_everything_where_floats_are_off",
+     test_prefilter_passes_everything_where_floats_are_off},
     {"cell_is_monotone", test_cell_is_monotone},
     {"near_pairs_pass_the_float_binning", test_near_pairs_pass_the_float_binning},
     {"accepted_pairs_are_near_in_some_slice", test_accepted_pairs_are_near_in_some_slice},

@@ -181,6 +181,11 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
      * relative one at most 2 sqrt(2) vmax / K long. */
     const double sqrt2 = 1.4142135623730951;
     g->fend = (float)(freach * 2 * sqrt2 * vmax / g->K * (1 + 64 * (double)FLT_EPSILON));
+    /* Where floats cannot carry the scene every prefilter float is 0, and each of its tests
+     * must hold: the reach and end slack can be inf there, and the line test's r2 |w|^2 would
+     * be inf * 0 = NaN (the absurd_speeds scene, speeds of 1e300). */
+    if (g->f32_off)
+        g->freach2 = g->fend = FLT_MAX;
 
     /* Cell size: 1 / sub of the box width of a particle at v_ref. Region: where such
      * particles go. */
