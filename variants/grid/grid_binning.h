@@ -129,25 +129,6 @@ static inline int32_t src_id(const grid_src *src, int32_t e)
     return e < src->m ? (src->id ? src->id[e] : e) : src->wide[e - src->m];
 }
 
-/* Item e of the source becomes entry d of dst: its binning floats, its id, and its position at
- * the start of slice kf (what the prefilter reads). */
-static inline void put_entry(grid_set *restrict dst, const grid_src *src,
-                             const grid_particle *restrict part, const grid_plan *g, float kf,
-                             int32_t d, int32_t e)
-{
-    float bx, by, ux, uy;
-    if (e < src->m) {
-        bx = src->bx[e], by = src->by[e], ux = src->ux[e], uy = src->uy[e];
-        dst->id[d] = src->id ? src->id[e] : e;
-    } else {
-        const int32_t p = src->wide[e - src->m];
-        particle_f32(&part[p], g, &bx, &by, &ux, &uy);
-        dst->id[d] = p;
-    }
-    dst->bx[d] = bx, dst->by[d] = by, dst->ux[d] = ux, dst->uy[d] = uy;
-    dst->px[d] = slice_start(bx, ux, kf), dst->py[d] = slice_start(by, uy, kf);
-}
-
 /* a[e] into out[dest[e]] for e < m. */
 static void scatter_f32(const float *restrict a, const int32_t *restrict dest, int32_t m,
                         float *restrict out)
@@ -156,8 +137,9 @@ static void scatter_f32(const float *restrict a, const int32_t *restrict dest, i
         out[dest[e]] = a[e];
 }
 
-/* Dense grids: every item e of the source into entry dest[e] of dst (its binning floats and
- * id), then every entry's position at the start of slice kf, for the ne entries. An array at a
+/* Every item e of the source into entry dest[e] of dst (its binning floats and id; an item
+ * that is no entry has the thread's sink slot), then every entry's position at the start of
+ * slice kf (what the prefilter reads), for the ne entries. Both sorts place so. An array at a
  * time: one loop that moved every array at once kept eleven pointers, which gcc spilled into
  * vector registers (45 instructions an entry). */
 static void place_entries(const grid_src *src, const grid_particle *part, const grid_plan *g,
@@ -295,8 +277,12 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
     const int pbits = g->pbits, kshift = pbits + GRID_EXT_BITS;
     const uint64_t pmask = ((uint64_t)1 << pbits) - 1;
     int32_t ne = 0, nw = 0, below = 0;
+    /* th->cy0 becomes where each item goes (place_entries) once its row is read: the sink slot
+     * here, the entries' own after the sort. */
+    int32_t *restrict dest = th->cy0;
     for (int32_t e = 0; e < items; e++) {
-        const int32_t f = th->flag[e], cy = th->cy0[e];
+        const int32_t f = th->flag[e], cy = dest[e];
+        dest[e] = th->sink;
         if (f & GRID_WIDE) {
             wide[nw++] = src_id(src, e);
         } else if (cy >= row0 && cy <= rowlast) {
@@ -309,18 +295,15 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
     }
     const uint64_t *restrict ent =
         radix_sort(th->ent, th->tmp, ne, kshift, bits_for(b->ncell), th->hist);
-    /* Local copies of the pointers, as in bin_dense. */
-    const grid_src in = *src;
-    grid_set out = *dst;
     uint64_t *restrict skey = th->skey;
     uint8_t *restrict sext = th->sext;
     for (int32_t d = 0; d < ne; d++) {
         const uint64_t v = ent[d];
-        const int32_t e = (int32_t)(v & pmask);
-        put_entry(&out, &in, part, g, kf, d, e);
+        dest[v & pmask] = d;
         skey[d] = v >> kshift;
         sext[d] = (uint8_t)(v >> pbits & ((1u << GRID_EXT_BITS) - 1));
     }
+    place_entries(src, part, g, kf, dest, ne, dst);
     b->ne = ne;
     b->nw = nw;
     b->below = below;

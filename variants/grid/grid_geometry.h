@@ -118,10 +118,6 @@ static inline grid_vm vf_le(grid_vf a, grid_vf b)
 {
     return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LE_OQ);
 }
-static inline grid_vm vf_lt(grid_vf a, grid_vf b)
-{
-    return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_LT_OQ);
-}
 static inline grid_vm vf_gt(grid_vf a, grid_vf b)
 {
     return _mm512_cmp_ps_mask((__m512)a, (__m512)b, _CMP_GT_OQ);
@@ -139,10 +135,6 @@ typedef grid_vi grid_vm;
 static inline grid_vm vf_le(grid_vf a, grid_vf b)
 {
     return a <= b;
-}
-static inline grid_vm vf_lt(grid_vf a, grid_vf b)
-{
-    return a < b;
 }
 static inline grid_vm vf_gt(grid_vf a, grid_vf b)
 {

@@ -1,8 +1,9 @@
 /*
  * grid_prefilter.h: what happens to a pair once the binning has put it in front of the finder.
  * run_prefilter tests a probe against runs of entries in float, GRID_LANES pairs a vector
- * (near_f32, whose lanes come back as bits); every pair it passes goes to pair_found, which decides in double (near_pair,
- * then the shared kernel sim_pair_time) and pushes the candidate from exactly one slice.
+ * (near_f32_line, then near_f32; their lanes come back as bits); every pair they pass goes to
+ * pair_found, which decides in double (near_pair, then the shared kernel sim_pair_time) and
+ * pushes the candidate from exactly one slice.
  */
 #ifndef GRID_PREFILTER_H
 #define GRID_PREFILTER_H

@@ -60,13 +60,7 @@
 #define GRID_LANES 4
 #endif
 #endif
-#if GRID_LANES == 16
-#define GRID_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15}
-#elif GRID_LANES == 8
-#define GRID_LANE_IDS {0, 1, 2, 3, 4, 5, 6, 7}
-#elif GRID_LANES == 4
-#define GRID_LANE_IDS {0, 1, 2, 3}
-#else
+#if GRID_LANES != 4 && GRID_LANES != 8 && GRID_LANES != 16
 #error "GRID_LANES must be 4, 8 or 16"
 #endif
 #if GRID_LANES == 16 && !defined(__AVX512F__)
@@ -96,15 +90,15 @@ typedef struct grid_thread {
     grid_set set[2];             /* this slice's entries, and the previous slice's */
     int32_t *wide[2];            /* this slice's wide particles, and the previous slice's */
     int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags (dense grids: the
-                                  * key in cx0, the entry it goes to in cy0) */
+                                  * key in cx0); after the sort, the entry each goes to in cy0 */
     int32_t *scell;              /* dense grids: cell of each entry */
     uint8_t *sext;               /* reach bits of each entry */
     int32_t *pos;                /* dense grids: where each key's entries begin */
     uint64_t pos_cap;            /* keys pos can hold (2^kshift a cell, grid_bins) */
     uint64_t *ent, *tmp, *skey;  /* sparse grids: radix words, radix buffer, cell of each entry */
     uint32_t *hist;              /* radix histogram */
-    int32_t sink;                /* a slot of the sets no run reads: where the dense binning
-                                  * puts items that are no entry of the slice */
+    int32_t sink;                /* a slot of the sets no run reads: where the binning puts
+                                  * items that are no entry of the slice */
 } grid_thread;
 
 typedef struct grid_scratch {
