@@ -114,13 +114,15 @@ test-c: all asan portable build/seq-f32 build/seq-f128 $(addprefix build/tests/,
 test-python: $(PYTHON) all
 	$(PYTHON) -m pytest -q
 
+# ruff, and the harness's layering (pyproject.toml's import-linter contracts).
 lint: $(PYTHON)
-	$(PYTHON) -m ruff check harness tests
+	$(PYTHON) -m ruff check harness tests bench scripts
+	.venv/bin/lint-imports
 
 test: test-c lint test-python
 
 # ---- environment ----
-$(PYTHON): requirements.txt
+$(PYTHON): requirements.txt pyproject.toml
 	scripts/setup.sh
 
 setup:
@@ -131,7 +133,7 @@ quickstart: setup
 	$(PYTHON) harness/run.py configs/quickstart.yaml
 
 bench: all $(PYTHON)
-	$(PYTHON) bench/bench.py
+	$(PYTHON) -m bench.bench
 
 clean:
 	rm -rf build

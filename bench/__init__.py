@@ -1,1 +1,1 @@
-"""The issues' performance benchmarks (make bench)."""
+"""The performance benchmarks (make bench)."""

@@ -1,10 +1,10 @@
-"""The issues' performance benchmarks: `make bench` (or `python bench/bench.py [GROUP ...]`).
+"""The performance benchmarks: `make bench` (or `python -m bench.bench [GROUP ...]`).
 
 Each case runs its binary with `--timing`; cases of a group run interleaved, round after round,
 so that the ratios between them come from one stretch of machine time (this machine is noisy).
 Reported: the median wall time, the median simulation time from `--timing`, pair tests per
 second and the speedup against the group's reference case; for the groups that ask, where the
-simulation time goes (`--timing`'s phases) and issue 15's figure, the nanoseconds per
+simulation time goes (`--timing`'s phases) and the outside figure, the nanoseconds per
 particle-step spent outside the broad phase, with and without the process's start (hyperfine
 of a 10-particle scene). Saved, never overwritten in place, to
 results/bench/bench-<group>-<UTC time>.{json,md} beside the machine's description.
@@ -24,24 +24,23 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from harness.analysis.phases import outside_broad_ns
+from harness.measure.machine import machine as machine_identity
+from harness.repo import REPO_ROOT as ROOT
+from harness.store.columns import PHASE_COLUMNS
 
-from harness import envinfo  # noqa: E402
-from harness.results import PHASE_COLUMNS, outside_broad_ns  # noqa: E402
-
-from bench.scenes_dense import write_dense_slow  # noqa: E402
+from bench.scenes_dense import write_dense_slow
 
 OUT_DIR = ROOT / "results" / "bench"
 REPORT_SCENE = "10000 20000 1 50\nperf\n"  # the seed report's benchmark: N, L, r, S
 GNU_TIME = shutil.which("/usr/bin/time")  # for peak memory; optional (Debian package time)
 MILLION_SCENE = "1000000 200000 1 10\nperf\n"  # same density, 100x the particles
 RELATIVE_SCENE = "4000 200 1 100\nperf\n"  # the seed report's Section 7.1 scene
-# --timing's split of sim_s (issue 15), then the times outside it that issue 15 counts.
+# --timing's split of sim_s, then the times outside it that the outside figure counts.
 PHASES = PHASE_COLUMNS
 OUTSIDE_KEYS = ("input_s", "output_s")
-# Issue 15's target: (sim_s - broad_s + input_s + output_s) / (N * S) for grid on one thread on
-# the report benchmark, in nanoseconds per particle-step.
+# The outside figure's target: (sim_s - broad_s + input_s + output_s) / (N * S) for grid on one
+# thread on the report benchmark, in nanoseconds per particle-step.
 OUTSIDE_TARGET_NS = 15.0
 OUTSIDE_TARGET_CASE = "grid x1"
 # A scene so small that its run is the process's start and exit: what a run costs besides its
@@ -76,7 +75,7 @@ class Group:
     # rounds each, the 2-thread grid run after seq's 4.4 s took a median 0.186 s (quartiles
     # 0.172-0.193) cold, 0.174 s (0.172-0.177) warm.
     warmup: int = 0
-    # Report where the time goes: --timing's phases and issue 15's ns per particle-step.
+    # Report where the time goes: --timing's phases and the ns per particle-step outside them.
     phases: bool = False
 
 
@@ -93,7 +92,7 @@ class Result:
     start_s: float | None = None  # median wall of the variant on START_SCENE (hyperfine)
 
     def outside_ns(self) -> float:
-        """Median over runs of issue 15's figure: ns per particle-step outside the broad phase,
+        """Median over runs of the outside figure: ns per particle-step outside the broad phase,
         input and output included (nan where the runs lack a phase)."""
         keys = ("broad_s", *OUTSIDE_KEYS)
         if not self.particle_steps or not all(self.phases.get(k) for k in keys):
@@ -289,7 +288,7 @@ def process_start(variant: str, where: Path) -> float | None:
 
 
 def phase_table(group: Group, results: list[Result]) -> str:
-    """Where each case's time goes (medians of --timing's seconds) and issue 15's figure."""
+    """Where each case's time goes (medians of --timing's seconds) and the outside figure."""
     keys = (*PHASES, *OUTSIDE_KEYS)
     lines = [
         "",
@@ -312,13 +311,13 @@ def phase_table(group: Group, results: list[Result]) -> str:
     if target is not None:
         outside = target.outside_ns()
         verdict = "met" if outside <= OUTSIDE_TARGET_NS else "not met"
-        lines += ["", f"Issue 15's target, at most {OUTSIDE_TARGET_NS:g} ns per particle-step "
+        lines += ["", f"Target: at most {OUTSIDE_TARGET_NS:g} ns per particle-step "
                   f"outside the broad phase ({OUTSIDE_TARGET_CASE}): {outside:.1f} ns, {verdict}."]
     return "\n".join(lines) + "\n"
 
 
 def machine() -> dict[str, str]:
-    described = envinfo.machine(ROOT)  # the harness's machine identity: label and machine_id
+    described = machine_identity(ROOT)  # the harness's machine identity: label and machine_id
     flags = subprocess.run(["make", "-s", "print-flags"], cwd=ROOT, capture_output=True,
                            text=True, check=False).stdout.strip()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,

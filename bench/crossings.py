@@ -1,6 +1,6 @@
 """How much work any space-time broad phase faces on the report benchmark (docs/grid_bound.md).
 
-`python bench/crossings.py [--slices K]` takes the first step of the report benchmark (N=10000,
+`python -m bench.crossings [--slices K]` takes the first step of the report benchmark (N=10000,
 L=20000, r=1; the state `build/seq` generates, read back in full precision from a 0-step run)
 and counts, over every pair, brute force:
   - the pairs whose centre paths over the whole step cross (free flight, walls ignored);
@@ -19,12 +19,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from harness.accuracy import run_binary  # noqa: E402
-from harness.validate import parse_output  # noqa: E402
+from harness.measure.shadow import run_binary
+from harness.repo import REPO_ROOT as ROOT
+from harness.spec.output import parse_output
 
 OUT_DIR = ROOT / "results" / "bench"
 SCENE = "10000 20000 1 0\nperf\n"  # the report benchmark's scene, no steps: its initial state

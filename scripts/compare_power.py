@@ -23,11 +23,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-
-REPO_ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO_ROOT))
-
-from harness import compare, stats  # noqa: E402
+from harness import stats
+from harness.analysis import compare
+from harness.repo import DEFAULT_RESULTS_DIR
 
 # Share of runs hit by an outlier: measured, 11 of the 370 runs of committed cells with >= 3
 # runs are more than 10% above their cell's median.
@@ -99,7 +97,7 @@ def smallest_detected(seeds: int, runs: int, sigma: float, threshold: float) -> 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=2000)
-    parser.add_argument("--results", type=Path, default=REPO_ROOT / "results")
+    parser.add_argument("--results", type=Path, default=DEFAULT_RESULTS_DIR)
     args = parser.parse_args(argv)
 
     sigmas = committed_noise(args.results)

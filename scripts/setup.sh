@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 
 venv=.venv
 stamp=$venv/.requirements.sha256
-want=$(sha256sum requirements.txt | cut -d' ' -f1)
+want=$(cat requirements.txt pyproject.toml | sha256sum | cut -d' ' -f1)
 
 as_root() { [ "$(id -u)" = 0 ]; }
 apt_install() {
@@ -36,6 +36,10 @@ fi
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     echo "setup: installing Python packages into $venv (requirements.txt)"
     "$venv/bin/python" -m pip install -q --disable-pip-version-check -r requirements.txt
+    # The harness itself, editable: `import harness` and the collide-bench command from any
+    # directory, with the sources of this checkout.
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps \
+        --no-build-isolation -e .
     echo "$want" > "$stamp"
 fi
 

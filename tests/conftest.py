@@ -9,8 +9,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from harness import repo
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = repo.REPO_ROOT
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 E2E_BINARIES = ("seq", "p1", "p1d")
 

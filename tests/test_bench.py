@@ -60,7 +60,7 @@ def phased(case: Case, sim: float, broad: float, inp: float, out: float) -> Resu
     return r
 
 
-def test_phase_table_reports_issue_15s_figure_and_verdict() -> None:
+def test_phase_table_reports_the_outside_figure_and_verdict() -> None:
     one, seq = Case("grid x1", "grid", 1, "s"), Case("seq", "seq", 1, "s")
     group = Group("g", "A title", {"s": ""}, (seq, one), reference="seq", phases=True)
     # grid: (0.00010 - 0.00009 + 0.000002 + 0.000003) / 1000 particle-steps = 15 ns: met

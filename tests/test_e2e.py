@@ -11,10 +11,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from harness import results, validate
-from harness.run import main
+from harness import repo
+from harness.spec import output
+from harness.store import columns
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+from commands import run_main as main
+
+REPO_ROOT = repo.REPO_ROOT
 SMOKE = REPO_ROOT / "configs" / "smoke.yaml"
 EXACT = ("seq", "p1", "p1d")
 
@@ -32,7 +35,7 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
     assert "smoke: 8 cells (8 measured, 0 cached): 8 ok" in first
     table = root / "smoke" / "results.csv"
     header = table.read_text().splitlines()[0].split(",")
-    assert tuple(header[:len(results.CSV_COLUMNS)]) == results.CSV_COLUMNS
+    assert tuple(header[:len(columns.CSV_COLUMNS)]) == columns.CSV_COLUMNS
     rows = read_csv(table)
     assert [(r["variant"], r["threads"]) for r in rows] == [
         (v, t) for t in ("1", "2") for v in ("seq", "p1", "p1d", "relative")]
@@ -46,9 +49,9 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
         assert (root / "smoke" / "cells" / f"{row['cell_id']}.hyperfine.json").is_file()
         if row["variant"] in EXACT:
             assert row["identical"] == "True" and row["max_pos_err"] == "0.0"
-        # Issue 15: every variant's --timing splits sim_s into phases (each printed to the
+        # Every variant's --timing splits sim_s into phases (each printed to the
         # microsecond, so their sum may pass sim_s by a few).
-        phases = [float(row[k]) for k in results.PHASE_COLUMNS]
+        phases = [float(row[k]) for k in columns.PHASE_COLUMNS]
         assert min(phases) >= 0 and sum(phases) <= float(row["sim_s"]) + 1e-5, row
     assert (root / "smoke" / "env.json").is_file()
     cells = root / "smoke" / "cells"
@@ -89,7 +92,6 @@ def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path
 
 
 def test_report_is_rendered_after_a_run(real_binaries: Path, tmp_path: Path) -> None:
-    pytest.importorskip("harness.report", reason="harness/report.py is not written yet")
     config = tmp_path / "tiny.yaml"
     config.write_text("variants: [seq, p1]\nscene: {n: 50, L: 500, r: 1, steps: 2}\n"
                       "threads: [1, 2]\nmeasure: {warmup: 0, runs: 1}\nvalidate: true\n")
@@ -153,7 +155,7 @@ def test_generated_scene_and_builds(real_binaries: Path, build_binaries, tmp_pat
     assert all(r["status"] == "ok" for r in rows)  # f32 is compared, not required identical
     assert rows[0]["identical"] == "True" and rows[2]["identical"] == "True"
     assert float(rows[1]["max_pos_err"]) < 1e-3
-    kept = validate.parse_output((root / "gen" / "outputs" / f"{rows[0]['cell_id']}.txt")
+    kept = output.parse_output((root / "gen" / "outputs" / f"{rows[0]['cell_id']}.txt")
                                  .read_text())
     assert kept.final.pcoll.tolist() == [1, 1]  # the head-on collision
     assert kept.history.shape == (2 * 20, 6)

@@ -1,4 +1,4 @@
-"""harness/stats.py: intervals of medians and ratios, Karp-Flatt, power fit, rank test."""
+"""harness.stats: intervals of medians and ratios, Karp-Flatt, power fit, rank test."""
 
 from __future__ import annotations
 

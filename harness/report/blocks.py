@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness import tables
+from harness.analysis.display import display_columns, format_table, is_numeric_column
+from harness.analysis.flags import provenance
 from harness.report.document import Figure, Table
 
 
@@ -15,9 +16,9 @@ def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None =
     """A built table formatted for display, numbers right-aligned; with `source` (the cells
     it was built from) the caption says which commit(s) measured them."""
     if source is not None:
-        caption = " ".join(t for t in (caption, tables.provenance(source)) if t)
-    align = tuple(tables.is_numeric_column(table, c) for c in tables.display_columns(table))
-    shown = tables.format_table(table)
+        caption = " ".join(t for t in (caption, provenance(source)) if t)
+    align = tuple(is_numeric_column(table, c) for c in display_columns(table))
+    shown = format_table(table)
     rows = tuple(tuple(str(v) for v in row) for row in shown.itertuples(index=False))
     return Table(tuple(str(c) for c in shown.columns), rows, align, caption)
 

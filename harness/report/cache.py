@@ -8,38 +8,96 @@ by a hash of their input files, both remembered in one manifest beside the figur
   rebuilt only when one of its input files or the report's code changed; a hit needs neither
   pandas nor matplotlib.
 
+"The code" is found, not listed: every module of the harness that the figures (or the whole
+report) import, directly or through others, read from their import statements (code_closure),
+together with the variants' facts, which decide the order and colours of what is drawn.
+
 Both are keyed by content, never by time, so the rendered report is the same whether a figure
-was drawn or reused. Standard library only (pandas is imported when a frame is hashed;
-harness.results needs no packages).
+was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
 """
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import json
-import os
-import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from harness.results import sha256_file
+from harness.store.atomic import atomic_write_text
+from harness.store.records import sha256_file
 
 MANIFEST_NAME = ".manifest.json"
-MANIFEST_VERSION = 1
-HARNESS_DIR = Path(__file__).resolve().parents[1]
-# The code a figure's pixels depend on; any other change keeps the figures.
-PLOT_CODE: tuple[Path, ...] = (HARNESS_DIR / "plots.py", HARNESS_DIR / "tables.py",
-                               HARNESS_DIR / "stats.py", HARNESS_DIR / "strategy_study.py",
-                               HARNESS_DIR / "phases.py")
-# The code an experiment's part depends on: all of the report, and what it calls.
-REPORT_CODE: tuple[Path, ...] = (*PLOT_CODE, *sorted((HARNESS_DIR / "report").glob("*.py")))
+MANIFEST_VERSION = 2
+PACKAGE = "harness"
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+# The modules whose code a figure's pixels depend on (with all they import); any other change
+# keeps the figures.
+FIGURE_MODULES: tuple[str, ...] = ("harness.report.figures",)
+# The modules an experiment's part depends on: the report's, and all they import.
+REPORT_MODULES: tuple[str, ...] = ("harness.report",)
 
 
-def code_version(files: Iterable[Path]) -> str:
-    digest = hashlib.sha256()
+def module_files(name: str, whole: bool = False) -> list[Path]:
+    """The file of a harness module: a package's __init__.py (what importing it loads), or
+    with `whole` every module under the package."""
+    base = PACKAGE_DIR.joinpath(*name.split(".")[1:])
+    if base.is_dir():
+        init = [base / "__init__.py"] if (base / "__init__.py").is_file() else []
+        return sorted(base.rglob("*.py")) if whole else init
+    path = base.with_suffix(".py")
+    return [path] if path.is_file() else []
+
+
+def _module_name(path: Path) -> str:
+    relative = path.relative_to(PACKAGE_DIR).with_suffix("")
+    parts = [PACKAGE, *relative.parts]
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported(path: Path) -> set[str]:
+    """The harness modules a file imports (absolute or relative; `from a import b` names both
+    a and a.b, since b may be a module)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = _module_name(path) if path.name == "__init__.py" else \
+        _module_name(path).rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names)
+    return {name for name in found if name == PACKAGE or name.startswith(PACKAGE + ".")}
+
+
+def code_closure(modules: Iterable[str]) -> list[Path]:
+    """Every file of the harness the modules (packages: all their modules) are made of or
+    import, directly or not; a module's packages count too (they are loaded before it)."""
+    todo = [f for name in modules for f in module_files(name, whole=True)]
+    seen: set[Path] = set()
+    while todo:
+        path = todo.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        names = imported(path)
+        module = _module_name(path)
+        names.update(module.rsplit(".", k)[0] for k in range(1, module.count(".") + 1))
+        for name in names:
+            todo += [f for f in module_files(name) if f not in seen]
+    return sorted(seen)
+
+
+def code_version(files: Iterable[Path], extra: str = "") -> str:
+    digest = hashlib.sha256(extra.encode())
     for path in files:
-        digest.update(path.name.encode())
+        digest.update(str(path.relative_to(PACKAGE_DIR)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 
@@ -59,11 +117,12 @@ def _digest_value(value: object, digest: Any) -> None:
 class Manifest:
     """report/figures/.manifest.json: what each figure and each experiment part was made from."""
 
-    def __init__(self, fig_dir: Path) -> None:
+    def __init__(self, fig_dir: Path, facts: str = "") -> None:
+        """`facts`: what else the drawings depend on beside the code (the variants')."""
         self.fig_dir = fig_dir
         self.path = fig_dir / MANIFEST_NAME
-        self.plot_code = code_version(PLOT_CODE)
-        self.report_code = code_version(REPORT_CODE)
+        self.plot_code = code_version(code_closure(FIGURE_MODULES), facts)
+        self.report_code = code_version(code_closure(REPORT_MODULES), facts)
         data = self._read()
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})
         self.parts: dict[str, dict[str, Any]] = data.get("parts", {})
@@ -150,22 +209,4 @@ class Manifest:
             "figures": {k: v for k, v in sorted(self.figures.items()) if k in self._used_figures},
             "parts": {k: v for k, v in sorted(self.parts.items()) if k in self._used_parts},
         }
-        write_text_atomic(self.path, json.dumps(data, indent=1, sort_keys=True) + "\n")
-
-
-FILE_MODE = 0o644  # the report is for reading; mkstemp makes files private
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write through a temporary sibling and rename it into place: a reader (a browser, a
-    concurrent render) never sees a half-written file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.chmod(tmp, FILE_MODE)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        atomic_write_text(self.path, json.dumps(data, indent=1, sort_keys=True) + "\n")

@@ -6,17 +6,13 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Collection
-from dataclasses import dataclass
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.report.paths import QUICK_SUFFIX
-from harness.results import sha256_file
+from harness.store import layout
+from harness.store.layout import QUICK_SUFFIX, ExperimentDir
+from harness.store.records import sha256_file
 
-RESULTS_FILE = "results.csv"
-ENV_FILE = "env.json"
-DIVERGENCE_FILE = "divergence.csv"
-OUTPUTS_DIR = "outputs"
 # Outputs up to this size are hashed by content; larger ones (never plotted) by size and time.
 HASHED_OUTPUT_BYTES = 4 * 1024 * 1024
 
@@ -25,14 +21,6 @@ PREFERRED_ORDER: tuple[str, ...] = (
     "strategies", "particles", "square", "radius", "threads", "relative", "grid",
     "trajectory", "accuracy", "stability",
 )
-
-
-@dataclass(frozen=True)
-class ExperimentDir:
-    """results/<name>/ with a results.csv of at least one row."""
-
-    name: str
-    path: Path
 
 
 def _has_rows(csv: Path) -> bool:
@@ -48,20 +36,14 @@ def _has_rows(csv: Path) -> bool:
 def find_experiments(
     results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
 ) -> list[ExperimentDir]:
-    """Every results/<name>/results.csv with at least one row, in the course report's order."""
+    """Every results/<name>/results.csv with at least one row, in the course report's order
+    (an experiment still running its first cell has none)."""
     if not results_dir.is_dir():
         raise HarnessError(f"{results_dir}: results directory not found")
-    found = []
-    for path in sorted(results_dir.iterdir()):
-        csv = path / RESULTS_FILE
-        if path.name.startswith(".") or not csv.is_file():
-            continue  # .cache, or an experiment still running its first cell
-        if path.name.endswith(QUICK_SUFFIX) and not include_quick:
-            continue
-        if only is not None and path.name not in only:
-            continue
-        if _has_rows(csv):
-            found.append(ExperimentDir(path.name, path))
+    candidates, _ = layout.experiments_under(results_dir, layout.has_results)
+    found = [exp for exp in candidates
+             if (include_quick or not exp.name.endswith(QUICK_SUFFIX))
+             and (only is None or exp.name in only) and _has_rows(exp.results_csv)]
     rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
     return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
 
@@ -75,15 +57,15 @@ def input_digest(exp: ExperimentDir) -> str:
     divergence.csv and the kept outputs (the trajectory figure's input)."""
     parts: dict[str, object] = {
         "name": exp.name,
-        RESULTS_FILE: _file_digest(exp.path / RESULTS_FILE),
-        ENV_FILE: _file_digest(exp.path / ENV_FILE),
-        DIVERGENCE_FILE: _file_digest(exp.path / DIVERGENCE_FILE),
+        layout.RESULTS_CSV: _file_digest(exp.results_csv),
+        layout.ENV_JSON: _file_digest(exp.env_json),
+        layout.DIVERGENCE_CSV: _file_digest(exp.divergence_csv),
     }
-    outputs = exp.path / OUTPUTS_DIR
+    outputs = exp.outputs
     if outputs.is_dir():
         for path in sorted(outputs.iterdir()):
             stat = path.stat()
-            parts[f"{OUTPUTS_DIR}/{path.name}"] = (
+            parts[f"{layout.OUTPUTS}/{path.name}"] = (
                 _file_digest(path) if stat.st_size <= HASHED_OUTPUT_BYTES
                 else f"{stat.st_size}:{stat.st_mtime_ns}")
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()

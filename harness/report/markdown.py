@@ -15,8 +15,8 @@ def _md_cell(text: str) -> str:
 def markdown_table(table: Table) -> list[str]:
     header = [_md_cell(c) for c in table.columns]
     rule = ["---:" if right else "---" for right in table.align_right]
-    lines = [f"*{table.caption}*", "", "| " + " | ".join(header) + " |",
-             "| " + " | ".join(rule) + " |"]
+    lines = [f"*{table.caption}*", ""] if table.caption else []
+    lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(rule) + " |"]
     for row in table.rows:
         lines.append("| " + " | ".join(_md_cell(v) for v in row) + " |")
     return lines

@@ -39,7 +39,7 @@ class Fidelity:
         return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed)
 
 
-# In the summary's order; "phases": where grid's time goes (issue 15).
+# In the summary's order; "phases": where grid's time goes.
 HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "phases", "largest")
 
 

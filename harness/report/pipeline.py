@@ -5,19 +5,12 @@ scipy or matplotlib; only the others are loaded and built."""
 
 from __future__ import annotations
 
-import fcntl
-import os
 from collections.abc import Collection, Sequence
 from pathlib import Path
 
-from harness.report.cache import Manifest, write_text_atomic
-from harness.report.discover import (
-    ENV_FILE,
-    ExperimentDir,
-    find_experiments,
-    input_digest,
-    read_env,
-)
+from harness.repo import REPO_ROOT
+from harness.report.cache import Manifest
+from harness.report.discover import find_experiments, input_digest, read_env
 from harness.report.document import Block, Bullets, Document, Paragraph, document_files
 from harness.report.header import (
     HOW_TO_READ,
@@ -28,7 +21,13 @@ from harness.report.header import (
 from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
-from harness.report.paths import FIGURE_SUFFIXES, FIGURES_DIR, REPO_ROOT
+from harness.spec.variants import default_registry
+from harness.store.atomic import atomic_write_text
+from harness.store.layout import ExperimentDir
+from harness.store.locks import directory_lock
+
+FIGURES_DIR = "figures"
+FIGURE_SUFFIXES: frozenset[str] = frozenset({".png", ".svg", ".gif"})
 
 
 def build_document(
@@ -103,18 +102,14 @@ def render(
     # Two renders into one directory (a run finishing while someone renders by hand) would
     # delete each other's figures as stale; the second waits for the first instead.
     # The lock is on the directory itself, so no lock file is left in the report.
-    lock = os.open(out_dir, os.O_RDONLY)
-    try:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        manifest = Manifest(fig_dir)
+    with directory_lock(out_dir):
+        manifest = Manifest(fig_dir, facts=default_registry().digest())
         parts = [experiment_part(f, manifest, out_dir) for f in found]
-        environments = [(f.name, read_env(f.path / ENV_FILE)) for f in found]
+        environments = [(f.name, read_env(f.env_json)) for f in found]
         doc = build_document(parts, results_dir, environments)
         markdown = out_dir / "report.md"
-        write_text_atomic(markdown, render_markdown(doc, out_dir))
-        write_text_atomic(out_dir / "report.html", render_html(doc))
+        atomic_write_text(markdown, render_markdown(doc, out_dir))
+        atomic_write_text(out_dir / "report.html", render_html(doc))
         _remove_stale_figures(fig_dir, document_files(doc))
         manifest.save()
-    finally:
-        os.close(lock)  # closing releases the lock
     return markdown

@@ -7,17 +7,24 @@ import math
 
 import pandas as pd
 
-from harness import phases, tables
+from harness.analysis import phases
+from harness.analysis.cells import MACHINE
+from harness.analysis.display import format_value
+from harness.analysis.flags import flagged_cells
+from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.blocks import table_block
 from harness.report.document import Section
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
-from harness.report.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
+from harness.report.sections.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
+from harness.spec.variants import BASELINE
+from harness.store.columns import INVALID, OK
+from harness.store.records import MACHINE_KEY
 
-GRID = "grid"
+GRID = "grid"  # the variant the summary's grid headline is about
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
 # oversubscribed, against seq on the same scene and machine.
-NOT_STRATEGIES: frozenset[str] = frozenset({tables.SEQ, GRID})
+NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
 ISSUE_DETAIL = " ("  # an issue's kind is the text before its detail, e.g. "oversubscribed (4..."
 
 
@@ -42,13 +49,13 @@ def ratio_text(row: pd.Series, column: str = "speedup") -> str:
 def _where(row: pd.Series) -> str:
     threads = int(row["threads"])
     text = f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
-    machine = row.get(tables.MACHINE)
+    machine = row.get(MACHINE)
     return text + (f", {machine}" if isinstance(machine, str) and machine else "")
 
 
 def _fair(rows: pd.DataFrame) -> pd.DataFrame:
-    return rows[(rows["status"] == tables.OK) & ~rows["oversubscribed"]
-                & (rows["baseline"] == tables.BASELINE_SEQ) & rows["speedup"].notna()]
+    return rows[(rows["status"] == OK) & ~rows["oversubscribed"]
+                & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
 
 
 def latest_machine_rows(exp: Experiment) -> pd.DataFrame:
@@ -57,10 +64,10 @@ def latest_machine_rows(exp: Experiment) -> pd.DataFrame:
     rows; else all of them. A headline then speaks of one machine, today's, and never picks a
     cell because another machine was slower or its seq slower."""
     df = exp.frame
-    latest = exp.env.get("machine_id")
-    if "machine_id" not in df.columns or df["machine_id"].nunique() < 2:
+    latest = exp.env.get(MACHINE_KEY)
+    if MACHINE_KEY not in df.columns or df[MACHINE_KEY].nunique() < 2:
         return df
-    mine = df[df["machine_id"] == latest]
+    mine = df[df[MACHINE_KEY] == latest]
     return mine if len(mine) else df
 
 
@@ -68,7 +75,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them:
     from the rows of the latest machine (latest_machine_rows)."""
     frame = latest_machine_rows(exp)
-    rows = tables.with_speedup(frame)
+    rows = with_speedup(frame)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
     fair = _fair(rows)
@@ -92,26 +99,26 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
-    timed = rows[(rows["status"] == tables.OK) & rows["wall_median_s"].notna()]
+    timed = rows[(rows["status"] == OK) & rows["wall_median_s"].notna()]
     if not timed.empty:
         top = timed.sort_values(["n", "wall_median_s"], kind="stable").iloc[-1]
         found["largest"] = Highlight(
             float(top["n"]),
             f"largest N measured: {int(top['n']):,} particles, `{top['variant']}` in "
-            f"{tables.format_value('median_s', top['wall_median_s'])} s "
+            f"{format_value('median_s', top['wall_median_s'])} s "
             f"({_where(top).split(', ', 1)[1]}; {link})", section.anchor)
     return found
 
 
 def fidelity(exp: Experiment) -> Fidelity:
     df = exp.frame
-    validated = df["identical"].notna() | (df["status"] == tables.INVALID)
+    validated = df["identical"].notna() | (df["status"] == INVALID)
     checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
                else pd.Series(False, index=df.index))
     return Fidelity(
         validated=int(validated.sum()),
         identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),
-        invalid=int((df["status"] == tables.INVALID).sum()),
+        invalid=int((df["status"] == INVALID).sum()),
         checked=int(checked.sum()),
         checks_passed=int(df.loc[checked, "checks_passed"].astype(bool).sum()) if checked.any()
         else 0,
@@ -120,7 +127,7 @@ def fidelity(exp: Experiment) -> Fidelity:
 
 def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
     """The section with the experiment's warnings rows and headline candidates."""
-    flagged = tables.flagged_cells(exp.frame.assign(experiment=exp.name))
+    flagged = flagged_cells(exp.frame.assign(experiment=exp.name))
     table = table_block(flagged, "")
     issues = tuple(
         tuple(issue.split(ISSUE_DETAIL)[0] for issue in text.split("; "))

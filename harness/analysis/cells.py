@@ -1,0 +1,127 @@
+"""Which columns name a cell, and the selections every table starts from: pure functions of
+one experiment's results frame (harness.analysis.frame reads it). Variants sort in the
+registry's order (harness.spec.variants: from the binaries' own facts), builds in
+harness.spec.builds' order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+
+import pandas as pd
+
+from harness.spec.builds import BUILDS
+from harness.spec.variants import default_registry
+from harness.store.columns import TIMED_STATUSES
+
+MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.frame)
+# The columns that identify a measured cell, in the order tables show them. A results
+# directory may hold several machines' cells side by side: the machine is then a dimension
+# like any other (a table column, one plotted series each).
+CELL_KEYS: tuple[str, ...] = (
+    MACHINE, "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
+    "schedule",
+)
+# The columns that identify a simulated input: cells sharing them simulate the same thing,
+# so one may serve as the other's speedup baseline (never across machines).
+SCENE_KEYS: tuple[str, ...] = (MACHINE, "scene", "n", "L", "r", "steps", "mode", "seed")
+# Parameters a section can sweep, in the order the course report's tables take them.
+SWEEP_AXES: tuple[str, ...] = ("n", "L", "r", "threads")
+INTERVAL_SUFFIXES: tuple[str, str] = ("_low", "_high")  # a column's 95% interval ends
+SE_SUFFIX = "_se"  # a column's standard error
+SHARE_SUFFIX = "_share"  # a column's share of its row's total, in percent
+
+
+def companions(column: str) -> tuple[str, ...]:
+    """The columns that qualify `column` in a built table: its interval, standard error and
+    share."""
+    return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}",
+            f"{column}{SHARE_SUFFIX}")
+
+
+def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """The table without `columns` and their intervals and standard errors."""
+    gone = {c for col in columns for c in (col, *companions(col))}
+    return df.drop(columns=[c for c in df.columns if c in gone])
+
+
+def present(df: pd.DataFrame, keys: Iterable[str]) -> list[str]:
+    """The keys that are columns of `df` (a frame from before the machine column has none)."""
+    return [k for k in keys if k in df.columns]
+
+
+def timed_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows of cells that were timed (ok or invalid) and have a median time."""
+    return df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
+
+
+def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]:
+    """The keys that take more than one value across the rows: what the experiment varies."""
+    return [k for k in keys if k in df.columns and df[k].nunique(dropna=False) > 1]
+
+
+def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str, object]:
+    """The keys that take exactly one value across the rows, with that value."""
+    fixed: dict[str, object] = {}
+    for key in keys:
+        if key in df.columns and len(df) and df[key].nunique(dropna=False) == 1:
+            if df[key].iloc[0] == "":  # an axis the config did not set (schedule)
+                continue
+            fixed[key] = df[key].iloc[0]
+    return fixed
+
+
+def _follows(df: pd.DataFrame, key: str, x: str) -> bool:
+    """Whether `key` and `x` determine each other (e.g. a scene file per N, or S chosen per N):
+    such a key names the point, not the series."""
+    return bool(
+        df.groupby(key, dropna=False)[x].nunique(dropna=False).max() == 1
+        and df.groupby(x, dropna=False)[key].nunique(dropna=False).max() == 1
+    )
+
+
+def series_keys(df: pd.DataFrame, x: str) -> list[str]:
+    """The keys that split the rows into one plotted series each, for a plot against `x`."""
+    return [k for k in varying_keys(df) if k != x and not _follows(df, k, x)]
+
+
+def sweep_axes(df: pd.DataFrame) -> list[str]:
+    """The parameters some variant and build was measured at several values of.
+
+    Judged within each variant, build and named scene so that seq at 1 thread beside p1 at 8
+    is not mistaken for a thread sweep, nor a catalog of different scenes for a sweep of N.
+    """
+    groups = df.groupby(["variant", "build", "scene"], dropna=False)
+    return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
+
+
+
+def variant_rank(name: str) -> int:
+    """Where a variant sorts: the registry's order, any other name after every variant."""
+    return default_registry().rank(name)
+
+
+def _rank(order: Sequence[str]) -> Callable[[pd.Series], pd.Series]:
+    """A sort key that puts the names of `order` first, in that order, then the rest."""
+    ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
+
+    def key(col: pd.Series) -> pd.Series:
+        return col.map(lambda v: ranks.get(v, f"999{v}"))
+
+    return key
+
+
+def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """Rows sorted by `keys`: variants and builds in their canonical order, numbers by value."""
+    keys = [k for k in keys if k in df.columns]
+    if not keys:
+        return df.reset_index(drop=True)
+
+    def key(col: pd.Series) -> pd.Series:
+        if col.name == "variant":
+            return _rank(default_registry().order)(col)
+        if col.name == "build":
+            return _rank(BUILDS)(col)
+        return col
+
+    return df.sort_values(list(keys), key=key, kind="stable").reset_index(drop=True)

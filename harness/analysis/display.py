@@ -1,0 +1,270 @@
+"""How analysis results read as text: display headers with units, the formatting of each
+kind of value, intervals and shares written into the value they qualify, series labels. The
+report's tables and figures, and compare's, are written with these."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from harness.analysis.cells import INTERVAL_SUFFIXES, MACHINE, SE_SUFFIX, SHARE_SUFFIX, companions
+from harness.store.columns import PHASE_COLUMNS
+
+# Where a --timing run's time goes (harness.analysis.phases), in drawing order: results.csv's
+# phase columns and what sim_s holds beyond them (parallel regions' start-ups and closing
+# barriers, the step's bookkeeping), which make up sim_s; then the output, which that run
+# writes with --precise (every digit), far slower than the timed runs' output.
+OTHER_PHASE = "other_s"
+OUTPUT_PHASE = "output_s"
+PHASE_NAMES: dict[str, str] = dict(zip(
+    (*PHASE_COLUMNS, OTHER_PHASE, OUTPUT_PHASE),
+    ("broad phase", "wall candidates", "sort", "resolution", "motion", "other",
+     "output (--precise)"),
+    strict=True))
+
+
+# Display headers for every column a builder can produce.
+DISPLAY_NAMES: dict[str, str] = {
+    "experiment": "experiment",
+    MACHINE: "machine",
+    "variant": "variant",
+    "build": "build",
+    "scene": "scene",
+    "n": "N",
+    "L": "L",
+    "r": "r",
+    "steps": "S",
+    "mode": "mode",
+    "seed": "seed",
+    "threads": "threads",
+    "schedule": "OMP_SCHEDULE",
+    "imbalance": "imbalance (max/mean busy)",
+    "cores": "cores",
+    "runs": "runs",
+    "median_s": "median [s]",
+    "extra_s": "extra time [s]",
+    "per_chunk_ns": "per chunk [ns]",
+    "min_s": "min [s]",
+    "stddev_s": "stddev [s]",
+    "speedup": "speedup",
+    "efficiency": "efficiency",
+    "serial_fraction": "serial fraction e",
+    "baseline": "speedup vs",
+    "validation": "validation",
+    "series": "series",
+    "exponent": "exponent k",
+    "prefactor_s": "a [s]",
+    "points": "points",
+    "x_min": "from",
+    "x_max": "to",
+    "max_pos_err": "max position error (÷L)",
+    "max_vel_err": "max velocity error",
+    "count_mismatches": "count mismatches",
+    "pareto": "Pareto",
+    "status": "status",
+    "issue": "issue",
+    # accuracy and stability checks
+    "label": "variant/build",
+    "check": "check",
+    "what": "what it checks",
+    "checked": "cells",
+    "passed": "passed",
+    "failed": "failed",
+    "where": "failing cells",
+    "shadow_pos_err": "shadow error, mean (÷L)",
+    "shadow_pos_err_max": "shadow error, max (÷L)",
+    "shadow_err_r": "shadow error, max (÷r)",
+    "shadow_set_diff": "collisions differ (share of steps)",
+    "energy_drift_max": "energy drift, max",
+    "div_steps_to_r": "steps until r apart",
+    "div_truth_max": "deviation from truth, max (÷L)",
+    "scenes": "scenes",
+    "trusted": "trusted",
+    "typical_err_r": "shadow error, median (÷r)",
+    "worst": "worst scene",
+    "not_trusted": "not trusted for",
+    # where the time goes
+    "sim_s": "simulation [s]",
+    **{column: f"{name} [s]" for column, name in PHASE_NAMES.items()},
+    "rest_ns": "simulation outside the broad phase [ns per particle-step]",
+}
+
+
+
+def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
+    """A legend label such as `p1d · f32 · threads=8` (variant and build go bare); the machine,
+    the longest part, comes last, so that what tells the series of one machine apart leads."""
+    if not keys:
+        return "all cells"
+    pairs = sorted(zip(keys, values, strict=True), key=lambda kv: kv[0] == MACHINE)
+    parts = []
+    for key, value in pairs:
+        text = format_value(key, value)
+        if key in ("variant", "build", "scene", MACHINE):
+            parts.append(text)
+        elif key == "threads":
+            parts.append(f"{text} thread{'' if text == '1' else 's'}")
+        else:
+            parts.append(f"{DISPLAY_NAMES[key]}={text}")
+    return " · ".join(parts)
+
+
+
+MISSING_TEXT = "—"
+WHOLE_LIMIT = 1e12  # whole numbers below this are written out in full
+TIME_DIGITS = 4  # significant digits of a time: hyperfine's spread rarely supports more
+
+
+def _fmt_time(v: object) -> str:
+    return f"{float(v):.{TIME_DIGITS}g}"
+
+
+def _fmt_ratio(v: object) -> str:
+    return f"{float(v):.2f}"
+
+
+def _fmt_fraction(v: object) -> str:
+    return f"{float(v):.3f}"
+
+
+def _fmt_error(v: object) -> str:
+    return "0" if float(v) == 0 else f"{float(v):.2e}"
+
+
+def _fmt_int(v: object) -> str:
+    return f"{int(v)}"
+
+
+def _fmt_general(v: object) -> str:
+    if isinstance(v, float | np.floating):
+        # Whole numbers (L = 1e7, N = 1e6) read better written out than as 1e+07.
+        return f"{v:.0f}" if float(v).is_integer() and abs(v) < WHOLE_LIMIT else f"{v:g}"
+    return str(v)
+
+
+def _fmt_bool(v: object) -> str:
+    return "✓" if bool(v) else ""
+
+
+FORMATTERS: dict[str, Callable[[object], str]] = {
+    "median_s": _fmt_time,
+    "extra_s": _fmt_time,
+    "per_chunk_ns": lambda v: f"{float(v):.3g}",
+    "min_s": _fmt_time,
+    "stddev_s": _fmt_time,
+    "prefactor_s": lambda v: f"{float(v):.3e}",
+    "speedup": _fmt_ratio,
+    "efficiency": _fmt_ratio,
+    "imbalance": _fmt_ratio,
+    "exponent": _fmt_ratio,
+    "exponent_se": lambda v: f"{float(v):.2g}",
+    "serial_fraction": _fmt_fraction,
+    "max_pos_err": _fmt_error,
+    "max_vel_err": _fmt_error,
+    "shadow_pos_err": _fmt_error,
+    "shadow_pos_err_max": _fmt_error,
+    "shadow_err_r": _fmt_error,
+    "typical_err_r": _fmt_error,
+    "energy_drift_max": _fmt_error,
+    "div_truth_max": _fmt_error,
+    "shadow_set_diff": _fmt_ratio,
+    "div_steps_to_r": _fmt_int,
+    "checked": _fmt_int,
+    "passed": _fmt_int,
+    "failed": _fmt_int,
+    "scenes": _fmt_int,
+    "trusted": _fmt_int,
+    "runs": _fmt_int,
+    "points": _fmt_int,
+    "count_mismatches": _fmt_int,
+    "n": _fmt_int,
+    "steps": _fmt_int,
+    "seed": _fmt_int,
+    "threads": _fmt_int,
+    "cores": _fmt_int,
+    "pareto": _fmt_bool,
+    "sim_s": _fmt_time,
+    **{column: _fmt_time for column in PHASE_NAMES},
+    "rest_ns": lambda v: format_sig3(float(v)),
+}
+
+
+def format_value(column: str, value: object) -> str:
+    """One value as the tables show it; missing values as a dash."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return MISSING_TEXT
+    if isinstance(value, str):
+        return value if value else MISSING_TEXT
+    return FORMATTERS.get(column, _fmt_general)(value)
+
+
+def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
+    """Whether a built table's column holds numbers (right-aligned when shown)."""
+    return column != "pareto" and pd.api.types.is_numeric_dtype(df[column].dtype) and not (
+        pd.api.types.is_bool_dtype(df[column].dtype)
+    )
+
+
+SHARE_WHOLE = (10.0, 99.5)  # between these a share is written in whole percent
+SHARE_TINY = 0.05  # a positive share below this would read 0.0%
+
+
+def format_share(percent: float) -> str:
+    """`61%`, and `0.6%` or `99.7%` with one decimal where whole percent would blur a small
+    phase or the rest beside a large one; `<0.1%` for a sliver; 0 and 100 as they are."""
+    if percent in (0.0, 100.0) or SHARE_WHOLE[0] <= percent < SHARE_WHOLE[1]:
+        return f"{percent:.0f}%"
+    if 0 < percent < SHARE_TINY:
+        return "<0.1%"
+    return f"{percent:.1f}%"
+
+
+def format_sig3(value: float) -> str:
+    """Three significant digits, whole numbers written out (2040, not 2.04e+03)."""
+    return f"{value:.0f}" if abs(value) >= 1000 else f"{value:.3g}"
+
+
+def display_columns(df: pd.DataFrame) -> list[str]:
+    """The columns a table shows: an interval's ends and a standard error are written into
+    the column they qualify, not beside it."""
+    hidden = {c for col in df.columns for c in companions(str(col)) if c in df.columns}
+    return [str(c) for c in df.columns if c not in hidden]
+
+
+def format_with_uncertainty(df: pd.DataFrame, column: str, index: int) -> str:
+    """`1.98 [1.95, 2.01]` where the row has an interval, `1.98 ± 0.02` where it has a
+    standard error, `1.98 (61%)` where it has a share, else the value alone."""
+    value = df[column].iloc[index]
+    text = format_value(column, value)
+    if text == MISSING_TEXT:
+        return text
+    share = f"{column}{SHARE_SUFFIX}"
+    if share in df.columns and pd.notna(df[share].iloc[index]):
+        return f"{text} ({format_share(float(df[share].iloc[index]))})"
+    low, high = (f"{column}{s}" for s in INTERVAL_SUFFIXES)
+    if low in df.columns and high in df.columns:
+        a, b = df[low].iloc[index], df[high].iloc[index]
+        if pd.notna(a) and pd.notna(b) and math.isfinite(a) and math.isfinite(b):
+            return f"{text} [{format_value(column, a)}, {format_value(column, b)}]"
+    se = f"{column}{SE_SUFFIX}"
+    if se in df.columns:
+        error = df[se].iloc[index]
+        if pd.notna(error) and math.isfinite(error):
+            return f"{text} ± {format_value(se, error)}"
+    return text
+
+
+def format_table(df: pd.DataFrame) -> pd.DataFrame:
+    """A built table as strings under display headers, ready for Markdown or HTML."""
+    shown = pd.DataFrame(
+        {
+            DISPLAY_NAMES.get(col, col): [format_with_uncertainty(df, col, i)
+                                          for i in range(len(df))]
+            for col in display_columns(df)
+        },
+        dtype=object,
+    )
+    return shown

@@ -1,0 +1,143 @@
+"""results.csv read back into a typed DataFrame: checked against its contract
+(harness.store.columns), numbers as float64, flags as booleans, text stripped; every error a
+HarnessError naming the file, the line and what is wrong. divergence.csv beside it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from harness.analysis.cells import MACHINE
+from harness.errors import HarnessError
+from harness.store.columns import (
+    BOOL_COLUMNS,
+    CSV_COLUMNS,
+    DIVERGENCE_COLUMNS,
+    FLAG_COLUMNS,
+    NUMERIC_COLUMNS,
+    REQUIRED_VALUES,
+    STATUSES,
+    TIMED_STATUSES,
+)
+from harness.store.records import MACHINE_KEY
+
+MACHINE_ID_SHOWN = 8  # hex digits of machine_id that tell machines with one label apart
+# divergence.csv's columns a figure needs.
+DIVERGENCE_REQUIRED: tuple[str, ...] = tuple(
+    c for c in DIVERGENCE_COLUMNS if c in ("variant", "build", "scene", "L", "r", "reference",
+                                           "step", "max_pos_dev"))
+MISSING_TOKENS: frozenset[str] = frozenset({"", "nan", "na", "none", "null"})
+TRUE_TOKENS: frozenset[str] = frozenset({"true", "1", "yes"})
+FALSE_TOKENS: frozenset[str] = frozenset({"false", "0", "no"})
+HEADER_LINES = 1  # a row's line number in the file is its position + this + 1
+
+
+def _line(index: object) -> int:
+    return int(index) + HEADER_LINES + 1  # type: ignore[call-overload]
+
+
+def _parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
+    """A column of numbers; empty or `nan` cells are missing, anything else is an error."""
+    missing = text.str.lower().isin(MISSING_TOKENS)
+    values = pd.to_numeric(text.mask(missing), errors="coerce").astype("float64")
+    bad = values.isna() & ~missing
+    if bad.any():
+        first = bad.idxmax()
+        raise HarnessError(
+            f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not a number"
+        )
+    return values
+
+
+def _parse_bool(text: pd.Series, path: Path, column: str) -> pd.Series:
+    """A column of True/False with missing cells as NA."""
+    lower = text.str.lower()
+    known = lower.isin(MISSING_TOKENS | TRUE_TOKENS | FALSE_TOKENS)
+    if not known.all():
+        first = (~known).idxmax()
+        raise HarnessError(
+            f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not True/False"
+        )
+    values = pd.Series(pd.NA, index=text.index, dtype="boolean")
+    values[lower.isin(TRUE_TOKENS)] = True
+    values[lower.isin(FALSE_TOKENS)] = False
+    return values
+
+
+def read_results(path: Path) -> pd.DataFrame:
+    """One results.csv, checked against the contract and typed: numbers as float64, flags as
+    booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
+    try:
+        raw = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise HarnessError(f"{path}: cannot read results: {e}") from e
+    missing = [c for c in CSV_COLUMNS if c not in raw.columns]
+    if missing:
+        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
+    # Every other column is kept (as text unless typed below), so a newer column reaches the
+    # tables without a change here.
+    optional = [c for c in raw.columns if c not in CSV_COLUMNS]
+    df = pd.DataFrame({c: raw[c].str.strip() for c in (*CSV_COLUMNS, *optional)})
+    for column in df.columns:
+        if column in NUMERIC_COLUMNS:
+            df[column] = _parse_numeric(df[column], path, column)
+        elif column in BOOL_COLUMNS:
+            df[column] = _parse_bool(df[column], path, column)
+    for column in FLAG_COLUMNS:
+        if column in df.columns:
+            df[column] = df[column].fillna(False).astype(bool)
+    _check_rows(df, path)
+    df[MACHINE] = machine_labels(df)
+    return df
+
+
+def machine_labels(df: pd.DataFrame) -> pd.Series:
+    """Per row, the machine's label: `machine` where given, else the start of `machine_id`,
+    with the id's start appended where one label names several machines; empty where the row
+    predates machine identity."""
+    def column(name: str) -> pd.Series:
+        if name not in df.columns:
+            return pd.Series("", index=df.index, dtype=object)
+        return df[name].fillna("").astype(str).str.strip()
+
+    ids, labels = column(MACHINE_KEY), column(MACHINE)
+    short = ids.str[:MACHINE_ID_SHOWN]
+    labels = labels.where(labels != "", short)
+    shared = ids.groupby(labels).transform("nunique") > 1
+    return labels.where(~shared | (ids == ""), labels + " (" + short + ")")
+
+
+def _check_rows(df: pd.DataFrame, path: Path) -> None:
+    """Every row names its cell and has a known status; timed cells have a median time."""
+    for column in REQUIRED_VALUES:
+        empty = df[column].isna() | (df[column].astype(str) == "")
+        if empty.any():
+            raise HarnessError(f"{path}: line {_line(empty.idxmax())}: column '{column}' is empty")
+    unknown = ~df["status"].isin(STATUSES)
+    if unknown.any():
+        first = unknown.idxmax()
+        raise HarnessError(
+            f"{path}: line {_line(first)}: status {df['status'][first]!r} is not one of "
+            f"{', '.join(sorted(STATUSES))}"
+        )
+    untimed = df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].isna()
+    if untimed.any():
+        raise HarnessError(
+            f"{path}: line {_line(untimed.idxmax())}: status "
+            f"{df['status'][untimed.idxmax()]!r} but no wall_median_s"
+        )
+
+
+def read_divergence(path: Path) -> pd.DataFrame | None:
+    """divergence.csv (step-by-step deviation curves), or None when there is none."""
+    if not path.is_file():
+        return None
+    try:
+        div = pd.read_csv(path)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise HarnessError(f"{path}: cannot read divergence curves: {e}") from e
+    missing = [c for c in DIVERGENCE_REQUIRED if c not in div.columns]
+    if missing:
+        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
+    return div

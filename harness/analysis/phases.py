@@ -1,0 +1,202 @@
+"""Where the time goes: each cell's `--timing` run split into its phases (the columns
+store.columns.PHASE_COLUMNS and what sim_s holds beyond them), in seconds and as shares of the
+simulation time, and its output in seconds, as a table, a figure's frame and a headline
+sentence. Tables are DataFrames and sentences strings, computed from results rows; the report
+lays them out (harness.report.sections.phases, harness.report.figures.phases).
+
+The output gets no share: the --timing run writes it with --precise (every digit, for the
+validation), which costs some 20x the timed runs' output (`build/grid --threads 1 --timing`,
+N = 2000, 20 steps, two runs each: 0.0120 and 0.0143 s with --precise, 0.00046 and 0.00061 s
+without), so as a share it would shrink every other phase.
+
+Which cells: the timed ones with phases, at one thread count per experiment, the count most
+of those cells ran at (the fewest on a tie): a thread sweep shows its single-thread cells, a
+strategy comparison at its one count shows every variant.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pandas as pd
+
+from harness.analysis.cells import (
+    MACHINE,
+    SCENE_KEYS,
+    SHARE_SUFFIX,
+    sort_cells,
+    timed_rows,
+    varying_keys,
+)
+from harness.analysis.display import (
+    OTHER_PHASE,
+    OUTPUT_PHASE,
+    PHASE_NAMES,
+    format_share,
+    format_sig3,
+    series_label,
+)
+from harness.store.columns import PHASE_COLUMNS
+
+NS_PER_S = 1e9
+
+PHASES: tuple[str, ...] = tuple(PHASE_NAMES)  # drawing order: sim_s's, then output
+SIM_PHASES: tuple[str, ...] = (*PHASE_COLUMNS, OTHER_PHASE)  # they make up sim_s
+TOTAL = "sim_s"  # the simulation time of the --timing run, the whole the shares are of
+REST_NS = "rest_ns"  # the simulation outside the broad phase, ns per particle-step
+BROAD = PHASE_COLUMNS[0]
+PERCENT = 100.0
+# The dimensions a bar is one of within a scene (the thread count is fixed by the rule above).
+ROW_KEYS: tuple[str, ...] = (MACHINE, "variant", "build", "schedule")
+# Bars beyond this make a figure too tall to read next to its table: whole scenes are left out,
+# the cheapest (least simulation time) first, until the rest fits (one is always shown).
+MAX_BARS = 36
+GROUP = "group"  # a plotted frame's scene label
+BAR = "bar"  # a plotted frame's bar label
+def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
+    """Nanoseconds per particle-step spent outside the broad phase: sim_s - broad_s, plus the
+    input and output where they are given (bench/bench.py counts them, with the timed runs'
+    plain output; the report leaves them out: its --timing run writes the output with
+    --precise, some 20x slower). Floats or pandas Series alike; the caller guards
+    particle_steps > 0."""
+    return (sim_s - broad_s + input_s + output_s) / particle_steps * NS_PER_S
+
+
+def has_phases(df: pd.DataFrame) -> bool:
+    """Whether some timed cell has every phase column (results of binaries from before the
+    phase timers have none)."""
+    return len(phase_rows(df)) > 0
+
+
+def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """The timed rows with sim_s and every phase."""
+    if not all(c in df.columns for c in PHASE_COLUMNS):
+        return df.iloc[0:0]
+    rows = timed_rows(df)
+    return rows[rows[["sim_s", *PHASE_COLUMNS]].notna().all(axis=1)]
+
+
+def with_phases(rows: pd.DataFrame) -> pd.DataFrame:
+    """The rows with `other` (sim_s less its phases), each of sim_s's phases' share of their
+    sum in percent, and the simulation outside the broad phase per particle-step."""
+    out = rows.copy()
+    # Each phase is printed rounded to the microsecond, so their sum may pass sim_s by a few:
+    # that is no negative overhead.
+    out[OTHER_PHASE] = (out[TOTAL] - out[list(PHASE_COLUMNS)].sum(axis=1)).clip(lower=0)
+    out[OUTPUT_PHASE] = out[OUTPUT_PHASE].fillna(0.0)
+    whole = out[list(SIM_PHASES)].sum(axis=1)  # sim_s, or a few microseconds above it
+    for phase in SIM_PHASES:
+        out[f"{phase}{SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
+    particle_steps = out["n"] * out["steps"]
+    out[REST_NS] = outside_broad_ns(whole, out[BROAD], particle_steps).where(particle_steps > 0)
+    return out
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The cells the figure and table show, and what the rule left out."""
+
+    cells: pd.DataFrame  # with_phases rows, in table order
+    threads: int
+    scene_keys: tuple[str, ...]  # the scene dimensions that vary among the shown cells
+    row_keys: tuple[str, ...]  # the bar dimensions that vary
+    other_threads: int  # cells with phases at other thread counts
+    without_phases: int  # timed cells with no phases (measured by an older binary)
+    scenes_left_out: int  # the cheapest scenes, beyond MAX_BARS
+
+
+def select(df: pd.DataFrame) -> Selection | None:
+    """The cells at the experiment's most common thread count (the fewest on a tie), or None
+    when no cell has phases."""
+    rows = phase_rows(df)
+    if rows.empty:
+        return None
+    counts = rows["threads"].value_counts()
+    threads = int(min(counts[counts == counts.max()].index))
+    chosen = rows[rows["threads"] == threads]
+    # A machine is a bar of its own (ROW_KEYS), not a scene.
+    scene_keys = tuple(k for k in SCENE_KEYS
+                       if k != MACHINE and k in varying_keys(chosen))
+    row_keys = tuple(k for k in ROW_KEYS if k in varying_keys(chosen)) or ("variant",)
+    ordered = sort_cells(chosen, [*scene_keys, *row_keys])
+    scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
+        if scene_keys else [ordered]
+    # The costliest scenes are where the time matters: those are kept, shown in table order.
+    kept, bars = set(), 0
+    for index in sorted(range(len(scenes)), key=lambda i: -float(scenes[i][TOTAL].sum())):
+        if kept and bars + len(scenes[index]) > MAX_BARS:
+            continue
+        kept.add(index)
+        bars += len(scenes[index])
+    shown = [scene for index, scene in enumerate(scenes) if index in kept]
+    return Selection(
+        cells=with_phases(pd.concat(shown).reset_index(drop=True)),
+        threads=threads,
+        scene_keys=scene_keys,
+        row_keys=row_keys,
+        other_threads=len(rows) - len(chosen),
+        without_phases=len(timed_rows(df)) - len(rows),
+        scenes_left_out=len(scenes) - len(shown),
+    )
+
+
+def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
+    return [series_label(tuple(row[k] for k in keys), keys)
+            for _, row in cells.iterrows()]
+
+
+# --- the table ----------------------------------------------------------------------------
+
+
+def phase_table(sel: Selection) -> pd.DataFrame:
+    """Per shown cell: its scene and bar keys, sim_s, each of its phases in seconds with its
+    share (the `_share` companions, shown in parentheses), the simulation outside the broad
+    phase per particle-step, and the output in seconds."""
+    cells = sel.cells
+    table = cells[[*sel.scene_keys, *sel.row_keys]].copy()
+    table[TOTAL] = cells[TOTAL]
+    for phase in SIM_PHASES:
+        table[phase] = cells[phase]
+        table[f"{phase}{SHARE_SUFFIX}"] = cells[f"{phase}{SHARE_SUFFIX}"]
+    table[REST_NS] = cells[REST_NS]
+    table[OUTPUT_PHASE] = cells[OUTPUT_PHASE]
+    return table
+
+
+# --- what the figure draws ----------------------------------------------------------------
+
+
+def plot_frame(sel: Selection) -> pd.DataFrame:
+    """What the figure draws, one row per bar: its scene's label, its own, every phase."""
+    cells = sel.cells
+    frame = pd.DataFrame({
+        GROUP: _labels(cells, sel.scene_keys) if sel.scene_keys else "",
+        BAR: _labels(cells, sel.row_keys),
+    })
+    for phase in PHASES:
+        frame[phase] = cells[phase].to_numpy(dtype=float)
+    return frame
+
+
+def _share_text(percent: float) -> str:
+    return format_share(percent)
+
+
+# --- the headline -------------------------------------------------------------------------
+
+GRID = "grid"
+
+
+def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
+    """(N, sentence) for grid's shown cell with the most particles: its broad phase's share and
+    the rest per particle-step, or None without a grid cell."""
+    grid = sel.cells[sel.cells["variant"] == GRID]
+    if grid.empty:
+        return None
+    cell = grid.sort_values(["n", TOTAL], kind="stable").iloc[-1]
+    share = cell[f"{BROAD}{SHARE_SUFFIX}"]
+    threads = int(cell["threads"])
+    return float(cell["n"]), (
+        f"where grid's time goes: the broad phase is {_share_text(share)} of its simulation "
+        f"time, the rest of it {format_sig3(cell[REST_NS])} ns per particle-step "
+        f"(N = {int(cell['n'])}, {threads} thread{'' if threads == 1 else 's'}; {link})")

@@ -1,0 +1,246 @@
+"""Speedup, parallel efficiency and the Karp-Flatt serial fraction of each cell, with their
+95% intervals from the cells' run times (harness.stats), and growth exponents: the course
+report's Tables 2-6 and the thread-scaling figures' numbers."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from harness import stats
+from harness.analysis.cells import (
+    INTERVAL_SUFFIXES,
+    SCENE_KEYS,
+    present,
+    series_keys,
+    sort_cells,
+)
+from harness.analysis.flags import validation_text
+from harness.spec.builds import DEFAULT_BUILD
+from harness.spec.variants import BASELINE, default_registry
+from harness.store.columns import OK, TIMED_STATUSES
+from harness.store.records import split_floats
+
+BASELINE_BUILD = DEFAULT_BUILD
+BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
+BASELINE_ONE_THREAD = "1 thread"  # ... against the same variant at one thread
+TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
+
+
+def all_pairs(variants: pd.Series) -> pd.Series:
+    """Per row, whether the variant tests every pair with seq's kernel (its --describe): its
+    speedup over seq is then parallelism alone."""
+    registry = default_registry()
+    return variants.map(lambda v: bool(getattr(registry.get(v), "all_pairs", False)))
+
+
+def single_threaded(variants: pd.Series) -> pd.Series:
+    """Per row, whether the variant runs one thread whatever `--threads` says: a thread count
+    is nominal for it."""
+    registry = default_registry()
+    return variants.map(lambda v: registry.get(v) is not None and not registry[v].parallel)
+
+
+def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
+    """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
+    build (the validation baseline) where measured, else seq of the row's own build.
+
+    Returns columns `base_s` (seq's median), `base_times` (its per-run times, text) and
+    `base_build`. seq is single-threaded whatever `threads` says, so its lowest-thread cell
+    stands for all.
+    """
+    df = _with_times(df)
+    seq = df[(df["variant"] == BASELINE) & (df["status"] == OK) & df["wall_median_s"].notna()]
+    seq = seq.sort_values("threads", kind="stable")
+    keys = present(df, SCENE_KEYS)
+    reference = (
+        seq[seq["build"] == BASELINE_BUILD]
+        .drop_duplicates(keys)[[*keys, "wall_median_s", TIMES, "build"]]
+        .rename(columns={"wall_median_s": "_ref_s", TIMES: "_ref_t", "build": "_ref_build"})
+    )
+    same_build = (
+        seq.drop_duplicates([*keys, "build"])[[*keys, "build", "wall_median_s", TIMES]]
+        .rename(columns={"wall_median_s": "_same_s", TIMES: "_same_t"})
+    )
+    merged = df[[*keys, "build"]].merge(reference, how="left", on=keys)
+    merged = merged.merge(same_build, how="left", on=[*keys, "build"])
+    has_ref = merged["_ref_s"].notna()
+    base = pd.DataFrame(
+        {
+            "base_s": merged["_ref_s"].where(has_ref, merged["_same_s"]),
+            "base_times": merged["_ref_t"].where(has_ref, merged["_same_t"]),
+            "base_build": merged["_ref_build"].where(has_ref, merged["build"]),
+        }
+    )
+    base.index = df.index
+    return base
+
+
+def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
+    """Per row, the median (`base_s`) and run times (`base_times`) of the same variant and
+    build at 1 thread on the same scene."""
+    df = _with_times(df)
+    keys = [*present(df, SCENE_KEYS), "variant", "build"]
+    one = df[(df["threads"] == 1) & (df["status"] == OK) & df["wall_median_s"].notna()]
+    one = one.drop_duplicates(keys)[[*keys, "wall_median_s", TIMES]].rename(
+        columns={"wall_median_s": "base_s", TIMES: "base_times"}
+    )
+    base = df[keys].merge(one, how="left", on=keys)[["base_s", "base_times"]]
+    base.index = df.index
+    return base
+
+
+TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
+
+
+def _with_times(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows with a `wall_times_s` column (empty where older results lack it)."""
+    return df if TIMES in df.columns else df.assign(**{TIMES: ""})
+
+
+@functools.lru_cache(maxsize=4096)
+def _speedup_ci(base: tuple[float, ...], own: tuple[float, ...]) -> stats.Interval:
+    """stats.speedup_ci, remembered: one render asks for a cell's speedup over the same
+    baseline from several places (the cell table, the thread figures, the summary), and each
+    asks for a 9999-resample bootstrap. Deterministic (seeded by the samples), so a repeat is
+    the same interval."""
+    return stats.speedup_ci(base, own)
+
+
+def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
+    """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
+    intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
+    either cell has fewer than two times, so tables fall back to the point value."""
+    columns = {f"{m}{s}": np.full(len(out), np.nan)
+               for m in ("speedup", "efficiency", "serial_fraction") for s in INTERVAL_SUFFIXES}
+    own_times = out[TIMES] if TIMES in out.columns else pd.Series("", index=out.index)
+    pairs = [(i, split_floats(b), split_floats(t))
+             for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
+    pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
+             and pd.notna(out["speedup"].iloc[p[0]])]
+    for i, base, own in pairs:
+        speedup = _speedup_ci(tuple(base), tuple(own))
+        threads = int(out["threads"].iloc[i])
+        metrics = {"speedup": speedup}
+        if pd.notna(out["efficiency"].iloc[i]):
+            metrics["efficiency"] = stats.efficiency(speedup, threads)
+        if pd.notna(out["serial_fraction"].iloc[i]):
+            metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
+        for name, interval in metrics.items():
+            columns[f"{name}_low"][i] = interval.low
+            columns[f"{name}_high"][i] = interval.high
+    for name, values in columns.items():
+        out[name] = values
+
+
+def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
+    """The Karp-Flatt experimentally determined serial fraction e = (1/S - 1/p) / (1 - 1/p).
+
+    Defined for p > 1 only (at p = 1 it is 0/0); NaN elsewhere and where S is unknown.
+    """
+    p = threads.astype("float64")
+    inv_p = 1.0 / p
+    e = (1.0 / speedup - inv_p) / (1.0 - inv_p)
+    return e.where(p > 1)
+
+
+def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataFrame:
+    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
+
+    Speedup is the ok seq median on the same scene over the cell's median. With
+    `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
+    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads.
+    """
+    out = df.copy()
+    seq = _seq_baseline(df)
+    base = seq["base_s"]
+    base_times = seq["base_times"]
+    label = pd.Series(np.where(base.notna(), BASELINE_SEQ, ""), index=df.index, dtype=object)
+    # Parallel efficiency and the serial fraction read a speedup as the work of one thread
+    # spread over p: true against seq for the all-pairs family in seq's build, or against
+    # the variant's own single thread; a grid's or an f32 build's gain is another algorithm.
+    same_work = all_pairs(df["variant"]) & (df["build"] == seq["base_build"])
+    # seq told to use p threads still uses one: S/p would charge it for threads it never ran.
+    same_work &= ~(single_threaded(df["variant"]) & (df["threads"] > 1))
+    if thread_baseline:
+        own = _one_thread_baseline(df)
+        use_own = base.isna() & own["base_s"].notna()
+        base = base.where(~use_own, own["base_s"])
+        base_times = base_times.where(~use_own, own["base_times"])
+        label[use_own] = BASELINE_ONE_THREAD
+        same_work |= use_own
+    timed = out["status"].isin(TIMED_STATUSES)
+    out["baseline"] = label.where(base.notna(), "")
+    out["baseline_s"] = base
+    out["speedup"] = (base / out["wall_median_s"]).where(timed)
+    out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
+    out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
+    _speedup_intervals(out, base_times)
+    return out
+
+
+def cell_table(
+    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False
+) -> pd.DataFrame:
+    """One row per cell: its keys, runs, median/min/stddev, speedup, efficiency, validation.
+
+    The shape of the course report's Tables 2-6 with our statistics in place of its
+    "first/second/third time, shortest". When `threads` is among the keys, the Karp-Flatt
+    serial fraction and the speedup baseline of each row are added.
+    """
+    rows = with_speedup(df, thread_baseline=thread_baseline)
+    table = pd.DataFrame({k: rows[k] for k in keys})
+    table["runs"] = rows["runs"]
+    table["median_s"] = rows["wall_median_s"]
+    table["min_s"] = rows["wall_min_s"]
+    table["stddev_s"] = rows["wall_stddev_s"]
+    table["speedup"] = rows["speedup"]
+    table["speedup_low"], table["speedup_high"] = rows["speedup_low"], rows["speedup_high"]
+    table["efficiency"] = rows["efficiency"]
+    table["efficiency_low"] = rows["efficiency_low"]
+    table["efficiency_high"] = rows["efficiency_high"]
+    if "threads" in keys:
+        table["serial_fraction"] = rows["serial_fraction"]
+        table["serial_fraction_low"] = rows["serial_fraction_low"]
+        table["serial_fraction_high"] = rows["serial_fraction_high"]
+        table["baseline"] = rows["baseline"]
+    if "imbalance" in rows.columns and rows["imbalance"].notna().any():
+        table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads
+    table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
+    return sort_cells(table, keys)
+
+
+def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
+    """Per series, the least-squares fit of log t = k log x + log a over its ok cells.
+
+    An all-pairs variant does Θ(N²) pair tests per step, so its time grows like a power law
+    with k ≈ 2: a straight line on log-log axes, where an exponential would curve upward.
+    Series with fewer than two distinct x are left out.
+    """
+    keys = series_keys(df, x)
+    ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df[x] > 0)]
+    rows: list[dict[str, object]] = []
+    groups = ok.groupby(keys, sort=False, dropna=False) if keys else [((), ok)]
+    for values, group in groups:
+        if group[x].nunique() < 2:
+            continue
+        fit = stats.power_fit(group[x].astype(float).tolist(),
+                              group["wall_median_s"].astype(float).tolist())
+        if fit is None:
+            continue
+        label_values = values if isinstance(values, tuple) else (values,)
+        row: dict[str, object] = dict(zip(keys, label_values, strict=True))
+        row.update(
+            exponent=fit.exponent,
+            exponent_se=fit.stderr,
+            prefactor_s=fit.coefficient,
+            points=len(group),
+            x_min=group[x].min(),
+            x_max=group[x].max(),
+        )
+        rows.append(row)
+    columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
+    return sort_cells(pd.DataFrame(rows, columns=columns), keys)

@@ -1,0 +1,364 @@
+"""The strategies and schedules read back: the seed's published times beside ours, whether
+the ranking agrees, per-thread work, the cost of a dispatched chunk, and the schedule study.
+Tables are DataFrames and sentences are strings, computed from results rows; the report wraps
+them into its sections (harness.report.sections.strategies).
+
+The per-thread columns come from `--timing` (store.columns.THREAD_COLUMNS): the busy seconds,
+pair tests and chunks of every candidate writer, space-separated.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from harness import stats
+from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
+from harness.spec.variants import default_registry
+from harness.store import hyperfine, records
+from harness.store.layout import ExperimentDir
+
+# The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
+# its machine, a 20-thread Xeon, in seconds; and its sequential code on the same benchmark.
+SEED_MACHINE = "its 20-thread Xeon"
+SEED_THREADS = 20
+SEED_SEQ_S = 41.94
+SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24,
+                                  "p2d": 94.24}
+SEED_SCENE: dict[str, float] = {"n": 10000, "L": 20000, "r": 1, "steps": 50}
+
+# Why each seed strategy loses time (variants/NAME.c says more): the words of the ranking
+# sentence, next to the measured figure that shows it.
+PATHOLOGY: dict[str, str] = {
+    "p1": "contiguous row blocks leave the first thread most of the triangle of pairs",
+    "p2": "a team fork and a barrier per row",
+    "p3": "T*T threads on T cores and a team per row",
+    "p1d": "one counter grab per row",
+    "p2d": "one counter grab per pair test, on top of p2's fork and barrier per row",
+}
+# The chunk-cost table: the dynamic loops and what each is compared with (the same pairs
+# dealt with no runtime calls per chunk), best first.
+CHUNK_COST_PAIRS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("p2d", ("p2_blocks", "p2")),
+    ("p2d_tiles", ("p2_blocks", "p2")),
+    ("p1d", ("p1_cyclic",)),
+)
+# The per-thread work figure: the seed's p1 against its repair (and p1d where measured).
+WORK_VARIANTS: tuple[str, ...] = ("p1", "p1_cyclic", "p1d")
+NS_PER_S = 1e9
+# Differences between schedules smaller than this share of the median are called "little".
+LITTLE_DIFFERENCE = 0.05
+
+
+def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
+    """A cell's per-run wall times: the `wall_times_s` column, else its hyperfine JSON."""
+    cell_id = row.get("cell_id")
+    export = (ExperimentDir(exp_path).hyperfine(cell_id)
+              if exp_path is not None and isinstance(cell_id, str) else None)
+    return hyperfine.run_times(row.get("wall_times_s"), export)
+
+
+def repaired_by(variant: str) -> str | None:
+    """The variant that repairs `variant` (its --describe names it), if any."""
+    registry = default_registry()
+    fixes = registry.repaired_by(variant) if variant in registry.facts else ()
+    return fixes[0] if fixes else None
+
+
+def thread_list(row: pd.Series, column: str) -> list[float]:
+    return records.split_floats(row.get(column))
+
+
+def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
+    """The timed cells, one per variant: the one with the most threads (closest to the seed's)."""
+    rows = timed_rows(df).sort_values("threads", kind="stable")
+    return rows.drop_duplicates("variant", keep="last").set_index("variant", drop=False)
+
+
+def one_scene(df: pd.DataFrame) -> bool:
+    """Whether the timed cells simulate one input in one build: cells of different scenes
+    (a stability catalog, an N sweep) are not each other's references."""
+    keys = [k for k in (*SCENE_KEYS, "build") if k in df.columns]
+    timed = timed_rows(df)
+    return len(timed) > 0 and len(timed.drop_duplicates(keys)) == 1
+
+
+def is_seed_benchmark(df: pd.DataFrame) -> bool:
+    """Whether every row simulates the seed's benchmark scene (its times compare with ours)."""
+    return bool(len(df)) and all(
+        (df[key] == value).all() for key, value in SEED_SCENE.items() if key in df.columns)
+
+
+# --- the seed's Table 2 beside ours -------------------------------------------------------
+
+
+def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
+    """Per seed strategy measured here: our median and rank, the seed's time and rank, each
+    speedup over its own sequential code, our imbalance, and the repair's median."""
+    if not is_seed_benchmark(df):
+        return None
+    cells = _one_per_variant(df)
+    ours = [v for v in SEED_TIMES_S if v in cells.index]
+    if len(ours) < 2:
+        return None
+    seq = cells["wall_median_s"].get("seq", math.nan)
+    our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank(
+        method="min")
+    seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank(method="min")
+    rows = []
+    for v in ours:
+        cell = cells.loc[v]
+        repair = repaired_by(v)
+        rows.append({
+            "variant": v,
+            "threads": cell["threads"],
+            "median_s": cell["wall_median_s"],
+            "rank": int(our_rank[v]),
+            "speedup": seq / cell["wall_median_s"],
+            "seed_s": SEED_TIMES_S[v],
+            "seed_rank": int(seed_rank[v]),
+            "seed_speedup": SEED_SEQ_S / SEED_TIMES_S[v],
+            "imbalance": cell.get("imbalance", math.nan),
+            "repair": f"{repair}: {cells.at[repair, 'wall_median_s']:.3g} s"
+                      if repair in cells.index else "",
+        })
+    return pd.DataFrame(rows)
+
+
+def _order(table: pd.DataFrame, column: str) -> list[str]:
+    return list(table.sort_values([column, "variant"], kind="stable")["variant"])
+
+
+def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
+    """Whether our ranking of the seed's strategies agrees with the seed's, which pairs swap
+    places, and the measured figures that say why."""
+    ours, seed = _order(table, "median_s"), _order(table, "seed_s")
+    threads = int(table["threads"].max())
+    text = (f"Fastest first, ours on {threads} thread(s): {' < '.join(ours)}; the seed's, on "
+            f"{SEED_MACHINE}: {' < '.join(seed)}. ")
+    if ours == seed:
+        return text + "The ranking agrees."
+    swaps = [(a, b) for i, a in enumerate(ours) for b in ours[i + 1:]
+             if seed.index(a) > seed.index(b)]
+    cells = _one_per_variant(df)
+    reasons = []
+    for a, b in swaps:
+        # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
+        reasons.append(f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
+                       f"{_evidence(b, cells, threads)})")
+    return (text + f"The ranking differs in {len(swaps)} pair(s): " + "; ".join(reasons) + ".")
+
+
+def static_block_imbalance(threads: int) -> float:
+    """Max over mean pairs of a plain static schedule over the rows of the triangle: the first
+    of T contiguous blocks holds 1 - (1 - 1/T)^2 of the pairs, against 1/T on average."""
+    first = 1.0 - (1.0 - 1.0 / threads) ** 2
+    return first * threads
+
+
+def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
+    """One variant's pathology with what was measured of it here."""
+    words = PATHOLOGY.get(variant, "")
+    if variant not in cells.index:
+        return f"{variant}: {words}"
+    cell = cells.loc[variant]
+    imbalance = cell.get("imbalance", math.nan)
+    parts = [f"{variant}: {words}"]
+    if variant == "p1" and threads > 1:
+        parts.append(f"its pair imbalance is {static_block_imbalance(threads):.2f} on {threads} "
+                     f"threads against {static_block_imbalance(SEED_THREADS):.2f} on "
+                     f"{SEED_THREADS}")
+    if isinstance(imbalance, float) and math.isfinite(imbalance):
+        parts.append(f"busy imbalance {imbalance:.2f} measured")
+    repair = repaired_by(variant)
+    if repair in cells.index:
+        extra = cell["wall_median_s"] - cells.at[repair, "wall_median_s"]
+        parts.append(f"{extra:+.3g} s over {repair}")
+        if variant == "p2":  # a region per row and step is what the repair removes
+            regions = float(cell["n"]) * float(cell["steps"])
+            parts.append(f"{extra / regions * 1e6:.3g} µs per row's region")
+    chunks = sum(thread_list(cell, "threads_chunks"))
+    if variant in ("p1d", "p2d") and chunks:
+        parts.append(f"{chunks:.3g} chunks dealt")
+    return ", ".join(parts)
+
+
+# --- per-thread work ----------------------------------------------------------------------
+
+
+def work_table(df: pd.DataFrame) -> pd.DataFrame | None:
+    """Busy seconds and pair tests per thread of WORK_VARIANTS, one row per (variant, thread)."""
+    cells = _one_per_variant(df)
+    rows = []
+    for v in WORK_VARIANTS:
+        if v not in cells.index:
+            continue
+        busy = thread_list(cells.loc[v], "threads_busy_s")
+        pairs = thread_list(cells.loc[v], "threads_pairs")
+        if not busy or len(busy) != len(pairs):
+            continue
+        total = sum(pairs) or 1.0
+        for t, (b, p) in enumerate(zip(busy, pairs, strict=True)):
+            rows.append({"variant": v, "thread": t, "busy_s": b, "pairs": p,
+                         "pair_share": p / total})
+    if not {r["variant"] for r in rows} >= {"p1", "p1_cyclic"}:
+        return None
+    return pd.DataFrame(rows)
+
+
+# --- the cost of a dispatched chunk -------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ChunkCost:
+    variant: str
+    reference: str
+    chunks: float
+    extra: stats.Interval  # seconds over the reference (median difference)
+
+    @property
+    def per_chunk_ns(self) -> stats.Interval:
+        return self.extra.map(lambda s: s / self.chunks * NS_PER_S)
+
+
+def chunk_costs(df: pd.DataFrame, exp_path: Path | None = None) -> list[ChunkCost]:
+    """Per dynamic loop measured with a reference: its extra time over the reference divided
+    by the chunks it dealt (from --timing's threads_chunks)."""
+    cells = _one_per_variant(df)
+    found = []
+    for variant, references in CHUNK_COST_PAIRS:
+        reference = next((r for r in references if r in cells.index), None)
+        if variant not in cells.index or reference is None:
+            continue
+        chunks = sum(thread_list(cells.loc[variant], "threads_chunks"))
+        if chunks <= 0:
+            continue
+        a, b = run_times(cells.loc[variant], exp_path), run_times(cells.loc[reference], exp_path)
+        extra = stats.difference_ci(a, b) if a and b else stats.Interval(
+            cells.at[variant, "wall_median_s"] - cells.at[reference, "wall_median_s"],
+            math.nan, math.nan)
+        found.append(ChunkCost(variant, reference, chunks, extra))
+    return found
+
+
+def _with_interval(name: str, intervals: Sequence[stats.Interval]) -> dict[str, list[float]]:
+    """A numeric column and its 95% interval ends (shown as `x [low, high]` by the tables)."""
+    return {name: [i.point for i in intervals],
+            **{f"{name}{suffix}": [getattr(i, end) for i in intervals]
+               for suffix, end in zip(INTERVAL_SUFFIXES, ("low", "high"), strict=True)}}
+
+
+def chunk_table(costs: Sequence[ChunkCost]) -> pd.DataFrame:
+    return pd.DataFrame({
+        "variant": [c.variant for c in costs],
+        "compared with": [c.reference for c in costs],
+        "chunks dealt": [c.chunks for c in costs],
+        **_with_interval("extra_s", [c.extra for c in costs]),
+        **_with_interval("per_chunk_ns", [c.per_chunk_ns for c in costs]),
+    })
+
+
+def chunk_sentence(costs: Sequence[ChunkCost]) -> str:
+    """Each cost the runs resolve (an interval that excludes 0), each from single runs (no
+    interval), and which the runs cannot tell from their reference."""
+    parts, unresolved = [], []
+    for c in costs:
+        single = not (math.isfinite(c.extra.low) and math.isfinite(c.extra.high))
+        if single or c.extra.excludes(0.0):
+            parts.append(f"{c.variant} costs {c.per_chunk_ns.format(3)} ns a chunk more than "
+                         f"{c.reference} takes for the same pairs"
+                         + (" (a single run: no interval)" if single else ""))
+        else:
+            unresolved.append(f"{c.variant} from {c.reference}")
+    if unresolved:
+        parts.append("the runs do not tell " + ", ".join(unresolved) + " (an interval that "
+                     "holds 0)")
+    return "Measured: " + "; ".join(parts) + "." if parts else ""
+
+
+def seed_display(table: pd.DataFrame) -> pd.DataFrame:
+    """seed_table under the report's headers (numbers stay numbers, right-aligned)."""
+    return pd.DataFrame({
+        "variant": table["variant"], "threads": table["threads"],
+        "median_s": table["median_s"], "rank here": table["rank"],
+        "speedup": table["speedup"],
+        f"seed's time [s] ({SEED_THREADS} threads)": table["seed_s"],
+        "seed's rank": table["seed_rank"],
+        f"seed's speedup (its seq: {SEED_SEQ_S:g} s)": table["seed_speedup"].round(2),
+        "imbalance": table["imbalance"], "repaired by": table["repair"],
+    })
+
+
+# --- the schedule study -------------------------------------------------------------------
+
+
+def has_schedules(df: pd.DataFrame) -> bool:
+    return "schedule" in df.columns and bool((df["schedule"].fillna("") != "").any())
+
+
+def schedule_rows(df: pd.DataFrame, exp_path: Path | None = None) -> pd.DataFrame:
+    """Per (variant, threads, schedule) cell: its median with a 95% bootstrap interval, the
+    imbalance and the chunks dealt, fastest first."""
+    rows = []
+    for _, cell in timed_rows(df[df["schedule"].fillna("") != ""]).iterrows():
+        times = run_times(cell, exp_path)
+        ci = stats.median_ci(times) if times else stats.Interval(
+            float(cell["wall_median_s"]), math.nan, math.nan)
+        rows.append({"variant": cell["variant"], "threads": cell["threads"],
+                     "schedule": cell["schedule"], "median": ci, "times": times,
+                     "imbalance": cell.get("imbalance", math.nan),
+                     "chunks": sum(thread_list(cell, "threads_chunks")) or math.nan})
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    out["median_s"] = [c.point for c in out["median"]]
+    return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(
+        drop=True)
+
+
+def schedule_table(rows: pd.DataFrame) -> pd.DataFrame:
+    return pd.DataFrame({
+        "variant": rows["variant"], "threads": rows["threads"], "schedule": rows["schedule"],
+        **_with_interval("median_s", list(rows["median"])),
+        "imbalance": rows["imbalance"].astype("float64"),
+        "chunks dealt": rows["chunks"].astype("float64"),
+    })
+
+
+def schedule_sentence(rows: pd.DataFrame) -> str:
+    """Per (variant, threads): each schedule's time over the fastest one's, with the interval
+    of that ratio; which are slower beyond their intervals, which the runs cannot tell from the
+    fastest, and whether that is the seed's "little difference"."""
+    sentences = []
+    for (variant, threads), group in rows.groupby(["variant", "threads"], sort=False):
+        if len(group) < 2:
+            continue
+        best = group.iloc[0]
+        slower, tied = [], []
+        for _, other in group.iloc[1:].iterrows():
+            ratio = (stats.ratio_ci(other["times"], best["times"])
+                     if best["times"] and other["times"] else
+                     stats.Interval(other["median_s"] / best["median_s"], math.nan, math.nan))
+            # Slower only where the ratio's interval lies above 1: with 3-5 runs on a shared
+            # machine the extremes of many schedules differ by chance alone.
+            if math.isfinite(ratio.low) and ratio.low > 1:
+                slower.append((other["schedule"], ratio))
+            else:
+                tied.append(other["schedule"])
+        little = all(r.point < 1 + LITTLE_DIFFERENCE for _, r in slower)
+        text = (f"{variant} on {int(threads)} thread(s): fastest `{best['schedule']}` "
+                f"({best['median'].format(4)} s). ")
+        if slower:
+            text += ("Slower beyond their intervals (time over the fastest's): "
+                     + ", ".join(f"`{s}` {r.format(3)}" for s, r in slower) + ". ")
+        if tied:
+            text += ("Not told apart from it: " + ", ".join(f"`{s}`" for s in tied) + ". ")
+        text += ("So little difference, as the seed saw." if little else
+                 "So a real difference, unlike the seed's \"little difference\": the schedule "
+                 "matters here.")
+        sentences.append(text)
+    return " ".join(sentences)

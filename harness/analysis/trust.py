@@ -1,0 +1,230 @@
+"""The accuracy and stability checks read back (the check columns of results.csv): which
+checks each cell passed, the scene x variant/build matrix, the time against one-step error,
+and which variants and builds are trusted on which scenes, with why."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from harness.analysis.accuracy import pareto_mask
+from harness.analysis.cells import MACHINE, SCENE_KEYS, present, sort_cells, timed_rows
+from harness.analysis.display import DISPLAY_NAMES, format_value
+from harness.spec.variants import default_registry
+
+# Each check's column and what it tests, in the order the tables show them.
+CHECKS: tuple[tuple[str, str, str], ...] = (
+    ("finite", "chk_finite", "no NaN or Inf in any printed state"),
+    ("in_box", "chk_in_box", "every centre in [r, L−r] (float builds: within a float ulp)"),
+    ("energy", "chk_energy", "kinetic-energy drift within k·eps·(pair collisions)"),
+    ("pcoll_even", "chk_pcoll_even", "sum of pcoll even"),
+    ("threads", "chk_threads", "same output at the other thread counts"),
+    ("exact", "chk_exact", "same output as seq of the same build (exact variants)"),
+    ("shadow", "chk_shadow", "one step from each state: same collisions as __float128, error "
+                             "within k·eps·(1+v/L)(1+v/r)"),
+)
+PASS_MARK = "✓"
+FAIL_MARK = "✗"
+# A one-step error below this fraction of a radius cannot flip more than about that fraction
+# of the next step's contact decisions (a contact flips when it is within the error of
+# grazing or of t = 1): the level at which a build's trajectory is trustworthy.
+TRUST_ERR_R = 1e-6
+
+
+def has_check_data(df: pd.DataFrame) -> bool:
+    """Whether the rows carry the accuracy and stability checks (`checks:` in the config)."""
+    return "checks_passed" in df.columns and bool(df["checks_passed"].notna().any())
+
+
+def variant_build(row: pd.Series) -> str:
+    return f"{row['variant']}/{row['build']}"
+
+
+def scene_names(df: pd.DataFrame) -> pd.Series:
+    """Per row, the name of its input: the scene label, plus the parameters that tell apart
+    the inputs sharing that label (e.g. `random N=4000 L=12649.1 S=3`)."""
+    keys = [k for k in SCENE_KEYS if k not in (MACHINE, "scene") and k in df.columns
+            and df.groupby("scene", dropna=False)[k].nunique(dropna=False).max() > 1]
+    if not keys:
+        return df["scene"].astype(str)
+    return df.apply(lambda row: " ".join([str(row["scene"])] + [
+        f"{DISPLAY_NAMES[k]}={format_value(k, row[k])}" for k in keys]), axis=1)
+
+
+def _checked(df: pd.DataFrame) -> pd.DataFrame:
+    rows = df[df["checks_passed"].notna()] if "checks_passed" in df.columns else df.iloc[0:0]
+    names = scene_names(rows) if len(rows) else pd.Series([], dtype=object)
+    rank = {name: i for i, name in enumerate(dict.fromkeys(names))}
+    rows = rows.assign(scene_name=names, scene_rank=names.map(rank))
+    return sort_cells(rows, ["variant", "build"])
+
+
+def _failures(row: pd.Series) -> list[str]:
+    failed = [name for name, column, _ in CHECKS
+              if column in row.index and row[column] is not None and not pd.isna(row[column])
+              and not bool(row[column])]
+    text = row.get("checks_failed")
+    if isinstance(text, str) and "run" in text.split():
+        failed.insert(0, "run")
+    return failed
+
+
+def _scene_order(df: pd.DataFrame) -> list[str]:
+    """Scene names in the order the experiment ran them."""
+    return list(dict.fromkeys(df.sort_values("scene_rank", kind="stable")["scene_name"]))
+
+
+def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
+    """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
+    rows = _checked(df)
+    labels = list(dict.fromkeys(variant_build(r) for _, r in rows.iterrows()))
+    table = pd.DataFrame({"scene": _scene_order(rows)})
+    for label in labels:
+        marks = []
+        for scene in table["scene"]:
+            cells = rows[(rows["scene_name"] == scene)
+                         & (rows["variant"] + "/" + rows["build"] == label)]
+            failed = list(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
+            if cells.empty:
+                marks.append("")
+            elif failed:
+                marks.append(f"{FAIL_MARK} " + ", ".join(failed))
+            else:
+                marks.append(PASS_MARK)
+        table[label] = marks
+    return table
+
+
+def check_summary(df: pd.DataFrame, max_listed: int = 8) -> pd.DataFrame:
+    """Per check: what it tests, cells checked, passed, failed and the failing cells."""
+    rows = _checked(df)
+    out = []
+    for name, column, what in CHECKS:
+        if column not in rows.columns or rows[column].isna().all():
+            continue
+        known = rows[rows[column].notna()]
+        failed = known[~known[column].astype(bool)]
+        where = [f"{r['scene_name']}: {variant_build(r)}" for _, r in failed.iterrows()]
+        listed = ", ".join(where[:max_listed]) + (f", … {len(where) - max_listed} more"
+                                                  if len(where) > max_listed else "")
+        out.append({"check": name, "what": what, "checked": len(known),
+                    "passed": len(known) - len(failed), "failed": len(failed),
+                    "where": listed})
+    return pd.DataFrame(out, columns=["check", "what", "checked", "passed", "failed", "where"])
+
+
+def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """Per checked, timed cell: time, whole-run error against the baseline, the shadow-step
+    error, collision-set differences, energy drift and steps until r apart from the truth;
+    ✓ marks each scene's Pareto front of time against the mean shadow error."""
+    rows = _checked(df)
+    rows = timed_rows(rows)
+    table = pd.DataFrame({k: rows[k] for k in keys})
+    table["median_s"] = rows["wall_median_s"]
+    table["max_pos_err"] = rows["max_pos_err"]
+    for column in ("shadow_pos_err", "shadow_err_r", "shadow_set_diff", "energy_drift_max",
+                   "div_steps_to_r"):
+        table[column] = rows[column] if column in rows.columns else np.nan
+    table["pareto"] = False
+    if "shadow_pos_err" in rows.columns:
+        for _, group in rows[rows["shadow_pos_err"].notna()].groupby(
+                present(rows, SCENE_KEYS), dropna=False):
+            front = pareto_mask(group["wall_median_s"], group["shadow_pos_err"])
+            table.loc[front.index, "pareto"] = front
+    return sort_cells(table, keys)
+
+
+def _known(row: pd.Series, column: str) -> float | None:
+    value = row.get(column)
+    return None if value is None or pd.isna(value) else float(value)
+
+
+def _trusted(row: pd.Series) -> bool:
+    """Every check passed and one step within TRUST_ERR_R radii of __float128's. (How soon
+    the whole run is a radius off the truth is shown, not judged: in a dense scene chaos gets
+    every precision there within a few steps.)"""
+    if _failures(row):
+        return False
+    err = _known(row, "shadow_err_r")
+    return err is None or err <= TRUST_ERR_R
+
+
+def _reason(row: pd.Series) -> str:
+    """Why a cell is not trusted, with the measured numbers."""
+    parts = []
+    for failure in _failures(row):
+        if failure == "shadow" and row.get("shadow_set_diff", 0) and (
+                float(row["shadow_set_diff"]) > 0):
+            parts.append(f"collisions differ from __float128 in "
+                         f"{float(row['shadow_set_diff']):.0%} of steps")
+        elif failure == "energy":
+            parts.append(f"energy drift {float(row['energy_drift_max']):.1e}")
+        else:
+            parts.append(f"{failure} check fails")
+    err = _known(row, "shadow_err_r")
+    if err is not None and err > TRUST_ERR_R:
+        parts.append(f"one-step error {err:.1e} r")
+    return f"{row['scene_name']} ({'; '.join(parts)})"
+
+
+def trust_table(df: pd.DataFrame) -> pd.DataFrame:
+    """Per variant/build over the checked scenes: how many it is trusted on (every check
+    passed, a one-step error below TRUST_ERR_R radii, and never a radius from the truth), its
+    median and worst one-step error, and the scenes it is not trusted for, with why."""
+    rows = _checked(df)
+    out = []
+    for (variant, build), group in rows.groupby(["variant", "build"], sort=False):
+        errors = group["shadow_err_r"] if "shadow_err_r" in group.columns else pd.Series()
+        errors = errors.dropna()
+        worst = ""
+        if len(errors) and float(errors.max()) > 0:
+            at = errors.idxmax()
+            worst = f"{group.loc[at, 'scene_name']} ({float(errors[at]):.1e} r)"
+        bad = group[~group.apply(_trusted, axis=1)]
+        out.append({
+            "label": f"{variant}/{build}", "scenes": group["scene_name"].nunique(),
+            "trusted": group["scene_name"].nunique() - bad["scene_name"].nunique(),
+            "typical_err_r": float(errors.median()) if len(errors) else np.nan,
+            "worst": worst,
+            "not_trusted": "; ".join(_reason(r) for _, r in bad.iterrows()) or "—",
+        })
+    columns = ["label", "scenes", "trusted", "typical_err_r", "worst", "not_trusted"]
+    return pd.DataFrame(out, columns=columns)
+
+
+def own_arithmetic(variants: pd.Series) -> pd.Series:
+    """Per row, whether the variant computes contact times with arithmetic of its own (it is
+    not exact: its --describe says so): a build's verdict leaves it out."""
+    registry = default_registry()
+    return variants.map(lambda v: registry.get(v) is not None and not registry[v].exact)
+
+
+def _short_reason(cells: pd.DataFrame) -> str:
+    """The gist of why a scene's cells are not trusted: the worst one-step error in radii,
+    else differing collisions, else the failing checks."""
+    errors = cells["shadow_err_r"].dropna() if "shadow_err_r" in cells else pd.Series()
+    if len(errors) and float(errors.max()) > TRUST_ERR_R:
+        return f"{float(errors.max()):.1e} r per step"
+    if "shadow_set_diff" in cells and (cells["shadow_set_diff"].fillna(0) > 0).any():
+        return "collisions differ"
+    return ", ".join(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
+
+
+def build_trust(df: pd.DataFrame) -> pd.DataFrame:
+    """Per build (precision or formula), over its variants that share the core's arithmetic:
+    how many scenes all of them are trusted on, and the others with why."""
+    rows = _checked(df)
+    rows = rows[~own_arithmetic(rows["variant"])]
+    out = []
+    for build, group in rows.groupby("build", sort=False):
+        scenes = list(dict.fromkeys(group["scene_name"]))
+        bad = group[~group.apply(_trusted, axis=1)]
+        failing = [f"{scene} ({_short_reason(cells)})"
+                   for scene, cells in bad.groupby("scene_name", sort=False)]
+        out.append({"build": build, "variants": ", ".join(dict.fromkeys(group["variant"])),
+                    "scenes": len(scenes), "trusted": len(scenes) - bad["scene_name"].nunique(),
+                    "not_trusted": ", ".join(failing)})
+    table = pd.DataFrame(out, columns=["build", "variants", "scenes", "trusted", "not_trusted"])
+    return table.sort_values("trusted", ascending=False, kind="stable").reset_index(drop=True)

@@ -1,0 +1,36 @@
+"""Render the report from whatever results exist, without re-running anything."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from harness.cli.common import Parser
+from harness.errors import HarnessError
+from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR
+from harness.store.layout import QUICK_SUFFIX
+
+
+def parser(prog: str) -> argparse.ArgumentParser:
+    parser = Parser(prog=prog, description=__doc__)
+    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
+                        help="where results/<experiment>/results.csv live (default: %(default)s)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_REPORT_DIR,
+                        help="report directory to write (default: %(default)s)")
+    parser.add_argument("--include-quick", action="store_true",
+                        help=f"also report the *{QUICK_SUFFIX} smoke-run experiments")
+    parser.add_argument("--experiment", action="append", metavar="NAME",
+                        help="report only this experiment (repeatable)")
+    return parser
+
+
+def execute(args: argparse.Namespace) -> int:
+    from harness.report.pipeline import render
+
+    try:
+        path = render(args.results_dir, args.out, include_quick=args.include_quick,
+                      experiments=args.experiment)
+    except OSError as exc:
+        raise HarnessError(str(exc)) from None
+    print(f"wrote {path} and {path.with_name('report.html')}")
+    return 0

@@ -1,0 +1,97 @@
+"""Measure the cells of experiment configs, then render the report."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from harness.cli.common import Parser
+from harness.executors import EXECUTORS
+from harness.executors.base import Options
+from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.runner.experiment import run_experiment
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store.locks import RunLock
+
+QUICK_REPORT = "report-quick"
+EXIT_INTERRUPTED = 130
+
+
+def parser(prog: str) -> argparse.ArgumentParser:
+    parser = Parser(prog=prog, description="Measure the cells of experiment configs.")
+    parser.add_argument("configs", nargs="+", type=Path, help="experiment YAML files")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="list the cells and which are cached; measure nothing")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke run: n <= 400, steps <= 5, into results/<name>-quick/")
+    parser.add_argument("--force", action="store_true", help="re-measure cached cells")
+    parser.add_argument("--no-report", action="store_true", help="do not render the report")
+    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
+                        help="results root (default: <repo>/results)")
+    parser.add_argument("--report-dir", type=Path, default=DEFAULT_REPORT_DIR,
+                        help="where the report is rendered (default: <repo>/report; "
+                        f"--quick runs go to <report-dir>/{QUICK_REPORT})")
+    parser.add_argument("--no-wait", action="store_true",
+                        help="when another run is measuring on this machine, stop with an "
+                        "error instead of waiting for it")
+    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--executor", choices=tuple(EXECUTORS), default=None,
+                        help="where cells are measured: local (one after another here; the "
+                        "default) or slurm (one job-array task per cell); overrides the "
+                        "config's executor.kind")
+    parser.add_argument("--collect", action="store_true",
+                        help="slurm: wait for the cells already submitted (e.g. by a killed "
+                        "run) and record them; submit nothing")
+    parser.add_argument("--partition", default=None,
+                        help="slurm: the partition (overrides the config's executor.partition)")
+    return parser
+
+
+
+def execute(args: argparse.Namespace) -> int:
+    signal.signal(signal.SIGTERM, _terminate)
+    run_lock = RunLock(" ".join(str(p) for p in args.configs), wait=not args.no_wait,
+                       log=sys.stderr)
+    options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
+                      quick=args.quick, force=args.force, dry_run=args.dry_run,
+                      hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
+                      partition=args.partition, run_lock=run_lock)
+    registry = VariantRegistry(REPO_ROOT)
+    try:
+        configs = [load_config(path, registry) for path in args.configs]
+        with run_lock:
+            summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
+                         for c in configs]
+        if not (args.dry_run or args.no_report):
+            render_report(options, args.report_dir, [s.directory.name for s in summaries])
+    except BrokenPipeError:  # e.g. `--dry-run | head`
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
+        return 0
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted: finished cells are saved; run again to resume\n")
+        return EXIT_INTERRUPTED
+    return 0
+
+
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM ends a run as Ctrl-C does: the running cell's processes are killed."""
+    raise KeyboardInterrupt
+
+
+def render_report(options: Options, report_dir: Path, names: Sequence[str]) -> None:
+    """A full run renders every experiment under the results root into `report_dir`; a
+    --quick run renders only the quick experiments it just ran, into
+    `report_dir/report-quick`."""
+    from harness.report.pipeline import render
+
+    if options.quick:
+        path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
+                      experiments=list(names))
+    else:
+        path = render(options.results_root, report_dir)
+    sys.stderr.write(f"report: {path}\n")

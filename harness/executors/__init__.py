@@ -1,0 +1,22 @@
+"""Who measures the pending cells, and where: the executor interface (base), the local
+executor, Slurm (slurm) and the worker a remote task runs. A new executor is one module with
+a class that has `name` and `run` (base.Executor), registered in EXECUTORS below."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from harness.errors import HarnessError
+from harness.executors.base import Executor
+from harness.executors.local import LocalExecutor
+from harness.executors.slurm.executor import SlurmExecutor
+
+EXECUTORS: dict[str, Callable[[], Executor]] = {"local": LocalExecutor, "slurm": SlurmExecutor}
+
+
+def make_executor(name: str) -> Executor:
+    factory = EXECUTORS.get(name)
+    if factory is None:
+        raise HarnessError(f"unknown executor '{name}'; expected one of: "
+                           f"{', '.join(sorted(EXECUTORS))}")
+    return factory()

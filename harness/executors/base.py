@@ -1,0 +1,138 @@
+"""The executor seam: who measures the pending cells of an experiment, and where.
+
+run_experiment (harness.runner) plans the cells, resolves the cached ones and hands the rest
+to an executor. The executor measures each pending cell somewhere, makes sure its record is on
+disk (CellStore.record_path: the measuring side writes it, Measurer.measure_and_save), and
+calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
+the record and rebuilds results.csv from all records. Nothing on the recording side assumes
+the measurement ran in this process.
+
+The executors (harness.executors.EXECUTORS): local measures the cells one after another in
+this process; slurm runs the worker (`collide-bench worker --config PATH --results-dir DIR
+[--quick] CELL_ID ...`) as Slurm array tasks, then reads each record back.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol, TextIO
+
+from harness.measure import machine
+from harness.plan.cells import Cell, Plan
+from harness.plan.cellstore import CellStore
+from harness.spec.config import Config
+from harness.store import locks, records
+
+OnRecord = Callable[[Cell, str, records.Record], None]
+
+
+@dataclass(frozen=True)
+class Options:
+    """How a run measures: where, with which tools, and what it may reuse."""
+
+    repo_root: Path
+    results_root: Path
+    quick: bool = False
+    force: bool = False
+    dry_run: bool = False
+    hyperfine: str = "hyperfine"
+    make: str = "make"
+    executor: str | None = None  # a name in harness.executors.EXECUTORS; None: the config's
+    collect: bool = False  # slurm: adopt the jobs in flight, submit nothing
+    partition: str | None = None  # slurm: overrides the config's executor.partition
+    # The machine-wide measuring lock of this run (harness.store.locks), taken before the first
+    # cell is measured; None: measure without it (tests that fake hyperfine).
+    run_lock: locks.RunLock | None = None
+
+
+@dataclass
+class Experiment:
+    """One config's run: the state it accumulates lives here, never in module globals."""
+
+    plan: Plan
+    options: Options
+    log: TextIO
+    records: dict[str, records.Record] = field(default_factory=dict)
+    cores: int = field(default_factory=machine.available_cores)
+    store: CellStore = field(init=False)
+
+    def __post_init__(self) -> None:
+        machine_id = str(machine.machine(self.options.repo_root, self.options.make)
+                         [records.MACHINE_KEY])
+        self.store = CellStore(self.plan, self.options.repo_root, self.options.results_root,
+                               machine_id, self.options.force)
+
+    @property
+    def config(self) -> Config:
+        return self.plan.config
+
+    @property
+    def directory(self) -> Path:
+        return self.store.directory
+
+
+def format_seconds(seconds: float) -> str:
+    if seconds < 60:
+        return f"{seconds:.1f}s"
+    minutes, rest = divmod(round(seconds), 60)
+    return f"{minutes}m{rest:02d}s" if minutes < 60 else f"{minutes // 60}h{minutes % 60:02d}m"
+
+
+@dataclass
+class Progress:
+    """The progress lines of a run, in plan order: `[k/n] name: cell  cached` for each cached
+    cell, `[k/n] name: cell  elapsed T  eta E` as each pending cell starts. The ETA is the mean
+    duration of the cells finished so far times the number still to measure."""
+
+    name: str
+    order: Sequence[tuple[Cell, str]]  # every planned cell with its id
+    pending: frozenset[str]  # the ids to be measured
+    log: TextIO
+    started: float = field(default_factory=time.monotonic)
+    durations: list[float] = field(default_factory=list)
+    _next: int = field(default=0, init=False)  # the plan index of the first cell not announced
+    _index: dict[str, int] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._index = {cid: k for k, (_, cid) in enumerate(self.order)}
+
+    def _prefix(self, k: int) -> str:
+        cell = self.order[k][0]
+        return f"[{k + 1}/{len(self.order)}] {self.name}: {cell.label}"
+
+    def _cached_until(self, stop: int) -> None:
+        for k in range(self._next, stop):
+            if self.order[k][1] not in self.pending:
+                self.log.write(f"{self._prefix(k)}  cached\n")
+        self._next = max(self._next, stop)
+
+    def starting(self, cell_id: str) -> None:
+        k = self._index[cell_id]
+        self._cached_until(k)
+        elapsed = time.monotonic() - self.started
+        todo = len(self.pending) - len(self.durations)
+        eta = (format_seconds(sum(self.durations) / len(self.durations) * todo)
+               if self.durations else "?")
+        self.log.write(f"{self._prefix(k)}  elapsed {format_seconds(elapsed)}  eta {eta}\n")
+        self.log.flush()
+        self._next = max(self._next, k + 1)
+
+    def finished(self, seconds: float) -> None:
+        self.durations.append(seconds)
+
+    def close(self) -> None:
+        self._cached_until(len(self.order))
+
+
+class Executor(Protocol):
+    name: str
+
+    def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
+            on_record: OnRecord, progress: Progress) -> None:
+        """Measure every pending (cell, cell_id); call on_record once for each."""
+        ...
+
+

@@ -1,0 +1,129 @@
+"""The Slurm client: plain `sbatch --array` / `squeue` / `scontrol` / `sacct` through
+subprocess, and Slurm's job states.
+
+Not submitit: submitit learns that a job ended from sacct; without Slurm's accounting database
+(slurmdbd + MariaDB, which many small clusters and our test cluster do not run) it never sees
+a cancelled job finish and waits forever. A task's state comes from squeue, which shows a
+finished task with its final state (TIMEOUT, CANCELLED, NODE_FAIL, ...) for MinJobAge (300 s by
+default) after it ended; then the jobcomp/filetxt completion file when the cluster keeps one
+(it needs no database); then sacct where accounting exists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import shlex
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+from harness.errors import HarnessError
+
+COMMAND_TIMEOUT_S = 60.0  # one sbatch/squeue/scontrol call; a hung controller is an error
+NEEDS_CLIENT = ("the Slurm executor needs Slurm's client commands (sbatch, squeue, scontrol) on "
+                "this machine")
+
+# Slurm job states (squeue %T, scontrol JobState, jobcomp JobState, sacct State).
+ACTIVE_STATES = frozenset({
+    "PENDING", "CONFIGURING", "RUNNING", "COMPLETING", "SUSPENDED", "REQUEUED",
+    "REQUEUE_FED", "REQUEUE_HOLD", "RESIZING", "SIGNALING", "STAGE_OUT", "RESV_DEL_HOLD",
+    "STOPPED",
+})
+RUNNING_STATES = frozenset({"RUNNING", "COMPLETING", "SIGNALING", "STAGE_OUT"})
+TIMEOUT_STATES = frozenset({"TIMEOUT", "DEADLINE"})
+
+
+class SlurmError(HarnessError):
+    """A Slurm command failed (the message names it and quotes its stderr)."""
+
+
+def slurm_command(argv: Sequence[str], check: bool = True) -> subprocess.CompletedProcess[str]:
+    """Run one Slurm client command; a missing command or (with check) a failure is an error."""
+    try:
+        done = subprocess.run(list(argv), capture_output=True, text=True, check=False,
+                              stdin=subprocess.DEVNULL, timeout=COMMAND_TIMEOUT_S)
+    except FileNotFoundError:
+        raise SlurmError(f"{argv[0]} not found: {NEEDS_CLIENT}") from None
+    except subprocess.TimeoutExpired:
+        raise SlurmError(f"{shlex.join(argv)} did not answer within "
+                         f"{COMMAND_TIMEOUT_S:g} s") from None
+    if check and done.returncode != 0:
+        raise SlurmError(f"{shlex.join(argv)} failed (exit {done.returncode}): "
+                         f"{' '.join(done.stderr.split())[-500:]}")
+    return done
+
+
+def partition_cpus(partition: str | None) -> int | None:
+    """The most CPUs of any node in the partition (the default one when None), or None."""
+    argv = ["sinfo", "-h", "-o", "%c"] + (["-p", partition] if partition else [])
+    done = slurm_command(argv, check=False)
+    counts = [int(m) for m in re.findall(r"\d+", done.stdout)] if done.returncode == 0 else []
+    return max(counts) if counts else None
+
+
+def submit_array(script: Path, tasks: int, args: Sequence[str]) -> str:
+    """`sbatch --parsable --array=0-(tasks-1) ARGS SCRIPT`; the job id."""
+    done = slurm_command(["sbatch", "--parsable", f"--array=0-{tasks - 1}", *args, str(script)])
+    job_id = done.stdout.strip().split(";")[0]
+    if not job_id.isdigit():
+        raise SlurmError(f"sbatch answered {done.stdout.strip()!r}, not a job id")
+    return job_id
+
+
+def cancel(job_id: str, task: int | None = None) -> None:
+    slurm_command(["scancel", job_id if task is None else f"{job_id}_{task}"])
+
+
+def queue_states(job_id: str) -> dict[int, tuple[str, str]] | None:
+    """task -> (state, reason) of an array job's tasks as squeue shows them (finished ones
+    too, for MinJobAge); None when squeue no longer knows the job."""
+    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T|%r"],
+                         check=False)
+    if done.returncode != 0:
+        if "Invalid job id" in done.stderr:
+            return None
+        raise SlurmError(f"squeue -j {job_id} failed (exit {done.returncode}): "
+                         f"{' '.join(done.stderr.split())[-500:]}")
+    states: dict[int, tuple[str, str]] = {}
+    for line in done.stdout.splitlines():
+        ident, _, rest = line.strip().partition("|")
+        state, _, reason = rest.partition("|")
+        job, _, task = ident.partition("_")
+        if job == job_id and task.isdigit():
+            states[int(task)] = (state.split()[0] if state else "", reason)
+    return states if states else None
+
+
+def jobcomp_file() -> Path | None:
+    """The jobcomp/filetxt completion file of the cluster, when it keeps one we can read."""
+    done = slurm_command(["scontrol", "show", "config"], check=False)
+    values = dict(re.findall(r"^(\w+)\s*=\s*(.*?)\s*$", done.stdout, re.MULTILINE))
+    if values.get("JobCompType") != "jobcomp/filetxt":
+        return None
+    path = Path(values.get("JobCompLoc", ""))
+    return path if path.is_file() else None
+
+
+def completed_states(job_id: str) -> dict[int, str]:
+    """task -> final state, from the jobcomp/filetxt file or else sacct (empty when neither
+    knows the job)."""
+    states: dict[int, str] = {}
+    path = jobcomp_file()
+    if path is not None:
+        with contextlib.suppress(OSError):
+            for line in path.read_text(errors="replace").splitlines():
+                fields = dict(re.findall(r"(\w+)=(\S*)", line))
+                if fields.get("ArrayJobId") == job_id and fields.get("ArrayTaskId", "").isdigit():
+                    states[int(fields["ArrayTaskId"])] = fields.get("JobState", "")
+    if states:
+        return states
+    done = slurm_command(["sacct", "-n", "-P", "-X", "-j", job_id, "-o", "JobID,State"],
+                         check=False)
+    if done.returncode == 0:
+        for line in done.stdout.splitlines():
+            ident, _, state = line.partition("|")
+            job, _, task = ident.partition("_")
+            if job == job_id and task.isdigit():
+                states[int(task)] = state.split()[0] if state else ""
+    return states

@@ -1,0 +1,380 @@
+"""Slurm as an executor: each pending cell is one task of a Slurm job array.
+
+A task runs `python -m harness worker --config C --results-dir R [--quick] CELL_ID` on its
+compute node (harness.executors.worker), which measures the cell there exactly as a local run
+does (the precise run, validation against seq's output, the checks, hyperfine) and writes the
+cell's record into the
+shared results directory. Validation therefore runs on the node: seq's baseline output is
+cached under results/.cache/ on the shared file system, so the first task that needs it
+computes it (two tasks racing for it both compute it; os.replace keeps one). The submitter
+only waits, reads the records back, and rebuilds results.csv and the report.
+
+The client (harness.executors.slurm.client) is plain sbatch / squeue / scontrol / sacct.
+A task's state comes from, in order: its record on disk (the truth for every task that ran to
+the end), then what the client learns from Slurm.
+
+Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
+kept like a local timeout (not measured again unless --force or the record is removed); a
+task cancelled (scancel), lost with its node, or ended without a record gets a `failed` record
+with the reason in `note`, marked `retry` (records.RETRY_KEY): results.csv lists it, and the
+next run submits the cell again (its new record replaces the fault record). Both are written
+by the submitter, under the cell id it planned with.
+
+What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.jobs):
+`--collect` (or running the same command again) adopts the jobs still in flight and submits
+nothing new (`--collect`) or only the cells neither recorded nor in flight.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import math
+import os
+import shlex
+import shutil
+import socket
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
+from harness.executors.slurm.client import (
+    ACTIVE_STATES,
+    NEEDS_CLIENT,
+    RUNNING_STATES,
+    TIMEOUT_STATES,
+    SlurmError,
+    completed_states,
+    partition_cpus,
+    queue_states,
+    submit_array,
+)
+from harness.executors.slurm.jobs import JOBS_FILE, LOCK_FILE, Job, JobState
+from harness.executors.slurm.watch import SLURM_STATE_KEY, RecordWatch, fault_record
+from harness.plan.cells import Cell
+from harness.plan.cellstore import now_iso
+from harness.spec.config import ExecutorSpec
+from harness.store import atomic, locks, records
+from harness.store.columns import FAILED, TIMEOUT
+
+LOGS_DIR = "logs"
+# A task that Slurm reports COMPLETED has written its record before it exited; on a network
+# file system the file may appear to the submitter a little later.
+RECORD_GRACE_S = 15.0
+# Slurm kills a task at its time limit; the harness's own timeouts (each run's timeout_s, and
+# hyperfine's) should fire first, so the default limit leaves this much above them.
+TIME_LIMIT_SLACK_S = 120.0
+STATUS_EVERY_S = 30.0  # a progress line at least this often while nothing changes
+# Slurm's default MaxArraySize is 1001 (indices 0-1000); larger sweeps go in several arrays.
+MAX_ARRAY_TASKS = 1000
+# final state -> why a task without a record failed
+FAULT_REASONS = {
+    "CANCELLED": "cancelled (scancel) before it finished",
+    "NODE_FAIL": "lost with its node (NODE_FAIL)",
+    "BOOT_FAIL": "its node failed to boot (BOOT_FAIL)",
+    "FAILED": "the task's script failed before writing a record",
+    "OUT_OF_MEMORY": "killed for exceeding its memory (OUT_OF_MEMORY)",
+    "PREEMPTED": "preempted by another job",
+    "COMPLETED": "the task ended without writing a record",
+}
+
+
+@dataclass(frozen=True)
+class Task:
+    job_id: str
+    index: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.job_id}_{self.index}"
+
+
+def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
+    """The configured limit, or enough for the harness's own timeouts to fire first: the
+    precise run, the checks' runs and hyperfine's warmup + runs, each up to timeout_s."""
+    if spec.time_limit_min is not None:
+        return spec.time_limit_min
+    config = experiment.config
+    # The slowest variant's settings (measure_by_variant) bound every task of the array.
+    seconds = max(m.timeout_s * (m.warmup + m.runs + 2)
+                  for m in (config.measure, *map(config.measure_for, config.variants)))
+    seconds += TIME_LIMIT_SLACK_S
+    return max(1, math.ceil(seconds / 60))
+
+
+@dataclass
+class SlurmExecutor:
+    """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
+    are the config's `executor:` section with run.py's --partition over it; --collect adopts
+    the jobs in flight and submits nothing.
+
+    Cells are named by their portable id (records.portable_id: the key without the machine) in
+    the job scripts and jobs.json, and matched to the records the nodes write by the same id;
+    on_record still gets the cell id the runner planned with.
+    """
+
+    spec: ExecutorSpec = field(default_factory=ExecutorSpec)
+    collect: bool = False
+    name: str = "slurm"
+
+    def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
+            on_record: OnRecord, progress: Progress) -> None:
+        if shutil.which("sbatch") is None:
+            raise SlurmError(f"sbatch not found: {NEEDS_CLIENT}")
+        options = experiment.options
+        self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
+            options.partition or experiment.config.executor.partition))
+        self.collect = options.collect
+        slurm_dir = experiment.store.layout.slurm
+        cells: dict[str, tuple[Cell, str]] = {}  # portable id -> (cell, planned cell id)
+        for cell, cid in pending:
+            key = experiment.store.cell_key(cell)
+            assert key is not None
+            cells[records.portable_id(key)] = (cell, cid)
+        log = experiment.log
+        watch = RecordWatch(experiment.store.cells_dir)
+        watch.snapshot()
+        with locks.file_lock(slurm_dir / LOCK_FILE):
+            state = JobState.load(slurm_dir / JOBS_FILE)
+            if not options.force:
+                self.adopt_finished(experiment, state, watch, cells, on_record, progress)
+            tasks, ended = self.adopt(state, cells)
+            # a timeout while nobody watched is recorded now; other faults are submitted again
+            for pid, (task, final) in list(ended.items()):
+                if final in TIMEOUT_STATES or self.collect:
+                    cell, cid = cells.pop(pid)
+                    self.record_fault(experiment, cell, cid, task, final, on_record)
+            todo = [pid for pid in cells if pid not in tasks]
+            if tasks:
+                log.write(f"slurm: {len(tasks)} cell(s) already in flight "
+                          f"(job {', '.join(sorted({t.job_id for t in tasks.values()}))}); "
+                          "not submitted again\n")
+            if todo and not self.collect:
+                tasks.update(self.submit(experiment, state, cells, todo))
+            elif todo:
+                log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
+                          "flight; run without --collect to submit them\n")
+        self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
+                  progress)
+
+    # --- what is already there ---
+
+    def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
+                       cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
+                       progress: Progress) -> None:
+        """Cells a task of ours measured after its submission (e.g. while the submitter was
+        dead), whose record carries the node's machine and so escaped the runner's cache:
+        recorded now, not submitted again."""
+        submitted: dict[str, str] = {}  # portable id -> when its latest job was submitted
+        for job in state.jobs:
+            for pid in job.cells:
+                if pid in cells:
+                    submitted[pid] = job.submitted_at
+        if not submitted:
+            return
+        existing = watch.existing()
+        for pid, since in submitted.items():
+            mine = [r for r in existing.get(pid, []) if str(r.get("measured_at", "")) >= since]
+            if mine:
+                record = max(mine, key=lambda r: str(r.get("measured_at", "")))
+                cell, cid = cells.pop(pid)
+                progress.starting(cid)
+                self.drop_fault(experiment, cid, record)
+                on_record(cell, cid, record)
+
+    def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
+              ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
+        """The pending cells with a task still in flight, and those whose latest task ended
+        (with its final state), from the jobs in the state file; by portable id."""
+        in_flight: dict[str, Task] = {}
+        ended: dict[str, tuple[Task, str]] = {}
+        for job in state.jobs:
+            if not set(job.cells) & set(cells):
+                continue
+            queued = queue_states(job.job_id)
+            final = completed_states(job.job_id) if queued is None else {}
+            for index, pid in enumerate(job.cells):
+                if pid not in cells:
+                    continue
+                task = Task(job.job_id, index)
+                seen = queued.get(index) if queued is not None else None
+                slurm_state = seen[0] if seen is not None else final.get(index, "")
+                if slurm_state in ACTIVE_STATES:
+                    in_flight[pid] = task
+                    ended.pop(pid, None)
+                elif pid not in in_flight:
+                    ended[pid] = (task, slurm_state)
+        return in_flight, ended
+
+    # --- submission ---
+
+    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
+        spec = self.spec
+        args = [f"--job-name=collide-{experiment.config.name}",
+                f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", "--ntasks=1",
+                f"--time={time_limit_minutes(spec, experiment)}",
+                f"--chdir={experiment.options.repo_root}"]
+        if spec.partition:
+            args.append(f"--partition={spec.partition}")
+        if spec.exclusive:
+            args.append("--exclusive")
+        return [*args, *spec.extra]
+
+    def job_script(self, experiment: Experiment, ids: Sequence[str]) -> str:
+        options = experiment.options
+        worker = [sys.executable, "-m", "harness", "worker",
+                  "--config", str(experiment.config.source.resolve()),
+                  "--results-dir", str(options.results_root),
+                  "--repo-root", str(options.repo_root), "--hyperfine", options.hyperfine,
+                  *(["--quick"] if options.quick else [])]
+        return "\n".join([
+            "#!/bin/bash",
+            f"# collide-bench: experiment {experiment.config.name}, one cell per array task",
+            f"# (written by harness.executors.slurm at {now_iso()})",
+            "set -u",
+            f"cells=({' '.join(ids)})",
+            f'exec {shlex.join(worker)} "${{cells[$SLURM_ARRAY_TASK_ID]}}"',
+            "",
+        ])
+
+    def submit(self, experiment: Experiment, state: JobState,
+               cells: Mapping[str, tuple[Cell, str]], todo: Sequence[str]) -> dict[str, Task]:
+        """One array job per distinct --cpus-per-task (each cell gets at least its thread
+        count, up to the largest node of the partition); the tasks by portable id."""
+        slurm_dir = state.path.parent
+        logs = slurm_dir / LOGS_DIR
+        logs.mkdir(parents=True, exist_ok=True)
+        largest = partition_cpus(self.spec.partition)
+        groups: dict[int, list[str]] = {}
+        for pid in todo:
+            threads = cells[pid][0].threads
+            cpus = threads if largest is None else min(threads, largest)
+            groups.setdefault(cpus, []).append(pid)
+        chunks = [(cpus, ids[k:k + MAX_ARRAY_TASKS]) for cpus, ids in sorted(groups.items())
+                  for k in range(0, len(ids), MAX_ARRAY_TASKS)]
+        tasks: dict[str, Task] = {}
+        for cpus, ids in chunks:
+            stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%S.%f")
+            script = slurm_dir / f"job-{stamp}-c{cpus}.sh"
+            atomic.atomic_write_text(script, self.job_script(experiment, ids))
+            submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
+            job_id = submit_array(script, len(ids), self.sbatch_args(experiment, cpus, logs))
+            state.jobs.append(Job(job_id, list(ids), submitted_at,
+                                  f"{socket.gethostname()}:{os.getpid()}"))
+            state.save()  # at once: a submitter killed now has its job on file
+            tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
+            experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
+                                 f"--cpus-per-task={cpus}; task logs in {logs}\n")
+        return tasks
+
+    # --- waiting ---
+
+    @staticmethod
+    def drop_fault(experiment: Experiment, cid: str, record: records.Record) -> None:
+        """The retry record of a cell that a node has now measured under another id (its own
+        machine's) goes: results.csv shows the measurement only."""
+        if record.get("cell_id") == cid:
+            return
+        old = experiment.store.read(cid)
+        if old is not None and old.get(records.RETRY_KEY):
+            experiment.store.record_path(cid).unlink(missing_ok=True)
+
+    def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
+                     slurm_state: str, on_record: OnRecord) -> None:
+        if slurm_state in TIMEOUT_STATES:
+            limit = self.spec.time_limit_min
+            note = (f"slurm task {task.name} passed its time limit"
+                    + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
+            record = fault_record(experiment, cell, cid, TIMEOUT, note)
+        else:
+            reason = FAULT_REASONS.get(slurm_state, f"ended in state {slurm_state or 'unknown'} "
+                                       "without a record (Slurm no longer knows it)")
+            logfile = experiment.store.layout.slurm / LOGS_DIR / f"{task.name}.out"
+            note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
+                    "next run submits it again")
+            record = fault_record(experiment, cell, cid, FAILED, note)
+            record[records.RETRY_KEY] = True
+        record["slurm_task"] = task.name
+        record[SLURM_STATE_KEY] = slurm_state
+        experiment.store.save(cid, record)
+        on_record(cell, cid, record)
+
+    def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
+             tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
+             progress: Progress) -> None:
+        poll = self.spec.poll_s
+        log = experiment.log
+        started = time.monotonic()
+        open_tasks = dict(tasks)
+        announced: set[str] = set()
+
+        def announce(pid: str, cid: str) -> None:  # its progress line, once
+            if pid not in announced:
+                announced.add(pid)
+                progress.starting(cid)
+
+        ended_at: dict[str, float] = {}
+        arrived: dict[str, records.Record] = {}
+        last_line, last_at = "", 0.0
+        last_done_at = started
+        while open_tasks:
+            states: dict[str, dict[int, tuple[str, str]] | None] = {}
+            for job_id in sorted({t.job_id for t in open_tasks.values()}):
+                states[job_id] = queue_states(job_id)
+            # after squeue: a task it shows ended has written its record by now
+            arrived.update(watch.new_records())
+            finals: dict[str, dict[int, str]] = {}
+            running = waiting = 0
+            for pid, task in list(open_tasks.items()):
+                cell, cid = cells[pid]
+                record = arrived.get(pid)
+                queued = states[task.job_id]
+                seen = queued.get(task.index) if queued is not None else None
+                if seen is None and record is None:
+                    if task.job_id not in finals:
+                        finals[task.job_id] = completed_states(task.job_id)
+                    slurm_state = finals[task.job_id].get(task.index, "")
+                else:
+                    slurm_state = seen[0] if seen is not None else ""
+                if record is not None or slurm_state in RUNNING_STATES:
+                    announce(pid, cid)
+                if record is not None:
+                    del open_tasks[pid]
+                    # the time a cell costs the sweep (queueing included), so that the
+                    # progress lines' ETA follows the throughput
+                    progress.finished(time.monotonic() - last_done_at)
+                    last_done_at = time.monotonic()
+                    self.drop_fault(experiment, cid, record)
+                    on_record(cell, cid, record)
+                elif slurm_state in ACTIVE_STATES:
+                    if slurm_state in RUNNING_STATES:
+                        running += 1
+                    else:
+                        waiting += 1
+                else:
+                    # ended without a record; COMPLETED may still be in flight on the file system
+                    first = ended_at.setdefault(pid, time.monotonic())
+                    if slurm_state == "COMPLETED" and time.monotonic() - first < RECORD_GRACE_S:
+                        running += 1
+                        continue
+                    announce(pid, cid)
+                    del open_tasks[pid]
+                    self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
+            done = len(tasks) - len(open_tasks)
+            elapsed = time.monotonic() - started
+            # from the throughput so far: queueing and start-up on the nodes included
+            eta = "?"
+            if done and open_tasks:
+                eta = format_seconds(elapsed / done * len(open_tasks))
+            line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
+                    f"running, {waiting} pending")
+            if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:
+                log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
+                          f"{eta if open_tasks else '0.0s'}\n")
+                log.flush()
+                last_line, last_at = line, time.monotonic()
+            if open_tasks:
+                time.sleep(poll)

@@ -1,0 +1,78 @@
+"""What the Slurm executor reads back: the records the nodes write (RecordWatch: a node writes
+under the cell id of its own machine, which the submitter cannot know beforehand, so records
+are matched on their portable id), and the records the submitter writes itself for a task
+that ended without one (fault_record)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.executors.base import Experiment
+from harness.plan.cells import Cell
+from harness.store import history, layout, records
+
+SLURM_STATE_KEY = "slurm_state"  # set on the records the submitter writes for a fault
+
+
+def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
+                 note: str) -> records.Record:
+    """The record of a cell whose task ended without one: the cell's identity, the status and
+    the reason (the columns a measurement would fill stay empty)."""
+    record = experiment.store.new_record(cell, cid)
+    record.update({"status": status, "exit_code": None, "note": note, "executor": "slurm"})
+    return record
+
+
+def is_fault(record: Mapping[str, object]) -> bool:
+    """A record the submitter wrote for a task that ended without one (fault_record)."""
+    return SLURM_STATE_KEY in record
+
+
+@dataclass
+class RecordWatch:
+    """The records that appear in cells/ while we wait, by the portable id of their key.
+
+    A node writes a cell's record under the cell id of its own machine (the key holds the
+    machine's id), which the submitter cannot know beforehand; so it looks for new or
+    rewritten record files and matches them on the key without the machine (portable_id).
+    Files present when the run started count only once rewritten (--force).
+    """
+
+    cells_dir: Path
+    seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
+
+    def snapshot(self) -> None:
+        self.seen = dict(self._stamps())
+
+    def _stamps(self) -> Iterator[tuple[str, tuple[int, int]]]:
+        for path in layout.record_paths(self.cells_dir):
+            with contextlib.suppress(FileNotFoundError):
+                stat = path.stat()
+                yield path.name, (stat.st_mtime_ns, stat.st_ino)
+
+    def new_records(self) -> dict[str, records.Record]:
+        """portable id -> record, for each record file new or rewritten since the last call."""
+        found: dict[str, records.Record] = {}
+        for name, stamp in self._stamps():
+            if self.seen.get(name) == stamp:
+                continue
+            self.seen[name] = stamp
+            path = self.cells_dir / name
+            record = records.read_record(path, layout.cell_id_of(path))
+            key = record.get("key") if record is not None else None
+            if record is not None and isinstance(key, dict) and not is_fault(record):
+                found[records.portable_id(key)] = record
+        return found
+
+    def existing(self) -> dict[str, list[records.Record]]:
+        """portable id -> every record in cells/ now (for cells finished while no submitter
+        watched)."""
+        found: dict[str, list[records.Record]] = {}
+        for stored in history.load_records(self.cells_dir):
+            key = stored.record.get("key")
+            if isinstance(key, dict) and not stored.record.get(records.RETRY_KEY):
+                found.setdefault(records.portable_id(key), []).append(stored.record)
+        return found

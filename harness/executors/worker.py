@@ -1,0 +1,50 @@
+"""Measure cells by id in a fresh process, e.g. a Slurm task on a compute node
+(`collide-bench worker --config PATH --results-dir DIR [--quick] CELL_ID ...`).
+
+It plans the config again (as a run would, with the same --quick), finds each cell by its id,
+measures it and writes its record atomically to <results-dir>/<name>/cells/<id>.json, exactly
+as a local run does (Measurer.measure_and_save). It builds nothing and consults no cached
+record: the caller sends only pending cells, with the binaries already built on a shared file
+system. An id that is not a cell of the plan (or whose binaries are missing) is one error and
+nothing is measured.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import cast
+
+from harness.errors import HarnessError
+from harness.measure import environment, machine
+from harness.measure.cell import Measurer
+from harness.plan.cells import plan_cells
+from harness.plan.cellstore import CellStore
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store import index, records
+
+
+def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root: Path,
+                  cell_ids: Sequence[str], hyperfine: str = "hyperfine") -> None:
+    repo_root = repo_root.resolve()
+    registry = VariantRegistry(repo_root)
+    config = load_config(config_path, registry)
+    machine_id = str(machine.machine(repo_root)[records.MACHINE_KEY])
+    store = CellStore(plan_cells(config, quick, registry), repo_root, results_root.resolve(),
+                      machine_id)
+    cells = store.cells_by_id()
+    portable = {records.portable_id(cast(dict[str, object], store.cell_key(cell))): cid
+                for cid, cell in cells.items()}
+    chosen = [cid if cid in cells else portable.get(cid) for cid in cell_ids]
+    unknown = [given for given, cid in zip(cell_ids, chosen, strict=True) if cid is None]
+    if unknown:
+        raise HarnessError(f"{config_path}: no planned cell with id {' '.join(unknown)}"
+                           f"{' (--quick)' if quick else ''}")
+    measurer = Measurer(store, hyperfine)
+    for cid in chosen:
+        assert cid is not None
+        measurer.measure_and_save(cells[cid], cid)
+    # the machine and tools of this node, once per machine (a submitter elsewhere cannot)
+    if not store.layout.machine(machine_id).is_file():
+        index.write_env(store.directory, environment.collect(repo_root, hyperfine=hyperfine))

@@ -1,0 +1,54 @@
+"""Start a harness command under the repository's .venv when this Python lacks what it needs.
+
+`python harness/run.py` and `python harness/compare.py` run this file by path (the harness
+package may not be importable yet under a plain `python`), and `python -m harness` imports
+it. When the harness package and its third-party packages import, the command runs here;
+else it is re-executed with .venv/bin/python (where `make setup` installed the project), or,
+without one, one error line says what is missing. Standard library only.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import runpy
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+REQUIRED_MODULES = ("harness", "yaml", "numpy", "pandas", "matplotlib", "scipy", "psutil",
+                    "PIL")
+# Set in the re-executed process, so a .venv that lacks the packages too never loops.
+REEXEC_MARKER = "COLLIDE_BENCH_REEXEC"
+EXIT_MISSING = 2
+
+
+def _venv_python() -> Path:
+    repo = runpy.run_path(str(Path(__file__).with_name("repo.py")))
+    return Path(repo["VENV_PYTHON"])
+
+
+def ensure_packages(entry: Sequence[str]) -> None:
+    """Return when every required module imports; else re-exec `.venv/bin/python ENTRY
+    ARGS...`, or print one error line and exit 2. `entry` is a script path or ["-m", NAME]."""
+    missing = [m for m in REQUIRED_MODULES if importlib.util.find_spec(m) is None]
+    if not missing:
+        return
+    venv = _venv_python()
+    if venv.exists() and os.environ.get(REEXEC_MARKER) != "1":
+        argv = [str(venv), *entry, *sys.argv[1:]]
+        os.execve(argv[0], argv, {**os.environ, REEXEC_MARKER: "1"})
+    sys.stderr.write(f"error: missing Python packages ({', '.join(missing)}); run 'make setup'\n")
+    sys.exit(EXIT_MISSING)
+
+
+def start(command: str, script: str) -> None:
+    """Run `collide-bench COMMAND ARGS...` for the script `script` (harness/run.py, ...)."""
+    ensure_packages([script])
+    from harness.cli import main
+
+    sys.exit(main([command, *sys.argv[1:]]))
+
+
+if __name__ == "__main__":  # run by path from a script, with COMMAND and SCRIPT given
+    start(globals()["COMMAND"], globals()["SCRIPT"])

@@ -1,0 +1,69 @@
+"""Child processes of a measurement: run one in its own process group under a timeout (the
+whole group is killed past it or on Ctrl-C), its exit status, the tail of its stderr."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
+
+STDERR_TAIL_CHARS = 2000
+
+
+@dataclass(frozen=True)
+class ProcessResult:
+    returncode: int | None  # None: killed at the timeout
+    stderr: str
+    seconds: float
+
+
+def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
+                stdout: Path | None = None) -> ProcessResult:
+    """Run argv in its own process group with stdout to a file (or /dev/null); past the
+    timeout, or on any exception (Ctrl-C), the whole group is killed."""
+    started = time.monotonic()
+    target = stdout if stdout is not None else Path(os.devnull)
+    with target.open("wb") as out, tempfile.TemporaryFile() as err:
+        try:
+            proc = subprocess.Popen(list(argv), stdout=out, stderr=err,
+                                    stdin=subprocess.DEVNULL, env=dict(env),
+                                    start_new_session=True)
+        except OSError as exc:
+            return ProcessResult(127, f"cannot run {argv[0]}: {exc.strerror}\n", 0.0)
+        returncode: int | None = None
+        try:
+            returncode = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            returncode = None
+        finally:
+            _kill_group(proc)
+        err.seek(0)
+        stderr = err.read().decode(errors="replace")
+    return ProcessResult(returncode, stderr, time.monotonic() - started)
+
+
+def _kill_group(proc: subprocess.Popen[bytes]) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
+def exit_status(returncode: int | None) -> tuple[str, int | None]:
+    """(status, exit_code) of one run: ok, failed (exit != 0), crashed (signal), timeout."""
+    if returncode is None:
+        return TIMEOUT, None
+    if returncode == 0:
+        return OK, 0
+    return (CRASHED if returncode < 0 else FAILED), returncode
+
+
+def tail(text: str) -> str:
+    return text[-STDERR_TAIL_CHARS:]

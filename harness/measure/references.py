@@ -1,0 +1,95 @@
+"""The reference outputs a cell is compared with, run once and kept: seq's `--precise` output
+of an input (validation; results/.cache/baselines/) and print-mode outputs of the checks'
+references (results/.cache/prints/), keyed by binary and input."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.measure.proc import exit_status, run_process, tail
+from harness.plan.cells import Cell
+from harness.plan.cellstore import CellStore
+from harness.spec import scenes
+from harness.store import atomic, records
+from harness.store.columns import OK
+
+# The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
+Environment = Callable[[int], Mapping[str, str]]
+
+
+@dataclass
+class References:
+    """The reference outputs of one experiment's cells, read or run once per process."""
+
+    store: CellStore
+    environment: Environment
+    timeout_s: float
+    baselines: dict[str, str | None] = field(default_factory=dict)  # key -> output; None: failed
+    prints: dict[str, str | None] = field(default_factory=dict)
+
+    def baseline_output(self, cell: Cell) -> tuple[str | None, str]:
+        """The sequential baseline's --precise output for the cell's input (cached), and why
+        there is none when it failed."""
+        key = self.store.baseline_key(cell)
+        if key in self.baselines:
+            text = self.baselines[key]
+            return text, "" if text is not None else "baseline run failed"
+        path = self.store.baseline_file(key)
+        if path.is_file():
+            self.baselines[key] = path.read_text()
+            return self.baselines[key], ""
+        seq = self.store.baseline_binary(cell)
+        argv = [str(seq), "--threads", "1", "--seed", str(cell.scene.seed), "--precise",
+                str(self.store.input_file(cell.scene))]
+        tmp = atomic.temp_path(path)
+        try:
+            done = run_process(argv, self.environment(1), self.timeout_s, tmp)
+            status, code = exit_status(done.returncode)
+            if status != OK:
+                self.baselines[key] = None
+                return None, f"baseline {seq.name} {status} (exit {code}): {tail(done.stderr)}"
+            text = tmp.read_text()
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
+        self.baselines[key] = text
+        return text, ""
+
+    def share_baseline(self, cell: Cell, output: str) -> None:
+        """A seq cell's own output is the baseline of its input: keep it, run seq once less."""
+        if self.store.binary(cell) != self.store.baseline_binary(cell):
+            return
+        key = self.store.baseline_key(cell)
+        path = self.store.baseline_file(key)
+        if key not in self.baselines and not path.is_file():
+            atomic.atomic_write_text(path, output)
+            self.baselines[key] = output
+
+    def print_output(self, binary: Path, scene: scenes.ScenePoint, threads: int,
+                     cache: bool) -> str | None:
+        """`binary --precise` on the print-mode form of `scene`; with `cache`, kept under
+        results/.cache/prints/ (references: seq, the truth), keyed by binary and input."""
+        key = records.cell_id({"binary_sha256": self.store.sha(binary), "threads": threads,
+                               "input_sha256": scene.input_sha256, "seed": scene.seed})
+        path = self.store.print_file(key)
+        if cache and key in self.prints:
+            return self.prints[key]
+        if cache and path.is_file():
+            self.prints[key] = path.read_text()
+            return self.prints[key]
+        argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
+                str(self.store.input_file(scene))]
+        tmp = atomic.temp_path(path)
+        try:
+            done = run_process(argv, self.environment(threads), self.timeout_s, tmp)
+            text = tmp.read_text() if done.returncode == 0 else None
+            if cache and text is not None:
+                os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
+        if cache:
+            self.prints[key] = text
+        return text

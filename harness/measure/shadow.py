@@ -1,0 +1,260 @@
+"""Error measures that mean something in a chaotic system.
+
+A double run and a __float128 run of the same dense scene are apart within a few steps, so the
+distance between whole trajectories says little about a build. Two measures do:
+
+* **Shadow steps.** From each printed state of the cell's own print-mode run, take one step
+  with the cell's binary and one with the truth (a `-f128` build) and compare: the largest
+  position and velocity difference (÷ L) and whether the accepted collisions differ (some
+  particle's one-step pcoll or wcoll differs; a swapped partner shows as a position error).
+  Averaged, and maximised, over the shadowed states: the error one step of the build makes.
+* **Divergence curves.** The largest position deviation (÷ L) at every printed step between the
+  cell's run and a reference run (seq f64, or the truth): how fast the error grows.
+
+The energy drift lives in harness.measure.invariants. The functions that compare outputs are pure;
+`shadow` runs binaries (through a `Runner`, so tests can substitute one).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import subprocess
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.spec.builds import DOUBLE_EPS, unit_roundoff
+from harness.spec.config import DEFAULT_SHADOW_ULPS
+from harness.spec.output import Output, OutputFormatError, parse_output, split_states
+from harness.spec.scenes import REAL_FORMAT
+
+MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
+MODE_PATTERN = re.compile(r"\A(\s*\S+\s+\S+\s+\S+\s+\S+\s+)(\S+)")
+
+# Run `binary` (threads) on an input text; the stdout, or None when it did not exit 0.
+Runner = Callable[[Path, str, int], str | None]
+
+
+def with_mode(text: str, mode: str) -> str:
+    """The input text with its MODE token (the fifth) replaced."""
+    replaced, count = MODE_PATTERN.subn(lambda m: m.group(1) + mode, text, count=1)
+    if count != 1:
+        raise HarnessError("input has no MODE token (SPEC section 1: 'N L r S' then MODE)")
+    return replaced
+
+
+def header_tokens(text: str) -> tuple[str, str, str]:
+    """N, L and r of an input as written (so a state input keeps L and r bit for bit)."""
+    tokens = text.split(maxsplit=3)
+    if len(tokens) < 3:
+        raise HarnessError("input header must start with 'N L r'")
+    return tokens[0], tokens[1], tokens[2]
+
+
+def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndarray,
+                velocities: np.ndarray) -> str:
+    """A one-step perf input listing every particle of a state.
+
+    A coordinate a float build left a hair outside the double box (it computes L - r in float)
+    is clamped back, as the core's own final clamp would have done in double.
+    """
+    lines = [f"{len(positions)} {L_text} {r_text} 1\nperf\n"]
+    clamped = np.clip(positions, r, L - r)
+    for i, ((x, y), (vx, vy)) in enumerate(zip(clamped, velocities, strict=True)):
+        lines.append(f"{i} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} "
+                     f"{REAL_FORMAT % vy}\n")
+    return "".join(lines)
+
+
+def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) -> str | None:
+    """The default Runner: `binary --threads T --precise -` with the input on stdin."""
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
+    try:
+        done = subprocess.run([str(binary), "--threads", str(threads), "--precise", "-"],
+                              input=text, capture_output=True, text=True, env=env,
+                              timeout=timeout_s, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return done.stdout if done.returncode == 0 else None
+
+
+# --- shadow steps -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ShadowStep:
+    state: int  # the printed step it started from
+    pos_err: float  # max over particles |p - p_truth| / L after the one step
+    vel_err: float  # the same for velocities
+    set_differs: bool  # some particle's one-step pcoll or wcoll differs
+    compared: bool  # False: a run failed or the outputs do not match up
+
+
+@dataclass(frozen=True)
+class Shadow:
+    steps: tuple[ShadowStep, ...] = field(default_factory=tuple)
+    bound: float = 0.0  # the largest pos_err a step may have and pass
+
+    @property
+    def compared(self) -> list[ShadowStep]:
+        return [s for s in self.steps if s.compared]
+
+    @property
+    def states(self) -> int:
+        return len(self.steps)
+
+    @property
+    def failed(self) -> int:
+        return len(self.steps) - len(self.compared)
+
+    def _stat(self, values: list[float], how: Callable[[list[float]], float]) -> float:
+        return how(values) if values else math.nan
+
+    @property
+    def pos_err_mean(self) -> float:
+        return self._stat([s.pos_err for s in self.compared], lambda v: float(np.mean(v)))
+
+    @property
+    def pos_err_max(self) -> float:
+        return self._stat([s.pos_err for s in self.compared], max)
+
+    @property
+    def vel_err_mean(self) -> float:
+        return self._stat([s.vel_err for s in self.compared], lambda v: float(np.mean(v)))
+
+    @property
+    def vel_err_max(self) -> float:
+        return self._stat([s.vel_err for s in self.compared], max)
+
+    @property
+    def set_diff_rate(self) -> float:
+        """The fraction of compared steps whose accepted collisions differ."""
+        return self._stat([float(s.set_differs) for s in self.compared],
+                          lambda v: float(np.mean(v)))
+
+    @property
+    def passed(self) -> bool:
+        """Every state stepped and compared, the same collisions, errors within the bound."""
+        compared = self.compared
+        return (self.failed == 0 and not any(s.set_differs for s in compared)
+                and all(s.pos_err <= self.bound for s in compared))
+
+
+def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
+                 ulps: float = DEFAULT_SHADOW_ULPS) -> float:
+    """The largest one-step position error (÷ L) of a well-conditioned step of `build`.
+
+    The state fixes each coordinate only to eps (L + |v|) (a rounded coordinate, moved by a
+    rounded t v), and a contact normal n = d / |d| with |d| = 2r only to that over 2r; a wrong
+    n turns the exchanged velocity by as much, so a disc leaves a collision off by up to
+    |D| eps (L + |v|) / 2r per unit time, |D| <= 2 max|v|. Relative to L:
+    eps (1 + max|v| / L) (1 + max|v| / r). Reading the double state into a float build costs
+    eps32 at once, and printing the truth's __float128 result rounds it to double, so eps is
+    max(eps_build, eps64). k = `ulps` (64: a step chains some ten roundings, each of which the
+    contact time can amplify a few fold) covers a well-conditioned step; a graze (disc ~ 0,
+    where t moves by ~sqrt(eps)) or a near tie that the two precisions resolve differently
+    exceeds it or changes the accepted collisions, and that is what the check is for.
+    """
+    eps = max(unit_roundoff(build), DOUBLE_EPS)
+    return ulps * eps * (1.0 + speed_over_L) * (1.0 + speed_over_r)
+
+
+def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
+    """One shadow step: the cell's and the truth's one-step outputs from the same state."""
+    if cell is None or truth is None:
+        return ShadowStep(state, math.nan, math.nan, False, False)
+    try:
+        a = parse_output(cell).final
+        b = parse_output(truth).final
+    except OutputFormatError:
+        return ShadowStep(state, math.nan, math.nan, False, False)
+    if a.n != b.n or not np.array_equal(a.index, b.index):
+        return ShadowStep(state, math.nan, math.nan, False, False)
+    if a.n == 0:
+        return ShadowStep(state, 0.0, 0.0, False, True)
+    pos = np.hypot(*(a.position - b.position).T).max() / L
+    vel = np.hypot(*(a.velocity - b.velocity).T).max() / L
+    differs = bool(np.any((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
+    if not (math.isfinite(pos) and math.isfinite(vel)):
+        pos, vel = math.inf, math.inf
+    return ShadowStep(state, float(pos), float(vel), differs, True)
+
+
+def shadow_states(total: int, limit: int) -> list[int]:
+    """Which of the states 0..total-1 to shadow: all, or `limit` spread evenly."""
+    if limit <= 0 or total <= 0:
+        return []
+    if total <= limit:
+        return list(range(total))
+    return sorted({round(float(k)) for k in np.linspace(0, total - 1, limit)})
+
+
+def shadow(out: Output, input_text: str, L: float, r: float, build: str,
+           binary: Path, truth: Path, threads: int, limit: int,
+           ulps: float = DEFAULT_SHADOW_ULPS, runner: Runner = run_binary,
+           initial: Output | None = None) -> Shadow:
+    """Shadow up to `limit` states of the print-mode output `out` of the cell's run.
+
+    `input_text` is the scene's input (for N, L and r as written). The states 0..S-1 are
+    stepped; the final block has no successor to compare with and is left out. State 0 is
+    taken from `initial` (a print-mode output of the truth, whose state 0 is the input exactly)
+    when given: a float build prints its state 0 already rounded to float, and the step from
+    the input as written is the one whose rounding matters.
+    """
+    _, L_text, r_text = header_tokens(input_text)
+    states = split_states(out)[:-1]
+    if initial is not None and states:
+        first = split_states(initial)[0]
+        if first[0].shape == states[0][0].shape:
+            states[0] = first
+    chosen = shadow_states(len(states), limit)
+    speeds = [np.hypot(*v.T).max() for _, v in states if len(v) and np.all(np.isfinite(v))]
+    speed = float(max(speeds, default=0.0))
+    bound = shadow_bound(build, speed / L, speed / r, ulps)
+
+    def one(index: int) -> ShadowStep:
+        positions, velocities = states[index]
+        if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
+            return ShadowStep(index, math.nan, math.nan, False, False)
+        text = state_input(L_text, r_text, L, r, positions, velocities)
+        return compare_step(index, runner(binary, text, threads), runner(truth, text, 1), L)
+
+    if not chosen:
+        return Shadow((), bound)
+    with ThreadPoolExecutor(max_workers=min(MAX_WORKERS, len(chosen))) as pool:
+        steps = tuple(pool.map(one, chosen))
+    return Shadow(steps, bound)
+
+
+# --- divergence ---------------------------------------------------------------------------
+
+
+def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:
+    """Per printed state (steps 0..S, the final block last), the largest distance between a
+    particle's positions in the two runs, ÷ L; inf where a coordinate is not finite. Empty
+    when the runs do not have the same particles and steps."""
+    a, b = split_states(cell), split_states(reference)
+    if len(a) != len(b) or any(p.shape != q.shape for (p, _), (q, _) in zip(a, b, strict=True)):
+        return np.empty(0)
+    curve = []
+    for (p, _), (q, _) in zip(a, b, strict=True):
+        if not len(p):
+            curve.append(0.0)
+            continue
+        d = np.hypot(*(p - q).T)
+        curve.append(float(d.max()) / L if np.all(np.isfinite(d)) else math.inf)
+    return np.array(curve, dtype=np.float64)
+
+
+def first_step_at(curve: Sequence[float], threshold: float) -> int | None:
+    """The first step whose deviation reaches `threshold`, or None."""
+    for step, value in enumerate(curve):
+        if value >= threshold:
+            return step
+    return None

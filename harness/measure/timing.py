@@ -1,0 +1,51 @@
+"""What a variant's `--timing` run reports (SPEC section 5: one JSON object on one line of
+stderr after the run): the seconds of input, simulation and output, counts, the phases of the
+simulation and the per-thread work."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping
+
+from harness.store.columns import THREAD_TIMING_KEYS
+
+BUSY_KEY = "threads_busy_s"
+
+
+def parse_timing(stderr: str) -> dict[str, object] | None:
+    """The --timing JSON object: the last stderr line that parses as one."""
+    for line in reversed(stderr.splitlines()):
+        text = line.strip()
+        if text.startswith("{"):
+            try:
+                value = json.loads(text)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(value, dict):
+                return value
+    return None
+
+
+def imbalance(busy_s: Iterable[float]) -> float | None:
+    """Max over mean of the per-thread busy seconds; None without a positive mean."""
+    values = [float(v) for v in busy_s]
+    if not values or not all(math.isfinite(v) and v >= 0 for v in values):
+        return None
+    mean = math.fsum(values) / len(values)
+    return max(values) / mean if mean > 0 else None
+
+
+def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
+    """The per-thread columns a --timing object gives (None for what it lacks, e.g. an older
+    binary): its per-thread lists space-separated, and their imbalance."""
+    fields: dict[str, object] = {}
+    busy: list[float] | None = None
+    for key in THREAD_TIMING_KEYS:
+        value = timing.get(key)
+        ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
+        fields[key] = " ".join(repr(v) for v in value) if ok and value else None
+        if key == BUSY_KEY and ok:
+            busy = [float(v) for v in value]
+    fields["imbalance"] = imbalance(busy) if busy else None
+    return fields

@@ -1,0 +1,130 @@
+"""Plan a config's cells: the grid of variant x build x scene point x thread count, minus
+repeats (--quick can map several points onto one) and excluded cells. Nothing here runs a
+measurement or reads a result."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import cast
+
+from harness.errors import HarnessError, config_error
+from harness.spec import scenes
+from harness.spec.builds import binary_name
+from harness.spec.config import Config
+from harness.spec.points import expand_points
+from harness.spec.variants import VariantRegistry, default_registry
+
+QUICK_MAX_N = 400
+QUICK_MAX_STEPS = 5
+
+
+@dataclass(frozen=True)
+class Cell:
+    variant: str
+    build: str
+    scene: scenes.ScenePoint
+    threads: int
+    validate: bool  # compared with the baseline
+    exact: bool  # must match it byte for byte
+    checked: bool = False  # the accuracy and stability checks run on it
+    schedule: str = ""  # OMP_SCHEDULE of the cell (the config's schedule axis); "": not set
+    # The variant promises seq's output (its --describe says exact); a custom binary does not.
+    promises_exact: bool = False
+
+    @property
+    def variant_label(self) -> str:
+        return binary_name(self.variant, self.build)
+
+    @property
+    def label(self) -> str:
+        text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        return f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
+
+    def fields(self) -> dict[str, object]:
+        """The values exclude rules test."""
+        s = self.scene
+        return {"variant": self.variant, "build": self.build, "scene": s.label,
+                "threads": self.threads, "n": s.n, "L": s.L, "r": s.r, "steps": s.steps,
+                "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
+
+
+@dataclass(frozen=True)
+class Plan:
+    config: Config
+    quick: bool
+    cells: tuple[Cell, ...]
+    excluded: tuple[Cell, ...]
+
+
+def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> scenes.ScenePoint:
+    """The concrete scene of one grid point (its `threads` is ignored)."""
+    params = {k: v for k, v in point.items() if k != "threads"}
+    seed = cast(int, params.pop("seed"))
+    if quick:
+        defaults: Mapping[str, object] = {}
+        if config.scene.kind == "generator":  # a generator's own default counts as given
+            name = str(params.get("generator", config.scene.generator))
+            defaults = scenes.REGISTRY.get(name).defaults
+        for key, limit in (("n", QUICK_MAX_N), ("steps", QUICK_MAX_STEPS)):
+            value = params.get(key, defaults.get(key))
+            if isinstance(value, int) and not isinstance(value, bool):
+                params[key] = min(value, limit)
+    kind = config.scene.kind
+    if kind == "file":
+        return scenes.file_point(Path(str(params["file"])), seed)
+    if kind == "generator":
+        name = str(params.pop("generator", config.scene.generator))
+        try:
+            return scenes.generated_point(name, params, seed)
+        except HarnessError as exc:
+            raise HarnessError(f"{config.source}: key 'scene': {exc}") from None
+    n, L, r = cast(int, params["n"]), cast(float, params["L"]), cast(float, params["r"])
+    if 2 * r > L:
+        raise config_error(config.source, "scene.r", "a radius with 2r <= L",
+                           f"r={r:g} with L={L:g}")
+    return scenes.random_point(n, L, r, cast(int, params["steps"]), str(params["mode"]), seed)
+
+
+def is_exact(config: Config, registry: VariantRegistry, variant: str, build: str) -> bool:
+    """Whether the cell must match its baseline byte for byte (SPEC section 6): the variant
+    says it is exact (a custom binary is held to that too), and the baseline is seq of the
+    cell's own build."""
+    if variant in registry and not registry[variant].exact:
+        return False
+    baseline = config.validate.baseline_build
+    return baseline is None or build == baseline
+
+
+def plan_cells(config: Config, quick: bool = False,
+               registry: VariantRegistry | None = None) -> Plan:
+    """Every cell of the grid, in order (scene point, then variant, build, schedule), minus
+    repeats (--quick can map several points onto one) and excluded cells."""
+    registry = registry or default_registry()
+    cells: list[Cell] = []
+    excluded: list[Cell] = []
+    seen: set[tuple[object, ...]] = set()
+    points: dict[tuple[object, ...], scenes.ScenePoint] = {}
+    for point in expand_points(config):
+        scene_key = tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
+        if scene_key not in points:
+            points[scene_key] = scene_point(config, point, quick)
+        scene = points[scene_key]
+        threads = cast(int, point["threads"])
+        for variant, build, schedule in itertools.product(config.variants, config.builds,
+                                                          config.schedules or ("",)):
+            key = (variant, build, scene.input_sha256, scene.seed, threads, schedule)
+            if key in seen:
+                continue
+            seen.add(key)
+            cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
+                        is_exact(config, registry, variant, build),
+                        config.checks.applies_to(scene.n), schedule,
+                        variant in registry and registry[variant].exact)
+            fields = cell.fields()
+            (excluded if any(r.matches(fields) for r in config.exclude) else cells).append(cell)
+    return Plan(config, quick, tuple(cells), tuple(excluded))
+
+

@@ -1,0 +1,190 @@
+"""An experiment's identity and storage: what a cell's measurement depends on (its key, hashed
+into its cell id), its record files under <experiment>/cells/, the input files, the reference
+outputs cached under <results>/.cache/, the fields every record starts with, and results.csv
+and divergence.csv rebuilt from the records.
+
+Nothing here measures. Records reach the store from whichever executor measured them (this
+process, or a worker on another node writing the same files), so everything derived from them
+is rebuilt from records, never kept from a measurement in this process.
+"""
+
+from __future__ import annotations
+
+import datetime
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.plan.binaries import baseline_path, binary_path, check_references
+from harness.plan.cells import Cell, Plan
+from harness.spec import scenes
+from harness.spec.config import Config
+from harness.store import atomic, csvfile, index, records
+from harness.store.layout import ExperimentDir, ResultsRoot
+
+
+def now_iso() -> str:
+    """The time a record is written, in UTC to the second."""
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
+@dataclass
+class CellStore:
+    """Where one planned experiment's cells live, on the machine `machine_id` measures them
+    on; caches binary hashes (per instance)."""
+
+    plan: Plan
+    repo_root: Path
+    results_root: Path
+    machine_id: str  # part of every cell key: a cached cell is reused only where measured
+    force: bool = False  # cached() finds nothing: every cell is measured again
+    hashes: dict[Path, str | None] = field(default_factory=dict)
+
+    @property
+    def config(self) -> Config:
+        return self.plan.config
+
+    @property
+    def root(self) -> ResultsRoot:
+        return ResultsRoot(self.results_root)
+
+    @property
+    def layout(self) -> ExperimentDir:
+        return self.root.experiment(self.config.name, self.plan.quick)
+
+    @property
+    def directory(self) -> Path:
+        return self.layout.path
+
+    @property
+    def cells_dir(self) -> Path:
+        return self.layout.cells
+
+    # --- ids ---
+
+    def binary(self, cell: Cell) -> Path:
+        return binary_path(self.config, self.repo_root, cell.variant, cell.build)
+
+    def baseline_binary(self, cell: Cell) -> Path:
+        return baseline_path(self.config, self.repo_root, cell.build)
+
+    def sha(self, path: Path) -> str | None:
+        if path not in self.hashes:
+            self.hashes[path] = records.sha256_file(path) if path.is_file() else None
+        return self.hashes[path]
+
+    def baseline_sha(self, cell: Cell) -> str | None:
+        if not cell.validate:
+            return None
+        return self.sha(self.baseline_binary(cell))
+
+    def check_references(self, cell: Cell) -> dict[str, Path]:
+        return check_references(self.config, self.repo_root, cell.build)
+
+    def cell_key(self, cell: Cell) -> dict[str, object] | None:
+        """Everything a measurement depends on; None while a binary is missing."""
+        binary_sha = self.sha(self.binary(cell))
+        baseline_sha = self.baseline_sha(cell)
+        if binary_sha is None or (cell.validate and baseline_sha is None):
+            return None
+        measure = self.config.measure_for(cell.variant)
+        extra: dict[str, object] = {}
+        if cell.schedule:  # only then: cells without a schedule axis keep their ids
+            extra["schedule"] = cell.schedule
+        if cell.checked:  # only then: the ids of unchecked cells stay what they were
+            shas = {name: self.sha(path) for name, path in self.check_references(cell).items()}
+            if None in shas.values():
+                return None
+            extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
+        omp = self.config.executor.omp_env()
+        if omp:  # only then, as with checks
+            extra["omp"] = omp
+        return {**extra, records.MACHINE_KEY: self.machine_id,
+                "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
+                "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
+                "threads": cell.threads, "warmup": measure.warmup, "runs": measure.runs,
+                "timeout_s": measure.timeout_s, "validate": cell.validate, "exact": cell.exact,
+                "baseline_sha256": baseline_sha, "keep_output": self.config.keep_output}
+
+    def cell_id(self, cell: Cell) -> str | None:
+        key = self.cell_key(cell)
+        return None if key is None else records.cell_id(key)
+
+    def cells_by_id(self) -> dict[str, Cell]:
+        """The plan's cells by id (cells whose binaries are missing have none)."""
+        ids = ((self.cell_id(cell), cell) for cell in self.plan.cells)
+        return {cid: cell for cid, cell in ids if cid is not None}
+
+    def new_record(self, cell: Cell, cell_id: str) -> records.Record:
+        """The fields every record of the cell starts with: its identity, the binaries it ran
+        and when; the measurement (or a fault) adds the rest."""
+        key = self.cell_key(cell)
+        assert key is not None, "a cell is recorded only once its binaries exist"
+        scene = cell.scene
+        return {
+            "version": records.RECORD_VERSION, "cell_id": cell_id, "key": key,
+            "variant": cell.variant, "build": cell.build, "scene": scene.label, "n": scene.n,
+            "L": scene.L, "r": scene.r, "steps": scene.steps, "mode": scene.mode,
+            "seed": scene.seed, "threads": cell.threads, "params": dict(scene.params),
+            "runs": 0, "unstable": False, "binary_sha256": key["binary_sha256"],
+            "binary": str(self.binary(cell)), "input_sha256": scene.input_sha256,
+            "validated": cell.validate, "exact": cell.exact,
+            "baseline_sha256": key["baseline_sha256"], "identical": None, "note": "",
+            "measured_at": now_iso(),
+        }
+
+    # --- records ---
+
+    def record_path(self, cell_id: str) -> Path:
+        return self.layout.record(cell_id)
+
+    def hyperfine_path(self, cell_id: str) -> Path:
+        return self.layout.hyperfine(cell_id)
+
+    def cached(self, cell_id: str) -> records.Record | None:
+        """The record that spares measuring the cell again. A record marked retry is listed in
+        results.csv but measured again by the next run."""
+        if self.force:
+            return None
+        record = self.read(cell_id)
+        return None if record is None or record.get(records.RETRY_KEY) else record
+
+    def read(self, cell_id: str) -> records.Record | None:
+        """The record on disk, whoever wrote it; None when absent or unreadable."""
+        return records.read_record(self.record_path(cell_id), cell_id)
+
+    def save(self, cell_id: str, record: records.Record) -> None:
+        atomic.atomic_write_json(self.record_path(cell_id), record)
+
+    def write_csv(self, prune: bool = False) -> None:
+        """results.csv (and divergence.csv with checks) rebuilt from the records on disk under
+        the directory's lock (harness.store.index): per planned cell, this machine's record
+        (or its newest, marked stale) and every other machine's newest. With `prune`, the
+        superseded records move to history/ first."""
+        planned = []
+        for cell in self.plan.cells:
+            key = self.cell_key(cell)
+            if key is not None:
+                planned.append(index.PlannedCell(key, records.cell_id(key)))
+        kept = index.rebuild_csv(self.directory, planned, self.machine_id, self.config.name,
+                                 self.config.title, prune_first=prune)
+        if self.config.checks.names:
+            csvfile.write_divergence_csv(self.layout.divergence_csv, kept)
+
+    # --- files ---
+
+    def input_file(self, scene: scenes.ScenePoint) -> Path:
+        path = self.layout.input(scene.input_sha256)
+        if not path.is_file():
+            atomic.atomic_write_text(path, scene.text)
+        return path
+
+    def baseline_key(self, cell: Cell) -> str:
+        return records.cell_id({"baseline_sha256": self.baseline_sha(cell),
+                                "input_sha256": cell.scene.input_sha256,
+                                "seed": cell.scene.seed})
+
+    def baseline_file(self, key: str) -> Path:
+        return self.root.baseline(key)
+
+    def print_file(self, key: str) -> Path:
+        return self.root.print_output(key)

@@ -1,0 +1,109 @@
+"""compare's output: compare.md (the verdicts as Markdown, also printed) and its figure, each
+written atomically under the output directory."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+from harness.analysis.compare import (
+    FLAG_COLUMNS,
+    NEW_ONLY,
+    NOT_OK,
+    OLD_ONLY,
+    SAME,
+    Row,
+    Side,
+    summary,
+)
+from harness.report.document import Table
+from harness.report.figures.compare import write_figure
+from harness.report.markdown import markdown_table
+from harness.store import atomic
+
+OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
+
+
+def _seconds(value: float) -> str:
+    return f"{value:.4g}" if math.isfinite(value) else "-"
+
+
+def _ratio_text(row: Row) -> str:
+    if not math.isfinite(row.ratio):
+        return "-"
+    if math.isfinite(row.low) and math.isfinite(row.high):
+        return f"{row.ratio:.3f} [{row.low:.3f}, {row.high:.3f}]"
+    return f"{row.ratio:.3f}"
+
+
+def _p_text(value: float) -> str:
+    return f"{value:.2g}" if math.isfinite(value) else "-"
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str) -> list[str]:
+    return markdown_table(Table(tuple(header), tuple(tuple(r) for r in rows),
+                                tuple(a == "r" for a in align), ""))
+
+
+def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
+                    figure: str | None) -> str:
+    """The comparison as a Markdown document."""
+    lines = [f"# Comparison: {new.path} against {old.path}", ""]
+    for side in (old, new):
+        commits = ", ".join(side.commits()) or "not recorded"
+        lines.append(f"- **{side.name}** `{side.path}`: {len(side.cells)} cells; machine "
+                     f"{', '.join(side.machines()) or 'unknown'}; commit {commits}")
+    lines += [
+        f"- Ratio = NEW median / OLD median, with its 95% bootstrap interval; p = two-sided "
+        f"Mann-Whitney rank test. A verdict is *slower* or *faster* only when the interval "
+        f"excludes 1 and the ratio is beyond the threshold ({threshold * 100:g}%: above "
+        f"{1 + threshold:.3f} or below {1 / (1 + threshold):.3f}).",
+        "", f"**{summary(rows)}.**", ""]
+    flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
+    if flagged:
+        lines += [f"Caution: {len(flagged)} of the compared cells carry a flag on a side "
+                  f"({', '.join(FLAG_COLUMNS)}; see the note column): their times spread "
+                  "widely or were taken under load, so their verdicts are weak; re-measure them "
+                  "on a quiet machine before acting on them.", ""]
+    compared = [r for r in rows if r.compared]
+    if compared:
+        lines += _table(
+            ("cell", "OLD median (s)", "NEW median (s)", "NEW/OLD [95% CI]", "p", "runs",
+             "verdict", "note"),
+            ((r.key.label(), _seconds(r.old.median), _seconds(r.new.median),  # type: ignore[union-attr]
+              _ratio_text(r), _p_text(r.p_value),
+              f"{len(r.old.times)}/{len(r.new.times)}",  # type: ignore[union-attr]
+              f"**{r.kind}**" if r.kind != SAME else r.kind, r.note) for r in compared),
+            "lrrrrrll")
+        lines.append("")
+    if figure:
+        lines += [f"![NEW/OLD per cell with 95% intervals]({figure})", ""]
+    not_ok = [r for r in rows if r.kind == NOT_OK]
+    if not_ok:
+        lines += ["## Not compared: a side is not ok", ""]
+        lines += _table(("cell", "OLD status", "NEW status", "note"),
+                        ((r.key.label(), r.old.status, r.new.status, r.note)  # type: ignore[union-attr]
+                         for r in not_ok), "llll")
+        lines.append("")
+    for kind, title in ((OLD_ONLY, "Only in OLD"), (NEW_ONLY, "Only in NEW")):
+        listed = [r for r in rows if r.kind == kind]
+        if listed:
+            lines += [f"## {title} (not matched)", ""]
+            lines += _table(("cell", "status", "median (s)"),
+                            ((r.key.label(), (r.old or r.new).status,  # type: ignore[union-attr]
+                              _seconds((r.old or r.new).median)) for r in listed),  # type: ignore[union-attr]
+                            "llr")
+            lines.append("")
+    return "\n".join(lines)
+
+
+def write_outputs(old: Side, new: Side, rows: Sequence[Row], threshold: float, out: Path,
+                  figure: bool = True) -> tuple[str, list[Path]]:
+    """compare.md and the figure under `out`, each written atomically; the Markdown text and
+    the paths written."""
+    figures = write_figure(rows, threshold, out / OUT_STEM) if figure else []
+    text = render_markdown(old, new, rows, threshold, f"{OUT_STEM}.png" if figures else None)
+    path = out / f"{OUT_STEM}.md"
+    atomic.atomic_write_text(path, text + "\n")
+    return text, [path, *figures]

@@ -1,0 +1,231 @@
+"""Time against a swept parameter (the course report's Figures 3-6), and speedup, efficiency
+and the Karp-Flatt serial fraction against threads."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.lines import Line2D
+
+from harness.analysis.cells import series_keys
+from harness.analysis.display import series_label
+from harness.analysis.speedup import growth_exponents, single_threaded
+from harness.report.figures.base import (
+    TIME_LABEL,
+    Marks,
+    legend,
+    log_axis,
+    marker_handles,
+    new_figure,
+    plot_series,
+    positive_values,
+    save_figure,
+    series_colors,
+    series_groups,
+    set_title,
+    set_x_axis,
+    set_y_axis,
+    wants_log,
+)
+from harness.store.columns import OK, TIMED_STATUSES
+
+# --- time against a swept parameter (the course report's Figures 3-6) ---------------------
+
+
+@dataclass(frozen=True)
+class SweepAxis:
+    """How a swept parameter is drawn."""
+
+    column: str
+    label: str
+    log_base: int
+    title: str
+    force_log: bool = False  # log even across a narrow range (a power law wants log-log)
+
+
+SWEEPS: dict[str, SweepAxis] = {
+    "n": SweepAxis("n", "particles N", 10, "Run time against particle count", force_log=True),
+    "L": SweepAxis("L", "square side L", 10, "Run time against square size"),
+    "r": SweepAxis("r", "radius r", 2, "Run time against radius"),
+    "threads": SweepAxis("threads", "threads p", 2, "Run time against threads"),
+}
+
+
+def fig_time_vs(df: pd.DataFrame, x: str, out: Path, *, title: str | None = None) -> list[Path]:
+    """Median wall time against the swept parameter `x`, one line per series.
+
+    Against N each series' label carries its fitted growth exponent and a dashed guide shows
+    N² (all pairs); against threads each series gets its ideal-scaling line T(p0)·p0/p.
+    """
+    axis = SWEEPS[x]
+    keys = series_keys(df, x)
+    groups = series_groups(df, keys)
+    colors = series_colors(groups, keys)
+    exponents = growth_exponents(df, x) if x == "n" else pd.DataFrame()
+    fig, ax = new_figure()
+    marks = Marks()
+    extra: list[Line2D] = []
+    for (values, rows), color in zip(groups, colors, strict=True):
+        label = series_label(values, keys)
+        if x == "n":
+            label += _exponent_suffix(exponents, keys, values)
+        plot_series(ax, rows, x, "wall_median_s", color, label, marks)
+        if x == "threads" and _draw_ideal_threads(ax, rows, color):  # not for seq
+            extra = [Line2D([], [], ls="--", color="gray", label="ideal T(p₀)·p₀/p")]
+    if x == "n" and _draw_square_guide(ax, df):
+        extra.append(Line2D([], [], ls="--", color="gray", lw=2, alpha=0.5, label="∝ N² guide"))
+    set_x_axis(ax, df[x], axis.label, axis.log_base, force_log=axis.force_log)
+    timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
+    if axis.force_log and len(positive_values(timed)) > 1:
+        log_axis(ax, "y", timed)
+        ax.set_ylabel(TIME_LABEL)
+    else:
+        set_y_axis(ax, timed, TIME_LABEL)
+    set_title(ax, title or axis.title)
+    ax.grid(True, which="major", alpha=0.3)
+    legend(ax, [*extra, *marker_handles(marks)])
+    return save_figure(fig, out)
+
+
+def _exponent_suffix(exponents: pd.DataFrame, keys: Sequence[str], values: tuple) -> str:
+    """`  (t ∝ N^1.98)` for a series with a fitted exponent, else nothing."""
+    if exponents.empty:
+        return ""
+    match = pd.Series(True, index=exponents.index)
+    for key, value in zip(keys, values, strict=True):
+        match &= exponents[key] == value
+    if not match.any():
+        return ""
+    k = float(exponents.loc[match, "exponent"].iloc[0])
+    se = float(exponents.loc[match, "exponent_se"].iloc[0]) if (
+        "exponent_se" in exponents.columns) else math.nan
+    error = f" ± {se:.2g}" if math.isfinite(se) else ""
+    return rf" (t$\propto$N$^{{{k:.2f}}}${error})"
+
+
+def _draw_ideal_threads(ax: Axes, rows: pd.DataFrame, color: str) -> bool:
+    """Perfect scaling from the series' fewest-thread ok cell: T(p0)·p0/p. False if no line."""
+    ok = rows[(rows["status"] == OK) & rows["wall_median_s"].notna()]
+    if ok["threads"].nunique() < 2 or single_threaded(ok["variant"]).all():
+        return False  # seq runs one thread whatever it is told: it has nothing to scale
+    first = ok.sort_values("threads").iloc[0]
+    p = np.unique(rows["threads"].to_numpy(dtype=float))
+    ideal = first["wall_median_s"] * first["threads"] / p
+    ax.plot(p, ideal, "--", color=color, alpha=0.6, lw=1)
+    return True
+
+
+def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
+    """A dashed N² line through the slowest series' smallest-N cell, for comparing slopes."""
+    ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df["n"] > 0)]
+    if ok["n"].nunique() < 2:
+        return False
+    anchor = ok.sort_values(["n", "wall_median_s"], ascending=[True, False]).iloc[0]
+    n = np.geomspace(ok["n"].min(), ok["n"].max(), 50)
+    ax.plot(n, anchor["wall_median_s"] * (n / anchor["n"]) ** 2, "--", color="gray", lw=2,
+            alpha=0.5, zorder=1)  # beneath the data it guides
+    return True
+
+
+def fig_particles(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Figure 3: time against particles N (log-log), with fitted growth exponents."""
+    return fig_time_vs(df, "n", out, title=title)
+
+
+def fig_square(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Figure 4: time against square side L."""
+    return fig_time_vs(df, "L", out, title=title)
+
+
+def fig_radius(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Figure 5: time against radius r."""
+    return fig_time_vs(df, "r", out, title=title)
+
+
+def fig_threads(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Figure 6: time against threads, with each series' ideal-scaling line."""
+    return fig_time_vs(df, "threads", out, title=title)
+
+
+# --- speedup, efficiency, serial fraction against threads ---------------------------------
+
+
+def _thread_metric_figure(
+    df: pd.DataFrame, y: str, ylabel: str, title: str, out: Path, ideal: Callable[[Axes], str]
+) -> list[Path]:
+    """A per-series plot of a speedup-derived metric against threads, with its ideal line."""
+    keys = series_keys(df, "threads")
+    groups = series_groups(df, keys)
+    colors = series_colors(groups, keys)
+    fig, ax = new_figure()
+    marks = Marks()
+    for (values, rows), color in zip(groups, colors, strict=True):
+        plot_series(ax, rows, "threads", y, color, series_label(values, keys), marks)
+    ideal_label = ideal(ax)
+    set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
+    ax.set_ylabel(ylabel)
+    set_title(ax, title)
+    ax.grid(True, which="major", alpha=0.3)
+    ideal_handle = Line2D([], [], ls="--", color="black", label=ideal_label)
+    legend(ax, [ideal_handle, *marker_handles(marks)])
+    return save_figure(fig, out)
+
+
+def _threads_range(df: pd.DataFrame) -> np.ndarray:
+    return np.unique(df["threads"].to_numpy(dtype=float))
+
+
+def fig_speedup(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Speedup against threads (rows from analysis.speedup.with_speedup), ideal S = p, log-log
+    base 2."""
+    rows = df[df["speedup"].notna() | ~df["status"].isin(TIMED_STATUSES)]
+
+    def ideal(ax: Axes) -> str:
+        p = _threads_range(df)
+        ax.plot(p, p, "--", color="black", lw=1)
+        if wants_log(p):
+            log_axis(ax, "y", p, 2)
+        return "ideal S = p"
+
+    return _thread_metric_figure(
+        rows, "speedup", "speedup S = T(baseline) / T(p)", title or "Speedup against threads",
+        out, ideal,
+    )
+
+
+def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """Parallel efficiency S/p against threads, ideal 1."""
+    rows = df[df["efficiency"].notna() | ~df["status"].isin(TIMED_STATUSES)]
+
+    def ideal(ax: Axes) -> str:
+        ax.axhline(1.0, ls="--", color="black", lw=1)
+        measured = rows["efficiency"].dropna()
+        top = max(1.1, float(measured.max()) * 1.05) if len(measured) else 1.1
+        ax.set_ylim(0, top)
+        return "ideal E = 1"
+
+    return _thread_metric_figure(
+        rows, "efficiency", "parallel efficiency E = S / p", title or "Efficiency against threads",
+        out, ideal,
+    )
+
+
+def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+    """The Karp-Flatt serial fraction e against threads p > 1; ideal 0, rising e = overhead."""
+    rows = df[(df["threads"] > 1)
+              & (df["serial_fraction"].notna() | ~df["status"].isin(TIMED_STATUSES))]
+
+    def ideal(ax: Axes) -> str:
+        ax.axhline(0.0, ls="--", color="black", lw=1)
+        return "ideal e = 0"
+
+    return _thread_metric_figure(
+        rows, "serial_fraction", "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
+        title or "Karp–Flatt serial fraction against threads", out, ideal,
+    )

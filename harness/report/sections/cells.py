@@ -1,0 +1,78 @@
+"""The cell table: one row per cell with its statistics, speedup and validation (the shape
+of the course report's Tables 2-6)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pandas as pd
+
+from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_keys
+from harness.analysis.display import DISPLAY_NAMES, format_value
+from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
+from harness.report.blocks import table_block
+from harness.report.document import Block, Paragraph, Section
+from harness.report.sections.context import Context
+
+# Which table of the course report a treatment reproduces.
+COURSE_TABLE: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
+
+
+def fixed_text(df: pd.DataFrame) -> str:
+    # An empty machine is a results.csv from before machine identity: nothing to name.
+    fixed = {k: v for k, v in fixed_params(df).items()
+             if not (k == MACHINE and v == "")}
+    fixed_parts = [
+        f"{DISPLAY_NAMES[k]} = {format_value(k, v)}" for k, v in fixed.items()
+    ]
+    varied = [DISPLAY_NAMES[k] for k in varying_keys(df)]
+    text = "Fixed: " + (", ".join(fixed_parts) if fixed_parts else "nothing") + "."
+    if varied:
+        text += " Varied: " + ", ".join(varied) + "."
+    return text
+
+
+def _course_table(axes: Sequence[str], df: pd.DataFrame) -> str:
+    """`(cf. the course report's Table N)` for the treatment the data gets, if any."""
+    for axis in ("threads", "n", "L", "r"):
+        if axis in axes:
+            return f" (cf. the course report's Table {COURSE_TABLE[axis]})"
+    return " (cf. the course report's Table 2)" if df["variant"].nunique() > 1 else ""
+
+
+def build(ctx: Context) -> list[Section]:
+    """Table 2-6 shape: one row per cell with our statistics, speedup and validation: whenever
+    something varies (a checked catalog aside), and a lone cell when nothing else shows it."""
+    if ctx.catalog or not (ctx.varies or ctx.alone):
+        return []
+    exp, axes = ctx.exp, ctx.swept
+    df = exp.frame
+    keys = varying_keys(df) or ["variant"]
+    table = cell_table(df, keys, thread_baseline="threads" in axes)
+    blocks: list[Block] = []
+    if "baseline" in table.columns:
+        baselines = [b for b in table["baseline"].unique() if b]
+        if len(baselines) <= 1:
+            table = table.drop(columns="baseline")
+            if baselines:
+                blocks.append(Paragraph(f"Speedup is against {_baseline_words(baselines[0])}."))
+    if table["speedup"].isna().all():
+        unused = ("speedup", "efficiency", "serial_fraction")
+        table = drop_columns(table, unused)
+        blocks.append(Paragraph("No ok seq cell on the same scene: no speedups."))
+    elif (df["threads"] == 1).all():
+        table = drop_columns(table, ["efficiency"])  # at one thread: the speedup again
+    elif not all_pairs(df["variant"]).all() or df["build"].nunique() > 1:
+        blocks.append(Paragraph(
+            "Efficiency and serial fraction are left blank where the speedup also counts a "
+            "different algorithm or build (relative, grid, another build than seq's)."
+        ))
+    caption = f"Per-cell statistics{_course_table(axes, df)}."
+    return [Section("Measurements", f"{ctx.name}-cells",
+                    (table_block(table, caption, source=df), *blocks))]
+
+
+def _baseline_words(baseline: str) -> str:
+    if baseline == BASELINE_SEQ:
+        return "seq's median on the same scene"
+    return "the same variant's median at 1 thread"

@@ -1,0 +1,191 @@
+"""The accuracy and stability sections: pass/fail per scene and check, which build to trust,
+shadow error against time and divergence curves."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from harness.analysis.cells import CELL_KEYS, SCENE_KEYS, varying_keys
+from harness.analysis.display import series_label
+from harness.analysis.frame import DIVERGENCE_REQUIRED
+from harness.analysis.trust import (
+    FAIL_MARK,
+    PASS_MARK,
+    TRUST_ERR_R,
+    accuracy_table,
+    build_trust,
+    check_summary,
+    has_check_data,
+    stability_matrix,
+    trust_table,
+)
+from harness.report.blocks import figure_block, table_block
+from harness.report.document import Block, Paragraph, Section, slug
+from harness.report.figures.accuracy import fig_divergence, fig_error_time
+from harness.report.load import Experiment
+from harness.report.sections.context import Context
+from harness.spec.builds import DESCRIPTIONS
+
+MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)
+MIN_TIMED_RUNS = 2  # below this many runs a cell's time is incidental, not a measurement
+
+CHECKS_INTRO = (
+    "Each cell's print-mode run is checked (harness.measure.invariants and .shadow): "
+    "finite values; centres in [r, L−r]; the kinetic-energy drift |E_s − E_0|/E_0 over every "
+    "printed step within k·eps·P for P accepted pair collisions (k = 32: one collision changes "
+    "the pair's energy by at most ~30 ulps, errors add at most linearly; eps = 2^-53 for "
+    "double and the formula builds, 2^-24 for float, 2^-113 for __float128, plus a few double "
+    "ulps for reading the energy back); an even pcoll sum; the same output at the other thread "
+    "counts; the same output as seq of the same build for the exact variants; and the "
+    "shadow steps: from states of the cell's own run (state 0: the input exactly) one step of "
+    "the build against one step of the __float128 truth must accept the same collisions and "
+    "stay within k·eps·(1 + v/L)(1 + v/r) of it (k = 64; the state fixes coordinates to "
+    "eps·(L + v) and a contact normal to that over 2r). A pass says the build does as well "
+    "as its precision allows on the scene; whether that is good enough is the one-step error "
+    "in radii, in the last table."
+)
+
+
+DIVERGENCE_MATCH: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "seed")
+
+
+@dataclass(frozen=True, eq=False)
+class CheckedScene:
+    """One simulated input of a checked experiment: its cells and divergence curves."""
+
+    label: str
+    cells: pd.DataFrame
+    divergence: pd.DataFrame
+
+
+def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
+    """The inputs to draw figures for: the largest (n·steps) with nonzero deviations."""
+    df = exp.frame
+    groups = list(df.groupby(list(SCENE_KEYS), dropna=False, sort=False))
+    groups.sort(key=lambda g: -float((g[1]["n"] * g[1]["steps"]).max()))
+    varying = [k for k in ("n", "L", "r", "steps") if df.groupby("scene")[k].nunique().max() > 1]
+    chosen = []
+    for _, cells in groups:
+        first = cells.iloc[0]
+        div = exp.divergence
+        if div is not None:
+            match = np.ones(len(div), dtype=bool)
+            for key in DIVERGENCE_MATCH:
+                match &= (div[key] == first[key]).to_numpy()
+            div = div[match]
+        else:
+            div = pd.DataFrame(columns=list(DIVERGENCE_REQUIRED))
+        shadow = "shadow_pos_err" in cells and bool((cells["shadow_pos_err"].fillna(0) > 0).any())
+        if shadow or bool((div["max_pos_dev"] > 0).any()):
+            label = series_label(tuple(first[k] for k in ("scene", *varying)),
+                                        ["scene", *varying])
+            chosen.append(CheckedScene(label, cells, div))
+    return chosen[:MAX_CHECK_FIGURES]
+
+
+def build(ctx: Context) -> list[Section]:
+    """Stability (pass/fail per scene and check, which build to trust) and accuracy (shadow
+    error against time, divergence curves) from the check columns and divergence.csv."""
+    if not has_check_data(ctx.exp.frame):
+        return []
+    exp, figs = ctx.exp, ctx.figs
+    df = exp.frame
+    base = slug(exp.name)
+    blocks: list[Block] = [Paragraph(CHECKS_INTRO)]
+    blocks.append(table_block(
+        stability_matrix(df),
+        f"Scene × variant/build: {PASS_MARK} every check passed, {FAIL_MARK} the "
+        "checks that failed.", source=df,
+    ))
+    blocks.append(table_block(check_summary(df), "Each check over all checked cells."))
+    trust = trust_table(df)
+    blocks.append(Paragraph(build_words(build_trust(df))))
+    blocks.append(Paragraph(trust_words(trust)))
+    blocks.append(table_block(
+        trust,
+        "Which build to trust for which scene: trusted where every check passed and one step "
+        f"is within {TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median and "
+        "worst over the scenes). How soon a whole run is a radius off the truth is in the "
+        "accuracy table, not judged: chaos takes every precision there in a dense scene.",
+        source=df,
+    ))
+    sections = [Section("Stability checks", f"{base}-stability", tuple(blocks))]
+    timed = df["runs"].fillna(0) >= MIN_TIMED_RUNS
+    accuracy_blocks: list[Block] = []
+    if timed.any():
+        shown = {"variant", "build", *varying_keys(df)}
+        keys = [k for k in CELL_KEYS if k in shown]
+        accuracy_blocks.append(table_block(
+            accuracy_table(df[timed], keys),
+            "Error against run time: the whole-run deviation from the baseline (÷ L), the mean "
+            "shadow-step error (one step against __float128, ÷ L) and its worst in radii, the "
+            "share of steps whose accepted collisions differ, the energy drift and the steps "
+            "until the run is a radius from the truth; ✓ marks the Pareto front of time "
+            "against shadow error.", source=df[timed],
+        ))
+    scenes = _checked_scenes(exp)
+    for index, scene in enumerate(scenes):
+        suffix = f"-{index + 1}" if len(scenes) > 1 else ""
+        cells = scene.cells[timed.loc[scene.cells.index]]
+        if not cells.empty and cells["shadow_pos_err"].notna().any():
+            stem = figs.fig_dir / f"{base}-shadow-vs-time{suffix}"
+            paths = figs.draw(fig_error_time,
+                cells[cells["shadow_pos_err"].notna()], stem,
+                title=f"Shadow-step error against time ({scene.label})",
+                error="shadow_pos_err", ylabel="shadow-step error, mean [÷ L]")
+            accuracy_blocks.append(figure_block(
+                paths, f"Median time against the mean one-step error against __float128 at "
+                f"{scene.label}; the ringed cells joined by the line form the Pareto front."))
+        if not scene.divergence.empty:
+            first = scene.cells.iloc[0]
+            stem = figs.fig_dir / f"{base}-divergence{suffix}"
+            paths = figs.draw(fig_divergence, scene.divergence, stem,
+                              box=float(first["L"]), radius=float(first["r"]),
+                              title=f"Divergence ({scene.label})")
+            accuracy_blocks.append(figure_block(
+                paths, f"Step-by-step growth of the largest position deviation (÷ L) at "
+                f"{scene.label}, against seq in double (left) and the __float128 truth "
+                "(right); identical curves are drawn once; dashed: one radius."))
+    if accuracy_blocks:
+        sections.append(Section("Accuracy: shadow steps and divergence", f"{base}-accuracy",
+                                tuple(accuracy_blocks)))
+    return sections
+
+
+def build_words(builds: pd.DataFrame) -> str:
+    """Which precision and formula to trust for which scenes, in plain words with numbers."""
+    sentences = []
+    for _, row in builds.iterrows():
+        name = DESCRIPTIONS.get(str(row["build"]), f"`{row['build']}`")
+        text = (f"{name[0].upper()}{name[1:]} is trusted on {int(row['trusted'])} of "
+                f"{int(row['scenes'])} scenes")
+        if row["not_trusted"]:
+            text += f"; not on {row['not_trusted']}"
+        sentences.append(text + ".")
+    return ("By precision and formula (over the variants that share the core's arithmetic; "
+            "`relative` computes contact times its own way and is listed below): "
+            + " ".join(sentences))
+
+
+def trust_words(trust: pd.DataFrame) -> str:
+    """The trust table in plain words with its numbers; variants alike are named together."""
+    if trust.empty:
+        return ""
+    sentences = []
+    grouped = trust.groupby(["trusted", "scenes", "not_trusted"], sort=False)
+    for (trusted, scenes, not_trusted), rows in grouped:
+        names = ", ".join(f"`{v}`" for v in rows["label"])
+        if trusted == scenes:
+            count = "the one scene" if scenes == 1 else f"all {int(scenes)} scenes"
+            sentences.append(f"{names}: trusted on {count}.")
+            continue
+        typical = rows["typical_err_r"].max()
+        typical_text = (f" (median one-step error {float(typical):.1e} r)"
+                        if pd.notna(typical) and typical > 0 else "")
+        sentences.append(f"{names}: trusted on {int(trusted)} of {int(scenes)} "
+                         f"scenes{typical_text}; not for {not_trusted}.")
+    return " ".join(sentences)
+

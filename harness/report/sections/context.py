@@ -1,0 +1,54 @@
+"""What every part of an experiment's section reads: the experiment, the figure manifest, and
+what its rows vary (decided once, from the rows)."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+from harness.analysis.cells import sweep_axes, varying_keys
+from harness.analysis.trust import has_check_data
+from harness.report.cache import Manifest
+from harness.report.document import slug
+from harness.report.load import Experiment
+from harness.store.columns import TIMED_STATUSES
+
+
+@dataclass(frozen=True, eq=False)
+class Context:
+    exp: Experiment
+    figs: Manifest
+    # No main part showed anything (set for the fallback parts: harness.report.sections).
+    alone: bool = False
+
+    @property
+    def name(self) -> str:
+        """The experiment's name as anchors and figure files start with it."""
+        return slug(self.exp.name)
+
+    @functools.cached_property
+    def timed(self) -> bool:
+        """Whether some cell was timed (without, a figure would be an empty frame)."""
+        return bool(self.exp.frame["status"].isin(TIMED_STATUSES).any())
+
+    @functools.cached_property
+    def swept(self) -> list[str]:
+        """The parameters some variant and build was measured at several values of."""
+        return sweep_axes(self.exp.frame)
+
+    @property
+    def axes(self) -> list[str]:
+        """The sweeps that get a figure: those of an experiment with timed cells."""
+        return self.swept if self.timed else []
+
+    @functools.cached_property
+    def catalog(self) -> bool:
+        """A checked catalog of scenes (the stability study): read through its scene x variant
+        matrix; a per-cell timing table and per-scene error figures of hundreds of one-run
+        cells would bury it."""
+        frame = self.exp.frame
+        return has_check_data(frame) and frame["scene"].nunique() > 1
+
+    @functools.cached_property
+    def varies(self) -> bool:
+        return bool(varying_keys(self.exp.frame))

@@ -1,0 +1,77 @@
+"""Where the time goes: a figure and a table of every shown cell's --timing run split into its
+phases. harness.analysis.phases computes the numbers, harness.report.figures.phases draws the
+figure; this module lays them out, and only for an experiment whose cells have the phase
+columns."""
+
+from __future__ import annotations
+
+from harness.analysis import phases
+from harness.report.blocks import figure_block, table_block
+from harness.report.document import Block, Paragraph, Section, slug
+from harness.report.figures.phases import fig_phases
+from harness.report.sections.context import Context
+
+TITLE = "Where the time goes"
+ANCHOR_SUFFIX = "-phases"
+INTRO = (
+    "Each cell's `--timing` run (one run beside hyperfine's timed runs) splits its simulation "
+    "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
+    "pair finder with its pair tests: all pairs, or the grid's cells), **wall candidates**, "
+    "merging and **sorting** the candidates, the greedy **resolution** walk, **motion** of the "
+    "discs, and **other**, what `sim_s` holds beyond them (the parallel regions' start-ups "
+    "and closing barriers, the step's bookkeeping). The parallel variants differ only in "
+    "the broad phase; the rest is the shared core's. That run also writes the **output**, "
+    "with `--precise` (every digit, for the validation), some 20 times slower than the "
+    "timed runs' output: it is drawn hatched after the simulation and is left out of the "
+    "shares. Reading the input and starting the process are not counted."
+)
+
+
+def _thread_words(threads: int) -> str:
+    return f"{threads} thread{'' if threads == 1 else 's'}"
+
+
+def _left_out(sel: phases.Selection) -> str:
+    notes = []
+    if sel.other_threads:
+        notes.append(f"{sel.other_threads} cell(s) at other thread counts are not shown")
+    if sel.scenes_left_out:
+        notes.append(f"{sel.scenes_left_out} more scene(s), those with the least simulation "
+                     f"time, are left out (at most {phases.MAX_BARS} bars)")
+    if sel.without_phases:
+        notes.append(f"{sel.without_phases} timed cell(s) were measured by a binary without "
+                     "phase timers")
+    return "; ".join(notes) + "." if notes else ""
+
+
+def build(ctx: Context) -> list[Section]:
+    """The figure and the table, or nothing when no timed cell has phases."""
+    exp, figs = ctx.exp, ctx.figs
+    sel = phases.select(exp.frame)
+    if sel is None:
+        return []
+    name = slug(exp.name)
+    frame = phases.plot_frame(sel)
+    paths = figs.draw(fig_phases, frame,
+                      figs.fig_dir / f"{name}-phases",
+                      title=f"{exp.title}: where the time goes")
+    rule = (f"at {_thread_words(sel.threads)}, the thread count most of the experiment's "
+            "cells with phases ran at (the fewest on a tie)")
+    caption = (
+        f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the output "
+        "hatched after the simulation, the simulation time written at the bar's end"
+        + ("; each scene has its own scale" if frame[phases.GROUP].nunique() > 1 else "")
+        + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
+    )
+    blocks: list[Block] = [Paragraph(INTRO), figure_block(paths, caption)]
+    table = phases.phase_table(sel)
+    blocks.append(table_block(
+        table,
+        "Seconds per phase of the cells in the figure, each with its share of the "
+        "simulation time in parentheses; then the simulation outside the broad phase per "
+        "particle and step, and the `--precise` output.", source=sel.cells))
+    left_out = _left_out(sel)
+    if left_out:
+        blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
+    return [Section(TITLE, f"{name}{ANCHOR_SUFFIX}", tuple(blocks))]
+

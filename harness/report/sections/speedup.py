@@ -1,0 +1,40 @@
+"""Speedup, parallel efficiency and the Karp-Flatt serial fraction against threads."""
+
+from __future__ import annotations
+
+from harness.analysis.speedup import with_speedup
+from harness.report.blocks import figure_block
+from harness.report.document import Block, Section
+from harness.report.figures.sweeps import fig_efficiency, fig_karp_flatt, fig_speedup
+from harness.report.sections.context import Context
+
+
+def build(ctx: Context) -> list[Section]:
+    """Speedup, efficiency and Karp-Flatt serial fraction against threads, for a thread
+    sweep."""
+    if "threads" not in ctx.axes:
+        return []
+    exp, figs = ctx.exp, ctx.figs
+    rows = with_speedup(exp.frame, thread_baseline=True)
+    base = figs.fig_dir / ctx.name
+    blocks: list[Block] = []
+    if rows["speedup"].notna().any():
+        blocks.append(figure_block(
+            figs.draw(fig_speedup, rows, base.with_name(f"{base.name}-speedup"),
+                              title=f"{exp.title}: speedup"),
+            "Speedup against threads; dashed: ideal S = p.",
+        ))
+        blocks.append(figure_block(
+            figs.draw(fig_efficiency, rows, base.with_name(f"{base.name}-efficiency"),
+                                 title=f"{exp.title}: efficiency"),
+            "Parallel efficiency S/p against threads; dashed: ideal 1.",
+        ))
+    if rows["serial_fraction"].notna().any():
+        blocks.append(figure_block(
+            figs.draw(fig_karp_flatt, rows, base.with_name(f"{base.name}-karp-flatt"),
+                                 title=f"{exp.title}: Karp–Flatt serial fraction"),
+            "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
+            "parallel overhead rather than a fixed serial part.",
+        ))
+    return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",
+                    tuple(blocks))]

@@ -1,0 +1,102 @@
+"""Beside Table 2: the seed's published times against ours with whether the ranking agrees,
+the work of each thread (the seed's p1 against its repairs), the cost of a chunk dispatched by
+a dynamic schedule, and the schedule study. harness.analysis.strategies computes every number
+and sentence; this module only lays them out, and only where the data has them.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from harness.analysis import strategies as study
+from harness.analysis.cells import MACHINE
+from harness.report.blocks import figure_block, table_block
+from harness.report.cache import Manifest
+from harness.report.document import Paragraph, Section, slug
+from harness.report.figures.strategies import work_figure
+from harness.report.load import Experiment
+from harness.report.sections.context import Context
+
+SEED_INTRO = (
+    f"The seed report's Table 2 measured its five strategies on this benchmark on "
+    f"{study.SEED_MACHINE} ({study.SEED_THREADS} threads; its sequential code took "
+    f"{study.SEED_SEQ_S:g} s). Its times are printed beside ours, each speedup against its own "
+    "machine's sequential code; `imbalance` is the largest busy time of a thread in the pair "
+    "finder over the mean (1 = even; `--timing`), and `repaired by` the tuned variant that "
+    "removes the strategy's pathology."
+)
+WORK_CAPTION = (
+    "Busy seconds in the pair finder and pair tests, per thread, from each cell's `--timing` "
+    "run. A plain static schedule gives each thread one contiguous block of rows, and the rows "
+    "of the triangle shrink: the first thread gets 1 − (1 − 1/T)² of the pairs; round-robin "
+    "rows (p1_cyclic) or a dynamic schedule (p1d) even them out."
+)
+CHUNK_INTRO = (
+    "A dynamic schedule pays for every chunk it deals: a grab from the team's shared counter. "
+    "Per chunk, the extra time of a dynamic loop over a loop that deals the same pairs without "
+    "such grabs, divided by the chunks it dealt (its `--timing` run's `threads_chunks`); 95% "
+    "bootstrap intervals from the runs of both cells. p2d's figure also holds its scalar pair "
+    "test per single j against the reference's vectorised blocks."
+)
+SCHEDULE_INTRO = (
+    "One binary, p1_runtime (`schedule(runtime)` over the rows), run under each `OMP_SCHEDULE`; "
+    "medians with 95% bootstrap intervals of the runs (harness.stats)."
+)
+
+
+def build(ctx: Context) -> list[Section]:
+    """The subsections the experiment's rows support, in reading order (none for most). Where
+    the results hold several machines side by side, each machine gets its own: a machine's
+    strategies are compared with each other, never with another machine's (the study takes
+    one scene on one machine, and the machine is a key of the scene)."""
+    exp, figs = ctx.exp, ctx.figs
+    df = exp.frame
+    machines = (list(dict.fromkeys(df[MACHINE].dropna()))
+                if MACHINE in df.columns else [])
+    if len(machines) <= 1:
+        return _study_subsections(exp, df, figs, slug(exp.name), "")
+    parts: list[Section] = []
+    for machine in machines:
+        parts += _study_subsections(exp, df[df[MACHINE] == machine], figs,
+                                    f"{slug(exp.name)}-{slug(machine)}", f" ({machine})")
+    return parts
+
+
+def _study_subsections(exp: Experiment, df: pd.DataFrame, figs: Manifest, name: str,
+                       suffix: str) -> list[Section]:
+    """The study's subsections for the rows `df` of one machine: `name` starts their anchors
+    and figure files, `suffix` ends their titles."""
+    parts: list[Section] = []
+    if not study.one_scene(df):
+        return parts
+    seed = study.seed_table(df)
+    if seed is not None:
+        parts.append(Section(f"Against the seed's Table 2{suffix}", f"{name}-seed", (
+            Paragraph(SEED_INTRO),
+            table_block(study.seed_display(seed),
+                        f"Ours against the seed's published times (on {study.SEED_MACHINE})."),
+            Paragraph(study.ranking_sentence(seed, df)),
+        )))
+    work = study.work_table(df)
+    if work is not None:
+        paths = figs.draw(work_figure, work, figs.fig_dir / f"{name}-work-per-thread")
+        parts.append(Section(f"Work per thread{suffix}", f"{name}-work",
+                             (figure_block(paths, WORK_CAPTION),)))
+    costs = study.chunk_costs(df, exp.path)
+    if costs:
+        parts.append(Section(f"Cost per dispatched chunk{suffix}", f"{name}-chunks", (
+            Paragraph(CHUNK_INTRO),
+            table_block(study.chunk_table(costs), "Extra time over the reference, per chunk."),
+            Paragraph(study.chunk_sentence(costs)),
+        )))
+    if study.has_schedules(df):
+        rows = study.schedule_rows(df, exp.path)
+        if len(rows):
+            parts.append(Section(f"Schedules{suffix}", f"{name}-schedules", (
+                Paragraph(SCHEDULE_INTRO),
+                table_block(study.schedule_table(rows), "Median time per OMP_SCHEDULE, fastest "
+                            "first; chunks dealt over the --timing run (for guided a lower "
+                            "bound: chunks one thread takes back to back count once)."),
+                Paragraph(study.schedule_sentence(rows)),
+            )))
+    return parts

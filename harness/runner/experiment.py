@@ -1,0 +1,168 @@
+"""Run one config's experiment: plan its cells, build the binaries, skip the cells already
+measured, hand the rest to an executor, rebuild results.csv as records arrive, summarise.
+
+A cell is one variant x build x scene point x thread count. A cell whose id (binary hash,
+input, seed, threads, settings) has a record is not measured again unless forced, so an
+interrupted grid resumes where it stopped. harness.plan plans and names the cells,
+harness.measure measures one, harness.executors decides who measures the pending ones.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from harness.errors import HarnessError
+from harness.executors import make_executor
+from harness.executors.base import Experiment, Options, Progress
+from harness.measure import environment, machine
+from harness.plan.binaries import needed_binaries
+from harness.plan.cells import Cell, Plan, plan_cells
+from harness.spec.builds import make_binaries
+from harness.spec.config import Config
+from harness.spec.variants import VariantRegistry
+from harness.store import index, records
+
+
+@dataclass(frozen=True)
+class Summary:
+    name: str
+    directory: Path
+    cells: int
+    measured: int
+    cached: int
+    statuses: Mapping[str, int]
+
+
+def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
+                   registry: VariantRegistry | None = None) -> Summary:
+    """Build, then measure every cell not already measured; or, with dry_run, list them."""
+    plan = plan_cells(config, options.quick, registry or VariantRegistry(options.repo_root))
+    experiment = Experiment(plan, options, log)
+    binaries = needed_binaries(plan, options.repo_root)
+    if options.dry_run:
+        return dry_run(experiment, binaries, out)
+    executor = make_executor(options.executor or config.executor.kind)
+    if options.collect and executor.name == "local":
+        raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
+                           "executor: {kind: slurm} in the config)")
+    if shutil.which(options.hyperfine) is None:
+        raise HarnessError(f"{options.hyperfine} not found; run 'make setup'")
+    make_binaries(options.repo_root, binaries, options.make)
+    order: list[tuple[Cell, str]] = []
+    for cell in plan.cells:
+        cid = experiment.store.cell_id(cell)
+        if cid is None:
+            raise HarnessError(f"{experiment.store.binary(cell)} does not exist after the build")
+        order.append((cell, cid))
+    pending = not_cached(experiment, order)
+    warn_oversubscribed(plan, experiment.cores, log)
+    here = executor.name == "local"
+    env: dict[str, object] | None = None
+    # The measuring lock guards this machine's measurements; a remote executor measures
+    # elsewhere (each Slurm task has its node to itself by default).
+    if pending and here and options.run_lock is not None and not options.run_lock.held:
+        options.run_lock.acquire()  # may wait for another run; the load is sampled after
+        pending = not_cached(experiment, pending)  # that run may have measured some of them
+    # A remote executor's workers write the env of their machines (harness.worker).
+    if pending and here:
+        env = environment.collect(options.repo_root, options.make, options.hyperfine)
+        index.write_env(experiment.directory, env)
+    elif not pending and not experiment.store.layout.env_json.is_file():
+        index.write_env(experiment.directory, environment.collect(
+            options.repo_root, options.make, options.hyperfine))
+    measured: set[str] = set()
+
+    def on_record(cell: Cell, cid: str, record: records.Record) -> None:
+        experiment.records[cid] = record
+        measured.add(cid)
+        experiment.store.write_csv()
+        report_cell(cell, record, log)
+
+    progress = Progress(config.name, order, frozenset(cid for _, cid in pending), log)
+    executor.run(experiment, pending, on_record, progress)
+    progress.close()
+    experiment.store.write_csv(prune=True)
+    if env is not None:  # the machine and tools of the latest measurements, and the load after
+        index.write_env(experiment.directory, {**env, "load_after": machine.load()})
+    missing = [cid for _, cid in pending if cid not in measured]
+    if missing and options.collect:  # --collect submits nothing: they are simply not there
+        log.write(f"{config.name}: {len(missing)} cell(s) not measured yet\n")
+    elif missing:
+        raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
+                           f"for {len(missing)} cell(s): {' '.join(missing)}")
+    statuses: dict[str, int] = {}
+    for _, cid in order:
+        if cid in experiment.records:  # all of them, but after --collect
+            status = str(experiment.records[cid]["status"])
+            statuses[status] = statuses.get(status, 0) + 1
+    summary = Summary(config.name, experiment.directory, len(order), len(measured),
+                      len(order) - len(measured) - len(missing), statuses)
+    counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
+    log.write(f"{config.name}: {summary.cells} cells ({summary.measured} measured, "
+              f"{summary.cached} cached): {counts or 'none'}; results in "
+              f"{experiment.store.layout.results_csv}\n")
+    return summary
+
+
+def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]]
+               ) -> list[tuple[Cell, str]]:
+    """The (cell, cell_id)s without a cached record; the cached records go into
+    experiment.records."""
+    pending = []
+    for cell, cid in cells:
+        record = experiment.store.cached(cid)
+        if record is None:
+            pending.append((cell, cid))
+        else:
+            experiment.records[cid] = record
+    return pending
+
+
+def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
+    over = sorted({c.threads for c in plan.cells if c.threads > cores})
+    if over:
+        listed = ", ".join(str(t) for t in over)
+        log.write(f"warning: {plan.config.name}: threads {listed} exceed the {cores} cores of "
+                  "this machine (oversubscribed; column 'oversubscribed')\n")
+
+
+def report_cell(cell: Cell, record: Mapping[str, object], log: TextIO) -> None:
+    status = record["status"]
+    if status != "ok":
+        note = " ".join(str(record.get("note", "")).split())
+        log.write(f"warning: {cell.label}: {status}: {note}\n")
+    if record.get("unstable"):
+        log.write(f"warning: {cell.label}: unstable (stddev "
+                  f"{record['wall_stddev_s']:.3g} s >= 10% of mean {record['wall_mean_s']:.3g} s)"
+                  "\n")
+
+
+def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Summary:
+    plan = experiment.plan
+    missing = [b for b in binaries if not b.is_file()]
+    cached = 0
+    lines = []
+    for k, cell in enumerate(plan.cells, start=1):
+        cid = experiment.store.cell_id(cell)
+        if cid is None:
+            what = "run (binary not built yet)"
+        elif experiment.store.cached(cid) is not None:
+            what, cached = f"cached {cid}", cached + 1
+        else:
+            what = f"run {cid}"
+        check = (" +validate" if cell.validate else "") + (" +checks" if cell.checked else "")
+        lines.append(f"  [{k}/{len(plan.cells)}] {cell.label}{check}  {what}\n")
+    for cell in plan.excluded:
+        lines.append(f"  excluded: {cell.label}\n")
+    out.write(f"{plan.config.name}: {len(plan.cells)} cells ({cached} cached, "
+              f"{len(plan.cells) - cached} to run, {len(plan.excluded)} excluded) -> "
+              f"{experiment.directory}\n")
+    if missing:
+        names = " ".join(str(b.relative_to(experiment.options.repo_root)) for b in missing)
+        out.write(f"  would build: {names}\n")
+    out.writelines(lines)
+    return Summary(plan.config.name, experiment.directory, len(plan.cells), 0, cached, {})

@@ -1,0 +1,222 @@
+"""Experiment configs: YAML -> defaults -> validation -> a frozen `Config`, and grid expansion.
+
+A config names the experiment, the variants and builds, a base scene whose keys (and
+`threads`) may be lists to sweep, how those lists combine, and how to measure:
+
+    name: threads
+    variants: [p1d]
+    scene: {n: 10000, L: 20000, r: 1, steps: 50, mode: perf, seed: 1}
+    threads: [1, 2, 4]
+    measure: {warmup: 1, runs: 3, timeout_s: 600}
+    validate: true
+
+The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
+settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
+max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
+`scene: {generator: [A, B, ...]}` (several named scenes as one more axis).
+
+This module holds the typed config (frozen dataclasses) and the names of its keys and
+defaults; harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the
+file, the key and what was expected) and harness.spec.points expands its grid.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
+BASELINE_CHOICES = ("f64", "same", "f128")
+TRUTH_BUILD = "f128"
+
+TOP_KEYS = (
+    "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
+    "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
+    "schedule", "measure_by_variant",
+)
+RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
+REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
+MEASURE_KEYS = ("warmup", "runs", "timeout_s")
+VALIDATE_KEYS = ("max_n", "baseline")
+# The accuracy and stability checks a config may turn on (harness.measure.invariants and
+# harness.measure.shadow); `accuracy:` holds their settings.
+CHECK_NAMES = ("invariants", "shadow", "divergence")
+ACCURACY_KEYS = ("truth", "shadow_steps", "energy_ulps", "shadow_ulps", "thread_counts", "max_n")
+DEFAULT_TRUTH = "grid"  # build/grid-f128: byte-identical to seq-f128, and far faster
+DEFAULT_SHADOW_STEPS = 20
+DEFAULT_ENERGY_ULPS = 32.0
+DEFAULT_SHADOW_ULPS = 64.0
+DEFAULT_THREAD_COUNTS = (1,)
+COMBINE_MODES = ("product", "zip")
+EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
+                  "schedule")
+EXCLUDE_OPS = {
+    "gt": lambda a, b: a > b,
+    "ge": lambda a, b: a >= b,
+    "lt": lambda a, b: a < b,
+    "le": lambda a, b: a <= b,
+}
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+# `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers `schedule(runtime)` loops,
+# i.e. p1_runtime): a kind, and for all but auto an optional positive chunk, as OpenMP spells it.
+SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
+SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
+MAX_SEED = 2**64 - 1
+
+DEFAULT_WARMUP = 1
+DEFAULT_RUNS = 3
+DEFAULT_TIMEOUT_S = 600.0
+
+
+
+@dataclass(frozen=True)
+class Measure:
+    warmup: int = DEFAULT_WARMUP
+    runs: int = DEFAULT_RUNS
+    timeout_s: float = DEFAULT_TIMEOUT_S
+
+
+@dataclass(frozen=True)
+class Validation:
+    enabled: bool = False
+    max_n: int | None = None  # validate only cells with n <= max_n
+    baseline: str = "f64"
+
+    def applies_to(self, n: int) -> bool:
+        return self.enabled and (self.max_n is None or n <= self.max_n)
+
+    @property
+    def baseline_build(self) -> str | None:
+        """The build of seq the cells are compared with; None: each cell's own build."""
+        return None if self.baseline == "same" else self.baseline
+
+
+@dataclass(frozen=True)
+class Checks:
+    """The accuracy and stability checks run on each cell (`checks:` and `accuracy:`).
+
+    The truth is build/<truth>-f128. `shadow_steps` states of the cell's print-mode run are
+    each stepped once by the cell's binary and by the truth; `energy_ulps` and `shadow_ulps`
+    are the k of the bounds in harness.measure.invariants and harness.measure.shadow; the cell's
+    print-mode output must equal its runs at each of `thread_counts`.
+    """
+
+    names: tuple[str, ...] = ()
+    truth: str = DEFAULT_TRUTH
+    shadow_steps: int = DEFAULT_SHADOW_STEPS
+    energy_ulps: float = DEFAULT_ENERGY_ULPS
+    shadow_ulps: float = DEFAULT_SHADOW_ULPS
+    thread_counts: tuple[int, ...] = DEFAULT_THREAD_COUNTS
+    max_n: int | None = None
+
+    def applies_to(self, n: int) -> bool:
+        return bool(self.names) and (self.max_n is None or n <= self.max_n)
+
+    def key(self) -> dict[str, object]:
+        """What the checks' results depend on (part of a checked cell's id)."""
+        return {"names": list(self.names), "truth": self.truth,
+                "shadow_steps": self.shadow_steps, "energy_ulps": self.energy_ulps,
+                "shadow_ulps": self.shadow_ulps, "thread_counts": list(self.thread_counts)}
+
+
+EXECUTOR_KINDS = ("local", "slurm")
+EXECUTOR_KEYS = ("kind", "partition", "exclusive", "time_limit_min", "extra", "proc_bind",
+                 "places", "poll_s")
+DEFAULT_POLL_S = 2.0  # seconds between two looks at the Slurm queue
+
+
+@dataclass(frozen=True)
+class ExecutorSpec:
+    """Where cells are measured (`executor:`); `run --executor` overrides `kind`.
+
+    For Slurm (harness.executors.slurm): the partition (None: the cluster's default), a whole
+    node per cell (`exclusive`, the default, so no two measurements share a node), the task time
+    limit in minutes (None: derived from `measure:`), sbatch options added as given (`extra`).
+    Under either executor, OMP_PROC_BIND / OMP_PLACES are set for every cell when given
+    (`proc_bind`, `places`); they are then part of the cell's id and its record.
+    """
+
+    kind: str = "local"
+    partition: str | None = None
+    exclusive: bool = True
+    time_limit_min: int | None = None
+    extra: tuple[str, ...] = ()
+    proc_bind: str | None = None
+    places: str | None = None
+    poll_s: float = DEFAULT_POLL_S
+
+    def omp_env(self) -> dict[str, str]:
+        """OMP_PROC_BIND / OMP_PLACES as asked (each cell runs with them, either executor)."""
+        pairs = (("OMP_PROC_BIND", self.proc_bind), ("OMP_PLACES", self.places))
+        return {name: value for name, value in pairs if value is not None}
+
+
+@dataclass(frozen=True)
+class Condition:
+    field: str
+    op: str  # "eq" (value is a tuple of accepted values) or one of EXCLUDE_OPS
+    value: object
+
+    def holds(self, fields: Mapping[str, object]) -> bool:
+        actual = fields.get(self.field)
+        if self.op == "eq":
+            assert isinstance(self.value, tuple)
+            return actual in self.value
+        return isinstance(actual, int | float) and EXCLUDE_OPS[self.op](actual, self.value)
+
+
+@dataclass(frozen=True)
+class ExcludeRule:
+    """A cell is excluded when every condition of one rule holds."""
+
+    conditions: tuple[Condition, ...]
+
+    def matches(self, fields: Mapping[str, object]) -> bool:
+        return all(c.holds(fields) for c in self.conditions)
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    kind: str  # "random", "generator" or "file"
+    generator: str | None
+    axes: tuple[tuple[str, tuple[object, ...]], ...]  # key -> its values (one when not swept)
+    listed: frozenset[str]  # keys given as lists
+
+
+@dataclass(frozen=True)
+class Config:
+    source: Path  # as given (for messages)
+    name: str
+    title: str
+    variants: tuple[str, ...]
+    builds: tuple[str, ...]
+    scene: SceneSpec
+    threads: tuple[int, ...]
+    threads_listed: bool
+    combine: str  # "product" or "zip"
+    zip_keys: tuple[str, ...]  # axes zipped together (all listed axes for plain `zip`)
+    measure: Measure
+    validate: Validation
+    keep_output: bool
+    exclude: tuple[ExcludeRule, ...]
+    binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
+    checks: Checks = Checks()
+    executor: ExecutorSpec = ExecutorSpec()
+    # OMP_SCHEDULE values to sweep (`schedule:`); empty: not set, and cells keep their old ids
+    schedules: tuple[str, ...] = ()
+    # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that
+    # takes minutes), each unset key taken from `measure`
+    variant_measures: tuple[tuple[str, Measure], ...] = ()
+
+    def measure_for(self, variant: str) -> Measure:
+        """The measure settings of a variant's cells."""
+        return dict(self.variant_measures).get(variant, self.measure)
+
+    @property
+    def directory(self) -> Path:
+        return self.source.resolve().parent
+
+    def custom_binary(self, variant: str) -> Path | None:
+        return dict(self.binaries).get(variant)

@@ -1,0 +1,40 @@
+"""A config's grid of points: every combination of its axes (scene keys and threads)."""
+
+from __future__ import annotations
+
+import itertools
+
+from harness.errors import config_error
+from harness.spec.config import Config
+
+
+def expand_points(config: Config) -> list[dict[str, object]]:
+    """Every combination of the axes (scene keys and threads), in config order.
+
+    Axes in `config.zip_keys` advance together (they must have equal lengths); that group
+    and every other axis combine as a cross product.
+    """
+    axes = [*config.scene.axes, ("threads", config.threads)]
+    zipped = [(k, v) for k, v in axes if k in config.zip_keys]
+    lengths = {len(v) for _, v in zipped}
+    if len(lengths) > 1:
+        got = ", ".join(f"{k}: {len(v)}" for k, v in zipped)
+        raise config_error(config.source, "combine", "lists of equal length to zip",
+                           f"lengths {got}")
+    groups: list[tuple[tuple[str, ...], list[tuple[object, ...]]]] = []
+    zip_placed = False
+    for key, values in axes:
+        if key in config.zip_keys:
+            if not zip_placed:
+                keys = tuple(k for k, _ in zipped)
+                groups.append((keys, list(zip(*(v for _, v in zipped), strict=True))))
+                zip_placed = True
+        else:
+            groups.append(((key,), [(v,) for v in values]))
+    points = []
+    for combo in itertools.product(*(rows for _, rows in groups)):
+        point: dict[str, object] = {}
+        for (keys, _), row in zip(groups, combo, strict=True):
+            point.update(zip(keys, row, strict=True))
+        points.append(point)
+    return points

@@ -1,0 +1,259 @@
+"""Scenes: the input a variant reads (SPEC section 1) and the named generators that write it.
+
+A scene point is one concrete input. It is random (only the header: the binaries draw the
+particles from --seed, SPEC section 4), written by a named generator, or read from a file.
+Adding a generator is one decorated function:
+
+    @generator("name")
+    def name(n: int = 10, L: float = 100.0, r: float = 1.0, steps: int = 10,
+             mode: str = "perf") -> GeneratedScene:
+        return make_scene(L, r, steps, mode, [(x, y, vx, vy), ...])
+
+Its keyword parameters (with defaults; their types are those of the defaults) are the keys
+a config may set under `scene:`, each one a value or a list of values to sweep.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.errors import HarnessError
+
+MODES = ("print", "perf")
+DEFAULT_MODE = "perf"
+DEFAULT_SEED = 1
+RANDOM_SCENE = "random"
+REAL_FORMAT = "%.17g"
+
+Particle = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class GeneratedScene:
+    """What a generator returns: the input text and the scene parameters it encodes."""
+
+    text: str
+    n: int
+    L: float
+    r: float
+    steps: int
+    mode: str
+
+
+@dataclass(frozen=True)
+class ScenePoint:
+    """One concrete input of a cell, with the parameters the results table reports."""
+
+    label: str  # "random", the generator name, or the input file's name
+    n: int
+    L: float
+    r: float
+    steps: int
+    mode: str
+    seed: int
+    text: str
+    params: tuple[tuple[str, object], ...] = ()
+
+    @property
+    def input_sha256(self) -> str:
+        return hashlib.sha256(self.text.encode()).hexdigest()
+
+    def describe(self) -> str:
+        """A short human label, e.g. `n=10000 L=20000 r=1 S=50` (plus the generator)."""
+        head = "" if self.label == RANDOM_SCENE else f"{self.label} "
+        extra = "".join(
+            f" {k}={format_number(v)}"
+            for k, v in self.params
+            if k not in ("n", "L", "r", "steps", "mode")
+        )
+        mode = "" if self.mode == DEFAULT_MODE else f" {self.mode}"
+        return (
+            f"{head}n={self.n} L={format_number(self.L)} r={format_number(self.r)} "
+            f"S={self.steps}{mode} seed={self.seed}{extra}"
+        )
+
+
+def format_number(value: object) -> str:
+    """Compact rendering of an axis value for labels: 20000.0 -> 20000, 1e7 -> 1e+07."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def format_real(value: float) -> str:
+    """A real for an input file header: integral values without a fraction, else round-trip."""
+    if float(value).is_integer() and abs(value) < 1e15:
+        return str(int(value))
+    return repr(float(value))
+
+
+def header_text(n: int, L: float, r: float, steps: int, mode: str) -> str:
+    return f"{n} {format_real(L)} {format_real(r)} {steps}\n{mode}\n"
+
+
+def make_scene(
+    L: float, r: float, steps: int, mode: str, particles: Iterable[Particle], n: int | None = None
+) -> GeneratedScene:
+    """Write an input with the given particles as indices 0.. (n > len lets the rest be random)."""
+    rows = [
+        f"{i} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} {REAL_FORMAT % vy}\n"
+        for i, (x, y, vx, vy) in enumerate(particles)
+    ]
+    total = len(rows) if n is None else n
+    return GeneratedScene(header_text(total, L, r, steps, mode) + "".join(rows), total, L, r,
+                          steps, mode)
+
+
+def random_point(n: int, L: float, r: float, steps: int, mode: str, seed: int) -> ScenePoint:
+    """A scene the binaries generate from the seed: a two-line input."""
+    return ScenePoint(RANDOM_SCENE, n, float(L), float(r), steps, mode, seed,
+                      header_text(n, L, r, steps, mode))
+
+
+# --- the generator registry -------------------------------------------------------------
+
+GeneratorFn = Callable[..., GeneratedScene]
+
+
+@dataclass(frozen=True)
+class GeneratorInfo:
+    name: str
+    fn: GeneratorFn
+    defaults: Mapping[str, object]  # parameter -> default value (its type is the param type)
+    doc: str
+
+
+@dataclass
+class GeneratorRegistry:
+    """Named scene generators; filled once, at import, by the @generator decorator."""
+
+    entries: dict[str, GeneratorInfo] = field(default_factory=dict)
+
+    def register(self, name: str) -> Callable[[GeneratorFn], GeneratorFn]:
+        def decorate(fn: GeneratorFn) -> GeneratorFn:
+            if name in self.entries:
+                raise ValueError(f"scene generator {name!r} registered twice")
+            defaults: dict[str, object] = {}
+            for param in inspect.signature(fn).parameters.values():
+                if param.default is inspect.Parameter.empty:
+                    raise ValueError(f"generator {name!r}: {param.name!r} needs a default")
+                defaults[param.name] = param.default
+            self.entries[name] = GeneratorInfo(name, fn, defaults, inspect.getdoc(fn) or "")
+            return fn
+
+        return decorate
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(sorted(self.entries))
+
+    def get(self, name: str) -> GeneratorInfo:
+        try:
+            return self.entries[name]
+        except KeyError:
+            raise HarnessError(f"unknown scene generator {name!r}") from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.entries
+
+
+REGISTRY = GeneratorRegistry()
+generator = REGISTRY.register
+
+
+def generated_point(name: str, params: Mapping[str, object], seed: int) -> ScenePoint:
+    """Run generator `name` with `params` (already type-checked by the config loader)."""
+    info = REGISTRY.get(name)
+    scene = info.fn(**params)
+    check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
+    return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
+                      seed, scene.text, tuple(sorted(params.items())))
+
+
+def file_point(path: Path, seed: int) -> ScenePoint:
+    """A scene read from an input file; the header gives n, L, r, steps and mode."""
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise HarnessError(f"{path}: cannot read scene file: {exc.strerror}") from None
+    n, L, r, steps, mode = parse_header(text, str(path))
+    return ScenePoint(path.name, n, L, r, steps, mode, seed, text)
+
+
+def parse_header(text: str, where: str) -> tuple[int, float, float, int, str]:
+    """The first five tokens of an input: N L r S MODE."""
+    tokens = text.split(maxsplit=5)[:5]
+    if len(tokens) < 5:
+        raise HarnessError(f"{where}: input header must be 'N L r S' then a MODE line")
+    try:
+        n, steps = int(tokens[0]), int(tokens[3])
+        L, r = float(tokens[1]), float(tokens[2])
+    except ValueError:
+        header = " ".join(tokens[:4])
+        raise HarnessError(f"{where}: input header {header!r} is not 'N L r S'") from None
+    if tokens[4] not in MODES:
+        raise HarnessError(f"{where}: input mode {tokens[4]!r} is not one of {', '.join(MODES)}")
+    return n, L, r, steps, tokens[4]
+
+
+def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -> None:
+    """The header rules of SPEC section 1 that a generator could break."""
+    ok = (n >= 0 and steps >= 0 and math.isfinite(L) and math.isfinite(r) and r > 0
+          and 2 * r <= L and mode in MODES)
+    if not ok:
+        raise HarnessError(f"{where}: invalid scene n={n} L={L} r={r} steps={steps} mode={mode}")
+
+
+# --- generators ---------------------------------------------------------------------------
+
+
+@generator("lattice")
+def lattice(
+    n: int = 100, L: float = 1000.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
+    speed: float = 10.0,
+) -> GeneratedScene:
+    """n discs on a square lattice; rows move alternately right/left and up/down at `speed`."""
+    side = max(1, math.ceil(math.sqrt(n)))
+    spacing = (L - 2 * r) / side
+    if spacing < 2 * r:
+        raise HarnessError(f"generator 'lattice': {n} discs of radius {r} do not fit in L={L}")
+    diagonal = speed / math.sqrt(2.0)
+    particles = []
+    for k in range(n):
+        row, col = divmod(k, side)
+        x = r + spacing * (col + 0.5)
+        y = r + spacing * (row + 0.5)
+        vx = diagonal if row % 2 == 0 else -diagonal
+        vy = diagonal if col % 2 == 0 else -diagonal
+        particles.append((x, y, vx, vy))
+    return make_scene(L, r, steps, mode, particles)
+
+
+@generator("head_on")
+def head_on(
+    L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf", gap: float = 10.0,
+    speed: float = 2.0,
+) -> GeneratedScene:
+    """Two discs on the horizontal midline, `gap` apart (surface to surface), moving at each
+    other at `speed`: one head-on pair collision, then wall bounces."""
+    mid = L / 2
+    half = r + gap / 2
+    if mid - half < r:
+        raise HarnessError(f"generator 'head_on': gap {gap} does not fit in L={L} with r={r}")
+    particles = [(mid - half, mid, speed, 0.0), (mid + half, mid, -speed, 0.0)]
+    return make_scene(L, r, steps, mode, particles)
+
+
+@generator("corner")
+def corner(
+    L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf", speed: float = 7.0,
+) -> GeneratedScene:
+    """One disc on the diagonal flying into the top-right corner: both axes hit at once."""
+    start = L / 2
+    diagonal = speed / math.sqrt(2.0)
+    return make_scene(L, r, steps, mode, [(start, start, diagonal, diagonal)])
+

@@ -1,0 +1,103 @@
+"""The results.csv contract, named once: the statuses a cell can end in and the columns, in
+their order, with the type each is read back as. Everything that writes or reads results.csv
+(the store, the report, compare) imports it from here. Standard library only."""
+
+from __future__ import annotations
+
+# --- statuses -----------------------------------------------------------------------------
+
+OK = "ok"
+INVALID = "invalid"  # ran to the end; its output disagrees with the baseline
+FAILED = "failed"  # exit status other than 0
+CRASHED = "crashed"  # killed by a signal
+TIMEOUT = "timeout"  # past the cell's timeout
+STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
+# Statuses whose timings exist and mean something.
+TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
+
+# --- columns ------------------------------------------------------------------------------
+
+# These columns, in this order, start every results.csv.
+CSV_COLUMNS: tuple[str, ...] = (
+    "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed",
+    "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s", "wall_min_s",
+    "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status", "exit_code",
+    "identical", "max_pos_err", "max_vel_err", "count_mismatches", "oversubscribed", "unstable",
+    "cores", "cell_id", "binary_sha256",
+)
+EXTRA_COLUMNS: tuple[str, ...] = (
+    "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",
+    "validated", "exact", "baseline_sha256", "input_sha256", "note",
+)
+# Where, on what and how surely a cell was measured. Computed from the record (and its
+# hyperfine JSON) when results.csv is written, so older records gain them without being
+# measured again; empty where an older record cannot tell (outliers, loaded, machine).
+# stale: True when the cell's binary changed since it was measured on this machine (empty for
+# another machine's record, whose build this run cannot see).
+PROVENANCE_COLUMNS: tuple[str, ...] = (
+    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", "wall_times_s",
+    "outliers", "loaded", "stale", "git_commit", "measured_at",
+)
+# Where the simulation time goes, from --timing, seconds summed over the run: the variant's
+# pair finder (broad phase and pair tests), wall candidates, merging and sorting the
+# candidates, the greedy resolution walk, moving the discs. Their sum is at most sim_s (the
+# rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
+# After the provenance columns, and only where some cell has them.
+PHASE_COLUMNS: tuple[str, ...] = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
+# The accuracy and stability checks (`checks:` in a config): only in a results.csv where some
+# cell was checked. chk_* are True/False, or empty where a check does not apply (chk_exact for
+# relative, chk_shadow without `shadow`).
+CHECK_COLUMNS: tuple[str, ...] = (
+    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
+    "chk_exact", "chk_shadow", "energy_drift", "energy_drift_max", "energy_bound",
+    "pair_collisions_run", "box_excess", "shadow_states", "shadow_pos_err",
+    "shadow_pos_err_max", "shadow_vel_err", "shadow_vel_err_max", "shadow_set_diff",
+    "shadow_bound", "shadow_err_r", "div_f64_max", "div_truth_max", "div_truth_final",
+    "div_steps_to_r", "checks_failed", "checks_note", "checks_s",
+)
+# The OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its --timing
+# run (one entry per candidate writer: the threads, T*T for p3), space-separated;
+# `imbalance` is max over mean busy seconds (1 = perfectly even). Last, and only where some
+# cell has them.
+THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "threads_pairs",
+                                   "threads_chunks")
+# --timing's per-thread lists, stored as the columns of the same name.
+THREAD_TIMING_KEYS: tuple[str, ...] = ("threads_busy_s", "threads_pairs", "threads_chunks")
+# What a --timing JSON line gives that the record keeps under the same names.
+TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
+                                "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
+# Every column a record can fill, in results.csv's order (the groups after the provenance
+# columns appear only where some row has a value).
+OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS)
+
+# divergence.csv beside results.csv: one row per checked cell, reference and printed step.
+DIVERGENCE_COLUMNS: tuple[str, ...] = (
+    "cell_id", "variant", "build", "scene", "n", "L", "r", "steps", "seed", "threads",
+    "reference", "step", "max_pos_dev",
+)
+# The cell-describing columns a divergence row copies from its record.
+DIVERGENCE_CELL_COLUMNS: tuple[str, ...] = DIVERGENCE_COLUMNS[:10]
+
+# --- how each column reads back -----------------------------------------------------------
+
+NUMERIC_COLUMNS: frozenset[str] = frozenset({
+    "n", "L", "r", "steps", "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s",
+    "wall_median_s", "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests",
+    "exit_code", "max_pos_err", "max_vel_err", "count_mismatches", "cores",
+    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance", *PHASE_COLUMNS,
+    "energy_drift", "energy_drift_max", "energy_bound", "pair_collisions_run", "box_excess",
+    "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
+    "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
+    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s",
+})
+BOOL_COLUMNS: frozenset[str] = frozenset({
+    "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
+    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
+    "chk_exact", "chk_shadow",
+})
+# Flags that are False where a row leaves them empty (a missing check stays missing).
+FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded", "stale")
+# Columns every row must fill in: without them a cell cannot be placed in any table.
+REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
+# Space-separated lists of numbers (per run, per thread).
+LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", *THREAD_TIMING_KEYS)

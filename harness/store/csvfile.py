@@ -1,0 +1,130 @@
+"""results.csv and divergence.csv, written from cell records (store.columns says which columns,
+in which order). A record's provenance columns are its own fields where it has them, else
+derived from what it kept (its hyperfine JSON, its warnings), so older records gain them
+without being measured again."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+
+from harness import stats
+from harness.store import atomic, hyperfine, records
+from harness.store.columns import (
+    CHECK_COLUMNS,
+    CSV_COLUMNS,
+    DIVERGENCE_CELL_COLUMNS,
+    DIVERGENCE_COLUMNS,
+    EXTRA_COLUMNS,
+    OPTIONAL_GROUPS,
+    PHASE_COLUMNS,
+    PROVENANCE_COLUMNS,
+    THREAD_COLUMNS,
+)
+
+
+def uncertainty(times: Sequence[float]) -> dict[str, object]:
+    """The record fields derived from hyperfine's per-run times: the times as a list and the
+    95% bootstrap interval of their median."""
+    low, high = _median_ci(tuple(times))
+    return {"wall_times_s": list(times), "wall_median_ci_low_s": low,
+            "wall_median_ci_high_s": high}
+
+
+@functools.lru_cache(maxsize=4096)
+def _median_ci(times: tuple[float, ...]) -> tuple[float | None, float | None]:
+    interval = stats.median_ci(times)
+    return (interval.low if math.isfinite(interval.low) else None,
+            interval.high if math.isfinite(interval.high) else None)
+
+
+def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
+               ) -> dict[str, object]:
+    """PROVENANCE_COLUMNS of a record: its own fields, else derived (times from its hyperfine
+    JSON, the interval from the times, outliers from kept warnings)."""
+    values: dict[str, object] = {c: record.get(c) for c in PROVENANCE_COLUMNS}
+    key = record.get("key")
+    if values["machine_id"] is None and isinstance(key, dict):
+        values["machine_id"] = key.get(records.MACHINE_KEY)
+    described = record.get("machine")
+    values["machine"] = described.get("label") if isinstance(described, dict) else None
+    times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
+    if times:
+        if record.get("wall_median_ci_low_s") is None:
+            values.update(uncertainty(times))
+        values["wall_times_s"] = records.join_floats(times)
+    else:
+        values["wall_times_s"] = None
+    warnings = record.get("hyperfine_warnings")
+    if isinstance(warnings, list):
+        values["outliers"] = any(hyperfine.OUTLIERS_WARNING in str(w) for w in warnings)
+    return values
+
+
+def csv_row(record: Mapping[str, object], experiment: str, title: str,
+            hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
+    row: dict[str, object] = {"experiment": experiment, "title": title}
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *PHASE_COLUMNS, *THREAD_COLUMNS,
+                   *CHECK_COLUMNS):
+        row[column] = record.get(column)
+    row.update(provenance(record, hyperfine_json))
+    row["stale"] = stale
+    return row
+
+
+def format_cell(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "inf" if math.isinf(value) and value > 0 else repr(value)
+    return str(value)
+
+
+def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
+    """results.csv text: the contract, extra and provenance columns, then the phase columns,
+    the check columns and the per-thread columns, each group when some row has a value."""
+    rows = list(rows)
+    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
+    for group in OPTIONAL_GROUPS:
+        if any(row.get(c) not in (None, "") for row in rows for c in group):
+            columns = (*columns, *group)
+    return _csv_text(columns, rows)
+
+
+def _csv_text(columns: Sequence[str], rows: Iterable[Mapping[str, object]]) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        writer.writerow([format_cell(row.get(c)) for c in columns])
+    return buffer.getvalue()
+
+
+def write_results_csv(path: Path, rows: Iterable[Mapping[str, object]]) -> None:
+    atomic.atomic_write_text(path, render_csv(rows))
+
+
+def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
+    """The divergence.csv rows of one cell record: its curve against each reference."""
+    curves = record.get("divergence")
+    if not isinstance(curves, dict):
+        return []
+    base = {c: record.get(c) for c in DIVERGENCE_CELL_COLUMNS}
+    rows = []
+    for reference, curve in curves.items():
+        for step, value in enumerate(curve if isinstance(curve, list) else []):
+            rows.append({**base, "reference": reference, "step": step, "max_pos_dev": value})
+    return rows
+
+
+def write_divergence_csv(path: Path, records_: Iterable[Mapping[str, object]]) -> None:
+    """divergence.csv from the records that have curves; removed when none has."""
+    rows = [row for record in records_ for row in divergence_rows(record)]
+    if not rows:
+        path.unlink(missing_ok=True)
+        return
+    atomic.atomic_write_text(path, _csv_text(DIVERGENCE_COLUMNS, rows))

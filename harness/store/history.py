@@ -1,0 +1,177 @@
+"""Which records are current, and history: superseded records move to history/.
+
+A cell record's key (records.cell_id) holds the hashes of its binaries and the machine_id, so
+a new build or another machine gives new ids and the old records stay in cells/. Two records
+are of the same *group* when everything in their keys but those hashes and the machine agrees
+(variant, build, input, seed, threads, measure settings, checks); within a group, one record
+per machine is current: the newest. The others are *superseded*: prune() moves them, with
+their hyperfine JSON and kept output, to <experiment>/history/, so the committed cells/ holds
+what the report shows; load_history() reads them back ("earlier measurements").
+
+A record from before machine ids (no `machine_id` in its key) belongs to no known machine: any
+newer record of its group supersedes it.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.store import csvfile, layout, locks, records
+from harness.store.layout import ExperimentDir
+
+# Key fields that name a binary or the machine, not what was measured: a group ignores them.
+HASH_KEYS = ("binary_sha256", "baseline_sha256", records.MACHINE_KEY)
+CHECK_HASH_KEY = "reference_sha256"
+UNKNOWN_MACHINE = ""
+
+
+@dataclass(frozen=True)
+class Stored:
+    """A record on disk with the facts the store sorts by."""
+
+    record: records.Record
+    path: Path
+
+    @property
+    def cell_id(self) -> str:
+        return str(self.record["cell_id"])
+
+    @property
+    def machine_id(self) -> str:
+        key = self.record.get("key")
+        value = key.get(records.MACHINE_KEY) if isinstance(key, dict) else None
+        return str(value) if value else UNKNOWN_MACHINE
+
+    @functools.cached_property
+    def group(self) -> str:
+        key = self.record.get("key")
+        return group_of(key if isinstance(key, dict) else {})
+
+    @functools.cached_property
+    def age(self) -> tuple[str, float]:
+        """Sorts oldest first: measured_at (ISO seconds), then the file's mtime."""
+        try:
+            mtime = self.path.stat().st_mtime
+        except OSError:
+            mtime = 0.0
+        return str(self.record.get("measured_at") or ""), mtime
+
+
+def group_of(key: Mapping[str, object]) -> str:
+    """The id of a key with its binary hashes and machine left out."""
+    rest: dict[str, object] = {k: v for k, v in key.items() if k not in HASH_KEYS}
+    checks = rest.get("checks")
+    if isinstance(checks, dict):
+        rest["checks"] = {k: v for k, v in checks.items() if k != CHECK_HASH_KEY}
+    return records.cell_id(rest)
+
+
+# Records already read by this process, by path, with the (inode, mtime, size) they were read
+# at. results.csv is rebuilt from disk after every measured cell (records may come from other
+# processes or nodes), so without this a run of N cells parses N^2/2 records: 0.35 s a cell at
+# the 528 cells of configs/stability.yaml. Records are only ever replaced by a rename, which
+# changes the inode, so a changed file is always read again.
+_READ: dict[Path, tuple[tuple[int, int, int], Stored]] = {}
+
+
+def load_records(directory: Path) -> list[Stored]:
+    """Every readable record of this harness version in `directory` (cells/ or history/)."""
+    stored = []
+    for path in layout.record_paths(directory):
+        try:
+            st = path.stat()
+        except FileNotFoundError:
+            continue
+        stamp = (st.st_ino, st.st_mtime_ns, st.st_size)
+        seen = _READ.get(path)
+        if seen is not None and seen[0] == stamp:
+            stored.append(seen[1])
+            continue
+        record = records.read_record(path, layout.cell_id_of(path))
+        if record is not None:
+            item = Stored(record, path)
+            _READ[path] = (stamp, item)
+            stored.append(item)
+    return stored
+
+
+def load_history(experiment_dir: Path) -> list[records.Record]:
+    """The superseded records of an experiment, oldest first (the report's "earlier
+    measurements"); each with `wall_times_s` and its interval filled in where hyperfine's JSON
+    is kept."""
+    history = ExperimentDir(experiment_dir).history
+    out = []
+    for item in sorted(load_records(history), key=lambda s: s.age):
+        record = dict(item.record)
+        record.update(csvfile.provenance(
+            record, history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}"))
+        out.append(record)
+    return out
+
+
+def superseded(stored: Iterable[Stored]) -> list[Stored]:
+    """The records with a newer record of the same group on the same machine; a record of no
+    known machine is superseded by any newer record of its group."""
+    groups: dict[str, list[Stored]] = {}
+    for item in stored:
+        groups.setdefault(item.group, []).append(item)
+    out = []
+    for members in groups.values():
+        members.sort(key=lambda s: s.age)
+        newest_of: dict[str, Stored] = {m.machine_id: m for m in members}  # the last one wins
+        newest_any = members[-1]
+        for member in members:
+            if member.machine_id == UNKNOWN_MACHINE:
+                if member is not newest_any:
+                    out.append(member)
+            elif member is not newest_of[member.machine_id]:
+                out.append(member)
+    return out
+
+
+def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
+    """Move records with their hyperfine JSON (and kept --precise output) to history/."""
+    exp = ExperimentDir(experiment_dir)
+    history = exp.history
+    moved = 0
+    for item in items:
+        history.mkdir(parents=True, exist_ok=True)
+        cid = item.cell_id
+        companions = [(exp.hyperfine(cid), history / f"{cid}{layout.HYPERFINE_SUFFIX}"),
+                      (exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}")]
+        for source, target in companions:
+            if source.is_file():
+                os.replace(source, target)
+        os.replace(item.path, history / item.path.name)  # the record last: it names the rest
+        moved += 1
+    return moved
+
+
+@dataclass(frozen=True)
+class PruneResult:
+    directory: Path
+    moved: int
+    remaining: int
+
+
+def prune(experiment_dir: Path) -> PruneResult:
+    """Move an experiment's superseded records to history/, under its directory lock."""
+    with locks.directory_lock(experiment_dir):
+        stored = load_records(ExperimentDir(experiment_dir).cells)
+        kept = prune_locked(experiment_dir, stored)
+    return PruneResult(experiment_dir, len(stored) - len(kept), len(kept))
+
+
+def prune_locked(experiment_dir: Path, stored: Sequence[Stored]) -> list[Stored]:
+    """Move the superseded among `stored` to history/ (the caller holds the directory lock);
+    the records that stay in cells/."""
+    old = superseded(stored)
+    move_to_history(experiment_dir, old)
+    gone = {id(s) for s in old}
+    return [s for s in stored if id(s) not in gone]
+
+

@@ -1,0 +1,86 @@
+"""hyperfine's JSON export (`--export-json`), read back: a cell's statistics and per-run times.
+The export is kept as hyperfine wrote it, beside the cell's record. Standard library only."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.store import records
+
+UNSTABLE_RELATIVE_STDDEV = 0.10
+OUTLIERS_WARNING = "Statistical outliers were detected"
+
+
+@dataclass(frozen=True)
+class HyperfineStats:
+    command: str
+    mean: float
+    stddev: float | None  # null with a single run
+    median: float
+    min: float
+    max: float
+    user: float
+    system: float
+    times: tuple[float, ...]
+    exit_codes: tuple[int | None, ...]
+
+    @property
+    def runs(self) -> int:
+        return len(self.times)
+
+    @property
+    def unstable(self) -> bool:
+        """stddev >= 10% of the mean."""
+        return (self.stddev is not None and self.mean > 0
+                and self.stddev >= UNSTABLE_RELATIVE_STDDEV * self.mean)
+
+
+class ResultFormatError(ValueError):
+    """A hyperfine export or a --timing line that cannot be read."""
+
+
+def parse_hyperfine(data: Mapping[str, object]) -> HyperfineStats:
+    """The single benchmark of a hyperfine --export-json document."""
+    results = data.get("results")
+    if not isinstance(results, list) or len(results) != 1 or not isinstance(results[0], dict):
+        raise ResultFormatError("expected one entry under 'results'")
+    entry = results[0]
+    try:
+        return HyperfineStats(
+            command=str(entry["command"]),
+            mean=float(entry["mean"]),
+            stddev=None if entry.get("stddev") is None else float(entry["stddev"]),
+            median=float(entry["median"]),
+            min=float(entry["min"]),
+            max=float(entry["max"]),
+            user=float(entry["user"]),
+            system=float(entry["system"]),
+            times=tuple(float(t) for t in entry["times"]),
+            exit_codes=tuple(None if c is None else int(c) for c in entry.get("exit_codes", [])),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ResultFormatError(f"bad hyperfine entry: {exc!r}") from None
+
+
+def load_hyperfine(path: Path) -> HyperfineStats:
+    try:
+        return parse_hyperfine(json.loads(path.read_text()))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ResultFormatError(f"{path}: {exc}") from None
+
+
+def run_times(listed: object, export: Path | None) -> list[float]:
+    """A cell's per-run wall times: its `wall_times_s` (a list in a record, space-separated
+    text in results.csv), else those of its hyperfine export when there is one."""
+    if isinstance(listed, list) and listed:
+        return [float(t) for t in listed]
+    times = records.split_floats(listed)
+    if times or export is None or not export.is_file():
+        return times
+    try:
+        return list(load_hyperfine(export).times)
+    except ResultFormatError:
+        return []

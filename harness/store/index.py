@@ -1,0 +1,95 @@
+"""results.csv rebuilt from the records on disk, and env.json.
+
+results.csv lists, for each planned cell: on this machine the record of the current build, or
+else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
+and on every other machine present the newest record of the group. It is rebuilt from the
+records on disk under the directory's lock, so two writers never drop each other's rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.store import atomic, csvfile, locks, records
+from harness.store.history import UNKNOWN_MACHINE, Stored, group_of, load_records, prune_locked
+from harness.store.layout import ExperimentDir
+
+
+@dataclass(frozen=True)
+class PlannedCell:
+    """What results.csv needs of a planned cell: its key on this machine and that key's id."""
+
+    key: Mapping[str, object]
+    cell_id: str
+
+
+@dataclass(frozen=True)
+class Row:
+    record: records.Record
+    stale: bool | None
+    hyperfine_json: Path
+
+
+def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str,
+                 exp: ExperimentDir) -> list[Row]:
+    """results.csv's records, in plan order: per planned cell, this machine's current record
+    (or its newest, stale), then the newest of each other machine (and of no known machine,
+    unless a newer record of the group exists)."""
+    by_group: dict[str, list[Stored]] = {}
+    for item in stored:
+        by_group.setdefault(item.group, []).append(item)
+    rows: list[Row] = []
+    done: set[str] = set()
+    for cell in planned:
+        group = group_of(cell.key)
+        if group in done:
+            continue
+        done.add(group)
+        members = sorted(by_group.get(group, []), key=lambda s: s.age)
+        newest: dict[str, Stored] = {m.machine_id: m for m in members}
+        ordered = [machine_id, *sorted(m for m in newest if m != machine_id)]
+        for machine in ordered:
+            item = newest.get(machine)
+            if item is None:
+                continue
+            if machine == UNKNOWN_MACHINE and item is not members[-1]:
+                continue  # superseded by a newer record of a known machine
+            if machine == machine_id:
+                current = next((m for m in members if m.cell_id == cell.cell_id), None)
+                item = current or item
+                stale: bool | None = current is None
+            elif machine == UNKNOWN_MACHINE:
+                stale = item.record.get("binary_sha256") != cell.key.get("binary_sha256")
+            else:
+                stale = None
+            rows.append(Row(item.record, stale, exp.hyperfine(item.cell_id)))
+    return rows
+
+
+def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
+                experiment: str, title: str, prune_first: bool = False) -> list[records.Record]:
+    """Rewrite results.csv from the records on disk, under the directory lock (with
+    `prune_first`, after moving the superseded records to history/, as a run ends); the
+    records listed are returned (for divergence.csv)."""
+    exp = ExperimentDir(experiment_dir)
+    with locks.directory_lock(experiment_dir):
+        stored = load_records(exp.cells)
+        if prune_first:
+            stored = prune_locked(experiment_dir, stored)
+        rows = current_rows(stored, planned, machine_id, exp)
+        csvfile.write_results_csv(
+            exp.results_csv,
+            [csvfile.csv_row(r.record, experiment, title, r.hyperfine_json, r.stale)
+             for r in rows])
+    return [r.record for r in rows]
+
+
+def write_env(experiment_dir: Path, env: Mapping[str, object]) -> None:
+    """env.json (the latest measuring run) and machines/<machine_id>.json (each machine's)."""
+    exp = ExperimentDir(experiment_dir)
+    atomic.atomic_write_json(exp.env_json, env)
+    machine_id = env.get(records.MACHINE_KEY)
+    if machine_id:
+        atomic.atomic_write_json(exp.machine(str(machine_id)), env)

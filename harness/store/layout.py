@@ -1,0 +1,165 @@
+"""The results layout, named once: what lives where under a results root.
+
+    results/                         a results root
+      .cache/baselines/<key>.txt     seq's --precise output per input (validation)
+      .cache/prints/<key>.txt        reference print-mode outputs (the checks)
+      <name>/  (<name>-quick/)       one experiment (a --quick smoke run)
+        cells/<cell_id>.json             the harness's record of one cell
+        cells/<cell_id>.hyperfine.json   hyperfine's export, as written
+        inputs/<sha>.in                  the input files the cells read
+        outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
+        env.json                         the machine, tools and flags of the latest run
+        machines/<machine_id>.json       the same, the latest of each machine
+        history/                         superseded records with their hyperfine JSON
+        slurm/                           the Slurm executor's job state, scripts and logs
+        results.csv                      one row per cell and machine
+        divergence.csv                   the checks' divergence curves, where some cell has them
+      compare/                       compare.py's default output
+
+Standard library only.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+CELLS = "cells"
+HISTORY = "history"
+INPUTS = "inputs"
+OUTPUTS = "outputs"
+MACHINES = "machines"
+SLURM = "slurm"
+ENV_JSON = "env.json"
+RESULTS_CSV = "results.csv"
+DIVERGENCE_CSV = "divergence.csv"
+RECORD_SUFFIX = ".json"
+HYPERFINE_SUFFIX = ".hyperfine.json"
+OUTPUT_SUFFIX = ".txt"
+HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
+INPUT_SUFFIX = ".in"
+CACHE_DIR = ".cache"
+BASELINES = "baselines"
+PRINTS = "prints"
+COMPARE_DIR = "compare"
+QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
+INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
+
+
+def experiment_name(name: str, quick: bool) -> str:
+    return name + (QUICK_SUFFIX if quick else "")
+
+
+@dataclass(frozen=True)
+class ExperimentDir:
+    """The files of one experiment directory."""
+
+    path: Path
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def cells(self) -> Path:
+        return self.path / CELLS
+
+    @property
+    def history(self) -> Path:
+        return self.path / HISTORY
+
+    @property
+    def results_csv(self) -> Path:
+        return self.path / RESULTS_CSV
+
+    @property
+    def divergence_csv(self) -> Path:
+        return self.path / DIVERGENCE_CSV
+
+    @property
+    def env_json(self) -> Path:
+        return self.path / ENV_JSON
+
+    @property
+    def slurm(self) -> Path:
+        return self.path / SLURM
+
+    @property
+    def outputs(self) -> Path:
+        return self.path / OUTPUTS
+
+    def record(self, cell_id: str) -> Path:
+        return self.cells / f"{cell_id}{RECORD_SUFFIX}"
+
+    def hyperfine(self, cell_id: str) -> Path:
+        return self.cells / f"{cell_id}{HYPERFINE_SUFFIX}"
+
+    def output(self, cell_id: str) -> Path:
+        return self.outputs / f"{cell_id}{OUTPUT_SUFFIX}"
+
+    def input(self, sha256: str) -> Path:
+        return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}{INPUT_SUFFIX}"
+
+    def machine(self, machine_id: str) -> Path:
+        return self.path / MACHINES / f"{machine_id}{RECORD_SUFFIX}"
+
+
+@dataclass(frozen=True)
+class ResultsRoot:
+    """A results root: experiment directories and the caches they share."""
+
+    path: Path
+
+    def experiment(self, name: str, quick: bool = False) -> ExperimentDir:
+        return ExperimentDir(self.path / experiment_name(name, quick))
+
+    def baseline(self, key: str) -> Path:
+        return self.path / CACHE_DIR / BASELINES / f"{key}{OUTPUT_SUFFIX}"
+
+    def print_output(self, key: str) -> Path:
+        return self.path / CACHE_DIR / PRINTS / f"{key}{OUTPUT_SUFFIX}"
+
+
+def is_record_name(name: str) -> bool:
+    """A cell record's file name (not hyperfine's export, not a temporary file)."""
+    return (name.endswith(RECORD_SUFFIX) and not name.endswith(HYPERFINE_SUFFIX)
+            and not name.startswith("."))
+
+
+def record_paths(directory: Path) -> list[Path]:
+    """The record files directly in `directory` (cells/ or history/), by name."""
+    try:
+        names = sorted(os.listdir(directory))
+    except FileNotFoundError:
+        return []
+    return [directory / n for n in names if is_record_name(n)]
+
+
+def cell_id_of(path: Path) -> str:
+    """The cell id a record file is named by."""
+    return path.name[: -len(RECORD_SUFFIX)]
+
+
+def has_cells(exp: ExperimentDir) -> bool:
+    return exp.cells.is_dir()
+
+
+def has_results(exp: ExperimentDir) -> bool:
+    return exp.results_csv.is_file()
+
+
+def experiments_under(path: Path, is_experiment: Callable[[ExperimentDir], bool]
+                      ) -> tuple[list[ExperimentDir], bool]:
+    """`path` itself when it is an experiment, else the experiments directly under it (hidden
+    directories, the caches, aside), by name; and whether `path` is a results root. The
+    caller says what an experiment is (has_cells, has_results) and what an empty answer
+    means."""
+    if is_experiment(ExperimentDir(path)):
+        return [ExperimentDir(path)], False
+    if not path.is_dir():
+        return [], True
+    found = [ExperimentDir(p) for p in sorted(path.iterdir())
+             if p.is_dir() and not p.name.startswith(".")]
+    return [exp for exp in found if is_experiment(exp)], True

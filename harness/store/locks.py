@@ -1,0 +1,153 @@
+"""One benchmark at a time on a machine, and one writer at a time per results directory.
+
+measuring_lock(): an exclusive flock on a file in a machine-wide place (not the repository, so
+two checkouts see the same lock), held while a run measures. The holder writes its pid, config
+and start time into the file; a second run prints one line naming them and waits, or with
+`wait=False` refuses (LockBusy, a HarnessError: exit 2). flock is released by the kernel when
+the holder dies, so a crashed run never leaves a stale lock behind.
+
+directory_lock(): an exclusive flock on the results directory itself (Linux flocks directory
+file descriptors), held while results.csv is rebuilt from the records on disk and while
+superseded records are moved to history/, so two writers never drop each other's rows.
+
+file_lock(): an exclusive flock on a file (created), e.g. the Slurm executor's job-state lock,
+so that two submitters take turns.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import fcntl
+import json
+import os
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TextIO
+
+from harness.errors import HarnessError
+
+# Where the machine-wide lock lives; the tests point it at their own directory.
+LOCK_DIR_VAR = "COLLIDE_BENCH_LOCK_DIR"
+LOCK_NAME = "collide-bench-measure.lock"
+# A new holder writes its description just after it takes the lock; give it that long.
+HOLDER_WRITE_WAIT_S = 0.2
+
+
+class LockBusy(HarnessError):
+    """Another run holds the measuring lock and this one was told not to wait."""
+
+
+def lock_path() -> Path:
+    directory = os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()
+    return Path(directory) / LOCK_NAME
+
+
+def describe_holder(path: Path) -> str:
+    """"pid 123, configs/threads.yaml, since 2026-...": what the holder wrote, as far as read."""
+    try:
+        info = json.loads(path.read_text() or "{}")
+    except (OSError, json.JSONDecodeError):
+        info = {}
+    if not isinstance(info, dict) or "pid" not in info:
+        return "pid unknown"
+    return f"pid {info['pid']}, {info.get('config', '?')}, since {info.get('started', '?')}"
+
+
+@contextlib.contextmanager
+def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
+                   path: Path | None = None) -> Iterator[Path]:
+    """Hold the machine-wide measuring lock for the body; see the module docstring."""
+    path = path if path is not None else lock_path()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # O_APPEND-free, no truncation on open: the holder's description must survive our open
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = describe_holder(path)
+            if holder == "pid unknown":  # it holds the lock but has not written yet
+                time.sleep(HOLDER_WRITE_WAIT_S)
+                holder = describe_holder(path)
+            if not wait:
+                raise LockBusy(f"another run is measuring on this machine ({holder}; lock "
+                               f"{path}); not waiting (--no-wait)") from None
+            if log is not None:
+                log.write(f"waiting: another run is measuring on this machine ({holder}); "
+                          "this run starts when it finishes\n")
+                log.flush()
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        with contextlib.suppress(OSError):  # a world-writable lock left by another user
+            os.fchmod(fd, 0o666)
+        info = {"pid": os.getpid(), "config": config,
+                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+        try:
+            yield path
+        finally:
+            os.ftruncate(fd, 0)
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def file_lock(path: Path) -> Iterator[None]:
+    """An exclusive flock on `path` (created if missing) for the body."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+@contextlib.contextmanager
+def directory_lock(directory: Path) -> Iterator[None]:
+    """Exclusive lock on a results directory (created if missing) for the body."""
+    directory.mkdir(parents=True, exist_ok=True)
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
+class RunLock:
+    """The measuring lock of one run.py process: taken when its first experiment has cells to
+    measure (a run of cached cells or --dry-run takes none), held until the run ends, so the
+    configs of one run are not interleaved with another run's."""
+
+    def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
+                 path: Path | None = None) -> None:
+        self.configs = configs
+        self.wait = wait
+        self.log = log
+        self.path = path
+        self._stack = contextlib.ExitStack()
+        self.held = False
+
+    def acquire(self) -> None:
+        if not self.held:
+            self._stack.enter_context(measuring_lock(self.configs, self.wait, self.log,
+                                                     self.path))
+            self.held = True
+
+    def release(self) -> None:
+        self._stack.close()
+        self.held = False
+
+    def __enter__(self) -> RunLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()

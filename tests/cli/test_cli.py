@@ -1,0 +1,66 @@
+"""The command line: `collide-bench COMMAND`, its scripts, and errors as one line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from harness.cli import commands, main
+from harness.repo import REPO_ROOT
+
+CONSOLE_SCRIPT = Path(sys.executable).with_name("collide-bench")
+
+
+def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for name in ("run", "compare", "report", "store", "worker"):
+        assert f"\n  {name} " in out
+    assert set(commands()) == {"run", "compare", "report", "store", "worker"}
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    ([], "usage: collide-bench COMMAND"),
+    (["measure"], "error: unknown command 'measure'; expected one of: run, compare"),
+    (["run"], "error: the following arguments are required: configs"),
+    (["store", "prune", "/nowhere"], "error: /nowhere: not a directory"),
+])
+def test_mistakes_are_one_line_and_status_2(argv: list[str], message: str,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse's usage errors
+        status = exc.code
+    assert status == 2
+    err = capsys.readouterr().err
+    assert err.startswith(message)
+    if argv:
+        assert err.count("\n") == 1, err
+
+
+@pytest.mark.skipif(not CONSOLE_SCRIPT.exists(), reason="the project is not installed here")
+def test_the_installed_command_runs_from_any_directory(tmp_path: Path) -> None:
+    done = subprocess.run([str(CONSOLE_SCRIPT), "run", str(REPO_ROOT / "configs" / "smoke.yaml"),
+                           "--dry-run", "--results-dir", str(tmp_path)],
+                          capture_output=True, text=True, check=False, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("smoke: 8 cells (0 cached, 8 to run, 0 excluded)")
+
+
+@pytest.mark.parametrize("entry", [["harness/run.py"], ["-m", "harness", "run"],
+                                   ["-m", "harness.run"]])
+def test_the_documented_entry_points_run_the_same_command(entry: list[str],
+                                                          tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, *entry, "configs/smoke.yaml", "--dry-run",
+                           "--results-dir", str(tmp_path)],
+                          capture_output=True, text=True, check=False, cwd=REPO_ROOT)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("smoke: 8 cells")
+
+
+def test_no_module_of_the_harness_edits_sys_path() -> None:
+    offenders = [str(p.relative_to(REPO_ROOT)) for p in (REPO_ROOT / "harness").rglob("*.py")
+                 if "sys.path" in p.read_text(encoding="utf-8")]
+    assert offenders == []

@@ -1,0 +1,74 @@
+"""Planning a config's cells: the grid, repeats, exclusions, exactness from the variants' own
+facts, and the binaries a plan runs."""
+
+from __future__ import annotations
+
+from harness.plan.binaries import needed_binaries
+from harness.plan.cells import is_exact, plan_cells
+from harness.repo import REPO_ROOT
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantFacts, VariantRegistry, default_registry
+
+
+def test_exactness(write_config) -> None:
+    config = load_config(write_config(
+        "variants: [seq, relative]\nbuilds: [f64, f32]\nscene: {n: 10, L: 100, r: 1, steps: 1}\n"
+    ))
+    registry = default_registry()
+    assert is_exact(config, registry, "seq", "f64")
+    assert not is_exact(config, registry, "seq", "f32")
+    assert not is_exact(config, registry, "relative", "f64")
+
+
+BASE = "variants: [seq, p1]\nscene: {n: [10, 20], L: 100, r: 1, steps: 1}\nthreads: [1, 2]\n"
+
+
+def test_cells_come_scene_first_then_variant_and_threads(write_config) -> None:
+    plan = plan_cells(load_config(write_config(BASE)))
+    got = [(c.scene.n, c.threads, c.variant) for c in plan.cells]
+    assert got == [(10, 1, "seq"), (10, 1, "p1"), (10, 2, "seq"), (10, 2, "p1"),
+                   (20, 1, "seq"), (20, 1, "p1"), (20, 2, "seq"), (20, 2, "p1")]
+
+
+def test_excluded_cells_are_kept_apart(write_config) -> None:
+    excluded = "exclude: [{variant: seq, threads_gt: 1}]\n"
+    plan = plan_cells(load_config(write_config(BASE + excluded)))
+    assert [(c.variant, c.threads) for c in plan.excluded] == [("seq", 2), ("seq", 2)]
+    assert all(not (c.variant == "seq" and c.threads > 1) for c in plan.cells)
+
+
+def test_quick_maps_points_onto_one_cell_once(write_config) -> None:
+    plan = plan_cells(load_config(write_config(
+        "variants: [seq]\nscene: {n: [500, 600], L: 1000, r: 1, steps: 9}\n")), quick=True)
+    assert [(c.scene.n, c.scene.steps) for c in plan.cells] == [(400, 5)]
+
+
+def test_a_variant_promises_exactness_and_a_custom_binary_does_not(write_config,
+                                                                   tmp_path) -> None:
+    program = tmp_path / "mine"
+    program.write_text("#!/bin/sh\n")
+    program.chmod(0o755)
+    config = load_config(write_config(
+        "variants: [seq, relative, mine]\nbinaries: {mine: mine}\n"
+        "scene: {n: 10, L: 100, r: 1, steps: 1}\nvalidate: true\n"))
+    cells = {c.variant: c for c in plan_cells(config).cells}
+    assert cells["seq"].promises_exact and cells["seq"].exact
+    assert not cells["relative"].promises_exact and not cells["relative"].exact
+    assert not cells["mine"].promises_exact and cells["mine"].exact  # held to seq's output
+
+
+def test_exactness_follows_the_registry_given(write_config) -> None:
+    registry = VariantRegistry.of([
+        VariantFacts("seq", "s", True, False, True), VariantFacts("p1", "p", False, True, True),
+        VariantFacts("grid", "g", True, True, False)])
+    config = load_config(write_config(BASE), registry)
+    assert {c.variant: c.exact for c in plan_cells(config, registry=registry).cells} == {
+        "seq": True, "p1": False}
+
+
+def test_needed_binaries_add_seq_for_validation_and_the_checks_references(write_config) -> None:
+    config = load_config(write_config(
+        "variants: [p1]\nbuilds: [f32]\nscene: {n: 10, L: 100, r: 1, steps: 1}\n"
+        "validate: {baseline: same}\nchecks: [invariants]\n"))
+    names = [p.name for p in needed_binaries(plan_cells(config), REPO_ROOT)]
+    assert names == ["p1-f32", "seq-f32", "grid-f128", "seq"]

@@ -1,0 +1,75 @@
+"""A cell's identity and storage: the key its id hashes, the fields every record starts with,
+what counts as cached, and where inputs and reference outputs live."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from harness.plan.cells import plan_cells
+from harness.plan.cellstore import CellStore
+from harness.repo import REPO_ROOT
+from harness.spec.parse import load_config
+from harness.store import records
+
+CONFIG = "variants: [seq, p1]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nvalidate: true\n"
+
+
+@pytest.fixture
+def store(write_config, tmp_path: Path) -> CellStore:
+    return CellStore(plan_cells(load_config(write_config(CONFIG))), REPO_ROOT,
+                     tmp_path / "results", "m1")
+
+
+def test_the_key_names_the_machine_the_binaries_and_the_input(store: CellStore) -> None:
+    cell = store.plan.cells[1]
+    key = store.cell_key(cell)
+    assert key is not None and key["machine_id"] == "m1" and key["variant"] == "p1"
+    assert key["binary_sha256"] == records.sha256_file(REPO_ROOT / "build" / "p1")
+    assert key["baseline_sha256"] == records.sha256_file(REPO_ROOT / "build" / "seq")
+    assert key["input_sha256"] == cell.scene.input_sha256
+    assert store.cell_id(cell) == records.cell_id(key)
+    other = CellStore(store.plan, REPO_ROOT, store.results_root, "m2")
+    assert other.cell_id(cell) != store.cell_id(cell)
+    assert records.portable_id(other.cell_key(cell)) == records.portable_id(key)
+
+
+def test_a_missing_binary_leaves_the_cell_without_an_id(store: CellStore) -> None:
+    store.hashes[REPO_ROOT / "build" / "p1"] = None
+    assert store.cell_id(store.plan.cells[1]) is None
+    assert list(store.cells_by_id().values()) == [store.plan.cells[0]]
+
+
+def test_a_new_record_starts_with_the_cells_identity(store: CellStore) -> None:
+    cell = store.plan.cells[1]
+    cid = store.cell_id(cell)
+    record = store.new_record(cell, cid)
+    assert record["cell_id"] == cid and record["key"] == store.cell_key(cell)
+    assert record["version"] == records.RECORD_VERSION and record["runs"] == 0
+    assert (record["variant"], record["n"], record["threads"]) == ("p1", 10, 1)
+    assert record["validated"] and record["exact"] and record["identical"] is None
+    assert str(record["measured_at"]).endswith("+00:00")
+
+
+def test_cached_reads_its_own_record_but_not_a_retry_nor_when_forced(store: CellStore) -> None:
+    cell = store.plan.cells[0]
+    cid = store.cell_id(cell)
+    assert store.cached(cid) is None
+    store.save(cid, {**store.new_record(cell, cid), "status": "ok"})
+    assert store.cached(cid)["status"] == "ok"
+    store.save(cid, {**store.new_record(cell, cid), records.RETRY_KEY: True})
+    assert store.cached(cid) is None and store.read(cid) is not None
+    store.save(cid, store.new_record(cell, cid))
+    forced = CellStore(store.plan, REPO_ROOT, store.results_root, "m1", force=True)
+    assert forced.cached(cid) is None
+
+
+def test_files_live_where_the_layout_says(store: CellStore) -> None:
+    cell = store.plan.cells[0]
+    path = store.input_file(cell.scene)
+    assert path.parent == store.directory / "inputs" and path.read_text() == cell.scene.text
+    assert store.record_path("abc") == store.directory / "cells" / "abc.json"
+    assert store.hyperfine_path("abc") == store.directory / "cells" / "abc.hyperfine.json"
+    key = store.baseline_key(cell)
+    assert key == store.baseline_key(store.plan.cells[1])  # one baseline per input
+    assert store.baseline_file(key).parent == store.results_root / ".cache" / "baselines"

@@ -1,0 +1,462 @@
+"""The rendered report: sections follow the data, files are complete, bad input is named."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from harness import repo
+from harness.analysis import frame
+from harness.cli import main as cli_main
+from harness.errors import HarnessError
+from harness.report import pipeline
+
+from fixture_results import FIXTURE_RESULTS, results_with
+
+REPO_ROOT = repo.REPO_ROOT
+ALL_EXPERIMENTS = (
+    "strategies", "particles", "square", "radius", "threads", "relative", "grid", "trajectory",
+    "accuracy",
+)
+
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The whole fixture report, rendered once for the tests that only read it."""
+    out = tmp_path_factory.mktemp("report")
+    pipeline.render(FIXTURE_RESULTS, out)
+    return out
+
+
+def headings(markdown: str) -> list[str]:
+    return re.findall(r"^#+ (.*)$", markdown, flags=re.MULTILINE)
+
+
+def test_render_writes_markdown_html_and_figures(rendered: Path) -> None:
+    assert (rendered / "report.md").is_file()
+    assert (rendered / "report.html").is_file()
+    figures = sorted(p.name for p in (rendered / "figures").iterdir())
+    for name in ("particles-time-vs-n", "square-time-vs-l", "radius-time-vs-r",
+                 "threads-time-vs-threads", "threads-speedup", "threads-efficiency",
+                 "threads-karp-flatt", "accuracy-error-vs-time", "trajectory-trajectory"):
+        assert f"{name}.png" in figures and f"{name}.svg" in figures
+    assert "trajectory-trajectory-animation.gif" in figures
+    assert not [n for n in figures if n.endswith(".tmp")]
+
+
+def test_every_markdown_image_exists(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\((figures/[^)]+)\)", markdown)
+    assert links
+    for link in links:
+        assert (rendered / link).is_file(), link
+
+
+def test_sections_are_titled_from_the_experiments(rendered: Path) -> None:
+    titles = headings((rendered / "report.md").read_text(encoding="utf-8"))
+    expected = [
+        "Warnings", "Parallelisation strategies", "Particle count", "Square size",
+        "Particle radius", "Thread scaling", "Relative-velocity collision test", "Spatial grid",
+        "Trajectory of a nine-step run", "Accuracy against run time",
+    ]
+    assert [t for t in titles if t in expected] == expected
+    assert "Smoke" not in titles  # the -quick experiment is left out by default
+
+
+def test_header_names_machine_compiler_and_commit(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    for text in ("AMD EPYC 7763", "gcc (Ubuntu 13.2.0", "-ffp-contract=off", "hyperfine 1.18.0",
+                 "42fb7f7c0d1e", "OMP_PROC_BIND=close"):
+        assert text in markdown
+
+
+def test_warnings_list_the_flagged_cells(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    warnings = markdown.split("## Warnings", 1)[1].split("\n## ", 1)[0]
+    assert "invalid output" in warnings
+    assert "timeout" in warnings
+    assert "oversubscribed (128 threads > 16 cores)" in warnings
+    assert "unstable timing" in warnings
+
+
+def test_html_is_self_contained(rendered: Path) -> None:
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    sources = re.findall(r'<img src="([^"]+)"', page)
+    assert sources and all(s.startswith("data:image/") for s in sources)
+    assert "figures/" not in page.replace("figures/</", "")
+    assert "<table>" in page and "Thread scaling" in page
+
+
+def test_a_section_without_data_is_absent(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    pipeline.render(results_with(tmp_path, "particles"), out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    titles = headings(markdown)
+    assert "Particle count" in titles
+    assert "Time against particles N" in titles
+    for absent in ("Warnings", "Thread scaling", "Speedup, efficiency and serial fraction",
+                   "Error against run time", "Trajectories", "Time against threads p"):
+        assert absent not in titles
+    figures = {p.name for p in (out / "figures").iterdir() if not p.name.startswith(".")}
+    assert figures == {"particles-time-vs-n.png", "particles-time-vs-n.svg"}
+
+
+def test_a_thread_sweep_is_recognised_by_its_data_not_its_name(tmp_path: Path) -> None:
+    root = results_with(tmp_path)
+    shutil.copytree(FIXTURE_RESULTS / "threads", root / "scaling-study")
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    titles = headings((out / "report.md").read_text(encoding="utf-8"))
+    assert "Thread scaling" in titles
+    assert "Speedup, efficiency and serial fraction" in titles
+    assert (out / "figures" / "scaling-study-karp-flatt.png").is_file()
+
+
+def test_an_experiment_without_times_gets_its_table_but_no_figure(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "particles")
+    csv = root / "particles" / "results.csv"
+    lines = csv.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    blank = {header.index(c) for c in header if c.startswith("wall_")}
+    status = header.index("status")
+    rows = []
+    for line in lines[1:]:
+        values = line.split(",")
+        values = ["" if i in blank else v for i, v in enumerate(values)]
+        values[status] = "timeout"
+        rows.append(",".join(values))
+    csv.write_text("\n".join([lines[0], *rows]) + "\n", encoding="utf-8")
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "Measurements" in headings(markdown)
+    assert "Time against particles N" not in headings(markdown)
+    section = markdown.split("## Particle count", 1)[1]
+    assert section.count("| timeout |") == 8
+    assert not list((out / "figures").glob("*.png"))
+
+
+def test_quick_experiments_only_on_request(tmp_path: Path) -> None:
+    out = tmp_path / "quick"
+    pipeline.render(FIXTURE_RESULTS, out, include_quick=True, experiments=["strategies-quick"])
+    titles = headings((out / "report.md").read_text(encoding="utf-8"))
+    assert "Smoke" in titles
+    assert "Particle count" not in titles
+
+
+def test_stale_figures_are_removed(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    (out / "figures").mkdir(parents=True)
+    stale = out / "figures" / "old-section.png"
+    stale.write_bytes(b"old")
+    pipeline.render(results_with(tmp_path, "square"), out)
+    assert not stale.exists()
+    assert (out / "figures" / "square-time-vs-l.png").exists()
+
+
+def test_empty_results_give_a_short_report(tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    pipeline.render(results_with(tmp_path), out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "No results" in markdown
+    assert headings(markdown) == ["collide-bench report"]
+
+
+def test_results_path_is_shown_relative_to_the_repository(tmp_path: Path) -> None:
+    inside = pipeline.build_document([], repo.REPO_ROOT / "results")
+    outside = pipeline.build_document([], tmp_path / "results")
+    assert "`results`" in str(inside) and str(repo.REPO_ROOT) not in str(inside)
+    assert str(tmp_path / "results") in str(outside)
+
+
+def test_differing_environments_are_listed_per_experiment(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "square", "radius")
+    env_path = root / "radius" / "env.json"
+    env = json.loads(env_path.read_text())
+    env["git_commit"] = "0123456789abcdef"
+    env_path.write_text(json.dumps(env))
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "`0123456789abcdef` (radius)" in markdown
+    assert "(square)" in markdown
+
+
+def test_nested_environment_fields_are_understood(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "square")
+    env = {
+        "cpu_model": "AMD EPYC", "cores": 2, "hostname": "vm", "hyperfine": "hyperfine 1.15.0",
+        "compiler": {"cc_version": "cc (Debian 12.2.0) 12.2.0", "print_flags": "cc -O3 -fopenmp"},
+        "git": {"commit": "eb3d3173", "dirty": True}, "omp_env": {}, "date": "2026-01-01",
+    }
+    (root / "square" / "env.json").write_text(json.dumps(env))
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "compiler: `cc (Debian 12.2.0) 12.2.0`" in markdown
+    assert "flags: `cc -O3 -fopenmp`" in markdown
+    assert "git commit: `eb3d3173 (dirty)`" in markdown
+    assert "OpenMP environment: `(none set)`" in markdown
+
+
+# --- malformed input -----------------------------------------------------------------------
+
+
+def rewrite_csv(path: Path, transform: object) -> None:
+    lines = path.read_text(encoding="utf-8").splitlines()
+    path.write_text("\n".join(transform(lines)) + "\n", encoding="utf-8")  # type: ignore[operator]
+
+
+def drop_column(lines: list[str], column: str) -> list[str]:
+    header = lines[0].split(",")
+    index = header.index(column)
+    return [",".join(v for i, v in enumerate(line.split(",")) if i != index) for line in lines]
+
+
+def test_missing_column_names_the_file_and_column(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    rewrite_csv(csv, lambda lines: drop_column(lines, "wall_median_s"))
+    with pytest.raises(HarnessError, match=r"results\.csv: missing column\(s\): wall_median_s"):
+        pipeline.render(root, tmp_path / "report")
+    with pytest.raises(HarnessError) as info:
+        frame.read_results(csv)
+    assert str(csv) in str(info.value)
+
+
+def test_non_numeric_time_names_the_file_line_and_column(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    rewrite_csv(csv, lambda lines: [lines[0], lines[1], lines[2].replace(",0.625,", ",fast,", 1),
+                                    *lines[3:]])
+    with pytest.raises(HarnessError) as info:
+        pipeline.render(root, tmp_path / "report")
+    message = str(info.value)
+    assert str(csv) in message
+    assert "line 3" in message and "'wall_median_s'" in message and "'fast'" in message
+
+
+def test_unknown_status_and_untimed_ok_cells_are_errors(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    csv = root / "strategies" / "results.csv"
+    original = csv.read_text(encoding="utf-8")
+    csv.write_text(original.replace(",ok,", ",fine,", 1), encoding="utf-8")
+    with pytest.raises(HarnessError, match="status 'fine' is not one of"):
+        frame.read_results(csv)
+    rewrite_csv(csv, lambda lines: [lines[0], lines[1].replace(",fine,", ",ok,", 1)
+                                    .replace(",2.5,", ",,", 1), *lines[2:]])
+    with pytest.raises(HarnessError, match="line 2: status 'ok' but no wall_median_s"):
+        frame.read_results(csv)
+
+
+def test_malformed_trajectory_output_names_the_file(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "trajectory")
+    output = next((root / "trajectory" / "outputs").iterdir())
+    output.write_text("0 0 1.0 2.0 3.0\n", encoding="utf-8")
+    with pytest.raises(HarnessError, match=rf"{re.escape(str(output))}: not a print-mode output "
+                       r"\(SPEC section 3\): line 1: unexpected 5 fields"):
+        pipeline.render(root, tmp_path / "report")
+
+
+def test_main_prints_error_and_returns_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    root = results_with(tmp_path, "strategies")
+    rewrite_csv(root / "strategies" / "results.csv", lambda lines: drop_column(lines, "status"))
+    code = cli_main(["report", "--results-dir", str(root), "--out", str(tmp_path / "report")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "results.csv" in err and "status" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_main_on_a_missing_results_dir(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    code = cli_main(["report", "--results-dir", str(tmp_path / "nowhere"), "--out", str(tmp_path)])
+    assert code == 2
+    assert "results directory not found" in capsys.readouterr().err
+
+
+def test_main_renders(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    root = results_with(tmp_path, "radius")
+    assert cli_main(["report", "--results-dir", str(root), "--out", str(tmp_path / "r")]) == 0
+    assert "report.md" in capsys.readouterr().out
+
+
+# --- running as a script --------------------------------------------------------------------
+
+
+def test_script_reexecs_under_the_venv(tmp_path: Path) -> None:
+    """`python -S` has no site-packages, so no pandas: the script must re-exec under .venv."""
+    venv_python = REPO_ROOT / ".venv" / "bin" / "python"
+    if not venv_python.exists():
+        pytest.skip("no .venv to re-exec into")
+    root = results_with(tmp_path, "radius")
+    done = subprocess.run(
+        [sys.executable, "-S", "-m", "harness", "report", "--results-dir",
+         str(root), "--out", str(tmp_path / "r")],
+        capture_output=True, text=True, check=False, cwd=REPO_ROOT,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "r" / "report.md").is_file()
+
+
+def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
+    copy = tmp_path / "repo" / "harness"
+    copy.mkdir(parents=True)
+    for name in ("__init__.py", "__main__.py", "launch.py", "repo.py"):
+        shutil.copy(REPO_ROOT / "harness" / name, copy / name)
+    done = subprocess.run(
+        [sys.executable, "-S", "-m", "harness", "report"],
+        capture_output=True, text=True, check=False, cwd=tmp_path / "repo",
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip() == (
+        "error: missing Python packages (yaml, numpy, pandas, matplotlib, scipy, psutil, PIL); "
+        "run 'make setup'"
+    )
+
+
+# --- the summary, links and layout ----------------------------------------------------------
+
+
+def test_the_report_opens_with_a_summary_before_the_warnings(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    titles = headings(markdown)
+    assert titles[:3] == ["collide-bench report", "Summary", "Warnings"]
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    for start in ("- Best strategy: ", "- Grid against seq: ", "- Largest N measured: ",
+                  "- Fidelity: "):
+        assert start in summary
+    assert "1 INVALID of" in summary  # the fixtures have an invalid cell: the verdict says so
+    # The largest N of the fixtures is grid's, and the best strategy is not seq or grid.
+    assert "`grid`" in summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
+    best = summary.split("- Best strategy: ", 1)[1].split("\n", 1)[0]
+    assert not best.startswith(("`seq`", "`grid`"))
+
+
+def test_every_summary_link_lands_on_an_anchor(rendered: Path) -> None:
+    markdown = (rendered / "report.md").read_text(encoding="utf-8")
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    targets = re.findall(r"\]\(#([^)]+)\)", summary)
+    assert len(targets) >= 4
+    md_anchors = set(re.findall(r'<a id="([^"]+)"></a>', markdown))
+    html_ids = set(re.findall(r'id="([^"]+)"', page))
+    for target in targets:
+        assert target in md_anchors and target in html_ids, target
+        assert f'href="#{target}"' in page
+
+
+def test_wide_tables_scroll_inside_their_own_box(rendered: Path) -> None:
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    assert page.count("<table>") == page.count('<div class="table-wrap"><table>')
+    assert re.search(r"\.table-wrap \{[^}]*overflow-x: auto", page)
+
+
+# --- the shared contract's columns, when a results.csv has them ----------------------------
+
+
+def add_columns(csv_path: Path, values: object) -> None:
+    """Append columns to every row: `values(row) -> dict` (rows as csv.DictReader gives)."""
+    import csv
+
+    with csv_path.open(newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    extra = [{**row, **values(row)} for row in rows]  # type: ignore[operator]
+    with csv_path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(extra[0]))
+        writer.writeheader()
+        writer.writerows(extra)
+
+
+def run_times(row: dict[str, str]) -> str:
+    """Three run times around the row's median: median, 2% below, 3% above."""
+    median = float(row["wall_median_s"]) if row["wall_median_s"] else 0.0
+    return " ".join(repr(t) for t in (median * 0.98, median, median * 1.03)) if median else ""
+
+
+def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "strategies")
+    add_columns(root / "strategies" / "results.csv", lambda row: {
+        "machine_id": "0123456789abcdef", "machine": "AMD EPYC 7B13 (Zen3) x2",
+        "wall_times_s": run_times(row), "git_commit": "abcdef0123456789",
+        "outliers": "True" if row["variant"] == "p2" else "False", "loaded": "False",
+        "stale": "False"})
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    assert "machine = AMD EPYC 7B13 (Zen3) x2" in markdown
+    table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
+    assert "| machine |" not in table
+    assert re.search(r"\| p1 \|.*\| \d\.\d\d \[\d\.\d\d, \d\.\d\d\] \|", table)
+    assert "Measured at commit `abcdef0123`." in markdown
+    assert "ok · outliers" in table
+    assert "1 outliers" in markdown.split("## Warnings", 1)[1]
+    best = markdown.split("- Best strategy: ", 1)[1].split("\n", 1)[0]
+    assert re.search(r"\d\.\d\d× \[\d\.\d\d, \d\.\d\d\] faster than seq", best)
+
+
+def doubled(root: Path, name: str) -> tuple[Path, Callable[[dict[str, str]], int]]:
+    """results/<name>/results.csv with every row twice, and a function telling, row by row as
+    add_columns reads them, which copy (1 or 2) a row is: two machines' cells of one config."""
+    csv_path = root / name / "results.csv"
+    lines = csv_path.read_text(encoding="utf-8").splitlines()
+    csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
+    seen: dict[str, int] = {}
+
+    def copy(row: dict[str, str]) -> int:
+        seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
+        return seen[row["cell_id"]]
+
+    return csv_path, copy
+
+
+def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) -> None:
+    root = results_with(tmp_path, "threads")
+    csv_path, copy = doubled(root, "threads")
+
+    def machine(row: dict[str, str]) -> dict[str, str]:
+        first = copy(row) == 1
+        return {"machine_id": ("aa" if first else "bb") * 8, "machine": "AMD EPYC",
+                "git_commit": "c0ffee" if first else "decade"}
+
+    add_columns(csv_path, machine)
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
+    # One label, two machine ids: the label is told apart by the id's start.
+    assert "| machine |" in table
+    assert "AMD EPYC (aaaaaaaa)" in table and "AMD EPYC (bbbbbbbb)" in table
+    assert "Measured at commits `c0ffee` (16 cells), `decade` (16 cells)." in markdown
+
+
+def test_the_summary_speaks_of_the_latest_machine(tmp_path: Path) -> None:
+    """Two machines' cells side by side: the headlines come from the machine that measured
+    last (env.json's machine_id), not from whichever machine was slower or faster."""
+    root = results_with(tmp_path, "grid")
+    csv_path, copy = doubled(root, "grid")
+
+    def machine(row: dict[str, str]) -> dict[str, str]:
+        old = copy(row) == 2
+        slower = {k: str(3 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
+                                                      "wall_min_s", "wall_max_s") if row[k]}
+        return {"machine_id": ("0d" if old else "1a") * 8,
+                "machine": "Old box x2" if old else "New box x2", **(slower if old else {})}
+
+    add_columns(csv_path, machine)
+    env_path = root / "grid" / "env.json"
+    env = json.loads(env_path.read_text(encoding="utf-8"))
+    env_path.write_text(json.dumps({**env, "machine_id": "1a" * 8}), encoding="utf-8")
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
+    largest = summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
+    assert "New box x2" in largest and "Old box x2" not in largest, largest
+    assert "Old box x2" not in summary.split("- Grid against seq: ", 1)[1].split("\n", 1)[0]

@@ -1,0 +1,207 @@
+"""Cell ids, hyperfine and --timing parsing, records and results.csv."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import pytest
+from harness.analysis import phases
+from harness.measure import hyperfine as mhyperfine
+from harness.measure import timing
+from harness.store import atomic, columns, csvfile, records
+from harness.store import hyperfine as hf
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
+KEY = {
+    "variant": "p1d", "build": "f64", "binary_sha256": "ab" * 32, "input_sha256": "cd" * 32,
+    "seed": 1, "threads": 2, "warmup": 1, "runs": 3, "timeout_s": 600.0, "validate": True,
+    "exact": True, "baseline_sha256": "ef" * 32, "keep_output": False,
+}
+
+
+def test_cell_id_is_stable() -> None:
+    assert records.cell_id(KEY) == records.cell_id(dict(reversed(list(KEY.items()))))
+    assert len(records.cell_id(KEY)) == records.CELL_ID_CHARS
+
+
+@pytest.mark.parametrize("field", sorted(KEY))
+def test_changing_any_input_changes_the_cell_id(field: str) -> None:
+    value = KEY[field]
+    if isinstance(value, bool):
+        changed = not value
+    elif isinstance(value, int | float):
+        changed = value + 1
+    else:
+        changed = str(value) + "x"
+    assert records.cell_id({**KEY, field: changed}) != records.cell_id(KEY)
+
+
+def test_sha256_file(tmp_path: Path) -> None:
+    path = tmp_path / "f"
+    path.write_bytes(b"abc")
+    assert records.sha256_file(path) == (
+        "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad")
+
+
+def test_parse_hyperfine_fixture() -> None:
+    stats = hf.load_hyperfine(FIXTURES / "hyperfine_seq.json")
+    assert stats.command.startswith("build/seq")
+    assert stats.runs == 3 and len(stats.exit_codes) == 3
+    assert stats.min <= stats.median <= stats.max
+    assert stats.stddev is not None and stats.stddev > 0
+    assert stats.mean == pytest.approx(sum(stats.times) / 3)
+    assert not stats.unstable
+
+
+def test_parse_hyperfine_single_run_has_no_stddev() -> None:
+    stats = hf.load_hyperfine(FIXTURES / "hyperfine_single.json")
+    assert stats.runs == 1 and stats.stddev is None and not stats.unstable
+
+
+def test_unstable_threshold() -> None:
+    data = json.loads((FIXTURES / "hyperfine_seq.json").read_text())
+    data["results"][0]["mean"] = 1.0
+    data["results"][0]["stddev"] = 0.1
+    assert hf.parse_hyperfine(data).unstable
+    data["results"][0]["stddev"] = 0.0999
+    assert not hf.parse_hyperfine(data).unstable
+
+
+@pytest.mark.parametrize("data", [{}, {"results": []}, {"results": [{"mean": 1}]}])
+def test_bad_hyperfine_documents(data: dict[str, object]) -> None:
+    with pytest.raises(hf.ResultFormatError):
+        hf.parse_hyperfine(data)
+
+
+def test_hyperfine_failures() -> None:
+    assert mhyperfine.hyperfine_failure(
+        "Error: Command terminated with non-zero exit code: 3. Use the '-i'") == ("failed", 3)
+    assert mhyperfine.hyperfine_failure(
+        "Error: The process has been terminated by a signal.") == ("crashed", None)
+    assert mhyperfine.hyperfine_failure("Error: something else") == ("failed", None)
+
+
+def test_parse_timing_takes_the_json_line() -> None:
+    stderr = 'warning: x\n{"variant": "seq", "sim_s": 0.5, "pair_tests": 10}\n'
+    assert timing.parse_timing(stderr) == {"variant": "seq", "sim_s": 0.5, "pair_tests": 10}
+    assert timing.parse_timing("seq: input: line 1: bad\n") is None
+    assert timing.parse_timing("{not json\n") is None
+
+
+def test_csv_columns_contract() -> None:
+    text = csvfile.render_csv([])
+    header = next(csv.reader(io.StringIO(text)))
+    assert tuple(header[:len(columns.CSV_COLUMNS)]) == (
+        "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode",
+        "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s",
+        "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status",
+        "exit_code", "identical", "max_pos_err", "max_vel_err", "count_mismatches",
+        "oversubscribed", "unstable", "cores", "cell_id", "binary_sha256")
+
+
+def test_csv_rows_format_values() -> None:
+    record = {"variant": "seq", "n": 10, "L": 2000.0, "identical": None, "unstable": False,
+              "max_pos_err": float("inf"), "status": "ok"}
+    row = csvfile.csv_row(record, "exp", "A title, with a comma")
+    parsed = list(csv.DictReader(io.StringIO(csvfile.render_csv([row]))))
+    assert parsed[0]["experiment"] == "exp" and parsed[0]["title"] == "A title, with a comma"
+    assert parsed[0]["L"] == "2000.0" and parsed[0]["identical"] == ""
+    assert parsed[0]["unstable"] == "False" and parsed[0]["max_pos_err"] == "inf"
+
+
+def test_atomic_write_leaves_no_temporary_files(tmp_path: Path) -> None:
+    target = tmp_path / "sub" / "x.json"
+    atomic.atomic_write_json(target, {"a": 1})
+    atomic.atomic_write_json(target, {"a": 2})
+    assert json.loads(target.read_text()) == {"a": 2}
+    assert [p.name for p in target.parent.iterdir()] == ["x.json"]
+
+
+def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
+    path = tmp_path / "c.json"
+    atomic.atomic_write_json(path, {"version": records.RECORD_VERSION, "cell_id": "abc"})
+    assert records.read_record(path, "abc") is not None
+    assert records.read_record(path, "abd") is None
+    atomic.atomic_write_json(path, {"version": -1, "cell_id": "abc"})
+    assert records.read_record(path, "abc") is None
+    path.write_text("{truncated")
+    assert records.read_record(path, "abc") is None
+    assert records.read_record(tmp_path / "none.json", "abc") is None
+
+
+# hyperfine 1.15 with `-N --style none`, on stderr, when a run is far from the others
+OUTLIER_STDERR = (" \n  Warning: Statistical outliers were detected. Consider re-running this "
+                  "benchmark on a quiet PC without any interferences from other programs. It "
+                  "might help to use the '--warmup' or '--prepare' options.\n")
+
+
+def test_hyperfine_warnings_are_kept_and_flag_outliers() -> None:
+    warnings = mhyperfine.hyperfine_warnings(OUTLIER_STDERR)
+    assert len(warnings) == 1 and warnings[0].startswith("Warning: Statistical outliers")
+    assert mhyperfine.hyperfine_warnings("") == []
+    assert csvfile.provenance({"hyperfine_warnings": warnings})["outliers"] is True
+    assert csvfile.provenance({"hyperfine_warnings": []})["outliers"] is False
+    assert csvfile.provenance({})["outliers"] is None  # an older record cannot tell
+
+
+def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
+    measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
+                **csvfile.uncertainty([1.0, 1.2, 1.1]), "loaded": False,
+                "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
+    values = csvfile.provenance(measured)
+    assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == "1.0 1.2 1.1"
+    assert values["wall_median_ci_low_s"] <= 1.1 <= values["wall_median_ci_high_s"]
+    assert values["git_commit"].endswith("-dirty") and values["loaded"] is False
+    older = csvfile.provenance({}, FIXTURES / "hyperfine_seq.json")
+    times = hf.load_hyperfine(FIXTURES / "hyperfine_seq.json").times
+    assert older["wall_times_s"] == " ".join(repr(t) for t in times)
+    assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
+    assert tuple(csvfile.render_csv([older]).splitlines()[0].split(",")[
+        -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
+
+
+# --- per-thread work ------------------------------------------------------------------------
+
+
+def test_thread_work_from_timing() -> None:
+    fields = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
+                                  "threads_chunks": [5, 5]})
+    assert fields["threads_busy_s"] == "0.3 0.1"
+    assert fields["threads_pairs"] == "30 10"
+    assert fields["threads_chunks"] == "5 5"
+    assert fields["imbalance"] == pytest.approx(0.3 / 0.2)
+
+
+def test_thread_work_of_an_older_binary_is_empty() -> None:
+    fields = timing.thread_work({"sim_s": 1.0})
+    assert set(fields) == {*columns.THREAD_TIMING_KEYS, "imbalance"}
+    assert all(v is None for v in fields.values())
+
+
+@pytest.mark.parametrize(("busy", "expected"), [
+    ([1.0, 1.0, 1.0], 1.0), ([2.0, 0.0], 2.0), ([0.0, 0.0], None), ([], None),
+    ([1.0, float("nan")], None),
+])
+def test_imbalance(busy: list[float], expected: float | None) -> None:
+    assert timing.imbalance(busy) == (None if expected is None else pytest.approx(expected))
+
+
+def test_thread_columns_are_in_results_csv() -> None:
+    record = {"variant": "p1", "schedule": "static,1", "imbalance": 1.25,
+              "threads_busy_s": "0.5 0.3", "threads_pairs": "3 1", "threads_chunks": "1 1"}
+    text = csvfile.render_csv([csvfile.csv_row(record, "e", "t")])
+    row = next(csv.DictReader(io.StringIO(text)))
+    assert row["schedule"] == "static,1" and row["imbalance"] == "1.25"
+    assert row["threads_busy_s"] == "0.5 0.3" and row["threads_chunks"] == "1 1"
+    assert records.split_floats(row["threads_pairs"]) == [3.0, 1.0]
+    assert records.split_floats("") == [] and records.split_floats("a b") == []
+
+
+def test_outside_broad_ns_counts_input_and_output_only_when_given() -> None:
+    # 0.2 s of simulation of which 0.1 s broad phase, over a million particle-steps: 100 ns;
+    # the benchmark's figure adds input and output.
+    assert phases.outside_broad_ns(0.2, 0.1, 1_000_000) == pytest.approx(100.0)
+    assert phases.outside_broad_ns(0.2, 0.1, 1_000_000, 0.01, 0.02) == pytest.approx(130.0)

@@ -1,0 +1,130 @@
+"""The result store: groups, superseded records, history, results.csv rows, prune."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from pathlib import Path
+
+import pytest
+from harness.cli import main as cli_main
+from harness.store import atomic, index, records
+from harness.store import history as store_history
+from harness.store.layout import ExperimentDir
+
+KEY = {"variant": "p1", "build": "f64", "binary_sha256": "a" * 64, "input_sha256": "c" * 64,
+       "seed": 1, "threads": 2, "warmup": 0, "runs": 3, "timeout_s": 60.0, "validate": False,
+       "exact": True, "baseline_sha256": None, "keep_output": False, "machine_id": "m1"}
+
+
+def put(directory: Path, when: str, times: list[float] | None = None,
+        **changes: object) -> str:
+    """A record (and its hyperfine JSON) in directory/cells/, measured at `when`."""
+    key = {k: v for k, v in {**KEY, **changes}.items() if v is not store_history.UNKNOWN_MACHINE}
+    cid = records.cell_id(key)
+    times = times if times is not None else [1.0, 1.1, 1.2]
+    record = {"version": records.RECORD_VERSION, "cell_id": cid, "key": key,
+              "variant": key["variant"], "threads": key["threads"], "status": "ok",
+              "binary_sha256": key["binary_sha256"], "measured_at": when,
+              "machine_id": key.get("machine_id"), "wall_median_s": sorted(times)[1]}
+    cells = directory / "cells"
+    atomic.atomic_write_json(cells / f"{cid}.json", record)
+    hyperfine = {"results": [{"command": "x", "mean": sum(times) / 3, "stddev": 0.1,
+                              "median": sorted(times)[1], "min": min(times),
+                              "max": max(times), "user": 0.0, "system": 0.0,
+                              "times": times, "exit_codes": [0, 0, 0]}]}
+    (cells / f"{cid}.hyperfine.json").write_text(json.dumps(hyperfine))
+    return cid
+
+
+def test_group_ignores_binaries_and_machine_only() -> None:
+    group = store_history.group_of(KEY)
+    assert store_history.group_of({**KEY, "binary_sha256": "b" * 64, "machine_id": "m2",
+                           "baseline_sha256": "d" * 64}) == group
+    for key, value in (("threads", 4), ("runs", 5), ("input_sha256", "e" * 64)):
+        assert store_history.group_of({**KEY, key: value}) != group
+    checks = {"names": ["invariants"], "reference_sha256": {"seq": "1"}}
+    assert store_history.group_of({**KEY, "checks": checks}) == store_history.group_of(
+        {**KEY, "checks": {**checks, "reference_sha256": {"seq": "2"}}})
+
+
+def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> None:
+    old = put(tmp_path, "2026-01-01T00:00:00+00:00", binary_sha256="0" * 64)
+    new = put(tmp_path, "2026-01-02T00:00:00+00:00")
+    other_machine = put(tmp_path, "2025-01-01T00:00:00+00:00", machine_id="m2")
+    legacy = put(tmp_path, "2025-06-01T00:00:00+00:00", binary_sha256="9" * 64,
+                 machine_id=store_history.UNKNOWN_MACHINE)
+    other_cell = put(tmp_path, "2020-01-01T00:00:00+00:00", threads=4, binary_sha256="1" * 64)
+    done = store_history.prune(tmp_path)
+    assert (done.moved, done.remaining) == (2, 3)
+    left = {s.cell_id for s in store_history.load_records(tmp_path / "cells")}
+    assert left == {new, other_machine, other_cell}
+    assert (tmp_path / "history" / f"{old}.hyperfine.json").is_file()
+    assert not (tmp_path / "cells" / f"{old}.hyperfine.json").exists()
+    history = store_history.load_history(tmp_path)
+    assert [r["cell_id"] for r in history] == [legacy, old]  # oldest first
+    assert history[0]["wall_times_s"] == "1.0 1.1 1.2"
+    assert history[0]["wall_median_ci_low_s"] <= 1.1 <= history[0]["wall_median_ci_high_s"]
+    assert store_history.prune(tmp_path).moved == 0
+
+
+def planned(**changes: object) -> index.PlannedCell:
+    key = {**KEY, **changes}
+    return index.PlannedCell(key, records.cell_id(key))
+
+
+def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:
+    stale_old = put(tmp_path, "2026-01-01T00:00:00+00:00", binary_sha256="0" * 64, threads=1)
+    current = put(tmp_path, "2026-01-01T00:00:00+00:00")
+    other = put(tmp_path, "2026-01-03T00:00:00+00:00", machine_id="m2",
+                binary_sha256="5" * 64)
+    cells = [planned(threads=1), planned(), planned(threads=8)]  # threads=8: never measured
+    rows = index.current_rows(store_history.load_records(tmp_path / "cells"), cells, "m1",
+                              ExperimentDir(tmp_path))
+    got = [(r.record["cell_id"], r.stale) for r in rows]
+    assert got == [(stale_old, True), (current, False), (other, None)]
+
+
+def test_rebuilt_csv_has_provenance_columns(tmp_path: Path) -> None:
+    cid = put(tmp_path, "2026-01-01T00:00:00+00:00", times=[2.0, 1.0, 3.0])
+    index.rebuild_csv(tmp_path, [planned()], "m1", "exp", "Exp")
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "results.csv").read_text())))
+    assert len(rows) == 1 and rows[0]["cell_id"] == cid
+    row = rows[0]
+    assert row["wall_times_s"] == "2.0 1.0 3.0" and row["stale"] == "False"
+    assert row["machine_id"] == "m1" and row["measured_at"].startswith("2026-01-01")
+    assert 1.0 <= float(row["wall_median_ci_low_s"]) <= 2.0 <= float(
+        row["wall_median_ci_high_s"]) <= 3.0
+    assert row["outliers"] == "" and row["loaded"] == ""  # an older record cannot tell
+
+
+def test_prune_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    put(tmp_path / "a", "2026-01-01T00:00:00+00:00", binary_sha256="0" * 64)
+    put(tmp_path / "a", "2026-01-02T00:00:00+00:00")
+    assert cli_main(["store", "prune", str(tmp_path)]) == 0
+    assert "1 superseded record(s) moved to history/, 1 remain" in capsys.readouterr().out
+    assert cli_main(["store", "prune", str(tmp_path / "nothing")]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_env_is_kept_per_machine(tmp_path: Path) -> None:
+    index.write_env(tmp_path, {"machine_id": "m1", "x": 1})
+    index.write_env(tmp_path, {"machine_id": "m2", "x": 2})
+    assert json.loads((tmp_path / "env.json").read_text())["x"] == 2
+    assert sorted(os.listdir(tmp_path / "machines")) == ["m1.json", "m2.json"]
+
+
+def test_records_read_again_only_when_their_file_was_replaced(tmp_path: Path) -> None:
+    cid = put(tmp_path, "2026-11-23T10:00:00+00:00")
+    cells = tmp_path / "cells"
+    first = store_history.load_records(cells)
+    assert [s.record["status"] for s in first] == ["ok"]
+    assert store_history.load_records(cells)[0] is first[0]  # unchanged file: not parsed again
+    record = json.loads((cells / f"{cid}.json").read_text())
+    atomic.atomic_write_json(cells / f"{cid}.json", {**record, "status": "invalid"})
+    again = store_history.load_records(cells)
+    assert [s.record["status"] for s in again] == ["invalid"]  # a replaced record is re-read
+    (cells / f"{cid}.json").unlink()
+    assert store_history.load_records(cells) == []
