@@ -5,12 +5,23 @@ OLD and NEW are result directories: one experiment's `results/<name>` or a whole
 (every experiment under it). Cells are matched on what was measured (variant, build, scene and
 its parameters, threads, schedule), never on the machine or the binary, because comparing two
 machines or two commits is the point. For every matched cell: both medians, the ratio NEW/OLD
-with its 95% bootstrap interval (harness.stats.ratio_ci), the Mann-Whitney p-value, and a
-verdict.
+with its 95% interval, the p-value that it changed by more than the threshold, and a verdict.
+
+How a cell is judged depends on how its two sides were measured:
+- together (`compare --measure`: both sides in the same rounds, one right after the other,
+  with the same round seed): per round, the ratio of the two sides' runs, which the machine's
+  drift cannot move; a paired t-test on their logs (stats.paired_change);
+- apart (two stored result sets, measured minutes or days apart): the ratio of the medians,
+  its bootstrap interval widened by the machine's drift between runs measured apart (from its
+  calibration, `compare --calibrate`, kept in <results>/calibration/machines/<id>.json, or an
+  assumed value the output names; stats.drift_change).
+Across the cells of a comparison the false-discovery rate is held at FDR_Q
+(Benjamini-Hochberg): a cell is called slower or faster only as one of the discoveries.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import statistics
@@ -23,7 +34,7 @@ import pandas as pd
 from harness import stats
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
-from harness.store import hyperfine, layout
+from harness.store import hyperfine, layout, records
 from harness.store.columns import OK
 from harness.store.layout import ExperimentDir
 
@@ -31,7 +42,16 @@ EXIT_OK = 0
 EXIT_SLOWER = 1
 EXIT_USAGE = 2
 
-DEFAULT_THRESHOLD = 0.05  # a relative change below 5% is never called significant
+DEFAULT_THRESHOLD = 0.01  # a change within 1% is never called slower or faster
+FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
+# The drift assumed between runs measured apart on a machine without a calibration: the
+# standard deviation of the log ratio of identical binaries measured minutes apart on the
+# development VM (docs/compare.md says how it was measured).
+ASSUMED_DRIFT = 0.04
+CALIBRATION_DIR = "calibration"  # <results>/calibration/machines/<machine_id>.json
+CALIBRATION_KEY = "calibration"
+PAIRED = "measured together"  # the method of a cell's verdict
+APART = "measured apart"
 
 # Verdicts of a compared cell, and the kinds of row that are listed but not compared.
 FASTER = "faster"
@@ -137,6 +157,17 @@ class Cell:
     input_sha256: str
     flags: tuple[str, ...] = ()  # the FLAG_COLUMNS that are True
     stale: bool = False  # the binary changed since this cell was measured (results.csv)
+    rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
+    round_seed: str = ""  # the seed of the rounds it was measured in
+
+    def by_round(self) -> dict[int, float]:
+        """The median of its runs in each round (empty without rounds)."""
+        if len(self.rounds) != len(self.times):
+            return {}
+        grouped: dict[int, list[float]] = {}
+        for round_index, seconds in zip(self.rounds, self.times, strict=True):
+            grouped.setdefault(round_index, []).append(seconds)
+        return {k: statistics.median(v) for k, v in grouped.items()}
 
     @property
     def machine_text(self) -> str:
@@ -181,6 +212,11 @@ def _flag(row: pd.Series, column: str) -> bool:
     return value is not None and not pd.isna(value) and bool(value)
 
 
+def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
+    rounds = tuple(int(r) for r in records.split_floats(_text(row, "wall_times_round")))
+    return rounds if len(rounds) == runs else ()
+
+
 def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
     """The rows of one experiment's results.csv as cells.
 
@@ -218,7 +254,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
             flags=tuple(f for f in FLAG_COLUMNS if _flag(row, f)),
-            stale=_flag(row, "stale")))
+            stale=_flag(row, "stale"), rounds=_rounds(row, len(times)),
+            round_seed=_text(row, "round_seed").removesuffix(".0")))
     return cells
 
 
@@ -288,19 +325,37 @@ def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: 
 # --- comparing ----------------------------------------------------------------------------
 
 
-def verdict(ratio: float, low: float, high: float, threshold: float) -> str:
-    """faster / slower / no significant change for a NEW/OLD ratio and its interval.
+@dataclass(frozen=True)
+class Drift:
+    """A machine's drift between runs measured apart, and where the value comes from."""
 
-    Significant only when the interval excludes 1 and the ratio is beyond the threshold: above
-    1 + t for slower, below 1 / (1 + t) for faster (symmetric on a log scale, so a change and
-    its undoing get the same verdict with the sides swapped)."""
-    if not all(math.isfinite(v) for v in (ratio, low, high)):
-        return SAME
-    if low > 1.0 and ratio > 1.0 + threshold:
-        return SLOWER
-    if high < 1.0 and ratio < 1.0 / (1.0 + threshold):
-        return FASTER
-    return SAME
+    sigma: float
+    source: str
+
+
+def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
+    """The drift of the machines of a comparison: the largest of their newest calibrations
+    (<root>/calibration/machines/<id>.json) under the given results roots; ASSUMED_DRIFT for a
+    machine without one."""
+    found: list[Drift] = []
+    for machine_id in sorted(set(machine_ids)):
+        calibrations = []
+        for root in dict.fromkeys(roots):
+            path = root / CALIBRATION_DIR / layout.MACHINES / f"{machine_id}{layout.RECORD_SUFFIX}"
+            data = records.read_json(path)
+            entry = data.get(CALIBRATION_KEY) if isinstance(data, dict) else None
+            if isinstance(entry, dict) and isinstance(entry.get("drift"), int | float):
+                calibrations.append(entry)
+        if calibrations:
+            newest = max(calibrations, key=lambda e: str(e.get("date", "")))
+            found.append(Drift(float(newest["drift"]), f"calibrated on machine {machine_id} "
+                               f"({newest.get('date', '?')}, {newest.get('config', '?')})"))
+        else:
+            found.append(Drift(ASSUMED_DRIFT, f"assumed: no calibration of machine "
+                               f"{machine_id or 'unknown'} (run compare --calibrate)"))
+    if not found:
+        return Drift(ASSUMED_DRIFT, "assumed: the machine is not recorded")
+    return max(found, key=lambda d: d.sigma)
 
 
 @dataclass(frozen=True)
@@ -314,15 +369,29 @@ class Row:
     ratio: float = math.nan
     low: float = math.nan
     high: float = math.nan
-    p_value: float = math.nan
+    p_value: float = math.nan  # two-sided, before the false-discovery control
     note: str = ""
+    method: str = ""  # PAIRED or APART
+    slower_first: bool = False  # the smaller one-sided p-value is that of a slow-down
 
     @property
     def compared(self) -> bool:
         return self.kind in VERDICTS
 
 
-def compare_cells(old: Cell, new: Cell, threshold: float, note: str = "") -> Row:
+def paired_rounds(old: Cell, new: Cell) -> tuple[list[float], list[float]] | None:
+    """The two sides' round medians, round by round, where they were measured together."""
+    if not old.round_seed or old.round_seed != new.round_seed:
+        return None
+    a, b = old.by_round(), new.by_round()
+    common = sorted(a.keys() & b.keys())
+    return ([a[k] for k in common], [b[k] for k in common]) if len(common) >= 2 else None
+
+
+def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
+                  note: str = "") -> Row:
+    """One matched cell, tested; its verdict waits for the false-discovery control
+    (compare)."""
     notes = [note] if note else []
     notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in (("OLD", old), ("NEW", new))
               if cell.flags]
@@ -330,22 +399,25 @@ def compare_cells(old: Cell, new: Cell, threshold: float, note: str = "") -> Row
               in (("OLD", old), ("NEW", new)) if cell.stale]
     if old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256:
         notes.append("the input files differ")
-    if old.times and new.times:
-        interval = stats.ratio_ci(new.times, old.times)
-        ratio, low, high = interval.point, interval.low, interval.high
-        p_value = stats.rank_test(old.times, new.times)
+    paired = paired_rounds(old, new)
+    if paired is not None:
+        change, method = stats.paired_change(*paired, threshold), PAIRED
+    elif min(len(old.times), len(new.times)) >= 2:
+        change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
     else:
         ratio = new.median / old.median if old.median > 0 else math.nan
-        low = high = p_value = math.nan
-        notes.append("no per-run times: no interval")
-    if min(len(old.times), len(new.times)) == 1:
-        notes.append("one run: no interval")
-    kind = verdict(ratio, low, high, threshold)
-    return Row(old.key, kind, old, new, ratio, low, high, p_value, "; ".join(notes))
+        change, method = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan,
+                                      math.nan), APART
+        notes.append("fewer than two runs a side: no interval, no verdict")
+    interval = change.ratio
+    return Row(old.key, SAME, old, new, interval.point, interval.low, interval.high,
+               change.p_value, "; ".join(notes), method,
+               change.p_slower < change.p_faster)
 
 
-def compare(old: Side, new: Side, threshold: float) -> list[Row]:
-    """Every key of either side, in order: compared, not compared, or one side only."""
+def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
+    """Every key of either side, in order: compared, not compared, or one side only. The
+    compared cells are slower or faster only as discoveries at FDR_Q."""
     rows = []
     for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
         a, b = old.cells.get(key), new.cells.get(key)
@@ -357,8 +429,34 @@ def compare(old: Side, new: Side, threshold: float) -> list[Row]:
         elif a.status != OK or b.status != OK:
             rows.append(Row(key, NOT_OK, a, b, note=note))
         else:
-            rows.append(compare_cells(a, b, threshold, note))
+            rows.append(compare_cells(a, b, threshold, drift, note))
+    tested = [k for k, row in enumerate(rows) if row.compared]
+    found = stats.discoveries([rows[k].p_value for k in tested], FDR_Q)
+    for k, discovery in zip(tested, found, strict=True):
+        if discovery:
+            rows[k] = dataclasses.replace(rows[k],
+                                          kind=SLOWER if rows[k].slower_first else FASTER)
     return rows
+
+
+def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
+    """How the verdicts were reached, in words, for the output's head."""
+    used = {r.method for r in rows if r.compared}
+    lines = [f"A cell is slower or faster when its change beyond the threshold ({threshold:.0%}: "
+             f"NEW/OLD above {1 + threshold:.3f} or below {1 / (1 + threshold):.3f}) is a "
+             f"discovery with the false-discovery rate across the {sum(r.compared for r in rows)}"
+             f" compared cells held at {FDR_Q:g} (Benjamini-Hochberg)."]
+    if PAIRED in used:
+        lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the geometric mean "
+                     "of the per-round ratios, which the machine's drift between rounds cannot "
+                     "move; 95% interval and p-value from a t-test on their logs, clipped to 3 "
+                     "MADs of their median (a stray slow run weighs as a large ordinary one).")
+    if APART in used:
+        lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
+                     "bootstrap interval is widened by the machine's drift between runs "
+                     f"measured apart, {drift.sigma:.1%} ({drift.source}); p-value from a "
+                     "normal test against it.")
+    return lines
 
 
 def exit_status(rows: Iterable[Row]) -> int:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from harness.plan.binaries import baseline_path, binary_path, check_references
 from harness.plan.cells import Cell, Plan
+from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
 from harness.store import atomic, csvfile, index, records
@@ -38,6 +39,11 @@ class CellStore:
     machine_id: str  # part of every cell key: a cached cell is reused only where measured
     force: bool = False  # cached() finds nothing: every cell is measured again
     hashes: dict[Path, str | None] = field(default_factory=dict)
+    build_dir: Path | None = None  # where the binaries are; None: the repository's build/
+
+    @property
+    def binaries(self) -> Path:
+        return self.build_dir if self.build_dir is not None else self.repo_root / BUILD_DIR
 
     @property
     def config(self) -> Config:
@@ -62,10 +68,10 @@ class CellStore:
     # --- ids ---
 
     def binary(self, cell: Cell) -> Path:
-        return binary_path(self.config, self.repo_root, cell.variant, cell.build)
+        return binary_path(self.config, self.binaries, cell.variant, cell.build)
 
     def baseline_binary(self, cell: Cell) -> Path:
-        return baseline_path(self.config, self.repo_root, cell.build)
+        return baseline_path(self.config, self.binaries, cell.build)
 
     def sha(self, path: Path) -> str | None:
         if path not in self.hashes:
@@ -78,7 +84,7 @@ class CellStore:
         return self.sha(self.baseline_binary(cell))
 
     def check_references(self, cell: Cell) -> dict[str, Path]:
-        return check_references(self.config, self.repo_root, cell.build)
+        return check_references(self.config, self.binaries, cell.build)
 
     def cell_key(self, cell: Cell) -> dict[str, object] | None:
         """Everything a measurement depends on; None while a binary is missing."""
@@ -101,8 +107,8 @@ class CellStore:
         return {**extra, records.MACHINE_KEY: self.machine_id,
                 "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
                 "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
-                "threads": cell.threads, "warmup": measure.warmup, "runs": measure.runs,
-                "timeout_s": measure.timeout_s, "validate": cell.validate, "exact": cell.exact,
+                "threads": cell.threads, **measure.key(), "validate": cell.validate,
+                "exact": cell.exact,
                 "baseline_sha256": baseline_sha, "keep_output": self.config.keep_output}
 
     def cell_id(self, cell: Cell) -> str | None:

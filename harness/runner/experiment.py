@@ -21,6 +21,7 @@ from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
+from harness.repo import BUILD_DIR
 from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
@@ -42,7 +43,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     """Build, then measure every cell not already measured; or, with dry_run, list them."""
     plan = plan_cells(config, options.quick, registry or VariantRegistry(options.repo_root))
     experiment = Experiment(plan, options, log)
-    binaries = needed_binaries(plan, options.repo_root)
+    binaries = needed_binaries(plan, options.repo_root / BUILD_DIR)
     if options.dry_run:
         return dry_run(experiment, binaries, out)
     executor = make_executor(options.executor or config.executor.kind)

@@ -22,6 +22,7 @@ file, the key and what was expected) and harness.spec.points expands its grid.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -38,7 +39,10 @@ TOP_KEYS = (
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-MEASURE_KEYS = ("warmup", "runs", "timeout_s")
+MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
+# Adaptive repetition (`runs: auto`): its own keys, only beside it.
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
+AUTO_RUNS = "auto"
 VALIDATE_KEYS = ("max_n", "baseline")
 # The accuracy and stability checks a config may turn on (harness.measure.invariants and
 # harness.measure.shadow); `accuracy:` holds their settings.
@@ -68,14 +72,73 @@ MAX_SEED = 2**64 - 1
 DEFAULT_WARMUP = 1
 DEFAULT_RUNS = 3
 DEFAULT_TIMEOUT_S = 600.0
+# `runs: auto` adds rounds to a cell until the 95% interval of its median lies within +-ci of
+# it (a relative half-width), or it has max_runs runs, or max_time_s of timed runs.
+DEFAULT_CI = 0.02
+DEFAULT_MAX_RUNS = 30
+DEFAULT_MAX_TIME_S = 120.0
+# The runs of an adaptive cell's first round: the fewest from which an interval is worth
+# reading (with 3 runs the bootstrap interval of a median is [min, max]).
+AUTO_FIRST_RUNS = 3
 
 
 
 @dataclass(frozen=True)
 class Measure:
+    """How a cell is timed: `runs` runs after `warmup` (each run at most `timeout_s`), one run
+    a round, so that the cells of a run share the machine's drift; or, with runs None
+    (`runs: auto`), rounds until the interval of the median is narrow enough (ci) or a limit
+    is reached (max_runs, max_time_s)."""
+
     warmup: int = DEFAULT_WARMUP
-    runs: int = DEFAULT_RUNS
+    runs: int | None = DEFAULT_RUNS  # None: auto
     timeout_s: float = DEFAULT_TIMEOUT_S
+    ci: float = DEFAULT_CI
+    max_runs: int = DEFAULT_MAX_RUNS
+    max_time_s: float = DEFAULT_MAX_TIME_S
+    # Adaptive repetition decides from this many runs on (a measured comparison needs rounds
+    # enough for its paired test: harness.runner.pair); 0: AUTO_FIRST_RUNS.
+    min_runs: int = 0
+
+    @property
+    def adaptive(self) -> bool:
+        return self.runs is None
+
+    @property
+    def first_runs(self) -> int:
+        """The runs an adaptive cell gets before its interval decides."""
+        return min(max(AUTO_FIRST_RUNS, self.min_runs), self.max_runs)
+
+    def at_least(self, runs: int) -> Measure:
+        """These settings with at least `runs` runs a cell."""
+        if self.runs is not None:
+            return dataclasses.replace(self, runs=max(self.runs, runs))
+        return dataclasses.replace(self, min_runs=max(self.min_runs, runs),
+                                   max_runs=max(self.max_runs, runs))
+
+    @property
+    def most_runs(self) -> int:
+        """The most runs a cell gets."""
+        return self.max_runs if self.runs is None else self.runs
+
+    def worst_case_s(self) -> float:
+        """The longest a cell's runs may take: the warmup, the timed runs (an adaptive cell
+        stops past max_time_s, a run after), each up to timeout_s."""
+        timed = self.timeout_s * self.most_runs
+        if self.adaptive:
+            timed = min(timed, self.max_time_s + self.timeout_s)
+        return self.timeout_s * self.warmup + timed
+
+    def key(self) -> dict[str, object]:
+        """What the measurement depends on (part of a cell's id); a fixed count keeps the keys
+        it always had."""
+        key: dict[str, object] = {"warmup": self.warmup, "runs": self.runs or AUTO_RUNS,
+                                  "timeout_s": self.timeout_s}
+        if self.adaptive:
+            key.update(ci=self.ci, max_runs=self.max_runs, max_time_s=self.max_time_s)
+            if self.min_runs:
+                key["min_runs"] = self.min_runs
+        return key
 
 
 @dataclass(frozen=True)

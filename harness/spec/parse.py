@@ -15,9 +15,14 @@ from harness.spec import kinds, scenes
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import (
     ACCURACY_KEYS,
+    ADAPTIVE_KEYS,
+    AUTO_RUNS,
     BASELINE_CHOICES,
     CHECK_NAMES,
+    DEFAULT_CI,
     DEFAULT_ENERGY_ULPS,
+    DEFAULT_MAX_RUNS,
+    DEFAULT_MAX_TIME_S,
     DEFAULT_POLL_S,
     DEFAULT_RUNS,
     DEFAULT_SHADOW_STEPS,
@@ -207,10 +212,30 @@ def _parse_measure(value: object, source: Path, label: str = "measure") -> Measu
     kinds.reject_unknown(raw, MEASURE_KEYS, f"{label}.", source)
     warmup = kinds.check(raw.get("warmup", DEFAULT_WARMUP), f"{label}.warmup",
                          kinds.NON_NEGATIVE_INT, source)
-    runs = kinds.check(raw.get("runs", DEFAULT_RUNS), f"{label}.runs", kinds.POSITIVE_INT, source)
+    runs = raw.get("runs", DEFAULT_RUNS)
+    if runs != AUTO_RUNS:
+        runs = kinds.check(runs, f"{label}.runs", RUNS, source)
     timeout = kinds.check(raw.get("timeout_s", DEFAULT_TIMEOUT_S), f"{label}.timeout_s",
-                     kinds.POSITIVE_REAL, source)
-    return Measure(warmup=cast(int, warmup), runs=cast(int, runs), timeout_s=cast(float, timeout))
+                          kinds.POSITIVE_REAL, source)
+    if runs != AUTO_RUNS:
+        for key in ADAPTIVE_KEYS:
+            if key in raw:
+                raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
+                                   "adaptive repetition)", raw[key])
+        return Measure(warmup=cast(int, warmup), runs=cast(int, runs),
+                       timeout_s=cast(float, timeout))
+    ci = kinds.check(raw.get("ci", DEFAULT_CI), f"{label}.ci", CI, source)
+    max_runs = kinds.check(raw.get("max_runs", DEFAULT_MAX_RUNS), f"{label}.max_runs",
+                           kinds.POSITIVE_INT, source)
+    max_time = kinds.check(raw.get("max_time_s", DEFAULT_MAX_TIME_S), f"{label}.max_time_s",
+                           kinds.POSITIVE_REAL, source)
+    return Measure(warmup=cast(int, warmup), runs=None, timeout_s=cast(float, timeout),
+                   ci=cast(float, ci), max_runs=cast(int, max_runs),
+                   max_time_s=cast(float, max_time))
+
+
+RUNS = kinds.Kind(f"a positive integer or {AUTO_RUNS}", kinds.int_in(1))
+CI = kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.fraction)
 
 
 def _parse_variant_measures(value: object, base: object, variants: Sequence[str],

@@ -61,6 +61,19 @@ CHECK_COLUMNS: tuple[str, ...] = (
 # cell has them.
 THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "threads_pairs",
                                    "threads_chunks")
+# How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
+# that the machine's drift is shared), the round of each of its runs (space-separated, as
+# wall_times_s), why its timing stopped (STOPPED_REASONS), and the seed that shuffled each
+# round's order (cells with one seed were measured in the same rounds). Only where some cell
+# has them (results from before rounds have none).
+ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
+# Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
+# enough, or a limit was reached first.
+STOPPED_RUNS = "runs"
+STOPPED_CI = "ci"
+STOPPED_MAX_RUNS = "max_runs"
+STOPPED_MAX_TIME = "max_time_s"
+STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME)
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = ("threads_busy_s", "threads_pairs", "threads_chunks")
 # What a --timing JSON line gives that the record keeps under the same names.
@@ -68,7 +81,8 @@ TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "c
                                 "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
-OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS)
+OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
+                                                 ROUND_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -88,7 +102,7 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "energy_drift", "energy_drift_max", "energy_bound", "pair_collisions_run", "box_excess",
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
-    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s",
+    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
@@ -100,4 +114,4 @@ FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "load
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
 # Space-separated lists of numbers (per run, per thread).
-LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", *THREAD_TIMING_KEYS)
+LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", "wall_times_round", *THREAD_TIMING_KEYS)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from harness.cli import commands, main
+from harness.cli import COMMANDS, main
 from harness.repo import REPO_ROOT
 
 CONSOLE_SCRIPT = Path(sys.executable).with_name("collide-bench")
@@ -18,7 +18,7 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     for name in ("run", "compare", "report", "store", "worker"):
         assert f"\n  {name} " in out
-    assert set(commands()) == {"run", "compare", "report", "store", "worker"}
+    assert set(COMMANDS) == {"run", "compare", "report", "store", "worker"}
 
 
 @pytest.mark.parametrize(("argv", "message"), [
