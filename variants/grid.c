@@ -49,8 +49,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 
 const sim_variant sim_variant_def = {
     .name = "grid",
+    .summary = "space-time grid: only pairs that can meet within the step are tested; parallel",
     .exact = true,
     .parallel = true,
+    .all_pairs = false,
+    .repairs = NULL,
     .scratch_create = scratch_create,
     .scratch_destroy = scratch_destroy,
     .find_pairs = find_pairs,

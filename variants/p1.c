@@ -12,5 +12,13 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p1", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p1",
+    .summary =
+        "the seed's: omp parallel for over the outer i loop, default static schedule (one "
+        "contiguous block of rows per thread)",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

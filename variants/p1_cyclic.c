@@ -11,5 +11,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p1_cyclic", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p1_cyclic",
+    .summary = "p1 repaired: schedule(static, 1), rows dealt round-robin",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = "p1",
+    .find_pairs = find_pairs,
 };

@@ -11,5 +11,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p1_runtime", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p1_runtime",
+    .summary = "p1 with schedule(runtime): OMP_SCHEDULE picks the schedule (the schedule study)",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

@@ -12,5 +12,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p1d", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p1d",
+    .summary = "the seed's: p1 with schedule(dynamic) (one row per grab)",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

@@ -32,5 +32,13 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p2", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p2",
+    .summary =
+        "the seed's: outer loop sequential, omp parallel for over the inner j loop (static; a "
+        "team fork and a barrier per row)",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

@@ -26,5 +26,13 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p2_blocks", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p2_blocks",
+    .summary =
+        "p2 repaired: one region for all rows, each thread a static block of every row, no "
+        "barrier between rows",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = "p2",
+    .find_pairs = find_pairs,
 };

@@ -25,5 +25,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p2d", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p2d",
+    .summary = "the seed's: p2 with schedule(dynamic) over single j (one grab per pair test)",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

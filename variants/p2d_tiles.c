@@ -8,6 +8,8 @@
 #include "core/sim.h"
 
 #define P2D_TILE 4096 /* j per dynamic chunk */
+#define P2D_TEXT_(x) #x
+#define P2D_TEXT(x) P2D_TEXT_(x) /* P2D_TILE as text, for the summary */
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
@@ -29,5 +31,12 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "p2d_tiles", .exact = true, .parallel = true, .find_pairs = find_pairs,
+    .name = "p2d_tiles",
+    .summary = "p2d repaired: one region, schedule(dynamic) over tiles of " P2D_TEXT(P2D_TILE)
+               " j, no barrier between rows",
+    .exact = true,
+    .parallel = true,
+    .all_pairs = true,
+    .repairs = "p2d",
+    .find_pairs = find_pairs,
 };

@@ -42,8 +42,12 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 
 const sim_variant sim_variant_def = {
     .name = "p3",
+    .summary = "the seed's: both loops parallel, nested, two active levels "
+               "(T x T threads, a team per row)",
     .exact = true,
     .parallel = true,
+    .all_pairs = true,
+    .repairs = NULL,
     .buffer_count = buffer_count,
     .find_pairs = find_pairs,
 };

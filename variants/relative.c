@@ -122,5 +122,12 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "relative", .exact = false, .parallel = true, .find_pairs = find_pairs,
+    .name = "relative",
+    .summary =
+        "\"Pool Hall Lessons\" relative-velocity test with early rejections, dynamic outer loop",
+    .exact = false,
+    .parallel = true,
+    .all_pairs = false,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

@@ -14,5 +14,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "seq", .exact = true, .parallel = false, .find_pairs = find_pairs,
+    .name = "seq",
+    .summary = "every pair i < j, one thread; the baseline",
+    .exact = true,
+    .parallel = false,
+    .all_pairs = true,
+    .repairs = NULL,
+    .find_pairs = find_pairs,
 };

@@ -34,7 +34,12 @@ static void find_all_pairs(const sim_world *w, sim_pair_sink *sink)
 }
 
 const sim_variant sim_variant_def = {
-    .name = "test", .exact = true, .parallel = false, .find_pairs = find_all_pairs,
+    .name = "test",
+    .summary = "every pair i < j, forwards, one buffer",
+    .exact = true,
+    .parallel = false,
+    .all_pairs = true,
+    .find_pairs = find_all_pairs,
 };
 
 /* The same pairs found backwards and spread over three buffers: the step must not care. */
@@ -945,6 +950,31 @@ static void test_write_blocks(void)
     sim_world_free(&w);
 }
 
+/* --describe's line: the keys in their fixed order, booleans as JSON literals, a missing repair
+ * as null, and every character JSON needs escaped in the strings. */
+static void test_describe_json(void)
+{
+    const sim_variant plain = {.name = "seq", .summary = "every pair", .exact = true,
+                               .all_pairs = true};
+    const sim_variant odd = {.name = "x\"y", .summary = "a \"quoted\" \\ tab\t line\n bell\a end",
+                             .parallel = true, .repairs = "p1"};
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    CHECK_INT(sim_describe(f, &plain), 0);
+    CHECK_INT(sim_describe(f, &odd), 0);
+    fclose(f);
+    CHECK_STR(text, "{\"name\":\"seq\",\"summary\":\"every pair\",\"exact\":true,"
+                    "\"parallel\":false,\"all_pairs\":true,\"repairs\":null}\n"
+                    "{\"name\":\"x\\\"y\",\"summary\":\"a \\\"quoted\\\" \\\\ tab\\t line\\n "
+                    "bell\\u0007 end\",\"exact\":false,\"parallel\":true,\"all_pairs\":false,"
+                    "\"repairs\":\"p1\"}\n");
+    free(text);
+}
+
 /* ---- one step (SPEC §2) ---- */
 
 /* Head-on at t = 1/2 (tests/c/scenes/head_on.md): velocities swap, both finish the step. */
@@ -1520,6 +1550,7 @@ static const test_case tests[] = {
     TEST(test_format_real),
     TEST(test_fixed8_matches_printf),
     TEST(test_write_blocks),
+    TEST(test_describe_json),
     TEST(test_step_head_on),
     TEST(test_step_pair_before_wall),
     TEST(test_step_at_wall_moving_in),

@@ -76,10 +76,18 @@ typedef struct sim_pair_sink {
     void *scratch; /* the variant's own per-run memory (see scratch_create) */
 } sim_pair_sink;
 
+/* A variant: what it says about itself (`--describe` prints these facts as one JSON line, so
+ * that the harness and the test scripts read them from the binary instead of keeping lists of
+ * their own), then how it finds candidates. */
 typedef struct sim_variant {
     const char *name;
-    bool exact;    /* promises output byte-identical to seq */
-    bool parallel; /* uses threads; seq and friends run on one */
+    const char *summary; /* one sentence: how it finds candidate pairs */
+    bool exact;          /* promises output byte-identical to seq */
+    bool parallel;       /* uses threads; false: runs on one whatever --threads says */
+    /* Runs seq's pair test (the shared kernel) on every pair i < j, so that its speedup over
+     * seq is parallelism alone; false for finders that skip pairs or test them their own way. */
+    bool all_pairs;
+    const char *repairs; /* the seed strategy whose pathology this variant repairs, or NULL */
     /* Candidate buffers the finder needs for `threads` threads; NULL means `threads`. */
     int (*buffer_count)(int threads);
     /* Optional per-run memory, e.g. a grid. Return NULL on allocation failure. */

@@ -133,6 +133,11 @@ sim_real sim_stepper_wall_time(const sim_stepper *s, int32_t i);
 int sim_write_state(FILE *out, const sim_world *w, int64_t step, bool precise);
 int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
 
+/* --describe: the variant's facts (sim_variant) as one line of JSON, keys in the order name,
+ * summary, exact, parallel, all_pairs, repairs (null when it repairs none). Returns 0, or -1 on
+ * a write error. */
+int sim_describe(FILE *out, const sim_variant *v);
+
 /* Format one real with %.8f, or %.17g when precise, into buf. */
 void sim_format_real(char *buf, size_t len, sim_real v, bool precise);
 /* printf("%.8f", v) at p, unterminated; returns the length, or 0 outside its exact fast path

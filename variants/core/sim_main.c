@@ -24,7 +24,7 @@
 typedef struct sim_options {
     int threads; /* 0: OMP_NUM_THREADS / the runtime's default */
     uint64_t seed;
-    bool precise, timing, help;
+    bool precise, timing, help, describe;
     const char *input; /* NULL: stdin */
 } sim_options;
 
@@ -38,12 +38,17 @@ typedef struct sim_report {
 
 static const char *const usage_text =
     "usage: %s [--threads N] [--seed N] [--precise] [--timing] [INPUT]\n"
+    "       %s --describe\n"
     "  Simulate hard discs colliding in a square box (the contract: SPEC.md; the model:\n"
     "  docs/model.md). Reads INPUT, or stdin when INPUT is absent or '-'.\n"
     "  --threads N  threads to use (overrides OMP_NUM_THREADS; ignored by seq)\n"
     "  --seed N     seed of the generator for particles the input does not list (default 1)\n"
     "  --precise    print reals with %%.17g instead of %%.8f\n"
     "  --timing     write one JSON line of timings and counts to stderr after the run\n"
+    "  --describe   print what this variant is, as one line of JSON, and exit: name, summary\n"
+    "               (how it finds candidate pairs), exact (output byte-identical to seq),\n"
+    "               parallel (uses threads), all_pairs (tests every pair i < j with seq's\n"
+    "               test), repairs (the seed strategy it repairs, or null)\n"
     "  --help       print this text\n";
 
 static int usage_error(const char *name, const char *what, const char *arg)
@@ -73,6 +78,8 @@ static int parse_options(const char *name, int argc, char **argv, sim_options *o
         const char *a = argv[k];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             o->help = true;
+        } else if (strcmp(a, "--describe") == 0) {
+            o->describe = true;
         } else if (strcmp(a, "--precise") == 0) {
             o->precise = true;
         } else if (strcmp(a, "--timing") == 0) {
@@ -294,7 +301,14 @@ int main(int argc, char **argv)
     if (rc != SIM_EXIT_OK)
         return rc;
     if (o.help) {
-        printf(usage_text, argv[0]);
+        printf(usage_text, argv[0], argv[0]);
+        return SIM_EXIT_OK;
+    }
+    if (o.describe) {
+        if (sim_describe(stdout, &sim_variant_def) || fflush(stdout)) {
+            fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
+            return SIM_EXIT_RUNTIME;
+        }
         return SIM_EXIT_OK;
     }
     static char stdout_buffer[SIM_STDOUT_BUFFER];

@@ -195,3 +195,40 @@ int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise)
 {
     return write_block(out, w, step, precise, true);
 }
+
+/* s as a JSON string: quotes, backslashes and control characters escaped; other bytes, UTF-8
+ * included, as they are. */
+static void put_json_string(FILE *out, const char *s)
+{
+    fputc('"', out);
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(out, "\\%c", *p);
+        else if (*p == '\n')
+            fputs("\\n", out);
+        else if (*p == '\t')
+            fputs("\\t", out);
+        else if (*p < 0x20)
+            fprintf(out, "\\u%04x", *p);
+        else
+            fputc(*p, out);
+    }
+    fputc('"', out);
+}
+
+int sim_describe(FILE *out, const sim_variant *v)
+{
+    fputs("{\"name\":", out);
+    put_json_string(out, v->name);
+    fputs(",\"summary\":", out);
+    put_json_string(out, v->summary ? v->summary : "");
+    fprintf(out, ",\"exact\":%s,\"parallel\":%s,\"all_pairs\":%s,\"repairs\":",
+            v->exact ? "true" : "false", v->parallel ? "true" : "false",
+            v->all_pairs ? "true" : "false");
+    if (v->repairs)
+        put_json_string(out, v->repairs);
+    else
+        fputs("null", out);
+    fputs("}\n", out);
+    return ferror(out) ? -1 : 0;
+}
