@@ -12,6 +12,10 @@
 #   7. the SPEC §7 invariants on random scenes (dense and sparse, slow and fast);
 #   8. every exact variant byte-identical to seq on 20+ random scenes at 1, 2, 3 and 4 threads.
 #
+# The variants are those the Makefile builds (make print-variants), and what each is comes from
+# its own `--describe` line: the exact ones are compared with seq, the all-pairs ones must test
+# every pair, the serial ones run one thread. A variant whose binary is missing fails.
+#
 # Prints one FAIL line per failed check, a time per part, and last `N passed, M failed`;
 # exits 1 when anything failed. EXACT_VARIANTS overrides the variants compared with seq.
 set -euo pipefail
@@ -24,8 +28,6 @@ B=$1
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 SCENES=$HERE/scenes
-EXACT_VARIANTS=${EXACT_VARIANTS:-"seq p1 p2 p3 p1d p2d p1_cyclic p1_runtime p2_blocks p2d_tiles grid"}
-read -r -a VARIANTS <<<"$EXACT_VARIANTS"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 # The runs must not depend on the caller's OpenMP settings (one check sets its own).
@@ -86,15 +88,66 @@ strip_zeros() {
     awk '{ for (k = 3; k <= 6 && k <= NF; k++) { if ($k ~ /\./) { sub(/0+$/, "", $k); sub(/\.$/, "", $k) } } print }' "$1"
 }
 
-for v in "${VARIANTS[@]}"; do
+# ---------------------------------------------------------------------------------------------
+part "--describe"
+# Every variant the Makefile builds answers --describe with one line of JSON (keys in a fixed
+# order, so that the facts below can be read with grep), status 0 and nothing on stderr, even
+# with no input at hand.
+# describe_flag LINE KEY: the boolean KEY of a --describe line, true or false.
+describe_flag() {
+    sed -n 's/.*"'"$2"'":\(true\|false\)[,}].*/\1/p' <<<"$1"
+}
+KEYS_RE='^\{"name":"[^"]*","summary":"([^"\\]|\\.)+","exact":(true|false),"parallel":(true|false),"all_pairs":(true|false),"repairs":(null|"[^"]*")\}$'
+# Without the caller's MAKEFLAGS: under `make test-c` they name a jobserver this make cannot use.
+if ! ALL_VARIANTS=$(MAKEFLAGS= MAKELEVEL= make -s --no-print-directory -C "$ROOT" print-variants) ||
+    [ -z "$ALL_VARIANTS" ]; then
+    bad "make print-variants listed no variants"
+fi
+read -r -a ALL <<<"$ALL_VARIANTS"
+declare -A DESCRIBE=()
+exact_found=()
+for v in "${ALL[@]}"; do
     if [ ! -x "$B/$v" ]; then
-        bad "$B/$v is missing (make all asan)"
+        bad "$B/$v is missing (make all asan portable)"
+        continue
+    fi
+    run "$TMP/out" "$TMP/err" "$B/$v" --describe </dev/null
+    line=$(head -n 1 "$TMP/out")
+    if [ "$rc" != 0 ] || [ -s "$TMP/err" ] || [ "$(wc -l <"$TMP/out")" != 1 ] ||
+        ! grep -Eq "$KEYS_RE" <<<"$line" || [[ "$line" != "{\"name\":\"$v\","* ]]; then
+        bad "$v --describe: status $rc, stdout: $(head -c 300 "$TMP/out"), stderr: $(head -c 300 "$TMP/err")"
+        continue
+    fi
+    if command -v python3 >/dev/null && ! python3 -c 'import json, sys; json.loads(sys.stdin.read())' <"$TMP/out" 2>/dev/null; then
+        bad "$v --describe is not valid JSON: $line"
+        continue
+    fi
+    DESCRIBE[$v]=$line
+    [ "$(describe_flag "$line" exact)" = true ] && exact_found+=("$v")
+    ok
+done
+# A repair names a variant that is built here.
+for v in "${!DESCRIBE[@]}"; do
+    repairs=$(sed -n 's/.*"repairs":"\([^"]*\)"}$/\1/p' <<<"${DESCRIBE[$v]}")
+    if [ -n "$repairs" ] && [ -z "${DESCRIBE[$repairs]:-}" ]; then
+        bad "$v --describe repairs \"$repairs\", which is not a variant built in $B"
     fi
 done
-if [ "$fail" != 0 ]; then
+# --describe wins over a missing input: it reads nothing.
+run "$TMP/out" "$TMP/err" "$B/seq" --describe "$TMP/no-such-file.in"
+if [ "$rc" = 0 ] && [ ! -s "$TMP/err" ] && [ "$(cat "$TMP/out")" = "${DESCRIBE[seq]:-}" ]; then
+    ok
+else
+    bad "seq --describe with a missing input: status $rc, stderr: $(head -c 300 "$TMP/err")"
+fi
+EXACT_VARIANTS=${EXACT_VARIANTS:-${exact_found[*]}}
+read -r -a VARIANTS <<<"$EXACT_VARIANTS"
+if [ "$fail" != 0 ] || [ -z "${DESCRIBE[seq]:-}" ]; then
+    [ -n "${DESCRIBE[seq]:-}" ] || bad "seq, the reference, is not built or does not describe itself"
     echo "$pass passed, $fail failed"
     exit 1
 fi
+echo "# exact variants, compared with seq: ${VARIANTS[*]}"
 
 # ---------------------------------------------------------------------------------------------
 part "hand scenes"
@@ -374,7 +427,7 @@ elif min(busy) < 0 or sum(pairs) != t["pair_tests"] or any(p > 0 and c == 0 for 
     fi
     if [ -z "$problems" ]; then ok; else bad "$what:$problems $(head -c 400 "$TMP/err")"; fi
 }
-# check_phases WHAT: the stderr of the last run holds issue 15's phase split, right after
+# check_phases WHAT: the stderr of the last run holds the step's phase split, right after
 # sim_s and in this order, each >= 0 and together at most sim_s (each printed to 1e-6 s).
 PHASE_KEYS="broad_s walls_s sort_s resolve_s motion_s"
 check_phases() {
@@ -438,17 +491,21 @@ run "$TMP/out" "$TMP/err" "$B/p2d" --timing --threads 2 "$TMP/timing.in"
 check_timing "p2d --timing --threads 2" p2d 2 120 5
 pairs=$(sed -n 's/.*"threads_pairs": \(\[[^]]*\]\).*/\1/p' "$TMP/err")
 check_work "p2d a chunk per pair" threads_chunks "$pairs"
-# Every variant built (the core times the phases, so each prints them), on 1 and 2 threads.
-for src in "$ROOT"/variants/*.c; do
-    v=$(basename "$src" .c)
-    bin=$B/$v
-    if [ ! -x "$bin" ]; then
-        bad "--timing phases: $bin is not built"
-        continue
-    fi
+# Every variant (the core times the phases, so each prints them), on 1 and 2 threads; what its
+# --describe says holds: an all-pairs variant tests every pair i < j once a step, a serial one
+# runs one thread whatever --threads says.
+for v in "${ALL[@]}"; do
     for threads in 1 2; do
-        run "$TMP/out" "$TMP/err" "$bin" --timing --threads "$threads" "$TMP/timing.in"
+        run "$TMP/out" "$TMP/err" "$B/$v" --timing --threads "$threads" "$TMP/timing.in"
         check_phases "$v --timing --threads $threads"
+        want_threads=$threads
+        [ "$(describe_flag "${DESCRIBE[$v]}" parallel)" = false ] && want_threads=1
+        got=$(json_field threads "$TMP/err")
+        [ "$got" = "$want_threads" ] && ok || bad "$v --threads $threads: the timing line says threads $got, expected $want_threads (--describe: ${DESCRIBE[$v]})"
+        if [ "$(describe_flag "${DESCRIBE[$v]}" all_pairs)" = true ]; then
+            got=$(json_field pair_tests "$TMP/err")
+            [ "$got" = $((5 * 120 * 119 / 2)) ] && ok || bad "$v --threads $threads: pair_tests $got, expected S*N*(N-1)/2 = $((5 * 120 * 119 / 2)) for an all-pairs variant"
+        fi
     done
 done
 # No timing line without --timing (the other runs check an empty stderr).
