@@ -81,7 +81,7 @@ static lanes_const lanes_of(const sim_world *w)
     return (lanes_const){splat(w->lo), splat(w->hi), splat(0), splat(1)};
 }
 
-/* axis_time (sim_step.c) in lanes: (wall ahead - q) / w, and +infinity where w == 0 (as
+/* axis_time (sim_walls.c) in lanes: (wall ahead - q) / w, and +infinity where w == 0 (as
  * 1 / +0: w + 0 is w except that it turns -0 into +0). */
 static inline sim_vreal axis_time_v(sim_vreal q, sim_vreal w, const lanes_const *c)
 {
@@ -94,7 +94,7 @@ static inline sim_vreal clamp_v(sim_vreal q, const lanes_const *c)
     return sim_sel(q < c->lo, c->lo, sim_sel(q > c->hi, c->hi, q));
 }
 
-/* finish (sim_step.c) in lanes, then the clamp into the box. */
+/* SPEC §2's finish(rest) in lanes, then the clamp into the box. */
 static inline void finish_v(sim_vreal *x, sim_vreal *y, sim_vreal vx, sim_vreal vy,
                             sim_vreal rest, const lanes_const *c)
 {
