@@ -4,8 +4,9 @@
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
-#   make test             C tests (also under ASan+UBSan and portable), Python tests, ruff
-#   make bench            the performance benchmarks of the issues, saved under results/
+#   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
+#   make test             test-c, ruff and the Python tests
+#   make bench            the performance benchmarks (bench/bench.py), saved under results/
 #   make setup            Python environment (.venv) and hyperfine
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
 #

@@ -3,13 +3,13 @@
  * a block of events at a time, in vector lanes.
  *
  * Why lanes: on the report benchmark 45% of the particles have an event every step (2,100 walls
- * and 1,200 pairs of 10,000), and the scalar code (move_one, in sim_step.c until issue 15)
- * branched on the sign of every velocity, on which axis is hit and on whether finish meets a
- * wall: random outcomes, so about one mispredicted branch per division, each emptying the
- * pipeline that would otherwise overlap the next event's divisions. Here every event runs the
- * same straight-line code: each alternative is computed and the SPEC's one selected, lane by
- * lane (sim_sel), so a division that SPEC skips is done and discarded (its result is never
- * selected; a division by 0 is harmless without traps).
+ * and 1,200 pairs of 10,000), and scalar code, one event at a time, branches on the sign of
+ * every velocity, on which axis is hit and on whether finish meets a wall: random outcomes, so
+ * about one mispredicted branch per division, each emptying the pipeline that would otherwise
+ * overlap the next event's divisions. Here every event runs the same straight-line code: each
+ * alternative is computed and the SPEC's one selected, lane by lane (sim_sel), so a division
+ * that SPEC skips is done and discarded (its result is never selected; a division by 0 is
+ * harmless without traps).
  *
  * Exactness: every selected value comes from the same IEEE operations, in the same order, as
  * the scalar code (tests/c/test_core.c compares the two on random events, and run_scenes.sh

@@ -34,10 +34,9 @@ static int cand_cmp(const void *pa, const void *pb)
  * prefix sums, scatter), and a step's candidates spread over about half as many buckets as
  * there are candidates, so a bucket holds one to three: cand_cmp orders those in place.
  * Between SIM_SORT_MIN_BITS and SIM_SORT_MAX_BITS bits; the histogram, 4 bytes a bucket, is
- * an eighth of the candidates' own size. The fixed 2^13 buckets this replaced left a million
- * particles' 1.8 million pair candidates a step about 220 to a bucket, each sorted by qsort:
- * sort_s 1.66 s of the million's 10 steps (`1000000 200000 1 10`, 2 threads), 0.44 s now,
- * with the drop below. */
+ * an eighth of the candidates' own size. A fixed number of buckets does not scale: 2^13 of them
+ * leave a million particles' 1.8 million pair candidates a step about 220 to a bucket, each
+ * sorted by qsort (docs/grid_bound.md has the times). */
 #define SIM_SORT_MIN_BITS 8
 #define SIM_SORT_MAX_BITS 26
 /* Buckets longer than this are checked for order, and sorted by qsort if need be, before the
@@ -94,18 +93,18 @@ static size_t sort_hist_len(size_t n)
     return ((size_t)1 << sort_bits(n)) + 2;
 }
 
-/* Sort the candidates of src[0..sources) (src[s] holding len[s], n in all) into dst by
- * cand_cmp, and return how many there are in dst: a counting sort into about n/2 buckets of t
- * (stable, O(n): a step's few thousand candidates took 0.6 ms in qsort's merge sort, and 43 us
- * in the two passes of the 11-bit radix sort this replaced), straight from the writers'
- * buffers, then cand_cmp within the buckets, which are short (finish_long_bucket takes the rest).
- * Where wall_t is not NULL the sources are pairs, and the pass that counts them first drops
- * every pair that a wall of one of its particles comes before (wall_t[i] or wall_t[j] < t:
- * at equal times the pair comes first), compacting each source in place and shortening
- * len[s]: the greedy walk would refuse it (sim_resolve.c says why) and it changes nothing else, and
- * the sort, the walk and the motion then see only the pairs that can be accepted (about a
- * sixth of the million particles' pairs after the first step, a twentieth of the report
- * benchmark's). hist holds sort_hist_len(n) entries. */
+/* Sort the candidates of src[0..sources) (src[s] holding len[s], n in all) into dst by cand_cmp,
+ * and return how many there are in dst: a counting sort into about n/2 buckets of t (stable,
+ * O(n): qsort's merge sort took 0.6 ms on a step's few thousand candidates, and a two-pass
+ * 11-bit radix sort 43 us), straight from the writers' buffers, then cand_cmp within the
+ * buckets, which are short (finish_long_bucket takes the rest). Where wall_t is not NULL the
+ * sources are pairs, and the pass that counts them first drops every pair that a wall of one of
+ * its particles comes before (wall_t[i] or wall_t[j] < t: at equal times the pair comes first),
+ * compacting each source in place and shortening len[s]: the greedy walk would refuse it
+ * (sim_resolve.c says why) and it changes nothing else, and the sort, the walk and the motion
+ * then see only the pairs that can be accepted (about a sixth of the million particles' pairs
+ * after the first step, a twentieth of the report benchmark's). hist holds sort_hist_len(n)
+ * entries. */
 static size_t sort_candidates(sim_cand *const *src, size_t *len, int sources,
                               const sim_real *restrict wall_t, uint32_t *restrict hist,
                               sim_cand *restrict dst, size_t n)

@@ -190,10 +190,10 @@ typedef struct grid_queue {
     int32_t a[GRID_QUEUE], b[GRID_QUEUE];
     /* The len <= GRID_QUEUE waiting pairs end at slot at - 1 (mod GRID_QUEUE). No count of
      * all the pairs a slice passed: on one slice of N >= 92,682 particles (f32_off scenes) a
-     * 32-bit one could wrap, and the pairs queued then were lost. */
+     * 32-bit one would wrap and lose the pairs queued then. */
     int at, len;
     int on;     /* N > GRID_SMALL_N: where the state is in cache (the report benchmark) the
-                 * queue cost 6% of the finder's time (median ratio of 15 interleaved runs) */
+                 * queue cost 6% of the finder's time */
 } grid_queue;
 
 /* What the finder knows while it looks at the pairs of slice k. */
@@ -267,10 +267,9 @@ void grid_run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
  *
  * The functions below are called inside the hottest loops of the other pieces: the geometry in
  * the binning's vectorised loops (per particle and slice) and in the runs, the run scan per
- * probe. Defined here, every piece's loops inline them as when the finder was one file; as
- * functions of a piece of their own the finder took 1.78x as long on the report benchmark
- * (1.12x with -flto), and the run scan alone out of line 1.05-1.09x (docs/grid_bound.md, "The
- * pieces as C files"). */
+ * probe. Defined here, every piece's loops inline them; as functions of a piece of their own
+ * the finder took 1.78x as long on the report benchmark (1.12x with -flto), and the run scan
+ * alone out of line 1.05-1.09x (docs/grid_bound.md, "The pieces as C files"). */
 
 /* ---- The geometry: one function per decision, so that the binning, the prefilter and the
  * double decision agree by construction ---- */
@@ -355,8 +354,7 @@ static inline long near_pair(const grid_particle *restrict part, const double *r
 /* a * b + c, rounded once where the machine has FMA. Only the float prefilter uses it: its
  * error bound (below) holds for a rounding of a * b and of the sum as well as for one rounding,
  * and it decides no output (the exact builds' rule, -ffp-contract=off, is for the double
- * arithmetic that does). 2-3% of the finder on the report benchmark (znver4, 9 interleaved
- * runs). */
+ * arithmetic that does). It saves 2-3% of the finder on the report benchmark. */
 static inline grid_vf vf_fma(grid_vf a, grid_vf b, grid_vf c)
 {
 #if GRID_LANES == 16
@@ -427,26 +425,25 @@ static inline grid_vf vf_splat(float x)
 }
 
 /* The prefilter, GRID_LANES pairs at once: may the relative segments from p to p + w come
- * within R = sqrt(r2) of the origin? It passes every pair that does (and some that do not;
- * the double test decides): p itself within reach, or the line within reach (|p x w|^2 <= r2
- * |w|^2, no division) with the closest point no further than R beyond either end along w
- * (p.w <= R |w| and (p + w).w >= -R |w|). The two ends are tested against R |w| bounded over
- * the slice, `tend` = R * (the longest |w|), instead of |w| itself: a pair whose closest point
- * is the far end q = p + w has q.w >= -|q| |w| >= -R |w| >= -tend, so it passes without q's
- * own distance being computed (2 multiplications and 3 additions fewer a vector: 4% of the
- * finder on the report benchmark, znver4, 9 interleaved runs). Rounding: the cross product
- * loses about FLT_EPSILON |p| |w| to it, and q.w = p.w + |w|^2 a few FLT_EPSILON (|p| + |w|)
- * |w|; the margin in R and in tend covers both. Lane l of the result is bit l.
+ * within R = sqrt(r2) of the origin? It passes every pair that does (and some that do not; the
+ * double test decides): p itself within reach, or the line within reach (|p x w|^2 <= r2 |w|^2,
+ * no division) with the closest point no further than R beyond either end along w (p.w <= R |w|
+ * and (p + w).w >= -R |w|). The two ends are tested against R |w| bounded over the slice,
+ * `tend`, R times the longest |w|, instead of |w| itself: a pair whose closest point is the far
+ * end q = p + w has q.w >= -|q| |w| >= -R |w| >= -tend, so it passes without q's own distance
+ * being computed (2 multiplications and 3 additions fewer a vector: 4% of the finder on the
+ * report benchmark). Rounding: the cross product loses about FLT_EPSILON |p| |w| to it, and
+ * q.w = p.w + |w|^2 a few FLT_EPSILON (|p| + |w|) |w|; the margin in R and in tend covers
+ * both. Lane l of the result is bit l.
  *
  * near_f32_line is the line test alone. A pair whose closest point is its start p, |p| <= R,
  * passes it too (|p x w| <= |p| |w| <= R |w|, and -R |w| <= p.w <= R |w| <= tend), and so does
- * every pair with w == 0 (all three sides are 0 then). near_f32 adds p's own distance and
- * leaves pairs with w == 0 to it (`ww > 0`): equal displacements would otherwise pass
- * whatever their distance. The runs test near_f32_line, which has 2 multiplications and a
- * comparison fewer, and near_f32 only on a chunk where a lane passed it (at most 1.7% of the
- * chunks on the report benchmark): the finder took 0.91x the time of near_f32 on every chunk
- * (report benchmark, one thread, medians of 9 interleaved runs), and a scene whose
- * displacements are all equal, where every lane passes the line test, pays near_f32 on its
+ * every pair with w == 0 (all three sides are 0 then). near_f32 adds p's own distance and leaves
+ * pairs with w == 0 to it (`ww > 0`): equal displacements would otherwise pass whatever their
+ * distance. The runs test near_f32_line, which has 2 multiplications and a comparison fewer, and
+ * near_f32 only on a chunk where a lane passed it (at most 1.7% of the chunks on the report
+ * benchmark): the finder takes 0.91x the time of near_f32 on every chunk there, and a scene
+ * whose displacements are all equal, where every lane passes the line test, pays near_f32 on its
  * chunks rather than a double test on every pair. */
 static inline grid_vm near_line(grid_vf px, grid_vf py, grid_vf wx, grid_vf wy, float r2,
                                 float tend)
@@ -498,12 +495,11 @@ static inline grid_chunk chunk_of(const grid_set *z, int32_t b, const grid_probe
  * grid_pair_passed, in entry order. Reads up to GRID_LANES - 1 entries past the run's end. One
  * pass, a branch a chunk that is rarely taken: the lanes are a mask, the chunk's passed pairs
  * its set bits, near_f32_line on every chunk and near_f32 on those where a lane passed it
- * (above). The single pass took 0.91x the finder's time of two, an OR of every
- * chunk's lanes as a vector and the chunks again where any was set (report benchmark, one
- * thread, medians of 9 interleaved runs); keeping the lanes in mask registers to the end
- * 0.96x more. The rare path out of line took 1.08x (a noinline function: gcc then kept the
- * run's pointers and the chunk in memory) and 1.3x (an inner loop without the call, left at
- * the first lane passed). */
+ * (above). The single pass took 0.91x the finder's time of two, an OR of every chunk's lanes as
+ * a vector and the chunks again where any was set (report benchmark); keeping the lanes in mask
+ * registers to the end 0.96x more. The rare path out of line took 1.08x (a noinline function:
+ * gcc then kept the run's pointers and the chunk in memory) and 1.3x (an inner loop without the
+ * call, left at the first lane passed). */
 static inline void scan_run(const grid_ctx *cx, const grid_set *z, int32_t lo, int32_t hi,
                             const grid_probe *a, float r2, float tend)
 {

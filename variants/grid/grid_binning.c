@@ -36,7 +36,7 @@ static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, 
     /* In unsigned arithmetic, which wraps where int32 would overflow: for a row far outside
      * the band (a wide grid cut into bands) (cy - row0) * spanx can, and then the key is not
      * h anyway. The same instructions as in int32; clipping the row first cost 7% of the
-     * report benchmark's finder (one thread, medians of 9 interleaved runs). */
+     * report benchmark's finder. */
     const int32_t h =
         (int32_t)(((uint32_t)(cy - row0) * (uint32_t)spanx + (uint32_t)(cx + sub)) << kshift |
                   (uint32_t)(f & GRID_EXT_X_MASK));
