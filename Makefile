@@ -75,7 +75,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-python lint bench setup quickstart clean print-flags print-variants
+.PHONY: all asan portable test test-c test-python lint bench setup quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -88,6 +88,9 @@ print-flags:
 
 print-variants:
 	@echo "$(VARIANTS)"
+
+print-builds:
+	@echo "$(BUILDS)"
 
 # ---- tests ----
 C_TESTS := $(sort $(basename $(notdir $(wildcard tests/c/test_*.c))))

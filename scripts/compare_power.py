@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from harness import stats
-from harness.analysis import compare
+from harness.analysis import compare, resultsets
 from harness.repo import DEFAULT_RESULTS_DIR
 
 # Share of runs hit by an outlier: measured, 11 of the 370 runs of committed cells with >= 3
@@ -41,10 +41,10 @@ MEDIAN_SECONDS = 1.0  # the scale is irrelevant: only ratios matter
 def committed_noise(root: Path) -> np.ndarray:
     """sd of log(run time) per ok cell with >= 3 runs, over every experiment under root (its
     times read as compare.py reads them: wall_times_s, else the hyperfine JSON)."""
-    directories, _ = compare.experiment_dirs(root, "--results")
+    directories, _ = resultsets.experiment_dirs(root, "--results")
     return np.asarray([float(np.std(np.log(cell.times), ddof=1))
                        for directory in directories
-                       for cell in compare.read_cells(directory, keyed_on_experiment=False)
+                       for cell in resultsets.read_cells(directory, keyed_on_experiment=False)
                        if len(cell.times) >= 3 and cell.status == compare.OK])
 
 

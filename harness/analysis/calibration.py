@@ -19,12 +19,10 @@ from harness.analysis.compare import (
     FDR_Q,
     SLOWER,
     Drift,
-    Side,
     compare,
-    experiment_dirs,
-    load_side,
     paired_rounds,
 )
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
 from harness.store.columns import OK
 
 POWER = 0.9  # the smallest detectable slow-down is found with this probability

@@ -17,13 +17,11 @@ from harness.analysis.compare import (
     DEFAULT_THRESHOLD,
     NOT_OK,
     Drift,
-    Side,
     compare,
     exit_status,
-    experiment_dirs,
     find_drift,
-    load_side,
 )
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
 from harness.cli.common import Parser
 from harness.errors import HarnessError
 from harness.measure import environment, machine

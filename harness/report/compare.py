@@ -8,17 +8,16 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from harness.analysis.compare import (
-    FLAG_COLUMNS,
     NEW_ONLY,
     NOT_OK,
     OLD_ONLY,
     SAME,
     Drift,
     Row,
-    Side,
     methods,
     summary,
 )
+from harness.analysis.resultsets import FLAG_COLUMNS, Side
 from harness.report.document import Table
 from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo
-from harness.analysis import compare
+from harness.analysis import compare, resultsets
 from harness.report.figures import compare as figcompare
 from harness.store import atomic, csvfile
 
@@ -46,14 +46,14 @@ def noisy(rng: np.random.Generator, runs: int, sigma: float, scale: float = 1.0)
 
 
 def synthetic(times: Sequence[float], variant: str = "seq", rounds: Sequence[int] = (),
-              seed: str = "") -> compare.Cell:
-    key = compare.MatchKey("", variant, "f64", *SCENE.values(), "1", "")
-    return compare.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
+              seed: str = "") -> resultsets.Cell:
+    key = resultsets.MatchKey("", variant, "f64", *SCENE.values(), "1", "")
+    return resultsets.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
                         "", "", "", "", "", rounds=tuple(rounds), round_seed=seed)
 
 
-def side(name: str, cells: Sequence[compare.Cell]) -> compare.Side:
-    return compare.Side(name, Path(name), {c.key: c for c in cells})
+def side(name: str, cells: Sequence[resultsets.Cell]) -> resultsets.Side:
+    return resultsets.Side(name, Path(name), {c.key: c for c in cells})
 
 
 def together(rng: np.random.Generator, runs: int, sigma: float, drift: float,
@@ -243,9 +243,9 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert not list(out.glob(".*tmp"))  # atomic writes leave no temporary files
 
 
-def sides(old: Path, new: Path) -> tuple[compare.Side, compare.Side]:
-    return (compare.load_side("OLD", old, None, False, [old]),
-            compare.load_side("NEW", new, None, False, [new]))
+def sides(old: Path, new: Path) -> tuple[resultsets.Side, resultsets.Side]:
+    return (resultsets.load_side("OLD", old, None, False, [old]),
+            resultsets.load_side("NEW", new, None, False, [new]))
 
 
 def test_no_slower_cell_exits_zero(pair: tuple[Path, Path], tmp_path: Path) -> None:
@@ -263,17 +263,17 @@ def test_roots_match_within_experiments(tmp_path: Path) -> None:
                 {"variant": "seq", "cell_id": f"{name}{side}", "wall_median_s": str(times[0]),
                  "wall_times_s": times_text(times if name == "one" else BASE)}])
     (tmp_path / "new" / ".cache").mkdir()  # not an experiment
-    old_dirs, old_root = compare.experiment_dirs(tmp_path / "old", "OLD")
+    old_dirs, old_root = resultsets.experiment_dirs(tmp_path / "old", "OLD")
     assert old_root and [d.name for d in old_dirs] == ["one", "two"]
-    new_dirs, _ = compare.experiment_dirs(tmp_path / "new", "NEW")
-    rows = compare.compare(compare.load_side("OLD", tmp_path / "old", None, True, old_dirs),
-                           compare.load_side("NEW", tmp_path / "new", None, True, new_dirs),
+    new_dirs, _ = resultsets.experiment_dirs(tmp_path / "new", "NEW")
+    rows = compare.compare(resultsets.load_side("OLD", tmp_path / "old", None, True, old_dirs),
+                           resultsets.load_side("NEW", tmp_path / "new", None, True, new_dirs),
                            0.02, DRIFT)
     assert [(r.key.experiment, r.kind) for r in rows] == [
         ("one", compare.SLOWER), ("two", compare.SAME)]
     assert rows[0].key.label().startswith("one: seq random")
     # an experiment directory against a root: the root's two experiments collide on one key
-    single = compare.load_side("NEW", tmp_path / "new", None, False, new_dirs)
+    single = resultsets.load_side("NEW", tmp_path / "new", None, False, new_dirs)
     assert len(single.cells) == 1 and "2 rows for this cell" in next(iter(single.notes.values()))
 
 

@@ -9,7 +9,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from harness.analysis import compare
+from harness.analysis import compare, resultsets
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
 from harness.runner.sides import BuildSide, build, resolve
@@ -37,7 +37,7 @@ def test_identical_sides_measured_together(real_binaries: Path, tmp_path: Path,
         assert len(rows) == 3 and ",ok," in rows[1] and ",ok," in rows[2]
     assert not (out / ".measure").exists()
     # the sides are ordinary results: plain compare reads them again, and sees them paired
-    old, new = (compare.load_side(n, out / s / "pair", None, False, [out / s / "pair"])
+    old, new = (resultsets.load_side(n, out / s / "pair", None, False, [out / s / "pair"])
                 for n, s in (("OLD", "old"), ("NEW", "new")))
     rows = compare.compare(old, new, compare.DEFAULT_THRESHOLD,
                            compare.Drift(0.04, "unused when measured together"))
