@@ -133,7 +133,7 @@ test-python: $(PYTHON) all
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
 lint: $(PYTHON)
-	$(PYTHON) -m ruff check harness tests bench scripts
+	$(PYTHON) -m ruff check harness tests bench scripts examples
 	.venv/bin/lint-imports
 
 test: test-c lint test-python

@@ -3,6 +3,7 @@
          output); when validating, that output against `build/seq --precise` on the same
          input (the baseline's output is cached under results/.cache/baselines/); with
          `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
+         for a program, its run and its check against seq (measure.program);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor alternates the rounds of many cells (harness.executors.local); measure_and_save
@@ -21,6 +22,7 @@ from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.proc import exit_status, run_process, tail
+from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timing_fields
 from harness.measure.timing import parse_timing, thread_work
@@ -93,22 +95,25 @@ class Measurer:
         if resumed is not None:
             return resumed
         config, measure = self.config, self.config.measure_for(cell.variant)
-        binary = self.store.binary(cell)
-        command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
-                   str(self.store.input_file(cell.scene))]
         env = self.environment(cell.threads, cell.schedule)
         repo = self.store.repo_root
         record = self.store.new_record(cell, cell_id)
         record.update({
             "cores": self.cores, "oversubscribed": cell.threads > self.cores,
-            "command": shlex.join(command),
             "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
             records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
-            "git_commit": environment.git_commit(repo),
+            "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
         })
         for old in (self.store.hyperfine_path(cell_id),
                     *self.store.layout.hyperfine_exports(cell_id)):
             old.unlink(missing_ok=True)
+        if cell.program:
+            return start_program(self.store, self.references, cell, cell_id, key, record, env,
+                                 measure.timeout_s)
+        binary = self.store.binary(cell)
+        command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
+                   str(self.store.input_file(cell.scene))]
+        record["command"] = shlex.join(command)
         keep = self.store.layout.output(cell_id)
         output_tmp = None
         if config.keep_output:
@@ -123,7 +128,6 @@ class Measurer:
             timing = parse_timing(precise.stderr) or {}
             record.update({k: timing.get(k) for k in TIMING_KEYS})
             record.update(thread_work(timing))
-            record["schedule"] = cell.schedule
             record["stderr_tail"] = tail(precise.stderr)
             if status == TIMEOUT:
                 record["note"] = f"--precise run passed the {measure.timeout_s:g} s timeout"

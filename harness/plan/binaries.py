@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from harness.plan.cells import Plan
+from harness.plan.cells import Cell, Plan
+from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
 from harness.spec.variants import BASELINE
@@ -34,11 +35,23 @@ def check_references(config: Config, build_dir: Path, build: str) -> dict[str, P
     }
 
 
+def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str, Path]:
+    """The binaries a program's check compares with: seq (grid for a big scene), in double
+    and in float."""
+    variant = programs.reference_variant(cell.scene.n)
+    return {build: binary_path(config, build_dir, variant, build)
+            for build in (DEFAULT_BUILD, programs.ENVELOPE_BUILD)}
+
+
 def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
-    """The make-built binaries the plan runs: each cell's, and seq for validated cells."""
+    """The make-built binaries the plan runs: each cell's, seq for validated cells, the
+    checks' references, and the references of programs' checks."""
     needed: dict[Path, None] = {}
     for cell in plan.cells:
-        if plan.config.custom_binary(cell.variant) is None:
+        if cell.program:
+            needed.update(dict.fromkeys(program_references(plan.config, build_dir,
+                                                           cell).values()))
+        elif plan.config.is_built(cell.variant):
             needed[binary_path(plan.config, build_dir, cell.variant, cell.build)] = None
         if cell.validate:
             needed[baseline_path(plan.config, build_dir, cell.build)] = None

@@ -57,7 +57,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     for cell in plan.cells:
         cid = experiment.store.cell_id(cell)
         if cid is None:
-            raise HarnessError(f"{experiment.store.binary(cell)} does not exist after the build")
+            raise HarnessError(f"{experiment.store.missing_binary(cell)} does not exist after "
+                               "the build")
         order.append((cell, cid))
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)

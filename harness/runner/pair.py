@@ -67,7 +67,7 @@ def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
         for plan in plans:
             binaries.update(dict.fromkeys(needed_binaries(plan, side.build_dir)))
         variants = [c.variant for p in plans for c in p.cells
-                    if p.config.custom_binary(c.variant) is None]
+                    if p.config.is_built(c.variant)]
         build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
 
 
@@ -125,5 +125,5 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
 def _cell_id(store: CellStore, cell: Cell) -> str:
     cid = store.cell_id(cell)
     if cid is None:
-        raise HarnessError(f"{store.binary(cell)} does not exist")
+        raise HarnessError(f"{store.missing_binary(cell)} does not exist")
     return cid

@@ -10,6 +10,9 @@ A config names the experiment, the variants and builds, a base scene whose keys 
     measure: {warmup: 1, runs: 3, timeout_s: 600}
     validate: true
 
+Implementations written elsewhere take part through `programs: {NAME: "COMMAND {threads}
+< {input}"}` and are listed in `variants` like the rest (harness.spec.programs).
+
 The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
 settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
 max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
@@ -28,6 +31,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.spec.programs import Program
+
 # compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
 BASELINE_CHOICES = ("f64", "same", "f128")
 TRUTH_BUILD = "f128"
@@ -35,7 +40,7 @@ TRUTH_BUILD = "f128"
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
-    "schedule", "measure_by_variant",
+    "schedule", "measure_by_variant", "programs",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
@@ -272,6 +277,9 @@ class Config:
     # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that
     # takes minutes), each unset key taken from `measure`
     variant_measures: tuple[tuple[str, Measure], ...] = ()
+    # `programs:` implementations written elsewhere, run through a command template
+    # (harness.spec.programs); each is listed in `variants` too
+    programs: tuple[Program, ...] = ()
 
     def measure_for(self, variant: str) -> Measure:
         """The measure settings of a variant's cells."""
@@ -283,3 +291,16 @@ class Config:
 
     def custom_binary(self, variant: str) -> Path | None:
         return dict(self.binaries).get(variant)
+
+    def program(self, variant: str) -> Program | None:
+        return next((p for p in self.programs if p.name == variant), None)
+
+    def is_built(self, variant: str) -> bool:
+        """Whether make builds the variant (neither a custom binary nor a program)."""
+        return self.custom_binary(variant) is None and self.program(variant) is None
+
+    @property
+    def lists_particles(self) -> bool:
+        """Whether the inputs list every particle: where a program takes part, the scene must
+        not depend on any program's own generator."""
+        return any(p.name in self.variants for p in self.programs)

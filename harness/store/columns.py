@@ -15,6 +15,18 @@ STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
 
+# How a program's output agrees with seq's (harness.measure.agreement): the same numbers at the
+# precision it prints, within that rounding at every step, within rounding and then drifting
+# as a change of precision would, beyond rounding (another rule or a bug), or not comparable.
+IDENTICAL = "identical"
+ROUNDING = "rounding"
+DIVERGES = "diverges"
+DIFFERS = "differs"
+AGREEMENT_FAILED = "failed"
+AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, DIVERGES, DIFFERS, AGREEMENT_FAILED)
+# The agreements that count as a correct program (its cell's status is ok).
+AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, DIVERGES})
+
 # --- columns ------------------------------------------------------------------------------
 
 # These columns, in this order, start every results.csv.
@@ -74,6 +86,9 @@ STOPPED_CI = "ci"
 STOPPED_MAX_RUNS = "max_runs"
 STOPPED_MAX_TIME = "max_time_s"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME)
+# A program's agreement with seq and the first step it leaves rounding (empty: never), only
+# where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = ("threads_busy_s", "threads_pairs", "threads_chunks")
 # What a --timing JSON line gives that the record keeps under the same names.
@@ -82,7 +97,7 @@ TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "c
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
-                                                 ROUND_COLUMNS)
+                                                 ROUND_COLUMNS, PROGRAM_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -103,6 +118,7 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
+    "first_diff_step",
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",

@@ -14,16 +14,12 @@ from pathlib import Path
 
 from harness.store import atomic, hyperfine, records
 from harness.store.columns import (
-    CHECK_COLUMNS,
     CSV_COLUMNS,
     DIVERGENCE_CELL_COLUMNS,
     DIVERGENCE_COLUMNS,
     EXTRA_COLUMNS,
     OPTIONAL_GROUPS,
-    PHASE_COLUMNS,
     PROVENANCE_COLUMNS,
-    ROUND_COLUMNS,
-    THREAD_COLUMNS,
 )
 
 
@@ -70,8 +66,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *PHASE_COLUMNS, *THREAD_COLUMNS,
-                   *CHECK_COLUMNS, *ROUND_COLUMNS):
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g)):
         row[column] = record.get(column)
     rounds = record.get("wall_times_round")
     row["wall_times_round"] = (" ".join(str(int(r)) for r in rounds)

@@ -64,3 +64,15 @@ def test_no_module_of_the_harness_edits_sys_path() -> None:
     offenders = [str(p.relative_to(REPO_ROOT)) for p in (REPO_ROOT / "harness").rglob("*.py")
                  if "sys.path" in p.read_text(encoding="utf-8")]
     assert offenders == []
+
+
+def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) -> None:
+    from harness.cli import run as run_cli
+
+    def report_dir(*argv: str) -> Path:
+        return run_cli.report_dir(run_cli.parser("run").parse_args([*argv, "x.yaml"]))
+
+    assert report_dir() == REPO_ROOT / "report"
+    assert report_dir("--results-dir", str(tmp_path)) == tmp_path / "report"
+    assert report_dir("--results-dir", str(tmp_path), "--report-dir",
+                      str(tmp_path / "r")) == tmp_path / "r"
