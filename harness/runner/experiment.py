@@ -26,6 +26,7 @@ from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
+from harness.store.columns import DIVERGES, OK
 
 
 @dataclass(frozen=True)
@@ -134,9 +135,11 @@ def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
 
 def report_cell(cell: Cell, record: Mapping[str, object], log: TextIO) -> None:
     status = record["status"]
-    if status != "ok":
-        note = " ".join(str(record.get("note", "")).split())
+    note = " ".join(str(record.get("note", "")).split())
+    if status != OK:
         log.write(f"warning: {cell.label}: {status}: {note}\n")
+    elif record.get("agreement") == DIVERGES:  # ok, but the reader should know where
+        log.write(f"note: {cell.label}: {DIVERGES}: {note}\n")
     if record.get("unstable"):
         log.write(f"warning: {cell.label}: unstable (stddev "
                   f"{record['wall_stddev_s']:.3g} s >= 10% of mean {record['wall_mean_s']:.3g} s)"
