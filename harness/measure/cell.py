@@ -150,7 +150,7 @@ class Measurer:
         """One round of the cell's timed runs (hyperfine), and whether it needs more."""
         variant = str(run.record["variant"])
         measure = self.config.measure_for(variant)
-        runs = next_runs(measure, len(run.times))
+        runs = next_runs(measure, run.times)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
         env = self.environment(int(str(run.record["threads"])), str(run.record["schedule"]))
         warmup = measure.warmup if not run.exports else 0

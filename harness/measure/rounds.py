@@ -1,8 +1,9 @@
 """A cell timed in rounds. Each round gives a cell one hyperfine call of a few runs, and the
 rounds of all pending cells alternate (harness.executors), so that the machine's slow drift
 spreads over every cell instead of biasing the ones measured last. A fixed count (`runs: N`)
-takes one run a round; `runs: auto` starts with a few and adds a run a round until the 95%
-interval of the median is within +-ci of it, or a limit is reached (harness.spec.config).
+takes one run a round; `runs: auto` starts with a few and then takes what its interval asks
+for (at most doubling a round) until the 95% interval of the median is within +-ci of it, or
+a limit is reached (harness.spec.config).
 
 CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.json after each,
 so that an interrupted run resumes a cell where it stopped instead of starting it again.
@@ -17,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.measure.hyperfine import Timed
-from harness.spec.config import Measure
+from harness.spec.config import AUTO_FIRST_RUNS, Measure
 from harness.store import atomic, csvfile, records
 from harness.store.columns import (
     STOPPED_CI,
@@ -108,10 +109,29 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     return float(max(1, measure.first_runs - done)), most
 
 
-def next_runs(measure: Measure, done: int) -> int:
-    """How many runs the cell's next round times: one, so that its runs spread over as many
-    rounds as it has runs (none once it has them all)."""
-    return 1 if done < measure.most_runs else 0
+def next_runs(measure: Measure, times: Sequence[float]) -> int:
+    """How many runs the cell's next round times (none once it has them all).
+
+    A fixed count: one a round, so that its runs spread over as many rounds as it has runs.
+    `runs: auto`: one a round while a measured comparison still needs rounds (min_runs);
+    then AUTO_FIRST_RUNS in its first round, enough for an interval; then as many as its
+    interval says it needs to narrow to +-ci (a half-width shrinks as one over the root of
+    the runs), at most doubling its runs a round, so that a noisy cell still spreads over
+    several rounds, and within max_runs and max_time_s."""
+    done = len(times)
+    left = measure.most_runs - done
+    if left <= 0:
+        return 0
+    if not measure.adaptive or done < measure.min_runs:
+        return 1
+    if done < AUTO_FIRST_RUNS:
+        return min(AUTO_FIRST_RUNS - done, left)
+    needed = math.ceil(done * (relative_half_width(times) / measure.ci) ** 2) - done
+    runs = max(1, min(needed, done, left))
+    per_run = statistics.fmean(times)
+    if per_run > 0:
+        runs = min(runs, max(1, math.floor((measure.max_time_s - math.fsum(times)) / per_run)))
+    return runs
 
 
 def stop_reason(measure: Measure, times: Sequence[float]) -> str:
@@ -127,15 +147,20 @@ def stop_reason(measure: Measure, times: Sequence[float]) -> str:
     return ""
 
 
-def narrow(times: Sequence[float], ci: float) -> bool:
-    """Whether the 95% interval of the median lies within +-ci of it."""
+def relative_half_width(times: Sequence[float]) -> float:
+    """The larger side of the 95% interval of the median, as a share of the median (inf
+    where there is no interval)."""
     from harness import stats  # scipy when a cell is measured: a cached run needs none
 
     interval = stats.median_ci(times)
     if not (math.isfinite(interval.low) and math.isfinite(interval.high)) or interval.point <= 0:
-        return False
-    half = max(interval.point - interval.low, interval.high - interval.point)
-    return half <= ci * interval.point
+        return math.inf
+    return max(interval.point - interval.low, interval.high - interval.point) / interval.point
+
+
+def narrow(times: Sequence[float], ci: float) -> bool:
+    """Whether the 95% interval of the median lies within +-ci of it."""
+    return relative_half_width(times) <= ci
 
 
 def timing_fields(run: CellRun) -> dict[str, object]:

@@ -32,8 +32,8 @@ COLUMNS = ("experiment", "variant", "build", *SCENE, "threads", "runs", "wall_me
 
 # --- synthetic machines: false verdicts and power ------------------------------------------
 
-# Outliers as measured in the committed results: 11 of 370 runs (3%) are more than 10% above
-# their cell's median (scripts/compare_power.py).
+# Outliers as in the committed results: 11 of 370 runs (3%) more than 10% above their cell's
+# median.
 OUTLIER_P = 0.03
 CELLS = 16  # the size of the comparisons the statistics are held to
 

@@ -25,8 +25,23 @@ AUTO = Measure(warmup=0, runs=None, ci=0.02, max_runs=12, max_time_s=1.0)
 
 def test_a_fixed_count_takes_a_run_a_round_until_it_has_them() -> None:
     fixed = Measure(runs=3)
-    assert [next_runs(fixed, done) for done in range(4)] == [1, 1, 1, 0]
+    assert [next_runs(fixed, [1.0] * done) for done in range(4)] == [1, 1, 1, 0]
     assert stop_reason(fixed, [1.0, 1.0]) == "" and stop_reason(fixed, [1.0] * 3) == "runs"
+
+
+def test_adaptive_takes_what_its_interval_needs_at_most_doubling_a_round() -> None:
+    assert next_runs(AUTO, []) == 3  # its first round: enough for an interval
+    assert next_runs(AUTO, [0.1]) == 2
+    steady = [0.100, 0.1002, 0.0999, 0.1001]
+    assert next_runs(AUTO, steady) == 1  # narrow already: the fewest
+    noisy = [0.10, 0.13, 0.08, 0.12]
+    assert next_runs(AUTO, noisy) == 4  # wide: as many as it has, no more
+    assert next_runs(AUTO, noisy * 2) == 1  # the time limit: 0.14 s of its 1 s left
+    roomy = Measure(warmup=0, runs=None, ci=0.02, max_runs=10, max_time_s=100.0)
+    assert next_runs(roomy, noisy * 2) == 2  # max_runs
+    assert next_runs(roomy, noisy * 3) == 0
+    paired = AUTO.at_least(8)  # a measured comparison: one a round until its 8 rounds
+    assert [next_runs(paired, [0.1] * k) for k in (0, 3, 7)] == [1, 1, 1]
 
 
 def test_adaptive_stops_when_the_interval_is_narrow_or_a_limit_is_reached() -> None:
