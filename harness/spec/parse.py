@@ -399,15 +399,20 @@ def _parse_executor(value: object, source: Path) -> ExecutorSpec:
     )
 
 
+def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path) -> None:
+    """A name for a custom binary or a program: a valid name no variant has."""
+    if name in taken or not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise config_error(source, label, "a new variant name (letters, digits, '_', '.', "
+                           "'-'; not one of " + ", ".join(taken) + ")", name)
+
+
 def _parse_binaries(value: object, source: Path,
                     variants: Sequence[str]) -> tuple[tuple[str, Path], ...]:
     raw = kinds.mapping(value, "binaries", source)
     result = []
     for name, path in raw.items():
         label = f"binaries.{name}"
-        if name in variants or not isinstance(name, str) or not NAME_PATTERN.match(name):
-            raise config_error(source, label, "a new variant name (not one of "
-                               + ", ".join(variants) + ")", name)
+        _check_new_name(name, label, variants, source)
         if not isinstance(path, str) or not path:
             raise config_error(source, label, "a path to an executable", path)
         resolved = (source.resolve().parent / path).resolve()
@@ -428,9 +433,7 @@ def _parse_programs(value: object, source: Path,
     result = []
     for name, entry in raw.items():
         label = f"programs.{name}"
-        if name in taken or not isinstance(name, str) or not NAME_PATTERN.match(name):
-            raise config_error(source, label, "a new name (letters, digits, '_', '.', '-'; "
-                               "not one of " + ", ".join(taken) + ")", name)
+        _check_new_name(name, label, taken, source)
         fields = {"command": entry} if isinstance(entry, str) else entry
         if not isinstance(fields, dict):
             raise config_error(source, label, PROGRAM_FORMS, entry)

@@ -46,8 +46,8 @@ def test_a_template_and_a_mapping_load(write_config: Write) -> None:
                                                                             "check"),
     ("  alice: {command: './sim {input}', check: './sim'}", "programs.alice.check",
      "no {input}"),
-    ("  p1d: './sim {input}'", "programs.p1d", "a new name"),
-    ("  'al ice': './sim {input}'", "programs.al ice", "a new name"),
+    ("  p1d: './sim {input}'", "programs.p1d", "a new variant name"),
+    ("  'al ice': './sim {input}'", "programs.al ice", "a new variant name"),
     ("  alice: './sim {input}'\n  bob: './sim {input}'", "programs.bob",
      "a program also listed under variants"),
 ])
