@@ -6,7 +6,9 @@
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
 #   make test             C tests (also under ASan+UBSan and portable), Python tests, ruff
 #   make bench            the performance benchmarks of the issues, saved under results/
-#   make setup            Python environment (.venv) and hyperfine
+#   make setup            Python environment (.venv) and hyperfine: what the harness needs
+#   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
+#                         Debian's Slurm and chromium); make test runs it first
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
 #
 # A variant is a file variants/NAME.c; adding one needs no change here.
@@ -21,6 +23,8 @@ HEADERS := $(wildcard variants/core/*.h)
 # include its source depend on them.
 VARIANT_HEADERS = $(wildcard variants/$(1)/*.h)
 PYTHON := .venv/bin/python
+# Written by `scripts/setup.sh --test` once the tests' tools are installed.
+TEST_READY := .venv/.test-ready
 
 # Exact builds: IEEE double evaluated as written. No FMA contraction, never -ffast-math: the
 # variants must agree byte for byte, and SPEC fixes the order of every operation.
@@ -68,7 +72,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-python lint bench setup quickstart clean print-flags print-variants
+.PHONY: all asan portable test test-c test-python lint bench setup setup-test quickstart clean print-flags print-variants
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -111,11 +115,11 @@ test-c: all asan portable build/seq-f32 build/seq-f128 $(addprefix build/tests/,
 	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
 	@echo "== tests/c/run_scenes.sh build/portable"; bash tests/c/run_scenes.sh build/portable
 
-test-python: $(PYTHON) all
+test-python: $(TEST_READY) all
 	$(PYTHON) -m pytest -q
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
-lint: $(PYTHON)
+lint: $(TEST_READY)
 	$(PYTHON) -m ruff check harness tests bench scripts
 	.venv/bin/lint-imports
 
@@ -127,6 +131,12 @@ $(PYTHON): requirements.txt pyproject.toml
 
 setup:
 	scripts/setup.sh
+
+$(TEST_READY): requirements.txt requirements-test.txt pyproject.toml scripts/setup.sh
+	scripts/setup.sh --test
+
+setup-test:
+	scripts/setup.sh --test
 
 quickstart: setup
 	$(MAKE) all
