@@ -64,7 +64,7 @@ $(eval $(call build_rules,f64,build/%,,))
 $(foreach b,$(BUILDS),$(eval $(call build_rules,$(b),build/%-$(b),$(FLAGS_$(b)),$(LIBS_$(b)))))
 $(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
 # The portable build: baseline x86-64 (SSE2, no AVX), what `make all OPT=-O3` gives on Debian
-# (README, Slurm on mixed nodes). Its vector paths are others than -march=native's (grid's
+# (docs/slurm.md: Slurm on mixed nodes). Its vector paths are others than -march=native's (grid's
 # 4-lane prefilter, the core's 16-byte motion lanes), so the tests run it too.
 PORTABLE := $(if $(filter x86_64 i%86,$(shell uname -m)),-march=x86-64 -mtune=generic,)
 $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
@@ -138,9 +138,11 @@ $(TEST_READY): requirements.txt requirements-test.txt pyproject.toml scripts/set
 setup-test:
 	scripts/setup.sh --test
 
+# RUN_FLAGS: more options for the quick start's run (e.g. RUN_FLAGS=--dry-run).
+RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
-	$(PYTHON) harness/run.py configs/quickstart.yaml
+	$(PYTHON) harness/run.py configs/quickstart.yaml $(RUN_FLAGS)
 
 bench: all $(PYTHON)
 	$(PYTHON) -m bench.bench
