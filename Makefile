@@ -72,7 +72,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-python lint bench setup setup-test quickstart clean print-flags print-variants
+.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -107,23 +107,47 @@ build/tests-portable/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/porta
 
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
-# Unit tests (optimised, sanitizer and portable builds), then every scene script against the
-# optimised and the sanitizer builds, and run_scenes.sh (every exact variant against seq)
-# against the portable one.
-test-c: all asan portable build/seq-f32 build/seq-f128 $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS)) $(addprefix build/tests-portable/,$(C_TESTS))
+# The C tests in four groups that make runs side by side: the unit tests of the optimised,
+# sanitizer and portable builds; every scene script against the optimised build, and against
+# the sanitizer build; run_scenes.sh (every exact variant against seq) against the portable
+# build.
+C_TEST_GROUPS := test-c-unit test-c-scenes test-c-scenes-asan test-c-portable
+
+test-c-unit: $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS)) $(addprefix build/tests-portable/,$(C_TESTS))
 	@set -e; for t in $(C_TESTS); do for d in tests tests-asan tests-portable; do echo "== $$t ($$d)"; build/$$d/$$t; done; done
-	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
+
+test-c-scenes: all build/seq-f32 build/seq-f128
+	@set -e; for s in $(SCENE_SCRIPTS); do echo "== $$s build"; bash $$s build; done
+
+test-c-scenes-asan: asan
+	@set -e; for s in $(SCENE_SCRIPTS); do echo "== $$s build/asan"; bash $$s build/asan; done
+
+test-c-portable: portable
 	@echo "== tests/c/run_scenes.sh build/portable"; bash tests/c/run_scenes.sh build/portable
 
+test-c: $(C_TEST_GROUPS)
+
+# pytest in two processes side by side: the Slurm executor's tests (mostly waiting on a real
+# Slurm: a task's smallest time limit is a minute) and all the others; both must pass.
+SLURM_TESTS := tests/executors/test_slurm.py
+
 test-python: $(TEST_READY) all
-	$(PYTHON) -m pytest -q
+	@mkdir -p build; log=build/pytest-slurm.log; \
+	$(PYTHON) -m pytest -q $(SLURM_TESTS) >$$log 2>&1 & slurm=$$!; \
+	$(PYTHON) -m pytest -q --ignore=$(SLURM_TESTS); others=$$?; \
+	wait $$slurm; status=$$?; echo "== $(SLURM_TESTS)"; cat $$log; \
+	[ $$others = 0 ] && [ $$status = 0 ]
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
 lint: $(TEST_READY)
 	$(PYTHON) -m ruff check harness tests bench scripts
 	.venv/bin/lint-imports
 
-test: test-c lint test-python
+# Everything, three jobs at a time whatever -j make was given: the C test groups, lint and
+# pytest (whose Slurm half mostly waits) interleave on a 2-core machine; each job's output
+# is printed whole when it ends.
+test:
+	@$(MAKE) --no-print-directory -j3 -Otarget test-c lint test-python
 
 # ---- environment ----
 $(PYTHON): requirements.txt pyproject.toml
