@@ -143,11 +143,11 @@ lint: $(TEST_READY)
 	$(PYTHON) -m ruff check harness tests bench scripts
 	.venv/bin/lint-imports
 
-# Everything, three jobs at a time whatever -j make was given: the C test groups, lint and
-# pytest (whose Slurm half mostly waits) interleave on a 2-core machine; each job's output
-# is printed whole when it ends.
+# Everything, three jobs at a time whatever -j make was given: pytest (whose Slurm half mostly
+# waits) starts first, once build/ has the variants, and the C tests' builds and groups fill
+# the other two; each job's output is printed whole when it ends.
 test:
-	@$(MAKE) --no-print-directory -j3 -Otarget test-c lint test-python
+	@$(MAKE) --no-print-directory -j3 -Otarget test-python lint test-c
 
 # ---- environment ----
 $(PYTHON): requirements.txt pyproject.toml
