@@ -23,8 +23,8 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="report only this experiment (repeatable)")
     parser.add_argument("--machine", metavar="ID",
                         help="the machine report.html shows (its machine_id or the start of "
-                        "it; default: the one that measured last); every other machine's "
-                        "report goes to machines/<machine_id>/ beside it")
+                        "it; default: the one that measured last); every machine's page is "
+                        "also machines/<machine_id>/report.html")
     return parser
 
 

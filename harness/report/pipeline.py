@@ -3,13 +3,13 @@ figures/ under a lock on the report directory. An experiment whose inputs and th
 code did not change is read back from the manifest (harness/report/cache.py) without pandas,
 scipy or matplotlib; only the others are loaded and built.
 
-One page shows one machine. Where the results hold several machines, the report directory's
-report.{md,html} shows the one that measured last (or the one asked for), and
-machines/<machine_id>/report.{md,html} each other one, every page with its own figures/ and
-links to the others."""
+One page shows one machine: machines/<machine_id>/report.{md,html} with its own figures/, each
+linking the others, and report.{md,html} at the top the machine that measured last (or the one
+asked for)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 from collections.abc import Collection, Sequence
@@ -133,7 +133,7 @@ def _remove_stale_figures(fig_dir: Path, keep: set[Path]) -> None:
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
-    """Pages of machines no longer in the results (or shown at the top instead)."""
+    """Pages of machines no longer in the results."""
     pages = out_dir / MACHINES_DIR
     if not pages.is_dir():
         return
@@ -144,10 +144,15 @@ def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
         pages.rmdir()
 
 
+def _write_page(doc: Document, page_dir: Path) -> None:
+    atomic_write_text(page_dir / f"{PAGE_STEM}.md", render_markdown(doc, page_dir))
+    atomic_write_text(page_dir / f"{PAGE_STEM}.html", render_html(doc, page_dir))
+
+
 def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
                  machine: machines.Machine | None = None, others: Sequence[Link] = (),
                  side_by_side: Section | None = None,
-                 rows: machines.Rows | None = None) -> None:
+                 rows: machines.Rows | None = None) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, facts=default_registry().digest())
@@ -161,10 +166,10 @@ def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Pa
                     for f in found]
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
                          side_by_side=side_by_side)
-    atomic_write_text(page_dir / f"{PAGE_STEM}.md", render_markdown(doc, page_dir))
-    atomic_write_text(page_dir / f"{PAGE_STEM}.html", render_html(doc, page_dir))
+    _write_page(doc, page_dir)
     _remove_stale_figures(fig_dir, document_files(doc))
     manifest.save()
+    return doc
 
 
 def render(
@@ -175,9 +180,13 @@ def render(
     experiments: Collection[str] | None = None,
     machine: str | None = None,
 ) -> Path:
-    """Render report.md, report.html and figures/ under `out_dir` from `results_dir`: of the
-    machine that measured last, or of `machine` (an id or its unique start); each other
-    machine's under machines/<machine_id>/.
+    """Render report.md and report.html under `out_dir` from `results_dir`.
+
+    Where the results record their machines, each machine's page goes to
+    machines/<machine_id>/ with its figures, and report.{md,html} is the page of the machine
+    that measured last, or of `machine` (an id or its unique start), its figures linked
+    there: a new machine on top redraws nothing of the others. Results without machine ids
+    make one page with figures/ beside it.
 
     Returns the path of report.md. Raises HarnessError for unreadable or malformed results,
     or a `machine` that is not one of theirs.
@@ -192,19 +201,27 @@ def render(
     # delete each other's figures as stale; the second waits for the first instead.
     # The lock is on the directory itself, so no lock file is left in the report.
     with directory_lock(out_dir):
-        if len(listed) < 2:
+        if not listed:
             if machine is not None:
-                machines.pick(listed, machine)  # a wrong id is an error even here
+                machines.pick(listed, machine)  # a machine asked of results without any
             _render_page(found, results_dir, out_dir)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
-        pages = {m.id: out_dir if m.id == top.id else out_dir / MACHINES_DIR / m.id
-                 for m in listed}
+        pages = {m.id: out_dir / MACHINES_DIR / m.id for m in listed}
+
+        def links(page_dir: Path, shown: str) -> list[Link]:
+            return [Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, page_dir))
+                         .as_posix()) for m in listed if m.id != shown]
+
         for page in listed:
-            links = [Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, pages[page.id]))
-                          .as_posix()) for m in listed if m.id != page.id]
-            _render_page(found, results_dir, pages[page.id], page, links,
-                         machines.side_by_side(rows, page, listed), rows)
-        _remove_stale_pages(out_dir, [m.id for m in listed if m.id != top.id])
+            doc = _render_page(found, results_dir, pages[page.id], page,
+                               links(pages[page.id], page.id),
+                               machines.side_by_side(rows, page, listed), rows)
+            if page.id == top.id:
+                _write_page(dataclasses.replace(doc, others=tuple(links(out_dir, top.id))),
+                            out_dir)
+        _remove_stale_pages(out_dir, pages)
+        # figures/ beside report.html belong to results without machine ids: stale here.
+        shutil.rmtree(out_dir / FIGURES_DIR, ignore_errors=True)
     return out_dir / f"{PAGE_STEM}.md"

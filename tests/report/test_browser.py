@@ -64,7 +64,7 @@ def browser() -> Iterator[object]:
 @pytest.fixture(scope="module")
 def two_machines(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The fixture report with the threads experiment measured on two machines, the others on
-    a machine they do not record: a main page and two under machines/."""
+    a machine they do not record: a page each under machines/, one of them on top."""
     tmp = tmp_path_factory.mktemp("browser")
     root = results_with(tmp, "strategies", "threads", "grid", "trajectory", "accuracy")
     csv_path = root / "threads" / "results.csv"
@@ -125,7 +125,8 @@ def check_page(browser: object, page: Path) -> None:
 def test_every_page_of_a_two_machine_report(browser: object, two_machines: Path) -> None:
     pages = sorted(two_machines.rglob("report.html"))
     assert [p.relative_to(two_machines).as_posix() for p in pages] == [
-        f"machines/{'a' * 16}/report.html", "machines/unknown/report.html", "report.html"]
+        f"machines/{'a' * 16}/report.html", f"machines/{'b' * 16}/report.html",
+        "machines/unknown/report.html", "report.html"]
     for page in pages:
         check_page(browser, page)
 

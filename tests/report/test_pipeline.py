@@ -467,19 +467,24 @@ def test_each_machine_gets_its_own_page_and_a_comparison(tmp_path: Path) -> None
     out = tmp_path / "report"
     pipeline.render(root, out)
     main = (out / "report.md").read_text(encoding="utf-8")
-    other = (out / "machines" / ("aa" * 8) / "report.md").read_text(encoding="utf-8")
-    assert not (out / "machines" / ("bb" * 8)).exists()
-    # bb measured last: it is the main page; one label, told apart by the id's start.
+    pages = out / "machines"
+    other = (pages / ("aa" * 8) / "report.md").read_text(encoding="utf-8")
+    # bb measured last: it is the page on top; one label, told apart by the id's start.
+    assert main == (pages / ("bb" * 8) / "report.md").read_text(encoding="utf-8").replace(
+        "](../aaaaaaaaaaaaaaaa/report.md)", "](machines/aaaaaaaaaaaaaaaa/report.md)").replace(
+        "](figures/", "](machines/bbbbbbbbbbbbbbbb/figures/")
     assert "Measured on **AMD EPYC (bbbbbbbb)**" in main
     assert "Measured on **AMD EPYC (aaaaaaaa)**" in other
     assert "Other machines: [AMD EPYC (aaaaaaaa)](machines/aaaaaaaaaaaaaaaa/report.md)." in main
-    assert "Other machines: [AMD EPYC (bbbbbbbb)](../../report.md)." in other
+    assert "Other machines: [AMD EPYC (bbbbbbbb)](../bbbbbbbbbbbbbbbb/report.md)." in other
     for page, commit in ((main, "decade"), (other, "c0ffee")):
         table = page.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
         assert "| machine |" not in table
         assert f"Measured at commit `{commit}`." in page
-    assert (out / "figures" / "threads-speedup.png").is_file()
-    assert (out / "machines" / ("aa" * 8) / "figures" / "threads-speedup.png").is_file()
+    assert not (out / "figures").exists()
+    for machine_id in ("aa", "bb"):
+        assert (pages / (machine_id * 8) / "figures" / "threads-speedup.png").is_file()
+    assert "](machines/bbbbbbbbbbbbbbbb/figures/threads-speedup.png)" in main
     side = main.split("## Machines side by side", 1)[1].split("\n## ", 1)[0]
     # 15 of the 16 cells are ok on both (one timed out)
     assert "| threads | AMD EPYC (aaaaaaaa) | 15 | 0.50 | 0.50 – 0.50 |" in side
@@ -487,11 +492,11 @@ def test_each_machine_gets_its_own_page_and_a_comparison(tmp_path: Path) -> None
     html = (out / "report.html").read_text(encoding="utf-8")
     assert '<a href="machines/aaaaaaaaaaaaaaaa/report.html">' in html
 
-    # --machine picks the page on top; the other moves under machines/.
+    # --machine picks the page on top; nothing is drawn again.
+    drawn = {p: p.stat().st_mtime_ns for p in pages.rglob("*.png")}
     pipeline.render(root, out, machine="aaaa")
     assert "Measured on **AMD EPYC (aaaaaaaa)**" in (out / "report.md").read_text()
-    assert (out / "machines" / ("bb" * 8) / "report.md").is_file()
-    assert not (out / "machines" / ("aa" * 8)).exists()
+    assert drawn == {p: p.stat().st_mtime_ns for p in pages.rglob("*.png")}
     with pytest.raises(HarnessError, match="--machine cc: is not a machine"):
         pipeline.render(root, out, machine="cc")
 
@@ -517,6 +522,7 @@ def test_without_measured_at_the_machine_of_env_json_is_the_latest(tmp_path: Pat
     pipeline.render(root, out)
     new = (out / "report.md").read_text(encoding="utf-8")
     old = (out / "machines" / ("0d" * 8) / "report.md").read_text(encoding="utf-8")
+    assert "Measured on **Old box x2**." in old
     assert new.startswith("# collide-bench report\n\nMeasured on **New box x2**.")
     largest = [page.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
                for page in (new, old)]

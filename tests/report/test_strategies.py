@@ -122,7 +122,8 @@ def test_each_machine_gets_its_own_study(tmp_path: Path) -> None:
     write_experiment(root, "strategies", records)
     out = tmp_path / "report"
     render(root, out)
-    pages = {path.parent: path.read_text(encoding="utf-8") for path in out.rglob("report.md")}
+    pages = {path.parent: path.read_text(encoding="utf-8")
+             for path in (out / "machines").glob("*/report.md")}
     assert len(pages) == 2
     for label, (_, scale) in boxes.items():
         page, markdown = next((p, m) for p, m in pages.items() if f"**{label}" in m)
