@@ -100,7 +100,7 @@ def pick(found: Sequence[Machine], wanted: str | None) -> Machine:
     matches = [m for m in found if m.id == wanted] or [
         m for m in found if m.id.startswith(wanted)]
     if len(matches) != 1:
-        known = ", ".join(f"{m.id} ({m.label or 'no label'})" for m in found)
+        known = ", ".join(f"{m.id} ({m.label or 'no label'})" for m in found) or "none recorded"
         what = "matches several machines" if matches else "is not a machine of these results"
         raise HarnessError(f"--machine {wanted}: {what}; the machines: {known}")
     return matches[0]

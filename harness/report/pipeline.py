@@ -3,9 +3,9 @@ figures/ under a lock on the report directory. An experiment whose inputs and th
 code did not change is read back from the manifest (harness/report/cache.py) without pandas,
 scipy or matplotlib; only the others are loaded and built.
 
-One page shows one machine: machines/<machine_id>/report.{md,html} with its own figures/, each
-linking the others, and report.{md,html} at the top the machine that measured last (or the one
-asked for)."""
+One page shows one machine. Where the results hold several, each has its page
+machines/<machine_id>/report.{md,html} with its own figures/, each linking the others, and
+report.{md,html} at the top is the machine that measured last (or the one asked for)."""
 
 from __future__ import annotations
 
@@ -182,11 +182,11 @@ def render(
 ) -> Path:
     """Render report.md and report.html under `out_dir` from `results_dir`.
 
-    Where the results record their machines, each machine's page goes to
+    Where the results hold several machines, each machine's page goes to
     machines/<machine_id>/ with its figures, and report.{md,html} is the page of the machine
     that measured last, or of `machine` (an id or its unique start), its figures linked
-    there: a new machine on top redraws nothing of the others. Results without machine ids
-    make one page with figures/ beside it.
+    there: a new machine on top redraws nothing of the others. Results of one machine (or
+    without machine ids) make one page with figures/ beside it.
 
     Returns the path of report.md. Raises HarnessError for unreadable or malformed results,
     or a `machine` that is not one of theirs.
@@ -201,10 +201,10 @@ def render(
     # delete each other's figures as stale; the second waits for the first instead.
     # The lock is on the directory itself, so no lock file is left in the report.
     with directory_lock(out_dir):
-        if not listed:
-            if machine is not None:
-                machines.pick(listed, machine)  # a machine asked of results without any
-            _render_page(found, results_dir, out_dir)
+        if len(listed) < 2:
+            # One machine (or none recorded): one page, its figures beside it.
+            shown = machines.pick(listed, machine) if listed or machine else None
+            _render_page(found, results_dir, out_dir, shown, rows=rows)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)

@@ -421,6 +421,9 @@ def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
     out = tmp_path / "report"
     pipeline.render(root, out)
     markdown = (out / "report.md").read_text(encoding="utf-8")
+    # One machine: one page, its figures beside it.
+    assert "Measured on **AMD EPYC 7B13 (Zen3) x2**." in markdown
+    assert (out / "figures").is_dir() and not (out / "machines").exists()
     assert "machine = AMD EPYC 7B13 (Zen3) x2" in markdown
     table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
     assert "| machine |" not in table
