@@ -130,11 +130,13 @@ test-c: $(C_TEST_GROUPS)
 # pytest in two processes side by side: the Slurm executor's tests (mostly waiting on a real
 # Slurm: a task's smallest time limit is a minute) and all the others; both must pass.
 SLURM_TESTS := tests/executors/test_slurm.py
+# The slowest tests are listed at the end of each run: where the time goes.
+PYTEST := $(PYTHON) -m pytest -q --durations=8
 
 test-python: $(TEST_READY) all
 	@mkdir -p build; log=build/pytest-slurm.log; \
-	$(PYTHON) -m pytest -q $(SLURM_TESTS) >$$log 2>&1 & slurm=$$!; \
-	$(PYTHON) -m pytest -q --ignore=$(SLURM_TESTS); others=$$?; \
+	$(PYTEST) $(SLURM_TESTS) >$$log 2>&1 & slurm=$$!; \
+	$(PYTEST) --ignore=$(SLURM_TESTS); others=$$?; \
 	wait $$slurm; status=$$?; echo "== $(SLURM_TESTS)"; cat $$log; \
 	[ $$others = 0 ] && [ $$status = 0 ]
 
