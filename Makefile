@@ -4,14 +4,16 @@
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
-#   make test             C tests (also under ASan+UBSan and portable), Python tests, ruff
-#   make bench            the performance benchmarks of the issues, saved under results/
+#   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
+#   make test             test-c, ruff and the Python tests, side by side
+#   make bench            the performance benchmarks (bench/bench.py), saved under results/
 #   make setup            Python environment (.venv) and hyperfine: what the harness needs
 #   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
 #                         Debian's Slurm and chromium); make test runs it first
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
 #
-# A variant is a file variants/NAME.c; adding one needs no change here.
+# A variant is a file variants/NAME.c, with, if it is split into pieces, the files
+# variants/NAME/*.c and its own headers variants/NAME/*.h; adding one needs no change here.
 
 .DEFAULT_GOAL := all
 SHELL := /bin/bash
@@ -19,9 +21,12 @@ SHELL := /bin/bash
 VARIANTS := $(sort $(basename $(notdir $(wildcard variants/*.c))))
 CORE_SRC := $(wildcard variants/core/*.c)
 HEADERS := $(wildcard variants/core/*.h)
-# A variant's own headers live in variants/NAME/ (grid's pieces); its objects and the tests that
-# include its source depend on them.
-VARIANT_HEADERS = $(wildcard variants/$(1)/*.h)
+# A variant NAME is built from variants/NAME.c and every variants/NAME/*.c; its headers in
+# variants/NAME/ are prerequisites of all of those objects. $(1) is NAME or NAME/PIECE.
+VARIANT_DIR = variants/$(firstword $(subst /, ,$(1)))
+VARIANT_HEADERS = $(wildcard $(call VARIANT_DIR,$(1))/*.h)
+# The objects of variant $(2)'s pieces (variants/$(2)/*.c) in the object directory $(1).
+VARIANT_PIECES = $(patsubst variants/%.c,build/obj/$(1)/%.o,$(wildcard variants/$(2)/*.c))
 PYTHON := .venv/bin/python
 # Written by `scripts/setup.sh --test` once the tests' tools are installed.
 TEST_READY := .venv/.test-ready
@@ -44,7 +49,8 @@ FLAGS_textbook := -DSIM_PAIR_TEXTBOOK
 FLAGS_report := -DSIM_PAIR_REPORT
 BUILDS := f32 f128 textbook report
 
-# Variant objects list their own headers through a second expansion of $*.
+# Variant objects and binaries list their own headers and pieces through a second expansion
+# of $*.
 .SECONDEXPANSION:
 
 # $(1) object directory, $(2) binary pattern, $(3) extra compile flags, $(4) extra libraries.
@@ -55,7 +61,8 @@ build/obj/$(1)/core/%.o: variants/core/%.c $$(HEADERS)
 build/obj/$(1)/%.o: variants/%.c $$(HEADERS) $$$$(call VARIANT_HEADERS,$$$$*)
 	@mkdir -p $$(@D)
 	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
-$(2): build/obj/$(1)/%.o $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_SRC))
+$(2): build/obj/$(1)/%.o $$$$(call VARIANT_PIECES,$(1),$$$$*) \
+      $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_SRC))
 	@mkdir -p $$(@D)
 	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) $$^ -o $$@ $$(BASE_LDLIBS) $(4) $$(LDLIBS)
 endef
@@ -72,7 +79,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants
+.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -86,24 +93,34 @@ print-flags:
 print-variants:
 	@echo "$(VARIANTS)"
 
+print-builds:
+	@echo "$(BUILDS)"
+
 # ---- tests ----
 C_TESTS := $(sort $(basename $(notdir $(wildcard tests/c/test_*.c))))
 CORE_LIB_SRC := $(filter-out variants/core/sim_main.c,$(CORE_SRC))
 
-# Tests include variant sources (test_grid.c includes variants/grid.c) and tests/c/check.h.
+# Tests include tests/c/check.h, and a single-file variant's source (test_relative.c includes
+# variants/relative.c). tests/c/test_NAME.c of a variant split into pieces (variants/NAME/*.c)
+# links that variant's objects instead and includes its headers.
 TEST_INCLUDES := $(wildcard variants/*.c) $(wildcard variants/*/*.h) $(wildcard tests/c/*.h)
+# The variant objects test $(2) (test_NAME) links, from the object directory $(1): NAME's, when
+# NAME is a variant with pieces; none otherwise.
+TEST_VARIANT_OBJS = $(if $(wildcard variants/$(2:test_%=%).c), \
+                    $(if $(call VARIANT_PIECES,$(1),$(2:test_%=%)), \
+                    build/obj/$(1)/$(2:test_%=%).o $(call VARIANT_PIECES,$(1),$(2:test_%=%))))
 
-build/tests/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/f64/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
-	@mkdir -p $(@D)
-	$(CC) $(BASE_CFLAGS) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
+# $(1) object directory, $(2) test directory, $(3) extra compile flags.
+define test_rules
+build/$(2)/%: tests/c/%.c $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_LIB_SRC)) \
+              $$$$(call TEST_VARIANT_OBJS,$(1),$$$$*) $$(HEADERS) $$(TEST_INCLUDES)
+	@mkdir -p $$(@D)
+	$$(CC) $$(BASE_CFLAGS) $(3) -Ivariants/core $$(CFLAGS) $$< $$(filter %.o,$$^) -o $$@ $$(BASE_LDLIBS)
+endef
 
-build/tests-asan/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/asan/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
-	@mkdir -p $(@D)
-	$(CC) $(BASE_CFLAGS) $(SANITIZE) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
-
-build/tests-portable/%: tests/c/%.c $(patsubst variants/core/%.c,build/obj/portable/core/%.o,$(CORE_LIB_SRC)) $(HEADERS) $(TEST_INCLUDES)
-	@mkdir -p $(@D)
-	$(CC) $(BASE_CFLAGS) $(PORTABLE) -Ivariants/core $(CFLAGS) $< $(filter %.o,$^) -o $@ $(BASE_LDLIBS)
+$(eval $(call test_rules,f64,tests,))
+$(eval $(call test_rules,asan,tests-asan,$(SANITIZE)))
+$(eval $(call test_rules,portable,tests-portable,$(PORTABLE)))
 
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
@@ -142,7 +159,7 @@ test-python: $(TEST_READY) all
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
 lint: $(TEST_READY)
-	$(PYTHON) -m ruff check harness tests bench scripts
+	$(PYTHON) -m ruff check harness tests bench scripts examples
 	.venv/bin/lint-imports
 
 # Everything, three jobs at a time whatever -j make was given: pytest (whose Slurm half mostly

@@ -194,3 +194,125 @@ def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Inte
     """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
     e.g. the time a strategy adds over its repair."""
     return _two_medians(_clean(minuend), _clean(subtrahend), np.subtract)
+
+
+# --- is NEW slower or faster than OLD? ------------------------------------------------------
+
+Z95 = 1.959963984540054  # the normal quantile of a two-sided 95% interval
+
+
+@dataclass(frozen=True)
+class Change:
+    """NEW over OLD: the ratio with its 95% interval, and the one-sided p-values that NEW is
+    slower, or faster, by more than a threshold (NaN where the runs cannot tell)."""
+
+    ratio: Interval
+    p_slower: float
+    p_faster: float
+
+    @property
+    def p_value(self) -> float:
+        """Two-sided: the smaller one-sided p-value, doubled."""
+        if not (math.isfinite(self.p_slower) and math.isfinite(self.p_faster)):
+            return math.nan
+        return min(1.0, 2.0 * min(self.p_slower, self.p_faster))
+
+
+NO_CHANGE_KNOWN = Change(Interval(math.nan, math.nan, math.nan), math.nan, math.nan)
+
+
+CLIP_MADS = 3.0  # per-round log ratios are clipped to this many (scaled) MADs of their median
+MAD_SCALE = 1.4826  # a normal distribution's standard deviation in MADs
+
+
+def clip_outliers(values: np.ndarray) -> np.ndarray:
+    """The values clipped to their median +- CLIP_MADS scaled median absolute deviations: a
+    shared machine's stray slow run (a few in a hundred take 10-50% longer) then weighs like a
+    large ordinary one instead of deciding a test alone."""
+    median = float(np.median(values))
+    mad = MAD_SCALE * float(np.median(np.abs(values - median)))
+    return values if mad == 0.0 else np.clip(values, median - CLIP_MADS * mad,
+                                             median + CLIP_MADS * mad)
+
+
+def paired_change(old: Sequence[float], new: Sequence[float], threshold: float) -> Change:
+    """The change from paired measurements: old[k] and new[k] were measured in the same round,
+    one right after the other, so that the machine's drift is in both. The ratio is the
+    geometric mean of the per-round ratios (their logs clipped: clip_outliers), its interval
+    and p-values from a one-sample t-test on those logs (shifted by log(1 + threshold) for
+    the p-values)."""
+    d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return NO_CHANGE_KNOWN
+    d = clip_outliers(d)
+    mean = float(d.mean())
+    sd = float(d.std(ddof=1))
+    if sd == 0.0:  # every round the same ratio: no spread to test against
+        ratio = math.exp(mean)
+        margin = math.log1p(threshold)
+        return Change(Interval(ratio, ratio, ratio), 0.0 if mean > margin else 1.0,
+                      0.0 if mean < -margin else 1.0)
+    se = sd / math.sqrt(d.size)
+    half = float(sps.t.ppf(0.975, d.size - 1)) * se
+    margin = math.log1p(threshold)
+    slower = float(sps.t.sf((mean - margin) / se, d.size - 1))
+    faster = float(sps.t.cdf((mean + margin) / se, d.size - 1))
+    return Change(Interval(math.exp(mean), math.exp(mean - half), math.exp(mean + half)),
+                  slower, faster)
+
+
+def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
+                 drift: float) -> Change:
+    """The change between two sets of runs measured apart in time: the ratio of their medians,
+    its 95% bootstrap interval (ratio_ci), widened by the machine's drift between such runs
+    (`drift`: the standard deviation of the log of a ratio of identical binaries measured
+    apart, beyond the runs' own spread), and normal-approximation p-values against it."""
+    base = ratio_ci(new, old)
+    if not all(math.isfinite(v) and v > 0 for v in (base.point, base.low, base.high)):
+        return Change(base, math.nan, math.nan)
+    log_ratio = math.log(base.point)
+    within = (math.log(base.high) - math.log(base.low)) / (2 * Z95)
+    se = math.hypot(within, drift)
+    if se == 0.0:
+        return Change(base, math.nan, math.nan)
+    margin = math.log1p(threshold)
+    interval = Interval(base.point, math.exp(log_ratio - Z95 * se),
+                        math.exp(log_ratio + Z95 * se))
+    return Change(interval, float(sps.norm.sf((log_ratio - margin) / se)),
+                  float(sps.norm.cdf((log_ratio + margin) / se)))
+
+
+def discoveries(p_values: Sequence[float], q: float) -> list[bool]:
+    """Which of the tests are discoveries with the false-discovery rate controlled at q
+    (Benjamini-Hochberg, scipy.stats.false_discovery_control); a NaN p-value never is."""
+    finite = [k for k, p in enumerate(p_values) if math.isfinite(p)]
+    found = [False] * len(p_values)
+    if finite:
+        adjusted = sps.false_discovery_control(
+            np.asarray([p_values[k] for k in finite], dtype=float), method="bh")
+        for k, value in zip(finite, adjusted, strict=True):
+            found[k] = bool(value <= q)
+    return found
+
+
+def log_ratio_drift(log_ratios: Sequence[float], within_variances: Sequence[float]) -> float:
+    """The drift between runs measured apart: the standard deviation of the log ratios of
+    identical binaries beyond what the runs' own spread explains (method of moments, floored
+    at 0)."""
+    values = [(r * r - v) for r, v in zip(log_ratios, within_variances, strict=True)
+              if math.isfinite(r) and math.isfinite(v)]
+    if not values:
+        return math.nan
+    return math.sqrt(max(0.0, float(np.mean(values))))
+
+
+def smallest_detectable(sd: float, rounds: int, threshold: float, alpha: float,
+                        power: float = 0.9) -> float:
+    """The slow-down a paired comparison of `rounds` rounds finds with probability `power` at
+    one-sided level `alpha`, for per-round log ratios of standard deviation `sd`."""
+    if rounds < 2 or not math.isfinite(sd):
+        return math.nan
+    df = rounds - 1
+    shift = (float(sps.t.ppf(1 - alpha, df)) + float(sps.t.ppf(power, df))) * sd
+    return math.expm1(math.log1p(threshold) + shift / math.sqrt(rounds))

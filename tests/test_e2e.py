@@ -46,7 +46,11 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
         assert float(row["wall_mean_s"]) > 0 and float(row["sim_s"]) >= 0
         assert int(row["pair_tests"]) > 0 and row["cores"] and len(row["binary_sha256"]) == 64
         assert float(row["max_pos_err"]) < 1e-6
-        assert (root / "smoke" / "cells" / f"{row['cell_id']}.hyperfine.json").is_file()
+        # two runs, one a round, each round's hyperfine export kept as written
+        assert row["rounds"] == "2" and row["wall_times_round"] == "1 2"
+        assert row["stopped"] == "runs" and row["round_seed"] == rows[0]["round_seed"]
+        for k in (1, 2):
+            assert (root / "smoke" / "cells" / f"{row['cell_id']}.hyperfine.{k}.json").is_file()
         if row["variant"] in EXACT:
             assert row["identical"] == "True" and row["max_pos_err"] == "0.0"
         # Every variant's --timing splits sim_s into phases (each printed to the

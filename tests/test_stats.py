@@ -1,4 +1,5 @@
-"""harness.stats: intervals of medians and ratios, Karp-Flatt, power fit, rank test."""
+"""harness.stats: intervals of medians and ratios, Karp-Flatt, power fit, rank test, and the
+change between two sides (paired, or apart with drift) under false-discovery control."""
 
 from __future__ import annotations
 
@@ -134,3 +135,62 @@ def test_rank_test() -> None:
     assert stats.rank_test([1, 2, 3, 4, 5], [6, 7, 8, 9, 10]) == pytest.approx(2 / 252)
     assert stats.rank_test([1.0, 3.0, 5.0], [2.0, 4.0, 6.0]) > 0.5
     assert math.isnan(stats.rank_test([1.0], [1.0, 2.0]))
+
+
+# --- changes between two sides --------------------------------------------------------------
+
+
+def test_paired_change_is_the_geometric_mean_of_the_round_ratios() -> None:
+    old = [1.0, 2.0, 4.0, 1.0]
+    new = [1.1, 2.2, 4.4, 1.1]
+    change = stats.paired_change(old, new, 0.01)
+    assert change.ratio.point == pytest.approx(1.1)
+    assert change.ratio.low == pytest.approx(1.1) and change.ratio.high == pytest.approx(1.1)
+    assert change.p_slower < 1e-10 and change.p_faster == pytest.approx(1.0)
+
+
+def test_paired_change_tests_against_the_threshold() -> None:
+    rng = np.random.default_rng(3)
+    old = rng.lognormal(0.0, 0.01, 12)
+    small = stats.paired_change(old, old * 1.005 * rng.lognormal(0.0, 0.002, 12), 0.01)
+    assert small.p_slower > 0.5  # 0.5% is within the 1% threshold
+    large = stats.paired_change(old, old * 1.03 * rng.lognormal(0.0, 0.002, 12), 0.01)
+    assert large.p_slower < 1e-4 and large.ratio.low > 1.01
+
+
+def test_a_stray_slow_run_is_clipped_not_decisive() -> None:
+    d = np.array([0.0, 0.001, -0.001, 0.0005, -0.0005, 0.0, 0.4])
+    clipped = stats.clip_outliers(d)
+    assert clipped[-1] < 0.01 and np.array_equal(clipped[:-1], d[:-1])
+    old = np.ones(7)
+    change = stats.paired_change(old, old * np.exp(d), 0.01)
+    assert change.p_slower > 0.05
+
+
+def test_drift_widens_the_interval_of_runs_measured_apart() -> None:
+    old, new = [1.00, 1.01, 0.99, 1.00], [1.05, 1.06, 1.04, 1.05]
+    narrow = stats.drift_change(old, new, 0.01, 0.0)
+    wide = stats.drift_change(old, new, 0.01, 0.05)
+    assert narrow.ratio.point == wide.ratio.point == pytest.approx(1.05)
+    assert wide.ratio.low < narrow.ratio.low and wide.ratio.high > narrow.ratio.high
+    assert narrow.p_slower < 0.01 < wide.p_slower
+
+
+def test_discoveries_hold_the_false_discovery_rate_and_skip_nan() -> None:
+    assert stats.discoveries([0.001, 0.02, 0.045, 0.9], 0.05) == [True, True, False, False]
+    assert stats.discoveries([0.001, math.nan], 0.05) == [True, False]
+    assert stats.discoveries([0.04] * 4, 0.05) == [True] * 4  # all change together
+    assert stats.discoveries([0.04, 0.9, 0.9, 0.9], 0.05) == [False] * 4  # one alone: no
+
+
+def test_drift_is_what_the_runs_spread_does_not_explain() -> None:
+    assert stats.log_ratio_drift([0.05, -0.05], [0.0, 0.0]) == pytest.approx(0.05)
+    assert stats.log_ratio_drift([0.01, -0.01], [0.01, 0.01]) == 0.0  # floored
+    assert math.isnan(stats.log_ratio_drift([], []))
+
+
+def test_the_smallest_detectable_change_shrinks_with_rounds_and_noise() -> None:
+    assert stats.smallest_detectable(0.01, 20, 0.01, 0.05) < stats.smallest_detectable(
+        0.01, 8, 0.01, 0.05) < stats.smallest_detectable(0.02, 8, 0.01, 0.05)
+    assert stats.smallest_detectable(0.0, 8, 0.01, 0.05) == pytest.approx(0.01)
+    assert math.isnan(stats.smallest_detectable(0.01, 1, 0.01, 0.05))

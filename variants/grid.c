@@ -2,20 +2,13 @@
  * grid: a space-time broad phase. Only pairs that can meet within the step are tested, with
  * the shared kernel (sim_pair_time), so the candidates, and the output, are those of seq, for
  * every input and thread count. docs/grid_design.md explains the design (time slices, float
- * binning, the lo-corner rule, exactly-once, work items); the finder is split into the pieces
- * under variants/grid/, in the order they are included below.
+ * binning, the lo-corner rule, exactly-once, work items). This file is the finder: the plan of
+ * the step, then its work items shared out to the threads; the pieces that do the work are the
+ * files of variants/grid/ (grid/grid.h lists them).
  */
 #include <omp.h>
 
-#include "core/sim.h"
-/* Each piece says what it owns: */
-#include "grid/grid_state.h"     /* constants, per-run and per-thread state, memory */
-#include "grid/grid_geometry.h"  /* cells of a box, near in a slice, the float test */
-#include "grid/grid_params.h"    /* the plan of a step: v_ref, K, cell size, work items */
-#include "grid/grid_binning.h"   /* a slice's entries in cell order */
-#include "grid/grid_prefilter.h" /* runs of entries in float, then the decision in double */
-#include "grid/grid_runs.h"      /* which runs each entry is looked at against */
-#include "grid/grid_scan.h"      /* a work item: slices binned and scanned in turn */
+#include "grid/grid.h"
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
@@ -23,7 +16,7 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     if (w->n < 2)
         return;
     grid_plan g;
-    plan_step(w, s, &g, sink->threads);
+    grid_plan_step(w, s, &g, sink->threads);
     const int threads = sink->threads;
     const int items = g.bands > 1 ? g.K * g.bands : g.blocks;
 #pragma omp parallel num_threads(threads) if (threads > 1)
@@ -35,10 +28,11 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
         for (int i = 0; i < items; i++) {
             buf->chunks++;
             if (g.bands > 1)
-                run_item(w, s, &s->th[tid], &g, i / g.bands, i / g.bands + 1, i % g.bands, buf);
+                grid_run_item(w, s, &s->th[tid], &g, i / g.bands, i / g.bands + 1, i % g.bands,
+                              buf);
             else
-                run_item(w, s, &s->th[tid], &g, (int)((int64_t)i * g.K / items),
-                         (int)((int64_t)(i + 1) * g.K / items), 0, buf);
+                grid_run_item(w, s, &s->th[tid], &g, (int)((int64_t)i * g.K / items),
+                              (int)((int64_t)(i + 1) * g.K / items), 0, buf);
         }
         sim_busy_stop(buf, t0);
     }
@@ -54,7 +48,7 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = false,
     .repairs = NULL,
-    .scratch_create = scratch_create,
-    .scratch_destroy = scratch_destroy,
+    .scratch_create = grid_scratch_create,
+    .scratch_destroy = grid_scratch_destroy,
     .find_pairs = find_pairs,
 };

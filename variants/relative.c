@@ -20,7 +20,7 @@
  * The arithmetic differs from SPEC's (square roots of the distance and of the movement, a
  * division by the movement's length), so the contact times differ from seq's by rounding; the
  * core sorts and resolves the candidates exactly as for every variant. Not exact: how far it
- * strays from seq is measured (tests/c/grid_scenes.sh and the reply to its issue).
+ * strays from seq is measured (tests/c/grid_scenes.sh prints it for every scene).
  *
  * Speed: as in the shared kernel, a branch-free pass over a block of j (vectorised) first keeps
  * the blocks where some pair survives conservative forms of tests 0, 2 and 3 (no square root,

@@ -66,6 +66,8 @@ DISPLAY_NAMES: dict[str, str] = {
     "pareto": "Pareto",
     "status": "status",
     "issue": "issue",
+    "agreement": "agreement with seq",
+    "detail": "where it leaves seq",
     # accuracy and stability checks
     "label": "variant/build",
     "check": "check",

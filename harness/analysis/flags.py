@@ -7,7 +7,7 @@ from __future__ import annotations
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
-from harness.store.columns import INVALID, OK
+from harness.store.columns import AGREEMENT_FAILED, AGREEMENTS, IDENTICAL, INVALID, OK
 
 TIMING_FLAGS: dict[str, str] = {
     "outliers": "outliers",  # hyperfine warned about statistical outliers
@@ -35,6 +35,11 @@ def validation_text(row: pd.Series) -> str:
         parts[0] = f"{status} (exit {int(exit_code)})"
     if _is_false(row.get("identical")) and status == OK:
         parts.append("differs from seq")
+    agreement = row.get("agreement")
+    if agreement in AGREEMENTS and (agreement != AGREEMENT_FAILED or status == INVALID):
+        first = row.get("first_diff_step")
+        parts[0] += f": {agreement}" + (f" from step {int(first)}"
+                                        if first is not None and pd.notna(first) else "")
     if bool(row.get("oversubscribed")):
         parts.append("oversubscribed")
     if bool(row.get("unstable")):
@@ -49,7 +54,10 @@ def issue_text(row: pd.Series) -> str:
     """Why a cell is flagged in the warnings: its status and any flags."""
     issues = []
     status = str(row["status"])
-    if status == INVALID:
+    agreement = row.get("agreement")
+    if agreement in AGREEMENTS and agreement != IDENTICAL and isinstance(row.get("note"), str):
+        issues.append(str(row["note"]))  # a program: where it leaves seq, and what seq did
+    elif status == INVALID:
         issues.append("invalid output")
     elif status != OK:
         issues.append(validation_text(row).split(" · ")[0])
@@ -68,6 +76,8 @@ def issue_text(row: pd.Series) -> str:
 def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     """The cells a reader must know about: not ok, oversubscribed, or with unstable timings."""
     mask = (df["status"] != OK) | df["oversubscribed"] | df["unstable"]
+    if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
+        mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
     for flag in TIMING_FLAGS:
         if flag in df.columns:
             mask |= df[flag].fillna(False).astype(bool)

@@ -8,6 +8,7 @@ parses, runs it, and prints any HarnessError as one `error: ...` line with exit 
 
 from __future__ import annotations
 
+import importlib
 import sys
 from collections.abc import Sequence
 from types import ModuleType
@@ -15,19 +16,19 @@ from types import ModuleType
 from harness.cli.common import EXIT_ERROR, PROG
 from harness.errors import HarnessError
 
+COMMANDS: tuple[str, ...] = ("run", "compare", "report", "store", "worker")
 
-def commands() -> dict[str, ModuleType]:
-    """The commands by name (imported when asked for: each pulls in what it needs)."""
-    from harness.cli import compare, report, run, store, worker
 
-    return {"run": run, "compare": compare, "report": report, "store": store,
-            "worker": worker}
+def command(name: str) -> ModuleType:
+    """A command's module, imported when asked for: each pulls in what it needs (run needs
+    neither pandas nor matplotlib)."""
+    return importlib.import_module(f"harness.cli.{name}")
 
 
 def usage() -> str:
     lines = [f"usage: {PROG} COMMAND [ARGS...]", "", "commands:"]
-    for name, module in commands().items():
-        lines.append(f"  {name:<8} {(module.__doc__ or '').strip().splitlines()[0]}")
+    for name in COMMANDS:
+        lines.append(f"  {name:<8} {(command(name).__doc__ or '').strip().splitlines()[0]}")
     lines.append(f"\n`{PROG} COMMAND --help` says more.")
     return "\n".join(lines) + "\n"
 
@@ -37,12 +38,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args or args[0] in ("-h", "--help"):
         (sys.stdout if args else sys.stderr).write(usage())
         return 0 if args else EXIT_ERROR
-    known = commands()
-    module = known.get(args[0])
-    if module is None:
+    if args[0] not in COMMANDS:
         sys.stderr.write(f"error: unknown command {args[0]!r}; expected one of: "
-                         f"{', '.join(known)} (see {PROG} --help)\n")
+                         f"{', '.join(COMMANDS)} (see {PROG} --help)\n")
         return EXIT_ERROR
+    module = command(args[0])
     parsed = module.parser(f"{PROG} {args[0]}").parse_args(args[1:])
     try:
         return int(module.execute(parsed))

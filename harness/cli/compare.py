@@ -3,33 +3,48 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
+from harness.analysis import calibration
 from harness.analysis.compare import (
+    CALIBRATION_DIR,
+    CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
     NOT_OK,
+    Drift,
     compare,
     exit_status,
-    experiment_dirs,
-    load_side,
+    find_drift,
 )
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
 from harness.cli.common import Parser
 from harness.errors import HarnessError
-from harness.repo import DEFAULT_RESULTS_DIR
+from harness.measure import environment, machine
+from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
-from harness.store.layout import COMPARE_DIR
+from harness.runner import calibrate as calibrate_runs
+from harness.runner.pair import measure_sides
+from harness.runner.sides import resolve
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store import atomic, layout, records
+from harness.store.locks import RunLock
 
-DEFAULT_OUT = DEFAULT_RESULTS_DIR / COMPARE_DIR
+DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
+USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --calibrate "
+         "CONFIG...")
 
 
 def _threshold(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a fraction such as 0.05, got {text!r}") \
+        raise argparse.ArgumentTypeError(f"expected a fraction such as 0.02, got {text!r}") \
             from None
     if not (0.0 <= value < 10.0) or not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a fraction in [0, 10), got {text!r}")
@@ -37,39 +52,139 @@ def _threshold(text: str) -> float:
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = Parser(prog=prog,
-                    description="Compare two result sets cell by cell (NEW against OLD).")
-    parser.add_argument("old", type=Path, help="results/<name> or a results root")
-    parser.add_argument("new", type=Path, help="results/<name> or a results root")
+    parser = Parser(prog=prog, usage=f"{prog} [options] OLD NEW\n       {prog} --measure "
+                    f"[options] OLD NEW CONFIG...\n       {prog} --calibrate [options] "
+                    "CONFIG...",
+                    description="Compare two result sets cell by cell (NEW against OLD); with "
+                    "--measure, measure both sides first, together; with --calibrate, learn "
+                    "this machine's drift and false-verdict rate.")
+    parser.add_argument("paths", nargs="*", metavar="PATH",
+                        help="OLD and NEW result directories (results/<name> or a results "
+                        "root); with --measure, OLD and NEW revisions or directories of "
+                        "binaries, then configs; with --calibrate, configs")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--measure", action="store_true",
+                      help="measure every cell of the configs with OLD's and NEW's binaries "
+                      "in interleaved rounds (OLD and NEW: git revisions, built in worktrees "
+                      "of their own and cached by commit, or directories of built binaries "
+                      "such as build)")
+    mode.add_argument("--calibrate", action="store_true",
+                      help="measure this checkout's binaries as two sides together and "
+                      f"{calibrate_runs.BLOCKS} times apart: the false-verdict rate, the drift "
+                      "between runs and the smallest slow-down found; kept in "
+                      f"<results>/{CALIBRATION_DIR}/machines/<machine_id>.json")
     parser.add_argument("--threshold", type=_threshold, default=DEFAULT_THRESHOLD,
-                        help="smallest relative change called significant (default: 0.05)")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                        help="where compare.md and compare.{png,svg} go "
-                        "(default: <repo>/results/compare)")
+                        help=f"a change within it is never called slower or faster (default: "
+                        f"{DEFAULT_THRESHOLD:g})")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where compare.md and compare.{png,svg} go, and with --measure the "
+                        "sides' results (default: <repo>/results/compare)")
+    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
+                        help="the results root whose calibrations (and revision worktrees) are "
+                        "used (default: <repo>/results)")
     parser.add_argument("--old-machine", metavar="ID-OR-LABEL",
                         help="use OLD's cells of this machine (machine_id prefix or label part)")
     parser.add_argument("--new-machine", metavar="ID-OR-LABEL",
                         help="use NEW's cells of this machine")
     parser.add_argument("--no-figure", action="store_true", help="write only compare.md")
+    parser.add_argument("--no-wait", action="store_true",
+                        help="with --measure or --calibrate: when another run is measuring on "
+                        "this machine, stop with an error instead of waiting for it")
+    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
     return parser
-
 
 
 def execute(args: argparse.Namespace, stdout: TextIO | None = None) -> int:
     out_stream = stdout or sys.stdout
-    old_dirs, old_root = experiment_dirs(args.old, "OLD")
-    new_dirs, new_root = experiment_dirs(args.new, "NEW")
+    paths = [str(p) for p in args.paths]
+    out = args.out if args.out is not None else DEFAULT_OUT
+    if args.calibrate:
+        if not paths:
+            raise HarnessError(f"--calibrate needs configs ({USAGE})")
+        return _calibrate(args, paths, out_stream)
+    if args.measure:
+        if len(paths) < 3:
+            raise HarnessError(f"--measure needs OLD, NEW and at least one config ({USAGE})")
+        return _measure(args, paths, out, out_stream)
+    if len(paths) != 2:
+        raise HarnessError(f"expected OLD and NEW result directories ({USAGE})")
+    old_path, new_path = (Path(p) for p in paths)
+    old, new = sides(old_path, new_path, args.old_machine, args.new_machine)
+    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()),
+                       (*roots_of(old_path), *roots_of(new_path), args.results_dir))
+    return report(old, new, args, out, drift, (), out_stream)
+
+
+def sides(old_path: Path, new_path: Path, old_machine: str | None,
+          new_machine: str | None) -> tuple[Side, Side]:
+    old_dirs, old_root = experiment_dirs(old_path, "OLD")
+    new_dirs, new_root = experiment_dirs(new_path, "NEW")
     by_experiment = old_root and new_root
-    old = load_side("OLD", args.old, args.old_machine, by_experiment, old_dirs)
-    new = load_side("NEW", args.new, args.new_machine, by_experiment, new_dirs)
+    old = load_side("OLD", old_path, old_machine, by_experiment, old_dirs)
+    new = load_side("NEW", new_path, new_machine, by_experiment, new_dirs)
     if not old.cells and not new.cells:
-        raise HarnessError(f"nothing to compare: no cells in {args.old} or {args.new}")
-    rows = compare(old, new, args.threshold)
+        raise HarnessError(f"nothing to compare: no cells in {old_path} or {new_path}")
+    return old, new
+
+
+def roots_of(path: Path) -> list[Path]:
+    """The results roots a result directory may sit in: itself and its parent."""
+    return [path, path.parent]
+
+
+def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Drift,
+           head: Sequence[str], out_stream: TextIO) -> int:
+    rows = compare(old, new, args.threshold, drift)
     if not any(r.compared or r.kind == NOT_OK for r in rows):
-        raise HarnessError(f"nothing matched: no cell of {args.new} measured what a cell of "
-                           f"{args.old} measured ({len(old.cells)} and {len(new.cells)} cells)")
-    text, written = write_outputs(old, new, rows, args.threshold, args.out,
-                                  figure=not args.no_figure)
+        raise HarnessError(f"nothing matched: no cell of {new.path} measured what a cell of "
+                           f"{old.path} measured ({len(old.cells)} and {len(new.cells)} cells)")
+    text, written = write_outputs(old, new, rows, args.threshold, out, drift,
+                                  figure=not args.no_figure, head=head)
     out_stream.write(text + "\n")
     out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
     return exit_status(rows)
+
+
+def _configs(paths: Sequence[str], registry: VariantRegistry) -> list:
+    return [load_config(Path(p), registry) for p in paths]
+
+
+def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: TextIO) -> int:
+    registry = VariantRegistry(REPO_ROOT)
+    configs = _configs(paths[2:], registry)
+    old_side = resolve("OLD", paths[0], args.results_dir)
+    new_side = resolve("NEW", paths[1], args.results_dir)
+    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    with lock:
+        measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
+                                 args.hyperfine)
+    old, new = sides(measured.old, measured.new, None, None)
+    old, new = (dataclasses.replace(old, path=Path(old_side.label)),
+                dataclasses.replace(new, path=Path(new_side.label)))
+    head = [f"Measured together: every cell of {', '.join(paths[2:])} with OLD's binaries and "
+            f"NEW's, in {measured.rounds} interleaved rounds (the order of each round shuffled "
+            f"from seed {measured.seed}); the sides' results: {measured.old}, {measured.new}."]
+    return report(old, new, args, out, Drift(0.0, "measured together"), head, out_stream)
+
+
+def _calibrate(args: argparse.Namespace, paths: list[str],
+               out_stream: TextIO) -> int:
+    registry = VariantRegistry(REPO_ROOT)
+    configs = _configs(paths, registry)
+    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    work = args.results_dir / CALIBRATION_DIR / "runs"
+    with lock:
+        measured = calibrate_runs.measure(configs, work, registry, lock, sys.stderr,
+                                          args.hyperfine)
+    description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
+    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    result = calibration.calibrate(machine_id, " ".join(paths),
+                                   (measured.together.old, measured.together.new),
+                                   measured.blocks, args.threshold)
+    path = args.results_dir / CALIBRATION_DIR / layout.MACHINES / f"{machine_id}.json"
+    existing = records.read_json(path)
+    atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
+                                    **description,
+                                    CALIBRATION_KEY: dataclasses.asdict(result)})
+    out_stream.write("\n".join(result.lines()) + f"\nkept in {path}\n")
+    return 0

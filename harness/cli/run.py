@@ -19,6 +19,7 @@ from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
 
 QUICK_REPORT = "report-quick"
+REPORT_SUBDIR = "report"  # a results root's own report, beside its experiments
 EXIT_INTERRUPTED = 130
 
 
@@ -33,9 +34,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--no-report", action="store_true", help="do not render the report")
     parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
                         help="results root (default: <repo>/results)")
-    parser.add_argument("--report-dir", type=Path, default=DEFAULT_REPORT_DIR,
-                        help="where the report is rendered (default: <repo>/report; "
-                        f"--quick runs go to <report-dir>/{QUICK_REPORT})")
+    parser.add_argument("--report-dir", type=Path, default=None,
+                        help="where the report is rendered (default: <repo>/report for the "
+                        "default results root, else <results-dir>/report; --quick runs go "
+                        f"to <report-dir>/{QUICK_REPORT})")
     parser.add_argument("--no-wait", action="store_true",
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
@@ -68,7 +70,7 @@ def execute(args: argparse.Namespace) -> int:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]
         if not (args.dry_run or args.no_report):
-            render_report(options, args.report_dir, [s.directory.name for s in summaries])
+            render_report(options, report_dir(args), [s.directory.name for s in summaries])
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
         return 0
@@ -76,6 +78,16 @@ def execute(args: argparse.Namespace) -> int:
         sys.stderr.write("interrupted: finished cells are saved; run again to resume\n")
         return EXIT_INTERRUPTED
     return 0
+
+
+def report_dir(args: argparse.Namespace) -> Path:
+    """The report of the repository's results is the repository's; another results root
+    gets its own, inside it (a run elsewhere never overwrites the committed report)."""
+    if args.report_dir is not None:
+        return Path(args.report_dir)
+    if args.results_dir.resolve() == DEFAULT_RESULTS_DIR.resolve():
+        return DEFAULT_REPORT_DIR
+    return args.results_dir / REPORT_SUBDIR
 
 
 def _terminate(signum: int, frame: object) -> None:

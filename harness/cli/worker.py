@@ -22,6 +22,8 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--repo-root", type=Path, default=REPO_ROOT,
                         help="repository whose build/ holds the binaries (default: this one)")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--round-seed", type=int, default=None,
+                        help="seed of the rounds' order (default: a fresh one)")
     parser.add_argument("cell_ids", nargs="+", metavar="CELL_ID",
                         help="cell ids, or their machine-independent ids (portable ids)")
     return parser
@@ -31,7 +33,7 @@ def execute(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _terminate)  # Slurm's time limit: kill the cell's processes
     try:
         measure_cells(args.config, args.results_dir, args.quick, args.repo_root, args.cell_ids,
-                      args.hyperfine)
+                      args.hyperfine, args.round_seed)
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: the cells finished so far are saved\n")
         return EXIT_INTERRUPTED

@@ -2,7 +2,7 @@
 
 run_experiment (harness.runner) plans the cells, resolves the cached ones and hands the rest
 to an executor. The executor measures each pending cell somewhere, makes sure its record is on
-disk (CellStore.record_path: the measuring side writes it, Measurer.measure_and_save), and
+disk (CellStore.record_path: the measuring side writes it, Measurer.finish), and
 calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
 the record and rebuilds results.csv from all records. Nothing on the recording side assumes
 the measurement ran in this process.
@@ -15,7 +15,7 @@ this process; slurm runs the worker (`collide-bench worker --config PATH --resul
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol, TextIO
@@ -43,6 +43,7 @@ class Options:
     executor: str | None = None  # a name in harness.executors.EXECUTORS; None: the config's
     collect: bool = False  # slurm: adopt the jobs in flight, submit nothing
     partition: str | None = None  # slurm: overrides the config's executor.partition
+    round_seed: int | None = None  # the order of the cells in each round; None: a fresh one
     # The machine-wide measuring lock of this run (harness.store.locks), taken before the first
     # cell is measured; None: measure without it (tests that fake hyperfine).
     run_lock: locks.RunLock | None = None
@@ -84,8 +85,10 @@ def format_seconds(seconds: float) -> str:
 @dataclass
 class Progress:
     """The progress lines of a run, in plan order: `[k/n] name: cell  cached` for each cached
-    cell, `[k/n] name: cell  elapsed T  eta E` as each pending cell starts. The ETA is the mean
-    duration of the cells finished so far times the number still to measure."""
+    cell, `[k/n] name: cell  elapsed T  eta E` as each pending cell starts; then, where cells
+    are timed in rounds, a line a round. The ETA is the executor's estimate where it gives one
+    (a range for adaptive repetition), else the mean duration of the cells finished so far
+    times the number still to measure."""
 
     name: str
     order: Sequence[tuple[Cell, str]]  # every planned cell with its id
@@ -93,6 +96,7 @@ class Progress:
     log: TextIO
     started: float = field(default_factory=time.monotonic)
     durations: list[float] = field(default_factory=list)
+    labels: Mapping[str, str] = field(default_factory=dict)  # a cell's label, where not its own
     _next: int = field(default=0, init=False)  # the plan index of the first cell not announced
     _index: dict[str, int] = field(init=False)
 
@@ -100,8 +104,8 @@ class Progress:
         self._index = {cid: k for k, (_, cid) in enumerate(self.order)}
 
     def _prefix(self, k: int) -> str:
-        cell = self.order[k][0]
-        return f"[{k + 1}/{len(self.order)}] {self.name}: {cell.label}"
+        cell, cid = self.order[k]
+        return f"[{k + 1}/{len(self.order)}] {self.name}: {self.labels.get(cid, cell.label)}"
 
     def _cached_until(self, stop: int) -> None:
         for k in range(self._next, stop):
@@ -109,16 +113,32 @@ class Progress:
                 self.log.write(f"{self._prefix(k)}  cached\n")
         self._next = max(self._next, stop)
 
-    def starting(self, cell_id: str) -> None:
+    def starting(self, cell_id: str, eta_s: float | None = None) -> None:
         k = self._index[cell_id]
         self._cached_until(k)
         elapsed = time.monotonic() - self.started
         todo = len(self.pending) - len(self.durations)
-        eta = (format_seconds(sum(self.durations) / len(self.durations) * todo)
-               if self.durations else "?")
+        if eta_s is not None and self.durations:
+            eta = format_seconds(eta_s + sum(self.durations) / len(self.durations) * todo)
+        elif self.durations:
+            eta = format_seconds(sum(self.durations) / len(self.durations) * todo)
+        else:
+            eta = "?"
         self.log.write(f"{self._prefix(k)}  elapsed {format_seconds(elapsed)}  eta {eta}\n")
         self.log.flush()
         self._next = max(self._next, k + 1)
+
+    def round_done(self, round_index: int, timed: int, done: int, low_s: float,
+                   high_s: float) -> None:
+        """A round of timed runs: how many cells it timed, how many of them are done, and what
+        the rest may still take (a range where adaptive repetition decides)."""
+        elapsed = format_seconds(time.monotonic() - self.started)
+        left = timed - done
+        eta = (format_seconds(low_s) if high_s - low_s < max(1.0, 0.1 * low_s)
+               else f"{format_seconds(low_s)}-{format_seconds(high_s)}")
+        self.log.write(f"{self.name}: round {round_index}: {timed} cell(s) timed, {done} done, "
+                       f"{left} need more  elapsed {elapsed}  eta {eta if left else '0.0s'}\n")
+        self.log.flush()
 
     def finished(self, seconds: float) -> None:
         self.durations.append(seconds)

@@ -1,26 +1,25 @@
-"""The local executor: the pending cells measured one after another in this process."""
+"""The local executor: the pending cells measured in this process, in alternating rounds
+(harness.executors.rounds)."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 from harness.executors.base import Experiment, OnRecord, Progress
+from harness.executors.rounds import Unit, measure_in_rounds, new_seed
 from harness.measure.cell import Measurer
 from harness.plan.cells import Cell
 
 
 class LocalExecutor:
-    """Measures the pending cells one after another in this process."""
+    """Measures the pending cells in this process, in rounds."""
 
     name = "local"
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
-        for cell, cid in pending:
-            progress.starting(cid)
-            started = time.monotonic()
-            record = measurer.measure_and_save(cell, cid)
-            on_record(cell, cid, record)
-            progress.finished(time.monotonic() - started)
+        units = [Unit(measurer, cell, cid) for cell, cid in pending]
+        seed = experiment.options.round_seed
+        measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
+                          progress, new_seed() if seed is None else seed)

@@ -2,20 +2,24 @@
 (`collide-bench worker --config PATH --results-dir DIR [--quick] CELL_ID ...`).
 
 It plans the config again (as a run would, with the same --quick), finds each cell by its id,
-measures it and writes its record atomically to <results-dir>/<name>/cells/<id>.json, exactly
-as a local run does (Measurer.measure_and_save). It builds nothing and consults no cached
-record: the caller sends only pending cells, with the binaries already built on a shared file
-system. An id that is not a cell of the plan (or whose binaries are missing) is one error and
-nothing is measured.
+measures the cells in rounds as a local run does (harness.executors.rounds, with the given
+round seed or a fresh one) and writes each record atomically to
+<results-dir>/<name>/cells/<id>.json. Progress goes to stderr (a Slurm task's log). It builds
+nothing and consults no cached record: the caller sends only pending cells, with the binaries
+already built on a shared file system. An id that is not a cell of the plan (or whose
+binaries are missing) is one error and nothing is measured.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import cast
+from typing import TextIO, cast
 
 from harness.errors import HarnessError
+from harness.executors.base import Progress
+from harness.executors.rounds import Unit, measure_in_rounds, new_seed
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
 from harness.plan.cells import plan_cells
@@ -26,7 +30,8 @@ from harness.store import index, records
 
 
 def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root: Path,
-                  cell_ids: Sequence[str], hyperfine: str = "hyperfine") -> None:
+                  cell_ids: Sequence[str], hyperfine: str = "hyperfine",
+                  round_seed: int | None = None, log: TextIO = sys.stderr) -> None:
     repo_root = repo_root.resolve()
     registry = VariantRegistry(repo_root)
     config = load_config(config_path, registry)
@@ -42,9 +47,12 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
         raise HarnessError(f"{config_path}: no planned cell with id {' '.join(unknown)}"
                            f"{' (--quick)' if quick else ''}")
     measurer = Measurer(store, hyperfine)
-    for cid in chosen:
-        assert cid is not None
-        measurer.measure_and_save(cells[cid], cid)
+    ids = [cid for cid in chosen if cid is not None]
+    order = [(cells[cid], cid) for cid in ids]
+    progress = Progress(config.name, order, frozenset(ids), log)
+    measure_in_rounds([Unit(measurer, cell, cid) for cell, cid in order],
+                      lambda unit, record: None,  # Measurer.finish has written it
+                      progress, new_seed() if round_seed is None else round_seed)
     # the machine and tools of this node, once per machine (a submitter elsewhere cannot)
     if not store.layout.machine(machine_id).is_file():
         index.write_env(store.directory, environment.collect(repo_root, hyperfine=hyperfine))

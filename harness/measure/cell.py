@@ -1,11 +1,13 @@
-"""Measure ONE planned cell and return its record:
-  1. one `--timing --precise` run under the cell timeout: sim_s, pair_tests, ..., the output;
-  2. when validating, compare that output with `build/seq --precise` on the same input
-     (the baseline's output is cached under results/.cache/baselines/);
-  3. with `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
-  4. hyperfine (measure.hyperfine).
-`measure_and_save` also times the cell and writes its record (cells/<cell_id>.json); every
-executor measures through it, in this process or in a worker on another node.
+"""Measure ONE planned cell, in three steps:
+  start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
+         output); when validating, that output against `build/seq --precise` on the same
+         input (the baseline's output is cached under results/.cache/baselines/); with
+         `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
+         for a program, its run and its check against seq (measure.program);
+  time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
+  finish: the record, written to cells/<cell_id>.json.
+An executor alternates the rounds of many cells (harness.executors.local); measure_and_save
+takes one cell through all its rounds (a worker on another node).
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ from dataclasses import dataclass, field
 
 from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
-from harness.measure.hyperfine import run_hyperfine
+from harness.measure.hyperfine import time_runs
 from harness.measure.proc import exit_status, run_process, tail
+from harness.measure.program import start_program
 from harness.measure.references import References
+from harness.measure.rounds import CellRun, next_runs, stop_reason, timing_fields
 from harness.measure.timing import parse_timing, thread_work
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
@@ -56,12 +60,25 @@ class Measurer:
         return self.store.config
 
     def measure_and_save(self, cell: Cell, cell_id: str) -> records.Record:
-        """Measure the cell, add its duration, write its record atomically; the record."""
+        """Take the cell through all its rounds and write its record; the record."""
         started = time.monotonic()
-        record = self.measure(cell, cell_id)
-        record["seconds"] = time.monotonic() - started
-        self.store.save(cell_id, record)
-        return record
+        run = self.start(cell, cell_id)
+        round_index = run.rounds[-1] if run.rounds else 0
+        while not run.done:
+            round_index += 1
+            self.time_round(run, round_index)
+            self.keep(run)
+        return self.finish(run, time.monotonic() - started)
+
+    def measure(self, cell: Cell, cell_id: str) -> records.Record:
+        """The cell's record after all its rounds, not written."""
+        run = self.start(cell, cell_id)
+        round_index = run.rounds[-1] if run.rounds else 0
+        while not run.done:
+            round_index += 1
+            self.time_round(run, round_index)
+        self.keep(run)
+        return self.record_of(run)
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
@@ -69,23 +86,34 @@ class Measurer:
             env[OMP_SCHEDULE_VAR] = schedule
         return env
 
-    def measure(self, cell: Cell, cell_id: str) -> records.Record:
+    def start(self, cell: Cell, cell_id: str) -> CellRun:
+        """The cell's runs that are not timed: its --precise run, validation and checks; or,
+        when an interrupted run left the cell part-timed, where it stopped."""
+        key = self.store.cell_key(cell)
+        assert key is not None, "a cell is measured only once its binaries exist"
+        resumed = CellRun.load(self.store.layout.partial(cell_id), key)
+        if resumed is not None:
+            return resumed
         config, measure = self.config, self.config.measure_for(cell.variant)
-        binary = self.store.binary(cell)
-        command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
-                   str(self.store.input_file(cell.scene))]
         env = self.environment(cell.threads, cell.schedule)
         repo = self.store.repo_root
         record = self.store.new_record(cell, cell_id)
         record.update({
             "cores": self.cores, "oversubscribed": cell.threads > self.cores,
-            "command": shlex.join(command),
             "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
             records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
-            "git_commit": environment.git_commit(repo),
+            "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
         })
-        hyperfine_json = self.store.hyperfine_path(cell_id)
-        hyperfine_json.unlink(missing_ok=True)
+        for old in (self.store.hyperfine_path(cell_id),
+                    *self.store.layout.hyperfine_exports(cell_id)):
+            old.unlink(missing_ok=True)
+        if cell.program:
+            return start_program(self.store, self.references, cell, cell_id, key, record, env,
+                                 measure.timeout_s)
+        binary = self.store.binary(cell)
+        command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
+                   str(self.store.input_file(cell.scene))]
+        record["command"] = shlex.join(command)
         keep = self.store.layout.output(cell_id)
         output_tmp = None
         if config.keep_output:
@@ -95,11 +123,11 @@ class Measurer:
         try:
             precise = run_process([*command[:-1], "--precise", "--timing", command[-1]], env,
                                   measure.timeout_s, output_tmp)
+            run_s = precise.seconds
             status, exit_code = exit_status(precise.returncode)
             timing = parse_timing(precise.stderr) or {}
             record.update({k: timing.get(k) for k in TIMING_KEYS})
             record.update(thread_work(timing))
-            record["schedule"] = cell.schedule
             record["stderr_tail"] = tail(precise.stderr)
             if status == TIMEOUT:
                 record["note"] = f"--precise run passed the {measure.timeout_s:g} s timeout"
@@ -113,14 +141,48 @@ class Measurer:
                     os.replace(output_tmp, keep)
             if status in TIMED_STATUSES and cell.checked:
                 self.checker.run_checks(cell, record)
-            if status in TIMED_STATUSES:
-                status, exit_code = run_hyperfine(self.hyperfine, command, env, hyperfine_json,
-                                                  record, status, exit_code, measure, self.cores)
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
-        record["status"] = status
-        record["exit_code"] = exit_code
+        return CellRun(cell_id, key, record, status, exit_code, command, run_s=run_s)
+
+    def time_round(self, run: CellRun, round_index: int) -> None:
+        """One round of the cell's timed runs (hyperfine), and whether it needs more."""
+        variant = str(run.record["variant"])
+        measure = self.config.measure_for(variant)
+        runs = next_runs(measure, run.times)
+        export = self.store.layout.hyperfine(run.cell_id, round_index)
+        env = self.environment(int(str(run.record["threads"])), str(run.record["schedule"]))
+        warmup = measure.warmup if not run.exports else 0
+        run.add(time_runs(self.hyperfine, run.command, env, export, runs, warmup,
+                          measure.timeout_s, self.cores), round_index, export)
+        if run.timed:
+            run.stopped = stop_reason(measure, run.times)
+
+    def keep(self, run: CellRun) -> None:
+        """Keep the state of a cell that needs more rounds on disk (an interrupted run resumes
+        it there); a cell that needs none has none."""
+        partial = self.store.layout.partial(run.cell_id)
+        if run.done:
+            partial.unlink(missing_ok=True)
+        else:
+            run.save(partial)
+
+    def record_of(self, run: CellRun) -> records.Record:
+        """The cell's record: what its checks filled and its timed runs."""
+        record = dict(run.record)
+        if run.timed or run.exports:
+            record.update(timing_fields(run))
+        record["status"] = run.status
+        record["exit_code"] = run.exit_code
+        return record
+
+    def finish(self, run: CellRun, seconds: float) -> records.Record:
+        """Write the cell's record (with the seconds measuring took); the record."""
+        record = self.record_of(run)
+        record["seconds"] = seconds
+        self.store.save(run.cell_id, record)
+        self.store.layout.partial(run.cell_id).unlink(missing_ok=True)
         return record
 
     def validate_cell(self, cell: Cell, output: str, record: records.Record) -> str:

@@ -1,5 +1,6 @@
-"""Timing a cell with hyperfine: `hyperfine -N --warmup W --runs R --export-json`, killed as a
-process group if it runs past (warmup + runs) timeouts; its export is kept as written."""
+"""Timing runs of a cell with hyperfine: `hyperfine -N --warmup W --runs R --export-json`,
+killed as a process group if it runs past (warmup + runs) timeouts; the export is kept as
+hyperfine wrote it. A cell is timed in rounds (harness.measure.rounds), one call a round."""
 
 from __future__ import annotations
 
@@ -7,14 +8,14 @@ import os
 import re
 import shlex
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.measure import machine
 from harness.measure.proc import run_process, tail
-from harness.spec.config import Measure
-from harness.store import atomic, csvfile, records
-from harness.store.columns import CRASHED, FAILED, TIMEOUT
-from harness.store.hyperfine import load_hyperfine
+from harness.store import atomic
+from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
+from harness.store.hyperfine import HyperfineStats, load_hyperfine
 
 HYPERFINE_SLACK_S = 30.0
 HYPERFINE_EXIT = re.compile(r"non-zero exit code: (-?\d+)")
@@ -36,37 +37,45 @@ def hyperfine_warnings(stderr: str) -> list[str]:
     return [line.strip() for line in stderr.splitlines() if line.strip().startswith("Warning:")]
 
 
-def run_hyperfine(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
-                  record: records.Record, status: str, exit_code: int | None, measure: Measure,
-                  cores: int) -> tuple[str, int | None]:
-    """Time `command`; its statistics, run times and the load around it go into `record`, its
-    export to `target`. Returns the cell's status and exit code (those given when it ran)."""
+@dataclass(frozen=True)
+class Timed:
+    """What one hyperfine call gave: its statistics, or the status it failed with."""
+
+    status: str
+    exit_code: int | None = None
+    note: str = ""
+    stats: HyperfineStats | None = None
+    warnings: list[str] = field(default_factory=list)
+    load_before: dict[str, object] = field(default_factory=dict)
+    load_after: dict[str, object] = field(default_factory=dict)
+    loaded: bool = False
+
+
+def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
+              runs: int, warmup: int, timeout_s: float, cores: int) -> Timed:
+    """Time `runs` runs of `command` after `warmup`; the export goes to `target` (written and
+    renamed), the load around the call is sampled."""
     tmp = atomic.temp_path(target)
-    argv = [hyperfine, "-N", "--style", "none",
-            "--warmup", str(measure.warmup), "--runs", str(measure.runs),
+    argv = [hyperfine, "-N", "--style", "none", "--warmup", str(warmup), "--runs", str(runs),
             "--export-json", str(tmp), shlex.join(command)]
-    timeout = measure.timeout_s * (measure.warmup + measure.runs) + HYPERFINE_SLACK_S
+    timeout = timeout_s * (warmup + runs) + HYPERFINE_SLACK_S
     load_before = machine.sample_load()
-    record["load_before"] = load_before
-    record["loaded"] = machine.is_loaded(load_before, cores)
+    loaded = machine.is_loaded(load_before, cores)
     try:
         done = run_process(argv, env, timeout)
-        record["load_after"] = machine.load()
-        record["hyperfine_warnings"] = hyperfine_warnings(done.stderr)
+        load_after = machine.load()
+        warnings = hyperfine_warnings(done.stderr)
         if done.returncode is None:
-            record["note"] = f"hyperfine passed its {timeout:g} s timeout"
-            return TIMEOUT, None
+            return Timed(TIMEOUT, None, f"hyperfine passed its {timeout:g} s timeout",
+                         warnings=warnings, load_before=load_before, load_after=load_after,
+                         loaded=loaded)
         if done.returncode != 0:
-            record["note"] = f"hyperfine: {tail(done.stderr).strip()}"
-            return hyperfine_failure(done.stderr)
+            status, code = hyperfine_failure(done.stderr)
+            return Timed(status, code, f"hyperfine: {tail(done.stderr).strip()}",
+                         warnings=warnings, load_before=load_before, load_after=load_after,
+                         loaded=loaded)
         stats = load_hyperfine(tmp)
         os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
-    record.update({
-        "runs": stats.runs, "wall_mean_s": stats.mean, "wall_stddev_s": stats.stddev,
-        "wall_median_s": stats.median, "wall_min_s": stats.min, "wall_max_s": stats.max,
-        "wall_user_s": stats.user, "wall_system_s": stats.system,
-        "unstable": stats.unstable, **csvfile.uncertainty(stats.times),
-    })
-    return status, exit_code
+    return Timed(OK, 0, "", stats, warnings, load_before, load_after, loaded)

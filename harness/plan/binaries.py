@@ -1,47 +1,61 @@
-"""The binaries a plan runs and where they are (harness.spec.builds.make_binaries builds them)."""
+"""The binaries a plan runs and where they are: in a build directory (the repository's build/,
+or a revision's when two are compared), unless the config names a binary of its own.
+harness.spec.builds.make_binaries builds them."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from harness.plan.cells import Plan
-from harness.repo import BUILD_DIR
+from harness.plan.cells import Cell, Plan
+from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
 from harness.spec.variants import BASELINE
 
 
-def binary_path(config: Config, repo_root: Path, variant: str, build: str) -> Path:
+def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Path:
     custom = config.custom_binary(variant)
     if custom is not None:
         return custom
-    return repo_root / BUILD_DIR / binary_name(variant, build)
+    return build_dir / binary_name(variant, build)
 
 
-def baseline_path(config: Config, repo_root: Path, build: str) -> Path:
+def baseline_path(config: Config, build_dir: Path, build: str) -> Path:
     baseline_build = config.validate.baseline_build or build
-    return binary_path(config, repo_root, BASELINE, baseline_build)
+    return binary_path(config, build_dir, BASELINE, baseline_build)
 
 
-def check_references(config: Config, repo_root: Path, build: str) -> dict[str, Path]:
+def check_references(config: Config, build_dir: Path, build: str) -> dict[str, Path]:
     """The binaries the checks of a cell of `build` compare with: the truth (build/<truth>-f128),
     seq f64 (divergence) and seq of the cell's build (the exact-variant check)."""
     return {
-        "truth": binary_path(config, repo_root, config.checks.truth, TRUTH_BUILD),
-        "f64": binary_path(config, repo_root, BASELINE, DEFAULT_BUILD),
-        "seq": binary_path(config, repo_root, BASELINE, build),
+        "truth": binary_path(config, build_dir, config.checks.truth, TRUTH_BUILD),
+        "f64": binary_path(config, build_dir, BASELINE, DEFAULT_BUILD),
+        "seq": binary_path(config, build_dir, BASELINE, build),
     }
 
 
-def needed_binaries(plan: Plan, repo_root: Path) -> list[Path]:
-    """The make-built binaries the plan runs: each cell's, and seq for validated cells."""
+def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str, Path]:
+    """The binaries a program's check compares with: seq (grid for a big scene), in double
+    and in float."""
+    variant = programs.reference_variant(cell.scene.n)
+    return {build: binary_path(config, build_dir, variant, build)
+            for build in (DEFAULT_BUILD, programs.ENVELOPE_BUILD)}
+
+
+def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
+    """The make-built binaries the plan runs: each cell's, seq for validated cells, the
+    checks' references, and the references of programs' checks."""
     needed: dict[Path, None] = {}
     for cell in plan.cells:
-        if plan.config.custom_binary(cell.variant) is None:
-            needed[binary_path(plan.config, repo_root, cell.variant, cell.build)] = None
+        if cell.program:
+            needed.update(dict.fromkeys(program_references(plan.config, build_dir,
+                                                           cell).values()))
+        elif plan.config.is_built(cell.variant):
+            needed[binary_path(plan.config, build_dir, cell.variant, cell.build)] = None
         if cell.validate:
-            needed[baseline_path(plan.config, repo_root, cell.build)] = None
+            needed[baseline_path(plan.config, build_dir, cell.build)] = None
         if cell.checked:
-            for path in check_references(plan.config, repo_root, cell.build).values():
+            for path in check_references(plan.config, build_dir, cell.build).values():
                 needed[path] = None
     return list(needed)

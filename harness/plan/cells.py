@@ -1,6 +1,7 @@
 """Plan a config's cells: the grid of variant x build x scene point x thread count, minus
-repeats (--quick can map several points onto one) and excluded cells. Nothing here runs a
-measurement or reads a result."""
+repeats (--quick can map several points onto one) and excluded cells. Where a program takes
+part, every scene lists all its particles. Nothing here runs a measurement or reads a
+result."""
 
 from __future__ import annotations
 
@@ -33,6 +34,9 @@ class Cell:
     schedule: str = ""  # OMP_SCHEDULE of the cell (the config's schedule axis); "": not set
     # The variant promises seq's output (its --describe says exact); a custom binary does not.
     promises_exact: bool = False
+    # A program (`programs:`): run through its command template and checked step by step
+    # against seq (harness.measure.program) instead of validated and checked.
+    program: bool = False
 
     @property
     def variant_label(self) -> str:
@@ -111,6 +115,8 @@ def plan_cells(config: Config, quick: bool = False,
         scene_key = tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
         if scene_key not in points:
             points[scene_key] = scene_point(config, point, quick)
+            if config.lists_particles:
+                points[scene_key] = scenes.with_every_particle(points[scene_key])
         scene = points[scene_key]
         threads = cast(int, point["threads"])
         for variant, build, schedule in itertools.product(config.variants, config.builds,
@@ -119,10 +125,15 @@ def plan_cells(config: Config, quick: bool = False,
             if key in seen:
                 continue
             seen.add(key)
-            cell = Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
-                        is_exact(config, registry, variant, build),
-                        config.checks.applies_to(scene.n), schedule,
-                        variant in registry and registry[variant].exact)
+            if config.program(variant) is not None:
+                cell = Cell(variant, build, scene, threads, validate=False, exact=False,
+                            schedule=schedule, program=True)
+            else:
+                cell = Cell(variant, build, scene, threads,
+                            config.validate.applies_to(scene.n),
+                            is_exact(config, registry, variant, build),
+                            config.checks.applies_to(scene.n), schedule,
+                            variant in registry and registry[variant].exact)
             fields = cell.fields()
             (excluded if any(r.matches(fields) for r in config.exclude) else cells).append(cell)
     return Plan(config, quick, tuple(cells), tuple(excluded))

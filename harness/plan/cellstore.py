@@ -14,10 +14,17 @@ import datetime
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.plan.binaries import baseline_path, binary_path, check_references
+from harness.plan.binaries import (
+    baseline_path,
+    binary_path,
+    check_references,
+    program_references,
+)
 from harness.plan.cells import Cell, Plan
+from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
+from harness.spec.programs import check_steps
 from harness.store import atomic, csvfile, index, records
 from harness.store.layout import ExperimentDir, ResultsRoot
 
@@ -38,6 +45,12 @@ class CellStore:
     machine_id: str  # part of every cell key: a cached cell is reused only where measured
     force: bool = False  # cached() finds nothing: every cell is measured again
     hashes: dict[Path, str | None] = field(default_factory=dict)
+    fingerprints: dict[str, str] = field(default_factory=dict)  # program -> its fingerprint
+    build_dir: Path | None = None  # where the binaries are; None: the repository's build/
+
+    @property
+    def binaries(self) -> Path:
+        return self.build_dir if self.build_dir is not None else self.repo_root / BUILD_DIR
 
     @property
     def config(self) -> Config:
@@ -62,10 +75,45 @@ class CellStore:
     # --- ids ---
 
     def binary(self, cell: Cell) -> Path:
-        return binary_path(self.config, self.repo_root, cell.variant, cell.build)
+        """The cell's binary (for a program: none; its commands are its config's)."""
+        assert not cell.program, "a program has commands, not a binary"
+        return binary_path(self.config, self.binaries, cell.variant, cell.build)
+
+    def binary_sha(self, cell: Cell) -> str | None:
+        """The hash of what the cell runs: its binary, or a program's fingerprint (its
+        commands and the files they name)."""
+        program = self.config.program(cell.variant)
+        if program is None:
+            return self.sha(self.binary(cell))
+        if program.name not in self.fingerprints:
+            self.fingerprints[program.name] = program.fingerprint()
+        return self.fingerprints[program.name]
+
+    def runs_what(self, cell: Cell) -> str:
+        """The cell's binary, or a program's command template."""
+        program = self.config.program(cell.variant)
+        return str(self.binary(cell)) if program is None else program.command
+
+    def program_references(self, cell: Cell) -> dict[str, Path]:
+        return program_references(self.config, self.binaries, cell)
+
+    def binaries_of(self, cell: Cell) -> list[Path]:
+        """Every binary the cell's measurement runs."""
+        paths = [] if cell.program else [self.binary(cell)]
+        if cell.validate:
+            paths.append(self.baseline_binary(cell))
+        if cell.checked:
+            paths.extend(self.check_references(cell).values())
+        if cell.program:
+            paths.extend(self.program_references(cell).values())
+        return paths
+
+    def missing_binary(self, cell: Cell) -> Path | None:
+        """A binary the cell needs that is not there (its key waits for it), if any."""
+        return next((p for p in self.binaries_of(cell) if self.sha(p) is None), None)
 
     def baseline_binary(self, cell: Cell) -> Path:
-        return baseline_path(self.config, self.repo_root, cell.build)
+        return baseline_path(self.config, self.binaries, cell.build)
 
     def sha(self, path: Path) -> str | None:
         if path not in self.hashes:
@@ -78,16 +126,23 @@ class CellStore:
         return self.sha(self.baseline_binary(cell))
 
     def check_references(self, cell: Cell) -> dict[str, Path]:
-        return check_references(self.config, self.repo_root, cell.build)
+        return check_references(self.config, self.binaries, cell.build)
 
     def cell_key(self, cell: Cell) -> dict[str, object] | None:
         """Everything a measurement depends on; None while a binary is missing."""
-        binary_sha = self.sha(self.binary(cell))
+        binary_sha = self.binary_sha(cell)
         baseline_sha = self.baseline_sha(cell)
         if binary_sha is None or (cell.validate and baseline_sha is None):
             return None
         measure = self.config.measure_for(cell.variant)
         extra: dict[str, object] = {}
+        if cell.program:  # what its check compares with, and on how many steps
+            shas = {build: self.sha(path)
+                    for build, path in self.program_references(cell).items()}
+            if None in shas.values():
+                return None
+            extra["program_check"] = {"reference_sha256": shas, "steps": check_steps(
+                cell.scene.n, cell.scene.steps)}
         if cell.schedule:  # only then: cells without a schedule axis keep their ids
             extra["schedule"] = cell.schedule
         if cell.checked:  # only then: the ids of unchecked cells stay what they were
@@ -101,8 +156,8 @@ class CellStore:
         return {**extra, records.MACHINE_KEY: self.machine_id,
                 "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
                 "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
-                "threads": cell.threads, "warmup": measure.warmup, "runs": measure.runs,
-                "timeout_s": measure.timeout_s, "validate": cell.validate, "exact": cell.exact,
+                "threads": cell.threads, **measure.key(), "validate": cell.validate,
+                "exact": cell.exact,
                 "baseline_sha256": baseline_sha, "keep_output": self.config.keep_output}
 
     def cell_id(self, cell: Cell) -> str | None:
@@ -126,7 +181,8 @@ class CellStore:
             "L": scene.L, "r": scene.r, "steps": scene.steps, "mode": scene.mode,
             "seed": scene.seed, "threads": cell.threads, "params": dict(scene.params),
             "runs": 0, "unstable": False, "binary_sha256": key["binary_sha256"],
-            "binary": str(self.binary(cell)), "input_sha256": scene.input_sha256,
+            "binary": self.runs_what(cell),
+            "input_sha256": scene.input_sha256,
             "validated": cell.validate, "exact": cell.exact,
             "baseline_sha256": key["baseline_sha256"], "identical": None, "note": "",
             "measured_at": now_iso(),

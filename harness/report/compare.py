@@ -8,15 +8,16 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from harness.analysis.compare import (
-    FLAG_COLUMNS,
     NEW_ONLY,
     NOT_OK,
     OLD_ONLY,
     SAME,
+    Drift,
     Row,
-    Side,
+    methods,
     summary,
 )
+from harness.analysis.resultsets import FLAG_COLUMNS, Side
 from harness.report.document import Table
 from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
@@ -47,19 +48,16 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[str]], align: str) -> 
 
 
 def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
-                    figure: str | None) -> str:
-    """The comparison as a Markdown document."""
+                    figure: str | None, drift: Drift, head: Sequence[str] = ()) -> str:
+    """The comparison as a Markdown document; `head`: lines about how the sides were
+    measured (compare --measure)."""
     lines = [f"# Comparison: {new.path} against {old.path}", ""]
     for side in (old, new):
         commits = ", ".join(side.commits()) or "not recorded"
         lines.append(f"- **{side.name}** `{side.path}`: {len(side.cells)} cells; machine "
                      f"{', '.join(side.machines()) or 'unknown'}; commit {commits}")
-    lines += [
-        f"- Ratio = NEW median / OLD median, with its 95% bootstrap interval; p = two-sided "
-        f"Mann-Whitney rank test. A verdict is *slower* or *faster* only when the interval "
-        f"excludes 1 and the ratio is beyond the threshold ({threshold * 100:g}%: above "
-        f"{1 + threshold:.3f} or below {1 / (1 + threshold):.3f}).",
-        "", f"**{summary(rows)}.**", ""]
+    lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift))]
+    lines += ["", f"**{summary(rows)}.**", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
     if flagged:
         lines += [f"Caution: {len(flagged)} of the compared cells carry a flag on a side "
@@ -70,12 +68,13 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     if compared:
         lines += _table(
             ("cell", "OLD median (s)", "NEW median (s)", "NEW/OLD [95% CI]", "p", "runs",
-             "verdict", "note"),
+             "verdict", "measured", "note"),
             ((r.key.label(), _seconds(r.old.median), _seconds(r.new.median),  # type: ignore[union-attr]
               _ratio_text(r), _p_text(r.p_value),
               f"{len(r.old.times)}/{len(r.new.times)}",  # type: ignore[union-attr]
-              f"**{r.kind}**" if r.kind != SAME else r.kind, r.note) for r in compared),
-            "lrrrrrll")
+              f"**{r.kind}**" if r.kind != SAME else r.kind, r.method, r.note)
+             for r in compared),
+            "lrrrrrlll")
         lines.append("")
     if figure:
         lines += [f"![NEW/OLD per cell with 95% intervals]({figure})", ""]
@@ -99,11 +98,13 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
 
 
 def write_outputs(old: Side, new: Side, rows: Sequence[Row], threshold: float, out: Path,
-                  figure: bool = True) -> tuple[str, list[Path]]:
+                  drift: Drift, figure: bool = True, head: Sequence[str] = ()
+                  ) -> tuple[str, list[Path]]:
     """compare.md and the figure under `out`, each written atomically; the Markdown text and
     the paths written."""
     figures = write_figure(rows, threshold, out / OUT_STEM) if figure else []
-    text = render_markdown(old, new, rows, threshold, f"{OUT_STEM}.png" if figures else None)
+    text = render_markdown(old, new, rows, threshold, f"{OUT_STEM}.png" if figures else None,
+                           drift, head)
     path = out / f"{OUT_STEM}.md"
     atomic.atomic_write_text(path, text + "\n")
     return text, [path, *figures]

@@ -21,10 +21,12 @@ from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
+from harness.repo import BUILD_DIR
 from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
+from harness.store.columns import DIVERGES, OK
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     """Build, then measure every cell not already measured; or, with dry_run, list them."""
     plan = plan_cells(config, options.quick, registry or VariantRegistry(options.repo_root))
     experiment = Experiment(plan, options, log)
-    binaries = needed_binaries(plan, options.repo_root)
+    binaries = needed_binaries(plan, options.repo_root / BUILD_DIR)
     if options.dry_run:
         return dry_run(experiment, binaries, out)
     executor = make_executor(options.executor or config.executor.kind)
@@ -56,7 +58,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     for cell in plan.cells:
         cid = experiment.store.cell_id(cell)
         if cid is None:
-            raise HarnessError(f"{experiment.store.binary(cell)} does not exist after the build")
+            raise HarnessError(f"{experiment.store.missing_binary(cell)} does not exist after "
+                               "the build")
         order.append((cell, cid))
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)
@@ -132,9 +135,11 @@ def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
 
 def report_cell(cell: Cell, record: Mapping[str, object], log: TextIO) -> None:
     status = record["status"]
-    if status != "ok":
-        note = " ".join(str(record.get("note", "")).split())
+    note = " ".join(str(record.get("note", "")).split())
+    if status != OK:
         log.write(f"warning: {cell.label}: {status}: {note}\n")
+    elif record.get("agreement") == DIVERGES:  # ok, but the reader should know where
+        log.write(f"note: {cell.label}: {DIVERGES}: {note}\n")
     if record.get("unstable"):
         log.write(f"warning: {cell.label}: unstable (stddev "
                   f"{record['wall_stddev_s']:.3g} s >= 10% of mean {record['wall_mean_s']:.3g} s)"

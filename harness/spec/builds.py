@@ -5,7 +5,7 @@ roundoff of the arithmetic each computes in; and building binaries with make."""
 from __future__ import annotations
 
 import subprocess
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from harness.errors import HarnessError
@@ -42,18 +42,18 @@ def unit_roundoff(build: str) -> float:
 
 
 def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
-                  capture: bool = False) -> None:
-    """One `make -s build/a build/b ...` call (nothing when the list is empty); a failure is
-    a HarnessError. With `capture`, make's output goes into the error only."""
+                  capture: bool = False, extra: Sequence[str] = ()) -> None:
+    """One `make -s [EXTRA] build/a build/b ...` call (nothing when the list is empty); a
+    failure is a HarnessError. With `capture`, make's output goes into the error only."""
     targets = [str(b.relative_to(repo_root)) for b in binaries]
     if not targets:
         return
     try:
-        done = subprocess.run([make, "-s", *targets], cwd=repo_root, check=False,
+        done = subprocess.run([make, "-s", *extra, *targets], cwd=repo_root, check=False,
                               stdin=subprocess.DEVNULL, capture_output=capture, text=True)
     except OSError as exc:
         raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
     if done.returncode != 0:
-        detail = f": {done.stderr.strip()[-500:]}" if capture and done.stderr else ""
-        raise HarnessError(f"make -s {' '.join(targets)} failed with exit status "
+        detail = f": {' '.join(done.stderr.split())[-500:]}" if capture and done.stderr else ""
+        raise HarnessError(f"make -s {' '.join([*extra, *targets])} failed with exit status "
                            f"{done.returncode}{detail}")

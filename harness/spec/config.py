@@ -10,6 +10,9 @@ A config names the experiment, the variants and builds, a base scene whose keys 
     measure: {warmup: 1, runs: 3, timeout_s: 600}
     validate: true
 
+Implementations written elsewhere take part through `programs: {NAME: "COMMAND {threads}
+< {input}"}` and are listed in `variants` like the rest (harness.spec.programs).
+
 The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
 settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
 max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
@@ -22,10 +25,13 @@ file, the key and what was expected) and harness.spec.points expands its grid.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+
+from harness.spec.programs import Program
 
 # compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
 BASELINE_CHOICES = ("f64", "same", "f128")
@@ -34,11 +40,14 @@ TRUTH_BUILD = "f128"
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
-    "schedule", "measure_by_variant",
+    "schedule", "measure_by_variant", "programs",
 )
 RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-MEASURE_KEYS = ("warmup", "runs", "timeout_s")
+MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
+# Adaptive repetition (`runs: auto`): its own keys, only beside it.
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
+AUTO_RUNS = "auto"
 VALIDATE_KEYS = ("max_n", "baseline")
 # The accuracy and stability checks a config may turn on (harness.measure.invariants and
 # harness.measure.shadow); `accuracy:` holds their settings.
@@ -68,14 +77,73 @@ MAX_SEED = 2**64 - 1
 DEFAULT_WARMUP = 1
 DEFAULT_RUNS = 3
 DEFAULT_TIMEOUT_S = 600.0
+# `runs: auto` adds rounds to a cell until the 95% interval of its median lies within +-ci of
+# it (a relative half-width), or it has max_runs runs, or max_time_s of timed runs.
+DEFAULT_CI = 0.02
+DEFAULT_MAX_RUNS = 30
+DEFAULT_MAX_TIME_S = 120.0
+# The runs of an adaptive cell's first round: the fewest from which an interval is worth
+# reading (with 3 runs the bootstrap interval of a median is [min, max]).
+AUTO_FIRST_RUNS = 3
 
 
 
 @dataclass(frozen=True)
 class Measure:
+    """How a cell is timed: `runs` runs after `warmup` (each run at most `timeout_s`), one run
+    a round, so that the cells of a run share the machine's drift; or, with runs None
+    (`runs: auto`), rounds until the interval of the median is narrow enough (ci) or a limit
+    is reached (max_runs, max_time_s)."""
+
     warmup: int = DEFAULT_WARMUP
-    runs: int = DEFAULT_RUNS
+    runs: int | None = DEFAULT_RUNS  # None: auto
     timeout_s: float = DEFAULT_TIMEOUT_S
+    ci: float = DEFAULT_CI
+    max_runs: int = DEFAULT_MAX_RUNS
+    max_time_s: float = DEFAULT_MAX_TIME_S
+    # Adaptive repetition decides from this many runs on (a measured comparison needs rounds
+    # enough for its paired test: harness.runner.pair); 0: AUTO_FIRST_RUNS.
+    min_runs: int = 0
+
+    @property
+    def adaptive(self) -> bool:
+        return self.runs is None
+
+    @property
+    def first_runs(self) -> int:
+        """The runs an adaptive cell gets before its interval decides."""
+        return min(max(AUTO_FIRST_RUNS, self.min_runs), self.max_runs)
+
+    def at_least(self, runs: int) -> Measure:
+        """These settings with at least `runs` runs a cell."""
+        if self.runs is not None:
+            return dataclasses.replace(self, runs=max(self.runs, runs))
+        return dataclasses.replace(self, min_runs=max(self.min_runs, runs),
+                                   max_runs=max(self.max_runs, runs))
+
+    @property
+    def most_runs(self) -> int:
+        """The most runs a cell gets."""
+        return self.max_runs if self.runs is None else self.runs
+
+    def worst_case_s(self) -> float:
+        """The longest a cell's runs may take: the warmup, the timed runs (an adaptive cell
+        stops past max_time_s, a run after), each up to timeout_s."""
+        timed = self.timeout_s * self.most_runs
+        if self.adaptive:
+            timed = min(timed, self.max_time_s + self.timeout_s)
+        return self.timeout_s * self.warmup + timed
+
+    def key(self) -> dict[str, object]:
+        """What the measurement depends on (part of a cell's id); a fixed count keeps the keys
+        it always had."""
+        key: dict[str, object] = {"warmup": self.warmup, "runs": self.runs or AUTO_RUNS,
+                                  "timeout_s": self.timeout_s}
+        if self.adaptive:
+            key.update(ci=self.ci, max_runs=self.max_runs, max_time_s=self.max_time_s)
+            if self.min_runs:
+                key["min_runs"] = self.min_runs
+        return key
 
 
 @dataclass(frozen=True)
@@ -209,6 +277,9 @@ class Config:
     # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that
     # takes minutes), each unset key taken from `measure`
     variant_measures: tuple[tuple[str, Measure], ...] = ()
+    # `programs:` implementations written elsewhere, run through a command template
+    # (harness.spec.programs); each is listed in `variants` too
+    programs: tuple[Program, ...] = ()
 
     def measure_for(self, variant: str) -> Measure:
         """The measure settings of a variant's cells."""
@@ -220,3 +291,16 @@ class Config:
 
     def custom_binary(self, variant: str) -> Path | None:
         return dict(self.binaries).get(variant)
+
+    def program(self, variant: str) -> Program | None:
+        return next((p for p in self.programs if p.name == variant), None)
+
+    def is_built(self, variant: str) -> bool:
+        """Whether make builds the variant (neither a custom binary nor a program)."""
+        return self.custom_binary(variant) is None and self.program(variant) is None
+
+    @property
+    def lists_particles(self) -> bool:
+        """Whether the inputs list every particle: where a program takes part, the scene must
+        not depend on any program's own generator."""
+        return any(p.name in self.variants for p in self.programs)

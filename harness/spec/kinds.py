@@ -45,6 +45,14 @@ def positive_real(value: object) -> object:
     return result
 
 
+def fraction(value: object) -> object:
+    """A number strictly between 0 and 1."""
+    result = positive_real(value)
+    if not result < 1:  # type: ignore[operator]
+        raise ValueError
+    return result
+
+
 def real(value: object) -> object:
     if isinstance(value, bool):
         raise ValueError

@@ -11,13 +11,18 @@ from pathlib import Path
 from typing import cast
 
 from harness.errors import MISSING, config_error
-from harness.spec import kinds, scenes
+from harness.spec import kinds, programs, scenes
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import (
     ACCURACY_KEYS,
+    ADAPTIVE_KEYS,
+    AUTO_RUNS,
     BASELINE_CHOICES,
     CHECK_NAMES,
+    DEFAULT_CI,
     DEFAULT_ENERGY_ULPS,
+    DEFAULT_MAX_RUNS,
+    DEFAULT_MAX_TIME_S,
     DEFAULT_POLL_S,
     DEFAULT_RUNS,
     DEFAULT_SHADOW_STEPS,
@@ -86,13 +91,22 @@ def parse_config(raw: Mapping[str, object], source: Path,
     if not NAME_PATTERN.match(str(name)):
         raise config_error(source, "name", "letters, digits, '_', '.', '-' only", name)
     binaries = _parse_binaries(raw.get("binaries"), source, known_variants)
-    known = (*known_variants, *(b[0] for b in binaries))
+    taken = (*known_variants, *(b[0] for b in binaries))
+    programs_ = _parse_programs(raw.get("programs", {}), source, taken)
+    known = (*taken, *(p.name for p in programs_))
     variants = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
     builds = kinds.name_list(raw["builds"], "builds", BUILDS, source)
     for variant, _ in binaries:
         if variant in variants and builds != (DEFAULT_BUILD,):
             raise config_error(source, f"binaries.{variant}", "builds: [f64] with a custom "
                                "binary", list(builds))
+    for program in programs_:
+        if program.name not in variants:
+            raise config_error(source, f"programs.{program.name}", "a program also listed "
+                               "under variants", "not listed")
+        if builds != (DEFAULT_BUILD,):
+            raise config_error(source, f"programs.{program.name}", "builds: [f64] with a "
+                               "program", list(builds))
     threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.POSITIVE_INT, source)
     scene = _parse_scene(raw.get("scene", MISSING), source)
     combine, zip_keys = _parse_combine(raw["combine"], scene, threads_listed, source)
@@ -117,6 +131,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
         schedules=parse_schedules(raw.get("schedule"), source),
         variant_measures=_parse_variant_measures(raw.get("measure_by_variant", {}),
                                                  raw["measure"], variants, source),
+        programs=programs_,
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config
@@ -207,10 +222,30 @@ def _parse_measure(value: object, source: Path, label: str = "measure") -> Measu
     kinds.reject_unknown(raw, MEASURE_KEYS, f"{label}.", source)
     warmup = kinds.check(raw.get("warmup", DEFAULT_WARMUP), f"{label}.warmup",
                          kinds.NON_NEGATIVE_INT, source)
-    runs = kinds.check(raw.get("runs", DEFAULT_RUNS), f"{label}.runs", kinds.POSITIVE_INT, source)
+    runs = raw.get("runs", DEFAULT_RUNS)
+    if runs != AUTO_RUNS:
+        runs = kinds.check(runs, f"{label}.runs", RUNS, source)
     timeout = kinds.check(raw.get("timeout_s", DEFAULT_TIMEOUT_S), f"{label}.timeout_s",
-                     kinds.POSITIVE_REAL, source)
-    return Measure(warmup=cast(int, warmup), runs=cast(int, runs), timeout_s=cast(float, timeout))
+                          kinds.POSITIVE_REAL, source)
+    if runs != AUTO_RUNS:
+        for key in ADAPTIVE_KEYS:
+            if key in raw:
+                raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
+                                   "adaptive repetition)", raw[key])
+        return Measure(warmup=cast(int, warmup), runs=cast(int, runs),
+                       timeout_s=cast(float, timeout))
+    ci = kinds.check(raw.get("ci", DEFAULT_CI), f"{label}.ci", CI, source)
+    max_runs = kinds.check(raw.get("max_runs", DEFAULT_MAX_RUNS), f"{label}.max_runs",
+                           kinds.POSITIVE_INT, source)
+    max_time = kinds.check(raw.get("max_time_s", DEFAULT_MAX_TIME_S), f"{label}.max_time_s",
+                           kinds.POSITIVE_REAL, source)
+    return Measure(warmup=cast(int, warmup), runs=None, timeout_s=cast(float, timeout),
+                   ci=cast(float, ci), max_runs=cast(int, max_runs),
+                   max_time_s=cast(float, max_time))
+
+
+RUNS = kinds.Kind(f"a positive integer or {AUTO_RUNS}", kinds.int_in(1))
+CI = kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.fraction)
 
 
 def _parse_variant_measures(value: object, base: object, variants: Sequence[str],
@@ -379,4 +414,37 @@ def _parse_binaries(value: object, source: Path,
         if not resolved.is_file():
             raise config_error(source, label, "an executable file relative to the config", path)
         result.append((name, resolved))
+    return tuple(result)
+
+
+PROGRAM_FORMS = ('a command template such as "./sim {threads} < {input}", or '
+                 '{command: TEMPLATE, check: TEMPLATE}')
+
+
+def _parse_programs(value: object, source: Path,
+                    taken: Sequence[str]) -> tuple[programs.Program, ...]:
+    """`programs: {NAME: TEMPLATE}` or `{NAME: {command: TEMPLATE, check: TEMPLATE}}`."""
+    raw = kinds.mapping(value, "programs", source)
+    result = []
+    for name, entry in raw.items():
+        label = f"programs.{name}"
+        if name in taken or not isinstance(name, str) or not NAME_PATTERN.match(name):
+            raise config_error(source, label, "a new name (letters, digits, '_', '.', '-'; "
+                               "not one of " + ", ".join(taken) + ")", name)
+        fields = {"command": entry} if isinstance(entry, str) else entry
+        if not isinstance(fields, dict):
+            raise config_error(source, label, PROGRAM_FORMS, entry)
+        kinds.reject_unknown(fields, programs.PROGRAM_KEYS, f"{label}.", source)
+        if "command" not in fields:
+            raise config_error(source, f"{label}.command", "a command template", MISSING)
+        for key, template in fields.items():
+            where = label if isinstance(entry, str) else f"{label}.{key}"
+            if not isinstance(template, str) or not template.strip():
+                raise config_error(source, where, PROGRAM_FORMS, template)
+            try:
+                programs.placeholders(template)
+            except programs.TemplateError as exc:
+                raise config_error(source, where, f"a command template with {{input}} and "
+                                   f"optionally {{threads}}: {exc}", template) from None
+        result.append(programs.from_mapping(name, fields, source.resolve().parent))
     return tuple(result)

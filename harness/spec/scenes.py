@@ -15,12 +15,15 @@ a config may set under `scene:`, each one a value or a list of values to sweep.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import inspect
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from harness.errors import HarnessError
 
@@ -113,6 +116,79 @@ def random_point(n: int, L: float, r: float, steps: int, mode: str, seed: int) -
     """A scene the binaries generate from the seed: a two-line input."""
     return ScenePoint(RANDOM_SCENE, n, float(L), float(r), steps, mode, seed,
                       header_text(n, L, r, steps, mode))
+
+
+# --- every particle listed ---------------------------------------------------------------
+
+# SPEC section 4's generator: splitmix64 and the draws of one particle.
+SPLITMIX_GAMMA = 0x9E3779B97F4A7C15
+SPLITMIX_MUL1 = 0xBF58476D1CE4E5B9
+SPLITMIX_MUL2 = 0x94D049BB133111EB
+TWO_PI = 2.0 * math.pi  # the double nearest 2*pi, as the C literal rounds
+DRAWS_PER_PARTICLE = 4
+
+
+def uniforms(seed: int, count: int) -> np.ndarray:
+    """The first `count` doubles in [0, 1) of the splitmix64 stream that starts at `seed`."""
+    steps = np.arange(1, count + 1, dtype=np.uint64)
+    with np.errstate(over="ignore"):  # modulo 2^64, as in C
+        z = np.uint64(seed) + steps * np.uint64(SPLITMIX_GAMMA)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(SPLITMIX_MUL1)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(SPLITMIX_MUL2)
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
+def generate(count: int, L: float, r: float, seed: int) -> list[Particle]:
+    """The first `count` particles the binaries draw for unlisted indices (SPEC section 4),
+    bit for bit: the same operations in IEEE double, and the C library's cos and sin."""
+    u = uniforms(seed, DRAWS_PER_PARTICLE * count).reshape(count, DRAWS_PER_PARTICLE)
+    a, b = L / (8 * r), L / 4
+    lo, hi = min(a, b), max(a, b)
+    x = r + u[:, 0] * (L - 2 * r)
+    y = r + u[:, 1] * (L - 2 * r)
+    speed = lo + u[:, 2] * (hi - lo)
+    angle = TWO_PI * u[:, 3]
+    return [(float(px), float(py), s * math.cos(t), s * math.sin(t))
+            for px, py, s, t in zip(x, y, speed.tolist(), angle.tolist(), strict=True)]
+
+
+def with_every_particle(point: ScenePoint) -> ScenePoint:
+    """The scene with every particle listed in its input: the ones it lists as written, the
+    others drawn as the binaries would draw them from its seed (so a variant sees the same
+    particles, and a program's own generator decides nothing)."""
+    n, _, _, _, _ = parse_header(point.text, point.label)
+    tokens = point.text.split()
+    body = tokens[5:]
+    if len(body) % 5:
+        raise HarnessError(f"{point.label}: particle lines must have 5 fields (i x y vx vy)")
+    listed: dict[int, str] = {}
+    for k in range(0, len(body), 5):
+        try:
+            index = int(body[k])
+        except ValueError:
+            raise HarnessError(f"{point.label}: particle index {body[k]!r} is not an "
+                               "integer") from None
+        listed[index] = " ".join(body[k:k + 5])
+    missing = [i for i in range(n) if i not in listed]
+    if not missing:
+        return point
+    drawn = generate(len(missing), point.L, point.r, point.seed)
+    for index, (x, y, vx, vy) in zip(missing, drawn, strict=True):
+        listed[index] = (f"{index} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} "
+                         f"{REAL_FORMAT % vy}")
+    rows = "".join(f"{listed[i]}\n" for i in sorted(listed))
+    head = " ".join(tokens[:4]) + "\n" + tokens[4] + "\n"
+    return dataclasses.replace(point, text=head + rows)
+
+
+def with_run(point: ScenePoint, steps: int, mode: str) -> ScenePoint:
+    """The scene with another step count and mode (its header rewritten, L and r kept as
+    written)."""
+    tokens = point.text.split(maxsplit=5)
+    rest = tokens[5] if len(tokens) > 5 else ""
+    text = f"{tokens[0]} {tokens[1]} {tokens[2]} {steps}\n{mode}\n{rest}"
+    return dataclasses.replace(point, steps=steps, mode=mode, text=text)
 
 
 # --- the generator registry -------------------------------------------------------------

@@ -15,6 +15,18 @@ STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
 
+# How a program's output agrees with seq's (harness.measure.agreement): the same numbers at the
+# precision it prints, within that rounding at every step, within rounding and then drifting
+# as a change of precision would, beyond rounding (another rule or a bug), or not comparable.
+IDENTICAL = "identical"
+ROUNDING = "rounding"
+DIVERGES = "diverges"
+DIFFERS = "differs"
+AGREEMENT_FAILED = "failed"
+AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, DIVERGES, DIFFERS, AGREEMENT_FAILED)
+# The agreements that count as a correct program (its cell's status is ok).
+AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, DIVERGES})
+
 # --- columns ------------------------------------------------------------------------------
 
 # These columns, in this order, start every results.csv.
@@ -61,6 +73,22 @@ CHECK_COLUMNS: tuple[str, ...] = (
 # cell has them.
 THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "threads_pairs",
                                    "threads_chunks")
+# How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
+# that the machine's drift is shared), the round of each of its runs (space-separated, as
+# wall_times_s), why its timing stopped (STOPPED_REASONS), and the seed that shuffled each
+# round's order (cells with one seed were measured in the same rounds). Only where some cell
+# has them (results from before rounds have none).
+ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
+# Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
+# enough, or a limit was reached first.
+STOPPED_RUNS = "runs"
+STOPPED_CI = "ci"
+STOPPED_MAX_RUNS = "max_runs"
+STOPPED_MAX_TIME = "max_time_s"
+STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME)
+# A program's agreement with seq and the first step it leaves rounding (empty: never), only
+# where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = ("threads_busy_s", "threads_pairs", "threads_chunks")
 # What a --timing JSON line gives that the record keeps under the same names.
@@ -68,7 +96,8 @@ TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "c
                                 "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
-OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS)
+OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
+                                                 ROUND_COLUMNS, PROGRAM_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -88,7 +117,8 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "energy_drift", "energy_drift_max", "energy_bound", "pair_collisions_run", "box_excess",
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
-    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s",
+    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
+    "first_diff_step",
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
@@ -100,4 +130,4 @@ FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "load
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
 # Space-separated lists of numbers (per run, per thread).
-LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", *THREAD_TIMING_KEYS)
+LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", "wall_times_round", *THREAD_TIMING_KEYS)

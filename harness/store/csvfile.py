@@ -12,18 +12,14 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from harness import stats
 from harness.store import atomic, hyperfine, records
 from harness.store.columns import (
-    CHECK_COLUMNS,
     CSV_COLUMNS,
     DIVERGENCE_CELL_COLUMNS,
     DIVERGENCE_COLUMNS,
     EXTRA_COLUMNS,
     OPTIONAL_GROUPS,
-    PHASE_COLUMNS,
     PROVENANCE_COLUMNS,
-    THREAD_COLUMNS,
 )
 
 
@@ -37,6 +33,8 @@ def uncertainty(times: Sequence[float]) -> dict[str, object]:
 
 @functools.lru_cache(maxsize=4096)
 def _median_ci(times: tuple[float, ...]) -> tuple[float | None, float | None]:
+    from harness import stats  # scipy only when an interval is computed: a cached run needs none
+
     interval = stats.median_ci(times)
     return (interval.low if math.isfinite(interval.low) else None,
             interval.high if math.isfinite(interval.high) else None)
@@ -68,9 +66,11 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
     row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *PHASE_COLUMNS, *THREAD_COLUMNS,
-                   *CHECK_COLUMNS):
+    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g)):
         row[column] = record.get(column)
+    rounds = record.get("wall_times_round")
+    row["wall_times_round"] = (" ".join(str(int(r)) for r in rounds)
+                               if isinstance(rounds, list) and rounds else None)
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
     return row

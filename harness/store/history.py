@@ -141,8 +141,9 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
     for item in items:
         history.mkdir(parents=True, exist_ok=True)
         cid = item.cell_id
-        companions = [(exp.hyperfine(cid), history / f"{cid}{layout.HYPERFINE_SUFFIX}"),
-                      (exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}")]
+        companions = [(path, history / path.name)
+                      for path in (exp.hyperfine(cid), *exp.hyperfine_exports(cid))]
+        companions.append((exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}"))
         for source, target in companions:
             if source.is_file():
                 os.replace(source, target)

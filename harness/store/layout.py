@@ -5,7 +5,10 @@
       .cache/prints/<key>.txt        reference print-mode outputs (the checks)
       <name>/  (<name>-quick/)       one experiment (a --quick smoke run)
         cells/<cell_id>.json             the harness's record of one cell
-        cells/<cell_id>.hyperfine.json   hyperfine's export, as written
+        cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
+                                         written (<cell_id>.hyperfine.json: one for all runs,
+                                         in records from before rounds)
+        cells/<cell_id>.partial.json     a cell whose rounds an interruption cut short
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
@@ -37,6 +40,8 @@ RESULTS_CSV = "results.csv"
 DIVERGENCE_CSV = "divergence.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
+HYPERFINE_INFIX = ".hyperfine."
+PARTIAL_SUFFIX = ".partial.json"
 OUTPUT_SUFFIX = ".txt"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 INPUT_SUFFIX = ".in"
@@ -93,8 +98,22 @@ class ExperimentDir:
     def record(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}{RECORD_SUFFIX}"
 
-    def hyperfine(self, cell_id: str) -> Path:
-        return self.cells / f"{cell_id}{HYPERFINE_SUFFIX}"
+    def hyperfine(self, cell_id: str, round_index: int | None = None) -> Path:
+        """hyperfine's export of the cell's round (one for all its runs: round None)."""
+        if round_index is None:
+            return self.cells / f"{cell_id}{HYPERFINE_SUFFIX}"
+        return self.cells / f"{cell_id}{HYPERFINE_INFIX}{round_index}{RECORD_SUFFIX}"
+
+    def hyperfine_exports(self, cell_id: str) -> list[Path]:
+        """Every hyperfine export the cell left in cells/, by round."""
+        def round_of(path: Path) -> int:
+            middle = path.name[len(cell_id) + len(HYPERFINE_INFIX):-len(RECORD_SUFFIX)]
+            return int(middle) if middle.isdigit() else 0
+        found = self.cells.glob(f"{cell_id}{HYPERFINE_INFIX}*")
+        return sorted((p for p in found if p.name.endswith(RECORD_SUFFIX)), key=round_of)
+
+    def partial(self, cell_id: str) -> Path:
+        return self.cells / f"{cell_id}{PARTIAL_SUFFIX}"
 
     def output(self, cell_id: str) -> Path:
         return self.outputs / f"{cell_id}{OUTPUT_SUFFIX}"
@@ -123,9 +142,9 @@ class ResultsRoot:
 
 
 def is_record_name(name: str) -> bool:
-    """A cell record's file name (not hyperfine's export, not a temporary file)."""
-    return (name.endswith(RECORD_SUFFIX) and not name.endswith(HYPERFINE_SUFFIX)
-            and not name.startswith("."))
+    """A cell record's file name: `<cell_id>.json` (not hyperfine's exports, not a partial
+    cell, not a temporary file)."""
+    return name.endswith(RECORD_SUFFIX) and name.count(".") == 1 and not name.startswith(".")
 
 
 def record_paths(directory: Path) -> list[Path]:

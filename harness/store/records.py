@@ -41,12 +41,17 @@ def sha256_file(path: Path) -> str:
     return digest.hexdigest()
 
 
-def read_record(path: Path, expected_id: str) -> Record | None:
-    """A stored cell record, or None when absent, unreadable or from another harness version."""
+def read_json(path: Path) -> object | None:
+    """A JSON file's value, or None when it is absent or unreadable."""
     try:
-        record = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except (OSError, json.JSONDecodeError):
         return None
+
+
+def read_record(path: Path, expected_id: str) -> Record | None:
+    """A stored cell record, or None when absent, unreadable or from another harness version."""
+    record = read_json(path)
     if not isinstance(record, dict):
         return None
     if record.get("version") != RECORD_VERSION or record.get("cell_id") != expected_id:

@@ -76,7 +76,7 @@ elif kind == "lattice":
     out(n, L, r, S, parts, "print")
 elif kind == "edges":
     # Background: particles moving on the axes at exactly V, so that v_ref = V; with N = 1600,
-    # L = 1000: K = round(0.15 * V * sqrt(N) / L) = 4 (grid_params.h: GRID_K_FACTOR_CACHED; at 1,
+    # L = 1000: K = round(0.15 * V * sqrt(N) / L) = 4 (grid_plan.c: GRID_K_FACTOR; at 1,
     # 2 and 4 threads) and slices end at 1/4, 1/2, 3/4, 1.
     L, r, V, n = 1000.0, 1.0, 640.0, 1600
     rng = random.Random(7)

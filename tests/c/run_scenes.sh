@@ -98,7 +98,9 @@ describe_flag() {
     sed -n 's/.*"'"$2"'":\(true\|false\)[,}].*/\1/p' <<<"$1"
 }
 KEYS_RE='^\{"name":"[^"]*","summary":"([^"\\]|\\.)+","exact":(true|false),"parallel":(true|false),"all_pairs":(true|false),"repairs":(null|"[^"]*")\}$'
-if ! ALL_VARIANTS=$(make -s --no-print-directory -C "$ROOT" print-variants) || [ -z "$ALL_VARIANTS" ]; then
+# Without the caller's MAKEFLAGS: under `make test-c` they name a jobserver this make cannot use.
+if ! ALL_VARIANTS=$(MAKEFLAGS= MAKELEVEL= make -s --no-print-directory -C "$ROOT" print-variants) ||
+    [ -z "$ALL_VARIANTS" ]; then
     bad "make print-variants listed no variants"
 fi
 read -r -a ALL <<<"$ALL_VARIANTS"

@@ -1204,7 +1204,7 @@ static void test_step_wall_times_are_scalar(void)
     }
 }
 
-/* --timing's phase split (issue 15): every phase is timed (>= 0, and the finder, sorting,
+/* --timing's phase split: every phase is timed (>= 0, and the finder, sorting,
  * resolution and motion of a scene with collisions take some time over 20 steps) and the
  * phases together fit inside the time spent in sim_step, on one thread and on three. */
 static void test_step_phase_times(void)

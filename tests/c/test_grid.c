@@ -1,7 +1,7 @@
 /*
- * test_grid.c: unit tests of the grid variant (variants/grid.c, with its pieces under
- * variants/grid/, included below so that its static functions can be tested), against the
- * shared all-pairs kernel.
+ * test_grid.c: unit tests of the grid variant (variants/grid.c and its pieces under
+ * variants/grid/, linked in; their internal header is included below so that the pieces'
+ * helpers can be tested), against the shared all-pairs kernel.
  *
  * Plain C, no framework, as test_core.c: every failed check prints `file:line: what`; the last
  * line is `P passed, F failed` counting test functions; exit status 1 when any failed.
@@ -19,7 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../variants/grid.c"
+#include "../../variants/grid/grid.h"
 #include "sim_core.h"
 
 #include "check.h"
@@ -223,13 +223,13 @@ static void test_near_pairs_pass_the_float_binning(void)
         w.x[0] = (sim_real)(cx - tc * vax), w.y[0] = (sim_real)(cy - tc * vay);
         w.vx[0] = (sim_real)vax, w.vy[0] = (sim_real)vay;
         grid_plan g;
-        plan_step(&w, s, &g, 1); /* for delta: the separation needs it */
+        grid_plan_step(&w, s, &g, 1); /* for delta: the separation needs it */
         const double delta = sqrt(g.reach2) - 2 * r;
         const double sep = 2 * r + delta * uniform();
         w.x[1] = (sim_real)(cx + sep * cos(phi) - tc * vbx);
         w.y[1] = (sim_real)(cy + sep * sin(phi) - tc * vby);
         w.vx[1] = (sim_real)vbx, w.vy[1] = (sim_real)vby;
-        plan_step(&w, s, &g, 1);
+        grid_plan_step(&w, s, &g, 1);
         for (size_t m = 0; m < sizeof ks / sizeof ks[0]; m++) {
             g.K = ks[m];
             for (int k = 0; k <= g.K; k++)
@@ -280,7 +280,7 @@ static void test_prefilter_passes_near_and_rejects_far_segments(void)
     int passed_near = 0, rejected_far = 0;
     for (int trial = 0; trial < 200000; trial++) {
         const double R = pow(10, 3 * uniform() - 1), wmax = R * pow(10, 4 * uniform());
-        /* The reach with a float margin in the plan's style (plan_step): the floats here are
+        /* The reach with a float margin in the plan's style (grid_plan_step): the floats here are
          * up to 2 wmax + R in magnitude. */
         const double Rf = R + GRID_F32_MARGIN * (double)FLT_EPSILON * 4 * (2 * wmax + R);
         const float r2 = (float)(Rf * Rf * (1 + 8 * (double)FLT_EPSILON));
@@ -343,7 +343,7 @@ static void test_prefilter_passes_everything_where_floats_are_off(void)
             w.x[i] = (sim_real)(100 + 300 * i), w.y[i] = 500;
         w.vx[0] = (sim_real)speeds[m], w.vy[1] = (sim_real)-speeds[m];
         grid_plan g;
-        plan_step(&w, s, &g, 1);
+        grid_plan_step(&w, s, &g, 1);
         CHECK(g.f32_off);
         float b[4];
         particle_f32(&s->part[0], &g, &b[0], &b[1], &b[2], &b[3]);
@@ -388,7 +388,7 @@ static void test_accepted_pairs_are_near_in_some_slice(void)
             continue;
         accepted++;
         grid_plan g;
-        plan_step(&w, s, &g, 1);
+        grid_plan_step(&w, s, &g, 1);
         for (size_t m = 0; m < sizeof ks / sizeof ks[0]; m++) {
             for (int k = 0; k <= ks[m]; k++)
                 s->tk[k] = (double)k / ks[m];

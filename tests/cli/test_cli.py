@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from harness.cli import commands, main
+from harness.cli import COMMANDS, main
 from harness.repo import REPO_ROOT
 
 CONSOLE_SCRIPT = Path(sys.executable).with_name("collide-bench")
@@ -18,7 +18,7 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     for name in ("run", "compare", "report", "store", "worker"):
         assert f"\n  {name} " in out
-    assert set(commands()) == {"run", "compare", "report", "store", "worker"}
+    assert set(COMMANDS) == {"run", "compare", "report", "store", "worker"}
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -64,3 +64,15 @@ def test_no_module_of_the_harness_edits_sys_path() -> None:
     offenders = [str(p.relative_to(REPO_ROOT)) for p in (REPO_ROOT / "harness").rglob("*.py")
                  if "sys.path" in p.read_text(encoding="utf-8")]
     assert offenders == []
+
+
+def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) -> None:
+    from harness.cli import run as run_cli
+
+    def report_dir(*argv: str) -> Path:
+        return run_cli.report_dir(run_cli.parser("run").parse_args([*argv, "x.yaml"]))
+
+    assert report_dir() == REPO_ROOT / "report"
+    assert report_dir("--results-dir", str(tmp_path)) == tmp_path / "report"
+    assert report_dir("--results-dir", str(tmp_path), "--report-dir",
+                      str(tmp_path / "r")) == tmp_path / "r"

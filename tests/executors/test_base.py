@@ -16,6 +16,8 @@ from harness.plan.cells import plan_cells
 from harness.spec.config import EXECUTOR_KINDS
 from harness.spec.parse import load_config
 
+from executors.test_rounds import FakeMeasurer
+
 
 def test_every_kind_a_config_may_name_has_an_executor() -> None:
     assert set(EXECUTORS) == set(EXECUTOR_KINDS)
@@ -52,27 +54,23 @@ def test_progress_announces_cached_cells_in_plan_order_and_an_eta(write_config) 
     assert len(lines) == 3
 
 
-def test_the_local_executor_measures_in_order_and_hands_each_record_on(
+def test_the_local_executor_measures_in_rounds_and_hands_each_record_on(
         write_config, tmp_path: Path, monkeypatch) -> None:
     config = load_config(write_config(
-        "variants: [seq]\nscene: {n: [10, 11], L: 100, r: 1, steps: 1}\n"))
+        "variants: [seq]\nscene: {n: [10, 11], L: 100, r: 1, steps: 1}\n"
+        "measure: {runs: 2}\n"))
     plan = plan_cells(config)
     order = [(cell, f"id{k}") for k, cell in enumerate(plan.cells)]
-    experiment = Experiment(plan, Options(Path("/nonexistent"), tmp_path), io.StringIO())
-    measured: list[str] = []
-
-    class Recorder:
-        def __init__(self, *args: object, **kwargs: object) -> None:
-            pass
-
-        def measure_and_save(self, cell, cid):
-            measured.append(cid)
-            return {"cell_id": cid, "status": "ok"}
-
-    monkeypatch.setattr("harness.executors.local.Measurer", Recorder)
-    got: list[tuple[str, str]] = []
+    experiment = Experiment(plan, Options(Path("/nonexistent"), tmp_path, round_seed=3),
+                            io.StringIO())
+    log: list[str] = []
+    monkeypatch.setattr("harness.executors.local.Measurer",
+                        lambda store, hyperfine, cores: FakeMeasurer(config.measure, log))
+    got: list[tuple[str, int]] = []
     progress = Progress("exp", order, frozenset(cid for _, cid in order), io.StringIO())
-    LocalExecutor().run(experiment, order, lambda c, cid, r: got.append((cid, r["status"])),
+    LocalExecutor().run(experiment, order, lambda c, cid, r: got.append((cid, r["runs"])),
                         progress)
-    assert measured == ["id0", "id1"] and got == [("id0", "ok"), ("id1", "ok")]
-    assert len(progress.durations) == 2
+    assert log[:2] == ["start id0", "start id1"]
+    assert sorted(log[2:4]) == ["round 1 id0", "round 1 id1"]
+    assert sorted(got) == [("id0", 2), ("id1", 2)]
+    assert "exp: round 2: 2 cell(s) timed, 2 done, 0 need more" in progress.log.getvalue()

@@ -23,6 +23,7 @@ REPO_ROOT = repo.REPO_ROOT
 VOLATILE = {"measured_at", "seconds", "stderr_tail", "input_s", "sim_s", "output_s", "unstable",
             "load_before", "load_after", "loaded", "hyperfine_warnings",
             "threads_busy_s", "imbalance",  # --timing's per-thread seconds
+            "round_seed",  # each run draws its own unless given one
             *columns.PHASE_COLUMNS}  # and its phases'
 TINY = ("name: tiny\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 3, seed: 4}\n"
         "threads: [1, 2]\nmeasure: {warmup: 0, runs: 2, timeout_s: 30}\nvalidate: true\n")
@@ -53,7 +54,8 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
     assert None not in ids
     # p1 at 2 threads first: its baseline (seq's output) is not cached yet in remote_root
     chosen = [str(ids[3]), str(ids[0])]
-    done = worker("--config", str(config_path), "--results-dir", str(remote_root), *chosen)
+    done = worker("--config", str(config_path), "--results-dir", str(remote_root),
+                  "--round-seed", "7", *chosen)
     assert done.returncode == 0, done.stderr
     for cid in chosen:
         remote = store.read(cid)
@@ -61,14 +63,16 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
         assert remote is not None and local is not None
         assert remote["status"] == "ok" and remote["runs"] == 2 and remote["identical"] is True
         assert remote["wall_median_s"] > 0 and remote["seconds"] > 0
+        assert remote["round_seed"] == 7 and remote["rounds"] == local["rounds"]
         assert stable(remote, remote_root) == stable(local, local_root)
         assert set(remote) == set(local)
-        assert (store.cells_dir / f"{cid}.hyperfine.json").is_file()
+        exports = store.layout.hyperfine_exports(cid)
+        assert [p.name for p in exports] == remote["hyperfine_exports"] and exports
         local_row = csvfile.csv_row(local, config.name, config.title)
         remote_row = csvfile.csv_row(remote, config.name, config.title)
         assert list(local_row) == list(remote_row)  # the same results.csv columns
     assert sorted(p.name for p in store.cells_dir.glob("*.json")
-                  if not p.name.endswith(".hyperfine.json")) == sorted(f"{c}.json"
+                  if ".hyperfine." not in p.name) == sorted(f"{c}.json"
                                                                        for c in chosen)
     assert not list(remote_root.rglob("*.tmp"))
     # a local run over the worker's results finds its cells cached

@@ -59,7 +59,9 @@ def test_the_record_holds_the_measurement_and_is_saved(tmp_path: Path, monkeypat
     assert record["omp_env"]["OMP_NUM_THREADS"] == "3"
     assert record["omp_env"]["OMP_SCHEDULE"] == "dynamic"
     assert record["machine_id"] == "m1" and record["seconds"] > 0
-    assert store.hyperfine_path(cid).is_file()
+    assert [p.name for p in store.layout.hyperfine_exports(cid)] == [
+        f"{cid}.hyperfine.1.json", f"{cid}.hyperfine.2.json"]
+    assert record["wall_times_round"] == [1, 2] and record["stopped"] == "runs"
     runs = log.read_text().splitlines()
     assert all(line.endswith("same.sh 3 dynamic") for line in runs if "same.sh" in line)
     assert len([r for r in runs if "same.sh" in r]) == 1 + 2  # the --precise run, 2 timed

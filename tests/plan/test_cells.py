@@ -70,5 +70,5 @@ def test_needed_binaries_add_seq_for_validation_and_the_checks_references(write_
     config = load_config(write_config(
         "variants: [p1]\nbuilds: [f32]\nscene: {n: 10, L: 100, r: 1, steps: 1}\n"
         "validate: {baseline: same}\nchecks: [invariants]\n"))
-    names = [p.name for p in needed_binaries(plan_cells(config), REPO_ROOT)]
+    names = [p.name for p in needed_binaries(plan_cells(config), REPO_ROOT / "build")]
     assert names == ["p1-f32", "seq-f32", "grid-f128", "seq"]

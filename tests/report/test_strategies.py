@@ -1,4 +1,4 @@
-"""The report's issue-16 sections rendered from a synthetic results directory: the seed's
+"""The strategy study's report sections rendered from a synthetic results directory: the seed's
 Table 2 beside ours with the ranking sentence, the imbalance column, the per-thread work
 figure, the cost per chunk, and the schedule study."""
 

@@ -15,8 +15,8 @@ from harness.store import locks
 
 REPO_ROOT = repo.REPO_ROOT
 TIMEOUT_S = 120
-# A variant that takes a second a run: the first run holds the lock long enough to be met.
-SLOW = "#!/bin/sh\nsleep 1\nexec {seq} \"$@\"\n"
+# A variant that takes two seconds a run: the first run holds the lock long enough to be met.
+SLOW = "#!/bin/sh\nsleep 2\nexec {seq} \"$@\"\n"
 CONFIG = ("name: slowlock\nvariants: [slow]\nscene: {{n: 40, L: 400, r: 1, steps: 2}}\n"
           "measure: {{warmup: 0, runs: 1, timeout_s: 30}}\nbinaries: {{slow: {slow}}}\n")
 

@@ -17,7 +17,7 @@ from commands import cell_store
 from commands import run_main as main
 
 BASE = "variants: [p1, seq]\nscene: {n: 2, L: 100, r: 1, steps: 1}\n"
-# 5 steps of 120 discs on 2 threads (tests/c/run_scenes.sh derives the same figures): a plain
+# 5 steps of 120 discs on 2 threads (the C scene script checks the same counts): a plain
 # static schedule gives each thread a block of 60 rows, 5 * (119 + ... + 60) and
 # 5 * (59 + ... + 0) pairs; rows dealt round-robin give 5 * 60^2 and 5 * 59 * 60.
 SCENE = "scene: {n: 120, L: 60, r: 1, steps: 5, mode: perf}\n"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -268,3 +269,31 @@ def test_bad_measure_by_variant(write_config, value: str, key: str, expected: st
     with pytest.raises(HarnessError) as err:
         load_config(path)
     assert str(err.value).startswith(f"{path}: key '{key}': expected {expected}")
+
+
+# --- adaptive repetition -------------------------------------------------------------------
+
+
+def test_runs_auto_takes_its_own_keys(write_config) -> None:
+    config = load_config(write_config(
+        BASE + "measure: {runs: auto, ci: 0.05, max_runs: 12, max_time_s: 30}\n"))
+    measure = config.measure
+    assert measure.adaptive and measure.runs is None
+    assert (measure.ci, measure.max_runs, measure.max_time_s) == (0.05, 12, 30.0)
+    assert measure.key()["runs"] == "auto" and measure.key()["ci"] == 0.05
+    fixed = load_config(write_config(BASE)).measure
+    assert fixed.key() == {"warmup": DEFAULT_WARMUP, "runs": DEFAULT_RUNS,
+                           "timeout_s": DEFAULT_TIMEOUT_S}  # the keys cells always had
+
+
+@pytest.mark.parametrize(("measure", "key", "expected"), [
+    ("{runs: 3, ci: 0.05}", "measure.ci", "runs: auto beside it"),
+    ("{runs: auto, ci: 1.5}", "measure.ci", "a fraction in (0, 1)"),
+    ("{runs: often}", "measure.runs", "a positive integer or auto"),
+    ("{runs: auto, max_runs: 0}", "measure.max_runs", "a positive integer"),
+])
+def test_adaptive_mistakes_name_the_key(write_config, measure: str, key: str,
+                                        expected: str) -> None:
+    message = rf"key '{re.escape(key)}': expected {re.escape(expected)}"
+    with pytest.raises(HarnessError, match=message):
+        load_config(write_config(BASE + f"measure: {measure}\n"))

@@ -68,11 +68,11 @@ typedef struct sim_stats {
     uint64_t candidates;
     uint64_t pair_collisions;
     uint64_t wall_collisions;
-    /* Seconds in each phase of sim_step, summed over the run (issue 15's "where the time
-     * goes"), timed on the thread that calls sim_step around whole phases: broad_s the
-     * variant's find_pairs, walls_s the wall candidates, sort_s merging and sorting the
-     * candidates, resolve_s the greedy walk, motion_s moving the discs. Their sum is at most
-     * the time in sim_step; the rest is region starts and barriers (sim_step.c says which). */
+    /* Seconds in each phase of sim_step, summed over the run (where the time goes), timed on the
+     * thread that calls sim_step around whole phases: broad_s the variant's find_pairs, walls_s
+     * the wall candidates, sort_s merging and sorting the candidates, resolve_s the greedy walk,
+     * motion_s moving the discs. Their sum is at most the time in sim_step; the rest is region
+     * starts and barriers (sim_step.c says which). */
     double broad_s, walls_s, sort_s, resolve_s, motion_s;
 } sim_stats;
 

@@ -3,13 +3,13 @@
  * a block of events at a time, in vector lanes.
  *
  * Why lanes: on the report benchmark 45% of the particles have an event every step (2,100 walls
- * and 1,200 pairs of 10,000), and the scalar code (move_one, in sim_step.c until issue 15)
- * branched on the sign of every velocity, on which axis is hit and on whether finish meets a
- * wall: random outcomes, so about one mispredicted branch per division, each emptying the
- * pipeline that would otherwise overlap the next event's divisions. Here every event runs the
- * same straight-line code: each alternative is computed and the SPEC's one selected, lane by
- * lane (sim_sel), so a division that SPEC skips is done and discarded (its result is never
- * selected; a division by 0 is harmless without traps).
+ * and 1,200 pairs of 10,000), and scalar code, one event at a time, branches on the sign of
+ * every velocity, on which axis is hit and on whether finish meets a wall: random outcomes, so
+ * about one mispredicted branch per division, each emptying the pipeline that would otherwise
+ * overlap the next event's divisions. Here every event runs the same straight-line code: each
+ * alternative is computed and the SPEC's one selected, lane by lane (sim_sel), so a division
+ * that SPEC skips is done and discarded (its result is never selected; a division by 0 is
+ * harmless without traps).
  *
  * Exactness: every selected value comes from the same IEEE operations, in the same order, as
  * the scalar code (tests/c/test_core.c compares the two on random events, and run_scenes.sh
@@ -81,7 +81,7 @@ static lanes_const lanes_of(const sim_world *w)
     return (lanes_const){splat(w->lo), splat(w->hi), splat(0), splat(1)};
 }
 
-/* axis_time (sim_step.c) in lanes: (wall ahead - q) / w, and +infinity where w == 0 (as
+/* axis_time (sim_walls.c) in lanes: (wall ahead - q) / w, and +infinity where w == 0 (as
  * 1 / +0: w + 0 is w except that it turns -0 into +0). */
 static inline sim_vreal axis_time_v(sim_vreal q, sim_vreal w, const lanes_const *c)
 {
@@ -94,7 +94,7 @@ static inline sim_vreal clamp_v(sim_vreal q, const lanes_const *c)
     return sim_sel(q < c->lo, c->lo, sim_sel(q > c->hi, c->hi, q));
 }
 
-/* finish (sim_step.c) in lanes, then the clamp into the box. */
+/* SPEC §2's finish(rest) in lanes, then the clamp into the box. */
 static inline void finish_v(sim_vreal *x, sim_vreal *y, sim_vreal vx, sim_vreal vy,
                             sim_vreal rest, const lanes_const *c)
 {

@@ -99,7 +99,7 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
         return spec.time_limit_min
     config = experiment.config
     # The slowest variant's settings (measure_by_variant) bound every task of the array.
-    seconds = max(m.timeout_s * (m.warmup + m.runs + 2)
+    seconds = max(m.worst_case_s() + 2 * m.timeout_s
                   for m in (config.measure, *map(config.measure_for, config.variants)))
     seconds += TIME_LIMIT_SLACK_S
     return max(1, math.ceil(seconds / 60))
@@ -229,7 +229,9 @@ class SlurmExecutor:
                   "--config", str(experiment.config.source.resolve()),
                   "--results-dir", str(options.results_root),
                   "--repo-root", str(options.repo_root), "--hyperfine", options.hyperfine,
-                  *(["--quick"] if options.quick else [])]
+                  *(["--quick"] if options.quick else []),
+                  *([f"--round-seed={options.round_seed}"] if options.round_seed is not None
+                    else [])]
         return "\n".join([
             "#!/bin/bash",
             f"# collide-bench: experiment {experiment.config.name}, one cell per array task",

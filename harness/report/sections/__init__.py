@@ -17,6 +17,7 @@ from harness.report.sections import (
     checks,
     error,
     phases,
+    programs,
     speedup,
     strategies,
     sweeps,
@@ -37,6 +38,7 @@ class Part:
 
 PARTS: tuple[Part, ...] = (
     Part(cells.build, fallback=True),
+    Part(programs.build, main=False),
     Part(strategies.build, main=False),
     Part(phases.build, main=False),
     Part(sweeps.build),

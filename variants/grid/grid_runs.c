@@ -1,5 +1,5 @@
 /*
- * grid_runs.h: which entries each entry of a binned slice is looked at against, so that every
+ * grid_runs.c: which entries each entry of a binned slice is looked at against, so that every
  * pair whose boxes' cell ranges intersect is looked at exactly once per slice (the "lo corner"
  * rule of docs/grid_design.md). Entry a of cell c = (cx, row), reaching ex columns right and ey
  * rows up of its corner cell (each at most sub, grid_plan), is looked at against runs of
@@ -9,13 +9,9 @@
  * intersect (a box of a column left of cx that does not reach column cx) is never near, and no
  * pair is in a run of both of its entries. Wide boxes are looked at against the corner cells
  * their range can reach, and against each other. Every run goes through run_prefilter
- * (grid_prefilter.h). Each function returns the pairs looked at.
+ * (grid.h). Each function returns the pairs looked at.
  */
-#ifndef GRID_RUNS_H
-#define GRID_RUNS_H
-
-#include "grid_binning.h"
-#include "grid_prefilter.h"
+#include "grid.h"
 
 /* Entry a of z against the runs [lo1, hi1) and [lo2, hi2). */
 static inline int32_t entry_runs(const grid_ctx *cx, const grid_set *z, int32_t a, int32_t lo1,
@@ -44,8 +40,8 @@ static inline int32_t up_hi(grid_keys k, int32_t c, int32_t u, int32_t ex)
     return k.pos[(c + u * k.w1 + ex + 1) << k.kshift];
 }
 
-/* Rows 2 .. ey above entry a (sub > 1 only): out of runs_dense's loop, which stayed as fast as
- * before subdivided cells only with one call of the prefilter in it. */
+/* Rows 2 .. ey above entry a (sub > 1 only): out of grid_runs_dense's loop, which keeps the
+ * speed of whole-box cells only with one call of the prefilter in it. */
 __attribute__((noinline)) static uint64_t upper_runs_dense(const grid_ctx *cx, const grid_set *z,
                                                            grid_keys k, int32_t a, int32_t c,
                                                            int32_t ex, int32_t ey)
@@ -55,10 +51,10 @@ __attribute__((noinline)) static uint64_t upper_runs_dense(const grid_ctx *cx, c
 }
 
 /* Dense grids: the runs' bounds are read from the per-key starts th->pos. Inlined into
- * runs_dense twice, for whole-box cells (sub 1, two keys a cell) and for subdivided ones, so
- * that the first has its constants in its instructions: with sub and kshift in registers, the
- * loop took 15 instructions more a probe (cachegrind), and scenes with cells a box wide took up
- * to 10% longer than before subdivided cells. */
+ * grid_runs_dense twice, for whole-box cells (sub 1, two keys a cell) and for subdivided ones,
+ * so that the first has its constants in its instructions: with sub and kshift in registers,
+ * the loop took 15 instructions more a probe (cachegrind), and scenes with cells a box wide
+ * took up to 10% longer. */
 static inline __attribute__((always_inline)) uint64_t
 runs_dense_with(const grid_ctx *cx, const grid_thread *th, const grid_set *z, const grid_bins *b,
                 int32_t sub, int32_t kshift)
@@ -80,8 +76,8 @@ runs_dense_with(const grid_ctx *cx, const grid_thread *th, const grid_set *z, co
     return tests;
 }
 
-static uint64_t runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
-                           const grid_bins *b)
+uint64_t grid_runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
+                         const grid_bins *b)
 {
     /* Every subdivision has the shift of GRID_SUB_MAX's, a constant here. */
     return b->sub == 1 ? runs_dense_with(cx, th, z, b, 1, keys_shift(1))
@@ -99,8 +95,8 @@ static inline int32_t skip_below(const uint64_t *key, int32_t at, int32_t n, uin
 /* Sparse grids: the same runs, found in the sorted list of cell keys th->skey: the ends of the
  * cell's own row's cells, and for each row above where its run starts and ends, with pointers
  * that only move on. */
-static uint64_t runs_sparse(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
-                            const grid_bins *b)
+uint64_t grid_runs_sparse(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
+                          const grid_bins *b)
 {
     const uint64_t *restrict skey = th->skey;
     const uint8_t *restrict sext = th->sext;
@@ -137,8 +133,8 @@ static uint64_t runs_sparse(const grid_ctx *cx, const grid_thread *th, const gri
 
 /* Wide boxes against the entries whose base cell is in this band: those with a corner cell in
  * the wide box's range or up to sub columns / rows before it. */
-static uint64_t runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
-                          const int32_t *wide, const grid_bins *b)
+uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
+                        const int32_t *wide, const grid_bins *b)
 {
     const grid_plan *g = cx->g;
     const float kf = (float)cx->k;
@@ -164,8 +160,8 @@ static uint64_t runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_
                 lo = th->pos[first << b->kshift];
                 hi = th->pos[after << b->kshift];
             } else {
-                lo = lower_bound(th->skey, b->ne, first);
-                hi = lower_bound(th->skey, b->ne, after);
+                lo = grid_lower_bound(th->skey, b->ne, first);
+                hi = grid_lower_bound(th->skey, b->ne, after);
             }
             tests += (uint64_t)run_prefilter(cx, z, lo, hi, 0, 0, &pa);
         }
@@ -174,16 +170,14 @@ static uint64_t runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_
 }
 
 /* Wide boxes against each other, in double (they are few). */
-static uint64_t wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw)
+uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw)
 {
     uint64_t tests = 0;
     for (int32_t m = 0; m < nw; m++)
         for (int32_t q = m + 1; q < nw; q++) {
             tests++;
             if (near_pair(cx->s->part, cx->s->tk, cx->g->reach2, wide[m], wide[q], cx->k))
-                pair_passed(cx, wide[m], wide[q]);
+                grid_pair_passed(cx, wide[m], wide[q]);
         }
     return tests;
 }
-
-#endif /* GRID_RUNS_H */

@@ -1,17 +1,14 @@
 /*
- * grid_binning.h: one slice's entries in cell order. Every item's key (dense grids, slice_keys:
+ * grid_binning.c: one slice's entries in cell order. Every item's key (dense grids, slice_keys:
  * its cell and how far right it reaches) or corner cell and flags (sparse grids, item_cells),
  * vectorised, then either a counting sort into per-key starts (bin_dense) or an LSD radix sort
  * of (cell, reach bits, index) words (bin_sparse), writing the entries' floats, ids and reach
  * bits into the thread's output set; wide particles go to a list of their own. The result is a
- * grid_bins, which grid_runs.h reads.
+ * grid_bins, which grid_runs.c reads.
  */
-#ifndef GRID_BINNING_H
-#define GRID_BINNING_H
-
 #include <string.h>
 
-#include "grid_params.h"
+#include "grid.h"
 
 /* Every item's corner cell and flags in slice k (as a float). One loop the compiler
  * vectorises. */
@@ -39,7 +36,7 @@ static inline int32_t item_key(int32_t cx, int32_t cy, int32_t f, int32_t row0, 
     /* In unsigned arithmetic, which wraps where int32 would overflow: for a row far outside
      * the band (a wide grid cut into bands) (cy - row0) * spanx can, and then the key is not
      * h anyway. The same instructions as in int32; clipping the row first cost 7% of the
-     * report benchmark's finder (one thread, medians of 9 interleaved runs). */
+     * report benchmark's finder. */
     const int32_t h =
         (int32_t)(((uint32_t)(cy - row0) * (uint32_t)spanx + (uint32_t)(cx + sub)) << kshift |
                   (uint32_t)(f & GRID_EXT_X_MASK));
@@ -74,7 +71,7 @@ static uint64_t *radix_sort(uint64_t *a, uint64_t *tmp, int32_t n, int shift, in
     if (kb <= 0 || n < 2)
         return a;
     /* Digits of about log2(n) - 1 bits: the histogram stays smaller than the data. */
-    int dmax = bits_for((uint64_t)n) - 1;
+    int dmax = grid_bits_for((uint64_t)n) - 1;
     dmax = dmax < 6 ? 6 : dmax > GRID_RADIX_MAX_BITS ? GRID_RADIX_MAX_BITS : dmax;
     const int passes = (kb + dmax - 1) / dmax, d = (kb + passes - 1) / passes;
     const uint64_t mask = ((uint64_t)1 << d) - 1;
@@ -100,7 +97,7 @@ static uint64_t *radix_sort(uint64_t *a, uint64_t *tmp, int32_t n, int shift, in
     return a;
 }
 
-static int32_t lower_bound(const uint64_t *key, int32_t n, uint64_t v)
+int32_t grid_lower_bound(const uint64_t *key, int32_t n, uint64_t v)
 {
     int32_t lo = 0, hi = n;
     while (lo < hi) {
@@ -112,16 +109,6 @@ static int32_t lower_bound(const uint64_t *key, int32_t n, uint64_t v)
     }
     return lo;
 }
-
-/* What a slice reads: items [0, m) from arrays (ids: id[e], or e itself when id is NULL), then
- * items [m, m + nwide) are the particles wide[] (read from the scratch's particle array). */
-typedef struct grid_src {
-    const float *bx, *by, *ux, *uy;
-    const int32_t *id;
-    int32_t m;
-    const int32_t *wide;
-    int32_t nwide;
-} grid_src;
 
 /* The id of item e of the source. */
 static inline int32_t src_id(const grid_src *src, int32_t e)
@@ -169,30 +156,6 @@ static void place_entries(const grid_src *src, const grid_particle *part, const 
     for (int32_t d = 0; d < ne; d++)
         px[d] = slice_start(bx[d], ux[d], kf), py[d] = slice_start(by[d], uy[d], kf);
 }
-
-/* Dense grids: 2^keys_shift(sub) keys a cell, one for each reach to the right, 0 .. sub (two
- * for whole-box cells, four for any subdivision). */
-static inline int32_t keys_shift(int32_t sub)
-{
-    return sub > 1 ? 2 : 1;
-}
-
-/* One band of one binned slice. Cells are numbered row-major with stride spanx from (row0,
- * column -sub), so that every cell a run reaches has a number; the band's base cells are
- * [0, base_end), and the sub rows above it (from row1) take part as upper neighbours. */
-typedef struct grid_bins {
-    int dense;         /* counting-sorted: th->pos and th->scell; else th->skey */
-    int32_t ne, nw;    /* entries (base rows and the row above), wide particles */
-    int32_t nbase;     /* entries whose base cell is in the band: the first nbase */
-    int32_t below;     /* entries in rows below the band: where its ids go in ord_next */
-    int32_t row0, row1;
-    int32_t rowlast;   /* the last row whose entries are binned: row1 + sub - 1, clipped */
-    int32_t sub;       /* cells per box width (grid_plan) */
-    int32_t kshift;    /* dense: 2^kshift keys a cell, one for each reach 0 .. sub */
-    uint64_t spanx;    /* cells per numbered row: columns + 2 sub + 1 */
-    uint64_t ncell;    /* cells numbered */
-    uint64_t base_end; /* the first cell number above the band's base rows */
-} grid_bins;
 
 /* Corner cells and flags of every item of the source in slice kf into th->cx0, th->cy0,
  * th->flag: the arrays vectorised, the few wide ones apart. */
@@ -294,7 +257,7 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
         }
     }
     const uint64_t *restrict ent =
-        radix_sort(th->ent, th->tmp, ne, kshift, bits_for(b->ncell), th->hist);
+        radix_sort(th->ent, th->tmp, ne, kshift, grid_bits_for(b->ncell), th->hist);
     uint64_t *restrict skey = th->skey;
     uint8_t *restrict sext = th->sext;
     for (int32_t d = 0; d < ne; d++) {
@@ -307,13 +270,11 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
     b->ne = ne;
     b->nw = nw;
     b->below = below;
-    b->nbase = lower_bound(th->skey, ne, b->base_end);
+    b->nbase = grid_lower_bound(th->skey, ne, b->base_end);
 }
 
-/* Bin slice kf, band `band`, from src into dst / wide; *b describes the result. */
-static void bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g,
-                      float kf, int band, grid_thread *th, grid_set *dst, int32_t *wide,
-                      grid_bins *b)
+void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
+                    int band, grid_thread *th, grid_set *dst, int32_t *wide, grid_bins *b)
 {
     b->row0 = band * g->band_rows;
     b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
@@ -335,5 +296,3 @@ static void bin_slice(const grid_src *src, const grid_particle *part, const grid
         bin_sparse(src, part, g, kf, th, dst, wide, b);
     }
 }
-
-#endif /* GRID_BINNING_H */

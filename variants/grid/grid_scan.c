@@ -1,13 +1,12 @@
 /*
- * grid_scan.h: a work item of the finder: a block of consecutive slices of one band. Each
- * slice is binned (grid_binning.h) from the previous slice's entries, which are already in
- * nearly the right order, then every pair of the band is looked at once (grid_runs.h); the
+ * grid_scan.c: a work item of the finder: a block of consecutive slices of one band. Each
+ * slice is binned (grid_binning.c) from the previous slice's entries, which are already in
+ * nearly the right order, then every pair of the band is looked at once (grid_runs.c); the
  * step's last slice also leaves the cell order the next step starts from.
  */
-#ifndef GRID_SCAN_H
-#define GRID_SCAN_H
+#include <string.h>
 
-#include "grid_runs.h"
+#include "grid.h"
 
 /* Slice cx->k, band `band`: bin the source into th->set[out] / th->wide[out] (returning their
  * sizes) and look at every pair of the band once. */
@@ -18,7 +17,7 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
     grid_set *dst = &th->set[out];
     int32_t *wide = th->wide[out];
     grid_bins b;
-    bin_slice(src, s->part, cx->g, (float)cx->k, band, th, dst, wide, &b);
+    grid_bin_slice(src, s->part, cx->g, (float)cx->k, band, th, dst, wide, &b);
     *ne_out = b.ne;
     *nw_out = b.nw;
     if (cx->ord_next) {
@@ -28,19 +27,19 @@ static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_
         if (band == 0)
             memcpy(cx->ord_next + (s->n - b.nw), wide, (size_t)b.nw * sizeof(int32_t));
     }
-    uint64_t tests = b.dense ? runs_dense(cx, th, dst, &b) : runs_sparse(cx, th, dst, &b);
-    tests += runs_wide(cx, th, dst, wide, &b);
+    uint64_t tests = b.dense ? grid_runs_dense(cx, th, dst, &b) : grid_runs_sparse(cx, th, dst, &b);
+    tests += grid_runs_wide(cx, th, dst, wide, &b);
     /* Wide boxes against each other, once per slice. */
     if (band == 0)
-        tests += wide_pairs(cx, wide, b.nw);
-    queue_flush(cx);
+        tests += grid_wide_pairs(cx, wide, b.nw);
+    grid_queue_flush(cx);
     cx->buf->pair_tests += tests;
 }
 
-/* Slices [k0, k1) of band `band`; each slice after the first reads the previous one's entries,
- * already in nearly the right order (only possible when the band is the whole grid). */
-static void run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
-                     const grid_plan *g, int k0, int k1, int band, sim_cand_buf *buf)
+/* Each slice after the first reads the previous one's entries, already in nearly the right
+ * order (only possible when the band is the whole grid). */
+void grid_run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
+                   const grid_plan *g, int k0, int k1, int band, sim_cand_buf *buf)
 {
     grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
                     .wide = NULL, .nwide = 0};
@@ -57,5 +56,3 @@ static void run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
         out ^= 1;
     }
 }
-
-#endif /* GRID_SCAN_H */

@@ -1,57 +1,37 @@
 /*
- * grid_params.h: the plan of one step (plan_step): the reference speed v_ref, the number of
+ * grid_plan.c: the plan of one step (grid_plan_step): the reference speed v_ref, the number of
  * time slices K, the cell size and the grid's extent, the padding that makes the float binning
  * safe (delta, margin), and how the work is cut into items for the threads.
  */
-#ifndef GRID_PARAMS_H
-#define GRID_PARAMS_H
-
 #include <math.h>
 
-#include "grid_geometry.h"
+#include "grid.h"
 
-/* K = GRID_K_FACTOR * v_ref * sqrt(N) / L: the measured optimum (docs/grid_design.md). The cell
- * size is then L / (factor sqrt(N)) whatever the speeds, about 1 / factor^2 discs a cell, and the
- * best factor is about sqrt(pair-check cost / binning cost). On the report benchmark (one
- * thread, medians of 21 interleaved runs) the finder took 0.164 s at 0.15 against 0.190 s at 0.2
- * and 0.192 s at 0.17, 0.12 and 0.25 slower than 0.2; at N = 10^6 (`1000000 200000 1 10`, two
- * threads, 2026-11-24, four runs each, alternating) sim_s 24.4, 22.0, 25.7, 24.7 s at 0.15
- * against 27.4, 23.8, 27.5, 24.7 s at 0.2 (0.1 28.2 s, 0.12 26.0 s, 0.25 29.5 s, 0.3 28.2 s,
- * one run each), where an earlier sweep on another machine had them level (grid_bound.md).
- * One factor, then, where there were two (0.15 up to GRID_SMALL_N, 0.2 above).
- * -DGRID_K_FACTOR=... overrides it for tuning sweeps. */
+/* The parameters below were chosen by interleaved measurements on the report benchmark
+ * (N = 10^4), on N = 4 10^4 to 10^6, and on the dense slow scene; docs/grid_bound.md ("The
+ * plan's parameters") has the measurements. -D overrides the K factors, for tuning sweeps.
+ *
+ * With cells a box wide (sub 1), K = GRID_K_FACTOR * v_ref * sqrt(N) / L. The cell size is then
+ * L / (factor sqrt(N)) whatever the speeds, about 1 / factor^2 discs a cell, and the best
+ * factor is about sqrt(pair-check cost / binning cost): one factor fits every N
+ * (docs/grid_design.md). */
 #ifndef GRID_K_FACTOR
 #define GRID_K_FACTOR 0.15
 #endif
 /* With cells a third of a box wide (sub = GRID_SUB_MAX) a pair check costs less against the
  * binning (fewer of the pairs in a neighbourhood are far apart), so slices are longer: K =
- * GRID_K_FACTOR_SUB * v_ref * sqrt(N) / L. On the report benchmark (znver4, one thread,
- * medians of 9 interleaved runs, 2026-11-25, finder against whole boxes at 0.15): sub 3 at
- * 0.08 0.847x, at 0.10 0.858x, at 0.12 0.903x; sub 2 at 0.09 0.906x; sub 3 at 0.15 1.17x. At
- * N = 10^6 (`1000000 200000 1 1`, one thread, two runs each) sub 3 at 0.10 took 0.988x. Once
- * a chunk of the prefilter cost less (its lanes kept as mask bits), against 0.10 (same
- * machine, later that day, medians of 9): 0.06 0.925x, 0.07 0.914x, 0.08 0.917x, 0.12 1.05x;
- * N = 40,000 (`40000 40000 1 10`) and 100,000 (`100000 63245.55 1 5`), 5 runs each: 0.07
- * 0.84x and 0.86x, 0.08 0.96x and 0.86x. With the line test (near_f32_line), against 0.07:
- * 0.05 0.974x, 0.06 0.966x, 0.08 1.003x (one thread; on two 0.06 took 0.924x); N = 40,000
- * 0.06 1.003x, 0.05 1.018x; N = 100,000 0.06 0.994x, 0.05 1.053x. At fixed density K is about
- * factor sqrt(N) / 4 (v_ref near L / 4): on the report benchmark 0.06 gives one slice a step,
- * 0.07 two. */
+ * GRID_K_FACTOR_SUB * v_ref * sqrt(N) / L. At fixed density K is about factor sqrt(N) / 4
+ * (v_ref near L / 4): on the report benchmark this factor gives one slice a step. */
 #ifndef GRID_K_FACTOR_SUB
 #define GRID_K_FACTOR_SUB 0.06
 #endif
 /* Subdivide a box's cell in sub x sub where a cell a box wide would hold at least
- * GRID_SUB_OCCUPANCY sub^2 discs: the report benchmark's hold about 150 (sub 3), the dense slow
- * scene's (bench.py dense: speeds of a radius a step, K = 1) about 0.4, where smaller cells only
- * add runs (sub 2 took 1.26x, sub 3 1.39x its finder's time, two threads). */
+ * GRID_SUB_OCCUPANCY sub^2 discs: the report benchmark's hold about 150 (sub 3); on the dense
+ * slow scene (bench.py dense: speeds of a radius a step, K = 1) a cell holds about 0.4, and
+ * smaller cells there only add runs. Crowded cells are subdivided at every N: where the
+ * slices' entries leave the cache (N = 4 10^5 and 10^6) the pairs saved still pay for the
+ * extra runs. */
 #define GRID_SUB_OCCUPANCY 6.0
-/* Subdivided cells pay at every N. Until the prefilter's chunk got cheaper (near_f32_line,
- * its lanes as mask bits) they did so only up to N = 200,000: above, the slices' entries leave
- * the cache, and the extra runs cost more than the pairs they save (finder against whole-box
- * cells, two threads, znver4, 2026-11-25: N = 400,000 1.029x, 10^6 1.058x and 1.069x). Now,
- * one thread, 2 runs each: N = 400,000 (`400000 126491.1 1 3`) 0.844x, 10^6 (`1000000 200000
- * 1 1`) 0.882x; with GRID_K_FACTOR_SUB 0.05 or 0.08 instead of 0.06, 1.048x and 1.060x at
- * 10^6. */
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
 /* Bins of the speed histogram that picks v_ref. */
@@ -60,15 +40,8 @@
 #define GRID_WIDE_SHARE 128
 /* Bands of rows are used when slices are fewer than this many per thread. */
 #define GRID_ITEMS_PER_THREAD 1
-/* With more than one thread, up to this N a work item is one slice (the state fits in cache;
- * finest load balance); above, a thread takes a few long blocks of slices, which keeps memory
- * access sequential. One thread takes all the slices as one block: each slice's binning then
- * starts from the slice before's order, which on the report benchmark took 0.236 s against
- * 0.246 s for slices from the step's order (the order a second block would have to start from,
- * so with two threads single slices balance better). */
-#define GRID_SMALL_N 32768
 
-static int bits_for(uint64_t v) /* bits needed to hold values < v (v >= 1) */
+int grid_bits_for(uint64_t v)
 {
     int b = 0;
     while (b < 64 && (v - 1) >> b)
@@ -93,7 +66,7 @@ static int slice_count(double factor, double vref, int32_t n, double L, double r
     return sane && kf >= 1 ? (int)(kf + 0.5) : 1;
 }
 
-static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
+void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
 {
     const int32_t n = w->n;
     double minx = HUGE_VAL, maxx = -HUGE_VAL, miny = HUGE_VAL, maxy = -HUGE_VAL, vmax = 0;
@@ -198,7 +171,7 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     /* Radix words are (cell, reach bits, index) in 64 bits, cell < (rows + sub + 1) *
      * (columns + 2 sub + 1) (grid_bins); and a float holds every cell number of an axis
      * exactly. */
-    g->pbits = bits_for((uint64_t)n);
+    g->pbits = grid_bits_for((uint64_t)n);
     int axis_bits = (64 - g->pbits - GRID_EXT_BITS - 4) / 2;
     if (axis_bits > FLT_MANT_DIG)
         axis_bits = FLT_MANT_DIG;
@@ -236,5 +209,3 @@ static void plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int thr
     else
         g->blocks = g->K < 2 * threads ? g->K : 2 * threads;
 }
-
-#endif /* GRID_PARAMS_H */

@@ -1,0 +1,137 @@
+"""What `compare --calibrate` learns about a machine from measuring the same binaries again
+and again: how often a verdict is wrong where nothing changed, the drift between runs measured
+apart (which comparisons of stored result sets then allow for), and the smallest slow-down a
+measured comparison finds at the config's settings."""
+
+from __future__ import annotations
+
+import datetime
+import itertools
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness import stats
+from harness.analysis.compare import (
+    FASTER,
+    FDR_Q,
+    SLOWER,
+    Drift,
+    compare,
+    paired_rounds,
+)
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
+from harness.store.columns import OK
+
+POWER = 0.9  # the smallest detectable slow-down is found with this probability
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A machine's calibration, as kept beside its description."""
+
+    machine_id: str
+    date: str
+    config: str  # the configs measured, as given
+    cells: int
+    threshold: float
+    measured_false: int  # verdicts of slower or faster between identical sides measured together
+    measured_compared: int
+    drift: float  # between runs measured apart (stats.log_ratio_drift)
+    apart_false: int  # verdicts between the blocks measured apart, allowing for that drift
+    apart_compared: int
+    smallest_one: float  # the slow-down of one cell alone found with POWER, measured together
+    smallest_all: float  # the same when every cell slowed down at once
+    rounds: int
+
+    def lines(self) -> list[str]:
+        def share(false: int, compared: int) -> str:
+            return f"{false} of {compared} ({false / compared:.1%})" if compared else "none"
+
+        return [
+            f"calibration of machine {self.machine_id} on {self.config} ({self.cells} cells, "
+            f"{self.rounds} rounds, threshold {self.threshold:.0%}):",
+            f"  identical binaries measured together: false verdicts "
+            f"{share(self.measured_false, self.measured_compared)}",
+            f"  drift between runs measured apart: {self.drift:.2%} (the standard deviation of "
+            "a log ratio beyond the runs' own spread)",
+            f"  identical binaries measured apart, allowing for that drift: false verdicts "
+            f"{share(self.apart_false, self.apart_compared)}",
+            f"  smallest slow-down found with {POWER:.0%} probability, measured together: "
+            f"{self.smallest_one:.1%} for one cell alone, {self.smallest_all:.1%} when all "
+            "cells slow down",
+        ]
+
+
+def side(name: str, root: Path) -> Side:
+    directories, keyed = experiment_dirs(root, name)
+    return load_side(name, root, None, keyed, directories)
+
+
+def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
+    """Per cell measured together: the standard deviation of its per-round log ratios and its
+    rounds."""
+    found = []
+    for key, a in old.cells.items():
+        b = new.cells.get(key)
+        pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
+        if pair is not None and len(pair[0]) >= 2:
+            logs = [math.log(y / x) for x, y in zip(*pair, strict=True)]
+            found.append((statistics.stdev(logs), len(logs)))
+    return found
+
+
+def apart_drift(blocks: Sequence[Side]) -> tuple[float, int]:
+    """The drift between the blocks (each pair of them, each cell): stats.log_ratio_drift of
+    their median ratios against the runs' own spread; and how many ratios it rests on."""
+    ratios, variances = [], []
+    for a, b in itertools.combinations(blocks, 2):
+        for key, old in a.cells.items():
+            new = b.cells.get(key)
+            if new is None or old.status != OK or new.status != OK:
+                continue
+            interval = stats.ratio_ci(new.times, old.times)
+            if not all(math.isfinite(v) and v > 0 for v in (interval.point, interval.low,
+                                                             interval.high)):
+                continue
+            ratios.append(math.log(interval.point))
+            variances.append(((math.log(interval.high) - math.log(interval.low))
+                              / (2 * stats.Z95)) ** 2)
+    return stats.log_ratio_drift(ratios, variances), len(ratios)
+
+
+def false_verdicts(old: Side, new: Side, threshold: float, drift: Drift) -> tuple[int, int]:
+    rows = compare(old, new, threshold, drift)
+    compared = [r for r in rows if r.compared]
+    return sum(r.kind in (SLOWER, FASTER) for r in compared), len(compared)
+
+
+def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
+              blocks: Sequence[Path], threshold: float) -> Calibration:
+    """The calibration from the two sides measured together and the blocks measured apart."""
+    old, new = side("OLD", measured[0]), side("NEW", measured[1])
+    together = Drift(0.0, "measured together")
+    measured_false, measured_compared = false_verdicts(old, new, threshold, together)
+    spread = paired_spread(old, new)
+    rounds = max((n for _, n in spread), default=0)
+    sd = statistics.median(s for s, _ in spread) if spread else math.nan
+    cells = len(old.cells)
+    block_sides = [side(f"block {k + 1}", root) for k, root in enumerate(blocks)]
+    drift, _ = apart_drift(block_sides)
+    apart = Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
+    apart_false = apart_compared = 0
+    for a, b in itertools.combinations(block_sides, 2):
+        false, compared = false_verdicts(a, b, threshold, apart)
+        apart_false, apart_compared = apart_false + false, apart_compared + compared
+    return Calibration(
+        machine_id=machine_id,
+        date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        config=config, cells=cells, threshold=threshold, measured_false=measured_false,
+        measured_compared=measured_compared, drift=apart.sigma, apart_false=apart_false,
+        apart_compared=apart_compared,
+        smallest_one=stats.smallest_detectable(sd, rounds, threshold, FDR_Q / max(1, cells),
+                                               POWER),
+        smallest_all=stats.smallest_detectable(sd, rounds, threshold, FDR_Q, POWER),
+        rounds=rounds)

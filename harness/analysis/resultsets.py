@@ -1,0 +1,278 @@
+"""The two sides of a comparison, read from stored results: each results.csv row as a cell
+matched on what was measured (variant, build, scene and its parameters, threads, schedule),
+never on the machine or the binary, with its per-run times and the rounds they came from; one
+side per result set, after the machine filter and de-duplication (harness.analysis.compare
+judges them)."""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from harness.analysis.frame import read_results
+from harness.errors import HarnessError
+from harness.store import hyperfine, layout, records
+from harness.store.layout import ExperimentDir
+
+# Flags of the shared results.csv contract that make a cell's times suspect; a row names them.
+FLAG_COLUMNS = ("loaded", "outliers", "unstable", "oversubscribed")
+# The columns a cell is matched on; numeric ones compare as numbers ("20000" == "20000.0").
+SCENE_COLUMNS = ("scene", "n", "L", "r", "steps", "mode", "seed")
+MATCH_COLUMNS = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
+
+
+
+@dataclass(frozen=True)
+class MatchKey:
+    """What a cell measured. `experiment` is set only when both sides are results roots."""
+
+    experiment: str
+    variant: str
+    build: str
+    scene: str
+    n: str
+    L: str
+    r: str
+    steps: str
+    mode: str
+    seed: str
+    threads: str
+    schedule: str
+
+    def order(self) -> tuple[tuple[int, float, str], ...]:
+        """Sort order: numbers by value (threads 2 before 16), text alphabetically."""
+        return tuple(_order(getattr(self, name)) for name in ("experiment", *MATCH_COLUMNS))
+
+    def label(self) -> str:
+        """`p1d random n=10000 L=20000 r=1 S=50 T=2`; the build, mode and seed where they are
+        not f64, perf and 1, the schedule where set, the experiment first where keyed on it."""
+        parts = [self.variant]
+        if self.build and self.build != "f64":
+            parts.append(self.build)
+        parts.append(self.scene or "?")
+        parts.append(f"n={_short(self.n)} L={_short(self.L)} r={_short(self.r)} "
+                     f"S={_short(self.steps)}")
+        if self.mode and self.mode != "perf":
+            parts.append(self.mode)
+        if self.seed and _short(self.seed) != "1":
+            parts.append(f"seed={_short(self.seed)}")
+        parts.append(f"T={_short(self.threads)}")
+        if self.schedule:
+            parts.append(f"schedule={self.schedule}")
+        text = " ".join(parts)
+        return f"{self.experiment}: {text}" if self.experiment else text
+
+
+def _order(value: str) -> tuple[int, float, str]:
+    try:
+        return (0, float(value), "")
+    except ValueError:
+        return (1, 0.0, value)
+
+
+def _short(value: str) -> str:
+    try:
+        number = float(value)
+    except ValueError:
+        return value
+    return f"{number:g}"
+
+
+def _normal(value: object) -> str:
+    """A matchable form of a results field: numbers by value, anything else stripped."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return ""
+    text = str(value).strip()
+    try:
+        number = float(text)
+    except ValueError:
+        return text
+    return repr(number) if math.isfinite(number) else text
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One results.csv row, with its per-run times."""
+
+    key: MatchKey
+    directory: Path  # the experiment directory the row came from
+    cell_id: str
+    status: str
+    median: float
+    times: tuple[float, ...]
+    machine_id: str
+    machine: str
+    measured_at: str
+    git_commit: str
+    input_sha256: str
+    flags: tuple[str, ...] = ()  # the FLAG_COLUMNS that are True
+    stale: bool = False  # the binary changed since this cell was measured (results.csv)
+    rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
+    round_seed: str = ""  # the seed of the rounds it was measured in
+
+    def by_round(self) -> dict[int, float]:
+        """The median of its runs in each round (empty without rounds)."""
+        if len(self.rounds) != len(self.times):
+            return {}
+        grouped: dict[int, list[float]] = {}
+        for round_index, seconds in zip(self.rounds, self.times, strict=True):
+            grouped.setdefault(round_index, []).append(seconds)
+        return {k: statistics.median(v) for k, v in grouped.items()}
+
+    @property
+    def machine_text(self) -> str:
+        if self.machine_id and self.machine:
+            return f"{self.machine} ({self.machine_id})"
+        return self.machine or self.machine_id or "unknown"
+
+
+def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
+    """The experiment directories under `path` and whether `path` is a results root."""
+    if not path.is_dir():
+        raise HarnessError(f"{side} directory not found: {path}")
+    found, root = layout.experiments_under(path, layout.has_results)
+    if not found:
+        raise HarnessError(f"{side}: no {layout.RESULTS_CSV} in {path} or in any directory "
+                           "under it")
+    return [exp.path for exp in found], root
+
+
+def _env_machine(directory: Path) -> str:
+    """A label for results written before the `machine` column: env.json's CPU and host."""
+    try:
+        env = json.loads(ExperimentDir(directory).env_json.read_text())
+    except (OSError, ValueError):
+        return ""
+    if not isinstance(env, dict):
+        return ""
+    model = str(env.get("cpu_model") or "").strip()
+    host = str(env.get("hostname") or "").strip()
+    return f"{model} on {host}" if model and host else model or host
+
+
+def _text(row: pd.Series, column: str) -> str:
+    value = row.get(column)
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return ""
+    return str(value).strip()
+
+
+def _flag(row: pd.Series, column: str) -> bool:
+    value = row.get(column)
+    return value is not None and not pd.isna(value) and bool(value)
+
+
+def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
+    rounds = tuple(int(r) for r in records.split_floats(_text(row, "wall_times_round")))
+    return rounds if len(rounds) == runs else ()
+
+
+def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
+    """The rows of one experiment's results.csv as cells.
+
+    Per-run times come from the `wall_times_s` column, or, in results written before it, from
+    the cell's hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
+    exp = ExperimentDir(directory)
+    frame = read_results(exp.results_csv)
+    env_machine = None
+    cells = []
+    for _, row in frame.iterrows():
+        experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
+        key = MatchKey(experiment, *(_normal(row.get(c)) for c in MATCH_COLUMNS))
+        cell_id = _text(row, "cell_id")
+        listed = _text(row, "wall_times_s")
+        try:
+            times = tuple(float(t) for t in listed.split())
+        except ValueError:
+            raise HarnessError(f"{exp.results_csv}: cell {cell_id}: column 'wall_times_s': "
+                               f"expected space-separated seconds, got {listed!r}") from None
+        if not times and cell_id:
+            times = tuple(hyperfine.run_times(None, exp.hyperfine(cell_id)))
+        median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
+        if not math.isfinite(median) and times:
+            median = statistics.median(times)
+        # results.csv's own label: the frame's `machine` column is the label shown (with the
+        # machine id where one label names several machines).
+        machine, machine_id = _text(row, "machine"), _text(row, "machine_id")
+        if not machine and not machine_id:
+            if env_machine is None:
+                env_machine = _env_machine(directory)
+            machine = env_machine
+        cells.append(Cell(
+            key=key, directory=directory, cell_id=cell_id,
+            status=_text(row, "status") or "unknown", median=median, times=times,
+            machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
+            git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
+            flags=tuple(f for f in FLAG_COLUMNS if _flag(row, f)),
+            stale=_flag(row, "stale"), rounds=_rounds(row, len(times)),
+            round_seed=_text(row, "round_seed").removesuffix(".0")))
+    return cells
+
+
+def machine_matches(cell: Cell, selector: str) -> bool:
+    """`--old-machine`/`--new-machine`: a machine_id prefix or a label substring."""
+    wanted = selector.strip().lower()
+    return bool(wanted) and (cell.machine_id.lower().startswith(wanted)
+                             or wanted in cell.machine.lower())
+
+
+@dataclass
+class Side:
+    """One result set, cells by key, after the machine filter and de-duplication."""
+
+    name: str  # "OLD" or "NEW"
+    path: Path
+    cells: dict[MatchKey, Cell]
+    notes: dict[MatchKey, str] = field(default_factory=dict)
+
+    def machines(self) -> list[str]:
+        return sorted({c.machine_text for c in self.cells.values()})
+
+    def commits(self) -> list[str]:
+        """The commits that measured the cells, abbreviated (keeping "-dirty")."""
+        return sorted({_abbreviate(c.git_commit) for c in self.cells.values() if c.git_commit})
+
+
+COMMIT_CHARS = 12
+
+
+def _abbreviate(commit: str) -> str:
+    head, dirty, _ = commit.partition("-dirty")
+    return head[:COMMIT_CHARS] + dirty
+
+
+def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: bool,
+              directories: Sequence[Path]) -> Side:
+    """Read every experiment of one side; pick one machine; one cell per key."""
+    cells = [c for d in directories for c in read_cells(d, keyed_on_experiment)]
+    option = f"--{name.lower()}-machine"
+    if selector is not None:
+        chosen = [c for c in cells if machine_matches(c, selector)]
+        if not chosen:
+            known = ", ".join(sorted({c.machine_text for c in cells})) or "none"
+            raise HarnessError(f"{name}: no cell was measured on a machine matching {option} "
+                               f"{selector!r} (machines there: {known})")
+        cells = chosen
+    groups: dict[MatchKey, list[Cell]] = {}
+    for cell in cells:
+        groups.setdefault(cell.key, []).append(cell)
+    side = Side(name, path, {})
+    for key, group in groups.items():
+        if len({c.machine_id or c.machine for c in group}) > 1:
+            shown = ", ".join(sorted({c.machine_text for c in group}))
+            raise HarnessError(f"{name} holds cells of several machines ({shown}), e.g. for "
+                               f"{key.label()}; choose one with {option} ID-PREFIX-OR-LABEL")
+        # One machine, several rows (e.g. a root where two experiments share a cell): the
+        # latest measurement stands for the machine, and the row says so.
+        group.sort(key=lambda c: c.measured_at)
+        side.cells[key] = group[-1]
+        if len(group) > 1:
+            side.notes[key] = (f"{name}: {len(group)} rows for this cell, the latest used "
+                               f"({group[-1].directory.name}/{group[-1].cell_id})")
+    return side

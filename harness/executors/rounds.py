@@ -1,0 +1,136 @@
+"""Measuring many cells in alternating rounds, in this process.
+
+First every cell's untimed runs (its --precise run, validation, checks: Measurer.start), then
+rounds: in each, every cell that still needs runs gets one hyperfine call, in an order shuffled
+from the run's seed (recorded in each record), until every cell has its runs. The machine's
+slow drift thus falls on all cells alike. Two cells can be partners (the two sides of a
+comparison, harness.runner.pair): they then stop together, so that each round holds a run of
+both and their rounds can be compared pair by pair.
+"""
+
+from __future__ import annotations
+
+import random
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from harness.executors.base import Progress
+from harness.measure.cell import Measurer
+from harness.measure.rounds import CellRun, runs_left
+from harness.plan.cells import Cell
+from harness.store import records
+from harness.store.columns import STOPPED_CI
+
+SEED_KEY = "round_seed"
+
+
+@dataclass(eq=False)
+class Unit:
+    """One cell measured by one measurer."""
+
+    measurer: Measurer
+    cell: Cell
+    cell_id: str
+    run: CellRun | None = None
+    seconds: float = 0.0  # spent measuring it
+    partner: Unit | None = None
+
+    @property
+    def state(self) -> CellRun:
+        assert self.run is not None, "a unit is started before its rounds"
+        return self.run
+
+    def left(self) -> tuple[float, float]:
+        return runs_left(self.measurer.config.measure_for(self.cell.variant), self.state)
+
+
+OnDone = Callable[[Unit, records.Record], None]
+
+
+def new_seed() -> int:
+    return random.SystemRandom().randrange(2**32)
+
+
+def pair_up(units: Sequence[Unit]) -> None:
+    """Partners stop together: one that found its interval narrow goes on while its partner
+    needs runs; one that reached a limit stops its partner too."""
+    for unit in units:
+        partner = unit.partner
+        if partner is None or not (unit.state.timed and partner.state.timed):
+            continue
+        a, b = unit.state, partner.state
+        if a.stopped and not b.stopped:
+            if a.stopped == STOPPED_CI:
+                a.stopped = ""
+            else:
+                b.stopped = a.stopped
+
+
+def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
+                      seed: int) -> None:
+    """Start every unit, then time them in rounds; on_done(unit, record) as each is done."""
+    active: list[Unit] = []
+    for index, unit in enumerate(units):
+        progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
+        started = time.monotonic()
+        unit.run = unit.measurer.start(unit.cell, unit.cell_id)
+        unit.run.record[SEED_KEY] = seed
+        unit.seconds += time.monotonic() - started
+        progress.finished(time.monotonic() - started)
+        active.append(unit)
+    round_index = max((u.state.rounds[-1] for u in active if u.state.rounds), default=0)
+    active = _finish_done(active, on_done)
+    overhead = 0.0  # seconds a round's hyperfine call takes beyond its runs
+    while active:
+        round_index += 1
+        order = list(active)
+        random.Random(f"{seed}:{round_index}").shuffle(order)
+        spent = runs = 0.0
+        for unit in order:
+            started = time.monotonic()
+            before = len(unit.state.times)
+            unit.measurer.time_round(unit.state, round_index)
+            unit.seconds += time.monotonic() - started
+            spent += time.monotonic() - started
+            runs += sum(unit.state.times[before:])
+        overhead = max(0.0, spent - runs) / len(order)
+        pair_up(order)
+        for unit in order:
+            unit.measurer.keep(unit.state)
+        active = _finish_done(active, on_done)
+        low, high = _eta([], active, overhead)
+        progress.round_done(round_index, len(order), len(order) - len(active), low, high)
+
+
+def _finish_done(active: list[Unit], on_done: OnDone) -> list[Unit]:
+    still = []
+    for unit in active:
+        if unit.state.done:
+            on_done(unit, unit.measurer.finish(unit.state, unit.seconds))
+        else:
+            still.append(unit)
+    return still
+
+
+def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
+         overhead: float = 0.0) -> tuple[float, float]:
+    """The fewest and most seconds the units still take: their runs left at their run time,
+    a round's call `overhead` a run (the cells not started yet at the started ones' mean, or
+    unknown)."""
+    low = high = 0.0
+    per_run: list[float] = []
+    for unit in started:
+        if unit.run is None:
+            continue
+        run = unit.state
+        seconds = (statistics.fmean(run.times) if run.times else run.run_s) + overhead
+        per_run.append(seconds)
+        fewest, most = unit.left()
+        low += fewest * seconds
+        high += most * seconds
+    if to_start and per_run:
+        guess = statistics.fmean(per_run) * len(to_start)
+        low, high = low + guess, high + guess
+    return low, high

@@ -1,0 +1,127 @@
+"""The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs).
+
+  1. its command, once, on the cell's input (every particle listed), under the cell timeout:
+     does it run at all (a command not found, a crash, a hang: the cell's status says so);
+  2. its check: the check command on the cell's scene in print mode (its first steps for a big
+     scene), its stdout judged against seq's `--precise` print-mode output on the same input,
+     with seq's f32 build for the drift a change of precision causes (harness.measure.agreement).
+
+The cell is ok when the program agrees (identical, rounding, diverges), invalid when it
+differs or its output cannot be compared; either way it is then timed like any variant.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import signal
+from collections.abc import Mapping
+
+from harness.measure.agreement import judge
+from harness.measure.proc import ProcessResult, exit_status, run_process, tail
+from harness.measure.references import References
+from harness.measure.rounds import CellRun
+from harness.plan.cells import Cell
+from harness.plan.cellstore import CellStore
+from harness.spec import scenes
+from harness.spec.programs import Program, check_steps
+from harness.spec.variants import BASELINE
+from harness.store import atomic, records
+from harness.store.columns import AGREEING, AGREEMENT_FAILED, CRASHED, INVALID, OK, TIMEOUT
+
+CHECK_OUTPUT_SUFFIX = ".check.out"  # the check run's stdout while it is judged
+COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
+SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
+LAST_LINES = 3
+
+
+def start_program(store: CellStore, references: References, cell: Cell, cell_id: str,
+                  key: dict[str, object], record: records.Record, env: Mapping[str, str],
+                  timeout_s: float) -> CellRun:
+    """The program's run and its check; the CellRun its timed rounds continue."""
+    program = store.config.program(cell.variant)
+    assert program is not None, "a program cell names a program"
+    command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads)
+    record.update({"command": shlex.join(command), "program": _described(program)})
+    done = run_process(command, env, timeout_s)
+    record["stderr_tail"] = tail(done.stderr)
+    status, code = _status(done)
+    if status != OK:
+        return _not_run(record, cell_id, key, command, status, code,
+                        _failure("its run", done, timeout_s), done.seconds)
+    steps = check_steps(cell.scene.n, cell.scene.steps)
+    scene = scenes.with_run(cell.scene, steps, "print")
+    check = program.shell_command(program.check, store.input_file(scene), cell.threads)
+    record.update({"check_command": shlex.join(check), "check_steps": steps})
+    output = atomic.temp_path(store.cells_dir / f"{cell_id}{CHECK_OUTPUT_SUFFIX}")
+    try:
+        checked = run_process(check, env, timeout_s, output)
+        check_status, check_code = _status(checked)
+        if check_status != OK:
+            return _not_run(record, cell_id, key, command, check_status, check_code,
+                            _failure("its check run (print mode)", checked, timeout_s),
+                            done.seconds)
+        text = output.read_text(errors="replace")
+        if store.config.keep_output:
+            os.replace(output, store.layout.output(cell_id))
+    finally:
+        output.unlink(missing_ok=True)
+    refs = store.program_references(cell)
+    seq = references.print_output(refs["f64"], scene, 1, cache=True)
+    f32 = references.print_output(refs["f32"], scene, 1, cache=True)
+    if seq is None:
+        record.update(agreement=AGREEMENT_FAILED,
+                      note=f"not checked: {refs['f64'].name}'s print-mode run failed")
+        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+    verdict = judge(text, seq, f32, cell.scene.n, steps, cell.scene.L, cell.scene.r)
+    record.update(verdict.fields())
+    where = []
+    if steps < cell.scene.steps:
+        where.append(f"checked on its first {steps} of {cell.scene.steps} steps")
+    if refs["f64"].name != BASELINE:
+        where.append(f"against {refs['f64'].name}, byte-identical to {BASELINE}")
+    record["note"] = "; ".join([verdict.note, *where] if verdict.note else where)
+    status = OK if verdict.verdict in AGREEING else INVALID
+    return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+
+
+def _described(program: Program) -> dict[str, str]:
+    return {"name": program.name, "command": program.command, "check": program.check,
+            "directory": str(program.directory)}
+
+
+def _status(done: ProcessResult) -> tuple[str, int | None]:
+    """ok, failed, crashed or timeout; a shell's 128 + N counts as killed by signal N."""
+    status, code = exit_status(done.returncode)
+    if code is not None and SHELL_SIGNAL_BASE < code <= SHELL_SIGNAL_BASE + 64:
+        return CRASHED, code
+    return status, code
+
+
+def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
+    """One line on why a run of the program did not finish."""
+    if done.returncode is None:
+        return f"{what} passed the {timeout_s:g} s timeout"
+    code = done.returncode
+    last = " | ".join(done.stderr.strip().splitlines()[-LAST_LINES:])
+    if code == COMMAND_NOT_FOUND:
+        why = "exit 127: command not found"
+    elif code < 0 or code > SHELL_SIGNAL_BASE:
+        number = -code if code < 0 else code - SHELL_SIGNAL_BASE
+        try:
+            name = signal.Signals(number).name
+        except ValueError:
+            name = f"signal {number}"
+        why = f"killed by {name}" + (f" (exit {code})" if code > 0 else "")
+    else:
+        why = f"exit {code}"
+    return f"{what}: {why}" + (f": {last}" if last else "")
+
+
+def _not_run(record: records.Record, cell_id: str, key: dict[str, object], command: list[str],
+             status: str, code: int | None, note: str, seconds: float) -> CellRun:
+    record.update(agreement=AGREEMENT_FAILED, note=note)
+    if status == TIMEOUT:
+        code = None
+    return CellRun(cell_id, key, record, status, code, command, run_s=seconds)
+

@@ -1,0 +1,184 @@
+"""A cell timed in rounds. Each round gives a cell one hyperfine call of a few runs, and the
+rounds of all pending cells alternate (harness.executors), so that the machine's slow drift
+spreads over every cell instead of biasing the ones measured last. A fixed count (`runs: N`)
+takes one run a round; `runs: auto` starts with a few and then takes what its interval asks
+for (at most doubling a round) until the 95% interval of the median is within +-ci of it, or
+a limit is reached (harness.spec.config).
+
+CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.json after each,
+so that an interrupted run resumes a cell where it stopped instead of starting it again.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from harness.measure.hyperfine import Timed
+from harness.spec.config import AUTO_FIRST_RUNS, Measure
+from harness.store import atomic, csvfile, records
+from harness.store.columns import (
+    STOPPED_CI,
+    STOPPED_MAX_RUNS,
+    STOPPED_MAX_TIME,
+    STOPPED_RUNS,
+    TIMED_STATUSES,
+)
+from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+
+PARTIAL_VERSION = 1
+
+
+@dataclass
+class CellRun:
+    """What a cell being measured has so far: the record its checks filled, its status, and
+    its timed runs with the round of each."""
+
+    cell_id: str
+    key: dict[str, object]  # the cell's key when it started: a partial file of another is void
+    record: records.Record
+    status: str
+    exit_code: int | None
+    command: list[str]
+    run_s: float = 0.0  # the --precise run's wall seconds: what a timed run may take, before one
+    times: list[float] = field(default_factory=list)
+    rounds: list[int] = field(default_factory=list)
+    user_s: list[float] = field(default_factory=list)  # per run
+    system_s: list[float] = field(default_factory=list)
+    exports: list[str] = field(default_factory=list)  # hyperfine's export of each round
+    warnings: list[str] = field(default_factory=list)
+    loaded: bool = False
+    stopped: str = ""  # why its timing stopped (STOPPED_*); "" while it goes on
+
+    @property
+    def timed(self) -> bool:
+        """Whether its runs are timed: it ran to the end (ok, or invalid output)."""
+        return self.status in TIMED_STATUSES
+
+    @property
+    def done(self) -> bool:
+        return not self.timed or bool(self.stopped)
+
+    def add(self, timed: Timed, round_index: int, export: Path) -> None:
+        """One round's hyperfine call: its runs, or the status it failed with."""
+        if not self.exports:
+            self.record["load_before"] = timed.load_before
+        self.record["load_after"] = timed.load_after
+        self.loaded |= timed.loaded
+        self.warnings += timed.warnings
+        if timed.stats is None:
+            self.status, self.exit_code = timed.status, timed.exit_code
+            self.record["note"] = timed.note
+            return
+        self.times += timed.stats.times
+        self.rounds += [round_index] * timed.stats.runs
+        self.user_s += [timed.stats.user] * timed.stats.runs
+        self.system_s += [timed.stats.system] * timed.stats.runs
+        self.exports.append(export.name)
+
+    def save(self, path: Path) -> None:
+        atomic.atomic_write_json(path, {"version": PARTIAL_VERSION, **asdict(self)})
+
+    @classmethod
+    def load(cls, path: Path, key: dict[str, object]) -> CellRun | None:
+        """The cell's partial state, when there is one of this key and version."""
+        data = records.read_json(path)
+        if not isinstance(data, dict) or data.pop("version", None) != PARTIAL_VERSION:
+            return None
+        try:
+            run = cls(**data)
+        except TypeError:
+            return None
+        return run if run.key == key else None
+
+
+def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
+    """The fewest and the most runs the cell may still take (equal for a fixed count)."""
+    done = len(run.times)
+    if run.done:
+        return 0.0, 0.0
+    most = float(measure.most_runs - done)
+    if not measure.adaptive:
+        return most, most
+    per_run = statistics.fmean(run.times) if run.times else run.run_s
+    if per_run > 0:
+        most = min(most, max(1.0, (measure.max_time_s - math.fsum(run.times)) / per_run))
+    return float(max(1, measure.first_runs - done)), most
+
+
+def next_runs(measure: Measure, times: Sequence[float]) -> int:
+    """How many runs the cell's next round times (none once it has them all).
+
+    A fixed count: one a round, so that its runs spread over as many rounds as it has runs.
+    `runs: auto`: one a round while a measured comparison still needs rounds (min_runs);
+    then AUTO_FIRST_RUNS in its first round, enough for an interval; then as many as its
+    interval says it needs to narrow to +-ci (a half-width shrinks as one over the root of
+    the runs), at most doubling its runs a round, so that a noisy cell still spreads over
+    several rounds, and within max_runs and max_time_s."""
+    done = len(times)
+    left = measure.most_runs - done
+    if left <= 0:
+        return 0
+    if not measure.adaptive or done < measure.min_runs:
+        return 1
+    if done < AUTO_FIRST_RUNS:
+        return min(AUTO_FIRST_RUNS - done, left)
+    needed = math.ceil(done * (relative_half_width(times) / measure.ci) ** 2) - done
+    runs = max(1, min(needed, done, left))
+    per_run = statistics.fmean(times)
+    if per_run > 0:
+        runs = min(runs, max(1, math.floor((measure.max_time_s - math.fsum(times)) / per_run)))
+    return runs
+
+
+def stop_reason(measure: Measure, times: Sequence[float]) -> str:
+    """Why a cell with these runs needs no more ("" while it does)."""
+    if not measure.adaptive:
+        return STOPPED_RUNS if len(times) >= measure.most_runs else ""
+    if len(times) >= measure.first_runs and narrow(times, measure.ci):
+        return STOPPED_CI
+    if len(times) >= measure.max_runs:
+        return STOPPED_MAX_RUNS
+    if math.fsum(times) >= measure.max_time_s:
+        return STOPPED_MAX_TIME
+    return ""
+
+
+def relative_half_width(times: Sequence[float]) -> float:
+    """The larger side of the 95% interval of the median, as a share of the median (inf
+    where there is no interval)."""
+    from harness import stats  # scipy when a cell is measured: a cached run needs none
+
+    interval = stats.median_ci(times)
+    if not (math.isfinite(interval.low) and math.isfinite(interval.high)) or interval.point <= 0:
+        return math.inf
+    return max(interval.point - interval.low, interval.high - interval.point) / interval.point
+
+
+def narrow(times: Sequence[float], ci: float) -> bool:
+    """Whether the 95% interval of the median lies within +-ci of it."""
+    return relative_half_width(times) <= ci
+
+
+def timing_fields(run: CellRun) -> dict[str, object]:
+    """The record's timing of the cell's runs: hyperfine's statistics, over all its rounds."""
+    times = run.times
+    if not times:
+        return {"runs": 0, "rounds": len(run.exports), "stopped": run.stopped or None}
+    mean = statistics.fmean(times)
+    stddev = statistics.stdev(times) if len(times) > 1 else None
+    return {
+        "runs": len(times), "wall_mean_s": mean, "wall_stddev_s": stddev,
+        "wall_median_s": statistics.median(times), "wall_min_s": min(times),
+        "wall_max_s": max(times), "wall_user_s": statistics.fmean(run.user_s),
+        "wall_system_s": statistics.fmean(run.system_s),
+        "unstable": stddev is not None and mean > 0
+        and stddev >= UNSTABLE_RELATIVE_STDDEV * mean,
+        **csvfile.uncertainty(times), "wall_times_round": list(run.rounds),
+        "rounds": len(run.exports), "stopped": run.stopped or None,
+        "hyperfine_exports": list(run.exports), "hyperfine_warnings": list(run.warnings),
+        "loaded": run.loaded,
+    }

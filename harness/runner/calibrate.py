@@ -1,0 +1,52 @@
+"""Measuring for a calibration (`compare --calibrate CONFIG...`): this checkout's binaries as
+two sides measured together (harness.runner.pair), then the configs again BLOCKS times, one
+whole run after another, as separate result sets measured apart. What they say is
+harness.analysis.calibration's."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from harness.executors.base import Options
+from harness.repo import BUILD_DIR, REPO_ROOT
+from harness.runner.experiment import run_experiment
+from harness.runner.pair import MeasuredSides, measure_sides
+from harness.runner.sides import BuildSide
+from harness.spec.config import Config
+from harness.spec.variants import VariantRegistry
+from harness.store.locks import RunLock
+
+BLOCKS = 3
+TOGETHER = "together"
+APART = "apart"
+
+
+@dataclass(frozen=True)
+class Measured:
+    together: MeasuredSides
+    blocks: list[Path]  # results roots, one a block
+
+
+def measure(configs: Sequence[Config], out: Path, registry: VariantRegistry,
+            run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+            blocks: int = BLOCKS) -> Measured:
+    """The same binaries measured together and apart, fresh, under OUT."""
+    build = REPO_ROOT / BUILD_DIR
+    a = BuildSide("OLD", str(build), build, REPO_ROOT, None)
+    b = BuildSide("NEW", str(build), build, REPO_ROOT, None)
+    together = measure_sides(a, b, configs, out / TOGETHER, registry, run_lock, log, hyperfine)
+    roots = []
+    for k in range(1, blocks + 1):
+        root = out / APART / f"block-{k}"
+        shutil.rmtree(root, ignore_errors=True)
+        options = Options(repo_root=REPO_ROOT, results_root=root, force=True,
+                          hyperfine=hyperfine, run_lock=run_lock)
+        log.write(f"calibrate: block {k} of {blocks}, measured apart\n")
+        for config in configs:
+            run_experiment(config, options, log, log, registry)
+        roots.append(root)
+    return Measured(together, roots)

@@ -1,0 +1,129 @@
+"""Measuring two sides together (`compare --measure OLD NEW CONFIG...`): every cell of the
+configs once with OLD's binaries and once with NEW's, in the same interleaved rounds (the two
+sides of a cell are partners: they stop together, and each round holds a run of both), under
+the machine's measuring lock. Each side's results become an ordinary results root (OUT/old,
+OUT/new), written under OUT/.measure and moved into place once both are complete, so that
+`compare OUT/old OUT/new` reads them again."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from harness.errors import HarnessError
+from harness.executors.base import Progress
+from harness.executors.rounds import Unit, measure_in_rounds, new_seed
+from harness.measure import environment, machine
+from harness.measure.cell import Measurer
+from harness.plan.binaries import needed_binaries
+from harness.plan.cells import Cell, Plan, plan_cells
+from harness.plan.cellstore import CellStore
+from harness.repo import REPO_ROOT
+from harness.runner.sides import BuildSide, build
+from harness.spec.config import Config
+from harness.spec.variants import VariantRegistry
+from harness.store import index, records
+from harness.store.locks import RunLock
+
+SIDE_DIRS = {"OLD": "old", "NEW": "new"}
+# The fewest rounds a cell pair gets: the paired test needs them to find a 5% change on a
+# shared machine (docs/compare.md has the numbers).
+MIN_ROUNDS = 8
+WORK_DIR = ".measure"  # OUT/.measure: the sides while they are measured
+
+
+@dataclass(frozen=True)
+class MeasuredSides:
+    old: Path  # the results roots
+    new: Path
+    seed: int
+    cells: int  # per side
+    rounds: int
+
+
+def with_min_rounds(config: Config, rounds: int = MIN_ROUNDS) -> Config:
+    """The config with at least `rounds` runs a cell (hence rounds), for every variant."""
+    return dataclasses.replace(
+        config, measure=config.measure.at_least(rounds),
+        variant_measures=tuple((v, m.at_least(rounds)) for v, m in config.variant_measures))
+
+
+def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]:
+    plans = [plan_cells(with_min_rounds(config), False, registry) for config in configs]
+    for config, plan in zip(configs, plans, strict=True):
+        if not plan.cells:
+            raise HarnessError(f"{config.source}: every cell is excluded: nothing to measure")
+    return plans
+
+
+def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
+    """Build (or find) every binary the plans need, on every side, before anything runs."""
+    for side in sides:
+        binaries: dict[Path, None] = {}
+        for plan in plans:
+            binaries.update(dict.fromkeys(needed_binaries(plan, side.build_dir)))
+        variants = [c.variant for p in plans for c in p.cells
+                    if p.config.is_built(c.variant)]
+        build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
+
+
+def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
+                  registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
+                  hyperfine: str = "hyperfine", seed: int | None = None) -> MeasuredSides:
+    """Measure every cell of the configs on both sides in interleaved rounds; the two results
+    roots, complete, under OUT."""
+    plans = plans_of(configs, registry)
+    prepare((old, new), plans)
+    if shutil.which(hyperfine) is None:
+        raise HarnessError(f"{hyperfine} not found; run 'make setup'")
+    work = out / WORK_DIR
+    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    seed = new_seed() if seed is None else seed
+    units: list[Unit] = []
+    stores: list[tuple[BuildSide, CellStore]] = []
+    for plan in plans:
+        pair: dict[str, CellStore] = {}
+        for side in (old, new):
+            store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], machine_id,
+                              force=True, build_dir=side.build_dir)
+            stores.append((side, store))
+            pair[side.name] = store
+        measurers = {name: Measurer(store, hyperfine) for name, store in pair.items()}
+        for cell in plan.cells:
+            a = Unit(measurers["OLD"], cell, _cell_id(pair["OLD"], cell))
+            b = Unit(measurers["NEW"], cell, _cell_id(pair["NEW"], cell), partner=a)
+            a.partner = b
+            units += [a, b]
+    labels = {u.cell_id: f"{'OLD' if k % 2 == 0 else 'NEW'} {u.cell.label}"
+              for k, u in enumerate(units)}
+    progress = Progress("measure", [(u.cell, u.cell_id) for u in units],
+                        frozenset(u.cell_id for u in units), log, labels=labels)
+    if run_lock is not None:
+        run_lock.acquire()
+    env = {side.name: environment.collect(side.repo_root, hyperfine=hyperfine)
+           for side in (old, new)}
+    measure_in_rounds(units, lambda unit, record: None, progress, seed)
+    for side, store in stores:
+        store.write_csv(prune=True)
+        index.write_env(store.directory, {**env[side.name], "load_after": machine.load()})
+    roots = {}
+    for side in (old, new):
+        target = out / SIDE_DIRS[side.name]
+        if target.exists():
+            shutil.rmtree(target)
+        (work / SIDE_DIRS[side.name]).rename(target)
+        roots[side.name] = target
+    shutil.rmtree(work, ignore_errors=True)
+    rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
+    return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds)
+
+
+def _cell_id(store: CellStore, cell: Cell) -> str:
+    cid = store.cell_id(cell)
+    if cid is None:
+        raise HarnessError(f"{store.missing_binary(cell)} does not exist")
+    return cid

@@ -1,0 +1,87 @@
+"""The two sides of a measured comparison (`compare --measure OLD NEW`): each a git revision,
+whose variants are built in a worktree of their own (cached by commit under
+<results>/.cache/revisions/<sha>/, built with this checkout's compiler), or a directory that
+already holds built variant binaries (e.g. `build`)."""
+
+from __future__ import annotations
+
+import subprocess
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.errors import HarnessError
+from harness.measure.machine import compiler_command
+from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
+from harness.spec.builds import make_binaries
+from harness.store.layout import CACHE_DIR
+
+REVISIONS = "revisions"
+GIT_TIMEOUT_S = 120.0
+
+
+@dataclass(frozen=True)
+class BuildSide:
+    """Where one side's binaries are, and what the output says of it."""
+
+    name: str  # OLD or NEW
+    given: str  # as the user wrote it
+    build_dir: Path
+    repo_root: Path  # its sources (a revision's worktree), or this checkout
+    commit: str | None  # the revision's commit; None for a directory
+
+    @property
+    def label(self) -> str:
+        return f"{self.given} ({self.commit[:12]})" if self.commit else self.given
+
+
+def _git(args: Sequence[str], cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+    try:
+        return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True,
+                              check=False, stdin=subprocess.DEVNULL, timeout=GIT_TIMEOUT_S)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise HarnessError(f"cannot run git {' '.join(args)}: {exc}") from None
+
+
+def resolve(name: str, given: str, results_root: Path) -> BuildSide:
+    """A directory of binaries as it is; else a revision, checked out (once per commit) into a
+    worktree under the results' cache."""
+    path = Path(given)
+    if path.is_dir():
+        return BuildSide(name, given, path.resolve(), REPO_ROOT, None)
+    done = _git(["rev-parse", "--verify", "--quiet", f"{given}^{{commit}}"])
+    if done.returncode != 0 or not done.stdout.strip():
+        raise HarnessError(f"{name}: {given!r} is neither a directory of binaries nor a git "
+                           "revision of this repository")
+    commit = done.stdout.strip()
+    tree = results_root / CACHE_DIR / REVISIONS / commit
+    if not (tree / ".git").exists():
+        tree.parent.mkdir(parents=True, exist_ok=True)
+        added = _git(["worktree", "add", "--detach", "--force", str(tree), commit])
+        if added.returncode != 0:
+            raise HarnessError(f"{name}: cannot check out {given} ({commit[:12]}): "
+                               f"{' '.join(added.stderr.split())[-300:]}")
+    return BuildSide(name, given, tree / BUILD_DIR, tree, commit)
+
+
+def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) -> None:
+    """Make what the side lacks. A revision builds its own sources with this checkout's
+    compiler; a directory must already hold every binary."""
+    if side.commit is None:
+        missing = [b for b in binaries if not b.is_file()]
+        if missing:
+            names = ", ".join(b.name for b in missing)
+            raise HarnessError(f"{side.name}: {side.given} has no {names} (the configs need "
+                               f"{', '.join(b.name for b in binaries)})")
+        return
+    absent = [v for v in dict.fromkeys(variants)
+              if not (side.repo_root / VARIANTS_DIR / f"{v}.c").is_file()]
+    if absent:
+        raise HarnessError(f"{side.name}: revision {side.label} has no variant "
+                           f"{', '.join(absent)}")
+    compiler = compiler_command(REPO_ROOT)[0]
+    try:
+        make_binaries(side.repo_root, binaries, make="make", capture=True,
+                      extra=[f"CC={compiler}"])
+    except HarnessError as exc:
+        raise HarnessError(f"{side.name}: revision {side.label} does not build: {exc}") from None

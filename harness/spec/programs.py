@@ -1,0 +1,152 @@
+"""Programs: implementations of the model written elsewhere (a student's submission, another
+course's code), benchmarked and checked beside the variants.
+
+A program is a name and a shell command template (`programs:` in a config):
+
+    programs:
+      alice: "./alice/sim {threads} < {input}"
+      bob:
+        command: "python3 bob.py --threads {threads} {input}"
+        check: "python3 bob.py --threads {threads} --print-all {input}"
+
+`{input}` becomes the path of an input file in SPEC's format (every particle listed, so no
+program's own generator decides the scene), `{threads}` the cell's thread count (also
+OMP_NUM_THREADS). The command runs through `sh -c` in the config file's directory. `check`,
+where given, is the command of the check run (the input then says `print`; a program that
+needs a flag to print every step takes it there); by default the check runs `command`.
+
+A program's cells are identified by its commands and the content of every file they name
+(a rebuilt program is measured again); nothing else about it is known to the harness.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shlex
+import shutil
+import string
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.spec.variants import BASELINE
+
+# The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
+# states printed (its first steps, for a big scene: at least one), compared with seq's; for
+# more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6,
+# where seq's all pairs would take hours). Their float builds measure how far a change of
+# precision alone drifts on the same scene.
+CHECK_MAX_STATES = 200_000
+CHECK_SEQ_MAX_N = 20_000
+FAST_REFERENCE = "grid"
+ENVELOPE_BUILD = "f32"
+
+INPUT = "input"
+THREADS = "threads"
+PLACEHOLDERS = (INPUT, THREADS)
+PROGRAM_KEYS = ("command", "check")
+SHELL = "sh"
+
+
+def check_steps(n: int, steps: int) -> int:
+    """The steps of a program's check run: all of them, or as many as CHECK_MAX_STATES
+    particle states allow (the states after 0..S steps), at least one."""
+    if n == 0:
+        return steps
+    return max(1, min(steps, CHECK_MAX_STATES // n - 1))
+
+
+def reference_variant(n: int) -> str:
+    """The variant a program's output is compared with at n particles."""
+    return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
+
+
+class TemplateError(ValueError):
+    """A command template that cannot be used; the message says what is wrong."""
+
+
+def placeholders(template: str) -> tuple[str, ...]:
+    """The {names} of a template; a TemplateError for an unknown one or stray braces."""
+    try:
+        parsed = list(string.Formatter().parse(template))
+    except ValueError as exc:
+        raise TemplateError(f"unbalanced braces ({exc}; write {{{{ and }}}} for a literal "
+                            "brace)") from None
+    names = []
+    for _, name, spec, conversion in parsed:
+        if name is None:
+            continue
+        if name not in PLACEHOLDERS or spec or conversion:
+            field = "{" + name + (f"!{conversion}" if conversion else "") + \
+                (f":{spec}" if spec else "") + "}"
+            raise TemplateError(f"unknown placeholder {field} (known: "
+                                + ", ".join("{" + p + "}" for p in PLACEHOLDERS) + ")")
+        names.append(name)
+    if INPUT not in names:
+        raise TemplateError("no {input}: the program must be given the input file")
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class Program:
+    """One program of a config: its timed command, its check command and where they run."""
+
+    name: str
+    command: str
+    check: str
+    directory: Path  # the config file's directory: the commands run there
+
+    def shell_command(self, template: str, input_file: Path, threads: int) -> list[str]:
+        """The argv that runs a template for one input and thread count: `sh -c 'cd DIR &&
+        COMMAND'`, so that hyperfine (which runs it without a shell of its own) and a rerun by
+        hand both find the program's files."""
+        rendered = template.format(input=shlex.quote(str(input_file)), threads=threads)
+        return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
+
+    def named_files(self) -> list[Path]:
+        """The files the commands name: each word that is a file relative to the directory,
+        and the first word found on PATH (an interpreter)."""
+        found: dict[Path, None] = {}
+        for template in dict.fromkeys((self.command, self.check)):
+            words = _words(template)
+            for k, word in enumerate(words):
+                path = (self.directory / word) if word else None
+                if path is not None and path.is_file():
+                    found[path.resolve()] = None
+                elif k == 0 and word and "/" not in word:
+                    located = shutil.which(word)
+                    if located is not None:
+                        found[Path(located).resolve()] = None
+        return sorted(found)
+
+    def fingerprint(self) -> str:
+        """sha256 of the commands and the content of every file they name: what the cells'
+        ids and records hold where a variant's hold its binary's hash."""
+        digest = hashlib.sha256()
+        for part in (self.command, self.check):
+            digest.update(part.encode() + b"\0")
+        for path in self.named_files():
+            digest.update(str(path).encode() + b"\0")
+            try:
+                digest.update(hashlib.sha256(path.read_bytes()).digest())
+            except OSError:
+                digest.update(b"unreadable")
+        return digest.hexdigest()
+
+
+def _words(template: str) -> list[str]:
+    """The shell words of a template with its placeholders blanked (their values vary)."""
+    blank = template.replace("{{", "\0").replace("}}", "\1")
+    for name in PLACEHOLDERS:
+        blank = blank.replace("{" + name + "}", "")
+    blank = blank.replace("\0", "{").replace("\1", "}")
+    try:
+        return shlex.split(blank, comments=True)
+    except ValueError:
+        return blank.split()
+
+
+def from_mapping(name: str, value: Mapping[str, object], directory: Path) -> Program:
+    """A Program from `command` and optional `check` (already checked to be strings)."""
+    command = str(value["command"])
+    return Program(name, command, str(value.get("check", command)), directory)

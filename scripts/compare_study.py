@@ -1,0 +1,237 @@
+"""How often `compare` calls a change where there is none, and whether it finds a real one, on
+this machine with real runs (the numbers in docs/compare.md).
+
+    .venv/bin/python scripts/compare_study.py [--out DIR] [--parts aa,ab,apart,calibrate]
+        [--config configs/compare16.yaml] [--repeats 3] [--slowdown 0.05]
+
+Parts, each a real measurement with this checkout's build/ (every command it runs is printed):
+  aa         `compare --measure build build CONFIG`, --repeats times: identical sides measured
+             together; every verdict of slower or faster is false;
+  ab         `compare --measure build SLOW CONFIG`, SLOW a directory of wrappers that run the
+             real binary and then spin for --slowdown of its time: the share called slower;
+  apart      `run CONFIG` --repeats times back to back into separate results roots, then
+             `compare` of each pair: with the assumed drift (no calibration), and with this
+             machine's calibration where the calibrate part made one;
+  calibrate  `compare --calibrate CONFIG` into OUT/calibration (before apart, when both run);
+  adaptive   `run CONFIG` with its fixed runs and with `runs: auto`, alternating A B A B, for
+             each of --adaptive-configs: the wall time and the width of the cells' intervals.
+Prints Markdown; everything measured stays under OUT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+import yaml
+from harness.analysis import compare
+from harness.analysis.frame import read_results
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
+from harness.repo import BUILD_DIR, REPO_ROOT
+from harness.spec.parse import load_config
+from harness.store.columns import OK
+
+PARTS = ("calibrate", "aa", "ab", "apart", "adaptive")
+HARNESS = [sys.executable, "-m", "harness"]
+WRAPPER = REPO_ROOT / "scripts" / "slow_wrapper.c"
+
+
+def sh(argv: Sequence[str], log: Path) -> tuple[int, float]:
+    """Run a harness command, its output to `log`; its exit status and wall seconds."""
+    print(f"$ {' '.join(str(a) for a in argv)}", file=sys.stderr, flush=True)
+    started = time.monotonic()
+    with log.open("w") as out:
+        done = subprocess.run([str(a) for a in argv], cwd=REPO_ROOT, stdout=out,
+                              stderr=subprocess.STDOUT, check=False)
+    return done.returncode, time.monotonic() - started
+
+
+def side(name: str, root: Path) -> Side:
+    directories, keyed = experiment_dirs(root, name)
+    return load_side(name, root, None, keyed, directories)
+
+
+def verdicts(old: Side, new: Side, drift: compare.Drift) -> dict[str, int]:
+    rows = compare.compare(old, new, compare.DEFAULT_THRESHOLD, drift)
+    counts = {kind: 0 for kind in compare.VERDICTS}
+    for row in rows:
+        if row.compared:
+            counts[row.kind] += 1
+    return counts
+
+
+def measured_pair(out: Path, old: str, new: str, config: Path, name: str) -> dict[str, object]:
+    target = out / name
+    code, seconds = sh([*HARNESS, "compare", "--measure", old, new, config, "--out", target,
+                        "--no-figure"], out / f"{name}.log")
+    counts = verdicts(side("OLD", target / "old"), side("NEW", target / "new"),
+                      compare.Drift(0.0, "measured together"))
+    return {"name": name, "exit": code, "seconds": round(seconds, 1), **counts}
+
+
+def slow_binaries(out: Path, config: Path, fraction: float) -> Path:
+    """A directory of wrappers, one per binary the config runs, each `fraction` slower."""
+    target = out / f"slow{round(fraction * 100)}"
+    target.mkdir(parents=True, exist_ok=True)
+    names = set(load_config(config).variants) | {"seq"}
+    for name in sorted(names):
+        subprocess.run(["cc", "-O2", "-o", str(target / name), str(WRAPPER),
+                        f"-DREAL_DIR=\"{REPO_ROOT / BUILD_DIR}\"", f"-DFRACTION={fraction}"],
+                       check=True)
+    return target
+
+
+def part_aa(out: Path, config: Path, repeats: int) -> list[dict[str, object]]:
+    build = str(REPO_ROOT / BUILD_DIR)
+    return [measured_pair(out, build, build, config, f"aa-{k}") for k in range(1, repeats + 1)]
+
+
+def part_ab(out: Path, config: Path, fraction: float) -> dict[str, object]:
+    slow = slow_binaries(out, config, fraction)
+    return measured_pair(out, str(REPO_ROOT / BUILD_DIR), str(slow), config, "ab")
+
+
+def part_calibrate(out: Path, config: Path) -> dict[str, object]:
+    root = out / "calibration-root"
+    code, seconds = sh([*HARNESS, "compare", "--calibrate", config, "--results-dir", root],
+                       out / "calibrate.log")
+    found = sorted((root / compare.CALIBRATION_DIR / "machines").glob("*.json"))
+    data = json.loads(found[-1].read_text())[compare.CALIBRATION_KEY] if found else {}
+    return {"exit": code, "seconds": round(seconds, 1), **data}
+
+
+def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]:
+    roots = []
+    for k in range(1, repeats + 1):
+        root = out / f"apart-{k}"
+        code, _ = sh([*HARNESS, "run", config, "--results-dir", root, "--force",
+                            "--no-report"], out / f"apart-{k}.log")
+        if code != 0:
+            raise SystemExit(f"run {k} failed (exit {code}): see {out / f'apart-{k}.log'}")
+        roots.append(root)
+    calibrated = compare.find_drift(
+        (c.machine_id for c in side("run", roots[0]).cells.values()),
+        [out / "calibration-root"])
+    drifts = [compare.Drift(compare.ASSUMED_DRIFT, "assumed")]
+    if "calibrated" in calibrated.source:
+        drifts.append(calibrated)
+    results = []
+    for (i, a), (j, b) in itertools.combinations(enumerate(roots, start=1), 2):
+        for drift in drifts:
+            counts = verdicts(side("OLD", a), side("NEW", b), drift)
+            # and with no allowance for drift at all: what compare said before it had one
+            plain = verdicts(side("OLD", a), side("NEW", b), compare.Drift(0.0, "none"))
+            results.append({"pair": f"{i} vs {j}", "drift": round(drift.sigma, 4),
+                            "drift_source": drift.source.split(":")[0], **counts,
+                            "without_drift": plain})
+    return results
+
+
+def with_auto(config: Path, out: Path) -> Path:
+    """A copy of the config (beside it, so relative paths hold) measured with runs: auto."""
+    raw = yaml.safe_load(config.read_text())
+    measure = dict(raw.get("measure") or {})
+    measure["runs"] = "auto"
+    raw["measure"] = measure
+    raw["name"] = f"{raw.get('name', config.stem)}-auto"
+    target = out / f"{config.stem}-auto.yaml"
+    target.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return target
+
+
+def interval_widths(root: Path) -> list[float]:
+    """Per timed cell: the 95% interval of its median as a share of the median (half-width)."""
+    widths = []
+    for directory in sorted(p.parent for p in root.glob("*/results.csv")):
+        frame = read_results(directory / "results.csv")
+        for _, row in frame[frame["status"] == OK].iterrows():
+            low, high = row.get("wall_median_ci_low_s"), row.get("wall_median_ci_high_s")
+            median = row["wall_median_s"]
+            if pd.notna(low) and pd.notna(high) and median > 0:
+                widths.append((high - low) / 2 / median)
+    return widths
+
+
+def part_adaptive(out: Path, configs: Sequence[Path], repeats: int) -> list[dict[str, object]]:
+    results = []
+    for config in configs:
+        auto = with_auto(config, out)
+        for k in range(1, repeats + 1):
+            for label, path in (("fixed", config), ("auto", auto)):
+                root = out / f"adaptive-{config.stem}-{label}-{k}"
+                code, seconds = sh([*HARNESS, "run", path, "--results-dir", root, "--force",
+                                    "--no-report"], out / f"{root.name}.log")
+                widths = interval_widths(root)
+                frame = pd.concat([read_results(p) for p in root.glob("*/results.csv")])
+                results.append({
+                    "config": config.name, "measure": label, "repeat": k, "exit": code,
+                    "seconds": round(seconds, 1), "cells": len(frame),
+                    "runs": int(frame["runs"].fillna(0).sum()),
+                    "median_half_width": round(statistics.median(widths), 4) if widths
+                    else math.nan,
+                    "max_half_width": round(max(widths), 4) if widths else math.nan})
+    return results
+
+
+def markdown(summary: dict[str, object]) -> str:
+    lines = []
+    for part, value in summary.items():
+        lines.append(f"## {part}\n")
+        rows = value if isinstance(value, list) else [value]
+        if rows and isinstance(rows[0], dict):
+            keys = list(rows[0])
+            lines.append("| " + " | ".join(keys) + " |")
+            lines.append("|" + "---|" * len(keys))
+            lines += ["| " + " | ".join(str(r.get(k, "")) for k in keys) + " |" for r in rows]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("/tmp/compare-study"))
+    parser.add_argument("--parts", default="calibrate,aa,ab,apart")
+    parser.add_argument("--config", type=Path, default=REPO_ROOT / "configs" / "compare16.yaml")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--slowdown", type=float, default=0.05)
+    parser.add_argument("--adaptive-configs", type=Path, nargs="*",
+                        default=[REPO_ROOT / "configs" / "quickstart.yaml"])
+    args = parser.parse_args()
+    parts = [p for p in args.parts.split(",") if p]
+    unknown = set(parts) - set(PARTS)
+    if unknown:
+        parser.error(f"unknown parts {', '.join(sorted(unknown))}; known: {', '.join(PARTS)}")
+    out = args.out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    config = args.config.resolve()
+    summary: dict[str, object] = {}
+    for part in PARTS:  # in this order: apart uses the calibration
+        if part not in parts:
+            continue
+        if part == "calibrate":
+            summary[part] = part_calibrate(out, config)
+        elif part == "aa":
+            summary[part] = part_aa(out, config, args.repeats)
+        elif part == "ab":
+            summary[part] = part_ab(out, config, args.slowdown)
+        elif part == "apart":
+            summary[part] = part_apart(out, config, args.repeats)
+        else:
+            summary[part] = part_adaptive(out, [c.resolve() for c in args.adaptive_configs],
+                                          2)
+        (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    print(markdown(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

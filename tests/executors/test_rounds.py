@@ -1,0 +1,110 @@
+"""Cells measured in alternating rounds (harness.executors.rounds), on fake measurers: every
+cell started first, each round a run of every cell still short of its runs in an order
+shuffled from the seed, partners stopping together, each cell handed on once."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, field
+
+from harness.executors.base import Progress
+from harness.executors.rounds import Unit, measure_in_rounds, pair_up
+from harness.measure.rounds import CellRun, stop_reason
+from harness.spec.config import Measure
+
+
+@dataclass
+class FakeMeasurer:
+    """Times each round at `seconds`; the log says what ran, in order."""
+
+    measure: Measure
+    log: list[str]
+    seconds: float = 0.01
+    status: str = "ok"
+    config: object = field(init=False)
+
+    def __post_init__(self) -> None:
+        measure = self.measure
+
+        class Settings:
+            def measure_for(self, variant: str) -> Measure:
+                return measure
+
+        self.config = Settings()
+
+    def start(self, cell: object, cell_id: str) -> CellRun:
+        self.log.append(f"start {cell_id}")
+        return CellRun(cell_id, {}, {}, self.status, 0, [cell_id], run_s=self.seconds)
+
+    def time_round(self, run: CellRun, round_index: int) -> None:
+        self.log.append(f"round {round_index} {run.cell_id}")
+        run.times.append(self.seconds)
+        run.rounds.append(round_index)
+        run.exports.append(f"{run.cell_id}.{round_index}")
+        run.stopped = stop_reason(self.measure, run.times)
+
+    def keep(self, run: CellRun) -> None:
+        pass
+
+    def finish(self, run: CellRun, seconds: float) -> dict:
+        self.log.append(f"finish {run.cell_id}")
+        return {"cell_id": run.cell_id, "runs": len(run.times)}
+
+
+class Cell:
+    label = "c"
+    variant = "v"
+
+
+def units(measurer: FakeMeasurer, ids: list[str]) -> list[Unit]:
+    return [Unit(measurer, Cell(), cid) for cid in ids]  # type: ignore[arg-type]
+
+
+def progress(ids: list[str]) -> Progress:
+    return Progress("t", [(Cell(), cid) for cid in ids], frozenset(ids),  # type: ignore[misc]
+                    io.StringIO())
+
+
+def test_every_cell_starts_then_the_rounds_alternate() -> None:
+    log: list[str] = []
+    ids = ["a", "b", "c"]
+    done: list[tuple[str, int]] = []
+    measure_in_rounds(units(FakeMeasurer(Measure(runs=2), log), ids),
+                      lambda u, r: done.append((u.cell_id, r["runs"])), progress(ids), 42)
+    assert log[:3] == ["start a", "start b", "start c"]
+    first, second = log[3:6], log[6:9]
+    assert sorted(first) == ["round 1 a", "round 1 b", "round 1 c"]
+    assert sorted(second) == ["round 2 a", "round 2 b", "round 2 c"]
+    assert sorted(done) == [("a", 2), ("b", 2), ("c", 2)]
+
+
+def test_the_order_of_a_round_follows_the_seed() -> None:
+    def order(seed: int) -> list[str]:
+        log: list[str] = []
+        ids = [f"c{k}" for k in range(8)]
+        measure_in_rounds(units(FakeMeasurer(Measure(runs=1), log), ids), lambda u, r: None,
+                          progress(ids), seed)
+        return [line for line in log if line.startswith("round")]
+
+    assert order(1) == order(1) and order(1) != order(2)
+
+
+def test_a_cell_that_failed_its_checks_is_not_timed() -> None:
+    log: list[str] = []
+    done: list[str] = []
+    measure_in_rounds(units(FakeMeasurer(Measure(runs=3), log, status="crashed"), ["x"]),
+                      lambda u, r: done.append(u.cell_id), progress(["x"]), 1)
+    assert log == ["start x", "finish x"] and done == ["x"]
+
+
+def test_partners_stop_together() -> None:
+    auto = Measure(runs=None, ci=0.02, max_runs=6)
+    a, b = (Unit(FakeMeasurer(auto, []), Cell(), cid) for cid in ("a", "b"))  # type: ignore[arg-type]
+    a.partner, b.partner = b, a
+    a.run = CellRun("a", {}, {}, "ok", 0, [], times=[1.0] * 3, stopped="ci")
+    b.run = CellRun("b", {}, {}, "ok", 0, [], times=[1.0, 1.2, 0.9])
+    pair_up([a, b])
+    assert a.run.stopped == "" and b.run.stopped == ""  # a goes on while b needs runs
+    a.run.stopped, b.run.stopped = "max_runs", ""
+    pair_up([a, b])
+    assert b.run.stopped == "max_runs"  # a limit stops both

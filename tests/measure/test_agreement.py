@@ -1,0 +1,132 @@
+"""A program's output judged against seq's: matching by step and particle, at the precision
+the program prints, and the verdicts with the step, particle and seq's event they name."""
+
+from __future__ import annotations
+
+import pytest
+from harness.measure import agreement
+from harness.store.columns import AGREEMENT_FAILED, DIFFERS, DIVERGES, IDENTICAL, ROUNDING
+
+L, R = 100.0, 1.0
+# seq's --precise print-mode output: two discs moving apart along y = 10 for two steps.
+SEQ = """\
+0 0 10 10 1 0
+0 1 20 10 -1.25 0
+1 0 11 10 1 0
+1 1 18.75 10 -1.25 0
+2 0 12 10 1 0 0 0
+2 1 17.5 10 -1.25 0 0 0
+"""
+# seq's f32 build on the same input: 1e-4 away at step 2 (the drift a precision change makes)
+F32 = SEQ.replace("2 0 12 10", "2 0 12.0001 10")
+
+
+def rows(fmt: str, changes: dict[tuple[int, int], str] | None = None,
+         counts: str = "0 0") -> str:
+    """seq's states printed as a student would, with some rows replaced."""
+    states = {(0, 0): (10, 10, 1, 0), (0, 1): (20, 10, -1.25, 0), (1, 0): (11, 10, 1, 0),
+              (1, 1): (18.75, 10, -1.25, 0), (2, 0): (12, 10, 1, 0), (2, 1): (17.5, 10, -1.25, 0)}
+    lines = []
+    for (step, index), values in states.items():
+        text = " ".join(fmt % v for v in values)
+        text = (changes or {}).get((step, index), text)
+        tail = f" {counts}" if step == 2 else ""
+        lines.append(f"{step} {index} {text}{tail}")
+    return "\n".join(lines) + "\n"
+
+
+def judge(program: str, f32: str | None = F32) -> agreement.Agreement:
+    return agreement.judge(program, SEQ, f32, n=2, steps=2, L=L, r=R)
+
+
+def test_the_same_numbers_at_fewer_digits_are_identical() -> None:
+    verdict = judge(rows("%.6f"))
+    assert verdict.verdict == IDENTICAL and verdict.first_diff_step is None
+    assert verdict.steps_compared == 3
+
+
+def test_a_few_ulps_off_at_full_precision_is_rounding() -> None:
+    program = rows("%.17g", {(1, 1): "18.750000000000014 10 -1.25 0"})
+    verdict = judge(program)
+    assert verdict.verdict == ROUNDING and verdict.first_diff_step is None
+
+
+def test_leaving_rounding_within_the_f32_drift_diverges() -> None:
+    verdict = judge(rows("%.6f", {(2, 0): "12.000050 10.000000 1.000000 0.000000"}))
+    assert verdict.verdict == DIVERGES
+    assert (verdict.first_diff_step, verdict.particle) == (2, 0)
+    assert verdict.deviation == pytest.approx(5e-5) and verdict.envelope == pytest.approx(1e-4)
+
+
+def test_leaving_rounding_beyond_the_drift_differs_and_names_particle_and_values() -> None:
+    verdict = judge(rows("%.6f", {(2, 1): "17.000000 10.000000 -1.250000 0.000000"}))
+    assert verdict.verdict == DIFFERS
+    assert (verdict.first_diff_step, verdict.particle) == (2, 1)
+    assert verdict.program_values == (17.0, 10.0, -1.25, 0.0)
+    assert verdict.seq_values == (17.5, 10.0, -1.25, 0.0)
+    assert "particle 1 is (17, 10, -1.25, 0) where seq has (17.5, 10, -1.25, 0)" in verdict.note
+    assert verdict.seq_did == "moved freely (no collision)"
+
+
+def test_without_the_f32_output_any_departure_differs() -> None:
+    program = rows("%.6f", {(2, 0): "12.000050 10.000000 1.000000 0.000000"})
+    assert judge(program, f32=None).verdict == DIFFERS
+
+
+def test_a_different_initial_state_differs_from_the_start() -> None:
+    verdict = judge(rows("%.6f", {(0, 0): "10.000000 10.000010 1.000000 0.000000"}))
+    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 0
+    assert "from the first state compared" in verdict.note
+    assert "initial state" in verdict.seq_did
+
+
+def test_other_collision_counts_at_the_end_differ() -> None:
+    verdict = judge(rows("%.6f", counts="0 1"))
+    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 2
+    assert "pcoll wcoll 0 1 where seq counts 0 0" in verdict.note
+
+
+def test_lines_only_one_side_prints_are_ignored() -> None:
+    program = ("reading input...\n" + rows("%.6f") + "3 0 13.000000 10.000000 1 0\n"
+               + "2 0 12.000000 10.000000 1.000000 0.000000 0 0\n"  # the final state again
+               + "elapsed: 0.2 s\n")
+    verdict = judge(program)
+    assert verdict.verdict == IDENTICAL
+    assert verdict.details["ignored_lines"] == 2
+    assert verdict.details["first_ignored"] == "line 1: 'reading input...'"
+
+
+@pytest.mark.parametrize(("output", "why"), [
+    ("", "printed nothing on stdout"),
+    ("   \n\n", "printed nothing on stdout"),
+    ("Segmentation fault?\n1 2 3\n", "printed no line of the form"),
+    (rows("%.6f").replace("2 1 ", "2 7 "), "printed 1 of 2 particles at step 2 (the first "
+                                           "missing: particle 1)"),
+    ("\n".join(rows("%.6f").splitlines()[:4]) + "\n", "printed no state after the last step "
+                                                      "(step 2); steps printed: 0..1"),
+    ("7 0 1 1 1 1\n", "printed no state after the last step (step 2); steps printed: none"),
+])
+def test_output_that_cannot_be_compared_fails_with_the_reason(output: str, why: str) -> None:
+    verdict = judge(output)
+    assert verdict.verdict == AGREEMENT_FAILED
+    assert why in verdict.note
+
+
+def test_non_numbers_fail_to_read_and_nan_differs() -> None:
+    assert judge(rows("%.6f").replace("12.000000", "twelve")).verdict == AGREEMENT_FAILED
+    verdict = judge(rows("%.6f", {(1, 0): "nan 10.000000 1.000000 0.000000"}))
+    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 1
+
+
+@pytest.mark.parametrize(("token", "half"), [
+    ("12.345", 0.0005), ("-0.5", 0.05), ("17", 0.5), ("1.25e+02", 0.5), ("3.0E-3", 5e-5),
+])
+def test_half_a_unit_in_the_last_printed_digit(token: str, half: float) -> None:
+    assert agreement.half_unit(token) == pytest.approx(half)
+
+
+def test_printed_like_compares_at_the_tokens_precision() -> None:
+    assert agreement.printed_like("12.346", 12.3456)
+    assert not agreement.printed_like("12.345", 12.3456)
+    assert agreement.printed_like("1.23e+02", 123.4)
+    assert agreement.printed_like("-0.000", -1e-9)

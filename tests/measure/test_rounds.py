@@ -1,0 +1,104 @@
+"""Timing a cell in rounds: how many runs a round takes, when a cell stops (a fixed count, a
+narrow interval, a limit), what it keeps between rounds, and resuming a cut-short cell."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from harness.measure.cell import Measurer
+from harness.measure.rounds import (
+    CellRun,
+    narrow,
+    next_runs,
+    runs_left,
+    stop_reason,
+    timing_fields,
+)
+from harness.spec.config import Measure
+
+from measure.test_cell import store_for
+
+AUTO = Measure(warmup=0, runs=None, ci=0.02, max_runs=12, max_time_s=1.0)
+
+
+def test_a_fixed_count_takes_a_run_a_round_until_it_has_them() -> None:
+    fixed = Measure(runs=3)
+    assert [next_runs(fixed, [1.0] * done) for done in range(4)] == [1, 1, 1, 0]
+    assert stop_reason(fixed, [1.0, 1.0]) == "" and stop_reason(fixed, [1.0] * 3) == "runs"
+
+
+def test_adaptive_takes_what_its_interval_needs_at_most_doubling_a_round() -> None:
+    assert next_runs(AUTO, []) == 3  # its first round: enough for an interval
+    assert next_runs(AUTO, [0.1]) == 2
+    steady = [0.100, 0.1002, 0.0999, 0.1001]
+    assert next_runs(AUTO, steady) == 1  # narrow already: the fewest
+    noisy = [0.10, 0.13, 0.08, 0.12]
+    assert next_runs(AUTO, noisy) == 4  # wide: as many as it has, no more
+    assert next_runs(AUTO, noisy * 2) == 1  # the time limit: 0.14 s of its 1 s left
+    roomy = Measure(warmup=0, runs=None, ci=0.02, max_runs=10, max_time_s=100.0)
+    assert next_runs(roomy, noisy * 2) == 2  # max_runs
+    assert next_runs(roomy, noisy * 3) == 0
+    paired = AUTO.at_least(8)  # a measured comparison: one a round until its 8 rounds
+    assert [next_runs(paired, [0.1] * k) for k in (0, 3, 7)] == [1, 1, 1]
+
+
+def test_adaptive_stops_when_the_interval_is_narrow_or_a_limit_is_reached() -> None:
+    assert stop_reason(AUTO, [0.10, 0.10]) == ""  # fewer than its first runs
+    assert stop_reason(AUTO, [0.100, 0.101, 0.099]) == "ci"
+    spread = [0.10, 0.13, 0.08, 0.12, 0.09]
+    assert not narrow(spread, 0.02) and stop_reason(AUTO, spread) == ""
+    assert stop_reason(AUTO, spread * 3) == "max_runs"  # 15 runs >= 12
+    assert stop_reason(AUTO, [0.3, 0.4, 0.2, 0.35]) == "max_time_s"  # 1.25 s >= 1 s
+    assert stop_reason(AUTO.at_least(8), [0.100, 0.101, 0.099]) == ""  # a pair needs 8
+
+
+def test_runs_left_bounds_an_adaptive_cell_by_its_limits() -> None:
+    run = CellRun("c", {}, {}, "ok", 0, ["x"], run_s=0.1, times=[0.1, 0.1])
+    assert runs_left(Measure(runs=5), run) == (3.0, 3.0)
+    fewest, most = runs_left(AUTO, run)
+    assert fewest == 1.0 and most == pytest.approx(8.0)  # 0.8 s left at 0.1 s a run
+    run.stopped = "ci"
+    assert runs_left(AUTO, run) == (0.0, 0.0)
+
+
+def test_the_record_holds_every_round() -> None:
+    run = CellRun("c", {}, {}, "ok", 0, ["x"], times=[1.0, 3.0, 2.0], rounds=[1, 2, 3],
+                  user_s=[0.5] * 3, system_s=[0.1] * 3, exports=["c.hyperfine.1.json"] * 3,
+                  stopped="runs")
+    fields = timing_fields(run)
+    assert fields["runs"] == 3 and fields["wall_median_s"] == 2.0 and fields["rounds"] == 3
+    assert fields["wall_times_round"] == [1, 2, 3] and fields["stopped"] == "runs"
+    assert fields["wall_min_s"] == 1.0 and fields["wall_stddev_s"] == pytest.approx(1.0)
+    assert fields["wall_median_ci_low_s"] == 1.0 and fields["wall_median_ci_high_s"] == 3.0
+
+
+def test_state_between_rounds_is_kept_for_its_key_only(tmp_path: Path) -> None:
+    run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"], times=[1.0], rounds=[1])
+    run.save(tmp_path / "c.partial.json")
+    assert CellRun.load(tmp_path / "c.partial.json", {"k": 1}) == run
+    assert CellRun.load(tmp_path / "c.partial.json", {"k": 2}) is None  # another cell's
+    assert CellRun.load(tmp_path / "none.json", {"k": 1}) is None
+
+
+@pytest.mark.skipif(shutil.which("hyperfine") is None, reason="hyperfine is not installed")
+def test_a_cut_short_cell_resumes_where_it_stopped(tmp_path: Path, monkeypatch) -> None:
+    log = tmp_path / "runs.log"
+    monkeypatch.setenv("RUNS_LOG", str(log))
+    store = store_for(tmp_path, "[same]")
+    cell = store.plan.cells[0]
+    cid = store.cell_id(cell)
+    first = Measurer(store)
+    run = first.start(cell, cid)
+    first.time_round(run, 1)
+    first.keep(run)  # ... and the process is killed here
+    assert store.layout.partial(cid).is_file() and store.read(cid) is None
+    precise_runs = len(log.read_text().splitlines())
+    again = Measurer(store)
+    record = again.measure_and_save(cell, cid)
+    assert len(log.read_text().splitlines()) == precise_runs + 1  # one more timed run only
+    assert record["runs"] == 2 and record["wall_times_round"] == [1, 2]
+    assert not store.layout.partial(cid).exists()
+    assert [p.name for p in store.layout.hyperfine_exports(cid)] == [
+        f"{cid}.hyperfine.1.json", f"{cid}.hyperfine.2.json"]

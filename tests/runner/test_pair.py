@@ -1,0 +1,115 @@
+"""compare --measure on real binaries: both sides measured in the same interleaved rounds into
+ordinary result directories, the verdicts paired; and every bad input one error line, exit 2,
+nothing written."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+from harness.analysis import compare, resultsets
+from harness.errors import HarnessError
+from harness.repo import REPO_ROOT
+from harness.runner.sides import BuildSide, build, resolve
+
+from commands import compare_main
+
+CONFIG = ("name: pair\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 2}\n"
+          "threads: 1\nmeasure: {warmup: 0, runs: 2, timeout_s: 30}\nvalidate: true\n")
+
+
+def test_identical_sides_measured_together(real_binaries: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "pair.yaml"
+    config.write_text(CONFIG)
+    out = tmp_path / "out"
+    status = compare_main(["--measure", str(real_binaries), str(real_binaries), str(config),
+                           "--out", str(out), "--results-dir", str(tmp_path / "results")])
+    printed = capsys.readouterr()
+    assert status == 0, printed.out + printed.err
+    assert "in 8 interleaved rounds" in printed.out  # a pair gets at least 8 rounds
+    assert "2 cells compared: 0 slower, 0 faster, 2 no significant change" in printed.out
+    assert "| measured together |" in printed.out
+    for side in ("old", "new"):
+        rows = (out / side / "pair" / "results.csv").read_text().splitlines()
+        assert len(rows) == 3 and ",ok," in rows[1] and ",ok," in rows[2]
+    assert not (out / ".measure").exists()
+    # the sides are ordinary results: plain compare reads them again, and sees them paired
+    old, new = (resultsets.load_side(n, out / s / "pair", None, False, [out / s / "pair"])
+                for n, s in (("OLD", "old"), ("NEW", "new")))
+    rows = compare.compare(old, new, compare.DEFAULT_THRESHOLD,
+                           compare.Drift(0.04, "unused when measured together"))
+    assert [r.method for r in rows] == [compare.PAIRED] * 2
+    assert all(len(r.old.by_round()) == 8 for r in rows)  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(("old", "new", "config", "message"), [
+    ("no-such-rev", "build", CONFIG, "OLD: 'no-such-rev' is neither a directory of binaries"),
+    ("build", "/", CONFIG, "NEW: / has no seq, p1"),
+    ("build", "build", CONFIG + "exclude: [{variant: [seq, p1]}]\n",
+     "every cell is excluded: nothing to measure"),
+])
+def test_bad_sides_are_one_error_and_write_nothing(old: str, new: str, config: str,
+                                                   message: str, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "c.yaml"
+    path.write_text(config)
+    out = tmp_path / "out"
+    argv = ["--measure", str(REPO_ROOT / old) if old == "build" else old,
+            str(REPO_ROOT / new) if new == "build" else new, str(path), "--out", str(out),
+            "--results-dir", str(tmp_path / "results")]
+    assert compare_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+def test_a_revision_without_a_variant_is_named() -> None:
+    first = subprocess.run(["git", "rev-list", "--max-parents=0", "HEAD"], cwd=REPO_ROOT,
+                           capture_output=True, text=True, check=True).stdout.split()[0]
+    tree = REPO_ROOT / "variants"
+    side = BuildSide("OLD", first, tree, REPO_ROOT / "tests" / "fixtures", first)
+    with pytest.raises(HarnessError, match=r"OLD: revision .* has no variant grid"):
+        build(side, [], ["grid"])
+
+
+def test_a_revision_that_does_not_build_is_named(tmp_path: Path) -> None:
+    (tmp_path / "variants").mkdir()
+    (tmp_path / "variants" / "seq.c").write_text("")
+    (tmp_path / "Makefile").write_text("build/seq:\n\t@echo broken >&2; exit 1\n")
+    side = BuildSide("NEW", "abc", tmp_path / "build", tmp_path, "abc1234")
+    with pytest.raises(HarnessError, match=r"NEW: revision abc \(abc1234\) does not build: "
+                       r"make -s CC=\S+ build/seq failed with exit status 2: broken make: "):
+        build(side, [tmp_path / "build" / "seq"], ["seq"])
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
+def test_a_revision_is_checked_out_once_into_the_cache(tmp_path: Path) -> None:
+    side = resolve("OLD", "HEAD", tmp_path)
+    assert side.commit is not None and side.build_dir == side.repo_root / "build"
+    assert (side.repo_root / "variants" / "seq.c").is_file()
+    again = resolve("OLD", "HEAD", tmp_path)
+    assert again.repo_root == side.repo_root
+    subprocess.run(["git", "worktree", "remove", "--force", str(side.repo_root)], cwd=REPO_ROOT,
+                   check=True)
+
+
+def test_calibrate_keeps_what_it_learnt_beside_the_machine(real_binaries: Path, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
+    config = tmp_path / "cal.yaml"
+    config.write_text(CONFIG.replace("name: pair", "name: cal"))
+    results = tmp_path / "results"
+    assert compare_main(["--calibrate", str(config), "--results-dir", str(results)]) == 0
+    out = capsys.readouterr().out
+    assert "identical binaries measured together: false verdicts 0 of 2" in out
+    assert "drift between runs measured apart:" in out
+    machines = list((results / "calibration" / "machines").glob("*.json"))
+    assert len(machines) == 1
+    drift = compare.find_drift([machines[0].stem], [results])
+    assert drift.source.startswith(f"calibrated on machine {machines[0].stem}")
+    blocks = sorted((results / "calibration" / "runs" / "apart").iterdir())
+    assert [b.name for b in blocks] == ["block-1", "block-2", "block-3"]
+    assert all((b / "cal" / "results.csv").is_file() for b in blocks)
