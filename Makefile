@@ -144,18 +144,23 @@ test-c-portable: portable
 
 test-c: $(C_TEST_GROUPS)
 
-# pytest in two processes side by side: the Slurm executor's tests (mostly waiting on a real
-# Slurm: a task's smallest time limit is a minute) and all the others; both must pass.
+# pytest in three processes side by side: the Slurm executor's tests (mostly waiting on a real
+# Slurm: a task's smallest time limit is a minute), the report's and the README's, and all the
+# others; each must pass. MAKEFLAGS is not passed on: the tests' own make commands run
+# without this make's jobs.
 SLURM_TESTS := tests/executors/test_slurm.py
+REPORT_TESTS := tests/report tests/test_readme.py
 # The slowest tests are listed at the end of each run: where the time goes.
 PYTEST := $(PYTHON) -m pytest -q --durations=8
 
 test-python: $(TEST_READY) all
-	@mkdir -p build; log=build/pytest-slurm.log; \
-	$(PYTEST) $(SLURM_TESTS) >$$log 2>&1 & slurm=$$!; \
-	$(PYTEST) --ignore=$(SLURM_TESTS); others=$$?; \
-	wait $$slurm; status=$$?; echo "== $(SLURM_TESTS)"; cat $$log; \
-	[ $$others = 0 ] && [ $$status = 0 ]
+	@unset MAKEFLAGS MFLAGS MAKELEVEL; mkdir -p build; \
+	$(PYTEST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
+	$(PYTEST) $(REPORT_TESTS) >build/pytest-report.log 2>&1 & report=$$!; \
+	$(PYTEST) --ignore=$(SLURM_TESTS) $(addprefix --ignore=,$(REPORT_TESTS)); others=$$?; \
+	wait $$report; report=$$?; echo "== $(REPORT_TESTS)"; cat build/pytest-report.log; \
+	wait $$slurm; slurm=$$?; echo "== $(SLURM_TESTS)"; cat build/pytest-slurm.log; \
+	[ $$others = 0 ] && [ $$report = 0 ] && [ $$slurm = 0 ]
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
 lint: $(TEST_READY)
