@@ -125,8 +125,10 @@ def warnings_details(part: ExperimentPart) -> Details | None:
     if len(rows) > MAX_WARNING_ROWS:
         blocks.append(Paragraph(f"… and {len(rows) - MAX_WARNING_ROWS} more."))
     n = len(rows)
-    summary = (f"{n} flagged cell{'' if n == 1 else 's'} to look at twice: "
-               f"{_issue_counts([part])}")
+    counts = Counter(issue for issues in part.warning_issues for issue in issues)
+    why = ", ".join(f"{issue} ({count})" for issue, count in
+                    sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+    summary = f"{n} flagged cell{'' if n == 1 else 's'}: {why}"
     return Details(summary, tuple(blocks), warnings_anchor(part))
 
 
