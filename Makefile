@@ -5,9 +5,11 @@
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
 #   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
-#   make test             test-c, ruff and the Python tests
+#   make test             test-c, ruff and the Python tests, side by side
 #   make bench            the performance benchmarks (bench/bench.py), saved under results/
-#   make setup            Python environment (.venv) and hyperfine
+#   make setup            Python environment (.venv) and hyperfine: what the harness needs
+#   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
+#                         Debian's Slurm and chromium); make test runs it first
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
 #
 # A variant is a file variants/NAME.c, with, if it is split into pieces, the files
@@ -26,6 +28,8 @@ VARIANT_HEADERS = $(wildcard $(call VARIANT_DIR,$(1))/*.h)
 # The objects of variant $(2)'s pieces (variants/$(2)/*.c) in the object directory $(1).
 VARIANT_PIECES = $(patsubst variants/%.c,build/obj/$(1)/%.o,$(wildcard variants/$(2)/*.c))
 PYTHON := .venv/bin/python
+# Written by `scripts/setup.sh --test` once the tests' tools are installed.
+TEST_READY := .venv/.test-ready
 
 # Exact builds: IEEE double evaluated as written. No FMA contraction, never -ffast-math: the
 # variants must agree byte for byte, and SPEC fixes the order of every operation.
@@ -67,7 +71,7 @@ $(eval $(call build_rules,f64,build/%,,))
 $(foreach b,$(BUILDS),$(eval $(call build_rules,$(b),build/%-$(b),$(FLAGS_$(b)),$(LIBS_$(b)))))
 $(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
 # The portable build: baseline x86-64 (SSE2, no AVX), what `make all OPT=-O3` gives on Debian
-# (README, Slurm on mixed nodes). Its vector paths are others than -march=native's (grid's
+# (docs/slurm.md: Slurm on mixed nodes). Its vector paths are others than -march=native's (grid's
 # 4-lane prefilter, the core's 16-byte motion lanes), so the tests run it too.
 PORTABLE := $(if $(filter x86_64 i%86,$(shell uname -m)),-march=x86-64 -mtune=generic,)
 $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
@@ -75,7 +79,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-python lint bench setup quickstart clean print-flags print-variants print-builds
+.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -120,23 +124,54 @@ $(eval $(call test_rules,portable,tests-portable,$(PORTABLE)))
 
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
-# Unit tests (optimised, sanitizer and portable builds), then every scene script against the
-# optimised and the sanitizer builds, and run_scenes.sh (every exact variant against seq)
-# against the portable one.
-test-c: all asan portable build/seq-f32 build/seq-f128 $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS)) $(addprefix build/tests-portable/,$(C_TESTS))
+# The C tests in four groups that make runs side by side: the unit tests of the optimised,
+# sanitizer and portable builds; every scene script against the optimised build, and against
+# the sanitizer build; run_scenes.sh (every exact variant against seq) against the portable
+# build.
+C_TEST_GROUPS := test-c-unit test-c-scenes test-c-scenes-asan test-c-portable
+
+test-c-unit: $(addprefix build/tests/,$(C_TESTS)) $(addprefix build/tests-asan/,$(C_TESTS)) $(addprefix build/tests-portable/,$(C_TESTS))
 	@set -e; for t in $(C_TESTS); do for d in tests tests-asan tests-portable; do echo "== $$t ($$d)"; build/$$d/$$t; done; done
-	@set -e; for s in $(SCENE_SCRIPTS); do for d in build build/asan; do echo "== $$s $$d"; bash $$s $$d; done; done
+
+test-c-scenes: all build/seq-f32 build/seq-f128
+	@set -e; for s in $(SCENE_SCRIPTS); do echo "== $$s build"; bash $$s build; done
+
+test-c-scenes-asan: asan
+	@set -e; for s in $(SCENE_SCRIPTS); do echo "== $$s build/asan"; bash $$s build/asan; done
+
+test-c-portable: portable
 	@echo "== tests/c/run_scenes.sh build/portable"; bash tests/c/run_scenes.sh build/portable
 
-test-python: $(PYTHON) all
-	$(PYTHON) -m pytest -q
+test-c: $(C_TEST_GROUPS)
+
+# pytest in three processes side by side: the Slurm executor's tests (mostly waiting on a real
+# Slurm: a task's smallest time limit is a minute), the report's and the README's, and all the
+# others; each must pass. MAKEFLAGS is not passed on: the tests' own make commands run
+# without this make's jobs.
+SLURM_TESTS := tests/executors/test_slurm.py
+REPORT_TESTS := tests/report tests/test_readme.py
+# The slowest tests are listed at the end of each run: where the time goes.
+PYTEST := $(PYTHON) -m pytest -q --durations=8
+
+test-python: $(TEST_READY) all
+	@unset MAKEFLAGS MFLAGS MAKELEVEL; mkdir -p build; \
+	$(PYTEST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
+	$(PYTEST) $(REPORT_TESTS) >build/pytest-report.log 2>&1 & report=$$!; \
+	$(PYTEST) --ignore=$(SLURM_TESTS) $(addprefix --ignore=,$(REPORT_TESTS)); others=$$?; \
+	wait $$report; report=$$?; echo "== $(REPORT_TESTS)"; cat build/pytest-report.log; \
+	wait $$slurm; slurm=$$?; echo "== $(SLURM_TESTS)"; cat build/pytest-slurm.log; \
+	[ $$others = 0 ] && [ $$report = 0 ] && [ $$slurm = 0 ]
 
 # ruff, and the harness's layering (pyproject.toml's import-linter contracts).
-lint: $(PYTHON)
+lint: $(TEST_READY)
 	$(PYTHON) -m ruff check harness tests bench scripts examples
 	.venv/bin/lint-imports
 
-test: test-c lint test-python
+# Everything, three jobs at a time whatever -j make was given: pytest (whose Slurm half mostly
+# waits) starts first, once build/ has the variants, and the C tests' builds and groups fill
+# the other two; each job's output is printed whole when it ends.
+test:
+	@$(MAKE) --no-print-directory -j3 -Otarget test-python lint test-c
 
 # ---- environment ----
 $(PYTHON): requirements.txt pyproject.toml
@@ -145,9 +180,17 @@ $(PYTHON): requirements.txt pyproject.toml
 setup:
 	scripts/setup.sh
 
+$(TEST_READY): requirements.txt requirements-test.txt pyproject.toml scripts/setup.sh
+	scripts/setup.sh --test
+
+setup-test:
+	scripts/setup.sh --test
+
+# RUN_FLAGS: more options for the quick start's run (e.g. RUN_FLAGS=--dry-run).
+RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
-	$(PYTHON) harness/run.py configs/quickstart.yaml
+	$(PYTHON) harness/run.py configs/quickstart.yaml $(RUN_FLAGS)
 
 bench: all $(PYTHON)
 	$(PYTHON) -m bench.bench

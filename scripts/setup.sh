@@ -1,14 +1,29 @@
 #!/usr/bin/env bash
 # Set up what collide-bench needs beyond gcc, make and python3: the Python environment
-# (.venv, pinned requirements.txt), hyperfine (Debian's package) and, as root, Debian's Slurm
-# (slurmctld, slurmd, slurm-client, munge) for the Slurm executor's tests. Safe to run again: it does
-# only what is missing. Used by `make setup`, the quick start and CI.
+# (.venv, pinned requirements.txt) and hyperfine (Debian's package). Used by `make setup` and
+# the quick start.
+#
+# With --test, also what only the tests need: the pinned requirements-test.txt (pytest, ruff,
+# import-linter, selenium) and, as root, Debian's Slurm (slurmctld, slurmd, slurm-client, munge)
+# for the Slurm executor's tests and Debian's chromium and chromium-driver for the report's
+# browser test. Used by `make test` (through `make setup-test`) and CI.
+#
+# Safe to run again: it does only what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+test_too=false
+case "${1:-}" in
+    --test) test_too=true ;;
+    "") ;;
+    *) echo "usage: scripts/setup.sh [--test]" >&2; exit 2 ;;
+esac
 
 venv=.venv
 stamp=$venv/.requirements.sha256
 want=$(cat requirements.txt pyproject.toml | sha256sum | cut -d' ' -f1)
+test_stamp=$venv/.requirements-test.sha256
+test_want=$(cat requirements-test.txt | sha256sum | cut -d' ' -f1)
 
 as_root() { [ "$(id -u)" = 0 ]; }
 apt_install() {
@@ -53,16 +68,35 @@ if ! command -v hyperfine >/dev/null 2>&1; then
         exit 1
     fi
 fi
-# Slurm, for tests/test_slurm.py (a single-node cluster started by the tests themselves; no
-# daemon is started here). Optional: without root the Slurm tests skip and say why.
-slurm_pkgs=(slurmctld slurmd slurm-client munge)
-if ! command -v slurmctld >/dev/null 2>&1 || ! command -v slurmd >/dev/null 2>&1 \
-        || ! command -v sbatch >/dev/null 2>&1 || ! command -v munged >/dev/null 2>&1; then
-    if as_root && command -v apt-get >/dev/null 2>&1; then
-        echo "setup: installing Slurm (Debian packages: ${slurm_pkgs[*]})"
-        apt_install "${slurm_pkgs[@]}"
-    else
-        echo "setup: Slurm is missing (the Slurm tests will skip); to run them: sudo apt-get install ${slurm_pkgs[*]}" >&2
-    fi
+if ! $test_too; then
+    echo "setup: ready ($("$venv/bin/python" --version), $(hyperfine --version))"
+    exit 0
 fi
-echo "setup: ready ($("$venv/bin/python" --version), $(hyperfine --version))"
+
+# What only the tests need.
+if [ "$(cat "$test_stamp" 2>/dev/null)" != "$test_want" ]; then
+    echo "setup: installing the test tools into $venv (requirements-test.txt)"
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check -r requirements-test.txt
+    echo "$test_want" > "$test_stamp"
+fi
+# Debian packages the tests use where they can; without root they skip and say why (and fail
+# under CI).
+optional_packages() {  # WHAT, a command each package set provides..., --, packages...
+    local what=$1 missing=false; shift
+    while [ "$1" != -- ]; do command -v "$1" >/dev/null 2>&1 || missing=true; shift; done
+    shift
+    $missing || return 0
+    if as_root && command -v apt-get >/dev/null 2>&1; then
+        echo "setup: installing $what (Debian packages: $*)"
+        apt_install "$@"
+    else
+        echo "setup: $what is missing (its tests will skip); to run them: sudo apt-get install $*" >&2
+    fi
+}
+# Slurm, for tests/executors/test_slurm.py (a single-node cluster started by the tests
+# themselves; no daemon is started here).
+optional_packages Slurm slurmctld slurmd sbatch munged -- slurmctld slurmd slurm-client munge
+# A browser, for tests/report/test_browser.py (selenium drives Debian's chromium headless).
+optional_packages chromium chromium chromedriver -- chromium chromium-driver
+touch "$venv/.test-ready"  # make test's stamp (the Makefile's TEST_READY)
+echo "setup: ready for the tests ($("$venv/bin/python" --version), $(hyperfine --version))"

@@ -57,7 +57,7 @@ def ensure_packages() -> None:
     if os.geteuid() != 0:
         raise ClusterUnavailable(
             f"Slurm is not installed ({', '.join(missing_commands())} missing) and this is not "
-            f"root: run scripts/setup.sh as root, or apt-get install {' '.join(PACKAGES)}")
+            f"root: run `scripts/setup.sh --test` as root, or apt-get install {' '.join(PACKAGES)}")
     if shutil.which("apt-get") is None:
         raise ClusterUnavailable("Slurm is not installed and there is no apt-get to install it")
     env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}

@@ -21,6 +21,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help=f"also report the *{QUICK_SUFFIX} smoke-run experiments")
     parser.add_argument("--experiment", action="append", metavar="NAME",
                         help="report only this experiment (repeatable)")
+    parser.add_argument("--machine", metavar="ID",
+                        help="the machine report.html shows (its machine_id or the start of "
+                        "it; default: the one that measured last); every machine's page is "
+                        "also machines/<machine_id>/report.html")
     return parser
 
 
@@ -29,7 +33,7 @@ def execute(args: argparse.Namespace) -> int:
 
     try:
         path = render(args.results_dir, args.out, include_quick=args.include_quick,
-                      experiments=args.experiment)
+                      experiments=args.experiment, machine=args.machine)
     except OSError as exc:
         raise HarnessError(str(exc)) from None
     print(f"wrote {path} and {path.with_name('report.html')}")

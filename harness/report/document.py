@@ -3,6 +3,11 @@
 Every block holds strings and paths only (a table is already formatted), so a section can be
 written to JSON and read back unchanged: that is what lets an unchanged section be reused
 instead of rebuilt (harness/report/cache.py). Standard library only.
+
+Running text (paragraphs, bullets, captions, titles) is CommonMark inline markup: `code`,
+**strong**, *emphasis* and [links](#anchor). report.md carries it as written; the HTML writer
+renders it with markdown-it-py, so the page shows no markup characters. Table cells are plain
+text.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from typing import ClassVar
 
 @dataclass(frozen=True)
 class Paragraph:
-    """Running text; `code` in backticks and [text](#anchor) links are the only markup."""
+    """Running text, in CommonMark inline markup."""
 
     text: str
     kind: ClassVar[str] = "paragraph"
@@ -48,7 +53,18 @@ class Figure:
     kind: ClassVar[str] = "figure"
 
 
-Block = Paragraph | Bullets | Table | Figure
+@dataclass(frozen=True)
+class Details:
+    """Blocks folded away under a one-line plain-text summary (HTML's <details>), with an
+    anchor a link can land on."""
+
+    summary: str
+    blocks: tuple[Paragraph | Bullets | Table | Figure, ...]
+    anchor: str = ""
+    kind: ClassVar[str] = "details"
+
+
+Block = Paragraph | Bullets | Table | Figure | Details
 
 
 @dataclass(frozen=True)
@@ -60,11 +76,27 @@ class Section:
 
 
 @dataclass(frozen=True)
+class Link:
+    """A link to another report page (another machine's): its path relative to this page,
+    without the suffix, which each writer adds (report.md links report.md, report.html links
+    report.html)."""
+
+    text: str
+    stem: str
+
+
+@dataclass(frozen=True)
 class Document:
+    """A report page: under the title a line naming what it shows (`lead`) and links to its
+    sibling pages (`others`), then the summary, the sections, and what the reader consults
+    only on occasion (`appendix`)."""
+
     title: str
-    preamble: tuple[Block, ...]
-    sections: tuple[Section, ...] = field(default_factory=tuple)
+    lead: str = ""
+    others: tuple[Link, ...] = ()
     summary: Section | None = None  # the headline, shown first, right under the title
+    sections: tuple[Section, ...] = field(default_factory=tuple)
+    appendix: tuple[Section, ...] = ()
 
 
 def slug(text: str) -> str:
@@ -73,22 +105,27 @@ def slug(text: str) -> str:
 
 
 def section_blocks(section: Section) -> list[Block]:
-    """The blocks of a section and of all its subsections."""
-    blocks = list(section.blocks)
+    """The blocks of a section and of all its subsections, folded ones included."""
+    blocks: list[Block] = []
+    for block in section.blocks:
+        blocks += [block, *block.blocks] if isinstance(block, Details) else [block]
     for sub in section.subsections:
         blocks += section_blocks(sub)
     return blocks
 
 
+def document_sections(doc: Document) -> list[Section]:
+    """The document's top-level sections in reading order."""
+    return [*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix]
+
+
 def document_files(doc: Document) -> set[Path]:
     """Every figure file the document shows or links."""
-    blocks = [*doc.preamble]
-    for section in (*doc.sections, *([doc.summary] if doc.summary else [])):
-        blocks += section_blocks(section)
     files: set[Path] = set()
-    for block in blocks:
-        if isinstance(block, Figure):
-            files |= {block.image, *block.alternates}
+    for section in document_sections(doc):
+        for block in section_blocks(section):
+            if isinstance(block, Figure):
+                files |= {block.image, *block.alternates}
     return files
 
 
@@ -96,6 +133,9 @@ def document_files(doc: Document) -> set[Path]:
 
 
 def block_to_json(block: Block, base: Path) -> dict[str, object]:
+    if isinstance(block, Details):
+        return {"kind": block.kind, "summary": block.summary, "anchor": block.anchor,
+                "blocks": [block_to_json(b, base) for b in block.blocks]}
     if isinstance(block, Paragraph):
         return {"kind": block.kind, "text": block.text}
     if isinstance(block, Bullets):
@@ -121,6 +161,9 @@ def block_from_json(data: dict, base: Path) -> Block:
     if kind == Figure.kind:
         return Figure(base / data["image"], data["caption"],
                       tuple(base / p for p in data["alternates"]))
+    if kind == Details.kind:
+        inner = tuple(block_from_json(b, base) for b in data["blocks"])
+        return Details(data["summary"], inner, data["anchor"])  # type: ignore[arg-type]
     raise ValueError(f"unknown block kind {kind!r}")
 
 

@@ -1,5 +1,6 @@
-"""The parts of the report that span experiments: the summary, the environment header, how
-to read the tables, and the warnings. Built from the experiments' parts (plain data), so
+"""The parts of the report that span experiments: the summary, the environment, how to read
+the tables, and the warnings (each experiment's folded in its section, counted in the
+summary). Built from the experiments' parts (plain data), so
 standard library only."""
 
 from __future__ import annotations
@@ -7,10 +8,10 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 
-from harness.report.document import Block, Bullets, Paragraph, Section, Table
+from harness.report.document import Bullets, Details, Paragraph, Section, Table
 from harness.report.parts import HIGHLIGHT_KINDS, ExperimentPart, Fidelity
 
-MAX_WARNING_ROWS = 60  # beyond this the warnings table is cut, with a count of the rest
+MAX_WARNING_ROWS = 60  # beyond this a section's warnings table is cut, with a count of the rest
 WARNINGS_ANCHOR = "warnings"
 SUMMARY_ANCHOR = "summary"
 
@@ -99,28 +100,52 @@ HOW_TO_READ = (
 )
 
 
-def warnings_section(parts: Sequence[ExperimentPart]) -> Section | None:
-    """The flagged cells of every experiment (experiments in alphabetical order), or nothing
-    when all cells are clean."""
-    ordered = sorted((p for p in parts if p.warning_rows), key=lambda p: p.name)
-    if not ordered:
-        return None
-    rows = [row for part in ordered for row in part.warning_rows]
-    counts = Counter(issue for part in ordered for issues in part.warning_issues
+def _issue_counts(parts: Sequence[ExperimentPart]) -> str:
+    counts = Counter(issue for part in parts for issues in part.warning_issues
                      for issue in issues)
-    summary = ", ".join(f"{n} {issue}" for issue, n in
-                        sorted(counts.items(), key=lambda item: -item[1]))
-    first = ordered[0]
-    table = Table(first.warning_columns, tuple(rows[:MAX_WARNING_ROWS]),
-                  tuple(c in NUMERIC_WARNING_COLUMNS for c in first.warning_columns),
-                  "Flagged cells.")
-    blocks: list[Block] = [Paragraph(f"{len(rows)} cell(s) need a second look: {summary}."),
-                           table]
+    return ", ".join(f"{n} {issue}" for issue, n in
+                     sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+
+
+def warnings_anchor(part: ExperimentPart) -> str:
+    return f"{part.section.anchor}-{WARNINGS_ANCHOR}"
+
+
+def warnings_details(part: ExperimentPart) -> Details | None:
+    """The experiment's flagged cells, folded, for the top of its own section; None when all
+    its cells are clean."""
+    if not part.warning_rows:
+        return None
+    keep = [k for k, c in enumerate(part.warning_columns) if c != EXPERIMENT_COLUMN]
+    columns = tuple(part.warning_columns[k] for k in keep)
+    rows = tuple(tuple(row[k] for k in keep) for row in part.warning_rows)
+    table = Table(columns, rows[:MAX_WARNING_ROWS],
+                  tuple(c in NUMERIC_WARNING_COLUMNS for c in columns), "")
+    blocks: list[Paragraph | Table] = [table]
     if len(rows) > MAX_WARNING_ROWS:
         blocks.append(Paragraph(f"… and {len(rows) - MAX_WARNING_ROWS} more."))
-    return Section("Warnings", WARNINGS_ANCHOR, tuple(blocks))
+    n = len(rows)
+    counts = Counter(issue for issues in part.warning_issues for issue in issues)
+    why = ", ".join(f"{issue} ({count})" for issue, count in
+                    sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+    summary = f"{n} flagged cell{'' if n == 1 else 's'}: {why}"
+    return Details(summary, tuple(blocks), warnings_anchor(part))
 
 
+def warnings_text(parts: Sequence[ExperimentPart]) -> str | None:
+    """The summary's line on the flagged cells: how many, why, and where each experiment's
+    are (folded at the top of its section); None when every cell is clean."""
+    flagged = [p for p in parts if p.warning_rows]
+    if not flagged:
+        return None
+    total = sum(len(p.warning_rows) for p in flagged)
+    where = ", ".join(f"[{p.name}](#{warnings_anchor(p)}) {len(p.warning_rows)}"
+                      for p in flagged)
+    return (f"warnings: {total} flagged cell{'' if total == 1 else 's'} "
+            f"({_issue_counts(flagged)}), folded at the top of their sections: {where}")
+
+
+EXPERIMENT_COLUMN = "experiment"
 NUMERIC_WARNING_COLUMNS: frozenset[str] = frozenset({"N", "L", "r", "threads"})
 
 
@@ -140,8 +165,9 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     sentences = []
     if total.validated:
         if total.invalid:
+            first = next(p for p in parts if p.fidelity.invalid)
             verdict = (f"{total.invalid} INVALID of {total.validated} validated cells "
-                       f"([warnings](#{WARNINGS_ANCHOR}))")
+                       f"([warnings](#{warnings_anchor(first)}))")
         else:
             verdict = f"no invalid cell among {total.validated} validated"
         anchor = next((p.fidelity_anchor for p in parts if p.fidelity.validated), "")
@@ -155,10 +181,12 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     return "fidelity: " + "; ".join(sentences)
 
 
-def summary_section(parts: Sequence[ExperimentPart]) -> Section | None:
-    """The headline: what a reader came for, each point linking to where it is shown."""
+def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = ()
+                    ) -> Section | None:
+    """The headline: what a reader came for, each point linking to where it is shown; `more`
+    adds lines (what spans machines)."""
     items = [text for text in (*(_best(parts, k) for k in HIGHLIGHT_KINDS),
-                               fidelity_text(parts)) if text]
+                               fidelity_text(parts), warnings_text(parts), *more) if text]
     if not items:
         return None
     items = [f"{text[0].upper()}{text[1:]}." for text in items]

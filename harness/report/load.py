@@ -11,8 +11,10 @@ import pandas as pd
 from harness.analysis.frame import read_divergence, read_results
 from harness.errors import HarnessError
 from harness.report.discover import read_env
+from harness.report.machines import UNKNOWN_ID
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
+from harness.store.records import MACHINE_KEY
 
 # --- loading ------------------------------------------------------------------------------
 
@@ -46,11 +48,19 @@ def read_trajectory(path: Path) -> pd.DataFrame:
     return traj
 
 
-def load_experiment(found: ExperimentDir) -> Experiment:
-    """One experiment directory read and checked (HarnessError naming the file otherwise)."""
+def load_experiment(found: ExperimentDir, machine: str | None = None) -> Experiment:
+    """One experiment directory read and checked (HarnessError naming the file otherwise);
+    with `machine` (an id), only that machine's cells, and its environment."""
     frame = read_results(found.results_csv)
     titles = [t for t in frame["title"] if t]
     title = titles[0] if titles else found.name
-    return Experiment(found.name, found.path, title, frame, read_env(found.env_json),
+    env_json = found.env_json
+    if machine is not None:
+        if MACHINE_KEY in frame.columns:
+            ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
+            frame = frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
+        if found.machine(machine).is_file():
+            env_json = found.machine(machine)
+    return Experiment(found.name, found.path, title, frame, read_env(env_json),
                       read_divergence(found.divergence_csv))
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from pathlib import Path
 
-from harness.report.document import Block, Bullets, Document, Paragraph, Section, Table
+from harness.report.document import Block, Bullets, Details, Document, Paragraph, Section, Table
+
+SUFFIX = ".md"
 
 
 def _md_cell(text: str) -> str:
@@ -25,7 +27,13 @@ def markdown_table(table: Table) -> list[str]:
 def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
     lines: list[str] = []
     for block in blocks:
-        if isinstance(block, Paragraph):
+        if isinstance(block, Details):
+            # GitHub and most viewers fold it; the blank lines let the Markdown inside render.
+            anchor = f' id="{block.anchor}"' if block.anchor else ""
+            lines += [f"<details{anchor}><summary>{block.summary}</summary>", ""]
+            lines += markdown_blocks(block.blocks, out_dir)
+            lines.append("</details>")
+        elif isinstance(block, Paragraph):
             lines.append(block.text)
         elif isinstance(block, Bullets):
             lines.extend(f"- {item}" for item in block.items)
@@ -48,13 +56,22 @@ def _heading(section: Section, level: int) -> list[str]:
     return [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", ""]
 
 
+def _section(section: Section, level: int, out_dir: Path) -> list[str]:
+    lines = [*_heading(section, level), *markdown_blocks(section.blocks, out_dir)]
+    for sub in section.subsections:
+        lines += _section(sub, level + 1, out_dir)
+    return lines
+
+
 def render_markdown(doc: Document, out_dir: Path) -> str:
     lines = [f"# {doc.title}", ""]
+    if doc.lead:
+        lines += [doc.lead, ""]
+    if doc.others:
+        links = ", ".join(f"[{link.text}]({link.stem}{SUFFIX})" for link in doc.others)
+        lines += [f"Other machines: {links}.", ""]
     if doc.summary is not None:
-        lines += [*_heading(doc.summary, 2), *markdown_blocks(doc.summary.blocks, out_dir)]
-    lines += markdown_blocks(doc.preamble, out_dir)
-    for section in doc.sections:
-        lines += [*_heading(section, 2), *markdown_blocks(section.blocks, out_dir)]
-        for sub in section.subsections:
-            lines += [*_heading(sub, 3), *markdown_blocks(sub.blocks, out_dir)]
+        lines += _section(doc.summary, 2, out_dir)
+    for section in (*doc.sections, *doc.appendix):
+        lines += _section(section, 2, out_dir)
     return "\n".join(lines).rstrip() + "\n"

@@ -1,22 +1,37 @@
 """Assembling the document from the experiments' parts and writing report.md, report.html and
 figures/ under a lock on the report directory. An experiment whose inputs and the report's
 code did not change is read back from the manifest (harness/report/cache.py) without pandas,
-scipy or matplotlib; only the others are loaded and built."""
+scipy or matplotlib; only the others are loaded and built.
+
+One page shows one machine. Where the results hold several, each has its page
+machines/<machine_id>/report.{md,html} with its own figures/, each linking the others, and
+report.{md,html} at the top is the machine that measured last (or the one asked for)."""
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import shutil
 from collections.abc import Collection, Sequence
 from pathlib import Path
 
 from harness.repo import REPO_ROOT
+from harness.report import machines
 from harness.report.cache import Manifest
 from harness.report.discover import find_experiments, input_digest, read_env
-from harness.report.document import Block, Bullets, Document, Paragraph, document_files
+from harness.report.document import (
+    Bullets,
+    Document,
+    Link,
+    Paragraph,
+    Section,
+    document_files,
+)
 from harness.report.header import (
     HOW_TO_READ,
     environment_bullets,
     summary_section,
-    warnings_section,
+    warnings_details,
 )
 from harness.report.html import render_html
 from harness.report.markdown import render_markdown
@@ -25,41 +40,74 @@ from harness.spec.variants import default_registry
 from harness.store.atomic import atomic_write_text
 from harness.store.layout import ExperimentDir
 from harness.store.locks import directory_lock
+from harness.store.records import MACHINE_KEY
 
 FIGURES_DIR = "figures"
+MACHINES_DIR = "machines"  # other machines' pages: <report>/machines/<machine_id>/
+PAGE_STEM = "report"
 FIGURE_SUFFIXES: frozenset[str] = frozenset({".png", ".svg", ".gif"})
+ENVIRONMENT_ANCHOR = "environment"
+HOW_TO_READ_ANCHOR = "how-to-read"
+TITLE = "collide-bench report"
+
+
+def _shown_path(results_dir: Path) -> Path:
+    # Inside the repository the path is shown relative to it, so a committed report does not
+    # carry the path of the machine that rendered it.
+    if results_dir.resolve().is_relative_to(REPO_ROOT):
+        return results_dir.resolve().relative_to(REPO_ROOT)
+    return results_dir
+
+
+def _with_warnings(part: ExperimentPart) -> Section:
+    """The experiment's section with its flagged cells folded under its opening paragraph."""
+    details = warnings_details(part)
+    if details is None:
+        return part.section
+    blocks = part.section.blocks
+    return Section(part.section.title, part.section.anchor,
+                   (*blocks[:1], details, *blocks[1:]), part.section.subsections)
 
 
 def build_document(
     parts: Sequence[ExperimentPart],
     results_dir: Path,
     environments: Sequence[tuple[str, dict[str, object]]] = (),
+    *,
+    shown: machines.Machine | None = None,
+    others: Sequence[Link] = (),
+    side_by_side: Section | None = None,
 ) -> Document:
-    """The whole report: summary, header, warnings, one section per experiment with data."""
-    # Inside the repository the path is shown relative to it, so a committed report does not
-    # carry the path of the machine that rendered it.
-    if results_dir.resolve().is_relative_to(REPO_ROOT):
-        results_dir = results_dir.resolve().relative_to(REPO_ROOT)
-    if parts:
-        names = ", ".join(f"`{p.name}`" for p in parts)
-        preamble: list[Block] = [
-            Paragraph(f"From `{results_dir}`: {len(parts)} experiment(s): {names}."),
-            Bullets(environment_bullets(environments)),
-            Paragraph(HOW_TO_READ),
-        ]
-    else:
-        preamble = [Paragraph(f"No results in `{results_dir}` yet: run `harness/run.py` first.")]
-    sections = [p.section for p in parts]
-    warnings = warnings_section(parts)
-    if warnings is not None:
-        sections.insert(0, warnings)
-    return Document("collide-bench report", tuple(preamble), tuple(sections),
-                    summary_section(parts))
+    """The whole page: what it shows, the summary, one section per experiment with data (its
+    warnings folded in it), then the machines side by side and how to read the numbers."""
+    results_dir = _shown_path(results_dir)
+    if not parts:
+        return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
+                        "first.", tuple(others))
+    names = ", ".join(f"`{p.name}`" for p in parts)
+    lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
+    if shown is not None:
+        lead = f"Measured on **{shown.name}**. " + lead
+    more = []
+    if side_by_side is not None:
+        more.append(f"other machines: {len(others)}, each with its own report (linked under "
+                    f"the title); [side by side](#{side_by_side.anchor}) on the cells they "
+                    "share with this one")
+    appendix = [*([side_by_side] if side_by_side else [])]
+    environment = environment_bullets(environments)
+    if environment:
+        appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
+    appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
+                            (Paragraph(HOW_TO_READ),)))
+    return Document(TITLE, lead, tuple(others), summary_section(parts, more),
+                    tuple(_with_warnings(p) for p in parts), tuple(appendix))
 
 
-def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path) -> ExperimentPart:
-    """The experiment's part from the manifest when its inputs are unchanged, else built."""
-    key = manifest.part_key(input_digest(found))
+def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
+                    machine: str | None = None) -> ExperimentPart:
+    """The experiment's part (of one machine's cells, with `machine`) from the manifest when
+    its inputs are unchanged, else built."""
+    key = manifest.part_key(input_digest(found) + (f"\0{machine}" if machine else ""))
     stored = manifest.get_part(found.name, key)
     if stored is not None:
         return ExperimentPart.from_json(stored, out_dir)
@@ -68,7 +116,7 @@ def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path) -> 
     from harness.report.sections import experiment_section
     from harness.report.summary import experiment_part as build_part
 
-    exp = load_experiment(found)
+    exp = load_experiment(found, machine)
     first = len(manifest.touched)
     part = build_part(exp, experiment_section(exp, manifest))
     manifest.put_part(found.name, key, part.to_json(out_dir), manifest.touched[first:])
@@ -84,32 +132,96 @@ def _remove_stale_figures(fig_dir: Path, keep: set[Path]) -> None:
             path.unlink(missing_ok=True)
 
 
+def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
+    """Pages of machines no longer in the results."""
+    pages = out_dir / MACHINES_DIR
+    if not pages.is_dir():
+        return
+    for path in pages.iterdir():
+        if path.is_dir() and path.name not in keep:
+            shutil.rmtree(path)
+    if not any(pages.iterdir()):
+        pages.rmdir()
+
+
+def _write_page(doc: Document, page_dir: Path) -> None:
+    atomic_write_text(page_dir / f"{PAGE_STEM}.md", render_markdown(doc, page_dir))
+    atomic_write_text(page_dir / f"{PAGE_STEM}.html", render_html(doc, page_dir))
+
+
+def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
+                 machine: machines.Machine | None = None, others: Sequence[Link] = (),
+                 side_by_side: Section | None = None,
+                 rows: machines.Rows | None = None) -> Document:
+    fig_dir = page_dir / FIGURES_DIR
+    page_dir.mkdir(parents=True, exist_ok=True)
+    manifest = Manifest(fig_dir, facts=default_registry().digest())
+    if machine is not None and rows is not None:
+        found = [f for f in found
+                 if any(machines.machine_of(r) == machine.id for r in rows[f.name])]
+    machine_id = machine.id if machine is not None else None
+    parts = [experiment_part(f, manifest, page_dir, machine_id) for f in found]
+    environments = [(f.name, read_env(f.machine(machine_id) if machine_id
+                                      and f.machine(machine_id).is_file() else f.env_json))
+                    for f in found]
+    doc = build_document(parts, results_dir, environments, shown=machine, others=others,
+                         side_by_side=side_by_side)
+    _write_page(doc, page_dir)
+    _remove_stale_figures(fig_dir, document_files(doc))
+    manifest.save()
+    return doc
+
+
 def render(
     results_dir: Path,
     out_dir: Path,
     *,
     include_quick: bool = False,
     experiments: Collection[str] | None = None,
+    machine: str | None = None,
 ) -> Path:
-    """Render report.md, report.html and figures/ under `out_dir` from `results_dir`.
+    """Render report.md and report.html under `out_dir` from `results_dir`.
 
-    Returns the path of report.md. Raises HarnessError for unreadable or malformed results.
+    Where the results hold several machines, each machine's page goes to
+    machines/<machine_id>/ with its figures, and report.{md,html} is the page of the machine
+    that measured last, or of `machine` (an id or its unique start), its figures linked
+    there: a new machine on top redraws nothing of the others. Results of one machine (or
+    without machine ids) make one page with figures/ beside it.
+
+    Returns the path of report.md. Raises HarnessError for unreadable or malformed results,
+    or a `machine` that is not one of theirs.
     """
     results_dir, out_dir = Path(results_dir), Path(out_dir)
     found = find_experiments(results_dir, include_quick=include_quick, only=experiments)
-    fig_dir = out_dir / FIGURES_DIR
+    rows = machines.read_rows(found)
+    named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
+    listed = machines.machines(rows, named - {""})
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would
     # delete each other's figures as stale; the second waits for the first instead.
     # The lock is on the directory itself, so no lock file is left in the report.
     with directory_lock(out_dir):
-        manifest = Manifest(fig_dir, facts=default_registry().digest())
-        parts = [experiment_part(f, manifest, out_dir) for f in found]
-        environments = [(f.name, read_env(f.env_json)) for f in found]
-        doc = build_document(parts, results_dir, environments)
-        markdown = out_dir / "report.md"
-        atomic_write_text(markdown, render_markdown(doc, out_dir))
-        atomic_write_text(out_dir / "report.html", render_html(doc))
-        _remove_stale_figures(fig_dir, document_files(doc))
-        manifest.save()
-    return markdown
+        if len(listed) < 2:
+            # One machine (or none recorded): one page, its figures beside it.
+            shown = machines.pick(listed, machine) if listed or machine else None
+            _render_page(found, results_dir, out_dir, shown, rows=rows)
+            _remove_stale_pages(out_dir, ())
+            return out_dir / f"{PAGE_STEM}.md"
+        top = machines.pick(listed, machine)
+        pages = {m.id: out_dir / MACHINES_DIR / m.id for m in listed}
+
+        def links(page_dir: Path, shown: str) -> list[Link]:
+            return [Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, page_dir))
+                         .as_posix()) for m in listed if m.id != shown]
+
+        for page in listed:
+            doc = _render_page(found, results_dir, pages[page.id], page,
+                               links(pages[page.id], page.id),
+                               machines.side_by_side(rows, page, listed), rows)
+            if page.id == top.id:
+                _write_page(dataclasses.replace(doc, others=tuple(links(out_dir, top.id))),
+                            out_dir)
+        _remove_stale_pages(out_dir, pages)
+        # figures/ beside report.html belong to results without machine ids: stale here.
+        shutil.rmtree(out_dir / FIGURES_DIR, ignore_errors=True)
+    return out_dir / f"{PAGE_STEM}.md"

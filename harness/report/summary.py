@@ -8,7 +8,6 @@ import math
 import pandas as pd
 
 from harness.analysis import phases
-from harness.analysis.cells import MACHINE
 from harness.analysis.display import format_value
 from harness.analysis.flags import flagged_cells
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -47,10 +46,9 @@ def ratio_text(row: pd.Series, column: str = "speedup") -> str:
 
 
 def _where(row: pd.Series) -> str:
+    # The machine is the page's (harness.report.pipeline renders one page per machine).
     threads = int(row["threads"])
-    text = f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
-    machine = row.get(MACHINE)
-    return text + (f", {machine}" if isinstance(machine, str) and machine else "")
+    return f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
 
 
 def _fair(rows: pd.DataFrame) -> pd.DataFrame:

@@ -62,7 +62,7 @@ def test_every_markdown_image_exists(rendered: Path) -> None:
 def test_sections_are_titled_from_the_experiments(rendered: Path) -> None:
     titles = headings((rendered / "report.md").read_text(encoding="utf-8"))
     expected = [
-        "Warnings", "Parallelisation strategies", "Particle count", "Square size",
+        "Parallelisation strategies", "Particle count", "Square size",
         "Particle radius", "Thread scaling", "Relative-velocity collision test", "Spatial grid",
         "Trajectory of a nine-step run", "Accuracy against run time",
     ]
@@ -77,21 +77,46 @@ def test_header_names_machine_compiler_and_commit(rendered: Path) -> None:
         assert text in markdown
 
 
-def test_warnings_list_the_flagged_cells(rendered: Path) -> None:
+def folded(markdown: str) -> dict[str, str]:
+    """The folded blocks of a report.md by anchor: <details id="A">...</details>."""
+    return dict(re.findall(r'<details id="([^"]+)">(.*?)</details>', markdown, flags=re.DOTALL))
+
+
+def test_warnings_are_folded_in_their_sections(rendered: Path) -> None:
     markdown = (rendered / "report.md").read_text(encoding="utf-8")
-    warnings = markdown.split("## Warnings", 1)[1].split("\n## ", 1)[0]
+    blocks = folded(markdown)
+    assert set(blocks) >= {"threads-warnings", "grid-warnings"}
+    # Each sits in its own experiment's section, under its opening paragraph.
+    threads = markdown.split("## Thread scaling", 1)[1].split("\n## ", 1)[0]
+    assert '<details id="threads-warnings">' in threads.split("### ", 1)[0]
+    assert "oversubscribed (128 threads > 16 cores)" in blocks["threads-warnings"]
+    warnings = "".join(blocks.values())
     assert "invalid output" in warnings
     assert "timeout" in warnings
     assert "oversubscribed (128 threads > 16 cores)" in warnings
     assert "unstable timing" in warnings
 
 
-def test_html_is_self_contained(rendered: Path) -> None:
+def test_html_links_its_figures_beside_it(rendered: Path) -> None:
     page = (rendered / "report.html").read_text(encoding="utf-8")
     sources = re.findall(r'<img src="([^"]+)"', page)
-    assert sources and all(s.startswith("data:image/") for s in sources)
-    assert "figures/" not in page.replace("figures/</", "")
+    assert sources and all(s.startswith("figures/") for s in sources)
+    for source in sources:
+        assert (rendered / source).is_file(), source
+    assert "data:" not in page
     assert "<table>" in page and "Thread scaling" in page
+
+
+def test_html_shows_no_markup_characters(rendered: Path) -> None:
+    """Running text is rendered by markdown-it-py: code spans, strong text and links become
+    elements, and no backtick or ** is left in the page's text."""
+    import html
+
+    page = (rendered / "report.html").read_text(encoding="utf-8")
+    body = page.split("<body>", 1)[1]
+    text = html.unescape(re.sub(r"<[^>]+>", " ", body))
+    assert "`" not in text and "**" not in text
+    assert "<code>p1d</code>" in page and '<a href="#' in page
 
 
 def test_a_section_without_data_is_absent(tmp_path: Path) -> None:
@@ -138,7 +163,7 @@ def test_an_experiment_without_times_gets_its_table_but_no_figure(tmp_path: Path
     markdown = (out / "report.md").read_text(encoding="utf-8")
     assert "Measurements" in headings(markdown)
     assert "Time against particles N" not in headings(markdown)
-    section = markdown.split("## Particle count", 1)[1]
+    section = markdown.split("## Particle count", 1)[1].split("### Measurements", 1)[1]
     assert section.count("| timeout |") == 8
     assert not list((out / "figures").glob("*.png"))
 
@@ -324,14 +349,20 @@ def test_script_without_packages_or_venv_says_so(tmp_path: Path) -> None:
 # --- the summary, links and layout ----------------------------------------------------------
 
 
-def test_the_report_opens_with_a_summary_before_the_warnings(rendered: Path) -> None:
+def test_the_report_opens_with_a_summary_then_the_experiments(rendered: Path) -> None:
     markdown = (rendered / "report.md").read_text(encoding="utf-8")
     titles = headings(markdown)
-    assert titles[:3] == ["collide-bench report", "Summary", "Warnings"]
+    assert titles[:3] == ["collide-bench report", "Summary", "Parallelisation strategies"]
+    assert titles[-2:] == ["Machine and tools", "How to read the numbers"]
     summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
     for start in ("- Best strategy: ", "- Grid against seq: ", "- Largest N measured: ",
-                  "- Fidelity: "):
+                  "- Fidelity: ", "- Warnings: "):
         assert start in summary
+    warnings = summary.split("- Warnings: ", 1)[1].split("\n", 1)[0]
+    # A folded table's lines: the header, the rule, one line a cell.
+    flagged = sum(block.count("\n| ") - 2 for block in folded(markdown).values())
+    assert warnings.startswith(f"{flagged} flagged cells (")
+    assert "[threads](#threads-warnings)" in warnings
     assert "1 INVALID of" in summary  # the fixtures have an invalid cell: the verdict says so
     # The largest N of the fixtures is grid's, and the best strategy is not seq or grid.
     assert "`grid`" in summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
@@ -345,7 +376,7 @@ def test_every_summary_link_lands_on_an_anchor(rendered: Path) -> None:
     summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
     targets = re.findall(r"\]\(#([^)]+)\)", summary)
     assert len(targets) >= 4
-    md_anchors = set(re.findall(r'<a id="([^"]+)"></a>', markdown))
+    md_anchors = set(re.findall(r'<(?:a|details) id="([^"]+)"', markdown))
     html_ids = set(re.findall(r'id="([^"]+)"', page))
     for target in targets:
         assert target in md_anchors and target in html_ids, target
@@ -390,13 +421,16 @@ def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
     out = tmp_path / "report"
     pipeline.render(root, out)
     markdown = (out / "report.md").read_text(encoding="utf-8")
+    # One machine: one page, its figures beside it.
+    assert "Measured on **AMD EPYC 7B13 (Zen3) x2**." in markdown
+    assert (out / "figures").is_dir() and not (out / "machines").exists()
     assert "machine = AMD EPYC 7B13 (Zen3) x2" in markdown
     table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
     assert "| machine |" not in table
     assert re.search(r"\| p1 \|.*\| \d\.\d\d \[\d\.\d\d, \d\.\d\d\] \|", table)
     assert "Measured at commit `abcdef0123`." in markdown
     assert "ok · outliers" in table
-    assert "1 outliers" in markdown.split("## Warnings", 1)[1]
+    assert "1 outliers" in markdown.split("- Warnings: ", 1)[1].split("\n", 1)[0]
     best = markdown.split("- Best strategy: ", 1)[1].split("\n", 1)[0]
     assert re.search(r"\d\.\d\d× \[\d\.\d\d, \d\.\d\d\] faster than seq", best)
 
@@ -416,29 +450,63 @@ def doubled(root: Path, name: str) -> tuple[Path, Callable[[dict[str, str]], int
     return csv_path, copy
 
 
-def test_two_machines_become_a_table_column_and_separate_series(tmp_path: Path) -> None:
+def test_each_machine_gets_its_own_page_and_a_comparison(tmp_path: Path) -> None:
+    """Two machines' cells of one config: report.md shows the one that measured last, the
+    other gets machines/<id>/report.md, each page links the other, and both set the machines
+    side by side on the cells they share."""
     root = results_with(tmp_path, "threads")
     csv_path, copy = doubled(root, "threads")
 
     def machine(row: dict[str, str]) -> dict[str, str]:
         first = copy(row) == 1
+        slower = {k: str(2 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
+                                                      "wall_min_s", "wall_max_s") if row[k]}
         return {"machine_id": ("aa" if first else "bb") * 8, "machine": "AMD EPYC",
-                "git_commit": "c0ffee" if first else "decade"}
+                "git_commit": "c0ffee" if first else "decade",
+                "measured_at": "2026-01-01T00:00:00+00:00" if first
+                else "2026-02-01T00:00:00+00:00", **({} if first else slower)}
 
     add_columns(csv_path, machine)
     out = tmp_path / "report"
     pipeline.render(root, out)
-    markdown = (out / "report.md").read_text(encoding="utf-8")
-    table = markdown.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
-    # One label, two machine ids: the label is told apart by the id's start.
-    assert "| machine |" in table
-    assert "AMD EPYC (aaaaaaaa)" in table and "AMD EPYC (bbbbbbbb)" in table
-    assert "Measured at commits `c0ffee` (16 cells), `decade` (16 cells)." in markdown
+    main = (out / "report.md").read_text(encoding="utf-8")
+    pages = out / "machines"
+    other = (pages / ("aa" * 8) / "report.md").read_text(encoding="utf-8")
+    # bb measured last: it is the page on top; one label, told apart by the id's start.
+    assert main == (pages / ("bb" * 8) / "report.md").read_text(encoding="utf-8").replace(
+        "](../aaaaaaaaaaaaaaaa/report.md)", "](machines/aaaaaaaaaaaaaaaa/report.md)").replace(
+        "](figures/", "](machines/bbbbbbbbbbbbbbbb/figures/")
+    assert "Measured on **AMD EPYC (bbbbbbbb)**" in main
+    assert "Measured on **AMD EPYC (aaaaaaaa)**" in other
+    assert "Other machines: [AMD EPYC (aaaaaaaa)](machines/aaaaaaaaaaaaaaaa/report.md)." in main
+    assert "Other machines: [AMD EPYC (bbbbbbbb)](../bbbbbbbbbbbbbbbb/report.md)." in other
+    for page, commit in ((main, "decade"), (other, "c0ffee")):
+        table = page.split("*Per-cell statistics", 1)[1].split("\n\n", 2)[1]
+        assert "| machine |" not in table
+        assert f"Measured at commit `{commit}`." in page
+    assert not (out / "figures").exists()
+    for machine_id in ("aa", "bb"):
+        assert (pages / (machine_id * 8) / "figures" / "threads-speedup.png").is_file()
+    assert "](machines/bbbbbbbbbbbbbbbb/figures/threads-speedup.png)" in main
+    side = main.split("## Machines side by side", 1)[1].split("\n## ", 1)[0]
+    # 15 of the 16 cells are ok on both (one timed out)
+    assert "| threads | AMD EPYC (aaaaaaaa) | 15 | 0.50 | 0.50 – 0.50 |" in side
+    assert "[side by side](#machines)" in main.split("## Summary", 1)[1]
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert '<a href="machines/aaaaaaaaaaaaaaaa/report.html">' in html
+
+    # --machine picks the page on top; nothing is drawn again.
+    drawn = {p: p.stat().st_mtime_ns for p in pages.rglob("*.png")}
+    pipeline.render(root, out, machine="aaaa")
+    assert "Measured on **AMD EPYC (aaaaaaaa)**" in (out / "report.md").read_text()
+    assert drawn == {p: p.stat().st_mtime_ns for p in pages.rglob("*.png")}
+    with pytest.raises(HarnessError, match="--machine cc: is not a machine"):
+        pipeline.render(root, out, machine="cc")
 
 
-def test_the_summary_speaks_of_the_latest_machine(tmp_path: Path) -> None:
-    """Two machines' cells side by side: the headlines come from the machine that measured
-    last (env.json's machine_id), not from whichever machine was slower or faster."""
+def test_without_measured_at_the_machine_of_env_json_is_the_latest(tmp_path: Path) -> None:
+    """Two machines' cells side by side and no measurement times: the page on top is the
+    machine env.json names (the latest run's), and its headlines come from its cells."""
     root = results_with(tmp_path, "grid")
     csv_path, copy = doubled(root, "grid")
 
@@ -455,8 +523,11 @@ def test_the_summary_speaks_of_the_latest_machine(tmp_path: Path) -> None:
     env_path.write_text(json.dumps({**env, "machine_id": "1a" * 8}), encoding="utf-8")
     out = tmp_path / "report"
     pipeline.render(root, out)
-    markdown = (out / "report.md").read_text(encoding="utf-8")
-    summary = markdown.split("## Summary", 1)[1].split("\n## ", 1)[0]
-    largest = summary.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
-    assert "New box x2" in largest and "Old box x2" not in largest, largest
-    assert "Old box x2" not in summary.split("- Grid against seq: ", 1)[1].split("\n", 1)[0]
+    new = (out / "report.md").read_text(encoding="utf-8")
+    old = (out / "machines" / ("0d" * 8) / "report.md").read_text(encoding="utf-8")
+    assert "Measured on **Old box x2**." in old
+    assert new.startswith("# collide-bench report\n\nMeasured on **New box x2**.")
+    largest = [page.split("- Largest N measured: ", 1)[1].split("\n", 1)[0]
+               for page in (new, old)]
+    new_s, old_s = (float(re.search(r" in ([\d.]+) s", text).group(1)) for text in largest)
+    assert old_s == pytest.approx(3 * new_s, rel=0.01)

@@ -34,7 +34,7 @@ LEGEND_IN = 0.5
 SCENE_TITLE_IN = 0.28
 TICKS_IN = 0.32
 XLABEL_IN = 0.3
-CHAR_IN = 0.075  # a tick label character at 9-10 pt
+CHAR_IN = 0.09  # a tick label character at 9-10 pt (capitals: OMP_SCHEDULE=...)
 LEFT_IN = (0.7, 3.2)  # the label column's narrowest and widest (a variant and a machine)
 TOTAL_ROOM = 1.28  # the seconds axis reaches past the longest bar by this factor, for its label
 SHARE_LABEL_MIN = 12.0  # a segment narrower than this (percent) carries no label

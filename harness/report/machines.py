@@ -1,0 +1,149 @@
+"""The machines a results directory holds, and the short section that sets them side by side.
+
+A report page shows one machine (harness.report.pipeline renders one page per machine); this
+module finds the machines from the experiments' results.csv with the standard library alone
+(a render whose experiments are cached needs no pandas), says which measured last, and
+compares each other machine's medians with the shown one's on the cells both measured.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass
+
+from harness.errors import HarnessError
+from harness.report.document import Paragraph, Section, Table
+from harness.store.columns import OK
+from harness.store.layout import ExperimentDir
+from harness.store.records import MACHINE_KEY
+
+LABEL_KEY = "machine"
+MEASURED_AT = "measured_at"
+MEDIAN = "wall_median_s"
+# A cell measured on two machines is the same cell when these agree (the machine aside).
+MATCH_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "steps", "mode",
+                               "seed", "threads", "schedule")
+UNKNOWN_ID = "unknown"  # rows from before machine identity was recorded
+SHORT_ID = 8  # characters of a machine id shown beside its label
+ANCHOR = "machines"
+TITLE = "Machines side by side"
+
+
+@dataclass(frozen=True)
+class Machine:
+    id: str
+    label: str
+    last_measured: str  # the latest measured_at of its cells (ISO 8601, sorts as text)
+    cells: int
+    name: str = ""  # how pages call it: its label, with the start of its id where shared
+
+
+Rows = dict[str, list[dict[str, str]]]  # experiment name -> its results.csv rows
+
+
+def read_rows(found: Sequence[ExperimentDir]) -> Rows:
+    """Every experiment's results.csv rows (as text)."""
+    rows: Rows = {}
+    for exp in found:
+        try:
+            with exp.results_csv.open(newline="", encoding="utf-8") as handle:
+                rows[exp.name] = list(csv.DictReader(handle))
+        except (OSError, UnicodeDecodeError, csv.Error) as e:
+            raise HarnessError(f"{exp.results_csv}: cannot read results: {e}") from e
+    return rows
+
+
+def _name(machine: Machine, found: Sequence[Machine]) -> str:
+    """Its label; with the start of its id where another machine writes the same label (two
+    VMs of one cloud model do), or where it has none."""
+    if machine.id == UNKNOWN_ID:
+        return machine.label or "an unrecorded machine"
+    if machine.label and sum(m.label == machine.label for m in found) == 1:
+        return machine.label
+    return f"{machine.label or 'machine'} ({machine.id[:SHORT_ID]})"
+
+
+def machine_of(row: dict[str, str]) -> str:
+    return (row.get(MACHINE_KEY) or "").strip() or UNKNOWN_ID
+
+
+def machines(rows: Rows, preferred: Collection[str] = ()) -> list[Machine]:
+    """The machines that measured the rows, the one that measured last first; between equal
+    times (rows without `measured_at`) a `preferred` one (the machine an env.json names: it
+    measured the latest run), then by id. Empty when no row records its machine."""
+    if not any((row.get(MACHINE_KEY) or "").strip() for table in rows.values()
+               for row in table):
+        return []
+    seen: dict[str, list[dict[str, str]]] = {}
+    for table in rows.values():
+        for row in table:
+            seen.setdefault(machine_of(row), []).append(row)
+    found = []
+    for machine_id, own in seen.items():
+        labels = sorted({(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
+        last = max((r.get(MEASURED_AT) or "" for r in own), default="")
+        found.append(Machine(machine_id, labels[0] if labels else "", last, len(own)))
+    found = [dataclasses.replace(m, name=_name(m, found)) for m in found]
+    by_id = sorted(found, key=lambda m: m.id)
+    # Stable: equal keys keep the order by id.
+    return sorted(by_id, key=lambda m: (m.last_measured, m.id in preferred), reverse=True)
+
+
+def pick(found: Sequence[Machine], wanted: str | None) -> Machine:
+    """The machine a page shows: `wanted` (an id or the unique start of one), else the one
+    that measured last."""
+    if wanted is None:
+        return found[0]
+    matches = [m for m in found if m.id == wanted] or [
+        m for m in found if m.id.startswith(wanted)]
+    if len(matches) != 1:
+        known = ", ".join(f"{m.id} ({m.label or 'no label'})" for m in found) or "none recorded"
+        what = "matches several machines" if matches else "is not a machine of these results"
+        raise HarnessError(f"--machine {wanted}: {what}; the machines: {known}")
+    return matches[0]
+
+
+def _medians(table: list[dict[str, str]], machine_id: str) -> dict[tuple[str, ...], float]:
+    medians = {}
+    for row in table:
+        if machine_of(row) != machine_id or row.get("status") != OK:
+            continue
+        try:
+            median = float(row.get(MEDIAN) or "nan")
+        except ValueError:
+            continue
+        if math.isfinite(median) and median > 0:
+            medians[tuple(row.get(k) or "" for k in MATCH_KEYS)] = median
+    return medians
+
+
+def side_by_side(rows: Rows, shown: Machine, found: Sequence[Machine]) -> Section | None:
+    """Each other machine against the shown one, experiment by experiment, on the cells both
+    measured (ok on both): how many, and the ratio of their median times; None when no cell
+    was measured on two machines."""
+    table_rows = []
+    for other in found:
+        if other.id == shown.id:
+            continue
+        for name, table in rows.items():
+            mine, theirs = _medians(table, shown.id), _medians(table, other.id)
+            ratios = sorted(theirs[k] / mine[k] for k in mine.keys() & theirs.keys())
+            if not ratios:
+                continue
+            geomean = math.exp(sum(math.log(r) for r in ratios) / len(ratios))
+            table_rows.append((name, other.name, str(len(ratios)), f"{geomean:.2f}",
+                               f"{ratios[0]:.2f} – {ratios[-1]:.2f}"))
+    if not table_rows:
+        return None
+    table = Table(("experiment", "other machine", "cells on both", "time ratio",
+                   "range"), tuple(table_rows), (False, False, True, True, True),
+                  f"The other machines' median times over this one's ({shown.name}).")
+    text = Paragraph(
+        "Cells measured on this machine and on another one, matched on variant, build, scene "
+        "and threads, both ok. The time ratio is the geometric mean of the other machine's "
+        "median over this one's: above 1, this machine was faster. Each machine's own "
+        "report (linked under the title) shows its cells in full.")
+    return Section(TITLE, ANCHOR, (text, table))
