@@ -250,7 +250,9 @@ CI = kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.fraction)
 
 def _parse_variant_measures(value: object, base: object, variants: Sequence[str],
                             source: Path) -> tuple[tuple[str, Measure], ...]:
-    """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s}}`, over `measure`'s keys."""
+    """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s, ...}}`, over `measure`'s keys
+    (a variant's fixed `runs` drops the adaptive settings of a `runs: auto` it would
+    inherit)."""
     raw = kinds.mapping(value, "measure_by_variant", source)
     result = []
     for variant, settings in raw.items():
@@ -259,8 +261,12 @@ def _parse_variant_measures(value: object, base: object, variants: Sequence[str]
             raise config_error(source, label, "one of the config's variants ("
                                + ", ".join(variants) + ")", variant)
         # `measure`'s keys are checked already: an unknown key here is the variant's own
-        merged = {**kinds.mapping(base, "measure", source),
-                  **kinds.mapping(settings, label, source)}
+        own = kinds.mapping(settings, label, source)
+        inherited = dict(kinds.mapping(base, "measure", source))
+        if own.get("runs", AUTO_RUNS) != AUTO_RUNS:  # a fixed count: no adaptive settings
+            for key in ADAPTIVE_KEYS:
+                inherited.pop(key, None)
+        merged = {**inherited, **own}
         result.append((str(variant), _parse_measure(merged, source, label)))
     return tuple(result)
 

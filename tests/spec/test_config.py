@@ -258,6 +258,16 @@ def test_measure_by_variant_overrides_measure_keys(write_config) -> None:
     assert (slow.warmup, slow.runs, slow.timeout_s) == (0, 1, 60.0)
 
 
+def test_a_fixed_count_for_one_variant_leaves_the_base_adaptive_settings(write_config) -> None:
+    text = ("variants: [p1d, p2d]\nscene: {n: 100, L: 1000, r: 1, steps: 5}\n"
+            "measure: {runs: auto, ci: 0.05, max_runs: 9}\n"
+            "measure_by_variant: {p2d: {runs: 2}, p1d: {max_runs: 4}}\n")
+    config = load_config(write_config(text))
+    fixed, auto = config.measure_for("p2d"), config.measure_for("p1d")
+    assert (fixed.runs, fixed.adaptive) == (2, False)
+    assert (auto.adaptive, auto.ci, auto.max_runs) == (True, 0.05, 4)
+
+
 @pytest.mark.parametrize(("value", "key", "expected"), [
     ("{p3: {runs: 1}}", "measure_by_variant.p3", "one of the config's variants"),
     ("{p1d: {runs: 0}}", "measure_by_variant.p1d.runs", "a positive integer"),
