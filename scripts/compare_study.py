@@ -13,8 +13,10 @@ Parts, each a real measurement with this checkout's build/ (every command it run
              `compare` of each pair: with the assumed drift (no calibration), and with this
              machine's calibration where the calibrate part made one;
   calibrate  `compare --calibrate CONFIG` into OUT/calibration (before apart, when both run);
-  adaptive   `run CONFIG` with its fixed runs and with `runs: auto`, alternating A B A B, for
-             each of --adaptive-configs: the wall time and the width of the cells' intervals.
+  adaptive   each of --adaptive-configs as written and measured the other way (adaptive
+             measures as a fixed 3 runs, or a fixed base measure as `runs: auto`),
+             alternating A B (--adaptive-repeats times): the wall time of the whole `run`
+             and the width of the cells' intervals.
 Prints Markdown; everything measured stays under OUT.
 """
 
@@ -136,16 +138,32 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
     return results
 
 
-def with_auto(config: Path, out: Path) -> Path:
-    """A copy of the config (beside it, so relative paths hold) measured with runs: auto."""
+FIXED_RUNS = 3  # the fixed count the adaptive measure is compared with
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
+
+
+def counterpart(config: Path, out: Path) -> tuple[str, Path]:
+    """The config measured the other way (beside it in OUT): its adaptive measures as a fixed
+    FIXED_RUNS runs, or its fixed base measure as `runs: auto`; the label of that way."""
     raw = yaml.safe_load(config.read_text())
     measure = dict(raw.get("measure") or {})
-    measure["runs"] = "auto"
+    adaptive = measure.get("runs") == "auto"
+    if adaptive:
+        measure = {k: v for k, v in measure.items() if k not in ADAPTIVE_KEYS}
+        measure["runs"] = FIXED_RUNS
+        by_variant = raw.get("measure_by_variant") or {}
+        for variant, own in list(by_variant.items()):
+            if own.get("runs") == "auto":
+                by_variant[variant] = {**{k: v for k, v in own.items()
+                                          if k not in ADAPTIVE_KEYS}, "runs": FIXED_RUNS}
+    else:
+        measure["runs"] = "auto"
     raw["measure"] = measure
-    raw["name"] = f"{raw.get('name', config.stem)}-auto"
-    target = out / f"{config.stem}-auto.yaml"
+    label = f"fixed{FIXED_RUNS}" if adaptive else "auto"
+    raw["name"] = f"{raw.get('name', config.stem)}-{label}"
+    target = out / f"{config.stem}-{label}.yaml"
     target.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return target
+    return label, target
 
 
 def interval_widths(root: Path) -> list[float]:
@@ -162,11 +180,14 @@ def interval_widths(root: Path) -> list[float]:
 
 
 def part_adaptive(out: Path, configs: Sequence[Path], repeats: int) -> list[dict[str, object]]:
+    """Each config as written and measured the other way, alternating A B A B."""
     results = []
     for config in configs:
-        auto = with_auto(config, out)
+        raw = yaml.safe_load(config.read_text())
+        written = "auto" if (raw.get("measure") or {}).get("runs") == "auto" else "fixed"
+        other, other_path = counterpart(config, out)
         for k in range(1, repeats + 1):
-            for label, path in (("fixed", config), ("auto", auto)):
+            for label, path in ((written, config), (other, other_path)):
                 root = out / f"adaptive-{config.stem}-{label}-{k}"
                 code, seconds = sh([*HARNESS, "run", path, "--results-dir", root, "--force",
                                     "--no-report"], out / f"{root.name}.log")
@@ -205,6 +226,7 @@ def main() -> int:
     parser.add_argument("--slowdown", type=float, default=0.05)
     parser.add_argument("--adaptive-configs", type=Path, nargs="*",
                         default=[REPO_ROOT / "configs" / "quickstart.yaml"])
+    parser.add_argument("--adaptive-repeats", type=int, default=2)
     args = parser.parse_args()
     parts = [p for p in args.parts.split(",") if p]
     unknown = set(parts) - set(PARTS)
@@ -227,7 +249,7 @@ def main() -> int:
             summary[part] = part_apart(out, config, args.repeats)
         else:
             summary[part] = part_adaptive(out, [c.resolve() for c in args.adaptive_configs],
-                                          2)
+                                          args.adaptive_repeats)
         (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     print(markdown(summary))
     return 0
