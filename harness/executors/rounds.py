@@ -4,12 +4,14 @@ First every cell's untimed runs (its --precise run, validation, checks: Measurer
 rounds: in each, every cell that still needs runs gets one hyperfine call, in an order shuffled
 from the run's seed (recorded in each record), until every cell has its runs. The machine's
 slow drift thus falls on all cells alike. Two cells can be partners (the two sides of a
-comparison, harness.runner.pair): they then stop together, so that each round holds a run of
-both and their rounds can be compared pair by pair.
+comparison, harness.runner.pair): they then take the same runs a round (a few, for a fast
+cell: share_rounds) and stop together, so that each round holds runs of both and their rounds
+can be compared pair by pair.
 """
 
 from __future__ import annotations
 
+import math
 import random
 import statistics
 import time
@@ -24,6 +26,11 @@ from harness.store import records
 from harness.store.columns import STOPPED_CI
 
 SEED_KEY = "round_seed"
+# A paired cell's round times a few runs a side, about PAIRED_ROUND_S of them (at most
+# PAIRED_MAX_PER_ROUND): the round's ratio is then that of two medians, which one run slowed by
+# a descheduled thread (tens of percent, for a 2-thread cell on 2 cores) cannot move.
+PAIRED_ROUND_S = 0.25
+PAIRED_MAX_PER_ROUND = 5
 
 
 @dataclass(eq=False)
@@ -68,6 +75,24 @@ def pair_up(units: Sequence[Unit]) -> None:
                 b.stopped = a.stopped
 
 
+def paired_per_round(run_s: float) -> int:
+    """The runs a paired cell's round times, for a cell whose run takes run_s."""
+    if run_s <= 0:
+        return PAIRED_MAX_PER_ROUND
+    return max(1, min(PAIRED_MAX_PER_ROUND, math.ceil(PAIRED_ROUND_S / run_s)))
+
+
+def share_rounds(units: Sequence[Unit]) -> None:
+    """Partners not yet timed take the same runs a round, from the slower one's run time."""
+    for unit in units:
+        partner = unit.partner
+        if partner is None or unit.run is None or partner.run is None:
+            continue
+        a, b = unit.state, partner.state
+        if not a.times and not b.times:
+            a.per_round = b.per_round = paired_per_round(max(a.run_s, b.run_s))
+
+
 def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
                       seed: int) -> None:
     """Start every unit, then time them in rounds; on_done(unit, record) as each is done."""
@@ -80,6 +105,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
         active.append(unit)
+    share_rounds(active)
     round_index = max((u.state.rounds[-1] for u in active if u.state.rounds), default=0)
     active = _finish_done(active, on_done)
     overhead = 0.0  # seconds a round's hyperfine call takes beyond its runs

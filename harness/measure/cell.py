@@ -150,14 +150,14 @@ class Measurer:
         """One round of the cell's timed runs (hyperfine), and whether it needs more."""
         variant = str(run.record["variant"])
         measure = self.config.measure_for(variant)
-        runs = next_runs(measure, run.times)
+        runs = next_runs(measure, run.times, run.per_round)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
         env = self.environment(int(str(run.record["threads"])), str(run.record["schedule"]))
         warmup = measure.warmup if not run.exports else 0
         run.add(time_runs(self.hyperfine, run.command, env, export, runs, warmup,
                           measure.timeout_s, self.cores), round_index, export)
         if run.timed:
-            run.stopped = stop_reason(measure, run.times)
+            run.stopped = stop_reason(measure, run.times, run.per_round)
 
     def keep(self, run: CellRun) -> None:
         """Keep the state of a cell that needs more rounds on disk (an interrupted run resumes

@@ -52,6 +52,9 @@ class CellRun:
     warnings: list[str] = field(default_factory=list)
     loaded: bool = False
     stopped: str = ""  # why its timing stopped (STOPPED_*); "" while it goes on
+    # Runs a round for each run the measure counts: a paired cell's rounds each time a few
+    # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
+    per_round: int = 1
 
     @property
     def timed(self) -> bool:
@@ -100,30 +103,31 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     done = len(run.times)
     if run.done:
         return 0.0, 0.0
-    most = float(measure.most_runs - done)
+    most = float(measure.most_runs * run.per_round - done)
     if not measure.adaptive:
         return most, most
     per_run = statistics.fmean(run.times) if run.times else run.run_s
     if per_run > 0:
         most = min(most, max(1.0, (measure.max_time_s - math.fsum(run.times)) / per_run))
-    return float(max(1, measure.first_runs - done)), most
+    return float(max(1, measure.first_runs * run.per_round - done)), most
 
 
-def next_runs(measure: Measure, times: Sequence[float]) -> int:
+def next_runs(measure: Measure, times: Sequence[float], per_round: int = 1) -> int:
     """How many runs the cell's next round times (none once it has them all).
 
-    A fixed count: one a round, so that its runs spread over as many rounds as it has runs.
-    `runs: auto`: one a round while a measured comparison still needs rounds (min_runs);
-    then AUTO_FIRST_RUNS in its first round, enough for an interval; then as many as its
-    interval says it needs to narrow to +-ci (a half-width shrinks as one over the root of
-    the runs), at most doubling its runs a round, so that a noisy cell still spreads over
-    several rounds, and within max_runs and max_time_s."""
+    A fixed count: `per_round` a round (one, but for a paired cell), so that its runs spread
+    over as many rounds as the measure counts runs. `runs: auto`: as many while a measured
+    comparison still needs rounds (min_runs); then AUTO_FIRST_RUNS in its first round, enough
+    for an interval; then as many as its interval says it needs to narrow to +-ci (a
+    half-width shrinks as one over the root of the runs), at most doubling its runs a round,
+    so that a noisy cell still spreads over several rounds, and within max_runs and
+    max_time_s."""
     done = len(times)
-    left = measure.most_runs - done
+    left = measure.most_runs * per_round - done
     if left <= 0:
         return 0
-    if not measure.adaptive or done < measure.min_runs:
-        return 1
+    if not measure.adaptive or done < measure.min_runs * per_round:
+        return min(per_round, left)
     if done < AUTO_FIRST_RUNS:
         return min(AUTO_FIRST_RUNS - done, left)
     needed = math.ceil(done * (relative_half_width(times) / measure.ci) ** 2) - done
@@ -134,13 +138,13 @@ def next_runs(measure: Measure, times: Sequence[float]) -> int:
     return runs
 
 
-def stop_reason(measure: Measure, times: Sequence[float]) -> str:
+def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
     """Why a cell with these runs needs no more ("" while it does)."""
     if not measure.adaptive:
-        return STOPPED_RUNS if len(times) >= measure.most_runs else ""
-    if len(times) >= measure.first_runs and narrow(times, measure.ci):
+        return STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
+    if len(times) >= measure.first_runs * per_round and narrow(times, measure.ci):
         return STOPPED_CI
-    if len(times) >= measure.max_runs:
+    if len(times) >= measure.max_runs * per_round:
         return STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:
         return STOPPED_MAX_TIME

@@ -1,6 +1,6 @@
 """Measuring two sides together (`compare --measure OLD NEW CONFIG...`): every cell of the
 configs once with OLD's binaries and once with NEW's, in the same interleaved rounds (the two
-sides of a cell are partners: they stop together, and each round holds a run of both), under
+sides of a cell are partners: they stop together, and each round holds runs of both), under
 the machine's measuring lock. Each side's results become an ordinary results root (OUT/old,
 OUT/new), written under OUT/.measure and moved into place once both are complete, so that
 `compare OUT/old OUT/new` reads them again."""

@@ -8,8 +8,15 @@ import io
 from dataclasses import dataclass, field
 
 from harness.executors.base import Progress
-from harness.executors.rounds import Unit, measure_in_rounds, pair_up
-from harness.measure.rounds import CellRun, stop_reason
+from harness.executors.rounds import (
+    PAIRED_MAX_PER_ROUND,
+    Unit,
+    measure_in_rounds,
+    pair_up,
+    paired_per_round,
+    share_rounds,
+)
+from harness.measure.rounds import CellRun, next_runs, stop_reason
 from harness.spec.config import Measure
 
 
@@ -108,3 +115,20 @@ def test_partners_stop_together() -> None:
     a.run.stopped, b.run.stopped = "max_runs", ""
     pair_up([a, b])
     assert b.run.stopped == "max_runs"  # a limit stops both
+
+
+def test_partners_share_a_few_runs_a_round_by_the_slower_ones_time() -> None:
+    assert paired_per_round(0.006) == PAIRED_MAX_PER_ROUND  # a few milliseconds: the most
+    assert paired_per_round(0.1) == 3 and paired_per_round(2.0) == 1
+    fixed = Measure(warmup=0, runs=8)
+    a, b, alone = (Unit(FakeMeasurer(fixed, []), Cell(), cid)  # type: ignore[arg-type]
+                   for cid in ("a", "b", "c"))
+    a.partner, b.partner = b, a
+    a.run = CellRun("a", {}, {}, "ok", 0, [], run_s=0.05)
+    b.run = CellRun("b", {}, {}, "ok", 0, [], run_s=0.1)
+    alone.run = CellRun("c", {}, {}, "ok", 0, [], run_s=0.01)
+    share_rounds([a, b, alone])
+    assert (a.run.per_round, b.run.per_round, alone.run.per_round) == (3, 3, 1)
+    # 8 rounds of 3 runs each, then done
+    assert next_runs(fixed, [0.1] * 21, 3) == 3 and stop_reason(fixed, [0.1] * 21, 3) == ""
+    assert stop_reason(fixed, [0.1] * 24, 3) == "runs" and next_runs(fixed, [0.1] * 24, 3) == 0
