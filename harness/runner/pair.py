@@ -32,7 +32,7 @@ from harness.store.locks import RunLock
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
 # The fewest rounds a cell pair gets: the paired test needs them to find a 5% change on a
 # shared machine (docs/compare.md has the numbers).
-MIN_ROUNDS = 8
+MIN_ROUNDS = 12
 WORK_DIR = ".measure"  # OUT/.measure: the sides while they are measured
 
 

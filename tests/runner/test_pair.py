@@ -12,6 +12,7 @@ import pytest
 from harness.analysis import compare, resultsets
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
+from harness.runner import pair
 from harness.runner.sides import BuildSide, build, resolve
 
 from commands import compare_main
@@ -29,7 +30,8 @@ def test_identical_sides_measured_together(real_binaries: Path, tmp_path: Path,
                            "--out", str(out), "--results-dir", str(tmp_path / "results")])
     printed = capsys.readouterr()
     assert status == 0, printed.out + printed.err
-    assert "in 8 interleaved rounds" in printed.out  # a pair gets at least 8 rounds
+    # a pair gets at least MIN_ROUNDS rounds
+    assert f"in {pair.MIN_ROUNDS} interleaved rounds" in printed.out
     assert "2 cells compared: 0 slower, 0 faster, 2 no significant change" in printed.out
     assert "| measured together |" in printed.out
     for side in ("old", "new"):
