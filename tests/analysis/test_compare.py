@@ -423,3 +423,17 @@ def test_different_inputs_are_noted(tmp_path: Path) -> None:
          "wall_times_s": times_text(BASE)}]) for side, sha in (("o", "aa"), ("n", "bb")))
     rows = compare.compare(*sides(old, new), compare.DEFAULT_THRESHOLD, DRIFT)
     assert [(r.kind, r.note) for r in rows] == [(compare.SAME, "the input files differ")]
+
+
+def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:
+    from harness.report.figures import compare as figure
+
+    times, rounds = (1.0, 1.1, 0.9, 1.0), (1, 2, 3, 4)
+    paired = compare.compare_cells(synthetic(times, rounds=rounds, seed="9"),
+                                   synthetic(times, rounds=rounds, seed="9"), 0.01, DRIFT)
+    apart = compare.compare_cells(synthetic(times), synthetic(times), 0.01, DRIFT)
+    assert "geometric mean of the per-round ratios" in figure.ratio_label([paired])
+    assert "widened by the drift" in figure.ratio_label([apart])
+    assert "the method per cell" in figure.ratio_label([paired, apart])
+    assert [p.suffix for p in figure.write_figure([paired], 0.01, tmp_path / "c")] == [
+        ".png", ".svg"]

@@ -10,7 +10,7 @@ from pathlib import Path
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from harness.analysis.compare import FASTER, SAME, SLOWER, Row
+from harness.analysis.compare import APART, FASTER, PAIRED, SAME, SLOWER, Row
 from harness.report.figures.base import log_axis, new_figure, save_figure
 
 # The figure switches to a log ratio axis when the plotted span exceeds this factor.
@@ -25,6 +25,19 @@ LABEL_CHAR_IN = 0.068  # inches per character of an 8-point cell label, with roo
 PLOT_WIDTH_IN = 5.5  # inches of axes beside the labels
 
 VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", SAME: "#555555"}
+# What the ratio and its interval are, by the method the cells were compared with.
+RATIO_TEXT = {
+    PAIRED: "NEW / OLD, the geometric mean of the per-round ratios with its 95% interval",
+    APART: "NEW / OLD median wall time, with its 95% interval widened by the drift",
+}
+
+
+def ratio_label(rows: Sequence[Row]) -> str:
+    """The x axis label for the methods the shown rows used."""
+    methods = [m for m in (PAIRED, APART) if any(r.method == m for r in rows)]
+    if len(methods) == 1:
+        return f"{RATIO_TEXT[methods[0]]} (> 1: slower)"
+    return "NEW / OLD with its 95% interval (> 1: slower; the method per cell: compare.md)"
 
 
 def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]:
@@ -70,8 +83,7 @@ def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path
     ax.set_yticks(ys)
     ax.set_yticklabels([r.key.label() for r in shown], fontsize=8)
     ax.set_ylim(-0.7, len(shown) - 0.3)
-    ax.set_xlabel("NEW / OLD median wall time, with its 95% bootstrap interval (> 1: slower)",
-                  fontsize=9)
+    ax.set_xlabel(ratio_label(shown), fontsize=9)
     title = "NEW against OLD per cell"
     if len(shown) < len(plottable):
         title += (f": {len(shown)} of {len(plottable)} compared cells "
