@@ -190,7 +190,7 @@ def test_one_thread_count_per_experiment_and_notes(tmp_path: Path) -> None:
     text = section((out / "report.md").read_text(encoding="utf-8"), "Where the time goes")
     assert "at 1 thread, the thread count most" in text
     assert "3 cell(s) at other thread counts are not shown" in text
-    assert "1 timed cell(s) were measured by a binary without phase timers" in text
+    assert "1 timed cell(s) have no phases (a program, or a binary without phase timers)" in text
 
 
 def test_scenes_get_their_own_rows_and_the_largest_grid_leads_the_summary(

@@ -39,8 +39,8 @@ def _left_out(sel: phases.Selection) -> str:
         notes.append(f"{sel.scenes_left_out} more scene(s), those with the least simulation "
                      f"time, are left out (at most {phases.MAX_BARS} bars)")
     if sel.without_phases:
-        notes.append(f"{sel.without_phases} timed cell(s) were measured by a binary without "
-                     "phase timers")
+        notes.append(f"{sel.without_phases} timed cell(s) have no phases (a program, or a "
+                     "binary without phase timers)")
     return "; ".join(notes) + "." if notes else ""
 
 
