@@ -44,7 +44,7 @@ def test_identical_sides_measured_together(real_binaries: Path, tmp_path: Path,
     rows = compare.compare(old, new, compare.DEFAULT_THRESHOLD,
                            compare.Drift(0.04, "unused when measured together"))
     assert [r.method for r in rows] == [compare.PAIRED] * 2
-    assert all(len(r.old.by_round()) == 8 for r in rows)  # type: ignore[union-attr]
+    assert all(len(r.old.by_round()) == pair.MIN_ROUNDS for r in rows)  # type: ignore[union-attr]
 
 
 @pytest.mark.parametrize(("old", "new", "config", "message"), [
