@@ -160,7 +160,7 @@ def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
 def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     """The verdict on correctness: invalid cells, byte identity, the checks."""
     total = sum((p.fidelity for p in parts), Fidelity())
-    if not total.validated and not total.checked:
+    if not total.validated and not total.checked and not total.programs:
         return None
     sentences = []
     if total.validated:
@@ -178,6 +178,10 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
         anchor = next((p.fidelity_anchor for p in parts if p.fidelity.checked), "")
         sentences.append(f"{total.checks_passed} of {total.checked} checked cells pass every "
                          f"accuracy and stability check ([checks](#{anchor}))")
+    if total.programs:
+        anchor = next(p.programs_anchor for p in parts if p.fidelity.programs)
+        sentences.append(f"{total.programs_agree} of {total.programs} program cells agree with "
+                         f"seq (identical, rounding or diverges) ([programs](#{anchor}))")
     return "fidelity: " + "; ".join(sentences)
 
 

@@ -31,12 +31,15 @@ class Fidelity:
     invalid: int = 0  # an exact variant that differs
     checked: int = 0  # cells with the accuracy and stability checks
     checks_passed: int = 0
+    programs: int = 0  # program cells (their verdict is their agreement with seq)
+    programs_agree: int = 0  # identical, rounding or diverges
 
     def __add__(self, other: Fidelity) -> Fidelity:
         return Fidelity(*(a + b for a, b in zip(self.counts(), other.counts(), strict=True)))
 
     def counts(self) -> tuple[int, ...]:
-        return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed)
+        return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed,
+                self.programs, self.programs_agree)
 
 
 # In the summary's order; "phases": where grid's time goes.
@@ -53,6 +56,7 @@ class ExperimentPart:
     highlights: dict[str, Highlight] = field(default_factory=dict)  # by HIGHLIGHT_KINDS
     fidelity: Fidelity = Fidelity()
     fidelity_anchor: str = ""  # where the checks or validation of this experiment are shown
+    programs_anchor: str = ""  # where its programs' agreement is shown
 
     def to_json(self, base: Path) -> dict[str, Any]:
         return {
@@ -62,6 +66,7 @@ class ExperimentPart:
             "warning_issues": [list(r) for r in self.warning_issues],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
             "fidelity": list(self.fidelity.counts()), "fidelity_anchor": self.fidelity_anchor,
+            "programs_anchor": self.programs_anchor,
         }
 
     @classmethod
@@ -71,5 +76,5 @@ class ExperimentPart:
             tuple(data["warning_columns"]), tuple(tuple(r) for r in data["warning_rows"]),
             tuple(tuple(r) for r in data["warning_issues"]),
             {k: Highlight(*v) for k, v in data["highlights"].items()},
-            Fidelity(*data["fidelity"]), data["fidelity_anchor"],
+            Fidelity(*data["fidelity"]), data["fidelity_anchor"], data["programs_anchor"],
         )

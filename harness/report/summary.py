@@ -10,14 +10,16 @@ import pandas as pd
 from harness.analysis import phases
 from harness.analysis.display import format_value
 from harness.analysis.flags import flagged_cells
+from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.blocks import table_block
 from harness.report.document import Section
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
 from harness.report.sections.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
+from harness.report.sections.programs import ANCHOR_SUFFIX as PROGRAMS_SUFFIX
 from harness.spec.variants import BASELINE
-from harness.store.columns import INVALID, OK
+from harness.store.columns import AGREEING, INVALID, OK
 from harness.store.records import MACHINE_KEY
 
 GRID = "grid"  # the variant the summary's grid headline is about
@@ -109,10 +111,13 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
 
 
 def fidelity(exp: Experiment) -> Fidelity:
-    df = exp.frame
+    # A program's verdict is its agreement with seq, not byte identity: counted on its own.
+    program = is_program(exp.frame)
+    df = exp.frame[~program]
     validated = df["identical"].notna() | (df["status"] == INVALID)
     checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
                else pd.Series(False, index=df.index))
+    agreement = exp.frame.loc[program, "agreement"] if program.any() else pd.Series(dtype=str)
     return Fidelity(
         validated=int(validated.sum()),
         identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),
@@ -120,6 +125,8 @@ def fidelity(exp: Experiment) -> Fidelity:
         checked=int(checked.sum()),
         checks_passed=int(df.loc[checked, "checks_passed"].astype(bool).sum()) if checked.any()
         else 0,
+        programs=int(program.sum()),
+        programs_agree=int(agreement.isin(AGREEING).sum()),
     )
 
 
@@ -135,4 +142,5 @@ def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
     if anchor == section.anchor:
         anchor = _anchor(section, "-cells")
     return ExperimentPart(exp.name, section, table.columns, table.rows, issues,
-                          highlights(exp, section), fidelity(exp), anchor)
+                          highlights(exp, section), fidelity(exp), anchor,
+                          _anchor(section, PROGRAMS_SUFFIX))

@@ -100,6 +100,11 @@ validate: true
     report = pipeline.render(root, workdir / "report").read_text()
     assert "### Programs against seq" in report
     assert "| slippy |" in report and "differs from step" in report
+    # The summary judges programs by their agreement, apart from the variants' byte identity
+    fidelity = report.split("- Fidelity: ", 1)[1].split("\n", 1)[0]
+    assert fidelity.startswith("no invalid cell among 4 validated"), fidelity
+    assert "2 of 10 program cells agree with seq" in fidelity
+    assert "(#class-programs)" in fidelity
 
 
 def test_a_rule_slip_is_named_at_its_step_particle_and_event(real_binaries: Path,

@@ -21,13 +21,15 @@ INTRO = (
     "(x, y, vx, vy) and what seq did with that particle in that step."
 )
 
+ANCHOR_SUFFIX = "-programs"
+
 
 def build(ctx: Context) -> list[Section]:
     frame = ctx.exp.frame
     if not is_program(frame).any():
         return []
     table = program_table(frame)
-    return [Section("Programs against seq", f"{ctx.name}-programs", (
+    return [Section("Programs against seq", f"{ctx.name}{ANCHOR_SUFFIX}", (
         Paragraph(INTRO),
         table_block(table, "Each program cell's agreement with seq.", frame[is_program(frame)]),
     ))]
