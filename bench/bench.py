@@ -25,7 +25,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.analysis.phases import outside_broad_ns
+from harness.measure.environment import git_commit
 from harness.measure.machine import machine as machine_identity
+from harness.measure.machine import print_flags
 from harness.repo import REPO_ROOT as ROOT
 from harness.store.columns import PHASE_COLUMNS
 
@@ -318,12 +320,9 @@ def phase_table(group: Group, results: list[Result]) -> str:
 
 def machine() -> dict[str, str]:
     described = machine_identity(ROOT)  # the harness's machine identity: label and machine_id
-    flags = subprocess.run(["make", "-s", "print-flags"], cwd=ROOT, capture_output=True,
-                           text=True, check=False).stdout.strip()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                            capture_output=True, text=True, check=False).stdout.strip()
     return {"cpu": str(described["label"]), "machine_id": str(described["machine_id"]),
-            "cores": str(os.cpu_count()), "flags": flags, "commit": commit,
+            "cores": str(os.cpu_count()), "flags": print_flags(ROOT) or "",
+            "commit": git_commit(ROOT) or "",
             "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 

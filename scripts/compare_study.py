@@ -26,6 +26,7 @@ import argparse
 import itertools
 import json
 import math
+import os
 import statistics
 import subprocess
 import sys
@@ -36,10 +37,18 @@ from pathlib import Path
 import pandas as pd
 import yaml
 from harness.analysis import compare
+from harness.analysis.calibration import side
 from harness.analysis.frame import read_results
-from harness.analysis.resultsets import Side, experiment_dirs, load_side
+from harness.analysis.resultsets import Side
+from harness.plan.binaries import needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT
+from harness.report.document import Table
+from harness.report.markdown import markdown_table
+from harness.runner.pair import plans_of
+from harness.spec.config import ADAPTIVE_KEYS, AUTO_RUNS
 from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store import layout
 from harness.store.columns import OK
 
 PARTS = ("calibrate", "aa", "ab", "apart", "adaptive")
@@ -55,11 +64,6 @@ def sh(argv: Sequence[str], log: Path) -> tuple[int, float]:
         done = subprocess.run([str(a) for a in argv], cwd=REPO_ROOT, stdout=out,
                               stderr=subprocess.STDOUT, check=False)
     return done.returncode, time.monotonic() - started
-
-
-def side(name: str, root: Path) -> Side:
-    directories, keyed = experiment_dirs(root, name)
-    return load_side(name, root, None, keyed, directories)
 
 
 def verdicts(old: Side, new: Side, drift: compare.Drift) -> dict[str, int]:
@@ -81,14 +85,23 @@ def measured_pair(out: Path, old: str, new: str, config: Path, name: str) -> dic
 
 
 def slow_binaries(out: Path, config: Path, fraction: float) -> Path:
-    """A directory of wrappers, one per binary the config runs, each `fraction` slower."""
+    """A directory of wrappers, one per build/ binary that `compare --measure` runs for the
+    config (the checks' and programs' references included), each `fraction` slower."""
     target = out / f"slow{round(fraction * 100)}"
     target.mkdir(parents=True, exist_ok=True)
-    names = set(load_config(config).variants) | {"seq"}
-    for name in sorted(names):
-        subprocess.run(["cc", "-O2", "-o", str(target / name), str(WRAPPER),
-                        f"-DREAL_DIR=\"{REPO_ROOT / BUILD_DIR}\"", f"-DFRACTION={fraction}"],
-                       check=True)
+    registry = VariantRegistry(REPO_ROOT)
+    names = sorted({path.name for plan in plans_of([load_config(config, registry)], registry)
+                    for path in needed_binaries(plan, target) if path.is_relative_to(target)})
+    if not names:
+        raise SystemExit(f"{config} runs no binary of build/: nothing to slow down")
+    # One wrapper serves every name: it runs the real binary named by its own argv[0].
+    first, *rest = (target / name for name in names)
+    subprocess.run(["cc", "-O2", "-o", str(first), str(WRAPPER),
+                    f"-DREAL_DIR=\"{REPO_ROOT / BUILD_DIR}\"", f"-DFRACTION={fraction}"],
+                   check=True)
+    for path in rest:
+        path.unlink(missing_ok=True)
+        os.link(first, path)
     return target
 
 
@@ -106,7 +119,8 @@ def part_calibrate(out: Path, config: Path) -> dict[str, object]:
     root = out / "calibration-root"
     code, seconds = sh([*HARNESS, "compare", "--calibrate", config, "--results-dir", root],
                        out / "calibrate.log")
-    found = sorted((root / compare.CALIBRATION_DIR / "machines").glob("*.json"))
+    found = sorted((root / compare.CALIBRATION_DIR / layout.MACHINES)
+                   .glob(f"*{layout.RECORD_SUFFIX}"))
     data = json.loads(found[-1].read_text())[compare.CALIBRATION_KEY] if found else {}
     return {"exit": code, "seconds": round(seconds, 1), **data}
 
@@ -120,18 +134,18 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
         if code != 0:
             raise SystemExit(f"run {k} failed (exit {code}): see {out / f'apart-{k}.log'}")
         roots.append(root)
-    calibrated = compare.find_drift(
-        (c.machine_id for c in side("run", roots[0]).cells.values()),
-        [out / "calibration-root"])
+    loaded = [side(f"run {k}", root) for k, root in enumerate(roots, start=1)]
+    calibrated = compare.find_drift((c.machine_id for c in loaded[0].cells.values()),
+                                    [out / "calibration-root"])
     drifts = [compare.Drift(compare.ASSUMED_DRIFT, "assumed")]
     if "calibrated" in calibrated.source:
         drifts.append(calibrated)
     results = []
-    for (i, a), (j, b) in itertools.combinations(enumerate(roots, start=1), 2):
+    for (i, a), (j, b) in itertools.combinations(enumerate(loaded, start=1), 2):
+        # and with no allowance for drift at all: what compare said before it had one
+        plain = verdicts(a, b, compare.Drift(0.0, "none"))
         for drift in drifts:
-            counts = verdicts(side("OLD", a), side("NEW", b), drift)
-            # and with no allowance for drift at all: what compare said before it had one
-            plain = verdicts(side("OLD", a), side("NEW", b), compare.Drift(0.0, "none"))
+            counts = verdicts(a, b, drift)
             results.append({"pair": f"{i} vs {j}", "drift": round(drift.sigma, 4),
                             "drift_source": drift.source.split(":")[0], **counts,
                             "without_drift": plain})
@@ -139,7 +153,6 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
 
 
 FIXED_RUNS = 3  # the fixed count the adaptive measure is compared with
-ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 
 
 def counterpart(config: Path, out: Path) -> tuple[str, Path]:
@@ -147,19 +160,19 @@ def counterpart(config: Path, out: Path) -> tuple[str, Path]:
     FIXED_RUNS runs, or its fixed base measure as `runs: auto`; the label of that way."""
     raw = yaml.safe_load(config.read_text())
     measure = dict(raw.get("measure") or {})
-    adaptive = measure.get("runs") == "auto"
+    adaptive = measure.get("runs") == AUTO_RUNS
     if adaptive:
         measure = {k: v for k, v in measure.items() if k not in ADAPTIVE_KEYS}
         measure["runs"] = FIXED_RUNS
         by_variant = raw.get("measure_by_variant") or {}
         for variant, own in list(by_variant.items()):
-            if own.get("runs") == "auto":
+            if own.get("runs") == AUTO_RUNS:
                 by_variant[variant] = {**{k: v for k, v in own.items()
                                           if k not in ADAPTIVE_KEYS}, "runs": FIXED_RUNS}
     else:
-        measure["runs"] = "auto"
+        measure["runs"] = AUTO_RUNS
     raw["measure"] = measure
-    label = f"fixed{FIXED_RUNS}" if adaptive else "auto"
+    label = f"fixed{FIXED_RUNS}" if adaptive else AUTO_RUNS
     raw["name"] = f"{raw.get('name', config.stem)}-{label}"
     target = out / f"{config.stem}-{label}.yaml"
     target.write_text(yaml.safe_dump(raw, sort_keys=False))
@@ -184,7 +197,7 @@ def part_adaptive(out: Path, configs: Sequence[Path], repeats: int) -> list[dict
     results = []
     for config in configs:
         raw = yaml.safe_load(config.read_text())
-        written = "auto" if (raw.get("measure") or {}).get("runs") == "auto" else "fixed"
+        written = AUTO_RUNS if (raw.get("measure") or {}).get("runs") == AUTO_RUNS else "fixed"
         other, other_path = counterpart(config, out)
         for k in range(1, repeats + 1):
             for label, path in ((written, config), (other, other_path)):
@@ -209,10 +222,10 @@ def markdown(summary: dict[str, object]) -> str:
         lines.append(f"## {part}\n")
         rows = value if isinstance(value, list) else [value]
         if rows and isinstance(rows[0], dict):
-            keys = list(rows[0])
-            lines.append("| " + " | ".join(keys) + " |")
-            lines.append("|" + "---|" * len(keys))
-            lines += ["| " + " | ".join(str(r.get(k, "")) for k in keys) + " |" for r in rows]
+            keys = tuple(rows[0])
+            lines += markdown_table(Table(
+                keys, tuple(tuple(str(r.get(k, "")) for k in keys) for r in rows),
+                (False,) * len(keys), ""))
         lines.append("")
     return "\n".join(lines)
 
