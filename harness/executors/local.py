@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from harness.executors.base import Experiment, OnRecord, Progress
-from harness.executors.rounds import Unit, measure_in_rounds, new_seed
+from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure.cell import Measurer
 from harness.plan.cells import Cell
 
@@ -20,6 +20,5 @@ class LocalExecutor:
             on_record: OnRecord, progress: Progress) -> None:
         measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
         units = [Unit(measurer, cell, cid) for cell, cid in pending]
-        seed = experiment.options.round_seed
         measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
-                          progress, new_seed() if seed is None else seed)
+                          progress, experiment.options.round_seed)

@@ -94,8 +94,11 @@ def share_rounds(units: Sequence[Unit]) -> None:
 
 
 def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
-                      seed: int) -> None:
-    """Start every unit, then time them in rounds; on_done(unit, record) as each is done."""
+                      seed: int | None) -> int:
+    """Start every unit, then time them in rounds; on_done(unit, record) as each is done.
+    The rounds' order follows the seed (a fresh one where None); the seed."""
+    if seed is None:
+        seed = new_seed()
     active: list[Unit] = []
     for index, unit in enumerate(units):
         progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
@@ -128,6 +131,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         active = _finish_done(active, on_done)
         low, high = _eta([], active, overhead)
         progress.round_done(round_index, len(order), len(order) - len(active), low, high)
+    return seed
 
 
 def _finish_done(active: list[Unit], on_done: OnDone) -> list[Unit]:
@@ -150,8 +154,7 @@ def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
     for unit in started:
         if unit.run is None:
             continue
-        run = unit.state
-        seconds = (statistics.fmean(run.times) if run.times else run.run_s) + overhead
+        seconds = unit.state.per_run_s + overhead
         per_run.append(seconds)
         fewest, most = unit.left()
         low += fewest * seconds

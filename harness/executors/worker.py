@@ -19,7 +19,7 @@ from typing import TextIO, cast
 
 from harness.errors import HarnessError
 from harness.executors.base import Progress
-from harness.executors.rounds import Unit, measure_in_rounds, new_seed
+from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
 from harness.plan.cells import plan_cells
@@ -52,7 +52,7 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     progress = Progress(config.name, order, frozenset(ids), log)
     measure_in_rounds([Unit(measurer, cell, cid) for cell, cid in order],
                       lambda unit, record: None,  # Measurer.finish has written it
-                      progress, new_seed() if round_seed is None else round_seed)
+                      progress, round_seed)
     # the machine and tools of this node, once per machine (a submitter elsewhere cannot)
     if not store.layout.machine(machine_id).is_file():
         index.write_env(store.directory, environment.collect(repo_root, hyperfine=hyperfine))

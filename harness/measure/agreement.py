@@ -29,6 +29,7 @@ import numpy as np
 
 from harness.measure.events import seq_event
 from harness.spec.builds import DOUBLE_EPS
+from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
 from harness.store.columns import (
     AGREEMENT_FAILED,
     DIFFERS,
@@ -38,7 +39,6 @@ from harness.store.columns import (
 )
 
 ARITH_ULPS = 64.0
-HISTORY_FIELDS, FINAL_FIELDS = 6, 8
 QUOTE_CHARS = 60
 
 

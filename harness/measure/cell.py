@@ -6,15 +6,13 @@
          for a program, its run and its check against seq (measure.program);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
-An executor alternates the rounds of many cells (harness.executors.local); measure_and_save
-takes one cell through all its rounds (a worker on another node).
+An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
 """
 
 from __future__ import annotations
 
 import os
 import shlex
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -58,27 +56,6 @@ class Measurer:
     @property
     def config(self) -> Config:
         return self.store.config
-
-    def measure_and_save(self, cell: Cell, cell_id: str) -> records.Record:
-        """Take the cell through all its rounds and write its record; the record."""
-        started = time.monotonic()
-        run = self.all_rounds(cell, cell_id)
-        return self.finish(run, time.monotonic() - started)
-
-    def measure(self, cell: Cell, cell_id: str) -> records.Record:
-        """The cell's record after all its rounds, not written."""
-        return self.record_of(self.all_rounds(cell, cell_id))
-
-    def all_rounds(self, cell: Cell, cell_id: str) -> CellRun:
-        """The cell started and timed round after round until done (alone: no other cell's
-        rounds between its own), each round kept on disk."""
-        run = self.start(cell, cell_id)
-        round_index = run.rounds[-1] if run.rounds else 0
-        while not run.done:
-            round_index += 1
-            self.time_round(run, round_index)
-            self.keep(run)
-        return run
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}

@@ -16,6 +16,7 @@ from harness.measure import invariants, shadow
 from harness.measure.references import References
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
+from harness.spec import scenes
 from harness.spec.output import OutputFormatError, parse_output
 from harness.store import records
 
@@ -32,8 +33,7 @@ class Checker:
         started = time.monotonic()
         checks = self.store.config.checks
         scene = cell.scene
-        printed = dataclasses.replace(scene, text=shadow.with_mode(scene.text, "print"),
-                                      mode="print")
+        printed = scenes.with_run(scene, scene.steps, "print")
         binary = self.store.binary(cell)
         refs = self.store.check_references(cell)
         values: dict[str, object] = {}

@@ -27,11 +27,12 @@ from harness.spec import scenes
 from harness.spec.programs import Program, check_steps
 from harness.spec.variants import BASELINE
 from harness.store import atomic, records
-from harness.store.columns import AGREEING, AGREEMENT_FAILED, CRASHED, INVALID, OK, TIMEOUT
+from harness.store.columns import AGREEING, AGREEMENT_FAILED, CRASHED, INVALID, OK
 
 CHECK_OUTPUT_SUFFIX = ".check.out"  # the check run's stdout while it is judged
 COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
 SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
+SHELL_SIGNALS = 64  # the signals that can be N (Linux's real-time ones included)
 LAST_LINES = 3
 
 
@@ -90,12 +91,21 @@ def _described(program: Program) -> dict[str, str]:
             "directory": str(program.directory)}
 
 
+def _signal(code: int | None) -> int | None:
+    """The signal that killed a run with this return code: a negative code's, or a shell's
+    128 + N; None for an exit (or a timeout)."""
+    if code is None:
+        return None
+    if code < 0:
+        return -code
+    shell = code - SHELL_SIGNAL_BASE
+    return shell if 0 < shell <= SHELL_SIGNALS else None
+
+
 def _status(done: ProcessResult) -> tuple[str, int | None]:
-    """ok, failed, crashed or timeout; a shell's 128 + N counts as killed by signal N."""
+    """ok, failed, crashed or timeout."""
     status, code = exit_status(done.returncode)
-    if code is not None and SHELL_SIGNAL_BASE < code <= SHELL_SIGNAL_BASE + 64:
-        return CRASHED, code
-    return status, code
+    return (CRASHED if _signal(code) is not None else status), code
 
 
 def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
@@ -104,10 +114,10 @@ def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
         return f"{what} passed the {timeout_s:g} s timeout"
     code = done.returncode
     last = " | ".join(done.stderr.strip().splitlines()[-LAST_LINES:])
+    number = _signal(code)
     if code == COMMAND_NOT_FOUND:
         why = "exit 127: command not found"
-    elif code < 0 or code > SHELL_SIGNAL_BASE:
-        number = -code if code < 0 else code - SHELL_SIGNAL_BASE
+    elif number is not None:
         try:
             name = signal.Signals(number).name
         except ValueError:
@@ -121,7 +131,5 @@ def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
 def _not_run(record: records.Record, cell_id: str, key: dict[str, object], command: list[str],
              status: str, code: int | None, note: str, seconds: float) -> CellRun:
     record.update(agreement=AGREEMENT_FAILED, note=note)
-    if status == TIMEOUT:
-        code = None
     return CellRun(cell_id, key, record, status, code, command, run_s=seconds)
 

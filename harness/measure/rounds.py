@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.measure.hyperfine import Timed
-from harness.spec.config import AUTO_FIRST_RUNS, Measure
+from harness.spec.config import Measure
 from harness.store import atomic, csvfile, records
 from harness.store.columns import (
     STOPPED_CI,
@@ -27,7 +27,7 @@ from harness.store.columns import (
     STOPPED_RUNS,
     TIMED_STATUSES,
 )
-from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+from harness.store.hyperfine import is_unstable
 
 PARTIAL_VERSION = 1
 
@@ -64,6 +64,11 @@ class CellRun:
     @property
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
+
+    @property
+    def per_run_s(self) -> float:
+        """What one of its runs takes: the mean of its timed runs, else its --precise run."""
+        return statistics.fmean(self.times) if self.times else self.run_s
 
     def add(self, timed: Timed, round_index: int, export: Path) -> None:
         """One round's hyperfine call: its runs, or the status it failed with."""
@@ -106,7 +111,7 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     most = float(measure.most_runs * run.per_round - done)
     if not measure.adaptive:
         return most, most
-    per_run = statistics.fmean(run.times) if run.times else run.run_s
+    per_run = run.per_run_s
     if per_run > 0:
         most = min(most, max(1.0, (measure.max_time_s - math.fsum(run.times)) / per_run))
     return float(max(1, measure.first_runs * run.per_round - done)), most
@@ -117,19 +122,20 @@ def next_runs(measure: Measure, times: Sequence[float], per_round: int = 1) -> i
 
     A fixed count: `per_round` a round (one, but for a paired cell), so that its runs spread
     over as many rounds as the measure counts runs. `runs: auto`: as many while a measured
-    comparison still needs rounds (min_runs); then AUTO_FIRST_RUNS in its first round, enough
-    for an interval; then as many as its interval says it needs to narrow to +-ci (a
-    half-width shrinks as one over the root of the runs), at most doubling its runs a round,
-    so that a noisy cell still spreads over several rounds, and within max_runs and
-    max_time_s."""
+    comparison still needs rounds (min_runs); then the rest of its first runs
+    (Measure.first_runs, `per_round` times over) in one round, enough for an interval; then
+    as many as its interval says it needs to narrow to +-ci (a half-width shrinks as one over
+    the root of the runs), at most doubling its runs a round, so that a noisy cell still
+    spreads over several rounds, and within max_runs and max_time_s."""
     done = len(times)
     left = measure.most_runs * per_round - done
     if left <= 0:
         return 0
     if not measure.adaptive or done < measure.min_runs * per_round:
         return min(per_round, left)
-    if done < AUTO_FIRST_RUNS:
-        return min(AUTO_FIRST_RUNS - done, left)
+    first = measure.first_runs * per_round
+    if done < first:
+        return min(first - done, left)
     needed = math.ceil(done * (relative_half_width(times) / measure.ci) ** 2) - done
     runs = max(1, min(needed, done, left))
     per_run = statistics.fmean(times)
@@ -179,8 +185,7 @@ def timing_fields(run: CellRun) -> dict[str, object]:
         "wall_median_s": statistics.median(times), "wall_min_s": min(times),
         "wall_max_s": max(times), "wall_user_s": statistics.fmean(run.user_s),
         "wall_system_s": statistics.fmean(run.system_s),
-        "unstable": stddev is not None and mean > 0
-        and stddev >= UNSTABLE_RELATIVE_STDDEV * mean,
+        "unstable": is_unstable(mean, stddev),
         **csvfile.uncertainty(times), "wall_times_round": list(run.rounds),
         "rounds": len(run.exports), "stopped": run.stopped or None,
         "hyperfine_exports": list(run.exports), "hyperfine_warnings": list(run.warnings),

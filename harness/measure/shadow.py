@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import subprocess
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -35,18 +34,9 @@ from harness.spec.output import Output, OutputFormatError, parse_output, split_s
 from harness.spec.scenes import REAL_FORMAT
 
 MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
-MODE_PATTERN = re.compile(r"\A(\s*\S+\s+\S+\s+\S+\s+\S+\s+)(\S+)")
 
 # Run `binary` (threads) on an input text; the stdout, or None when it did not exit 0.
 Runner = Callable[[Path, str, int], str | None]
-
-
-def with_mode(text: str, mode: str) -> str:
-    """The input text with its MODE token (the fifth) replaced."""
-    replaced, count = MODE_PATTERN.subn(lambda m: m.group(1) + mode, text, count=1)
-    if count != 1:
-        raise HarnessError("input has no MODE token (SPEC section 1: 'N L r S' then MODE)")
-    return replaced
 
 
 def header_tokens(text: str) -> tuple[str, str, str]:

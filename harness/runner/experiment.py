@@ -21,12 +21,14 @@ from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
+from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR
 from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
 from harness.store.columns import DIVERGES, OK
+from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
 
 
 @dataclass(frozen=True)
@@ -51,16 +53,9 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     if options.collect and executor.name == "local":
         raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
                            "executor: {kind: slurm} in the config)")
-    if shutil.which(options.hyperfine) is None:
-        raise HarnessError(f"{options.hyperfine} not found; run 'make setup'")
+    require_hyperfine(options.hyperfine)
     make_binaries(options.repo_root, binaries, options.make)
-    order: list[tuple[Cell, str]] = []
-    for cell in plan.cells:
-        cid = experiment.store.cell_id(cell)
-        if cid is None:
-            raise HarnessError(f"{experiment.store.missing_binary(cell)} does not exist after "
-                               "the build")
-        order.append((cell, cid))
+    order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)
     here = executor.name == "local"
@@ -89,8 +84,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     executor.run(experiment, pending, on_record, progress)
     progress.close()
     experiment.store.write_csv(prune=True)
-    if env is not None:  # the machine and tools of the latest measurements, and the load after
-        index.write_env(experiment.directory, {**env, "load_after": machine.load()})
+    if env is not None:
+        write_env_after(experiment.directory, env)
     missing = [cid for _, cid in pending if cid not in measured]
     if missing and options.collect:  # --collect submits nothing: they are simply not there
         log.write(f"{config.name}: {len(missing)} cell(s) not measured yet\n")
@@ -109,6 +104,25 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
               f"{summary.cached} cached): {counts or 'none'}; results in "
               f"{experiment.store.layout.results_csv}\n")
     return summary
+
+
+def require_hyperfine(hyperfine: str) -> None:
+    if shutil.which(hyperfine) is None:
+        raise HarnessError(f"{hyperfine} not found; run 'make setup'")
+
+
+def built_cell_id(store: CellStore, cell: Cell) -> str:
+    """The id of a cell whose binaries the build has made."""
+    cid = store.cell_id(cell)
+    if cid is None:
+        raise HarnessError(f"{store.missing_binary(cell)} does not exist after the build")
+    return cid
+
+
+def write_env_after(directory: Path, env: Mapping[str, object]) -> None:
+    """The machine and tools of the latest measurements (collected before them), and the
+    load after them."""
+    index.write_env(directory, {**env, "load_after": machine.load()})
 
 
 def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]]
@@ -142,8 +156,8 @@ def report_cell(cell: Cell, record: Mapping[str, object], log: TextIO) -> None:
         log.write(f"note: {cell.label}: {DIVERGES}: {note}\n")
     if record.get("unstable"):
         log.write(f"warning: {cell.label}: unstable (stddev "
-                  f"{record['wall_stddev_s']:.3g} s >= 10% of mean {record['wall_mean_s']:.3g} s)"
-                  "\n")
+                  f"{record['wall_stddev_s']:.3g} s >= {UNSTABLE_RELATIVE_STDDEV:.0%} of mean "
+                  f"{record['wall_mean_s']:.3g} s)\n")
 
 
 def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Summary:

@@ -16,17 +16,18 @@ from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.executors.base import Progress
-from harness.executors.rounds import Unit, measure_in_rounds, new_seed
+from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
 from harness.plan.binaries import needed_binaries
-from harness.plan.cells import Cell, Plan, plan_cells
+from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import REPO_ROOT
+from harness.runner.experiment import built_cell_id, require_hyperfine, write_env_after
 from harness.runner.sides import BuildSide, build
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
-from harness.store import index, records
+from harness.store import records
 from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
@@ -78,11 +79,9 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     roots, complete, under OUT."""
     plans = plans_of(configs, registry)
     prepare((old, new), plans)
-    if shutil.which(hyperfine) is None:
-        raise HarnessError(f"{hyperfine} not found; run 'make setup'")
+    require_hyperfine(hyperfine)
     work = out / WORK_DIR
     machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-    seed = new_seed() if seed is None else seed
     units: list[Unit] = []
     stores: list[tuple[BuildSide, CellStore]] = []
     for plan in plans:
@@ -94,8 +93,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             pair[side.name] = store
         measurers = {name: Measurer(store, hyperfine) for name, store in pair.items()}
         for cell in plan.cells:
-            a = Unit(measurers["OLD"], cell, _cell_id(pair["OLD"], cell))
-            b = Unit(measurers["NEW"], cell, _cell_id(pair["NEW"], cell), partner=a)
+            a = Unit(measurers["OLD"], cell, built_cell_id(pair["OLD"], cell))
+            b = Unit(measurers["NEW"], cell, built_cell_id(pair["NEW"], cell), partner=a)
             a.partner = b
             units += [a, b]
     labels = {u.cell_id: f"{'OLD' if k % 2 == 0 else 'NEW'} {u.cell.label}"
@@ -106,10 +105,10 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
         run_lock.acquire()
     env = {side.name: environment.collect(side.repo_root, hyperfine=hyperfine)
            for side in (old, new)}
-    measure_in_rounds(units, lambda unit, record: None, progress, seed)
+    seed = measure_in_rounds(units, lambda unit, record: None, progress, seed)
     for side, store in stores:
         store.write_csv(prune=True)
-        index.write_env(store.directory, {**env[side.name], "load_after": machine.load()})
+        write_env_after(store.directory, env[side.name])
     roots = {}
     for side in (old, new):
         target = out / SIDE_DIRS[side.name]
@@ -120,10 +119,3 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     shutil.rmtree(work, ignore_errors=True)
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
     return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds)
-
-
-def _cell_id(store: CellStore, cell: Cell) -> str:
-    cid = store.cell_id(cell)
-    if cid is None:
-        raise HarnessError(f"{store.missing_binary(cell)} does not exist")
-    return cid

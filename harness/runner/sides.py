@@ -12,8 +12,9 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.measure.machine import compiler_command
-from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
+from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.builds import make_binaries
+from harness.spec.variants import VariantRegistry
 from harness.store.layout import CACHE_DIR
 
 REVISIONS = "revisions"
@@ -74,8 +75,8 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
             raise HarnessError(f"{side.name}: {side.given} has no {names} (the configs need "
                                f"{', '.join(b.name for b in binaries)})")
         return
-    absent = [v for v in dict.fromkeys(variants)
-              if not (side.repo_root / VARIANTS_DIR / f"{v}.c").is_file()]
+    known = VariantRegistry(side.repo_root)
+    absent = [v for v in dict.fromkeys(variants) if v not in known]
     if absent:
         raise HarnessError(f"{side.name}: revision {side.label} has no variant "
                            f"{', '.join(absent)}")

@@ -33,9 +33,13 @@ class HyperfineStats:
 
     @property
     def unstable(self) -> bool:
-        """stddev >= 10% of the mean."""
-        return (self.stddev is not None and self.mean > 0
-                and self.stddev >= UNSTABLE_RELATIVE_STDDEV * self.mean)
+        return is_unstable(self.mean, self.stddev)
+
+
+def is_unstable(mean: float, stddev: float | None) -> bool:
+    """Whether runs spread this much are unstable: stddev >= UNSTABLE_RELATIVE_STDDEV of the
+    mean (never with a single run, which has no stddev)."""
+    return stddev is not None and mean > 0 and stddev >= UNSTABLE_RELATIVE_STDDEV * mean
 
 
 class ResultFormatError(ValueError):

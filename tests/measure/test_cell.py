@@ -1,15 +1,18 @@
-"""Measuring one cell directly (Measurer): the record it writes, the environment the runs get,
-validation against seq's output run once per input and kept, on fake binaries (shell
-scripts) timed by the real hyperfine."""
+"""Measuring one cell (Measurer, taken through its rounds as a run takes it): the record it
+writes, the environment the runs get, validation against seq's output run once per input and
+kept, on fake binaries (shell scripts) timed by the real hyperfine."""
 
 from __future__ import annotations
 
+import io
 import shutil
 from pathlib import Path
 
 import pytest
+from harness.executors.base import Progress
+from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure.cell import Measurer
-from harness.plan.cells import plan_cells
+from harness.plan.cells import Cell, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.store import records
@@ -46,13 +49,23 @@ def store_for(tmp_path: Path, variants: str, extra: str = "") -> CellStore:
     return CellStore(plan_cells(load_config(config)), repo, tmp_path / "results", "m1")
 
 
+def measured(measurer: Measurer, cell: Cell, cell_id: str) -> records.Record:
+    """The cell taken through all its rounds alone; the record it was finished with."""
+    done: list[records.Record] = []
+    progress = Progress("c", [(cell, cell_id)], frozenset([cell_id]), io.StringIO())
+    measure_in_rounds([Unit(measurer, cell, cell_id)], lambda unit, record: done.append(record),
+                      progress, 1)
+    assert len(done) == 1
+    return done[0]
+
+
 def test_the_record_holds_the_measurement_and_is_saved(tmp_path: Path, monkeypatch) -> None:
     log = tmp_path / "runs.log"
     monkeypatch.setenv("RUNS_LOG", str(log))
     store = store_for(tmp_path, "[same]", "schedule: dynamic\n")
     cell = store.plan.cells[0]
     cid = store.cell_id(cell)
-    record = Measurer(store).measure_and_save(cell, cid)
+    record = measured(Measurer(store), cell, cid)
     assert record == store.read(cid)
     assert record["status"] == "ok" and record["identical"] is True
     assert record["runs"] == 2 and len(record["wall_times_s"]) == 2
@@ -73,19 +86,19 @@ def test_seq_runs_once_per_input_and_its_output_is_kept(tmp_path: Path, monkeypa
     store = store_for(tmp_path, "[same, other]")
     measurer = Measurer(store)
     for cell in store.plan.cells:
-        measurer.measure(cell, store.cell_id(cell))
+        measured(measurer, cell, store.cell_id(cell))
     seq_runs = [line for line in log.read_text().splitlines() if "/build/seq " in line]
     assert seq_runs == [f"{store.repo_root / 'build' / 'seq'} 1 "]  # one thread, once
     assert store.baseline_file(store.baseline_key(store.plan.cells[0])).is_file()
     fresh = Measurer(store)  # another process: reads the kept output, runs seq no more
-    fresh.measure(store.plan.cells[0], store.cell_id(store.plan.cells[0]))
+    measured(fresh, store.plan.cells[0], store.cell_id(store.plan.cells[0]))
     assert len([line for line in log.read_text().splitlines() if "/build/seq " in line]) == 1
 
 
 def test_an_exact_cell_that_differs_from_seq_is_invalid(tmp_path: Path) -> None:
     store = store_for(tmp_path, "[other]")
     cell = store.plan.cells[0]
-    record = Measurer(store).measure(cell, store.cell_id(cell))
+    record = measured(Measurer(store), cell, store.cell_id(cell))
     assert record["status"] == "invalid" and record["identical"] is False
     assert record["count_mismatches"] == 1
     assert record["note"] == "output differs from the sequential baseline"
@@ -97,6 +110,6 @@ def test_a_failed_baseline_leaves_the_cell_unjudged_and_says_why(tmp_path: Path)
     (store.repo_root / "build" / "seq").write_text("#!/bin/sh\necho broken >&2\nexit 4\n")
     store.hashes.clear()
     cell = store.plan.cells[0]
-    record = Measurer(store).measure(cell, records.cell_id(store.cell_key(cell)))
+    record = measured(Measurer(store), cell, records.cell_id(store.cell_key(cell)))
     assert record["status"] == "ok" and record["identical"] is None
     assert record["note"].startswith("baseline seq failed (exit 4): broken")

@@ -18,7 +18,7 @@ from harness.measure.rounds import (
 )
 from harness.spec.config import Measure
 
-from measure.test_cell import store_for
+from measure.test_cell import measured, store_for
 
 AUTO = Measure(warmup=0, runs=None, ci=0.02, max_runs=12, max_time_s=1.0)
 
@@ -42,6 +42,9 @@ def test_adaptive_takes_what_its_interval_needs_at_most_doubling_a_round() -> No
     assert next_runs(roomy, noisy * 3) == 0
     paired = AUTO.at_least(8)  # a measured comparison: one a round until its 8 rounds
     assert [next_runs(paired, [0.1] * k) for k in (0, 3, 7)] == [1, 1, 1]
+    # its first runs as many times over as a round takes runs, within max_runs
+    assert next_runs(AUTO, [], 2) == 6 and next_runs(AUTO, [0.1] * 5, 2) == 1
+    assert next_runs(Measure(runs=None, max_runs=2), []) == 2
 
 
 def test_adaptive_stops_when_the_interval_is_narrow_or_a_limit_is_reached() -> None:
@@ -74,6 +77,17 @@ def test_the_record_holds_every_round() -> None:
     assert fields["wall_median_ci_low_s"] == 1.0 and fields["wall_median_ci_high_s"] == 3.0
 
 
+def test_the_record_says_whether_its_runs_are_unstable() -> None:
+    def unstable(times: list[float]) -> object:
+        run = CellRun("c", {}, {}, "ok", 0, ["x"], times=times, rounds=[1] * len(times),
+                      user_s=[0.5] * len(times), system_s=[0.1] * len(times))
+        return timing_fields(run)["unstable"]
+
+    assert unstable([1.0, 3.0, 2.0]) is True  # stddev 1.0, half the mean
+    assert unstable([1.0, 1.05, 0.95]) is False  # stddev 0.05: 5% of the mean
+    assert unstable([1.0]) is False  # one run has no stddev
+
+
 def test_state_between_rounds_is_kept_for_its_key_only(tmp_path: Path) -> None:
     run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"], times=[1.0], rounds=[1])
     run.save(tmp_path / "c.partial.json")
@@ -96,7 +110,7 @@ def test_a_cut_short_cell_resumes_where_it_stopped(tmp_path: Path, monkeypatch) 
     assert store.layout.partial(cid).is_file() and store.read(cid) is None
     precise_runs = len(log.read_text().splitlines())
     again = Measurer(store)
-    record = again.measure_and_save(cell, cid)
+    record = measured(again, cell, cid)
     assert len(log.read_text().splitlines()) == precise_runs + 1  # one more timed run only
     assert record["runs"] == 2 and record["wall_times_round"] == [1, 2]
     assert not store.layout.partial(cid).exists()

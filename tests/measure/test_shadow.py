@@ -155,8 +155,8 @@ def test_divergence_curve_and_mode_switch(real_output: str) -> None:
     moved = output.parse_output(corrupt(real_output, 450, 2, "3"))
     curve = accuracy.divergence_curve(moved, out, 2000.0)
     assert len(curve) == 7 and curve[2] > 0 and accuracy.first_step_at(curve, 1e-4) == 2
-    assert accuracy.with_mode("5 10 1 3\nperf\n0 1 1 1 1\n", "print") == (
-        "5 10 1 3\nprint\n0 1 1 1 1\n")
+    perf = scenes.ScenePoint("x.in", 5, 10.0, 1.0, 3, "perf", 1, "5 10 1 3\nperf\n0 1 1 1 1\n")
+    assert scenes.with_run(perf, perf.steps, "print").text == "5 10 1 3\nprint\n0 1 1 1 1\n"
     assert accuracy.shadow_states(100, 4) == [0, 33, 66, 99]
 
 
