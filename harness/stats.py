@@ -1,9 +1,12 @@
 """Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
 
-Everything here is scipy.stats: a percentile bootstrap for medians and for ratios of medians
-(speedup, NEW/OLD), a rank test, and a least-squares fit with its standard error. The
-bootstrap's generator is seeded from the data itself, so the same times always give the same
-interval: results.csv and the report do not change when nothing was re-measured.
+Everything here is scipy.stats: a percentile bootstrap for medians and for ratios and
+differences of medians (speedup, NEW/OLD), a one-sample t-test on the per-round log ratios of
+two sides measured together, a normal test for two measured apart (allowing for the machine's
+drift), Benjamini-Hochberg across a comparison's cells, and a least-squares fit with its
+standard error. The bootstrap's generator is seeded from the data itself, so the same times
+always give the same interval: results.csv and the report do not change when nothing was
+re-measured (and an interval asked for again is remembered, not resampled).
 
 Why the percentile bootstrap and not BCa: with the 3-5 runs most configs take, BCa's jackknife
 acceleration is degenerate (and scipy warns); the percentile interval of a median of n runs
@@ -14,11 +17,13 @@ beyond the sample, so with 3 runs the interval of a median is [min, max], which 
 median with probability 1 - 2/2^3 = 75% whatever the distribution; from 5 runs on it covers
 about 93-95%. A ratio of two 3-run medians gets [min/max', max/min'], which misses 1 for two
 identical distributions with probability 2/20 = 10% (the chance that one sample lies wholly
-above the other). compare.py's threshold is what keeps its false-positive rate low at 3 runs.
+above the other). That is why a verdict of compare never rests on such an interval alone: it
+tests against a threshold, and widens the interval of runs measured apart by the drift.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import struct
@@ -73,19 +78,40 @@ def _clean(times: Sequence[float]) -> np.ndarray:
     return np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
 
 
-def _interval(point: float, samples: tuple[np.ndarray, ...],
-              statistic: Callable[..., np.ndarray]) -> Interval:
-    """`point` with the percentile bootstrap interval of `statistic` over the samples (each
-    resampled on its own), widened to hold the point."""
-    result = sps.bootstrap(samples, statistic, vectorized=True, paired=False,
-                           confidence_level=CONFIDENCE, n_resamples=N_RESAMPLES,
-                           method="percentile", rng=np.random.default_rng(_seed(*samples)))
-    low, high = (float(end) for end in result.confidence_interval)
-    return Interval(point, min(low, point), max(high, point))
+def _ratio(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis) / np.median(y, axis=axis)
+
+
+def _difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis) - np.median(y, axis=axis)
 
 
 def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.median(x, axis=axis)
+
+
+@functools.lru_cache(maxsize=4096)
+def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
+               ) -> tuple[float, float]:
+    """The percentile bootstrap interval of `statistic` (one of this module's, vectorized) over
+    the samples, each resampled on its own. Remembered: a render asks for the same interval
+    from several places (a cell's speedup in its table, its figure and the summary), a
+    calibration for a ratio its comparison asks for again, and the answer is deterministic
+    (seeded by the samples)."""
+    result = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
+                           vectorized=True, paired=False, confidence_level=CONFIDENCE,
+                           n_resamples=N_RESAMPLES, method="percentile",
+                           rng=np.random.default_rng(_seed(*samples)))
+    low, high = (float(end) for end in result.confidence_interval)
+    return low, high
+
+
+def _interval(point: float, samples: tuple[np.ndarray, ...],
+              statistic: Callable[..., np.ndarray]) -> Interval:
+    """`point` with the bootstrap interval of `statistic` over the samples, widened to hold the
+    point."""
+    low, high = _bootstrap(statistic, *(tuple(s.tolist()) for s in samples))
+    return Interval(point, min(low, point), max(high, point))
 
 
 def median_ci(times: Sequence[float]) -> Interval:
@@ -101,21 +127,18 @@ def median_ci(times: Sequence[float]) -> Interval:
     return _interval(point, (data,), _median)
 
 
-def _two_medians(a: np.ndarray, b: np.ndarray,
-                 combine: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> Interval:
-    """combine(median(a), median(b)) of two cleaned samples, each resampled on its own
-    (independent runs): NaN without runs on a side, no interval with one run on a side."""
+def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
+                 ) -> Interval:
+    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples, each
+    resampled on its own (independent runs): NaN without runs on a side, no interval with one
+    run on a side."""
     if a.size == 0 or b.size == 0:
         return Interval(math.nan, math.nan, math.nan)
-    point = float(combine(np.median(a), np.median(b)))
+    point = float(statistic(a, b))
     if a.size < 2 or b.size < 2:
         return Interval(point, math.nan, math.nan)
     if np.all(a == a[0]) and np.all(b == b[0]):
         return Interval(point, point, point)
-
-    def statistic(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
-        return combine(np.median(x, axis=axis), np.median(y, axis=axis))
-
     return _interval(point, (a, b), statistic)
 
 
@@ -127,7 +150,7 @@ def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interv
     a, b = _clean(numerator), _clean(denominator)
     if b.size and float(np.median(b)) == 0.0:
         return Interval(math.nan, math.nan, math.nan)
-    return _two_medians(a, b, np.divide)
+    return _two_medians(a, b, _ratio)
 
 
 def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
@@ -178,27 +201,15 @@ def power_fit(x: Sequence[float], y: Sequence[float]) -> PowerFit | None:
     return PowerFit(float(fit.slope), stderr, float(math.exp(fit.intercept)), len(pairs))
 
 
-def rank_test(old: Sequence[float], new: Sequence[float]) -> float:
-    """Two-sided Mann-Whitney U p-value that the two run-time samples share a distribution.
-
-    NaN with fewer than 2 runs on a side. With 3 runs each the smallest possible p is 0.1: a
-    rank test alone cannot call a difference at the default runs, which is why compare.py's
-    verdict rests on the bootstrap interval and reports this p-value beside it."""
-    a, b = _clean(old), _clean(new)
-    if a.size < 2 or b.size < 2:
-        return math.nan
-    return float(sps.mannwhitneyu(a, b, alternative="two-sided").pvalue)
-
-
 def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
     """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
     e.g. the time a strategy adds over its repair."""
-    return _two_medians(_clean(minuend), _clean(subtrahend), np.subtract)
+    return _two_medians(_clean(minuend), _clean(subtrahend), _difference)
 
 
 # --- is NEW slower or faster than OLD? ------------------------------------------------------
 
-Z95 = 1.959963984540054  # the normal quantile of a two-sided 95% interval
+Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
 
 
 @dataclass(frozen=True)
@@ -222,44 +233,61 @@ NO_CHANGE_KNOWN = Change(Interval(math.nan, math.nan, math.nan), math.nan, math.
 
 
 CLIP_MADS = 3.0  # per-round log ratios are clipped to this many (scaled) MADs of their median
-MAD_SCALE = 1.4826  # a normal distribution's standard deviation in MADs
+# Per-round log ratios closer than this (relative) to their mean are one ratio: beyond it lie
+# 14 of a double's 15-16 digits, where scipy's variance warns of precision loss.
+SAME_RATIO = 1e-14
 
 
 def clip_outliers(values: np.ndarray) -> np.ndarray:
-    """The values clipped to their median +- CLIP_MADS scaled median absolute deviations: a
-    shared machine's stray slow run (a few in a hundred take 10-50% longer) then weighs like a
-    large ordinary one instead of deciding a test alone."""
+    """The values clipped to their median +- CLIP_MADS median absolute deviations (scaled to a
+    normal distribution's standard deviation): a shared machine's stray slow run (a few in a
+    hundred take 10-50% longer) then weighs like a large ordinary one instead of deciding a
+    test alone."""
     median = float(np.median(values))
-    mad = MAD_SCALE * float(np.median(np.abs(values - median)))
+    mad = float(sps.median_abs_deviation(values, scale="normal"))
     return values if mad == 0.0 else np.clip(values, median - CLIP_MADS * mad,
                                              median + CLIP_MADS * mad)
+
+
+def paired_log_ratios(old: Sequence[float], new: Sequence[float]) -> np.ndarray:
+    """log(new[k] / old[k]) of the rounds where both were measured, the finite ones, clipped
+    (clip_outliers): what a paired comparison tests, and whose spread decides what it can
+    find (smallest_detectable)."""
+    d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
+    d = d[np.isfinite(d)]
+    return clip_outliers(d) if d.size >= 2 else d
 
 
 def paired_change(old: Sequence[float], new: Sequence[float], threshold: float) -> Change:
     """The change from paired measurements: old[k] and new[k] were measured in the same round,
     one right after the other, so that the machine's drift is in both. The ratio is the
-    geometric mean of the per-round ratios (their logs clipped: clip_outliers), its interval
-    and p-values from a one-sample t-test on those logs (shifted by log(1 + threshold) for
-    the p-values)."""
-    d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
-    d = d[np.isfinite(d)]
+    geometric mean of the per-round ratios (paired_log_ratios), its interval and p-values
+    from one-sample t-tests on those logs (against +-log(1 + threshold) for the p-values)."""
+    d = paired_log_ratios(old, new)
     if d.size < 2:
         return NO_CHANGE_KNOWN
-    d = clip_outliers(d)
     mean = float(d.mean())
-    sd = float(d.std(ddof=1))
-    if sd == 0.0:  # every round the same ratio: no spread to test against
+    margin = math.log1p(threshold)
+    if float(np.abs(d - mean).max()) <= SAME_RATIO * abs(mean):
+        # Every round the same ratio: no spread to test against (a t-test would divide by a
+        # spread of zero, or of rounding errors alone).
         ratio = math.exp(mean)
-        margin = math.log1p(threshold)
         return Change(Interval(ratio, ratio, ratio), 0.0 if mean > margin else 1.0,
                       0.0 if mean < -margin else 1.0)
-    se = sd / math.sqrt(d.size)
-    half = float(sps.t.ppf(0.975, d.size - 1)) * se
-    margin = math.log1p(threshold)
-    slower = float(sps.t.sf((mean - margin) / se, d.size - 1))
-    faster = float(sps.t.cdf((mean + margin) / se, d.size - 1))
-    return Change(Interval(math.exp(mean), math.exp(mean - half), math.exp(mean + half)),
-                  slower, faster)
+    interval = sps.ttest_1samp(d, 0.0).confidence_interval(CONFIDENCE)
+    slower = float(sps.ttest_1samp(d, margin, alternative="greater").pvalue)
+    faster = float(sps.ttest_1samp(d, -margin, alternative="less").pvalue)
+    return Change(Interval(math.exp(mean), math.exp(float(interval.low)),
+                           math.exp(float(interval.high))), slower, faster)
+
+
+def log_spread(ratio: Interval) -> tuple[float, float] | None:
+    """The log of a ratio and the standard error its 95% interval implies on that scale (half
+    the interval's width in logs over Z95); None where the ratio or an end is not a positive
+    number."""
+    if not all(math.isfinite(v) and v > 0 for v in (ratio.point, ratio.low, ratio.high)):
+        return None
+    return math.log(ratio.point), (math.log(ratio.high) - math.log(ratio.low)) / (2 * Z95)
 
 
 def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
@@ -269,10 +297,10 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     (`drift`: the standard deviation of the log of a ratio of identical binaries measured
     apart, beyond the runs' own spread), and normal-approximation p-values against it."""
     base = ratio_ci(new, old)
-    if not all(math.isfinite(v) and v > 0 for v in (base.point, base.low, base.high)):
+    spread = log_spread(base)
+    if spread is None:
         return Change(base, math.nan, math.nan)
-    log_ratio = math.log(base.point)
-    within = (math.log(base.high) - math.log(base.low)) / (2 * Z95)
+    log_ratio, within = spread
     se = math.hypot(within, drift)
     if se == 0.0:
         return Change(base, math.nan, math.nan)

@@ -119,8 +119,7 @@ def part_calibrate(out: Path, config: Path) -> dict[str, object]:
     root = out / "calibration-root"
     code, seconds = sh([*HARNESS, "compare", "--calibrate", config, "--results-dir", root],
                        out / "calibrate.log")
-    found = sorted((root / compare.CALIBRATION_DIR / layout.MACHINES)
-                   .glob(f"*{layout.RECORD_SUFFIX}"))
+    found = sorted(layout.ResultsRoot(root).calibrations.glob(f"*{layout.RECORD_SUFFIX}"))
     data = json.loads(found[-1].read_text())[compare.CALIBRATION_KEY] if found else {}
     return {"exit": code, "seconds": round(seconds, 1), **data}
 

@@ -1,5 +1,5 @@
-"""harness.stats: intervals of medians and ratios, Karp-Flatt, power fit, rank test, and the
-change between two sides (paired, or apart with drift) under false-discovery control."""
+"""harness.stats: intervals of medians and ratios, Karp-Flatt, power fit, and the change
+between two sides (paired, or apart with drift) under false-discovery control."""
 
 from __future__ import annotations
 
@@ -129,14 +129,6 @@ def test_power_fit() -> None:
     assert stats.power_fit([0, 1, 2], [5.0, 1.0, 4.0]).points == 2  # type: ignore[union-attr]
 
 
-def test_rank_test() -> None:
-    # With 3 runs a side the smallest two-sided p is 2/20; with 5, 2/252.
-    assert stats.rank_test([1.0, 1.1, 1.2], [2.0, 2.1, 2.2]) == pytest.approx(0.1)
-    assert stats.rank_test([1, 2, 3, 4, 5], [6, 7, 8, 9, 10]) == pytest.approx(2 / 252)
-    assert stats.rank_test([1.0, 3.0, 5.0], [2.0, 4.0, 6.0]) > 0.5
-    assert math.isnan(stats.rank_test([1.0], [1.0, 2.0]))
-
-
 # --- changes between two sides --------------------------------------------------------------
 
 
@@ -165,6 +157,22 @@ def test_a_stray_slow_run_is_clipped_not_decisive() -> None:
     old = np.ones(7)
     change = stats.paired_change(old, old * np.exp(d), 0.01)
     assert change.p_slower > 0.05
+
+
+def test_the_paired_log_ratios_are_the_finite_rounds_clipped() -> None:
+    d = np.array([0.0, 0.001, -0.001, 0.0005, -0.0005, 0.0, 0.4])
+    logs = stats.paired_log_ratios([*np.ones(7), NAN], [*np.exp(d), 1.0])
+    assert logs.size == 7  # a round without a time has no ratio
+    assert np.array_equal(logs, stats.clip_outliers(np.log(np.exp(d))))
+    assert logs[-1] < 0.01
+    # The same test as scipy's: a one-sample t-test of the logs against the threshold.
+    rng = np.random.default_rng(5)
+    old, new = rng.lognormal(0.0, 0.01, 12), rng.lognormal(0.01, 0.01, 12)
+    logs = stats.paired_log_ratios(old, new)
+    change = stats.paired_change(old, new, 0.005)
+    assert change.p_slower == pytest.approx(
+        sps.ttest_1samp(logs, math.log1p(0.005), alternative="greater").pvalue)
+    assert change.ratio.point == pytest.approx(math.exp(logs.mean()))
 
 
 def test_drift_widens_the_interval_of_runs_measured_apart() -> None:

@@ -17,6 +17,7 @@ from harness import stats
 from harness.analysis.compare import (
     FASTER,
     FDR_Q,
+    MEASURED_TOGETHER,
     SLOWER,
     Drift,
     compare,
@@ -71,15 +72,17 @@ def side(name: str, root: Path) -> Side:
 
 
 def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
-    """Per cell measured together: the standard deviation of its per-round log ratios and its
-    rounds."""
+    """Per cell measured together: the standard deviation of the per-round log ratios its
+    paired test reads (stats.paired_log_ratios) and how many rounds they are."""
     found = []
     for key, a in old.cells.items():
         b = new.cells.get(key)
         pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
-        if pair is not None and len(pair[0]) >= 2:
-            logs = [math.log(y / x) for x, y in zip(*pair, strict=True)]
-            found.append((statistics.stdev(logs), len(logs)))
+        if pair is None:
+            continue
+        logs = stats.paired_log_ratios(*pair)
+        if logs.size >= 2:
+            found.append((float(logs.std(ddof=1)), int(logs.size)))
     return found
 
 
@@ -92,13 +95,11 @@ def apart_drift(blocks: Sequence[Side]) -> tuple[float, int]:
             new = b.cells.get(key)
             if new is None or old.status != OK or new.status != OK:
                 continue
-            interval = stats.ratio_ci(new.times, old.times)
-            if not all(math.isfinite(v) and v > 0 for v in (interval.point, interval.low,
-                                                             interval.high)):
+            spread = stats.log_spread(stats.ratio_ci(new.times, old.times))
+            if spread is None:
                 continue
-            ratios.append(math.log(interval.point))
-            variances.append(((math.log(interval.high) - math.log(interval.low))
-                              / (2 * stats.Z95)) ** 2)
+            ratios.append(spread[0])
+            variances.append(spread[1] ** 2)
     return stats.log_ratio_drift(ratios, variances), len(ratios)
 
 
@@ -112,8 +113,7 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
               blocks: Sequence[Path], threshold: float) -> Calibration:
     """The calibration from the two sides measured together and the blocks measured apart."""
     old, new = side("OLD", measured[0]), side("NEW", measured[1])
-    together = Drift(0.0, "measured together")
-    measured_false, measured_compared = false_verdicts(old, new, threshold, together)
+    measured_false, measured_compared = false_verdicts(old, new, threshold, MEASURED_TOGETHER)
     spread = paired_spread(old, new)
     rounds = max((n for _, n in spread), default=0)
     sd = statistics.median(s for s, _ in spread) if spread else math.nan

@@ -12,19 +12,16 @@ import pandas as pd
 
 from harness.spec.builds import BUILDS
 from harness.spec.variants import default_registry
-from harness.store.columns import TIMED_STATUSES
+from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.frame)
 # The columns that identify a measured cell, in the order tables show them. A results
 # directory may hold several machines' cells side by side: the machine is then a dimension
 # like any other (a table column, one plotted series each).
-CELL_KEYS: tuple[str, ...] = (
-    MACHINE, "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed", "threads",
-    "schedule",
-)
+CELL_KEYS: tuple[str, ...] = (MACHINE, *MATCH_COLUMNS)
 # The columns that identify a simulated input: cells sharing them simulate the same thing,
 # so one may serve as the other's speedup baseline (never across machines).
-SCENE_KEYS: tuple[str, ...] = (MACHINE, "scene", "n", "L", "r", "steps", "mode", "seed")
+SCENE_KEYS: tuple[str, ...] = (MACHINE, *SCENE_COLUMNS)
 # Parameters a section can sweep, in the order the course report's tables take them.
 SWEEP_AXES: tuple[str, ...] = ("n", "L", "r", "threads")
 INTERVAL_SUFFIXES: tuple[str, str] = ("_low", "_high")  # a column's 95% interval ends
@@ -93,12 +90,6 @@ def sweep_axes(df: pd.DataFrame) -> list[str]:
     """
     groups = df.groupby(["variant", "build", "scene"], dropna=False)
     return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
-
-
-
-def variant_rank(name: str) -> int:
-    """Where a variant sorts: the registry's order, any other name after every variant."""
-    return default_registry().rank(name)
 
 
 def _rank(order: Sequence[str]) -> Callable[[pd.Series], pd.Series]:

@@ -34,7 +34,6 @@ from harness.store.columns import OK
 
 EXIT_OK = 0
 EXIT_SLOWER = 1
-EXIT_USAGE = 2
 
 DEFAULT_THRESHOLD = 0.01  # a change within 1% is never called slower or faster
 FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
@@ -43,8 +42,7 @@ FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
 # other work moved single cells by up to 10% between back-to-back runs, two such standard
 # deviations; a quiet one calibrates near 0 (docs/compare.md has both measurements).
 ASSUMED_DRIFT = 0.05
-CALIBRATION_DIR = "calibration"  # <results>/calibration/machines/<machine_id>.json
-CALIBRATION_KEY = "calibration"
+CALIBRATION_KEY = "calibration"  # a calibration's entry in layout.ResultsRoot.calibration
 PAIRED = "measured together"  # the method of a cell's verdict
 APART = "measured apart"
 
@@ -66,6 +64,8 @@ class Drift:
     source: str
 
 
+MEASURED_TOGETHER = Drift(0.0, PAIRED)  # sides measured in the same rounds share the drift
+
 def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
     """The drift of the machines of a comparison: the largest of their newest calibrations
     (<root>/calibration/machines/<id>.json) under the given results roots; ASSUMED_DRIFT for a
@@ -74,8 +74,7 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
     for machine_id in sorted(set(machine_ids)):
         calibrations = []
         for root in dict.fromkeys(roots):
-            path = root / CALIBRATION_DIR / layout.MACHINES / f"{machine_id}{layout.RECORD_SUFFIX}"
-            data = records.read_json(path)
+            data = records.read_json(layout.ResultsRoot(root).calibration(machine_id))
             entry = data.get(CALIBRATION_KEY) if isinstance(data, dict) else None
             if isinstance(entry, dict) and isinstance(entry.get("drift"), int | float):
                 calibrations.append(entry)
@@ -182,8 +181,9 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     if PAIRED in used:
         lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the geometric mean "
                      "of the per-round ratios, which the machine's drift between rounds cannot "
-                     "move; 95% interval and p-value from a t-test on their logs, clipped to 3 "
-                     "MADs of their median (a stray slow run weighs as a large ordinary one).")
+                     "move; 95% interval and p-value from a t-test on their logs, clipped to "
+                     f"{stats.CLIP_MADS:g} MADs of their median (a stray slow run weighs as a "
+                     "large ordinary one).")
     if APART in used:
         lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
                      "bootstrap interval is widened by the machine's drift between runs "

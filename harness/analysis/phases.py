@@ -36,6 +36,7 @@ from harness.analysis.display import (
     format_sig3,
     series_label,
 )
+from harness.spec.variants import GRID
 from harness.store.columns import PHASE_COLUMNS
 
 NS_PER_S = 1e9
@@ -60,12 +61,6 @@ def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
     --precise, some 20x slower). Floats or pandas Series alike; the caller guards
     particle_steps > 0."""
     return (sim_s - broad_s + input_s + output_s) / particle_steps * NS_PER_S
-
-
-def has_phases(df: pd.DataFrame) -> bool:
-    """Whether some timed cell has every phase column (results of binaries from before the
-    phase timers have none)."""
-    return len(phase_rows(df)) > 0
 
 
 def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
@@ -178,13 +173,7 @@ def plot_frame(sel: Selection) -> pd.DataFrame:
     return frame
 
 
-def _share_text(percent: float) -> str:
-    return format_share(percent)
-
-
 # --- the headline -------------------------------------------------------------------------
-
-GRID = "grid"
 
 
 def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
@@ -197,6 +186,6 @@ def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
     share = cell[f"{BROAD}{SHARE_SUFFIX}"]
     threads = int(cell["threads"])
     return float(cell["n"]), (
-        f"where grid's time goes: the broad phase is {_share_text(share)} of its simulation "
+        f"where grid's time goes: the broad phase is {format_share(share)} of its simulation "
         f"time, the rest of it {format_sig3(cell[REST_NS])} ns per particle-step "
         f"(N = {int(cell['n'])}, {threads} thread{'' if threads == 1 else 's'}; {link})")

@@ -6,7 +6,6 @@ judges them)."""
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 from collections.abc import Sequence
@@ -15,17 +14,16 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.analysis.flags import _is_true
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
 from harness.store import hyperfine, layout, records
+from harness.store.columns import MATCH_COLUMNS
 from harness.store.layout import ExperimentDir
 
-# Flags of the shared results.csv contract that make a cell's times suspect; a row names them.
+# The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
+# of its own), in the order a row's note names them.
 FLAG_COLUMNS = ("loaded", "outliers", "unstable", "oversubscribed")
-# The columns a cell is matched on; numeric ones compare as numbers ("20000" == "20000.0").
-SCENE_COLUMNS = ("scene", "n", "L", "r", "steps", "mode", "seed")
-MATCH_COLUMNS = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
-
 
 
 @dataclass(frozen=True)
@@ -100,7 +98,7 @@ def _normal(value: object) -> str:
 class Cell:
     """One results.csv row, with its per-run times."""
 
-    key: MatchKey
+    key: MatchKey  # matched on MATCH_COLUMNS; numeric ones compare as numbers
     directory: Path  # the experiment directory the row came from
     cell_id: str
     status: str
@@ -145,10 +143,7 @@ def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
 
 def _env_machine(directory: Path) -> str:
     """A label for results written before the `machine` column: env.json's CPU and host."""
-    try:
-        env = json.loads(ExperimentDir(directory).env_json.read_text())
-    except (OSError, ValueError):
-        return ""
+    env = records.read_json(ExperimentDir(directory).env_json)
     if not isinstance(env, dict):
         return ""
     model = str(env.get("cpu_model") or "").strip()
@@ -161,11 +156,6 @@ def _text(row: pd.Series, column: str) -> str:
     if value is None or (not isinstance(value, str) and pd.isna(value)):
         return ""
     return str(value).strip()
-
-
-def _flag(row: pd.Series, column: str) -> bool:
-    value = row.get(column)
-    return value is not None and not pd.isna(value) and bool(value)
 
 
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
@@ -187,13 +177,11 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
         key = MatchKey(experiment, *(_normal(row.get(c)) for c in MATCH_COLUMNS))
         cell_id = _text(row, "cell_id")
         listed = _text(row, "wall_times_s")
-        try:
-            times = tuple(float(t) for t in listed.split())
-        except ValueError:
+        export = exp.hyperfine(cell_id) if cell_id and not listed else None
+        times = tuple(hyperfine.run_times(listed, export))
+        if listed and not times:
             raise HarnessError(f"{exp.results_csv}: cell {cell_id}: column 'wall_times_s': "
-                               f"expected space-separated seconds, got {listed!r}") from None
-        if not times and cell_id:
-            times = tuple(hyperfine.run_times(None, exp.hyperfine(cell_id)))
+                               f"expected space-separated seconds, got {listed!r}")
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -209,8 +197,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             status=_text(row, "status") or "unknown", median=median, times=times,
             machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
-            flags=tuple(f for f in FLAG_COLUMNS if _flag(row, f)),
-            stale=_flag(row, "stale"), rounds=_rounds(row, len(times)),
+            flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
+            stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
             round_seed=_text(row, "round_seed").removesuffix(".0")))
     return cells
 

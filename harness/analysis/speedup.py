@@ -4,7 +4,6 @@ report's Tables 2-6 and the thread-scaling figures' numbers."""
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -93,21 +92,9 @@ def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
     return base
 
 
-TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
-
-
 def _with_times(df: pd.DataFrame) -> pd.DataFrame:
     """The rows with a `wall_times_s` column (empty where older results lack it)."""
     return df if TIMES in df.columns else df.assign(**{TIMES: ""})
-
-
-@functools.lru_cache(maxsize=4096)
-def _speedup_ci(base: tuple[float, ...], own: tuple[float, ...]) -> stats.Interval:
-    """stats.speedup_ci, remembered: one render asks for a cell's speedup over the same
-    baseline from several places (the cell table, the thread figures, the summary), and each
-    asks for a 9999-resample bootstrap. Deterministic (seeded by the samples), so a repeat is
-    the same interval."""
-    return stats.speedup_ci(base, own)
 
 
 def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
@@ -122,7 +109,7 @@ def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
     pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
              and pd.notna(out["speedup"].iloc[p[0]])]
     for i, base, own in pairs:
-        speedup = _speedup_ci(tuple(base), tuple(own))
+        speedup = stats.speedup_ci(base, own)
         threads = int(out["threads"].iloc[i])
         metrics = {"speedup": speedup}
         if pd.notna(out["efficiency"].iloc[i]):

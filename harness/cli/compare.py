@@ -12,9 +12,9 @@ from typing import TextIO
 
 from harness.analysis import calibration
 from harness.analysis.compare import (
-    CALIBRATION_DIR,
     CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
+    MEASURED_TOGETHER,
     NOT_OK,
     Drift,
     compare,
@@ -72,7 +72,8 @@ def parser(prog: str) -> argparse.ArgumentParser:
                       help="measure this checkout's binaries as two sides together and "
                       f"{calibrate_runs.BLOCKS} times apart: the false-verdict rate, the drift "
                       "between runs and the smallest slow-down found; kept in "
-                      f"<results>/{CALIBRATION_DIR}/machines/<machine_id>.json")
+                      f"<results>/{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
+                      f"{layout.RECORD_SUFFIX}")
     parser.add_argument("--threshold", type=_threshold, default=DEFAULT_THRESHOLD,
                         help=f"a change within it is never called slower or faster (default: "
                         f"{DEFAULT_THRESHOLD:g})")
@@ -164,7 +165,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
     head = [f"Measured together: every cell of {', '.join(paths[2:])} with OLD's binaries and "
             f"NEW's, in {measured.rounds} interleaved rounds (the order of each round shuffled "
             f"from seed {measured.seed}); the sides' results: {measured.old}, {measured.new}."]
-    return report(old, new, args, out, Drift(0.0, "measured together"), head, out_stream)
+    return report(old, new, args, out, MEASURED_TOGETHER, head, out_stream)
 
 
 def _calibrate(args: argparse.Namespace, paths: list[str],
@@ -172,16 +173,16 @@ def _calibrate(args: argparse.Namespace, paths: list[str],
     registry = VariantRegistry(REPO_ROOT)
     configs = _configs(paths, registry)
     lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
-    work = args.results_dir / CALIBRATION_DIR / "runs"
+    root = layout.ResultsRoot(args.results_dir)
     with lock:
-        measured = calibrate_runs.measure(configs, work, registry, lock, sys.stderr,
-                                          args.hyperfine)
+        measured = calibrate_runs.measure(configs, root.calibration_runs, registry, lock,
+                                          sys.stderr, args.hyperfine)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
     machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
     result = calibration.calibrate(machine_id, " ".join(paths),
                                    (measured.together.old, measured.together.new),
                                    measured.blocks, args.threshold)
-    path = args.results_dir / CALIBRATION_DIR / layout.MACHINES / f"{machine_id}.json"
+    path = root.calibration(machine_id)
     existing = records.read_json(path)
     atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
                                     **description,

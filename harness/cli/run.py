@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from harness.cli.common import Parser
+from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
@@ -20,7 +19,6 @@ from harness.store.locks import RunLock
 
 QUICK_REPORT = "report-quick"
 REPORT_SUBDIR = "report"  # a results root's own report, beside its experiments
-EXIT_INTERRUPTED = 130
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -56,7 +54,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 
 def execute(args: argparse.Namespace) -> int:
-    signal.signal(signal.SIGTERM, _terminate)
+    interrupt_on_sigterm()
     run_lock = RunLock(" ".join(str(p) for p in args.configs), wait=not args.no_wait,
                        log=sys.stderr)
     options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
@@ -88,11 +86,6 @@ def report_dir(args: argparse.Namespace) -> Path:
     if args.results_dir.resolve() == DEFAULT_RESULTS_DIR.resolve():
         return DEFAULT_REPORT_DIR
     return args.results_dir / REPORT_SUBDIR
-
-
-def _terminate(signum: int, frame: object) -> None:
-    """SIGTERM ends a run as Ctrl-C does: the running cell's processes are killed."""
-    raise KeyboardInterrupt
 
 
 def render_report(options: Options, report_dir: Path, names: Sequence[str]) -> None:

@@ -3,15 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
 
-from harness.cli.common import Parser
+from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
 from harness.executors.worker import measure_cells
 from harness.repo import REPO_ROOT
-
-EXIT_INTERRUPTED = 130
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -30,7 +27,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 
 def execute(args: argparse.Namespace) -> int:
-    signal.signal(signal.SIGTERM, _terminate)  # Slurm's time limit: kill the cell's processes
+    interrupt_on_sigterm()
     try:
         measure_cells(args.config, args.results_dir, args.quick, args.repo_root, args.cell_ids,
                       args.hyperfine, args.round_seed)
@@ -38,7 +35,3 @@ def execute(args: argparse.Namespace) -> int:
         sys.stderr.write("interrupted: the cells finished so far are saved\n")
         return EXIT_INTERRUPTED
     return 0
-
-
-def _terminate(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt

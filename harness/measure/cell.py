@@ -35,7 +35,6 @@ from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT, TIMING_K
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
 # A cell's `schedule` (the config's schedule axis) reaches `schedule(runtime)` loops through it.
 OMP_SCHEDULE_VAR = "OMP_SCHEDULE"
-RUN_OUTPUT_SUFFIX = ".out"  # the --precise output of a validated cell while it is compared
 
 
 @dataclass
@@ -81,8 +80,7 @@ class Measurer:
             records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
             "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
         })
-        for old in (self.store.hyperfine_path(cell_id),
-                    *self.store.layout.hyperfine_exports(cell_id)):
+        for old in self.store.layout.hyperfine_files(cell_id):
             old.unlink(missing_ok=True)
         if cell.program:
             return start_program(self.store, self.references, cell, cell_id, key, record, env,
@@ -96,7 +94,7 @@ class Measurer:
         if config.keep_output:
             output_tmp = atomic.temp_path(keep)
         elif cell.validate:
-            output_tmp = atomic.temp_path(self.store.cells_dir / f"{cell_id}{RUN_OUTPUT_SUFFIX}")
+            output_tmp = atomic.temp_path(self.store.layout.run_output(cell_id))
         try:
             precise = run_process([*command[:-1], "--precise", "--timing", command[-1]], env,
                                   measure.timeout_s, output_tmp)

@@ -29,7 +29,6 @@ from harness.spec.variants import BASELINE
 from harness.store import atomic, records
 from harness.store.columns import AGREEING, AGREEMENT_FAILED, CRASHED, INVALID, OK
 
-CHECK_OUTPUT_SUFFIX = ".check.out"  # the check run's stdout while it is judged
 COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
 SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
 SHELL_SIGNALS = 64  # the signals that can be N (Linux's real-time ones included)
@@ -54,7 +53,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads)
     record.update({"check_command": shlex.join(check), "check_steps": steps})
-    output = atomic.temp_path(store.cells_dir / f"{cell_id}{CHECK_OUTPUT_SUFFIX}")
+    output = atomic.temp_path(store.layout.check_output(cell_id))
     try:
         checked = run_process(check, env, timeout_s, output)
         check_status, check_code = _status(checked)

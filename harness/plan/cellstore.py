@@ -37,7 +37,7 @@ def now_iso() -> str:
 @dataclass
 class CellStore:
     """Where one planned experiment's cells live, on the machine `machine_id` measures them
-    on; caches binary hashes (per instance)."""
+    on; caches binary hashes, and the planned cells' keys that rest on them (per instance)."""
 
     plan: Plan
     repo_root: Path
@@ -47,6 +47,8 @@ class CellStore:
     hashes: dict[Path, str | None] = field(default_factory=dict)
     fingerprints: dict[str, str] = field(default_factory=dict)  # program -> its fingerprint
     build_dir: Path | None = None  # where the binaries are; None: the repository's build/
+    # What write_csv lists, after every record: computed once, as the hashes it rests on are.
+    planned: list[index.PlannedCell] | None = field(default=None, init=False, repr=False)
 
     @property
     def binaries(self) -> Path:
@@ -193,9 +195,6 @@ class CellStore:
     def record_path(self, cell_id: str) -> Path:
         return self.layout.record(cell_id)
 
-    def hyperfine_path(self, cell_id: str) -> Path:
-        return self.layout.hyperfine(cell_id)
-
     def cached(self, cell_id: str) -> records.Record | None:
         """The record that spares measuring the cell again. A record marked retry is listed in
         results.csv but measured again by the next run."""
@@ -216,12 +215,13 @@ class CellStore:
         the directory's lock (harness.store.index): per planned cell, this machine's record
         (or its newest, marked stale) and every other machine's newest. With `prune`, the
         superseded records move to history/ first."""
-        planned = []
-        for cell in self.plan.cells:
-            key = self.cell_key(cell)
-            if key is not None:
-                planned.append(index.PlannedCell(key, records.cell_id(key)))
-        kept = index.rebuild_csv(self.directory, planned, self.machine_id, self.config.name,
+        if self.planned is None:
+            self.planned = []
+            for cell in self.plan.cells:
+                key = self.cell_key(cell)
+                if key is not None:
+                    self.planned.append(index.PlannedCell(key, records.cell_id(key)))
+        kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
                                  self.config.title, prune_first=prune)
         if self.config.checks.names:
             csvfile.write_divergence_csv(self.layout.divergence_csv, kept)

@@ -32,17 +32,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.spec.programs import Program
+from harness.spec.variants import GRID
 
 # compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
 BASELINE_CHOICES = ("f64", "same", "f128")
-TRUTH_BUILD = "f128"
 
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
     "schedule", "measure_by_variant", "programs",
 )
-RANDOM_SCENE_KEYS = ("n", "L", "r", "steps", "mode", "seed")
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
 MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
 # Adaptive repetition (`runs: auto`): its own keys, only beside it.
@@ -53,12 +52,11 @@ VALIDATE_KEYS = ("max_n", "baseline")
 # harness.measure.shadow); `accuracy:` holds their settings.
 CHECK_NAMES = ("invariants", "shadow", "divergence")
 ACCURACY_KEYS = ("truth", "shadow_steps", "energy_ulps", "shadow_ulps", "thread_counts", "max_n")
-DEFAULT_TRUTH = "grid"  # build/grid-f128: byte-identical to seq-f128, and far faster
+DEFAULT_TRUTH = GRID  # build/grid-f128: byte-identical to seq-f128, and far faster
 DEFAULT_SHADOW_STEPS = 20
 DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
 DEFAULT_THREAD_COUNTS = (1,)
-COMBINE_MODES = ("product", "zip")
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
                   "schedule")
 EXCLUDE_OPS = {
@@ -85,7 +83,6 @@ DEFAULT_MAX_TIME_S = 120.0
 # The runs of an adaptive cell's first round: the fewest from which an interval is worth
 # reading (with 3 runs the bootstrap interval of a median is [min, max]).
 AUTO_FIRST_RUNS = 3
-
 
 
 @dataclass(frozen=True)

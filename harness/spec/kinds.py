@@ -151,10 +151,12 @@ def axis(value: object, label: str, kind: Kind, source: Path) -> tuple[tuple[obj
         raise config_error(source, label, expected, value) from None
 
 
-def name_list(value: object, label: str, known: Sequence[str], source: Path) -> tuple[str, ...]:
-    expected = "a non-empty list of " + ", ".join(known)
+def name_list(value: object, label: str, known: Sequence[str], source: Path,
+              allow_empty: bool = False) -> tuple[str, ...]:
+    """A name or a list of distinct names among `known` (at least one unless `allow_empty`)."""
+    expected = ("a list of " if allow_empty else "a non-empty list of ") + ", ".join(known)
     items = [value] if isinstance(value, str) else value
-    if not isinstance(items, list) or not items:
+    if not isinstance(items, list) or not (items or allow_empty):
         raise config_error(source, label, expected, value)
     for item in items:
         if item not in known:

@@ -313,20 +313,12 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
 
 def _parse_checks(names: object, options: object, source: Path,
                   variants: Sequence[str]) -> Checks:
-    expected = "a list of " + ", ".join(CHECK_NAMES)
-    items = [names] if isinstance(names, str) else names
-    if not isinstance(items, list):
-        raise config_error(source, "checks", expected, names)
-    for item in items:
-        if item not in CHECK_NAMES:
-            raise config_error(source, "checks", "names among " + ", ".join(CHECK_NAMES), item)
-    if len(set(items)) != len(items):
-        raise config_error(source, "checks", "names without repeats", names)
+    items = kinds.name_list(names, "checks", CHECK_NAMES, source, allow_empty=True)
     raw = kinds.mapping(options, "accuracy", source)
     kinds.reject_unknown(raw, ACCURACY_KEYS, "accuracy.", source)
     if raw and not items:
         raise config_error(source, "checks", "a non-empty list of " + ", ".join(CHECK_NAMES)
-                           + " where 'accuracy' is set", items)
+                           + " where 'accuracy' is set", names)
     truth = kinds.check(raw.get("truth", DEFAULT_TRUTH), "accuracy.truth",
                    kinds.one_of(variants), source)
     steps = kinds.check(raw.get("shadow_steps", DEFAULT_SHADOW_STEPS), "accuracy.shadow_steps",
@@ -340,7 +332,7 @@ def _parse_checks(names: object, options: object, source: Path,
     max_n = None
     if raw.get("max_n") is not None:
         max_n = cast(int, kinds.scalar(raw, "max_n", "accuracy.max_n", kinds.POSITIVE_INT, source))
-    return Checks(tuple(str(i) for i in items), str(truth), cast(int, steps),
+    return Checks(items, str(truth), cast(int, steps),
                   float(cast(float, energy)), float(cast(float, shadow)),
                   tuple(cast(int, c) for c in counts), max_n)
 

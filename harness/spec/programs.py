@@ -29,7 +29,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.spec.variants import BASELINE
+from harness.spec.variants import BASELINE, GRID
 
 # The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for
@@ -38,7 +38,7 @@ from harness.spec.variants import BASELINE
 # precision alone drifts on the same scene.
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 20_000
-FAST_REFERENCE = "grid"
+FAST_REFERENCE = GRID
 ENVELOPE_BUILD = "f32"
 
 INPUT = "input"

@@ -16,6 +16,7 @@ a config may set under `scene:`, each one a value or a list of values to sweep.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import inspect
 import math
@@ -62,7 +63,10 @@ class ScenePoint:
     text: str
     params: tuple[tuple[str, object], ...] = ()
 
-    @property
+    # Asked for by every cell of the scene (its key, its input file, its baseline), and a
+    # program's scene lists every particle: hashed once. A frozen dataclass without slots
+    # keeps it in the instance's __dict__, beside the fields, out of eq and hash.
+    @functools.cached_property
     def input_sha256(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()
 

@@ -29,6 +29,11 @@ AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, DIVERGES})
 
 # --- columns ------------------------------------------------------------------------------
 
+# What a cell measured, the machine aside: its scene with the scene's parameters, and what
+# ran on it with how many threads. Cells that agree on MATCH_COLUMNS measured the same thing,
+# on whichever machines, with whichever binaries.
+SCENE_COLUMNS: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "mode", "seed")
+MATCH_COLUMNS: tuple[str, ...] = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
 # These columns, in this order, start every results.csv.
 CSV_COLUMNS: tuple[str, ...] = (
     "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed",
@@ -90,7 +95,7 @@ STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, 
 # where some cell is a program's.
 PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
 # --timing's per-thread lists, stored as the columns of the same name.
-THREAD_TIMING_KEYS: tuple[str, ...] = ("threads_busy_s", "threads_pairs", "threads_chunks")
+THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
 TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
                                 "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
@@ -129,5 +134,3 @@ BOOL_COLUMNS: frozenset[str] = frozenset({
 FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded", "stale")
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
-# Space-separated lists of numbers (per run, per thread).
-LIST_COLUMNS: tuple[str, ...] = ("wall_times_s", "wall_times_round", *THREAD_TIMING_KEYS)

@@ -6,7 +6,6 @@ without being measured again."""
 from __future__ import annotations
 
 import csv
-import functools
 import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
@@ -26,18 +25,12 @@ from harness.store.columns import (
 def uncertainty(times: Sequence[float]) -> dict[str, object]:
     """The record fields derived from hyperfine's per-run times: the times as a list and the
     95% bootstrap interval of their median."""
-    low, high = _median_ci(tuple(times))
-    return {"wall_times_s": list(times), "wall_median_ci_low_s": low,
-            "wall_median_ci_high_s": high}
-
-
-@functools.lru_cache(maxsize=4096)
-def _median_ci(times: tuple[float, ...]) -> tuple[float | None, float | None]:
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
     interval = stats.median_ci(times)
-    return (interval.low if math.isfinite(interval.low) else None,
-            interval.high if math.isfinite(interval.high) else None)
+    return {"wall_times_s": list(times),
+            "wall_median_ci_low_s": interval.low if math.isfinite(interval.low) else None,
+            "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None}
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None

@@ -113,23 +113,31 @@ def load_history(experiment_dir: Path) -> list[records.Record]:
     return out
 
 
-def superseded(stored: Iterable[Stored]) -> list[Stored]:
-    """The records with a newer record of the same group on the same machine; a record of no
-    known machine is superseded by any newer record of its group."""
+def by_group(stored: Iterable[Stored]) -> dict[str, list[Stored]]:
+    """The records by group, each group oldest first."""
     groups: dict[str, list[Stored]] = {}
     for item in stored:
         groups.setdefault(item.group, []).append(item)
-    out = []
     for members in groups.values():
         members.sort(key=lambda s: s.age)
-        newest_of: dict[str, Stored] = {m.machine_id: m for m in members}  # the last one wins
-        newest_any = members[-1]
-        for member in members:
-            if member.machine_id == UNKNOWN_MACHINE:
-                if member is not newest_any:
-                    out.append(member)
-            elif member is not newest_of[member.machine_id]:
-                out.append(member)
+    return groups
+
+
+def current_by_machine(members: Sequence[Stored]) -> dict[str, Stored]:
+    """A group's current records (`members` oldest first), by machine: the newest of each; a
+    record of no known machine only while it is the group's newest of all."""
+    newest = {m.machine_id: m for m in members}  # the last one wins
+    if UNKNOWN_MACHINE in newest and newest[UNKNOWN_MACHINE] is not members[-1]:
+        del newest[UNKNOWN_MACHINE]
+    return newest
+
+
+def superseded(stored: Iterable[Stored]) -> list[Stored]:
+    """The records that are not current (current_by_machine)."""
+    out = []
+    for members in by_group(stored).values():
+        current = current_by_machine(members)
+        out += [m for m in members if current.get(m.machine_id) is not m]
     return out
 
 
@@ -141,8 +149,7 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
     for item in items:
         history.mkdir(parents=True, exist_ok=True)
         cid = item.cell_id
-        companions = [(path, history / path.name)
-                      for path in (exp.hyperfine(cid), *exp.hyperfine_exports(cid))]
+        companions = [(path, history / path.name) for path in exp.hyperfine_files(cid)]
         companions.append((exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}"))
         for source, target in companions:
             if source.is_file():

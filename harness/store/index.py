@@ -13,7 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.store import atomic, csvfile, locks, records
-from harness.store.history import UNKNOWN_MACHINE, Stored, group_of, load_records, prune_locked
+from harness.store.history import (
+    UNKNOWN_MACHINE,
+    Stored,
+    by_group,
+    current_by_machine,
+    group_of,
+    load_records,
+    prune_locked,
+)
 from harness.store.layout import ExperimentDir
 
 
@@ -37,9 +45,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
     """results.csv's records, in plan order: per planned cell, this machine's current record
     (or its newest, stale), then the newest of each other machine (and of no known machine,
     unless a newer record of the group exists)."""
-    by_group: dict[str, list[Stored]] = {}
-    for item in stored:
-        by_group.setdefault(item.group, []).append(item)
+    groups = by_group(stored)
     rows: list[Row] = []
     done: set[str] = set()
     for cell in planned:
@@ -47,15 +53,13 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         if group in done:
             continue
         done.add(group)
-        members = sorted(by_group.get(group, []), key=lambda s: s.age)
-        newest: dict[str, Stored] = {m.machine_id: m for m in members}
+        members = groups.get(group, [])
+        newest = current_by_machine(members)
         ordered = [machine_id, *sorted(m for m in newest if m != machine_id)]
         for machine in ordered:
             item = newest.get(machine)
             if item is None:
                 continue
-            if machine == UNKNOWN_MACHINE and item is not members[-1]:
-                continue  # superseded by a newer record of a known machine
             if machine == machine_id:
                 current = next((m for m in members if m.cell_id == cell.cell_id), None)
                 item = current or item

@@ -9,6 +9,8 @@
                                          written (<cell_id>.hyperfine.json: one for all runs,
                                          in records from before rounds)
         cells/<cell_id>.partial.json     a cell whose rounds an interruption cut short
+        cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
+        cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
@@ -17,6 +19,8 @@
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
         divergence.csv                   the checks' divergence curves, where some cell has them
+      calibration/machines/<machine_id>.json   a machine's description and its calibration
+      calibration/runs/              the runs a calibration measures
       compare/                       compare.py's default output
 
 Standard library only.
@@ -43,12 +47,18 @@ HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
 PARTIAL_SUFFIX = ".partial.json"
 OUTPUT_SUFFIX = ".txt"
+# The outputs a cell's measurement compares and then deletes (written under a temporary name
+# beside these: harness.store.atomic.temp_path).
+RUN_OUTPUT_SUFFIX = ".out"  # a validated cell's --precise output
+CHECK_OUTPUT_SUFFIX = ".check.out"  # a program's check run's output
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 INPUT_SUFFIX = ".in"
 CACHE_DIR = ".cache"
 BASELINES = "baselines"
 PRINTS = "prints"
 COMPARE_DIR = "compare"
+CALIBRATION_DIR = "calibration"
+CALIBRATION_RUNS = "runs"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
 INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
@@ -112,11 +122,25 @@ class ExperimentDir:
         found = self.cells.glob(f"{cell_id}{HYPERFINE_INFIX}*")
         return sorted((p for p in found if p.name.endswith(RECORD_SUFFIX)), key=round_of)
 
+    def hyperfine_files(self, cell_id: str) -> list[Path]:
+        """Where the cell's hyperfine exports may be: the one for all its runs, then those of
+        its rounds that exist."""
+        return [self.hyperfine(cell_id), *self.hyperfine_exports(cell_id)]
+
     def partial(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}{PARTIAL_SUFFIX}"
 
     def output(self, cell_id: str) -> Path:
         return self.outputs / f"{cell_id}{OUTPUT_SUFFIX}"
+
+    def run_output(self, cell_id: str) -> Path:
+        """Where a validated cell's --precise output goes while it is compared (unless kept:
+        output())."""
+        return self.cells / f"{cell_id}{RUN_OUTPUT_SUFFIX}"
+
+    def check_output(self, cell_id: str) -> Path:
+        """Where a program's check run's output goes while it is judged."""
+        return self.cells / f"{cell_id}{CHECK_OUTPUT_SUFFIX}"
 
     def input(self, sha256: str) -> Path:
         return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}{INPUT_SUFFIX}"
@@ -139,6 +163,18 @@ class ResultsRoot:
 
     def print_output(self, key: str) -> Path:
         return self.path / CACHE_DIR / PRINTS / f"{key}{OUTPUT_SUFFIX}"
+
+    @property
+    def calibrations(self) -> Path:
+        return self.path / CALIBRATION_DIR / MACHINES
+
+    def calibration(self, machine_id: str) -> Path:
+        """The machine's description with its calibration (`compare --calibrate`)."""
+        return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
+
+    @property
+    def calibration_runs(self) -> Path:
+        return self.path / CALIBRATION_DIR / CALIBRATION_RUNS
 
 
 def is_record_name(name: str) -> bool:

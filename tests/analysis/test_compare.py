@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from harness import repo
 from harness.analysis import compare, resultsets
+from harness.cli.common import EXIT_ERROR
 from harness.report.figures import compare as figcompare
 from harness.store import atomic, csvfile
 
@@ -289,7 +290,7 @@ def test_several_machines_need_a_choice(tmp_path: Path, capsys: pytest.CaptureFi
          "wall_times_s": times_text(SLOW), "machine_id": "bbbb111122223333",
          "machine": "Intel Xeon x2"}])
     out = str(tmp_path / "out")
-    assert compare_main([str(old), str(new), "--out", out]) == compare.EXIT_USAGE
+    assert compare_main([str(old), str(new), "--out", out]) == EXIT_ERROR
     err = capsys.readouterr().err
     assert err.startswith("error: NEW holds cells of several machines (") and "--new-machine" in err
     assert err.count("\n") == 1
@@ -331,7 +332,7 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
         status = compare_main([*args, "--out", str(tmp_path / "out")])
     except SystemExit as exc:  # argparse's errors
         status = exc.code  # type: ignore[assignment]
-    assert status == compare.EXIT_USAGE
+    assert status == EXIT_ERROR
     err = capsys.readouterr().err
     assert err.startswith(expected) and err.count("\n") == 1, err
     assert not (tmp_path / "out" / "compare.md").exists()
