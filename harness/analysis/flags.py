@@ -7,13 +7,30 @@ from __future__ import annotations
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
-from harness.store.columns import AGREEMENT_FAILED, AGREEMENTS, IDENTICAL, INVALID, OK
+from harness.analysis.programs import agreement_text
+from harness.store.columns import (
+    AGREEMENT_FAILED,
+    AGREEMENTS,
+    CRASHED,
+    FAILED,
+    IDENTICAL,
+    INVALID,
+    OK,
+)
 
-TIMING_FLAGS: dict[str, str] = {
+# How each of a cell's flags (store.columns.FLAG_COLUMNS) is written, in the order shown.
+FLAG_WORDS: dict[str, str] = {
+    "oversubscribed": "oversubscribed",  # more threads than cores
+    "unstable": "unstable timing",  # stddev >= 10% of the mean
     "outliers": "outliers",  # hyperfine warned about statistical outliers
     "loaded": "loaded machine",  # other processes loaded the machine when the cell started
     "stale": "stale binary",  # its binary changed since it was measured
 }
+INVALID_OUTPUT = "invalid output"
+NOT_CHECKED = "not checked"  # a program left unjudged: seq's own print-mode run failed
+# The columns of the warnings table (one experiment's), and its order.
+WARNING_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "threads")
+WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads")
 
 
 def _is_true(value: object) -> bool:
@@ -26,66 +43,95 @@ def _is_false(value: object) -> bool:
     return value is not None and not pd.isna(value) and not bool(value)
 
 
-def validation_text(row: pd.Series) -> str:
-    """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
+def _flags(row: pd.Series) -> list[str]:
+    """The flags set on a cell, in FLAG_WORDS' order."""
+    return [flag for flag in FLAG_WORDS if _is_true(row.get(flag))]
+
+
+def status_text(row: pd.Series) -> str:
+    """A cell's status in a few words: `ok`, `failed (exit 3)`, `invalid: differs from step 3`."""
     status = str(row["status"])
-    parts = [status]
+    text = status
     exit_code = row.get("exit_code")
-    if status in ("failed", "crashed") and exit_code is not None and pd.notna(exit_code):
-        parts[0] = f"{status} (exit {int(exit_code)})"
-    if _is_false(row.get("identical")) and status == OK:
-        parts.append("differs from seq")
+    if status in (FAILED, CRASHED) and exit_code is not None and pd.notna(exit_code):
+        text = f"{status} (exit {int(exit_code)})"
     agreement = row.get("agreement")
     if agreement in AGREEMENTS and (agreement != AGREEMENT_FAILED or status == INVALID):
-        first = row.get("first_diff_step")
-        parts[0] += f": {agreement}" + (f" from step {int(first)}"
-                                        if first is not None and pd.notna(first) else "")
-    if bool(row.get("oversubscribed")):
-        parts.append("oversubscribed")
-    if bool(row.get("unstable")):
-        parts.append("unstable timing")
-    for flag, words in TIMING_FLAGS.items():
-        if _is_true(row.get(flag)):
-            parts.append(words)
+        text += f": {agreement_text(row)}"
+    return text
+
+
+def validation_text(row: pd.Series) -> str:
+    """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
+    parts = [status_text(row)]
+    if _is_false(row.get("identical")) and row["status"] == OK:
+        parts.append("differs from seq")
+    parts += [FLAG_WORDS[flag] for flag in _flags(row)]
     return " · ".join(parts)
+
+
+def _status_kind(status: str) -> str:
+    """What the summary counts a cell with this status (not ok) as."""
+    return INVALID_OUTPUT if status == INVALID else status
+
+
+def issues(row: pd.Series) -> list[tuple[str, str]]:
+    """Why a cell is flagged in the warnings, as (kind, text) pairs: the text is what the
+    warnings table shows, the kind what the summary counts cells by (a program's agreement,
+    else its status, and each flag)."""
+    found: list[tuple[str, str]] = []
+    status = str(row["status"])
+    agreement = row.get("agreement")
+    if agreement in AGREEMENTS and agreement != IDENTICAL and isinstance(row.get("note"), str):
+        # A program: its note says where it leaves seq and what seq did. One whose output
+        # could not be compared counts by what happened to it.
+        if agreement != AGREEMENT_FAILED:
+            kind = str(agreement)
+        else:
+            kind = NOT_CHECKED if status == OK else _status_kind(status)
+        found.append((kind, str(row["note"])))
+    elif status == INVALID:
+        found.append((INVALID_OUTPUT, INVALID_OUTPUT))
+    elif status != OK:
+        found.append((_status_kind(status), status_text(row)))
+    for flag in _flags(row):
+        text = FLAG_WORDS[flag]
+        if flag == "oversubscribed":
+            cores = row.get("cores")
+            cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
+            text += f" ({int(row['threads'])} threads{cores_text})"
+        found.append((FLAG_WORDS[flag], text))
+    return found
 
 
 def issue_text(row: pd.Series) -> str:
     """Why a cell is flagged in the warnings: its status and any flags."""
-    issues = []
-    status = str(row["status"])
-    agreement = row.get("agreement")
-    if agreement in AGREEMENTS and agreement != IDENTICAL and isinstance(row.get("note"), str):
-        issues.append(str(row["note"]))  # a program: where it leaves seq, and what seq did
-    elif status == INVALID:
-        issues.append("invalid output")
-    elif status != OK:
-        issues.append(validation_text(row).split(" · ")[0])
-    if bool(row.get("oversubscribed")):
-        cores = row.get("cores")
-        cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
-        issues.append(f"oversubscribed ({int(row['threads'])} threads{cores_text})")
-    if bool(row.get("unstable")):
-        issues.append("unstable timing")
-    for flag, words in TIMING_FLAGS.items():
-        if _is_true(row.get(flag)):
-            issues.append(words)
-    return "; ".join(issues)
+    return "; ".join(text for _, text in issues(row))
+
+
+def _flagged(df: pd.DataFrame) -> pd.DataFrame:
+    """The flagged rows of an experiment's cells, in the warnings table's order."""
+    mask = df["status"] != OK
+    if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
+        mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
+    for flag in FLAG_WORDS:
+        if flag in df.columns:
+            mask |= df[flag].fillna(False).astype(bool)
+    return sort_cells(df[mask], WARNING_ORDER)
 
 
 def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
-    """The cells a reader must know about: not ok, oversubscribed, or with unstable timings."""
-    mask = (df["status"] != OK) | df["oversubscribed"] | df["unstable"]
-    if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
-        mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
-    for flag in TIMING_FLAGS:
-        if flag in df.columns:
-            mask |= df[flag].fillna(False).astype(bool)
-    flagged = df[mask]
-    keys = ["experiment", "variant", "build", "scene", "n", "L", "r", "threads"]
-    table = pd.DataFrame({k: flagged[k] for k in keys})
-    table["issue"] = flagged.apply(issue_text, axis=1) if len(flagged) else []
-    return sort_cells(table, ["experiment", "variant", "build", "n", "L", "r", "threads"])
+    """The cells of one experiment a reader must know about (not ok, a program that leaves
+    seq, or flagged), one row each with why."""
+    flagged = _flagged(df)
+    table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS})
+    table["issue"] = [issue_text(row) for _, row in flagged.iterrows()]
+    return table
+
+
+def flagged_kinds(df: pd.DataFrame) -> list[tuple[str, ...]]:
+    """The kinds of issue of each row of flagged_cells(df), in its order."""
+    return [tuple(kind for kind, _ in issues(row)) for _, row in _flagged(df).iterrows()]
 
 
 COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)

@@ -23,7 +23,7 @@ import hashlib
 import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from harness.store.atomic import atomic_write_text
 from harness.store.records import sha256_file
@@ -102,6 +102,21 @@ def code_version(files: Iterable[Path], extra: str = "") -> str:
     return digest.hexdigest()
 
 
+class CodeVersions(NamedTuple):
+    """Hashes of the code that draws the figures and of the code that builds the parts."""
+
+    plot: str
+    report: str
+
+
+def code_versions(facts: str = "") -> CodeVersions:
+    """The code's versions as it is now; `facts`: what else the drawings depend on beside the
+    code (the variants'). Reading every module is not free: a render computes this once for
+    all its pages."""
+    return CodeVersions(code_version(code_closure(FIGURE_MODULES), facts),
+                        code_version(code_closure(REPORT_MODULES), facts))
+
+
 def _digest_value(value: object, digest: Any) -> None:
     """Feed a figure argument into the hash: frames by their CSV text (exact float repr)."""
     if hasattr(value, "to_csv") and hasattr(value, "columns"):
@@ -117,12 +132,10 @@ def _digest_value(value: object, digest: Any) -> None:
 class Manifest:
     """report/figures/.manifest.json: what each figure and each experiment part was made from."""
 
-    def __init__(self, fig_dir: Path, facts: str = "") -> None:
-        """`facts`: what else the drawings depend on beside the code (the variants')."""
+    def __init__(self, fig_dir: Path, code: CodeVersions) -> None:
         self.fig_dir = fig_dir
         self.path = fig_dir / MANIFEST_NAME
-        self.plot_code = code_version(code_closure(FIGURE_MODULES), facts)
-        self.report_code = code_version(code_closure(REPORT_MODULES), facts)
+        self.code = code
         data = self._read()
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})
         self.parts: dict[str, dict[str, Any]] = data.get("parts", {})
@@ -145,7 +158,7 @@ class Manifest:
 
     def figure_key(self, function: Callable[..., object], args: tuple, kwargs: dict) -> str:
         digest = hashlib.sha256()
-        digest.update(f"{function.__module__}.{function.__qualname__}\0{self.plot_code}\0".encode())
+        digest.update(f"{function.__module__}.{function.__qualname__}\0{self.code.plot}\0".encode())
         for value in args:
             _digest_value(value, digest)
         for name in sorted(kwargs):
@@ -181,7 +194,7 @@ class Manifest:
     # --- experiment parts ------------------------------------------------------------------
 
     def part_key(self, input_digest: str) -> str:
-        return hashlib.sha256(f"{input_digest}\0{self.report_code}".encode()).hexdigest()
+        return hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
 
     def get_part(self, name: str, key: str) -> dict[str, Any] | None:
         """A stored part made from the same inputs whose figures are all intact, or None."""

@@ -5,8 +5,9 @@ standard library only."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 from harness.report.document import Bullets, Details, Paragraph, Section, Table
 from harness.report.parts import HIGHLIGHT_KINDS, ExperimentPart, Fidelity
@@ -100,11 +101,14 @@ HOW_TO_READ = (
 )
 
 
-def _issue_counts(parts: Sequence[ExperimentPart]) -> str:
-    counts = Counter(issue for part in parts for issues in part.warning_issues
-                     for issue in issues)
-    return ", ".join(f"{n} {issue}" for issue, n in
-                     sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+def _kind_counts(parts: Iterable[ExperimentPart]) -> list[tuple[str, int]]:
+    """How many flagged cells have each kind of issue, the most common first."""
+    counts = Counter(kind for part in parts for kinds in part.warning_kinds for kind in kinds)
+    return sorted(counts.items(), key=lambda item: (-item[1], item[0]))
+
+
+def _flagged_count(part: ExperimentPart) -> int:
+    return len(part.warnings.rows) if part.warnings is not None else 0
 
 
 def warnings_anchor(part: ExperimentPart) -> str:
@@ -114,20 +118,15 @@ def warnings_anchor(part: ExperimentPart) -> str:
 def warnings_details(part: ExperimentPart) -> Details | None:
     """The experiment's flagged cells, folded, for the top of its own section; None when all
     its cells are clean."""
-    if not part.warning_rows:
+    table = part.warnings
+    if table is None:
         return None
-    keep = [k for k, c in enumerate(part.warning_columns) if c != EXPERIMENT_COLUMN]
-    columns = tuple(part.warning_columns[k] for k in keep)
-    rows = tuple(tuple(row[k] for k in keep) for row in part.warning_rows)
-    table = Table(columns, rows[:MAX_WARNING_ROWS],
-                  tuple(c in NUMERIC_WARNING_COLUMNS for c in columns), "")
-    blocks: list[Paragraph | Table] = [table]
-    if len(rows) > MAX_WARNING_ROWS:
-        blocks.append(Paragraph(f"… and {len(rows) - MAX_WARNING_ROWS} more."))
-    n = len(rows)
-    counts = Counter(issue for issues in part.warning_issues for issue in issues)
-    why = ", ".join(f"{issue} ({count})" for issue, count in
-                    sorted(counts.items(), key=lambda item: (-item[1], item[0])))
+    n = len(table.rows)
+    blocks: list[Paragraph | Table] = [
+        dataclasses.replace(table, rows=table.rows[:MAX_WARNING_ROWS])]
+    if n > MAX_WARNING_ROWS:
+        blocks.append(Paragraph(f"… and {n - MAX_WARNING_ROWS} more."))
+    why = ", ".join(f"{kind} ({count})" for kind, count in _kind_counts([part]))
     summary = f"{n} flagged cell{'' if n == 1 else 's'}: {why}"
     return Details(summary, tuple(blocks), warnings_anchor(part))
 
@@ -135,18 +134,14 @@ def warnings_details(part: ExperimentPart) -> Details | None:
 def warnings_text(parts: Sequence[ExperimentPart]) -> str | None:
     """The summary's line on the flagged cells: how many, why, and where each experiment's
     are (folded at the top of its section); None when every cell is clean."""
-    flagged = [p for p in parts if p.warning_rows]
+    flagged = [p for p in parts if _flagged_count(p)]
     if not flagged:
         return None
-    total = sum(len(p.warning_rows) for p in flagged)
-    where = ", ".join(f"[{p.name}](#{warnings_anchor(p)}) {len(p.warning_rows)}"
-                      for p in flagged)
+    total = sum(_flagged_count(p) for p in flagged)
+    where = ", ".join(f"[{p.name}](#{warnings_anchor(p)}) {_flagged_count(p)}" for p in flagged)
+    why = ", ".join(f"{count} {kind}" for kind, count in _kind_counts(flagged))
     return (f"warnings: {total} flagged cell{'' if total == 1 else 's'} "
-            f"({_issue_counts(flagged)}), folded at the top of their sections: {where}")
-
-
-EXPERIMENT_COLUMN = "experiment"
-NUMERIC_WARNING_COLUMNS: frozenset[str] = frozenset({"N", "L", "r", "threads"})
+            f"({why}), folded at the top of their sections: {where}")
 
 
 def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:

@@ -1,5 +1,5 @@
-"""Reading results/<experiment>/ for the report: results.csv (harness.analysis.frame), env.json,
-divergence.csv and print-mode outputs."""
+"""Reading results/<experiment>/ for the report: results.csv (harness.analysis.frame),
+divergence.csv and print-mode outputs (env.json is read by harness.report.pipeline)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import pandas as pd
 
 from harness.analysis.frame import read_divergence, read_results
 from harness.errors import HarnessError
-from harness.report.discover import read_env
 from harness.report.machines import UNKNOWN_ID
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
@@ -21,13 +20,12 @@ from harness.store.records import MACHINE_KEY
 
 @dataclass(frozen=True, eq=False)
 class Experiment:
-    """One results/<name>/ directory: its cells, its title and the machine it ran on."""
+    """One results/<name>/ directory: its cells and its title."""
 
     name: str
     path: Path
     title: str
     frame: pd.DataFrame
-    env: dict[str, object]
     divergence: pd.DataFrame | None = None  # divergence.csv, when the checks wrote one
 
 
@@ -50,17 +48,12 @@ def read_trajectory(path: Path) -> pd.DataFrame:
 
 def load_experiment(found: ExperimentDir, machine: str | None = None) -> Experiment:
     """One experiment directory read and checked (HarnessError naming the file otherwise);
-    with `machine` (an id), only that machine's cells, and its environment."""
+    with `machine` (an id), only that machine's cells."""
     frame = read_results(found.results_csv)
     titles = [t for t in frame["title"] if t]
     title = titles[0] if titles else found.name
-    env_json = found.env_json
-    if machine is not None:
-        if MACHINE_KEY in frame.columns:
-            ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
-            frame = frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
-        if found.machine(machine).is_file():
-            env_json = found.machine(machine)
-    return Experiment(found.name, found.path, title, frame, read_env(env_json),
-                      read_divergence(found.divergence_csv))
+    if machine is not None and MACHINE_KEY in frame.columns:
+        ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
+        frame = frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
+    return Experiment(found.name, found.path, title, frame, read_divergence(found.divergence_csv))
 

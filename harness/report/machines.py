@@ -16,16 +16,13 @@ from dataclasses import dataclass
 
 from harness.errors import HarnessError
 from harness.report.document import Paragraph, Section, Table
-from harness.store.columns import OK
+from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
 
 LABEL_KEY = "machine"
 MEASURED_AT = "measured_at"
 MEDIAN = "wall_median_s"
-# A cell measured on two machines is the same cell when these agree (the machine aside).
-MATCH_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "steps", "mode",
-                               "seed", "threads", "schedule")
 UNKNOWN_ID = "unknown"  # rows from before machine identity was recorded
 SHORT_ID = 8  # characters of a machine id shown beside its label
 ANCHOR = "machines"
@@ -116,7 +113,7 @@ def _medians(table: list[dict[str, str]], machine_id: str) -> dict[tuple[str, ..
         except ValueError:
             continue
         if math.isfinite(median) and median > 0:
-            medians[tuple(row.get(k) or "" for k in MATCH_KEYS)] = median
+            medians[tuple(row.get(k) or "" for k in MATCH_COLUMNS)] = median
     return medians
 
 
@@ -142,8 +139,8 @@ def side_by_side(rows: Rows, shown: Machine, found: Sequence[Machine]) -> Sectio
                    "range"), tuple(table_rows), (False, False, True, True, True),
                   f"The other machines' median times over this one's ({shown.name}).")
     text = Paragraph(
-        "Cells measured on this machine and on another one, matched on variant, build, scene "
-        "and threads, both ok. The time ratio is the geometric mean of the other machine's "
-        "median over this one's: above 1, this machine was faster. Each machine's own "
-        "report (linked under the title) shows its cells in full.")
+        "Cells measured on this machine and on another one, matched on all that names a cell "
+        f"but the machine ({', '.join(MATCH_COLUMNS)}), both ok. The time ratio is the geometric "
+        "mean of the other machine's median over this one's: above 1, this machine was "
+        "faster. Each machine's own report (linked under the title) shows its cells in full.")
     return Section(TITLE, ANCHOR, (text, table))

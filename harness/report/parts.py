@@ -9,7 +9,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from harness.report.document import Section, section_from_json, section_to_json
+from harness.report.document import (
+    Section,
+    Table,
+    block_from_json,
+    block_to_json,
+    section_from_json,
+    section_to_json,
+)
 
 
 @dataclass(frozen=True)
@@ -50,9 +57,8 @@ HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "phases", "largest")
 class ExperimentPart:
     name: str
     section: Section
-    warning_columns: tuple[str, ...] = ()
-    warning_rows: tuple[tuple[str, ...], ...] = ()
-    warning_issues: tuple[tuple[str, ...], ...] = ()  # per row, the kinds of issue it has
+    warnings: Table | None = None  # its flagged cells, one row each with why; None if none
+    warning_kinds: tuple[tuple[str, ...], ...] = ()  # per row of `warnings`, its kinds of issue
     highlights: dict[str, Highlight] = field(default_factory=dict)  # by HIGHLIGHT_KINDS
     fidelity: Fidelity = Fidelity()
     fidelity_anchor: str = ""  # where the checks or validation of this experiment are shown
@@ -61,9 +67,8 @@ class ExperimentPart:
     def to_json(self, base: Path) -> dict[str, Any]:
         return {
             "name": self.name, "section": section_to_json(self.section, base),
-            "warning_columns": list(self.warning_columns),
-            "warning_rows": [list(r) for r in self.warning_rows],
-            "warning_issues": [list(r) for r in self.warning_issues],
+            "warnings": None if self.warnings is None else block_to_json(self.warnings, base),
+            "warning_kinds": [list(r) for r in self.warning_kinds],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
             "fidelity": list(self.fidelity.counts()), "fidelity_anchor": self.fidelity_anchor,
             "programs_anchor": self.programs_anchor,
@@ -73,8 +78,8 @@ class ExperimentPart:
     def from_json(cls, data: dict[str, Any], base: Path) -> ExperimentPart:
         return cls(
             data["name"], section_from_json(data["section"], base),
-            tuple(data["warning_columns"]), tuple(tuple(r) for r in data["warning_rows"]),
-            tuple(tuple(r) for r in data["warning_issues"]),
+            None if data["warnings"] is None else block_from_json(data["warnings"], base),
+            tuple(tuple(r) for r in data["warning_kinds"]),
             {k: Highlight(*v) for k, v in data["highlights"].items()},
             Fidelity(*data["fidelity"]), data["fidelity_anchor"], data["programs_anchor"],
         )

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from harness.repo import REPO_ROOT
 from harness.report import machines
-from harness.report.cache import Manifest
+from harness.report.cache import CodeVersions, Manifest, code_versions
 from harness.report.discover import find_experiments, input_digest, read_env
 from harness.report.document import (
     Bullets,
@@ -150,12 +150,12 @@ def _write_page(doc: Document, page_dir: Path) -> None:
 
 
 def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
-                 machine: machines.Machine | None = None, others: Sequence[Link] = (),
-                 side_by_side: Section | None = None,
+                 code: CodeVersions, machine: machines.Machine | None = None,
+                 others: Sequence[Link] = (), side_by_side: Section | None = None,
                  rows: machines.Rows | None = None) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
-    manifest = Manifest(fig_dir, facts=default_registry().digest())
+    manifest = Manifest(fig_dir, code)
     if machine is not None and rows is not None:
         found = [f for f in found
                  if any(machines.machine_of(r) == machine.id for r in rows[f.name])]
@@ -196,6 +196,7 @@ def render(
     rows = machines.read_rows(found)
     named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
     listed = machines.machines(rows, named - {""})
+    code = code_versions(default_registry().digest())
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would
     # delete each other's figures as stale; the second waits for the first instead.
@@ -204,7 +205,7 @@ def render(
         if len(listed) < 2:
             # One machine (or none recorded): one page, its figures beside it.
             shown = machines.pick(listed, machine) if listed or machine else None
-            _render_page(found, results_dir, out_dir, shown, rows=rows)
+            _render_page(found, results_dir, out_dir, code, shown, rows=rows)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
@@ -215,7 +216,7 @@ def render(
                          .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:
-            doc = _render_page(found, results_dir, pages[page.id], page,
+            doc = _render_page(found, results_dir, pages[page.id], code, page,
                                links(pages[page.id], page.id),
                                machines.side_by_side(rows, page, listed), rows)
             if page.id == top.id:

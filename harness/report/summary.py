@@ -8,8 +8,9 @@ import math
 import pandas as pd
 
 from harness.analysis import phases
+from harness.analysis.cells import INTERVAL_SUFFIXES
 from harness.analysis.display import format_value
-from harness.analysis.flags import flagged_cells
+from harness.analysis.flags import flagged_cells, flagged_kinds
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.blocks import table_block
@@ -18,15 +19,12 @@ from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
 from harness.report.sections.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
 from harness.report.sections.programs import ANCHOR_SUFFIX as PROGRAMS_SUFFIX
-from harness.spec.variants import BASELINE
+from harness.spec.variants import BASELINE, GRID
 from harness.store.columns import AGREEING, INVALID, OK
-from harness.store.records import MACHINE_KEY
 
-GRID = "grid"  # the variant the summary's grid headline is about
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
 # oversubscribed, against seq on the same scene and machine.
 NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
-ISSUE_DETAIL = " ("  # an issue's kind is the text before its detail, e.g. "oversubscribed (4..."
 
 
 def _anchor(section: Section, suffix: str) -> str:
@@ -40,7 +38,7 @@ def _anchor(section: Section, suffix: str) -> str:
 def ratio_text(row: pd.Series, column: str = "speedup") -> str:
     """`2.02×`, or `2.02× [1.98, 2.05]` with the 95% interval where the runs give one."""
     point = f"{float(row[column]):.2f}×"
-    low, high = row.get(f"{column}_low"), row.get(f"{column}_high")
+    low, high = (row.get(f"{column}{suffix}") for suffix in INTERVAL_SUFFIXES)
     if low is not None and high is not None and pd.notna(low) and pd.notna(high) and (
             math.isfinite(low) and math.isfinite(high)):
         return f"{point} [{float(low):.2f}, {float(high):.2f}]"
@@ -58,24 +56,10 @@ def _fair(rows: pd.DataFrame) -> pd.DataFrame:
                 & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
 
 
-def latest_machine_rows(exp: Experiment) -> pd.DataFrame:
-    """The experiment's rows of the machine that measured it last (its env.json, the machine
-    the report's header describes) where several machines sit side by side and that one has
-    rows; else all of them. A headline then speaks of one machine, today's, and never picks a
-    cell because another machine was slower or its seq slower."""
-    df = exp.frame
-    latest = exp.env.get(MACHINE_KEY)
-    if MACHINE_KEY not in df.columns or df[MACHINE_KEY].nunique() < 2:
-        return df
-    mine = df[df[MACHINE_KEY] == latest]
-    return mine if len(mine) else df
-
-
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
-    """The best strategy, grid against seq and the largest N, where this experiment has them:
-    from the rows of the latest machine (latest_machine_rows)."""
-    frame = latest_machine_rows(exp)
-    rows = with_speedup(frame)
+    """The best strategy, grid against seq and the largest N, where this experiment has them
+    (its rows are one machine's: the page's)."""
+    rows = with_speedup(exp.frame)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
     fair = _fair(rows)
@@ -93,7 +77,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
             float(largest["n"]),
             f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
             _anchor(section, "-cells"))
-    selection = phases.select(frame)
+    selection = phases.select(exp.frame)
     if selection is not None:
         anchor = _anchor(section, PHASES_SUFFIX)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
@@ -131,16 +115,12 @@ def fidelity(exp: Experiment) -> Fidelity:
 
 
 def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
-    """The section with the experiment's warnings rows and headline candidates."""
-    flagged = flagged_cells(exp.frame.assign(experiment=exp.name))
-    table = table_block(flagged, "")
-    issues = tuple(
-        tuple(issue.split(ISSUE_DETAIL)[0] for issue in text.split("; "))
-        for text in flagged["issue"]
-    )
+    """The section with the experiment's warnings table and headline candidates."""
+    flagged = flagged_cells(exp.frame)
+    warnings = table_block(flagged, "") if len(flagged) else None
     anchor = _anchor(section, "-stability")
     if anchor == section.anchor:
         anchor = _anchor(section, "-cells")
-    return ExperimentPart(exp.name, section, table.columns, table.rows, issues,
+    return ExperimentPart(exp.name, section, warnings, tuple(flagged_kinds(exp.frame)),
                           highlights(exp, section), fidelity(exp), anchor,
                           _anchor(section, PROGRAMS_SUFFIX))

@@ -182,16 +182,46 @@ def test_error_data_needs_an_ok_cell_with_a_deviation() -> None:
 
 
 def test_flagged_cells_list_every_problem() -> None:
-    frames = [load(n).assign(experiment=n) for n in ("strategies", "threads", "grid")]
-    flagged = flags.flagged_cells(pd.concat(frames, ignore_index=True))
-    issues = dict(zip(zip(flagged["experiment"], flagged["variant"], flagged["threads"],
-                          flagged["n"], strict=True), flagged["issue"], strict=True))
+    tables = {n: flags.flagged_cells(load(n)) for n in ("strategies", "threads", "grid")}
+    issues = {(name, variant, threads, n): issue for name, flagged in tables.items()
+              for variant, threads, n, issue in zip(flagged["variant"], flagged["threads"],
+                                                    flagged["n"], flagged["issue"], strict=True)}
     assert issues[("strategies", "p3", 8, 10000)] == "invalid output"
     assert issues[("grid", "seq", 1, 100000)] == "timeout"
     assert issues[("threads", "p1", 128, 10000)] == (
         "timeout; oversubscribed (128 threads > 16 cores)"
     )
-    assert len(flagged) == 9
+    assert sum(len(flagged) for flagged in tables.values()) == 9
+    # What the summary counts them by: the status and the flag, apart from the detail.
+    kinds = flags.flagged_kinds(load("threads"))
+    timed_out = list(tables["threads"]["issue"]).index(issues[("threads", "p1", 128, 10000)])
+    assert kinds[timed_out] == ("timeout", "oversubscribed")
+
+
+def test_a_programs_note_is_its_issue_and_its_agreement_the_kind() -> None:
+    """A program's note says where it leaves seq and what seq did there, in text of its own
+    (semicolons, parentheses): the warnings show it whole, the summary counts the agreement."""
+    note = ("leaves rounding at step 3 by up to 0.25, more than seq's f32 build drifts by then "
+            "(0.001): particle 0 is (1, 2, 3, 4) where seq has (1, 2, 3, 5); seq in that "
+            "step: collided with particle 0 (wall)")
+    df = contract_frame([
+        {"variant": "seq", "threads": 1.0, "wall_median_s": 1.0},
+        {"variant": "student", "threads": 1.0, "wall_median_s": 1.0, "status": "invalid",
+         "agreement": "differs", "first_diff_step": 3.0, "note": note, "unstable": True},
+        {"variant": "late", "threads": 1.0, "wall_median_s": 1.0, "agreement": "rounding",
+         "note": "within rounding of seq at every step"},
+        {"variant": "broken", "threads": 1.0, "wall_median_s": None, "status": "crashed",
+         "agreement": "failed", "note": "killed by SIGSEGV (signal 11); its check run"},
+        {"variant": "unchecked", "threads": 1.0, "wall_median_s": 1.0, "agreement": "failed",
+         "note": "not checked: seq's print-mode run failed"},
+    ])
+    flagged = flags.flagged_cells(df)
+    issues = dict(zip(flagged["variant"], flagged["issue"], strict=True))
+    kinds = dict(zip(flagged["variant"], flags.flagged_kinds(df), strict=True))
+    assert issues["student"] == f"{note}; unstable timing"
+    assert kinds == {"student": ("differs", "unstable timing"), "late": ("rounding",),
+                     "broken": ("crashed",), "unchecked": ("not checked",)}
+    assert flags.validation_text(df.iloc[1]) == "invalid: differs from step 3 · unstable timing"
 
 
 def test_format_table_writes_units_and_dashes() -> None:

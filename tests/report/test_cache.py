@@ -3,6 +3,7 @@ data change re-draws just the figures of that experiment; removed figures go awa
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import shutil
@@ -189,6 +190,33 @@ def test_a_change_in_an_imported_module_changes_the_figures_code_version(
     assert version() == before
     (root / "analysis" / "tables.py").write_text("x = 2\n")
     assert version() != before
+
+
+def test_the_code_is_read_once_per_render_however_many_pages(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Hashing the code walks every module it imports: one render of several machines' pages
+    does it once for the figures and once for the parts, not again per page."""
+    root = results_with(tmp_path, "threads")
+    csv_path = root / "threads" / "results.csv"
+    with csv_path.open(newline="", encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    with csv_path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=[*rows[0], "machine_id"])
+        writer.writeheader()
+        writer.writerows({**row, "machine_id": ("aa" if k % 2 else "bb") * 8}
+                         for k, row in enumerate(rows))
+    calls: list[tuple[str, ...]] = []
+    closure = cache.code_closure
+
+    def counted(modules: tuple[str, ...]) -> list[Path]:
+        calls.append(tuple(modules))
+        return closure(modules)
+
+    monkeypatch.setattr(cache, "code_closure", counted)
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    assert len(list((out / "machines").glob("*/report.md"))) == 2
+    assert sorted(calls) == sorted([cache.FIGURE_MODULES, cache.REPORT_MODULES])
 
 
 def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:

@@ -47,21 +47,19 @@ def assert_figure_files(paths: list[Path], stem: Path) -> None:
     assert not list(stem.parent.glob(".*.tmp")), "a temporary file was left behind"
 
 
-SWEEP_FIGURES: list[tuple[Callable[..., list[Path]], str]] = [
-    (figsweeps.fig_particles, "particles"),
-    (figsweeps.fig_particles, "grid"),
-    (figsweeps.fig_square, "square"),
-    (figsweeps.fig_radius, "radius"),
-    (figsweeps.fig_threads, "threads"),
+SWEEP_FIGURES: list[tuple[str, str]] = [  # the swept axis, the experiment sweeping it
+    ("n", "particles"),
+    ("n", "grid"),
+    ("L", "square"),
+    ("r", "radius"),
+    ("threads", "threads"),
 ]
 
 
-@pytest.mark.parametrize(("figure", "experiment"), SWEEP_FIGURES)
-def test_time_figures_are_written(
-    figure: Callable[..., list[Path]], experiment: str, tmp_path: Path
-) -> None:
+@pytest.mark.parametrize(("axis", "experiment"), SWEEP_FIGURES)
+def test_time_figures_are_written(axis: str, experiment: str, tmp_path: Path) -> None:
     stem = tmp_path / "figures" / f"{experiment}-time"
-    assert_figure_files(figure(load(experiment), stem), stem)
+    assert_figure_files(figsweeps.fig_time_vs(load(experiment), stem, x=axis), stem)
 
 
 @pytest.mark.parametrize(
@@ -188,10 +186,10 @@ def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: P
     frame = with_two_machines(load("threads"))
     assert acells.series_keys(frame, "threads")[0] == "machine"
     with mpl.rc_context({"svg.fonttype": "none"}):  # text as <text>, so it can be read back
-        time_paths = figsweeps.fig_threads(frame, tmp_path / "time")
+        time_paths = figsweeps.fig_time_vs(frame, tmp_path / "time", x="threads")
         speed_paths = figsweeps.fig_speedup(speedup.with_speedup(frame, thread_baseline=True),
                                         tmp_path / "speedup")
-        single = figsweeps.fig_threads(load("threads"), tmp_path / "single")
+        single = figsweeps.fig_time_vs(load("threads"), tmp_path / "single", x="threads")
     for paths in (time_paths, speed_paths):
         svg = svg_text(paths[1])
         assert "fast box" in svg and "slow box" in svg

@@ -435,6 +435,26 @@ def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
     assert re.search(r"\d\.\d\d× \[\d\.\d\d, \d\.\d\d\] faster than seq", best)
 
 
+def test_a_programs_note_is_counted_by_its_agreement(tmp_path: Path) -> None:
+    """A program that differs from seq: its note (with semicolons and parentheses of its own)
+    stands whole in the warnings table, and the summary counts the cell once, as `differs`."""
+    note = ("leaves rounding at step 3 by up to 0.25, more than seq's f32 build drifts by then "
+            "(0.001): particle 0 is (1, 2) where seq has (1, 3); seq in that step: collided "
+            "with particle 0 (wall)")
+    root = results_with(tmp_path, "strategies")
+    add_columns(root / "strategies" / "results.csv", lambda row: {
+        "agreement": "differs", "first_diff_step": "3", "note": note, "status": "invalid",
+    } if row["variant"] == "p2" else {"agreement": "", "first_diff_step": "", "note": ""})
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    markdown = (out / "report.md").read_text(encoding="utf-8")
+    line = markdown.split("- Warnings: ", 1)[1].split("\n", 1)[0]
+    assert line.startswith("2 flagged cells (1 differs, 1 invalid output), folded"), line
+    block = folded(markdown)["strategies-warnings"]
+    assert "<summary>2 flagged cells: differs (1), invalid output (1)</summary>" in block
+    assert f"| {note} |" in block
+
+
 def doubled(root: Path, name: str) -> tuple[Path, Callable[[dict[str, str]], int]]:
     """results/<name>/results.csv with every row twice, and a function telling, row by row as
     add_columns reads them, which copy (1 or 2) a row is: two machines' cells of one config."""

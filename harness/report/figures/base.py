@@ -27,7 +27,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
 
-from harness.analysis.cells import sort_cells
+from harness.analysis.cells import INTERVAL_SUFFIXES, sort_cells
 from harness.spec.variants import default_registry
 from harness.store import atomic
 from harness.store.columns import INVALID, TIMED_STATUSES
@@ -110,7 +110,8 @@ class Marks:
 
 
 # Where a plotted column's 95% interval lives: a cell's median has the bootstrap interval of
-# results.csv; a speedup-derived metric has the `_low`/`_high` of analysis.speedup.with_speedup.
+# results.csv; a speedup-derived metric has the INTERVAL_SUFFIXES columns of
+# analysis.speedup.with_speedup.
 INTERVAL_COLUMNS: dict[str, tuple[str, str]] = {
     "wall_median_s": ("wall_median_ci_low_s", "wall_median_ci_high_s"),
 }
@@ -119,7 +120,7 @@ INTERVAL_COLUMNS: dict[str, tuple[str, str]] = {
 def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
     """Error-bar lengths (2 x rows: below, above) of column `y` from its interval columns;
     zero where a row has no interval; None when no row has one."""
-    low, high = INTERVAL_COLUMNS.get(y, (f"{y}_low", f"{y}_high"))
+    low, high = INTERVAL_COLUMNS.get(y, tuple(f"{y}{s}" for s in INTERVAL_SUFFIXES))
     if low not in rows.columns or high not in rows.columns:
         return None
     values = rows[y].to_numpy(dtype=float)

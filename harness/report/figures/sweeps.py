@@ -42,7 +42,6 @@ from harness.store.columns import OK, TIMED_STATUSES
 class SweepAxis:
     """How a swept parameter is drawn."""
 
-    column: str
     label: str
     log_base: int
     title: str
@@ -50,18 +49,21 @@ class SweepAxis:
 
 
 SWEEPS: dict[str, SweepAxis] = {
-    "n": SweepAxis("n", "particles N", 10, "Run time against particle count", force_log=True),
-    "L": SweepAxis("L", "square side L", 10, "Run time against square size"),
-    "r": SweepAxis("r", "radius r", 2, "Run time against radius"),
-    "threads": SweepAxis("threads", "threads p", 2, "Run time against threads"),
+    "n": SweepAxis("particles N", 10, "Run time against particle count", force_log=True),
+    "L": SweepAxis("square side L", 10, "Run time against square size"),
+    "r": SweepAxis("radius r", 2, "Run time against radius"),
+    "threads": SweepAxis("threads p", 2, "Run time against threads"),
 }
 
 
-def fig_time_vs(df: pd.DataFrame, x: str, out: Path, *, title: str | None = None) -> list[Path]:
-    """Median wall time against the swept parameter `x`, one line per series.
+def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
+                ) -> list[Path]:
+    """Median wall time against the swept parameter `x` (a key of SWEEPS), one line per
+    series: the course report's Figures 3-6 (N, L, r, threads).
 
-    Against N each series' label carries its fitted growth exponent and a dashed guide shows
-    N² (all pairs); against threads each series gets its ideal-scaling line T(p0)·p0/p.
+    Against N (log-log) each series' label carries its fitted growth exponent and a dashed
+    guide shows N² (all pairs); against threads each series gets its ideal-scaling line
+    T(p0)·p0/p.
     """
     axis = SWEEPS[x]
     keys = series_keys(df, x)
@@ -131,26 +133,6 @@ def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
     ax.plot(n, anchor["wall_median_s"] * (n / anchor["n"]) ** 2, "--", color="gray", lw=2,
             alpha=0.5, zorder=1)  # beneath the data it guides
     return True
-
-
-def fig_particles(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
-    """Figure 3: time against particles N (log-log), with fitted growth exponents."""
-    return fig_time_vs(df, "n", out, title=title)
-
-
-def fig_square(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
-    """Figure 4: time against square side L."""
-    return fig_time_vs(df, "L", out, title=title)
-
-
-def fig_radius(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
-    """Figure 5: time against radius r."""
-    return fig_time_vs(df, "r", out, title=title)
-
-
-def fig_threads(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
-    """Figure 6: time against threads, with each series' ideal-scaling line."""
-    return fig_time_vs(df, "threads", out, title=title)
 
 
 # --- speedup, efficiency, serial fraction against threads ---------------------------------

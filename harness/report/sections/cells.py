@@ -14,8 +14,8 @@ from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.sections.context import Context
 
-# Which table of the course report a treatment reproduces.
-COURSE_TABLE: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
+# Which table of the course report a sweep reproduces; its figure has the same number.
+COURSE_NUMBER: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
 
 
 def fixed_text(df: pd.DataFrame) -> str:
@@ -36,7 +36,7 @@ def _course_table(axes: Sequence[str], df: pd.DataFrame) -> str:
     """`(cf. the course report's Table N)` for the treatment the data gets, if any."""
     for axis in ("threads", "n", "L", "r"):
         if axis in axes:
-            return f" (cf. the course report's Table {COURSE_TABLE[axis]})"
+            return f" (cf. the course report's Table {COURSE_NUMBER[axis]})"
     return " (cf. the course report's Table 2)" if df["variant"].nunique() > 1 else ""
 
 

@@ -6,15 +6,10 @@ and sentence; this module only lays them out, and only where the data has them.
 
 from __future__ import annotations
 
-import pandas as pd
-
 from harness.analysis import strategies as study
-from harness.analysis.cells import MACHINE
 from harness.report.blocks import figure_block, table_block
-from harness.report.cache import Manifest
-from harness.report.document import Paragraph, Section, slug
+from harness.report.document import Paragraph, Section
 from harness.report.figures.strategies import work_figure
-from harness.report.load import Experiment
 from harness.report.sections.context import Context
 
 SEED_INTRO = (
@@ -45,33 +40,17 @@ SCHEDULE_INTRO = (
 
 
 def build(ctx: Context) -> list[Section]:
-    """The subsections the experiment's rows support, in reading order (none for most). Where
-    the results hold several machines side by side, each machine gets its own: a machine's
-    strategies are compared with each other, never with another machine's (the study takes
-    one scene on one machine, and the machine is a key of the scene)."""
-    exp, figs = ctx.exp, ctx.figs
+    """The subsections the experiment's rows support, in reading order (none for most). The
+    rows are one machine's (a page shows one): its strategies are compared with each other,
+    never with another machine's."""
+    exp, figs, name = ctx.exp, ctx.figs, ctx.name
     df = exp.frame
-    machines = (list(dict.fromkeys(df[MACHINE].dropna()))
-                if MACHINE in df.columns else [])
-    if len(machines) <= 1:
-        return _study_subsections(exp, df, figs, slug(exp.name), "")
-    parts: list[Section] = []
-    for machine in machines:
-        parts += _study_subsections(exp, df[df[MACHINE] == machine], figs,
-                                    f"{slug(exp.name)}-{slug(machine)}", f" ({machine})")
-    return parts
-
-
-def _study_subsections(exp: Experiment, df: pd.DataFrame, figs: Manifest, name: str,
-                       suffix: str) -> list[Section]:
-    """The study's subsections for the rows `df` of one machine: `name` starts their anchors
-    and figure files, `suffix` ends their titles."""
     parts: list[Section] = []
     if not study.one_scene(df):
         return parts
     seed = study.seed_table(df)
     if seed is not None:
-        parts.append(Section(f"Against the seed's Table 2{suffix}", f"{name}-seed", (
+        parts.append(Section("Against the seed's Table 2", f"{name}-seed", (
             Paragraph(SEED_INTRO),
             table_block(study.seed_display(seed),
                         f"Ours against the seed's published times (on {study.SEED_MACHINE})."),
@@ -80,11 +59,11 @@ def _study_subsections(exp: Experiment, df: pd.DataFrame, figs: Manifest, name: 
     work = study.work_table(df)
     if work is not None:
         paths = figs.draw(work_figure, work, figs.fig_dir / f"{name}-work-per-thread")
-        parts.append(Section(f"Work per thread{suffix}", f"{name}-work",
+        parts.append(Section("Work per thread", f"{name}-work",
                              (figure_block(paths, WORK_CAPTION),)))
     costs = study.chunk_costs(df, exp.path)
     if costs:
-        parts.append(Section(f"Cost per dispatched chunk{suffix}", f"{name}-chunks", (
+        parts.append(Section("Cost per dispatched chunk", f"{name}-chunks", (
             Paragraph(CHUNK_INTRO),
             table_block(study.chunk_table(costs), "Extra time over the reference, per chunk."),
             Paragraph(study.chunk_sentence(costs)),
@@ -92,7 +71,7 @@ def _study_subsections(exp: Experiment, df: pd.DataFrame, figs: Manifest, name: 
     if study.has_schedules(df):
         rows = study.schedule_rows(df, exp.path)
         if len(rows):
-            parts.append(Section(f"Schedules{suffix}", f"{name}-schedules", (
+            parts.append(Section("Schedules", f"{name}-schedules", (
                 Paragraph(SCHEDULE_INTRO),
                 table_block(study.schedule_table(rows), "Median time per OMP_SCHEDULE, fastest "
                             "first; chunks dealt over the --timing run (for guided a lower "

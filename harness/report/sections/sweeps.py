@@ -6,18 +6,14 @@ from __future__ import annotations
 from harness.analysis.speedup import growth_exponents
 from harness.report.blocks import figure_block, table_block
 from harness.report.document import Block, Paragraph, Section
-from harness.report.figures.sweeps import SWEEPS, fig_particles, fig_radius, fig_square, fig_threads
+from harness.report.figures.sweeps import SWEEPS, fig_time_vs
+from harness.report.sections.cells import COURSE_NUMBER
 from harness.report.sections.context import Context
-
-SWEEP_ORDER = ("n", "L", "r", "threads")
-# Which figure of the course report a sweep reproduces, and the figure drawing it.
-COURSE_FIGURE: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
-SWEEP_FIGURES = {"n": fig_particles, "L": fig_square, "r": fig_radius, "threads": fig_threads}
 
 
 def build(ctx: Context) -> list[Section]:
     """Time against each swept parameter (Figures 3-6), in the course report's order."""
-    return [_sweep(ctx, axis) for axis in SWEEP_ORDER if axis in ctx.axes]
+    return [_sweep(ctx, axis) for axis in ctx.axes]
 
 
 def _sweep(ctx: Context, axis: str) -> Section:
@@ -26,10 +22,10 @@ def _sweep(ctx: Context, axis: str) -> Section:
     sweep = SWEEPS[axis]
     stem = figs.fig_dir / f"{ctx.name}-time-vs-{axis.lower()}"
     title = f"{exp.title}: time against {sweep.label}"
-    paths = figs.draw(SWEEP_FIGURES[axis], exp.frame, stem, title=title)
+    paths = figs.draw(fig_time_vs, exp.frame, stem, x=axis, title=title)
     caption = (
         f"Median wall time against {sweep.label} (cf. the course report's Figure "
-        f"{COURSE_FIGURE[axis]})."
+        f"{COURSE_NUMBER[axis]})."
     )
     blocks: list[Block] = [figure_block(paths, caption)]
     if axis == "n":
