@@ -14,13 +14,13 @@ import datetime
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.plan import lane
 from harness.plan.binaries import (
     baseline_path,
     binary_path,
     check_references,
     program_references,
 )
-from harness.plan import lane
 from harness.plan.cells import Cell, Plan
 from harness.repo import BUILD_DIR
 from harness.spec import scenes
