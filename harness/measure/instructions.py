@@ -8,6 +8,7 @@ counts differ, the record keeps them all and the comparison of two cells widens 
 
 from __future__ import annotations
 
+import os
 import re
 import tempfile
 from collections.abc import Mapping, Sequence
@@ -56,6 +57,14 @@ def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
     return Counted(tuple(counts))
 
 
+def pinned() -> list[str]:
+    """taskset onto one of this process's CPUs: cachegrind runs the threads one at a time
+    anyway, and on one CPU the order in which they take turns at a barrier varies less (a
+    thread that arrives last runs the runtime's wake-up path, one that waits its sleep)."""
+    cpu = min(os.sched_getaffinity(0))
+    return ["taskset", "-c", str(cpu)]
+
+
 def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str],
                timeout_s: float) -> tuple[int | None, str]:
     """The instructions of one run of argv, with OpenMP's waiting threads asleep; or None
@@ -67,7 +76,7 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str],
             wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
                        "--"]
         else:
-            wrapper = ["valgrind", "--tool=cachegrind", "--cache-sim=no",
+            wrapper = [*pinned(), "valgrind", "--tool=cachegrind", "--cache-sim=no",
                        "--cachegrind-out-file=/dev/null", "--trace-children=yes",
                        f"--log-file={logs}/cachegrind.%p"]
         done = run_process([*wrapper, *argv], passive, timeout_s)
