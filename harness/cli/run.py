@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
@@ -70,6 +71,11 @@ def execute(args: argparse.Namespace) -> int:
     try:
         configs = [with_metric(load_config(path, registry), args.metric)
                    for path in args.configs]
+        remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
+        if args.metric is not None and remote:
+            # a remote worker reads the config file, not this command line
+            raise HarnessError(f"{remote[0].source}: --metric runs only here (executor "
+                               "local); for Slurm, set metric: in the config")
         with run_lock:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]

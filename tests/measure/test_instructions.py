@@ -169,3 +169,8 @@ def test_metric_key_and_flag(write_config, capsys: pytest.CaptureFixture[str]) -
         run_main([str(bad), "--metric", "cycles"])
     assert stop.value.code == 2
     assert "invalid choice: 'cycles'" in capsys.readouterr().err
+    slurm = write_config(base + "executor: {kind: slurm}\n", "slurm")
+    assert run_main([str(slurm), "--metric", "instructions", "--dry-run"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {slurm}: --metric runs only here (executor local); for Slurm, set metric: "
+        "in the config")
