@@ -19,7 +19,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from harness.analysis.resultsets import Cell, MatchKey, Side
+from harness.analysis.resultsets import Cell, MatchKey, Side, matched
 from harness.store.columns import OK
 
 EXIT_OK = 0
@@ -94,9 +94,7 @@ def judge(old: Cell, new: Cell, note: str = "") -> ExactRow:
 def compare_instructions(old: Side, new: Side) -> list[ExactRow]:
     """Every key of either side, in order: judged, or listed with why not."""
     rows = []
-    for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
-        a, b = old.cells.get(key), new.cells.get(key)
-        note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
+    for key, a, b, note in matched(old, new):
         if a is None:
             rows.append(ExactRow(key, NEW_ONLY, None, b, note=note))
         elif b is None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -242,6 +242,14 @@ class Side:
 
 
 COMMIT_CHARS = 12
+
+
+def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell | None, str]]:
+    """Every key of either side, in order, with each side's cell (None: absent) and the
+    sides' notes on it."""
+    for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
+        note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
+        yield key, old.cells.get(key), new.cells.get(key), note
 
 
 def _abbreviate(commit: str) -> str:
