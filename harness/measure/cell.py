@@ -16,6 +16,7 @@ import os
 import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
@@ -135,7 +136,8 @@ class Measurer:
         argv = run.command if counted is None else [str(counted), *run.command[1:]]
         measure = self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule)
-        found = count_runs(tool, argv, env, measure.timeout_s)
+        found = count_runs(tool, argv, env, measure.timeout_s,
+                           input_file=None if cell.program else Path(run.command[-1]))
         run.record.update(found.fields(tool, lane.described(tool, counted,
                                                             self.store.binaries)))
         return run

@@ -23,6 +23,9 @@ COUNTS = 2
 # How much longer than the cell's timeout a counted run may take: cachegrind simulates every
 # instruction (about 50 times slower here), perf costs next to nothing.
 SLOWDOWN = {CACHEGRIND: 100.0, PERF: 2.0}
+# What a built binary's count sees of the environment (fixed_env).
+KEPT_ENV = ("PATH",)
+OMP_PREFIXES = ("OMP_", "GOMP_")
 # cachegrind's summary line, one per process: "==123== I   refs:      718,102,891"
 I_REFS = re.compile(r"I\s+refs:\s+([\d,]+)")
 
@@ -46,15 +49,24 @@ class Counted:
 
 
 def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
-               runs: int = COUNTS) -> Counted:
-    """`runs` counts of argv (its first failure ends them, and says why)."""
+               runs: int = COUNTS, input_file: Path | None = None) -> Counted:
+    """`runs` counts of argv (its first failure ends them, and says why). With `input_file`
+    (argv's last word), a built binary's run: it reads the input through a path of a fixed
+    length and sees only PATH and the OpenMP variables of `env`, because the loader and the
+    runtime read both, and a longer path or a larger environment costs instructions of its
+    own."""
     counts = []
     for _ in range(runs):
-        count, problem = count_once(tool, argv, env, timeout_s * SLOWDOWN[tool])
+        count, problem = count_once(tool, argv, env, timeout_s * SLOWDOWN[tool], input_file)
         if count is None:
             return Counted(tuple(counts), problem)
         counts.append(count)
     return Counted(tuple(counts))
+
+
+def fixed_env(env: Mapping[str, str]) -> dict[str, str]:
+    """PATH and the OpenMP variables of env: what a built binary's count runs with."""
+    return {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
 
 
 def pinned() -> list[str]:
@@ -65,13 +77,18 @@ def pinned() -> list[str]:
     return ["taskset", "-c", str(cpu)]
 
 
-def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str],
-               timeout_s: float) -> tuple[int | None, str]:
+def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
+               input_file: Path | None = None) -> tuple[int | None, str]:
     """The instructions of one run of argv, with OpenMP's waiting threads asleep; or None
     and why."""
-    passive = {**env, **PASSIVE_ENV}
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
-        logs = Path(tmp)
+        logs = Path(tmp) / "logs"
+        logs.mkdir()
+        run_env = {**(env if input_file is None else fixed_env(env)), **PASSIVE_ENV}
+        if input_file is not None:
+            link = Path(tmp) / "input"
+            link.symlink_to(input_file.resolve())
+            argv = [*argv[:-1], str(link)]
         if tool == PERF:
             wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
                        "--"]
@@ -79,7 +96,7 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str],
             wrapper = [*pinned(), "valgrind", "--tool=cachegrind", "--cache-sim=no",
                        "--cachegrind-out-file=/dev/null", "--trace-children=yes",
                        f"--log-file={logs}/cachegrind.%p"]
-        done = run_process([*wrapper, *argv], passive, timeout_s)
+        done = run_process([*wrapper, *argv], run_env, timeout_s)
         if done.returncode is None:
             return None, f"its {tool} run passed the {timeout_s:g} s timeout"
         if done.returncode != 0:
