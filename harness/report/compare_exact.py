@@ -9,9 +9,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from harness.analysis.exact import (
+    FEWER,
+    MORE,
     NEW_ONLY,
     OLD_ONLY,
-    SAME,
+    VARYING_SHARE,
     ExactRow,
     ratio_text,
     summary,
@@ -50,8 +52,9 @@ def render_exact(old: Side, new: Side, rows: Sequence[ExactRow],
     lines += [f"- {line}" for line in head]
     lines.append("- Instructions are counted, not sampled: no other process can change them, so "
                  "a cell whose runs give one count is more or fewer by any difference at all; "
-                 "where a cell's runs differ (threads that take work as it comes), a change is "
-                 "called only beyond that spread.")
+                 "where a cell's runs differ (threads that take turns or work as they come), a "
+                 f"change is called only beyond that spread or {VARYING_SHARE:.0%} of its "
+                 "count, whichever is wider.")
     lines += ["", f"**{summary(rows)}.**", ""]
     listed = [r for r in rows if r.kind not in (OLD_ONLY, NEW_ONLY)]
     if listed:
@@ -59,7 +62,7 @@ def render_exact(old: Side, new: Side, rows: Sequence[ExactRow],
                        "NEW − OLD", "verdict", "note"),
                       tuple((r.key.label(), _count(r.old), _count(r.new), ratio_text(r.ratio),
                              _difference(r.difference),
-                             r.kind if r.kind == SAME or not r.compared else f"**{r.kind}**",
+                             f"**{r.kind}**" if r.kind in (MORE, FEWER) else r.kind,
                              r.note) for r in listed),
                       (False, True, True, True, True, False, False), "")
         lines += [*markdown_table(table), ""]

@@ -42,16 +42,23 @@ def test_one_exact_count_a_side_calls_any_difference(old: Cell, new: Cell, kind:
     assert row.note == ""
 
 
-def test_counts_that_vary_call_a_change_only_beyond_their_spread() -> None:
-    # p1d at two threads: its counts spread by ~1,000 in 374 million
+def test_counts_that_vary_call_a_change_only_beyond_their_variation() -> None:
+    # p1d at two threads: its counts spread by ~1,000 in 374 million; 1% of it is 3,745,073
     old = cell(374_507_287, 374_508_245)
     within = exact.judge(old, cell(374_508_000, 374_508_900))
-    assert within.kind == exact.SAME
+    assert within.kind == exact.WITHIN
     assert "counts vary between runs by up to 958" in within.note
-    # the ranges widened by their own widths still meet: not called
-    assert exact.judge(old, cell(374_509_150)).kind == exact.SAME
-    assert exact.judge(old, cell(374_510_500)).kind == exact.MORE
-    assert exact.judge(old, cell(374_505_000)).kind == exact.FEWER
+    assert "a change is called beyond 3,745,073" in within.note
+    # p3's nested teams: two sessions 0.78% apart, each with a narrow spread of its own
+    assert exact.judge(cell(53_206_368, 53_206_541), cell(53_619_417)).kind == exact.WITHIN
+    # beyond 1% on both sides of the range: called
+    assert exact.judge(old, cell(374_508_245 + 2 * 3_745_073 + 1)).kind == exact.MORE
+    assert exact.judge(old, cell(374_508_245 + 2 * 3_745_073 - 1)).kind == exact.WITHIN
+    assert exact.judge(old, cell(366_000_000, 366_000_100)).kind == exact.FEWER
+    # a spread wider than 1% is the slack itself
+    wide = exact.judge(cell(100, 150), cell(240))
+    assert wide.kind == exact.WITHIN and "called beyond 50" in wide.note
+    assert exact.judge(cell(100, 150), cell(251)).kind == exact.MORE
 
 
 def test_what_is_not_judged_is_listed_with_why() -> None:
@@ -79,7 +86,7 @@ def test_more_instructions_anywhere_fails_the_gate_and_the_output_says_so() -> N
     rows = exact.compare_instructions(old, new)
     assert exact.exit_status(rows) == exact.EXIT_MORE
     text = render_exact(old, new, rows)
-    assert "1 cells compared by instructions: 1 more, 0 fewer, 0 the same" in text
+    assert "1 cells compared by instructions: 1 more, 0 fewer, 0 the same, 0 within" in text
     assert "| 1,000,000 | 1,000,001 | 1.000001 | +1 | **more instructions** |" in text
     fewer = exact.compare_instructions(new, old)
     assert exact.exit_status(fewer) == exact.EXIT_OK

@@ -23,8 +23,7 @@ from harness.spec.parse import load_config
 
 from commands import compare_main, run_main
 
-# Two steps of 60 discs: a second under cachegrind. p1 at two threads splits its rows into
-# fixed shares, so its count is as exact as seq's.
+# Two steps of 60 discs: a second under cachegrind.
 CONFIG = ("name: lane\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 2}\n"
           "threads: [1, 2]\nmeasure: {warmup: 0, runs: 1, timeout_s: 60}\nvalidate: true\n"
           "metric: instructions\n")
@@ -73,14 +72,20 @@ def test_counts_repeat_exactly_and_are_recorded_with_their_counter(
         assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
         for row in rows:
             assert row["instructions_tool"] == counter
-            assert row["instructions"] == row["instructions_max"]  # its two runs agree
-            assert row["instructions_counts"] == f"{row['instructions']} {row['instructions']}"
+            low, high = int(row["instructions"]), int(row["instructions_max"])
+            assert row["instructions_counts"] in (f"{low} {high}", f"{high} {low}")
+            if row["threads"] == "1":
+                assert low == high  # one thread: its two runs agree exactly
+            else:  # a team's turns at its barriers may differ by a few instructions
+                assert high - low <= 1e-4 * low
             assert float(row["wall_median_s"]) > 0  # both lanes: the time is still there
             if counter == lane.CACHEGRIND:
                 assert row["instructions_binary"].startswith("build/lane/")
                 assert lane.LANE_ISA in row["instructions_binary"]
         counts.append({(r["variant"], r["threads"]): int(r["instructions"]) for r in rows})
-    assert counts[0] == counts[1]
+    assert {k: v for k, v in counts[0].items() if k[1] == "1"} == \
+        {k: v for k, v in counts[1].items() if k[1] == "1"}
+    assert all(abs(counts[0][k] - counts[1][k]) <= 1e-4 * counts[0][k] for k in counts[0])
     # a pair test is tens of instructions; p1's team costs some of its own
     tests = {(r["variant"], r["threads"]): int(r["pair_tests"]) for r in rows}
     assert all(counts[0][k] > 20 * tests[k] for k in tests)
@@ -92,8 +97,12 @@ def test_counts_repeat_exactly_and_are_recorded_with_their_counter(
                            "instructions", "--out", str(tmp_path / "cmp")])
     printed = capsys.readouterr().out
     assert status == 0, printed
-    assert "4 cells compared by instructions: 0 more, 0 fewer, 4 the same" in printed
-    assert RATIO.findall(printed) == ["1.000000"] * 4
+    assert "4 cells compared by instructions: 0 more, 0 fewer" in printed
+    ratios = RATIO.findall(printed)
+    assert len(ratios) == 4 and all(abs(float(r) - 1) <= 1e-4 for r in ratios)
+    # one thread: the same count, at exactly 1
+    assert re.search(r"seq random n=60 L=600 r=1 S=2 T=1 \| [\d,]+ \| [\d,]+ \| 1\.000000 "
+                     r"\| \+0 \| same instructions \|", printed)
 
 
 def test_compare_measure_identical_sides_and_a_real_change(
@@ -106,7 +115,7 @@ def test_compare_measure_identical_sides_and_a_real_change(
                            str(tmp_path / "same"), *base])
     printed = capsys.readouterr().out
     assert status == 0, printed
-    assert "2 cells compared by instructions: 0 more, 0 fewer, 2 the same" in printed
+    assert "2 cells compared by instructions: 0 more, 0 fewer, 2 the same, 0 within" in printed
     assert RATIO.findall(printed) == ["1.000000"] * 2
     # NEW: the same sources at -O1, a real change in the instructions executed
     slow = tmp_path / "o1"
