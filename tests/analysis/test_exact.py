@@ -111,3 +111,16 @@ def test_the_cell_table_shows_instructions_beside_times() -> None:
     assert seq["instructions_per_particle_step"] == 2.0
     assert math.isnan(table[table["variant"] == "p1"].iloc[0]["instructions"])
     assert "instructions" not in cell_table(rows.drop(columns="instructions"), ["variant"])
+
+
+def test_the_report_says_what_counted_the_instructions() -> None:
+    from harness.report.sections.cells import _instructions_text
+
+    frame = pd.DataFrame({"instructions_tool": ["cachegrind", "cachegrind", None],
+                          "instructions_binary": [
+                              "build/lane/seq (x86-64-v3: cachegrind cannot run AVX-512)",
+                              "build/lane/p1 (x86-64-v3: cachegrind cannot run AVX-512)", None]})
+    text = _instructions_text(frame)
+    assert "counted by cachegrind" in text and "OMP_WAIT_POLICY=passive" in text
+    assert "on build/lane/ (x86-64-v3: cachegrind cannot run AVX-512);" in text
+    assert _instructions_text(frame.drop(columns=["instructions_tool"])) == ""

@@ -3,6 +3,7 @@ of the course report's Tables 2-6)."""
 
 from __future__ import annotations
 
+import posixpath
 from collections.abc import Sequence
 
 import pandas as pd
@@ -67,9 +68,29 @@ def build(ctx: Context) -> list[Section]:
             "Efficiency and serial fraction are left blank where the speedup also counts a "
             "different algorithm or build (relative, grid, another build than seq's)."
         ))
+    counted = _instructions_text(df)
+    if counted:
+        blocks.append(Paragraph(counted))
     caption = f"Per-cell statistics{_course_table(axes, df)}."
     return [Section("Measurements", f"{ctx.name}-cells",
                     (table_block(table, caption, source=df), *blocks))]
+
+
+def _instructions_text(df: pd.DataFrame) -> str:
+    """What the instruction columns counted, with which counter and on which binaries."""
+    if "instructions_tool" not in df.columns or not df["instructions_tool"].notna().any():
+        return ""
+    tools = ", ".join(sorted(df["instructions_tool"].dropna().astype(str).unique()))
+    described = df["instructions_binary"].dropna().astype(str) \
+        if "instructions_binary" in df.columns else pd.Series(dtype=str)
+    # "build/lane/seq (x86-64-v3: ...)": each directory once, with what it says of its build
+    places = sorted({f"{posixpath.dirname(d.split(' ')[0])}/ {d.partition(' ')[2]}".strip()
+                     for d in described})
+    shown = "; ".join(places)
+    return (f"Instructions: every thread's user-space instructions of a run, the fewest of the "
+            f"cell's counted runs, counted by {tools} with OpenMP's waiting threads asleep "
+            f"(OMP_WAIT_POLICY=passive), on {shown or 'the cells’ binaries'}; per pair test "
+            "and per particle-step (N × S) of that run.")
 
 
 def _baseline_words(baseline: str) -> str:
