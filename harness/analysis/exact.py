@@ -31,10 +31,10 @@ FEWER = "fewer instructions"
 SAME = "same instructions"
 WITHIN = "within its variation"
 VERDICTS = (MORE, FEWER, SAME, WITHIN)
-# A cell whose counts vary between runs varies by more than two runs show: p3's nested teams
-# gave 53.21 and 53.62 million instructions in two sessions (0.78%), each session's two runs
-# within 200 of each other (docs/instructions.md). Such a cell's change is called only beyond
-# this share of its count, or its runs' spread where that is wider.
+# A cell whose counts vary between runs varies by more than its two runs show: p3's nested
+# teams moved by most of this share between sessions whose own runs agreed closely
+# (docs/instructions.md). Such a cell's change is called only beyond this share of its count,
+# or its runs' spread where that is wider.
 VARYING_SHARE = 0.01
 NOT_COUNTED = "not counted"
 NOT_OK = "not compared (status)"

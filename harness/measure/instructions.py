@@ -21,7 +21,7 @@ from harness.store import records
 
 COUNTS = 2
 # How much longer than the cell's timeout a counted run may take: cachegrind simulates every
-# instruction (about 50 times slower here), perf costs next to nothing.
+# instruction (tens of times slower), perf costs next to nothing.
 SLOWDOWN = {CACHEGRIND: 100.0, PERF: 2.0}
 # What a built binary's count sees of the environment (fixed_env).
 KEPT_ENV = ("PATH",)
