@@ -5,9 +5,9 @@ Two counters, chosen once per process and recorded with every count:
   perf        the kernel's hardware counter (`perf stat -e instructions:u`), where it exposes
               one: counts the cell's own binary, at native speed;
   cachegrind  Valgrind's, everywhere else (a VM seldom passes counters through): tens of
-              times slower (docs/instructions.md), and unable to run AVX-512 code, so it counts the Makefile's lane
-              build (build/lane/, x86-64-v3) of a built variant; a custom binary or a
-              program is counted as it is.
+              times slower (docs/instructions.md), and unable to run AVX-512 code, so it
+              counts the Makefile's lane build (build/lane/, x86-64-v3) of a built variant;
+              a custom binary or a program is counted as it is.
 COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses one by hand (e.g. cachegrind on a machine
 with counters, to compare with counts taken in a VM).
 
