@@ -13,6 +13,7 @@ from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.experiment import run_experiment
+from harness.spec.config import DEFAULT_MAX_CELLS
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
@@ -39,6 +40,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--no-wait", action="store_true",
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
+    parser.add_argument("--max-cells", type=int, default=DEFAULT_MAX_CELLS, metavar="N",
+                        help="refuse a config that plans more than N cells, counted before "
+                        f"anything is built (default {DEFAULT_MAX_CELLS})")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
     parser.add_argument("--executor", choices=tuple(EXECUTORS), default=None,
                         help="where cells are measured: local (one after another here; the "
@@ -63,7 +67,7 @@ def execute(args: argparse.Namespace) -> int:
                       partition=args.partition, run_lock=run_lock)
     registry = VariantRegistry(REPO_ROOT)
     try:
-        configs = [load_config(path, registry) for path in args.configs]
+        configs = [load_config(path, registry, args.max_cells) for path in args.configs]
         with run_lock:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]
