@@ -78,7 +78,10 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
                 params[key] = min(value, limit)
     kind = config.scene.kind
     if kind == "file":
-        return scenes.file_point(Path(str(params["file"])), seed)
+        try:
+            return scenes.file_point(Path(str(params["file"])), seed)
+        except HarnessError as exc:
+            raise HarnessError(f"{config.source}: key 'scene.file': {exc}") from None
     if kind == "generator":
         name = str(params.pop("generator", config.scene.generator))
         try:
