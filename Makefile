@@ -7,6 +7,8 @@
 #   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
 #   make test             test-c, ruff and the Python tests, side by side
 #   make bench            the performance benchmarks (bench/bench.py), saved under results/
+#   make fuzz             fuzz the config loader and the binaries' input reader (ASan builds)
+#                         for FUZZ_SECONDS (default 600); make test runs a few seconds of it
 #   make setup            Python environment (.venv) and hyperfine: what the harness needs
 #   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
 #                         Debian's Slurm and chromium); make test runs it first
@@ -79,7 +81,7 @@ $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
+.PHONY: all asan portable fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -153,7 +155,8 @@ REPORT_TESTS := tests/report tests/test_readme.py
 # The slowest tests are listed at the end of each run: where the time goes.
 PYTEST := $(PYTHON) -m pytest -q --durations=8
 
-test-python: $(TEST_READY) all
+# The fuzz tests (tests/hostile) run the ASan builds.
+test-python: $(TEST_READY) all asan
 	@unset MAKEFLAGS MFLAGS MAKELEVEL; mkdir -p build; \
 	$(PYTEST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
 	$(PYTEST) $(REPORT_TESTS) >build/pytest-report.log 2>&1 & report=$$!; \
@@ -191,6 +194,10 @@ RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
 	$(PYTHON) harness/run.py configs/quickstart.yaml $(RUN_FLAGS)
+
+FUZZ_SECONDS ?= 600
+fuzz: $(TEST_READY) all asan
+	$(PYTHON) -m tests.hostile.fuzz --seconds $(FUZZ_SECONDS)
 
 bench: all $(PYTHON)
 	$(PYTHON) -m bench.bench

@@ -4,6 +4,7 @@ past the limits is refused at load time with the numbers, not after minutes of b
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import psutil
@@ -67,10 +68,8 @@ def scene_bytes(config: Config) -> tuple[int, int, int]:
             n = int(str(point.get("n", scenes.REGISTRY.get(name).defaults.get("n", 0))))
         elif config.scene.kind == "file":
             path = Path(str(point["file"]))
-            try:
+            with contextlib.suppress(OSError):  # the load says why it cannot be read
                 total += path.stat().st_size * FILE_TEXT_FACTOR
-            except OSError:
-                pass
             n = _file_n(path) if config.lists_particles else 0
         elif config.lists_particles:
             n = int(str(point["n"]))

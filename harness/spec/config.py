@@ -71,7 +71,8 @@ EXCLUDE_OPS = {
 # results/, so characters every file system takes, and short enough beside its suffixes.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 MAX_NAME_CHARS = 64
-NAME_RULE = f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter or digit)"
+NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
+             "or digit)")
 
 
 def is_valid_name(name: object) -> bool:
