@@ -382,6 +382,10 @@ def _parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
     return tuple(rules)
 
 
+# The most values an error line lists.
+MAX_LISTED_VALUES = 12
+
+
 def _check_exclude(config: Config) -> None:
     """Each value an exclude rule names must be one the config has: a variant, build, thread
     count, schedule or scene value it lists (a typo would silently exclude nothing). Fields
@@ -398,9 +402,10 @@ def _check_exclude(config: Config) -> None:
                 continue
             for value in cast(tuple[object, ...], condition.value):
                 if value not in values:
+                    shown = ", ".join(map(str, values[:MAX_LISTED_VALUES]))
+                    more = ", ..." if len(values) > MAX_LISTED_VALUES else ""
                     raise config_error(config.source, f"exclude[{index}].{condition.field}",
-                                       "one of the config's values ("
-                                       + ", ".join(map(str, values)) + ")", value)
+                                       f"one of the config's values ({shown}{more})", value)
 
 
 def _parse_executor(value: object, source: Path) -> ExecutorSpec:
