@@ -18,7 +18,6 @@ import time
 from pathlib import Path
 
 from harness.cli import main as harness_main
-
 from harness.repo import REPO_ROOT
 
 from tests.hostile.cases import CASES
@@ -43,11 +42,10 @@ def measure(config: bytes, files: dict[str, bytes],
         seconds, kib = (directory / "time").read_text().split()[-2:]
         first = (run.stderr.splitlines() or [""])[0].replace(str(directory) + "/", "")
         start = time.perf_counter()
-        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
-            try:
-                harness_main(args)
-            except SystemExit:  # --help
-                pass
+        with contextlib.redirect_stderr(io.StringIO()), \
+                contextlib.redirect_stdout(io.StringIO()), \
+                contextlib.suppress(SystemExit):  # --help exits
+            harness_main(args)
         inside = time.perf_counter() - start
         return run.returncode, float(seconds), int(kib) / 1024, inside, first
 
