@@ -9,6 +9,8 @@
 #   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
 #   make test             test-c, ruff and the Python tests, side by side
 #   make bench            the performance benchmarks (bench/bench.py), saved under results/
+#   make fuzz             fuzz the config loader and the binaries' input reader (ASan builds)
+#                         for FUZZ_SECONDS (default 600); make test runs a few seconds of it
 #   make setup            Python environment (.venv) and hyperfine: what the harness needs
 #   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
 #                         Debian's Slurm and chromium); make test runs it first
@@ -87,7 +89,7 @@ $(foreach b,$(BUILDS),$(eval $(call build_rules,lane-$(b),build/lane/%-$(b),$(LA
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable lane test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
+.PHONY: all asan portable lane fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
@@ -163,7 +165,8 @@ REPORT_TESTS := tests/report tests/test_readme.py
 # The slowest tests are listed at the end of each run: where the time goes.
 PYTEST := $(PYTHON) -m pytest -q --durations=8
 
-test-python: $(TEST_READY) all
+# The fuzz tests (tests/hostile) run the ASan builds.
+test-python: $(TEST_READY) all asan
 	@unset MAKEFLAGS MFLAGS MAKELEVEL; mkdir -p build; \
 	$(PYTEST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
 	$(PYTEST) $(REPORT_TESTS) >build/pytest-report.log 2>&1 & report=$$!; \
@@ -201,6 +204,10 @@ RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
 	$(PYTHON) harness/run.py configs/quickstart.yaml $(RUN_FLAGS)
+
+FUZZ_SECONDS ?= 600
+fuzz: $(TEST_READY) all asan
+	$(PYTHON) -m tests.hostile.fuzz --seconds $(FUZZ_SECONDS)
 
 bench: all $(PYTHON)
 	$(PYTHON) -m bench.bench

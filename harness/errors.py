@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
 
 
@@ -11,18 +12,47 @@ class HarnessError(Exception):
 
 def config_error(path: Path | str, key: str, expected: str, got: object) -> HarnessError:
     """An error naming the config file, the offending key, what was expected and what was got."""
-    return HarnessError(f"{path}: key '{key}': expected {expected}, got {describe_value(got)}")
+    return HarnessError(f"{path}: key '{describe_key(key)}': expected {expected}, got "
+                        f"{describe_value(got)}")
+
+
+MAX_VALUE_CHARS = 80
+
+
+class _Preview(reprlib.Repr):
+    """repr() that looks at a bounded part of a value: a few levels, a few items of each
+    collection, the ends of a long string, so a value that is huge or shares itself many times
+    (a YAML alias bomb) is previewed at once."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxlevel = 3
+        self.maxlist = self.maxtuple = self.maxdict = self.maxset = 4
+        self.maxstring = self.maxother = self.maxlong = MAX_VALUE_CHARS
+
+    def repr_int(self, x: int, level: int) -> str:
+        # repr() of an int past Python's 4300 digits raises; its size is what matters.
+        if x.bit_length() > 4 * MAX_VALUE_CHARS:
+            return f"an integer of about {int(x.bit_length() * 0.30103)} digits"
+        return super().repr_int(x, level)
+
+
+_PREVIEW = _Preview()
 
 
 def describe_value(value: object) -> str:
     """A short, one-line rendering of a YAML value for an error message."""
     if isinstance(value, _Missing):
         return "nothing (the key is missing)"
-    text = repr(value)
+    text = _PREVIEW.repr(value)
     return text if len(text) <= MAX_VALUE_CHARS else text[: MAX_VALUE_CHARS - 3] + "..."
 
 
-MAX_VALUE_CHARS = 80
+def describe_key(key: str) -> str:
+    """A key path for a message: as it is when short and printable, else previewed."""
+    if len(key) <= MAX_VALUE_CHARS and key.isprintable():
+        return key
+    return describe_value(key)
 
 
 class _Missing:

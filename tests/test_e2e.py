@@ -126,8 +126,8 @@ def test_entry_points(real_binaries: Path, tmp_path: Path) -> None:
     bad.write_text("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n")
     failed = run_script(plain, str(bad), "--results-dir", root)
     assert failed.returncode == 2
-    assert failed.stderr == (f"error: {bad}: key 'scene.n': expected a positive integer or a "
-                             "non-empty list of them, got 'abc'\n")
+    assert failed.stderr == (f"error: {bad}: key 'scene.n': expected a positive integer (at "
+                             "most 2147483647) or a non-empty list of them, got 'abc'\n")
 
 
 def test_missing_packages_message(tmp_path: Path) -> None:

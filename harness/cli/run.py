@@ -14,7 +14,7 @@ from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.experiment import run_experiment
-from harness.spec.config import METRIC_INSTRUCTIONS, METRICS, with_metric
+from harness.spec.config import DEFAULT_MAX_CELLS, METRIC_INSTRUCTIONS, METRICS, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
@@ -41,6 +41,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--no-wait", action="store_true",
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
+    parser.add_argument("--max-cells", type=int, default=DEFAULT_MAX_CELLS, metavar="N",
+                        help="refuse a config that plans more than N cells, counted before "
+                        f"anything is built (default {DEFAULT_MAX_CELLS})")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
     parser.add_argument("--metric", choices=METRICS, default=None,
                         help="what cells are measured by (overrides the config's metric:); "
@@ -69,7 +72,8 @@ def execute(args: argparse.Namespace) -> int:
                       partition=args.partition, run_lock=run_lock)
     registry = VariantRegistry(REPO_ROOT)
     try:
-        configs = [with_metric(load_config(path, registry), args.metric)
+        configs = [with_metric(load_config(path, registry, args.max_cells),
+                                args.metric)
                    for path in args.configs]
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
         if args.metric is not None and remote:

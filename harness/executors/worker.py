@@ -34,7 +34,7 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
                   round_seed: int | None = None, log: TextIO = sys.stderr) -> None:
     repo_root = repo_root.resolve()
     registry = VariantRegistry(repo_root)
-    config = load_config(config_path, registry)
+    config = load_config(config_path, registry, max_cells=None)  # the run accepted it
     machine_id = str(machine.machine(repo_root)[records.MACHINE_KEY])
     store = CellStore(plan_cells(config, quick, registry), repo_root, results_root.resolve(),
                       machine_id)

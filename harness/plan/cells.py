@@ -78,7 +78,10 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
                 params[key] = min(value, limit)
     kind = config.scene.kind
     if kind == "file":
-        return scenes.file_point(Path(str(params["file"])), seed)
+        try:
+            return scenes.file_point(Path(str(params["file"])), seed)
+        except HarnessError as exc:
+            raise HarnessError(f"{config.source}: key 'scene.file': {exc}") from None
     if kind == "generator":
         name = str(params.pop("generator", config.scene.generator))
         try:
@@ -86,10 +89,11 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
         except HarnessError as exc:
             raise HarnessError(f"{config.source}: key 'scene': {exc}") from None
     n, L, r = cast(int, params["n"]), cast(float, params["L"]), cast(float, params["r"])
-    if 2 * r > L:
-        raise config_error(config.source, "scene.r", "a radius with 2r <= L",
-                           f"r={r:g} with L={L:g}")
-    return scenes.random_point(n, L, r, cast(int, params["steps"]), str(params["mode"]), seed)
+    steps, mode = cast(int, params["steps"]), str(params["mode"])
+    problem = scenes.scene_problem(n, L, r, steps, mode)
+    if problem is not None:
+        raise config_error(config.source, "scene", "a scene the binaries accept", problem)
+    return scenes.random_point(n, L, r, steps, mode, seed)
 
 
 def is_exact(config: Config, registry: VariantRegistry, variant: str, build: str) -> bool:
@@ -111,6 +115,7 @@ def plan_cells(config: Config, quick: bool = False,
     excluded: list[Cell] = []
     seen: set[tuple[object, ...]] = set()
     points: dict[tuple[object, ...], scenes.ScenePoint] = {}
+    used: set[int] = set()
     for point in expand_points(config):
         scene_key = tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
         if scene_key not in points:
@@ -135,7 +140,16 @@ def plan_cells(config: Config, quick: bool = False,
                             config.checks.applies_to(scene.n), schedule,
                             variant in registry and registry[variant].exact)
             fields = cell.fields()
-            (excluded if any(r.matches(fields) for r in config.exclude) else cells).append(cell)
+            matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
+            used |= matching
+            (excluded if matching else cells).append(cell)
+    # A rule that excludes nothing is a mistake (a value the config does not have); --quick
+    # lowers n and steps, so there a rule may match nothing by design.
+    unused = [k for k in range(len(config.exclude)) if k not in used]
+    if unused and not quick:
+        rule = config.exclude[unused[0]]
+        raise config_error(config.source, f"exclude[{unused[0]}]", "a rule that matches at "
+                           "least one cell", ", ".join(c.describe() for c in rule.conditions))
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 

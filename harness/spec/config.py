@@ -65,18 +65,38 @@ DEFAULT_SHADOW_ULPS = 64.0
 DEFAULT_THREAD_COUNTS = (1,)
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
                   "schedule")
+# The fields a comparison (_gt, _ge, _lt, _le) may test.
+EXCLUDE_NUMERIC_FIELDS = ("threads", "n", "L", "r", "steps", "seed")
 EXCLUDE_OPS = {
     "gt": lambda a, b: a > b,
     "ge": lambda a, b: a >= b,
     "lt": lambda a, b: a < b,
     "le": lambda a, b: a <= b,
 }
-NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+# An experiment's, a custom binary's or a program's name: a folder and a file name under
+# results/, so characters every file system takes, and short enough beside its suffixes.
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+MAX_NAME_CHARS = 64
+NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
+             "or digit)")
+
+
+def is_valid_name(name: object) -> bool:
+    """Whether `name` is a name NAME_RULE allows, whole."""
+    return (isinstance(name, str) and len(name) <= MAX_NAME_CHARS
+            and NAME_PATTERN.fullmatch(name) is not None)
+
+
 # `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers `schedule(runtime)` loops,
 # i.e. p1_runtime): a kind, and for all but auto an optional positive chunk, as OpenMP spells it.
 SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
 SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
 MAX_SEED = 2**64 - 1
+# The binaries' --threads bound (variants/core/sim_main.c).
+MAX_THREADS = 4096
+# At most this many cells a config plans (`run --max-cells` changes it): counted before any
+# scene is built, so a config whose lists multiply to millions is refused at once.
+DEFAULT_MAX_CELLS = 10_000
 
 DEFAULT_WARMUP = 1
 DEFAULT_RUNS = 3
@@ -229,6 +249,12 @@ class Condition:
     field: str
     op: str  # "eq" (value is a tuple of accepted values) or one of EXCLUDE_OPS
     value: object
+
+    def describe(self) -> str:
+        """The condition as a config writes it, e.g. `n_gt: 1000` or `variant: [seq]`."""
+        key = self.field if self.op == "eq" else f"{self.field}_{self.op}"
+        value = list(self.value) if isinstance(self.value, tuple) else self.value
+        return f"{key}: {value}"
 
     def holds(self, fields: Mapping[str, object]) -> bool:
         actual = fields.get(self.field)

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.errors import MISSING, config_error
-from harness.spec.config import MAX_SEED
-from harness.spec.scenes import MODES
+from harness.spec.config import MAX_SEED, MAX_THREADS
+from harness.spec.scenes import MAX_N, MAX_STEPS, MODES
 
 
 @dataclass(frozen=True)
@@ -97,9 +97,14 @@ MODE = one_of(MODES)
 STRING = Kind("a non-empty string", string)
 BOOLEAN = Kind("true or false", boolean)
 
+# The bounds of what the binaries accept (harness.spec.scenes, config.MAX_THREADS).
+THREADS = Kind(f"a positive integer (at most {MAX_THREADS})", int_in(1, MAX_THREADS))
+COUNT = Kind(f"a positive integer (at most {MAX_N})", int_in(1, MAX_N))
+STEPS = Kind(f"a non-negative integer (at most {MAX_STEPS})", int_in(0, MAX_STEPS))
+
 RANDOM_KINDS: dict[str, Kind] = {
-    "n": POSITIVE_INT, "L": POSITIVE_REAL, "r": POSITIVE_REAL, "steps": NON_NEGATIVE_INT,
-    "mode": MODE, "seed": SEED,
+    "n": COUNT, "L": POSITIVE_REAL, "r": POSITIVE_REAL, "steps": STEPS, "mode": MODE,
+    "seed": SEED,
 }
 
 
@@ -109,7 +114,7 @@ def generator_kind(name: str, default: object) -> Kind:
     if isinstance(default, bool):
         return BOOLEAN
     if isinstance(default, int):
-        return Kind("an integer", int_in(-(2**63)))
+        return Kind("a 64-bit integer", int_in(-(2**63), 2**63 - 1))
     if isinstance(default, float):
         return REAL
     return STRING

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import cast
 
 from harness.errors import MISSING, config_error
-from harness.spec import kinds, programs, scenes
+from harness.spec import bounds, kinds, programs, scenes
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import (
     ACCURACY_KEYS,
@@ -21,6 +21,7 @@ from harness.spec.config import (
     CHECK_NAMES,
     DEFAULT_CI,
     DEFAULT_ENERGY_ULPS,
+    DEFAULT_MAX_CELLS,
     DEFAULT_MAX_RUNS,
     DEFAULT_MAX_TIME_S,
     DEFAULT_POLL_S,
@@ -32,13 +33,14 @@ from harness.spec.config import (
     DEFAULT_TRUTH,
     DEFAULT_WARMUP,
     EXCLUDE_FIELDS,
+    EXCLUDE_NUMERIC_FIELDS,
     EXCLUDE_OPS,
     EXECUTOR_KEYS,
     EXECUTOR_KINDS,
     MEASURE_KEYS,
     METRIC_TIME,
     METRICS,
-    NAME_PATTERN,
+    NAME_RULE,
     REQUIRED_RANDOM_KEYS,
     SCHEDULE_KINDS,
     SCHEDULE_PATTERN,
@@ -52,19 +54,22 @@ from harness.spec.config import (
     Measure,
     SceneSpec,
     Validation,
+    is_valid_name,
 )
 from harness.spec.points import expand_points
 from harness.spec.variants import VariantRegistry, default_registry
 from harness.spec.yamlfile import read_mapping
 
 
-def load_config(path: Path | str, registry: VariantRegistry | None = None) -> Config:
+def load_config(path: Path | str, registry: VariantRegistry | None = None,
+                max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
     """Read, default and validate one config file; its variants must be among the registry's
-    (this repository's, by default) or its own `binaries:`."""
+    (this repository's, by default) or its own `binaries:`. A config of more than max_cells
+    cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
     raw = read_mapping(source)
     names = (registry or default_registry()).names
-    return parse_config(with_defaults(raw, source), source, names)
+    return parse_config(with_defaults(raw, source), source, names, max_cells)
 
 
 def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
@@ -87,12 +92,13 @@ def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
 
 
 def parse_config(raw: Mapping[str, object], source: Path,
-                 known_variants: Sequence[str]) -> Config:
+                 known_variants: Sequence[str],
+                 max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
     """Validate a defaulted mapping into a `Config`."""
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
     name = kinds.scalar(raw, "name", "name", kinds.STRING, source)
-    if not NAME_PATTERN.match(str(name)):
-        raise config_error(source, "name", "letters, digits, '_', '.', '-' only", name)
+    if not is_valid_name(name):
+        raise config_error(source, "name", NAME_RULE, name)
     binaries = _parse_binaries(raw.get("binaries"), source, known_variants)
     taken = (*known_variants, *(b[0] for b in binaries))
     programs_ = _parse_programs(raw.get("programs", {}), source, taken)
@@ -110,7 +116,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
         if builds != (DEFAULT_BUILD,):
             raise config_error(source, f"programs.{program.name}", "builds: [f64] with a "
                                "program", list(builds))
-    threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.POSITIVE_INT, source)
+    threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.THREADS, source)
     scene = _parse_scene(raw.get("scene", MISSING), source)
     combine, zip_keys = _parse_combine(raw["combine"], scene, threads_listed, source)
     config = Config(
@@ -137,7 +143,11 @@ def parse_config(raw: Mapping[str, object], source: Path,
         programs=programs_,
         metric=str(kinds.scalar(raw, "metric", "metric", kinds.one_of(METRICS), source)),
     )
+    _check_exclude(config)
+    if max_cells is not None:
+        bounds.check_cells(config, max_cells)
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
+    bounds.check_memory(config)
     return config
 
 
@@ -332,7 +342,7 @@ def _parse_checks(names: object, options: object, source: Path,
     shadow = kinds.check(raw.get("shadow_ulps", DEFAULT_SHADOW_ULPS), "accuracy.shadow_ulps",
                     kinds.POSITIVE_REAL, source)
     counts, _ = kinds.axis(raw.get("thread_counts", list(DEFAULT_THREAD_COUNTS)),
-                      "accuracy.thread_counts", kinds.POSITIVE_INT, source)
+                      "accuracy.thread_counts", kinds.THREADS, source)
     max_n = None
     if raw.get("max_n") is not None:
         max_n = cast(int, kinds.scalar(raw, "max_n", "accuracy.max_n", kinds.POSITIVE_INT, source))
@@ -354,6 +364,10 @@ def _parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
         for key, condition_value in raw.items():
             field, _, op = str(key).rpartition("_")
             if field in EXCLUDE_FIELDS and op in EXCLUDE_OPS:
+                if field not in EXCLUDE_NUMERIC_FIELDS:
+                    raise config_error(source, f"{label}.{key}", "a comparison (_gt, _ge, _lt, "
+                                       "_le) of one of " + ", ".join(EXCLUDE_NUMERIC_FIELDS),
+                                       condition_value)
                 try:
                     bound = kinds.real(condition_value)
                 except ValueError:
@@ -370,6 +384,32 @@ def _parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
                                    "with _gt, _ge, _lt or _le", "an unknown key")
         rules.append(ExcludeRule(tuple(conditions)))
     return tuple(rules)
+
+
+# The most values an error line lists.
+MAX_LISTED_VALUES = 12
+
+
+def _check_exclude(config: Config) -> None:
+    """Each value an exclude rule names must be one the config has: a variant, build, thread
+    count, schedule or scene value it lists (a typo would silently exclude nothing). Fields
+    known only once the scenes are built (a file's n, a generator's default) are checked when
+    the plan is made (harness.plan.cells: a rule that matches no cell)."""
+    known: dict[str, tuple[object, ...]] = {
+        **dict(config.scene.axes), "variant": config.variants, "build": config.builds,
+        "threads": config.threads, "schedule": config.schedules or ("",),
+    }
+    for index, rule in enumerate(config.exclude):
+        for condition in rule.conditions:
+            values = known.get(condition.field)
+            if condition.op != "eq" or values is None:
+                continue
+            for value in cast(tuple[object, ...], condition.value):
+                if value not in values:
+                    shown = ", ".join(map(str, values[:MAX_LISTED_VALUES]))
+                    more = ", ..." if len(values) > MAX_LISTED_VALUES else ""
+                    raise config_error(config.source, f"exclude[{index}].{condition.field}",
+                                       f"one of the config's values ({shown}{more})", value)
 
 
 def _parse_executor(value: object, source: Path) -> ExecutorSpec:
@@ -403,9 +443,9 @@ def _parse_executor(value: object, source: Path) -> ExecutorSpec:
 
 def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path) -> None:
     """A name for a custom binary or a program: a valid name no variant has."""
-    if name in taken or not isinstance(name, str) or not NAME_PATTERN.match(name):
-        raise config_error(source, label, "a new variant name (letters, digits, '_', '.', "
-                           "'-'; not one of " + ", ".join(taken) + ")", name)
+    if name in taken or not is_valid_name(name):
+        raise config_error(source, label, f"a new variant name ({NAME_RULE}; not one of "
+                           + ", ".join(taken) + ")", name)
 
 
 def _parse_binaries(value: object, source: Path,

@@ -8,6 +8,18 @@ from harness.errors import config_error
 from harness.spec.config import Config
 
 
+def count_points(config: Config) -> int:
+    """How many points expand_points gives, without expanding them: the product of the axes'
+    lengths, a zipped group counting once."""
+    axes = [*config.scene.axes, ("threads", config.threads)]
+    zipped = [len(v) for k, v in axes if k in config.zip_keys]
+    count = max(zipped) if zipped else 1
+    for key, values in axes:
+        if key not in config.zip_keys:
+            count *= len(values)
+    return count
+
+
 def expand_points(config: Config) -> list[dict[str, object]]:
     """Every combination of the axes (scene keys and threads), in config order.
 

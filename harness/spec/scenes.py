@@ -20,13 +20,15 @@ import functools
 import hashlib
 import inspect
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, describe_value
+from harness.spec.yamlfile import read_text
 
 MODES = ("print", "perf")
 DEFAULT_MODE = "perf"
@@ -35,6 +37,21 @@ RANDOM_SCENE = "random"
 REAL_FORMAT = "%.17g"
 
 Particle = tuple[float, float, float, float]
+
+# What the binaries accept (SPEC section 1; variants/core: SIM_N_MAX, the int64 S, print mode's
+# output size): an input past these is refused by every variant, so the harness refuses it
+# first, at load time.
+MAX_N = 2**31 - 1
+MAX_STEPS = 2**63 - 1
+PRINT_LINE_MIN_BYTES = 48  # the shortest line print mode writes
+MAX_OUTPUT_BYTES = 2**63 - 1  # the largest file
+# An input's tokens as the binaries read them: an ASCII integer, a decimal real (strtod's,
+# without its hexadecimal form; "nan" and "inf" are read, then refused as not finite).
+INT_TOKEN = re.compile(r"[+-]?[0-9]+")
+REAL_TOKEN = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+                        r"|[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
+# Digits past these cannot be in range (and Python refuses to convert 4300 of them).
+MAX_INT_TOKEN_CHARS = 21
 
 
 @dataclass(frozen=True)
@@ -169,10 +186,13 @@ def with_every_particle(point: ScenePoint) -> ScenePoint:
     listed: dict[int, str] = {}
     for k in range(0, len(body), 5):
         try:
-            index = int(body[k])
+            index = parse_int(body[k])
         except ValueError:
-            raise HarnessError(f"{point.label}: particle index {body[k]!r} is not an "
-                               "integer") from None
+            raise HarnessError(f"{point.label}: particle index {describe_value(body[k])} is "
+                               "not an integer") from None
+        if not 0 <= index < n or index in listed:
+            raise HarnessError(f"{point.label}: particle index {index}: expected a new index "
+                               f"in [0, {n})")
         listed[index] = " ".join(body[k:k + 5])
     missing = [i for i in range(n) if i not in listed]
     if not missing:
@@ -255,13 +275,27 @@ def generated_point(name: str, params: Mapping[str, object], seed: int) -> Scene
 
 
 def file_point(path: Path, seed: int) -> ScenePoint:
-    """A scene read from an input file; the header gives n, L, r, steps and mode."""
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise HarnessError(f"{path}: cannot read scene file: {exc.strerror}") from None
+    """A scene read from an input file; the header gives n, L, r, steps and mode, checked as
+    the binaries check them."""
+    text = read_text(path, "scene file")
     n, L, r, steps, mode = parse_header(text, str(path))
+    check_scene(n, L, r, steps, mode, str(path))
     return ScenePoint(path.name, n, L, r, steps, mode, seed, text)
+
+
+def parse_int(token: str) -> int:
+    """An integer token as the binaries read it; ValueError otherwise."""
+    if len(token) > MAX_INT_TOKEN_CHARS or not INT_TOKEN.fullmatch(token):
+        raise ValueError(token)
+    return int(token)
+
+
+def parse_real(token: str) -> float:
+    """A real token as the binaries read it (a finite one is checked by the caller);
+    ValueError otherwise."""
+    if not REAL_TOKEN.fullmatch(token):
+        raise ValueError(token)
+    return float(token)
 
 
 def parse_header(text: str, where: str) -> tuple[int, float, float, int, str]:
@@ -270,22 +304,45 @@ def parse_header(text: str, where: str) -> tuple[int, float, float, int, str]:
     if len(tokens) < 5:
         raise HarnessError(f"{where}: input header must be 'N L r S' then a MODE line")
     try:
-        n, steps = int(tokens[0]), int(tokens[3])
-        L, r = float(tokens[1]), float(tokens[2])
+        n, steps = parse_int(tokens[0]), parse_int(tokens[3])
+        L, r = parse_real(tokens[1]), parse_real(tokens[2])
     except ValueError:
-        header = " ".join(tokens[:4])
-        raise HarnessError(f"{where}: input header {header!r} is not 'N L r S'") from None
+        header = describe_value(" ".join(tokens[:4]))
+        raise HarnessError(f"{where}: input header {header} is not 'N L r S'") from None
     if tokens[4] not in MODES:
-        raise HarnessError(f"{where}: input mode {tokens[4]!r} is not one of {', '.join(MODES)}")
+        raise HarnessError(f"{where}: input mode {describe_value(tokens[4])} is not one of "
+                           f"{', '.join(MODES)}")
     return n, L, r, steps, tokens[4]
 
 
+def scene_problem(n: int, L: float, r: float, steps: int, mode: str) -> str | None:
+    """What is wrong with a header by SPEC section 1's rules and the binaries' bounds, as the
+    binaries say it, or None when they would accept it."""
+    if not 0 <= n <= MAX_N:
+        return f"N={n} is outside [0, {MAX_N}]"
+    if not math.isfinite(L):
+        return f"L={L}: expected a finite real"
+    if not (math.isfinite(r) and r > 0):
+        return f"r={r}: expected r > 0"
+    if not 2 * r <= L:
+        return f"r={r:g}: expected 2r <= L (L={L:g})"
+    if not math.isfinite(L / (8 * r)):
+        return f"r={r:g}: the generated speed L/(8r) is not finite (L={L:g})"
+    if not 0 <= steps <= MAX_STEPS:
+        return f"S={steps} is outside [0, {MAX_STEPS}]"
+    if mode not in MODES:
+        return f"MODE {describe_value(mode)} is not one of {', '.join(MODES)}"
+    if mode == "print" and n * (steps + 1) * PRINT_LINE_MIN_BYTES > MAX_OUTPUT_BYTES:
+        return (f"print mode with N={n} and S={steps} writes more than a file can hold "
+                "(2^63 bytes)")
+    return None
+
+
 def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -> None:
-    """The header rules of SPEC section 1 that a generator could break."""
-    ok = (n >= 0 and steps >= 0 and math.isfinite(L) and math.isfinite(r) and r > 0
-          and 2 * r <= L and mode in MODES)
-    if not ok:
-        raise HarnessError(f"{where}: invalid scene n={n} L={L} r={r} steps={steps} mode={mode}")
+    """A HarnessError where the binaries would refuse the header (scene_problem)."""
+    problem = scene_problem(n, L, r, steps, mode)
+    if problem is not None:
+        raise HarnessError(f"{where}: invalid scene: {problem}")
 
 
 # --- generators ---------------------------------------------------------------------------

@@ -327,6 +327,18 @@ bad_input "y > L-r" 4 '2 100 1 1\nperf\n0 10 10 1 1\n1 10 99.0001 1 1\n'
 bad_input "more particle lines than N" 4 '1 100 1 1\nperf\n0 10 10 1 1\n0 10 10 1 1\n'
 bad_input "a particle line with N = 0" 3 '0 100 1 1\nperf\n0 10 10 1 1\n'
 bad_input "CRLF line ends, error on line 3" 3 '2 100 1 1\r\nperf\r\n0 0 10 1 1\r\n'
+# A denormal r: the generator's speed L/(8r) overflows to infinity.
+bad_input "r denormal (generated speed not finite)" 1 '3 10 1e-320 2\nprint\n'
+# Print mode's N x (S + 1) lines would be more bytes than a file can hold.
+bad_input "print output beyond 2^63 bytes" 1 '5 100 1 9223372036854775807\nprint\n'
+# Control bytes of the input are escaped in the message, never written to the terminal.
+printf '2 100 1 1\nperf\n0 \033[31mred 10 1 1\n' >"$TMP/bad.in"
+expect_input_error "terminal escape in a token" 3 "$B/seq" "$TMP/bad.in"
+if grep -q "$(printf '\033')" "$TMP/err" || ! grep -qF "'\\x1b[31mred'" "$TMP/err"; then
+    bad "terminal escape in a token: expected it escaped as \\x1b, got: $(head -c 300 "$TMP/err" | od -c | head -3)"
+else
+    ok
+fi
 # The same through stdin, and the variant's own name in the message.
 printf '2 100 1 1\nfast\n' >"$TMP/bad.in"
 expect_input_error "bad MODE from stdin" 2 "$B/seq" <"$TMP/bad.in"

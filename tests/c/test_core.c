@@ -10,6 +10,7 @@
  */
 #define _GNU_SOURCE /* sched_getaffinity and the CPU_* macros, for the team test */
 #include <inttypes.h>
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -937,6 +938,24 @@ static void test_write_blocks(void)
                     "5 0 10 50.25 -1 0.10000000000000001 3 0\n"
                     "5 1 1 99 0 -3 0 12\n");
     free(text);
+
+    /* The largest finite values are printed whole, as the C library prints them. */
+    put(&w, 0, 10, 50.25, 1e60, -DBL_MAX);
+    put(&w, 1, 1, 99, DBL_MAX, -2.5e200);
+    text = NULL;
+    f = open_memstream(&text, &len);
+    CHECK_INT(sim_write_final(f, &w, 5, false), 0);
+    fclose(f);
+    static char want[4 * SIM_REAL_TEXT_MAX];
+    snprintf(want, sizeof want, "5 0 10.00000000 50.25000000 %.8f %.8f 3 0\n"
+                                "5 1 1.00000000 99.00000000 %.8f %.8f 0 12\n",
+             1e60, -DBL_MAX, DBL_MAX, -2.5e200);
+    CHECK_STR(text, want);
+    free(text);
+    char real[SIM_REAL_TEXT_MAX];
+    sim_format_real(real, sizeof real, -DBL_MAX, false);
+    CHECK_INT(strlen(real), SIM_REAL_TEXT_MAX - 1);
+    CHECK_INT(real[SIM_REAL_TEXT_MAX - 10], '.');
 
     /* N = 0: nothing at all. */
     sim_world_free(&w);

@@ -73,7 +73,7 @@ def test_yaml_float_strings_are_numbers(write_config) -> None:
 ERRORS = [
     # (yaml, key named in the message, words of what was expected)
     ("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n", "scene.n",
-     "expected a positive integer or a non-empty list of them, got 'abc'"),
+     "expected a positive integer (at most 2147483647) or a non-empty list of them, got 'abc'"),
     (BASE + "colour: blue\n", "colour", "unknown key"),
     (BASE + "threads: []\n", "threads", "non-empty list"),
     (BASE + "threads: [1, two]\n", "threads", "positive integer"),
@@ -121,13 +121,14 @@ def test_exact_message_for_bad_n(write_config) -> None:
     path = write_config("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n")
     with pytest.raises(HarnessError) as info:
         load_config(path)
-    assert str(info.value) == (f"{path}: key 'scene.n': expected a positive integer or a "
-                               "non-empty list of them, got 'abc'")
+    assert str(info.value) == (f"{path}: key 'scene.n': expected a positive integer (at most "
+                               "2147483647) or a non-empty list of them, got 'abc'")
 
 
 def test_radius_too_large_is_reported_at_plan_time(write_config) -> None:
     path = write_config("variants: [p1d]\nscene: {n: 10, L: 10, r: [1, 6], steps: 1}\n")
-    with pytest.raises(HarnessError, match=r"key 'scene.r': expected a radius with 2r <= L"):
+    with pytest.raises(HarnessError, match=r"key 'scene': expected a scene the binaries "
+                       r"accept, got 'r=6: expected 2r <= L \(L=10\)'"):
         plan_cells(load_config(path))
 
 
@@ -147,8 +148,8 @@ def test_main_prints_one_error_line_and_exits_2(write_config, capsys) -> None:
     path = write_config("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n")
     assert main([str(path), "--dry-run"]) == 2
     err = capsys.readouterr().err
-    assert err == (f"error: {path}: key 'scene.n': expected a positive integer or a non-empty "
-                   "list of them, got 'abc'\n")
+    assert err == (f"error: {path}: key 'scene.n': expected a positive integer (at most "
+                   "2147483647) or a non-empty list of them, got 'abc'\n")
 
 
 # --- grid expansion ---------------------------------------------------------------------

@@ -5,6 +5,7 @@
 #ifndef SIM_CORE_H
 #define SIM_CORE_H
 
+#include <float.h>
 #include <stdio.h>
 
 #include "sim.h"
@@ -38,6 +39,12 @@ typedef struct sim_lexer {
 } sim_lexer;
 
 void sim_lexer_init(sim_lexer *lx, const char *text, size_t len);
+
+/* The first n bytes of s for a message, NUL-terminated in buf: printable ASCII as it is, every
+ * other byte and the backslash as \xNN. Stops short where buf is full; returns the length. */
+size_t sim_escape(char *buf, size_t len, const char *s, size_t n);
+/* A buffer that holds n bytes escaped, NUL included. */
+#define SIM_ESCAPED_MAX(n) (4 * (n) + 1)
 
 /* Parse "N L r S" and MODE. Returns 0, or -1 with *err set. */
 int sim_parse_header(sim_lexer *lx, sim_header *h, sim_error *err);
@@ -138,7 +145,19 @@ int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
  * a write error. */
 int sim_describe(FILE *out, const sim_variant *v);
 
-/* Format one real with %.8f, or %.17g when precise, into buf. */
+/* The longest real sim_format_real writes, its NUL included: %.8f of the largest finite value
+ * of the build's real type (a sign, its integer digits, the point, 8 decimals) is the longest
+ * of its formats, so every finite value is printed in full (a NaN or an infinity is short).
+ * Single-precision builds format through double. */
+#if defined(SIM_REAL_F128)
+#define SIM_REAL_INT_DIGITS (FLT128_MAX_10_EXP + 1)
+#else
+#define SIM_REAL_INT_DIGITS (DBL_MAX_10_EXP + 1)
+#endif
+#define SIM_REAL_TEXT_MAX (1 + SIM_REAL_INT_DIGITS + 1 + 8 + 1)
+
+/* Format one real with %.8f, or %.17g when precise, into buf; a buffer of SIM_REAL_TEXT_MAX
+ * holds any value. */
 void sim_format_real(char *buf, size_t len, sim_real v, bool precise);
 /* printf("%.8f", v) at p, unterminated; returns the length, or 0 outside its exact fast path
  * (|v| >= 1e10, NaN, infinities), where the caller uses the C library. */

@@ -14,8 +14,10 @@
 
 #include "sim_core.h"
 
-/* How much of an offending token a message quotes. */
+/* How much of an offending token a message quotes (bytes of the input). */
 #define SIM_TOKEN_QUOTE_MAX 40
+/* Its text: each byte escaped to at most 4 characters, "..." and the NUL. */
+#define SIM_QUOTE_TEXT_MAX (SIM_ESCAPED_MAX(SIM_TOKEN_QUOTE_MAX) + 4)
 
 typedef struct token {
     const char *p;
@@ -62,11 +64,34 @@ static int fail(sim_error *err, long line, const char *fmt, ...)
     return -1;
 }
 
-/* The token as a printable, bounded string for a message. */
+size_t sim_escape(char *buf, size_t len, const char *s, size_t n)
+{
+    static const char hex[] = "0123456789abcdef";
+    size_t k = 0;
+    for (size_t i = 0; i < n && k + 5 <= len; i++) {
+        const unsigned char c = (unsigned char)s[i];
+        if (c >= 0x20 && c < 0x7f && c != '\\') {
+            buf[k++] = (char)c;
+        } else {
+            buf[k++] = '\\';
+            buf[k++] = 'x';
+            buf[k++] = hex[c >> 4];
+            buf[k++] = hex[c & 15];
+        }
+    }
+    if (len)
+        buf[k < len ? k : len - 1] = '\0';
+    return k;
+}
+
+/* The token as a printable, bounded string for a message: a terminal must not read the
+ * input's control bytes. */
 static const char *quote(token t, char *buf, size_t len)
 {
     const size_t shown = t.len < SIM_TOKEN_QUOTE_MAX ? t.len : SIM_TOKEN_QUOTE_MAX;
-    snprintf(buf, len, "%.*s%s", (int)shown, t.p, t.len > shown ? "..." : "");
+    const size_t k = sim_escape(buf, len, t.p, shown);
+    if (t.len > shown && k + 4 <= len)
+        memcpy(buf + k, "...", 4);
     return buf;
 }
 
@@ -83,7 +108,7 @@ static int parse_int(sim_lexer *lx, const char *what, int64_t min, int64_t max, 
                      sim_error *err)
 {
     token t;
-    char q[SIM_TOKEN_QUOTE_MAX + 8];
+    char q[SIM_QUOTE_TEXT_MAX];
     if (need(lx, &t, what, err))
         return -1;
     const char *digits = t.p + (t.p[0] == '+' || t.p[0] == '-');
@@ -104,7 +129,7 @@ static int parse_int(sim_lexer *lx, const char *what, int64_t min, int64_t max, 
 static int parse_real(sim_lexer *lx, const char *what, double *out, long *line, sim_error *err)
 {
     token t;
-    char q[SIM_TOKEN_QUOTE_MAX + 8];
+    char q[SIM_QUOTE_TEXT_MAX];
     if (need(lx, &t, what, err))
         return -1;
     char *end;
@@ -136,13 +161,17 @@ int sim_parse_header(sim_lexer *lx, sim_header *h, sim_error *err)
         return fail(err, line, "r=%g: expected r > 0", h->r);
     if (!(2 * h->r <= h->L))
         return fail(err, line, "r=%g: expected 2r <= L (L=%g)", h->r, h->L);
+    /* SPEC §4 draws speeds between L/(8r) and L/4: a tiny (denormal) r makes them infinite. */
+    if (!isfinite(h->L / (8 * h->r)))
+        return fail(err, line, "r=%g: the generated speed L/(8r) is not finite (L=%g)", h->r,
+                    h->L);
     if (parse_int(lx, "S", 0, INT64_MAX, &steps, err))
         return -1;
     h->n = (int32_t)n;
     h->steps = steps;
 
     token t;
-    char q[SIM_TOKEN_QUOTE_MAX + 8];
+    char q[SIM_QUOTE_TEXT_MAX];
     if (need(lx, &t, "MODE", err))
         return -1;
     if (t.len == 5 && strncmp(t.p, "print", 5) == 0)
@@ -174,7 +203,7 @@ int sim_parse_particles(sim_lexer *lx, const sim_header *h, sim_world *w, unsign
                         sim_error *err)
 {
     const double lo = h->r, hi = h->L - h->r;
-    char q[SIM_TOKEN_QUOTE_MAX + 8];
+    char q[SIM_QUOTE_TEXT_MAX];
     for (int64_t count = 0;; count++) {
         const sim_lexer before = *lx;
         const token t = next_token(lx);

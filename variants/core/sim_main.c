@@ -20,6 +20,11 @@
 /* Read chunk of the input. */
 #define SIM_READ_CHUNK (1 << 16)
 #define SIM_DEFAULT_SEED 1
+/* How much of a command-line argument or a path a message quotes (bytes). */
+#define SIM_ARG_QUOTE_MAX 200
+/* The shortest line print mode writes ("0 0 1.00000000 1.00000000 0.00000000 0.00000000"),
+ * for the bound on its output's size. */
+#define SIM_PRINT_LINE_MIN 48
 
 typedef struct sim_options {
     int threads; /* 0: OMP_NUM_THREADS / the runtime's default */
@@ -51,9 +56,25 @@ static const char *const usage_text =
     "               test), repairs (the seed strategy it repairs, or null)\n"
     "  --help       print this text\n";
 
+/* An argument or a path as a message may show it: escaped (sim_escape), at most
+ * SIM_ARG_QUOTE_MAX bytes of it, then "...". */
+typedef struct sim_shown {
+    char text[SIM_ESCAPED_MAX(SIM_ARG_QUOTE_MAX) + 3];
+} sim_shown;
+
+static sim_shown shown(const char *s)
+{
+    sim_shown out;
+    const size_t len = strlen(s), n = len < SIM_ARG_QUOTE_MAX ? len : SIM_ARG_QUOTE_MAX;
+    const size_t k = sim_escape(out.text, sizeof out.text, s, n);
+    if (n < len)
+        memcpy(out.text + k, "...", 4);
+    return out;
+}
+
 static int usage_error(const char *name, const char *what, const char *arg)
 {
-    fprintf(stderr, "%s: usage: %s '%s' (try --help)\n", name, what, arg);
+    fprintf(stderr, "%s: usage: %s '%s' (try --help)\n", name, what, shown(arg).text);
     return SIM_EXIT_USAGE;
 }
 
@@ -116,7 +137,7 @@ static char *read_all(const char *name, const char *path, size_t *len)
 {
     FILE *f = path ? fopen(path, "rb") : stdin;
     if (!f) {
-        fprintf(stderr, "%s: cannot read '%s': %s\n", name, path, strerror(errno));
+        fprintf(stderr, "%s: cannot read '%s': %s\n", name, shown(path).text, strerror(errno));
         return NULL;
     }
     size_t cap = SIM_READ_CHUNK, n = 0;
@@ -138,7 +159,7 @@ static char *read_all(const char *name, const char *path, size_t *len)
     if (path)
         fclose(f);
     if (!buf || bad) {
-        fprintf(stderr, "%s: cannot read '%s': %s\n", name, path ? path : "stdin",
+        fprintf(stderr, "%s: cannot read '%s': %s\n", name, shown(path ? path : "stdin").text,
                 buf ? "read error" : "out of memory");
         free(buf);
         return NULL;
@@ -177,6 +198,16 @@ static int load_scene(const char *name, const sim_options *o, sim_header *h, sim
                         "%.1f GiB\n", name, (long)h->n, need / (1 << 30), have / (1 << 30));
         return SIM_EXIT_USAGE;
     }
+    /* Print mode writes N lines for each of the S + 1 states: past 2^63 bytes (the largest
+     * file) the output cannot be kept anywhere. */
+    const double lines = (double)h->n * ((double)h->steps + 1);
+    if (h->mode == SIM_MODE_PRINT && lines * SIM_PRINT_LINE_MIN > (double)INT64_MAX) {
+        free(text);
+        fprintf(stderr, "%s: input: line 1: print mode with N=%ld and S=%lld writes at least "
+                        "%.3g bytes, more than a file can hold (2^63)\n", name, (long)h->n,
+                (long long)h->steps, lines * SIM_PRINT_LINE_MIN);
+        return SIM_EXIT_USAGE;
+    }
     unsigned char *listed = calloc((size_t)h->n + 1, 1);
     if (!listed || sim_world_alloc(w, h)) {
         free(text);
@@ -213,7 +244,9 @@ static int simulate(const char *name, const sim_options *o, const sim_header *h,
         if (!rep->work)
             rep->writers = 0;
     }
-    for (int64_t step = 0; step < h->steps && rc == SIM_EXIT_OK; step++) {
+    /* Without particles nothing moves and nothing is printed: any S ends at once. */
+    const int64_t steps = h->n > 0 ? h->steps : 0;
+    for (int64_t step = 0; step < steps && rc == SIM_EXIT_OK; step++) {
         if (h->mode == SIM_MODE_PRINT) {
             const double t0 = omp_get_wtime();
             if (sim_write_state(stdout, w, step, o->precise))

@@ -18,13 +18,13 @@
 
 #include "sim_core.h"
 
-/* Longest formatted real: %.8f of a coordinate up to SIM's limits, or %.17g. */
-#define SIM_REAL_TEXT_MAX 64
 /* sim_fixed8 handles |v| below this: |v| * 10^8 < 10^18 fits a uint64_t. */
 #define SIM_FIXED8_MAX 1e10
 /* The %.8f scale. */
 #define SIM_FIXED8_SCALE UINT64_C(100000000)
 #define SIM_FIXED8_DIGITS 8
+/* Longest text of the fast path, NUL included: a sign, 10 integer digits, the point, 8. */
+#define SIM_FIXED8_TEXT_MAX (1 + 10 + 1 + SIM_FIXED8_DIGITS + 1)
 /* Longest line: step, index, four reals, two counts, separators. */
 #define SIM_LINE_MAX (2 * 24 + 4 * SIM_REAL_TEXT_MAX + 2 * 24 + 16)
 
@@ -119,7 +119,7 @@ void sim_format_real(char *buf, size_t len, sim_real v, bool precise)
 #if defined(SIM_REAL_F128)
     quadmath_snprintf(buf, len, precise ? "%.17Qg" : "%.8Qf", v);
 #else
-    if (!precise && len >= SIM_REAL_TEXT_MAX) {
+    if (!precise && len >= SIM_FIXED8_TEXT_MAX) {
         const size_t k = sim_fixed8(buf, (double)v);
         if (k) {
             buf[k] = '\0';
