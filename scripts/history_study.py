@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from harness.analysis.changepoints import DEFAULT_MAX_P, change_points  # noqa: E402
+from harness.analysis.changepoints import DEFAULT_MAX_P, change_points
 
 COMMITS = 30
 NOISES = (0.01, 0.05, 0.10)
@@ -87,7 +87,7 @@ def table(n_series: int, runs: int, kind: str, seed: int, max_p: float,
             lines.append(f"| {noise:.0%} | {step:.0%} | {r.detected:.1%} | "
                          f"{r.detected_anywhere:.1%} | {r.extra:.1%} | "
                          f"{r.false_positive:.1%} |")
-    return lines + [""]
+    return [*lines, ""]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

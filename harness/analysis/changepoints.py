@@ -67,8 +67,9 @@ def energy_split(x: np.ndarray, min_size: int = MIN_SEGMENT) -> tuple[int, float
 
 
 def step_test(before: np.ndarray, after: np.ndarray) -> tuple[float, Interval]:
-    """Student's t-test (pooled variance: a cell's noise is the same before and after a step) of two segments of log values: the p-value and the ratio of their
-    geometric means with its interval. Two constant segments: p 0 when they differ, 1 when
+    """Student's t-test of two segments of log values (pooled variance: a cell's noise is the
+    same before and after a step): the p-value and the ratio of their geometric means with its
+    interval. Two constant segments: p 0 when they differ, 1 when
     not (the test is undefined, the answer is not)."""
     diff = float(after.mean() - before.mean())
     if np.ptp(before) == 0 and np.ptp(after) == 0:
