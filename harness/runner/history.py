@@ -99,10 +99,10 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         return "did not build (recorded)"
     registry = VariantRegistry(side.repo_root)
     config = with_min_rounds(config, HISTORY_MIN_RUNS)
-    plan = plan_cells(config, False, registry)
-    binaries = needed_binaries(plan, side.build_dir)
-    variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
-    try:
+    try:  # planning asks the binaries what they are (--describe): it builds them too
+        plan = plan_cells(config, False, registry)
+        binaries = needed_binaries(plan, side.build_dir)
+        variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
         build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
