@@ -4,6 +4,8 @@
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
+#   make lane             every variant for x86-64-v3 (no AVX-512) into build/lane/: what the
+#                         instruction lane counts under cachegrind
 #   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
 #   make test             test-c, ruff and the Python tests, side by side
 #   make bench            the performance benchmarks (bench/bench.py), saved under results/
@@ -75,17 +77,25 @@ $(eval $(call build_rules,asan,build/asan/%,$(SANITIZE),))
 # 4-lane prefilter, the core's 16-byte motion lanes), so the tests run it too.
 PORTABLE := $(if $(filter x86_64 i%86,$(shell uname -m)),-march=x86-64 -mtune=generic,)
 $(eval $(call build_rules,portable,build/portable/%,$(PORTABLE),))
+# The instruction lane's build (harness.plan.lane): x86-64-v3 (AVX2, no AVX-512), which
+# Valgrind's cachegrind can run, and one instruction set on every machine, so that counts of
+# two machines compare. Each build of BUILDS has its lane twin, build/lane/NAME-BUILD.
+LANE := $(if $(filter x86_64,$(shell uname -m)),-march=x86-64-v3 -mtune=generic,)
+$(eval $(call build_rules,lane,build/lane/%,$(LANE),))
+$(foreach b,$(BUILDS),$(eval $(call build_rules,lane-$(b),build/lane/%-$(b),$(LANE) $(FLAGS_$(b)),$(LIBS_$(b)))))
 
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
+.PHONY: all asan portable lane test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS))
 
 asan: $(addprefix build/asan/,$(VARIANTS))
 
 portable: $(addprefix build/portable/,$(VARIANTS))
+
+lane: $(addprefix build/lane/,$(VARIANTS))
 
 print-flags:
 	@echo "$(CC) $(BASE_CFLAGS) $(CFLAGS)"

@@ -1,23 +1,27 @@
 """The performance benchmarks: `make bench` (or `python -m bench.bench [GROUP ...]`).
 
-Each case runs its binary with `--timing`; cases of a group run interleaved, round after round,
+Each case's runs are timed by hyperfine, each beside an untimed `--timing` run of the same
+case (where the simulation time goes); cases of a group run interleaved, round after round,
 so that the ratios between them come from one stretch of machine time (this machine is noisy).
 Reported: the median wall time, the median simulation time from `--timing`, pair tests per
 second and the speedup against the group's reference case; for the groups that ask, where the
 simulation time goes (`--timing`'s phases) and the outside figure, the nanoseconds per
 particle-step spent outside the broad phase, with and without the process's start (hyperfine
-of a 10-particle scene). Saved, never overwritten in place, to
-results/bench/bench-<group>-<UTC time>.{json,md} beside the machine's description.
+of a 10-particle scene). The runs go through the harness's measuring code: wall times from its
+hyperfine call (harness.measure.hyperfine, one call a case a round; the exports kept as
+hyperfine wrote them), --timing runs through its process runner, files written atomically by
+its store. Saved, never overwritten in place, to results/bench/bench-<group>-<UTC
+time>.{json,md} beside the machine's description, the exports in the directory of that name.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import dataclasses
 import os
+import shlex
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -26,9 +30,13 @@ from pathlib import Path
 
 from harness.analysis.phases import outside_broad_ns
 from harness.measure.environment import git_commit
+from harness.measure.hyperfine import time_runs
+from harness.measure.machine import available_cores, print_flags
 from harness.measure.machine import machine as machine_identity
-from harness.measure.machine import print_flags
+from harness.measure.proc import run_process, tail
+from harness.measure.timing import parse_timing
 from harness.repo import REPO_ROOT as ROOT
+from harness.store import atomic
 from harness.store.columns import PHASE_COLUMNS
 
 from bench.scenes_dense import write_dense_slow
@@ -50,6 +58,9 @@ OUTSIDE_TARGET_CASE = "grid x1"
 START_SCENE = "10 100 1 1\nperf\n"
 START_RUNS = 30
 START_WARMUP = 3
+HYPERFINE = "hyperfine"
+SHELL = "/bin/sh"  # runs the copies of a case at once
+RUN_TIMEOUT_S = 3600.0  # one run of the million scene takes minutes
 
 
 @dataclass(frozen=True)
@@ -183,47 +194,73 @@ def materialise(inputs: dict[str, str], where: Path) -> dict[str, Path]:
     return paths
 
 
-def run_case(case: Case, path: Path) -> tuple[float, dict, int]:
-    """One run: wall seconds, the --timing record, peak RSS (KiB; 0 when unknown).
+def command(case: Case, path: Path, timing: bool = False) -> list[str]:
+    """The case's run; with `copies` > 1, that many at once under one shell, which ends when
+    the last does."""
+    run = [str(ROOT / "build" / case.variant), "--threads", str(case.threads),
+           *(["--timing"] if timing else []), str(path)]
+    if case.copies == 1:
+        return run
+    one = shlex.join(run)
+    return [SHELL, "-c", " & ".join([one] * case.copies) + "; wait"]
+
+
+def case_env(case: Case) -> dict[str, str]:
+    return dict(os.environ, OMP_NUM_THREADS=str(case.threads))
+
+
+def timing_run(case: Case, path: Path) -> tuple[dict, int]:
+    """One untimed `--timing` run of one copy, through the harness's process runner: its
+    --timing record and peak RSS (KiB; 0 when unknown).
 
     Peak RSS comes from GNU time when it is installed: the rusage of a child forked from
-    Python counts the launcher's own pages before exec, so it cannot be read from wait4.
-    With case.copies > 1, that many processes start together and the wall time is the last
-    one's end; the record and RSS are the first one's."""
-    binary = ROOT / "build" / case.variant
-    cmd = [str(binary), "--threads", str(case.threads), "--timing", str(path)]
-    env = dict(os.environ, OMP_NUM_THREADS=str(case.threads))
+    Python counts the launcher's own pages before exec, so it cannot be read from wait4."""
+    run = command(dataclasses.replace(case, copies=1), path, timing=True)
     with tempfile.NamedTemporaryFile("r") as rss_file:
-        wrapped = [GNU_TIME, "-f", "%M", "-o", rss_file.name, *cmd] if GNU_TIME else cmd
-        start = time.perf_counter()
-        procs = [subprocess.Popen(wrapped if k == 0 else cmd, stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.PIPE, text=True, env=env)
-                 for k in range(case.copies)]
-        errs = [proc.communicate()[1] for proc in procs]
-        wall = time.perf_counter() - start
+        wrapped = [GNU_TIME, "-f", "%M", "-o", rss_file.name, *run] if GNU_TIME else run
+        done = run_process(wrapped, case_env(case), RUN_TIMEOUT_S)
         rss_text = rss_file.read().strip()
-    for proc, err in zip(procs, errs, strict=True):
-        if proc.returncode != 0:
-            raise SystemExit(f"error: {' '.join(cmd)} exited {proc.returncode}: {err.strip()}")
+    timing = parse_timing(done.stderr)
+    if done.returncode != 0 or timing is None:
+        raise SystemExit(f"error: {shlex.join(run)} exited {done.returncode}: "
+                         f"{tail(done.stderr).strip()}")
     rss = int(rss_text.splitlines()[-1]) if rss_text else 0
-    return wall, json.loads(errs[0].strip().splitlines()[-1]), rss
+    return timing, rss
 
 
-def measure(group: Group, paths: dict[str, Path]) -> list[Result]:
+def timed(case: Case, path: Path, export: Path, runs: int = 1, warmup: int = 0) -> list[float]:
+    """Wall seconds of `runs` runs of the case, timed by the harness's hyperfine call; its
+    export is kept as hyperfine wrote it."""
+    result = time_runs(HYPERFINE, command(case, path), case_env(case), export, runs, warmup,
+                       RUN_TIMEOUT_S, available_cores())
+    if result.stats is None:
+        raise SystemExit(f"error: {shlex.join(command(case, path))}: {result.note}")
+    return list(result.stats.times)
+
+
+def export_name(case: Case, round_index: int) -> str:
+    slug = "".join(ch if ch.isalnum() else "-" for ch in case.label)
+    return f"{slug}-round{round_index}.json"
+
+
+def measure(group: Group, paths: dict[str, Path], exports: Path) -> list[Result]:
+    """The group's cases in interleaved rounds: in each, every case's wall time (hyperfine,
+    its export under `exports`) and an untimed --timing run for where the time goes."""
     results = [Result(c) for c in group.cases]
     for rnd in range(group.rounds):
         for res in results:
-            for _ in range(group.warmup):
-                run_case(res.case, paths[res.case.scene])
-            wall, timing, rss = run_case(res.case, paths[res.case.scene])
+            path = paths[res.case.scene]
+            wall = timed(res.case, path, exports / export_name(res.case, rnd),
+                         warmup=group.warmup)
+            timing, rss = timing_run(res.case, path)
             res.max_rss_kib = max(res.max_rss_kib, rss)
-            res.wall_s.append(wall)
+            res.wall_s += wall
             res.sim_s.append(timing["sim_s"])
             res.pair_tests = timing["pair_tests"] * res.case.copies
             res.particle_steps = int(timing["n"]) * int(timing["steps"])
             for key in (*PHASES, *OUTSIDE_KEYS):
                 res.phases.setdefault(key, []).append(float(timing.get(key, "nan")))
-            print(f"  round {rnd + 1}/{group.rounds}  {res.case.label:<14} {wall:8.3f} s",
+            print(f"  round {rnd + 1}/{group.rounds}  {res.case.label:<14} {wall[0]:8.3f} s",
                   file=sys.stderr, flush=True)
     return results
 
@@ -275,18 +312,13 @@ def process_start(variant: str, where: Path) -> float | None:
     """Median wall seconds of `variant` on START_SCENE under hyperfine (None without it), on
     one thread whatever the case's count: the process's own start and exit (a team's start-up
     is in the case's sim_s)."""
-    hyperfine = shutil.which("hyperfine")
-    if hyperfine is None:
+    if shutil.which(HYPERFINE) is None:
         return None
-    scene, out = where / "start.in", where / f"start-{variant}.json"
+    scene = where / "start.in"
     scene.write_text(START_SCENE)
-    done = subprocess.run([hyperfine, "-N", "--style", "none", "--warmup", str(START_WARMUP),
-                           "--runs", str(START_RUNS), "--export-json", str(out),
-                           f"{ROOT / 'build' / variant} --threads 1 {scene}"],
-                          capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise SystemExit(f"error: hyperfine on {variant}: {done.stderr.strip()}")
-    return float(json.loads(out.read_text())["results"][0]["median"])
+    times = timed(Case("start", variant, 1, "start"), scene, where / f"start-{variant}.json",
+                  START_RUNS, START_WARMUP)
+    return statistics.median(times)
 
 
 def phase_table(group: Group, results: list[Result]) -> str:
@@ -326,16 +358,19 @@ def machine() -> dict[str, str]:
             "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
+def stem_of(group: Group, env: dict[str, str]) -> Path:
+    """results/bench/bench-<group>-<UTC time>: .json and .md, and a directory of the
+    hyperfine exports."""
+    return OUT_DIR / f"bench-{group.name}-{env['date'].replace(':', '')}"
+
+
 def save(group: Group, results: list[Result], text: str, env: dict[str, str]) -> Path:
-    OUT_DIR.mkdir(parents=True, exist_ok=True)
-    stem = OUT_DIR / f"bench-{group.name}-{env['date'].replace(':', '')}"
+    stem = stem_of(group, env)
     record = {"group": group.name, "title": group.title, "rounds": group.rounds,
               "warmup": group.warmup, "machine": env,
               "results": [asdict(r) for r in results]}
-    for suffix, body in ((".json", json.dumps(record, indent=2) + "\n"), (".md", text)):
-        tmp = stem.with_suffix(suffix + ".tmp")
-        tmp.write_text(body)
-        os.replace(tmp, stem.with_suffix(suffix))
+    atomic.atomic_write_json(stem.with_suffix(".json"), record)
+    atomic.atomic_write_text(stem.with_suffix(".md"), text)
     return stem
 
 
@@ -362,11 +397,13 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             print(f"== {group.title}", file=sys.stderr)
             paths = materialise(group.inputs, Path(tmp))
-            results = measure(group, paths)
+            exports = stem_of(group, env)
+            exports.mkdir(parents=True, exist_ok=True)
+            results = measure(group, paths, exports)
             text = table(group, results)
             if group.phases:
                 for variant in sorted({r.case.variant for r in results}):
-                    start = process_start(variant, Path(tmp))
+                    start = process_start(variant, exports)
                     for r in results:
                         if r.case.variant == variant:
                             r.start_s = start

@@ -8,16 +8,26 @@
 # for the Slurm executor's tests and Debian's chromium and chromium-driver for the report's
 # browser test. Used by `make test` (through `make setup-test`) and CI.
 #
+# With configs (scripts/setup.sh [--test] CONFIG...): also what they ask for; a config with
+# `metric: instructions` needs an instruction counter, and where the kernel gives no hardware
+# counters that is Valgrind's cachegrind (Debian's valgrind; --test installs it too, for the
+# instruction lane's tests).
+#
 # Safe to run again: it does only what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 test_too=false
-case "${1:-}" in
-    --test) test_too=true ;;
-    "") ;;
-    *) echo "usage: scripts/setup.sh [--test]" >&2; exit 2 ;;
-esac
+lane=false
+for arg in "$@"; do
+    case "$arg" in
+        --test) test_too=true; lane=true ;;
+        -*) echo "usage: scripts/setup.sh [--test] [CONFIG...]" >&2; exit 2 ;;
+        *)
+            if [ ! -f "$arg" ]; then echo "setup: config not found: $arg" >&2; exit 2; fi
+            if grep -Eq '^metric:[[:space:]]*instructions' "$arg"; then lane=true; fi ;;
+    esac
+done
 
 venv=.venv
 stamp=$venv/.requirements.sha256
@@ -66,6 +76,18 @@ if ! command -v hyperfine >/dev/null 2>&1; then
     else
         echo "setup: hyperfine is missing; run: sudo apt-get install hyperfine" >&2
         exit 1
+    fi
+fi
+
+# The instruction lane's counter where hardware counters are missing (a VM): cachegrind.
+if $lane && ! command -v valgrind >/dev/null 2>&1 \
+        && ! perf stat -x, -e instructions:u true 2>&1 | grep -Eq '^[0-9]+,'; then
+    if as_root && command -v apt-get >/dev/null 2>&1; then
+        echo "setup: installing valgrind (Debian package), the instruction lane's counter"
+        apt_install valgrind
+    else
+        echo "setup: the instruction lane needs valgrind; run: sudo apt-get install valgrind" >&2
+        $test_too || exit 1
     fi
 fi
 if ! $test_too; then

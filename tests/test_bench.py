@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from bench import bench
@@ -85,16 +86,24 @@ def test_outside_ns_is_nan_without_phases() -> None:
 
 
 def test_a_real_run_records_every_phase(real_binaries: Path, tmp_path: Path) -> None:
-    """The real seq binary's --timing through run_case and measure: all phases, n * S, and a
-    hyperfine start time when hyperfine is installed."""
+    """The real seq binary through the harness's hyperfine call and process runner: a wall time
+    and hyperfine's export per round, all phases, n * S, and a start time."""
     case = Case("seq", "seq", 1, "s")
-    group = Group("g", "t", {"s": "60 600 1 4\nperf\n"}, (case,), reference="seq", rounds=2,
-                  phases=True)
-    results = bench.measure(group, bench.materialise(group.inputs, tmp_path))
+    two = Case("2 seqs", "seq", 1, "s", copies=2)
+    group = Group("g", "t", {"s": "60 600 1 4\nperf\n"}, (case, two), reference="seq",
+                  rounds=2, phases=True)
+    exports = tmp_path / "exports"
+    results = bench.measure(group, bench.materialise(group.inputs, tmp_path), exports)
     r = results[0]
+    assert len(r.wall_s) == 2 and all(0 < w < 5 for w in r.wall_s)
+    assert sorted(p.name for p in exports.glob("*.json")) == [
+        "2-seqs-round0.json", "2-seqs-round1.json", "seq-round0.json", "seq-round1.json"]
+    assert json.loads((exports / "2-seqs-round0.json").read_text())["results"][0][
+        "command"].count("--threads 1") == 2
+    assert results[1].pair_tests == 2 * r.pair_tests
     assert r.particle_steps == 240
     assert set(r.phases) == {*bench.PHASES, *bench.OUTSIDE_KEYS}
     assert all(len(v) == 2 and min(v) >= 0 for v in r.phases.values())
     assert r.outside_ns() > 0
     start = bench.process_start("seq", tmp_path)
-    assert start is None or 0 < start < 1
+    assert start is not None and 0 < start < 1

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness import stats
-from harness.analysis.resultsets import Cell, MatchKey, Side
+from harness.analysis.resultsets import Cell, MatchKey, Side, matched
 from harness.store import layout, records
 from harness.store.columns import OK
 
@@ -151,9 +151,7 @@ def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
     """Every key of either side, in order: compared, not compared, or one side only. The
     compared cells are slower or faster only as discoveries at FDR_Q."""
     rows = []
-    for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
-        a, b = old.cells.get(key), new.cells.get(key)
-        note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
+    for key, a, b, note in matched(old, new):
         if a is None:
             rows.append(Row(key, NEW_ONLY, None, b, note=note))
         elif b is None:

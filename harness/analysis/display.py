@@ -92,6 +92,10 @@ DISPLAY_NAMES: dict[str, str] = {
     "sim_s": "simulation [s]",
     **{column: f"{name} [s]" for column, name in PHASE_NAMES.items()},
     "rest_ns": "simulation outside the broad phase [ns per particle-step]",
+    # the instruction lane
+    "instructions": "instructions",
+    "instructions_per_pair_test": "instructions per pair test",
+    "instructions_per_particle_step": "instructions per particle-step",
 }
 
 
@@ -191,6 +195,9 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "sim_s": _fmt_time,
     **{column: _fmt_time for column in PHASE_NAMES},
     "rest_ns": lambda v: format_sig3(float(v)),
+    "instructions": lambda v: f"{float(v):,.0f}",
+    "instructions_per_pair_test": lambda v: f"{float(v):.1f}",
+    "instructions_per_particle_step": lambda v: format_sig3(float(v)),
 }
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -113,6 +113,11 @@ class Cell:
     stale: bool = False  # the binary changed since this cell was measured (results.csv)
     rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
     round_seed: str = ""  # the seed of the rounds it was measured in
+    # The instruction lane (store.columns.INSTRUCTION_COLUMNS): the fewest and the most
+    # instructions of its counted runs (nan: not counted) and the counter
+    instructions: float = math.nan
+    instructions_max: float = math.nan
+    instructions_tool: str = ""
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
@@ -158,6 +163,12 @@ def _text(row: pd.Series, column: str) -> str:
     return str(value).strip()
 
 
+def _number(row: pd.Series, column: str) -> float:
+    """A numeric column's value; nan where empty or absent."""
+    value = row.get(column)
+    return float(value) if value is not None and pd.notna(value) else math.nan
+
+
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
     rounds = tuple(int(r) for r in records.split_floats(_text(row, "wall_times_round")))
     return rounds if len(rounds) == runs else ()
@@ -199,7 +210,10 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
-            round_seed=_text(row, "round_seed").removesuffix(".0")))
+            round_seed=_text(row, "round_seed").removesuffix(".0"),
+            instructions=_number(row, "instructions"),
+            instructions_max=_number(row, "instructions_max"),
+            instructions_tool=_text(row, "instructions_tool")))
     return cells
 
 
@@ -228,6 +242,14 @@ class Side:
 
 
 COMMIT_CHARS = 12
+
+
+def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell | None, str]]:
+    """Every key of either side, in order, with each side's cell (None: absent) and the
+    sides' notes on it."""
+    for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
+        note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
+        yield key, old.cells.get(key), new.cells.get(key), note
 
 
 def _abbreviate(commit: str) -> str:

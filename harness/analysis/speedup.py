@@ -196,8 +196,24 @@ def cell_table(
         table["baseline"] = rows["baseline"]
     if "imbalance" in rows.columns and rows["imbalance"].notna().any():
         table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads
+    table = with_instructions(table, rows)
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     return sort_cells(table, keys)
+
+
+def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
+    """The instruction lane's counts beside the times, where some cell was counted: the
+    fewest of its counted runs, per pair test (all threads' instructions over the pair tests
+    of the run) and per particle-step."""
+    if "instructions" not in rows.columns or not rows["instructions"].notna().any():
+        return table
+    counts = pd.to_numeric(rows["instructions"], errors="coerce")
+    table["instructions"] = counts
+    tests = pd.to_numeric(rows.get("pair_tests"), errors="coerce")
+    table["instructions_per_pair_test"] = counts / tests.where(tests > 0)
+    particle_steps = rows["n"].astype(float) * rows["steps"].astype(float)
+    table["instructions_per_particle_step"] = counts / particle_steps.where(particle_steps > 0)
+    return table
 
 
 def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:

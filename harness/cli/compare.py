@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
-from harness.analysis import calibration
+from harness.analysis import calibration, exact
 from harness.analysis.compare import (
     CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
@@ -27,9 +27,11 @@ from harness.errors import HarnessError
 from harness.measure import environment, machine
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
+from harness.report.compare_exact import write_exact
 from harness.runner import calibrate as calibrate_runs
 from harness.runner.pair import measure_sides
 from harness.runner.sides import resolve
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import atomic, layout, records
@@ -92,6 +94,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="with --measure or --calibrate: when another run is measuring on "
                         "this machine, stop with an error instead of waiting for it")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--metric", choices=METRICS, default=None,
+                        help=f"what the cells are compared by (default: {METRIC_TIME}); "
+                        f"{METRIC_INSTRUCTIONS}: the instructions each executed, exactly (with "
+                        "--measure, both sides are counted; docs/instructions.md)")
     return parser
 
 
@@ -135,6 +141,8 @@ def roots_of(path: Path) -> list[Path]:
 
 def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Drift,
            head: Sequence[str], out_stream: TextIO) -> int:
+    if args.metric == METRIC_INSTRUCTIONS:
+        return report_instructions(old, new, out, head, out_stream)
     rows = compare(old, new, args.threshold, drift)
     if not any(r.compared or r.kind == NOT_OK for r in rows):
         raise HarnessError(f"nothing matched: no cell of {new.path} measured what a cell of "
@@ -146,13 +154,27 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
     return exit_status(rows)
 
 
+def report_instructions(old: Side, new: Side, out: Path, head: Sequence[str],
+                        out_stream: TextIO) -> int:
+    """The comparison on the instruction lane: exact counts, exit 1 where NEW executes more."""
+    rows = exact.compare_instructions(old, new)
+    if not any(r.compared for r in rows):
+        raise HarnessError(f"nothing to compare by instructions: no cell of {new.path} has a "
+                           f"count matching one of {old.path} (measure with --metric "
+                           f"{METRIC_INSTRUCTIONS})")
+    text, written = write_exact(old, new, rows, out, head)
+    out_stream.write(text + "\n")
+    out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
+    return exact.exit_status(rows)
+
+
 def _configs(paths: Sequence[str], registry: VariantRegistry) -> list:
     return [load_config(Path(p), registry) for p in paths]
 
 
 def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
-    configs = _configs(paths[2:], registry)
+    configs = [with_metric(c, args.metric) for c in _configs(paths[2:], registry)]
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
     lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)

@@ -9,10 +9,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.experiment import run_experiment
+from harness.spec.config import METRIC_INSTRUCTIONS, METRICS, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
@@ -40,6 +42,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--metric", choices=METRICS, default=None,
+                        help="what cells are measured by (overrides the config's metric:); "
+                        f"{METRIC_INSTRUCTIONS}: also the instructions each executes "
+                        "(docs/instructions.md)")
     parser.add_argument("--executor", choices=tuple(EXECUTORS), default=None,
                         help="where cells are measured: local (one after another here; the "
                         "default) or slurm (one job-array task per cell); overrides the "
@@ -63,7 +69,13 @@ def execute(args: argparse.Namespace) -> int:
                       partition=args.partition, run_lock=run_lock)
     registry = VariantRegistry(REPO_ROOT)
     try:
-        configs = [load_config(path, registry) for path in args.configs]
+        configs = [with_metric(load_config(path, registry), args.metric)
+                   for path in args.configs]
+        remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
+        if args.metric is not None and remote:
+            # a remote worker reads the config file, not this command line
+            raise HarnessError(f"{remote[0].source}: --metric runs only here (executor "
+                               "local); for Slurm, set metric: in the config")
         with run_lock:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]

@@ -3,7 +3,8 @@
          output); when validating, that output against `build/seq --precise` on the same
          input (the baseline's output is cached under results/.cache/baselines/); with
          `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
-         for a program, its run and its check against seq (measure.program);
+         for a program, its run and its check against seq (measure.program); with the
+         instruction lane (`metric: instructions`), its counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
@@ -15,15 +16,18 @@ import os
 import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
+from harness.measure.instructions import count_runs
 from harness.measure.proc import exit_status, run_process, tail
 from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timing_fields
 from harness.measure.timing import parse_timing, thread_work
+from harness.plan import lane
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
@@ -83,8 +87,8 @@ class Measurer:
         for old in self.store.layout.hyperfine_files(cell_id):
             old.unlink(missing_ok=True)
         if cell.program:
-            return start_program(self.store, self.references, cell, cell_id, key, record, env,
-                                 measure.timeout_s)
+            return self.count(cell, start_program(self.store, self.references, cell, cell_id,
+                                                  key, record, env, measure.timeout_s))
         binary = self.store.binary(cell)
         command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
                    str(self.store.input_file(cell.scene))]
@@ -119,7 +123,24 @@ class Measurer:
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
-        return CellRun(cell_id, key, record, status, exit_code, command, run_s=run_s)
+        return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
+                                        run_s=run_s))
+
+    def count(self, cell: Cell, run: CellRun) -> CellRun:
+        """With the instruction lane, the instructions of the cell's run (harness.measure.
+        instructions) into its record; only a cell that ran to the end is counted."""
+        if not self.config.counts_instructions or not run.timed:
+            return run
+        tool = lane.machine_tool()
+        counted = self.store.counted_binary(cell)
+        argv = run.command if counted is None else [str(counted), *run.command[1:]]
+        measure = self.config.measure_for(cell.variant)
+        env = self.environment(cell.threads, cell.schedule)
+        found = count_runs(tool, argv, env, measure.timeout_s,
+                           input_file=None if cell.program else Path(run.command[-1]))
+        run.record.update(found.fields(tool, lane.described(tool, counted,
+                                                            self.store.binaries)))
+        return run
 
     def time_round(self, run: CellRun, round_index: int) -> None:
         """One round of the cell's timed runs (hyperfine), and whether it needs more."""

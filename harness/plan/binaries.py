@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from harness.plan import lane
 from harness.plan.cells import Cell, Plan
 from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
@@ -45,9 +46,15 @@ def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str,
 
 def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
     """The make-built binaries the plan runs: each cell's, seq for validated cells, the
-    checks' references, and the references of programs' checks."""
+    checks' references, the references of programs' checks, and the instruction lane's
+    builds."""
     needed: dict[Path, None] = {}
+    tool = lane.machine_tool() if plan.config.counts_instructions else None
     for cell in plan.cells:
+        if tool is not None and plan.config.is_built(cell.variant):
+            counted = lane.counted_binary(plan.config, build_dir, cell.variant, cell.build, tool)
+            assert counted is not None, "a built variant has a binary"
+            needed[counted] = None
         if cell.program:
             needed.update(dict.fromkeys(program_references(plan.config, build_dir,
                                                            cell).values()))

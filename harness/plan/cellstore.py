@@ -14,6 +14,7 @@ import datetime
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.plan import lane
 from harness.plan.binaries import (
     baseline_path,
     binary_path,
@@ -108,7 +109,18 @@ class CellStore:
             paths.extend(self.check_references(cell).values())
         if cell.program:
             paths.extend(self.program_references(cell).values())
+        counted = self.counted_binary(cell)
+        if counted is not None and counted not in paths:
+            paths.append(counted)
         return paths
+
+    def counted_binary(self, cell: Cell) -> Path | None:
+        """What the instruction lane counts for the cell (None without the lane, or for a
+        program, whose command is counted)."""
+        if not self.config.counts_instructions:
+            return None
+        return lane.counted_binary(self.config, self.binaries, cell.variant, cell.build,
+                                   lane.machine_tool())
 
     def missing_binary(self, cell: Cell) -> Path | None:
         """A binary the cell needs that is not there (its key waits for it), if any."""
@@ -152,6 +164,12 @@ class CellStore:
             if None in shas.values():
                 return None
             extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
+        if self.config.counts_instructions:  # only then, as with checks
+            counted = self.counted_binary(cell)
+            counted_sha = binary_sha if counted is None else self.sha(counted)
+            if counted_sha is None:
+                return None
+            extra["instructions"] = {"tool": lane.machine_tool(), "binary_sha256": counted_sha}
         omp = self.config.executor.omp_env()
         if omp:  # only then, as with checks
             extra["omp"] = omp

@@ -40,8 +40,14 @@ BASELINE_CHOICES = ("f64", "same", "f128")
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
-    "schedule", "measure_by_variant", "programs",
+    "schedule", "measure_by_variant", "programs", "metric",
 )
+# What a cell is measured by (`metric:`, `run --metric`): its wall time, always; with
+# `instructions`, also the instructions it executes (harness.plan.lane), which no other process
+# on the machine can change.
+METRIC_TIME = "time"
+METRIC_INSTRUCTIONS = "instructions"
+METRICS = (METRIC_TIME, METRIC_INSTRUCTIONS)
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
 MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
 # Adaptive repetition (`runs: auto`): its own keys, only beside it.
@@ -277,6 +283,12 @@ class Config:
     # `programs:` implementations written elsewhere, run through a command template
     # (harness.spec.programs); each is listed in `variants` too
     programs: tuple[Program, ...] = ()
+    # `metric:` (METRICS): time only, or the instruction lane beside it
+    metric: str = METRIC_TIME
+
+    @property
+    def counts_instructions(self) -> bool:
+        return self.metric == METRIC_INSTRUCTIONS
 
     def measure_for(self, variant: str) -> Measure:
         """The measure settings of a variant's cells."""
@@ -301,3 +313,8 @@ class Config:
         """Whether the inputs list every particle: where a program takes part, the scene must
         not depend on any program's own generator."""
         return any(p.name in self.variants for p in self.programs)
+
+
+def with_metric(config: Config, metric: str | None) -> Config:
+    """The config measured by `metric` (`--metric`), or as it says where None."""
+    return config if metric is None else dataclasses.replace(config, metric=metric)

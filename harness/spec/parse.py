@@ -36,6 +36,8 @@ from harness.spec.config import (
     EXECUTOR_KEYS,
     EXECUTOR_KINDS,
     MEASURE_KEYS,
+    METRIC_TIME,
+    METRICS,
     NAME_PATTERN,
     REQUIRED_RANDOM_KEYS,
     SCHEDULE_KINDS,
@@ -80,6 +82,7 @@ def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     result.setdefault("binaries", {})
     result.setdefault("checks", [])
     result.setdefault("accuracy", {})
+    result.setdefault("metric", METRIC_TIME)
     return result
 
 
@@ -132,6 +135,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
         variant_measures=_parse_variant_measures(raw.get("measure_by_variant", {}),
                                                  raw["measure"], variants, source),
         programs=programs_,
+        metric=str(kinds.scalar(raw, "metric", "metric", kinds.one_of(METRICS), source)),
     )
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
     return config

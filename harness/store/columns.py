@@ -99,10 +99,18 @@ THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
 TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
                                 "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
+# The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the most
+# instructions of the cell's counted runs (user space, every thread), each count
+# (space-separated), the counter (perf or cachegrind), the binary it ran (under cachegrind a
+# build without AVX-512), and why a count is missing. Only where some cell was counted.
+INSTRUCTION_COLUMNS: tuple[str, ...] = ("instructions", "instructions_max", "instructions_counts",
+                                        "instructions_tool", "instructions_binary",
+                                        "instructions_note")
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
-                                                 ROUND_COLUMNS, PROGRAM_COLUMNS)
+                                                 ROUND_COLUMNS, PROGRAM_COLUMNS,
+                                                 INSTRUCTION_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -123,7 +131,7 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step",
+    "first_diff_step", "instructions", "instructions_max",
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",

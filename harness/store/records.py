@@ -73,3 +73,8 @@ def split_floats(text: object) -> list[float]:
 def join_floats(values: Iterable[float]) -> str:
     """The space-separated form of a list column (exact: repr of each float)."""
     return " ".join(repr(float(v)) for v in values)
+
+
+def join_ints(values: Iterable[int]) -> str:
+    """The space-separated form of a list of counts (instructions_counts)."""
+    return " ".join(str(int(v)) for v in values)

@@ -1,0 +1,114 @@
+"""Count the instructions one run executes, with the lane's counter (harness.plan.lane): perf's
+hardware counter or Valgrind's cachegrind, each over every thread and child process of the run.
+
+A cell is counted COUNTS times. A run whose threads take work as they come (dynamic schedules)
+may merge a different split of it, and so execute a few more or fewer instructions: where the
+counts differ, the record keeps them all and the comparison of two cells widens by it
+(harness.analysis.exact)."""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.measure.proc import run_process, tail
+from harness.plan.lane import CACHEGRIND, PASSIVE_ENV, PERF, PERF_COUNT, PERF_EVENT
+from harness.store import records
+
+COUNTS = 2
+# How much longer than the cell's timeout a counted run may take: cachegrind simulates every
+# instruction (about 50 times slower here), perf costs next to nothing.
+SLOWDOWN = {CACHEGRIND: 100.0, PERF: 2.0}
+# What a built binary's count sees of the environment (fixed_env).
+KEPT_ENV = ("PATH",)
+OMP_PREFIXES = ("OMP_", "GOMP_")
+# cachegrind's summary line, one per process: "==123== I   refs:      718,102,891"
+I_REFS = re.compile(r"I\s+refs:\s+([\d,]+)")
+
+
+@dataclass(frozen=True)
+class Counted:
+    """The counts of a cell's runs, or why there are none."""
+
+    counts: tuple[int, ...]
+    problem: str = ""
+
+    def fields(self, tool: str, binary: str) -> dict[str, object]:
+        """The record's instruction fields (harness.store.columns.INSTRUCTION_COLUMNS)."""
+        if not self.counts:
+            return {"instructions_tool": tool, "instructions_binary": binary,
+                    "instructions_note": self.problem}
+        return {"instructions": min(self.counts), "instructions_max": max(self.counts),
+                "instructions_counts": records.join_ints(self.counts),
+                "instructions_tool": tool, "instructions_binary": binary,
+                "instructions_note": self.problem}
+
+
+def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
+               runs: int = COUNTS, input_file: Path | None = None) -> Counted:
+    """`runs` counts of argv (its first failure ends them, and says why). With `input_file`
+    (argv's last word), a built binary's run: it reads the input through a path of a fixed
+    length and sees only PATH and the OpenMP variables of `env`, because the loader and the
+    runtime read both, and a longer path or a larger environment costs instructions of its
+    own."""
+    counts = []
+    for _ in range(runs):
+        count, problem = count_once(tool, argv, env, timeout_s * SLOWDOWN[tool], input_file)
+        if count is None:
+            return Counted(tuple(counts), problem)
+        counts.append(count)
+    return Counted(tuple(counts))
+
+
+def fixed_env(env: Mapping[str, str]) -> dict[str, str]:
+    """PATH and the OpenMP variables of env: what a built binary's count runs with."""
+    return {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
+
+
+def pinned() -> list[str]:
+    """taskset onto one of this process's CPUs: cachegrind runs the threads one at a time
+    anyway, and on one CPU the order in which they take turns at a barrier varies less (a
+    thread that arrives last runs the runtime's wake-up path, one that waits its sleep)."""
+    cpu = min(os.sched_getaffinity(0))
+    return ["taskset", "-c", str(cpu)]
+
+
+def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
+               input_file: Path | None = None) -> tuple[int | None, str]:
+    """The instructions of one run of argv, with OpenMP's waiting threads asleep; or None
+    and why."""
+    with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
+        logs = Path(tmp) / "logs"
+        logs.mkdir()
+        run_env = {**(env if input_file is None else fixed_env(env)), **PASSIVE_ENV}
+        if input_file is not None:
+            link = Path(tmp) / "input"
+            link.symlink_to(input_file.resolve())
+            argv = [*argv[:-1], str(link)]
+        if tool == PERF:
+            wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
+                       "--"]
+        else:
+            wrapper = [*pinned(), "valgrind", "--tool=cachegrind", "--cache-sim=no",
+                       "--cachegrind-out-file=/dev/null", "--trace-children=yes",
+                       f"--log-file={logs}/cachegrind.%p"]
+        done = run_process([*wrapper, *argv], run_env, timeout_s)
+        if done.returncode is None:
+            return None, f"its {tool} run passed the {timeout_s:g} s timeout"
+        if done.returncode != 0:
+            return None, (f"its {tool} run ended with exit status {done.returncode}: "
+                          f"{' '.join(tail(done.stderr).split())[-300:]}")
+        texts = [p.read_text(errors="replace") for p in sorted(logs.iterdir())]
+    if tool == PERF:
+        found = [int(m.group(1)) for text in texts for line in text.splitlines()
+                 if (m := PERF_COUNT.match(line))]
+    else:
+        found = [int(m.group(1).replace(",", "")) for text in texts
+                 for m in I_REFS.finditer(text)]
+    if not found:
+        return None, f"its {tool} run printed no instruction count"
+    return sum(found), ""

@@ -1,0 +1,102 @@
+"""The instruction lane (`metric: instructions`): which counter this machine offers, and which
+binary a cell's count runs.
+
+Two counters, chosen once per process and recorded with every count:
+  perf        the kernel's hardware counter (`perf stat -e instructions:u`), where it exposes
+              one: counts the cell's own binary, at native speed;
+  cachegrind  Valgrind's, everywhere else (a VM seldom passes counters through): about 50
+              times slower, and unable to run AVX-512 code, so it counts the Makefile's lane
+              build (build/lane/, x86-64-v3) of a built variant; a custom binary or a
+              program is counted as it is.
+COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses one by hand (e.g. cachegrind on a machine
+with counters, to compare with counts taken in a VM).
+
+OpenMP threads that wait for work spin for a while before they sleep; the lane runs them with
+OMP_WAIT_POLICY=passive, so that the count is the work and not the waiting.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+from harness.errors import HarnessError
+from harness.spec.builds import binary_name
+from harness.spec.config import Config
+
+PERF = "perf"
+CACHEGRIND = "cachegrind"
+TOOLS = (PERF, CACHEGRIND)
+TOOL_VAR = "COLLIDE_INSTRUCTIONS_TOOL"
+LANE_DIR = "lane"  # build/lane/: the Makefile's x86-64-v3 build (`make lane`)
+LANE_ISA = "x86-64-v3"
+PASSIVE_ENV = {"OMP_WAIT_POLICY": "passive"}
+PERF_EVENT = "instructions:u"  # user-space instructions: the program's, not the kernel's
+PERF_PROBE_TIMEOUT_S = 30.0
+# A `perf stat -x,` line whose count is a number (an unsupported event prints <not supported>).
+PERF_COUNT = re.compile(r"^(\d+),")
+
+
+@functools.cache
+def perf_counts() -> bool:
+    """Whether `perf stat -e instructions:u` counts here (a VM often gives <not supported>)."""
+    perf = shutil.which(PERF)
+    if perf is None:
+        return False
+    try:
+        done = subprocess.run([perf, "stat", "-x,", "-e", PERF_EVENT, "true"], check=False,
+                              capture_output=True, text=True, stdin=subprocess.DEVNULL,
+                              timeout=PERF_PROBE_TIMEOUT_S)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0 and any(PERF_COUNT.match(line)
+                                        for line in done.stderr.splitlines())
+
+
+@functools.cache
+def machine_tool() -> str:
+    """The counter this machine's counts use: TOOL_VAR's choice, else perf where it counts,
+    else cachegrind; a HarnessError where there is none."""
+    chosen = os.environ.get(TOOL_VAR, "")
+    if chosen and chosen not in TOOLS:
+        raise HarnessError(f"{TOOL_VAR}={chosen!r}: expected one of {', '.join(TOOLS)}")
+    if chosen == PERF or (not chosen and perf_counts()):
+        if not perf_counts():
+            raise HarnessError(f"{TOOL_VAR}=perf, but `perf stat -e {PERF_EVENT}` does not "
+                               "count on this machine")
+        return PERF
+    if shutil.which("valgrind") is None:
+        raise HarnessError("the instruction lane needs hardware counters (perf stat -e "
+                           f"{PERF_EVENT}) or Valgrind's cachegrind, and this machine has "
+                           "neither; install valgrind (scripts/setup.sh CONFIG does)")
+    return CACHEGRIND
+
+
+def counted_binary(config: Config, build_dir: Path, variant: str, build: str,
+                   tool: str) -> Path | None:
+    """What a cell's count runs: under cachegrind the lane build of a built variant, else the
+    cell's own binary; None for a program (its command is counted)."""
+    if config.program(variant) is not None:
+        return None
+    custom = config.custom_binary(variant)
+    if custom is not None:
+        return custom
+    lane = build_dir / LANE_DIR if tool == CACHEGRIND else build_dir
+    return lane / binary_name(variant, build)
+
+
+def described(tool: str, binary: Path | None, build_dir: Path) -> str:
+    """The lane's binary in words, for the record: which build the count ran."""
+    if binary is None:
+        return "the program's command"
+    try:
+        shown = str(binary.relative_to(build_dir.parent))
+    except ValueError:
+        shown = str(binary)
+    if tool == CACHEGRIND and binary.parent.name == LANE_DIR:
+        return f"{shown} ({LANE_ISA}: cachegrind cannot run AVX-512)"
+    return shown
