@@ -15,7 +15,8 @@ algorithm is a page of numpy, and scipy.stats does the test. docs/history.md has
 and false-positive rates on synthetic series.
 
 An exact lane (instruction counts: no neighbour changes them) needs no statistics: every commit
-whose value differs from its predecessor's beyond `tolerance` is a change point, with p = 0.
+whose counts differ from its predecessor's (beyond their own spread, where they vary at all)
+is a change point, with p = 0.
 """
 
 from __future__ import annotations
@@ -120,11 +121,15 @@ def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P,
     return []
 
 
-def exact_change_points(values: Sequence[float], tolerance: float = 0.0) -> list[ChangePoint]:
-    """Every value that differs from the one before by more than `tolerance` (relative)."""
+def exact_change_points(lows: Sequence[float], highs: Sequence[float] | None = None
+                        ) -> list[ChangePoint]:
+    """Every commit whose values (the fewest and the most of its runs: one value where the
+    count is deterministic) do not overlap those of the commit before; the ratio of the
+    fewest."""
+    highs = lows if highs is None else highs
     out = []
-    for k in range(1, len(values)):
-        ratio = values[k] / values[k - 1]
-        if abs(ratio - 1.0) > tolerance:
+    for k in range(1, len(lows)):
+        if lows[k] > highs[k - 1] or highs[k] < lows[k - 1]:
+            ratio = lows[k] / lows[k - 1]
             out.append(ChangePoint(k, Interval(ratio, ratio, ratio), 0.0))
     return out

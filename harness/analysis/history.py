@@ -15,8 +15,14 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from harness.analysis.changepoints import ChangePoint, change_points, exact_change_points
+from harness.analysis.changepoints import (
+    DEFAULT_MAX_P,
+    ChangePoint,
+    change_points,
+    exact_change_points,
+)
 from harness.analysis.resultsets import Cell, MatchKey, read_cells
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.stats import Interval, median_ci
 from harness.store import atomic
 from harness.store.columns import BUILD_FAILED_STATUS, HISTORY_COLUMNS, MISSING_STATUS, OK
@@ -44,8 +50,18 @@ def time_value(cell: Cell) -> Interval | None:
     return Interval(cell.median, ci.low, ci.high)
 
 
-TIME = Metric("time", "s", False, time_value)
-METRICS: dict[str, Metric] = {TIME.name: TIME}
+def instructions_value(cell: Cell) -> Interval | None:
+    """The instructions the cell executed: the fewest and the most of its counted runs (the
+    same for a deterministic binary)."""
+    if not math.isfinite(cell.instructions):
+        return None
+    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
+    return Interval(cell.instructions, cell.instructions, most)
+
+
+TIME = Metric(METRIC_TIME, "s", False, time_value)
+INSTRUCTIONS = Metric(METRIC_INSTRUCTIONS, "", True, instructions_value)
+METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
 
 
 @dataclass(frozen=True)
@@ -101,16 +117,15 @@ def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Metri
     return out
 
 
-def detect(series: Series, max_p: float | None = None) -> Series:
+def detect(series: Series, max_p: float = DEFAULT_MAX_P) -> Series:
     """The series with its change points: those of its measured commits alone (a commit
     without a value is skipped, not a step)."""
-    kept = [k for k, p in enumerate(series.points) if p.value is not None]
-    values = [series.points[k].value.point for k in kept]  # type: ignore[union-attr]
+    measured = [(k, p.value) for k, p in enumerate(series.points) if p.value is not None]
     if series.metric.exact:
-        found = exact_change_points(values)
+        found = exact_change_points([v.low for _, v in measured], [v.high for _, v in measured])
     else:
-        found = change_points(values) if max_p is None else change_points(values, max_p)
-    series.changes = {kept[c.index]: c for c in found}
+        found = change_points([v.point for _, v in measured], max_p)
+    series.changes = {measured[c.index][0]: c for c in found}
     return series
 
 

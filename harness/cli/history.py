@@ -31,7 +31,7 @@ from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
 from harness.runner.pair import measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import Config
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, Config, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
@@ -73,8 +73,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--every", type=_positive, default=1, metavar="K",
                         help="measure every K-th commit of the range (the first and last "
                         "always); --bisect then names the commit between")
-    parser.add_argument("--metric", choices=tuple(METRICS), default="time",
-                        help="what is tracked (default: time)")
+    parser.add_argument("--metric", choices=tuple(METRICS), default=METRIC_TIME,
+                        help="what is tracked: time, or with instructions the instruction "
+                        "lane too (each commit's cells counted as `run --metric "
+                        "instructions` does; the config's metric: counts as well)")
     parser.add_argument("--bisect", action="store_true",
                         help="where a change point falls between measured commits that are "
                         "not adjacent, measure the commits between (each against its "
@@ -111,12 +113,12 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
     interrupt_on_sigterm()
     revisions, paths = split_items(args.items)
     registry = VariantRegistry(REPO_ROOT)
-    configs = [load_config(p, registry) for p in paths]
+    metric = None if args.metric == METRIC_TIME else args.metric
+    configs = [with_metric(load_config(p, registry), metric) for p in paths]
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
-    every = commits_in(revisions, repo)
-    commits = every_kth(every, args.every)
-    metric = METRICS[args.metric]
+    full = commits_in(revisions, repo)
+    commits = every_kth(full, args.every)
     lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
     try:
         with lock:
@@ -124,42 +126,49 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
                             hyperfine=args.hyperfine, run_lock=lock)
             machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
             for config in configs:
-                series = analyse(config, commits, metric, machine_id, results_root, args, out)
+                metrics = [METRICS[m] for m in
+                           ((METRIC_TIME, METRIC_INSTRUCTIONS) if config.counts_instructions
+                            else (METRIC_TIME,))]
+                series = analyse(config, commits, metrics, machine_id, results_root, args,
+                                 out)
                 if args.bisect:
-                    bisect_all(config, series, every, results_root, repo, lock, args, out)
+                    bisect_all(config, series, full, results_root, repo, lock, args, out)
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: measured commits are saved; run again to resume\n")
         return EXIT_INTERRUPTED
     return 0
 
 
-def analyse(config: Config, commits: Sequence[CommitInfo], metric: Metric, machine_id: str,
-            results_root: Path, args: argparse.Namespace, out: TextIO) -> list[Series]:
+def analyse(config: Config, commits: Sequence[CommitInfo], metrics: Sequence[Metric],
+            machine_id: str, results_root: Path, args: argparse.Namespace, out: TextIO
+            ) -> list[Series]:
     exp = ResultsRoot(results_root).experiment(config.name)
-    series = [detect(s, args.max_p) for s in read_series(exp, commits, metric, machine_id)]
+    series = [detect(s, args.max_p) for metric in metrics
+              for s in read_series(exp, commits, metric, machine_id)]
     if not series:
         raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
     write_history_csv(exp, history_rows(config.name, series))
     command = "collide-bench history " + " ".join(args.items) + (
         f" --every {args.every}" if args.every > 1 else "") + (
-        f" --metric {metric.name}" if metric.name != "time" else "")
+        f" --metric {args.metric}" if args.metric != METRIC_TIME else "")
     path = page(config.name, series, report_dir(args), command)
     for s in series:
         for commit, change in named_commits(s):
-            out.write(f"{config.name}: {s.label} ({metric.name}): change at {commit.short} "
+            out.write(f"{config.name}: {s.label} ({s.metric.name}): change at {commit.short} "
                       f"{commit.subject!r}: x{change.ratio.format(4)}, p {change.p:.3g}\n")
     found = sum(len(s.changes) for s in series)
-    out.write(f"{config.name}: {len(series)} cells over {len(commits)} commits, {found} change "
+    cells = len({s.label for s in series})
+    out.write(f"{config.name}: {cells} cells over {len(commits)} commits, {found} change "
               f"point(s); {exp.history_csv}; {path}\n")
     return series
 
 
-def bisect_all(config: Config, series: Sequence[Series], every: Sequence[CommitInfo],
+def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
                results_root: Path, repo: Path, lock: RunLock, args: argparse.Namespace,
                out: TextIO) -> None:
     """Name the commit of each change point that falls between measured commits with
     unmeasured ones between them."""
-    position = {c.sha: k for k, c in enumerate(every)}
+    position = {c.sha: k for k, c in enumerate(full)}
     for s in series:
         measured = [k for k, p in enumerate(s.points) if p.value is not None]
         for k, change in sorted(s.changes.items()):
@@ -167,13 +176,13 @@ def bisect_all(config: Config, series: Sequence[Series], every: Sequence[CommitI
             low, high = position[s.points[before].commit.sha], position[s.points[k].commit.sha]
             if high - low <= 1:
                 continue
-            named = bisect(config, s, change, every, low, high, results_root, repo,
+            named = bisect(config, s, change, full, low, high, results_root, repo,
                            lock, args.hyperfine)
-            out.write(f"{config.name}: {s.label}: bisected to {named.short} "
+            out.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to {named.short} "
                       f"{named.subject!r}\n")
 
 
-def bisect(config: Config, s: Series, change: ChangePoint, every: Sequence[CommitInfo],
+def bisect(config: Config, s: Series, change: ChangePoint, full: Sequence[CommitInfo],
            low: int, high: int, results_root: Path, repo: Path, lock: RunLock,
            hyperfine: str) -> CommitInfo:
     """Halve [low, high] (low before the step, high after it) by measuring the middle commit
@@ -183,10 +192,10 @@ def bisect(config: Config, s: Series, change: ChangePoint, every: Sequence[Commi
     label = s.label
     while high - low > 1:
         middle = (low + high) // 2
-        old = resolve("OLD", every[low].sha, results_root, repo)
-        new = resolve("NEW", every[middle].sha, results_root, repo)
-        sys.stderr.write(f"bisect: {label}: {every[low].short}..{every[high].short}: "
-                         f"measuring {every[middle].short} against {every[low].short}\n")
+        old = resolve("OLD", full[low].sha, results_root, repo)
+        new = resolve("NEW", full[middle].sha, results_root, repo)
+        sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
+                         f"measuring {full[middle].short} against {full[low].short}\n")
         with tempfile.TemporaryDirectory(dir=results_root) as work:
             sides = measure_sides(old, new, [config], Path(work), registry, lock, sys.stderr,
                                   hyperfine)
@@ -196,7 +205,7 @@ def bisect(config: Config, s: Series, change: ChangePoint, every: Sequence[Commi
             high = middle
         else:
             low = middle
-    return every[high]
+    return full[high]
 
 
 def side_ratio(old: Path, new: Path, label: str, metric: Metric) -> float:

@@ -18,6 +18,11 @@ from tests.conftest import REPO_ROOT, build_or_skip
 
 CONFIG = ("name: scratch\nvariants: [seq]\nscene: {n: 1000, L: 2000, r: 1, steps: 10}\n"
           "threads: 1\nmeasure: {warmup: 1, runs: 3, timeout_s: 60}\nvalidate: false\n")
+# The instruction lane counts under cachegrind where the machine has no counters: a scene
+# small enough for that.
+LANE_CONFIG = ("name: lane\nvariants: [seq]\nscene: {n: 200, L: 400, r: 1, steps: 5}\n"
+               "threads: 1\nmeasure: {warmup: 0, runs: 3, timeout_s: 120}\nvalidate: false\n"
+               "metric: instructions\n")
 
 
 def _git(repo: Path, *args: str) -> str:
@@ -104,6 +109,32 @@ def test_the_commit_that_slows_seq_is_named_and_no_other(tmp_path: Path,
     again = capsys.readouterr()
     assert "(0 measured, 1 cached)" in again.err and "(1 measured" not in again.err
     assert sorted(p.stat().st_mtime_ns for p in exp.history.rglob("cells/*.json")) == measured
+
+    # the instruction lane names the commit and no other, without statistics
+    lane_config = tmp_path / "lane.yaml"
+    lane_config.write_text(LANE_CONFIG)
+    argv = [f"{commits['first']}..HEAD", str(lane_config), *argv[2:]]
+    assert history_main(argv) == 0, capsys.readouterr().err[-3000:]
+    printed = capsys.readouterr()
+    counted = [line for line in printed.out.splitlines() if "(instructions): change at" in line]
+    assert len(counted) == 1, printed.out
+    assert f"change at {commits['slow'][:10]} " in counted[0] and "p 0," in counted[0]
+    with ResultsRoot(results).experiment("lane").history_csv.open() as handle:
+        rows = [r for r in csv.DictReader(handle) if r["metric"] == "instructions"]
+    assert len(rows) == 9
+    assert [r["commit"] for r in rows if r["change_point"] == "true"] == [commits["slow"]]
+    values = [float(r["value"]) for r in rows if r["status"] == "ok"]
+    assert len(set(values[:4])) == 1 and len(set(values[4:])) == 1  # exact: docs change none
+    assert values[4] > 1.5 * values[0]
+
+    # measured every 3rd commit, the change falls between the 4th and the 7th: bisection
+    # measures the commits between against their neighbours and names it
+    assert history_main([*argv, "--every", "3", "--bisect"]) == 0
+    printed = capsys.readouterr()
+    named = [line for line in printed.out.splitlines()
+             if "(instructions): bisected to" in line]
+    assert named == [f"lane: seq random n=200 L=400 r=1 S=5 T=1 (instructions): bisected to "
+                     f"{commits['slow'][:10]} 'Build without optimisation'"], printed.out
 
 
 SMOKE = str(REPO_ROOT / "configs" / "smoke.yaml")
