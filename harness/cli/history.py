@@ -1,4 +1,4 @@
-"""Measure configs at every commit of a range, find the commits that changed a cell's value."""
+"""Measure configs at every commit of a range; name the commits that changed a cell."""
 
 from __future__ import annotations
 
