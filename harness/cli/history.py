@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
@@ -196,11 +195,10 @@ def bisect(config: Config, s: Series, change: ChangePoint, full: Sequence[Commit
         new = resolve("NEW", full[middle].sha, results_root, repo)
         sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
                          f"measuring {full[middle].short} against {full[low].short}\n")
-        with tempfile.TemporaryDirectory(dir=results_root) as work:
-            sides = measure_sides(old, new, [config], Path(work), registry, lock, sys.stderr,
-                                  hyperfine)
-            ratio = side_ratio(sides.old / config.name, sides.new / config.name, label,
-                               s.metric)
+        out = ResultsRoot(results_root).experiment(config.name).bisect(full[low].short,
+                                                                       full[middle].short)
+        sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr, hyperfine)
+        ratio = side_ratio(sides.old / config.name, sides.new / config.name, label, s.metric)
         if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
             high = middle
         else:

@@ -18,6 +18,7 @@
         history/                         superseded records with their hyperfine JSON
         history/<commit>/                `history`: a results root of the commit's measurements
         history/<commit>/build.json      `history`: why the commit has none (no build)
+        history/bisect/<old>-<new>/      `history --bisect`: two commits measured together
         history.csv                      `history`: one row per cell, commit and metric
         history.json                     `history`: the commits of the latest range, oldest first
         slurm/                           the Slurm executor's job state, scripts and logs
@@ -58,6 +59,7 @@ CHECK_OUTPUT_SUFFIX = ".check.out"  # a program's check run's output
 HISTORY_CSV = "history.csv"
 HISTORY_COMMITS = "history.json"
 BUILD_FAILED = "build.json"
+BISECT = "bisect"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 INPUT_SUFFIX = ".in"
 CACHE_DIR = ".cache"
@@ -102,6 +104,10 @@ class ExperimentDir:
 
     def build_failed(self, commit: str) -> Path:
         return self.commit_root(commit) / BUILD_FAILED
+
+    def bisect(self, old: str, new: str) -> Path:
+        """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
+        return self.history / BISECT / f"{old}-{new}"
 
     @property
     def history_csv(self) -> Path:

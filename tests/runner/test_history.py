@@ -135,6 +135,8 @@ def test_the_commit_that_slows_seq_is_named_and_no_other(tmp_path: Path,
              if "(instructions): bisected to" in line]
     assert named == [f"lane: seq random n=200 L=400 r=1 S=5 T=1 (instructions): bisected to "
                      f"{commits['slow'][:10]} 'Build without optimisation'"], printed.out
+    kept = ResultsRoot(results).experiment("lane").history / "bisect"
+    assert list(kept.glob("*/new/lane/results.csv")), "the bisection's measurements are kept"
 
 
 SMOKE = str(REPO_ROOT / "configs" / "smoke.yaml")
