@@ -25,3 +25,7 @@ def compare_main(argv: Sequence[str]) -> int:
 def cell_store(plan: Plan, results_root: Path, repo_root: Path = REPO_ROOT) -> CellStore:
     """The cell store of `plan` under `results_root` on this machine."""
     return CellStore(plan, repo_root, results_root, str(machine(repo_root)["machine_id"]))
+
+
+def history_main(argv: Sequence[str]) -> int:
+    return main(["history", *argv])

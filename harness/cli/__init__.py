@@ -16,7 +16,7 @@ from types import ModuleType
 from harness.cli.common import EXIT_ERROR, PROG
 from harness.errors import HarnessError
 
-COMMANDS: tuple[str, ...] = ("run", "compare", "report", "store", "worker")
+COMMANDS: tuple[str, ...] = ("run", "compare", "history", "report", "store", "worker")
 
 
 def command(name: str) -> ModuleType:

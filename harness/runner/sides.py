@@ -36,7 +36,7 @@ class BuildSide:
         return f"{self.given} ({self.commit[:12]})" if self.commit else self.given
 
 
-def _git(args: Sequence[str], cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+def git(args: Sequence[str], cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
     try:
         return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True,
                               check=False, stdin=subprocess.DEVNULL, timeout=GIT_TIMEOUT_S)
@@ -44,21 +44,26 @@ def _git(args: Sequence[str], cwd: Path = REPO_ROOT) -> subprocess.CompletedProc
         raise HarnessError(f"cannot run git {' '.join(args)}: {exc}") from None
 
 
-def resolve(name: str, given: str, results_root: Path) -> BuildSide:
-    """A directory of binaries as it is; else a revision, checked out (once per commit) into a
-    worktree under the results' cache."""
+def rev_parse(given: str, repo: Path = REPO_ROOT) -> str | None:
+    """The commit a revision names in `repo`; None when it names none."""
+    done = git(["rev-parse", "--verify", "--quiet", f"{given}^{{commit}}"], repo)
+    return done.stdout.strip() if done.returncode == 0 and done.stdout.strip() else None
+
+
+def resolve(name: str, given: str, results_root: Path, repo: Path = REPO_ROOT) -> BuildSide:
+    """A directory of binaries as it is; else a revision of `repo`, checked out (once per
+    commit) into a worktree under the results' cache."""
     path = Path(given)
     if path.is_dir():
         return BuildSide(name, given, path.resolve(), REPO_ROOT, None)
-    done = _git(["rev-parse", "--verify", "--quiet", f"{given}^{{commit}}"])
-    if done.returncode != 0 or not done.stdout.strip():
+    commit = rev_parse(given, repo)
+    if commit is None:
         raise HarnessError(f"{name}: {given!r} is neither a directory of binaries nor a git "
-                           "revision of this repository")
-    commit = done.stdout.strip()
+                           f"revision of {'this repository' if repo == REPO_ROOT else repo}")
     tree = results_root / CACHE_DIR / REVISIONS / commit
     if not (tree / ".git").exists():
         tree.parent.mkdir(parents=True, exist_ok=True)
-        added = _git(["worktree", "add", "--detach", "--force", str(tree), commit])
+        added = git(["worktree", "add", "--detach", "--force", str(tree), commit], repo)
         if added.returncode != 0:
             raise HarnessError(f"{name}: cannot check out {given} ({commit[:12]}): "
                                f"{' '.join(added.stderr.split())[-300:]}")

@@ -142,3 +142,13 @@ BOOL_COLUMNS: frozenset[str] = frozenset({
 FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded", "stale")
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
+
+# history.csv (`history`): one row per cell, commit and metric, oldest commit first. `value`
+# with its interval [low, high]; `status` ok, or why the commit has no value (build_failed,
+# a cell's own status, missing); a change point's row, the first commit at the new level,
+# has change_point true, the step as a ratio (after / before) with its interval, and p.
+HISTORY_COLUMNS: tuple[str, ...] = (
+    "config", "cell", "metric", "position", "commit", "subject", "touches_code", "status",
+    "value", "low", "high", "unit", "change_point", "ratio", "ratio_low", "ratio_high", "p")
+BUILD_FAILED_STATUS = "build_failed"
+MISSING_STATUS = "missing"

@@ -16,6 +16,11 @@
         env.json                         the machine, tools and flags of the latest run
         machines/<machine_id>.json       the same, the latest of each machine
         history/                         superseded records with their hyperfine JSON
+        history/<commit>/                `history`: a results root of the commit's measurements
+        history/<commit>/build.json      `history`: why the commit has none (no build)
+        history/bisect/<old>-<new>/      `history --bisect`: two commits measured together
+        history.csv                      `history`: one row per cell, commit and metric
+        history.json                     `history`: the commits of the latest range, oldest first
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
         divergence.csv                   the checks' divergence curves, where some cell has them
@@ -51,6 +56,10 @@ OUTPUT_SUFFIX = ".txt"
 # beside these: harness.store.atomic.temp_path).
 RUN_OUTPUT_SUFFIX = ".out"  # a validated cell's --precise output
 CHECK_OUTPUT_SUFFIX = ".check.out"  # a program's check run's output
+HISTORY_CSV = "history.csv"
+HISTORY_COMMITS = "history.json"
+BUILD_FAILED = "build.json"
+BISECT = "bisect"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 INPUT_SUFFIX = ".in"
 CACHE_DIR = ".cache"
@@ -88,6 +97,25 @@ class ExperimentDir:
     @property
     def results_csv(self) -> Path:
         return self.path / RESULTS_CSV
+
+    def commit_root(self, commit: str) -> Path:
+        """The results root of one commit's measurements (`history`)."""
+        return self.history / commit
+
+    def build_failed(self, commit: str) -> Path:
+        return self.commit_root(commit) / BUILD_FAILED
+
+    def bisect(self, old: str, new: str) -> Path:
+        """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
+        return self.history / BISECT / f"{old}-{new}"
+
+    @property
+    def history_csv(self) -> Path:
+        return self.path / HISTORY_CSV
+
+    @property
+    def history_commits(self) -> Path:
+        return self.path / HISTORY_COMMITS
 
     @property
     def divergence_csv(self) -> Path:

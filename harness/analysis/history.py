@@ -1,0 +1,166 @@
+"""A config's history across commits, read from what `history` stored: each cell's value at
+every commit of the range (oldest first), the commits without one and why, and the change
+points of each cell's series (harness.analysis.changepoints); history.csv's rows.
+
+A commit's measurements are an ordinary results root (<experiment>/history/<commit>/), so a
+cell's value there is what the rest of the harness reads from results.csv; a cell is matched
+across commits on what it measured (resultsets.MatchKey), never on its binary.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from harness.analysis.changepoints import (
+    DEFAULT_MAX_P,
+    ChangePoint,
+    change_points,
+    exact_change_points,
+)
+from harness.analysis.resultsets import Cell, MatchKey, read_cells
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
+from harness.stats import Interval, median_ci
+from harness.store import atomic
+from harness.store.columns import BUILD_FAILED_STATUS, HISTORY_COLUMNS, MISSING_STATUS, OK
+from harness.store.commits import CommitInfo
+from harness.store.layout import ExperimentDir
+
+
+@dataclass(frozen=True)
+class Metric:
+    """What a history tracks of a cell: its value with an interval, or None."""
+
+    name: str  # history.csv's `metric`
+    unit: str
+    exact: bool  # no neighbour changes it: any change is real, no statistics needed
+    value: Callable[[Cell], Interval | None]
+
+
+def time_value(cell: Cell) -> Interval | None:
+    """The cell's time as the harness estimates it (results.csv), with its interval."""
+    if not math.isfinite(cell.median):
+        return None
+    if not cell.times:
+        return Interval(cell.median, math.nan, math.nan)
+    ci = median_ci(cell.times)
+    return Interval(cell.median, ci.low, ci.high)
+
+
+def instructions_value(cell: Cell) -> Interval | None:
+    """The instructions the cell executed: the fewest and the most of its counted runs (the
+    same for a deterministic binary)."""
+    if not math.isfinite(cell.instructions):
+        return None
+    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
+    return Interval(cell.instructions, cell.instructions, most)
+
+
+TIME = Metric(METRIC_TIME, "s", False, time_value)
+INSTRUCTIONS = Metric(METRIC_INSTRUCTIONS, "", True, instructions_value)
+METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
+
+
+@dataclass(frozen=True)
+class Point:
+    commit: CommitInfo
+    status: str  # OK, BUILD_FAILED_STATUS, MISSING_STATUS or the cell's own status
+    value: Interval | None  # only where status is OK
+
+
+@dataclass
+class Series:
+    """One cell's values across the commits, and its change points (by position)."""
+
+    label: str
+    metric: Metric
+    points: list[Point]
+    changes: dict[int, ChangePoint] = field(default_factory=dict)
+
+
+def commit_cells(exp: ExperimentDir, commit: str, machine_id: str | None
+                 ) -> dict[MatchKey, Cell] | None:
+    """The cells measured at a commit (on `machine_id`, where given); None when it was not
+    built."""
+    if exp.build_failed(commit).is_file():
+        return None
+    directory = ExperimentDir(exp.commit_root(commit) / exp.name)
+    if not directory.results_csv.is_file():
+        return {}
+    cells = read_cells(directory.path, False)
+    return {c.key: c for c in cells if machine_id is None or c.machine_id == machine_id}
+
+
+def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Metric,
+                machine_id: str | None) -> list[Series]:
+    """Every cell measured at some commit, its value at each commit."""
+    by_commit = [commit_cells(exp, c.sha, machine_id) for c in commits]
+    keys = sorted({k for cells in by_commit if cells for k in cells}, key=MatchKey.order)
+    out = []
+    for key in keys:
+        points = []
+        for commit, cells in zip(commits, by_commit, strict=True):
+            if cells is None:
+                points.append(Point(commit, BUILD_FAILED_STATUS, None))
+            elif key not in cells:
+                points.append(Point(commit, MISSING_STATUS, None))
+            else:
+                cell = cells[key]
+                value = metric.value(cell) if cell.status == OK else None
+                status = cell.status if cell.status != OK else (
+                    OK if value is not None else MISSING_STATUS)
+                points.append(Point(commit, status, value))
+        out.append(Series(key.label(), metric, points))
+    return out
+
+
+def detect(series: Series, max_p: float = DEFAULT_MAX_P) -> Series:
+    """The series with its change points: those of its measured commits alone (a commit
+    without a value is skipped, not a step)."""
+    measured = [(k, p.value) for k, p in enumerate(series.points) if p.value is not None]
+    if series.metric.exact:
+        found = exact_change_points([v.low for _, v in measured], [v.high for _, v in measured])
+    else:
+        found = change_points([v.point for _, v in measured], max_p)
+    series.changes = {measured[c.index][0]: c for c in found}
+    return series
+
+
+def named_commits(series: Series) -> list[tuple[CommitInfo, ChangePoint]]:
+    return [(series.points[k].commit, c) for k, c in sorted(series.changes.items())]
+
+
+def _number(value: float) -> str:
+    return "" if not math.isfinite(value) else f"{value:.10g}"
+
+
+def history_rows(config: str, series: Sequence[Series]) -> list[dict[str, str]]:
+    rows = []
+    for s in series:
+        for position, point in enumerate(s.points):
+            value = point.value or Interval(math.nan, math.nan, math.nan)
+            change = s.changes.get(position)
+            rows.append({
+                "config": config, "cell": s.label, "metric": s.metric.name,
+                "position": str(position), "commit": point.commit.sha,
+                "subject": point.commit.subject,
+                "touches_code": str(point.commit.touches_code).lower(), "status": point.status,
+                "value": _number(value.point), "low": _number(value.low),
+                "high": _number(value.high), "unit": s.metric.unit,
+                "change_point": str(change is not None).lower(),
+                "ratio": _number(change.ratio.point) if change else "",
+                "ratio_low": _number(change.ratio.low) if change else "",
+                "ratio_high": _number(change.ratio.high) if change else "",
+                "p": f"{change.p:.3g}" if change else ""})
+    return rows
+
+
+def write_history_csv(exp: ExperimentDir, rows: Sequence[dict[str, str]]) -> None:
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=HISTORY_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic.atomic_write_text(exp.history_csv, text.getvalue())

@@ -1,0 +1,218 @@
+"""Measure configs at every commit of a range; name the commits that changed a cell."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TextIO
+
+from harness.analysis.changepoints import DEFAULT_MAX_P, ChangePoint
+from harness.analysis.history import (
+    METRICS,
+    Metric,
+    Series,
+    detect,
+    history_rows,
+    named_commits,
+    read_series,
+    write_history_csv,
+)
+from harness.analysis.resultsets import read_cells
+from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.cli.run import report_dir
+from harness.errors import HarnessError
+from harness.measure import machine
+from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.report.history import page
+from harness.runner.history import commits_in, every_kth, measure_history
+from harness.runner.pair import measure_sides
+from harness.runner.sides import resolve
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, Config, with_metric
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store import records
+from harness.store.commits import CommitInfo
+from harness.store.layout import ResultsRoot
+from harness.store.locks import RunLock
+
+CONFIG_SUFFIXES = (".yaml", ".yml")
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def _p_value(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), got {text!r}")
+    return value
+
+
+def parser(prog: str) -> argparse.ArgumentParser:
+    parser = Parser(prog=prog, usage=f"{prog} [options] RANGE|REVISION... CONFIG...",
+                    description="Measure every cell of the configs at every commit of a range "
+                    "(A..B, oldest first, with A; or a list of revisions), each commit built "
+                    "once in its own worktree; find each cell's change points and write "
+                    "history.csv and a history page per config.")
+    parser.add_argument("items", nargs="+", metavar="RANGE|REVISION|CONFIG",
+                        help="a range A..B or revisions, then experiment YAML files")
+    parser.add_argument("--every", type=_positive, default=1, metavar="K",
+                        help="measure every K-th commit of the range (the first and last "
+                        "always); --bisect then names the commit between")
+    parser.add_argument("--metric", choices=tuple(METRICS), default=METRIC_TIME,
+                        help="what is tracked: time, or with instructions the instruction "
+                        "lane too (each commit's cells counted as `run --metric "
+                        "instructions` does; the config's metric: counts as well)")
+    parser.add_argument("--bisect", action="store_true",
+                        help="where a change point falls between measured commits that are "
+                        "not adjacent, measure the commits between (each against its "
+                        "neighbour in interleaved rounds) until one commit is named")
+    parser.add_argument("--max-p", type=_p_value, default=DEFAULT_MAX_P,
+                        help=f"the p-value a change point needs (default: {DEFAULT_MAX_P:g})")
+    parser.add_argument("--repo", type=Path, default=REPO_ROOT,
+                        help="the git repository whose commits are measured (default: this one)")
+    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
+                        help="results root: each commit's measurements go to "
+                        "<results>/<experiment>/history/<commit>/ (default: <repo>/results)")
+    parser.add_argument("--report-dir", type=Path, default=None,
+                        help="where history/<config>.md goes (default: as for run)")
+    parser.add_argument("--no-wait", action="store_true",
+                        help="when another run is measuring on this machine, stop with an "
+                        "error instead of waiting for it")
+    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    return parser
+
+
+def split_items(items: Sequence[str]) -> tuple[list[str], list[Path]]:
+    """The revisions, then the configs (files named *.yaml or *.yml)."""
+    configs = [Path(i) for i in items if i.endswith(CONFIG_SUFFIXES)]
+    revisions = [i for i in items if not i.endswith(CONFIG_SUFFIXES)]
+    if not configs:
+        raise HarnessError("no config given (RANGE|REVISION... CONFIG...)")
+    if not revisions:
+        raise HarnessError("no range or revisions given (RANGE|REVISION... CONFIG...)")
+    return revisions, configs
+
+
+def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    out = out or sys.stdout
+    interrupt_on_sigterm()
+    revisions, paths = split_items(args.items)
+    registry = VariantRegistry(REPO_ROOT)
+    metric = None if args.metric == METRIC_TIME else args.metric
+    configs = [with_metric(load_config(p, registry), metric) for p in paths]
+    repo = args.repo.resolve()
+    results_root = args.results_dir.resolve()
+    full = commits_in(revisions, repo)
+    commits = every_kth(full, args.every)
+    lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
+    try:
+        with lock:
+            measure_history(commits, configs, results_root, sys.stderr, repo,
+                            hyperfine=args.hyperfine, run_lock=lock)
+            machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+            for config in configs:
+                metrics = [METRICS[m] for m in
+                           ((METRIC_TIME, METRIC_INSTRUCTIONS) if config.counts_instructions
+                            else (METRIC_TIME,))]
+                series = analyse(config, commits, metrics, machine_id, results_root, args,
+                                 out)
+                if args.bisect:
+                    bisect_all(config, series, full, results_root, repo, lock, args, out)
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted: measured commits are saved; run again to resume\n")
+        return EXIT_INTERRUPTED
+    return 0
+
+
+def analyse(config: Config, commits: Sequence[CommitInfo], metrics: Sequence[Metric],
+            machine_id: str, results_root: Path, args: argparse.Namespace, out: TextIO
+            ) -> list[Series]:
+    exp = ResultsRoot(results_root).experiment(config.name)
+    series = [detect(s, args.max_p) for metric in metrics
+              for s in read_series(exp, commits, metric, machine_id)]
+    if not series:
+        raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
+    write_history_csv(exp, history_rows(config.name, series))
+    command = "collide-bench history " + " ".join(args.items) + (
+        f" --every {args.every}" if args.every > 1 else "") + (
+        f" --metric {args.metric}" if args.metric != METRIC_TIME else "")
+    path = page(config.name, series, report_dir(args), command)
+    for s in series:
+        for commit, change in named_commits(s):
+            out.write(f"{config.name}: {s.label} ({s.metric.name}): change at {commit.short} "
+                      f"{commit.subject!r}: x{change.ratio.format(4)}, p {change.p:.3g}\n")
+    found = sum(len(s.changes) for s in series)
+    cells = len({s.label for s in series})
+    out.write(f"{config.name}: {cells} cells over {len(commits)} commits, {found} change "
+              f"point(s); {exp.history_csv}; {path}\n")
+    return series
+
+
+def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
+               results_root: Path, repo: Path, lock: RunLock, args: argparse.Namespace,
+               out: TextIO) -> None:
+    """Name the commit of each change point that falls between measured commits with
+    unmeasured ones between them."""
+    position = {c.sha: k for k, c in enumerate(full)}
+    for s in series:
+        measured = [k for k, p in enumerate(s.points) if p.value is not None]
+        for k, change in sorted(s.changes.items()):
+            before = max(m for m in measured if m < k)
+            low, high = position[s.points[before].commit.sha], position[s.points[k].commit.sha]
+            if high - low <= 1:
+                continue
+            named = bisect(config, s, change, full, low, high, results_root, repo,
+                           lock, args.hyperfine)
+            out.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to {named.short} "
+                      f"{named.subject!r}\n")
+
+
+def bisect(config: Config, s: Series, change: ChangePoint, full: Sequence[CommitInfo],
+           low: int, high: int, results_root: Path, repo: Path, lock: RunLock,
+           hyperfine: str) -> CommitInfo:
+    """Halve [low, high] (low before the step, high after it) by measuring the middle commit
+    against `low`'s, together in interleaved rounds: a ratio nearer the step than 1 puts the
+    step at or before the middle."""
+    registry = VariantRegistry(REPO_ROOT)
+    label = s.label
+    while high - low > 1:
+        middle = (low + high) // 2
+        old = resolve("OLD", full[low].sha, results_root, repo)
+        new = resolve("NEW", full[middle].sha, results_root, repo)
+        sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
+                         f"measuring {full[middle].short} against {full[low].short}\n")
+        out = ResultsRoot(results_root).experiment(config.name).bisect(full[low].short,
+                                                                       full[middle].short)
+        sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr, hyperfine)
+        ratio = side_ratio(sides.old / config.name, sides.new / config.name, label, s.metric)
+        if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
+            high = middle
+        else:
+            low = middle
+    return full[high]
+
+
+def side_ratio(old: Path, new: Path, label: str, metric: Metric) -> float:
+    """NEW / OLD of the cell `label`, measured together."""
+    values = []
+    for side in (old, new):
+        cells = {c.key.label(): c for c in read_cells(side, False)}
+        value = metric.value(cells[label]) if label in cells else None
+        if value is None:
+            raise HarnessError(f"bisect: {label} has no {metric.name} on both sides")
+        values.append(value.point)
+    return values[1] / values[0]

@@ -1,0 +1,170 @@
+"""Measuring a config at every commit of a range (`history`): each commit checked out once into
+its own worktree and built there (harness.runner.sides, as `compare --measure` does), its cells
+measured by the ordinary run (harness.runner.experiment: its estimator, rounds and noise
+accounting) into <experiment>/history/<commit>/, a results root of that commit. A cell already
+measured there on this machine is not measured again, so a killed history resumes; a commit
+that does not build is recorded (history/<commit>/build.json) and skipped, not fatal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import shutil
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TextIO
+
+from harness.errors import HarnessError
+from harness.executors.base import Options
+from harness.measure.machine import compiler_command
+from harness.plan import lane
+from harness.plan.binaries import needed_binaries
+from harness.plan.cells import plan_cells
+from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
+from harness.runner.experiment import run_experiment
+from harness.runner.pair import with_min_rounds
+from harness.runner.sides import BuildSide, build, git, resolve, rev_parse
+from harness.spec.builds import make_binaries
+from harness.spec.config import Config
+from harness.spec.variants import VariantRegistry
+from harness.store.atomic import atomic_write_json
+from harness.store.commits import CommitInfo, save_commits
+from harness.store.layout import ResultsRoot
+from harness.store.locks import RunLock
+
+# A commit's cell gets at least this many runs: the per-commit median the change-point test
+# reads then holds a 5% step at 5% run noise (docs/history.md).
+HISTORY_MIN_RUNS = 10
+# Where a commit without the lane's rule has its lane binaries made (build_commit).
+LANE_SOURCES = "lane-sources"
+# What a commit must change for its binaries to change (told apart on the history page).
+CODE_PATHS = (VARIANTS_DIR, "Makefile")
+
+# How one commit's config is measured: the ordinary run by default; the instruction lane
+# passes its own. Arguments: the config, the run's options, the commit's variant registry, the
+# progress log.
+MeasureCommit = Callable[[Config, Options, VariantRegistry, TextIO], None]
+
+
+def commits_in(revisions: Sequence[str], repo: Path = REPO_ROOT) -> list[CommitInfo]:
+    """The commits named: one `A..B` (its commits oldest first, first parents only, with A
+    itself) or a list of revisions."""
+    if len(revisions) == 1 and ".." in revisions[0]:
+        start = revisions[0].partition("..")[0]
+        listed = git(["rev-list", "--reverse", "--first-parent", revisions[0]], repo)
+        if listed.returncode != 0:
+            raise HarnessError(f"not a range of {repo}: {revisions[0]!r}: "
+                               f"{' '.join(listed.stderr.split())[-200:]}")
+        shas = listed.stdout.split()
+        first = rev_parse(start or "HEAD", repo)
+        if first is not None:
+            shas.insert(0, first)
+    else:
+        shas = []
+        for given in revisions:
+            sha = rev_parse(given, repo)
+            if sha is None:
+                raise HarnessError(f"{given!r} is not a revision of {repo}")
+            shas.append(sha)
+    if len(shas) < 2:
+        raise HarnessError(f"{' '.join(revisions)}: a history needs at least two commits, "
+                           f"found {len(shas)}")
+    return [describe(sha, repo) for sha in shas]
+
+
+def every_kth(commits: Sequence[CommitInfo], every: int) -> list[CommitInfo]:
+    """Every K-th commit, the first and the last always kept."""
+    kept = list(commits[::every])
+    return kept if kept[-1] == commits[-1] else [*kept, commits[-1]]
+
+
+def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
+    subject = git(["log", "-1", "--format=%s", sha], repo).stdout.strip()
+    parent = rev_parse(f"{sha}^", repo)
+    if parent is None:  # a root commit made all its files
+        touches = True
+    else:
+        diff = git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS], repo)
+        touches = diff.returncode == 1
+    return CommitInfo(sha, subject, touches)
+
+
+def run_config(config: Config, options: Options, registry: VariantRegistry,
+               log: TextIO) -> None:
+    """The ordinary run of one config (its summary goes to the log, not stdout)."""
+    run_experiment(config, options, log, io.StringIO(), registry)
+
+
+def build_commit(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) -> None:
+    """Make the commit's binaries. A commit older than the instruction lane's build has no rule
+    for build/lane/NAME: its own Makefile then builds them, with the lane's instruction set
+    added to its own flags, in a copy of its sources (so that build/ keeps the native ones)."""
+    lane_dir = side.build_dir / lane.LANE_DIR
+    lanes = [b for b in binaries if b.parent == lane_dir]
+    makefile = side.repo_root / "Makefile"
+    has_rule = makefile.is_file() and f"{BUILD_DIR}/{lane.LANE_DIR}/" in makefile.read_text()
+    if has_rule or not lanes:
+        build(side, binaries, variants)
+        return
+    build(side, [b for b in binaries if b not in lanes], variants)
+    copy = side.build_dir / LANE_SOURCES
+    if not copy.is_dir():
+        copy.mkdir(parents=True)
+        shutil.copy(makefile, copy / "Makefile")
+        shutil.copytree(side.repo_root / VARIANTS_DIR, copy / VARIANTS_DIR)
+    made = [copy / BUILD_DIR / b.name for b in lanes]
+    make_binaries(copy, made, capture=True, extra=[
+        f"CC={compiler_command(REPO_ROOT)[0]}",
+        f"CFLAGS=-march={lane.LANE_ISA} -mtune=generic"])
+    lane_dir.mkdir(parents=True, exist_ok=True)
+    for source, target in zip(made, lanes, strict=True):
+        shutil.copy2(source, target)
+
+
+def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
+                   measure: MeasureCommit, hyperfine: str, run_lock: RunLock | None) -> str:
+    """Build and measure one commit's cells of a config; 'built' or why not."""
+    exp = ResultsRoot(results_root).experiment(config.name)
+    assert side.commit is not None, "a history measures revisions"
+    failed = exp.build_failed(side.commit)
+    if failed.is_file():
+        return "did not build (recorded)"
+    registry = VariantRegistry(side.repo_root)
+    config = with_min_rounds(config, HISTORY_MIN_RUNS)
+    absent = [v for v in config.variants if config.is_built(v) and v not in registry]
+    if absent:  # a variant added later: its cells are missing at this commit, not the rest
+        log.write(f"{side.commit[:10]}: no variant {', '.join(absent)} yet: its cells are "
+                  "skipped here\n")
+        config = dataclasses.replace(
+            config, variants=tuple(v for v in config.variants if v not in absent))
+    try:  # planning asks the binaries what they are (--describe): it builds them too
+        plan = plan_cells(config, False, registry)
+        binaries = needed_binaries(plan, side.build_dir)
+        variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
+        build_commit(side, [b for b in binaries if b.is_relative_to(side.build_dir)],
+                     variants)
+    except HarnessError as exc:
+        atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
+                                          "error": str(exc)})
+        log.write(f"{side.commit[:10]}: does not build: recorded, skipped ({exc})\n")
+        return "did not build"
+    options = Options(repo_root=side.repo_root, results_root=exp.commit_root(side.commit),
+                      hyperfine=hyperfine, executor="local", run_lock=run_lock)
+    measure(config, options, registry, log)
+    return "measured"
+
+
+def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
+                    results_root: Path, log: TextIO, repo: Path = REPO_ROOT,
+                    measure: MeasureCommit = run_config, hyperfine: str = "hyperfine",
+                    run_lock: RunLock | None = None) -> None:
+    """Every commit's cells of every config, oldest first, each commit built once."""
+    root = ResultsRoot(results_root)
+    for config in configs:
+        save_commits(root.experiment(config.name), commits)
+    for k, commit in enumerate(commits, start=1):
+        log.write(f"history: [{k}/{len(commits)}] {commit.short} {commit.subject}\n")
+        side = resolve(commit.short, commit.sha, results_root, repo)
+        for config in configs:
+            measure_commit(side, config, results_root, log, measure, hyperfine, run_lock)
