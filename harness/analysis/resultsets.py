@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness import stats
 from harness.analysis.flags import _is_true
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
@@ -113,15 +114,12 @@ class Cell:
     stale: bool = False  # the binary changed since this cell was measured (results.csv)
     rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
     round_seed: str = ""  # the seed of the rounds it was measured in
+    # rounds interfered with beyond the limit (harness.measure.noise), left out of a paired test
+    dropped_rounds: frozenset[int] = frozenset()
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
-        if len(self.rounds) != len(self.times):
-            return {}
-        grouped: dict[int, list[float]] = {}
-        for round_index, seconds in zip(self.rounds, self.times, strict=True):
-            grouped.setdefault(round_index, []).append(seconds)
-        return {k: statistics.median(v) for k, v in grouped.items()}
+        return stats.round_medians(self.times, self.rounds)
 
     @property
     def machine_text(self) -> str:
@@ -199,7 +197,9 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
-            round_seed=_text(row, "round_seed").removesuffix(".0")))
+            round_seed=_text(row, "round_seed").removesuffix(".0"),
+            dropped_rounds=frozenset(int(r) for r in records.split_floats(
+                _text(row, "rounds_dropped")))))
     return cells
 
 
