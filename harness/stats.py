@@ -363,6 +363,56 @@ def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, fl
     return {k: float(np.median(v)) for k, v in grouped.items()}
 
 
+# A round is interfered with when other processes' CPU time and stolen time on its cores
+# exceed this share of the cores' time during the round (harness.measure.noise): more than
+# half of what the runs could use went elsewhere. A paired test leaves such rounds out, both
+# sides together, the worst first, but at most MAX_DROPPED_SHARE of a cell's rounds: on a
+# machine where every round is interfered with, dropping them all would leave nothing, and
+# the spread of the rest then widens the interval instead.
+NOISE_LIMIT = 0.5
+MAX_DROPPED_SHARE = 0.25
+
+
+def rounds_to_drop(old: dict[int, float], new: dict[int, float],
+                   limit: float = NOISE_LIMIT) -> frozenset[int]:
+    """The rounds of a pair to leave out: those interfered with beyond `limit` on either side
+    (shares by round), the worst first, at most MAX_DROPPED_SHARE of the rounds both have."""
+    common = old.keys() & new.keys()
+    worst = sorted(((max(old[k], new[k]), k) for k in common), reverse=True)
+    beyond = [k for share, k in worst if share > limit]
+    return frozenset(beyond[:math.floor(MAX_DROPPED_SHARE * len(common))])
+
+
+@dataclass(frozen=True)
+class NoiseProfile:
+    """A machine's noise over many rounds: how much of the cores' time was stolen or taken by
+    others, and how often a round was interfered with beyond the limit."""
+
+    rounds: int
+    stolen: float  # share of the cores' time stolen
+    others: float  # share taken by other processes
+    dropped: int  # rounds beyond NOISE_LIMIT (flagged)
+
+    def line(self) -> str:
+        if not self.rounds:
+            return "no rounds with noise measured"
+        return (f"{self.stolen:.1%} of the cores' time stolen, {self.others:.1%} taken by other "
+                f"processes; {self.dropped} of {self.rounds} rounds "
+                f"({self.dropped / self.rounds:.1%}) interfered with beyond "
+                f"{NOISE_LIMIT:.0%} (a paired test leaves out the worst, at most "
+                f"{MAX_DROPPED_SHARE:.0%} of a cell's rounds)")
+
+
+def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
+            capacity_s: float) -> NoiseProfile:
+    """The profile of rounds with these interference shares, and totals over them (stolen and
+    others' seconds, and the cores' seconds they span)."""
+    if capacity_s <= 0:
+        return NoiseProfile(len(shares), 0.0, 0.0, sum(s > NOISE_LIMIT for s in shares))
+    return NoiseProfile(len(shares), steal_s / capacity_s, other_cpu_s / capacity_s,
+                        sum(s > NOISE_LIMIT for s in shares))
+
+
 def paired_series(old: dict[int, float], new: dict[int, float],
                   dropped: frozenset[int] = frozenset()) -> tuple[list[float], list[float]]:
     """The two sides' values of the rounds both have, in round order, without the rounds in

@@ -123,7 +123,8 @@ def paired_rounds(old: Cell, new: Cell) -> tuple[list[float], list[float]] | Non
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     a, b = old.by_round(), new.by_round()
-    pair = stats.paired_series(a, b, old.dropped_rounds | new.dropped_rounds)
+    pair = stats.paired_series(a, b, stats.rounds_to_drop(old.noise_by_round(),
+                                                          new.noise_by_round()))
     return pair if len(pair[0]) >= 2 else None
 
 
@@ -140,7 +141,10 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         notes.append("the input files differ")
     paired = paired_rounds(old, new)
     if paired is not None:
-        change, method = stats.paired_change(*paired, threshold), PAIRED
+        # the look of the rounds measured, dropped ones included: the looks taken so far
+        measured = len(old.by_round().keys() & new.by_round().keys())
+        change = stats.paired_change(*paired, threshold, stats.look_index(measured))
+        method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
     else:

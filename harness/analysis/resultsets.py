@@ -114,8 +114,16 @@ class Cell:
     stale: bool = False  # the binary changed since this cell was measured (results.csv)
     rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
     round_seed: str = ""  # the seed of the rounds it was measured in
-    # rounds interfered with beyond the limit (harness.measure.noise), left out of a paired test
-    dropped_rounds: frozenset[int] = frozenset()
+    # each round's interference share (harness.measure.noise), in round order, where measured
+    round_noise: tuple[float, ...] = ()
+    steal_s: float = 0.0  # CPU seconds stolen on its cores over its rounds
+    other_cpu_s: float = 0.0  # taken by other processes
+    noise_capacity_s: float = 0.0  # the cores' seconds its rounds span
+
+    def noise_by_round(self) -> dict[int, float]:
+        rounds = sorted(set(self.rounds))
+        return dict(zip(rounds, self.round_noise, strict=True)) \
+            if len(rounds) == len(self.round_noise) else {}
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
@@ -154,6 +162,18 @@ def _text(row: pd.Series, column: str) -> str:
     if value is None or (not isinstance(value, str) and pd.isna(value)):
         return ""
     return str(value).strip()
+
+
+def _number(row: pd.Series, column: str) -> float:
+    value = pd.to_numeric(row.get(column), errors="coerce")
+    return float(value) if pd.notna(value) else 0.0
+
+
+def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
+    """What other work did to the cells' rounds (where measured)."""
+    return stats.noise_profile([s for c in cells for s in c.round_noise],
+                               sum(c.steal_s for c in cells), sum(c.other_cpu_s for c in cells),
+                               sum(c.noise_capacity_s for c in cells))
 
 
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
@@ -198,8 +218,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
-            dropped_rounds=frozenset(int(r) for r in records.split_floats(
-                _text(row, "rounds_dropped")))))
+            round_noise=tuple(records.split_floats(_text(row, "round_noise"))),
+            **{k: _number(row, k) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 
 

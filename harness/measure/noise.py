@@ -17,14 +17,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
+
 PROC_STAT = Path("/proc/stat")
 # /proc/stat's per-CPU fields, in ticks: user nice system idle iowait irq softirq steal ...
 BUSY_FIELDS = (0, 1, 2, 5, 6)  # user, nice, system, irq, softirq (guest time is in user)
 STEAL_FIELD = 7
-# A round is interfered with when others' CPU time and stolen time on its cores exceed this
-# share of the cores' time during the round: then more than half of the machine the runs could
-# use went elsewhere, and their time says more about the neighbours than about the binary.
-NOISE_LIMIT = 0.5
 
 
 def round_cores() -> list[int]:
@@ -108,32 +106,3 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
         other = max(0.0, busy - own)
     return RoundNoise(after.at - before.at, steal, other, own,
                       after.own_nivcsw - before.own_nivcsw, after.load1, cores)
-
-
-@dataclass(frozen=True)
-class NoiseProfile:
-    """A machine's noise over many rounds: how much of the cores' time was stolen or taken by
-    others, and how often a round was interfered with beyond the limit."""
-
-    rounds: int
-    stolen: float  # share of the cores' time stolen
-    others: float  # share taken by other processes
-    dropped: int  # rounds beyond NOISE_LIMIT
-
-    def line(self) -> str:
-        if not self.rounds:
-            return "no rounds with noise measured"
-        return (f"{self.stolen:.1%} of the cores' time stolen, {self.others:.1%} taken by other "
-                f"processes; {self.dropped} of {self.rounds} rounds "
-                f"({self.dropped / self.rounds:.1%}) interfered with beyond "
-                f"{NOISE_LIMIT:.0%} and dropped")
-
-
-def profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
-            capacity_s: float) -> NoiseProfile:
-    """The profile of rounds with these interference shares, and totals over them (stolen and
-    others' seconds, and the cores' seconds they span)."""
-    if capacity_s <= 0:
-        return NoiseProfile(len(shares), 0.0, 0.0, sum(s > NOISE_LIMIT for s in shares))
-    return NoiseProfile(len(shares), steal_s / capacity_s, other_cpu_s / capacity_s,
-                        sum(s > NOISE_LIMIT for s in shares))

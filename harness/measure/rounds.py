@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from harness.measure import noise
+from harness import stats
 from harness.measure.hyperfine import Timed
 from harness.spec.config import Measure
 from harness.store import atomic, csvfile, records
@@ -76,10 +76,11 @@ class CellRun:
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
 
-    def dropped_rounds(self) -> frozenset[int]:
-        """Its rounds interfered with beyond the limit (harness.measure.noise)."""
-        return frozenset(r for r, share in zip(sorted(set(self.rounds)), self.round_noise,
-                                               strict=False) if share > noise.NOISE_LIMIT)
+    def noise_by_round(self) -> dict[int, float]:
+        """Each round's interference share (harness.measure.noise), by round."""
+        rounds = sorted(set(self.rounds))
+        return dict(zip(rounds, self.round_noise, strict=True)) \
+            if len(rounds) == len(self.round_noise) else {}
 
     def measure(self, measure: Measure) -> Measure:
         """The cell's measure, with at least the rounds a comparison asked for."""
@@ -226,5 +227,6 @@ def noise_fields(run: CellRun) -> dict[str, object]:
     return {"steal_s": run.steal_s, "other_cpu_s": run.other_cpu_s,
             "nivcsw_per_run": run.nivcsw / len(run.times) if run.times else None,
             "round_noise": " ".join(f"{s:.3f}" for s in run.round_noise),
-            "rounds_dropped": " ".join(str(r) for r in sorted(run.dropped_rounds())),
+            "rounds_dropped": " ".join(str(r) for r, share in run.noise_by_round().items()
+                                       if share > stats.NOISE_LIMIT),
             "noise_capacity_s": run.capacity_s}

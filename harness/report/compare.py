@@ -20,7 +20,7 @@ from harness.analysis.compare import (
     methods,
     summary,
 )
-from harness.analysis.resultsets import FLAG_COLUMNS, Side
+from harness.analysis.resultsets import FLAG_COLUMNS, Side, noise_profile
 from harness.report.document import Table
 from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
@@ -70,6 +70,10 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
         commits = ", ".join(side.commits()) or "not recorded"
         lines.append(f"- **{side.name}** `{side.path}`: {len(side.cells)} cells; machine "
                      f"{', '.join(side.machines()) or 'unknown'}; commit {commits}")
+    for side in (old, new):
+        profile = noise_profile(list(side.cells.values()))
+        if profile.rounds:
+            lines.append(f"- **{side.name}** noise: {profile.line()}")
     lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift))]
     lines += ["", f"**{summary(rows)}.**", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]

@@ -60,7 +60,8 @@ class UntilDecided:
         a = stats.round_medians(old.state.times, old.state.rounds)
         b = stats.round_medians(new.state.times, new.state.rounds)
         measured = len(a.keys() & b.keys())
-        series = stats.paired_series(a, b, old.state.dropped_rounds() | new.state.dropped_rounds())
+        series = stats.paired_series(a, b, stats.rounds_to_drop(old.state.noise_by_round(),
+                                                                new.state.noise_by_round()))
         return stats.paired_change(*series, self.threshold, stats.look_index(measured))
 
     def left_s(self) -> float:

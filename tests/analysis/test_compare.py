@@ -123,7 +123,7 @@ def test_measured_together_quiet_identical_sides_are_shown_unchanged() -> None:
     assert sum(r.kind == compare.INCONCLUSIVE for r in noisy_rows) >= 0.5 * len(noisy_rows)
     for row in quiet + noisy_rows:
         if row.kind == compare.UNCHANGED:
-            assert 1 / 1.01 <= row.low and row.high <= 1.01
+            assert row.low >= 1 / 1.01 and row.high <= 1.01
         assert (row.kind == compare.INCONCLUSIVE) == (row.further > 0)
 
 
@@ -374,8 +374,9 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
 def test_script_on_committed_results(tmp_path: Path) -> None:
     """`python3 harness/compare.py` (re-executing under .venv) on the committed results, some of
     whose rows predate wall_times_s (times then come from the hyperfine JSON): each machine's
-    set compared with itself is the same in every cell, never slower or faster. They hold several machines side
-    by side, so each comparison names its machine (without, compare.py refuses: another test)."""
+    set compared with itself is the same in every cell, never slower or faster. They hold
+    several machines side by side, so each comparison names its machine (without, compare.py
+    refuses: another test)."""
     experiment = REPO_ROOT / "results" / "threads"
     if not (experiment / "results.csv").is_file():
         pytest.skip("no committed results/threads")
