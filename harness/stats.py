@@ -90,6 +90,47 @@ def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.median(x, axis=axis)
 
 
+def _minimum(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.min(x, axis=axis)
+
+
+def _low_quantile(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.quantile(x, LOW_QUANTILE, axis=axis)
+
+
+def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.mean(x, axis=axis)
+
+
+# Estimators of what a binary costs from its runs' times. Interference only ever slows a run,
+# so the low end of the times is a candidate beside the median: docs/compare.md measures how
+# well each reproduces between reruns. Each is vectorized (for its bootstrap interval).
+LOW_QUANTILE = 0.25
+ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
+    "median": _median, "min": _minimum, f"q{round(LOW_QUANTILE * 100)}": _low_quantile,
+    "mean": _mean,
+}
+DEFAULT_ESTIMATOR = "median"
+
+
+def estimate(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> float:
+    """The run times' value by the named estimator (ESTIMATORS); NaN without runs."""
+    data = _clean(times)
+    return float(ESTIMATORS[estimator](data)) if data.size else math.nan
+
+
+def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> Interval:
+    """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
+    same estimator (the interval of a minimum reaches only upwards of it)."""
+    data = _clean(times)
+    if data.size < 2:
+        return Interval(estimate(times, estimator), math.nan, math.nan)
+    point = float(ESTIMATORS[estimator](data))
+    if np.all(data == data[0]):
+        return Interval(point, point, point)
+    return _interval(point, (data,), ESTIMATORS[estimator])
+
+
 @functools.lru_cache(maxsize=4096)
 def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
                ) -> tuple[float, float]:

@@ -305,3 +305,15 @@ def test_optional_stopping_keeps_false_verdicts_rare() -> None:
                 wrong += verdict in (stats.SLOWER, stats.FASTER)
                 break
     assert wrong <= 20
+
+
+def test_the_estimators_and_their_intervals() -> None:
+    times = [1.0, 1.1, 1.05, 1.3, 1.02]
+    assert stats.estimate(times, "median") == 1.05 and stats.estimate(times, "min") == 1.0
+    assert stats.estimate(times, "q25") == 1.02
+    assert stats.estimate(times, "mean") == pytest.approx(1.094)
+    assert stats.DEFAULT_ESTIMATOR in stats.ESTIMATORS
+    low = stats.estimate_ci(times, "min")
+    assert low.low == 1.0 and low.high > 1.0  # a minimum's interval reaches only upwards
+    assert stats.estimate_ci(times, "median") == stats.median_ci(times)
+    assert math.isnan(stats.estimate([], "min"))
