@@ -23,6 +23,10 @@ Parts, each a real measurement with this checkout's build/ (every command it run
              measures as a fixed 3 runs, or a fixed base measure as `runs: auto`),
              alternating A B (--adaptive-repeats times): the wall time of the whole `run`
              and the width of the cells' intervals.
+  sequential rounds until decided, simulated (no machine): --sim-comparisons comparisons of
+             16 cells whose per-round log ratios are normal with a spread of 1%, 3% and 5%,
+             judged at every look (stats.look_rounds) until decided or 6 looks: how often a
+             verdict is false, identical sides and 5% slower, as compare --measure would.
 Prints Markdown; everything measured stays under OUT.
 """
 
@@ -58,7 +62,7 @@ from harness.spec.variants import VariantRegistry
 from harness.store import layout
 from harness.store.columns import OK
 
-PARTS = ("calibrate", "aa", "ab", "apart", "adaptive")
+PARTS = ("calibrate", "aa", "ab", "apart", "adaptive", "sequential")
 NOISE = REPO_ROOT / "scripts" / "noise"
 BUDGET: list[str] = []  # compare --measure's --budget, where given
 HARNESS = [sys.executable, "-m", "harness"]
@@ -250,6 +254,53 @@ def part_adaptive(out: Path, configs: Sequence[Path], repeats: int) -> list[dict
     return results
 
 
+SIM_CELLS = 16
+SIM_LOOKS = 6
+
+
+def simulate(shift: float, sd: float, comparisons: int, seed: int) -> dict[str, object]:
+    """Comparisons of SIM_CELLS cells whose log ratios are normal(shift, sd) per round, each
+    undecided cell given rounds to the next look, all judged together at each look."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    counts = dict.fromkeys(stats.VERDICTS, 0)
+    outside = 0
+    rounds_used = []
+    margin = compare.DEFAULT_THRESHOLD
+    for _ in range(comparisons):
+        d = rng.normal(shift, sd, (SIM_CELLS, stats.look_rounds(SIM_LOOKS)))
+        final: dict[int, tuple[str, stats.Change, int]] = {}
+        for look in range(1, SIM_LOOKS + 1):
+            n = stats.look_rounds(look)
+            live = [k for k in range(SIM_CELLS) if k not in final]
+            changes = {k: stats.paired_change(np.ones(n), np.exp(d[k, :n]), margin, look)
+                       for k in live}
+            # every cell judged together: the decided ones with their last change
+            keys = sorted(final) + live
+            verdicts = stats.decide([final[k][1] if k in final else changes[k] for k in keys],
+                                    compare.FDR_Q)
+            for k, verdict in zip(keys, verdicts, strict=True):
+                if k in live and (verdict != stats.INCONCLUSIVE or look == SIM_LOOKS):
+                    final[k] = (verdict, changes[k], n)
+        for verdict, change, n in final.values():
+            counts[verdict] += 1
+            rounds_used.append(n)
+            if verdict == stats.UNCHANGED and not (
+                    1 / (1 + margin) <= change.ratio.low and change.ratio.high <= 1 + margin):
+                outside += 1
+    cells = comparisons * SIM_CELLS
+    return {"true_change": f"{shift:+.0%}" if shift else "none", "round_sd": f"{sd:.0%}",
+            "cells": cells, **{k: f"{v / cells:.1%}" for k, v in counts.items()},
+            "unchanged_outside": outside, "median_rounds": statistics.median(rounds_used)}
+
+
+def part_sequential(comparisons: int) -> list[dict[str, object]]:
+    return [simulate(shift, sd, comparisons, seed=k)
+            for k, (shift, sd) in enumerate((s, sd) for s in (0.0, math.log(1.05))
+                                            for sd in (0.01, 0.03, 0.05))]
+
+
 def markdown(summary: dict[str, object]) -> str:
     lines = []
     for part, value in summary.items():
@@ -276,6 +327,7 @@ def main() -> int:
     parser.add_argument("--adaptive-configs", type=Path, nargs="*",
                         default=[REPO_ROOT / "configs" / "quickstart.yaml"])
     parser.add_argument("--adaptive-repeats", type=int, default=2)
+    parser.add_argument("--sim-comparisons", type=int, default=200)
     parser.add_argument("--noise", type=float, default=0.0, metavar="DUTY",
                         help="run every part under scripts/noise at this duty cycle")
     parser.add_argument("--noise-seed", type=int, default=1)
@@ -322,6 +374,8 @@ def run_parts(args: argparse.Namespace, parts: Sequence[str], out: Path, config:
             apart = part_apart(out, config, args.apart_repeats or args.repeats)
             summary["estimators"] = apart.pop(0)
             summary[part] = apart
+        elif part == "sequential":
+            summary[part] = part_sequential(args.sim_comparisons)
         else:
             summary[part] = part_adaptive(out, [c.resolve() for c in args.adaptive_configs],
                                           args.adaptive_repeats)
