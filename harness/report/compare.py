@@ -26,7 +26,8 @@ from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
 from harness.store import atomic
 
-OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
+OUT_STEM = "compare"
+MANY_ROUNDS = 1000  # beyond it, "to decide" says only that it is more  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
 
 
 def _seconds(value: float) -> str:
@@ -49,6 +50,8 @@ def _further_text(row: Row) -> str:
     unit = "rounds" if row.method == PAIRED else "runs a side"
     if not math.isfinite(row.further):
         return "not by more runs (the drift)" if row.method != PAIRED else "many"
+    if row.further > MANY_ROUNDS:
+        return f"> {MANY_ROUNDS} {unit}"
     return f"~{row.further:.0f} {unit}"
 
 

@@ -8,6 +8,7 @@ OUT/new), written under OUT/.measure and moved into place once both are complete
 from __future__ import annotations
 
 import dataclasses
+import math
 import shutil
 import time
 from collections.abc import Sequence
@@ -47,13 +48,15 @@ class UntilDecided:
     """Rounds until decided: after each round, the cell pairs that reached a look of the
     sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
     control across every pair); a decided pair stops, an undecided one is given the rounds to
-    the next look while the budget lasts, and once it is spent every undecided pair stops."""
+    the next look while the budget lasts, and once it is spent every pair given more rounds
+    stops. The budget counts the seconds from the first look on: every pair gets the first
+    look's rounds."""
 
     pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
     threshold: float
     q: float
     budget_s: float
-    started: float = field(default_factory=time.monotonic)
+    started: float = math.inf  # when the first pair reached the first look
     decided: dict[int, str] = field(default_factory=dict)  # pair index: verdict
 
     def change(self, old: Unit, new: Unit) -> stats.Change:
@@ -65,7 +68,7 @@ class UntilDecided:
         return stats.paired_change(*series, self.threshold, stats.look_index(measured))
 
     def left_s(self) -> float:
-        return self.budget_s - (time.monotonic() - self.started)
+        return self.budget_s - max(0.0, time.monotonic() - self.started)
 
     def __call__(self, timed: Sequence[Unit]) -> str:
         timed_now = set(map(id, timed))
@@ -74,6 +77,7 @@ class UntilDecided:
         at_look = [k for k in live if self.pairs[k][0].state.stopped
                    and self.pairs[k][1].state.stopped]
         if at_look:
+            self.started = min(self.started, time.monotonic())
             judged = [k for k, (a, b) in enumerate(self.pairs) if a.run and b.run
                       and a.state.timed and b.state.timed and len(a.state.times) >= 2]
             verdicts = dict(zip(judged, stats.decide([self.change(*self.pairs[k])
@@ -92,8 +96,9 @@ class UntilDecided:
                 else:
                     self._stop(k, STOPPED_BUDGET, verdict)
         if self.left_s() <= 0:
+            # the first look's rounds are every pair's; the budget cuts only rounds added
             for k in live:
-                if not self.pairs[k][0].state.stopped:
+                if not self.pairs[k][0].state.stopped and self.pairs[k][0].state.min_rounds:
                     self._stop(k, STOPPED_BUDGET, stats.INCONCLUSIVE)
         return self.status()
 
@@ -199,4 +204,4 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     shutil.rmtree(work, ignore_errors=True)
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
     return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds, budget_s,
-                         time.monotonic() - until.started)
+                         max(0.0, time.monotonic() - until.started))
