@@ -26,8 +26,8 @@ from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
 from harness.store import atomic
 
-OUT_STEM = "compare"
-MANY_ROUNDS = 1000  # beyond it, "to decide" says only that it is more  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
+OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
+MANY_ROUNDS = 1000  # beyond it, "to decide" says only that it is more
 
 
 def _seconds(value: float) -> str:
