@@ -177,7 +177,9 @@ def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
     tested = [k for k, row in enumerate(rows) if row.compared]
     verdicts = stats.decide([rows[k].change for k in tested], FDR_Q)
     for k, verdict in zip(tested, verdicts, strict=True):
-        further = 0.0 if verdict != INCONCLUSIVE else rows[k].further
+        # an undecided cell needs at least one more round, even where its interval alone
+        # would clear the threshold (the false-discovery control held it back)
+        further = 0.0 if verdict != INCONCLUSIVE else max(1.0, rows[k].further)
         rows[k] = dataclasses.replace(rows[k], kind=verdict, further=further)
     return rows
 
