@@ -90,6 +90,47 @@ def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.median(x, axis=axis)
 
 
+def _minimum(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.min(x, axis=axis)
+
+
+def _low_quantile(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.quantile(x, LOW_QUANTILE, axis=axis)
+
+
+def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.mean(x, axis=axis)
+
+
+# Estimators of what a binary costs from its runs' times. Interference only ever slows a run,
+# so the low end of the times is a candidate beside the median: docs/compare.md measures how
+# well each reproduces between reruns. Each is vectorized (for its bootstrap interval).
+LOW_QUANTILE = 0.25
+ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
+    "median": _median, "min": _minimum, f"q{round(LOW_QUANTILE * 100)}": _low_quantile,
+    "mean": _mean,
+}
+DEFAULT_ESTIMATOR = "median"
+
+
+def estimate(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> float:
+    """The run times' value by the named estimator (ESTIMATORS); NaN without runs."""
+    data = _clean(times)
+    return float(ESTIMATORS[estimator](data)) if data.size else math.nan
+
+
+def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> Interval:
+    """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
+    same estimator (the interval of a minimum reaches only upwards of it)."""
+    data = _clean(times)
+    if data.size < 2:
+        return Interval(estimate(times, estimator), math.nan, math.nan)
+    point = float(ESTIMATORS[estimator](data))
+    if np.all(data == data[0]):
+        return Interval(point, point, point)
+    return _interval(point, (data,), ESTIMATORS[estimator])
+
+
 @functools.lru_cache(maxsize=4096)
 def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
                ) -> tuple[float, float]:
@@ -207,29 +248,132 @@ def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Inte
     return _two_medians(_clean(minuend), _clean(subtrahend), _difference)
 
 
-# --- is NEW slower or faster than OLD? ------------------------------------------------------
+# --- is NEW slower or faster than OLD, or unchanged? ----------------------------------------
 
 Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
+
+# What a comparison of two sides can say about a cell: a change beyond the threshold either
+# way, a change shown to lie within it (equivalence: the whole interval inside), or neither.
+SLOWER = "slower"
+FASTER = "faster"
+UNCHANGED = "unchanged"
+INCONCLUSIVE = "inconclusive"
+VERDICTS = (SLOWER, FASTER, UNCHANGED, INCONCLUSIVE)
+
+# Sequential looks of a paired comparison that adds rounds until its cells are decided: the
+# first look at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many rounds. The
+# error rate is spent over the looks (look j spends LOOK_WEIGHT(j) of it, the weights summing
+# to 1), so that looking again and stopping when a look decides cannot inflate the rate of
+# false verdicts: a union bound over the looks (an alpha-spending group-sequential design).
+FIRST_LOOK_ROUNDS = 12
+LOOK_GROWTH = 1.5
+
+
+def look_rounds(look: int) -> int:
+    """The rounds at which look `look` (1, 2, ...) is taken."""
+    return math.ceil(FIRST_LOOK_ROUNDS * LOOK_GROWTH ** (look - 1) - 1e-9)
+
+
+def look_index(rounds: int) -> int:
+    """The look a test of `rounds` rounds counts as: 1 up to the first look's rounds, then one
+    more for each look passed (a comparison stopped between looks, by its budget, spends the
+    next look's share)."""
+    look = 1
+    while look_rounds(look) < rounds:
+        look += 1
+    return look
+
+
+def look_weight(look: int) -> float:
+    """The share of the error rate look `look` spends: 1 / (j (j + 1)), summing to 1."""
+    return 1.0 / (look * (look + 1))
 
 
 @dataclass(frozen=True)
 class Change:
-    """NEW over OLD: the ratio with its 95% interval, and the one-sided p-values that NEW is
-    slower, or faster, by more than a threshold (NaN where the runs cannot tell)."""
+    """NEW over OLD: the ratio with its interval, and the p-values of the three claims a
+    verdict can make: slower or faster by more than a threshold (one-sided), unchanged (two
+    one-sided tests that the change lies within it, the larger p-value), each doubled so that
+    a claim at level q means the interval at 1 - q lies beyond (inside) the threshold; NaN
+    where the runs cannot tell. `sd`, `n` and `floor` say how the interval would narrow with
+    more rounds (paired: the per-round spread on the log scale and the rounds) or runs (apart:
+    the standard error of the runs' own spread, from `n` runs a side, and the drift that more
+    runs cannot reduce)."""
 
     ratio: Interval
     p_slower: float
     p_faster: float
+    p_unchanged: float = math.nan
+    sd: float = math.nan
+    n: int = 0
+    floor: float = 0.0
+    look: int = 1
 
     @property
     def p_value(self) -> float:
-        """Two-sided: the smaller one-sided p-value, doubled."""
+        """That the cell changed (either way): the smaller one-sided p-value, doubled."""
         if not (math.isfinite(self.p_slower) and math.isfinite(self.p_faster)):
             return math.nan
         return min(1.0, 2.0 * min(self.p_slower, self.p_faster))
 
+    @property
+    def claim(self) -> str:
+        """The verdict the cell's data point to (SLOWER, FASTER or UNCHANGED) before the
+        false-discovery control decides whether it is made; INCONCLUSIVE without p-values."""
+        if not math.isfinite(self.p_value):
+            return INCONCLUSIVE
+        if math.isfinite(self.p_unchanged) and self.p_unchanged < self.p_value:
+            return UNCHANGED
+        return SLOWER if self.p_slower < self.p_faster else FASTER
+
+    @property
+    def p_claim(self) -> float:
+        """The p-value of `claim` (the one the false-discovery control reads)."""
+        if self.claim == UNCHANGED:
+            return self.p_unchanged
+        return self.p_value
+
 
 NO_CHANGE_KNOWN = Change(Interval(math.nan, math.nan, math.nan), math.nan, math.nan)
+
+
+def decide(changes: Sequence[Change], q: float) -> list[str]:
+    """The verdict of each change, with the false-discovery rate of verdicts across them held
+    at q (Benjamini-Hochberg over the p-value of each one's claim): a claim that is not a
+    discovery is INCONCLUSIVE."""
+    found = discoveries([c.p_claim for c in changes], q)
+    return [c.claim if hit else INCONCLUSIVE for c, hit in zip(changes, found, strict=True)]
+
+
+def further_rounds(change: Change, threshold: float, look: int | None = None) -> float:
+    """Roughly how many more rounds (paired) or runs a side (apart) would likely decide the
+    cell at its observed spread and ratio: until its interval (at the next look's level)
+    clears the threshold on the side its point lies. 0 when the interval is already clear of
+    it, inf when no number would (a point on the threshold, or a drift between runs measured
+    apart as wide as the distance left)."""
+    if not (math.isfinite(change.sd) and change.n >= 2 and change.ratio.point > 0):
+        return math.inf
+    margin = math.log1p(threshold)
+    distance = abs(abs(math.log(change.ratio.point)) - margin)
+    if distance == 0.0:
+        return math.inf
+    next_look = (look if look is not None else change.look) + 1
+    z = float(sps.norm.ppf(1 - (1 - CONFIDENCE) * look_weight(next_look) / 2))
+    allowed = (distance / z) ** 2 - change.floor ** 2
+    if allowed <= 0.0:
+        return math.inf
+    needed = change.sd ** 2 / allowed  # rounds (paired, sd per round) or runs (apart)
+    return float(max(0, math.ceil(needed - change.n)))
+
+
+def _exact_change(ratio: float, threshold: float) -> Change:
+    """A change without spread (every round the same ratio, or exact counts): the claims are
+    certain (p 0) or false (p 1)."""
+    margin = math.log1p(threshold)
+    log_ratio = math.log(ratio)
+    within = -margin <= log_ratio <= margin
+    return Change(Interval(ratio, ratio, ratio), 0.0 if log_ratio > margin else 1.0,
+                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
 
 
 CLIP_MADS = 3.0  # per-round log ratios are clipped to this many (scaled) MADs of their median
@@ -249,6 +393,75 @@ def clip_outliers(values: np.ndarray) -> np.ndarray:
                                              median + CLIP_MADS * mad)
 
 
+def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, float]:
+    """The median of the runs of each round (a round times a few runs of a fast cell), by
+    round; empty where the runs' rounds are not recorded."""
+    if len(rounds) != len(times):
+        return {}
+    grouped: dict[int, list[float]] = {}
+    for round_index, seconds in zip(rounds, times, strict=True):
+        grouped.setdefault(int(round_index), []).append(float(seconds))
+    return {k: float(np.median(v)) for k, v in grouped.items()}
+
+
+# A round is interfered with when other processes' CPU time and stolen time on its cores
+# exceed this share of the cores' time during the round (harness.measure.noise): more than
+# half of what the runs could use went elsewhere. A paired test leaves such rounds out, both
+# sides together, the worst first, but at most MAX_DROPPED_SHARE of a cell's rounds: on a
+# machine where every round is interfered with, dropping them all would leave nothing, and
+# the spread of the rest then widens the interval instead.
+NOISE_LIMIT = 0.5
+MAX_DROPPED_SHARE = 0.25
+
+
+def rounds_to_drop(old: dict[int, float], new: dict[int, float],
+                   limit: float = NOISE_LIMIT) -> frozenset[int]:
+    """The rounds of a pair to leave out: those interfered with beyond `limit` on either side
+    (shares by round), the worst first, at most MAX_DROPPED_SHARE of the rounds both have."""
+    common = old.keys() & new.keys()
+    worst = sorted(((max(old[k], new[k]), k) for k in common), reverse=True)
+    beyond = [k for share, k in worst if share > limit]
+    return frozenset(beyond[:math.floor(MAX_DROPPED_SHARE * len(common))])
+
+
+@dataclass(frozen=True)
+class NoiseProfile:
+    """A machine's noise over many rounds: how much of the cores' time was stolen or taken by
+    others, and how often a round was interfered with beyond the limit."""
+
+    rounds: int
+    stolen: float  # share of the cores' time stolen
+    others: float  # share taken by other processes
+    dropped: int  # rounds beyond NOISE_LIMIT (flagged)
+
+    def line(self) -> str:
+        if not self.rounds:
+            return "no rounds with noise measured"
+        return (f"{self.stolen:.1%} of the cores' time stolen, {self.others:.1%} taken by other "
+                f"processes; {self.dropped} of {self.rounds} rounds "
+                f"({self.dropped / self.rounds:.1%}) interfered with beyond "
+                f"{NOISE_LIMIT:.0%} (a paired test leaves out the worst, at most "
+                f"{MAX_DROPPED_SHARE:.0%} of a cell's rounds)")
+
+
+def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
+            capacity_s: float) -> NoiseProfile:
+    """The profile of rounds with these interference shares, and totals over them (stolen and
+    others' seconds, and the cores' seconds they span)."""
+    if capacity_s <= 0:
+        return NoiseProfile(len(shares), 0.0, 0.0, sum(s > NOISE_LIMIT for s in shares))
+    return NoiseProfile(len(shares), steal_s / capacity_s, other_cpu_s / capacity_s,
+                        sum(s > NOISE_LIMIT for s in shares))
+
+
+def paired_series(old: dict[int, float], new: dict[int, float],
+                  dropped: frozenset[int] = frozenset()) -> tuple[list[float], list[float]]:
+    """The two sides' values of the rounds both have, in round order, without the rounds in
+    `dropped` (interfered with, on either side)."""
+    common = sorted((old.keys() & new.keys()) - dropped)
+    return [old[k] for k in common], [new[k] for k in common]
+
+
 def paired_log_ratios(old: Sequence[float], new: Sequence[float]) -> np.ndarray:
     """log(new[k] / old[k]) of the rounds where both were measured, the finite ones, clipped
     (clip_outliers): what a paired comparison tests, and whose spread decides what it can
@@ -258,27 +471,39 @@ def paired_log_ratios(old: Sequence[float], new: Sequence[float]) -> np.ndarray:
     return clip_outliers(d) if d.size >= 2 else d
 
 
-def paired_change(old: Sequence[float], new: Sequence[float], threshold: float) -> Change:
+def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
+                  look: int | None = None) -> Change:
     """The change from paired measurements: old[k] and new[k] were measured in the same round,
     one right after the other, so that the machine's drift is in both. The ratio is the
     geometric mean of the per-round ratios (paired_log_ratios), its interval and p-values
-    from one-sample t-tests on those logs (against +-log(1 + threshold) for the p-values)."""
+    from one-sample t-tests on those logs (against +-log(1 + threshold) for the p-values).
+
+    Rounds may have been added until the cell was decided (look_index): the p-values are
+    those of the look the rounds count as (divided by its share of the error rate) and the
+    interval is at that look's level, so that an interval shown inside the threshold is one
+    the sequential design allows."""
     d = paired_log_ratios(old, new)
     if d.size < 2:
         return NO_CHANGE_KNOWN
     mean = float(d.mean())
-    margin = math.log1p(threshold)
-    if float(np.abs(d - mean).max()) <= SAME_RATIO * abs(mean):
+    if float(np.abs(d - mean).max()) <= SAME_RATIO * abs(mean) or float(d.std()) == 0.0:
         # Every round the same ratio: no spread to test against (a t-test would divide by a
         # spread of zero, or of rounding errors alone).
-        ratio = math.exp(mean)
-        return Change(Interval(ratio, ratio, ratio), 0.0 if mean > margin else 1.0,
-                      0.0 if mean < -margin else 1.0)
-    interval = sps.ttest_1samp(d, 0.0).confidence_interval(CONFIDENCE)
-    slower = float(sps.ttest_1samp(d, margin, alternative="greater").pvalue)
-    faster = float(sps.ttest_1samp(d, -margin, alternative="less").pvalue)
+        return _exact_change(math.exp(mean), threshold)
+    look = look if look is not None else look_index(int(d.size))
+    weight = look_weight(look)
+    margin = math.log1p(threshold)
+    interval = sps.ttest_1samp(d, 0.0).confidence_interval(1 - (1 - CONFIDENCE) * weight)
+
+    def p(value: float, alternative: str) -> float:
+        return min(1.0, float(sps.ttest_1samp(d, value, alternative=alternative).pvalue)
+                   / weight)
+
     return Change(Interval(math.exp(mean), math.exp(float(interval.low)),
-                           math.exp(float(interval.high))), slower, faster)
+                           math.exp(float(interval.high))),
+                  p(margin, "greater"), p(-margin, "less"),
+                  min(1.0, 2.0 * max(p(-margin, "greater"), p(margin, "less"))),
+                  float(d.std(ddof=1)), int(d.size), 0.0, look)
 
 
 def log_spread(ratio: Interval) -> tuple[float, float] | None:
@@ -303,12 +528,16 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     log_ratio, within = spread
     se = math.hypot(within, drift)
     if se == 0.0:
-        return Change(base, math.nan, math.nan)
+        return _exact_change(base.point, threshold)
     margin = math.log1p(threshold)
     interval = Interval(base.point, math.exp(log_ratio - Z95 * se),
                         math.exp(log_ratio + Z95 * se))
+    unchanged = max(float(sps.norm.sf((log_ratio + margin) / se)),
+                    float(sps.norm.cdf((log_ratio - margin) / se)))
+    runs = min(len(_clean(old)), len(_clean(new)))
     return Change(interval, float(sps.norm.sf((log_ratio - margin) / se)),
-                  float(sps.norm.cdf((log_ratio + margin) / se)))
+                  float(sps.norm.cdf((log_ratio + margin) / se)), min(1.0, 2.0 * unchanged),
+                  within * math.sqrt(runs), runs, drift)
 
 
 def discoveries(p_values: Sequence[float], q: float) -> list[bool]:

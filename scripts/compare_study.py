@@ -3,6 +3,10 @@ this machine with real runs (the numbers in docs/compare.md).
 
     .venv/bin/python scripts/compare_study.py [--out DIR] [--parts aa,ab,apart,calibrate]
         [--config configs/compare16.yaml] [--repeats 3] [--slowdown 0.05]
+        [--noise DUTY] [--budget SECONDS]
+
+With --noise, every part runs under scripts/noise at that duty cycle (seeded by --noise-seed)
+on the cores the harness uses: a quiet machine made noisy. --budget is compare --measure's.
 
 Parts, each a real measurement with this checkout's build/ (every command it runs is printed):
   aa         `compare --measure build build CONFIG`, --repeats times: identical sides measured
@@ -11,12 +15,18 @@ Parts, each a real measurement with this checkout's build/ (every command it run
              real binary and then spin for --slowdown of its time: the share called slower;
   apart      `run CONFIG` --repeats times back to back into separate results roots, then
              `compare` of each pair: with the assumed drift (no calibration), and with this
-             machine's calibration where the calibrate part made one;
+             machine's calibration where the calibrate part made one; and per candidate
+             estimator (harness.stats.ESTIMATORS), how far each cell's value moved between the
+             runs (max/min - 1 over the runs: the median and the largest over the cells);
   calibrate  `compare --calibrate CONFIG` into OUT/calibration (before apart, when both run);
   adaptive   each of --adaptive-configs as written and measured the other way (adaptive
              measures as a fixed 3 runs, or a fixed base measure as `runs: auto`),
              alternating A B (--adaptive-repeats times): the wall time of the whole `run`
              and the width of the cells' intervals.
+  sequential rounds until decided, simulated (no machine): --sim-comparisons comparisons of
+             16 cells whose per-round log ratios are normal with a spread of 1%, 3% and 5%,
+             judged at every look (stats.look_rounds) until decided or 6 looks: how often a
+             verdict is false, identical sides and 5% slower, as compare --measure would.
 Prints Markdown; everything measured stays under OUT.
 """
 
@@ -36,10 +46,11 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
+from harness import stats
 from harness.analysis import compare
 from harness.analysis.calibration import side
 from harness.analysis.frame import read_results
-from harness.analysis.resultsets import Side
+from harness.analysis.resultsets import Side, noise_profile
 from harness.plan.binaries import needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.report.document import Table
@@ -51,7 +62,9 @@ from harness.spec.variants import VariantRegistry
 from harness.store import layout
 from harness.store.columns import OK
 
-PARTS = ("calibrate", "aa", "ab", "apart", "adaptive")
+PARTS = ("calibrate", "aa", "ab", "apart", "adaptive", "sequential")
+NOISE = REPO_ROOT / "scripts" / "noise"
+BUDGET: list[str] = []  # compare --measure's --budget, where given
 HARNESS = [sys.executable, "-m", "harness"]
 WRAPPER = REPO_ROOT / "scripts" / "slow_wrapper.c"
 
@@ -78,10 +91,21 @@ def verdicts(old: Side, new: Side, drift: compare.Drift) -> dict[str, int]:
 def measured_pair(out: Path, old: str, new: str, config: Path, name: str) -> dict[str, object]:
     target = out / name
     code, seconds = sh([*HARNESS, "compare", "--measure", old, new, config, "--out", target,
-                        "--no-figure"], out / f"{name}.log")
-    counts = verdicts(side("OLD", target / "old"), side("NEW", target / "new"),
-                      compare.Drift(0.0, "measured together"))
-    return {"name": name, "exit": code, "seconds": round(seconds, 1), **counts}
+                        "--no-figure", *BUDGET], out / f"{name}.log")
+    old_side, new_side = side("OLD", target / "old"), side("NEW", target / "new")
+    rows = [r for r in compare.compare(old_side, new_side, compare.DEFAULT_THRESHOLD,
+                                       compare.Drift(0.0, "measured together")) if r.compared]
+    counts = verdicts(old_side, new_side, compare.Drift(0.0, "measured together"))
+    unchanged_outside = sum(r.kind == compare.UNCHANGED and not (
+        r.low >= 1 / (1 + compare.DEFAULT_THRESHOLD) and r.high <= 1 + compare.DEFAULT_THRESHOLD)
+        for r in rows)
+    rounds = [len(r.old.by_round()) for r in rows]  # type: ignore[union-attr]
+    noise = noise_profile([*old_side.cells.values(), *new_side.cells.values()])
+    return {"name": name, "exit": code, "seconds": round(seconds, 1), **counts,
+            "unchanged_outside": unchanged_outside,
+            "rounds": f"{min(rounds)}-{max(rounds)}" if rounds else "-",
+            "others_share": round(noise.others, 3), "stolen_share": round(noise.stolen, 4),
+            "rounds_interfered": f"{noise.dropped}/{noise.rounds}"}
 
 
 def slow_binaries(out: Path, config: Path, fraction: float) -> Path:
@@ -139,7 +163,7 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
     drifts = [compare.Drift(compare.ASSUMED_DRIFT, "assumed")]
     if "calibrated" in calibrated.source:
         drifts.append(calibrated)
-    results = []
+    results: list[dict[str, object]] = [estimator_spread(loaded)]
     for (i, a), (j, b) in itertools.combinations(enumerate(loaded, start=1), 2):
         # and with no allowance for drift at all: what compare said before it had one
         plain = verdicts(a, b, compare.Drift(0.0, "none"))
@@ -149,6 +173,21 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
                             "drift_source": drift.source.split(":")[0], **counts,
                             "without_drift": plain})
     return results
+
+
+def estimator_spread(runs: Sequence[Side]) -> dict[str, object]:
+    """Per candidate estimator: how far a cell's value moved between the runs measured apart
+    (max/min - 1 over the runs), the median and the largest over the cells."""
+    spread: dict[str, object] = {"pair": "estimators: median / max spread over cells"}
+    keys = set.intersection(*(set(r.cells) for r in runs))
+    for name in stats.ESTIMATORS:
+        moves = []
+        for key in keys:
+            values = [stats.estimate(r.cells[key].times, name) for r in runs]
+            if all(v > 0 for v in values):
+                moves.append(max(values) / min(values) - 1)
+        spread[name] = (f"{statistics.median(moves):.1%} / {max(moves):.1%}" if moves else "-")
+    return spread
 
 
 FIXED_RUNS = 3  # the fixed count the adaptive measure is compared with
@@ -215,6 +254,53 @@ def part_adaptive(out: Path, configs: Sequence[Path], repeats: int) -> list[dict
     return results
 
 
+SIM_CELLS = 16
+SIM_LOOKS = 6
+
+
+def simulate(shift: float, sd: float, comparisons: int, seed: int) -> dict[str, object]:
+    """Comparisons of SIM_CELLS cells whose log ratios are normal(shift, sd) per round, each
+    undecided cell given rounds to the next look, all judged together at each look."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    counts = dict.fromkeys(stats.VERDICTS, 0)
+    outside = 0
+    rounds_used = []
+    margin = compare.DEFAULT_THRESHOLD
+    for _ in range(comparisons):
+        d = rng.normal(shift, sd, (SIM_CELLS, stats.look_rounds(SIM_LOOKS)))
+        final: dict[int, tuple[str, stats.Change, int]] = {}
+        for look in range(1, SIM_LOOKS + 1):
+            n = stats.look_rounds(look)
+            live = [k for k in range(SIM_CELLS) if k not in final]
+            changes = {k: stats.paired_change(np.ones(n), np.exp(d[k, :n]), margin, look)
+                       for k in live}
+            # every cell judged together: the decided ones with their last change
+            keys = sorted(final) + live
+            verdicts = stats.decide([final[k][1] if k in final else changes[k] for k in keys],
+                                    compare.FDR_Q)
+            for k, verdict in zip(keys, verdicts, strict=True):
+                if k in live and (verdict != stats.INCONCLUSIVE or look == SIM_LOOKS):
+                    final[k] = (verdict, changes[k], n)
+        for verdict, change, n in final.values():
+            counts[verdict] += 1
+            rounds_used.append(n)
+            if verdict == stats.UNCHANGED and not (
+                    1 / (1 + margin) <= change.ratio.low and change.ratio.high <= 1 + margin):
+                outside += 1
+    cells = comparisons * SIM_CELLS
+    return {"true_change": f"{shift:+.0%}" if shift else "none", "round_sd": f"{sd:.0%}",
+            "cells": cells, **{k: f"{v / cells:.1%}" for k, v in counts.items()},
+            "unchanged_outside": outside, "median_rounds": statistics.median(rounds_used)}
+
+
+def part_sequential(comparisons: int) -> list[dict[str, object]]:
+    return [simulate(shift, sd, comparisons, seed=k)
+            for k, (shift, sd) in enumerate((s, sd) for s in (0.0, math.log(1.05))
+                                            for sd in (0.01, 0.03, 0.05))]
+
+
 def markdown(summary: dict[str, object]) -> str:
     lines = []
     for part, value in summary.items():
@@ -235,11 +321,21 @@ def main() -> int:
     parser.add_argument("--parts", default="calibrate,aa,ab,apart")
     parser.add_argument("--config", type=Path, default=REPO_ROOT / "configs" / "compare16.yaml")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--apart-repeats", type=int, default=None,
+                        help="runs of the apart part (default: --repeats)")
     parser.add_argument("--slowdown", type=float, default=0.05)
     parser.add_argument("--adaptive-configs", type=Path, nargs="*",
                         default=[REPO_ROOT / "configs" / "quickstart.yaml"])
     parser.add_argument("--adaptive-repeats", type=int, default=2)
+    parser.add_argument("--sim-comparisons", type=int, default=200)
+    parser.add_argument("--noise", type=float, default=0.0, metavar="DUTY",
+                        help="run every part under scripts/noise at this duty cycle")
+    parser.add_argument("--noise-seed", type=int, default=1)
+    parser.add_argument("--budget", type=float, default=None,
+                        help="compare --measure's --budget (seconds)")
     args = parser.parse_args()
+    if args.budget is not None:
+        BUDGET[:] = ["--budget", str(args.budget)]
     parts = [p for p in args.parts.split(",") if p]
     unknown = set(parts) - set(PARTS)
     if unknown:
@@ -248,6 +344,23 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
     config = args.config.resolve()
     summary: dict[str, object] = {}
+    injector = None
+    if args.noise > 0:
+        injector = subprocess.Popen([sys.executable, str(NOISE), "--duty", str(args.noise),
+                                     "--seed", str(args.noise_seed), "--seconds", "86400"])
+        summary["noise"] = {"duty": args.noise, "seed": args.noise_seed}
+    try:
+        run_parts(args, parts, out, config, summary)
+    finally:
+        if injector is not None:
+            injector.terminate()
+            injector.wait()
+    print(markdown(summary))
+    return 0
+
+
+def run_parts(args: argparse.Namespace, parts: Sequence[str], out: Path, config: Path,
+              summary: dict[str, object]) -> None:
     for part in PARTS:  # in this order: apart uses the calibration
         if part not in parts:
             continue
@@ -258,13 +371,15 @@ def main() -> int:
         elif part == "ab":
             summary[part] = part_ab(out, config, args.slowdown)
         elif part == "apart":
-            summary[part] = part_apart(out, config, args.repeats)
+            apart = part_apart(out, config, args.apart_repeats or args.repeats)
+            summary["estimators"] = apart.pop(0)
+            summary[part] = apart
+        elif part == "sequential":
+            summary[part] = part_sequential(args.sim_comparisons)
         else:
             summary[part] = part_adaptive(out, [c.resolve() for c in args.adaptive_configs],
                                           args.adaptive_repeats)
         (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
-    print(markdown(summary))
-    return 0
 
 
 if __name__ == "__main__":

@@ -165,13 +165,15 @@ def test_the_paired_log_ratios_are_the_finite_rounds_clipped() -> None:
     assert logs.size == 7  # a round without a time has no ratio
     assert np.array_equal(logs, stats.clip_outliers(np.log(np.exp(d))))
     assert logs[-1] < 0.01
-    # The same test as scipy's: a one-sample t-test of the logs against the threshold.
+    # The same test as scipy's: a one-sample t-test of the logs against the threshold, its
+    # p-value divided by the share of the error rate the first look spends.
     rng = np.random.default_rng(5)
     old, new = rng.lognormal(0.0, 0.01, 12), rng.lognormal(0.01, 0.01, 12)
     logs = stats.paired_log_ratios(old, new)
     change = stats.paired_change(old, new, 0.005)
     assert change.p_slower == pytest.approx(
-        sps.ttest_1samp(logs, math.log1p(0.005), alternative="greater").pvalue)
+        sps.ttest_1samp(logs, math.log1p(0.005), alternative="greater").pvalue
+        / stats.look_weight(1))
     assert change.ratio.point == pytest.approx(math.exp(logs.mean()))
 
 
@@ -202,3 +204,116 @@ def test_the_smallest_detectable_change_shrinks_with_rounds_and_noise() -> None:
         0.01, 8, 0.01, 0.05) < stats.smallest_detectable(0.02, 8, 0.01, 0.05)
     assert stats.smallest_detectable(0.0, 8, 0.01, 0.05) == pytest.approx(0.01)
     assert math.isnan(stats.smallest_detectable(0.01, 1, 0.01, 0.05))
+
+
+# --- verdicts: slower, faster, unchanged, inconclusive ---------------------------------------
+
+
+def _rounds(shift: float, sd: float, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    old = rng.lognormal(0.0, 0.01, n)
+    return old, old * np.exp(shift + rng.normal(0.0, sd, n))
+
+
+def test_a_wide_interval_is_inconclusive_not_unchanged() -> None:
+    # Identical sides whose rounds spread by 5%: nothing is shown either way. The old rule
+    # (no discovery of a change = "no significant change", gated as a pass) called this cell
+    # unchanged; its interval holds both a 2% speed-up and a 2% slow-down.
+    change = stats.paired_change(*_rounds(0.0, 0.05, 12, 1), 0.01)
+    assert change.ratio.low < 0.98 and change.ratio.high > 1.02
+    assert stats.decide([change], 0.05) == [stats.INCONCLUSIVE]
+    assert 0 < stats.further_rounds(change, 0.01) < math.inf
+
+
+def test_a_narrow_interval_inside_the_threshold_is_unchanged() -> None:
+    change = stats.paired_change(*_rounds(0.0, 0.002, 12, 2), 0.01)
+    assert stats.decide([change], 0.05) == [stats.UNCHANGED]
+    assert 1 / 1.01 < change.ratio.low <= change.ratio.high < 1.01
+    assert change.p_unchanged < 0.05 < change.p_value
+
+
+def test_a_clear_change_is_slower_or_faster() -> None:
+    slower = stats.paired_change(*_rounds(0.05, 0.01, 12, 3), 0.01)
+    faster = stats.paired_change(*_rounds(-0.05, 0.01, 12, 4), 0.01)
+    assert stats.decide([slower, faster], 0.05) == [stats.SLOWER, stats.FASTER]
+    assert slower.ratio.low > 1.01 and faster.ratio.high < 1 / 1.01
+
+
+def test_a_change_on_the_threshold_stays_inconclusive() -> None:
+    # A true change of exactly the threshold: the interval straddles it however narrow.
+    change = stats.paired_change(*_rounds(math.log1p(0.01), 0.003, 12, 5), 0.01)
+    assert stats.decide([change], 0.05) == [stats.INCONCLUSIVE]
+    assert change.ratio.low < 1.01 < change.ratio.high
+
+
+def test_exact_values_give_exact_verdicts() -> None:
+    # A noise-free metric (counted instructions): the ratio is exact, its interval of zero
+    # width, and the verdict certain.
+    same = stats.paired_change([718102891.0] * 3, [718102891.0] * 3, 0.01)
+    assert (same.ratio.point, same.ratio.low, same.ratio.high) == (1.0, 1.0, 1.0)
+    more = stats.paired_change([1000.0] * 3, [1050.0] * 3, 0.01)
+    assert more.ratio.low == more.ratio.high == pytest.approx(1.05)
+    assert stats.decide([same, more], 0.05) == [stats.UNCHANGED, stats.SLOWER]
+    apart = stats.drift_change([5.0, 5.0], [5.0, 5.0], 0.01, 0.0)
+    assert stats.decide([apart], 0.05) == [stats.UNCHANGED]
+    assert stats.further_rounds(same, 0.01) == math.inf  # decided: no spread to narrow
+
+
+def test_the_false_discovery_control_covers_every_claim() -> None:
+    # One weak claim among many cells is not a discovery; the same claim in every cell is.
+    weak = stats.Change(stats.Interval(1.0, 0.995, 1.005), 0.9, 0.9, 0.03)
+    none = stats.Change(stats.Interval(1.0, 0.9, 1.1), 0.5, 0.5, 0.9)
+    assert stats.decide([weak, none, none, none], 0.05) == [stats.INCONCLUSIVE] * 4
+    assert stats.decide([weak] * 4, 0.05) == [stats.UNCHANGED] * 4
+
+
+def test_runs_measured_apart_cannot_show_unchanged_within_the_drift() -> None:
+    old, new = [1.00, 1.01, 0.99, 1.00, 1.0], [1.00, 1.01, 0.99, 1.00, 1.0]
+    change = stats.drift_change(old, new, 0.01, 0.05)
+    assert stats.decide([change], 0.05) == [stats.INCONCLUSIVE]
+    assert stats.further_rounds(change, 0.01) == math.inf  # more runs cannot beat the drift
+    calibrated = stats.drift_change(old, new, 0.05, 0.0)
+    assert stats.decide([calibrated], 0.05) == [stats.UNCHANGED]
+
+
+def test_the_looks_spend_the_error_rate_once() -> None:
+    assert [stats.look_rounds(j) for j in (1, 2, 3, 4)] == [12, 18, 27, 41]
+    assert [stats.look_index(n) for n in (2, 12, 13, 18, 19, 27, 28)] == [1, 1, 2, 2, 3, 3, 4]
+    assert sum(stats.look_weight(j) for j in range(1, 10000)) == pytest.approx(1.0, abs=1e-3)
+    # A later look needs a stronger result: the same rounds read as look 3 are less sure.
+    old, new = _rounds(0.02, 0.02, 27, 6)
+    first, third = stats.paired_change(old, new, 0.01, 1), stats.paired_change(old, new, 0.01, 3)
+    assert third.p_slower == pytest.approx(min(1.0, first.p_slower * 6))
+    assert third.ratio.low < first.ratio.low
+
+
+def test_optional_stopping_keeps_false_verdicts_rare() -> None:
+    # Identical sides with a 3% spread per round, looked at every look until decided or 4
+    # looks: a wrong slower/faster verdict in at most 5% of 400 simulated comparisons, and
+    # unchanged only where the interval lies within the threshold.
+    rng = np.random.default_rng(7)
+    wrong = 0
+    for _ in range(400):
+        d = rng.normal(0.0, 0.03, stats.look_rounds(4))
+        for look in range(1, 5):
+            n = stats.look_rounds(look)
+            change = stats.paired_change(np.ones(n), np.exp(d[:n]), 0.01, look)
+            verdict = stats.decide([change], 0.05)[0]
+            if verdict == stats.UNCHANGED:
+                assert change.ratio.low >= 1 / 1.01 and change.ratio.high <= 1.01
+            if verdict != stats.INCONCLUSIVE:
+                wrong += verdict in (stats.SLOWER, stats.FASTER)
+                break
+    assert wrong <= 20
+
+
+def test_the_estimators_and_their_intervals() -> None:
+    times = [1.0, 1.1, 1.05, 1.3, 1.02]
+    assert stats.estimate(times, "median") == 1.05 and stats.estimate(times, "min") == 1.0
+    assert stats.estimate(times, "q25") == 1.02
+    assert stats.estimate(times, "mean") == pytest.approx(1.094)
+    assert stats.DEFAULT_ESTIMATOR in stats.ESTIMATORS
+    low = stats.estimate_ci(times, "min")
+    assert low.low == 1.0 and low.high > 1.0  # a minimum's interval reaches only upwards
+    assert stats.estimate_ci(times, "median") == stats.median_ci(times)
+    assert math.isnan(stats.estimate([], "min"))

@@ -23,7 +23,7 @@ from harness.analysis.compare import (
     compare,
     paired_rounds,
 )
-from harness.analysis.resultsets import Side, experiment_dirs, load_side
+from harness.analysis.resultsets import Side, experiment_dirs, load_side, noise_profile
 from harness.store.columns import OK
 
 POWER = 0.9  # the smallest detectable slow-down is found with this probability
@@ -46,6 +46,11 @@ class Calibration:
     smallest_one: float  # the slow-down of one cell alone found with POWER, measured together
     smallest_all: float  # the same when every cell slowed down at once
     rounds: int
+    # the machine's noise over the rounds measured together (stats.NoiseProfile)
+    stolen: float = 0.0
+    others: float = 0.0
+    rounds_interfered: int = 0
+    rounds_noise: int = 0
 
     def lines(self) -> list[str]:
         def share(false: int, compared: int) -> str:
@@ -63,6 +68,8 @@ class Calibration:
             f"  smallest slow-down found with {POWER:.0%} probability, measured together: "
             f"{self.smallest_one:.1%} for one cell alone, {self.smallest_all:.1%} when all "
             "cells slow down",
+            "  noise: " + stats.NoiseProfile(self.rounds_noise, self.stolen, self.others,
+                                             self.rounds_interfered).line(),
         ]
 
 
@@ -125,7 +132,10 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
     for a, b in itertools.combinations(block_sides, 2):
         false, compared = false_verdicts(a, b, threshold, apart)
         apart_false, apart_compared = apart_false + false, apart_compared + compared
+    noise = noise_profile([*old.cells.values(), *new.cells.values()])
     return Calibration(
+        stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
+        rounds_noise=noise.rounds,
         machine_id=machine_id,
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         config=config, cells=cells, threshold=threshold, measured_false=measured_false,

@@ -34,6 +34,11 @@ from harness.store.columns import OK
 
 EXIT_OK = 0
 EXIT_SLOWER = 1
+EXIT_INCONCLUSIVE = 3  # none slower, some undecided (with --fail-on inconclusive)
+# What fails the gate (--fail-on): a slower cell only, or also a cell not shown unchanged.
+FAIL_ON_SLOWER = "slower"
+FAIL_ON_INCONCLUSIVE = "inconclusive"
+FAIL_ON = (FAIL_ON_INCONCLUSIVE, FAIL_ON_SLOWER)
 
 DEFAULT_THRESHOLD = 0.01  # a change within 1% is never called slower or faster
 FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
@@ -46,11 +51,11 @@ CALIBRATION_KEY = "calibration"  # a calibration's entry in layout.ResultsRoot.c
 PAIRED = "measured together"  # the method of a cell's verdict
 APART = "measured apart"
 
-# Verdicts of a compared cell, and the kinds of row that are listed but not compared.
-FASTER = "faster"
-SLOWER = "slower"
-SAME = "no significant change"
-VERDICTS = (SLOWER, FASTER, SAME)
+# Verdicts of a compared cell (harness.stats), and the kinds of row that are listed but not
+# compared.
+SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
+    stats.INCONCLUSIVE
+VERDICTS = stats.VERDICTS
 NOT_OK = "not compared (status)"
 OLD_ONLY = "old only"
 NEW_ONLY = "new only"
@@ -101,10 +106,11 @@ class Row:
     ratio: float = math.nan
     low: float = math.nan
     high: float = math.nan
-    p_value: float = math.nan  # two-sided, before the false-discovery control
+    p_value: float = math.nan  # of the claim it points to, before the false-discovery control
     note: str = ""
     method: str = ""  # PAIRED or APART
-    slower_first: bool = False  # the smaller one-sided p-value is that of a slow-down
+    further: float = math.nan  # rounds (PAIRED) or runs a side (APART) that would likely decide
+    change: stats.Change = stats.NO_CHANGE_KNOWN
 
     @property
     def compared(self) -> bool:
@@ -112,12 +118,14 @@ class Row:
 
 
 def paired_rounds(old: Cell, new: Cell) -> tuple[list[float], list[float]] | None:
-    """The two sides' round medians, round by round, where they were measured together."""
+    """The two sides' round medians, round by round, where they were measured together; the
+    rounds flagged as interfered with on either side left out."""
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     a, b = old.by_round(), new.by_round()
-    common = sorted(a.keys() & b.keys())
-    return ([a[k] for k in common], [b[k] for k in common]) if len(common) >= 2 else None
+    pair = stats.paired_series(a, b, stats.rounds_to_drop(old.noise_by_round(),
+                                                          new.noise_by_round()))
+    return pair if len(pair[0]) >= 2 else None
 
 
 def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
@@ -133,7 +141,10 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         notes.append("the input files differ")
     paired = paired_rounds(old, new)
     if paired is not None:
-        change, method = stats.paired_change(*paired, threshold), PAIRED
+        # the look of the rounds measured, dropped ones included: the looks taken so far
+        measured = len(old.by_round().keys() & new.by_round().keys())
+        change = stats.paired_change(*paired, threshold, stats.look_index(measured))
+        method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
     else:
@@ -142,14 +153,15 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                                       math.nan), APART
         notes.append("fewer than two runs a side: no interval, no verdict")
     interval = change.ratio
-    return Row(old.key, SAME, old, new, interval.point, interval.low, interval.high,
-               change.p_value, "; ".join(notes), method,
-               change.p_slower < change.p_faster)
+    return Row(old.key, INCONCLUSIVE, old, new, interval.point, interval.low, interval.high,
+               change.p_claim, "; ".join(notes), method,
+               stats.further_rounds(change, threshold), change)
 
 
 def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
     """Every key of either side, in order: compared, not compared, or one side only. The
-    compared cells are slower or faster only as discoveries at FDR_Q."""
+    compared cells are slower, faster or unchanged only as discoveries at FDR_Q, else
+    inconclusive."""
     rows = []
     for key, a, b, note in matched(old, new):
         if a is None:
@@ -161,11 +173,12 @@ def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
         else:
             rows.append(compare_cells(a, b, threshold, drift, note))
     tested = [k for k, row in enumerate(rows) if row.compared]
-    found = stats.discoveries([rows[k].p_value for k in tested], FDR_Q)
-    for k, discovery in zip(tested, found, strict=True):
-        if discovery:
-            rows[k] = dataclasses.replace(rows[k],
-                                          kind=SLOWER if rows[k].slower_first else FASTER)
+    verdicts = stats.decide([rows[k].change for k in tested], FDR_Q)
+    for k, verdict in zip(tested, verdicts, strict=True):
+        # an undecided cell needs at least one more round, even where its interval alone
+        # would clear the threshold (the false-discovery control held it back)
+        further = 0.0 if verdict != INCONCLUSIVE else max(1.0, rows[k].further)
+        rows[k] = dataclasses.replace(rows[k], kind=verdict, further=further)
     return rows
 
 
@@ -173,15 +186,21 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     """How the verdicts were reached, in words, for the output's head."""
     used = {r.method for r in rows if r.compared}
     lines = [f"A cell is slower or faster when its change beyond the threshold ({threshold:.0%}: "
-             f"NEW/OLD above {1 + threshold:.3f} or below {1 / (1 + threshold):.3f}) is a "
-             f"discovery with the false-discovery rate across the {sum(r.compared for r in rows)}"
-             f" compared cells held at {FDR_Q:g} (Benjamini-Hochberg)."]
+             f"NEW/OLD above {1 + threshold:.3f} or below {1 / (1 + threshold):.3f}) is shown, "
+             "unchanged when its change is shown to lie within it (two one-sided tests: the "
+             "whole interval inside), inconclusive otherwise; each claim a discovery with the "
+             f"false-discovery rate across the {sum(r.compared for r in rows)} compared cells "
+             f"held at {FDR_Q:g} (Benjamini-Hochberg)."]
     if PAIRED in used:
         lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the geometric mean "
                      "of the per-round ratios, which the machine's drift between rounds cannot "
                      "move; 95% interval and p-value from a t-test on their logs, clipped to "
                      f"{stats.CLIP_MADS:g} MADs of their median (a stray slow run weighs as a "
-                     "large ordinary one).")
+                     "large ordinary one). Rounds are added to undecided cells at looks "
+                     f"{stats.look_rounds(1)}, {stats.look_rounds(2)}, {stats.look_rounds(3)}, "
+                     "... rounds, each spending 1/(j(j+1)) of the error rate (a group-"
+                     "sequential design: stopping when a look decides does not inflate false "
+                     "verdicts); intervals are at the level of the look.")
     if APART in used:
         lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
                      "bootstrap interval is widened by the machine's drift between runs "
@@ -190,8 +209,15 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     return lines
 
 
-def exit_status(rows: Iterable[Row]) -> int:
-    return EXIT_SLOWER if any(r.kind == SLOWER for r in rows) else EXIT_OK
+def exit_status(rows: Iterable[Row], fail_on: str = FAIL_ON_INCONCLUSIVE) -> int:
+    """EXIT_SLOWER when a cell is slower; else EXIT_INCONCLUSIVE when one is inconclusive and
+    that fails the gate; else EXIT_OK (every cell unchanged or faster)."""
+    kinds = {r.kind for r in rows}
+    if SLOWER in kinds:
+        return EXIT_SLOWER
+    if INCONCLUSIVE in kinds and fail_on == FAIL_ON_INCONCLUSIVE:
+        return EXIT_INCONCLUSIVE
+    return EXIT_OK
 
 
 def summary(rows: Sequence[Row]) -> str:
@@ -199,5 +225,6 @@ def summary(rows: Sequence[Row]) -> str:
               for kind in (*VERDICTS, NOT_OK, OLD_ONLY, NEW_ONLY)}
     compared = sum(counts[v] for v in VERDICTS)
     return (f"{compared} cells compared: {counts[SLOWER]} slower, {counts[FASTER]} faster, "
-            f"{counts[SAME]} no significant change; {counts[NOT_OK]} not compared (not ok), "
-            f"{counts[OLD_ONLY]} old only, {counts[NEW_ONLY]} new only")
+            f"{counts[UNCHANGED]} unchanged, {counts[INCONCLUSIVE]} inconclusive; "
+            f"{counts[NOT_OK]} not compared (not ok), {counts[OLD_ONLY]} old only, "
+            f"{counts[NEW_ONLY]} new only")

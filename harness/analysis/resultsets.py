@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness import stats
 from harness.analysis.flags import _is_true
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
@@ -118,15 +119,20 @@ class Cell:
     instructions: float = math.nan
     instructions_max: float = math.nan
     instructions_tool: str = ""
+    # each round's interference share (harness.measure.noise), in round order, where measured
+    round_noise: tuple[float, ...] = ()
+    steal_s: float = 0.0  # CPU seconds stolen on its cores over its rounds
+    other_cpu_s: float = 0.0  # taken by other processes
+    noise_capacity_s: float = 0.0  # the cores' seconds its rounds span
+
+    def noise_by_round(self) -> dict[int, float]:
+        rounds = sorted(set(self.rounds))
+        return dict(zip(rounds, self.round_noise, strict=True)) \
+            if len(rounds) == len(self.round_noise) else {}
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
-        if len(self.rounds) != len(self.times):
-            return {}
-        grouped: dict[int, list[float]] = {}
-        for round_index, seconds in zip(self.rounds, self.times, strict=True):
-            grouped.setdefault(round_index, []).append(seconds)
-        return {k: statistics.median(v) for k, v in grouped.items()}
+        return stats.round_medians(self.times, self.rounds)
 
     @property
     def machine_text(self) -> str:
@@ -163,10 +169,17 @@ def _text(row: pd.Series, column: str) -> str:
     return str(value).strip()
 
 
-def _number(row: pd.Series, column: str) -> float:
-    """A numeric column's value; nan where empty or absent."""
-    value = row.get(column)
-    return float(value) if value is not None and pd.notna(value) else math.nan
+def _number(row: pd.Series, column: str, default: float = math.nan) -> float:
+    """A numeric column's value; `default` where empty, absent or not a number."""
+    value = pd.to_numeric(row.get(column), errors="coerce")
+    return float(value) if pd.notna(value) else default
+
+
+def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
+    """What other work did to the cells' rounds (where measured)."""
+    return stats.noise_profile([s for c in cells for s in c.round_noise],
+                               sum(c.steal_s for c in cells), sum(c.other_cpu_s for c in cells),
+                               sum(c.noise_capacity_s for c in cells))
 
 
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
@@ -213,7 +226,9 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             round_seed=_text(row, "round_seed").removesuffix(".0"),
             instructions=_number(row, "instructions"),
             instructions_max=_number(row, "instructions_max"),
-            instructions_tool=_text(row, "instructions_tool")))
+            instructions_tool=_text(row, "instructions_tool"),
+            round_noise=tuple(records.split_floats(_text(row, "round_noise"))),
+            **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 
 

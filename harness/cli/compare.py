@@ -1,4 +1,5 @@
-"""Compare two result sets cell by cell (NEW against OLD); exit 1 when a cell is slower."""
+"""Compare two result sets cell by cell (NEW against OLD); exit 1 when a cell is slower, 3
+when none is but some are inconclusive (--fail-on)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,9 @@ from harness.analysis import calibration, exact
 from harness.analysis.compare import (
     CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
+    FAIL_ON,
+    FAIL_ON_INCONCLUSIVE,
+    FDR_Q,
     MEASURED_TOGETHER,
     NOT_OK,
     Drift,
@@ -29,7 +33,7 @@ from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
 from harness.report.compare_exact import write_exact
 from harness.runner import calibrate as calibrate_runs
-from harness.runner.pair import measure_sides
+from harness.runner.pair import DEFAULT_BUDGET_S, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS, with_metric
 from harness.spec.parse import load_config
@@ -50,6 +54,16 @@ def _threshold(text: str) -> float:
             from None
     if not (0.0 <= value < 10.0) or not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a fraction in [0, 10), got {text!r}")
+    return value
+
+
+def _budget(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds such as 300, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
     return value
 
 
@@ -79,6 +93,13 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--threshold", type=_threshold, default=DEFAULT_THRESHOLD,
                         help=f"a change within it is never called slower or faster (default: "
                         f"{DEFAULT_THRESHOLD:g})")
+    parser.add_argument("--fail-on", choices=FAIL_ON, default=FAIL_ON_INCONCLUSIVE,
+                        help="what fails the gate besides a slower cell (exit 1): with "
+                        "'inconclusive' (default) a cell neither shown changed nor shown "
+                        "unchanged exits 3; with 'slower' only a slower cell fails")
+    parser.add_argument("--budget", type=_budget, default=DEFAULT_BUDGET_S, metavar="SECONDS",
+                        help="with --measure: add rounds to undecided cells until each is "
+                        f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g})")
     parser.add_argument("--out", type=Path, default=None,
                         help="where compare.md and compare.{png,svg} go, and with --measure the "
                         "sides' results (default: <repo>/results/compare)")
@@ -151,7 +172,7 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
                                   figure=not args.no_figure, head=head)
     out_stream.write(text + "\n")
     out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
-    return exit_status(rows)
+    return exit_status(rows, args.fail_on)
 
 
 def report_instructions(old: Side, new: Side, out: Path, head: Sequence[str],
@@ -180,13 +201,16 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
     lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
-                                 args.hyperfine)
+                                 args.hyperfine, threshold=args.threshold, q=FDR_Q,
+                                 budget_s=args.budget)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
     head = [f"Measured together: every cell of {', '.join(paths[2:])} with OLD's binaries and "
-            f"NEW's, in {measured.rounds} interleaved rounds (the order of each round shuffled "
-            f"from seed {measured.seed}); the sides' results: {measured.old}, {measured.new}."]
+            f"NEW's, in up to {measured.rounds} interleaved rounds (the order of each round "
+            f"shuffled from seed {measured.seed}), rounds added to undecided cells for "
+            f"{measured.spent_s:.0f} s of a {measured.budget_s:g} s budget; the sides' results: "
+            f"{measured.old}, {measured.new}."]
     return report(old, new, args, out, MEASURED_TOGETHER, head, out_stream)
 
 

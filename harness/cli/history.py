@@ -197,7 +197,10 @@ def bisect(config: Config, s: Series, change: ChangePoint, full: Sequence[Commit
                          f"measuring {full[middle].short} against {full[low].short}\n")
         out = ResultsRoot(results_root).experiment(config.name).bisect(full[low].short,
                                                                        full[middle].short)
-        sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr, hyperfine)
+        # Which side of a step already found is all a look needs: the first look's rounds
+        # place it, so no rounds are added to decide the cells' verdicts (budget 0).
+        sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr, hyperfine,
+                              budget_s=0.0)
         ratio = side_ratio(sides.old / config.name, sides.new / config.name, label, s.metric)
         if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
             high = middle

@@ -129,15 +129,17 @@ class Progress:
         self._next = max(self._next, k + 1)
 
     def round_done(self, round_index: int, timed: int, done: int, low_s: float,
-                   high_s: float) -> None:
+                   high_s: float, status: str = "") -> None:
         """A round of timed runs: how many cells it timed, how many of them are done, and what
-        the rest may still take (a range where adaptive repetition decides)."""
+        the rest may still take (a range where adaptive repetition decides); `status`: what
+        the executor adds (a comparison's cells decided and its budget left)."""
         elapsed = format_seconds(time.monotonic() - self.started)
         left = timed - done
         eta = (format_seconds(low_s) if high_s - low_s < max(1.0, 0.1 * low_s)
                else f"{format_seconds(low_s)}-{format_seconds(high_s)}")
         self.log.write(f"{self.name}: round {round_index}: {timed} cell(s) timed, {done} done, "
-                       f"{left} need more  elapsed {elapsed}  eta {eta if left else '0.0s'}\n")
+                       f"{left} need more  elapsed {elapsed}  eta {eta if left else '0.0s'}"
+                       f"{'  ' + status if status else ''}\n")
         self.log.flush()
 
     def finished(self, seconds: float) -> None:

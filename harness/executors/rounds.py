@@ -50,10 +50,15 @@ class Unit:
         return self.run
 
     def left(self) -> tuple[float, float]:
-        return runs_left(self.measurer.config.measure_for(self.cell.variant), self.state)
+        return runs_left(self.state.measure(self.measurer.config.measure_for(self.cell.variant)),
+                         self.state)
 
 
 OnDone = Callable[[Unit, records.Record], None]
+# Called after each round with the units it timed, before the done ones finish: may stop
+# units or give them more rounds (rounds until decided, harness.runner.pair); what it returns
+# ends the round's progress line.
+Extend = Callable[[Sequence[Unit]], str]
 
 
 def new_seed() -> int:
@@ -94,9 +99,10 @@ def share_rounds(units: Sequence[Unit]) -> None:
 
 
 def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
-                      seed: int | None) -> int:
-    """Start every unit, then time them in rounds; on_done(unit, record) as each is done.
-    The rounds' order follows the seed (a fresh one where None); the seed."""
+                      seed: int | None, extend: Extend | None = None) -> int:
+    """Start every unit, then time them in rounds; on_done(unit, record) as each is done;
+    extend(units timed) after each round. The rounds' order follows the seed (a fresh one
+    where None); the seed."""
     if seed is None:
         seed = new_seed()
     active: list[Unit] = []
@@ -126,11 +132,13 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
             runs += sum(unit.state.times[before:])
         overhead = max(0.0, spent - runs) / len(order)
         pair_up(order)
+        status = extend(order) if extend is not None else ""
         for unit in order:
             unit.measurer.keep(unit.state)
         active = _finish_done(active, on_done)
         low, high = _eta([], active, overhead)
-        progress.round_done(round_index, len(order), len(order) - len(active), low, high)
+        progress.round_done(round_index, len(order), len(order) - len(active), low, high,
+                            status)
     return seed
 
 

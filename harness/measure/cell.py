@@ -145,7 +145,7 @@ class Measurer:
     def time_round(self, run: CellRun, round_index: int) -> None:
         """One round of the cell's timed runs (hyperfine), and whether it needs more."""
         variant = str(run.record["variant"])
-        measure = self.config.measure_for(variant)
+        measure = run.measure(self.config.measure_for(variant))
         runs = next_runs(measure, run.times, run.per_round)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
         env = self.environment(int(str(run.record["threads"])), str(run.record["schedule"]))

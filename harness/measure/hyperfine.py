@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.measure import machine
+from harness.measure import machine, noise
 from harness.measure.proc import run_process, tail
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
@@ -49,6 +49,7 @@ class Timed:
     load_before: dict[str, object] = field(default_factory=dict)
     load_after: dict[str, object] = field(default_factory=dict)
     loaded: bool = False
+    noise: noise.RoundNoise | None = None  # what other work did to the call
 
 
 def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
@@ -61,8 +62,11 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
     timeout = timeout_s * (warmup + runs) + HYPERFINE_SLACK_S
     load_before = machine.sample_load()
     loaded = machine.is_loaded(load_before, cores)
+    used = noise.round_cores()
     try:
+        before = noise.sample(used)
         done = run_process(argv, env, timeout)
+        interference = noise.between(before, noise.sample(used), len(used))
         load_after = machine.load()
         warnings = hyperfine_warnings(done.stderr)
         if done.returncode is None:
@@ -78,4 +82,4 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
         os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
-    return Timed(OK, 0, "", stats, warnings, load_before, load_after, loaded)
+    return Timed(OK, 0, "", stats, warnings, load_before, load_after, loaded, interference)

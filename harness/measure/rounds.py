@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from harness import stats
 from harness.measure.hyperfine import Timed
 from harness.spec.config import Measure
 from harness.store import atomic, csvfile, records
@@ -55,6 +56,16 @@ class CellRun:
     # Runs a round for each run the measure counts: a paired cell's rounds each time a few
     # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
     per_round: int = 1
+    # Rounds a comparison asks of the cell beyond its measure's runs (rounds until decided,
+    # harness.runner.pair): its measure then counts at least this many runs
+    min_rounds: int = 0
+    # Per successful call (round), the share of its cores' time others took or was stolen
+    # (harness.measure.noise), and the totals of what the noise cost over its rounds
+    round_noise: list[float] = field(default_factory=list)
+    steal_s: float = 0.0
+    other_cpu_s: float = 0.0
+    nivcsw: int = 0
+    capacity_s: float = 0.0  # the cores' seconds over its rounds
 
     @property
     def timed(self) -> bool:
@@ -64,6 +75,16 @@ class CellRun:
     @property
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
+
+    def noise_by_round(self) -> dict[int, float]:
+        """Each round's interference share (harness.measure.noise), by round."""
+        rounds = sorted(set(self.rounds))
+        return dict(zip(rounds, self.round_noise, strict=True)) \
+            if len(rounds) == len(self.round_noise) else {}
+
+    def measure(self, measure: Measure) -> Measure:
+        """The cell's measure, with at least the rounds a comparison asked for."""
+        return measure.at_least(self.min_rounds) if self.min_rounds else measure
 
     @property
     def per_run_s(self) -> float:
@@ -86,6 +107,12 @@ class CellRun:
         self.user_s += [timed.stats.user] * timed.stats.runs
         self.system_s += [timed.stats.system] * timed.stats.runs
         self.exports.append(export.name)
+        if timed.noise is not None:
+            self.round_noise.append(timed.noise.share)
+            self.steal_s += timed.noise.steal_s
+            self.other_cpu_s += timed.noise.other_cpu_s
+            self.nivcsw += timed.noise.nivcsw
+            self.capacity_s += timed.noise.wall_s * timed.noise.cores
 
     def save(self, path: Path) -> None:
         atomic.atomic_write_json(path, {"version": PARTIAL_VERSION, **asdict(self)})
@@ -189,5 +216,17 @@ def timing_fields(run: CellRun) -> dict[str, object]:
         **csvfile.uncertainty(times), "wall_times_round": list(run.rounds),
         "rounds": len(run.exports), "stopped": run.stopped or None,
         "hyperfine_exports": list(run.exports), "hyperfine_warnings": list(run.warnings),
-        "loaded": run.loaded,
+        "loaded": run.loaded, **noise_fields(run),
     }
+
+
+def noise_fields(run: CellRun) -> dict[str, object]:
+    """The record's noise of the cell's rounds (store.columns.NOISE_COLUMNS)."""
+    if len(run.round_noise) != len(run.exports):
+        return {}
+    return {"steal_s": run.steal_s, "other_cpu_s": run.other_cpu_s,
+            "nivcsw_per_run": run.nivcsw / len(run.times) if run.times else None,
+            "round_noise": " ".join(f"{s:.3f}" for s in run.round_noise),
+            "rounds_dropped": " ".join(str(r) for r, share in run.noise_by_round().items()
+                                       if share > stats.NOISE_LIMIT),
+            "noise_capacity_s": run.capacity_s}

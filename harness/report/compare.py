@@ -8,22 +8,26 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from harness.analysis.compare import (
+    FASTER,
+    INCONCLUSIVE,
     NEW_ONLY,
     NOT_OK,
     OLD_ONLY,
-    SAME,
+    PAIRED,
+    SLOWER,
     Drift,
     Row,
     methods,
     summary,
 )
-from harness.analysis.resultsets import FLAG_COLUMNS, Side
+from harness.analysis.resultsets import FLAG_COLUMNS, Side, noise_profile
 from harness.report.document import Table
 from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
 from harness.store import atomic
 
 OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
+MANY_ROUNDS = 1000  # beyond it, "to decide" says only that it is more
 
 
 def _seconds(value: float) -> str:
@@ -36,6 +40,19 @@ def _ratio_text(row: Row) -> str:
     if math.isfinite(row.low) and math.isfinite(row.high):
         return f"{row.ratio:.3f} [{row.low:.3f}, {row.high:.3f}]"
     return f"{row.ratio:.3f}"
+
+
+def _further_text(row: Row) -> str:
+    """The rounds (measured together) or runs a side (apart) that would likely decide an
+    inconclusive cell."""
+    if row.kind != INCONCLUSIVE:
+        return ""
+    unit = "rounds" if row.method == PAIRED else "runs a side"
+    if not math.isfinite(row.further):
+        return "not by more runs (the drift)" if row.method != PAIRED else "many"
+    if row.further > MANY_ROUNDS:
+        return f"> {MANY_ROUNDS} {unit}"
+    return f"~{row.further:.0f} {unit}"
 
 
 def _p_text(value: float) -> str:
@@ -56,6 +73,10 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
         commits = ", ".join(side.commits()) or "not recorded"
         lines.append(f"- **{side.name}** `{side.path}`: {len(side.cells)} cells; machine "
                      f"{', '.join(side.machines()) or 'unknown'}; commit {commits}")
+    for side in (old, new):
+        profile = noise_profile(list(side.cells.values()))
+        if profile.rounds:
+            lines.append(f"- **{side.name}** noise: {profile.line()}")
     lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift))]
     lines += ["", f"**{summary(rows)}.**", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
@@ -68,13 +89,14 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     if compared:
         lines += _table(
             ("cell", "OLD median (s)", "NEW median (s)", "NEW/OLD [95% CI]", "p", "runs",
-             "verdict", "measured", "note"),
+             "verdict", "to decide", "measured", "note"),
             ((r.key.label(), _seconds(r.old.median), _seconds(r.new.median),  # type: ignore[union-attr]
               _ratio_text(r), _p_text(r.p_value),
               f"{len(r.old.times)}/{len(r.new.times)}",  # type: ignore[union-attr]
-              f"**{r.kind}**" if r.kind != SAME else r.kind, r.method, r.note)
+              f"**{r.kind}**" if r.kind in (SLOWER, FASTER) else r.kind, _further_text(r),
+              r.method, r.note)
              for r in compared),
-            "lrrrrrlll")
+            "lrrrrrllll")
         lines.append("")
     if figure:
         lines += [f"![NEW/OLD per cell with 95% intervals]({figure})", ""]

@@ -8,14 +8,17 @@ OUT/new), written under OUT/.measure and moved into place once both are complete
 from __future__ import annotations
 
 import dataclasses
+import math
 import shutil
+import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
+from harness import stats
 from harness.errors import HarnessError
-from harness.executors.base import Progress
+from harness.executors.base import Progress, format_seconds
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
@@ -28,13 +31,87 @@ from harness.runner.sides import BuildSide, build
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
+from harness.store.columns import STOPPED_BUDGET, STOPPED_DECIDED
 from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
-# The fewest rounds a cell pair gets: the paired test needs them to find a 5% change on a
-# shared machine (docs/compare.md has the numbers).
-MIN_ROUNDS = 12
+# The fewest rounds a cell pair gets (the sequential test's first look): the paired test needs
+# them to find a 5% change on a shared machine (docs/compare.md has the numbers).
+MIN_ROUNDS = stats.FIRST_LOOK_ROUNDS
+# How long rounds are added to undecided cells, at most (seconds of measuring, --budget).
+DEFAULT_BUDGET_S = 600.0
 WORK_DIR = ".measure"  # OUT/.measure: the sides while they are measured
+
+
+@dataclass
+class UntilDecided:
+    """Rounds until decided: after each round, the cell pairs that reached a look of the
+    sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
+    control across every pair); a decided pair stops, an undecided one is given the rounds to
+    the next look while the budget lasts, and once it is spent every pair given more rounds
+    stops. The budget counts the seconds from the first look on: every pair gets the first
+    look's rounds."""
+
+    pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
+    threshold: float
+    q: float
+    budget_s: float
+    started: float = math.inf  # when the first pair reached the first look
+    decided: dict[int, str] = field(default_factory=dict)  # pair index: verdict
+
+    def change(self, old: Unit, new: Unit) -> stats.Change:
+        a = stats.round_medians(old.state.times, old.state.rounds)
+        b = stats.round_medians(new.state.times, new.state.rounds)
+        measured = len(a.keys() & b.keys())
+        series = stats.paired_series(a, b, stats.rounds_to_drop(old.state.noise_by_round(),
+                                                                new.state.noise_by_round()))
+        return stats.paired_change(*series, self.threshold, stats.look_index(measured))
+
+    def left_s(self) -> float:
+        return self.budget_s - max(0.0, time.monotonic() - self.started)
+
+    def __call__(self, timed: Sequence[Unit]) -> str:
+        timed_now = set(map(id, timed))
+        live = [k for k, (a, b) in enumerate(self.pairs)
+                if id(a) in timed_now and a.state.timed and b.state.timed]
+        at_look = [k for k in live if self.pairs[k][0].state.stopped
+                   and self.pairs[k][1].state.stopped]
+        if at_look:
+            self.started = min(self.started, time.monotonic())
+            judged = [k for k, (a, b) in enumerate(self.pairs) if a.run and b.run
+                      and a.state.timed and b.state.timed and len(a.state.times) >= 2]
+            verdicts = dict(zip(judged, stats.decide([self.change(*self.pairs[k])
+                                                      for k in judged], self.q), strict=True))
+            for k in at_look:
+                old, new = self.pairs[k]
+                verdict = verdicts.get(k, stats.INCONCLUSIVE)
+                if verdict != stats.INCONCLUSIVE:
+                    self._stop(k, STOPPED_DECIDED, verdict)
+                elif self.left_s() > 0:
+                    rounds = len(set(old.state.rounds))
+                    wanted = stats.look_rounds(stats.look_index(rounds) + 1)
+                    for unit in (old, new):
+                        unit.state.min_rounds = wanted
+                        unit.state.stopped = ""
+                else:
+                    self._stop(k, STOPPED_BUDGET, verdict)
+        if self.left_s() <= 0:
+            # the first look's rounds are every pair's; the budget cuts only rounds added
+            for k in live:
+                if not self.pairs[k][0].state.stopped and self.pairs[k][0].state.min_rounds:
+                    self._stop(k, STOPPED_BUDGET, stats.INCONCLUSIVE)
+        return self.status()
+
+    def _stop(self, k: int, reason: str, verdict: str) -> None:
+        for unit in self.pairs[k]:
+            unit.state.stopped = reason
+        self.decided[k] = verdict
+
+    def status(self) -> str:
+        done = sum(v != stats.INCONCLUSIVE for v in self.decided.values())
+        left = len(self.pairs) - len(self.decided)
+        return (f"cells decided {done}/{len(self.pairs)}, {left} left, budget left "
+                f"{format_seconds(max(0.0, self.left_s()))}")
 
 
 @dataclass(frozen=True)
@@ -43,7 +120,9 @@ class MeasuredSides:
     new: Path
     seed: int
     cells: int  # per side
-    rounds: int
+    rounds: int  # the most rounds a cell pair took
+    budget_s: float
+    spent_s: float  # seconds of measuring
 
 
 def with_min_rounds(config: Config, rounds: int = MIN_ROUNDS) -> Config:
@@ -74,15 +153,19 @@ def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
 
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
-                  hyperfine: str = "hyperfine", seed: int | None = None) -> MeasuredSides:
-    """Measure every cell of the configs on both sides in interleaved rounds; the two results
-    roots, complete, under OUT."""
+                  hyperfine: str = "hyperfine", seed: int | None = None,
+                  threshold: float = 0.01, q: float = 0.05,
+                  budget_s: float = DEFAULT_BUDGET_S) -> MeasuredSides:
+    """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
+    the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
+    of measuring is spent; the two results roots, complete, under OUT."""
     plans = plans_of(configs, registry)
     prepare((old, new), plans)
     require_hyperfine(hyperfine)
     work = out / WORK_DIR
     machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
     units: list[Unit] = []
+    pairs: list[tuple[Unit, Unit]] = []
     stores: list[tuple[BuildSide, CellStore]] = []
     for plan in plans:
         pair: dict[str, CellStore] = {}
@@ -97,6 +180,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             b = Unit(measurers["NEW"], cell, built_cell_id(pair["NEW"], cell), partner=a)
             a.partner = b
             units += [a, b]
+            pairs.append((a, b))
     labels = {u.cell_id: f"{'OLD' if k % 2 == 0 else 'NEW'} {u.cell.label}"
               for k, u in enumerate(units)}
     progress = Progress("measure", [(u.cell, u.cell_id) for u in units],
@@ -105,7 +189,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
         run_lock.acquire()
     env = {side.name: environment.collect(side.repo_root, hyperfine=hyperfine)
            for side in (old, new)}
-    seed = measure_in_rounds(units, lambda unit, record: None, progress, seed)
+    until = UntilDecided(pairs, threshold, q, budget_s)
+    seed = measure_in_rounds(units, lambda unit, record: None, progress, seed, until)
     for side, store in stores:
         store.write_csv(prune=True)
         write_env_after(store.directory, env[side.name])
@@ -118,4 +203,5 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
         roots[side.name] = target
     shutil.rmtree(work, ignore_errors=True)
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
-    return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds)
+    return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds, budget_s,
+                         max(0.0, time.monotonic() - until.started))

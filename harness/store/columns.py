@@ -84,13 +84,25 @@ THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "t
 # round's order (cells with one seed were measured in the same rounds). Only where some cell
 # has them (results from before rounds have none).
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
+# What other work did to a cell's rounds (harness.measure.noise): CPU seconds stolen and taken
+# by other processes on its cores over its rounds, the timed runs' involuntary context switches
+# per run, each round's interference (the share of the cores' time others took or was stolen,
+# space-separated in round order), the rounds beyond the limit (left out of a paired test on
+# both sides), and the cores' seconds the rounds span. Only where some cell has them.
+NOISE_COLUMNS: tuple[str, ...] = ("steal_s", "other_cpu_s", "nivcsw_per_run", "round_noise",
+                                  "rounds_dropped", "noise_capacity_s")
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
 # enough, or a limit was reached first.
 STOPPED_RUNS = "runs"
 STOPPED_CI = "ci"
 STOPPED_MAX_RUNS = "max_runs"
 STOPPED_MAX_TIME = "max_time_s"
-STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME)
+# A cell pair measured together (compare --measure) stops when its verdict is decided, or when
+# the comparison's time budget is spent.
+STOPPED_DECIDED = "decided"
+STOPPED_BUDGET = "budget"
+STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME,
+                                    STOPPED_DECIDED, STOPPED_BUDGET)
 # A program's agreement with seq and the first step it leaves rounding (empty: never), only
 # where some cell is a program's.
 PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
@@ -109,7 +121,7 @@ INSTRUCTION_COLUMNS: tuple[str, ...] = ("instructions", "instructions_max", "ins
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
-                                                 ROUND_COLUMNS, PROGRAM_COLUMNS,
+                                                 ROUND_COLUMNS, PROGRAM_COLUMNS, NOISE_COLUMNS,
                                                  INSTRUCTION_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
@@ -131,7 +143,8 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step", "instructions", "instructions_max",
+    "first_diff_step", "instructions", "instructions_max", "steal_s", "other_cpu_s",
+    "nivcsw_per_run", "noise_capacity_s",
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",

@@ -111,6 +111,22 @@ def test_measured_together_a_five_percent_slowdown_is_found() -> None:
     assert slower >= 0.9 and faster == 0.0
 
 
+def test_measured_together_quiet_identical_sides_are_shown_unchanged() -> None:
+    """Noise 0.3%, no drift, 12 rounds: identical sides are unchanged (their whole interval
+    within 1%), never slower or faster; a 3% spread leaves most of them inconclusive, and
+    none is then called unchanged with an interval leaving the threshold."""
+    rng = np.random.default_rng(5)
+    quiet = [r for _ in range(10) for r in together(rng, 12, 0.003, 0.0, 0.0)]
+    assert sum(r.kind == compare.UNCHANGED for r in quiet) >= 0.9 * len(quiet)
+    assert not any(r.kind in (compare.SLOWER, compare.FASTER) for r in quiet)
+    noisy_rows = [r for _ in range(10) for r in together(rng, 12, 0.03, 0.01, 0.0)]
+    assert sum(r.kind == compare.INCONCLUSIVE for r in noisy_rows) >= 0.5 * len(noisy_rows)
+    for row in quiet + noisy_rows:
+        if row.kind == compare.UNCHANGED:
+            assert row.low >= 1 / 1.01 and row.high <= 1.01
+        assert (row.kind == compare.INCONCLUSIVE) == (row.further > 0)
+
+
 def test_measured_apart_the_drift_allowed_for_keeps_false_verdicts_rare() -> None:
     """Two runs of identical binaries minutes apart, the machine 4% faster in one of them:
     without allowing for drift most such comparisons fail the gate; with the drift allowed for,
@@ -222,15 +238,20 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     printed = capsys.readouterr().out
     kinds = {r.key.variant: r for r in compare.compare(*sides(old, new), 0.02, DRIFT)}
     assert {v: r.kind for v, r in kinds.items()} == {
-        "seq": compare.SLOWER, "p1": compare.SAME, "p1d": compare.NOT_OK,
+        "seq": compare.SLOWER, "p1": compare.INCONCLUSIVE, "p1d": compare.NOT_OK,
         "grid": compare.OLD_ONLY, "relative": compare.NEW_ONLY}
     seq = kinds["seq"]  # "2000" matched "2000.0": numbers compare by value
     assert seq.ratio == pytest.approx(1.30) and seq.low > 1.15 and seq.p_value < 0.05
     assert kinds["p1"].ratio == pytest.approx(1.0) and kinds["p1"].low < 1 < kinds["p1"].high
     text = (out / "compare.md").read_text()
     assert text + "wrote" in printed + "wrote" and printed.startswith(text)
-    assert "2 cells compared: 1 slower, 0 faster, 1 no significant change; 1 not compared " \
-           "(not ok), 1 old only, 1 new only" in text
+    assert "2 cells compared: 1 slower, 0 faster, 0 unchanged, 1 inconclusive; 1 not " \
+           "compared (not ok), 1 old only, 1 new only" in text
+    # p1's interval holds changes beyond the threshold both ways: it says how many more runs
+    # would decide it, or that the drift allowed for between sets measured apart never lets
+    # them.
+    assert kinds["p1"].low < 1 / 1.02 and kinds["p1"].high > 1.02
+    assert "not by more runs (the drift)" in text
     assert "| p1d random n=200 L=2000 r=1 S=5 T=1 | failed | ok |" in text
     assert "## Only in OLD" in text and "## Only in NEW" in text
     assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 1.3 | 1.300 [" in text
@@ -249,12 +270,23 @@ def sides(old: Path, new: Path) -> tuple[resultsets.Side, resultsets.Side]:
             resultsets.load_side("NEW", new, None, False, [new]))
 
 
-def test_no_slower_cell_exits_zero(pair: tuple[Path, Path], tmp_path: Path) -> None:
+def test_an_undecided_cell_fails_the_gate_unless_told(pair: tuple[Path, Path],
+                                                       tmp_path: Path) -> None:
+    # The same set against itself, measured apart with an assumed 5% drift: no cell is shown
+    # unchanged within 1%, so the gate does not pass it as unchanged (exit 3), unless only a
+    # slower cell should fail it.
     old, _ = pair
     out = tmp_path / "out"
-    assert compare_main([str(old), str(old), "--out", str(out), "--no-figure"]) == 0
-    assert "0 slower, 0 faster, 3 no significant change" in (out / "compare.md").read_text()
+    assert compare_main([str(old), str(old), "--out", str(out), "--no-figure"]) == \
+        compare.EXIT_INCONCLUSIVE
+    assert "0 slower, 0 faster, 0 unchanged, 3 inconclusive" in (out / "compare.md").read_text()
     assert not (out / "compare.png").exists()
+    assert compare_main([str(old), str(old), "--out", str(out), "--no-figure",
+                         "--fail-on", "slower"]) == compare.EXIT_OK
+    # with a threshold wider than the drift's interval, the cells are shown unchanged: exit 0
+    assert compare_main([str(old), str(old), "--out", str(out), "--no-figure",
+                         "--threshold", "0.5"]) == compare.EXIT_OK
+    assert "0 slower, 0 faster, 3 unchanged, 0 inconclusive" in (out / "compare.md").read_text()
 
 
 def test_roots_match_within_experiments(tmp_path: Path) -> None:
@@ -271,7 +303,7 @@ def test_roots_match_within_experiments(tmp_path: Path) -> None:
                            resultsets.load_side("NEW", tmp_path / "new", None, True, new_dirs),
                            0.02, DRIFT)
     assert [(r.key.experiment, r.kind) for r in rows] == [
-        ("one", compare.SLOWER), ("two", compare.SAME)]
+        ("one", compare.SLOWER), ("two", compare.INCONCLUSIVE)]
     assert rows[0].key.label().startswith("one: seq random")
     # an experiment directory against a root: the root's two experiments collide on one key
     single = resultsets.load_side("NEW", tmp_path / "new", None, False, new_dirs)
@@ -294,7 +326,8 @@ def test_several_machines_need_a_choice(tmp_path: Path, capsys: pytest.CaptureFi
     err = capsys.readouterr().err
     assert err.startswith("error: NEW holds cells of several machines (") and "--new-machine" in err
     assert err.count("\n") == 1
-    assert compare_main([str(old), str(new), "--out", out, "--new-machine", "aaaa"]) == 0
+    assert compare_main([str(old), str(new), "--out", out, "--new-machine", "aaaa"]) == \
+        compare.EXIT_INCONCLUSIVE
     assert compare_main([str(old), str(new), "--out", out, "--new-machine", "xeon"]) == 1
     capsys.readouterr()
     assert compare_main([str(old), str(new), "--out", out, "--new-machine", "arm"]) == 2
@@ -341,8 +374,9 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
 def test_script_on_committed_results(tmp_path: Path) -> None:
     """`python3 harness/compare.py` (re-executing under .venv) on the committed results, some of
     whose rows predate wall_times_s (times then come from the hyperfine JSON): each machine's
-    set compared with itself is the same in every cell, exit 0. They hold several machines side
-    by side, so each comparison names its machine (without, compare.py refuses: another test)."""
+    set compared with itself is the same in every cell, never slower or faster. They hold
+    several machines side by side, so each comparison names its machine (without, compare.py
+    refuses: another test)."""
     experiment = REPO_ROOT / "results" / "threads"
     if not (experiment / "results.csv").is_file():
         pytest.skip("no committed results/threads")
@@ -354,9 +388,11 @@ def test_script_on_committed_results(tmp_path: Path) -> None:
                                "--old-machine", machine, "--new-machine", machine,
                                "--out", str(tmp_path / machine)], cwd=REPO_ROOT,
                               capture_output=True, text=True, check=False, timeout=120)
-        assert done.returncode == 0, done.stderr
-        assert f"{cells} cells compared: 0 slower, 0 faster, {cells} no significant change" \
-            in done.stdout
+        # Without a calibration the machine's drift is assumed at 5%: no cell measured apart
+        # is shown unchanged within 1%, so the gate exits 3 (inconclusive), never 1.
+        assert done.returncode == compare.EXIT_INCONCLUSIVE, done.stderr
+        assert f"{cells} cells compared: 0 slower, 0 faster, 0 unchanged, {cells} " \
+            "inconclusive" in done.stdout
         assert done.stdout.count("| 1.000 [") == cells  # every cell has its interval
     missing = subprocess.run([python, "harness/compare.py", str(tmp_path / "x"), str(tmp_path)],
                              cwd=REPO_ROOT, capture_output=True, text=True, check=False,
@@ -400,7 +436,8 @@ def test_real_runs_find_the_slowed_binary(real_binaries: Path, tmp_path: Path,
     rows = {r.key.variant: r for r in compare.compare(old, new, compare.DEFAULT_THRESHOLD,
                                                       DRIFT)}
     assert rows["probe"].kind == compare.SLOWER and rows["probe"].low > 2.0, printed
-    assert rows["steady"].kind == compare.SAME, printed
+    # measured apart with an assumed 5% drift: not shown unchanged within 1%
+    assert rows["steady"].kind == compare.INCONCLUSIVE, printed
     # seq itself runs ~1 ms, where a loaded machine's noise exceeds 5%: compared, no verdict
     # asserted.
     assert rows["seq"].compared and math.isfinite(rows["seq"].low)
@@ -410,7 +447,7 @@ def test_real_runs_find_the_slowed_binary(real_binaries: Path, tmp_path: Path,
 
 def test_figure_keeps_significant_cells_first() -> None:
     cells = [synthetic(BASE)] * 3
-    rows = [compare.Row(cells[0].key, compare.SAME, cells[0], cells[0], ratio=r)
+    rows = [compare.Row(cells[0].key, compare.INCONCLUSIVE, cells[0], cells[0], ratio=r)
             for r in (1.01, 0.90, 1.03)]
     rows.insert(1, compare.Row(cells[0].key, compare.SLOWER, cells[0], cells[0], ratio=1.06))
     assert figcompare.figure_rows(rows, limit=10) == rows
@@ -423,7 +460,7 @@ def test_different_inputs_are_noted(tmp_path: Path) -> None:
         {"variant": "seq", "cell_id": side, "input_sha256": sha, "wall_median_s": "1.0",
          "wall_times_s": times_text(BASE)}]) for side, sha in (("o", "aa"), ("n", "bb")))
     rows = compare.compare(*sides(old, new), compare.DEFAULT_THRESHOLD, DRIFT)
-    assert [(r.kind, r.note) for r in rows] == [(compare.SAME, "the input files differ")]
+    assert [(r.kind, r.note) for r in rows] == [(compare.INCONCLUSIVE, "the input files differ")]
 
 
 def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:

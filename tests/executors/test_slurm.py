@@ -41,7 +41,8 @@ RUN_PY = REPO_ROOT / "harness" / "run.py"
 VOLATILE = {"sim_s", "input_s", "output_s", "unstable", "outliers", "loaded", "measured_at",
             "imbalance", "threads_busy_s", "threads_pairs", "threads_chunks", "git_commit",
             "round_seed",  # each run draws its own unless given one
-            *columns.PHASE_COLUMNS}
+            *columns.PHASE_COLUMNS,
+            *columns.NOISE_COLUMNS}  # what other work did to each round
 SIX = ("name: six\nvariants: [seq, p1, p1d]\nscene: {n: 200, L: 2000, r: 1, steps: 5, seed: 3}\n"
        "threads: [1, 2]\nmeasure: {warmup: 0, runs: 2, timeout_s: 60}\nvalidate: true\n")
 WAIT_S = 120.0

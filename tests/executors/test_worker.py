@@ -24,7 +24,8 @@ VOLATILE = {"measured_at", "seconds", "stderr_tail", "input_s", "sim_s", "output
             "load_before", "load_after", "loaded", "hyperfine_warnings",
             "threads_busy_s", "imbalance",  # --timing's per-thread seconds
             "round_seed",  # each run draws its own unless given one
-            *columns.PHASE_COLUMNS}  # and its phases'
+            *columns.PHASE_COLUMNS,  # and its phases'
+            *columns.NOISE_COLUMNS}  # and what other work did to its rounds
 TINY = ("name: tiny\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 3, seed: 4}\n"
         "threads: [1, 2]\nmeasure: {warmup: 0, runs: 2, timeout_s: 30}\nvalidate: true\n")
 

@@ -10,7 +10,15 @@ from pathlib import Path
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from harness.analysis.compare import APART, FASTER, PAIRED, SAME, SLOWER, Row
+from harness.analysis.compare import (
+    APART,
+    FASTER,
+    INCONCLUSIVE,
+    PAIRED,
+    SLOWER,
+    UNCHANGED,
+    Row,
+)
 from harness.report.figures.base import log_axis, new_figure, save_figure
 
 # The figure switches to a log ratio axis when the plotted span exceeds this factor.
@@ -24,7 +32,8 @@ LEGEND_BAND_IN = 0.85  # inches at the bottom for the x label and the legend bel
 LABEL_CHAR_IN = 0.068  # inches per character of an 8-point cell label, with room
 PLOT_WIDTH_IN = 5.5  # inches of axes beside the labels
 
-VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", SAME: "#555555"}
+VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", UNCHANGED: "#1f77b4",
+                  INCONCLUSIVE: "#555555"}
 # What the ratio and its interval are, by the method the cells were compared with.
 RATIO_TEXT = {
     PAIRED: "NEW / OLD, the geometric mean of the per-round ratios with its 95% interval",
@@ -45,7 +54,7 @@ def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]
     first and then the largest |log ratio|."""
     if len(rows) <= limit:
         return list(rows)
-    ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind == SAME,
+    ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind in (UNCHANGED, INCONCLUSIVE),
                                                       -abs(math.log(rows[i].ratio))))
     keep = set(ranked[:limit])
     return [row for i, row in enumerate(rows) if i in keep]

@@ -1,0 +1,108 @@
+"""What the machine did to a timed round, measured rather than guessed: from /proc/stat, the
+CPU time stolen by the hypervisor and the CPU time other processes took on the cores this
+process may use; from getrusage of the reaped children (hyperfine and the runs it timed),
+their own CPU time and involuntary context switches; the load average. A round whose cores
+were taken by others (or stolen) beyond NOISE_LIMIT of their time is flagged, and a paired
+comparison leaves it out on both sides (harness.analysis.compare).
+
+Migrations of the timed process are not counted: the kernel gives them only while the process
+lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
+
+from __future__ import annotations
+
+import os
+import resource
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
+
+PROC_STAT = Path("/proc/stat")
+# /proc/stat's per-CPU fields, in ticks: user nice system idle iowait irq softirq steal ...
+BUSY_FIELDS = (0, 1, 2, 5, 6)  # user, nice, system, irq, softirq (guest time is in user)
+STEAL_FIELD = 7
+
+
+def round_cores() -> list[int]:
+    """The cores the timed runs may use: this process's affinity (they inherit it)."""
+    try:
+        return sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return list(range(os.cpu_count() or 1))
+
+
+def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] | None:
+    """(busy, steal) ticks summed over the cores, from /proc/stat; None where it cannot be read
+    (not Linux)."""
+    if text is None:
+        try:
+            text = PROC_STAT.read_text()
+        except OSError:
+            return None
+    wanted = {f"cpu{c}" for c in cores}
+    busy = steal = 0
+    seen = 0
+    for line in text.splitlines():
+        fields = line.split()
+        if fields and fields[0] in wanted:
+            values = [int(v) for v in fields[1:]]
+            busy += sum(values[k] for k in BUSY_FIELDS if k < len(values))
+            steal += values[STEAL_FIELD] if len(values) > STEAL_FIELD else 0
+            seen += 1
+    return (busy, steal) if seen else None
+
+
+@dataclass(frozen=True)
+class Sample:
+    """The counters at one moment."""
+
+    at: float  # monotonic seconds
+    ticks: tuple[int, int] | None  # (busy, steal) on the cores
+    own_cpu_s: float  # user + system seconds of the reaped children
+    own_nivcsw: int  # their involuntary context switches
+    load1: float
+
+
+def sample(cores: Sequence[int]) -> Sample:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return Sample(time.monotonic(), cpu_ticks(cores), usage.ru_utime + usage.ru_stime,
+                  usage.ru_nivcsw, os.getloadavg()[0])
+
+
+@dataclass(frozen=True)
+class RoundNoise:
+    """What a round's other work did to it (seconds over the round, on its cores)."""
+
+    wall_s: float
+    steal_s: float
+    other_cpu_s: float  # busy time on the cores beyond the timed children's own
+    own_cpu_s: float
+    nivcsw: int  # involuntary context switches of the timed children
+    load1: float
+    cores: int
+
+    @property
+    def share(self) -> float:
+        """Others' and stolen time as a share of the cores' time in the round (0 where
+        unknown)."""
+        capacity = self.wall_s * self.cores
+        return (self.steal_s + self.other_cpu_s) / capacity if capacity > 0 else 0.0
+
+    @property
+    def interfered(self) -> bool:
+        return self.share > NOISE_LIMIT
+
+
+def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
+    """The noise of what ran between two samples."""
+    tick = float(os.sysconf("SC_CLK_TCK"))
+    own = max(0.0, after.own_cpu_s - before.own_cpu_s)
+    steal = other = 0.0
+    if before.ticks is not None and after.ticks is not None:
+        busy = (after.ticks[0] - before.ticks[0]) / tick
+        steal = max(0.0, (after.ticks[1] - before.ticks[1]) / tick)
+        other = max(0.0, busy - own)
+    return RoundNoise(after.at - before.at, steal, other, own,
+                      after.own_nivcsw - before.own_nivcsw, after.load1, cores)

@@ -1,0 +1,121 @@
+"""The noise of a round (harness.measure.noise): /proc/stat's stolen and others' CPU time on
+the cores, the timed children's own time and involuntary switches; which rounds a paired test
+leaves out; and the injector scripts/noise that makes a quiet machine noisy."""
+
+from __future__ import annotations
+
+import math
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from harness import stats
+from harness.analysis import compare, resultsets
+from harness.measure import noise
+from harness.repo import REPO_ROOT
+
+INJECTOR = REPO_ROOT / "scripts" / "noise"
+STAT = """cpu  100 0 50 1000 0 0 0 7 0 0
+cpu0 10 1 5 500 3 2 1 4 0 0
+cpu1 20 0 10 500 0 0 0 3 0 0
+intr 1 2 3
+"""
+
+
+def test_cpu_ticks_sum_the_busy_and_stolen_ticks_of_the_cores() -> None:
+    assert noise.cpu_ticks([0], STAT) == (10 + 1 + 5 + 2 + 1, 4)
+    assert noise.cpu_ticks([0, 1], STAT) == (19 + 30, 7)
+    assert noise.cpu_ticks([5], STAT) is None
+
+
+def test_others_time_is_the_cores_busy_time_beyond_the_childrens_own() -> None:
+    tick = noise.os.sysconf("SC_CLK_TCK")
+    before = noise.Sample(10.0, (0, 0), 1.0, 5, 0.5)
+    after = noise.Sample(11.0, (int(1.5 * tick), int(0.1 * tick)), 1.5, 9, 0.7)
+    found = noise.between(before, after, 2)
+    assert found.own_cpu_s == 0.5 and found.nivcsw == 4
+    assert math.isclose(found.other_cpu_s, 1.0) and math.isclose(found.steal_s, 0.1)
+    assert math.isclose(found.share, 1.1 / 2) and found.interfered  # beyond half the cores
+
+
+def test_a_real_sample_sees_the_childs_cpu_time() -> None:
+    cores = noise.round_cores()
+    before = noise.sample(cores)
+    subprocess.run([sys.executable, "-c", "sum(i * i for i in range(2_000_000))"], check=True)
+    found = noise.between(before, noise.sample(cores), len(cores))
+    assert found.own_cpu_s > 0.01 and found.nivcsw >= 0 and found.wall_s > 0
+    assert found.steal_s >= 0 and found.other_cpu_s >= 0
+
+
+def test_the_worst_interfered_rounds_are_dropped_at_most_a_quarter() -> None:
+    old = {k: 0.1 for k in range(1, 13)}
+    new = {**old, 3: 0.9, 5: 0.7, 7: 0.6, 9: 0.55}
+    assert stats.rounds_to_drop(old, new) == {3, 5, 7}  # 3 of 12: a quarter, worst first
+    assert stats.rounds_to_drop(old, old) == frozenset()
+
+
+def _cell(times: list[float], shares: list[float]) -> resultsets.Cell:
+    key = resultsets.MatchKey("", "seq", "f64", "random", "200", "2000", "1", "5", "perf", "1",
+                              "1", "")
+    return resultsets.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
+                           "", "", "", "", "", rounds=tuple(range(1, len(times) + 1)),
+                           round_seed="7", round_noise=tuple(shares))
+
+
+def test_a_paired_comparison_leaves_an_interfered_round_out() -> None:
+    old = [1.0] * 12
+    new = [1.2] + [1.0] * 11  # round 1 was slowed by a neighbour on NEW's side
+    quiet = [0.05] * 12
+    noisy = [0.95] + [0.05] * 11
+    kept = compare.compare_cells(_cell(old, quiet), _cell(new, noisy), 0.01,
+                                 compare.MEASURED_TOGETHER)
+    assert (kept.ratio, kept.low, kept.high) == (1.0, 1.0, 1.0)
+    unmeasured = compare.compare_cells(_cell(old, []), _cell(new, []), 0.01,
+                                       compare.MEASURED_TOGETHER)
+    assert unmeasured.ratio > 1.0  # without noise measured, the round counts
+
+
+def test_a_noise_profile_counts_stolen_and_others_time() -> None:
+    profile = stats.noise_profile([0.1, 0.6, 0.2, 0.9], 1.0, 10.0, 100.0)
+    assert (profile.rounds, profile.dropped) == (4, 2)
+    assert math.isclose(profile.stolen, 0.01) and math.isclose(profile.others, 0.1)
+    assert "2 of 4 rounds (50.0%)" in profile.line()
+
+
+def _plan(*args: str) -> list[tuple[int, float, float]]:
+    done = subprocess.run([sys.executable, str(INJECTOR), *args], capture_output=True,
+                          text=True, check=True, timeout=60)
+    return [(int(c), float(g), float(b)) for c, g, b in (line.split()
+                                                         for line in done.stdout.splitlines())]
+
+
+def test_the_injector_is_seeded_and_keeps_its_duty_cycle() -> None:
+    first = _plan("--duty", "0.3", "--seed", "4", "--cores", "0,1", "--plan", "2000")
+    assert first == _plan("--duty", "0.3", "--seed", "4", "--cores", "0,1", "--plan", "2000")
+    assert first != _plan("--duty", "0.3", "--seed", "5", "--cores", "0,1", "--plan", "2000")
+    for core in (0, 1):
+        bursts = [(g, b) for c, g, b in first if c == core]
+        assert all(0.020 <= b <= 0.500 for _, b in bursts)
+        busy = sum(b for _, b in bursts) / sum(g + b for g, b in bursts)
+        assert 0.27 < busy < 0.33
+
+
+def test_the_injector_spins_for_its_time_and_stops() -> None:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, str(INJECTOR), "--duty", "0.9", "--seed", "1",
+                           "--cores", "0", "--seconds", "1.5"], timeout=30, check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    assert done.returncode == 0 and time.monotonic() - started < 10
+    assert (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) > 0.05
+
+
+def test_the_injector_rejects_bad_input_in_one_line() -> None:
+    for args in (["--duty", "1.5"], ["--duty", "0.3", "--cores", "x"], []):
+        done = subprocess.run([sys.executable, str(INJECTOR), *args], capture_output=True,
+                              text=True, check=False, timeout=60)
+        assert done.returncode == 2 and done.stderr.startswith("error: ")
+        assert done.stderr.count("\n") == 1
