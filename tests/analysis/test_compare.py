@@ -388,11 +388,15 @@ def test_script_on_committed_results(tmp_path: Path) -> None:
                                "--old-machine", machine, "--new-machine", machine,
                                "--out", str(tmp_path / machine)], cwd=REPO_ROOT,
                               capture_output=True, text=True, check=False, timeout=120)
-        # Without a calibration the machine's drift is assumed at 5%: no cell measured apart
-        # is shown unchanged within 1%, so the gate exits 3 (inconclusive), never 1.
-        assert done.returncode == compare.EXIT_INCONCLUSIVE, done.stderr
-        assert f"{cells} cells compared: 0 slower, 0 faster, 0 unchanged, {cells} " \
-            "inconclusive" in done.stdout
+        # A set measured in rounds matches itself round by round: every per-round ratio is 1,
+        # so each cell is unchanged with a zero-width interval. Rows without rounds count as
+        # measured apart, where the drift assumed without a calibration (5%) leaves each cell
+        # inconclusive within 1%, and the gate exits 3. Never slower or faster.
+        together = "| 1.000 [1.000, 1.000] |" in done.stdout
+        unchanged = cells if together else 0
+        assert f"{cells} cells compared: 0 slower, 0 faster, {unchanged} unchanged, " \
+            f"{cells - unchanged} inconclusive" in done.stdout, done.stdout
+        assert done.returncode == (0 if together else compare.EXIT_INCONCLUSIVE), done.stderr
         assert done.stdout.count("| 1.000 [") == cells  # every cell has its interval
     missing = subprocess.run([python, "harness/compare.py", str(tmp_path / "x"), str(tmp_path)],
                              cwd=REPO_ROOT, capture_output=True, text=True, check=False,
