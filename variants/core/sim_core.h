@@ -138,6 +138,11 @@ int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
  * a write error. */
 int sim_describe(FILE *out, const sim_variant *v);
 
+/* --replay (sim_replay.c): the successor of each state in `text` (len bytes), with the rules
+ * of this binary's variant on `threads` threads, written to out. Returns an exit status after
+ * printing any error (one line on stderr). */
+int sim_replay(FILE *out, const char *name, const char *text, size_t len, int threads);
+
 /* Format one real with %.8f, or %.17g when precise, into buf. */
 void sim_format_real(char *buf, size_t len, sim_real v, bool precise);
 /* printf("%.8f", v) at p, unterminated; returns the length, or 0 outside its exact fast path
