@@ -1,4 +1,4 @@
-"""A program's output against seq's, step by step (pure: texts in, a verdict out).
+"""A program's output against seq's (pure: texts and a replay in, a verdict out).
 
 Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` and matched on (step,
 index); rows only one side prints are ignored (a program that prints its initial state, or
@@ -10,15 +10,14 @@ program that orders its arithmetic differently). The verdict (store.columns.AGRE
 * identical: every value is what seq's prints as at the program's precision, and the
   collision counts agree;
 * rounding: every value within rounding, at every step;
-* diverges: within rounding at first; where it first leaves rounding, by no more than seq's
-  f32 build has drifted from seq by then on the same scene: what a change of precision alone
-  does to a chaotic system;
-* differs: beyond rounding from the first state compared, or by more than that drift (a
-  different rule, or a bug), or other collision counts at the end;
-* failed: nothing to compare (no output, no readable line, too few particles, no final state).
-
-The first step outside rounding names its particle, both sides' values and what seq did with
-that particle in that step (harness.measure.events).
+* otherwise the program is judged step by step (harness.measure.steps): each printed step from
+  the program's own state before it, by the reference's `--replay`. correct: every step locally
+  right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
+  right only at a coarser precision, named; wrong: a step no precision explains, with its
+  particle, both states, the reference's event and the rule broken where the program's states
+  show it (harness.measure.rules). A state at step 0 other than the input is wrong at step 0;
+* failed: nothing to compare (no output, no readable line, too few particles, no final state,
+  no two consecutive steps printed to judge).
 """
 
 from __future__ import annotations
@@ -27,18 +26,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from harness.measure import rules
 from harness.measure.events import seq_event
+from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, half_units, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
 from harness.store.columns import (
     AGREEMENT_FAILED,
-    DIFFERS,
-    DIVERGES,
+    CORRECT,
     IDENTICAL,
+    IMPRECISE,
     ROUNDING,
+    WRONG,
 )
 
-ARITH_ULPS = 64.0
 QUOTE_CHARS = 60
 
 
@@ -130,9 +131,10 @@ class Agreement:
     particle: int | None = None
     program_values: tuple[float, ...] = ()
     seq_values: tuple[float, ...] = ()
-    deviation: float | None = None  # the largest difference at the first step outside rounding
-    envelope: float | None = None  # how far seq's f32 build had drifted from seq by then
-    seq_did: str = ""
+    deviation: float | None = None  # the largest difference at the step named
+    precision: float | None = None  # imprecise: the uncertainty (a fraction of L) it needs
+    seq_did: str = ""  # the reference's event for the particle in the step named
+    rule: str = ""  # wrong: the rule the step breaks, where the program's states show it
     steps_compared: int = 0
     note: str = ""
     details: dict[str, object] = field(default_factory=dict)
@@ -143,7 +145,7 @@ class Agreement:
                 "agreement_detail": {
                     "particle": self.particle, "program": list(self.program_values),
                     "seq": list(self.seq_values), "deviation": self.deviation,
-                    "envelope": self.envelope, "seq_did": self.seq_did,
+                    "precision": self.precision, "seq_did": self.seq_did, "rule": self.rule,
                     "steps_compared": self.steps_compared, **self.details}}
 
 
@@ -155,10 +157,10 @@ def _keys(rows: Rows, n: int) -> np.ndarray:
     return rows.step * (n + 1) + rows.index
 
 
-def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: float,
-          r: float) -> Agreement:
+def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
+          replay: Replay) -> Agreement:
     """The verdict on a program's print-mode output against seq's (`--precise`) on the same
-    input of n particles and `steps` steps; seq's f32 build's output measures the drift."""
+    input of n particles and `steps` steps; `replay` runs the reference's `--replay`."""
     if not program.strip():
         return _failed("printed nothing on stdout")
     ours = read_rows(program)
@@ -200,7 +202,8 @@ def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: fl
         if len(wrong):
             k = int(wrong[0])
             i = int(ours.index[mine[k]])
-            return Agreement(DIFFERS, steps, i, steps_compared=compared, details=extra,
+            return Agreement(WRONG, steps, i, steps_compared=compared, details=extra,
+                             rule="the collision counts are those of the rules",
                              note=f"every position and velocity within rounding, but particle "
                                   f"{i} ends with pcoll wcoll {count_p[k, 0]} "
                                   f"{count_p[k, 1]} where seq counts {count_q[k, 0]} "
@@ -215,19 +218,108 @@ def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: fl
     k = int(np.flatnonzero(at)[np.argmin(ours.index[mine][at])])
     particle = int(ours.index[mine[k]])
     worst = float(deviation[at].max())
-    envelope = _envelope(theirs, seq_f32, n, first) if seq_f32 is not None else 0.0
-    from_start = first == int(step_of.min())
-    verdict = DIVERGES if (not from_start and worst <= envelope) else DIFFERS
-    did = _seq_did(theirs, n, first, particle, L, r)
-    why = ("from the first state compared" if from_start else
-           f"by up to {worst:.3g}, more than seq's f32 build drifts by then ({envelope:.3g})"
-           if verdict == DIFFERS else
-           f"by up to {worst:.3g}, within the drift of seq's f32 build by then "
-           f"({envelope:.3g})")
-    note = (f"leaves rounding at step {first} {why}: particle {particle} is "
-            f"{_values(p[k])} where seq has {_values(q[k])}; seq in that step: {did}")
-    return Agreement(verdict, first, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
-                     worst, envelope, did, compared, note, extra)
+    level0 = None
+    if first == 0:
+        # The input as the program holds it: within its printing, or a coarser precision's
+        # rounding of the input (a float program), or not the input at all.
+        zero = step_of == 0
+        level0 = next((u for u in PRECISION_LADDER
+                       if not np.any(deviation[zero] > tolerance[zero] + u * L)), None)
+        if level0 is None:
+            return Agreement(WRONG, 0, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
+                             worst, seq_did="nothing yet (the initial state, as the input lists "
+                             "it)", steps_compared=compared, details=extra,
+                             rule="the state at step 0 is the input's",
+                             note=f"wrong at step 0: particle {particle} is {_values(p[k])} "
+                                  f"where the input has {_values(q[k])}; rule: the state at "
+                                  "step 0 is the input's")
+    return _step_local(ours, inside, n, L, r, replay, compared, extra,
+                       f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0)
+
+
+def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, replay: Replay,
+                compared: int, extra: dict[str, object], departure: str,
+                level0: float | None) -> Agreement:
+    """The verdict of the step-local check on a program that leaves seq's rounding; its
+    state at step 0 is the input at the precision level0 (None: the printed one)."""
+    states, halves = _program_states(ours, inside, n)
+    if not any(k + 1 in states for k in states):
+        return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
+                       "step by step (print every step in the check command)")
+    found = judge_steps(states, halves, n, L, r, replay)
+    ladder = ", ".join(f"{level:g}" for level in PRECISION_LADDER)
+    broken = _first_not_finite(ours, inside)
+    if broken is not None and (found.wrong_step is None or broken[0] < found.wrong_step):
+        step, i, values = broken
+        return Agreement(WRONG, step, i, values, steps_compared=compared, details=extra,
+                         note=f"wrong at step {step}: particle {i} is {_values(np.array(values))}"
+                              "; rule: every coordinate and velocity is a finite number",
+                         rule="every coordinate and velocity is a finite number")
+    detail = {**extra, "near_ties": found.near_ties, "steps_judged": found.steps_judged}
+    levels = [u for u in (level0, found.level) if u is not None]
+    level = max(levels) if levels else None
+    if found.wrong_step is None:
+        ties = (f"; {found.near_ties} value(s) follow a decision the reference takes within the "
+                "printed uncertainty (near-ties)" if found.near_ties else "")
+        if level is None:
+            return Agreement(CORRECT, steps_compared=compared, details=detail,
+                             note=f"every step locally right at the printed precision; it "
+                                  f"{departure}: chaos (any change of rounding grows at every "
+                                  f"collision){ties}")
+        return Agreement(IMPRECISE, precision=level, steps_compared=compared,
+                         details=detail,
+                         note=f"every step locally right only to {level:g} of L, coarser "
+                              f"than it prints (levels tried: {ladder}); it {departure}{ties}")
+    k, i = found.wrong_step, int(found.particle or 0)
+    assert found.reference_event is not None
+    kind, partner, t = found.reference_event
+    reference = np.array(found.reference_values)
+    event = rules.reference_event(states[k - 1], _with_row(states[k - 1], i, reference), i, kind,
+                                  partner, t, L, r)
+    partners = found.partners if found.partners is not None else np.full(n, -1)
+    rule = rules.broken_rule(states[k - 1], states[k], i, event, reference, partners, L,
+                             r) or ""
+    note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
+            f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
+            f", to {_values(reference)}; the reference in that step: {event.describe()}"
+            + (f"; rule: {rule}" if rule else ""))
+    return Agreement(WRONG, k, i, found.program_values, found.reference_values, found.deviation,
+                     level, event.describe(), rule, compared, note, detail)
+
+
+def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[float, ...]] | None:
+    """The first (step, particle, values) with a value that is not a finite number."""
+    bad = np.flatnonzero(inside & ~np.all(np.isfinite(rows.values), axis=1))
+    if not len(bad):
+        return None
+    k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
+    return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
+
+
+def _with_row(state: np.ndarray, i: int, row: np.ndarray) -> np.ndarray:
+    out = state.copy()
+    out[i] = row
+    return out
+
+
+def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
+                                                                   dict[int, np.ndarray]]:
+    """Every complete printed state of the program (n, 4) by step, and the half-units of its
+    printed values."""
+    states: dict[int, np.ndarray] = {}
+    halves: dict[int, np.ndarray] = {}
+    tokens = np.array(rows.tokens, dtype=str).reshape(-1, 4)
+    for step in np.unique(rows.step[inside]):
+        at = np.flatnonzero(inside & (rows.step == step))
+        if len(at) != n:
+            continue
+        state, half = np.empty((n, 4)), np.empty((n, 4))
+        state[rows.index[at]] = rows.values[at]
+        half[rows.index[at]] = half_units(tokens[at])
+        if np.all(np.isfinite(state)):
+            states[int(step)] = state
+            halves[int(step)] = half
+    return states, halves
 
 
 def _values(row: np.ndarray) -> str:
@@ -258,19 +350,3 @@ def _seq_did(seq: Rows, n: int, step: int, particle: int, L: float, r: float) ->
         return "unknown (seq's states around it are not both printed)"
     event = seq_event(before, after, particle, L, r)
     return event.describe() if event is not None else "a move no candidate of SPEC reproduces"
-
-
-def _envelope(seq: Rows, seq_f32: str, n: int, until: int) -> float:
-    """The largest difference between seq's f32 build and seq at any step up to `until`."""
-    f32 = read_rows(seq_f32)
-    at = {int(k): j for j, k in enumerate(_keys(f32, n))}
-    keep = (seq.step <= until)
-    rows = np.flatnonzero(keep)
-    match = np.array([at.get(int(k), -1) for k in _keys(seq, n)[rows]], dtype=np.int64)
-    rows, match = rows[match >= 0], match[match >= 0]
-    if not len(rows):
-        return 0.0
-    with np.errstate(invalid="ignore"):
-        gap = np.abs(f32.values[match] - seq.values[rows])
-    gap = gap[np.isfinite(gap)]
-    return float(gap.max()) if gap.size else 0.0

@@ -71,6 +71,7 @@ class StepJudgement:
     deviation: float | None = None
     steps_judged: int = 0
     near_ties: int = 0  # values explained only by a replay that decided otherwise
+    partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
     details: dict[str, object] = field(default_factory=dict)
 
 
@@ -183,7 +184,8 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
              float(base.t[k][i]))
     return StepJudgement(reached, k + 1, i, tuple(map(float, states[k][i])),
                          tuple(map(float, states[k + 1][i])), tuple(map(float, base.values[k][i])),
-                         event, float(np.max(deviation[k][i])), len(pairs), near_ties)
+                         event, float(np.max(deviation[k][i])), len(pairs), near_ties,
+                         base.partner[k])
 
 
 class _Explainer:

@@ -15,17 +15,24 @@ STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
 
-# How a program's output agrees with seq's (harness.measure.agreement): the same numbers at the
-# precision it prints, within that rounding at every step, within rounding and then drifting
-# as a change of precision would, beyond rounding (another rule or a bug), or not comparable.
+# A program's verdict (harness.measure.agreement): the same numbers as seq at the precision it
+# prints; within that rounding at every step; every step locally right from its own state
+# (judged by the reference's replay) at its printed precision, or only at a coarser one; a step
+# no correct rule explains; outputs that differ between identical runs; not comparable.
 IDENTICAL = "identical"
 ROUNDING = "rounding"
+CORRECT = "correct"
+IMPRECISE = "imprecise"
+WRONG = "wrong"
+NONDETERMINISTIC = "nondeterministic"
+AGREEMENT_FAILED = "failed"
+# What older results recorded before programs were judged step by step: read, never written.
 DIVERGES = "diverges"
 DIFFERS = "differs"
-AGREEMENT_FAILED = "failed"
-AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, DIVERGES, DIFFERS, AGREEMENT_FAILED)
-# The agreements that count as a correct program (its cell's status is ok).
-AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, DIVERGES})
+AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, CORRECT, IMPRECISE, WRONG, NONDETERMINISTIC,
+                               AGREEMENT_FAILED, DIVERGES, DIFFERS)
+# The verdicts that count as a correct program (its cell's status is ok).
+AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, CORRECT, IMPRECISE, DIVERGES})
 
 # --- columns ------------------------------------------------------------------------------
 
