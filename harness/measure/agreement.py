@@ -322,6 +322,21 @@ def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, n
     return states, halves
 
 
+def first_difference(a: str, b: str) -> tuple[int, int, str, str] | None:
+    """The first (step, particle) whose printed values differ between two outputs of one
+    program, with both as printed; None when they print the same rows."""
+    one, two = read_rows(a), read_rows(b)
+    left = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(one.step, one.index, strict=True))}
+    right = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(two.step, two.index, strict=True))}
+    for key in sorted(left.keys() | right.keys()):
+        x, y = left.get(key), right.get(key)
+        tx = " ".join(one.tokens[x]) if x is not None else "nothing"
+        ty = " ".join(two.tokens[y]) if y is not None else "nothing"
+        if tx != ty:
+            return key[0], key[1], f"({tx})", f"({ty})"
+    return None
+
+
 def _values(row: np.ndarray) -> str:
     return "(" + ", ".join(f"{v:.10g}" for v in row) + ")"
 

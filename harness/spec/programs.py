@@ -34,12 +34,17 @@ from harness.spec.variants import BASELINE, GRID
 # The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for
 # more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6,
-# where seq's all pairs would take hours). Their float builds measure how far a change of
-# precision alone drifts on the same scene.
+# where seq's all pairs would take hours). Its steps are judged from the program's own states
+# by `--replay` of seq, or of grid from REPLAY_GRID_MIN_N particles (the same successors; seq's
+# all pairs cost ~50 ms a step at 10,000 particles, and a check replays each step up to 25
+# times).
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 20_000
+REPLAY_GRID_MIN_N = 2_000
 FAST_REFERENCE = GRID
-ENVELOPE_BUILD = "f32"
+# The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
+REFERENCE = "reference"
+REPLAY = "replay"
 
 INPUT = "input"
 THREADS = "threads"
@@ -59,6 +64,11 @@ def check_steps(n: int, steps: int) -> int:
 def reference_variant(n: int) -> str:
     """The variant a program's output is compared with at n particles."""
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
+
+
+def replay_variant(n: int) -> str:
+    """The variant whose `--replay` judges a program's steps at n particles."""
+    return BASELINE if n < REPLAY_GRID_MIN_N else FAST_REFERENCE
 
 
 class TemplateError(ValueError):

@@ -11,7 +11,7 @@
  *   BUG_CORNER   walls ignored for a particle in a corner region (within L/8 of two walls)
  *   BUG_AXIS     a collision swaps the x components of the velocities, not the normal ones
  *   BUG_FEWER    one step too few (the last state printed twice)
- *   BUG_RACE     the pair loop appends candidates to a shared list without synchronisation
+ *   BUG_RACE     the pair loop's temporaries are shared by its threads (declared outside it)
  *   BUG_BEFORE   prints the positions from before the step with the velocities after it
  *   BUG_SLIP     particle 7's x printed 0.5 too large from step 2 on
  *
@@ -53,17 +53,10 @@ static int cmp(const void *a, const void *b)
 
 static void push(real t, int i, int j)
 {
-#ifdef BUG_RACE
-    long k = ncand;
-    for (volatile int spin = 0; spin < 50; spin++) {}
-    ncand = k + 1;
-    cands[k] = (cand){t, i, j};
-#else
     long k;
 #pragma omp atomic capture
     k = ncand++;
     cands[k] = (cand){t, i, j};
-#endif
 }
 
 static real wall_time(real q, real w)
@@ -116,7 +109,18 @@ static void step(void)
 #pragma omp parallel for schedule(dynamic)
     for (int i = 0; i < n; i++)
         for (int j = i + 1; j < n; j++) {
-#ifdef ORDER
+#if defined(BUG_RACE)
+            static volatile real dx, dy, Dx, Dy, b, c, a, cross, disc;
+            dx = x[j] - x[i]; dy = y[j] - y[i]; Dx = vx[j] - vx[i]; Dy = vy[j] - vy[i];
+            b = dx * Dx + dy * Dy;
+            if (b >= 0) continue;
+            for (volatile int spin = 0; spin < 100; spin++) {} /* more work here, as students do */
+            c = (dx * dx + dy * dy) - d * d;
+            if (c < 0) continue;
+            a = Dx * Dx + Dy * Dy;
+            cross = dx * Dy - dy * Dx;
+            disc = d * d * a - cross * cross;
+#elif defined(ORDER)
             real dx = x[i] - x[j], dy = y[i] - y[j], Dx = vx[i] - vx[j], Dy = vy[i] - vy[j];
             real b = Dx * dx + Dy * dy;
             if (b >= 0) continue;
