@@ -233,16 +233,22 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
                              note=f"wrong at step 0: particle {particle} is {_values(p[k])} "
                                   f"where the input has {_values(q[k])}; rule: the state at "
                                   "step 0 is the input's")
+    initial = _state(theirs, n, 0) if level0 is None else None
     return _step_local(ours, inside, n, L, r, replay, compared, extra,
-                       f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0)
+                       f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0,
+                       initial)
 
 
 def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, replay: Replay,
                 compared: int, extra: dict[str, object], departure: str,
-                level0: float | None) -> Agreement:
+                level0: float | None, initial: np.ndarray | None) -> Agreement:
     """The verdict of the step-local check on a program that leaves seq's rounding; its
-    state at step 0 is the input at the precision level0 (None: the printed one)."""
+    state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
+    the input's exact state, which a program that prints it within rounding holds: its first
+    step is judged from there, with no uncertainty (an exact tie in the input is one)."""
     states, halves = _program_states(ours, inside, n)
+    if initial is not None and 0 in states:
+        states[0], halves[0] = initial, np.zeros_like(initial)
     if not any(k + 1 in states for k in states):
         return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
                        "step by step (print every step in the check command)")

@@ -54,12 +54,6 @@ def broken_rule(before: np.ndarray, after: np.ndarray, i: int, event: Event,
                     "missing, or a state printed twice)")
         return ("the positions printed are those before the step, with the velocities after it")
     changed = np.any(np.abs(after[:, 2:] - before[:, 2:]) > scale, axis=1)
-    # A pair collision of the program's: i and the reference's partner, or whoever else
-    # changed velocity next to it.
-    if event.kind == "pair" and event.partner is not None:
-        rule = _pair_rule(before, after, i, event.partner, event.t, changed, scale, r)
-        if rule:
-            return rule
     mine = seq_event(before, after, i, L, r)  # the program's move as one SPEC candidate
     if mine is not None and (mine.kind, mine.partner) != (event.kind, event.partner):
         other = mine.partner
@@ -73,6 +67,12 @@ def broken_rule(before: np.ndarray, after: np.ndarray, i: int, event: Event,
                     f"rules take {event.describe()} (pair before wall, then smaller i, j)")
         return f"the walk's order: it took {mine.describe()} where the rules take " \
                f"{event.describe()} (the earliest free candidate first)"
+    # A pair collision of the program's: i and the reference's partner, or whoever else
+    # changed velocity next to it.
+    if event.kind == "pair" and event.partner is not None:
+        rule = _pair_rule(before, after, i, event.partner, event.t, changed, scale, r)
+        if rule:
+            return rule
     if event.kind == "wall" and np.allclose(v1, v0, atol=scale):
         return f"a wall met in the step is ignored (the rules: {event.describe()})"
     if event.kind == "wall" and len(event.walls) == 2 and np.count_nonzero(

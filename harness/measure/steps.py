@@ -228,11 +228,16 @@ class _Explainer:
             ref = self.base.values[k][rows]
             spread = np.zeros((len(rows), 4))
             tie = np.zeros(len(rows), dtype=bool)
+            # A state known exactly (the input, as the program holds it) has no near-ties: a
+            # coarser precision explains the values of its decisions, never other decisions.
+            exact = not np.any(self.halves[k])
             for c in range(COPIES):
                 label = (c + 1) * stride + k
-                spread += np.abs(perturbed.values[label][rows] - ref)
-                tie |= ((perturbed.kind[label][rows] != self.base.kind[k][rows])
-                        | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
+                other = ((perturbed.kind[label][rows] != self.base.kind[k][rows])
+                         | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
+                change = np.abs(perturbed.values[label][rows] - ref)
+                spread += np.where(other[:, None], 0.0, change) if exact else change
+                tie |= other & (not exact)
             best = self.deviation[k][rows]
             out_amp = 0.0 if level is None else level * self.L
             tolerance = self.halves[k + 1][rows] + self.slack + out_amp + REPLAY_SAFETY * spread

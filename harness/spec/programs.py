@@ -21,7 +21,9 @@ A program's cells are identified by its commands and the content of every file t
 
 from __future__ import annotations
 
+import glob
 import hashlib
+import re
 import shlex
 import shutil
 import string
@@ -48,8 +50,10 @@ REPLAY = "replay"
 
 INPUT = "input"
 THREADS = "threads"
+PATH = "path"  # a class's programs (GLOB): the file the glob matched, quoted for the shell
 PLACEHOLDERS = (INPUT, THREADS)
-PROGRAM_KEYS = ("command", "check")
+GLOB = "glob"
+PROGRAM_KEYS = ("command", "check", GLOB)
 SHELL = "sh"
 
 
@@ -75,8 +79,10 @@ class TemplateError(ValueError):
     """A command template that cannot be used; the message says what is wrong."""
 
 
-def placeholders(template: str) -> tuple[str, ...]:
-    """The {names} of a template; a TemplateError for an unknown one or stray braces."""
+def placeholders(template: str, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The {names} of a template; a TemplateError for an unknown one or stray braces. `extra`:
+    names allowed beside PLACEHOLDERS ({path} in a class's template)."""
+    known = (*PLACEHOLDERS, *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
@@ -86,11 +92,11 @@ def placeholders(template: str) -> tuple[str, ...]:
     for _, name, spec, conversion in parsed:
         if name is None:
             continue
-        if name not in PLACEHOLDERS or spec or conversion:
+        if name not in known or spec or conversion:
             field = "{" + name + (f"!{conversion}" if conversion else "") + \
                 (f":{spec}" if spec else "") + "}"
             raise TemplateError(f"unknown placeholder {field} (known: "
-                                + ", ".join("{" + p + "}" for p in PLACEHOLDERS) + ")")
+                                + ", ".join("{" + p + "}" for p in known) + ")")
         names.append(name)
     if INPUT not in names:
         raise TemplateError("no {input}: the program must be given the input file")
@@ -160,3 +166,26 @@ def from_mapping(name: str, value: Mapping[str, object], directory: Path) -> Pro
     """A Program from `command` and optional `check` (already checked to be strings)."""
     command = str(value["command"])
     return Program(name, command, str(value.get("check", command)), directory)
+
+
+def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
+    """The files a class's glob matches (relative to the config's directory, `**` allowed),
+    each with its program name: the parts of its path that the glob's wildcards matched,
+    joined by '-' (`submissions/*/sim` -> `alice`), other characters than letters, digits, '_',
+    '.' and '-' as '_'."""
+    wild = [k for k, part in enumerate(pattern.split("/")) if any(c in part for c in "*?[")]
+    found = []
+    for match in sorted(glob.glob(pattern, root_dir=directory, recursive=True)):
+        parts = match.split("/")
+        picked = [parts[k] for k in wild if k < len(parts)] or [parts[-1]]
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", "-".join(picked)).lstrip("_.-") or "program"
+        found.append((name, directory / match))
+    return found
+
+
+def member(name: str, value: Mapping[str, object], path: Path, directory: Path) -> Program:
+    """The program of one file a class's glob matched: its templates with {path} filled in."""
+    quoted = shlex.quote(str(path)).replace("{", "{{").replace("}", "}}")
+    command = str(value["command"]).replace("{" + PATH + "}", quoted)
+    check = str(value.get("check", value["command"])).replace("{" + PATH + "}", quoted)
+    return Program(name, command, check, directory)
