@@ -249,19 +249,21 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     states, halves = _program_states(ours, inside, n)
     if initial is not None and 0 in states:
         states[0], halves[0] = initial, np.zeros_like(initial)
-    if not any(k + 1 in states for k in states):
-        return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
-                       "step by step (print every step in the check command)")
-    found = judge_steps(states, halves, n, L, r, replay)
-    ladder = ", ".join(f"{level:g}" for level in PRECISION_LADDER)
     broken = _first_not_finite(ours, inside)
-    if broken is not None and (found.wrong_step is None or broken[0] < found.wrong_step):
+    judgeable = any(k + 1 in states for k in states)
+    found = judge_steps(states, halves, n, L, r, replay) if judgeable else None
+    if broken is not None and (found is None or found.wrong_step is None
+                               or broken[0] < found.wrong_step):
         step, i, values = broken
         return Agreement(WRONG, step, i, values, steps_compared=compared, details=extra,
                          note=f"wrong at step {step}: particle {i} is {_values(np.array(values))}"
                               "; rule: every coordinate and velocity is a finite number",
                          rule="every coordinate and velocity is a finite number")
+    if found is None:
+        return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
+                       "step by step (print every step in the check command)")
     detail = {**extra, "near_ties": found.near_ties, "steps_judged": found.steps_judged}
+    ladder = ", ".join(f"{level:g}" for level in PRECISION_LADDER)
     levels = [u for u in (level0, found.level) if u is not None]
     level = max(levels) if levels else None
     if found.wrong_step is None:
