@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from harness.measure import rules
-from harness.measure.events import seq_event
+from harness.measure.events import pair_times, seq_event
 from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, half_units, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
@@ -142,6 +142,7 @@ class Agreement:
     def fields(self) -> dict[str, object]:
         """What a cell's record keeps."""
         return {"agreement": self.verdict, "first_diff_step": self.first_diff_step,
+                "rule": self.rule,
                 "agreement_detail": {
                     "particle": self.particle, "program": list(self.program_values),
                     "seq": list(self.seq_values), "deviation": self.deviation,
@@ -291,8 +292,28 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
             f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
             f", to {_values(reference)}; the reference in that step: {event.describe()}"
             + (f"; rule: {rule}" if rule else ""))
+    if found.reference_state is not None:
+        detail["neighbourhood"] = neighbourhood(states[k - 1], states[k], found.reference_state,
+                                                i, partners, r)
     return Agreement(WRONG, k, i, found.program_values, found.reference_values, found.deviation,
                      level, event.describe(), rule, compared, note, detail)
+
+
+NEIGHBOURS = 8  # the most partners the wrong step's figure shows beside the particle
+
+
+def neighbourhood(before: np.ndarray, program: np.ndarray, reference: np.ndarray, i: int,
+                  partners: np.ndarray, r: float) -> dict[str, object]:
+    """What the figure of a wrong step draws: the particle, its partner in the reference's
+    step and those it could meet in the step (its pair candidates), before the step, as the
+    program has them after it and as the rules do."""
+    near = [int(j) for j in np.flatnonzero(np.isfinite(pair_times(before, i, r)))]
+    picked = list(dict.fromkeys([i, *([int(partners[i])] if partners[i] >= 0 else []),
+                                 *sorted(near, key=lambda j: float(np.hypot(
+                                     *(before[j, :2] - before[i, :2]))))]))[:NEIGHBOURS + 1]
+    return {"particles": picked, "r": r,
+            "before": before[picked].tolist(), "program": program[picked].tolist(),
+            "reference": reference[picked].tolist()}
 
 
 def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[float, ...]] | None:

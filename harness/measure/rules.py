@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from harness.measure.events import Event, _pair_times, _wall_name, _wall_time, seq_event
+from harness.measure.events import Event, pair_times, seq_event, wall_name, wall_time
 
 # Relative (to the step's motion) size of a change that is no rounding: a wrong rule moves a
 # particle by a fraction of its step, rounding by digits far below.
@@ -25,12 +25,12 @@ def reference_event(before: np.ndarray, successor: np.ndarray, i: int, kind: str
     p, v = before[i, :2], before[i, 2:]
     walls: tuple[str, ...] = ()
     if kind == "wall":
-        _, axes = _wall_time(p, v, L, r)
-        walls = tuple(_wall_name(a, v[a]) for a in axes)
+        _, axes = wall_time(p, v, L, r)
+        walls = tuple(wall_name(a, v[a]) for a in axes)
     stopped: tuple[str, ...] = ()
     if kind != "free":
         end, w = successor[i, :2], successor[i, 2:]
-        stopped = tuple(_wall_name(a, w[a]) for a in range(2)
+        stopped = tuple(wall_name(a, w[a]) for a in range(2)
                         if (w[a] > 0 and end[a] == L - r) or (w[a] < 0 and end[a] == r))
     return Event(kind, t, partner if kind == "pair" else None, walls, stopped)
 
@@ -82,7 +82,7 @@ def broken_rule(before: np.ndarray, after: np.ndarray, i: int, event: Event,
         return ("a disc meeting a wall after its collision stops there for the rest of the "
                 f"step (the rules: {event.describe()})")
     if event.kind == "free" and changed[i]:
-        for m in np.flatnonzero(np.isfinite(_pair_times(before, i, r))):
+        for m in np.flatnonzero(np.isfinite(pair_times(before, i, r))):
             if partners[m] not in (-1, i) and changed[m]:
                 return (f"particle {m} takes part in two collisions in one step: with "
                         f"{partners[m]}, which the rules accept first, and with {i}")

@@ -72,6 +72,7 @@ class StepJudgement:
     steps_judged: int = 0
     near_ties: int = 0  # values explained only by a replay that decided otherwise
     partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
+    reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
     details: dict[str, object] = field(default_factory=dict)
 
 
@@ -185,7 +186,7 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     return StepJudgement(reached, k + 1, i, tuple(map(float, states[k][i])),
                          tuple(map(float, states[k + 1][i])), tuple(map(float, base.values[k][i])),
                          event, float(np.max(deviation[k][i])), len(pairs), near_ties,
-                         base.partner[k])
+                         base.partner[k], base.values[k])
 
 
 class _Explainer:

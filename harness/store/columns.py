@@ -98,9 +98,9 @@ STOPPED_CI = "ci"
 STOPPED_MAX_RUNS = "max_runs"
 STOPPED_MAX_TIME = "max_time_s"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME)
-# A program's agreement with seq and the first step it leaves rounding (empty: never), only
-# where some cell is a program's.
-PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
+# A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
+# rounding; empty: never) and the rule that step breaks, only where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule")
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.

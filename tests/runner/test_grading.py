@@ -172,3 +172,59 @@ def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -
     first = sorted(outputs)
     found = agreement.first_difference(first[0], first[1])
     assert found is not None and 0 <= found[0] <= STEPS
+
+
+def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: Path,
+                                                 tmp_path: Path) -> None:
+    """A class of three submissions through the harness: the right one ranks, the slip is wrong
+    at step 2 particle 7 with its figure, the race is nondeterministic; programs.csv has the
+    class table's rows."""
+    import csv
+    import io
+    import shutil
+
+    from harness.executors.base import Options
+    from harness.report import pipeline
+    from harness.runner.experiment import run_experiment
+    from harness.spec.parse import load_config
+
+    for name in ("plain", "slip", "race"):
+        (tmp_path / "submissions" / name).mkdir(parents=True)
+        shutil.copy(programs / name, tmp_path / "submissions" / name / "sim")
+    config = tmp_path / "class.yaml"
+    config.write_text(f"""\
+name: class
+variants: [seq, class]
+programs:
+  class: {{glob: "submissions/*/sim", command: "{{path}} {{threads}} {{input}}"}}
+scene: {{n: {N}, L: {L:g}, r: {R:g}, steps: {STEPS}, seed: {SEED}}}
+threads: [1, 2]
+measure: {{warmup: 0, runs: 1, timeout_s: 120}}
+""")
+    root = tmp_path / "results"
+    loaded = load_config(config)
+    assert [p.name for p in loaded.programs] == ["plain", "race", "slip"]
+    run_experiment(loaded, Options(repo_root=repo.REPO_ROOT, results_root=root), io.StringIO(),
+                   io.StringIO())
+    with (root / "class" / "results.csv").open() as handle:
+        got = {(r["variant"], r["threads"]): r for r in csv.DictReader(handle)}
+    assert got[("plain", "2")]["agreement"] in {IDENTICAL, ROUNDING}
+    slip = got[("slip", "2")]
+    assert (slip["agreement"], slip["first_diff_step"]) == (WRONG, "2")
+    assert "particle 7" in slip["note"] and "moves by its velocity" in slip["rule"]
+    race = got[("race", "2")]
+    assert race["agreement"] == "nondeterministic" and race["status"] == "invalid"
+    assert "differ: first at step" in race["note"]
+    report = pipeline.render(root, tmp_path / "report").read_text()
+    assert "### Programs" in report and "`slip`'s first wrong step (2" in report
+    with (tmp_path / "report" / "figures" / "class-programs.csv").open() as handle:
+        table = list(csv.DictReader(handle))
+    by_name = {row["program"]: row for row in table}
+    assert set(by_name) == {"plain", "slip", "race"}
+    assert by_name["plain"]["rank"] == "1" and by_name["slip"]["rank"] == ""
+    assert (by_name["slip"]["verdict"], by_name["slip"]["first_wrong_step"]) == (WRONG, "2")
+    assert by_name["race"]["repeatable"] == "no"
+    assert float(by_name["plain"]["speedup_vs_seq"]) > 0
+    assert float(by_name["plain"]["efficiency"]) == pytest.approx(
+        float(by_name["plain"]["speedup_vs_1t"]) / 2)
+    assert (tmp_path / "report" / "figures" / "class-wrong-slip.png").is_file()

@@ -98,7 +98,7 @@ validate: true
     _, second = run(config, root)
     assert (second.measured, second.cached) == (0, 14)  # type: ignore[attr-defined]
     report = pipeline.render(root, workdir / "report").read_text()
-    assert "### Programs against seq" in report
+    assert "### Programs" in report
     assert "| slippy |" in report and "wrong from step" in report
     # The summary judges programs by their agreement, apart from the variants' byte identity
     fidelity = report.split("- Fidelity: ", 1)[1].split("\n", 1)[0]
