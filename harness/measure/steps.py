@@ -54,7 +54,7 @@ class Successors:
     t: dict[int, np.ndarray]
 
 
-Replay = Callable[[str], str]  # replay input text -> replay output text
+Replay = Callable[[bytes], str]  # replay input (replay_input) -> replay output text
 
 
 @dataclass(frozen=True)
@@ -99,18 +99,21 @@ def _half_unit_exp(token: str) -> float:
         return 0.5 * 10.0 ** -decimals
 
 
-def replay_text(n: int, L: float, r: float, states: list[tuple[int, np.ndarray]],
-                show: list[np.ndarray | None]) -> str:
-    """The `--replay` input of (label, (n, 4) values) states; show[k] the particles whose
-    successor is wanted (None: all)."""
-    lines = [f"{n} {L!r} {r!r}\n"]
-    index = np.arange(n)
+REPLAY_MAGIC = b"CBREPLAY"  # variants/core/sim_replay.c's binary form
+
+
+def replay_input(n: int, L: float, r: float, states: list[tuple[int, np.ndarray]],
+                 show: list[np.ndarray | None]) -> bytes:
+    """The `--replay` input (its binary form) of (label, (n, 4) values) states; show[k] the
+    particles whose successor is wanted (None: all)."""
+    parts = [REPLAY_MAGIC, np.array([n], dtype=np.int64).tobytes(),
+             np.array([L, r], dtype=np.float64).tobytes()]
+    every = np.ones(n, dtype=np.uint8)
     for (label, values), wanted in zip(states, show, strict=True):
-        flag = np.ones(n, dtype=np.int64) if wanted is None else wanted.astype(np.int64)
-        frame = pd.DataFrame({"k": label, "i": index, "x": values[:, 0], "y": values[:, 1],
-                              "vx": values[:, 2], "vy": values[:, 3], "p": flag})
-        lines.append(frame.to_csv(sep=" ", header=False, index=False, float_format="%.17g"))
-    return "".join(lines)
+        parts.append(np.array([label], dtype=np.int64).tobytes())
+        parts.append(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        parts.append(every.tobytes() if wanted is None else wanted.astype(np.uint8).tobytes())
+    return b"".join(parts)
 
 
 def read_successors(text: str, n: int) -> Successors:
@@ -147,7 +150,7 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     if not pairs:
         return StepJudgement(None)
     slack = ARITH_ULPS * DOUBLE_EPS * L
-    base = read_successors(replay(replay_text(n, L, r, [(k, states[k]) for k in pairs],
+    base = read_successors(replay(replay_input(n, L, r, [(k, states[k]) for k in pairs],
                                               [None] * len(pairs))), n)
     # Per step: which particles are not yet explained, and how far off they are.
     open_: dict[int, np.ndarray] = {}
@@ -221,7 +224,7 @@ class _Explainer:
                 sign[second if c >= COPIES // 2 else ~second, c % 4] = 1.0
                 copies.append(((c + 1) * stride + k, self.states[k] + sign * amp[k]))
                 show.append(open_[k])
-        text = replay_text(self.n, self.L, self.r, copies, show)
+        text = replay_input(self.n, self.L, self.r, copies, show)
         perturbed = read_successors(self.replay(text), n)
         still: dict[int, np.ndarray] = {}
         for k in steps:

@@ -24,11 +24,11 @@ SEQ = """\
 SEQ_BINARY = repo.REPO_ROOT / "build" / "seq"
 
 
-def replay(text: str) -> str:
+def replay(data: bytes) -> str:
     if not SEQ_BINARY.is_file():
         pytest.skip("build/seq is not built (make all)")
-    return subprocess.run([str(SEQ_BINARY), "--replay"], input=text, capture_output=True,
-                          text=True, check=True).stdout
+    return subprocess.run([str(SEQ_BINARY), "--replay"], input=data, capture_output=True,
+                          check=True).stdout.decode()
 
 
 def rows(fmt: str, changes: dict[tuple[int, int], str] | None = None,

@@ -58,10 +58,10 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def replay_by(seq: Path) -> Callable[[str], str]:
-    def replay(text: str) -> str:
-        return subprocess.run([str(seq), "--replay"], input=text, capture_output=True,
-                              text=True, check=True).stdout
+def replay_by(seq: Path) -> Callable[[bytes], str]:
+    def replay(data: bytes) -> str:
+        return subprocess.run([str(seq), "--replay"], input=data, capture_output=True,
+                              check=True).stdout.decode()
     return replay
 
 
