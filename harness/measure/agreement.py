@@ -311,11 +311,14 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     the input's exact state, which a program that prints it within rounding holds: its first
     step is judged from there, with no uncertainty (an exact tie in the input is one)."""
     states, halves = _program_states(ours, inside, n)
+    exact: frozenset[int] = frozenset()
     if initial is not None and 0 in states:
-        states[0], halves[0] = initial, np.zeros_like(initial)
+        # Its arithmetic may still round otherwise than the reference's: ARITH_ULPS of L.
+        states[0], halves[0] = initial, np.full_like(initial, ARITH_ULPS * DOUBLE_EPS * L)
+        exact = frozenset({0})
     broken = _first_not_finite(ours, inside)
     judgeable = any(k + 1 in states for k in states)
-    found = judge_steps(states, halves, n, L, r, replay) if judgeable else None
+    found = judge_steps(states, halves, n, L, r, replay, exact) if judgeable else None
     if broken is not None and (found is None or found.wrong_step is None
                                or broken[0] < found.wrong_step):
         step, i, values = broken

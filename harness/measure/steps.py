@@ -143,9 +143,10 @@ def read_successors(text: str, n: int) -> Successors:
 
 
 def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int, L: float,
-                r: float, replay: Replay) -> StepJudgement:
+                r: float, replay: Replay, exact: frozenset[int] = frozenset()) -> StepJudgement:
     """Judge every printed step k + 1 whose step k is printed too. `states[k]` is the program's
-    (n, 4) state at step k, `halves[k]` the half-units of its printed values."""
+    (n, 4) state at step k, `halves[k]` the half-units of its printed values (for a state in
+    `exact`, known exactly, the size of its arithmetic's roundings: no decision flips there)."""
     pairs = [k for k in sorted(states) if k + 1 in states]
     if not pairs:
         return StepJudgement(None)
@@ -162,7 +163,7 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
         suspect = np.any(dev > halves[k + 1] + slack, axis=1)
         if suspect.any():
             open_[k] = suspect
-    explain = _Explainer(states, halves, n, L, r, replay, base, deviation)
+    explain = _Explainer(states, halves, n, L, r, replay, base, deviation, exact)
     open_ = explain(None, open_)
     reached: float | None = None
     if open_:
@@ -198,8 +199,9 @@ class _Explainer:
 
     def __init__(self, states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int,
                  L: float, r: float, replay: Replay, base: Successors,
-                 deviation: dict[int, np.ndarray]) -> None:
+                 deviation: dict[int, np.ndarray], exact: frozenset[int]) -> None:
         self.states, self.halves, self.n, self.L, self.r = states, halves, n, L, r
+        self.exact = exact
         self.replay, self.base, self.deviation = replay, base, deviation
         self.slack = ARITH_ULPS * DOUBLE_EPS * L
         self.near_ties = 0
@@ -234,7 +236,7 @@ class _Explainer:
             tie = np.zeros(len(rows), dtype=bool)
             # A state known exactly (the input, as the program holds it) has no near-ties: a
             # coarser precision explains the values of its decisions, never other decisions.
-            exact = not np.any(self.halves[k])
+            exact = k in self.exact
             for c in range(COPIES):
                 label = (c + 1) * stride + k
                 other = ((perturbed.kind[label][rows] != self.base.kind[k][rows])
