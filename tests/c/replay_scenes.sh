@@ -75,6 +75,31 @@ if [ "$("$B/seq" --replay "$TMP/flags" | cut -d' ' -f2 | tr '\n' ' ')" = "1 3 " 
     bad "seq --replay with print flags printed other particles"
 fi
 
+# 3b. The binary form gives what the text form gives (a copy of the states with flags).
+python3 - "$TMP/states" "$TMP/states.bin" <<'PY'
+import struct, sys
+lines = open(sys.argv[1]).read().split("\n")
+n, L, r = lines[0].split()
+out = [b"CBREPLAY", struct.pack("=qdd", int(n), float(L), float(r))]
+rows = [line.split() for line in lines[1:] if line.strip()]
+for k in range(0, len(rows), int(n)):
+    state = rows[k:k + int(n)]
+    out.append(struct.pack("=q", int(state[0][0])))
+    out += [struct.pack("=dddd", *map(float, row[2:6])) for row in state]
+    out.append(bytes(i % 2 for i in range(int(n))))
+open(sys.argv[2], "wb").write(b"".join(out))
+PY
+"$B/seq" --replay "$TMP/states" | awk '$2 % 2 == 1' >"$TMP/want"
+"$B/seq" --replay "$TMP/states.bin" >"$TMP/got"
+if cmp -s "$TMP/got" "$TMP/want"; then ok; else bad "seq --replay of the binary form differs from the text form"; fi
+head -c 100 "$TMP/states.bin" >"$TMP/short.bin"
+rc=0
+"$B/seq" --replay "$TMP/short.bin" >"$TMP/out" 2>"$TMP/err" || rc=$?
+if [ "$rc" = 2 ] && [ ! -s "$TMP/out" ] && [ "$(wc -l <"$TMP/err")" = 1 ] &&
+    grep -q '^seq: replay: binary state 1 is cut short' "$TMP/err"; then ok; else
+    bad "a cut-short binary state: status $rc, stderr $(head -c 200 "$TMP/err")"
+fi
+
 # 4. Bad input.
 bad_input() {  # WHAT TEXT
     local rc=0

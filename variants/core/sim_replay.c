@@ -119,7 +119,7 @@ static int read_scene(const char *name, replay_reader *rd, sim_header *h)
     size_t len[4];
     const int count = next_line(rd, tok, len, 3);
     if (count != 3)
-        return bad(name, rd->line, "expected the scene line `N L r`");
+        return bad(name, rd->line > 0 ? rd->line : 1, "expected the scene line `N L r`");
     long long n;
     if (!to_long(tok[0], len[0], 0, SIM_N_MAX, &n))
         return bad(name, rd->line, "N must be an integer in [0, 2^31)");
