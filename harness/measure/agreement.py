@@ -61,9 +61,6 @@ class Rows:
         return len(self.step)
 
 
-INTEGER = r"[+-]?\d+"
-
-
 def read_rows(text: str) -> Rows:
     """The rows of an output, whoever printed it: pandas' C reader where every line is such
     a row (the common case, a thousand times faster), else line by line."""
@@ -77,7 +74,8 @@ def _read_rows_fast(text: str) -> Rows | None:
         return None
     try:
         frame = pd.read_csv(io.StringIO(text), sep=r"\s+", header=None, dtype=str,
-                            names=list(range(FINAL_FIELDS)), engine="c")
+                            names=list(range(FINAL_FIELDS)), engine="c", keep_default_na=False,
+                            na_values=[""])
     except (ValueError, pd.errors.ParserError):
         return None
     present = frame.notna().to_numpy()
@@ -85,17 +83,15 @@ def _read_rows_fast(text: str) -> Rows | None:
     if not np.all((width == HISTORY_FIELDS) | (width == FINAL_FIELDS)) or not np.all(
             present[:, :HISTORY_FIELDS]):
         return None
-    ints = [frame[c] for c in (0, 1)] + [frame[c].dropna() for c in (6, 7)]
-    if not all(col.str.fullmatch(INTEGER).all() for col in ints):
-        return None
-    numbers = frame[[2, 3, 4, 5]].apply(pd.to_numeric, errors="coerce").to_numpy(np.float64)
-    if np.isnan(numbers).any():  # a NaN printed, or a token float() might read otherwise
-        return None
-    step = frame[0].astype(np.int64).to_numpy()
-    index = frame[1].astype(np.int64).to_numpy()
-    counts = np.full((len(frame), 2), -1, dtype=np.int64)
     final = width == FINAL_FIELDS
-    counts[final] = frame.loc[final, [6, 7]].astype(np.int64).to_numpy()
+    try:  # numpy's conversions, in C: int() refuses '1.0', float() reads 'nan' and 'inf'
+        step = frame[0].to_numpy(dtype=object).astype(np.int64)
+        index = frame[1].to_numpy(dtype=object).astype(np.int64)
+        numbers = frame[[2, 3, 4, 5]].to_numpy(dtype=object).astype(np.float64)
+        counts = np.full((len(frame), 2), -1, dtype=np.int64)
+        counts[final] = frame.loc[final, [6, 7]].to_numpy(dtype=object).astype(np.int64)
+    except (ValueError, OverflowError):
+        return None
     # The last line of each (step, index) stands, kept in the order of their first lines.
     key = pd.DataFrame({"s": step, "i": index})
     last = ~key.duplicated(keep="last").to_numpy()

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 
+import numpy as np
 import pytest
 from harness import repo
 from harness.measure import agreement
@@ -150,3 +151,22 @@ def test_printed_like_compares_at_the_tokens_precision() -> None:
     assert not agreement.printed_like("12.345", 12.3456)
     assert agreement.printed_like("1.23e+02", 123.4)
     assert agreement.printed_like("-0.000", -1e-9)
+
+
+@pytest.mark.parametrize("text", [
+    rows("%.6f"),
+    rows("%.17g") + rows("%.3f"),  # every row printed twice: the later stands
+    "0 0 1e-3 2 3 nan\n0 1 +4 5 6 inf\n1 0 1 2 3 4 5 6\n",
+])
+def test_the_fast_reader_reads_what_the_line_reader_reads(text: str) -> None:
+    fast, slow = agreement._read_rows_fast(text), agreement._read_rows_by_line(text)
+    assert fast is not None
+    assert fast.tokens == slow.tokens
+    for name in ("step", "index", "values", "counts"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+
+
+def test_lines_that_are_no_rows_leave_the_fast_reader() -> None:
+    assert agreement._read_rows_fast("0 0 1 2 3 four\n") is None
+    assert agreement._read_rows_fast("0 0.5 1 2 3 4\n") is None
+    assert agreement._read_rows_fast("hello\n" + rows("%.6f")) is None
