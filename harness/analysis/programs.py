@@ -1,14 +1,27 @@
 """Programs (implementations written elsewhere, `programs:` in a config) as the report shows
-them: the rows that are a program's (they carry an agreement with seq), and one line per
-program cell with its agreement, the first step it leaves rounding and what it and seq did
-there (the cell's note)."""
+them: the rows that are a program's (they carry a verdict), one line per program cell with
+its verdict, step and what it and the reference did there (the cell's note), and the class
+table: one row per program, for a gradebook."""
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
-from harness.store.columns import AGREEMENTS
+from harness.spec.variants import BASELINE
+from harness.store.columns import (
+    AGREEMENT_FAILED,
+    AGREEMENTS,
+    CORRECT,
+    DIFFERS,
+    DIVERGES,
+    IDENTICAL,
+    IMPRECISE,
+    NONDETERMINISTIC,
+    ROUNDING,
+    WRONG,
+)
 
 PROGRAM_KEYS = ("variant", "scene", "n", "L", "r", "steps", "threads")
 
@@ -38,3 +51,65 @@ def program_table(df: pd.DataFrame) -> pd.DataFrame:
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
     table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
     return sort_cells(table, keys)
+
+
+# A program's verdict over its cells, the worst first: what a class table shows for it.
+VERDICT_ORDER: tuple[str, ...] = (NONDETERMINISTIC, WRONG, DIFFERS, AGREEMENT_FAILED, IMPRECISE,
+                                  DIVERGES, CORRECT, ROUNDING, IDENTICAL)
+# Verdicts whose times rank: a program that is right (at some precision).
+RANKED: frozenset[str] = frozenset({IMPRECISE, DIVERGES, CORRECT, ROUNDING, IDENTICAL})
+CLASS_KEYS = ("scene", "n", "L", "r", "steps")
+
+
+def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
+    """One row per program and scene, for grading a class: its verdict (the worst of its
+    cells), first wrong step, particle-free rule, whether its runs were repeatable, its median
+    time at each thread count, its speedup against seq (seq's fastest median on the scene)
+    and against its own 1-thread time at its highest thread count, that speedup's efficiency,
+    and its rank by time at its highest thread count among the programs that are right."""
+    rows = df[is_program(df)]
+    keys = [k for k in CLASS_KEYS if k in df.columns]
+    out = []
+    for (variant, *scene), cells in rows.groupby(["variant", *keys], sort=True, dropna=False):
+        verdicts = [v for v in VERDICT_ORDER if v in set(cells["agreement"])]
+        verdict = verdicts[0] if verdicts else str(cells["agreement"].iloc[0])
+        worst = cells[cells["agreement"] == verdict].sort_values("threads").iloc[0]
+        step = worst.get("first_diff_step")
+        row: dict[str, object] = {"program": variant, **dict(zip(keys, scene, strict=True)),
+                                  "verdict": verdict,
+                                  "first_wrong_step": (int(step) if verdict == WRONG
+                                                       and pd.notna(step) else None),
+                                  "rule": (str(worst.get("rule")) if verdict == WRONG
+                                           and pd.notna(worst.get("rule")) else ""),
+                                  "repeatable": ("no" if verdict == NONDETERMINISTIC else "yes")}
+        times = cells.set_index("threads")["wall_median_s"].dropna()
+        for threads, seconds in times.sort_index().items():
+            row[f"time_{int(threads)}t_s"] = float(seconds)
+        same = df[(df["variant"] == baseline)]
+        for key, value in zip(keys, scene, strict=True):
+            same = same[same[key] == value]
+        seq_s = same["wall_median_s"].dropna().min() if len(same) else np.nan
+        top = int(times.index.max()) if len(times) else None
+        row["threads_max"] = top
+        fastest = float(times[top]) if top is not None else np.nan
+        row["speedup_vs_seq"] = seq_s / fastest if top is not None and seq_s > 0 else np.nan
+        self_1 = float(times[1]) if 1 in times.index else np.nan
+        row["speedup_vs_1t"] = self_1 / fastest if top is not None else np.nan
+        row["efficiency"] = row["speedup_vs_1t"] / top if top else np.nan
+        out.append(row)
+    table = pd.DataFrame(out)
+    if not len(table):
+        return table
+    right = table["verdict"].isin(RANKED)
+    times_at_max = [row.get(f"time_{int(row['threads_max'])}t_s", np.nan)
+                    if pd.notna(row["threads_max"]) else np.nan for _, row in table.iterrows()]
+    table["rank"] = pd.Series(np.where(right, times_at_max, np.nan)).rank(
+        method="min").astype("Int64")
+    table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
+    time_columns = sorted((c for c in table.columns if c.startswith("time_")),
+                          key=lambda c: int(c[5:-3]))
+    order = ["program", *keys, "verdict", "first_wrong_step", "rule", "repeatable",
+             *time_columns, "threads_max", "speedup_vs_seq", "speedup_vs_1t", "efficiency",
+             "rank"]
+    return table[order].sort_values(["rank", "program"], na_position="last").reset_index(
+        drop=True)

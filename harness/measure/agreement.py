@@ -1,4 +1,4 @@
-"""A program's output against seq's, step by step (pure: texts in, a verdict out).
+"""A program's output against seq's (pure: texts and a replay in, a verdict out).
 
 Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` and matched on (step,
 index); rows only one side prints are ignored (a program that prints its initial state, or
@@ -10,35 +10,38 @@ program that orders its arithmetic differently). The verdict (store.columns.AGRE
 * identical: every value is what seq's prints as at the program's precision, and the
   collision counts agree;
 * rounding: every value within rounding, at every step;
-* diverges: within rounding at first; where it first leaves rounding, by no more than seq's
-  f32 build has drifted from seq by then on the same scene: what a change of precision alone
-  does to a chaotic system;
-* differs: beyond rounding from the first state compared, or by more than that drift (a
-  different rule, or a bug), or other collision counts at the end;
-* failed: nothing to compare (no output, no readable line, too few particles, no final state).
-
-The first step outside rounding names its particle, both sides' values and what seq did with
-that particle in that step (harness.measure.events).
+* otherwise the program is judged step by step (harness.measure.steps): each printed step from
+  the program's own state before it, by the reference's `--replay`. correct: every step locally
+  right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
+  right only at a coarser precision, named; wrong: a step no precision explains, with its
+  particle, both states, the reference's event and the rule broken where the program's states
+  show it (harness.measure.rules). A state at step 0 other than the input is wrong at step 0;
+* failed: nothing to compare (no output, no readable line, too few particles, no final state,
+  no two consecutive steps printed to judge).
 """
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
-from harness.measure.events import seq_event
+from harness.measure import rules
+from harness.measure.events import pair_times, seq_event
+from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, half_units, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
 from harness.store.columns import (
     AGREEMENT_FAILED,
-    DIFFERS,
-    DIVERGES,
+    CORRECT,
     IDENTICAL,
+    IMPRECISE,
     ROUNDING,
+    WRONG,
 )
 
-ARITH_ULPS = 64.0
 QUOTE_CHARS = 60
 
 
@@ -59,7 +62,47 @@ class Rows:
 
 
 def read_rows(text: str) -> Rows:
-    """The rows of an output, whoever printed it."""
+    """The rows of an output, whoever printed it: pandas' C reader where every line is such
+    a row (the common case, a thousand times faster), else line by line."""
+    fast = _read_rows_fast(text)
+    return fast if fast is not None else _read_rows_by_line(text)
+
+
+def _read_rows_fast(text: str) -> Rows | None:
+    """read_rows where every non-blank line is a row of plain numbers; None otherwise."""
+    if not text.strip():
+        return None
+    try:
+        frame = pd.read_csv(io.StringIO(text), sep=r"\s+", header=None, dtype=str,
+                            names=list(range(FINAL_FIELDS)), engine="c", keep_default_na=False,
+                            na_values=[""])
+    except (ValueError, pd.errors.ParserError):
+        return None
+    present = frame.notna().to_numpy()
+    width = present.sum(axis=1)
+    if not np.all((width == HISTORY_FIELDS) | (width == FINAL_FIELDS)) or not np.all(
+            present[:, :HISTORY_FIELDS]):
+        return None
+    final = width == FINAL_FIELDS
+    try:  # numpy's conversions, in C: int() refuses '1.0', float() reads 'nan' and 'inf'
+        step = frame[0].to_numpy(dtype=object).astype(np.int64)
+        index = frame[1].to_numpy(dtype=object).astype(np.int64)
+        numbers = frame[[2, 3, 4, 5]].to_numpy(dtype=object).astype(np.float64)
+        counts = np.full((len(frame), 2), -1, dtype=np.int64)
+        counts[final] = frame.loc[final, [6, 7]].to_numpy(dtype=object).astype(np.int64)
+    except (ValueError, OverflowError):
+        return None
+    # The last line of each (step, index) stands, kept in the order of their first lines.
+    key = pd.DataFrame({"s": step, "i": index})
+    last = ~key.duplicated(keep="last").to_numpy()
+    first = key.groupby(["s", "i"], sort=False).ngroup().to_numpy()
+    order = np.argsort(first[last], kind="stable")
+    rows = np.flatnonzero(last)[order]
+    tokens = list(map(tuple, frame[[2, 3, 4, 5]].to_numpy()[rows]))
+    return Rows(step[rows], index[rows], numbers[rows], tokens, counts[rows])
+
+
+def _read_rows_by_line(text: str) -> Rows:
     kept: dict[tuple[int, int], int] = {}
     steps, indices, values, tokens, counts = [], [], [], [], []
     ignored, first_ignored = 0, ""
@@ -123,6 +166,23 @@ def printed_like(token: str, value: float) -> bool:
         return False
 
 
+def _printed_like_all(tokens: np.ndarray, values: np.ndarray) -> bool:
+    """printed_like for every token and value, a column format at a time where the tokens
+    of a column share their decimals."""
+    for column in range(tokens.shape[1]):
+        texts, numbers = tokens[:, column], values[:, column]
+        point = np.char.find(texts, ".")
+        decimals = np.where(point >= 0, np.char.str_len(texts) - point - 1, 0)
+        plain = np.char.find(np.char.lower(texts), "e") < 0
+        if plain.all() and (decimals == decimals[0]).all():
+            redone = np.char.mod(f"%.{int(decimals[0])}f", numbers).astype(np.float64)
+            if not np.array_equal(redone, texts.astype(np.float64)):
+                return False
+        elif not all(printed_like(t, float(v)) for t, v in zip(texts, numbers, strict=True)):
+            return False
+    return True
+
+
 @dataclass(frozen=True)
 class Agreement:
     verdict: str
@@ -130,9 +190,10 @@ class Agreement:
     particle: int | None = None
     program_values: tuple[float, ...] = ()
     seq_values: tuple[float, ...] = ()
-    deviation: float | None = None  # the largest difference at the first step outside rounding
-    envelope: float | None = None  # how far seq's f32 build had drifted from seq by then
-    seq_did: str = ""
+    deviation: float | None = None  # the largest difference at the step named
+    precision: float | None = None  # imprecise: the uncertainty (a fraction of L) it needs
+    seq_did: str = ""  # the reference's event for the particle in the step named
+    rule: str = ""  # wrong: the rule the step breaks, where the program's states show it
     steps_compared: int = 0
     note: str = ""
     details: dict[str, object] = field(default_factory=dict)
@@ -140,10 +201,11 @@ class Agreement:
     def fields(self) -> dict[str, object]:
         """What a cell's record keeps."""
         return {"agreement": self.verdict, "first_diff_step": self.first_diff_step,
+                "rule": self.rule,
                 "agreement_detail": {
                     "particle": self.particle, "program": list(self.program_values),
                     "seq": list(self.seq_values), "deviation": self.deviation,
-                    "envelope": self.envelope, "seq_did": self.seq_did,
+                    "precision": self.precision, "seq_did": self.seq_did, "rule": self.rule,
                     "steps_compared": self.steps_compared, **self.details}}
 
 
@@ -155,10 +217,10 @@ def _keys(rows: Rows, n: int) -> np.ndarray:
     return rows.step * (n + 1) + rows.index
 
 
-def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: float,
-          r: float) -> Agreement:
+def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
+          replay: Replay) -> Agreement:
     """The verdict on a program's print-mode output against seq's (`--precise`) on the same
-    input of n particles and `steps` steps; seq's f32 build's output measures the drift."""
+    input of n particles and `steps` steps; `replay` runs the reference's `--replay`."""
     if not program.strip():
         return _failed("printed nothing on stdout")
     ours = read_rows(program)
@@ -186,7 +248,8 @@ def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: fl
     p, q = ours.values[mine], theirs.values[match]
     step_of = ours.step[mine]
     slack = ARITH_ULPS * DOUBLE_EPS * L
-    tolerance = np.array([[half_unit(t) for t in ours.tokens[k]] for k in mine]) + slack
+    printed = np.array(ours.tokens, dtype=str).reshape(-1, 4)[mine]
+    tolerance = half_units(printed) + slack
     with np.errstate(invalid="ignore"):
         deviation = np.where(np.isfinite(p), np.abs(p - q), np.inf)
     outside = np.any(deviation > tolerance, axis=1)
@@ -200,13 +263,13 @@ def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: fl
         if len(wrong):
             k = int(wrong[0])
             i = int(ours.index[mine[k]])
-            return Agreement(DIFFERS, steps, i, steps_compared=compared, details=extra,
+            return Agreement(WRONG, steps, i, steps_compared=compared, details=extra,
+                             rule="the collision counts are those of the rules",
                              note=f"every position and velocity within rounding, but particle "
                                   f"{i} ends with pcoll wcoll {count_p[k, 0]} "
                                   f"{count_p[k, 1]} where seq counts {count_q[k, 0]} "
                                   f"{count_q[k, 1]}")
-        same = all(printed_like(t, float(v)) for k, row in zip(mine, q, strict=True)
-                   for t, v in zip(ours.tokens[k], row, strict=True))
+        same = _printed_like_all(printed, q)
         verdict = IDENTICAL if same else ROUNDING
         return Agreement(verdict, steps_compared=compared, details=extra,
                          note="" if same else "within rounding of seq at every step")
@@ -215,19 +278,154 @@ def judge(program: str, seq: str, seq_f32: str | None, n: int, steps: int, L: fl
     k = int(np.flatnonzero(at)[np.argmin(ours.index[mine][at])])
     particle = int(ours.index[mine[k]])
     worst = float(deviation[at].max())
-    envelope = _envelope(theirs, seq_f32, n, first) if seq_f32 is not None else 0.0
-    from_start = first == int(step_of.min())
-    verdict = DIVERGES if (not from_start and worst <= envelope) else DIFFERS
-    did = _seq_did(theirs, n, first, particle, L, r)
-    why = ("from the first state compared" if from_start else
-           f"by up to {worst:.3g}, more than seq's f32 build drifts by then ({envelope:.3g})"
-           if verdict == DIFFERS else
-           f"by up to {worst:.3g}, within the drift of seq's f32 build by then "
-           f"({envelope:.3g})")
-    note = (f"leaves rounding at step {first} {why}: particle {particle} is "
-            f"{_values(p[k])} where seq has {_values(q[k])}; seq in that step: {did}")
-    return Agreement(verdict, first, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
-                     worst, envelope, did, compared, note, extra)
+    level0 = None
+    if first == 0:
+        # The input as the program holds it: within its printing, or a coarser precision's
+        # rounding of the input (a float program), or not the input at all.
+        zero = step_of == 0
+        level0 = next((u for u in PRECISION_LADDER
+                       if not np.any(deviation[zero] > tolerance[zero] + u * L)), None)
+        if level0 is None:
+            return Agreement(WRONG, 0, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
+                             worst, seq_did="nothing yet (the initial state, as the input lists "
+                             "it)", steps_compared=compared, details=extra,
+                             rule="the state at step 0 is the input's",
+                             note=f"wrong at step 0: particle {particle} is {_values(p[k])} "
+                                  f"where the input has {_values(q[k])}; rule: the state at "
+                                  "step 0 is the input's")
+    initial = _state(theirs, n, 0) if level0 is None else None
+    return _step_local(ours, inside, n, L, r, replay, compared, extra,
+                       f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0,
+                       initial)
+
+
+def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, replay: Replay,
+                compared: int, extra: dict[str, object], departure: str,
+                level0: float | None, initial: np.ndarray | None) -> Agreement:
+    """The verdict of the step-local check on a program that leaves seq's rounding; its
+    state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
+    the input's exact state, which a program that prints it within rounding holds: its first
+    step is judged from there, with no uncertainty (an exact tie in the input is one)."""
+    states, halves = _program_states(ours, inside, n)
+    exact: frozenset[int] = frozenset()
+    if initial is not None and 0 in states:
+        # Its arithmetic may still round otherwise than the reference's: ARITH_ULPS of L.
+        states[0], halves[0] = initial, np.full_like(initial, ARITH_ULPS * DOUBLE_EPS * L)
+        exact = frozenset({0})
+    broken = _first_not_finite(ours, inside)
+    judgeable = any(k + 1 in states for k in states)
+    found = judge_steps(states, halves, n, L, r, replay, exact) if judgeable else None
+    if broken is not None and (found is None or found.wrong_step is None
+                               or broken[0] < found.wrong_step):
+        step, i, values = broken
+        return Agreement(WRONG, step, i, values, steps_compared=compared, details=extra,
+                         note=f"wrong at step {step}: particle {i} is {_values(np.array(values))}"
+                              "; rule: every coordinate and velocity is a finite number",
+                         rule="every coordinate and velocity is a finite number")
+    if found is None:
+        return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
+                       "step by step (print every step in the check command)")
+    detail = {**extra, "near_ties": found.near_ties, "steps_judged": found.steps_judged}
+    ladder = ", ".join(f"{level:g}" for level in PRECISION_LADDER)
+    levels = [u for u in (level0, found.level) if u is not None]
+    level = max(levels) if levels else None
+    if found.wrong_step is None:
+        ties = (f"; {found.near_ties} value(s) follow a decision the reference takes within the "
+                "printed uncertainty (near-ties)" if found.near_ties else "")
+        if level is None:
+            return Agreement(CORRECT, steps_compared=compared, details=detail,
+                             note=f"every step locally right at the printed precision; it "
+                                  f"{departure}: chaos (any change of rounding grows at every "
+                                  f"collision){ties}")
+        return Agreement(IMPRECISE, precision=level, steps_compared=compared,
+                         details=detail,
+                         note=f"every step locally right only to {level:g} of L, coarser "
+                              f"than it prints (levels tried: {ladder}); it {departure}{ties}")
+    k, i = found.wrong_step, int(found.particle or 0)
+    assert found.reference_event is not None
+    kind, partner, t = found.reference_event
+    reference = np.array(found.reference_values)
+    event = rules.reference_event(states[k - 1], _with_row(states[k - 1], i, reference), i, kind,
+                                  partner, t, L, r)
+    partners = found.partners if found.partners is not None else np.full(n, -1)
+    rule = rules.broken_rule(states[k - 1], states[k], i, event, reference, partners, L,
+                             r) or ""
+    note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
+            f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
+            f", to {_values(reference)}; the reference in that step: {event.describe()}"
+            + (f"; rule: {rule}" if rule else ""))
+    if found.reference_state is not None:
+        detail["neighbourhood"] = neighbourhood(states[k - 1], states[k], found.reference_state,
+                                                i, partners, r)
+    return Agreement(WRONG, k, i, found.program_values, found.reference_values, found.deviation,
+                     level, event.describe(), rule, compared, note, detail)
+
+
+NEIGHBOURS = 8  # the most partners the wrong step's figure shows beside the particle
+
+
+def neighbourhood(before: np.ndarray, program: np.ndarray, reference: np.ndarray, i: int,
+                  partners: np.ndarray, r: float) -> dict[str, object]:
+    """What the figure of a wrong step draws: the particle, its partner in the reference's
+    step and those it could meet in the step (its pair candidates), before the step, as the
+    program has them after it and as the rules do."""
+    near = [int(j) for j in np.flatnonzero(np.isfinite(pair_times(before, i, r)))]
+    picked = list(dict.fromkeys([i, *([int(partners[i])] if partners[i] >= 0 else []),
+                                 *sorted(near, key=lambda j: float(np.hypot(
+                                     *(before[j, :2] - before[i, :2]))))]))[:NEIGHBOURS + 1]
+    return {"particles": picked, "r": r,
+            "before": before[picked].tolist(), "program": program[picked].tolist(),
+            "reference": reference[picked].tolist()}
+
+
+def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[float, ...]] | None:
+    """The first (step, particle, values) with a value that is not a finite number."""
+    bad = np.flatnonzero(inside & ~np.all(np.isfinite(rows.values), axis=1))
+    if not len(bad):
+        return None
+    k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
+    return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
+
+
+def _with_row(state: np.ndarray, i: int, row: np.ndarray) -> np.ndarray:
+    out = state.copy()
+    out[i] = row
+    return out
+
+
+def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
+                                                                   dict[int, np.ndarray]]:
+    """Every complete printed state of the program (n, 4) by step, and the half-units of its
+    printed values."""
+    states: dict[int, np.ndarray] = {}
+    halves: dict[int, np.ndarray] = {}
+    tokens = np.array(rows.tokens, dtype=str).reshape(-1, 4)
+    for step in np.unique(rows.step[inside]):
+        at = np.flatnonzero(inside & (rows.step == step))
+        if len(at) != n:
+            continue
+        state, half = np.empty((n, 4)), np.empty((n, 4))
+        state[rows.index[at]] = rows.values[at]
+        half[rows.index[at]] = half_units(tokens[at])
+        if np.all(np.isfinite(state)):
+            states[int(step)] = state
+            halves[int(step)] = half
+    return states, halves
+
+
+def first_difference(a: str, b: str) -> tuple[int, int, str, str] | None:
+    """The first (step, particle) whose printed values differ between two outputs of one
+    program, with both as printed; None when they print the same rows."""
+    one, two = read_rows(a), read_rows(b)
+    left = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(one.step, one.index, strict=True))}
+    right = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(two.step, two.index, strict=True))}
+    for key in sorted(left.keys() | right.keys()):
+        x, y = left.get(key), right.get(key)
+        tx = " ".join(one.tokens[x]) if x is not None else "nothing"
+        ty = " ".join(two.tokens[y]) if y is not None else "nothing"
+        if tx != ty:
+            return key[0], key[1], f"({tx})", f"({ty})"
+    return None
 
 
 def _values(row: np.ndarray) -> str:
@@ -258,19 +456,3 @@ def _seq_did(seq: Rows, n: int, step: int, particle: int, L: float, r: float) ->
         return "unknown (seq's states around it are not both printed)"
     event = seq_event(before, after, particle, L, r)
     return event.describe() if event is not None else "a move no candidate of SPEC reproduces"
-
-
-def _envelope(seq: Rows, seq_f32: str, n: int, until: int) -> float:
-    """The largest difference between seq's f32 build and seq at any step up to `until`."""
-    f32 = read_rows(seq_f32)
-    at = {int(k): j for j, k in enumerate(_keys(f32, n))}
-    keep = (seq.step <= until)
-    rows = np.flatnonzero(keep)
-    match = np.array([at.get(int(k), -1) for k in _keys(seq, n)[rows]], dtype=np.int64)
-    rows, match = rows[match >= 0], match[match >= 0]
-    if not len(rows):
-        return 0.0
-    with np.errstate(invalid="ignore"):
-        gap = np.abs(f32.values[match] - seq.values[rows])
-    gap = gap[np.isfinite(gap)]
-    return float(gap.max()) if gap.size else 0.0

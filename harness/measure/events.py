@@ -39,11 +39,11 @@ class Event:
         return text
 
 
-def _wall_name(axis: int, velocity: float) -> str:
+def wall_name(axis: int, velocity: float) -> str:
     return f"{AXES[axis]} = {'L - r' if velocity > 0 else 'r'}"
 
 
-def _wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, list[int]]:
+def wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, list[int]]:
     """SPEC's wall time of one particle and the axes that hit at it (inf, [] for none)."""
     times = []
     for axis in range(2):
@@ -60,17 +60,17 @@ def _wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float,
 def _finish(p: np.ndarray, v: np.ndarray, rest: float, L: float,
             r: float) -> tuple[np.ndarray, tuple[str, ...]]:
     """finish(rest): a wall met after the collision stops the particle there."""
-    tw, axes = _wall_time(p, v, L, r)
+    tw, axes = wall_time(p, v, L, r)
     tw = max(tw, 0.0)
     if tw < rest:
         p = p + tw * v
         for axis in axes:
             p[axis] = L - r if v[axis] > 0 else r
-        return p, tuple(_wall_name(a, v[a]) for a in axes)
+        return p, tuple(wall_name(a, v[a]) for a in axes)
     return p + rest * v, ()
 
 
-def _pair_times(state: np.ndarray, i: int, r: float) -> np.ndarray:
+def pair_times(state: np.ndarray, i: int, r: float) -> np.ndarray:
     """SPEC's pair time of i with every particle (inf where there is no candidate)."""
     x, y, vx, vy = (state[:, k] for k in range(4))
     with np.errstate(all="ignore"):
@@ -101,10 +101,10 @@ def seq_event(before: np.ndarray, after: np.ndarray, i: int, L: float, r: float)
 
     p0, v0 = before[i, :2].astype(float), before[i, 2:].astype(float)
     candidates: list[tuple[float, int, int]] = []  # (t, 0 pair / 1 wall, partner)
-    times = _pair_times(before, i, r)
+    times = pair_times(before, i, r)
     for j in np.flatnonzero(np.isfinite(times)):
         candidates.append((float(times[j]), 0, int(j)))
-    tw, axes = _wall_time(p0, v0, L, r)
+    tw, axes = wall_time(p0, v0, L, r)
     if tw <= 1:
         candidates.append((tw, 1, -1))
     for t, kind, j in sorted(candidates):
@@ -125,7 +125,7 @@ def seq_event(before: np.ndarray, after: np.ndarray, i: int, L: float, r: float)
                 v[axis] = -v0[axis]
             end, stopped = _finish(p, v, 1 - t, L, r)
             if matches(end, v):
-                return Event("wall", t, walls=tuple(_wall_name(a, v0[a]) for a in axes),
+                return Event("wall", t, walls=tuple(wall_name(a, v0[a]) for a in axes),
                              stopped=stopped)
     if matches(p0 + v0, v0):
         return Event("free")

@@ -4,10 +4,13 @@
      does it run at all (a command not found, a crash, a hang: the cell's status says so);
   2. its check: the check command on the cell's scene in print mode (its first steps for a big
      scene), its stdout judged against seq's `--precise` print-mode output on the same input,
-     with seq's f32 build for the drift a change of precision causes (harness.measure.agreement).
+     and step by step by the reference's `--replay` (harness.measure.agreement);
+  3. at the config's highest thread count, the check run twice more, once at that count and
+     once at 1 thread: outputs that differ make the program nondeterministic.
 
-The cell is ok when the program agrees (identical, rounding, diverges), invalid when it
-differs or its output cannot be compared; either way it is then timed like any variant.
+The cell is ok when the program agrees (identical, rounding, correct, imprecise), invalid when
+it is wrong, nondeterministic or its output cannot be compared; either way it is then timed
+like any variant.
 """
 
 from __future__ import annotations
@@ -15,19 +18,29 @@ from __future__ import annotations
 import os
 import shlex
 import signal
+import tempfile
 from collections.abc import Mapping
+from pathlib import Path
 
-from harness.measure.agreement import judge
+from harness.measure.agreement import Agreement, first_difference, judge
 from harness.measure.proc import ProcessResult, exit_status, run_process, tail
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
+from harness.measure.steps import Replay
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
-from harness.spec.programs import Program, check_steps
+from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
 from harness.spec.variants import BASELINE
 from harness.store import atomic, records
-from harness.store.columns import AGREEING, AGREEMENT_FAILED, CRASHED, INVALID, OK
+from harness.store.columns import (
+    AGREEING,
+    AGREEMENT_FAILED,
+    CRASHED,
+    INVALID,
+    NONDETERMINISTIC,
+    OK,
+)
 
 COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
 SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
@@ -67,22 +80,73 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     finally:
         output.unlink(missing_ok=True)
     refs = store.program_references(cell)
-    seq = references.print_output(refs["f64"], scene, 1, cache=True)
-    f32 = references.print_output(refs["f32"], scene, 1, cache=True)
+    seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
         record.update(agreement=AGREEMENT_FAILED,
-                      note=f"not checked: {refs['f64'].name}'s print-mode run failed")
+                      note=f"not checked: {refs[REFERENCE].name}'s print-mode run failed")
         return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
-    verdict = judge(text, seq, f32, cell.scene.n, steps, cell.scene.L, cell.scene.r)
+    replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s)
+    try:
+        verdict = judge(text, seq, cell.scene.n, steps, cell.scene.L, cell.scene.r, replay)
+    except ReplayError as exc:
+        record.update(agreement=AGREEMENT_FAILED, note=f"not checked: {exc}")
+        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+    if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
+        verdict = _repeatable(program, store.input_file(scene), cell.threads, env, timeout_s,
+                              text) or verdict
     record.update(verdict.fields())
     where = []
     if steps < cell.scene.steps:
         where.append(f"checked on its first {steps} of {cell.scene.steps} steps")
-    if refs["f64"].name != BASELINE:
-        where.append(f"against {refs['f64'].name}, byte-identical to {BASELINE}")
+    if refs[REFERENCE].name != BASELINE:
+        where.append(f"against {refs[REFERENCE].name}, byte-identical to {BASELINE}")
     record["note"] = "; ".join([verdict.note, *where] if verdict.note else where)
     status = OK if verdict.verdict in AGREEING else INVALID
     return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+
+
+class ReplayError(RuntimeError):
+    """The reference's --replay did not run to the end; the message says why."""
+
+
+def _replay(binary: Path, env: Mapping[str, str], timeout_s: float) -> Replay:
+    """`binary --replay` on states (harness.measure.steps.replay_input), their successors
+    back."""
+    def run(data: bytes) -> str:
+        with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
+            states, out = Path(tmp) / "states", Path(tmp) / "successors"
+            states.write_bytes(data)
+            done = run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
+            if done.returncode != 0:
+                raise ReplayError(_failure(f"{binary.name} --replay", done, timeout_s))
+            return out.read_text()
+    return run
+
+
+def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[str, str],
+                timeout_s: float, first: str) -> Agreement | None:
+    """The check run again at `threads` and at 1 thread: a nondeterministic verdict where an
+    output differs from the first run's, else None (or when a rerun itself fails: its own
+    cell says so)."""
+    for again, what in ((threads, f"two runs at {threads} threads"),
+                        (1, f"a run at {threads} threads and one at 1 thread")):
+        if again == 1 and threads == 1:
+            continue
+        argv = program.shell_command(program.check, input_file, again)
+        with tempfile.TemporaryDirectory(prefix="rerun-") as tmp:
+            out = Path(tmp) / "stdout"
+            done = run_process(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s, out)
+            if done.returncode != 0:
+                return None
+            found = first_difference(first, out.read_text(errors="replace"))
+        if found is not None:
+            step, particle, mine, theirs = found
+            return Agreement(NONDETERMINISTIC, step, particle, steps_compared=0,
+                             note=f"{what} differ: first at step {step}, particle {particle}: "
+                                  f"{mine} in the first, {theirs} in the other (a race, or an "
+                                  "order of work that depends on the threads)",
+                             details={"rerun_threads": again})
+    return None
 
 
 def _described(program: Program) -> dict[str, str]:

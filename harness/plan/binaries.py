@@ -37,11 +37,13 @@ def check_references(config: Config, build_dir: Path, build: str) -> dict[str, P
 
 
 def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str, Path]:
-    """The binaries a program's check compares with: seq (grid for a big scene), in double
-    and in float."""
-    variant = programs.reference_variant(cell.scene.n)
-    return {build: binary_path(config, build_dir, variant, build)
-            for build in (DEFAULT_BUILD, programs.ENVELOPE_BUILD)}
+    """The binaries a program's check uses: the one whose output it is compared with (seq,
+    grid for a big scene) and the one whose `--replay` judges its steps."""
+    n = cell.scene.n
+    return {programs.REFERENCE: binary_path(config, build_dir, programs.reference_variant(n),
+                                            DEFAULT_BUILD),
+            programs.REPLAY: binary_path(config, build_dir, programs.replay_variant(n),
+                                         DEFAULT_BUILD)}
 
 
 def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:

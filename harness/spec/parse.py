@@ -101,9 +101,11 @@ def parse_config(raw: Mapping[str, object], source: Path,
         raise config_error(source, "name", NAME_RULE, name)
     binaries = _parse_binaries(raw.get("binaries"), source, known_variants)
     taken = (*known_variants, *(b[0] for b in binaries))
-    programs_ = _parse_programs(raw.get("programs", {}), source, taken)
-    known = (*taken, *(p.name for p in programs_))
-    variants = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
+    programs_, classes = _parse_programs(raw.get("programs", {}), source, taken)
+    known = (*taken, *(p.name for p in programs_), *classes)
+    listed = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
+    # A class in `variants` stands for every program its glob matched.
+    variants = tuple(dict.fromkeys(m for v in listed for m in classes.get(v, (v,))))
     builds = kinds.name_list(raw["builds"], "builds", BUILDS, source)
     for variant, _ in binaries:
         if variant in variants and builds != (DEFAULT_BUILD,):
@@ -465,14 +467,18 @@ def _parse_binaries(value: object, source: Path,
 
 
 PROGRAM_FORMS = ('a command template such as "./sim {threads} < {input}", or '
-                 '{command: TEMPLATE, check: TEMPLATE}')
+                 '{command: TEMPLATE, check: TEMPLATE}, or a class: {glob: PATTERN, command: '
+                 'TEMPLATE with {path}}')
 
 
-def _parse_programs(value: object, source: Path,
-                    taken: Sequence[str]) -> tuple[programs.Program, ...]:
-    """`programs: {NAME: TEMPLATE}` or `{NAME: {command: TEMPLATE, check: TEMPLATE}}`."""
+def _parse_programs(value: object, source: Path, taken: Sequence[str]
+                    ) -> tuple[tuple[programs.Program, ...], dict[str, tuple[str, ...]]]:
+    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE}}` or a class
+    `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one program per file matched, {path} in
+    the templates); the programs, and each class's program names."""
     raw = kinds.mapping(value, "programs", source)
     result = []
+    classes: dict[str, tuple[str, ...]] = {}
     for name, entry in raw.items():
         label = f"programs.{name}"
         _check_new_name(name, label, taken, source)
@@ -482,14 +488,31 @@ def _parse_programs(value: object, source: Path,
         kinds.reject_unknown(fields, programs.PROGRAM_KEYS, f"{label}.", source)
         if "command" not in fields:
             raise config_error(source, f"{label}.command", "a command template", MISSING)
+        extra = (programs.PATH,) if programs.GLOB in fields else ()
         for key, template in fields.items():
             where = label if isinstance(entry, str) else f"{label}.{key}"
             if not isinstance(template, str) or not template.strip():
                 raise config_error(source, where, PROGRAM_FORMS, template)
+            if key == programs.GLOB:
+                continue
             try:
-                programs.placeholders(template)
+                programs.placeholders(template, extra)
             except programs.TemplateError as exc:
                 raise config_error(source, where, f"a command template with {{input}} and "
                                    f"optionally {{threads}}: {exc}", template) from None
-        result.append(programs.from_mapping(name, fields, source.resolve().parent))
-    return tuple(result)
+        directory = source.resolve().parent
+        if not extra:
+            result.append(programs.from_mapping(name, fields, directory))
+            continue
+        members = programs.class_members(str(fields[programs.GLOB]), directory)
+        if not members:
+            raise config_error(source, f"{label}.glob", f"a pattern that matches files under "
+                               f"{directory}", fields[programs.GLOB])
+        names = []
+        for member, path in members:
+            _check_new_name(member, f"{label}.glob ({path})",
+                            (*taken, name, *(p.name for p in result)), source)
+            result.append(programs.member(member, fields, path, directory))
+            names.append(member)
+        classes[name] = tuple(names)
+    return tuple(result), classes

@@ -21,7 +21,9 @@ A program's cells are identified by its commands and the content of every file t
 
 from __future__ import annotations
 
+import glob
 import hashlib
+import re
 import shlex
 import shutil
 import string
@@ -34,17 +36,24 @@ from harness.spec.variants import BASELINE, GRID
 # The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for
 # more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6,
-# where seq's all pairs would take hours). Their float builds measure how far a change of
-# precision alone drifts on the same scene.
+# where seq's all pairs would take hours). Its steps are judged from the program's own states
+# by `--replay` of seq, or of grid from REPLAY_GRID_MIN_N particles (the same successors; seq's
+# all pairs cost ~50 ms a step at 10,000 particles, and a check replays each step up to 25
+# times).
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 20_000
+REPLAY_GRID_MIN_N = 2_000
 FAST_REFERENCE = GRID
-ENVELOPE_BUILD = "f32"
+# The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
+REFERENCE = "reference"
+REPLAY = "replay"
 
 INPUT = "input"
 THREADS = "threads"
+PATH = "path"  # a class's programs (GLOB): the file the glob matched, quoted for the shell
 PLACEHOLDERS = (INPUT, THREADS)
-PROGRAM_KEYS = ("command", "check")
+GLOB = "glob"
+PROGRAM_KEYS = ("command", "check", GLOB)
 SHELL = "sh"
 
 
@@ -61,12 +70,19 @@ def reference_variant(n: int) -> str:
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
 
 
+def replay_variant(n: int) -> str:
+    """The variant whose `--replay` judges a program's steps at n particles."""
+    return BASELINE if n < REPLAY_GRID_MIN_N else FAST_REFERENCE
+
+
 class TemplateError(ValueError):
     """A command template that cannot be used; the message says what is wrong."""
 
 
-def placeholders(template: str) -> tuple[str, ...]:
-    """The {names} of a template; a TemplateError for an unknown one or stray braces."""
+def placeholders(template: str, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The {names} of a template; a TemplateError for an unknown one or stray braces. `extra`:
+    names allowed beside PLACEHOLDERS ({path} in a class's template)."""
+    known = (*PLACEHOLDERS, *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
@@ -76,11 +92,11 @@ def placeholders(template: str) -> tuple[str, ...]:
     for _, name, spec, conversion in parsed:
         if name is None:
             continue
-        if name not in PLACEHOLDERS or spec or conversion:
+        if name not in known or spec or conversion:
             field = "{" + name + (f"!{conversion}" if conversion else "") + \
                 (f":{spec}" if spec else "") + "}"
             raise TemplateError(f"unknown placeholder {field} (known: "
-                                + ", ".join("{" + p + "}" for p in PLACEHOLDERS) + ")")
+                                + ", ".join("{" + p + "}" for p in known) + ")")
         names.append(name)
     if INPUT not in names:
         raise TemplateError("no {input}: the program must be given the input file")
@@ -150,3 +166,26 @@ def from_mapping(name: str, value: Mapping[str, object], directory: Path) -> Pro
     """A Program from `command` and optional `check` (already checked to be strings)."""
     command = str(value["command"])
     return Program(name, command, str(value.get("check", command)), directory)
+
+
+def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
+    """The files a class's glob matches (relative to the config's directory, `**` allowed),
+    each with its program name: the parts of its path that the glob's wildcards matched,
+    joined by '-' (`submissions/*/sim` -> `alice`), other characters than letters, digits, '_',
+    '.' and '-' as '_'."""
+    wild = [k for k, part in enumerate(pattern.split("/")) if any(c in part for c in "*?[")]
+    found = []
+    for match in sorted(glob.glob(pattern, root_dir=directory, recursive=True)):
+        parts = match.split("/")
+        picked = [parts[k] for k in wild if k < len(parts)] or [parts[-1]]
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", "-".join(picked)).lstrip("_.-") or "program"
+        found.append((name, directory / match))
+    return found
+
+
+def member(name: str, value: Mapping[str, object], path: Path, directory: Path) -> Program:
+    """The program of one file a class's glob matched: its templates with {path} filled in."""
+    quoted = shlex.quote(str(path)).replace("{", "{{").replace("}", "}}")
+    command = str(value["command"]).replace("{" + PATH + "}", quoted)
+    check = str(value.get("check", value["command"])).replace("{" + PATH + "}", quoted)
+    return Program(name, command, check, directory)

@@ -15,17 +15,24 @@ STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
 
-# How a program's output agrees with seq's (harness.measure.agreement): the same numbers at the
-# precision it prints, within that rounding at every step, within rounding and then drifting
-# as a change of precision would, beyond rounding (another rule or a bug), or not comparable.
+# A program's verdict (harness.measure.agreement): the same numbers as seq at the precision it
+# prints; within that rounding at every step; every step locally right from its own state
+# (judged by the reference's replay) at its printed precision, or only at a coarser one; a step
+# no correct rule explains; outputs that differ between identical runs; not comparable.
 IDENTICAL = "identical"
 ROUNDING = "rounding"
+CORRECT = "correct"
+IMPRECISE = "imprecise"
+WRONG = "wrong"
+NONDETERMINISTIC = "nondeterministic"
+AGREEMENT_FAILED = "failed"
+# What older results recorded before programs were judged step by step: read, never written.
 DIVERGES = "diverges"
 DIFFERS = "differs"
-AGREEMENT_FAILED = "failed"
-AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, DIVERGES, DIFFERS, AGREEMENT_FAILED)
-# The agreements that count as a correct program (its cell's status is ok).
-AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, DIVERGES})
+AGREEMENTS: tuple[str, ...] = (IDENTICAL, ROUNDING, CORRECT, IMPRECISE, WRONG, NONDETERMINISTIC,
+                               AGREEMENT_FAILED, DIVERGES, DIFFERS)
+# The verdicts that count as a correct program (its cell's status is ok).
+AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, CORRECT, IMPRECISE, DIVERGES})
 
 # --- columns ------------------------------------------------------------------------------
 
@@ -103,9 +110,9 @@ STOPPED_DECIDED = "decided"
 STOPPED_BUDGET = "budget"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME,
                                     STOPPED_DECIDED, STOPPED_BUDGET)
-# A program's agreement with seq and the first step it leaves rounding (empty: never), only
-# where some cell is a program's.
-PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step")
+# A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
+# rounding; empty: never) and the rule that step breaks, only where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule")
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.

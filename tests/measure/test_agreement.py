@@ -1,11 +1,16 @@
 """A program's output judged against seq's: matching by step and particle, at the precision
-the program prints, and the verdicts with the step, particle and seq's event they name."""
+the program prints, and, once it leaves seq's rounding, step by step through the real seq's
+`--replay`: the verdicts with the step, particle, event and rule they name."""
 
 from __future__ import annotations
 
+import subprocess
+
+import numpy as np
 import pytest
+from harness import repo
 from harness.measure import agreement
-from harness.store.columns import AGREEMENT_FAILED, DIFFERS, DIVERGES, IDENTICAL, ROUNDING
+from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, ROUNDING, WRONG
 
 L, R = 100.0, 1.0
 # seq's --precise print-mode output: two discs moving apart along y = 10 for two steps.
@@ -17,8 +22,14 @@ SEQ = """\
 2 0 12 10 1 0 0 0
 2 1 17.5 10 -1.25 0 0 0
 """
-# seq's f32 build on the same input: 1e-4 away at step 2 (the drift a precision change makes)
-F32 = SEQ.replace("2 0 12 10", "2 0 12.0001 10")
+SEQ_BINARY = repo.REPO_ROOT / "build" / "seq"
+
+
+def replay(data: bytes) -> str:
+    if not SEQ_BINARY.is_file():
+        pytest.skip("build/seq is not built (make all)")
+    return subprocess.run([str(SEQ_BINARY), "--replay"], input=data, capture_output=True,
+                          check=True).stdout.decode()
 
 
 def rows(fmt: str, changes: dict[tuple[int, int], str] | None = None,
@@ -35,8 +46,8 @@ def rows(fmt: str, changes: dict[tuple[int, int], str] | None = None,
     return "\n".join(lines) + "\n"
 
 
-def judge(program: str, f32: str | None = F32) -> agreement.Agreement:
-    return agreement.judge(program, SEQ, f32, n=2, steps=2, L=L, r=R)
+def judge(program: str) -> agreement.Agreement:
+    return agreement.judge(program, SEQ, n=2, steps=2, L=L, r=R, replay=replay)
 
 
 def test_the_same_numbers_at_fewer_digits_are_identical() -> None:
@@ -51,38 +62,39 @@ def test_a_few_ulps_off_at_full_precision_is_rounding() -> None:
     assert verdict.verdict == ROUNDING and verdict.first_diff_step is None
 
 
-def test_leaving_rounding_within_the_f32_drift_diverges() -> None:
-    verdict = judge(rows("%.6f", {(2, 0): "12.000050 10.000000 1.000000 0.000000"}))
-    assert verdict.verdict == DIVERGES
-    assert (verdict.first_diff_step, verdict.particle) == (2, 0)
-    assert verdict.deviation == pytest.approx(5e-5) and verdict.envelope == pytest.approx(1e-4)
-
-
-def test_leaving_rounding_beyond_the_drift_differs_and_names_particle_and_values() -> None:
+def test_a_step_no_rule_explains_is_wrong_with_particle_values_and_event() -> None:
     verdict = judge(rows("%.6f", {(2, 1): "17.000000 10.000000 -1.250000 0.000000"}))
-    assert verdict.verdict == DIFFERS
+    assert verdict.verdict == WRONG
     assert (verdict.first_diff_step, verdict.particle) == (2, 1)
     assert verdict.program_values == (17.0, 10.0, -1.25, 0.0)
     assert verdict.seq_values == (17.5, 10.0, -1.25, 0.0)
-    assert "particle 1 is (17, 10, -1.25, 0) where seq has (17.5, 10, -1.25, 0)" in verdict.note
+    assert "particle 1 is (17, 10, -1.25, 0) where the rules take its state at step 1" in \
+        verdict.note
     assert verdict.seq_did == "moved freely (no collision)"
+    assert verdict.rule == "a particle with no collision moves by its velocity (x += vx, y += vy)"
 
 
-def test_without_the_f32_output_any_departure_differs() -> None:
-    program = rows("%.6f", {(2, 0): "12.000050 10.000000 1.000000 0.000000"})
-    assert judge(program, f32=None).verdict == DIFFERS
-
-
-def test_a_different_initial_state_differs_from_the_start() -> None:
-    verdict = judge(rows("%.6f", {(0, 0): "10.000000 10.000010 1.000000 0.000000"}))
-    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 0
-    assert "from the first state compared" in verdict.note
+def test_a_different_initial_state_is_wrong_at_step_0() -> None:
+    verdict = judge(rows("%.6f", {(0, 0): "10.000000 10.010000 1.000000 0.000000"}))
+    assert verdict.verdict == WRONG and verdict.first_diff_step == 0
+    assert verdict.rule == "the state at step 0 is the input's"
     assert "initial state" in verdict.seq_did
 
 
-def test_other_collision_counts_at_the_end_differ() -> None:
+def test_a_float_rounded_input_is_no_wrong_step_0() -> None:
+    """The input as a float holds it (1e-7 of L off) is a coarser precision, not another
+    state: the steps after it are then judged."""
+    program = rows("%.7f", {(0, 0): "10.0000010 10.0000000 1.0000000 0.0000000",
+                            (1, 0): "11.0000010 10.0000000 1.0000000 0.0000000",
+                            (2, 0): "12.0000010 10.0000000 1.0000000 0.0000000"})
+    verdict = judge(program)
+    assert verdict.verdict != WRONG, verdict.note
+    assert verdict.verdict != CORRECT  # it needed the coarser precision at step 0
+
+
+def test_other_collision_counts_at_the_end_are_wrong() -> None:
     verdict = judge(rows("%.6f", counts="0 1"))
-    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 2
+    assert verdict.verdict == WRONG and verdict.first_diff_step == 2
     assert "pcoll wcoll 0 1 where seq counts 0 0" in verdict.note
 
 
@@ -112,10 +124,19 @@ def test_output_that_cannot_be_compared_fails_with_the_reason(output: str, why: 
     assert why in verdict.note
 
 
-def test_non_numbers_fail_to_read_and_nan_differs() -> None:
+def test_non_numbers_fail_to_read_and_nan_is_wrong() -> None:
     assert judge(rows("%.6f").replace("12.000000", "twelve")).verdict == AGREEMENT_FAILED
     verdict = judge(rows("%.6f", {(1, 0): "nan 10.000000 1.000000 0.000000"}))
-    assert verdict.verdict == DIFFERS and verdict.first_diff_step == 1
+    assert verdict.verdict == WRONG and verdict.first_diff_step == 1
+    assert verdict.rule == "every coordinate and velocity is a finite number"
+
+
+def test_runs_that_print_the_same_rows_have_no_first_difference() -> None:
+    assert agreement.first_difference(rows("%.6f"), rows("%.6f")) is None
+    other = rows("%.6f", {(1, 1): "18.750001 10.000000 -1.250000 0.000000"})
+    assert agreement.first_difference(rows("%.6f"), other) == (
+        1, 1, "(18.750000 10.000000 -1.250000 0.000000)",
+        "(18.750001 10.000000 -1.250000 0.000000)")
 
 
 @pytest.mark.parametrize(("token", "half"), [
@@ -130,3 +151,22 @@ def test_printed_like_compares_at_the_tokens_precision() -> None:
     assert not agreement.printed_like("12.345", 12.3456)
     assert agreement.printed_like("1.23e+02", 123.4)
     assert agreement.printed_like("-0.000", -1e-9)
+
+
+@pytest.mark.parametrize("text", [
+    rows("%.6f"),
+    rows("%.17g") + rows("%.3f"),  # every row printed twice: the later stands
+    "0 0 1e-3 2 3 nan\n0 1 +4 5 6 inf\n1 0 1 2 3 4 5 6\n",
+])
+def test_the_fast_reader_reads_what_the_line_reader_reads(text: str) -> None:
+    fast, slow = agreement._read_rows_fast(text), agreement._read_rows_by_line(text)
+    assert fast is not None
+    assert fast.tokens == slow.tokens
+    for name in ("step", "index", "values", "counts"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+
+
+def test_lines_that_are_no_rows_leave_the_fast_reader() -> None:
+    assert agreement._read_rows_fast("0 0 1 2 3 four\n") is None
+    assert agreement._read_rows_fast("0 0.5 1 2 3 4\n") is None
+    assert agreement._read_rows_fast("hello\n" + rows("%.6f")) is None

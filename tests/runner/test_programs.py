@@ -1,5 +1,5 @@
 """Programs written elsewhere, end to end with real hyperfine: a student's implementation with
-other I/O habits agrees with seq, one with a rule slip differs at the right step and particle,
+other I/O habits agrees with seq, one with a rule slip is wrong at the right step and particle,
 and programs that cannot run or print nothing useful each get a clear status and note while
 the other cells go on; a second run finds every cell cached."""
 
@@ -78,7 +78,7 @@ validate: true
         assert (student["status"], student["agreement"]) in {(OK, "identical"), (OK, "rounding")}
         assert float(student["wall_median_s"]) > 0 and student["first_diff_step"] == ""
         slippy = got[("slippy", threads)]
-        assert (slippy["status"], slippy["agreement"]) == (INVALID, "differs")
+        assert (slippy["status"], slippy["agreement"]) == (INVALID, "wrong")
         assert int(slippy["first_diff_step"]) >= 1 and float(slippy["wall_median_s"]) > 0
         assert "stopped at" in slippy["note"]  # seq's event: the rule the slip broke
         assert got[("seq", threads)]["status"] == OK
@@ -94,12 +94,12 @@ validate: true
         row = got[(name, "1")]
         assert row["status"] == status, (name, row["note"])
         assert note in row["note"] and row["agreement"] == "failed", (name, row["note"])
-    assert "slippy" in log and "leaves rounding at step" in log
+    assert "slippy" in log and "wrong at step" in log
     _, second = run(config, root)
     assert (second.measured, second.cached) == (0, 14)  # type: ignore[attr-defined]
     report = pipeline.render(root, workdir / "report").read_text()
-    assert "### Programs against seq" in report
-    assert "| slippy |" in report and "differs from step" in report
+    assert "### Programs" in report
+    assert "| slippy |" in report and "wrong from step" in report
     # The summary judges programs by their agreement, apart from the variants' byte identity
     fidelity = report.split("- Fidelity: ", 1)[1].split("\n", 1)[0]
     assert fidelity.startswith("no invalid cell among 4 validated"), fidelity
@@ -125,7 +125,9 @@ measure: {{warmup: 0, runs: 1, timeout_s: 60}}
     got = {r["variant"]: r for r in rows_of(root, "slip")}
     assert got["student"]["agreement"] == "identical"
     slippy = got["slippy"]
-    assert (slippy["agreement"], slippy["first_diff_step"]) == ("differs", "3")
-    assert "particle 1 is (99, 56, 8, 2) where seq has (99, 55.75, 8, 2)" in slippy["note"]
-    assert ("seq in that step: collided with particle 0 at t = 0.5, then stopped at x = L - r"
-            in slippy["note"])
+    assert (slippy["agreement"], slippy["first_diff_step"]) == ("wrong", "3")
+    assert ("particle 1 is (99, 56, 8, 2) where the rules take its state at step 2, (96, 54, 0, "
+            "2), to (99, 55.75, 8, 2)") in slippy["note"]
+    assert ("the reference in that step: collided with particle 0 at t = 0.5, then stopped at "
+            "x = L - r") in slippy["note"]
+    assert "rule: a disc meeting a wall after its collision stops there" in slippy["note"]

@@ -145,6 +145,11 @@ int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
  * a write error. */
 int sim_describe(FILE *out, const sim_variant *v);
 
+/* --replay (sim_replay.c): the successor of each state in `text` (len bytes), with the rules
+ * of this binary's variant on `threads` threads, written to out. Returns an exit status after
+ * printing any error (one line on stderr). */
+int sim_replay(FILE *out, const char *name, const char *text, size_t len, int threads);
+
 /* The longest real sim_format_real writes, its NUL included: %.8f of the largest finite value
  * of the build's real type (a sign, its integer digits, the point, 8 decimals) is the longest
  * of its formats, so every finite value is printed in full (a NaN or an infinity is short).

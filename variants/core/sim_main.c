@@ -29,7 +29,7 @@
 typedef struct sim_options {
     int threads; /* 0: OMP_NUM_THREADS / the runtime's default */
     uint64_t seed;
-    bool precise, timing, help, describe;
+    bool precise, timing, help, describe, replay;
     const char *input; /* NULL: stdin */
 } sim_options;
 
@@ -44,6 +44,7 @@ typedef struct sim_report {
 static const char *const usage_text =
     "usage: %s [--threads N] [--seed N] [--precise] [--timing] [INPUT]\n"
     "       %s --describe\n"
+    "       %s --replay [--threads N] [STATES]\n"
     "  Simulate hard discs colliding in a square box (the contract: SPEC.md; the model:\n"
     "  docs/model.md). Reads INPUT, or stdin when INPUT is absent or '-'.\n"
     "  --threads N  threads to use (overrides OMP_NUM_THREADS; ignored by seq)\n"
@@ -54,6 +55,9 @@ static const char *const usage_text =
     "               (how it finds candidate pairs), exact (output byte-identical to seq),\n"
     "               parallel (uses threads), all_pairs (tests every pair i < j with seq's\n"
     "               test), repairs (the seed strategy it repairs, or null)\n"
+    "  --replay     read states (`N L r`, then lines `k i x y vx vy [p]`, N per state) and\n"
+    "               print each one's successor by this variant's rules, %%.17g, as lines\n"
+    "               `k+1 i x y vx vy EVENT PARTNER T` (sim_replay.c)\n"
     "  --help       print this text\n";
 
 /* An argument or a path as a message may show it: escaped (sim_escape), at most
@@ -101,6 +105,8 @@ static int parse_options(const char *name, int argc, char **argv, sim_options *o
             o->help = true;
         } else if (strcmp(a, "--describe") == 0) {
             o->describe = true;
+        } else if (strcmp(a, "--replay") == 0) {
+            o->replay = true;
         } else if (strcmp(a, "--precise") == 0) {
             o->precise = true;
         } else if (strcmp(a, "--timing") == 0) {
@@ -334,7 +340,7 @@ int main(int argc, char **argv)
     if (rc != SIM_EXIT_OK)
         return rc;
     if (o.help) {
-        printf(usage_text, argv[0], argv[0]);
+        printf(usage_text, argv[0], argv[0], argv[0]);
         return SIM_EXIT_OK;
     }
     if (o.describe) {
@@ -350,6 +356,20 @@ int main(int argc, char **argv)
     const int threads = !sim_variant_def.parallel ? 1 : o.threads > 0 ? o.threads
                                                                       : omp_get_max_threads();
     omp_set_num_threads(threads);
+
+    if (o.replay) {
+        size_t len;
+        char *text = read_all(name, o.input, &len);
+        if (!text)
+            return SIM_EXIT_USAGE;
+        rc = sim_replay(stdout, name, text, len, threads);
+        free(text);
+        if (rc == SIM_EXIT_OK && fflush(stdout)) {
+            fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
+            rc = SIM_EXIT_RUNTIME;
+        }
+        return rc;
+    }
 
     sim_report rep = {0};
     sim_header h;

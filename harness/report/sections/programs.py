@@ -1,35 +1,97 @@
-"""Programs against seq: one line per program cell with its agreement, the first step it
-leaves rounding, the particle, both sides' values and what seq did with that particle there
-(its speed stands in the cell table beside the variants)."""
+"""Programs: the class table (one row per program, also written as `<experiment>-programs.csv`
+for a gradebook), one line per program cell with its verdict and what it and the reference
+did at the step named, and for each wrong program a figure of its first wrong step."""
 
 from __future__ import annotations
 
-from harness.analysis.programs import is_program, program_table
-from harness.report.blocks import table_block
-from harness.report.document import Paragraph, Section
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from harness.analysis.programs import class_table, is_program, program_table
+from harness.report.blocks import figure_block, table_block
+from harness.report.document import Block, Paragraph, Section
+from harness.report.figures.programs import fig_wrong_step
 from harness.report.sections.context import Context
+from harness.store import atomic
+from harness.store.columns import WRONG
+from harness.store.layout import ExperimentDir
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
-    "for a big scene) and its output was matched with seq's by step and particle, at the "
-    "precision the program prints. **identical**: the numbers seq prints at that precision; "
-    "**rounding**: within the rounding of the printed digits at every step; **diverges**: "
-    "within rounding at first, then drifting apart by no more than seq's own f32 build "
-    "drifts from seq on the same scene (what a change of precision does to a chaotic "
-    "system); **differs**: beyond that (another rule, or a bug); **failed**: no output to "
-    "compare. Where it leaves rounding, the detail names the first particle, both sides' "
-    "(x, y, vx, vy) and what seq did with that particle in that step."
+    "for a big scene) and was judged **step by step**: each state it printed was advanced one "
+    "step by the reference rules (seq's `--replay`, grid's for big scenes) and its next state "
+    "compared with that, so the chaos of a whole trajectory never counts against it. "
+    "**identical**: the numbers seq prints, at its precision; **rounding**: within the "
+    "rounding of its digits at every step; **correct**: every step locally right at its "
+    "printed precision (where it leaves seq's trajectory, that is chaos); **imprecise**: "
+    "locally right only to a coarser precision (a fraction of L, named); **wrong**: a step no "
+    "correct rule explains, with the particle, both states, the reference's event and the "
+    "rule broken; **nondeterministic**: two runs at its highest thread count, or one there "
+    "and one at 1 thread, printed different states; **failed**: no output to judge. Speedups "
+    "are against seq's fastest median on the scene and against the program's own 1-thread "
+    "time, at its highest thread count; efficiency is the latter over that thread count; "
+    "the rank orders the programs that are right by their time there."
 )
 
 ANCHOR_SUFFIX = "-programs"
+
+
+def write_csv(table: pd.DataFrame, stem: Path) -> Path:
+    path = stem.with_name(f"{stem.name}.csv")
+    atomic.atomic_write_text(path, table.to_csv(index=False))
+    return path
 
 
 def build(ctx: Context) -> list[Section]:
     frame = ctx.exp.frame
     if not is_program(frame).any():
         return []
-    table = program_table(frame)
-    return [Section("Programs against seq", f"{ctx.name}{ANCHOR_SUFFIX}", (
+    programs = frame[is_program(frame)]
+    grades = class_table(frame)
+    stem = ctx.figs.fig_dir / f"{ctx.name}-programs"
+    csv = ctx.figs.draw(write_csv, grades, stem)[0]
+    blocks: list[Block] = [
         Paragraph(INTRO),
-        table_block(table, "Each program cell's agreement with seq.", frame[is_program(frame)]),
-    ))]
+        table_block(grades, f"The class: one row per program (also as [{csv.name}]"
+                            f"(figures/{csv.name}), for a gradebook).", programs),
+        table_block(program_table(frame), "Each program cell's verdict.", programs),
+    ]
+    blocks += _wrong_steps(ctx, programs)
+    return [Section("Programs", f"{ctx.name}{ANCHOR_SUFFIX}", tuple(blocks))]
+
+
+def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
+    """A figure of each wrong program's first wrong step (its first wrong cell's)."""
+    blocks: list[Block] = []
+    wrong = programs[programs["agreement"] == WRONG].sort_values(["variant", "threads"])
+    for variant, cells in wrong.groupby("variant", sort=True):
+        row = cells.iloc[0]
+        shown = _neighbourhood(ExperimentDir(ctx.exp.path).record(str(row["cell_id"])))
+        if shown is None:
+            continue
+        data, r = shown
+        step = int(row["first_diff_step"])
+        stem = ctx.figs.fig_dir / f"{ctx.name}-wrong-{variant}"
+        title = f"{variant}: step {step}, particle {int(data['particle'].iloc[0])}"
+        blocks.append(figure_block(
+            ctx.figs.draw(fig_wrong_step, data, stem, r=r, title=title),
+            f"`{variant}`'s first wrong step ({step}, at {int(row['threads'])} thread(s)): "
+            f"the particle (labelled first) and those it could meet, dashed before the step, "
+            f"red where the program put them, blue where the rules do. "
+            f"{row.get('rule') if isinstance(row.get('rule'), str) else ''}"))
+    return blocks
+
+
+def _neighbourhood(record: Path) -> tuple[pd.DataFrame, float] | None:
+    """The particles of a wrong step as its cell's record keeps them, and the radius."""
+    try:
+        detail = json.loads(record.read_text())["agreement_detail"]["neighbourhood"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    data = pd.DataFrame({"particle": detail["particles"]})
+    for where in ("before", "program", "reference"):
+        values = pd.DataFrame(detail[where])
+        data[f"x_{where}"], data[f"y_{where}"] = values[0], values[1]
+    return data, float(detail["r"])

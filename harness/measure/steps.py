@@ -1,0 +1,260 @@
+"""A program judged step by step: each state it prints is advanced one step by the reference
+rules (`--replay` of the reference binary, one process for all steps), and its next state is
+compared with that successor. Every step is judged from where the program actually was, so the
+chaos of a whole trajectory (any change of precision or operation order grows by the free path
+over r at every collision) never enters the verdict.
+
+A printed state is known only to half a unit of its last digit. How far that uncertainty moves
+the successor is measured, not guessed: the state is replayed again perturbed within it (random
+signs, and their opposites), and a value is locally right when it lies within the program's own
+printing, a few roundings of L, and REPLAY_SAFETY times the spread of the perturbed successors
+that made the same decision, of any replayed successor. A replay that made another decision
+(another partner, a wall instead of a pair) is a near-tie: the program may follow it.
+
+A program that is locally right only with a coarser uncertainty (a float build, another contact-
+time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
+step no level explains is `wrong`, and the rule it breaks is named where the program's own states
+show it (harness.measure.rules).
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from harness.spec.builds import DOUBLE_EPS
+
+ARITH_ULPS = 64.0  # double roundings of L a correct program may differ by (another order)
+# The perturbations of a state: each of its 4 columns raised by its uncertainty, in each of two
+# halves of the particles (an accepted pair's two apart): 8 copies whose successors' changes
+# sum to the linearised worst case of every value. REPLAY_SAFETY times that sum is allowed (the
+# contact time is not linear in the state); a wrong rule moves a value by a fraction of a
+# step's motion, orders of magnitude beyond.
+COPIES = 8
+REPLAY_SAFETY = 2.0
+# Relative uncertainties (of L, for positions and velocities alike) tried after the printed
+# one: double's with headroom, then float's (2^-24 ~ 6e-8, a few roundings a step).
+PRECISION_LADDER: tuple[float, ...] = (1e-12, 1e-9, 1e-6)
+EVENT_CODES = {"free": 0, "pair": 1, "wall": 2}
+EVENT_NAMES = {v: k for k, v in EVENT_CODES.items()}
+
+
+@dataclass(frozen=True)
+class Successors:
+    """The reference's successors of some states: per label, (n, 4) values and each particle's
+    accepted event (code, partner, t); rows not printed are NaN."""
+
+    values: dict[int, np.ndarray]
+    kind: dict[int, np.ndarray]
+    partner: dict[int, np.ndarray]
+    t: dict[int, np.ndarray]
+
+
+Replay = Callable[[bytes], str]  # replay input (replay_input) -> replay output text
+
+
+@dataclass(frozen=True)
+class StepJudgement:
+    """What the step-local check found."""
+
+    level: float | None  # None: every step right at the printed precision; else the ladder's
+    wrong_step: int | None = None  # the first step no level explains
+    particle: int | None = None
+    program_before: tuple[float, ...] = ()  # the particle at the step before, as printed
+    program_values: tuple[float, ...] = ()  # its state at the wrong step
+    reference_values: tuple[float, ...] = ()  # the reference's successor of the state before
+    reference_event: tuple[str, int, float] | None = None  # (free|pair|wall, partner, t)
+    deviation: float | None = None
+    steps_judged: int = 0
+    near_ties: int = 0  # values explained only by a replay that decided otherwise
+    partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
+    reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
+    details: dict[str, object] = field(default_factory=dict)
+
+
+def half_units(tokens: np.ndarray) -> np.ndarray:
+    """Half a unit in the last printed digit of each token (an array of str), vectorised for
+    plain decimals; tokens with an exponent take the slow path."""
+    tokens = np.asarray(tokens, dtype=str)
+    length = np.char.str_len(tokens)
+    point = np.char.find(tokens, ".")
+    decimals = np.where(point >= 0, length - point - 1, 0)
+    out = 0.5 * 10.0 ** (-decimals.astype(np.float64))
+    exponent = np.char.find(np.char.lower(tokens), "e") >= 0
+    for k in np.flatnonzero(exponent.ravel()):
+        out.flat[k] = _half_unit_exp(str(tokens.flat[k]))
+    return out
+
+
+def _half_unit_exp(token: str) -> float:
+    mantissa, _, exponent = token.lower().lstrip("+-").partition("e")
+    decimals = len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
+    try:
+        return 0.5 * 10.0 ** (int(exponent) - decimals)
+    except ValueError:
+        return 0.5 * 10.0 ** -decimals
+
+
+REPLAY_MAGIC = b"CBREPLAY"  # variants/core/sim_replay.c's binary form
+
+
+def replay_input(n: int, L: float, r: float, states: list[tuple[int, np.ndarray]],
+                 show: list[np.ndarray | None]) -> bytes:
+    """The `--replay` input (its binary form) of (label, (n, 4) values) states; show[k] the
+    particles whose successor is wanted (None: all)."""
+    parts = [REPLAY_MAGIC, np.array([n], dtype=np.int64).tobytes(),
+             np.array([L, r], dtype=np.float64).tobytes()]
+    every = np.ones(n, dtype=np.uint8)
+    for (label, values), wanted in zip(states, show, strict=True):
+        parts.append(np.array([label], dtype=np.int64).tobytes())
+        parts.append(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        parts.append(every.tobytes() if wanted is None else wanted.astype(np.uint8).tobytes())
+    return b"".join(parts)
+
+
+def read_successors(text: str, n: int) -> Successors:
+    """The successors `--replay` printed, by label (the label of the state they follow)."""
+    values: dict[int, np.ndarray] = {}
+    kind: dict[int, np.ndarray] = {}
+    partner: dict[int, np.ndarray] = {}
+    t: dict[int, np.ndarray] = {}
+    if not text.strip():
+        return Successors(values, kind, partner, t)
+    frame = pd.read_csv(io.StringIO(text), sep=" ", header=None,
+                        names=["k", "i", "x", "y", "vx", "vy", "e", "j", "t"])
+    frame["e"] = frame["e"].map(EVENT_CODES)
+    for label, rows in frame.groupby("k", sort=False):
+        k = int(label) - 1
+        idx = rows["i"].to_numpy()
+        v = np.full((n, 4), np.nan)
+        v[idx] = rows[["x", "y", "vx", "vy"]].to_numpy()
+        e = np.full(n, -1, dtype=np.int64)
+        e[idx] = rows["e"].to_numpy()
+        p = np.full(n, -1, dtype=np.int64)
+        p[idx] = rows["j"].to_numpy()
+        tt = np.full(n, np.nan)
+        tt[idx] = rows["t"].to_numpy()
+        values[k], kind[k], partner[k], t[k] = v, e, p, tt
+    return Successors(values, kind, partner, t)
+
+
+def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int, L: float,
+                r: float, replay: Replay, exact: frozenset[int] = frozenset()) -> StepJudgement:
+    """Judge every printed step k + 1 whose step k is printed too. `states[k]` is the program's
+    (n, 4) state at step k, `halves[k]` the half-units of its printed values (for a state in
+    `exact`, known exactly, the size of its arithmetic's roundings: no decision flips there)."""
+    pairs = [k for k in sorted(states) if k + 1 in states]
+    if not pairs:
+        return StepJudgement(None)
+    slack = ARITH_ULPS * DOUBLE_EPS * L
+    base = read_successors(replay(replay_input(n, L, r, [(k, states[k]) for k in pairs],
+                                              [None] * len(pairs))), n)
+    # Per step: which particles are not yet explained, and how far off they are.
+    open_: dict[int, np.ndarray] = {}
+    deviation: dict[int, np.ndarray] = {}
+    for k in pairs:
+        dev = np.abs(states[k + 1] - base.values[k])
+        dev[~np.isfinite(dev)] = np.inf
+        deviation[k] = dev
+        # A particle the reference moves freely moves by x + vx: its printed uncertainty
+        # carries over exactly, without replays (most particles, in a sparse scene).
+        carried = np.where((base.kind[k] == EVENT_CODES["free"])[:, None],
+                           np.hstack([halves[k][:, :2] + halves[k][:, 2:], halves[k][:, 2:]]), 0)
+        suspect = np.any(dev > halves[k + 1] + slack + carried, axis=1)
+        if suspect.any():
+            open_[k] = suspect
+    explain = _Explainer(states, halves, n, L, r, replay, base, deviation, exact)
+    open_ = explain(None, open_)
+    reached: float | None = None
+    if open_:
+        # The coarsest level first, on every step still open: what it cannot explain is wrong.
+        # The finer levels then only for the steps before the first wrong one: the precision
+        # the program reaches where it is right.
+        wrong = explain(PRECISION_LADDER[-1], open_)
+        first = min(wrong) if wrong else None
+        finer = {k: m for k, m in open_.items() if first is None or k < first}
+        for level in PRECISION_LADDER[:-1]:
+            if finer:
+                reached = level
+                finer = explain(level, finer)
+        if finer:
+            reached = PRECISION_LADDER[-1]
+        open_ = wrong
+    near_ties = explain.near_ties
+    if not open_:
+        return StepJudgement(reached, steps_judged=len(pairs), near_ties=near_ties)
+    k = min(open_)
+    i = int(np.flatnonzero(open_[k])[0])
+    event = (EVENT_NAMES.get(int(base.kind[k][i]), "free"), int(base.partner[k][i]),
+             float(base.t[k][i]))
+    return StepJudgement(reached, k + 1, i, tuple(map(float, states[k][i])),
+                         tuple(map(float, states[k + 1][i])), tuple(map(float, base.values[k][i])),
+                         event, float(np.max(deviation[k][i])), len(pairs), near_ties,
+                         base.partner[k], base.values[k])
+
+
+class _Explainer:
+    """One level of the check: which of the open values the perturbed replays at an
+    uncertainty explain."""
+
+    def __init__(self, states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int,
+                 L: float, r: float, replay: Replay, base: Successors,
+                 deviation: dict[int, np.ndarray], exact: frozenset[int]) -> None:
+        self.states, self.halves, self.n, self.L, self.r = states, halves, n, L, r
+        self.exact = exact
+        self.replay, self.base, self.deviation = replay, base, deviation
+        self.slack = ARITH_ULPS * DOUBLE_EPS * L
+        self.near_ties = 0
+
+    def __call__(self, level: float | None,
+                 open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+        """The open values (per step, a mask of particles) that the replays at `level` (None:
+        the printed uncertainty; else this fraction of L) leave unexplained."""
+        n = self.n
+        steps = sorted(open_)
+        amp = {k: self.halves[k] if level is None else np.maximum(self.halves[k], level * self.L)
+               for k in steps}
+        copies: list[tuple[int, np.ndarray]] = []
+        show: list[np.ndarray | None] = []
+        stride = max(self.states) + 2
+        for k in steps:
+            # The two particles of each accepted pair in opposite halves, so that each of the
+            # 8 values a particle's successor depends on is perturbed alone in one copy.
+            second = (self.base.partner[k] >= 0) & (self.base.partner[k] < np.arange(n))
+            for c in range(COPIES):
+                sign = np.zeros((n, 4))
+                sign[second if c >= COPIES // 2 else ~second, c % 4] = 1.0
+                copies.append(((c + 1) * stride + k, self.states[k] + sign * amp[k]))
+                show.append(open_[k])
+        text = replay_input(self.n, self.L, self.r, copies, show)
+        perturbed = read_successors(self.replay(text), n)
+        still: dict[int, np.ndarray] = {}
+        for k in steps:
+            rows = np.flatnonzero(open_[k])
+            ref = self.base.values[k][rows]
+            spread = np.zeros((len(rows), 4))
+            tie = np.zeros(len(rows), dtype=bool)
+            # A state known exactly (the input, as the program holds it) has no near-ties: a
+            # coarser precision explains the values of its decisions, never other decisions.
+            exact = k in self.exact
+            for c in range(COPIES):
+                label = (c + 1) * stride + k
+                other = ((perturbed.kind[label][rows] != self.base.kind[k][rows])
+                         | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
+                change = np.abs(perturbed.values[label][rows] - ref)
+                spread += np.where(other[:, None], 0.0, change) if exact else change
+                tie |= other & (not exact)
+            best = self.deviation[k][rows]
+            out_amp = 0.0 if level is None else level * self.L
+            tolerance = self.halves[k + 1][rows] + self.slack + out_amp + REPLAY_SAFETY * spread
+            bad = np.any(best > tolerance, axis=1)
+            self.near_ties += int(np.count_nonzero(tie & ~bad))
+            if bad.any():
+                mask = np.zeros(n, dtype=bool)
+                mask[rows[bad]] = True
+                still[k] = mask
+        return still
