@@ -122,7 +122,8 @@ bad_input "garbage token" '1 100 1\n0 0 5 5 1 x\n'
 bad_input "too many fields" '1 100 1\n0 0 5 5 1 1 1 1\n'
 bad_input "bad print flag" '1 100 1\n0 0 5 5 1 1 2\n'
 bad_input "negative step" '1 100 1\n-1 0 5 5 1 1\n'
-bad_input "huge token" "1 100 1\n0 0 5 5 1 $(printf '1%.0s' $(seq 80))\n"
+# Any finite real prints in full (up to 309 integer digits) and reads back; longer is refused.
+bad_input "huge token" "1 100 1\n0 0 5 5 1 $(printf '1%.0s' $(seq 400))\n"
 
 echo "$pass passed, $fail failed"
 [ "$fail" = 0 ]
