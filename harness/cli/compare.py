@@ -97,9 +97,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="what fails the gate besides a slower cell (exit 1): with "
                         "'inconclusive' (default) a cell neither shown changed nor shown "
                         "unchanged exits 3; with 'slower' only a slower cell fails")
-    parser.add_argument("--budget", type=_budget, default=DEFAULT_BUDGET_S, metavar="SECONDS",
+    parser.add_argument("--budget", type=_budget, default=None, metavar="SECONDS",
                         help="with --measure: add rounds to undecided cells until each is "
-                        f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g})")
+                        f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g}; "
+                        f"with --metric {METRIC_INSTRUCTIONS}, 0: the counts decide)")
     parser.add_argument("--out", type=Path, default=None,
                         help="where compare.md and compare.{png,svg} go, and with --measure the "
                         "sides' results (default: <repo>/results/compare)")
@@ -193,6 +194,14 @@ def _configs(paths: Sequence[str], registry: VariantRegistry) -> list:
     return [load_config(Path(p), registry) for p in paths]
 
 
+def _measure_budget(args: argparse.Namespace) -> float:
+    """The time lane's budget: an instruction count decides its cell exactly, so with that
+    metric the times get only the first look's rounds unless a budget is asked for."""
+    if args.budget is not None:
+        return args.budget
+    return 0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S
+
+
 def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
     configs = [with_metric(c, args.metric) for c in _configs(paths[2:], registry)]
@@ -202,7 +211,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
                                  args.hyperfine, threshold=args.threshold, q=FDR_Q,
-                                 budget_s=args.budget)
+                                 budget_s=_measure_budget(args))
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
