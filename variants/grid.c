@@ -17,24 +17,15 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
         return;
     grid_plan g;
     grid_plan_step(w, s, &g, sink->threads);
-    const int threads = sink->threads;
-    const int items = g.bands > 1 ? g.K * g.bands : g.blocks;
-#pragma omp parallel num_threads(threads) if (threads > 1)
-    {
-        const int tid = omp_get_thread_num();
-        sim_cand_buf *buf = sim_sink_buf(sink, tid);
+    if (g.bands == 1) {
+        sim_cand_buf *buf = sim_sink_buf(sink, 0);
         const double t0 = sim_busy_start();
-#pragma omp for schedule(dynamic, 1) nowait
-        for (int i = 0; i < items; i++) {
-            buf->chunks++;
-            if (g.bands > 1)
-                grid_run_item(w, s, &s->th[tid], &g, i / g.bands, i / g.bands + 1, i % g.bands,
-                              buf);
-            else
-                grid_run_item(w, s, &s->th[tid], &g, (int)((int64_t)i * g.K / items),
-                              (int)((int64_t)(i + 1) * g.K / items), 0, buf);
-        }
+        grid_run_alone(w, s, &g, buf);
         sim_busy_stop(buf, t0);
+    } else {
+#pragma omp parallel num_threads(g.bands)
+        grid_run_team(w, s, &g, omp_get_thread_num(), omp_get_num_threads(),
+                      sim_sink_buf(sink, omp_get_thread_num()));
     }
     int32_t *t = s->ord;
     s->ord = s->ord_next;

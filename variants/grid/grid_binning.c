@@ -196,7 +196,7 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
                   &flag[e]);
         key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx, g->sub, kshift);
     }
-    int32_t nw = 0, below = 0;
+    int32_t nw = 0;
     memset(pos, 0, (size_t)(keys + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
         const int32_t h = key[e];
@@ -204,8 +204,6 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
             pos[h + 2]++;
         else if (h == GRID_KEY_WIDE)
             wide[nw++] = src_id(src, e);
-        else
-            below += h == GRID_KEY_BELOW;
     }
     for (uint64_t c = 1; c < keys + 2; c++)
         pos[c] += pos[c - 1];
@@ -226,7 +224,6 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
     place_entries(src, part, g, kf, dest, pos[keys], dst);
     b->ne = pos[keys];
     b->nw = nw;
-    b->below = below;
     b->nbase = pos[b->base_end << kshift];
 }
 
@@ -239,7 +236,7 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
     const uint64_t spanx = b->spanx;
     const int pbits = g->pbits, kshift = pbits + GRID_EXT_BITS;
     const uint64_t pmask = ((uint64_t)1 << pbits) - 1;
-    int32_t ne = 0, nw = 0, below = 0;
+    int32_t ne = 0, nw = 0;
     /* th->cy0 becomes where each item goes (place_entries) once its row is read: the sink slot
      * here, the entries' own after the sort. */
     int32_t *restrict dest = th->cy0;
@@ -252,8 +249,6 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
             const uint64_t key =
                 (uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + (uint64_t)b->sub;
             th->ent[ne++] = key << kshift | (uint64_t)f << pbits | (uint64_t)e;
-        } else {
-            below += cy < row0;
         }
     }
     const uint64_t *restrict ent =
@@ -269,15 +264,25 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
     place_entries(src, part, g, kf, dest, ne, dst);
     b->ne = ne;
     b->nw = nw;
-    b->below = below;
     b->nbase = grid_lower_bound(th->skey, ne, b->base_end);
 }
 
-void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
-                    int band, grid_thread *th, grid_set *dst, int32_t *wide, grid_bins *b)
+/* Entries [ne, ne + GRID_LANES) of z zeroed: the prefilter reads up to GRID_LANES - 1 slots past
+ * a run's end, and its masked-off lanes stay finite. */
+static void pad_entries(grid_set *z, int32_t ne)
 {
-    b->row0 = band * g->band_rows;
-    b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
+    const size_t f = GRID_LANES * sizeof(float);
+    memset(z->bx + ne, 0, f), memset(z->by + ne, 0, f), memset(z->ux + ne, 0, f);
+    memset(z->uy + ne, 0, f), memset(z->px + ne, 0, f), memset(z->py + ne, 0, f);
+    memset(z->id + ne, 0, GRID_LANES * sizeof(int32_t));
+}
+
+int grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
+                   int32_t row0, int32_t row1, grid_thread *th, grid_set *dst, int32_t *wide,
+                   grid_bins *b)
+{
+    b->row0 = row0;
+    b->row1 = row1;
     /* Entries of the sub rows from row1 take part as upper neighbours of the band's rows. */
     b->sub = g->sub;
     b->kshift = keys_shift(b->sub);
@@ -287,12 +292,19 @@ void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_p
      * the grid), and one more for the end of the last. */
     b->ncell = (uint64_t)(b->row1 - b->row0 + b->sub) * b->spanx + 1;
     b->base_end = (uint64_t)(b->row1 - b->row0) * b->spanx;
-    /* Dense also needs every key in an int32_t. */
-    b->dense = (b->ncell << b->kshift) <= th->pos_cap && (b->ncell << b->kshift) + 2 <= INT32_MAX;
+    /* Dense while the keys are not many more than the items (and fit an int32_t). */
+    const uint64_t keys = b->ncell << b->kshift;
+    const uint64_t items = (uint64_t)src->m + (uint64_t)src->nwide;
+    b->dense = keys + 2 <= INT32_MAX &&
+               keys <= GRID_DENSE_CELLS_PER_PARTICLE * items + GRID_DENSE_CELLS_MIN;
+    if (b->dense && grid_thread_reserve_keys(th, keys))
+        return -1;
     if (b->dense) {
         bin_dense(src, part, g, kf, th, dst, wide, b);
     } else {
         item_cells(src, part, g, kf, th);
         bin_sparse(src, part, g, kf, th, dst, wide, b);
     }
+    pad_entries(dst, b->ne);
+    return 0;
 }

@@ -38,8 +38,6 @@
 #define GRID_SPEED_BINS 1024
 /* v_ref leaves at most N / GRID_WIDE_SHARE particles faster than itself ("wide"). */
 #define GRID_WIDE_SHARE 128
-/* Bands of rows are used when slices are fewer than this many per thread. */
-#define GRID_ITEMS_PER_THREAD 1
 
 int grid_bits_for(uint64_t v)
 {
@@ -136,11 +134,6 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
     g->sub = sub;
     if (sub == 1)
         g->K = slice_count(GRID_K_FACTOR, vref, n, L, r, sane);
-    /* Small N: one slice per work item, so a multiple of the thread count balances them (the
-     * candidates found do not depend on K, only the work does). */
-    if (threads > 1 && n <= GRID_SMALL_N && g->K >= threads && g->K % threads &&
-        g->K + threads <= GRID_K_MAX)
-        g->K += threads - g->K % threads;
     for (int k = 0; k <= g->K; k++)
         s->tk[k] = (double)k / g->K;
 
@@ -194,18 +187,6 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
     for (int32_t e = 0; e < n; e++)
         particle_f32(&s->part[s->ord[e]], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
 
-    /* Work items. */
-    int bands = 1;
-    if (threads > 1 && g->K < GRID_ITEMS_PER_THREAD * threads)
-        bands = (GRID_ITEMS_PER_THREAD * threads + g->K - 1) / g->K;
-    if (bands > g->gy)
-        bands = g->gy;
-    g->band_rows = (g->gy + bands - 1) / bands;
-    g->bands = (g->gy + g->band_rows - 1) / g->band_rows;
-    if (threads == 1)
-        g->blocks = 1; /* every slice from the one before */
-    else if (g->bands > 1 || n <= GRID_SMALL_N)
-        g->blocks = g->K;
-    else
-        g->blocks = g->K < 2 * threads ? g->K : 2 * threads;
+    /* A team cuts every slice into a band of rows a thread (grid_scan.c). */
+    g->bands = threads > 1 && g->gy > 1 ? threads : 1;
 }

@@ -170,10 +170,11 @@ uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_se
 }
 
 /* Wide boxes against each other, in double (they are few). */
-uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw)
+uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw, int first,
+                         int stride)
 {
     uint64_t tests = 0;
-    for (int32_t m = 0; m < nw; m++)
+    for (int32_t m = first; m < nw; m += stride)
         for (int32_t q = m + 1; q < nw; q++) {
             tests++;
             if (near_pair(cx->s->part, cx->s->tk, cx->g->reach2, wide[m], wide[q], cx->k))
