@@ -235,10 +235,12 @@ static void test_near_pairs_pass_the_float_binning(void)
             for (int k = 0; k <= g.K; k++)
                 s->tk[k] = (double)k / g.K;
             float b[2][4];
-            for (int i = 0; i < 2; i++)
-                particle_f32(&s->part[i], &g, &b[i][0], &b[i][1], &b[i][2], &b[i][3]);
+            for (int i = 0; i < 2; i++) {
+                const grid_particle q = grid_part(&w, i);
+                particle_f32(&q, &g, &b[i][0], &b[i][1], &b[i][2], &b[i][3]);
+            }
             for (int k = 0; k < g.K; k++) {
-                if (!near_pair(s->part, s->tk, g.reach2, 0, 1, k))
+                if (!near_pair(&w, s->tk, g.reach2, 0, 1, k))
                     continue;
                 near_slices++;
                 const float kf = (float)k;
@@ -346,7 +348,8 @@ static void test_prefilter_passes_everything_where_floats_are_off(void)
         grid_plan_step(&w, s, &g, 1);
         CHECK(g.f32_off);
         float b[4];
-        particle_f32(&s->part[0], &g, &b[0], &b[1], &b[2], &b[3]);
+        const grid_particle q = grid_part(&w, 0);
+        particle_f32(&q, &g, &b[0], &b[1], &b[2], &b[3]);
         CHECK(b[0] == 0 && b[1] == 0 && b[2] == 0 && b[3] == 0);
         const grid_vf zero = {0};
         const uint32_t all = (uint32_t)(((uint64_t)1 << GRID_LANES) - 1);
@@ -394,7 +397,7 @@ static void test_accepted_pairs_are_near_in_some_slice(void)
                 s->tk[k] = (double)k / ks[m];
             int near = 0;
             for (int k = 0; k < ks[m] && !near; k++)
-                near = near_pair(s->part, s->tk, g.reach2, 0, 1, k);
+                near = near_pair(&w, s->tk, g.reach2, 0, 1, k);
             if (!near)
                 fail_at(__FILE__, __LINE__, "accepted pair (t=%.17g) near in no slice of %d",
                         (double)t, ks[m]);

@@ -86,10 +86,16 @@ typedef int32_t grid_vi __attribute__((vector_size(GRID_LANES * sizeof(int32_t))
 /* Above this N, pairs the prefilter passes wait in the prefetch queue (grid_queue). */
 #define GRID_SMALL_N 32768
 
-/* A particle's state in double, for gathers by index. */
+/* A particle's state in double, as the world holds it (the decisions are taken in double
+ * whatever the build's real type). */
 typedef struct grid_particle {
     double x, y, vx, vy;
 } grid_particle;
+
+static inline grid_particle grid_part(const sim_world *w, int32_t i)
+{
+    return (grid_particle){(double)w->x[i], (double)w->y[i], (double)w->vx[i], (double)w->vy[i]};
+}
 
 /* The non-wide particles of one slice in cell order, in float (the binning's terms): position
  * at time 0 relative to the grid's corner and displacement over one slice (what the next slice
@@ -150,7 +156,6 @@ typedef struct grid_scratch {
                                * a team's source S, rewritten in every slice's cell order */
     int32_t *ord, *ord_next; /* particles in the cell order of the last slice of the step before:
                               * the first slice of a step finds them almost sorted */
-    grid_particle *part;     /* the state in double, by particle, for gathers */
     double *tk;              /* slice boundaries k / K, k = 0..K */
     grid_thread *th;
     grid_team team;          /* threads > 1 */
@@ -261,7 +266,7 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
 int32_t grid_lower_bound(const uint64_t *key, int32_t n, uint64_t v);
 /* Bin slice kf, the band of rows [row0, row1), from src into dst / wide; *b describes the
  * result. Returns 0, or -1 when memory is short. */
-int grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
+int grid_bin_slice(const grid_src *src, const sim_world *w, const grid_plan *g, float kf,
                    int32_t row0, int32_t row1, grid_thread *th, grid_set *dst, int32_t *wide,
                    grid_bins *b);
 
@@ -379,10 +384,10 @@ static inline long near_in_slice(double dx, double dy, double ddx, double ddy, d
 }
 
 /* Is slice k in the set S of the pair (i, j)? */
-static inline long near_pair(const grid_particle *restrict part, const double *restrict tk,
-                             double reach2, int32_t i, int32_t j, int k)
+static inline long near_pair(const sim_world *w, const double *restrict tk, double reach2,
+                             int32_t i, int32_t j, int k)
 {
-    const grid_particle a = part[i], b = part[j];
+    const grid_particle a = grid_part(w, i), b = grid_part(w, j);
     return near_in_slice(b.x - a.x, b.y - a.y, b.vx - a.vx, b.vy - a.vy, tk[k], tk[k + 1],
                          reach2);
 }

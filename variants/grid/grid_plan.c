@@ -71,7 +71,6 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
     for (int32_t i = 0; i < n; i++) {
         const double x = (double)w->x[i], y = (double)w->y[i];
         const double vx = (double)w->vx[i], vy = (double)w->vy[i];
-        s->part[i] = (grid_particle){x, y, vx, vy};
         minx = x < minx ? x : minx, maxx = x > maxx ? x : maxx;
         miny = y < miny ? y : miny, maxy = y > maxy ? y : maxy;
         const double ax = fabs(vx), ay = fabs(vy), a = ax > ay ? ax : ay;
@@ -101,7 +100,7 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
         uint32_t count[GRID_SPEED_BINS] = {0};
         const double scale = (GRID_SPEED_BINS - 1) / vmax;
         for (int32_t i = 0; i < n; i++) {
-            const double ax = fabs(s->part[i].vx), ay = fabs(s->part[i].vy);
+            const double ax = fabs((double)w->vx[i]), ay = fabs((double)w->vy[i]);
             count[(int)((ax > ay ? ax : ay) * scale)]++;
         }
         const int32_t allow = n / GRID_WIDE_SHARE;
@@ -184,8 +183,10 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
         g->gx = g->gy = 1;
     }
     g->topx = (float)(g->gx - 1), g->topy = (float)(g->gy - 1);
-    for (int32_t e = 0; e < n; e++)
-        particle_f32(&s->part[s->ord[e]], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+    for (int32_t e = 0; e < n; e++) {
+        const grid_particle q = grid_part(w, s->ord[e]);
+        particle_f32(&q, g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+    }
 
     /* A team cuts every slice into a band of rows a thread (grid_scan.c). */
     g->bands = threads > 1 && g->gy > 1 ? threads : 1;

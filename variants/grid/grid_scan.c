@@ -21,7 +21,7 @@ static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t 
 {
     grid_set *dst = &th->set[out];
     int32_t *wide = th->wide[out];
-    if (grid_bin_slice(src, cx->s->part, cx->g, (float)cx->k, row0, row1, th, dst, wide, b))
+    if (grid_bin_slice(src, cx->w, cx->g, (float)cx->k, row0, row1, th, dst, wide, b))
         return -1;
     uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b) : grid_runs_sparse(cx, th, dst, b);
     tests += grid_runs_wide(cx, th, dst, wide, b);
@@ -186,7 +186,7 @@ static void split_part(grid_scratch *s, const grid_plan *g, int bands, int team,
 /* Band `me`'s base entries (z's first nbase) back into the source at `at`, in cell order, and
  * their ids into ids (the source's, or the next step's order after the last slice); band 0
  * also puts the wide particles at the end. */
-static void write_back(grid_scratch *s, const grid_plan *g, const grid_set *z, int32_t nbase,
+static void write_back(const sim_world *w, grid_scratch *s, const grid_plan *g, const grid_set *z, int32_t nbase,
                        int32_t at, int me, int32_t nwide, int32_t *ids)
 {
     memcpy(s->bx + at, z->bx, (size_t)nbase * sizeof(float));
@@ -198,7 +198,8 @@ static void write_back(grid_scratch *s, const grid_plan *g, const grid_set *z, i
         return;
     for (int32_t q = 0; q < nwide; q++) {
         const int32_t e = s->n - nwide + q, p = s->team.wide[q];
-        particle_f32(&s->part[p], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+        const grid_particle q = grid_part(w, p);
+        particle_f32(&q, g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
         ids[e] = p;
     }
 }
@@ -257,7 +258,7 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
                 failed = run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0,
                                    &b) != 0;
             if (!failed)
-                write_back(s, g, &th->set[0], b.nbase, base_at, me, nwide,
+                write_back(w, s, g, &th->set[0], b.nbase, base_at, me, nwide,
                            k == g->K - 1 ? s->ord_next : s->ord);
         }
         sim_busy_stop(buf, t0);

@@ -107,7 +107,7 @@ void grid_scratch_destroy(void *p)
         for (int k = 0; k < s->threads; k++)
             thread_free(&s->th[k]);
     free(s->th);
-    free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->part), free(s->tk);
+    free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->tk);
     free(s->ord), free(s->ord_next);
     free(s->team.bx), free(s->team.by), free(s->team.ux), free(s->team.uy), free(s->team.id);
     free(s->team.wide), free(s->team.count);
@@ -124,11 +124,10 @@ void *grid_scratch_create(const sim_world *w, int threads)
     s->threads = threads;
     s->bx = malloc(n * sizeof(float)), s->by = malloc(n * sizeof(float));
     s->ux = malloc(n * sizeof(float)), s->uy = malloc(n * sizeof(float));
-    s->part = malloc(n * sizeof *s->part);
     s->ord = malloc(n * sizeof(int32_t)), s->ord_next = malloc(n * sizeof(int32_t));
     s->tk = malloc((GRID_K_MAX + 1) * sizeof(double));
     s->th = calloc((size_t)threads, sizeof *s->th);
-    int bad = !s->bx || !s->by || !s->ux || !s->uy || !s->part || !s->ord || !s->ord_next ||
+    int bad = !s->bx || !s->by || !s->ux || !s->uy || !s->ord || !s->ord_next ||
               !s->tk || !s->th;
     if (!bad && threads > 1) {
         /* A band's items are its base entries and the upper neighbours of the band below: an
