@@ -147,6 +147,8 @@ typedef struct grid_team {
     int32_t *wide;            /* this slice's wide particles, in thread order */
     int32_t *count;           /* per thread GRID_COUNT_STRIDE(threads): [band][2] items and base
                                * items, then its wide particles */
+    struct grid_extent *extent; /* per thread: its particles' extent, for the plan */
+    uint32_t *speeds;           /* per thread GRID_SPEED_BINS: its particles' speed counts */
 } grid_team;
 
 typedef struct grid_scratch {
@@ -256,9 +258,28 @@ int grid_thread_reserve_keys(grid_thread *th, uint64_t keys);
 
 /* Bits needed to hold values < v (v >= 1). */
 int grid_bits_for(uint64_t v);
-/* The plan of this step for the world's state (and s's part, bx, by, ux, uy, tk filled in the
- * plan's terms), for `threads` threads. */
+/* The plan of this step for the world's state (and s's bx, by, ux, uy, tk filled in the plan's
+ * terms), for `threads` threads: the pieces below, one after the other. */
 void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads);
+/* The pieces, so that a team shares the loops over particles out: the extent of particles
+ * [i0, i1) and its merge with another's (min and max: any order gives the same); whether the
+ * plan needs the speeds' histogram, and the counts of particles [i0, i1) in it (added to
+ * count, GRID_SPEED_BINS of them, zeroed by the caller); the plan from those; the binning's
+ * floats of entries [e0, e1) of s->ord; the slices' times. */
+typedef struct grid_extent {
+    double minx, maxx, miny, maxy, vmax;
+} grid_extent;
+/* Bins of the speed histogram that picks v_ref. */
+#define GRID_SPEED_BINS 1024
+void grid_extent_of(const sim_world *w, int32_t i0, int32_t i1, grid_extent *e);
+void grid_extent_merge(grid_extent *a, const grid_extent *b);
+int grid_speeds_needed(const sim_world *w, const grid_extent *e);
+void grid_speed_count(const sim_world *w, int32_t i0, int32_t i1, double vmax, uint32_t *count);
+void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *count,
+                    int sub_force, grid_plan *g, int threads);
+void grid_plan_floats(const sim_world *w, grid_scratch *s, const grid_plan *g, int32_t e0,
+                      int32_t e1);
+void grid_plan_times(grid_scratch *s, const grid_plan *g);
 
 /* ---- grid_binning.c ---- */
 

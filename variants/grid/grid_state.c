@@ -110,7 +110,7 @@ void grid_scratch_destroy(void *p)
     free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->tk);
     free(s->ord), free(s->ord_next);
     free(s->team.bx), free(s->team.by), free(s->team.ux), free(s->team.uy), free(s->team.id);
-    free(s->team.wide), free(s->team.count);
+    free(s->team.wide), free(s->team.count), free(s->team.extent), free(s->team.speeds);
     free(s);
 }
 
@@ -139,7 +139,10 @@ void *grid_scratch_create(const sim_world *w, int threads)
         t->ux = malloc(p * sizeof(float)), t->uy = malloc(p * sizeof(float));
         t->id = malloc(p * sizeof(int32_t)), t->wide = malloc(n * sizeof(int32_t));
         t->count = malloc((size_t)threads * GRID_COUNT_STRIDE((size_t)threads) * sizeof(int32_t));
-        bad = !t->bx || !t->by || !t->ux || !t->uy || !t->id || !t->wide || !t->count;
+        t->extent = malloc((size_t)threads * sizeof *t->extent);
+        t->speeds = malloc((size_t)threads * GRID_SPEED_BINS * sizeof *t->speeds);
+        bad = !t->bx || !t->by || !t->ux || !t->uy || !t->id || !t->wide || !t->count ||
+              !t->extent || !t->speeds;
         for (int k = 0; k < threads && !bad; k++) {
             s->th[k].bound = malloc(((size_t)threads + 1) * sizeof(int32_t));
             s->th[k].cur = malloc((size_t)threads * sizeof(int32_t));
