@@ -150,8 +150,10 @@ static size_t put_real(char *p, sim_real v, bool precise)
 
 /* Lines are formatted a chunk of SIM_OUT_LINES particles at a time into a buffer and written
  * with one fwrite (a call per line took the stream's lock and copied each line again: 10^4
- * lines cost 0.6 ms). */
-#define SIM_OUT_LINES 512
+ * lines cost 0.6 ms). On a team each chunk is one hand-over between threads, and on a loaded
+ * machine a descheduled thread's turn waits a scheduler tick: chunks are long (docs/grid_bound.md
+ * has the times). */
+#define SIM_OUT_LINES 4096
 #define SIM_OUT_CHUNK (SIM_OUT_LINES * SIM_LINE_MAX)
 /* Below this many particles a block is formatted on one thread: a team's start costs more. */
 #define SIM_OUT_PARALLEL_MIN 16384
