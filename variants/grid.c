@@ -54,7 +54,22 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     grid_scratch *s = sink->scratch;
     if (w->n < 2)
         return;
-    if (sink->threads == 1) {
+    if (sink->threads > 1 && w->n <= s->direct_n) {
+        /* A step of a millisecond: the plan on one thread, then one region, no barrier in it. */
+        grid_plan g;
+        grid_plan_step(w, s, &g, sink->threads);
+#pragma omp parallel num_threads(sink->threads)
+        {
+            const int me = omp_get_thread_num();
+            sim_cand_buf *buf = sim_sink_buf(sink, me);
+            const double t0 = sim_busy_start();
+            if (g.bands > 1)
+                grid_run_direct(w, s, &g, me, omp_get_num_threads(), buf);
+            else if (me == 0)
+                grid_run_alone(w, s, &g, buf);
+            sim_busy_stop(buf, t0);
+        }
+    } else if (sink->threads == 1) {
         grid_plan g;
         grid_plan_step(w, s, &g, 1);
         sim_cand_buf *buf = sim_sink_buf(sink, 0);

@@ -69,6 +69,9 @@ static double clamp_to(double v, double lo, double hi)
  * (NULL: a fresh one), sorted; *count set. */
 /* Cells per box width that grid_candidates forces (0: the finder chooses). */
 static int test_sub_force;
+/* Whether a team splits every slice into bands whatever N (else small scenes bin every
+ * particle in every band). */
+static int test_banded;
 
 static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scratch,
                                       size_t *count)
@@ -84,6 +87,8 @@ static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scr
     }
     memset(sink.bufs, 0, (size_t)threads * sizeof *sink.bufs);
     ((grid_scratch *)sink.scratch)->sub_force = test_sub_force;
+    if (test_banded)
+        ((grid_scratch *)sink.scratch)->direct_n = 0;
     sim_variant_def.find_pairs(w, &sink);
     size_t total = 0;
     for (int k = 0; k < threads; k++) {
@@ -142,23 +147,29 @@ static size_t check_world(const sim_world *w, const char *what)
     size_t nref;
     sim_cand *ref = reference_candidates(w, &nref);
     /* Every thread count, with the cells the finder chooses and with each subdivision forced
-     * (sub 1 .. GRID_SUB_MAX), whatever the scene would get. */
+     * (sub 1 .. GRID_SUB_MAX), whatever the scene would get; a team both ways (every particle
+     * binned in every band, and split into bands). */
     for (int sub = 0; sub <= GRID_SUB_MAX; sub++)
-        for (int threads = 1; threads <= 4; threads++) {
-            size_t ngot;
-            test_sub_force = sub;
-            sim_cand *got = grid_candidates(w, threads, &ngot);
-            test_sub_force = 0;
-            if (!same_candidates(got, ngot, ref, nref)) {
-                fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads, sub %d): %zu "
-                        "candidates, expected %zu", what, w->n, (double)w->L, (double)w->r,
-                        threads, sub, ngot, nref);
+        for (int threads = 1; threads <= 4; threads++)
+            for (int banded = 0; banded <= (threads > 1); banded++) {
+                size_t ngot;
+                test_sub_force = sub;
+                test_banded = banded;
+                sim_cand *got = grid_candidates(w, threads, &ngot);
+                test_sub_force = 0;
+                test_banded = 0;
+                if (!same_candidates(got, ngot, ref, nref)) {
+                    fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads, sub %d, %s): "
+                            "%zu candidates, expected %zu", what, w->n, (double)w->L,
+                            (double)w->r, threads, sub, banded ? "banded" : "direct", ngot,
+                            nref);
+                    free(got);
+                    sub = GRID_SUB_MAX;
+                    threads = 4;
+                    break;
+                }
                 free(got);
-                sub = GRID_SUB_MAX;
-                break;
             }
-            free(got);
-        }
     free(ref);
     return nref;
 }

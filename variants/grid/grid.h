@@ -85,6 +85,10 @@ typedef int32_t grid_vi __attribute__((vector_size(GRID_LANES * sizeof(int32_t))
 
 /* Above this N, pairs the prefilter passes wait in the prefetch queue (grid_queue). */
 #define GRID_SMALL_N 32768
+/* Up to this N a team bins every particle in every band (grid_run_direct): the binning each
+ * thread repeats costs less than the barriers and the split into bands on a step that takes
+ * about a millisecond, and the scratch of N items a thread is small. */
+#define GRID_DIRECT_N 32768
 
 /* A particle's state in double, as the world holds it (the decisions are taken in double
  * whatever the build's real type). */
@@ -163,6 +167,8 @@ typedef struct grid_scratch {
     grid_team team;          /* threads > 1 */
     int sub_force; /* 0: grid_plan_step chooses the cells per box width; the tests force 1 to
                     * GRID_SUB_MAX */
+    int32_t direct_n; /* a team bins every particle in every band up to this N (GRID_DIRECT_N;
+                       * the tests set 0 to run the split into bands on small scenes too) */
 } grid_scratch;
 
 /* What one step's binning uses. */
@@ -200,6 +206,8 @@ typedef struct grid_bins {
     int dense;         /* counting-sorted: th->pos and th->scell; else th->skey */
     int32_t ne, nw;    /* entries (base rows and the row above), wide particles */
     int32_t nbase;     /* entries whose base cell is in the band: the first nbase */
+    int32_t below;     /* items below the band's rows, not wide: where the source is every
+                        * particle, the base entries of the bands below */
     int32_t row0, row1;
     int32_t rowlast;   /* the last row whose entries are binned: row1 + sub - 1, clipped */
     int32_t sub;       /* cells per box width (grid_plan) */
@@ -324,6 +332,11 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
  * memory ran short (buf is then marked failed). */
 void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
                    sim_cand_buf *buf);
+/* Thread `me` of a team on a small scene (N <= GRID_DIRECT_N): a band of rows a thread, each
+ * binned from every particle (the plan's floats), no barrier between slices; scratch for N
+ * items a thread. */
+void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                     sim_cand_buf *buf);
 
 /* ==== Inline helpers ====
  *

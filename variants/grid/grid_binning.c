@@ -199,7 +199,7 @@ static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *
                   &flag[e]);
         key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx, g->sub, kshift);
     }
-    int32_t nw = 0;
+    int32_t nw = 0, below = 0;
     memset(pos, 0, (size_t)(keys + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
         const int32_t h = key[e];
@@ -207,6 +207,8 @@ static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *
             pos[h + 2]++;
         else if (h == GRID_KEY_WIDE)
             wide[nw++] = src_id(src, e);
+        else
+            below += h == GRID_KEY_BELOW;
     }
     for (uint64_t c = 1; c < keys + 2; c++)
         pos[c] += pos[c - 1];
@@ -227,6 +229,7 @@ static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *
     place_entries(src, w, g, kf, dest, pos[keys], dst);
     b->ne = pos[keys];
     b->nw = nw;
+    b->below = below;
     b->nbase = pos[b->base_end << kshift];
 }
 
@@ -239,7 +242,7 @@ static void bin_sparse(const grid_src *src, const sim_world *w, const grid_plan 
     const uint64_t spanx = b->spanx;
     const int pbits = g->pbits, kshift = pbits + GRID_EXT_BITS;
     const uint64_t pmask = ((uint64_t)1 << pbits) - 1;
-    int32_t ne = 0, nw = 0;
+    int32_t ne = 0, nw = 0, below = 0;
     /* th->cy0 becomes where each item goes (place_entries) once its row is read: the sink slot
      * here, the entries' own after the sort. */
     int32_t *restrict dest = th->cy0;
@@ -252,6 +255,8 @@ static void bin_sparse(const grid_src *src, const sim_world *w, const grid_plan 
             const uint64_t key =
                 (uint64_t)(cy - row0) * spanx + (uint64_t)th->cx0[e] + (uint64_t)b->sub;
             th->ent[ne++] = key << kshift | (uint64_t)f << pbits | (uint64_t)e;
+        } else {
+            below += cy < row0;
         }
     }
     const uint64_t *restrict ent =
@@ -267,6 +272,7 @@ static void bin_sparse(const grid_src *src, const sim_world *w, const grid_plan 
     place_entries(src, w, g, kf, dest, ne, dst);
     b->ne = ne;
     b->nw = nw;
+    b->below = below;
     b->nbase = grid_lower_bound(th->skey, ne, b->base_end);
 }
 

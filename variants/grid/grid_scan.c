@@ -267,3 +267,36 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
     if (failed)
         buf->failed = true;
 }
+
+void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                     sim_cand_buf *buf)
+{
+    grid_thread *th = &s->th[me];
+    const int bands = g->bands < team ? g->bands : team;
+    if (me >= bands)
+        return;
+    if (grid_thread_reserve(th, s->n, 1)) {
+        buf->failed = true;
+        return;
+    }
+    /* The plan's floats stay the source of every slice (a slice only moves where they land). */
+    const grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord,
+                          .m = s->n, .wide = NULL, .nwide = 0};
+    grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
+    for (int k = 0; k < g->K; k++) {
+        band_bounds(s, g, (float)k, bands, th);
+        const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
+        grid_bins b;
+        if (run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0, &b)) {
+            buf->failed = true;
+            return;
+        }
+        if (k == g->K - 1) {
+            /* The bands' base entries in band order, then the wide particles: every particle
+             * once, in this slice's cell order, the next step's start. */
+            memcpy(s->ord_next + b.below, th->set[0].id, (size_t)b.nbase * sizeof(int32_t));
+            if (me == 0)
+                memcpy(s->ord_next + (s->n - b.nw), th->wide[0], (size_t)b.nw * sizeof(int32_t));
+        }
+    }
+}
