@@ -90,8 +90,26 @@ static void wall_run(const sim_cand *wall_moves, size_t nw, int32_t i0, int32_t 
     *k1 = hi;
 }
 
+/* The new states of the accepted pairs' particles in [i0, i1), copied from pair_out. */
+static void copy_pair_states(sim_stepper *s, sim_world *w, int32_t i0, int32_t i1)
+{
+    const sim_cand *pair_moves = s->pair_moves;
+    for (size_t k = 0; k < s->pair_moves_len; k++)
+        for (int side = 0; side < 2; side++) {
+            const int32_t i = side ? pair_moves[k].j : pair_moves[k].i;
+            if (i < i0 || i >= i1)
+                continue;
+            const sim_real *o = s->pair_out + SIM_PAIR_OUT * k + 4 * side;
+            s->nx[i] = o[0];
+            s->ny[i] = o[1];
+            w->vx[i] = o[2];
+            w->vy[i] = o[3];
+        }
+}
+
 /* Phase 4 on one thread: the same moves in the same order as the team's (move_team) with no
- * barrier to spare, then the next state's wall candidates. Sets the seconds
+ * barrier to spare, the pairs written straight into the next state (the copy through pair_out
+ * cost 1 ms of the report benchmark), then the next state's wall candidates. Sets the seconds
  * of the motion and of the wall pass. */
 static void move_alone(sim_stepper *s, sim_world *w, double *motion_s, double *walls_s)
 {
@@ -109,26 +127,35 @@ static void move_alone(sim_stepper *s, sim_world *w, double *motion_s, double *w
     *walls_s = omp_get_wtime() - m1;
 }
 
-/* Phase 4 on the team, then the next step's wall candidates, in one parallel region:
+/* Phase 4 on the team, then the next step's wall candidates, in one parallel region with one
+ * barrier (on a loaded machine a barrier can wait a scheduler tick for a descheduled thread):
  *  1. each thread for its own run of particles (sim_share): all move by their velocity into
  *     the next positions (vectorised; most have no collision: 55% on the report benchmark),
- *     which also brings the old state into the caches; a barrier;
- *  2. the accepted pairs move, shared out by blocks of pairs, each writing its own two
- *     particles' next state (reading the old state only); the loop's barrier;
+ *     which also brings the old state into the caches for 2;
+ *  2. the accepted pairs' new states, into pair_out (reading the old state only), shared out
+ *     by blocks of pairs; the barrier;
  *  3. each thread for its own particles: the accepted walls move (the wall list is in particle
- *     order), then the wall candidates of their new state.
- * A particle's next state is written by 1, then by its pair in 2 or its wall in 3, each after
- * the barrier that ends the one before; the old positions are only read. Every step of it is
- * O(N / T + collisions / T) a thread.
+ *     order), the pair states are copied from pair_out;
+ *  4. the same thread, the wall candidates of its particles' new state.
+ * Before the barrier nothing writes the old state; after it a thread writes only its own
+ * particles and reads nothing another wrote after the barrier, so 3 and 4 need none.
  * Timed on thread 0, the thread that calls sim_step: *motion_s from the region's start to the
- * end of its walls in 3 (the barriers included), *walls_s its wall candidates; the region's
- * start-up before thread 0 runs and the closing barrier are in neither, but in sim_s. */
-static void move_team(sim_stepper *s, sim_world *w, double *motion_s, double *walls_s)
+ * end of its 3 (the barrier included), *walls_s its 4; the region's start-up before thread 0
+ * runs and the closing barrier are in neither, but in sim_s. Returns 0, or -1 when memory ran
+ * out. */
+static int move_team(sim_stepper *s, sim_world *w, double *motion_s, double *walls_s)
 {
     const int32_t n = w->n;
     const size_t nw = s->wall_moves_len, np = s->pair_moves_len, eb = sim_event_block();
     const int32_t blocks = (n + SIM_WALL_BLOCK - 1) / SIM_WALL_BLOCK;
     const int32_t pair_blocks = (int32_t)((np + eb - 1) / eb);
+    if (np > s->pair_out_cap) {
+        sim_real *p = realloc(s->pair_out, np * SIM_PAIR_OUT * sizeof *p);
+        if (!p)
+            return -1;
+        s->pair_out = p;
+        s->pair_out_cap = np;
+    }
     double motion = 0, walls = 0;
 #pragma omp parallel num_threads(s->threads)
     {
@@ -138,14 +165,14 @@ static void move_team(sim_stepper *s, sim_world *w, double *motion_s, double *wa
         sim_share(blocks, me, omp_get_num_threads(), &b0, &b1);
         sim_block_span(n, b0, b1, &i0, &i1);
         move_free_blocks(s, w, b0, b1);
-#pragma omp barrier
 #pragma omp for schedule(static)
         for (int32_t b = 0; b < pair_blocks; b++)
-            sim_move_pairs(w, s->pair_moves, np, (size_t)b * eb, NULL, s->nx, s->ny);
+            sim_move_pairs(w, s->pair_moves, np, (size_t)b * eb, s->pair_out, NULL, NULL);
         size_t k0, k1;
         wall_run(s->wall_moves, nw, i0, i1, &k0, &k1);
         for (size_t k = k0; k < k1; k += eb)
             sim_move_walls(w, s->wall_moves, k1, k, s->nx, s->ny);
+        copy_pair_states(s, w, i0, i1);
         const double m1 = me == 0 ? omp_get_wtime() : 0;
         sim_find_walls_range(&s->walls[me], s->wall_t, s->nx, s->ny, w->vx, w->vy, w->lo, w->hi,
                              i0, i1);
@@ -156,6 +183,7 @@ static void move_team(sim_stepper *s, sim_world *w, double *motion_s, double *wa
     }
     *motion_s = motion;
     *walls_s = walls;
+    return 0;
 }
 
 static void swap_arrays(sim_real **a, sim_real **b)
@@ -197,8 +225,8 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
     double motion_s = 0, walls_s = 0;
     if (!sim_team_pays(s, w->n))
         move_alone(s, w, &motion_s, &walls_s);
-    else
-        move_team(s, w, &motion_s, &walls_s);
+    else if (move_team(s, w, &motion_s, &walls_s))
+        return -1;
     stats->motion_s += motion_s;
     stats->walls_s += walls_s;
     swap_arrays(&w->x, &s->nx);

@@ -105,6 +105,7 @@ void sim_stepper_destroy(sim_stepper *s)
     free(s->sources);
     free(s->source_len);
     free(s->wall_moves);
+    free(s->pair_out);
     free(s->pair_moves);
     free(s->taken);
     free(s->wall_t);

@@ -52,6 +52,10 @@ struct sim_stepper {
     /* The candidates the greedy walk accepted, walls and pairs apart, in walk order. */
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
+    /* The accepted pairs' new states, SIM_PAIR_OUT reals each, where a team moves them (see
+     * sim_step.c). */
+    sim_real *pair_out;
+    size_t pair_out_cap; /* in pairs */
     unsigned char *taken; /* n + 1 flags, all 0 between walks (see sim_resolve.c) */
     sim_real *wall_t;     /* each particle's wall time in the world's state (see sim_resolve.c) */
     /* Collisions of each kind per particle not yet added to the world's pcoll / wcoll (see
