@@ -6,35 +6,80 @@
  * the step, then its work items shared out to the threads; the pieces that do the work are the
  * files of variants/grid/ (grid/grid.h lists them).
  */
+#include <string.h>
+
 #include <omp.h>
 
 #include "grid/grid.h"
+
+/* Thread `me` of `team`: the plan of the step, its loops over particles shared out (each thread
+ * merges every thread's extent and speed counts in the same order, so all make the same plan),
+ * then the slices. */
+static void find_on_team(const sim_world *w, grid_scratch *s, int me, int team, sim_cand_buf *buf)
+{
+    const int32_t i0 = (int32_t)((int64_t)w->n * me / team);
+    const int32_t i1 = (int32_t)((int64_t)w->n * (me + 1) / team);
+    grid_extent_of(w, i0, i1, &s->team.extent[me]);
+#pragma omp barrier
+    grid_extent e = s->team.extent[0];
+    for (int t = 1; t < team; t++)
+        grid_extent_merge(&e, &s->team.extent[t]);
+    const int speeds = grid_speeds_needed(w, &e);
+    uint32_t *mine = s->team.speeds + (size_t)me * GRID_SPEED_BINS;
+    memset(mine, 0, GRID_SPEED_BINS * sizeof *mine);
+    if (speeds)
+        grid_speed_count(w, i0, i1, e.vmax, mine);
+#pragma omp barrier
+    uint32_t count[GRID_SPEED_BINS] = {0};
+    for (int t = 0; t < team && speeds; t++)
+        for (int b = 0; b < GRID_SPEED_BINS; b++)
+            count[b] += s->team.speeds[(size_t)t * GRID_SPEED_BINS + b];
+    grid_plan g;
+    grid_plan_make(w, &e, count, s->sub_force, &g, team);
+    grid_plan_floats(w, s, &g, i0, i1);
+    if (me == 0)
+        grid_plan_times(s, &g);
+#pragma omp barrier
+    if (g.bands > 1) {
+        grid_run_team(w, s, &g, me, team, buf);
+    } else if (me == 0) {
+        const double t0 = sim_busy_start();
+        grid_run_alone(w, s, &g, buf);
+        sim_busy_stop(buf, t0);
+    }
+}
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
     grid_scratch *s = sink->scratch;
     if (w->n < 2)
         return;
-    grid_plan g;
-    grid_plan_step(w, s, &g, sink->threads);
-    const int threads = sink->threads;
-    const int items = g.bands > 1 ? g.K * g.bands : g.blocks;
-#pragma omp parallel num_threads(threads) if (threads > 1)
-    {
-        const int tid = omp_get_thread_num();
-        sim_cand_buf *buf = sim_sink_buf(sink, tid);
-        const double t0 = sim_busy_start();
-#pragma omp for schedule(dynamic, 1) nowait
-        for (int i = 0; i < items; i++) {
-            buf->chunks++;
+    if (sink->threads > 1 && w->n <= s->direct_n) {
+        /* A step of a millisecond: the plan on one thread, then one region, no barrier in it. */
+        grid_plan g;
+        grid_plan_step(w, s, &g, sink->threads);
+#pragma omp parallel num_threads(sink->threads)
+        {
+            const int me = omp_get_thread_num();
+            sim_cand_buf *buf = sim_sink_buf(sink, me);
+            const double t0 = sim_busy_start();
             if (g.bands > 1)
-                grid_run_item(w, s, &s->th[tid], &g, i / g.bands, i / g.bands + 1, i % g.bands,
-                              buf);
-            else
-                grid_run_item(w, s, &s->th[tid], &g, (int)((int64_t)i * g.K / items),
-                              (int)((int64_t)(i + 1) * g.K / items), 0, buf);
+                grid_run_direct(w, s, &g, me, omp_get_num_threads(), buf);
+            else if (me == 0)
+                grid_run_alone(w, s, &g, buf);
+            sim_busy_stop(buf, t0);
         }
+    } else if (sink->threads == 1) {
+        grid_plan g;
+        grid_plan_step(w, s, &g, 1);
+        sim_cand_buf *buf = sim_sink_buf(sink, 0);
+        const double t0 = sim_busy_start();
+        grid_run_alone(w, s, &g, buf);
         sim_busy_stop(buf, t0);
+    } else {
+#pragma omp parallel num_threads(sink->threads)
+        find_on_team(w, s, omp_get_thread_num(), omp_get_num_threads(),
+                     sim_sink_buf(sink, omp_get_thread_num()));
     }
     int32_t *t = s->ord;
     s->ord = s->ord_next;

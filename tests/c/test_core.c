@@ -277,6 +277,44 @@ static void test_generate_ranges(void)
     }
 }
 
+/* Generation in chunks side by side draws what one stream in index order draws: a world of a
+ * few chunks with listed particles between them, on three threads, against the stream replayed
+ * here one particle after the other. */
+static void test_generate_chunks_are_one_stream(void)
+{
+    const int32_t n = 3 * 4096 + 17;
+    sim_world w;
+    const sim_header h = header(n, 1000, 1, 0);
+    CHECK_INT(sim_world_alloc(&w, &h), 0);
+    unsigned char *listed = calloc((size_t)n + 1, 1);
+    CHECK(listed != NULL);
+    if (!listed)
+        return;
+    for (int32_t i = 5; i < n; i += 997)
+        listed[i] = 1, put(&w, i, 500, 500, 0, 0);
+    omp_set_num_threads(3);
+    sim_generate(&w, &h, listed, 42);
+    omp_set_num_threads(1);
+    uint64_t state = 42;
+    int differing = 0;
+    const double lo = 1000.0 / 8, hi = 1000.0 / 4;
+    for (int32_t i = 0; i < n; i++) {
+        if (listed[i]) {
+            differing += w.x[i] != 500;
+            continue;
+        }
+        const double u1 = sim_uniform(&state), u2 = sim_uniform(&state);
+        const double u3 = sim_uniform(&state), u4 = sim_uniform(&state);
+        const double speed = lo + u3 * (hi - lo), angle = 6.283185307179586476925286766559 * u4;
+        differing += w.x[i] != (sim_real)(1 + u1 * 998) || w.y[i] != (sim_real)(1 + u2 * 998) ||
+                     w.vx[i] != (sim_real)(speed * cos(angle)) ||
+                     w.vy[i] != (sim_real)(speed * sin(angle));
+    }
+    CHECK_INT(differing, 0);
+    free(listed);
+    sim_world_free(&w);
+}
+
 /* ---- input (SPEC §1) ---- */
 
 static void test_parse_header_ok(void)
@@ -969,6 +1007,35 @@ static void test_write_blocks(void)
     sim_world_free(&w);
 }
 
+/* A block of many particles is formatted by the team chunk by chunk and written in order: the
+ * same bytes as one thread's, in both formats. */
+static void test_write_blocks_on_a_team(void)
+{
+    sim_world w;
+    dense_world(&w, 40000, 4000);
+    for (int32_t i = 0; i < w.n; i++)
+        w.pcoll[i] = i % 7, w.wcoll[i] = i % 3;
+    char *text[2] = {NULL, NULL};
+    size_t len[2] = {0, 0};
+    for (int k = 0; k < 2; k++) {
+        omp_set_num_threads(k ? 3 : 1);
+        FILE *f = open_memstream(&text[k], &len[k]);
+        CHECK(f != NULL);
+        if (!f)
+            return;
+        CHECK_INT(sim_write_state(f, &w, 7, false), 0);
+        CHECK_INT(sim_write_final(f, &w, 8, true), 0);
+        fclose(f);
+    }
+    omp_set_num_threads(1);
+    CHECK(len[0] > (size_t)w.n * 40);
+    CHECK_INT(len[1], len[0]);
+    CHECK(len[0] == len[1] && memcmp(text[0], text[1], len[0]) == 0);
+    free(text[0]);
+    free(text[1]);
+    sim_world_free(&w);
+}
+
 /* --describe's line: the keys in their fixed order, booleans as JSON literals, a missing repair
  * as null, and every character JSON needs escaped in the strings. */
 static void test_describe_json(void)
@@ -1150,6 +1217,46 @@ static void test_step_order_independent(void)
     CHECK_U64(sb.pair_collisions, sa.pair_collisions);
     CHECK_U64(sb.wall_collisions, sa.wall_collisions);
     CHECK(sa.pair_collisions > 50);
+    sim_world_free(&a);
+    sim_world_free(&b);
+}
+
+/* The pairs found backwards over three buffers, stepped by a parallel stepper: above 65536 pair
+ * candidates a step the team sorts them (coarse buckets, then fine ones), and the steps must
+ * be those of one thread's sort. */
+static const sim_variant reversed_parallel_variant = {
+    .name = "reversed_parallel",
+    .exact = true,
+    .parallel = true,
+    .buffer_count = three_buffers,
+    .find_pairs = find_pairs_reversed,
+};
+
+static void test_step_team_sort(void)
+{
+    sim_world a, b;
+    world_init(&a, 8000, 200, 1);
+    for (int32_t i = 0; i < a.n; i++) /* fast: many pairs meet within a step */
+        put(&a, i, 1 + rnd() * 198, 1 + rnd() * 198, 120 * rnd() - 60, 120 * rnd() - 60);
+    world_init(&b, 8000, 200, 1);
+    memcpy(b.x, a.x, (size_t)a.n * sizeof *a.x);
+    memcpy(b.y, a.y, (size_t)a.n * sizeof *a.y);
+    memcpy(b.vx, a.vx, (size_t)a.n * sizeof *a.vx);
+    memcpy(b.vy, a.vy, (size_t)a.n * sizeof *a.vy);
+    sim_stats sa = {0}, sb = {0};
+    run_steps(&a, &reversed_variant, 3, &sa);
+    sim_stepper *st = sim_stepper_create(&b, &reversed_parallel_variant, 3);
+    CHECK(st != NULL);
+    if (!st)
+        return;
+    for (int k = 0; k < 3; k++)
+        CHECK_INT(sim_step(st, &b, &sb), 0);
+    sim_stepper_destroy(st);
+    CHECK(sa.candidates > 3 * 65536);
+    CHECK_INT(particles_differing(&a, &b), 0);
+    CHECK_U64(sb.candidates, sa.candidates);
+    CHECK_U64(sb.pair_collisions, sa.pair_collisions);
+    CHECK_U64(sb.wall_collisions, sa.wall_collisions);
     sim_world_free(&a);
     sim_world_free(&b);
 }
@@ -1553,6 +1660,7 @@ static const test_case tests[] = {
     TEST(test_generate_seed1),
     TEST(test_generate_skips_listed),
     TEST(test_generate_ranges),
+    TEST(test_generate_chunks_are_one_stream),
     TEST(test_parse_header_ok),
     TEST(test_parse_header_errors),
     TEST(test_parse_particles_ok),
@@ -1569,6 +1677,7 @@ static const test_case tests[] = {
     TEST(test_format_real),
     TEST(test_fixed8_matches_printf),
     TEST(test_write_blocks),
+    TEST(test_write_blocks_on_a_team),
     TEST(test_describe_json),
     TEST(test_step_head_on),
     TEST(test_step_pair_before_wall),
@@ -1576,6 +1685,7 @@ static const test_case tests[] = {
     TEST(test_step_tie_order),
     TEST(test_step_stats),
     TEST(test_step_order_independent),
+    TEST(test_step_team_sort),
     TEST(test_step_carries_wall_candidates),
     TEST(test_step_wall_times_are_scalar),
     TEST(test_step_phase_times),

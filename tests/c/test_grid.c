@@ -69,6 +69,9 @@ static double clamp_to(double v, double lo, double hi)
  * (NULL: a fresh one), sorted; *count set. */
 /* Cells per box width that grid_candidates forces (0: the finder chooses). */
 static int test_sub_force;
+/* Whether a team splits every slice into bands whatever N (else small scenes bin every
+ * particle in every band). */
+static int test_banded;
 
 static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scratch,
                                       size_t *count)
@@ -84,6 +87,8 @@ static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scr
     }
     memset(sink.bufs, 0, (size_t)threads * sizeof *sink.bufs);
     ((grid_scratch *)sink.scratch)->sub_force = test_sub_force;
+    if (test_banded)
+        ((grid_scratch *)sink.scratch)->direct_n = 0;
     sim_variant_def.find_pairs(w, &sink);
     size_t total = 0;
     for (int k = 0; k < threads; k++) {
@@ -142,23 +147,29 @@ static size_t check_world(const sim_world *w, const char *what)
     size_t nref;
     sim_cand *ref = reference_candidates(w, &nref);
     /* Every thread count, with the cells the finder chooses and with each subdivision forced
-     * (sub 1 .. GRID_SUB_MAX), whatever the scene would get. */
+     * (sub 1 .. GRID_SUB_MAX), whatever the scene would get; a team both ways (every particle
+     * binned in every band, and split into bands). */
     for (int sub = 0; sub <= GRID_SUB_MAX; sub++)
-        for (int threads = 1; threads <= 4; threads++) {
-            size_t ngot;
-            test_sub_force = sub;
-            sim_cand *got = grid_candidates(w, threads, &ngot);
-            test_sub_force = 0;
-            if (!same_candidates(got, ngot, ref, nref)) {
-                fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads, sub %d): %zu "
-                        "candidates, expected %zu", what, w->n, (double)w->L, (double)w->r,
-                        threads, sub, ngot, nref);
+        for (int threads = 1; threads <= 4; threads++)
+            for (int banded = 0; banded <= (threads > 1); banded++) {
+                size_t ngot;
+                test_sub_force = sub;
+                test_banded = banded;
+                sim_cand *got = grid_candidates(w, threads, &ngot);
+                test_sub_force = 0;
+                test_banded = 0;
+                if (!same_candidates(got, ngot, ref, nref)) {
+                    fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g, %d threads, sub %d, %s): "
+                            "%zu candidates, expected %zu", what, w->n, (double)w->L,
+                            (double)w->r, threads, sub, banded ? "banded" : "direct", ngot,
+                            nref);
+                    free(got);
+                    sub = GRID_SUB_MAX;
+                    threads = 4;
+                    break;
+                }
                 free(got);
-                sub = GRID_SUB_MAX;
-                break;
             }
-            free(got);
-        }
     free(ref);
     return nref;
 }
@@ -235,10 +246,12 @@ static void test_near_pairs_pass_the_float_binning(void)
             for (int k = 0; k <= g.K; k++)
                 s->tk[k] = (double)k / g.K;
             float b[2][4];
-            for (int i = 0; i < 2; i++)
-                particle_f32(&s->part[i], &g, &b[i][0], &b[i][1], &b[i][2], &b[i][3]);
+            for (int i = 0; i < 2; i++) {
+                const grid_particle q = grid_part(&w, i);
+                particle_f32(&q, &g, &b[i][0], &b[i][1], &b[i][2], &b[i][3]);
+            }
             for (int k = 0; k < g.K; k++) {
-                if (!near_pair(s->part, s->tk, g.reach2, 0, 1, k))
+                if (!near_pair(&w, s->tk, g.reach2, 0, 1, k))
                     continue;
                 near_slices++;
                 const float kf = (float)k;
@@ -346,7 +359,8 @@ static void test_prefilter_passes_everything_where_floats_are_off(void)
         grid_plan_step(&w, s, &g, 1);
         CHECK(g.f32_off);
         float b[4];
-        particle_f32(&s->part[0], &g, &b[0], &b[1], &b[2], &b[3]);
+        const grid_particle q = grid_part(&w, 0);
+        particle_f32(&q, &g, &b[0], &b[1], &b[2], &b[3]);
         CHECK(b[0] == 0 && b[1] == 0 && b[2] == 0 && b[3] == 0);
         const grid_vf zero = {0};
         const uint32_t all = (uint32_t)(((uint64_t)1 << GRID_LANES) - 1);
@@ -394,7 +408,7 @@ static void test_accepted_pairs_are_near_in_some_slice(void)
                 s->tk[k] = (double)k / ks[m];
             int near = 0;
             for (int k = 0; k < ks[m] && !near; k++)
-                near = near_pair(s->part, s->tk, g.reach2, 0, 1, k);
+                near = near_pair(&w, s->tk, g.reach2, 0, 1, k);
             if (!near)
                 fail_at(__FILE__, __LINE__, "accepted pair (t=%.17g) near in no slice of %d",
                         (double)t, ks[m]);

@@ -3,6 +3,7 @@
  * The seed comes from --seed (default 1), never from the clock, so every run is repeatable.
  */
 #include <math.h>
+#include <stdlib.h>
 
 #include "sim_core.h"
 
@@ -28,15 +29,23 @@ double sim_uniform(uint64_t *state)
     return (double)(sim_splitmix64_next(state) >> 11) * SIM_TWO_POW_MINUS_53;
 }
 
-void sim_generate(sim_world *w, const sim_header *h, const unsigned char *listed, uint64_t seed)
+/* Particles per chunk of the generation: a chunk's draws start at its own place in the stream. */
+#define SIM_GEN_CHUNK 4096
+/* Below this many chunks one pass is quicker than starting the team (about 1 ms of a small
+ * scene's run). */
+#define SIM_GEN_TEAM_CHUNKS 16
+
+/* Fill the unlisted particles of [i0, i1) from the stream state that precedes their first
+ * draw. */
+static void generate_range(sim_world *w, const sim_header *h, const unsigned char *listed,
+                           uint64_t state, int32_t i0, int32_t i1)
 {
     /* In double, from the input's double L and r, whatever the build's real type: every build
      * starts from the same scene, rounded to its type. */
     const double L = h->L, r = h->r;
     const double a = L / (8 * r), b = L / 4;
     const double lo = a < b ? a : b, hi = a < b ? b : a;
-    uint64_t state = seed;
-    for (int32_t i = 0; i < w->n; i++) {
+    for (int32_t i = i0; i < i1; i++) {
         if (listed[i])
             continue;
         const double u1 = sim_uniform(&state), u2 = sim_uniform(&state);
@@ -47,4 +56,39 @@ void sim_generate(sim_world *w, const sim_header *h, const unsigned char *listed
         w->vx[i] = (sim_real)(speed * cos(angle));
         w->vy[i] = (sim_real)(speed * sin(angle));
     }
+}
+
+/* The stream is a counter (the state advances by SIM_SPLITMIX_GAMMA a draw), so the state
+ * before draw d is seed + d * gamma: chunks of particles are generated side by side, each from
+ * where the unlisted particles before it leave the stream, with the same draws as one pass. */
+void sim_generate(sim_world *w, const sim_header *h, const unsigned char *listed, uint64_t seed)
+{
+    const int32_t chunks = (w->n + SIM_GEN_CHUNK - 1) / SIM_GEN_CHUNK;
+    if (chunks < SIM_GEN_TEAM_CHUNKS) {
+        generate_range(w, h, listed, seed, 0, w->n);
+        return;
+    }
+    /* drawn[c]: the draws before chunk c (4 an unlisted particle). */
+    uint64_t *drawn = malloc(((size_t)chunks + 1) * sizeof *drawn);
+    if (!drawn) { /* one pass instead */
+        generate_range(w, h, listed, seed, 0, w->n);
+        return;
+    }
+    drawn[0] = 0;
+#pragma omp parallel for schedule(static)
+    for (int32_t c = 0; c < chunks; c++) {
+        const int32_t i1 = w->n - c * SIM_GEN_CHUNK < SIM_GEN_CHUNK ? w->n : (c + 1) * SIM_GEN_CHUNK;
+        uint64_t m = 0;
+        for (int32_t i = c * SIM_GEN_CHUNK; i < i1; i++)
+            m += !listed[i];
+        drawn[c + 1] = 4 * m;
+    }
+    for (int32_t c = 0; c < chunks; c++)
+        drawn[c + 1] += drawn[c];
+#pragma omp parallel for schedule(static)
+    for (int32_t c = 0; c < chunks; c++) {
+        const int32_t i1 = w->n - c * SIM_GEN_CHUNK < SIM_GEN_CHUNK ? w->n : (c + 1) * SIM_GEN_CHUNK;
+        generate_range(w, h, listed, seed + drawn[c] * SIM_SPLITMIX_GAMMA, c * SIM_GEN_CHUNK, i1);
+    }
+    free(drawn);
 }

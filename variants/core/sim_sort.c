@@ -93,6 +93,60 @@ static size_t sort_hist_len(size_t n)
     return ((size_t)1 << sort_bits(n)) + 2;
 }
 
+/* Source c[0, m) counted into count[bucket >> cshift]; where wall_t is not NULL, the pairs a
+ * wall of either particle comes before are dropped first (sort_candidates says why), the
+ * source compacted in place. Returns the candidates kept. */
+static size_t count_source(sim_cand *restrict c, size_t m, const sim_real *restrict wall_t,
+                           int shift, int64_t top, int cshift, uint32_t *restrict count)
+{
+    if (!wall_t) {
+        for (size_t k = 0; k < m; k++)
+            count[cand_bucket(c[k].t, shift, top) >> cshift]++;
+        return m;
+    }
+    size_t out = 0;
+    for (size_t k = 0; k < m; k++) {
+#if defined(__GNUC__)
+        if (k + SIM_WALL_T_AHEAD < m) {
+            __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].i]);
+            __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].j]);
+        }
+#endif
+        const sim_cand e = c[k];
+        const unsigned keep = !((wall_t[e.i] < e.t) | (wall_t[e.j] < e.t));
+        c[out] = e;
+        out += keep;
+        count[cand_bucket(e.t, shift, top) >> cshift] += keep;
+    }
+    return out;
+}
+
+/* a[lo, end[buckets - 1]) scattered by bucket, bucket b ending at end[b]: each bucket ordered
+ * by cand_cmp. Long buckets first (rare: see finish_long_bucket), then one insertion pass:
+ * buckets hold a few candidates, and an insertion never crosses into an earlier bucket (its
+ * times are all smaller), so the pass costs one comparison a candidate and a move per pair out
+ * of order. */
+static void finish_buckets(sim_cand *a, size_t lo, const uint32_t *end, uint32_t buckets)
+{
+    for (uint32_t b = 0; b < buckets; b++) {
+        const size_t from = b ? lo + end[b - 1] : lo, to = lo + end[b];
+        if (to - from > SIM_INSERTION_MAX)
+            finish_long_bucket(a, from, to);
+    }
+    const size_t hi = buckets ? lo + end[buckets - 1] : lo;
+    for (size_t k = lo + 1; k < hi; k++) {
+        if (!cand_before(&a[k], &a[k - 1]))
+            continue;
+        const sim_cand c = a[k];
+        size_t m = k;
+        do {
+            a[m] = a[m - 1];
+            m--;
+        } while (m > lo && cand_before(&c, &a[m - 1]));
+        a[m] = c;
+    }
+}
+
 /* Sort the candidates of src[0..sources) (src[s] holding len[s], n in all) into dst by cand_cmp,
  * and return how many there are in dst: a counting sort into about n/2 buckets of t (stable,
  * O(n): qsort's merge sort took 0.6 ms on a step's few thousand candidates, and a two-pass
@@ -124,57 +178,114 @@ static size_t sort_candidates(sim_cand *const *src, size_t *len, int sources,
     memset(hist, 0, (buckets + 1) * sizeof *hist);
     size_t kept = 0;
     for (int s = 0; s < sources; s++) {
-        sim_cand *restrict c = src[s];
-        const size_t m = len[s];
-        if (!wall_t) {
-            for (size_t k = 0; k < m; k++)
-                hist[cand_bucket(c[k].t, shift, top) + 1]++;
-            kept += m;
-            continue;
-        }
-        size_t out = 0;
-        for (size_t k = 0; k < m; k++) {
-#if defined(__GNUC__)
-            if (k + SIM_WALL_T_AHEAD < m) {
-                __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].i]);
-                __builtin_prefetch(&wall_t[c[k + SIM_WALL_T_AHEAD].j]);
-            }
-#endif
-            const sim_cand e = c[k];
-            const unsigned keep = !((wall_t[e.i] < e.t) | (wall_t[e.j] < e.t));
-            c[out] = e;
-            out += keep;
-            hist[cand_bucket(e.t, shift, top) + 1] += keep;
-        }
-        len[s] = out;
-        kept += out;
+        len[s] = count_source(src[s], len[s], wall_t, shift, top, 0, hist + 1);
+        kept += len[s];
     }
     for (uint32_t b = 0; b < buckets; b++)
         hist[b + 1] += hist[b];
     for (int s = 0; s < sources; s++)
         for (size_t k = 0; k < len[s]; k++)
             dst[hist[cand_bucket(src[s][k].t, shift, top)]++] = src[s][k];
-    /* Long buckets first (rare: see finish_long_bucket), then one insertion pass over the
-     * whole list: buckets hold a few candidates, and an insertion never crosses into an
-     * earlier bucket (its times are all smaller), so the pass costs one comparison a
-     * candidate and a move per pair out of order. */
-    for (uint32_t b = 0; b < buckets; b++) {
-        const uint32_t lo = b ? hist[b - 1] : 0;
-        if (hist[b] - lo > SIM_INSERTION_MAX)
-            finish_long_bucket(dst, lo, hist[b]);
-    }
-    for (size_t k = 1; k < kept; k++) {
-        if (!cand_before(&dst[k], &dst[k - 1]))
-            continue;
-        const sim_cand c = dst[k];
-        size_t m = k;
-        do {
-            dst[m] = dst[m - 1];
-            m--;
-        } while (m > 0 && cand_before(&c, &dst[m - 1]));
-        dst[m] = c;
-    }
+    finish_buckets(dst, 0, hist, buckets);
     return kept;
+}
+
+/* Below this many pair candidates a step's sort runs on one thread: a team's start costs
+ * more. */
+#define SIM_SORT_TEAM_MIN 65536
+/* Coarse buckets a thread of the team sort (sort_candidates_team). */
+#define SIM_SORT_COARSE_PER_THREAD 64
+
+/* sort_candidates on a team of `team` threads, with the same result (the key is total):
+ *  1. each source filtered (pairs a wall comes first for dropped) and counted into coarse
+ *     buckets, SIM_SORT_COARSE_PER_THREAD a thread, each a run of the fine buckets;
+ *  2. every source scattered into dst by coarse bucket (sources side by side, each to the
+ *     places the counts give it);
+ *  3. the coarse buckets shared out: each sorted into its fine buckets through a buffer of its
+ *     own size, then ordered within them (finish_buckets).
+ * No step is serial but the prefix sums over coarse buckets and sources. Memory: the counts,
+ * and per thread a coarse bucket and its fine histogram. Returns the candidates kept, or
+ * (size_t)-1 when memory ran out. */
+static size_t sort_candidates_team(sim_cand *const *src, size_t *len, int sources,
+                                   const sim_real *restrict wall_t, sim_cand *restrict dst,
+                                   size_t n, int team)
+{
+    const int bits = sort_bits(n);
+    const int shift = 52 - bits;
+    const int64_t top = (int64_t)1 << bits;
+    int cbits = 0;
+    while (cbits < bits && ((int64_t)1 << cbits) < (int64_t)SIM_SORT_COARSE_PER_THREAD * team)
+        cbits++;
+    const int cshift = bits - cbits;
+    /* Fine buckets 0 .. 2^bits, so coarse 0 .. 2^cbits (the last holds one fine bucket). */
+    const uint32_t coarse = (UINT32_C(1) << cbits) + 1, fine = UINT32_C(1) << cshift;
+    uint32_t *count = calloc((size_t)sources * coarse, sizeof *count);
+    size_t *start = malloc(((size_t)coarse + 1) * sizeof *start);
+    if (!count || !start) {
+        free(count);
+        free(start);
+        return (size_t)-1;
+    }
+    size_t widest = 0;
+    int failed = 0;
+#pragma omp parallel num_threads(team)
+    {
+#pragma omp for schedule(dynamic, 1)
+        for (int s = 0; s < sources; s++)
+            len[s] = count_source(src[s], len[s], wall_t, shift, top, cshift,
+                                  count + (size_t)s * coarse);
+#pragma omp single
+        {
+            size_t at = 0;
+            for (uint32_t c = 0; c < coarse; c++) {
+                start[c] = at;
+                for (int s = 0; s < sources; s++) {
+                    const uint32_t m = count[(size_t)s * coarse + c];
+                    count[(size_t)s * coarse + c] = (uint32_t)(at - start[c]);
+                    at += m;
+                }
+                widest = at - start[c] > widest ? at - start[c] : widest;
+            }
+            start[coarse] = at;
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (int s = 0; s < sources; s++) {
+            uint32_t *restrict place = count + (size_t)s * coarse;
+            const sim_cand *restrict c = src[s];
+            for (size_t k = 0; k < len[s]; k++) {
+                const uint32_t b = cand_bucket(c[k].t, shift, top) >> cshift;
+                dst[start[b] + place[b]++] = c[k];
+            }
+        }
+        sim_cand *tmp = malloc((widest ? widest : 1) * sizeof *tmp);
+        uint32_t *hist = malloc(((size_t)fine + 2) * sizeof *hist);
+        if (!tmp || !hist) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (uint32_t b = 0; b < coarse; b++) {
+            const size_t lo = start[b], m = start[b + 1] - lo;
+            if (m < 2 || !tmp || !hist)
+                continue;
+            const int64_t first = (int64_t)b << cshift;
+            memcpy(tmp, dst + lo, m * sizeof *tmp);
+            memset(hist, 0, ((size_t)fine + 2) * sizeof *hist);
+            for (size_t k = 0; k < m; k++)
+                hist[cand_bucket(tmp[k].t, shift, top) - first + 1]++;
+            for (uint32_t f = 0; f < fine; f++)
+                hist[f + 1] += hist[f];
+            for (size_t k = 0; k < m; k++)
+                dst[lo + hist[cand_bucket(tmp[k].t, shift, top) - first]++] = tmp[k];
+            finish_buckets(dst, lo, hist, b + 1 < coarse ? fine : 1);
+        }
+        free(tmp);
+        free(hist);
+    }
+    const size_t kept = start[coarse];
+    free(count);
+    free(start);
+    return failed ? (size_t)-1 : kept;
 }
 
 int sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
@@ -220,8 +331,14 @@ size_t sim_merge_candidates(sim_stepper *s, sim_stats *stats)
         !sim_cand_reserve(&s->wall_moves, &s->wall_moves_cap, walls) ||
         !sim_cand_reserve(&s->pair_moves, &s->pair_moves_cap, pairs))
         return (size_t)-1;
-    const size_t kept = sort_candidates(s->sources, s->source_len, s->sink.count, s->wall_t,
-                                        s->hist, s->merged, pairs);
+    const size_t kept =
+        s->parallel && pairs >= SIM_SORT_TEAM_MIN
+            ? sort_candidates_team(s->sources, s->source_len, s->sink.count, s->wall_t,
+                                   s->merged, pairs, s->threads)
+            : sort_candidates(s->sources, s->source_len, s->sink.count, s->wall_t, s->hist,
+                              s->merged, pairs);
+    if (kept == (size_t)-1)
+        return kept;
     for (int k = 0; k < s->sink.count; k++)
         s->sink.bufs[k].len = 0;
     stats->candidates += pairs + walls;

@@ -83,18 +83,23 @@
 typedef float grid_vf __attribute__((vector_size(GRID_LANES * sizeof(float))));
 typedef int32_t grid_vi __attribute__((vector_size(GRID_LANES * sizeof(int32_t))));
 
-/* With more than one thread, up to this N a work item is one slice (the state fits in cache;
- * finest load balance); above, a thread takes a few long blocks of slices, which keeps memory
- * access sequential. One thread takes all the slices as one block: each slice's binning then
- * starts from the slice before's order, which on the report benchmark took 0.236 s against
- * 0.246 s for slices from the step's order (the order a second block would have to start from,
- * so with two threads single slices balance better). */
+/* Above this N, pairs the prefilter passes wait in the prefetch queue (grid_queue). */
 #define GRID_SMALL_N 32768
+/* Up to this N a team bins every particle in every band (grid_run_direct): the binning each
+ * thread repeats costs less than the barriers and the split into bands on a step that takes
+ * about a millisecond, and the scratch of N items a thread is small. */
+#define GRID_DIRECT_N 32768
 
-/* A particle's state in double, for gathers by index. */
+/* A particle's state in double, as the world holds it (the decisions are taken in double
+ * whatever the build's real type). */
 typedef struct grid_particle {
     double x, y, vx, vy;
 } grid_particle;
+
+static inline grid_particle grid_part(const sim_world *w, int32_t i)
+{
+    return (grid_particle){(double)w->x[i], (double)w->y[i], (double)w->vx[i], (double)w->vy[i]};
+}
 
 /* The non-wide particles of one slice in cell order, in float (the binning's terms): position
  * at time 0 relative to the grid's corner and displacement over one slice (what the next slice
@@ -105,41 +110,71 @@ typedef struct grid_set {
     int32_t *id;
 } grid_set;
 
-/* One thread's scratch, every array sized for N. */
+/* One thread's scratch, sized for the items it bins (grid_thread_reserve), not for N: on a team
+ * every slice is cut into bands of rows, one a thread, so a thread holds about N / T entries
+ * (docs/grid_design.md, "Parallel" and "Memory"). */
 typedef struct grid_thread {
-    grid_set set[2];             /* this slice's entries, and the previous slice's */
+    grid_set set[2];             /* this slice's entries, and the previous slice's (one thread) */
     int32_t *wide[2];            /* this slice's wide particles, and the previous slice's */
     int32_t *cx0, *cy0, *flag;   /* per input item: corner cell and flags (dense grids: the
                                   * key in cx0); after the sort, the entry each goes to in cy0 */
     int32_t *scell;              /* dense grids: cell of each entry */
     uint8_t *sext;               /* reach bits of each entry */
     int32_t *pos;                /* dense grids: where each key's entries begin */
-    uint64_t pos_cap;            /* keys pos can hold (2^kshift a cell, grid_bins) */
+    uint64_t pos_cap;            /* keys pos can hold */
     uint64_t *ent, *tmp, *skey;  /* sparse grids: radix words, radix buffer, cell of each entry */
     uint32_t *hist;              /* radix histogram */
+    int32_t cap;                 /* items the per-item arrays hold (sets: cap + GRID_LANES + 1) */
+    int32_t sets;                /* sets allocated to cap: 1 on a team, 2 alone */
     int32_t sink;                /* a slot of the sets no run reads: where the binning puts
                                   * items that are no entry of the slice */
+    /* The band split of a team's slice: this thread's part of the source's items, their
+     * corner rows (or -1: wide) and base bands. */
+    int32_t *prow, *pband;
+    int32_t pcap;
+    int32_t *bound; /* the bands' first rows, bands + 1 of them (the last is gy) */
+    int32_t *cur;   /* where this thread's next item of each band goes in P */
+    int32_t *sample; /* rows of GRID_BAND_SAMPLES items a band, for the bands' bounds */
 } grid_thread;
+
+#define GRID_COUNT_STRIDE(threads) (2 * (threads) + 1)
+/* Items a band whose rows place the bands' bounds (grid_scan.c). */
+#define GRID_BAND_SAMPLES 8
+
+/* The team's shared state of a slice cut into bands: the source S (every particle once, in the
+ * previous slice's cell order: s->bx, by, ux, uy and s->ord), the items of each band gathered
+ * from it (P: base entries and the upper neighbours of the band below), the wide particles,
+ * and the counts that place them. */
+typedef struct grid_team {
+    float *bx, *by, *ux, *uy; /* P */
+    int32_t *id;
+    int32_t *wide;            /* this slice's wide particles, in thread order */
+    int32_t *count;           /* per thread GRID_COUNT_STRIDE(threads): [band][2] items and base
+                               * items, then its wide particles */
+    struct grid_extent *extent; /* per thread: its particles' extent, for the plan */
+    uint32_t *speeds;           /* per thread GRID_SPEED_BINS: its particles' speed counts */
+} grid_team;
 
 typedef struct grid_scratch {
     int32_t n;
     int threads;
-    float *bx, *by, *ux, *uy; /* the state in the binning's terms (grid_set), in the order ord */
+    float *bx, *by, *ux, *uy; /* the state in the binning's terms (grid_set), in the order ord:
+                               * a team's source S, rewritten in every slice's cell order */
     int32_t *ord, *ord_next; /* particles in the cell order of the last slice of the step before:
                               * the first slice of a step finds them almost sorted */
-    grid_particle *part;     /* the state in double, by particle, for gathers */
     double *tk;              /* slice boundaries k / K, k = 0..K */
     grid_thread *th;
+    grid_team team;          /* threads > 1 */
     int sub_force; /* 0: grid_plan_step chooses the cells per box width; the tests force 1 to
                     * GRID_SUB_MAX */
+    int32_t direct_n; /* a team bins every particle in every band up to this N (GRID_DIRECT_N;
+                       * the tests set 0 to run the split into bands on small scenes too) */
 } grid_scratch;
 
 /* What one step's binning uses. */
 typedef struct grid_plan {
     int K;
-    int bands;        /* > 1: items are (slice, band of rows) */
-    int blocks;       /* bands == 1: items are blocks of consecutive slices */
-    int32_t band_rows;
+    int bands;        /* > 1: every slice is cut into this many bands of rows, one a thread */
     int32_t gx, gy;   /* cells per axis */
     double x0, y0;    /* the grid's lower-left corner: the origin of the binning's floats */
     float inv_h;      /* 1 / cell size; 0 puts everything in one cell */
@@ -171,7 +206,8 @@ typedef struct grid_bins {
     int dense;         /* counting-sorted: th->pos and th->scell; else th->skey */
     int32_t ne, nw;    /* entries (base rows and the row above), wide particles */
     int32_t nbase;     /* entries whose base cell is in the band: the first nbase */
-    int32_t below;     /* entries in rows below the band: where its ids go in ord_next */
+    int32_t below;     /* items below the band's rows, not wide: where the source is every
+                        * particle, the base entries of the bands below */
     int32_t row0, row1;
     int32_t rowlast;   /* the last row whose entries are binned: row1 + sub - 1, clipped */
     int32_t sub;       /* cells per box width (grid_plan) */
@@ -203,7 +239,6 @@ typedef struct grid_ctx {
     const grid_plan *g;
     int k;
     sim_cand_buf *buf;
-    int32_t *ord_next; /* the step's last slice: where the new cell order goes */
     grid_queue *queue; /* pairs passed by the prefilter, not yet decided */
 } grid_ctx;
 
@@ -215,26 +250,54 @@ typedef struct grid_probe {
 
 /* ---- grid_state.c ---- */
 
-/* The finder's per-run memory for a world of w->n particles and `threads` threads, O(N) per
- * thread (sim_variant's scratch_create); NULL when memory is short. */
+/* The finder's per-run memory for a world of w->n particles and `threads` threads: O(N) shared,
+ * and per thread what its bands need, grown on demand (sim_variant's scratch_create); NULL
+ * when memory is short. */
 void *grid_scratch_create(const sim_world *w, int threads);
 void grid_scratch_destroy(void *scratch);
+/* Room in th's per-item arrays for `items` items (`sets` sets: 1 or 2), and in its band
+ * split for `part` source items. Returns 0, or -1 when memory is short. */
+int grid_thread_reserve(grid_thread *th, int32_t items, int sets);
+int grid_thread_reserve_part(grid_thread *th, int32_t part);
+/* Room for `keys` + 2 dense keys (-1 when memory is short). */
+int grid_thread_reserve_keys(grid_thread *th, uint64_t keys);
 
 /* ---- grid_plan.c ---- */
 
 /* Bits needed to hold values < v (v >= 1). */
 int grid_bits_for(uint64_t v);
-/* The plan of this step for the world's state (and s's part, bx, by, ux, uy, tk filled in the
- * plan's terms), for `threads` threads. */
+/* The plan of this step for the world's state (and s's bx, by, ux, uy, tk filled in the plan's
+ * terms), for `threads` threads: the pieces below, one after the other. */
 void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads);
+/* The pieces, so that a team shares the loops over particles out: the extent of particles
+ * [i0, i1) and its merge with another's (min and max: any order gives the same); whether the
+ * plan needs the speeds' histogram, and the counts of particles [i0, i1) in it (added to
+ * count, GRID_SPEED_BINS of them, zeroed by the caller); the plan from those; the binning's
+ * floats of entries [e0, e1) of s->ord; the slices' times. */
+typedef struct grid_extent {
+    double minx, maxx, miny, maxy, vmax;
+} grid_extent;
+/* Bins of the speed histogram that picks v_ref. */
+#define GRID_SPEED_BINS 1024
+void grid_extent_of(const sim_world *w, int32_t i0, int32_t i1, grid_extent *e);
+void grid_extent_merge(grid_extent *a, const grid_extent *b);
+int grid_speeds_needed(const sim_world *w, const grid_extent *e);
+void grid_speed_count(const sim_world *w, int32_t i0, int32_t i1, double vmax, uint32_t *count);
+void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *count,
+                    int sub_force, grid_plan *g, int threads);
+void grid_plan_floats(const sim_world *w, grid_scratch *s, const grid_plan *g, int32_t e0,
+                      int32_t e1);
+void grid_plan_times(grid_scratch *s, const grid_plan *g);
 
 /* ---- grid_binning.c ---- */
 
 /* The first of the n sorted keys that is >= v. */
 int32_t grid_lower_bound(const uint64_t *key, int32_t n, uint64_t v);
-/* Bin slice kf, band `band`, from src into dst / wide; *b describes the result. */
-void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
-                    int band, grid_thread *th, grid_set *dst, int32_t *wide, grid_bins *b);
+/* Bin slice kf, the band of rows [row0, row1), from src into dst / wide; *b describes the
+ * result. Returns 0, or -1 when memory is short. */
+int grid_bin_slice(const grid_src *src, const sim_world *w, const grid_plan *g, float kf,
+                   int32_t row0, int32_t row1, grid_thread *th, grid_set *dst, int32_t *wide,
+                   grid_bins *b);
 
 /* ---- grid_prefilter.c ---- */
 
@@ -255,13 +318,25 @@ uint64_t grid_runs_sparse(const grid_ctx *cx, const grid_thread *th, const grid_
                           const grid_bins *b);
 uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                         const int32_t *wide, const grid_bins *b);
-uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw);
+/* Rows m = first, first + stride, ... of the wide boxes' pairs (m, q > m), so that the bands
+ * of a team share them. */
+uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw, int first,
+                         int stride);
 
 /* ---- grid_scan.c ---- */
 
-/* A work item: slices [k0, k1) of band `band`, their pairs pushed to buf. */
-void grid_run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
-                   const grid_plan *g, int k0, int k1, int band, sim_cand_buf *buf);
+/* One thread alone: every slice of the step, each binned from the one before; pairs into buf. */
+void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim_cand_buf *buf);
+/* Thread `me` of a team of `team` (inside a parallel region, every thread calls it): every
+ * slice of the step cut into g->bands bands of rows, a band a thread. Returns 0, or -1 when
+ * memory ran short (buf is then marked failed). */
+void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                   sim_cand_buf *buf);
+/* Thread `me` of a team on a small scene (N <= GRID_DIRECT_N): a band of rows a thread, each
+ * binned from every particle (the plan's floats), no barrier between slices; scratch for N
+ * items a thread. */
+void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                     sim_cand_buf *buf);
 
 /* ==== Inline helpers ====
  *
@@ -343,10 +418,10 @@ static inline long near_in_slice(double dx, double dy, double ddx, double ddy, d
 }
 
 /* Is slice k in the set S of the pair (i, j)? */
-static inline long near_pair(const grid_particle *restrict part, const double *restrict tk,
-                             double reach2, int32_t i, int32_t j, int k)
+static inline long near_pair(const sim_world *w, const double *restrict tk, double reach2,
+                             int32_t i, int32_t j, int k)
 {
-    const grid_particle a = part[i], b = part[j];
+    const grid_particle a = grid_part(w, i), b = grid_part(w, j);
     return near_in_slice(b.x - a.x, b.y - a.y, b.vx - a.vx, b.vy - a.vy, tk[k], tk[k + 1],
                          reach2);
 }

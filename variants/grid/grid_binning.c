@@ -129,7 +129,7 @@ static void scatter_f32(const float *restrict a, const int32_t *restrict dest, i
  * slice kf (what the prefilter reads), for the ne entries. Both sorts place so. An array at a
  * time: one loop that moved every array at once kept eleven pointers, which gcc spilled into
  * vector registers (45 instructions an entry). */
-static void place_entries(const grid_src *src, const grid_particle *part, const grid_plan *g,
+static void place_entries(const grid_src *src, const sim_world *w, const grid_plan *g,
                           float kf, const int32_t *restrict dest, int32_t ne,
                           grid_set *restrict dst)
 {
@@ -147,7 +147,8 @@ static void place_entries(const grid_src *src, const grid_particle *part, const 
     }
     for (int32_t e = m; e < m + src->nwide; e++) {
         const int32_t p = src->wide[e - m], d = dest[e];
-        particle_f32(&part[p], g, &dst->bx[d], &dst->by[d], &dst->ux[d], &dst->uy[d]);
+        const grid_particle q = grid_part(w, p);
+        particle_f32(&q, g, &dst->bx[d], &dst->by[d], &dst->ux[d], &dst->uy[d]);
         id[d] = p;
     }
     const float *restrict bx = dst->bx, *restrict by = dst->by;
@@ -159,14 +160,15 @@ static void place_entries(const grid_src *src, const grid_particle *part, const 
 
 /* Corner cells and flags of every item of the source in slice kf into th->cx0, th->cy0,
  * th->flag: the arrays vectorised, the few wide ones apart. */
-static void item_cells(const grid_src *src, const grid_particle *part, const grid_plan *g,
+static void item_cells(const grid_src *src, const sim_world *w, const grid_plan *g,
                        float kf, grid_thread *th)
 {
     const int32_t m = src->m, items = src->m + src->nwide;
     slice_cells(m, src->bx, src->by, src->ux, src->uy, kf, g, th->cx0, th->cy0, th->flag);
     for (int32_t e = m; e < items; e++) {
         float bx, by, ux, uy;
-        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        const grid_particle q = grid_part(w, src->wide[e - m]);
+        particle_f32(&q, g, &bx, &by, &ux, &uy);
         box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &th->cx0[e],
                   &th->cy0[e], &th->flag[e]);
     }
@@ -176,7 +178,7 @@ static void item_cells(const grid_src *src, const grid_particle *part, const gri
  * further right come later. pos[h + 2] counts key h; after the prefix sum pos[h + 1] is where h
  * begins; the scatter advances it to where h ends, which leaves h's entries in [pos[h],
  * pos[h + 1]) and cell c's in [pos[c << kshift], pos[(c + 1) << kshift]). */
-static void bin_dense(const grid_src *src, const grid_particle *part, const grid_plan *g,
+static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *g,
                       float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
                       grid_bins *b)
 {
@@ -191,7 +193,8 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
     for (int32_t e = m; e < items; e++) {
         float bx, by, ux, uy;
         int32_t cx, cy;
-        particle_f32(&part[src->wide[e - m]], g, &bx, &by, &ux, &uy);
+        const grid_particle q = grid_part(w, src->wide[e - m]);
+        particle_f32(&q, g, &bx, &by, &ux, &uy);
         box_cells(slice_start(bx, ux, kf), slice_start(by, uy, kf), ux, uy, g, &cx, &cy,
                   &flag[e]);
         key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx, g->sub, kshift);
@@ -223,7 +226,7 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
         }
         dest[e] = d;
     }
-    place_entries(src, part, g, kf, dest, pos[keys], dst);
+    place_entries(src, w, g, kf, dest, pos[keys], dst);
     b->ne = pos[keys];
     b->nw = nw;
     b->below = below;
@@ -231,7 +234,7 @@ static void bin_dense(const grid_src *src, const grid_particle *part, const grid
 }
 
 /* Sparse: radix words (cell, reach bits, index), sorted; the cell of each entry in th->skey. */
-static void bin_sparse(const grid_src *src, const grid_particle *part, const grid_plan *g,
+static void bin_sparse(const grid_src *src, const sim_world *w, const grid_plan *g,
                        float kf, grid_thread *th, grid_set *restrict dst, int32_t *restrict wide,
                        grid_bins *b)
 {
@@ -266,18 +269,29 @@ static void bin_sparse(const grid_src *src, const grid_particle *part, const gri
         skey[d] = v >> kshift;
         sext[d] = (uint8_t)(v >> pbits & ((1u << GRID_EXT_BITS) - 1));
     }
-    place_entries(src, part, g, kf, dest, ne, dst);
+    place_entries(src, w, g, kf, dest, ne, dst);
     b->ne = ne;
     b->nw = nw;
     b->below = below;
     b->nbase = grid_lower_bound(th->skey, ne, b->base_end);
 }
 
-void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_plan *g, float kf,
-                    int band, grid_thread *th, grid_set *dst, int32_t *wide, grid_bins *b)
+/* Entries [ne, ne + GRID_LANES) of z zeroed: the prefilter reads up to GRID_LANES - 1 slots past
+ * a run's end, and its masked-off lanes stay finite. */
+static void pad_entries(grid_set *z, int32_t ne)
 {
-    b->row0 = band * g->band_rows;
-    b->row1 = b->row0 + g->band_rows < g->gy ? b->row0 + g->band_rows : g->gy;
+    const size_t f = GRID_LANES * sizeof(float);
+    memset(z->bx + ne, 0, f), memset(z->by + ne, 0, f), memset(z->ux + ne, 0, f);
+    memset(z->uy + ne, 0, f), memset(z->px + ne, 0, f), memset(z->py + ne, 0, f);
+    memset(z->id + ne, 0, GRID_LANES * sizeof(int32_t));
+}
+
+int grid_bin_slice(const grid_src *src, const sim_world *w, const grid_plan *g, float kf,
+                   int32_t row0, int32_t row1, grid_thread *th, grid_set *dst, int32_t *wide,
+                   grid_bins *b)
+{
+    b->row0 = row0;
+    b->row1 = row1;
     /* Entries of the sub rows from row1 take part as upper neighbours of the band's rows. */
     b->sub = g->sub;
     b->kshift = keys_shift(b->sub);
@@ -287,12 +301,19 @@ void grid_bin_slice(const grid_src *src, const grid_particle *part, const grid_p
      * the grid), and one more for the end of the last. */
     b->ncell = (uint64_t)(b->row1 - b->row0 + b->sub) * b->spanx + 1;
     b->base_end = (uint64_t)(b->row1 - b->row0) * b->spanx;
-    /* Dense also needs every key in an int32_t. */
-    b->dense = (b->ncell << b->kshift) <= th->pos_cap && (b->ncell << b->kshift) + 2 <= INT32_MAX;
+    /* Dense while the keys are not many more than the items (and fit an int32_t). */
+    const uint64_t keys = b->ncell << b->kshift;
+    const uint64_t items = (uint64_t)src->m + (uint64_t)src->nwide;
+    b->dense = keys + 2 <= INT32_MAX &&
+               keys <= GRID_DENSE_CELLS_PER_PARTICLE * items + GRID_DENSE_CELLS_MIN;
+    if (b->dense && grid_thread_reserve_keys(th, keys))
+        return -1;
     if (b->dense) {
-        bin_dense(src, part, g, kf, th, dst, wide, b);
+        bin_dense(src, w, g, kf, th, dst, wide, b);
     } else {
-        item_cells(src, part, g, kf, th);
-        bin_sparse(src, part, g, kf, th, dst, wide, b);
+        item_cells(src, w, g, kf, th);
+        bin_sparse(src, w, g, kf, th, dst, wide, b);
     }
+    pad_entries(dst, b->ne);
+    return 0;
 }

@@ -34,12 +34,8 @@
 #define GRID_SUB_OCCUPANCY 6.0
 /* At most N / GRID_K_PER_N slices. */
 #define GRID_K_PER_N 16
-/* Bins of the speed histogram that picks v_ref. */
-#define GRID_SPEED_BINS 1024
 /* v_ref leaves at most N / GRID_WIDE_SHARE particles faster than itself ("wide"). */
 #define GRID_WIDE_SHARE 128
-/* Bands of rows are used when slices are fewer than this many per thread. */
-#define GRID_ITEMS_PER_THREAD 1
 
 int grid_bits_for(uint64_t v)
 {
@@ -66,31 +62,97 @@ static int slice_count(double factor, double vref, int32_t n, double L, double r
     return sane && kf >= 1 ? (int)(kf + 0.5) : 1;
 }
 
-void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
+void grid_extent_of(const sim_world *w, int32_t i0, int32_t i1, grid_extent *e)
 {
-    const int32_t n = w->n;
     double minx = HUGE_VAL, maxx = -HUGE_VAL, miny = HUGE_VAL, maxy = -HUGE_VAL, vmax = 0;
-    for (int32_t i = 0; i < n; i++) {
+    for (int32_t i = i0; i < i1; i++) {
         const double x = (double)w->x[i], y = (double)w->y[i];
         const double vx = (double)w->vx[i], vy = (double)w->vy[i];
-        s->part[i] = (grid_particle){x, y, vx, vy};
         minx = x < minx ? x : minx, maxx = x > maxx ? x : maxx;
         miny = y < miny ? y : miny, maxy = y > maxy ? y : maxy;
         const double ax = fabs(vx), ay = fabs(vy), a = ax > ay ? ax : ay;
         vmax = a > vmax ? a : vmax;
     }
+    *e = (grid_extent){minx, maxx, miny, maxy, vmax};
+}
+
+void grid_extent_merge(grid_extent *a, const grid_extent *b)
+{
+    a->minx = b->minx < a->minx ? b->minx : a->minx, a->maxx = b->maxx > a->maxx ? b->maxx : a->maxx;
+    a->miny = b->miny < a->miny ? b->miny : a->miny, a->maxy = b->maxy > a->maxy ? b->maxy : a->maxy;
+    a->vmax = b->vmax > a->vmax ? b->vmax : a->vmax;
+}
+
+/* Padding: far above the rounding of the pair kernel and of the slice times. */
+static double plan_delta(const sim_world *w, const grid_extent *e)
+{
+    return 4 * sqrt(GRID_EPS) * ((double)w->L + 2 * e->vmax + 4 * (double)w->r);
+}
+
+/* The binning and the prefilter work in float, relative to the grid's corner. Every float they
+ * compute (positions within [-vmax, span + vmax] of the corner, displacements, their
+ * differences) is at most the bound / 2 in magnitude: span <= extent + 2 vmax + 2 rpad, and
+ * rpad's margin (grid_plan_make) is under 1e-5 bound. Each such float is within a few
+ * FLT_EPSILON bound of its exact value, so a margin of GRID_F32_MARGIN FLT_EPSILON bound on the
+ * boxes and on the prefilter's reach covers the rounding many times over: near in a slice
+ * (2r + delta, in double) implies that the float boxes overlap and that the prefilter passes. */
+static double plan_bound(const sim_world *w, const grid_extent *e)
+{
+    const double extent =
+        e->maxx - e->minx > e->maxy - e->miny ? e->maxx - e->minx : e->maxy - e->miny;
+    return 1.001 * (2 * (extent + 3 * e->vmax + 2 * plan_delta(w, e)) + 8 * (double)w->r);
+}
+
+int grid_speeds_needed(const sim_world *w, const grid_extent *e)
+{
+    return e->vmax > 0 && plan_bound(w, e) < GRID_F32_SPAN_MAX;
+}
+
+void grid_speed_count(const sim_world *w, int32_t i0, int32_t i1, double vmax, uint32_t *count)
+{
+    const double scale = (GRID_SPEED_BINS - 1) / vmax;
+    for (int32_t i = i0; i < i1; i++) {
+        const double ax = fabs((double)w->vx[i]), ay = fabs((double)w->vy[i]);
+        count[(int)((ax > ay ? ax : ay) * scale)]++;
+    }
+}
+
+void grid_plan_floats(const sim_world *w, grid_scratch *s, const grid_plan *g, int32_t e0,
+                      int32_t e1)
+{
+    for (int32_t e = e0; e < e1; e++) {
+        const grid_particle q = grid_part(w, s->ord[e]);
+        particle_f32(&q, g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+    }
+}
+
+void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads)
+{
+    grid_extent e;
+    grid_extent_of(w, 0, w->n, &e);
+    uint32_t count[GRID_SPEED_BINS] = {0};
+    if (grid_speeds_needed(w, &e))
+        grid_speed_count(w, 0, w->n, e.vmax, count);
+    grid_plan_make(w, &e, count, s->sub_force, g, threads);
+    grid_plan_floats(w, s, g, 0, w->n);
+    grid_plan_times(s, g);
+}
+
+void grid_plan_times(grid_scratch *s, const grid_plan *g)
+{
+    for (int k = 0; k <= g->K; k++)
+        s->tk[k] = (double)k / g->K;
+}
+
+void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *count,
+                    int sub_force, grid_plan *g, int threads)
+{
+    const int32_t n = w->n;
+    const double minx = e->minx, maxx = e->maxx, miny = e->miny, maxy = e->maxy;
+    const double vmax = e->vmax;
     const double L = (double)w->L, r = (double)w->r;
-    /* Padding: far above the rounding of the pair kernel and of the slice times. */
-    const double delta = 4 * sqrt(GRID_EPS) * (L + 2 * vmax + 4 * r);
-    /* The binning and the prefilter work in float, relative to the grid's corner. Every float
-     * they compute (positions within [-vmax, span + vmax] of the corner, displacements, their
-     * differences) is at most `bound` / 2 in magnitude: span <= extent + 2 vmax + 2 rpad, and
-     * rpad's margin (below) is under 1e-5 bound. Each such float is within a few FLT_EPSILON
-     * bound of its exact value, so a margin of GRID_F32_MARGIN FLT_EPSILON bound on the boxes
-     * and on the prefilter's reach covers the rounding many times over: near in a slice (2r +
-     * delta, in double) implies that the float boxes overlap and that the prefilter passes. */
-    const double extent = maxx - minx > maxy - miny ? maxx - minx : maxy - miny;
-    const double bound = 1.001 * (2 * (extent + 3 * vmax + 2 * delta) + 8 * r);
+    const double delta = plan_delta(w, e);
+    const double bound = plan_bound(w, e);
     const double margin = GRID_F32_MARGIN * (double)FLT_EPSILON * bound;
     /* Magnitudes floats cannot carry, or an overflowing padding: one slice and one cell, and
      * zeros that the prefilter passes; still exact (every pair is looked at). */
@@ -99,13 +161,8 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
 
     /* v_ref: the axis speed that at most N / GRID_WIDE_SHARE particles exceed, to a bin. */
     double vref = vmax;
-    if (vmax > 0 && sane) {
-        uint32_t count[GRID_SPEED_BINS] = {0};
+    if (grid_speeds_needed(w, e)) {
         const double scale = (GRID_SPEED_BINS - 1) / vmax;
-        for (int32_t i = 0; i < n; i++) {
-            const double ax = fabs(s->part[i].vx), ay = fabs(s->part[i].vy);
-            count[(int)((ax > ay ? ax : ay) * scale)]++;
-        }
         const int32_t allow = n / GRID_WIDE_SHARE;
         int32_t above = 0;
         int b = GRID_SPEED_BINS - 1;
@@ -131,18 +188,11 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
     int sub = 1;
     while (sane && sub < GRID_SUB_MAX && per_cell >= GRID_SUB_OCCUPANCY * (sub + 1) * (sub + 1))
         sub++;
-    if (s->sub_force)
-        sub = s->sub_force;
+    if (sub_force)
+        sub = sub_force;
     g->sub = sub;
     if (sub == 1)
         g->K = slice_count(GRID_K_FACTOR, vref, n, L, r, sane);
-    /* Small N: one slice per work item, so a multiple of the thread count balances them (the
-     * candidates found do not depend on K, only the work does). */
-    if (threads > 1 && n <= GRID_SMALL_N && g->K >= threads && g->K % threads &&
-        g->K + threads <= GRID_K_MAX)
-        g->K += threads - g->K % threads;
-    for (int k = 0; k <= g->K; k++)
-        s->tk[k] = (double)k / g->K;
 
     g->reach2 = (2 * r + delta) * (2 * r + delta);
     /* rpad, above, is rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an
@@ -191,21 +241,7 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
         g->gx = g->gy = 1;
     }
     g->topx = (float)(g->gx - 1), g->topy = (float)(g->gy - 1);
-    for (int32_t e = 0; e < n; e++)
-        particle_f32(&s->part[s->ord[e]], g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
 
-    /* Work items. */
-    int bands = 1;
-    if (threads > 1 && g->K < GRID_ITEMS_PER_THREAD * threads)
-        bands = (GRID_ITEMS_PER_THREAD * threads + g->K - 1) / g->K;
-    if (bands > g->gy)
-        bands = g->gy;
-    g->band_rows = (g->gy + bands - 1) / bands;
-    g->bands = (g->gy + g->band_rows - 1) / g->band_rows;
-    if (threads == 1)
-        g->blocks = 1; /* every slice from the one before */
-    else if (g->bands > 1 || n <= GRID_SMALL_N)
-        g->blocks = g->K;
-    else
-        g->blocks = g->K < 2 * threads ? g->K : 2 * threads;
+    /* A team cuts every slice into a band of rows a thread (grid_scan.c). */
+    g->bands = threads > 1 && g->gy > 1 ? threads : 1;
 }

@@ -10,11 +10,10 @@
 static void pair_found(const grid_ctx *cx, int32_t a, int32_t b)
 {
     const int32_t i = a < b ? a : b, j = a < b ? b : a;
-    const grid_particle *part = cx->s->part;
     const double *tk = cx->s->tk, reach2 = cx->g->reach2;
     const int k = cx->k, K = cx->g->K;
     /* The decision for this slice, in the (i, j) order every slice uses. */
-    if (!near_pair(part, tk, reach2, i, j, k))
+    if (!near_pair(cx->w, tk, reach2, i, j, k))
         return;
     sim_real t;
     if (!sim_pair_time(cx->w, i, j, &t))
@@ -23,10 +22,10 @@ static void pair_found(const grid_ctx *cx, int32_t a, int32_t b)
     if (kt > K - 1)
         kt = K - 1;
     if (kt != k) {
-        if (near_pair(part, tk, reach2, i, j, kt))
+        if (near_pair(cx->w, tk, reach2, i, j, kt))
             return; /* slice kt pushes it */
         for (int e = 0; e < k; e++)
-            if (near_pair(part, tk, reach2, i, j, e))
+            if (near_pair(cx->w, tk, reach2, i, j, e))
                 return; /* an earlier slice pushes it */
     }
     sim_cand_push(cx->buf, t, i, j);
@@ -47,7 +46,6 @@ static inline void prefetch_line(const void *p)
 static inline void prefetch_particle(const grid_ctx *cx, int32_t i)
 {
     const sim_world *w = cx->w;
-    prefetch_line(&cx->s->part[i]);
     prefetch_line(&w->x[i]), prefetch_line(&w->y[i]);
     prefetch_line(&w->vx[i]), prefetch_line(&w->vy[i]);
 }

@@ -143,7 +143,8 @@ uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_se
         const int32_t p = wide[m];
         float bx, by;
         grid_probe pa = {.id = p};
-        particle_f32(&cx->s->part[p], g, &bx, &by, &pa.wx, &pa.wy);
+        const grid_particle q = grid_part(cx->w, p);
+        particle_f32(&q, g, &bx, &by, &pa.wx, &pa.wy);
         pa.x = slice_start(bx, pa.wx, kf), pa.y = slice_start(by, pa.wy, kf);
         int32_t cxa, cxb, cya, cyb;
         axis_cells(pa.x, pa.wx, g->rpad, g->inv_h, g->topx, &cxa, &cxb);
@@ -170,13 +171,14 @@ uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_se
 }
 
 /* Wide boxes against each other, in double (they are few). */
-uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw)
+uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw, int first,
+                         int stride)
 {
     uint64_t tests = 0;
-    for (int32_t m = 0; m < nw; m++)
+    for (int32_t m = first; m < nw; m += stride)
         for (int32_t q = m + 1; q < nw; q++) {
             tests++;
-            if (near_pair(cx->s->part, cx->s->tk, cx->g->reach2, wide[m], wide[q], cx->k))
+            if (near_pair(cx->w, cx->s->tk, cx->g->reach2, wide[m], wide[q], cx->k))
                 grid_pair_passed(cx, wide[m], wide[q]);
         }
     return tests;

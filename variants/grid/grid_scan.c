@@ -1,58 +1,302 @@
 /*
- * grid_scan.c: a work item of the finder: a block of consecutive slices of one band. Each
- * slice is binned (grid_binning.c) from the previous slice's entries, which are already in
- * nearly the right order, then every pair of the band is looked at once (grid_runs.c); the
- * step's last slice also leaves the cell order the next step starts from.
+ * grid_scan.c: the slices of a step, binned (grid_binning.c) and scanned (grid_runs.c). One
+ * thread bins each slice from the previous slice's entries, already in nearly the right order.
+ * A team cuts every slice into bands of rows, one a thread, with as many of the source's items
+ * each: the threads split the source (the previous slice's entries in cell order) into the
+ * bands' items, then each bins and scans its band and writes its base entries back in cell
+ * order, the next slice's source. A thread so holds about N / T items, whatever T.
  */
+#include <stdlib.h>
 #include <string.h>
+
+#include <omp.h>
 
 #include "grid.h"
 
-/* Slice cx->k, band `band`: bin the source into th->set[out] / th->wide[out] (returning their
- * sizes) and look at every pair of the band once. */
-static void run_slice(const grid_ctx *cx, grid_thread *th, int band, const grid_src *src,
-                      int out, int32_t *ne_out, int32_t *nw_out)
+/* Slice cx->k of the rows [row0, row1): bin src into th->set[out] / th->wide[out] (*b says
+ * what came out) and look at every pair of the band once; the wide boxes' pairs of rows
+ * first, first + stride, ... Returns 0, or -1 when memory is short. */
+static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t row1, int first,
+                     int stride, const grid_src *src, int out, grid_bins *b)
 {
-    const grid_scratch *s = cx->s;
     grid_set *dst = &th->set[out];
     int32_t *wide = th->wide[out];
-    grid_bins b;
-    grid_bin_slice(src, s->part, cx->g, (float)cx->k, band, th, dst, wide, &b);
-    *ne_out = b.ne;
-    *nw_out = b.nw;
-    if (cx->ord_next) {
-        /* The bands' base entries, in band order, then the wide particles: every particle
-         * once, in this slice's cell order. */
-        memcpy(cx->ord_next + b.below, dst->id, (size_t)b.nbase * sizeof(int32_t));
-        if (band == 0)
-            memcpy(cx->ord_next + (s->n - b.nw), wide, (size_t)b.nw * sizeof(int32_t));
-    }
-    uint64_t tests = b.dense ? grid_runs_dense(cx, th, dst, &b) : grid_runs_sparse(cx, th, dst, &b);
-    tests += grid_runs_wide(cx, th, dst, wide, &b);
-    /* Wide boxes against each other, once per slice. */
-    if (band == 0)
-        tests += grid_wide_pairs(cx, wide, b.nw);
+    if (grid_bin_slice(src, cx->w, cx->g, (float)cx->k, row0, row1, th, dst, wide, b))
+        return -1;
+    uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b) : grid_runs_sparse(cx, th, dst, b);
+    tests += grid_runs_wide(cx, th, dst, wide, b);
+    tests += grid_wide_pairs(cx, wide, b->nw, first, stride);
     grid_queue_flush(cx);
     cx->buf->pair_tests += tests;
+    cx->buf->chunks++;
+    return 0;
 }
 
-/* Each slice after the first reads the previous one's entries, already in nearly the right
- * order (only possible when the band is the whole grid). */
-void grid_run_item(const sim_world *w, const grid_scratch *s, grid_thread *th,
-                   const grid_plan *g, int k0, int k1, int band, sim_cand_buf *buf)
+void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim_cand_buf *buf)
 {
+    grid_thread *th = &s->th[0];
+    if (grid_thread_reserve(th, s->n, 2)) {
+        buf->failed = true;
+        return;
+    }
     grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
                     .wide = NULL, .nwide = 0};
-    int out = 0;
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
-    for (int k = k0; k < k1; k++) {
-        const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf,
-                             .ord_next = k == g->K - 1 ? s->ord_next : NULL, .queue = &queue};
-        int32_t ne, nw;
-        run_slice(&cx, th, band, &src, out, &ne, &nw);
+    int out = 0;
+    for (int k = 0; k < g->K; k++) {
+        const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
+        grid_bins b;
+        if (run_slice(&cx, th, 0, g->gy, 0, 1, &src, out, &b)) {
+            buf->failed = true;
+            return;
+        }
         const grid_set *z = &th->set[out];
-        src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id, .m = ne,
-                         .wide = th->wide[out], .nwide = nw};
+        if (k == g->K - 1) {
+            /* Every particle once, in this slice's cell order: the next step's start. */
+            memcpy(s->ord_next, z->id, (size_t)b.nbase * sizeof(int32_t));
+            memcpy(s->ord_next + (s->n - b.nw), th->wide[out], (size_t)b.nw * sizeof(int32_t));
+        }
+        src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id,
+                         .m = b.ne, .wide = th->wide[out], .nwide = b.nw};
         out ^= 1;
+    }
+}
+
+/* The source's item e in slice kf: its corner row, and whether it is wide. */
+static inline int32_t item_row(const grid_scratch *s, const grid_plan *g, int32_t e, float kf,
+                               int32_t *flag)
+{
+    int32_t cx, cy;
+    box_cells(slice_start(s->bx[e], s->ux[e], kf), slice_start(s->by[e], s->uy[e], kf), s->ux[e],
+              s->uy[e], g, &cx, &cy, flag);
+    return cy;
+}
+
+static int row_cmp(const void *a, const void *b)
+{
+    const int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The bands' first rows in slice kf, at quantiles of the rows of GRID_BAND_SAMPLES items a band
+ * spread evenly over the source: the bands then hold about as many items each, whatever order
+ * the source is in (the first step's is the particles'). Every thread computes the same. */
+static void band_bounds(const grid_scratch *s, const grid_plan *g, float kf, int bands,
+                        grid_thread *th)
+{
+    const int32_t m = GRID_BAND_SAMPLES * bands;
+    int32_t *row = th->sample;
+    for (int32_t q = 0; q < m; q++) {
+        int32_t f;
+        row[q] = item_row(s, g, (int32_t)(((int64_t)s->n * (2 * q + 1)) / (2 * m)), kf, &f);
+    }
+    qsort(row, (size_t)m, sizeof *row, row_cmp);
+    th->bound[0] = 0;
+    for (int b = 1; b < bands; b++)
+        th->bound[b] = row[(int64_t)m * b / bands];
+    th->bound[bands] = g->gy;
+}
+
+/* The band whose rows hold row: the last b with bound[b] <= row (never an empty one). */
+static inline int band_of(const int32_t *bound, int bands, int32_t row)
+{
+    int lo = 0, hi = bands - 1;
+    while (lo < hi) {
+        const int mid = (lo + hi + 1) / 2;
+        if (bound[mid] <= row)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
+/* Whether band u (below the band of `row`) takes an item of `row` as an upper neighbour: its
+ * rows look sub rows up (grid_bins' rowlast). */
+static inline int neighbour_of(const int32_t *bound, int u, int32_t row, int32_t sub)
+{
+    return bound[u + 1] + sub - 1 >= row;
+}
+
+/* Count this thread's share of the source [p0, p1) into the bands: cnt[2 b] items of band b,
+ * cnt[2 b + 1] of them base entries, cnt[2 bands] wide particles; each item's row and band
+ * kept for the split. */
+static void count_part(const grid_scratch *s, const grid_plan *g, float kf, int bands,
+                       grid_thread *th, int32_t p0, int32_t p1, int32_t *cnt)
+{
+    const int32_t *bound = th->bound;
+    memset(cnt, 0, (2 * (size_t)bands + 1) * sizeof *cnt);
+    for (int32_t e = p0; e < p1; e++) {
+        int32_t f;
+        const int32_t row = item_row(s, g, e, kf, &f);
+        if (f & GRID_WIDE) {
+            th->prow[e - p0] = -1;
+            cnt[2 * bands]++;
+            continue;
+        }
+        const int b = band_of(bound, bands, row);
+        th->prow[e - p0] = row;
+        th->pband[e - p0] = b;
+        cnt[2 * b] += 1, cnt[2 * b + 1] += 1;
+        for (int u = b - 1; u >= 0 && neighbour_of(bound, u, row, g->sub); u--)
+            cnt[2 * u] += bound[u] < bound[u + 1];
+    }
+}
+
+/* Item e of the source into slot d of the bands' items. */
+static inline void put_item(const grid_scratch *s, int32_t e, int32_t d)
+{
+    const grid_team *t = &s->team;
+    t->bx[d] = s->bx[e], t->by[d] = s->by[e], t->ux[d] = s->ux[e], t->uy[d] = s->uy[e];
+    t->id[d] = s->ord[e];
+}
+
+/* Split this thread's share of the source into the bands' items (and the wide list), at the
+ * places the counts of all threads give. */
+static void split_part(grid_scratch *s, const grid_plan *g, int bands, int team, int me,
+                       grid_thread *th, int32_t p0, int32_t p1)
+{
+    const int32_t stride = GRID_COUNT_STRIDE(team);
+    const int32_t *count = s->team.count, *bound = th->bound;
+    int32_t *cur = th->cur, at = 0, wide_at = 0;
+    for (int b = 0; b < bands; b++) {
+        cur[b] = at;
+        for (int t = 0; t < team; t++) {
+            if (t < me)
+                cur[b] += count[t * stride + 2 * b];
+            at += count[t * stride + 2 * b];
+        }
+    }
+    for (int t = 0; t < me; t++)
+        wide_at += count[t * stride + 2 * bands];
+    for (int32_t e = p0; e < p1; e++) {
+        const int32_t row = th->prow[e - p0];
+        if (row < 0) {
+            s->team.wide[wide_at++] = s->ord[e];
+            continue;
+        }
+        const int b = th->pband[e - p0];
+        put_item(s, e, cur[b]++);
+        for (int u = b - 1; u >= 0 && neighbour_of(bound, u, row, g->sub); u--)
+            if (bound[u] < bound[u + 1])
+                put_item(s, e, cur[u]++);
+    }
+}
+
+/* Band `me`'s base entries (z's first nbase) back into the source at `at`, in cell order, and
+ * their ids into ids (the source's, or the next step's order after the last slice); band 0
+ * also puts the wide particles at the end. */
+static void write_back(const sim_world *w, grid_scratch *s, const grid_plan *g, const grid_set *z, int32_t nbase,
+                       int32_t at, int me, int32_t nwide, int32_t *ids)
+{
+    memcpy(s->bx + at, z->bx, (size_t)nbase * sizeof(float));
+    memcpy(s->by + at, z->by, (size_t)nbase * sizeof(float));
+    memcpy(s->ux + at, z->ux, (size_t)nbase * sizeof(float));
+    memcpy(s->uy + at, z->uy, (size_t)nbase * sizeof(float));
+    memcpy(ids + at, z->id, (size_t)nbase * sizeof(int32_t));
+    if (me != 0)
+        return;
+    for (int32_t q = 0; q < nwide; q++) {
+        const int32_t e = s->n - nwide + q, p = s->team.wide[q];
+        const grid_particle q = grid_part(w, p);
+        particle_f32(&q, g, &s->bx[e], &s->by[e], &s->ux[e], &s->uy[e]);
+        ids[e] = p;
+    }
+}
+
+void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                   sim_cand_buf *buf)
+{
+    grid_thread *th = &s->th[me];
+    /* The runtime may give fewer threads than asked. */
+    const int bands = g->bands < team ? g->bands : team;
+    const int32_t stride = GRID_COUNT_STRIDE(team);
+    const int32_t p0 = (int32_t)((int64_t)s->n * me / team);
+    const int32_t p1 = (int32_t)((int64_t)s->n * (me + 1) / team);
+    /* Memory short: this thread stops working but keeps meeting the team's barriers. */
+    bool failed = grid_thread_reserve_part(th, p1 - p0) != 0;
+    grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
+    for (int k = 0; k < g->K; k++) {
+        const float kf = (float)k;
+        double t0 = sim_busy_start();
+        band_bounds(s, g, kf, bands, th);
+        int32_t *cnt = s->team.count + (size_t)me * (size_t)stride;
+        if (!failed)
+            count_part(s, g, kf, bands, th, p0, p1, cnt);
+        else
+            memset(cnt, 0, (size_t)stride * sizeof *cnt);
+        sim_busy_stop(buf, t0);
+#pragma omp barrier
+        t0 = sim_busy_start();
+        if (!failed)
+            split_part(s, g, bands, team, me, th, p0, p1);
+        /* This band's items and place in the source; the wide particles. */
+        int32_t items = 0, first = 0, base_at = 0, nwide = 0;
+        for (int t = 0; t < team; t++) {
+            const int32_t *c = s->team.count + (size_t)t * (size_t)stride;
+            nwide += c[2 * bands];
+            for (int b = 0; b < bands; b++) {
+                if (b < me)
+                    first += c[2 * b], base_at += c[2 * b + 1];
+                else if (b == me)
+                    items += c[2 * b];
+            }
+        }
+        sim_busy_stop(buf, t0);
+#pragma omp barrier
+        t0 = sim_busy_start();
+        if (me < bands && !failed) {
+            failed = grid_thread_reserve(th, items + nwide, 1) != 0;
+            const grid_team *tm = &s->team;
+            const grid_src src = {.bx = tm->bx + first, .by = tm->by + first,
+                                  .ux = tm->ux + first, .uy = tm->uy + first,
+                                  .id = tm->id + first, .m = items, .wide = tm->wide,
+                                  .nwide = nwide};
+            const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
+            grid_bins b;
+            if (!failed)
+                failed = run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0,
+                                   &b) != 0;
+            if (!failed)
+                write_back(w, s, g, &th->set[0], b.nbase, base_at, me, nwide,
+                           k == g->K - 1 ? s->ord_next : s->ord);
+        }
+        sim_busy_stop(buf, t0);
+#pragma omp barrier
+    }
+    if (failed)
+        buf->failed = true;
+}
+
+void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
+                     sim_cand_buf *buf)
+{
+    grid_thread *th = &s->th[me];
+    const int bands = g->bands < team ? g->bands : team;
+    if (me >= bands)
+        return;
+    if (grid_thread_reserve(th, s->n, 1)) {
+        buf->failed = true;
+        return;
+    }
+    /* The plan's floats stay the source of every slice (a slice only moves where they land). */
+    const grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord,
+                          .m = s->n, .wide = NULL, .nwide = 0};
+    grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
+    for (int k = 0; k < g->K; k++) {
+        band_bounds(s, g, (float)k, bands, th);
+        const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
+        grid_bins b;
+        if (run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0, &b)) {
+            buf->failed = true;
+            return;
+        }
+        if (k == g->K - 1) {
+            /* The bands' base entries in band order, then the wide particles: every particle
+             * once, in this slice's cell order, the next step's start. */
+            memcpy(s->ord_next + b.below, th->set[0].id, (size_t)b.nbase * sizeof(int32_t));
+            if (me == 0)
+                memcpy(s->ord_next + (s->n - b.nw), th->wide[0], (size_t)b.nw * sizeof(int32_t));
+        }
     }
 }

@@ -1,10 +1,23 @@
 /*
- * grid_state.c: the grid finder's per-run and per-thread state, allocated once per run by
- * grid_scratch_create (O(N) per thread), and freed.
+ * grid_state.c: the grid finder's per-run state: what the whole team shares, O(N) once, and
+ * each thread's scratch, sized for the items of its bands and grown on demand, so that the
+ * memory does not grow with the thread count (a thread bins about N / T items a slice).
  */
 #include <stdlib.h>
 
 #include "grid.h"
+
+/* p grown to n elements of `size` bytes (untouched, so not resident, beyond what is written);
+ * p itself, and *bad set, when memory is short. */
+static void *grow(void *p, size_t n, size_t size, int *bad)
+{
+    void *q = realloc(p, n * size);
+    if (!q) {
+        *bad = 1;
+        return p;
+    }
+    return q;
+}
 
 static void thread_free(grid_thread *t)
 {
@@ -15,6 +28,74 @@ static void thread_free(grid_thread *t)
     }
     free(t->cx0), free(t->cy0), free(t->flag), free(t->scell), free(t->sext), free(t->pos);
     free(t->ent), free(t->tmp), free(t->skey), free(t->hist);
+    free(t->prow), free(t->pband), free(t->bound), free(t->cur), free(t->sample);
+}
+
+int grid_thread_reserve(grid_thread *t, int32_t items, int sets)
+{
+    if (items <= t->cap && sets <= t->sets)
+        return 0;
+    /* A quarter more than asked: a band's items change a little from slice to slice. */
+    const int64_t want = items > t->cap ? (int64_t)items + items / 4 + GRID_LANES : t->cap;
+    if (want > INT32_MAX - 2 * GRID_LANES)
+        return -1;
+    const size_t c = (size_t)want, f = c + GRID_LANES + 1;
+    int bad = 0;
+    for (int b = 0; b < sets; b++) {
+        grid_set *z = &t->set[b];
+        z->bx = grow(z->bx, f, sizeof(float), &bad);
+        z->by = grow(z->by, f, sizeof(float), &bad);
+        z->ux = grow(z->ux, f, sizeof(float), &bad);
+        z->uy = grow(z->uy, f, sizeof(float), &bad);
+        z->px = grow(z->px, f, sizeof(float), &bad);
+        z->py = grow(z->py, f, sizeof(float), &bad);
+        z->id = grow(z->id, f, sizeof(int32_t), &bad);
+        t->wide[b] = grow(t->wide[b], c, sizeof(int32_t), &bad);
+    }
+    t->cx0 = grow(t->cx0, c, sizeof(int32_t), &bad);
+    t->cy0 = grow(t->cy0, c, sizeof(int32_t), &bad);
+    t->flag = grow(t->flag, c, sizeof(int32_t), &bad);
+    t->scell = grow(t->scell, c, sizeof(int32_t), &bad);
+    t->sext = grow(t->sext, c, 1, &bad);
+    t->ent = grow(t->ent, c, sizeof(uint64_t), &bad);
+    t->tmp = grow(t->tmp, c, sizeof(uint64_t), &bad);
+    t->skey = grow(t->skey, c, sizeof(uint64_t), &bad);
+    if (!t->hist)
+        t->hist = grow(t->hist, (size_t)1 << GRID_RADIX_MAX_BITS, sizeof(uint32_t), &bad);
+    if (bad)
+        return -1; /* what did grow is freed with the scratch */
+    t->cap = (int32_t)c;
+    t->sets = sets > t->sets ? sets : t->sets;
+    /* The last slot: the prefilter reads at most GRID_LANES - 1 slots past an entry. */
+    t->sink = (int32_t)(f - 1);
+    return 0;
+}
+
+int grid_thread_reserve_part(grid_thread *t, int32_t part)
+{
+    if (part <= t->pcap)
+        return 0;
+    const size_t c = (size_t)part + (size_t)part / 4 + 1;
+    int bad = 0;
+    t->prow = grow(t->prow, c, sizeof(int32_t), &bad);
+    t->pband = grow(t->pband, c, sizeof(int32_t), &bad);
+    if (bad)
+        return -1;
+    t->pcap = (int32_t)c;
+    return 0;
+}
+
+int grid_thread_reserve_keys(grid_thread *t, uint64_t keys)
+{
+    if (keys <= t->pos_cap)
+        return 0;
+    const uint64_t c = keys + keys / 4;
+    int bad = 0;
+    t->pos = grow(t->pos, (size_t)c + 2, sizeof(int32_t), &bad);
+    if (bad)
+        return -1;
+    t->pos_cap = c;
+    return 0;
 }
 
 void grid_scratch_destroy(void *p)
@@ -26,36 +107,11 @@ void grid_scratch_destroy(void *p)
         for (int k = 0; k < s->threads; k++)
             thread_free(&s->th[k]);
     free(s->th);
-    free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->part), free(s->tk);
+    free(s->bx), free(s->by), free(s->ux), free(s->uy), free(s->tk);
     free(s->ord), free(s->ord_next);
+    free(s->team.bx), free(s->team.by), free(s->team.ux), free(s->team.uy), free(s->team.id);
+    free(s->team.wide), free(s->team.count), free(s->team.extent), free(s->team.speeds);
     free(s);
-}
-
-static int thread_alloc(grid_thread *t, size_t n)
-{
-    const size_t i = n * sizeof(int32_t), u = n * sizeof(uint64_t), f = n + GRID_LANES;
-    int ok = 1;
-    for (int b = 0; b < 2; b++) {
-        grid_set *z = &t->set[b];
-        /* Zeroed: the lanes read past the last entry are always finite. */
-        z->bx = calloc(f, sizeof(float)), z->by = calloc(f, sizeof(float));
-        z->ux = calloc(f, sizeof(float)), z->uy = calloc(f, sizeof(float));
-        z->px = calloc(f, sizeof(float)), z->py = calloc(f, sizeof(float));
-        z->id = calloc(f, sizeof(int32_t)), t->wide[b] = malloc(i);
-        ok &= z->bx && z->by && z->ux && z->uy && z->px && z->py && z->id && t->wide[b];
-    }
-    /* The last slot, n + GRID_LANES - 1 = N + GRID_LANES: a slice has at most N entries, and
-     * the prefilter reads at most GRID_LANES - 1 slots past the last. */
-    t->sink = (int32_t)(f - 1);
-    t->cx0 = malloc(i), t->cy0 = malloc(i), t->flag = malloc(i), t->scell = malloc(i);
-    t->sext = malloc(n);
-    t->pos_cap = GRID_DENSE_CELLS_PER_PARTICLE * (uint64_t)n + GRID_DENSE_CELLS_MIN;
-    t->pos = malloc((size_t)(t->pos_cap + 2) * sizeof(int32_t));
-    t->ent = malloc(u), t->tmp = malloc(u), t->skey = malloc(u);
-    t->hist = malloc(((size_t)1 << GRID_RADIX_MAX_BITS) * sizeof(uint32_t));
-    ok &= t->cx0 && t->cy0 && t->flag && t->scell && t->sext && t->pos && t->ent && t->tmp &&
-          t->skey && t->hist;
-    return ok ? 0 : -1;
 }
 
 void *grid_scratch_create(const sim_world *w, int threads)
@@ -65,24 +121,41 @@ void *grid_scratch_create(const sim_world *w, int threads)
         return NULL;
     const size_t n = (size_t)w->n + 1;
     s->n = w->n;
+    s->direct_n = GRID_DIRECT_N;
     s->threads = threads;
     s->bx = malloc(n * sizeof(float)), s->by = malloc(n * sizeof(float));
     s->ux = malloc(n * sizeof(float)), s->uy = malloc(n * sizeof(float));
-    s->part = malloc(n * sizeof *s->part);
     s->ord = malloc(n * sizeof(int32_t)), s->ord_next = malloc(n * sizeof(int32_t));
     s->tk = malloc((GRID_K_MAX + 1) * sizeof(double));
     s->th = calloc((size_t)threads, sizeof *s->th);
-    if (!s->bx || !s->by || !s->ux || !s->uy || !s->part || !s->ord || !s->ord_next || !s->tk ||
-        !s->th) {
+    int bad = !s->bx || !s->by || !s->ux || !s->uy || !s->ord || !s->ord_next ||
+              !s->tk || !s->th;
+    if (!bad && threads > 1) {
+        /* A band's items are its base entries and the upper neighbours of the band below: an
+         * item is in at most GRID_SUB_MAX + 1 bands. Only what a slice writes is resident; with
+         * bands many rows high that is about N. */
+        const size_t p = (GRID_SUB_MAX + 1) * n;
+        grid_team *t = &s->team;
+        t->bx = malloc(p * sizeof(float)), t->by = malloc(p * sizeof(float));
+        t->ux = malloc(p * sizeof(float)), t->uy = malloc(p * sizeof(float));
+        t->id = malloc(p * sizeof(int32_t)), t->wide = malloc(n * sizeof(int32_t));
+        t->count = malloc((size_t)threads * GRID_COUNT_STRIDE((size_t)threads) * sizeof(int32_t));
+        t->extent = malloc((size_t)threads * sizeof *t->extent);
+        t->speeds = malloc((size_t)threads * GRID_SPEED_BINS * sizeof *t->speeds);
+        bad = !t->bx || !t->by || !t->ux || !t->uy || !t->id || !t->wide || !t->count ||
+              !t->extent || !t->speeds;
+        for (int k = 0; k < threads && !bad; k++) {
+            s->th[k].bound = malloc(((size_t)threads + 1) * sizeof(int32_t));
+            s->th[k].cur = malloc((size_t)threads * sizeof(int32_t));
+            s->th[k].sample = malloc((size_t)threads * GRID_BAND_SAMPLES * sizeof(int32_t));
+            bad = !s->th[k].bound || !s->th[k].cur || !s->th[k].sample;
+        }
+    }
+    if (bad) {
         grid_scratch_destroy(s);
         return NULL;
     }
     for (int32_t i = 0; i < w->n; i++)
         s->ord[i] = i;
-    for (int k = 0; k < threads; k++)
-        if (thread_alloc(&s->th[k], n)) {
-            grid_scratch_destroy(s);
-            return NULL;
-        }
     return s;
 }
