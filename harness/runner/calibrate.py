@@ -38,7 +38,10 @@ def measure(configs: Sequence[Config], out: Path, registry: VariantRegistry,
     build = REPO_ROOT / BUILD_DIR
     a = BuildSide("OLD", str(build), build, REPO_ROOT, None)
     b = BuildSide("NEW", str(build), build, REPO_ROOT, None)
-    together = measure_sides(a, b, configs, out / TOGETHER, registry, run_lock, log, hyperfine)
+    # The same binaries on both sides: the spread of a fixed number of rounds is what is
+    # learnt, so no rounds are added to decide verdicts (budget 0).
+    together = measure_sides(a, b, configs, out / TOGETHER, registry, run_lock, log, hyperfine,
+                             budget_s=0.0)
     roots = []
     for k in range(1, blocks + 1):
         root = out / APART / f"block-{k}"
