@@ -58,9 +58,12 @@ EXTRA_COLUMNS: tuple[str, ...] = (
 # measured again; empty where an older record cannot tell (outliers, loaded, machine).
 # stale: True when the cell's binary changed since it was measured on this machine (empty for
 # another machine's record, whose build this run cannot see).
+# wall_q25_s: the runs' 25% quantile, the low-end estimator kept beside the median, minimum and
+# mean (harness.stats.ESTIMATORS; docs/compare.md measures how each reproduces).
+LOW_QUANTILE_COLUMN = "wall_q25_s"
 PROVENANCE_COLUMNS: tuple[str, ...] = (
-    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", "wall_times_s",
-    "outliers", "loaded", "stale", "git_commit", "measured_at",
+    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", LOW_QUANTILE_COLUMN,
+    "wall_times_s", "outliers", "loaded", "stale", "git_commit", "measured_at",
 )
 # Where the simulation time goes, from --timing, seconds summed over the run: the variant's
 # pair finder (broad phase and pair tests), wall candidates, merging and sorting the

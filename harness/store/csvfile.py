@@ -18,19 +18,21 @@ from harness.store.columns import (
     DIVERGENCE_COLUMNS,
     EXTRA_COLUMNS,
     OPTIONAL_GROUPS,
+    LOW_QUANTILE_COLUMN,
     PROVENANCE_COLUMNS,
 )
 
 
 def uncertainty(times: Sequence[float]) -> dict[str, object]:
-    """The record fields derived from hyperfine's per-run times: the times as a list and the
-    95% bootstrap interval of their median."""
+    """The record fields derived from hyperfine's per-run times: the times as a list, the 95%
+    bootstrap interval of their median and their low quantile."""
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
     interval = stats.median_ci(times)
     return {"wall_times_s": list(times),
             "wall_median_ci_low_s": interval.low if math.isfinite(interval.low) else None,
-            "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None}
+            "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None,
+            LOW_QUANTILE_COLUMN: stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)}
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
@@ -45,7 +47,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     values["machine"] = described.get("label") if isinstance(described, dict) else None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
     if times:
-        if record.get("wall_median_ci_low_s") is None:
+        if record.get("wall_median_ci_low_s") is None or values[LOW_QUANTILE_COLUMN] is None:
             values.update(uncertainty(times))
         values["wall_times_s"] = records.join_floats(times)
     else:

@@ -159,6 +159,9 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
     times = hf.load_hyperfine(FIXTURES / "hyperfine_seq.json").times
     assert older["wall_times_s"] == " ".join(repr(t) for t in times)
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
+    # the low quantile, kept beside the median: between the fastest run and the median
+    assert min(times) <= older[columns.LOW_QUANTILE_COLUMN] <= sorted(times)[len(times) // 2]
+    assert measured[columns.LOW_QUANTILE_COLUMN] == pytest.approx(1.05)
     assert tuple(csvfile.render_csv([older]).splitlines()[0].split(",")[
         -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
 
