@@ -11,7 +11,7 @@ on the cores the harness uses: a quiet machine made noisy. --budget is compare -
 Parts, each a real measurement with this checkout's build/ (every command it runs is printed):
   aa         `compare --measure build build CONFIG`, --repeats times: identical sides measured
              together; every verdict of slower or faster is false;
-  ab         `compare --measure build SLOW CONFIG`, SLOW a directory of wrappers that run the
+  ab         `compare --measure build SLOW CONFIG`, --repeats times, SLOW a directory of wrappers that run the
              real binary and then spin for --slowdown of its time: the share called slower;
   apart      `run CONFIG` --repeats times back to back into separate results roots, then
              `compare` of each pair: with the assumed drift (no calibration), and with this
@@ -134,9 +134,10 @@ def part_aa(out: Path, config: Path, repeats: int) -> list[dict[str, object]]:
     return [measured_pair(out, build, build, config, f"aa-{k}") for k in range(1, repeats + 1)]
 
 
-def part_ab(out: Path, config: Path, fraction: float) -> dict[str, object]:
+def part_ab(out: Path, config: Path, fraction: float, repeats: int) -> list[dict[str, object]]:
     slow = slow_binaries(out, config, fraction)
-    return measured_pair(out, str(REPO_ROOT / BUILD_DIR), str(slow), config, "ab")
+    return [measured_pair(out, str(REPO_ROOT / BUILD_DIR), str(slow), config, f"ab-{k}")
+            for k in range(1, repeats + 1)]
 
 
 def part_calibrate(out: Path, config: Path) -> dict[str, object]:
@@ -369,7 +370,7 @@ def run_parts(args: argparse.Namespace, parts: Sequence[str], out: Path, config:
         elif part == "aa":
             summary[part] = part_aa(out, config, args.repeats)
         elif part == "ab":
-            summary[part] = part_ab(out, config, args.slowdown)
+            summary[part] = part_ab(out, config, args.slowdown, args.repeats)
         elif part == "apart":
             apart = part_apart(out, config, args.apart_repeats or args.repeats)
             summary["estimators"] = apart.pop(0)
