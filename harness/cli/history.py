@@ -108,6 +108,7 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
+    order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
     try:
         with lock:
@@ -120,7 +121,6 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
                             else (METRIC_TIME,))]
                 series = analyse(config, commits, metrics, machine_id, results_root,
                                  args.max_p)
-                order = {c.sha: k for k, c in enumerate(full)}
                 if args.bisect:  # what the series found is kept should bisection stop
                     publish(config, series, order, results_root, args)
                     bisect_all(config, series, full, results_root, repo, lock, args, out)
