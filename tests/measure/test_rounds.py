@@ -90,9 +90,9 @@ def test_the_record_says_whether_its_runs_are_unstable() -> None:
 
 def test_state_between_rounds_is_kept_for_its_key_only(tmp_path: Path) -> None:
     run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"], times=[1.0], rounds=[1])
-    run.save(tmp_path / "c.partial.json")
-    assert CellRun.load(tmp_path / "c.partial.json", {"k": 1}) == run
-    assert CellRun.load(tmp_path / "c.partial.json", {"k": 2}) is None  # another cell's
+    run.save(tmp_path / "c.partial.jsonl")
+    assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 1}) == run
+    assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 2}) is None  # another cell's
     assert CellRun.load(tmp_path / "none.json", {"k": 1}) is None
 
 
