@@ -12,8 +12,8 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 
 from harness.analysis.changepoints import (
     DEFAULT_MAX_P,
@@ -25,7 +25,13 @@ from harness.analysis.resultsets import Cell, MatchKey, read_cells
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.stats import Interval, median_ci
 from harness.store import atomic
-from harness.store.columns import BUILD_FAILED_STATUS, HISTORY_COLUMNS, MISSING_STATUS, OK
+from harness.store.columns import (
+    BUILD_FAILED_STATUS,
+    HISTORY_COLUMNS,
+    MEASURED_SERIES,
+    MISSING_STATUS,
+    OK,
+)
 from harness.store.commits import CommitInfo
 from harness.store.layout import ExperimentDir
 
@@ -69,6 +75,18 @@ class Point:
     commit: CommitInfo
     status: str  # OK, BUILD_FAILED_STATUS, MISSING_STATUS or the cell's own status
     value: Interval | None  # only where status is OK
+    measured: str = MEASURED_SERIES  # or MEASURED_BISECT: against a neighbour, together
+
+
+@dataclass(frozen=True)
+class Bisection:
+    """Where `--bisect` put a change point that the series found after unmeasured commits: the
+    commits it measured (each its value from its rounds against a neighbour) and the one it
+    named, the first at the new level."""
+
+    change: int  # the series' change point (a position in its points)
+    points: tuple[Point, ...]
+    named: CommitInfo
 
 
 @dataclass
@@ -79,6 +97,8 @@ class Series:
     metric: Metric
     points: list[Point]
     changes: dict[int, ChangePoint] = field(default_factory=dict)
+    bisections: list[Bisection] = field(default_factory=list)
+    bisected: frozenset[int] = frozenset()  # the changes a bisection named (with_bisections)
 
 
 def commit_cells(exp: ExperimentDir, commit: str, machine_id: str | None
@@ -108,13 +128,17 @@ def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Metri
             elif key not in cells:
                 points.append(Point(commit, MISSING_STATUS, None))
             else:
-                cell = cells[key]
-                value = metric.value(cell) if cell.status == OK else None
-                status = cell.status if cell.status != OK else (
-                    OK if value is not None else MISSING_STATUS)
-                points.append(Point(commit, status, value))
+                points.append(cell_point(commit, cells[key], metric))
         out.append(Series(key.label(), metric, points))
     return out
+
+
+def cell_point(commit: CommitInfo, cell: Cell, metric: Metric,
+               measured: str = MEASURED_SERIES) -> Point:
+    """A commit's point of a measured cell: its value, or its status where it has none."""
+    value = metric.value(cell) if cell.status == OK else None
+    status = cell.status if cell.status != OK else (OK if value is not None else MISSING_STATUS)
+    return Point(commit, status, value, measured)
 
 
 def detect(series: Series, max_p: float = DEFAULT_MAX_P) -> Series:
@@ -133,21 +157,48 @@ def named_commits(series: Series) -> list[tuple[CommitInfo, ChangePoint]]:
     return [(series.points[k].commit, c) for k, c in sorted(series.changes.items())]
 
 
+def with_bisections(series: Series, order: Mapping[str, int]) -> Series:
+    """The series with the commits its bisections measured in their places (`order`: each
+    commit's place in the range, by sha), and each bisected change point moved to the commit
+    its bisection named, with the step and p of the series' test: bisection places a step,
+    the series measures it."""
+    if not series.bisections:
+        return series
+    seen = {p.commit.sha for p in series.points}
+    points = list(series.points)
+    for bisection in series.bisections:
+        for point in bisection.points:
+            if point.commit.sha not in seen:  # measured already: the series' value stays
+                seen.add(point.commit.sha)
+                points.append(point)
+    points.sort(key=lambda p: order[p.commit.sha])
+    at = {p.commit.sha: k for k, p in enumerate(points)}
+    named = {b.change: b.named.sha for b in series.bisections}
+    changes = {at[named.get(k, series.points[k].commit.sha)]: c
+               for k, c in series.changes.items()}
+    return replace(series, points=points, changes=changes,
+                   bisected=frozenset(at[sha] for sha in named.values()))
+
+
 def _number(value: float) -> str:
     return "" if not math.isfinite(value) else f"{value:.10g}"
 
 
-def history_rows(config: str, series: Sequence[Series]) -> list[dict[str, str]]:
+def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
+                 ) -> list[dict[str, str]]:
+    """history.csv's rows (store.columns.HISTORY_COLUMNS); `order`: each commit's place in
+    the range, by sha."""
     rows = []
     for s in series:
-        for position, point in enumerate(s.points):
+        for k, point in enumerate(s.points):
             value = point.value or Interval(math.nan, math.nan, math.nan)
-            change = s.changes.get(position)
+            change = s.changes.get(k)
             rows.append({
                 "config": config, "cell": s.label, "metric": s.metric.name,
-                "position": str(position), "commit": point.commit.sha,
+                "position": str(order[point.commit.sha]), "commit": point.commit.sha,
                 "subject": point.commit.subject,
-                "touches_code": str(point.commit.touches_code).lower(), "status": point.status,
+                "touches_code": str(point.commit.touches_code).lower(),
+                "measured": point.measured, "status": point.status,
                 "value": _number(value.point), "low": _number(value.low),
                 "high": _number(value.high), "unit": s.metric.unit,
                 "change_point": str(change is not None).lower(),

@@ -1,12 +1,16 @@
-"""What every command shares: its argument parser's way with errors, the program's name, how
-a measuring command ends when stopped."""
+"""What every command shares: its argument parser's way with errors and the checks of its
+numeric arguments, the program's name, how a measuring command ends when stopped."""
 
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
-from typing import NoReturn
+from collections.abc import Callable
+from typing import NoReturn, TypeVar
+
+T = TypeVar("T", int, float)
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130  # what a shell reports for a process Ctrl-C ended
@@ -19,6 +23,42 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         sys.stderr.write(f"error: {message} (see {self.prog} --help)\n")
         sys.exit(EXIT_ERROR)
+
+
+def _number(text: str, parse: Callable[[str], T], accept: Callable[[T], bool],
+            example: str, expected: str) -> T:
+    """`text` parsed, when it parses and is accepted; else argparse's one-line error."""
+    try:
+        value = parse(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {example}, got {text!r}") from None
+    if not accept(value):
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+    return value
+
+
+def whole_number(text: str) -> int:
+    """A count: a whole number >= 1."""
+    return _number(text, int, lambda v: v >= 1, "a whole number >= 1",
+                   "a whole number >= 1")
+
+
+def probability(text: str) -> float:
+    """A p-value limit, in (0, 1)."""
+    return _number(text, float, lambda v: 0.0 < v < 1.0, "a probability such as 0.002",
+                   "a probability in (0, 1)")
+
+
+def fraction(text: str) -> float:
+    """A relative change, in [0, 10)."""
+    return _number(text, float, lambda v: 0.0 <= v < 10.0, "a fraction such as 0.02",
+                   "a fraction in [0, 10)")
+
+
+def seconds(text: str) -> float:
+    """A duration in seconds, >= 0."""
+    return _number(text, float, lambda v: math.isfinite(v) and v >= 0,
+                   "seconds such as 300", "seconds >= 0")
 
 
 def interrupt_on_sigterm() -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,7 +25,7 @@ from harness.analysis.compare import (
     find_drift,
 )
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import Parser
+from harness.cli.common import Parser, fraction, seconds
 from harness.errors import HarnessError
 from harness.measure import environment, machine
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
@@ -44,27 +43,6 @@ from harness.store.locks import RunLock
 DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
 USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --calibrate "
          "CONFIG...")
-
-
-def _threshold(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a fraction such as 0.02, got {text!r}") \
-            from None
-    if not (0.0 <= value < 10.0) or not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 10), got {text!r}")
-    return value
-
-
-def _budget(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds such as 300, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
-    return value
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -90,14 +68,14 @@ def parser(prog: str) -> argparse.ArgumentParser:
                       "between runs and the smallest slow-down found; kept in "
                       f"<results>/{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
                       f"{layout.RECORD_SUFFIX}")
-    parser.add_argument("--threshold", type=_threshold, default=DEFAULT_THRESHOLD,
+    parser.add_argument("--threshold", type=fraction, default=DEFAULT_THRESHOLD,
                         help=f"a change within it is never called slower or faster (default: "
                         f"{DEFAULT_THRESHOLD:g})")
     parser.add_argument("--fail-on", choices=FAIL_ON, default=FAIL_ON_INCONCLUSIVE,
                         help="what fails the gate besides a slower cell (exit 1): with "
                         "'inconclusive' (default) a cell neither shown changed nor shown "
                         "unchanged exits 3; with 'slower' only a slower cell fails")
-    parser.add_argument("--budget", type=_budget, default=None, metavar="SECONDS",
+    parser.add_argument("--budget", type=seconds, default=None, metavar="SECONDS",
                         help="with --measure: add rounds to undecided cells until each is "
                         f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g}; "
                         f"with --metric {METRIC_INSTRUCTIONS}, 0: the counts decide)")

@@ -5,60 +5,50 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TextIO
 
 from harness.analysis.changepoints import DEFAULT_MAX_P, ChangePoint
 from harness.analysis.history import (
     METRICS,
+    Bisection,
     Metric,
     Series,
+    cell_point,
     detect,
     history_rows,
     named_commits,
     read_series,
+    with_bisections,
     write_history_csv,
 )
-from harness.analysis.resultsets import read_cells
-from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.analysis.resultsets import Cell, read_cells
+from harness.cli.common import (
+    EXIT_INTERRUPTED,
+    Parser,
+    interrupt_on_sigterm,
+    probability,
+    whole_number,
+)
 from harness.cli.run import report_dir
 from harness.errors import HarnessError
 from harness.measure import machine
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
-from harness.runner.pair import measure_sides
+from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, Config, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
+from harness.store.columns import MEASURED_BISECT
 from harness.store.commits import CommitInfo
 from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 
 CONFIG_SUFFIXES = (".yaml", ".yml")
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
-
-
-def _p_value(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), got {text!r}")
-    return value
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -69,7 +59,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                     "history.csv and a history page per config.")
     parser.add_argument("items", nargs="+", metavar="RANGE|REVISION|CONFIG",
                         help="a range A..B or revisions, then experiment YAML files")
-    parser.add_argument("--every", type=_positive, default=1, metavar="K",
+    parser.add_argument("--every", type=whole_number, default=1, metavar="K",
                         help="measure every K-th commit of the range (the first and last "
                         "always); --bisect then names the commit between")
     parser.add_argument("--metric", choices=tuple(METRICS), default=METRIC_TIME,
@@ -80,7 +70,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="where a change point falls between measured commits that are "
                         "not adjacent, measure the commits between (each against its "
                         "neighbour in interleaved rounds) until one commit is named")
-    parser.add_argument("--max-p", type=_p_value, default=DEFAULT_MAX_P,
+    parser.add_argument("--max-p", type=probability, default=DEFAULT_MAX_P,
                         help=f"the p-value a change point needs (default: {DEFAULT_MAX_P:g})")
     parser.add_argument("--repo", type=Path, default=REPO_ROOT,
                         help="the git repository whose commits are measured (default: this one)")
@@ -118,6 +108,7 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
+    order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
     try:
         with lock:
@@ -128,10 +119,12 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 metrics = [METRICS[m] for m in
                            ((METRIC_TIME, METRIC_INSTRUCTIONS) if config.counts_instructions
                             else (METRIC_TIME,))]
-                series = analyse(config, commits, metrics, machine_id, results_root, args,
-                                 out)
-                if args.bisect:
+                series = analyse(config, commits, metrics, machine_id, results_root,
+                                 args.max_p)
+                if args.bisect:  # what the series found is kept should bisection stop
+                    publish(config, series, order, results_root, args)
                     bisect_all(config, series, full, results_root, repo, lock, args, out)
+                summarise(config, series, order, len(commits), results_root, args, out)
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: measured commits are saved; run again to resume\n")
         return EXIT_INTERRUPTED
@@ -139,35 +132,53 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
 
 
 def analyse(config: Config, commits: Sequence[CommitInfo], metrics: Sequence[Metric],
-            machine_id: str, results_root: Path, args: argparse.Namespace, out: TextIO
-            ) -> list[Series]:
+            machine_id: str, results_root: Path, max_p: float) -> list[Series]:
+    """Every cell's series of every metric, with its change points."""
     exp = ResultsRoot(results_root).experiment(config.name)
-    series = [detect(s, args.max_p) for metric in metrics
+    series = [detect(s, max_p) for metric in metrics
               for s in read_series(exp, commits, metric, machine_id)]
     if not series:
         raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
-    write_history_csv(exp, history_rows(config.name, series))
+    return series
+
+
+def publish(config: Config, series: Sequence[Series], order: Mapping[str, int],
+            results_root: Path, args: argparse.Namespace) -> tuple[Path, list[Series]]:
+    """history.csv and the history page of the series, with what bisection measured in its
+    place; the page's path and the series as written."""
+    exp = ResultsRoot(results_root).experiment(config.name)
+    written = [with_bisections(s, order) for s in series]
+    write_history_csv(exp, history_rows(config.name, written, order))
     command = "collide-bench history " + " ".join(args.items) + (
         f" --every {args.every}" if args.every > 1 else "") + (
-        f" --metric {args.metric}" if args.metric != METRIC_TIME else "")
-    path = page(config.name, series, report_dir(args), command)
-    for s in series:
+        f" --metric {args.metric}" if args.metric != METRIC_TIME else "") + (
+        " --bisect" if args.bisect else "")
+    return page(config.name, written, report_dir(args), command), written
+
+
+def summarise(config: Config, series: Sequence[Series], order: Mapping[str, int],
+              commits: int, results_root: Path, args: argparse.Namespace, out: TextIO
+              ) -> None:
+    """Publish the series and print their change points and where they went."""
+    path, written = publish(config, series, order, results_root, args)
+    for s in written:
         for commit, change in named_commits(s):
             out.write(f"{config.name}: {s.label} ({s.metric.name}): change at {commit.short} "
                       f"{commit.subject!r}: x{change.ratio.format(4)}, p {change.p:.3g}\n")
-    found = sum(len(s.changes) for s in series)
-    cells = len({s.label for s in series})
-    out.write(f"{config.name}: {cells} cells over {len(commits)} commits, {found} change "
+    found = sum(len(s.changes) for s in written)
+    cells = len({s.label for s in written})
+    exp = ResultsRoot(results_root).experiment(config.name)
+    out.write(f"{config.name}: {cells} cells over {commits} commits, {found} change "
               f"point(s); {exp.history_csv}; {path}\n")
-    return series
 
 
 def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
                results_root: Path, repo: Path, lock: RunLock, args: argparse.Namespace,
                out: TextIO) -> None:
     """Name the commit of each change point that falls between measured commits with
-    unmeasured ones between them."""
+    unmeasured ones between them (each series' bisections)."""
     position = {c.sha: k for k, c in enumerate(full)}
+    pairs: dict[tuple[int, int], MeasuredSides] = {}  # what a metric's bisection measured
     for s in series:
         measured = [k for k, p in enumerate(s.points) if p.value is not None]
         for k, change in sorted(s.changes.items()):
@@ -175,47 +186,58 @@ def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitIn
             low, high = position[s.points[before].commit.sha], position[s.points[k].commit.sha]
             if high - low <= 1:
                 continue
-            named = bisect(config, s, change, full, low, high, results_root, repo,
-                           lock, args.hyperfine)
-            out.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to {named.short} "
-                      f"{named.subject!r}\n")
+            found = bisect(config, s, k, change, full, low, high, results_root, repo, lock,
+                           args.hyperfine, pairs)
+            s.bisections.append(found)
+            out.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
+                      f"{found.named.short} {found.named.subject!r}\n")
 
 
-def bisect(config: Config, s: Series, change: ChangePoint, full: Sequence[CommitInfo],
-           low: int, high: int, results_root: Path, repo: Path, lock: RunLock,
-           hyperfine: str) -> CommitInfo:
+def bisect(config: Config, s: Series, k: int, change: ChangePoint,
+           full: Sequence[CommitInfo], low: int, high: int, results_root: Path, repo: Path,
+           lock: RunLock, hyperfine: str, pairs: dict[tuple[int, int], MeasuredSides]
+           ) -> Bisection:
     """Halve [low, high] (low before the step, high after it) by measuring the middle commit
     against `low`'s, together in interleaved rounds: a ratio nearer the step than 1 puts the
-    step at or before the middle."""
+    step at or before the middle. `pairs`: the commits measured together so far (another
+    metric's bisection of the same cells reuses them)."""
     registry = VariantRegistry(REPO_ROOT)
     label = s.label
+    points = []
     while high - low > 1:
         middle = (low + high) // 2
-        old = resolve("OLD", full[low].sha, results_root, repo)
-        new = resolve("NEW", full[middle].sha, results_root, repo)
-        sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
-                         f"measuring {full[middle].short} against {full[low].short}\n")
-        out = ResultsRoot(results_root).experiment(config.name).bisect(full[low].short,
-                                                                       full[middle].short)
-        # Which side of a step already found is all a look needs: the first look's rounds
-        # place it, so no rounds are added to decide the cells' verdicts (budget 0).
-        sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr, hyperfine,
-                              budget_s=0.0)
-        ratio = side_ratio(sides.old / config.name, sides.new / config.name, label, s.metric)
+        sides = pairs.get((low, middle))
+        if sides is None:
+            old = resolve("OLD", full[low].sha, results_root, repo)
+            new = resolve("NEW", full[middle].sha, results_root, repo)
+            sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
+                             f"measuring {full[middle].short} against {full[low].short}\n")
+            out = ResultsRoot(results_root).experiment(config.name).bisect(
+                full[low].short, full[middle].short)
+            # Which side of a step already found is all a look needs: the first look's rounds
+            # place it, so no rounds are added to decide the cells' verdicts (budget 0).
+            sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr,
+                                  hyperfine, budget_s=0.0)
+            pairs[(low, middle)] = sides
+        before = side_cell(sides.old / config.name, label)
+        after = side_cell(sides.new / config.name, label)
+        point = cell_point(full[middle], after, s.metric, MEASURED_BISECT)
+        points.append(point)
+        was = cell_point(full[low], before, s.metric).value
+        if point.value is None or was is None:
+            raise HarnessError(f"bisect: {label} has no {s.metric.name} at both "
+                               f"{full[low].short} and {full[middle].short}")
+        ratio = point.value.point / was.point
         if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
             high = middle
         else:
             low = middle
-    return full[high]
+    return Bisection(k, tuple(points), full[high])
 
 
-def side_ratio(old: Path, new: Path, label: str, metric: Metric) -> float:
-    """NEW / OLD of the cell `label`, measured together."""
-    values = []
-    for side in (old, new):
-        cells = {c.key.label(): c for c in read_cells(side, False)}
-        value = metric.value(cells[label]) if label in cells else None
-        if value is None:
-            raise HarnessError(f"bisect: {label} has no {metric.name} on both sides")
-        values.append(value.point)
-    return values[1] / values[0]
+def side_cell(side: Path, label: str) -> Cell:
+    """The cell `label` of one side of a pair measured together."""
+    cells = {c.key.label(): c for c in read_cells(side, False)}
+    if label not in cells:
+        raise HarnessError(f"bisect: {side} has no cell {label}")
+    return cells[label]

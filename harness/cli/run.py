@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm, whole_number
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
@@ -41,7 +41,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--no-wait", action="store_true",
                         help="when another run is measuring on this machine, stop with an "
                         "error instead of waiting for it")
-    parser.add_argument("--max-cells", type=int, default=DEFAULT_MAX_CELLS, metavar="N",
+    parser.add_argument("--max-cells", type=whole_number, default=DEFAULT_MAX_CELLS, metavar="N",
                         help="refuse a config that plans more than N cells, counted before "
                         f"anything is built (default {DEFAULT_MAX_CELLS})")
     parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")

@@ -5,16 +5,21 @@ takes one run a round; `runs: auto` starts with a few and then takes what its in
 for (at most doubling a round) until the 95% interval of the median is within +-ci of it, or
 a limit is reached (harness.spec.config).
 
-CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.json after each,
-so that an interrupted run resumes a cell where it stopped instead of starting it again.
+CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl after each,
+so that an interrupted run resumes a cell where it stopped instead of starting it again. The
+file is a log: its first line the whole state, then a line a round with what the round added
+to the lists that only grow (times, rounds, ...) and the rest as it is then; a round writes
+what it added, not every run of the cell again (a cell of many rounds would rewrite its runs
+quadratically often).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import statistics
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from harness import stats
@@ -30,7 +35,9 @@ from harness.store.columns import (
 )
 from harness.store.hyperfine import is_unstable
 
-PARTIAL_VERSION = 1
+PARTIAL_VERSION = 2
+# CellRun's lists that its rounds only append to: a partial file's later lines add to them.
+GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise")
 
 
 @dataclass
@@ -66,6 +73,9 @@ class CellRun:
     other_cpu_s: float = 0.0
     nivcsw: int = 0
     capacity_s: float = 0.0  # the cores' seconds over its rounds
+    # The partial file it was last kept in, with the length of each GROWING list there then
+    saved: tuple[Path, dict[str, int]] | None = field(default=None, init=False, repr=False,
+                                                      compare=False)
 
     @property
     def timed(self) -> bool:
@@ -115,19 +125,49 @@ class CellRun:
             self.capacity_s += timed.noise.wall_s * timed.noise.cores
 
     def save(self, path: Path) -> None:
-        atomic.atomic_write_json(path, {"version": PARTIAL_VERSION, **asdict(self)})
+        """Keep the state in `path`: a line with what changed since it was last kept there
+        (appended), or, where it was not (a new file, another run's, one whose last save was
+        cut short), the whole state, written atomically."""
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        if self.saved is not None and self.saved[0] == path and path.is_file():
+            kept = self.saved[1]
+            line = {name: value[kept[name]:] if name in GROWING else value
+                    for name, value in state.items()}
+            with path.open("a", encoding="utf-8") as handle:
+                handle.write(json.dumps(line, sort_keys=True, default=str) + "\n")
+        else:
+            atomic.atomic_write_text(path, json.dumps({"version": PARTIAL_VERSION, **state},
+                                                      sort_keys=True, default=str) + "\n")
+        self.saved = (path, {name: len(state[name]) for name in GROWING})
 
     @classmethod
     def load(cls, path: Path, key: dict[str, object]) -> CellRun | None:
-        """The cell's partial state, when there is one of this key and version."""
-        data = records.read_json(path)
-        if not isinstance(data, dict) or data.pop("version", None) != PARTIAL_VERSION:
-            return None
+        """The cell's partial state, when there is one of this key and version. A last line
+        cut short (the process killed while it was written) is left out: the state is the
+        one before that round, and the next save writes the file whole."""
         try:
-            run = cls(**data)
-        except TypeError:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
             return None
-        return run if run.key == key else None
+        lines = text.splitlines()
+        whole = text.endswith("\n")
+        if not whole:
+            lines = lines[:-1]
+        try:
+            first = json.loads(lines[0]) if lines else None
+            if not isinstance(first, dict) or first.pop("version", None) != PARTIAL_VERSION:
+                return None
+            for line in lines[1:]:
+                for name, value in json.loads(line).items():
+                    first[name] = first[name] + value if name in GROWING else value
+            run = cls(**first)
+        except (ValueError, TypeError, KeyError, AttributeError):
+            return None
+        if run.key != key:
+            return None
+        if whole:
+            run.saved = (path, {name: len(getattr(run, name)) for name in GROWING})
+        return run
 
 
 def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import os
+import platform
 import re
 import shutil
 import subprocess
@@ -34,6 +35,8 @@ TOOLS = (PERF, CACHEGRIND)
 TOOL_VAR = "COLLIDE_INSTRUCTIONS_TOOL"
 LANE_DIR = "lane"  # build/lane/: the Makefile's x86-64-v3 build (`make lane`)
 LANE_ISA = "x86-64-v3"
+# The lane build's flags, as the Makefile's LANE gives them (none beyond x86-64).
+LANE_FLAGS = f"-march={LANE_ISA} -mtune=generic" if platform.machine() == "x86_64" else ""
 PASSIVE_ENV = {"OMP_WAIT_POLICY": "passive"}
 PERF_EVENT = "instructions:u"  # user-space instructions: the program's, not the kernel's
 PERF_PROBE_TIMEOUT_S = 30.0

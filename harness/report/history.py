@@ -1,7 +1,8 @@
 """A config's history page (`history`): each cell's value against commit (subject and short
 hash, oldest first) with its interval, change points marked with the step's size, and the
 commits that changed what the binaries are made of (variants/, the Makefile) drawn filled, the
-others hollow. <report>/history/<config>.md with one figure per cell."""
+others hollow; the commits `--bisect` measured drawn as diamonds and the change points it named
+labelled. <report>/history/<config>.md with one figure per cell."""
 
 from __future__ import annotations
 
@@ -9,10 +10,10 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from harness.analysis.history import Series, named_commits
+from harness.analysis.history import Series
 from harness.report.figures.base import new_figure, save_figure
 from harness.store import atomic
-from harness.store.columns import OK
+from harness.store.columns import MEASURED_BISECT, MEASURED_SERIES, OK
 
 HISTORY_REPORT_DIR = "history"
 SUBJECT_CHARS = 38  # of a commit's subject on the x axis
@@ -21,6 +22,12 @@ CHANGE_COLOR = "#d62728"
 WIDTH_PER_COMMIT_IN = 0.32
 MIN_WIDTH_IN = 7.0
 HEIGHT_IN = 5.5
+# A commit's marker says how it was measured: in the series, or by bisection (diamond).
+MARKERS = {MEASURED_SERIES: "o", MEASURED_BISECT: "D"}
+LEGENDS = {(True, MEASURED_SERIES): "changed variants/ or the Makefile",
+           (False, MEASURED_SERIES): "other commits",
+           (True, MEASURED_BISECT): "changed variants/ or the Makefile, measured by bisection",
+           (False, MEASURED_BISECT): "other commits, measured by bisection"}
 
 
 def _tick(point_subject: str, short: str) -> str:
@@ -34,24 +41,25 @@ def figure(series: Series, stem: Path) -> list[Path]:
     fig, ax = new_figure((width, HEIGHT_IN), margins={"left": 0.09, "right": 0.98,
                                                        "bottom": 0.42, "top": 0.9})
     xs = range(len(series.points))
-    for code in (True, False):
+    for (code, how), legend in LEGENDS.items():
         chosen = [(k, p.value) for k, p in zip(xs, series.points, strict=True)
-                  if p.value is not None and p.commit.touches_code == code]
+                  if p.value is not None and p.commit.touches_code == code
+                  and p.measured == how]
         if not chosen:
             continue
         x = [k for k, _ in chosen]
         y = [v.point for _, v in chosen]
         lows = [v.point - v.low if math.isfinite(v.low) else 0.0 for _, v in chosen]
         highs = [v.high - v.point if math.isfinite(v.high) else 0.0 for _, v in chosen]
-        ax.errorbar(x, y, yerr=[lows, highs], fmt="o", color=CODE_COLOR, capsize=2,
-                    markerfacecolor=CODE_COLOR if code else "white",
-                    label="changed variants/ or the Makefile" if code else "other commits")
+        ax.errorbar(x, y, yerr=[lows, highs], fmt=MARKERS[how], color=CODE_COLOR, capsize=2,
+                    markerfacecolor=CODE_COLOR if code else "white", label=legend)
     for k, point in zip(xs, series.points, strict=True):
         if point.value is None:
             ax.axvline(k, color="#999999", linestyle=":", linewidth=1)
     for k, change in series.changes.items():
         ax.axvline(k - 0.5, color=CHANGE_COLOR, linewidth=1.2)
-        ax.annotate(f"x{change.ratio.point:.3f}", (k - 0.5, 1.0),
+        bisected = " (bisected)" if k in series.bisected else ""
+        ax.annotate(f"x{change.ratio.point:.3f}{bisected}", (k - 0.5, 1.0),
                     xycoords=("data", "axes fraction"), color=CHANGE_COLOR, ha="center",
                     va="bottom", fontsize=8)
     ax.set_xticks(list(xs))
@@ -77,19 +85,22 @@ def page(config: str, series: Sequence[Series], out_dir: Path, command: str) -> 
              "95% interval; filled markers: commits that changed `variants/` or the Makefile; "
              "red lines: change points (E-Divisive Means with Student's t-test on the time "
              "lane, any change on an exact lane), labelled with the step as a ratio; dotted: "
-             "a commit without a value (did not build, or the cell failed).", ""]
+             "a commit without a value (did not build, or the cell failed); diamonds: commits "
+             "`--bisect` measured, each against a neighbour in interleaved rounds, and a "
+             "change point it named is labelled (bisected).", ""]
     for s in series:
         stem = directory / f"{_slug(config)}-{_slug(s.metric.name)}-{_slug(s.label)}"
         figure(s, stem)
         lines += [f"## {s.label} ({s.metric.name})", "",
                   f"![{s.label}]({stem.name}.png)", ""]
-        found = named_commits(s)
-        if found:
-            lines += ["| commit | subject | changed code | step (after / before) | p |",
-                      "|---|---|---|---|---|"]
-            for commit, change in found:
+        if s.changes:
+            lines += ["| commit | subject | changed code | found by | step (after / before) "
+                      "| p |", "|---|---|---|---|---|---|"]
+            for k, change in sorted(s.changes.items()):
+                commit = s.points[k].commit
                 lines.append(f"| {commit.short} | {commit.subject} | "
                              f"{'yes' if commit.touches_code else 'no'} | "
+                             f"{'bisection' if k in s.bisected else 'the series'} | "
                              f"{change.ratio.format(4)} | {change.p:.3g} |")
         else:
             lines.append("No change point.")

@@ -10,22 +10,18 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.executors.base import Options
-from harness.measure.machine import compiler_command
-from harness.plan import lane
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import plan_cells
-from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
+from harness.repo import REPO_ROOT, VARIANTS_DIR
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import with_min_rounds
 from harness.runner.sides import BuildSide, build, git, resolve, rev_parse
-from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
@@ -36,8 +32,6 @@ from harness.store.locks import RunLock
 # A commit's cell gets at least this many runs: the per-commit median the change-point test
 # reads then holds a 5% step at 5% run noise (docs/history.md).
 HISTORY_MIN_RUNS = 10
-# Where a commit without the lane's rule has its lane binaries made (build_commit).
-LANE_SOURCES = "lane-sources"
 # What a commit must change for its binaries to change (told apart on the history page).
 CODE_PATHS = (VARIANTS_DIR, "Makefile")
 
@@ -96,32 +90,6 @@ def run_config(config: Config, options: Options, registry: VariantRegistry,
     run_experiment(config, options, log, io.StringIO(), registry)
 
 
-def build_commit(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) -> None:
-    """Make the commit's binaries. A commit older than the instruction lane's build has no rule
-    for build/lane/NAME: its own Makefile then builds them, with the lane's instruction set
-    added to its own flags, in a copy of its sources (so that build/ keeps the native ones)."""
-    lane_dir = side.build_dir / lane.LANE_DIR
-    lanes = [b for b in binaries if b.parent == lane_dir]
-    makefile = side.repo_root / "Makefile"
-    has_rule = makefile.is_file() and f"{BUILD_DIR}/{lane.LANE_DIR}/" in makefile.read_text()
-    if has_rule or not lanes:
-        build(side, binaries, variants)
-        return
-    build(side, [b for b in binaries if b not in lanes], variants)
-    copy = side.build_dir / LANE_SOURCES
-    if not copy.is_dir():
-        copy.mkdir(parents=True)
-        shutil.copy(makefile, copy / "Makefile")
-        shutil.copytree(side.repo_root / VARIANTS_DIR, copy / VARIANTS_DIR)
-    made = [copy / BUILD_DIR / b.name for b in lanes]
-    make_binaries(copy, made, capture=True, extra=[
-        f"CC={compiler_command(REPO_ROOT)[0]}",
-        f"CFLAGS=-march={lane.LANE_ISA} -mtune=generic"])
-    lane_dir.mkdir(parents=True, exist_ok=True)
-    for source, target in zip(made, lanes, strict=True):
-        shutil.copy2(source, target)
-
-
 def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
                    measure: MeasureCommit, hyperfine: str, run_lock: RunLock | None) -> str:
     """Build and measure one commit's cells of a config; 'built' or why not."""
@@ -142,8 +110,7 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         plan = plan_cells(config, False, registry)
         binaries = needed_binaries(plan, side.build_dir)
         variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
-        build_commit(side, [b for b in binaries if b.is_relative_to(side.build_dir)],
-                     variants)
+        build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
                                           "error": str(exc)})

@@ -5,6 +5,8 @@ already holds built variant binaries (e.g. `build`)."""
 
 from __future__ import annotations
 
+import shlex
+import shutil
 import subprocess
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -12,12 +14,18 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.measure.machine import compiler_command
-from harness.repo import BUILD_DIR, REPO_ROOT
-from harness.spec.builds import make_binaries
+from harness.plan import lane
+from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
+from harness.spec.builds import has_rules, make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store.layout import CACHE_DIR
 
 REVISIONS = "revisions"
+MAKEFILE = "Makefile"
+# Where a revision without the lane's rule has its lane binaries made (build_lanes), and the
+# compiler command there.
+LANE_SOURCES = "lane-sources"
+LANE_COMPILER = "lane-cc"
 GIT_TIMEOUT_S = 120.0
 
 
@@ -86,8 +94,40 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
         raise HarnessError(f"{side.name}: revision {side.label} has no variant "
                            f"{', '.join(absent)}")
     compiler = compiler_command(REPO_ROOT)[0]
+    lane_dir = side.build_dir / lane.LANE_DIR
+    lanes = [b for b in binaries if b.parent == lane_dir]
     try:
-        make_binaries(side.repo_root, binaries, make="make", capture=True,
-                      extra=[f"CC={compiler}"])
+        if lanes and not has_rules(side.repo_root, lanes):
+            make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
+                          make="make", capture=True, extra=[f"CC={compiler}"])
+            build_lanes(side, lanes, compiler)
+        else:
+            make_binaries(side.repo_root, binaries, make="make", capture=True,
+                          extra=[f"CC={compiler}"])
     except HarnessError as exc:
         raise HarnessError(f"{side.name}: revision {side.label} does not build: {exc}") from None
+
+
+def build_lanes(side: BuildSide, lanes: Sequence[Path], compiler: str) -> None:
+    """The instruction lane's binaries of a revision older than the Makefile's lane rule (its
+    Makefile has none for build/lane/NAME): its own Makefile builds them as build/NAME, with its
+    own flags, in a copy of its sources (so that build/ keeps the native ones), with a compiler
+    command that puts the lane's flags last: whatever -march the revision's flags give, the
+    last one wins, and the binaries are those the lane's rule makes (test_history compares
+    them byte for byte)."""
+    copy = side.build_dir / LANE_SOURCES
+    if not copy.is_dir():  # made whole, then renamed: an interrupted copy is made again
+        staging = side.build_dir / f".{LANE_SOURCES}.tmp"
+        shutil.rmtree(staging, ignore_errors=True)
+        staging.mkdir(parents=True)
+        shutil.copy(side.repo_root / MAKEFILE, staging / MAKEFILE)
+        shutil.copytree(side.repo_root / VARIANTS_DIR, staging / VARIANTS_DIR)
+        wrapper = staging / LANE_COMPILER
+        wrapper.write_text(f"#!/bin/sh\nexec {shlex.quote(compiler)} \"$@\" {lane.LANE_FLAGS}\n")
+        wrapper.chmod(0o755)
+        staging.rename(copy)
+    made = [copy / BUILD_DIR / b.name for b in lanes]
+    make_binaries(copy, made, capture=True, extra=[f"CC={copy / LANE_COMPILER}"])
+    (side.build_dir / lane.LANE_DIR).mkdir(parents=True, exist_ok=True)
+    for source, target in zip(made, lanes, strict=True):
+        shutil.copy2(source, target)

@@ -57,3 +57,15 @@ def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
         detail = f": {' '.join(done.stderr.split())[-500:]}" if capture and done.stderr else ""
         raise HarnessError(f"make -s {' '.join([*extra, *targets])} failed with exit status "
                            f"{done.returncode}{detail}")
+
+
+def has_rules(repo_root: Path, binaries: Iterable[Path], make: str = "make") -> bool:
+    """Whether the Makefile in `repo_root` can make every one of `binaries`: `make -n` (a dry
+    run, nothing built) finds a rule for each and for what each is made of."""
+    targets = [str(b.relative_to(repo_root)) for b in binaries]
+    try:
+        done = subprocess.run([make, "-n", "-s", *targets], cwd=repo_root, check=False,
+                              stdin=subprocess.DEVNULL, capture_output=True)
+    except OSError as exc:
+        raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
+    return done.returncode == 0

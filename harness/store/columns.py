@@ -166,12 +166,18 @@ FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "load
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
 
-# history.csv (`history`): one row per cell, commit and metric, oldest commit first. `value`
-# with its interval [low, high]; `status` ok, or why the commit has no value (build_failed,
-# a cell's own status, missing); a change point's row, the first commit at the new level,
-# has change_point true, the step as a ratio (after / before) with its interval, and p.
+# history.csv (`history`): one row per cell, commit and metric, in the range's order (`position`:
+# the commit's place in the range, from 0). `value` with its interval [low, high]; `status` ok,
+# or why the commit has no value (build_failed, a cell's own status, missing); `measured`: how
+# the value was measured, in the series (each commit on its own) or by `--bisect` (the commit
+# against a neighbour, in interleaved rounds). A change point's row, the first commit at the new
+# level (the commit bisection named, where it ran), has change_point true, the step as a ratio
+# (after / before) with its interval, and p.
 HISTORY_COLUMNS: tuple[str, ...] = (
-    "config", "cell", "metric", "position", "commit", "subject", "touches_code", "status",
-    "value", "low", "high", "unit", "change_point", "ratio", "ratio_low", "ratio_high", "p")
+    "config", "cell", "metric", "position", "commit", "subject", "touches_code", "measured",
+    "status", "value", "low", "high", "unit", "change_point", "ratio", "ratio_low",
+    "ratio_high", "p")
+MEASURED_SERIES = "series"
+MEASURED_BISECT = "bisect"
 BUILD_FAILED_STATUS = "build_failed"
 MISSING_STATUS = "missing"

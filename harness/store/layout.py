@@ -8,7 +8,7 @@
         cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
                                          written (<cell_id>.hyperfine.json: one for all runs,
                                          in records from before rounds)
-        cells/<cell_id>.partial.json     a cell whose rounds an interruption cut short
+        cells/<cell_id>.partial.jsonl    a cell whose rounds an interruption cut short
         cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
         cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
         inputs/<sha>.in                  the input files the cells read
@@ -50,7 +50,7 @@ DIVERGENCE_CSV = "divergence.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
-PARTIAL_SUFFIX = ".partial.json"
+PARTIAL_SUFFIX = ".partial.jsonl"
 OUTPUT_SUFFIX = ".txt"
 # The outputs a cell's measurement compares and then deletes (written under a temporary name
 # beside these: harness.store.atomic.temp_path).

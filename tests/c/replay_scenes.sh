@@ -11,26 +11,10 @@
 #
 # Exits non-zero on any failure; the last line is "N passed, M failed".
 set -euo pipefail
-if [ $# -ne 1 ]; then
-    echo "usage: $0 BUILD_DIR" >&2
-    exit 2
-fi
-B=$1
-HERE=$(cd "$(dirname "$0")" && pwd)
-ROOT=$(cd "$HERE/../.." && pwd)
-TMP=$(mktemp -d)
-trap 'rm -rf "$TMP"' EXIT
-unset OMP_NUM_THREADS OMP_SCHEDULE OMP_DYNAMIC OMP_MAX_ACTIVE_LEVELS || true
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); }
-bad() {
-    fail=$((fail + 1))
-    echo "FAIL: $*"
-}
+source "$(dirname "$0")/lib.sh"
 
 # The exact variants, from their own --describe lines.
-ALL=$(MAKEFLAGS= MAKELEVEL= make -s --no-print-directory -C "$ROOT" print-variants)
+ALL=$(print_variants)
 EXACT=()
 for v in $ALL; do
     if "$B/$v" --describe </dev/null | grep -q '"exact": *true'; then EXACT+=("$v"); fi
@@ -125,5 +109,4 @@ bad_input "negative step" '1 100 1\n-1 0 5 5 1 1\n'
 # Any finite real prints in full (up to 309 integer digits) and reads back; longer is refused.
 bad_input "huge token" "1 100 1\n0 0 5 5 1 $(printf '1%.0s' $(seq 400))\n"
 
-echo "$pass passed, $fail failed"
-[ "$fail" = 0 ]
+finish

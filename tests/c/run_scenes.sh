@@ -19,27 +19,8 @@
 # Prints one FAIL line per failed check, a time per part, and last `N passed, M failed`;
 # exits 1 when anything failed. EXACT_VARIANTS overrides the variants compared with seq.
 set -euo pipefail
-
-if [ $# -ne 1 ]; then
-    echo "usage: $0 BUILD_DIR" >&2
-    exit 2
-fi
-B=$1
-HERE=$(cd "$(dirname "$0")" && pwd)
-ROOT=$(cd "$HERE/../.." && pwd)
+source "$(dirname "$0")/lib.sh"
 SCENES=$HERE/scenes
-TMP=$(mktemp -d)
-trap 'rm -rf "$TMP"' EXIT
-# The runs must not depend on the caller's OpenMP settings (one check sets its own).
-unset OMP_NUM_THREADS OMP_SCHEDULE OMP_DYNAMIC OMP_MAX_ACTIVE_LEVELS || true
-
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); }
-bad() {
-    fail=$((fail + 1))
-    echo "FAIL: $*"
-}
 
 part_start=0
 part() {
@@ -99,8 +80,7 @@ part "--describe"
 # names the variant, status 0 and nothing on stderr, even with no input at hand. Its keys and
 # their order are for test_describe_json and the harness's parser to check; here, that what
 # the line says holds.
-# Without the caller's MAKEFLAGS: under `make test-c` they name a jobserver this make cannot use.
-if ! ALL_VARIANTS=$(MAKEFLAGS= MAKELEVEL= make -s --no-print-directory -C "$ROOT" print-variants) ||
+if ! ALL_VARIANTS=$(print_variants) ||
     [ -z "$ALL_VARIANTS" ]; then
     bad "make print-variants listed no variants"
 fi
@@ -148,8 +128,7 @@ EXACT_VARIANTS=${EXACT_VARIANTS:-${exact_found[*]}}
 read -r -a VARIANTS <<<"$EXACT_VARIANTS"
 if [ "$fail" != 0 ] || [ -z "${DESCRIBE[seq]:-}" ]; then
     [ -n "${DESCRIBE[seq]:-}" ] || bad "seq, the reference, is not built or does not describe itself"
-    echo "$pass passed, $fail failed"
-    exit 1
+    finish || exit 1
 fi
 echo "# exact variants, compared with seq: ${VARIANTS[*]}"
 
@@ -703,5 +682,4 @@ for k in $(seq 1 "$n_cross"); do
 done
 part
 
-echo "$pass passed, $fail failed"
-[ "$fail" = 0 ]
+finish

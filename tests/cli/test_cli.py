@@ -26,6 +26,18 @@ def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     (["measure"], "error: unknown command 'measure'; expected one of: run, compare"),
     (["run"], "error: the following arguments are required: configs"),
     (["store", "prune", "/nowhere"], "error: /nowhere: not a directory"),
+    (["run", "x.yaml", "--max-cells", "0"],
+     "error: argument --max-cells: expected a whole number >= 1, got '0'"),
+    (["run", "x.yaml", "--max-cells", "many"],
+     "error: argument --max-cells: expected a whole number >= 1, got 'many'"),
+    (["compare", "a", "b", "--budget", "-1"],
+     "error: argument --budget: expected seconds >= 0, got '-1'"),
+    (["compare", "a", "b", "--budget", "soon"],
+     "error: argument --budget: expected seconds such as 300, got 'soon'"),
+    (["compare", "a", "b", "--threshold", "10"],
+     "error: argument --threshold: expected a fraction in [0, 10), got '10'"),
+    (["history", "a..b", "x.yaml", "--max-p", "1"],
+     "error: argument --max-p: expected a probability in (0, 1), got '1'"),
 ])
 def test_mistakes_are_one_line_and_status_2(argv: list[str], message: str,
                                             capsys: pytest.CaptureFixture[str]) -> None:

@@ -90,10 +90,64 @@ def test_the_record_says_whether_its_runs_are_unstable() -> None:
 
 def test_state_between_rounds_is_kept_for_its_key_only(tmp_path: Path) -> None:
     run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"], times=[1.0], rounds=[1])
-    run.save(tmp_path / "c.partial.json")
-    assert CellRun.load(tmp_path / "c.partial.json", {"k": 1}) == run
-    assert CellRun.load(tmp_path / "c.partial.json", {"k": 2}) is None  # another cell's
+    run.save(tmp_path / "c.partial.jsonl")
+    assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 1}) == run
+    assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 2}) is None  # another cell's
     assert CellRun.load(tmp_path / "none.json", {"k": 1}) is None
+
+
+def _round(run: CellRun, k: int) -> None:
+    """What a round adds to a cell's state, as CellRun.add does."""
+    run.times += [1.0 + k / 1000, 1.0 - k / 1000]
+    run.rounds += [k, k]
+    run.user_s += [0.5, 0.5]
+    run.system_s += [0.1, 0.1]
+    run.exports.append(f"c.hyperfine.{k}.json")
+    run.round_noise.append(k / 100)
+    run.other_cpu_s += 0.01
+    run.record["load_after"] = float(k)
+
+
+def test_a_round_appends_what_it_added_not_the_cells_runs_again(tmp_path: Path) -> None:
+    path = tmp_path / "c.partial.jsonl"
+    run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"])
+    run.save(path)
+    sizes = []
+    for k in range(1, 41):
+        _round(run, k)
+        before = path.stat().st_size
+        run.save(path)
+        sizes.append(path.stat().st_size - before)
+        if k in (1, 2, 40):
+            assert CellRun.load(path, {"k": 1}) == run
+    assert len(path.read_text().splitlines()) == 41
+    assert max(sizes) < 1.2 * min(sizes)  # the 40th round writes what the 1st did, no more
+
+    # resumed in another process, it goes on appending
+    resumed = CellRun.load(path, {"k": 1})
+    assert resumed is not None
+    _round(resumed, 41)
+    resumed.save(path)
+    assert len(path.read_text().splitlines()) == 42
+    assert CellRun.load(path, {"k": 1}) == resumed and len(resumed.times) == 82
+
+
+def test_a_save_cut_short_leaves_the_state_before_it(tmp_path: Path) -> None:
+    path = tmp_path / "c.partial.jsonl"
+    run = CellRun("c", {"k": 1}, {}, "ok", 0, ["x"])
+    for k in range(1, 4):
+        _round(run, k)
+        run.save(path)
+    text = path.read_text()
+    path.write_text(text[:-20])  # killed while the third round's line was written
+    cut = CellRun.load(path, {"k": 1})
+    assert cut is not None and cut.rounds == [1, 1, 2, 2] and cut.exports[-1].endswith(".2.json")
+    _round(cut, 3)
+    cut.save(path)  # written whole again: no line follows the torn one
+    assert CellRun.load(path, {"k": 1}) == cut
+    assert len(path.read_text().splitlines()) == 1
+    path.write_text("not json\n")
+    assert CellRun.load(path, {"k": 1}) is None
 
 
 @pytest.mark.skipif(shutil.which("hyperfine") is None, reason="hyperfine is not installed")
