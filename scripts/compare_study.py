@@ -11,8 +11,9 @@ on the cores the harness uses: a quiet machine made noisy. --budget is compare -
 Parts, each a real measurement with this checkout's build/ (every command it runs is printed):
   aa         `compare --measure build build CONFIG`, --repeats times: identical sides measured
              together; every verdict of slower or faster is false;
-  ab         `compare --measure build SLOW CONFIG`, --repeats times, SLOW a directory of wrappers that run the
-             real binary and then spin for --slowdown of its time: the share called slower;
+  ab         `compare --measure build SLOW CONFIG`, --repeats times, SLOW a directory of
+             wrappers that run the real binary and then spin for --slowdown of its time: the
+             share called slower;
   apart      `run CONFIG` --repeats times back to back into separate results roots, then
              `compare` of each pair: with the assumed drift (no calibration), and with this
              machine's calibration where the calibrate part made one; and per candidate

@@ -184,6 +184,16 @@ def _number(value: float) -> str:
     return "" if not math.isfinite(value) else f"{value:.10g}"
 
 
+def step_text(ratio: Interval, digits: int = 4) -> str:
+    """A change point's step (after / before) as the log and the page print it: the ratio with
+    its interval, or, where the interval is the point itself (an exact lane's count), the change
+    in percent to as many digits as it takes to show: a few hundred instructions more in
+    hundreds of millions would print as a ratio of x1."""
+    if ratio.low == ratio.point == ratio.high:
+        return f"{(ratio.point - 1) * 100:+.{digits - 1}g}% (exact)"
+    return f"x{ratio.format(digits)}"
+
+
 def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
                  ) -> list[dict[str, str]]:
     """history.csv's rows (store.columns.HISTORY_COLUMNS); `order`: each commit's place in

@@ -20,6 +20,7 @@ from harness.analysis.history import (
     history_rows,
     named_commits,
     read_series,
+    step_text,
     with_bisections,
     write_history_csv,
 )
@@ -164,7 +165,7 @@ def summarise(config: Config, series: Sequence[Series], order: Mapping[str, int]
     for s in written:
         for commit, change in named_commits(s):
             out.write(f"{config.name}: {s.label} ({s.metric.name}): change at {commit.short} "
-                      f"{commit.subject!r}: x{change.ratio.format(4)}, p {change.p:.3g}\n")
+                      f"{commit.subject!r}: {step_text(change.ratio)}, p {change.p:.3g}\n")
     found = sum(len(s.changes) for s in written)
     cells = len({s.label for s in written})
     exp = ResultsRoot(results_root).experiment(config.name)

@@ -10,7 +10,9 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from harness.analysis.history import Series
+from matplotlib.ticker import EngFormatter
+
+from harness.analysis.history import Series, step_text
 from harness.report.figures.base import new_figure, save_figure
 from harness.store import atomic
 from harness.store.columns import MEASURED_BISECT, MEASURED_SERIES, OK
@@ -21,6 +23,8 @@ CODE_COLOR = "#1f77b4"
 CHANGE_COLOR = "#d62728"
 WIDTH_PER_COMMIT_IN = 0.32
 MIN_WIDTH_IN = 7.0
+# The first commit's subject, rotated, reaches this far left of its tick.
+TICK_TEXT_LEFT_IN = 1.5
 HEIGHT_IN = 5.5
 # A commit's marker says how it was measured: in the series, or by bisection (diamond).
 MARKERS = {MEASURED_SERIES: "o", MEASURED_BISECT: "D"}
@@ -38,7 +42,8 @@ def _tick(point_subject: str, short: str) -> str:
 
 def figure(series: Series, stem: Path) -> list[Path]:
     width = max(MIN_WIDTH_IN, WIDTH_PER_COMMIT_IN * len(series.points) + 2.0)
-    fig, ax = new_figure((width, HEIGHT_IN), margins={"left": 0.09, "right": 0.98,
+    fig, ax = new_figure((width, HEIGHT_IN), margins={"left": TICK_TEXT_LEFT_IN / width,
+                                                       "right": 0.98,
                                                        "bottom": 0.42, "top": 0.9})
     xs = range(len(series.points))
     for (code, how), legend in LEGENDS.items():
@@ -59,7 +64,10 @@ def figure(series: Series, stem: Path) -> list[Path]:
     for k, change in series.changes.items():
         ax.axvline(k - 0.5, color=CHANGE_COLOR, linewidth=1.2)
         bisected = " (bisected)" if k in series.bisected else ""
-        ax.annotate(f"x{change.ratio.point:.3f}{bisected}", (k - 0.5, 1.0),
+        exact = change.ratio.low == change.ratio.high
+        label = (step_text(change.ratio, 2).removesuffix(" (exact)") if exact
+                 else f"x{change.ratio.point:.3f}")
+        ax.annotate(f"{label}{bisected}", (k - 0.5, 1.0),
                     xycoords=("data", "axes fraction"), color=CHANGE_COLOR, ha="center",
                     va="bottom", fontsize=8)
     ax.set_xticks(list(xs))
@@ -68,6 +76,8 @@ def figure(series: Series, stem: Path) -> list[Path]:
     ax.set_xlim(-0.5, len(series.points) - 0.5)
     unit = series.metric.unit
     ax.set_ylabel(f"{series.metric.name} ({unit})" if unit else series.metric.name)
+    if not unit:  # a count: 36.2M rather than an offset of 1e7 above the axis
+        ax.yaxis.set_major_formatter(EngFormatter(sep=""))
     ax.set_title(series.label, fontsize=9, pad=14)
     ax.legend(fontsize=7, loc="best")
     return save_figure(fig, stem)
@@ -101,7 +111,7 @@ def page(config: str, series: Sequence[Series], out_dir: Path, command: str) -> 
                 lines.append(f"| {commit.short} | {commit.subject} | "
                              f"{'yes' if commit.touches_code else 'no'} | "
                              f"{'bisection' if k in s.bisected else 'the series'} | "
-                             f"{change.ratio.format(4)} | {change.p:.3g} |")
+                             f"{step_text(change.ratio)} | {change.p:.3g} |")
         else:
             lines.append("No change point.")
         skipped = [p for p in s.points if p.status != OK]

@@ -15,7 +15,9 @@ from harness.analysis.changepoints import (
     exact_change_points,
     step_test,
 )
+from harness.analysis.history import step_text
 from harness.runner.history import HISTORY_MIN_RUNS
+from harness.stats import Interval
 
 from tests.conftest import REPO_ROOT
 
@@ -79,6 +81,10 @@ def test_the_exact_lane_names_every_changed_count_and_only_those():
     lows = [100.0, 101.0, 100.0, 120.0, 121.0]
     highs = [102.0, 103.0, 101.0, 122.0, 122.0]
     assert [c.index for c in exact_change_points(lows, highs)] == [3]
+    # seven instructions more in 2.9e9 is shown as what it is, not as a ratio of x1
+    assert step_text(found[1].ratio) == "+2.41e-07% (exact)"
+    assert step_text(found[0].ratio) == "+304% (exact)"
+    assert step_text(Interval(1.98, 1.95, 2.01)) == "x1.98 [1.95, 2.01]"
 
 
 @pytest.mark.parametrize("kind", ["normal", "positive"])
