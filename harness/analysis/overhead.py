@@ -144,10 +144,14 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
             priced = ", ".join(
                 f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
                 for op, column in PRICED if sync.per_step(n)[op])
-            measured = (f"measured {_seconds(row['measured_s'])} over {row['reference']}"
-                        if row["reference"] else
-                        f"of a median of {_seconds(row['median_s'])} (no repair to measure "
-                        "the overhead against)")
+            if math.isfinite(row["measured_s"]):
+                measured = f"measured {_seconds(row['measured_s'])} over {row['reference']}"
+            elif row["reference"]:
+                measured = (f"its median {_seconds(row['median_s'])}, {row['reference']}'s "
+                            f"{_seconds(row['reference_s'])}")
+            else:
+                measured = (f"of a median of {_seconds(row['median_s'])} (no repair to "
+                            "measure the overhead against)")
             parts.append(f"at {_threads(t)} {priced or 'nothing to price'}: predicted "
                          f"{_seconds(row['predicted_s'])}, {measured}")
         sentences.append(f"{variant} asks the runtime for {asks} per step ({steps} steps, "

@@ -34,7 +34,9 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
         raise ValueError(f"measured {data.get('threads')!r} threads, not {threads}")
     costs: dict[str, float | None] = {}
     for column in OMP_COST_COLUMNS:
-        value = data.get(column, math.nan)
+        if column not in data:
+            raise ValueError(f"lacks {column}")
+        value = data[column]
         if value is None:
             costs[column] = None
         elif isinstance(value, int | float) and not isinstance(value, bool) and \
