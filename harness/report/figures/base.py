@@ -339,6 +339,30 @@ def set_x_axis(
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: compact_number(v)))
 
 
+OVERSUBSCRIBED_SHADE = "0.94"
+
+
+def shade_oversubscribed(ax: Axes, rows: pd.DataFrame) -> None:
+    """Against threads: the thread counts past the machine's cores shaded and labelled at the
+    top, so that a sweep to many times the cores reads where oversubscription starts (nothing
+    where no cell passes the cores, or the rows' machines have different core counts). The
+    shade starts midway (geometrically: the axis is log 2) between the cores and the next
+    thread count, so that a cell at the core count stays outside it."""
+    if "cores" not in rows.columns:
+        return
+    cores = pd.to_numeric(rows["cores"], errors="coerce").dropna().unique()
+    threads = np.unique(rows["threads"].to_numpy(dtype=float))
+    if len(cores) != 1 or not (threads > cores[0]).any():
+        return
+    c = float(cores[0])
+    start = math.sqrt(c * float(threads[threads > c][0]))
+    left, right = ax.get_xlim()
+    ax.axvspan(start, right, color=OVERSUBSCRIBED_SHADE, zorder=0, lw=0)
+    ax.set_xlim(left, right)
+    ax.text(start, 0.99, f" threads > cores ({c:g})", transform=ax.get_xaxis_transform(),
+            ha="left", va="top", fontsize="small", color="0.35")
+
+
 def set_y_axis(ax: Axes, values: pd.Series, label: str) -> None:
     """Label the y axis; logarithmic across decades, else linear from zero."""
     ax.set_ylabel(label)
