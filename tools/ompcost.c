@@ -8,8 +8,8 @@
  *                   (p2 pays one per row, p1 one per step);
  *   barrier         an `omp barrier` inside a team of T;
  *   grab            one iteration of an empty `omp for schedule(dynamic, 1)` loop shared by T
- *                   threads: the loop's wall time over its iterations (p2d pays one per pair
- *                   test, p1d one per row);
+ *                   threads: the loop's wall time over its iterations, at least
+ *                   GRABS_PER_THREAD a thread (p2d pays one per pair test, p1d one per row);
  *   nested_region   an empty `omp parallel` of T threads forked by each thread of an outer team
  *                   of T at once (p3's team per row), the wall time over the forks of one outer
  *                   thread; null where T*T passes NESTED_MAX_THREADS.
@@ -36,6 +36,9 @@
 #define MAX_OPS_PER_BATCH (1 << 20)
 #define MIN_BATCHES 11
 #define CALIBRATION_TRIES 3
+/* A grab batch is one loop, and its closing barrier no grab: at least this many iterations a
+ * thread spread it thin, even where the barrier waits milliseconds for a team sharing cores. */
+#define GRABS_PER_THREAD 1024
 #define MAX_BATCHES 201
 
 /* Keeps an empty region or loop body from being optimised away, at no cost of its own. */
@@ -110,11 +113,12 @@ static int by_value(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The median seconds per operation of `batch` at `threads` within about `budget_s`. */
-static double median_per_op(batch_fn *batch, int threads, double budget_s)
+/* The median seconds per operation of `batch` at `threads` within about `budget_s`, in
+ * batches of at least `min_ops` operations. */
+static double median_per_op(batch_fn *batch, int threads, int min_ops, double budget_s)
 {
     /* K from the fastest of a few batches: one that waited for a CPU must not fix K at 1. */
-    int ops = 1;
+    int ops = min_ops;
     while (ops < MAX_OPS_PER_BATCH) {
         double fastest = batch(threads, ops);
         for (int k = 1; k < CALIBRATION_TRIES; k++) {
@@ -191,11 +195,11 @@ int main(int argc, char **argv)
     /* The team's threads are created once, outside every measured batch. */
     (void)region_batch(t, 1);
     printf("{\"threads\":%d", t);
-    put_ns("region_ns", median_per_op(region_batch, t, budget_s));
-    put_ns("barrier_ns", median_per_op(barrier_batch, t, budget_s));
-    put_ns("grab_ns", median_per_op(grab_batch, t, budget_s));
+    put_ns("region_ns", median_per_op(region_batch, t, 1, budget_s));
+    put_ns("barrier_ns", median_per_op(barrier_batch, t, 1, budget_s));
+    put_ns("grab_ns", median_per_op(grab_batch, t, GRABS_PER_THREAD * t, budget_s));
     if ((long)t * t <= NESTED_MAX_THREADS)
-        put_ns("nested_region_ns", median_per_op(nested_batch, t, budget_s));
+        put_ns("nested_region_ns", median_per_op(nested_batch, t, 1, budget_s));
     else
         fputs(",\"nested_region_ns\":null", stdout);
     printf(",\"budget_ms\":%ld}\n", budget_ms);

@@ -51,7 +51,8 @@ OVERHEAD_INTRO = (
 COST_CAPTION = (
     "The OpenMP runtime's cost of one operation per thread count (ns, median over the cells "
     "that measured it): an empty parallel region, a barrier inside a team, one chunk of an "
-    "empty `schedule(dynamic, 1)` loop (the loop's wall time over its iterations), a region "
+    "empty `schedule(dynamic, 1)` loop (the loop's wall time over its iterations, 1024 or more a "
+    "thread, so that its closing barrier weighs little), a region "
     "forked by every thread of an outer team at once (not measured beyond 32 threads: T*T "
     "threads)."
 )
