@@ -40,6 +40,7 @@ DISPLAY_NAMES: dict[str, str] = {
     "mode": "mode",
     "seed": "seed",
     "threads": "threads",
+    "oversubscribed": "threads > cores",
     "schedule": "OMP_SCHEDULE",
     "imbalance": "imbalance (max/mean busy)",
     "cores": "cores",
@@ -207,6 +208,7 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "threads": _fmt_int,
     "cores": _fmt_int,
     "pareto": _fmt_bool,
+    "oversubscribed": _fmt_bool,
     "sim_s": _fmt_time,
     **{column: _fmt_time for column in PHASE_NAMES},
     "rest_ns": lambda v: format_sig3(float(v)),
@@ -234,7 +236,8 @@ def format_value(column: str, value: object) -> str:
 
 def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
     """Whether a built table's column holds numbers (right-aligned when shown)."""
-    return column != "pareto" and pd.api.types.is_numeric_dtype(df[column].dtype) and not (
+    return column not in ("pareto", "oversubscribed") and pd.api.types.is_numeric_dtype(
+        df[column].dtype) and not (
         pd.api.types.is_bool_dtype(df[column].dtype)
     )
 

@@ -44,10 +44,15 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
         return None
     present = [c for c in OMP_COST_COLUMNS if c in df.columns]
     rows = df[df[present].notna().any(axis=1)]
-    table = rows.groupby("threads", sort=True)[present].median()
-    table = table.reindex(columns=list(OMP_COST_COLUMNS))
-    table["cells"] = rows.groupby("threads", sort=True).size()
-    return table.reset_index()
+    groups = rows.groupby("threads", sort=True)
+    table = groups[present].median().reindex(columns=list(OMP_COST_COLUMNS))
+    table["cells"] = groups.size()
+    table = table.reset_index()
+    if "oversubscribed" in rows.columns:
+        over = groups["oversubscribed"].agg(lambda s: bool(s.fillna(False).astype(bool).any()))
+        if over.any():  # a column of blanks says nothing
+            table.insert(1, "oversubscribed", over.to_numpy())
+    return table
 
 
 def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int,
@@ -106,6 +111,8 @@ def overhead_table(df: pd.DataFrame) -> pd.DataFrame | None:
             counts = facts.sync.per_step(n)
             rows.append({
                 "variant": variant, "threads": t,
+                "oversubscribed": bool(cells["oversubscribed"].fillna(False).astype(bool).any())
+                if "oversubscribed" in cells.columns else False,
                 "regions_per_step": counts["regions"],
                 "nested_per_step": counts["nested_regions"],
                 "barriers_per_step": counts["barriers"],
@@ -116,7 +123,10 @@ def overhead_table(df: pd.DataFrame) -> pd.DataFrame | None:
                 "measured_s": median - reference,
                 "ratio": (median - reference) / predicted if predicted > 0 else math.nan,
             })
-    return pd.DataFrame(rows) if rows else None
+    if not rows:
+        return None
+    table = pd.DataFrame(rows)
+    return table if table["oversubscribed"].any() else table.drop(columns="oversubscribed")
 
 
 def _seconds(value: float) -> str:
@@ -150,12 +160,13 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
                 measured = (f"its median {_seconds(row['median_s'])}, {row['reference']}'s "
                             f"{_seconds(row['reference_s'])}")
             else:
-                measured = (f"of a median of {_seconds(row['median_s'])} (no repair to "
-                            "measure the overhead against)")
+                measured = f"of a median of {_seconds(row['median_s'])}"
             parts.append(f"at {_threads(t)} {priced or 'nothing to price'}: predicted "
                          f"{_seconds(row['predicted_s'])}, {measured}")
+        unrepaired = "" if group["reference"].any() else \
+            " (it has no repair to measure its overhead against)"
         sentences.append(f"{variant} asks the runtime for {asks} per step ({steps} steps, "
-                         f"N = {n}); " + "; ".join(parts) + ".")
+                         f"N = {n}){unrepaired}; " + "; ".join(parts) + ".")
     return sentences
 
 

@@ -92,7 +92,8 @@ def test_one_sentence_per_strategy_in_numbers() -> None:
     assert "at 2 threads one region 1 µs: predicted 0.00099 s, measured 0.4 s over p2_blocks" in p2
     assert "at 4 threads one region 3 µs: predicted 0.00297 s" in p2
     p3 = next(s for s in sentences if s.startswith("p3 "))
-    assert "one nested region 4 µs" in p3 and "(no repair to measure the overhead against)" in p3
+    assert "one nested region 4 µs" in p3
+    assert "(it has no repair to measure its overhead against); at 2 threads" in p3
 
 
 def test_a_thread_count_without_costs_says_so() -> None:
@@ -102,6 +103,17 @@ def test_a_thread_count_without_costs_says_so() -> None:
     assert math.isnan(table.set_index(["variant", "threads"]).loc[("p2", 8)]["predicted_s"])
     p2 = next(s for s in overhead.overhead_sentences(table, df) if s.startswith("p2 "))
     assert "at 8 threads no cost per operation was measured" in p2
+
+
+def test_cells_past_the_cores_are_flagged_in_both_tables() -> None:
+    df = measured().assign(oversubscribed=lambda d: d["threads"] > 2)
+    costs = overhead.cost_table(df)
+    table = overhead.overhead_table(df)
+    assert costs is not None and table is not None
+    assert costs.set_index("threads")["oversubscribed"].to_dict() == {2: False, 4: True}
+    flags = table.set_index(["variant", "threads"])["oversubscribed"]
+    assert flags[("p2", 4)] and not flags[("p2", 2)]
+    assert "oversubscribed" not in overhead.cost_table(measured()).columns  # type: ignore
 
 
 def test_without_any_cost_there_is_no_table() -> None:
