@@ -54,7 +54,7 @@ def _oversubscribed_words(rows: pd.DataFrame) -> list[Paragraph]:
     where = f"this machine's {cores[0]} cores" if len(cores) == 1 else "the machine's cores"
     return [Paragraph(
         f"{len(counts)} of the {rows['threads'].nunique()} thread counts pass {where} "
-        f"({', '.join(map(str, counts))}: shaded, hollow markers, `oversubscribed` in the "
+        f"({', '.join(map(str, counts))}: shaded, hollow markers, ✓ under `threads > cores` in the "
         "table): there threads take turns on the cores, so speedup, efficiency and the serial "
         "fraction measure what sharing the cores costs, not how the strategy scales."
     )]
