@@ -4,11 +4,12 @@ harness.spec.builds.make_binaries builds them."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from harness.plan import lane
 from harness.plan.cells import Cell, Plan
-from harness.repo import OMPCOST
+from harness.repo import BUILD_DIR, OMPCOST, REPO_ROOT
 from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
@@ -69,12 +70,19 @@ def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
             for path in check_references(plan.config, build_dir, cell.build).values():
                 needed[path] = None
         if measures_openmp_costs(plan.config, cell):
-            needed[ompcost_path(build_dir)] = None
+            needed[ompcost_path()] = None
     return list(needed)
 
 
-def ompcost_path(build_dir: Path) -> Path:
-    return build_dir / OMPCOST
+def ompcost_path() -> Path:
+    """build/ompcost of this checkout, whichever revision's variants are measured: it prices
+    the machine's OpenMP runtime, and older revisions have no such tool to build."""
+    return REPO_ROOT / BUILD_DIR / OMPCOST
+
+
+def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
+    """The binaries of a plan that this checkout builds, whatever revision is measured."""
+    return [b for b in binaries if b == ompcost_path()]
 
 
 def measures_openmp_costs(config: Config, cell: Cell) -> bool:

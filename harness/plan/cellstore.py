@@ -121,7 +121,7 @@ class CellStore:
     def ompcost(self, cell: Cell) -> Path:
         """build/ompcost, which a cell measuring the runtime's costs runs."""
         assert measures_openmp_costs(self.config, cell)
-        return ompcost_path(self.binaries)
+        return ompcost_path()
 
     def counted_binary(self, cell: Cell) -> Path | None:
         """What the instruction lane counts for the cell (None without the lane, or for a

@@ -19,7 +19,7 @@ from harness.errors import HarnessError
 from harness.executors.base import Options
 from harness.measure.machine import compiler_command
 from harness.plan import lane
-from harness.plan.binaries import needed_binaries
+from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import plan_cells
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
 from harness.runner.experiment import run_experiment
@@ -144,6 +144,7 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
         build_commit(side, [b for b in binaries if b.is_relative_to(side.build_dir)],
                      variants)
+        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
                                           "error": str(exc)})
