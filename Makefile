@@ -1,6 +1,8 @@
 # collide-bench: build every variant into build/, test, benchmark, set up the environment.
 #
-#   make all              every variant, double precision: build/seq build/p1 ... build/grid
+#   make all              every variant, double precision: build/seq build/p1 ... build/grid,
+#                         and build/ompcost (the OpenMP runtime's cost of a region, a barrier,
+#                         a dynamic chunk at a thread count: tools/ompcost.c)
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
@@ -91,7 +93,12 @@ $(foreach b,$(BUILDS),$(eval $(call build_rules,lane-$(b),build/lane/%-$(b),$(LA
 
 .PHONY: all asan portable lane fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
 
-all: $(addprefix build/,$(VARIANTS))
+all: $(addprefix build/,$(VARIANTS)) build/ompcost
+
+# The measuring tools beside the variants (no variant: no core, no --describe).
+build/ompcost: tools/ompcost.c
+	@mkdir -p $(@D)
+	$(CC) $(BASE_CFLAGS) $(CFLAGS) $< -o $@ $(BASE_LDLIBS) $(LDLIBS)
 
 asan: $(addprefix build/asan/,$(VARIANTS))
 

@@ -11,6 +11,7 @@ from pathlib import Path
 REPO_ROOT = Path(__file__).resolve().parent.parent
 BUILD_DIR = "build"  # make's binaries: build/NAME, build/NAME-BUILD
 VARIANTS_DIR = "variants"  # variants/NAME.c, one file a variant
+OMPCOST = "ompcost"  # build/ompcost (tools/ompcost.c): the OpenMP runtime's cost per operation
 DEFAULT_RESULTS_DIR = REPO_ROOT / "results"
 DEFAULT_REPORT_DIR = REPO_ROOT / "report"
 VENV_PYTHON = REPO_ROOT / ".venv" / "bin" / "python"

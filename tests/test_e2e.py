@@ -163,3 +163,35 @@ def test_generated_scene_and_builds(real_binaries: Path, build_binaries, tmp_pat
                                  .read_text())
     assert kept.final.pcoll.tolist() == [1, 1]  # the head-on collision
     assert kept.history.shape == (2 * 20, 6)
+
+
+COSTS_CONFIG = """name: costs
+variants: [seq, p2, p2_blocks]
+scene: {n: 120, L: 800, r: 1, steps: 2, mode: perf, seed: 1}
+threads: [1, 2]
+measure: {warmup: 0, runs: 1, timeout_s: 60}
+"""
+
+
+def test_openmp_costs_are_measured_with_each_parallel_cell(
+        build_binaries, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`openmp_costs: true`: each parallel cell's start runs build/ompcost at its thread count
+    and results.csv keeps the costs; seq, serial, has none. The key is part of the parallel
+    cells' ids: without it they are other cells, and seq's stays the same cell."""
+    build_binaries("seq", "p2", "p2_blocks", "ompcost")
+    root = tmp_path / "results"
+    plain, costed = tmp_path / "plain.yaml", tmp_path / "costed.yaml"
+    plain.write_text(COSTS_CONFIG)
+    costed.write_text(COSTS_CONFIG + "openmp_costs: true\n")
+    assert main([str(costed), "--results-dir", str(root), "--no-report"]) == 0
+    assert "costs: 6 cells (6 measured, 0 cached): 6 ok" in capsys.readouterr().err
+    rows = read_csv(root / "costs" / "results.csv")
+    for row in rows:
+        values = [row[c] for c in columns.OMP_COST_COLUMNS]
+        if row["variant"] == "seq":
+            assert values == ["", "", "", ""], row
+        else:
+            assert all(float(v) > 0 for v in values), row
+            assert row[columns.OMP_COST_NOTE] == ""
+    assert main([str(plain), "--results-dir", str(root), "--no-report"]) == 0
+    assert "costs: 6 cells (4 measured, 2 cached)" in capsys.readouterr().err

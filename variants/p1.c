@@ -11,6 +11,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     sim_rows_static(w, sink, sim_scan_full_row); /* omp for schedule(static) */
 }
 
+/* one region per step (its static schedule deals rows without a runtime call) */
+static const sim_sync sync = {.regions = {.per_step = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p1",
     .summary =
@@ -20,5 +23,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

@@ -11,6 +11,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     sim_rows_dynamic(w, sink, sim_scan_full_row); /* omp for schedule(dynamic) */
 }
 
+/* one region per step, one grab per row */
+static const sim_sync sync = {.regions = {.per_step = 1}, .grabs = {.per_row = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p1d",
     .summary = "the seed's: p1 with schedule(dynamic) (one row per grab)",
@@ -18,5 +21,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

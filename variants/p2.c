@@ -31,6 +31,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     }
 }
 
+/* a region per row */
+static const sim_sync sync = {.regions = {.per_row = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p2",
     .summary =
@@ -40,5 +43,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

@@ -25,6 +25,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     }
 }
 
+/* one region per step */
+static const sim_sync sync = {.regions = {.per_step = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p2_blocks",
     .summary =
@@ -34,5 +37,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = "p2",
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

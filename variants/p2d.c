@@ -24,6 +24,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     }
 }
 
+/* a region per row, one grab per pair test */
+static const sim_sync sync = {.regions = {.per_row = 1}, .grabs = {.per_pair = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p2d",
     .summary = "the seed's: p2 with schedule(dynamic) over single j (one grab per pair test)",
@@ -31,5 +34,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

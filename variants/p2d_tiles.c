@@ -30,6 +30,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     }
 }
 
+/* one region per step, one grab per tile of a row */
+static const sim_sync sync = {.regions = {.per_step = 1}, .grabs = {.per_tile = 1}, .tile = P2D_TILE};
+
 const sim_variant sim_variant_def = {
     .name = "p2d_tiles",
     .summary = "p2d repaired: one region, schedule(dynamic) over tiles of " P2D_TEXT(P2D_TILE)
@@ -38,5 +41,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = "p2d",
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

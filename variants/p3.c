@@ -40,6 +40,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     }
 }
 
+/* the outer region per step, and an inner region per row forked by the outer team's threads */
+static const sim_sync sync = {.regions = {.per_step = 1}, .nested_regions = {.per_row = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "p3",
     .summary = "the seed's: both loops parallel, nested, two active levels "
@@ -48,6 +51,7 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .buffer_count = buffer_count,
     .find_pairs = find_pairs,
 };

@@ -121,6 +121,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     sim_rows_dynamic(w, sink, scan_row); /* omp for schedule(dynamic) */
 }
 
+/* one region per step, one grab per row (sim_rows_dynamic) */
+static const sim_sync sync = {.regions = {.per_step = 1}, .grabs = {.per_row = 1}};
+
 const sim_variant sim_variant_def = {
     .name = "relative",
     .summary =
@@ -129,5 +132,6 @@ const sim_variant sim_variant_def = {
     .parallel = true,
     .all_pairs = false,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

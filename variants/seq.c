@@ -13,6 +13,9 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     sim_busy_stop(buf, t0);
 }
 
+/* one thread: no region, no runtime call */
+static const sim_sync sync = {0};
+
 const sim_variant sim_variant_def = {
     .name = "seq",
     .summary = "every pair i < j, one thread; the baseline",
@@ -20,5 +23,6 @@ const sim_variant sim_variant_def = {
     .parallel = false,
     .all_pairs = true,
     .repairs = NULL,
+    .sync = &sync,
     .find_pairs = find_pairs,
 };

@@ -40,6 +40,7 @@ DISPLAY_NAMES: dict[str, str] = {
     "mode": "mode",
     "seed": "seed",
     "threads": "threads",
+    "oversubscribed": "threads > cores",
     "schedule": "OMP_SCHEDULE",
     "imbalance": "imbalance (max/mean busy)",
     "cores": "cores",
@@ -92,6 +93,21 @@ DISPLAY_NAMES: dict[str, str] = {
     "sim_s": "simulation [s]",
     **{column: f"{name} [s]" for column, name in PHASE_NAMES.items()},
     "rest_ns": "simulation outside the broad phase [ns per particle-step]",
+    # the OpenMP runtime's cost per operation, and the strategies' overhead
+    "region_ns": "region [ns]",
+    "barrier_ns": "barrier [ns]",
+    "grab_ns": "dynamic grab [ns]",
+    "nested_region_ns": "nested region [ns]",
+    "cells": "cells",
+    "regions_per_step": "regions per step",
+    "nested_per_step": "nested regions per step",
+    "barriers_per_step": "barriers per step",
+    "grabs_per_step": "grabs per step",
+    "predicted_s": "predicted overhead [s]",
+    "reference": "repair",
+    "reference_s": "repair's median [s]",
+    "measured_s": "measured overhead [s]",
+    "ratio": "measured / predicted",
     # the instruction lane
     "instructions": "instructions",
     "instructions_per_pair_test": "instructions per pair test",
@@ -192,9 +208,17 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     "threads": _fmt_int,
     "cores": _fmt_int,
     "pareto": _fmt_bool,
+    "oversubscribed": _fmt_bool,
     "sim_s": _fmt_time,
     **{column: _fmt_time for column in PHASE_NAMES},
     "rest_ns": lambda v: format_sig3(float(v)),
+    **dict.fromkeys(("region_ns", "barrier_ns", "grab_ns", "nested_region_ns"),
+                    lambda v: format_sig3(float(v))),
+    "cells": _fmt_int,
+    **dict.fromkeys(("regions_per_step", "nested_per_step", "barriers_per_step",
+                     "grabs_per_step"), lambda v: f"{float(v):,.0f}"),
+    **dict.fromkeys(("predicted_s", "reference_s", "measured_s"), _fmt_time),
+    "ratio": lambda v: f"{float(v):.3g}",
     "instructions": lambda v: f"{float(v):,.0f}",
     "instructions_per_pair_test": lambda v: f"{float(v):.1f}",
     "instructions_per_particle_step": lambda v: format_sig3(float(v)),
@@ -212,7 +236,8 @@ def format_value(column: str, value: object) -> str:
 
 def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
     """Whether a built table's column holds numbers (right-aligned when shown)."""
-    return column != "pareto" and pd.api.types.is_numeric_dtype(df[column].dtype) and not (
+    return column not in ("pareto", "oversubscribed") and pd.api.types.is_numeric_dtype(
+        df[column].dtype) and not (
         pd.api.types.is_bool_dtype(df[column].dtype)
     )
 

@@ -27,6 +27,7 @@ BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
 BASELINE_ONE_THREAD = "1 thread"  # ... against the same variant at one thread
 TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
+OVERSUBSCRIBED = "oversubscribed"  # results.csv's flag: more threads than the machine's cores
 
 
 def all_pairs(variants: pd.Series) -> pd.Series:
@@ -180,6 +181,12 @@ def cell_table(
     """
     rows = with_speedup(df, thread_baseline=thread_baseline)
     table = pd.DataFrame({k: rows[k] for k in keys})
+    if "threads" in keys and OVERSUBSCRIBED in rows.columns and \
+            rows[OVERSUBSCRIBED].fillna(False).astype(bool).any():
+        # beside the thread count, where a sweep past the cores shows it at a glance (the
+        # validation column, far right, says it too)
+        table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED,
+                     rows[OVERSUBSCRIBED].fillna(False).astype(bool))
     table["runs"] = rows["runs"]
     table["median_s"] = rows["wall_median_s"]
     table["min_s"] = rows["wall_min_s"]

@@ -1,6 +1,7 @@
 """Measure ONE planned cell, in three steps:
   start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
-         output); when validating, that output against `build/seq --precise` on the same
+         output); with `openmp_costs: true`, build/ompcost at the cell's thread count
+         (measure.ompcost); when validating, that output against `build/seq --precise` on the same
          input (the baseline's output is cached under results/.cache/baselines/); with
          `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
          for a program, its run and its check against seq (measure.program); with the
@@ -22,12 +23,14 @@ from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
+from harness.measure.ompcost import measure_costs
 from harness.measure.proc import exit_status, run_process, tail
 from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timing_fields
 from harness.measure.timing import parse_timing, thread_work
 from harness.plan import lane
+from harness.plan.binaries import measures_openmp_costs
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
@@ -123,6 +126,8 @@ class Measurer:
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
+        if measures_openmp_costs(config, cell):
+            record.update(measure_costs(self.store.ompcost(cell), cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
                                         run_s=run_s))
 

@@ -4,14 +4,16 @@ harness.spec.builds.make_binaries builds them."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from harness.plan import lane
 from harness.plan.cells import Cell, Plan
+from harness.repo import BUILD_DIR, OMPCOST, REPO_ROOT
 from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
-from harness.spec.variants import BASELINE
+from harness.spec.variants import BASELINE, default_registry
 
 
 def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Path:
@@ -67,4 +69,26 @@ def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
         if cell.checked:
             for path in check_references(plan.config, build_dir, cell.build).values():
                 needed[path] = None
+        if measures_openmp_costs(plan.config, cell):
+            needed[ompcost_path()] = None
     return list(needed)
+
+
+def ompcost_path() -> Path:
+    """build/ompcost of this checkout, whichever revision's variants are measured: it prices
+    the machine's OpenMP runtime, and older revisions have no such tool to build."""
+    return REPO_ROOT / BUILD_DIR / OMPCOST
+
+
+def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
+    """The binaries of a plan that this checkout builds, whatever revision is measured."""
+    return [b for b in binaries if b == ompcost_path()]
+
+
+def measures_openmp_costs(config: Config, cell: Cell) -> bool:
+    """Whether the cell's start runs build/ompcost: with `openmp_costs: true`, for a built
+    variant that uses threads (a serial one's thread count is nominal)."""
+    if not config.openmp_costs or cell.program or not config.is_built(cell.variant):
+        return False
+    facts = default_registry().get(cell.variant)
+    return facts is not None and facts.parallel

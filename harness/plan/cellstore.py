@@ -19,6 +19,8 @@ from harness.plan.binaries import (
     baseline_path,
     binary_path,
     check_references,
+    measures_openmp_costs,
+    ompcost_path,
     program_references,
 )
 from harness.plan.cells import Cell, Plan
@@ -112,7 +114,14 @@ class CellStore:
         counted = self.counted_binary(cell)
         if counted is not None and counted not in paths:
             paths.append(counted)
+        if measures_openmp_costs(self.config, cell):
+            paths.append(self.ompcost(cell))
         return paths
+
+    def ompcost(self, cell: Cell) -> Path:
+        """build/ompcost, which a cell measuring the runtime's costs runs."""
+        assert measures_openmp_costs(self.config, cell)
+        return ompcost_path()
 
     def counted_binary(self, cell: Cell) -> Path | None:
         """What the instruction lane counts for the cell (None without the lane, or for a
@@ -170,6 +179,11 @@ class CellStore:
             if counted_sha is None:
                 return None
             extra["instructions"] = {"tool": lane.machine_tool(), "binary_sha256": counted_sha}
+        if measures_openmp_costs(self.config, cell):  # only then, as with checks
+            ompcost_sha = self.sha(self.ompcost(cell))
+            if ompcost_sha is None:
+                return None
+            extra["openmp_costs"] = {"binary_sha256": ompcost_sha}
         omp = self.config.executor.omp_env()
         if omp:  # only then, as with checks
             extra["omp"] = omp

@@ -16,12 +16,13 @@ from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.executors.base import Options
-from harness.plan.binaries import needed_binaries
+from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT, VARIANTS_DIR
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import with_min_rounds
 from harness.runner.sides import BuildSide, build, git, resolve, rev_parse
+from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
@@ -111,6 +112,7 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         binaries = needed_binaries(plan, side.build_dir)
         variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
         build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
+        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
                                           "error": str(exc)})

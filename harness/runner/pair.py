@@ -22,12 +22,13 @@ from harness.executors.base import Progress, format_seconds
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
-from harness.plan.binaries import needed_binaries
+from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import REPO_ROOT
 from harness.runner.experiment import built_cell_id, require_hyperfine, write_env_after
 from harness.runner.sides import BuildSide, build
+from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
@@ -149,6 +150,7 @@ def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
         variants = [c.variant for p in plans for c in p.cells
                     if p.config.is_built(c.variant)]
         build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
+        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
 
 
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,

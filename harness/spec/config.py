@@ -40,7 +40,7 @@ BASELINE_CHOICES = ("f64", "same", "f128")
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
-    "schedule", "measure_by_variant", "programs", "metric",
+    "schedule", "measure_by_variant", "programs", "metric", "openmp_costs",
 )
 # What a cell is measured by (`metric:`, `run --metric`): its wall time, always; with
 # `instructions`, also the instructions it executes (harness.plan.lane), which no other process
@@ -311,6 +311,9 @@ class Config:
     programs: tuple[Program, ...] = ()
     # `metric:` (METRICS): time only, or the instruction lane beside it
     metric: str = METRIC_TIME
+    # `openmp_costs: true`: each parallel cell's start also runs build/ompcost at the cell's
+    # thread count (harness.measure.ompcost), for the strategies' cost model in the report
+    openmp_costs: bool = False
 
     @property
     def counts_instructions(self) -> bool:

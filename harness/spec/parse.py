@@ -88,6 +88,7 @@ def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     result.setdefault("checks", [])
     result.setdefault("accuracy", {})
     result.setdefault("metric", METRIC_TIME)
+    result.setdefault("openmp_costs", False)
     return result
 
 
@@ -144,6 +145,8 @@ def parse_config(raw: Mapping[str, object], source: Path,
                                                  raw["measure"], variants, source),
         programs=programs_,
         metric=str(kinds.scalar(raw, "metric", "metric", kinds.one_of(METRICS), source)),
+        openmp_costs=bool(kinds.scalar(raw, "openmp_costs", "openmp_costs", kinds.BOOLEAN,
+                                       source)),
     )
     _check_exclude(config)
     if max_cells is not None:

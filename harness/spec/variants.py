@@ -16,6 +16,7 @@ family being a variant followed by the variants that repair it.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import json
 import subprocess
@@ -35,6 +36,77 @@ FACT_TYPES: dict[str, tuple[type, ...]] = {
     "name": (str,), "summary": (str,), "exact": (bool,), "parallel": (bool,),
     "all_pairs": (bool,), "repairs": (str, type(None)),
 }
+# `sync`: the finder's OpenMP operations per step (variants/core/sim.h's sim_sync), or null.
+# Optional: binaries of older commits (history, compare) print no such key.
+SYNC_KEY = "sync"
+SYNC_OPERATIONS = ("regions", "nested_regions", "barriers", "grabs")
+COUNT_UNITS = ("step", "row", "pair", "tile")
+
+
+@dataclass(frozen=True)
+class Count:
+    """How many of one operation a step asks for: step + row*N + pair*N(N-1)/2 + tile*(the
+    tiles of `tile` j of every row)."""
+
+    step: int = 0
+    row: int = 0
+    pair: int = 0
+    tile: int = 0
+
+    def per_step(self, n: int, tile: int) -> float:
+        """The count in a step of N particles (rows i < N, pairs i < j, tiles of `tile` j)."""
+        rows = n - 1  # row i has N-1-i pairs; the tiles of all rows: sum of ceil(m/tile), m < N
+        tiles = 0.0
+        if self.tile:
+            q, r = divmod(rows, tile)
+            tiles = tile * q * (q + 1) / 2 + r * (q + 1)
+        return (self.step + self.row * n + self.pair * n * (n - 1) / 2
+                + self.tile * tiles)
+
+
+@dataclass(frozen=True)
+class SyncFacts:
+    """What a finder asks of the OpenMP runtime in a step: parallel regions (a team fork and
+    its closing barrier), regions each thread of an outer team forks at once (T at a time),
+    barriers inside regions, and chunks grabbed from a dynamic schedule's counter."""
+
+    regions: Count = Count()
+    nested_regions: Count = Count()
+    barriers: Count = Count()
+    grabs: Count = Count()
+    tile: int = 0
+
+    def per_step(self, n: int) -> dict[str, float]:
+        """Each operation's count in a step of N particles."""
+        return {op: getattr(self, op).per_step(n, self.tile) for op in SYNC_OPERATIONS}
+
+    @classmethod
+    def parse(cls, data: object, where: str) -> SyncFacts | None:
+        """`--describe`'s sync object (None for null); a HarnessError naming `where`."""
+        if data is None:
+            return None
+        wrong = f"{where}: {DESCRIBE_OPTION}'s '{SYNC_KEY}' is {data!r}"
+        if not isinstance(data, dict) or set(data) != {*SYNC_OPERATIONS, "tile"}:
+            raise HarnessError(f"{wrong}, expected an object of {', '.join(SYNC_OPERATIONS)} "
+                               "and tile")
+        counts = {}
+        for op in SYNC_OPERATIONS:
+            terms = data[op]
+            if not (isinstance(terms, dict) and set(terms) <= set(COUNT_UNITS) and all(
+                    _natural(v) for v in terms.values())):
+                raise HarnessError(f"{wrong}: '{op}' is no object of counts per "
+                                   f"{', '.join(COUNT_UNITS)}")
+            counts[op] = Count(**terms)
+        tile = data["tile"]
+        per_tile = any(c.tile for c in counts.values())
+        if not _natural(tile) or (per_tile and tile < 1):
+            raise HarnessError(f"{wrong}: 'tile' must be a count, at least 1 where a count is "
+                               "per tile")
+        return cls(**counts, tile=tile)
+
+
+def _natural(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
 @dataclass(frozen=True)
@@ -47,6 +119,7 @@ class VariantFacts:
     parallel: bool
     all_pairs: bool
     repairs: str | None = None
+    sync: SyncFacts | None = None  # None: not declared (depends on the data or OMP_SCHEDULE)
 
     @classmethod
     def parse(cls, text: str, where: str) -> VariantFacts:
@@ -64,7 +137,8 @@ class VariantFacts:
             if not isinstance(data[key], types):
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{key}' is "
                                    f"{data[key]!r}, not of the expected type")
-        return cls(**{key: data[key] for key in FACT_TYPES})
+        return cls(**{key: data[key] for key in FACT_TYPES},
+                   sync=SyncFacts.parse(data.get(SYNC_KEY), where))
 
 
 def family_of(facts: Mapping[str, VariantFacts], name: str) -> str:
@@ -165,7 +239,8 @@ class VariantRegistry:
 
     def digest(self) -> str:
         """The facts as canonical JSON, for caches keyed on them."""
-        return json.dumps([self.facts[n].__dict__ for n in self.order], sort_keys=True)
+        return json.dumps([dataclasses.asdict(self.facts[n]) for n in self.order],
+                          sort_keys=True)
 
 
 def describe(binary: Path) -> VariantFacts:

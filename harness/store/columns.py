@@ -121,6 +121,13 @@ THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
 TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
                                 "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
+# The OpenMP runtime's cost of one operation at the cell's thread count on its machine
+# (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
+# closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
+# forked by every thread of an outer team at once (empty where T*T threads were too many).
+# Only where some cell has them.
+OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
+OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
 # The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the most
 # instructions of the cell's counted runs (user space, every thread), each count
 # (space-separated), the counter (perf or cachegrind), the binary it ran (under cachegrind a
@@ -132,7 +139,8 @@ INSTRUCTION_COLUMNS: tuple[str, ...] = ("instructions", "instructions_max", "ins
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
                                                  ROUND_COLUMNS, PROGRAM_COLUMNS, NOISE_COLUMNS,
-                                                 INSTRUCTION_COLUMNS)
+                                                 INSTRUCTION_COLUMNS,
+                                                 (*OMP_COST_COLUMNS, OMP_COST_NOTE))
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -154,7 +162,7 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
     "first_diff_step", "instructions", "instructions_max", "steal_s", "other_cpu_s",
-    "nivcsw_per_run", "noise_capacity_s",
+    "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",

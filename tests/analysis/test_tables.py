@@ -70,6 +70,16 @@ def test_validation_column_carries_status_and_flags() -> None:
     assert by_cell[("p1", 128)] == "timeout · oversubscribed"
 
 
+def test_a_sweep_past_the_cores_flags_them_beside_the_thread_count() -> None:
+    table = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    assert list(table.columns[:3]) == ["variant", "threads", "oversubscribed"]
+    flagged = table.set_index(["variant", "threads"])["oversubscribed"]
+    assert not flagged[("p1d", 16)] and flagged[("p1d", 32)] and flagged[("p1", 128)]
+    assert display.format_table(table)["threads > cores"].tolist()[3:6] == ["", "", "✓"]
+    within = speedups.cell_table(load("strategies"), ["variant", "threads"])
+    assert "oversubscribed" not in within.columns  # no column of blanks
+
+
 def test_thread_table_without_seq_uses_the_variant_at_one_thread() -> None:
     medians = raw_medians("threads")
     table = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)

@@ -1037,13 +1037,17 @@ static void test_write_blocks_on_a_team(void)
 }
 
 /* --describe's line: the keys in their fixed order, booleans as JSON literals, a missing repair
- * as null, and every character JSON needs escaped in the strings. */
+ * or runtime count as null, a count's nonzero terms only, and every character JSON needs
+ * escaped in the strings. */
 static void test_describe_json(void)
 {
     const sim_variant plain = {.name = "seq", .summary = "every pair", .exact = true,
                                .all_pairs = true};
     const sim_variant odd = {.name = "x\"y", .summary = "a \"quoted\" \\ tab\t line\n bell\a end",
                              .parallel = true, .repairs = "p1"};
+    const sim_sync sync = {.regions = {.per_step = 1, .per_row = 2},
+                           .grabs = {.per_pair = 3, .per_tile = 4}, .tile = 64};
+    const sim_variant counted = {.name = "c", .summary = "", .parallel = true, .sync = &sync};
     char *text = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&text, &len);
@@ -1052,12 +1056,17 @@ static void test_describe_json(void)
         return;
     CHECK_INT(sim_describe(f, &plain), 0);
     CHECK_INT(sim_describe(f, &odd), 0);
+    CHECK_INT(sim_describe(f, &counted), 0);
     fclose(f);
     CHECK_STR(text, "{\"name\":\"seq\",\"summary\":\"every pair\",\"exact\":true,"
-                    "\"parallel\":false,\"all_pairs\":true,\"repairs\":null}\n"
+                    "\"parallel\":false,\"all_pairs\":true,\"repairs\":null,\"sync\":null}\n"
                     "{\"name\":\"x\\\"y\",\"summary\":\"a \\\"quoted\\\" \\\\ tab\\t line\\n "
                     "bell\\u0007 end\",\"exact\":false,\"parallel\":true,\"all_pairs\":false,"
-                    "\"repairs\":\"p1\"}\n");
+                    "\"repairs\":\"p1\",\"sync\":null}\n"
+                    "{\"name\":\"c\",\"summary\":\"\",\"exact\":false,\"parallel\":true,"
+                    "\"all_pairs\":false,\"repairs\":null,\"sync\":{\"regions\":{\"step\":1,"
+                    "\"row\":2},\"nested_regions\":{},\"barriers\":{},\"grabs\":{\"pair\":3,"
+                    "\"tile\":4},\"tile\":64}}\n");
     free(text);
 }
 

@@ -3,7 +3,7 @@ facts, and the binaries a plan runs."""
 
 from __future__ import annotations
 
-from harness.plan.binaries import needed_binaries
+from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import is_exact, plan_cells
 from harness.repo import REPO_ROOT
 from harness.spec.parse import load_config
@@ -72,3 +72,20 @@ def test_needed_binaries_add_seq_for_validation_and_the_checks_references(write_
         "validate: {baseline: same}\nchecks: [invariants]\n"))
     names = [p.name for p in needed_binaries(plan_cells(config), REPO_ROOT / "build")]
     assert names == ["p1-f32", "seq-f32", "grid-f128", "seq"]
+
+
+def test_openmp_costs_need_this_checkouts_ompcost_for_parallel_cells(write_config,
+                                                                     tmp_path) -> None:
+    """build/ompcost prices the machine's runtime: it comes from this checkout, also where an
+    older revision's variants are measured (it may have no such tool), and only parallel
+    variants' cells run it."""
+    config = load_config(write_config(
+        "variants: [seq, p2]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nopenmp_costs: true\n"))
+    revision = tmp_path / "revision" / "build"
+    needed = needed_binaries(plan_cells(config), revision)
+    assert needed == [revision / "seq", revision / "p2", REPO_ROOT / "build" / "ompcost"]
+    assert checkout_tools(needed) == [REPO_ROOT / "build" / "ompcost"]
+    serial = load_config(write_config(
+        "variants: [seq]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nopenmp_costs: true\n",
+        "serial"))
+    assert checkout_tools(needed_binaries(plan_cells(serial), revision)) == []

@@ -206,3 +206,23 @@ def test_long_legend_labels_wrap_and_lead_with_the_variant() -> None:
     wrapped = figbase.wrap_label(label)
     assert all(len(line) <= figbase.LEGEND_WRAP for line in wrapped.split("\n")), wrapped
     assert wrapped.replace("\n", " ") == label
+
+
+def test_thread_counts_past_the_cores_are_shaded_and_named(tmp_path: Path) -> None:
+    import matplotlib as mpl
+
+    frame = load("threads")  # 16 cores, 1-128 threads
+    within = frame[frame["threads"] <= 16]
+    with mpl.rc_context({"svg.fonttype": "none"}):
+        past = figsweeps.fig_efficiency(speedup.with_speedup(frame, thread_baseline=True),
+                                        tmp_path / "past")
+        inside = figsweeps.fig_time_vs(within, tmp_path / "inside", x="threads")
+    assert "threads &gt; cores (16)" in svg_text(past[1])
+    assert "threads &gt; cores" not in svg_text(inside[1])
+
+
+def test_close_thread_counts_keep_their_ticks_but_not_both_texts() -> None:
+    assert figbase.spaced_labels(np.array([1, 2, 4, 8, 16, 20, 32, 64, 128.0])) == {
+        1, 2, 4, 8, 16, 32, 64, 128}
+    assert figbase.spaced_labels(np.array([1, 2, 16, 20.0])) == {1, 2, 20}
+    assert figbase.spaced_labels(np.array([100, 110.0])) == {100, 110}

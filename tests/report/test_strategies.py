@@ -133,3 +133,35 @@ def test_each_machine_gets_its_own_study(tmp_path: Path) -> None:
         stem = "strategies-work-per-thread"
         assert (page / "figures" / f"{stem}.png").is_file()
         assert f"](figures/{stem}.png)" in section(markdown, "Work per thread")
+
+
+def test_without_runtime_costs_the_section_says_so(rendered: Path) -> None:
+    text = section((rendered / "report.md").read_text(encoding="utf-8"),
+                   "What the runtime's operations cost")
+    assert "No cost per OpenMP operation was measured with these cells" in text
+    assert "|" not in text  # no table, no guess
+
+
+def test_with_runtime_costs_each_strategy_is_priced(tmp_path: Path) -> None:
+    costs = {"region_ns": 1500.0, "barrier_ns": 700.0, "grab_ns": 12.0,
+             "nested_region_ns": 2.5e6}
+    records = [{**record(v, *f), **({} if v == "seq" else costs)}
+               for v, f in STRATEGIES.items()]
+    root = tmp_path / "results"
+    write_experiment(root, "strategies", records)
+    out = tmp_path / "report"
+    render(root, out)
+    text = section((out / "report.md").read_text(encoding="utf-8"),
+                   "What the runtime's operations cost")
+    assert "| 2 | 1500 | 700 | 12 | 2500000 | 6 |" in text, text
+    # p2: 10,000 regions a step for 50 steps against p2_blocks' one: 0.74993 s predicted,
+    # 6.0 - 2.3 s measured
+    p2 = next(line for line in text.splitlines() if line.startswith("| p2 |"))
+    assert re.search(r"\| p2 \| 2 \| 10,000 \| 0 \| 0 \| 0 \| 0\.7499 \| 6 \| p2_blocks \| "
+                     r"2\.3 \| 3\.7 \| 4\.93 \|", p2), p2
+    assert ("p2 asks the runtime for 10,000 regions (a team fork and its closing barrier) per "
+            "step (50 steps, N = 10000); at 2 threads one region 1.5 µs: predicted 0.75 s, "
+            "measured 3.7 s over p2_blocks.") in text
+    assert "predicted 30.7 s, its median 150 s, p2d_tiles's not measured" in text
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert 'id="strategies-overhead"' in html

@@ -30,6 +30,7 @@ def test_threads_config_loads_as_written() -> None:
     assert config.threads == (1, 2, 4, 8, 16, 20, 32, 64, 128)
     assert (config.measure.warmup, config.measure.runs, config.measure.timeout_s) == (1, 3, 600)
     assert config.validate.enabled and config.validate.max_n is None
+    assert config.openmp_costs
     assert len(expand_points(config)) == 9
 
 
@@ -53,7 +54,7 @@ def test_defaults(write_config) -> None:
     assert config.measure.runs == DEFAULT_RUNS
     assert config.measure.timeout_s == DEFAULT_TIMEOUT_S
     assert not config.validate.enabled
-    assert not config.keep_output
+    assert not config.keep_output and not config.openmp_costs
     axes = dict(config.scene.axes)
     assert axes["mode"] == ("perf",) and axes["seed"] == (1,)
 
@@ -84,6 +85,7 @@ ERRORS = [
     (BASE + "validate: sometimes\n", "validate", "true, false"),
     (BASE + "validate: {max_n: -1}\n", "validate.max_n", "positive integer"),
     (BASE + "keep_output: 1\n", "keep_output", "true or false"),
+    (BASE + "openmp_costs: always\n", "openmp_costs", "true or false"),
     (BASE + "combine: shuffle\n", "combine", "product, zip"),
     ("variants: [p1d]\nscene: {n: [1, 2], L: [10, 20, 30], r: 1, steps: 1}\ncombine: zip\n",
      "combine", "equal length"),

@@ -4,13 +4,17 @@ tables show variants in follows from those facts, and a bad description is one c
 from __future__ import annotations
 
 import json
+import re
 import stat
+import subprocess
 from pathlib import Path
 
 import pytest
 from harness.errors import HarnessError
 from harness.spec import variants
 from harness.spec.variants import BASELINE, VariantFacts, VariantRegistry, default_registry
+
+from conftest import build_or_skip
 
 
 def facts(name: str, *, all_pairs: bool = True, repairs: str | None = None,
@@ -78,3 +82,77 @@ def test_an_unknown_variant_is_named_with_the_known_ones() -> None:
     registry = VariantRegistry.of([facts(BASELINE), facts("p1")])
     with pytest.raises(HarnessError, match="unknown variant 'p9'; expected one of: seq, p1"):
         registry["p9"]
+
+
+# --- the finders' OpenMP operations per step (`sync`) -------------------------------------
+
+
+def test_the_seed_strategies_declare_their_operations_per_step() -> None:
+    """p1 and p1d fork one team a step, p2 one a row, p3 a team per row inside its outer team,
+    p2d one a row and a grab per pair test; their repairs one team a step."""
+    registry = default_registry()
+    n = 1000
+    per_step = {name: registry[name].sync.per_step(n)  # type: ignore[union-attr]
+                for name in ("p1", "p1_cyclic", "p1d", "p2", "p2_blocks", "p3", "p2d",
+                             "p2d_tiles", "seq")}
+    assert per_step["p1"] == {"regions": 1, "nested_regions": 0, "barriers": 0, "grabs": 0}
+    assert per_step["p1_cyclic"] == per_step["p2_blocks"] == per_step["p1"]
+    assert per_step["p1d"] == {**per_step["p1"], "grabs": n}
+    assert per_step["p2"] == {**per_step["p1"], "regions": n}
+    assert per_step["p3"] == {**per_step["p1"], "nested_regions": n}
+    assert per_step["p2d"] == {**per_step["p2"], "grabs": n * (n - 1) / 2}
+    assert per_step["p2d_tiles"]["regions"] == 1 and per_step["seq"]["regions"] == 0
+    # where the count depends on the data or on OMP_SCHEDULE, none is declared
+    assert registry["grid"].sync is None and registry["p1_runtime"].sync is None
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 4096, 4097, 10000])
+def test_tiles_per_step_are_every_rows_tiles(n: int) -> None:
+    tile = 4096
+    count = variants.Count(tile=1)
+    assert count.per_step(n, tile) == sum(-(-(n - 1 - i) // tile) for i in range(n))
+
+
+@pytest.mark.parametrize("variant", ["p1d", "p2d", "p2d_tiles"])
+def test_the_grabs_declared_are_the_chunks_a_run_deals(real_binaries: Path, tmp_path: Path,
+                                                       variant: str) -> None:
+    """The binary's --timing counts the chunks its dynamic loops dealt: as many as its
+    declared grabs per step, times the steps."""
+    binary = build_or_skip(variant) / variant
+    n, steps = 300, 3
+    scene = tmp_path / "scene.in"
+    scene.write_text(f"{n} 1000 1 {steps}\nperf\n")
+    done = subprocess.run([str(binary), "--threads", "2", "--timing", str(scene)],
+                          capture_output=True, text=True, check=True, timeout=60)
+    timing = json.loads(done.stderr.strip().splitlines()[-1])
+    declared = default_registry()[variant].sync
+    assert declared is not None
+    assert sum(timing["threads_chunks"]) == declared.per_step(n)["grabs"] * steps
+
+
+def sync_line(**changes: object) -> str:
+    sync = {"regions": {"step": 1}, "nested_regions": {}, "barriers": {},
+            "grabs": {"tile": 2}, "tile": 64, **changes}
+    return json.dumps({**facts("v").__dict__, "sync": sync})
+
+
+def test_a_sync_description_parses(tmp_path: Path) -> None:
+    found = variants.describe(write_binary(tmp_path / "v", sync_line()))
+    assert found.sync == variants.SyncFacts(regions=variants.Count(step=1),
+                                            grabs=variants.Count(tile=2), tile=64)
+    assert found.sync.per_step(65)["grabs"] == 2 * 64  # rows 0..64: 64 rows of one tile
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    ({"grabs": {"chunk": 1}}, "'grabs' is no object of counts per step, row, pair, tile"),
+    ({"regions": {"row": -1}}, "'regions' is no object of counts"),
+    ({"regions": {"row": True}}, "'regions' is no object of counts"),
+    ({"tile": 0}, "'tile' must be a count, at least 1 where a count is per tile"),
+    ({"spin": {}}, "expected an object of regions, nested_regions, barriers, grabs and tile"),
+])
+def test_a_bad_sync_description_is_one_error(tmp_path: Path, changes: dict,
+                                             message: str) -> None:
+    binary = write_binary(tmp_path / "v", sync_line(**changes))
+    with pytest.raises(HarnessError, match=re.escape(message)) as info:
+        variants.describe(binary)
+    assert str(binary) in str(info.value)

@@ -76,6 +76,25 @@ typedef struct sim_pair_sink {
     void *scratch; /* the variant's own per-run memory (see scratch_create) */
 } sim_pair_sink;
 
+/* How many times a finder asks the OpenMP runtime for one operation in a step, as a function
+ * of the scene's N: per_step + per_row * N + per_pair * N(N-1)/2 + per_tile * (the tiles of
+ * `sim_sync.tile` j of every row: the sum over rows i of ceil((N-1-i) / tile)). */
+typedef struct sim_count {
+    int per_step, per_row, per_pair, per_tile;
+} sim_count;
+
+/* What a finder asks of the OpenMP runtime in a step (`--describe`'s "sync"): the report
+ * multiplies each count by the cost of one operation at the run's thread count (build/ompcost)
+ * to explain what a strategy pays for its structure. */
+typedef struct sim_sync {
+    sim_count regions;        /* parallel regions entered: a team fork and its closing barrier */
+    sim_count nested_regions; /* regions forked inside a region by each of its T threads, T at a
+                                 time (p3's team per row) */
+    sim_count barriers;       /* barriers inside a region, beyond its closing one */
+    sim_count grabs;          /* chunks taken from a dynamic schedule's shared counter */
+    int32_t tile;             /* j per tile, for per_tile */
+} sim_sync;
+
 /* A variant: what it says about itself (`--describe` prints these facts as one JSON line, so
  * that the harness and the test scripts read them from the binary instead of keeping lists of
  * their own), then how it finds candidates. */
@@ -88,6 +107,9 @@ typedef struct sim_variant {
      * seq is parallelism alone; false for finders that skip pairs or test them their own way. */
     bool all_pairs;
     const char *repairs; /* the seed strategy whose pathology this variant repairs, or NULL */
+    /* Its runtime operations per step; NULL where they depend on more than N (the data, as
+     * grid's barriers; OMP_SCHEDULE, as p1_runtime's chunks). */
+    const sim_sync *sync;
     /* Candidate buffers the finder needs for `threads` threads; NULL means `threads`. */
     int (*buffer_count)(int threads);
     /* Optional per-run memory, e.g. a grid. Return NULL on allocation failure. */

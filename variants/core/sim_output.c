@@ -246,6 +246,37 @@ static void put_json_string(FILE *out, const char *s)
     fputc('"', out);
 }
 
+/* {"step":1,"row":2}: the nonzero terms of a count, in a fixed order. */
+static void put_count(FILE *out, const char *key, const sim_count *c)
+{
+    const char *names[] = {"step", "row", "pair", "tile"};
+    const int values[] = {c->per_step, c->per_row, c->per_pair, c->per_tile};
+    fprintf(out, "\"%s\":{", key);
+    for (int k = 0, first = 1; k < 4; k++)
+        if (values[k]) {
+            fprintf(out, "%s\"%s\":%d", first ? "" : ",", names[k], values[k]);
+            first = 0;
+        }
+    fputc('}', out);
+}
+
+static void put_sync(FILE *out, const sim_sync *s)
+{
+    if (!s) {
+        fputs("null", out);
+        return;
+    }
+    fputc('{', out);
+    put_count(out, "regions", &s->regions);
+    fputc(',', out);
+    put_count(out, "nested_regions", &s->nested_regions);
+    fputc(',', out);
+    put_count(out, "barriers", &s->barriers);
+    fputc(',', out);
+    put_count(out, "grabs", &s->grabs);
+    fprintf(out, ",\"tile\":%ld}", (long)s->tile);
+}
+
 int sim_describe(FILE *out, const sim_variant *v)
 {
     fputs("{\"name\":", out);
@@ -259,6 +290,8 @@ int sim_describe(FILE *out, const sim_variant *v)
         put_json_string(out, v->repairs);
     else
         fputs("null", out);
+    fputs(",\"sync\":", out);
+    put_sync(out, v->sync);
     fputs("}\n", out);
     return ferror(out) ? -1 : 0;
 }

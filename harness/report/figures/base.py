@@ -55,6 +55,9 @@ LOG_RATIO = 8.0
 MINOR_LABEL_DECADES = 2.0
 # With at most this many distinct x values, ticks go exactly at the measured values.
 MAX_VALUE_TICKS = 12
+# On a log axis a data value this close (as a ratio) to the last labelled one keeps its tick but
+# not its text, which would run into its neighbour's (16 and 20 of a 1-128 thread sweep).
+MIN_LABEL_RATIO = 1.3
 
 PALETTE: tuple[str, ...] = tuple(mpl.colormaps["tab10"].colors)  # type: ignore[attr-defined]
 # tab20's light shade of each PALETTE color: a repaired strategy is drawn in its seed's hue.
@@ -333,10 +336,52 @@ def set_x_axis(
         if len(distinct) <= MAX_VALUE_TICKS:
             ax.set_xticks(distinct)
             ax.xaxis.set_minor_locator(NullLocator())
-            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: compact_number(v)))
+            shown = spaced_labels(distinct)
+            ax.xaxis.set_major_formatter(FuncFormatter(
+                lambda v, _pos: compact_number(v) if v in shown else ""))
     elif 0 < len(distinct) <= MAX_VALUE_TICKS:
         ax.set_xticks(distinct)
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: compact_number(v)))
+
+
+OVERSUBSCRIBED_SHADE = "0.94"
+
+
+def shade_oversubscribed(ax: Axes, rows: pd.DataFrame) -> None:
+    """Against threads: the thread counts past the machine's cores shaded and labelled at the
+    top, so that a sweep to many times the cores reads where oversubscription starts (nothing
+    where no cell passes the cores, or the rows' machines have different core counts). The
+    shade starts midway (geometrically: the axis is log 2) between the cores and the next
+    thread count, so that a cell at the core count stays outside it."""
+    if "cores" not in rows.columns:
+        return
+    cores = pd.to_numeric(rows["cores"], errors="coerce").dropna().unique()
+    threads = np.unique(rows["threads"].to_numpy(dtype=float))
+    if len(cores) != 1 or not (threads > cores[0]).any():
+        return
+    c = float(cores[0])
+    start = math.sqrt(c * float(threads[threads > c][0]))
+    left, right = ax.get_xlim()
+    ax.axvspan(start, right, color=OVERSUBSCRIBED_SHADE, zorder=0, lw=0)
+    ax.set_xlim(left, right)
+    ax.text(start, 0.99, f" threads > cores ({c:g})", transform=ax.get_xaxis_transform(),
+            ha="left", va="top", fontsize="small", color="0.35")
+
+
+def spaced_labels(ticks: np.ndarray) -> set[float]:
+    """The ticks of a log axis that get their text: each at least MIN_LABEL_RATIO past the last
+    labelled one, and always the last (the sweep's end)."""
+    shown: list[float] = []
+    for value in sorted(float(t) for t in ticks):
+        if not shown or value >= shown[-1] * MIN_LABEL_RATIO:
+            shown.append(value)
+    last = float(max(ticks)) if len(ticks) else None
+    if last is not None and last not in shown:
+        if len(shown) > 1:
+            shown[-1] = last  # the end of the sweep rather than the value just before it
+        else:
+            shown.append(last)
+    return set(shown)
 
 
 def set_y_axis(ax: Axes, values: pd.Series, label: str) -> None:

@@ -31,6 +31,7 @@ from harness.report.figures.base import (
     set_title,
     set_x_axis,
     set_y_axis,
+    shade_oversubscribed,
     wants_log,
 )
 from harness.store.columns import OK, TIMED_STATUSES
@@ -83,6 +84,8 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
     if x == "n" and _draw_square_guide(ax, df):
         extra.append(Line2D([], [], ls="--", color="gray", lw=2, alpha=0.5, label="∝ N² guide"))
     set_x_axis(ax, df[x], axis.label, axis.log_base, force_log=axis.force_log)
+    if x == "threads":
+        shade_oversubscribed(ax, df)
     timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
     if axis.force_log and len(positive_values(timed)) > 1:
         log_axis(ax, "y", timed)
@@ -151,6 +154,7 @@ def _thread_metric_figure(
         plot_series(ax, rows, "threads", y, color, series_label(values, keys), marks)
     ideal_label = ideal(ax)
     set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
+    shade_oversubscribed(ax, df)
     ax.set_ylabel(ylabel)
     set_title(ax, title)
     ax.grid(True, which="major", alpha=0.3)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import pandas as pd
+
 from harness.analysis.speedup import with_speedup
 from harness.report.blocks import figure_block
-from harness.report.document import Block, Section
+from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.sweeps import fig_efficiency, fig_karp_flatt, fig_speedup
 from harness.report.sections.context import Context
 
@@ -36,5 +38,23 @@ def build(ctx: Context) -> list[Section]:
             "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
             "parallel overhead rather than a fixed serial part.",
         ))
+    if blocks:
+        blocks[:0] = _oversubscribed_words(rows)
     return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",
                     tuple(blocks))]
+
+
+def _oversubscribed_words(rows: pd.DataFrame) -> list[Paragraph]:
+    """Which thread counts pass the machine's cores, and what their numbers then measure."""
+    over = rows[rows["oversubscribed"].fillna(False).astype(bool)]
+    if over.empty:
+        return []
+    counts = sorted(int(t) for t in over["threads"].unique())
+    cores = sorted(int(c) for c in pd.to_numeric(over["cores"], errors="coerce").dropna().unique())
+    where = f"this machine's {cores[0]} cores" if len(cores) == 1 else "the machine's cores"
+    return [Paragraph(
+        f"{len(counts)} of the {rows['threads'].nunique()} thread counts pass {where} "
+        f"({', '.join(map(str, counts))}: shaded, hollow markers, ✓ under `threads > cores` in the "
+        "table): there threads take turns on the cores, so speedup, efficiency and the serial "
+        "fraction measure what sharing the cores costs, not how the strategy scales."
+    )]

@@ -6,6 +6,9 @@ and sentence; this module only lays them out, and only where the data has them.
 
 from __future__ import annotations
 
+import pandas as pd
+
+from harness.analysis import overhead
 from harness.analysis import strategies as study
 from harness.report.blocks import figure_block, table_block
 from harness.report.document import Paragraph, Section
@@ -32,6 +35,26 @@ CHUNK_INTRO = (
     "such grabs, divided by the chunks it dealt (its `--timing` run's `threads_chunks`); 95% "
     "bootstrap intervals from the runs of both cells. p2d's figure also holds its scalar pair "
     "test per single j against the reference's vectorised blocks."
+)
+OVERHEAD_INTRO = (
+    "What each of the seed's strategies asks of the OpenMP runtime, from its binary's "
+    "`--describe` (regions per step: a team fork and its closing barrier; nested regions: forked "
+    "by each thread of an outer team of T, so a step waits for 1/T of them; barriers inside a "
+    "region; grabs from a dynamic schedule's counter), priced at the cost of one operation "
+    "measured on this machine at the same thread count (`build/ompcost`, run once per cell with "
+    "`openmp_costs: true`; the median over the thread count's cells). Predicted overhead: the "
+    "strategy's operations over its repair's, in seconds of the run; measured overhead: its "
+    "median over the repair's. Where the two agree, the runtime's operations are what the "
+    "strategy loses time to; where the measured one is far larger, something the price of an "
+    "operation alone does not hold (a team waiting for cores, p2d's scalar test per single j)."
+)
+COST_CAPTION = (
+    "The OpenMP runtime's cost of one operation per thread count (ns, median over the cells "
+    "that measured it): an empty parallel region, a barrier inside a team, one chunk of an "
+    "empty `schedule(dynamic, 1)` loop (the loop's wall time over its iterations, 1024 or more a "
+    "thread, so that its closing barrier weighs little), a region "
+    "forked by every thread of an outer team at once (not measured beyond 32 threads: T*T "
+    "threads)."
 )
 SCHEDULE_INTRO = (
     "One binary, p1_runtime (`schedule(runtime)` over the rows), run under each `OMP_SCHEDULE`; "
@@ -61,6 +84,7 @@ def build(ctx: Context) -> list[Section]:
         paths = figs.draw(work_figure, work, figs.fig_dir / f"{name}-work-per-thread")
         parts.append(Section("Work per thread", f"{name}-work",
                              (figure_block(paths, WORK_CAPTION),)))
+    parts += _overhead(df, name)
     costs = study.chunk_costs(df, exp.path)
     if costs:
         parts.append(Section("Cost per dispatched chunk", f"{name}-chunks", (
@@ -79,3 +103,25 @@ def build(ctx: Context) -> list[Section]:
                 Paragraph(study.schedule_sentence(rows)),
             )))
     return parts
+
+
+def _overhead(df: pd.DataFrame, name: str) -> list[Section]:
+    """The seed strategies' runtime operations priced at this machine's measured costs, beside
+    their measured time over their repairs; where no cost was measured, a line saying so."""
+    if not any(v in study.SEED_TIMES_S for v in df["variant"].unique()):
+        return []
+    title, anchor = "What the runtime's operations cost", f"{name}-overhead"
+    table = overhead.overhead_table(df)
+    if table is None:
+        return [Section(title, anchor, (Paragraph(overhead.MISSING_COSTS),))]
+    costs = overhead.cost_table(df)
+    assert costs is not None
+    blocks = [
+        Paragraph(OVERHEAD_INTRO),
+        table_block(costs, COST_CAPTION, source=df),
+        table_block(table, "Per seed strategy and thread count: its operations per step, "
+                    "the predicted seconds they cost over its repair's, and the measured ones "
+                    "(medians).", source=df),
+        *(Paragraph(s) for s in overhead.overhead_sentences(table, df)),
+    ]
+    return [Section(title, anchor, tuple(blocks))]

@@ -1,0 +1,65 @@
+"""The OpenMP runtime's cost of one operation at a cell's thread count: build/ompcost
+(tools/ompcost.c) run once in the cell's start step, with the cell's environment, when the
+config says `openmp_costs: true`. Its JSON line gives an empty region, a barrier, a dynamic
+chunk and a nested region in ns; the record keeps them (store.columns.OMP_COST_COLUMNS), so
+the report's cost model multiplies them by a strategy's operations at the same thread count,
+measured on the same machine."""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+from harness.measure.proc import run_process, tail
+from harness.store.columns import OMP_COST_COLUMNS, OMP_COST_NOTE
+
+# Seconds ompcost may take: four operations at its default 100 ms each, calibration, and the
+# slow batches of a team many times the cores.
+OMPCOST_TIMEOUT_S = 120.0
+
+
+def parse_costs(text: str, threads: int) -> dict[str, float | None]:
+    """ompcost's JSON line: each column's ns (None for a null: not measured at this thread
+    count); ValueError when the line is no such object, or is for another thread count."""
+    try:
+        data = json.loads(text.strip().splitlines()[-1]) if text.strip() else None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"no JSON line: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError("no JSON object")
+    if data.get("threads") != threads:
+        raise ValueError(f"measured {data.get('threads')!r} threads, not {threads}")
+    costs: dict[str, float | None] = {}
+    for column in OMP_COST_COLUMNS:
+        if column not in data:
+            raise ValueError(f"lacks {column}")
+        value = data[column]
+        if value is None:
+            costs[column] = None
+        elif isinstance(value, int | float) and not isinstance(value, bool) and \
+                math.isfinite(value) and value > 0:
+            costs[column] = float(value)
+        else:
+            raise ValueError(f"{column} is {value!r}, not a positive number of ns")
+    return costs
+
+
+def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> dict[str, object]:
+    """The record's cost columns from one ompcost run; where it fails, every column empty and
+    its note (OMP_COST_NOTE) saying why (the cell itself is measured all the same)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "ompcost.json"
+        done = run_process([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S, out)
+        text = out.read_text() if out.exists() else ""
+    empty: dict[str, object] = dict.fromkeys(OMP_COST_COLUMNS)
+    if done.returncode != 0:
+        why = ("timed out" if done.returncode is None
+               else f"exit {done.returncode}: {tail(done.stderr).strip()[-300:]}")
+        return {**empty, OMP_COST_NOTE: f"{binary.name} {why}"}
+    try:
+        return {**parse_costs(text, threads), OMP_COST_NOTE: None}
+    except ValueError as exc:
+        return {**empty, OMP_COST_NOTE: f"{binary.name}: {exc}"}
