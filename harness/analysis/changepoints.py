@@ -34,6 +34,9 @@ from harness.stats import CONFIDENCE, Interval
 # rate under 5% with more power: docs/history.md), and the looser limit while splitting.
 DEFAULT_MAX_P = 0.002
 SPLIT_P_FACTOR = 10.0
+# How many of a series' resolutions (the widest spread of one commit's counted runs) a count
+# must move by to be a change on an exact lane whose counts vary a little between runs.
+RESOLUTIONS_PER_CHANGE = 2.0
 # The fewest commits on each side of a split: a t-test needs a variance on both.
 MIN_SEGMENT = 2
 
@@ -123,13 +126,16 @@ def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P,
 
 def exact_change_points(lows: Sequence[float], highs: Sequence[float] | None = None
                         ) -> list[ChangePoint]:
-    """Every commit whose values (the fewest and the most of its runs: one value where the
-    count is deterministic) do not overlap those of the commit before; the ratio of the
-    fewest."""
+    """Every commit whose count (the fewest of its runs) moved from the commit before's; the
+    ratio of the fewest. Where the series' counts vary between runs of one commit (a team's
+    threads take turns differently under the counter), its resolution is the widest spread of
+    one commit's runs, and a move must exceed RESOLUTIONS_PER_CHANGE of it: a commit's two runs
+    seldom show its whole spread, so two unchanged commits' fewest can differ by up to one."""
     highs = lows if highs is None else highs
+    resolution = max((h - lo for lo, h in zip(lows, highs, strict=True)), default=0.0)
     out = []
     for k in range(1, len(lows)):
-        if lows[k] > highs[k - 1] or highs[k] < lows[k - 1]:
+        if abs(lows[k] - lows[k - 1]) > RESOLUTIONS_PER_CHANGE * resolution:
             ratio = lows[k] / lows[k - 1]
             out.append(ChangePoint(k, Interval(ratio, ratio, ratio), 0.0))
     return out
