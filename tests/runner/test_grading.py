@@ -180,8 +180,8 @@ def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -
 def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: Path,
                                                  tmp_path: Path) -> None:
     """A class of three submissions through the harness: the right one ranks, the slip is wrong
-    at step 2 particle 7 with its figure, the race is nondeterministic; programs.csv has the
-    class table's rows."""
+    at step 2 particle 7 with its figure, the race is nondeterministic, with its races found
+    by ThreadSanitizer at their lines; programs.csv has the class table's rows."""
     import csv
     import io
     import shutil
@@ -194,12 +194,19 @@ def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: 
     for name in ("plain", "slip", "race"):
         (tmp_path / "submissions" / name).mkdir(parents=True)
         shutil.copy(programs / name, tmp_path / "submissions" / name / "sim")
+        shutil.copy(SOURCE, tmp_path / "submissions" / name / "student.c")
+        (tmp_path / "submissions" / name / "flags").write_text(" ".join(FLAGS[name]))
     config = tmp_path / "class.yaml"
+    build = "{cc} {cflags} -std=c11 -ffp-contract=off $(cat {dir}/flags) {source} -o {out} -lm"
     config.write_text(f"""\
 name: class
 variants: [seq, class]
 programs:
-  class: {{glob: "submissions/*/sim", command: "{{path}} {{threads}} {{input}}"}}
+  class:
+    glob: "submissions/*/sim"
+    command: "{{path}} {{threads}} {{input}}"
+    source: "{{dir}}/student.c"
+    build: "{build}"
 scene: {{n: {N}, L: {L:g}, r: {R:g}, steps: {STEPS}, seed: {SEED}}}
 threads: [1, 2]
 measure: {{warmup: 0, runs: 1, timeout_s: 120}}
@@ -218,6 +225,14 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     race = got[("race", "2")]
     assert race["agreement"] == "nondeterministic" and race["status"] == "invalid"
     assert "differ: first at step" in race["note"]
+    # ThreadSanitizer, at the highest thread count only: the race's shared temporaries at the
+    # line that writes them, nothing in the others
+    line = next(k for k, text in enumerate(SOURCE.read_text().splitlines(), start=1)
+                if text.strip().startswith("dx = x[j] - x[i];"))
+    where = f"submissions/race/student.c:{line}"
+    assert race["races"].startswith(f"{where} and {where}") and "ThreadSanitizer" in race["note"]
+    assert (got[("plain", "2")]["races"], got[("slip", "2")]["races"]) == ("none", "none")
+    assert got[("race", "1")]["races"] == ""
     report = pipeline.render(root, tmp_path / "report").read_text()
     assert "### Programs" in report and "`slip`'s first wrong step (2" in report
     with (tmp_path / "report" / "figures" / "class-programs.csv").open() as handle:
@@ -227,6 +242,7 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     assert by_name["plain"]["rank"] == "1" and by_name["slip"]["rank"] == ""
     assert (by_name["slip"]["verdict"], by_name["slip"]["first_wrong_step"]) == (WRONG, "2")
     assert by_name["race"]["repeatable"] == "no"
+    assert by_name["race"]["races"] == race["races"] and by_name["plain"]["races"] == "none"
     assert float(by_name["plain"]["speedup_vs_seq"]) > 0
     assert float(by_name["plain"]["efficiency"]) == pytest.approx(
         float(by_name["plain"]["speedup_vs_1t"]) / 2)
