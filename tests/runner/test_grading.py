@@ -33,6 +33,9 @@ FLAGS = {
 # step, contact at 2r = 2). The rules take the pair first; then 0 moves at -6 and stops at the
 # wall it meets at once.
 TIE_SCENE = "3 100 1 3\nprint\n0 2 50 -2 0\n1 6 50 -6 0\n2 50 80 1 1\n"
+# The same tie one step later: both move freely in step 0 (to x = 2 and 6), and the tie is in
+# the state the program prints at step 1, exactly (its six decimals are the state itself).
+LATER_TIE_SCENE = "3 100 1 3\nprint\n0 4 50 -2 0\n1 12 50 -6 0\n2 50 80 1 1\n"
 
 
 def compile_program(name: str, out: Path) -> Path:
@@ -164,6 +167,24 @@ def test_the_wrong_tie_order_is_wrong_at_the_tie(real_binaries: Path, programs: 
     assert "collided with particle 1 at t = 0.5" in verdict.seq_did
 
 
+def test_the_wrong_tie_order_is_wrong_at_a_later_step_too(real_binaries: Path, programs: Path,
+                                                          tmp_path: Path) -> None:
+    """A tie in a printed state, not the input: the two events are at the same time by the
+    reference's arithmetic from the state the program printed, so the order is the rules'
+    to decide, not a near-tie within the printed uncertainty."""
+    path = tmp_path / "later-tie.in"
+    path.write_text(LATER_TIE_SCENE)
+    seq = real_binaries / "seq"
+    right, reference = graded(programs, seq, "plain", path, n=3, L=100.0, steps=3)
+    assert right.verdict == IDENTICAL, right.note
+    assert "1 0 2 50 -2 0\n1 1 6 50 -6 0\n" in reference  # the tie is at step 1
+    verdict, _ = graded(programs, seq, "tie", path, n=3, L=100.0, steps=3)
+    assert (verdict.verdict, verdict.first_diff_step, verdict.particle) == (WRONG, 2, 0), \
+        verdict.note
+    assert "tie order" in verdict.rule, verdict.note
+    assert "collided with particle 1 at t = 0.5" in verdict.seq_did
+
+
 def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -> None:
     outputs = {subprocess.run([str(programs / "race"), str(THREADS), str(scene)],
                               capture_output=True, text=True, check=True).stdout
@@ -174,9 +195,6 @@ def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -
     assert found is not None and 0 <= found[0] <= STEPS
 
 
-# A file left open somewhere in the run and the report (not yet traced) is collected while
-# matplotlib draws; the test judges the class table, not that.
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
 def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: Path,
                                                  tmp_path: Path) -> None:
     """A class of three submissions through the harness: the right one ranks, the slip is wrong
