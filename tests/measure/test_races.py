@@ -136,3 +136,25 @@ def test_reports_are_read_as_the_two_lines_of_the_program_deduplicated(tmp_path:
     assert races.parse_reports(REPORT.replace("{dir}", "/elsewhere"), tmp_path) == (
         races.Race("/elsewhere/sim.c:12", "/elsewhere/sim.c:40"),
         races.Race("/elsewhere/sim.c:12", "/usr/include/x.h:7", ("total",)))
+
+
+def test_a_race_makes_any_judged_verdict_nondeterministic() -> None:
+    """Outputs that agreed by the luck of the schedule do not make a racy program right; a
+    check that could not run leaves the verdict and says why in the note."""
+    from harness.measure.agreement import Agreement
+    from harness.measure.program import with_races
+    from harness.store.columns import AGREEMENT_FAILED, IDENTICAL, NONDETERMINISTIC, WRONG
+
+    race = races.RaceCheck((races.Race("sim.c:12", "sim.c:40", ("total",)),),
+                           "ThreadSanitizer found 1 data race(s) at 2 threads on x: sim.c:12 "
+                           "and sim.c:40 (total)")
+    for verdict in (Agreement(IDENTICAL), Agreement(WRONG, 3, 1, note="wrong at step 3")):
+        flagged = with_races(verdict, race)
+        assert flagged.verdict == NONDETERMINISTIC and flagged.note.startswith(race.note)
+        assert f"its outputs judged alone: {verdict.verdict}" in flagged.note
+    failed = with_races(Agreement(AGREEMENT_FAILED, note="printed nothing"), race)
+    assert failed.verdict == AGREEMENT_FAILED and race.note in failed.note
+    skipped = races.RaceCheck(None, "not checked for races: clang not found")
+    kept = with_races(Agreement(IDENTICAL), skipped)
+    assert kept.verdict == IDENTICAL and kept.note == skipped.note
+    assert with_races(Agreement(IDENTICAL), races.RaceCheck(())) == Agreement(IDENTICAL)
