@@ -5,8 +5,10 @@
 #
 # With --test, also what only the tests need: the pinned requirements-test.txt (pytest, ruff,
 # import-linter, selenium) and, as root, Debian's Slurm (slurmctld, slurmd, slurm-client, munge)
-# for the Slurm executor's tests and Debian's chromium and chromium-driver for the report's
-# browser test. Used by `make test` (through `make setup-test`) and CI.
+# for the Slurm executor's tests, Debian's chromium and chromium-driver for the report's
+# browser test, and clang with its ThreadSanitizer runtime and LLVM's OpenMP with Archer
+# (clang, libclang-rt-dev, libomp-dev) for the data-race check of programs. Used by `make test`
+# (through `make setup-test`) and CI.
 #
 # With configs (scripts/setup.sh [--test] CONFIG...): also what they ask for; a config with
 # `metric: instructions` needs an instruction counter, and where the kernel gives no hardware
@@ -120,5 +122,18 @@ optional_packages() {  # WHAT, a command each package set provides..., --, packa
 optional_packages Slurm slurmctld slurmd sbatch munged -- slurmctld slurmd slurm-client munge
 # A browser, for tests/report/test_browser.py (selenium drives Debian's chromium headless).
 optional_packages chromium chromium chromedriver -- chromium chromium-driver
+# clang's ThreadSanitizer with LLVM's OpenMP runtime and Archer, for tests/measure/test_races.py
+# and the data-race check of programs with a build (harness/measure/races.py): packages, not
+# commands, since clang alone links no TSan runtime.
+tsan_packages=(clang libclang-rt-dev libomp-dev)
+if [ "$(dpkg-query -W -f='${Status}\n' "${tsan_packages[@]}" 2>/dev/null \
+        | grep -c 'install ok installed')" != "${#tsan_packages[@]}" ]; then
+    if as_root && command -v apt-get >/dev/null 2>&1; then
+        echo "setup: installing clang's ThreadSanitizer and Archer (Debian packages: ${tsan_packages[*]})"
+        apt_install "${tsan_packages[@]}"
+    else
+        echo "setup: clang's ThreadSanitizer is missing (its tests will skip); to run them: sudo apt-get install ${tsan_packages[*]}" >&2
+    fi
+fi
 touch "$venv/.test-ready"  # make test's stamp (the Makefile's TEST_READY)
 echo "setup: ready for the tests ($("$venv/bin/python" --version), $(hyperfine --version))"

@@ -66,7 +66,8 @@ def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
     cells), first wrong step, particle-free rule, whether its runs were repeatable, its median
     time at each thread count, its speedup against seq (seq's fastest median on the scene)
     and against its own 1-thread time at its highest thread count, that speedup's efficiency,
-    and its rank by time at its highest thread count among the programs that are right."""
+    and its rank by time at its highest thread count among the programs that are right; the
+    data races ThreadSanitizer found in it (`none`; empty where it was not checked)."""
     rows = df[is_program(df)]
     keys = [k for k in CLASS_KEYS if k in df.columns]
     out = []
@@ -81,7 +82,8 @@ def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
                                                        and pd.notna(step) else None),
                                   "rule": (str(worst.get("rule")) if verdict == WRONG
                                            and pd.notna(worst.get("rule")) else ""),
-                                  "repeatable": ("no" if verdict == NONDETERMINISTIC else "yes")}
+                                  "repeatable": ("no" if verdict == NONDETERMINISTIC else "yes"),
+                                  "races": _races(cells)}
         times = cells.set_index("threads")["wall_median_s"].dropna()
         for threads, seconds in times.sort_index().items():
             row[f"time_{int(threads)}t_s"] = float(seconds)
@@ -108,8 +110,16 @@ def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
     table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
     time_columns = sorted((c for c in table.columns if c.startswith("time_")),
                           key=lambda c: int(c[5:-3]))
-    order = ["program", *keys, "verdict", "first_wrong_step", "rule", "repeatable",
+    order = ["program", *keys, "verdict", "first_wrong_step", "rule", "repeatable", "races",
              *time_columns, "threads_max", "speedup_vs_seq", "speedup_vs_1t", "efficiency",
              "rank"]
     return table[order].sort_values(["rank", "program"], na_position="last").reset_index(
         drop=True)
+
+
+def _races(cells: pd.DataFrame) -> str:
+    """The races column of a program's cells (the one checked: its highest thread count's)."""
+    if "races" not in cells.columns:
+        return ""
+    found = [str(v) for v in cells["races"].dropna() if str(v)]
+    return found[0] if found else ""

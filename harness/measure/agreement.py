@@ -23,6 +23,7 @@ program that orders its arithmetic differently). The verdict (store.columns.AGRE
 from __future__ import annotations
 
 import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +31,14 @@ import pandas as pd
 
 from harness.measure import rules
 from harness.measure.events import pair_times, seq_event
-from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, half_units, judge_steps
+from harness.measure.steps import (
+    ARITH_ULPS,
+    PRECISION_LADDER,
+    Replay,
+    half_unit_exp,
+    half_units,
+    judge_steps,
+)
 from harness.spec.builds import DOUBLE_EPS
 from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
 from harness.store.columns import (
@@ -52,20 +60,114 @@ class Rows:
     step: np.ndarray  # (k,) int64
     index: np.ndarray  # (k,) int64
     values: np.ndarray  # (k, 4) x y vx vy
-    tokens: list[tuple[str, ...]]  # the four values as printed
+    tokens: Sequence[tuple[str, ...]]  # the four values as printed
     counts: np.ndarray  # (k, 2) pcoll wcoll; -1 where the row has none
     ignored: int = 0  # lines that are no such row
     first_ignored: str = ""
+    half: np.ndarray | None = None  # (k, 4) half a unit in the last digit of each token
 
     def __len__(self) -> int:
         return len(self.step)
 
+    def halves(self) -> np.ndarray:
+        """half_units of every token, (k, 4)."""
+        if self.half is not None:
+            return self.half
+        return half_units(np.array(list(self.tokens), dtype=str).reshape(-1, 4))
+
 
 def read_rows(text: str) -> Rows:
-    """The rows of an output, whoever printed it: pandas' C reader where every line is such
-    a row (the common case, a thousand times faster), else line by line."""
-    fast = _read_rows_fast(text)
-    return fast if fast is not None else _read_rows_by_line(text)
+    """The rows of an output, whoever printed it: pandas' C reader of numbers with the
+    tokens' digits counted on the bytes where every line is such a row of plain numbers (the
+    common case, a thousand times faster), pandas' reader of strings where some value is
+    not (nan, inf), else line by line."""
+    for reader in (_read_rows_numeric, _read_rows_fast):
+        fast = reader(text)
+        if fast is not None:
+            return fast
+    return _read_rows_by_line(text)
+
+
+class _Tokens(Sequence[tuple[str, ...]]):
+    """The value tokens of rows, cut from the output's bytes when asked for."""
+
+    def __init__(self, data: bytes, start: np.ndarray, end: np.ndarray) -> None:
+        self.data, self.start, self.end = data, start, end  # (k, 4) byte offsets
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    def __getitem__(self, k):  # type: ignore[no-untyped-def, override]
+        if isinstance(k, slice):
+            return [self[j] for j in range(*k.indices(len(self)))]
+        return tuple(self.data[a:b].decode() for a, b in zip(self.start[k], self.end[k],
+                                                             strict=True))
+
+
+MAX_INT_CHARS = 15  # an integer token read as a double is exact below 2^53
+
+
+def _read_rows_numeric(text: str) -> Rows | None:
+    """read_rows where every non-blank line has 6 or 8 plain numbers, integers where the rows
+    have them, and no value is nan or inf; None otherwise."""
+    data = text.encode()
+    b = np.frombuffer(data, dtype=np.uint8)
+    # Tokens: runs of bytes above the space (control characters separate, as \s+ does).
+    edges = np.diff((b > ord(" ")).view(np.int8), prepend=np.int8(0), append=np.int8(0))
+    start, end = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if not len(start):
+        return None
+    line = np.searchsorted(np.flatnonzero(b == ord("\n")), start)
+    firsts = np.concatenate(([0], np.flatnonzero(np.diff(line)) + 1))
+    width = np.diff(np.concatenate((firsts, [len(start)])))
+    if not np.all((width == HISTORY_FIELDS) | (width == FINAL_FIELDS)):
+        return None
+    field_of = np.arange(len(start)) - np.repeat(firsts, width)
+    integer = (field_of < 2) | (field_of >= HISTORY_FIELDS)
+    # Steps, indices and counts are digits with a sign at most: no other byte in them.
+    other = np.flatnonzero((b > ord(" ")) & ((b < ord("0")) | (b > ord("9")))
+                           & (b != ord("+")) & (b != ord("-")))
+    if np.any(integer[np.searchsorted(start, other, side="right") - 1]) or np.any(
+            end[integer] - start[integer] > MAX_INT_CHARS):
+        return None
+    try:
+        frame = pd.read_csv(io.BytesIO(data), sep=r"\s+", header=None, dtype=np.float64,
+                            names=list(range(FINAL_FIELDS)), engine="c", keep_default_na=False,
+                            na_values=[""])
+    except (ValueError, pd.errors.ParserError):
+        return None
+    if len(frame) != len(width):
+        return None
+    numbers = frame.to_numpy()
+    final = width == FINAL_FIELDS
+    step, index = numbers[:, 0].astype(np.int64), numbers[:, 1].astype(np.int64)
+    counts = np.full((len(frame), 2), -1, dtype=np.int64)
+    counts[final] = numbers[final, 6:8].astype(np.int64)
+    value = (field_of >= 2) & (field_of < HISTORY_FIELDS)
+    vs, ve = start[value].reshape(-1, 4), end[value].reshape(-1, 4)
+    dots = np.flatnonzero(b == ord("."))
+    j = np.minimum(np.searchsorted(dots, vs), max(len(dots) - 1, 0))
+    has_dot = (dots[j] < ve) & (dots[j] >= vs) if len(dots) else np.zeros(vs.shape, bool)
+    decimals = np.where(has_dot, ve - (dots[j] if len(dots) else 0) - 1, 0)
+    half = 0.5 * 10.0 ** (-decimals.astype(np.float64))
+    exps = np.flatnonzero((b == ord("e")) | (b == ord("E")))
+    if len(exps):
+        k = np.minimum(np.searchsorted(exps, vs), len(exps) - 1)
+        for flat in np.flatnonzero(((exps[k] < ve) & (exps[k] >= vs)).ravel()):
+            half.flat[flat] = half_unit_exp(data[vs.flat[flat]:ve.flat[flat]].decode())
+    rows = _last_of_each(step, index)
+    return Rows(step[rows], index[rows], numbers[rows, 2:6], _Tokens(data, vs[rows], ve[rows]),
+                counts[rows], half=half[rows])
+
+
+def _last_of_each(step: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """The rows that stand: the last line of each (step, index), in the order of their
+    first lines."""
+    key = pd.DataFrame({"s": step, "i": index})
+    last = ~key.duplicated(keep="last").to_numpy()
+    first = key.groupby(["s", "i"], sort=False).ngroup().to_numpy()
+    order = np.argsort(first[last], kind="stable")
+    return np.flatnonzero(last)[order]
 
 
 def _read_rows_fast(text: str) -> Rows | None:
@@ -92,12 +194,7 @@ def _read_rows_fast(text: str) -> Rows | None:
         counts[final] = frame.loc[final, [6, 7]].to_numpy(dtype=object).astype(np.int64)
     except (ValueError, OverflowError):
         return None
-    # The last line of each (step, index) stands, kept in the order of their first lines.
-    key = pd.DataFrame({"s": step, "i": index})
-    last = ~key.duplicated(keep="last").to_numpy()
-    first = key.groupby(["s", "i"], sort=False).ngroup().to_numpy()
-    order = np.argsort(first[last], kind="stable")
-    rows = np.flatnonzero(last)[order]
+    rows = _last_of_each(step, index)
     tokens = list(map(tuple, frame[[2, 3, 4, 5]].to_numpy()[rows]))
     return Rows(step[rows], index[rows], numbers[rows], tokens, counts[rows])
 
@@ -166,9 +263,24 @@ def printed_like(token: str, value: float) -> bool:
         return False
 
 
-def _printed_like_all(tokens: np.ndarray, values: np.ndarray) -> bool:
-    """printed_like for every token and value, a column format at a time where the tokens
+def _printed_like_all(rows: Rows, which: np.ndarray, values: np.ndarray,
+                      half: np.ndarray) -> bool:
+    """printed_like for every token and value. A value within half a unit of its token, or
+    beyond it, by more than the roundings of reading both as doubles is decided by arithmetic;
+    only the few at the edge are printed again, a column format at a time where the tokens
     of a column share their decimals."""
+    printed = rows.values[which]
+    with np.errstate(invalid="ignore"):
+        gap = np.abs(printed - values)
+        edge = 4 * np.spacing(np.maximum(np.abs(printed), np.abs(values)))
+        if np.any(~np.isfinite(gap) | (gap > half + edge)):
+            return False
+        unsure = gap >= half - edge
+    if not unsure.any():
+        return True
+    edge_rows = np.flatnonzero(unsure.any(axis=1))
+    tokens = np.array([rows.tokens[int(which[k])] for k in edge_rows], dtype=str).reshape(-1, 4)
+    values = values[edge_rows]
     for column in range(tokens.shape[1]):
         texts, numbers = tokens[:, column], values[:, column]
         point = np.char.find(texts, ".")
@@ -239,17 +351,17 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
     if n and steps not in printed_steps:
         return _failed(f"printed no state after the last step (step {steps}); steps printed: "
                        f"{_ranges(printed_steps)}")
-    seq_at = {int(k): j for j, k in enumerate(_keys(theirs, n))}
     mine = np.flatnonzero(inside)
-    match = np.array([seq_at.get(int(k), -1) for k in _keys(ours, n)[mine]], dtype=np.int64)
+    # seq's row of each of the program's (its keys are unique: the last line of each stands)
+    match = pd.Index(_keys(theirs, n)).get_indexer(_keys(ours, n)[mine]).astype(np.int64)
     mine, match = mine[match >= 0], match[match >= 0]
     if not len(mine):
         return _failed("no line matches a (step, particle) that seq prints")
     p, q = ours.values[mine], theirs.values[match]
     step_of = ours.step[mine]
     slack = ARITH_ULPS * DOUBLE_EPS * L
-    printed = np.array(ours.tokens, dtype=str).reshape(-1, 4)[mine]
-    tolerance = half_units(printed) + slack
+    half = ours.halves()[mine]
+    tolerance = half + slack
     with np.errstate(invalid="ignore"):
         deviation = np.where(np.isfinite(p), np.abs(p - q), np.inf)
     outside = np.any(deviation > tolerance, axis=1)
@@ -269,7 +381,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
                                   f"{i} ends with pcoll wcoll {count_p[k, 0]} "
                                   f"{count_p[k, 1]} where seq counts {count_q[k, 0]} "
                                   f"{count_q[k, 1]}")
-        same = _printed_like_all(printed, q)
+        same = _printed_like_all(ours, mine, q, half)
         verdict = IDENTICAL if same else ROUNDING
         return Agreement(verdict, steps_compared=compared, details=extra,
                          note="" if same else "within rounding of seq at every step")
@@ -399,14 +511,14 @@ def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, n
     printed values."""
     states: dict[int, np.ndarray] = {}
     halves: dict[int, np.ndarray] = {}
-    tokens = np.array(rows.tokens, dtype=str).reshape(-1, 4)
+    printed_half = rows.halves()
     for step in np.unique(rows.step[inside]):
         at = np.flatnonzero(inside & (rows.step == step))
         if len(at) != n:
             continue
         state, half = np.empty((n, 4)), np.empty((n, 4))
         state[rows.index[at]] = rows.values[at]
-        half[rows.index[at]] = half_units(tokens[at])
+        half[rows.index[at]] = printed_half[at]
         if np.all(np.isfinite(state)):
             states[int(step)] = state
             halves[int(step)] = half
@@ -416,6 +528,8 @@ def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, n
 def first_difference(a: str, b: str) -> tuple[int, int, str, str] | None:
     """The first (step, particle) whose printed values differ between two outputs of one
     program, with both as printed; None when they print the same rows."""
+    if a == b:
+        return None
     one, two = read_rows(a), read_rows(b)
     left = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(one.step, one.index, strict=True))}
     right = {(int(s), int(i)): k for k, (s, i) in enumerate(zip(two.step, two.index, strict=True))}

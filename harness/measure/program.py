@@ -6,7 +6,10 @@
      scene), its stdout judged against seq's `--precise` print-mode output on the same input,
      and step by step by the reference's `--replay` (harness.measure.agreement);
   3. at the config's highest thread count, the check run twice more, once at that count and
-     once at 1 thread: outputs that differ make the program nondeterministic.
+     once at 1 thread: outputs that differ make the program nondeterministic; and for a
+     program with `source:` and `build:`, a copy built with ThreadSanitizer run on a small
+     scene (harness.measure.races): a data race makes it nondeterministic too, whatever its
+     outputs were.
 
 The cell is ok when the program agrees (identical, rounding, correct, imprecise), invalid when
 it is wrong, nondeterministic or its output cannot be compared; either way it is then timed
@@ -15,6 +18,7 @@ like any variant.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shlex
 import signal
@@ -24,6 +28,7 @@ from pathlib import Path
 
 from harness.measure.agreement import Agreement, first_difference, judge
 from harness.measure.proc import ProcessResult, exit_status, run_process, tail
+from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
 from harness.measure.steps import Replay
@@ -94,6 +99,14 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
         verdict = _repeatable(program, store.input_file(scene), cell.threads, env, timeout_s,
                               text) or verdict
+        if program.build:
+            small = small_scene(cell.scene)
+            check = find_races(program, store.input_file(small), small.describe(), env,
+                               timeout_s)
+            record.update(races=check.column(), race_check={
+                "threads": check.threads, "scene": check.scene, "note": check.note,
+                "races": [dataclasses.asdict(r) for r in check.races or ()]})
+            verdict = with_races(verdict, check)
     record.update(verdict.fields())
     where = []
     if steps < cell.scene.steps:
@@ -149,9 +162,28 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
     return None
 
 
+def with_races(verdict: Agreement, check: RaceCheck) -> Agreement:
+    """The verdict with what the ThreadSanitizer run found: a program with a data race is
+    nondeterministic whatever its outputs were (they agreed by the luck of the schedule), and
+    the note says why; a verdict of outputs that could not be judged stays."""
+    if not check.note:
+        return verdict
+    if not check.races or verdict.verdict in (AGREEMENT_FAILED, NONDETERMINISTIC):
+        return dataclasses.replace(verdict, note="; ".join(
+            n for n in (verdict.note, check.note) if n))
+    alone = verdict.verdict + (f": {verdict.note}" if verdict.note else "")
+    return Agreement(NONDETERMINISTIC, steps_compared=verdict.steps_compared,
+                     note=f"{check.note}; its outputs judged alone: {alone}",
+                     details={**verdict.details, "outputs_verdict": verdict.verdict})
+
+
 def _described(program: Program) -> dict[str, str]:
-    return {"name": program.name, "command": program.command, "check": program.check,
-            "directory": str(program.directory)}
+    described = {"name": program.name, "command": program.command, "check": program.check,
+                 "directory": str(program.directory)}
+    if program.build:
+        described.update(build=program.build,
+                         source=" ".join(str(p) for p in program.source))
+    return described
 
 
 def _signal(code: int | None) -> int | None:

@@ -9,7 +9,10 @@ the successor is measured, not guessed: the state is replayed again perturbed wi
 signs, and their opposites), and a value is locally right when it lies within the program's own
 printing, a few roundings of L, and REPLAY_SAFETY times the spread of the perturbed successors
 that made the same decision, of any replayed successor. A replay that made another decision
-(another partner, a wall instead of a pair) is a near-tie: the program may follow it.
+(another partner, a wall instead of a pair) is a near-tie: the program may follow it. Unless
+the two events are a real tie: the program's event and the reference's at the same time by the
+reference's arithmetic from the state the program printed. The tie order decides those, as at
+an exact input.
 
 A program that is locally right only with a coarser uncertainty (a float build, another contact-
 time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
@@ -26,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from harness.measure.events import pair_times, seq_event, wall_time
 from harness.spec.builds import DOUBLE_EPS
 
 ARITH_ULPS = 64.0  # double roundings of L a correct program may differ by (another order)
@@ -86,11 +90,11 @@ def half_units(tokens: np.ndarray) -> np.ndarray:
     out = 0.5 * 10.0 ** (-decimals.astype(np.float64))
     exponent = np.char.find(np.char.lower(tokens), "e") >= 0
     for k in np.flatnonzero(exponent.ravel()):
-        out.flat[k] = _half_unit_exp(str(tokens.flat[k]))
+        out.flat[k] = half_unit_exp(str(tokens.flat[k]))
     return out
 
 
-def _half_unit_exp(token: str) -> float:
+def half_unit_exp(token: str) -> float:
     mantissa, _, exponent = token.lower().lstrip("+-").partition("e")
     decimals = len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
     try:
@@ -236,18 +240,23 @@ class _Explainer:
         for k in steps:
             rows = np.flatnonzero(open_[k])
             ref = self.base.values[k][rows]
-            spread = np.zeros((len(rows), 4))
-            tie = np.zeros(len(rows), dtype=bool)
-            # A state known exactly (the input, as the program holds it) has no near-ties: a
-            # coarser precision explains the values of its decisions, never other decisions.
-            exact = k in self.exact
+            others, changes = [], []
             for c in range(COPIES):
                 label = (c + 1) * stride + k
-                other = ((perturbed.kind[label][rows] != self.base.kind[k][rows])
-                         | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
-                change = np.abs(perturbed.values[label][rows] - ref)
-                spread += np.where(other[:, None], 0.0, change) if exact else change
-                tie |= other & (not exact)
+                others.append((perturbed.kind[label][rows] != self.base.kind[k][rows])
+                              | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
+                changes.append(np.abs(perturbed.values[label][rows] - ref))
+            # A state known exactly (the input, as the program holds it), or a real tie in a
+            # printed one, has no near-ties: a coarser precision explains the values of its
+            # decisions, never other decisions.
+            decided = np.full(len(rows), k in self.exact)
+            flipped = np.any(others, axis=0)
+            if not decided.all() and flipped.any():
+                decided[flipped] = self.real_ties(k, rows[flipped])
+            spread = np.zeros((len(rows), 4))
+            for other, change in zip(others, changes, strict=True):
+                spread += np.where((other & decided)[:, None], 0.0, change)
+            tie = flipped & ~decided
             best = self.deviation[k][rows]
             out_amp = 0.0 if level is None else level * self.L
             tolerance = self.halves[k + 1][rows] + self.slack + out_amp + REPLAY_SAFETY * spread
@@ -258,3 +267,26 @@ class _Explainer:
                 mask[rows[bad]] = True
                 still[k] = mask
         return still
+
+    def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
+        """Which of these particles took, in the program's step k + 1, another event than the
+        reference's at exactly the reference's time, both from the program's state at step k
+        by the reference's arithmetic (harness.measure.events): a tie that the tie order
+        decides, not a near-tie."""
+        before, after = self.states[k], self.states[k + 1]
+        out = np.zeros(len(rows), dtype=bool)
+        for m, i in enumerate(rows):
+            kind, partner = int(self.base.kind[k][i]), int(self.base.partner[k][i])
+            if kind == EVENT_CODES["pair"]:
+                t = float(pair_times(before, int(i), self.r)[partner])
+            elif kind == EVENT_CODES["wall"]:
+                t = wall_time(before[i, :2], before[i, 2:], self.L, self.r)[0]
+            else:
+                continue
+            mine = seq_event(before, after, int(i), self.L, self.r)
+            if mine is None or mine.kind == "free":
+                continue
+            same = mine.kind == EVENT_NAMES[kind] and (mine.partner is None
+                                                       or mine.partner == partner)
+            out[m] = not same and mine.t == t
+        return out

@@ -453,6 +453,22 @@ def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path
                            + ", ".join(taken) + ")", name)
 
 
+def _check_source(value: object, where: str, config: Path, extra: tuple[str, ...]) -> None:
+    """`source:`: a path or a non-empty list of paths relative to the config, each existing
+    (a class's, with {path} or {dir}, is checked per program when it is built)."""
+    listed = [value] if isinstance(value, str) else value
+    expected = "a source file or directory relative to the config, or a list of them"
+    if not isinstance(listed, list) or not listed or not all(
+            isinstance(p, str) and p.strip() for p in listed):
+        raise config_error(config, where, expected, value)
+    if extra:
+        return
+    for path in listed:
+        if not (config.resolve().parent / path).exists():
+            raise config_error(config, where, f"{expected} (not found: "
+                               f"{config.resolve().parent / path})", value)
+
+
 def _parse_binaries(value: object, source: Path,
                     variants: Sequence[str]) -> tuple[tuple[str, Path], ...]:
     raw = kinds.mapping(value, "binaries", source)
@@ -470,15 +486,18 @@ def _parse_binaries(value: object, source: Path,
 
 
 PROGRAM_FORMS = ('a command template such as "./sim {threads} < {input}", or '
-                 '{command: TEMPLATE, check: TEMPLATE}, or a class: {glob: PATTERN, command: '
-                 'TEMPLATE with {path}}')
+                 '{command: TEMPLATE, check: TEMPLATE, source: PATH, build: TEMPLATE}, or a '
+                 'class: {glob: PATTERN, command: TEMPLATE with {path}}')
+BUILD_FORM = ('a build command template with {cc}, {cflags} and {out} (and optionally '
+              '{source}), such as "{cc} {cflags} {source} -o {out} -lm"')
 
 
 def _parse_programs(value: object, source: Path, taken: Sequence[str]
                     ) -> tuple[tuple[programs.Program, ...], dict[str, tuple[str, ...]]]:
-    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE}}` or a class
-    `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one program per file matched, {path} in
-    the templates); the programs, and each class's program names."""
+    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE, source:
+    PATH, build: TEMPLATE}}` or a class `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one
+    program per file matched, {path} and {dir} in the templates); the programs, and each
+    class's program names."""
     raw = kinds.mapping(value, "programs", source)
     result = []
     classes: dict[str, tuple[str, ...]] = {}
@@ -491,18 +510,31 @@ def _parse_programs(value: object, source: Path, taken: Sequence[str]
         kinds.reject_unknown(fields, programs.PROGRAM_KEYS, f"{label}.", source)
         if "command" not in fields:
             raise config_error(source, f"{label}.command", "a command template", MISSING)
-        extra = (programs.PATH,) if programs.GLOB in fields else ()
+        extra = (programs.PATH, programs.DIR) if programs.GLOB in fields else ()
         for key, template in fields.items():
             where = label if isinstance(entry, str) else f"{label}.{key}"
+            if key == programs.SOURCE:
+                _check_source(template, where, source, extra)
+                continue
             if not isinstance(template, str) or not template.strip():
-                raise config_error(source, where, PROGRAM_FORMS, template)
+                raise config_error(source, where, BUILD_FORM if key == programs.BUILD
+                                   else PROGRAM_FORMS, template)
             if key == programs.GLOB:
                 continue
             try:
-                programs.placeholders(template, extra)
+                if key == programs.BUILD:
+                    programs.placeholders(template, extra, programs.BUILD_PLACEHOLDERS,
+                                          programs.BUILD_REQUIRED)
+                else:
+                    programs.placeholders(template, extra)
             except programs.TemplateError as exc:
-                raise config_error(source, where, f"a command template with {{input}} and "
-                                   f"optionally {{threads}}: {exc}", template) from None
+                raise config_error(source, where, f"{BUILD_FORM}: {exc}" if key == programs.BUILD
+                                   else f"a command template with {{input}} and optionally "
+                                   f"{{threads}}: {exc}", template) from None
+        for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
+            if one in fields and other not in fields:
+                raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "
+                                   "(the harness builds the program from its source)", MISSING)
         directory = source.resolve().parent
         if not extra:
             result.append(programs.from_mapping(name, fields, directory))

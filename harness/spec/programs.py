@@ -15,8 +15,23 @@ OMP_NUM_THREADS). The command runs through `sh -c` in the config file's director
 where given, is the command of the check run (the input then says `print`; a program that
 needs a flag to print every step takes it there); by default the check runs `command`.
 
-A program's cells are identified by its commands and the content of every file they name
-(a rebuilt program is measured again); nothing else about it is known to the harness.
+A program with its source may say how it is built, so that the harness can build a copy of
+its own (harness.measure.races: with ThreadSanitizer, to find its data races):
+
+    programs:
+      alice:
+        command: "./alice/sim {threads} < {input}"
+        source: alice/sim.c
+        build: "{cc} {cflags} {source} -o {out} -lm"
+
+`source:` is a file or directory (or a list of them) relative to the config; `build:` a shell
+command run in the config's directory, `{cc}` the compiler, `{cflags}` its flags, `{out}` the
+binary to write, `{source}` the source paths. That copy replaces the program's binary in its
+command: the first word of the command that names a file (a class's `{path}`).
+
+A program's cells are identified by its commands, the content of every file they name and of
+its source, and its build (a rebuilt program is measured again); nothing else about it is
+known to the harness.
 """
 
 from __future__ import annotations
@@ -35,14 +50,14 @@ from harness.spec.variants import BASELINE, GRID
 
 # The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for
-# more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6,
-# where seq's all pairs would take hours). Its steps are judged from the program's own states
-# by `--replay` of seq, or of grid from REPLAY_GRID_MIN_N particles (the same successors; seq's
-# all pairs cost ~50 ms a step at 10,000 particles, and a check replays each step up to 25
+# more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6; seq's
+# all pairs cost ~50 ms a step at 10,000 particles, a 50-step reference 13 s where grid takes
+# 2 s). Its steps are judged from the program's own states by `--replay` of seq, or of grid
+# from REPLAY_GRID_MIN_N particles (the same successors; a check replays each step up to 25
 # times).
 CHECK_MAX_STATES = 200_000
-CHECK_SEQ_MAX_N = 20_000
 REPLAY_GRID_MIN_N = 2_000
+CHECK_SEQ_MAX_N = REPLAY_GRID_MIN_N - 1
 FAST_REFERENCE = GRID
 # The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
 REFERENCE = "reference"
@@ -51,9 +66,20 @@ REPLAY = "replay"
 INPUT = "input"
 THREADS = "threads"
 PATH = "path"  # a class's programs (GLOB): the file the glob matched, quoted for the shell
+DIR = "dir"  # a class's programs: the directory of the file matched (quoted in templates)
 PLACEHOLDERS = (INPUT, THREADS)
 GLOB = "glob"
-PROGRAM_KEYS = ("command", "check", GLOB)
+SOURCE = "source"
+BUILD = "build"
+PROGRAM_KEYS = ("command", "check", GLOB, SOURCE, BUILD)
+TEMPLATE_KEYS = ("command", "check")  # the keys that hold a run's command template
+# The placeholders of `build:`: the compiler, its flags and the binary to write, which a
+# build must use (the harness builds its own copies with them), and the source paths.
+CC = "cc"
+CFLAGS = "cflags"
+OUT = "out"
+BUILD_REQUIRED = {CC: "the compiler", CFLAGS: "the compiler's flags", OUT: "the binary to write"}
+BUILD_PLACEHOLDERS = (CC, CFLAGS, OUT, SOURCE)
 SHELL = "sh"
 
 
@@ -79,10 +105,13 @@ class TemplateError(ValueError):
     """A command template that cannot be used; the message says what is wrong."""
 
 
-def placeholders(template: str, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
-    """The {names} of a template; a TemplateError for an unknown one or stray braces. `extra`:
-    names allowed beside PLACEHOLDERS ({path} in a class's template)."""
-    known = (*PLACEHOLDERS, *extra)
+def placeholders(template: str, extra: tuple[str, ...] = (),
+                 known_here: tuple[str, ...] = PLACEHOLDERS,
+                 required: Mapping[str, str] | None = None) -> tuple[str, ...]:
+    """The {names} of a template; a TemplateError for an unknown one, a missing required one
+    (`required`: name -> what it stands for; default {input}) or stray braces. `extra`: names
+    allowed beside `known_here` ({path} in a class's template)."""
+    known = (*known_here, *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
@@ -98,8 +127,13 @@ def placeholders(template: str, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
             raise TemplateError(f"unknown placeholder {field} (known: "
                                 + ", ".join("{" + p + "}" for p in known) + ")")
         names.append(name)
-    if INPUT not in names:
-        raise TemplateError("no {input}: the program must be given the input file")
+    if required is None:
+        if INPUT not in names:
+            raise TemplateError("no {input}: the program must be given the input file")
+        return tuple(names)
+    for name, meaning in required.items():
+        if name not in names:
+            raise TemplateError(f"no {{{name}}} ({meaning})")
     return tuple(names)
 
 
@@ -111,6 +145,9 @@ class Program:
     command: str
     check: str
     directory: Path  # the config file's directory: the commands run there
+    source: tuple[Path, ...] = ()  # its source files or directories (absolute)
+    build: str = ""  # its build template ({cc}, {cflags}, {out}, {source}); "" without
+    binary: str = ""  # a class's program: its {path} as the templates hold it
 
     def shell_command(self, template: str, input_file: Path, threads: int) -> list[str]:
         """The argv that runs a template for one input and thread count: `sh -c 'cd DIR &&
@@ -118,6 +155,44 @@ class Program:
         hand both find the program's files."""
         rendered = template.format(input=shlex.quote(str(input_file)), threads=threads)
         return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
+
+    def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:
+        """The argv that builds the program with a compiler and flags of the harness's choice
+        into `out`."""
+        sources = []
+        for path in self.source:
+            try:
+                sources.append(str(path.relative_to(self.directory)))
+            except ValueError:
+                sources.append(str(path))
+        rendered = self.build.format(cc=shlex.quote(cc), cflags=cflags, out=shlex.quote(str(out)),
+                                     source=shlex.join(sources))
+        return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
+
+    def with_binary(self, template: str, binary: Path) -> str | None:
+        """The template with the program's binary replaced by another: a class's {path}, or
+        the first word naming a file in its directory; None when it names none."""
+        word = self.binary
+        if not word:
+            word = next((w for w in _words(template) if w and (self.directory / w).is_file()),
+                        "")
+        if not word:
+            return None
+        replacement = shlex.quote(str(binary)).replace("{", "{{").replace("}", "}}")
+        # The word as a whole shell word, where it is written unquoted.
+        pattern = r"(?<![^\s;&|()<>])" + re.escape(word) + r"(?![^\s;&|()<>])"
+        replaced, count = re.subn(pattern, lambda _: replacement, template, count=1)
+        return replaced if count else None
+
+    def source_files(self) -> list[Path]:
+        """Every file of its source (a directory's, recursively), sorted."""
+        found: dict[Path, None] = {}
+        for path in self.source:
+            if path.is_dir():
+                found.update(dict.fromkeys(p for p in sorted(path.rglob("*")) if p.is_file()))
+            elif path.is_file():
+                found[path] = None
+        return sorted(found)
 
     def named_files(self) -> list[Path]:
         """The files the commands name: each word that is a file relative to the directory,
@@ -141,7 +216,9 @@ class Program:
         digest = hashlib.sha256()
         for part in (self.command, self.check):
             digest.update(part.encode() + b"\0")
-        for path in self.named_files():
+        if self.build:  # without one, the hash of a program from before builds were known
+            digest.update(b"build\0" + self.build.encode() + b"\0")
+        for path in [*self.named_files(), *self.source_files()]:
             digest.update(str(path).encode() + b"\0")
             try:
                 digest.update(hashlib.sha256(path.read_bytes()).digest())
@@ -163,9 +240,19 @@ def _words(template: str) -> list[str]:
 
 
 def from_mapping(name: str, value: Mapping[str, object], directory: Path) -> Program:
-    """A Program from `command` and optional `check` (already checked to be strings)."""
+    """A Program from `command` and optional `check`, `source` and `build` (already checked
+    to be strings, `source` a string or a list of them)."""
     command = str(value["command"])
-    return Program(name, command, str(value.get("check", command)), directory)
+    return Program(name, command, str(value.get("check", command)), directory,
+                   source_paths(value.get(SOURCE), directory), str(value.get(BUILD, "")))
+
+
+def source_paths(value: object, directory: Path) -> tuple[Path, ...]:
+    """`source:` (a path or a list of paths relative to the directory) as absolute paths."""
+    if value is None:
+        return ()
+    listed = [value] if isinstance(value, str) else list(value)  # type: ignore[call-overload]
+    return tuple((directory / str(path)).resolve() for path in listed)
 
 
 def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
@@ -184,8 +271,19 @@ def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
 
 
 def member(name: str, value: Mapping[str, object], path: Path, directory: Path) -> Program:
-    """The program of one file a class's glob matched: its templates with {path} filled in."""
-    quoted = shlex.quote(str(path)).replace("{", "{{").replace("}", "}}")
-    command = str(value["command"]).replace("{" + PATH + "}", quoted)
-    check = str(value.get("check", value["command"])).replace("{" + PATH + "}", quoted)
-    return Program(name, command, check, directory)
+    """The program of one file a class's glob matched: its templates with {path} and {dir}
+    filled in (quoted; in `source:` as plain paths)."""
+    def quoted(text: Path) -> str:
+        return shlex.quote(str(text)).replace("{", "{{").replace("}", "}}")
+
+    def filled(template: str, path_text: str, dir_text: str) -> str:
+        return template.replace("{" + PATH + "}", path_text).replace("{" + DIR + "}", dir_text)
+
+    command, check = (filled(str(value.get(key, value["command"])), quoted(path),
+                             quoted(path.parent)) for key in TEMPLATE_KEYS)
+    raw = value.get(SOURCE)
+    listed = [] if raw is None else [raw] if isinstance(raw, str) else list(raw)  # type: ignore[call-overload]
+    sources = [filled(str(s), str(path), str(path.parent)) for s in listed]
+    build = filled(str(value.get(BUILD, "")), quoted(path), quoted(path.parent))
+    return Program(name, command, check, directory, source_paths(sources or None, directory),
+                   build, binary=quoted(path))

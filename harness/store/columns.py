@@ -114,8 +114,12 @@ STOPPED_BUDGET = "budget"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME,
                                     STOPPED_DECIDED, STOPPED_BUDGET)
 # A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
-# rounding; empty: never) and the rule that step breaks, only where some cell is a program's.
-PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule")
+# rounding; empty: never), the rule that step breaks, and the data races ThreadSanitizer found
+# in it (`FILE:LINE and FILE:LINE (variables)`, `;`-separated; `none`; empty where it was not
+# checked: a program without `build:`, or another cell than its highest thread count's), only
+# where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule", "races")
+NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.

@@ -158,15 +158,22 @@ def test_printed_like_compares_at_the_tokens_precision() -> None:
     rows("%.17g") + rows("%.3f"),  # every row printed twice: the later stands
     "0 0 1e-3 2 3 nan\n0 1 +4 5 6 inf\n1 0 1 2 3 4 5 6\n",
 ])
-def test_the_fast_reader_reads_what_the_line_reader_reads(text: str) -> None:
-    fast, slow = agreement._read_rows_fast(text), agreement._read_rows_by_line(text)
-    assert fast is not None
-    assert fast.tokens == slow.tokens
-    for name in ("step", "index", "values", "counts"):
-        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+def test_the_fast_readers_read_what_the_line_reader_reads(text: str) -> None:
+    slow = agreement._read_rows_by_line(text)
+    numeric = agreement._read_rows_numeric(text)
+    readers = [agreement._read_rows_fast(text), *([numeric] if "nan" not in text else [])]
+    assert (numeric is None) == ("nan" in text)  # nan and inf: the reader of strings
+    for fast in readers:
+        assert fast is not None
+        assert list(fast.tokens) == list(slow.tokens)
+        assert np.array_equal(fast.halves(), slow.halves())
+        for name in ("step", "index", "values", "counts"):
+            assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
 
 
 def test_lines_that_are_no_rows_leave_the_fast_reader() -> None:
-    assert agreement._read_rows_fast("0 0 1 2 3 four\n") is None
-    assert agreement._read_rows_fast("0 0.5 1 2 3 4\n") is None
-    assert agreement._read_rows_fast("hello\n" + rows("%.6f")) is None
+    for reader in (agreement._read_rows_fast, agreement._read_rows_numeric):
+        assert reader("0 0 1 2 3 four\n") is None
+        assert reader("0 0.5 1 2 3 4\n") is None
+        assert reader("0 0 1 2 3 4 1e3 0\n") is None
+        assert reader("hello\n" + rows("%.6f")) is None

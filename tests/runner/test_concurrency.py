@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from harness import repo
@@ -15,8 +17,9 @@ from harness.store import locks
 
 REPO_ROOT = repo.REPO_ROOT
 TIMEOUT_S = 120
-# A variant that takes two seconds a run: the first run holds the lock long enough to be met.
-SLOW = "#!/bin/sh\nsleep 2\nexec {seq} \"$@\"\n"
+# A variant that takes six seconds a run: the first run holds the lock long enough to be met
+# by two more harness processes, each of which takes seconds to start on a loaded machine.
+SLOW = "#!/bin/sh\nsleep 6\nexec {seq} \"$@\"\n"
 CONFIG = ("name: slowlock\nvariants: [slow]\nscene: {{n: 40, L: 400, r: 1, steps: 2}}\n"
           "measure: {{warmup: 0, runs: 1, timeout_s: 30}}\nbinaries: {{slow: {slow}}}\n")
 
@@ -28,7 +31,28 @@ def start_run(config: Path, root: Path, lock_dir: Path, *extra: str) -> subproce
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@contextlib.contextmanager
+def reaped() -> Iterator[list[subprocess.Popen[str]]]:
+    """The processes appended to the list are killed, waited for and their pipes closed when
+    the body ends, also when an assertion fails: none is left to the garbage collector, which
+    would report its pipes as unclosed files in whichever later test it runs."""
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        yield procs
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+            proc.communicate()
+
+
 def test_a_second_run_waits_and_no_wait_refuses(real_binaries: Path, tmp_path: Path) -> None:
+    with reaped() as procs:
+        waits_and_refuses(real_binaries, tmp_path, procs)
+
+
+def waits_and_refuses(real_binaries: Path, tmp_path: Path,
+                      procs: list[subprocess.Popen[str]]) -> None:
     slow = tmp_path / "slow.sh"
     slow.write_text(SLOW.format(seq=real_binaries / "seq"))
     slow.chmod(0o755)
@@ -36,12 +60,14 @@ def test_a_second_run_waits_and_no_wait_refuses(real_binaries: Path, tmp_path: P
     config.write_text(CONFIG.format(slow=slow))
     root, lock_dir = tmp_path / "results", tmp_path / "lock"
     first = start_run(config, root, lock_dir)
+    procs.append(first)
     deadline = time.monotonic() + TIMEOUT_S
     while f"pid {first.pid}," not in locks.describe_holder(lock_dir / locks.LOCK_NAME):
         assert first.poll() is None and time.monotonic() < deadline, first.communicate()
         time.sleep(0.05)
     refused = start_run(config, root, lock_dir, "--no-wait")
     second = start_run(config, root, lock_dir)
+    procs += [refused, second]
     _, refused_err = refused.communicate(timeout=TIMEOUT_S)
     assert refused.returncode == 2
     assert refused_err.startswith("error: another run is measuring on this machine "
@@ -82,12 +108,13 @@ for k in range(count):
 
 def test_two_writers_keep_each_others_rows(tmp_path: Path) -> None:
     count = 40
-    procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), machine,
-                               str(count)], cwd=REPO_ROOT, stderr=subprocess.PIPE, text=True)
-             for machine in ("aaaa", "bbbb")]
-    for proc in procs:
-        _, err = proc.communicate(timeout=TIMEOUT_S)
-        assert proc.returncode == 0, err
+    with reaped() as procs:
+        procs += [subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), machine,
+                                    str(count)], cwd=REPO_ROOT, stderr=subprocess.PIPE, text=True)
+                  for machine in ("aaaa", "bbbb")]
+        for proc in procs:
+            _, err = proc.communicate(timeout=TIMEOUT_S)
+            assert proc.returncode == 0, err
     rows = list(csv.DictReader(io.StringIO((tmp_path / "results.csv").read_text())))
     # both machines' rows of every cell, whichever process wrote last
     assert sorted(r["machine_id"] for r in rows) == ["aaaa"] * count + ["bbbb"] * count

@@ -33,6 +33,9 @@ FLAGS = {
 # step, contact at 2r = 2). The rules take the pair first; then 0 moves at -6 and stops at the
 # wall it meets at once.
 TIE_SCENE = "3 100 1 3\nprint\n0 2 50 -2 0\n1 6 50 -6 0\n2 50 80 1 1\n"
+# The same tie one step later: both move freely in step 0 (to x = 2 and 6), and the tie is in
+# the state the program prints at step 1, exactly (its six decimals are the state itself).
+LATER_TIE_SCENE = "3 100 1 3\nprint\n0 4 50 -2 0\n1 12 50 -6 0\n2 50 80 1 1\n"
 
 
 def compile_program(name: str, out: Path) -> Path:
@@ -164,6 +167,24 @@ def test_the_wrong_tie_order_is_wrong_at_the_tie(real_binaries: Path, programs: 
     assert "collided with particle 1 at t = 0.5" in verdict.seq_did
 
 
+def test_the_wrong_tie_order_is_wrong_at_a_later_step_too(real_binaries: Path, programs: Path,
+                                                          tmp_path: Path) -> None:
+    """A tie in a printed state, not the input: the two events are at the same time by the
+    reference's arithmetic from the state the program printed, so the order is the rules'
+    to decide, not a near-tie within the printed uncertainty."""
+    path = tmp_path / "later-tie.in"
+    path.write_text(LATER_TIE_SCENE)
+    seq = real_binaries / "seq"
+    right, reference = graded(programs, seq, "plain", path, n=3, L=100.0, steps=3)
+    assert right.verdict == IDENTICAL, right.note
+    assert "1 0 2 50 -2 0\n1 1 6 50 -6 0\n" in reference  # the tie is at step 1
+    verdict, _ = graded(programs, seq, "tie", path, n=3, L=100.0, steps=3)
+    assert (verdict.verdict, verdict.first_diff_step, verdict.particle) == (WRONG, 2, 0), \
+        verdict.note
+    assert "tie order" in verdict.rule, verdict.note
+    assert "collided with particle 1 at t = 0.5" in verdict.seq_did
+
+
 def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -> None:
     outputs = {subprocess.run([str(programs / "race"), str(THREADS), str(scene)],
                               capture_output=True, text=True, check=True).stdout
@@ -174,14 +195,11 @@ def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -
     assert found is not None and 0 <= found[0] <= STEPS
 
 
-# A file left open somewhere in the run and the report (not yet traced) is collected while
-# matplotlib draws; the test judges the class table, not that.
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
 def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: Path,
                                                  tmp_path: Path) -> None:
     """A class of three submissions through the harness: the right one ranks, the slip is wrong
-    at step 2 particle 7 with its figure, the race is nondeterministic; programs.csv has the
-    class table's rows."""
+    at step 2 particle 7 with its figure, the race is nondeterministic, with its races found
+    by ThreadSanitizer at their lines; programs.csv has the class table's rows."""
     import csv
     import io
     import shutil
@@ -194,12 +212,19 @@ def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: 
     for name in ("plain", "slip", "race"):
         (tmp_path / "submissions" / name).mkdir(parents=True)
         shutil.copy(programs / name, tmp_path / "submissions" / name / "sim")
+        shutil.copy(SOURCE, tmp_path / "submissions" / name / "student.c")
+        (tmp_path / "submissions" / name / "flags").write_text(" ".join(FLAGS[name]))
     config = tmp_path / "class.yaml"
+    build = "{cc} {cflags} -std=c11 -ffp-contract=off $(cat {dir}/flags) {source} -o {out} -lm"
     config.write_text(f"""\
 name: class
 variants: [seq, class]
 programs:
-  class: {{glob: "submissions/*/sim", command: "{{path}} {{threads}} {{input}}"}}
+  class:
+    glob: "submissions/*/sim"
+    command: "{{path}} {{threads}} {{input}}"
+    source: "{{dir}}/student.c"
+    build: "{build}"
 scene: {{n: {N}, L: {L:g}, r: {R:g}, steps: {STEPS}, seed: {SEED}}}
 threads: [1, 2]
 measure: {{warmup: 0, runs: 1, timeout_s: 120}}
@@ -218,6 +243,14 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     race = got[("race", "2")]
     assert race["agreement"] == "nondeterministic" and race["status"] == "invalid"
     assert "differ: first at step" in race["note"]
+    # ThreadSanitizer, at the highest thread count only: the race's shared temporaries at the
+    # line that writes them, nothing in the others
+    line = next(k for k, text in enumerate(SOURCE.read_text().splitlines(), start=1)
+                if text.strip().startswith("dx = x[j] - x[i];"))
+    where = f"submissions/race/student.c:{line}"
+    assert race["races"].startswith(f"{where} and {where}") and "ThreadSanitizer" in race["note"]
+    assert (got[("plain", "2")]["races"], got[("slip", "2")]["races"]) == ("none", "none")
+    assert got[("race", "1")]["races"] == ""
     report = pipeline.render(root, tmp_path / "report").read_text()
     assert "### Programs" in report and "`slip`'s first wrong step (2" in report
     with (tmp_path / "report" / "figures" / "class-programs.csv").open() as handle:
@@ -227,6 +260,7 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     assert by_name["plain"]["rank"] == "1" and by_name["slip"]["rank"] == ""
     assert (by_name["slip"]["verdict"], by_name["slip"]["first_wrong_step"]) == (WRONG, "2")
     assert by_name["race"]["repeatable"] == "no"
+    assert by_name["race"]["races"] == race["races"] and by_name["plain"]["races"] == "none"
     assert float(by_name["plain"]["speedup_vs_seq"]) > 0
     assert float(by_name["plain"]["efficiency"]) == pytest.approx(
         float(by_name["plain"]["speedup_vs_1t"]) / 2)

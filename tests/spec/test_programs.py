@@ -50,6 +50,21 @@ def test_a_template_and_a_mapping_load(write_config: Write) -> None:
     ("  'al ice': './sim {input}'", "programs.al ice", "a new variant name"),
     ("  alice: './sim {input}'\n  bob: './sim {input}'", "programs.bob",
      "a program also listed under variants"),
+    # source: and build: go together; the source exists; the build has {cc} {cflags} {out}
+    ("  alice: {command: './sim {input}', source: exp.yaml}", "programs.alice.build",
+     "`build:` beside `source:`"),
+    ("  alice: {command: './sim {input}', build: '{cc} {cflags} -o {out} a.c'}",
+     "programs.alice.source", "`source:` beside `build:`"),
+    ("  alice: {command: './sim {input}', source: no.c, build: '{cc} {cflags} -o {out} no.c'}",
+     "programs.alice.source", "not found"),
+    ("  alice: {command: './sim {input}', source: [], build: '{cc} {cflags} -o {out} a.c'}",
+     "programs.alice.source", "a source file or directory"),
+    ("  alice: {command: './sim {input}', source: ., build: '{cc} {cflags} a.c'}",
+     "programs.alice.build", "no {out}"),
+    ("  alice: {command: './sim {input}', source: ., build: 'gcc -o {out} a.c'}",
+     "programs.alice.build", "no {cc}"),
+    ("  alice: {command: './sim {input}', source: ., build: '{cc} {cflags} -o {out} {input}'}",
+     "programs.alice.build", "unknown placeholder {input}"),
 ])
 def test_a_bad_program_names_the_file_and_key(write_config: Write, programs_yaml: str, key: str,
                                               expected: str) -> None:
@@ -92,6 +107,49 @@ def test_the_fingerprint_follows_the_commands_and_the_files_they_name(tmp_path: 
     assert next(p.name for p in python.named_files()).startswith("python3")
     other = programs.Program("a", "./sim {input}", "./sim {input}", tmp_path)
     assert other.fingerprint() != program.fingerprint()
+
+
+def test_a_program_with_source_and_build_is_built_by_the_harness(write_config: Write,
+                                                                  tmp_path: Path) -> None:
+    """`source:` and `build:` load; the build renders the harness's compiler, flags and
+    binary; that binary replaces the program's in its command; the source identifies it."""
+    (tmp_path / "alice").mkdir()
+    source = tmp_path / "alice" / "sim.c"
+    source.write_text("int main(void) { return 0; }\n")
+    (tmp_path / "alice" / "sim").write_text("#!/bin/sh\n")
+    path = write_config(BASE + "variants: [seq, alice]\nprograms:\n  alice:\n"
+                        "    command: 'OMP_PROC_BIND=true ./alice/sim {threads} < {input}'\n"
+                        "    source: alice/sim.c\n"
+                        "    build: '{cc} {cflags} {source} -o {out}'\n")
+    alice = load_config(path).programs[0]
+    assert alice.source == (source.resolve(),) and alice.source_files() == [source.resolve()]
+    argv = alice.build_command("cc", "-O1 -g", tmp_path / "out dir" / "sim-copy")
+    assert argv[-1].endswith("&& cc -O1 -g alice/sim.c -o '" + str(tmp_path)
+                             + "/out dir/sim-copy'")
+    assert alice.with_binary(alice.command, Path("/tmp/sim-tsan")) == \
+        "OMP_PROC_BIND=true /tmp/sim-tsan {threads} < {input}"
+    first = alice.fingerprint()
+    source.write_text("int main(void) { return 1; }\n")  # a changed source: measured again
+    assert alice.fingerprint() != first
+    unbuilt = programs.Program("a", "python3 a.py {input}", "python3 a.py {input}", tmp_path)
+    assert unbuilt.with_binary(unbuilt.command, Path("/x")) is None  # it names no file
+
+
+def test_a_class_builds_each_program_from_its_directory(write_config: Write,
+                                                        tmp_path: Path) -> None:
+    for name in ("ann", "bo b"):
+        (tmp_path / "subs" / name).mkdir(parents=True)
+        (tmp_path / "subs" / name / "sim").write_text("#!/bin/sh\n")
+    path = write_config(BASE + "variants: [seq, class]\nprograms:\n  class:\n"
+                        "    glob: 'subs/*/sim'\n    command: '{path} {threads} {input}'\n"
+                        "    source: '{dir}/sim.c'\n"
+                        "    build: 'cd {dir} && {cc} {cflags} sim.c -o {out}'\n")
+    ann, bob = load_config(path).programs
+    assert bob.name == "bo_b" and bob.source == ((tmp_path / "subs" / "bo b" / "sim.c"),)
+    assert "cd '" + str(tmp_path / "subs" / "bo b") + "' && clang" in bob.build_command(
+        "clang", "", Path("/o"))[-1]
+    assert bob.with_binary(bob.command, Path("/tmp/t")) == "/tmp/t {threads} {input}"
+    assert ann.with_binary(ann.check, Path("/tmp/t")) == "/tmp/t {threads} {input}"
 
 
 def test_with_a_program_every_scene_lists_its_particles(write_config: Write) -> None:

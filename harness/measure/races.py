@@ -1,0 +1,212 @@
+"""The data races of a program that says how it is built (`source:` and `build:`,
+harness.spec.programs): a copy built with ThreadSanitizer, run on a small scene, and each race
+TSan reports read as the file:line of its two accesses.
+
+The copy is built by clang with LLVM's OpenMP runtime and run with Archer (LLVM's OpenMP tool,
+loaded by OMP_TOOL_LIBRARIES), which tells TSan about the runtime's barriers, locks and tasks:
+OpenMP code then has no false positives. gcc's TSan does not see libgomp's barriers, so every
+parallel loop followed by serial code would be reported. TSan's checks are of happens-before,
+not of timing: a race in code that runs is found on any scene that runs it, with two threads.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.measure.proc import run_process
+from harness.spec import scenes
+from harness.spec.programs import Program
+from harness.store.columns import NO_RACES
+
+TSAN_CC = "clang"
+TSAN_CFLAGS = "-fsanitize=thread -fopenmp -g -O1 -fno-omit-frame-pointer"
+# Archer lies beside LLVM's libomp, in the lib directory of clang's own installation.
+ARCHER = "libarcher.so"
+# The runtime's own frames are not instrumented; exit code 0 so that a report does not count
+# as the program's failure; the reports go to files (log_path.PID), not into its stderr.
+TSAN_OPTIONS = "ignore_noninstrumented_modules=1 exitcode=0 log_path={log}"
+# The small scene: at most TSAN_N particles at the cell's density, TSAN_STEPS steps, and
+# TSAN_THREADS threads (two are enough to show an unsynchronised pair of accesses).
+TSAN_N = 200
+TSAN_STEPS = 5
+TSAN_THREADS = 2
+PACKAGES = "clang libclang-rt-dev libomp-dev"  # Debian's: clang, its TSan runtime, Archer
+LAST_LINES = 3
+
+
+@dataclass(frozen=True)
+class Race:
+    """One data race: the file:line of its two accesses (in sorted order) and the global
+    variables it was reported on."""
+
+    first: str
+    second: str
+    variables: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        where = f" ({', '.join(self.variables)})" if self.variables else ""
+        return f"{self.first} and {self.second}{where}"
+
+
+@dataclass(frozen=True)
+class RaceCheck:
+    """What the ThreadSanitizer run found: its races (None: it did not run) and a note."""
+
+    races: tuple[Race, ...] | None
+    note: str = ""
+    threads: int = TSAN_THREADS
+    scene: str = ""
+
+    def column(self) -> str:
+        """The races column: each race's file:lines, `none`, or empty when not checked."""
+        if self.races is None:
+            return ""
+        return "; ".join(r.describe() for r in self.races) if self.races else NO_RACES
+
+
+WARNING = re.compile(r"^WARNING: ThreadSanitizer: data race")
+ACCESS = re.compile(r"^\s+(Previous )?(atomic )?(read|write) of size \d+ at ", re.IGNORECASE)
+# `#0 function /path/file.c:116:16 (binary+0x...)`; a C++ function's name has spaces.
+FRAME = re.compile(r"^\s+#\d+ .* (?P<file>\S+?):(?P<line>\d+)(?::\d+)? \(")
+ANY_FRAME = re.compile(r"^\s+#\d+ ")
+LOCATION = re.compile(r"^\s+Location is global '(?P<name>[^']+)'")
+SEPARATOR = re.compile(r"^={10,}$")
+
+
+def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
+    """The data races of TSan's report text, deduplicated by their two file:lines, in the
+    order of their files and lines. An access is placed at its first stack frame in a file under
+    `directory` (the program's own code; shown relative to it), else its first frame with a
+    file."""
+    found: dict[tuple[str, str], list[str]] = {}
+    for block in _blocks(text):
+        accesses: list[list[str]] = []
+        variable = ""
+        stack = False  # in the frames of an access's stack (they follow its line at once)
+        for line in block:
+            if ACCESS.match(line):
+                accesses.append([])
+                stack = True
+            elif stack and ANY_FRAME.match(line):
+                frame = FRAME.match(line)
+                if frame is not None:
+                    accesses[-1].append(f"{_shown(frame['file'], directory)}:{frame['line']}")
+            else:
+                stack = False
+                if location := LOCATION.match(line):
+                    variable = location["name"]
+        places = [_own(frames) for frames in accesses[:2]]
+        if len(places) != 2 or not all(places):
+            continue
+        key = (min(places, key=_place_key), max(places, key=_place_key))
+        names = found.setdefault(key, [])
+        if variable and variable not in names:
+            names.append(variable)
+    return tuple(Race(a, b, tuple(names)) for (a, b), names in sorted(
+        found.items(), key=lambda item: (_place_key(item[0][0]), _place_key(item[0][1]))))
+
+
+def _place_key(place: str) -> tuple[str, int]:
+    file, _, line = place.rpartition(":")
+    return file, int(line)
+
+
+def _blocks(text: str) -> list[list[str]]:
+    blocks: list[list[str]] = []
+    current: list[str] | None = None
+    for line in text.splitlines():
+        if WARNING.match(line):
+            current = []
+            blocks.append(current)
+        elif SEPARATOR.match(line):
+            current = None
+        elif current is not None:
+            current.append(line)
+    return blocks
+
+
+def _shown(file: str, directory: Path) -> str:
+    path = Path(file)
+    try:
+        return str(path.resolve().relative_to(directory.resolve())) if path.is_absolute() \
+            else file
+    except ValueError:
+        return file
+
+
+def _own(frames: list[str]) -> str:
+    """The first frame in the program's own files (a relative path), else the first one."""
+    own = [f for f in frames if not f.startswith("/")]
+    return own[0] if own else (frames[0] if frames else "")
+
+
+def small_scene(scene: scenes.ScenePoint) -> scenes.ScenePoint:
+    """The scene the TSan copy runs: at most TSAN_N particles drawn from the cell's seed, in
+    a box shrunk to keep the cell's density (its collisions), at most TSAN_STEPS steps."""
+    n = min(scene.n, TSAN_N)
+    L = scene.L * math.sqrt(n / scene.n) if scene.n else scene.L
+    if scenes.scene_problem(n, L, scene.r, scene.steps, scene.mode) is not None:
+        L = scene.L
+    steps = min(scene.steps, TSAN_STEPS)
+    return scenes.with_every_particle(scenes.random_point(n, L, scene.r, steps, scene.mode,
+                                                          scene.seed))
+
+
+def archer_library(clang: str) -> Path | None:
+    """Archer of clang's own LLVM installation (its bin/ beside its lib/), if installed."""
+    path = Path(os.path.realpath(clang)).parent.parent / "lib" / ARCHER
+    return path if path.is_file() else None
+
+
+def find_races(program: Program, input_file: Path, description: str, env: Mapping[str, str],
+               timeout_s: float, threads: int = TSAN_THREADS) -> RaceCheck:
+    """Build the program with ThreadSanitizer (its `build:`, clang's flags), run its command
+    on `input_file` at `threads` threads with Archer, and read the races reported."""
+    def skipped(why: str) -> RaceCheck:
+        return RaceCheck(None, f"not checked for races: {why}", threads, description)
+
+    clang = shutil.which(TSAN_CC)
+    if clang is None:
+        return skipped(f"{TSAN_CC} not found (Debian: apt-get install {PACKAGES})")
+    archer = archer_library(clang)
+    if archer is None:
+        return skipped(f"{ARCHER} not found beside {TSAN_CC} (Debian: apt-get install "
+                       f"{PACKAGES})")
+    missing = [str(p) for p in program.source if not p.exists()]
+    if missing:
+        return skipped(f"its source is missing: {', '.join(missing)}")
+    with tempfile.TemporaryDirectory(prefix="tsan-") as tmp:
+        binary = Path(tmp) / f"{program.name}-tsan"
+        built = run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
+        if built.returncode != 0 or not binary.is_file():
+            why = ("passed the timeout" if built.returncode is None
+                   else f"exit {built.returncode}")
+            last = " | ".join(built.stderr.strip().splitlines()[-LAST_LINES:])
+            return skipped(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS}) failed: "
+                           f"{why}" + (f": {last}" if last else ""))
+        template = program.with_binary(program.command, binary)
+        if template is None:
+            return skipped("its command names no file its build replaces (the program's "
+                           "binary must be a word of its command)")
+        log = Path(tmp) / "tsan"
+        run_env = {**env, "OMP_NUM_THREADS": str(threads), "OMP_TOOL_LIBRARIES": str(archer),
+                   "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
+        ran = run_process(program.shell_command(template, input_file, threads), run_env,
+                          timeout_s)
+        reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
+        races = parse_reports(reports, program.directory)
+        note = ""
+        if ran.returncode != 0 and not races:
+            why = "passed the timeout" if ran.returncode is None else f"exit {ran.returncode}"
+            return skipped(f"its ThreadSanitizer run did not finish ({why})")
+        if races:
+            note = (f"ThreadSanitizer found {len(races)} data race(s) at {threads} threads on "
+                    f"{description}: " + "; ".join(r.describe() for r in races))
+        return RaceCheck(races, note, threads, description)
