@@ -12,15 +12,17 @@ from harness.analysis.flags import provenance
 from harness.report.document import Figure, Table
 
 
-def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None) -> Table:
+def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None,
+                files: Sequence[Path] = ()) -> Table:
     """A built table formatted for display, numbers right-aligned; with `source` (the cells
-    it was built from) the caption says which commit(s) measured them."""
+    it was built from) the caption says which commit(s) measured them; `files` (the table as a
+    CSV) are linked after it."""
     if source is not None:
         caption = " ".join(t for t in (caption, provenance(source)) if t)
     align = tuple(is_numeric_column(table, c) for c in display_columns(table))
     shown = format_table(table)
     rows = tuple(tuple(str(v) for v in row) for row in shown.itertuples(index=False))
-    return Table(tuple(str(c) for c in shown.columns), rows, align, caption)
+    return Table(tuple(str(c) for c in shown.columns), rows, align, caption, tuple(files))
 
 
 def figure_block(paths: Sequence[Path], caption: str) -> Figure:

@@ -40,6 +40,7 @@ class Table:
     rows: tuple[tuple[str, ...], ...]
     align_right: tuple[bool, ...]
     caption: str
+    files: tuple[Path, ...] = ()  # the table as files (a CSV), linked after the caption
     kind: ClassVar[str] = "table"
 
 
@@ -126,6 +127,8 @@ def document_files(doc: Document) -> set[Path]:
         for block in section_blocks(section):
             if isinstance(block, Figure):
                 files |= {block.image, *block.alternates}
+            elif isinstance(block, Table):
+                files |= set(block.files)
     return files
 
 
@@ -143,7 +146,8 @@ def block_to_json(block: Block, base: Path) -> dict[str, object]:
     if isinstance(block, Table):
         return {"kind": block.kind, "columns": list(block.columns),
                 "rows": [list(r) for r in block.rows], "align_right": list(block.align_right),
-                "caption": block.caption}
+                "caption": block.caption,
+                "files": [p.relative_to(base).as_posix() for p in block.files]}
     return {"kind": block.kind, "image": block.image.relative_to(base).as_posix(),
             "caption": block.caption,
             "alternates": [p.relative_to(base).as_posix() for p in block.alternates]}
@@ -157,7 +161,8 @@ def block_from_json(data: dict, base: Path) -> Block:
         return Bullets(tuple(data["items"]))
     if kind == Table.kind:
         return Table(tuple(data["columns"]), tuple(tuple(r) for r in data["rows"]),
-                     tuple(data["align_right"]), data["caption"])
+                     tuple(data["align_right"]), data["caption"],
+                     tuple(base / p for p in data.get("files", ())))
     if kind == Figure.kind:
         return Figure(base / data["image"], data["caption"],
                       tuple(base / p for p in data["alternates"]))

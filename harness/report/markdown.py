@@ -14,10 +14,13 @@ def _md_cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
-def markdown_table(table: Table) -> list[str]:
+def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
     header = [_md_cell(c) for c in table.columns]
     rule = ["---:" if right else "---" for right in table.align_right]
-    lines = [f"*{table.caption}*", ""] if table.caption else []
+    links = " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
+                     for p in table.files) if out_dir is not None else ""
+    caption = f"*{table.caption}* {links}".rstrip() if table.caption else links
+    lines = [caption, ""] if caption else []
     lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(rule) + " |"]
     for row in table.rows:
         lines.append("| " + " | ".join(_md_cell(v) for v in row) + " |")
@@ -38,7 +41,7 @@ def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
         elif isinstance(block, Bullets):
             lines.extend(f"- {item}" for item in block.items)
         elif isinstance(block, Table):
-            lines.extend(markdown_table(block))
+            lines.extend(markdown_table(block, out_dir))
         else:
             image = block.image.relative_to(out_dir).as_posix()
             links = " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"

@@ -57,8 +57,8 @@ def build(ctx: Context) -> list[Section]:
     csv = ctx.figs.draw(write_csv, grades, stem)[0]
     blocks: list[Block] = [
         Paragraph(INTRO),
-        table_block(grades, f"The class: one row per program (also as [{csv.name}]"
-                            f"(figures/{csv.name}), for a gradebook).", programs),
+        table_block(grades, "The class: one row per program (also as a CSV, for a gradebook).",
+                    programs, files=[csv]),
         table_block(program_table(frame), "Each program cell's verdict.", programs),
     ]
     blocks += _wrong_steps(ctx, programs)
