@@ -28,9 +28,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness import stats
-from harness.analysis.resultsets import Cell, MatchKey, Side, matched
+from harness.analysis.resultsets import (
+    NEW_ONLY,
+    NOT_OK,
+    OLD_ONLY,
+    Cell,
+    MatchKey,
+    Side,
+    matched,
+    not_comparable,
+)
 from harness.store import layout, records
-from harness.store.columns import OK
 
 EXIT_OK = 0
 EXIT_SLOWER = 1
@@ -56,9 +64,6 @@ APART = "measured apart"
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
 VERDICTS = stats.VERDICTS
-NOT_OK = "not compared (status)"
-OLD_ONLY = "old only"
-NEW_ONLY = "new only"
 
 
 @dataclass(frozen=True)
@@ -164,12 +169,8 @@ def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
     inconclusive."""
     rows = []
     for key, a, b, note in matched(old, new):
-        if a is None:
-            rows.append(Row(key, NEW_ONLY, None, b, note=note))
-        elif b is None:
-            rows.append(Row(key, OLD_ONLY, a, None, note=note))
-        elif a.status != OK or b.status != OK:
-            rows.append(Row(key, NOT_OK, a, b, note=note))
+        if (kind := not_comparable(a, b)) is not None:
+            rows.append(Row(key, kind, a, b, note=note))
         else:
             rows.append(compare_cells(a, b, threshold, drift, note))
     tested = [k for k, row in enumerate(rows) if row.compared]

@@ -20,8 +20,16 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from harness.analysis.resultsets import Cell, MatchKey, Side, matched
-from harness.store.columns import OK
+from harness.analysis.resultsets import (
+    NEW_ONLY,
+    NOT_OK,
+    OLD_ONLY,
+    Cell,
+    MatchKey,
+    Side,
+    matched,
+    not_comparable,
+)
 
 EXIT_OK = 0
 EXIT_MORE = 1  # as for a slower cell: NEW executes more instructions somewhere
@@ -37,10 +45,7 @@ VERDICTS = (MORE, FEWER, SAME, WITHIN)
 # or its runs' spread where that is wider.
 VARYING_SHARE = 0.01
 NOT_COUNTED = "not counted"
-NOT_OK = "not compared (status)"
 OTHER_TOOL = "not compared (counters differ)"
-OLD_ONLY = "old only"
-NEW_ONLY = "new only"
 KINDS = (*VERDICTS, NOT_COUNTED, NOT_OK, OTHER_TOOL, OLD_ONLY, NEW_ONLY)
 RATIO_DECIMALS = 6
 
@@ -104,12 +109,8 @@ def compare_instructions(old: Side, new: Side) -> list[ExactRow]:
     """Every key of either side, in order: judged, or listed with why not."""
     rows = []
     for key, a, b, note in matched(old, new):
-        if a is None:
-            rows.append(ExactRow(key, NEW_ONLY, None, b, note=note))
-        elif b is None:
-            rows.append(ExactRow(key, OLD_ONLY, a, None, note=note))
-        elif a.status != OK or b.status != OK:
-            rows.append(ExactRow(key, NOT_OK, a, b, note=note))
+        if (kind := not_comparable(a, b)) is not None:
+            rows.append(ExactRow(key, kind, a, b, note=note))
         elif not (_counted(a) and _counted(b)):
             missing = " and ".join(side for side, cell in (("OLD", a), ("NEW", b))
                                    if not _counted(cell))

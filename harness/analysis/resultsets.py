@@ -19,7 +19,7 @@ from harness.analysis.flags import _is_true
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
 from harness.store import hyperfine, layout, records
-from harness.store.columns import MATCH_COLUMNS
+from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.layout import ExperimentDir
 
 # The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
@@ -257,6 +257,21 @@ class Side:
 
 
 COMMIT_CHARS = 12
+
+
+# Why a key of two sides is not compared, whichever way they are compared.
+NOT_OK = "not compared (status)"
+OLD_ONLY = "old only"
+NEW_ONLY = "new only"
+
+
+def not_comparable(old: Cell | None, new: Cell | None) -> str | None:
+    """OLD_ONLY, NEW_ONLY or NOT_OK where a key's two cells cannot be compared, else None."""
+    if old is None:
+        return NEW_ONLY
+    if new is None:
+        return OLD_ONLY
+    return NOT_OK if old.status != OK or new.status != OK else None
 
 
 def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell | None, str]]:
