@@ -14,11 +14,16 @@ def _md_cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
+def file_links(paths: Iterable[Path], out_dir: Path) -> str:
+    """`([CSV](figures/x.csv))` for each file, relative to the page's directory."""
+    return " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
+                    for p in paths)
+
+
 def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
     header = [_md_cell(c) for c in table.columns]
     rule = ["---:" if right else "---" for right in table.align_right]
-    links = " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
-                     for p in table.files) if out_dir is not None else ""
+    links = file_links(table.files, out_dir) if out_dir is not None else ""
     caption = f"*{table.caption}* {links}".rstrip() if table.caption else links
     lines = [caption, ""] if caption else []
     lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(rule) + " |"]
@@ -44,8 +49,7 @@ def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
             lines.extend(markdown_table(block, out_dir))
         else:
             image = block.image.relative_to(out_dir).as_posix()
-            links = " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
-                             for p in block.alternates)
+            links = file_links(block.alternates, out_dir)
             lines.append(f"![{block.caption}]({image})")
             lines.append("")
             lines.append(f"*{block.caption}* {links}".rstrip())

@@ -47,8 +47,12 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     values["machine"] = described.get("label") if isinstance(described, dict) else None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
     if times:
-        if record.get("wall_median_ci_low_s") is None or values[LOW_QUANTILE_COLUMN] is None:
+        if record.get("wall_median_ci_low_s") is None:
             values.update(uncertainty(times))
+        elif values[LOW_QUANTILE_COLUMN] is None:  # a record older than the column: no bootstrap
+            from harness import stats
+
+            values[LOW_QUANTILE_COLUMN] = stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)
         values["wall_times_s"] = records.join_floats(times)
     else:
         values["wall_times_s"] = None
