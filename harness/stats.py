@@ -1,8 +1,8 @@
 """Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
 
 Everything here is scipy.stats: a percentile bootstrap for medians and for ratios and
-differences of medians (speedup, NEW/OLD), a one-sample t-test on the per-round log ratios of
-two sides measured together, a normal test for two measured apart (allowing for the machine's
+differences of medians (speedup, NEW/OLD), the sign test on the per-round log ratios of two
+sides measured together, a normal test for two measured apart (allowing for the machine's
 drift), Benjamini-Hochberg across a comparison's cells, and a least-squares fit with its
 standard error. The bootstrap's generator is seeded from the data itself, so the same times
 always give the same interval: results.csv and the report do not change when nothing was
@@ -262,32 +262,38 @@ INCONCLUSIVE = "inconclusive"
 VERDICTS = (SLOWER, FASTER, UNCHANGED, INCONCLUSIVE)
 
 # Sequential looks of a paired comparison that adds rounds until its cells are decided: the
-# first look at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many rounds. The
-# error rate is spent over the looks (look j spends LOOK_WEIGHT(j) of it, the weights summing
-# to 1), so that looking again and stopping when a look decides cannot inflate the rate of
-# false verdicts: a union bound over the looks (an alpha-spending group-sequential design).
+# first look at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many rounds, the
+# last at LAST_LOOK. The error rate is spent over the looks (look j spends look_weight(j) of it,
+# the weights summing to 1), so that looking again and stopping when a look decides cannot
+# inflate the rate of false verdicts: a union bound over the looks (an alpha-spending
+# group-sequential design). Half of the rate is kept for the last look, where a cell that the
+# machine's noise left undecided is judged on the most rounds.
 FIRST_LOOK_ROUNDS = 12
 LOOK_GROWTH = 1.5
+LAST_LOOK = 7  # at look_rounds(LAST_LOOK) = 138 rounds; no rounds are added beyond it
 
 
 def look_rounds(look: int) -> int:
-    """The rounds at which look `look` (1, 2, ...) is taken."""
+    """The rounds at which look `look` (1, 2, ..., LAST_LOOK) is taken."""
     return math.ceil(FIRST_LOOK_ROUNDS * LOOK_GROWTH ** (look - 1) - 1e-9)
 
 
 def look_index(rounds: int) -> int:
     """The look a test of `rounds` rounds counts as: 1 up to the first look's rounds, then one
     more for each look passed (a comparison stopped between looks, by its budget, spends the
-    next look's share)."""
+    next look's share), LAST_LOOK at most."""
     look = 1
-    while look_rounds(look) < rounds:
+    while look < LAST_LOOK and look_rounds(look) < rounds:
         look += 1
     return look
 
 
 def look_weight(look: int) -> float:
-    """The share of the error rate look `look` spends: 1 / (j (j + 1)), summing to 1."""
-    return 1.0 / (look * (look + 1))
+    """The share of the error rate look `look` spends: 1 / (2 j (j + 1)) before the last, and
+    the rest (just over half) at the last, so that the shares sum to 1."""
+    if look < LAST_LOOK:
+        return 1.0 / (2 * look * (look + 1))
+    return 1.0 - (1.0 - 1.0 / LAST_LOOK) / 2
 
 
 @dataclass(frozen=True)
@@ -358,7 +364,7 @@ def further_rounds(change: Change, threshold: float, look: int | None = None) ->
     distance = abs(abs(math.log(change.ratio.point)) - margin)
     if distance == 0.0:
         return math.inf
-    next_look = (look if look is not None else change.look) + 1
+    next_look = min((look if look is not None else change.look) + 1, LAST_LOOK)
     z = float(sps.norm.ppf(1 - (1 - CONFIDENCE) * look_weight(next_look) / 2))
     allowed = (distance / z) ** 2 - change.floor ** 2
     if allowed <= 0.0:
@@ -367,31 +373,19 @@ def further_rounds(change: Change, threshold: float, look: int | None = None) ->
     return float(max(0, math.ceil(needed - change.n)))
 
 
-def _exact_change(ratio: float, threshold: float) -> Change:
-    """A change without spread (every round the same ratio, or exact counts): the claims are
-    certain (p 0) or false (p 1)."""
+def _exact_change(ratio: float, threshold: float, n: int = 0) -> Change:
+    """A change without spread (every round the same ratio, or exact counts; `n` of them):
+    the claims are certain (p 0) or false (p 1)."""
     margin = math.log1p(threshold)
     log_ratio = math.log(ratio)
     within = -margin <= log_ratio <= margin
     return Change(Interval(ratio, ratio, ratio), 0.0 if log_ratio > margin else 1.0,
-                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
+                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, n)
 
 
-CLIP_MADS = 3.0  # per-round log ratios are clipped to this many (scaled) MADs of their median
-# Per-round log ratios closer than this (relative) to their mean are one ratio: beyond it lie
+# Per-round log ratios closer than this (relative) to their median are one ratio: beyond it lie
 # 14 of a double's 15-16 digits, where scipy's variance warns of precision loss.
 SAME_RATIO = 1e-14
-
-
-def clip_outliers(values: np.ndarray) -> np.ndarray:
-    """The values clipped to their median +- CLIP_MADS median absolute deviations (scaled to a
-    normal distribution's standard deviation): a shared machine's stray slow run (a few in a
-    hundred take 10-50% longer) then weighs like a large ordinary one instead of deciding a
-    test alone."""
-    median = float(np.median(values))
-    mad = float(sps.median_abs_deviation(values, scale="normal"))
-    return values if mad == 0.0 else np.clip(values, median - CLIP_MADS * mad,
-                                             median + CLIP_MADS * mad)
 
 
 def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, float]:
@@ -463,48 +457,54 @@ def paired_series(old: dict[int, float], new: dict[int, float],
     return [old[k] for k in common], [new[k] for k in common]
 
 
-def paired_log_ratios(old: Sequence[float], new: Sequence[float]) -> np.ndarray:
-    """log(new[k] / old[k]) of the rounds where both were measured, the finite ones, clipped
-    (clip_outliers): what a paired comparison tests, and whose spread decides what it can
-    find (smallest_detectable)."""
-    d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
-    d = d[np.isfinite(d)]
-    return clip_outliers(d) if d.size >= 2 else d
-
-
 def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
                   look: int | None = None) -> Change:
     """The change from paired measurements: old[k] and new[k] were measured in the same round,
-    one right after the other, so that the machine's drift is in both. The ratio is the
-    geometric mean of the per-round ratios (paired_log_ratios), its interval and p-values
-    from one-sample t-tests on those logs (against +-log(1 + threshold) for the p-values).
+    one right after the other, so that the machine's drift is in both. The ratio is the median
+    of the per-round ratios, its interval and p-values from the sign test on their logs
+    (scipy.stats.quantile_test: the interval is the order statistics that hold the median, the
+    p-values are binomial; against +-log(1 + threshold) for the p-values).
+
+    Why the median and the sign test: on a shared machine a round's two sides often run in
+    different states of the machine (a neighbour busy for one of them, the host's speed
+    changed between them), which moves its ratio by 10-40% either way, while the rounds whose
+    sides ran alike cluster tightly around the true ratio. The sign test reads only on which
+    side of a value each ratio lies, so those rounds cost it one vote each instead of widening
+    every interval as they widen a t-test's (docs/compare.md has the power of both on this
+    machine's rounds). Under identical sides, a round's ratio is as likely above 1 as below
+    (the order of its two sides is shuffled), which is all the test assumes.
 
     Rounds may have been added until the cell was decided (look_index): the p-values are
     those of the look the rounds count as (divided by its share of the error rate) and the
     interval is at that look's level, so that an interval shown inside the threshold is one
-    the sequential design allows."""
-    d = paired_log_ratios(old, new)
+    the sequential design allows. `sd` is the per-round spread the interval implies (its
+    half-width in logs over the normal quantile of its level, times the square root of the
+    rounds), what further_rounds and smallest_detectable read."""
+    d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
+    d = d[np.isfinite(d)]
     if d.size < 2:
         return NO_CHANGE_KNOWN
-    mean = float(d.mean())
-    if float(np.abs(d - mean).max()) <= SAME_RATIO * abs(mean) or float(d.std()) == 0.0:
-        # Every round the same ratio: no spread to test against (a t-test would divide by a
-        # spread of zero, or of rounding errors alone).
-        return _exact_change(math.exp(mean), threshold)
+    centre = float(np.median(d))
+    if float(np.abs(d - centre).max()) <= SAME_RATIO * abs(centre) or float(d.std()) == 0.0:
+        # Every round the same ratio: no spread to test against.
+        return _exact_change(math.exp(centre), threshold, int(d.size))
     look = look if look is not None else look_index(int(d.size))
     weight = look_weight(look)
     margin = math.log1p(threshold)
-    interval = sps.ttest_1samp(d, 0.0).confidence_interval(1 - (1 - CONFIDENCE) * weight)
+    level = 1 - (1 - CONFIDENCE) * weight
+    interval = sps.quantile_test(d, q=centre, p=0.5).confidence_interval(level)
+    low, high = float(interval.low), float(interval.high)
 
     def p(value: float, alternative: str) -> float:
-        return min(1.0, float(sps.ttest_1samp(d, value, alternative=alternative).pvalue)
-                   / weight)
+        return min(1.0, float(sps.quantile_test(d, q=value, p=0.5,
+                                                alternative=alternative).pvalue) / weight)
 
-    return Change(Interval(math.exp(mean), math.exp(float(interval.low)),
-                           math.exp(float(interval.high))),
+    z = float(sps.norm.ppf(0.5 + level / 2))
+    sd = (high - low) / (2 * z) * math.sqrt(d.size) if math.isfinite(high - low) else math.nan
+    return Change(Interval(math.exp(centre), math.exp(low), math.exp(high)),
                   p(margin, "greater"), p(-margin, "less"),
                   min(1.0, 2.0 * max(p(-margin, "greater"), p(margin, "less"))),
-                  float(d.std(ddof=1)), int(d.size), 0.0, look)
+                  sd, int(d.size), 0.0, look)
 
 
 def log_spread(ratio: Interval) -> tuple[float, float] | None:

@@ -147,34 +147,48 @@ def test_paired_change_tests_against_the_threshold() -> None:
     small = stats.paired_change(old, old * 1.005 * rng.lognormal(0.0, 0.002, 12), 0.01)
     assert small.p_slower > 0.5  # 0.5% is within the 1% threshold
     large = stats.paired_change(old, old * 1.03 * rng.lognormal(0.0, 0.002, 12), 0.01)
-    assert large.p_slower < 1e-4 and large.ratio.low > 1.01
+    # every round above the threshold: the sign test's smallest p-value for 12 rounds
+    assert large.p_slower == pytest.approx(0.5 ** 12 / stats.look_weight(1))
+    assert large.ratio.low > 1.01
 
 
-def test_a_stray_slow_run_is_clipped_not_decisive() -> None:
+def test_a_stray_slow_run_is_one_vote_not_decisive() -> None:
     d = np.array([0.0, 0.001, -0.001, 0.0005, -0.0005, 0.0, 0.4])
-    clipped = stats.clip_outliers(d)
-    assert clipped[-1] < 0.01 and np.array_equal(clipped[:-1], d[:-1])
     old = np.ones(7)
     change = stats.paired_change(old, old * np.exp(d), 0.01)
     assert change.p_slower > 0.05
+    assert change.ratio.point == pytest.approx(1.0)  # the median, not moved by the stray
 
 
-def test_the_paired_log_ratios_are_the_finite_rounds_clipped() -> None:
-    d = np.array([0.0, 0.001, -0.001, 0.0005, -0.0005, 0.0, 0.4])
-    logs = stats.paired_log_ratios([*np.ones(7), NAN], [*np.exp(d), 1.0])
-    assert logs.size == 7  # a round without a time has no ratio
-    assert np.array_equal(logs, stats.clip_outliers(np.log(np.exp(d))))
-    assert logs[-1] < 0.01
-    # The same test as scipy's: a one-sample t-test of the logs against the threshold, its
-    # p-value divided by the share of the error rate the first look spends.
+def test_the_paired_test_is_the_sign_test_on_the_rounds_log_ratios() -> None:
+    # The same test as scipy's: the sign test of the logs against the threshold, its p-value
+    # divided by the share of the error rate the first look spends; the interval the order
+    # statistics that hold the median at that look's level.
     rng = np.random.default_rng(5)
     old, new = rng.lognormal(0.0, 0.01, 12), rng.lognormal(0.01, 0.01, 12)
-    logs = stats.paired_log_ratios(old, new)
-    change = stats.paired_change(old, new, 0.005)
-    assert change.p_slower == pytest.approx(
-        sps.ttest_1samp(logs, math.log1p(0.005), alternative="greater").pvalue
-        / stats.look_weight(1))
-    assert change.ratio.point == pytest.approx(math.exp(logs.mean()))
+    logs = np.log(new) - np.log(old)
+    change = stats.paired_change([*old, NAN], [*new, 1.0], 0.005)
+    assert change.n == 12  # a round without a time has no ratio
+    assert change.p_slower == pytest.approx(min(1.0, sps.quantile_test(
+        logs, q=math.log1p(0.005), p=0.5, alternative="greater").pvalue / stats.look_weight(1)))
+    assert change.ratio.point == pytest.approx(math.exp(np.median(logs)))
+    assert np.isclose(logs, math.log(change.ratio.low)).any()
+    assert np.isclose(logs, math.log(change.ratio.high)).any()
+
+
+def test_rounds_run_in_different_machine_states_cost_the_sign_test_little() -> None:
+    # Two thirds of the rounds ran both sides alike (a 5% slow-down, 1% spread); a third met
+    # the machine in different states (+-25%). The sign test decides at look 5 (61 rounds),
+    # where a t-test on the same logs is far from deciding.
+    rng = np.random.default_rng(11)
+    n = stats.look_rounds(5)
+    d = np.log(1.05) + rng.normal(0.0, 0.01, n)
+    split = rng.random(n) < 1 / 3
+    d[split] += rng.choice([-0.25, 0.25], split.sum())
+    change = stats.paired_change(np.ones(n), np.exp(d), 0.01)
+    assert stats.decide([change], 0.05) == [stats.SLOWER]
+    t = sps.ttest_1samp(d, math.log(1.01), alternative="greater").pvalue / stats.look_weight(5)
+    assert 2 * t > 0.5
 
 
 def test_drift_widens_the_interval_of_runs_measured_apart() -> None:
@@ -279,7 +293,10 @@ def test_runs_measured_apart_cannot_show_unchanged_within_the_drift() -> None:
 def test_the_looks_spend_the_error_rate_once() -> None:
     assert [stats.look_rounds(j) for j in (1, 2, 3, 4)] == [12, 18, 27, 41]
     assert [stats.look_index(n) for n in (2, 12, 13, 18, 19, 27, 28)] == [1, 1, 2, 2, 3, 3, 4]
-    assert sum(stats.look_weight(j) for j in range(1, 10000)) == pytest.approx(1.0, abs=1e-3)
+    last = stats.LAST_LOOK
+    assert stats.look_index(stats.look_rounds(last) + 50) == last  # no look beyond the last
+    assert sum(stats.look_weight(j) for j in range(1, last + 1)) == pytest.approx(1.0)
+    assert stats.look_weight(last) > 0.5  # half the rate kept for the last look
     # A later look needs a stronger result: the same rounds read as look 3 are less sure.
     old, new = _rounds(0.02, 0.02, 27, 6)
     first, third = stats.paired_change(old, new, 0.01, 1), stats.paired_change(old, new, 0.01, 3)

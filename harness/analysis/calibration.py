@@ -79,17 +79,17 @@ def side(name: str, root: Path) -> Side:
 
 
 def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
-    """Per cell measured together: the standard deviation of the per-round log ratios its
-    paired test reads (stats.paired_log_ratios) and how many rounds they are."""
+    """Per cell measured together: the per-round spread its paired test's interval implies
+    (stats.paired_change's sd) and how many rounds it rests on."""
     found = []
     for key, a in old.cells.items():
         b = new.cells.get(key)
         pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
         if pair is None:
             continue
-        logs = stats.paired_log_ratios(*pair)
-        if logs.size >= 2:
-            found.append((float(logs.std(ddof=1)), int(logs.size)))
+        change = stats.paired_change(*pair, 0.0)
+        if change.n >= 2 and math.isfinite(change.sd):
+            found.append((change.sd, change.n))
     return found
 
 

@@ -10,7 +10,7 @@ with its 95% interval, the p-value that it changed by more than the threshold, a
 How a cell is judged depends on how its two sides were measured:
 - together (`compare --measure`: both sides in the same rounds, one right after the other,
   with the same round seed): per round, the ratio of the two sides' runs, which the machine's
-  drift cannot move; a paired t-test on their logs (stats.paired_change);
+  drift cannot move; the sign test on them (stats.paired_change);
 - apart (two stored result sets, measured minutes or days apart): the ratio of the medians,
   its bootstrap interval widened by the machine's drift between runs measured apart (from its
   calibration, `compare --calibrate`, kept in <results>/calibration/machines/<id>.json, or an
@@ -193,15 +193,16 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
              f"false-discovery rate across the {sum(r.compared for r in rows)} compared cells "
              f"held at {FDR_Q:g} (Benjamini-Hochberg)."]
     if PAIRED in used:
-        lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the geometric mean "
-                     "of the per-round ratios, which the machine's drift between rounds cannot "
-                     "move; 95% interval and p-value from a t-test on their logs, clipped to "
-                     f"{stats.CLIP_MADS:g} MADs of their median (a stray slow run weighs as a "
-                     "large ordinary one). Rounds are added to undecided cells at looks "
+        lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the median of the "
+                     "per-round ratios, which the machine's drift between rounds cannot move; "
+                     "95% interval and p-value from the sign test on them (a round whose two "
+                     "sides met the machine in different states costs one vote, whatever its "
+                     "ratio). Rounds are added to undecided cells at looks "
                      f"{stats.look_rounds(1)}, {stats.look_rounds(2)}, {stats.look_rounds(3)}, "
-                     "... rounds, each spending 1/(j(j+1)) of the error rate (a group-"
-                     "sequential design: stopping when a look decides does not inflate false "
-                     "verdicts); intervals are at the level of the look.")
+                     f"... up to {stats.look_rounds(stats.LAST_LOOK)} rounds, each spending "
+                     "1/(2j(j+1)) of the error rate and the last the rest (a group-sequential "
+                     "design: stopping when a look decides does not inflate false verdicts); "
+                     "intervals are at the level of the look.")
     if APART in used:
         lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
                      "bootstrap interval is widened by the machine's drift between runs "

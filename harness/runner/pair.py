@@ -32,7 +32,7 @@ from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
-from harness.store.columns import STOPPED_BUDGET, STOPPED_DECIDED
+from harness.store.columns import STOPPED_BUDGET, STOPPED_DECIDED, STOPPED_LAST_LOOK
 from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
@@ -49,8 +49,8 @@ class UntilDecided:
     """Rounds until decided: after each round, the cell pairs that reached a look of the
     sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
     control across every pair); a decided pair stops, an undecided one is given the rounds to
-    the next look while the budget lasts, and once it is spent every pair given more rounds
-    stops. The budget counts the seconds from the first look on: every pair gets the first
+    the next look while the budget lasts and the last look (stats.LAST_LOOK) is not reached,
+    and once the budget is spent every pair given more rounds stops. The budget counts the seconds from the first look on: every pair gets the first
     look's rounds."""
 
     pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
@@ -86,13 +86,14 @@ class UntilDecided:
             for k in at_look:
                 old, new = self.pairs[k]
                 verdict = verdicts.get(k, stats.INCONCLUSIVE)
+                look = stats.look_index(len(set(old.state.rounds)))
                 if verdict != stats.INCONCLUSIVE:
                     self._stop(k, STOPPED_DECIDED, verdict)
+                elif look >= stats.LAST_LOOK:
+                    self._stop(k, STOPPED_LAST_LOOK, verdict)
                 elif self.left_s() > 0:
-                    rounds = len(set(old.state.rounds))
-                    wanted = stats.look_rounds(stats.look_index(rounds) + 1)
                     for unit in (old, new):
-                        unit.state.min_rounds = wanted
+                        unit.state.min_rounds = stats.look_rounds(look + 1)
                         unit.state.stopped = ""
                 else:
                     self._stop(k, STOPPED_BUDGET, verdict)

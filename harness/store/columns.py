@@ -107,12 +107,13 @@ STOPPED_RUNS = "runs"
 STOPPED_CI = "ci"
 STOPPED_MAX_RUNS = "max_runs"
 STOPPED_MAX_TIME = "max_time_s"
-# A cell pair measured together (compare --measure) stops when its verdict is decided, or when
-# the comparison's time budget is spent.
+# A cell pair measured together (compare --measure) stops when its verdict is decided, when
+# the comparison's time budget is spent, or at the sequential test's last look undecided.
 STOPPED_DECIDED = "decided"
 STOPPED_BUDGET = "budget"
+STOPPED_LAST_LOOK = "last_look"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME,
-                                    STOPPED_DECIDED, STOPPED_BUDGET)
+                                    STOPPED_DECIDED, STOPPED_BUDGET, STOPPED_LAST_LOOK)
 # A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
 # rounding; empty: never), the rule that step breaks, and the data races ThreadSanitizer found
 # in it (`FILE:LINE and FILE:LINE (variables)`, `;`-separated; `none`; empty where it was not

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness import repo
+from harness import repo, stats
 from harness.analysis import compare, resultsets
 from harness.cli.common import EXIT_ERROR
 from harness.report.figures import compare as figcompare
@@ -105,21 +105,25 @@ def test_measured_together_identical_sides_rarely_get_a_verdict() -> None:
 
 
 def test_measured_together_a_five_percent_slowdown_is_found() -> None:
-    """Noise 1% with a stray slow run in 30, 8 rounds (compare --measure's fewest)."""
+    """Noise 1% with a stray slow run in 30, at the first look (compare --measure's fewest
+    rounds)."""
     rng = np.random.default_rng(2)
-    slower, faster, _ = rates([together(rng, 8, 0.01, 0.01, 0.05) for _ in range(50)])
+    slower, faster, _ = rates([together(rng, stats.FIRST_LOOK_ROUNDS, 0.01, 0.01, 0.05)
+                               for _ in range(50)])
     assert slower >= 0.9 and faster == 0.0
 
 
 def test_measured_together_quiet_identical_sides_are_shown_unchanged() -> None:
-    """Noise 0.3%, no drift, 12 rounds: identical sides are unchanged (their whole interval
-    within 1%), never slower or faster; a 3% spread leaves most of them inconclusive, and
-    none is then called unchanged with an interval leaving the threshold."""
+    """Noise 0.3%, no drift, at the second look (18 rounds): identical sides are unchanged
+    (their whole interval within 1%), never slower or faster; a 3% spread leaves most of
+    them inconclusive, and none is then called unchanged with an interval leaving the
+    threshold."""
     rng = np.random.default_rng(5)
-    quiet = [r for _ in range(10) for r in together(rng, 12, 0.003, 0.0, 0.0)]
+    rounds = stats.look_rounds(2)
+    quiet = [r for _ in range(10) for r in together(rng, rounds, 0.003, 0.0, 0.0)]
     assert sum(r.kind == compare.UNCHANGED for r in quiet) >= 0.9 * len(quiet)
     assert not any(r.kind in (compare.SLOWER, compare.FASTER) for r in quiet)
-    noisy_rows = [r for _ in range(10) for r in together(rng, 12, 0.03, 0.01, 0.0)]
+    noisy_rows = [r for _ in range(10) for r in together(rng, rounds, 0.03, 0.01, 0.0)]
     assert sum(r.kind == compare.INCONCLUSIVE for r in noisy_rows) >= 0.5 * len(noisy_rows)
     for row in quiet + noisy_rows:
         if row.kind == compare.UNCHANGED:
@@ -474,7 +478,7 @@ def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:
     paired = compare.compare_cells(synthetic(times, rounds=rounds, seed="9"),
                                    synthetic(times, rounds=rounds, seed="9"), 0.01, DRIFT)
     apart = compare.compare_cells(synthetic(times), synthetic(times), 0.01, DRIFT)
-    assert "geometric mean of the per-round ratios" in figure.ratio_label([paired])
+    assert "median of the per-round ratios" in figure.ratio_label([paired])
     assert "widened by the drift" in figure.ratio_label([apart])
     assert "the method per cell" in figure.ratio_label([paired, apart])
     assert [p.suffix for p in figure.write_figure([paired], 0.01, tmp_path / "c")] == [

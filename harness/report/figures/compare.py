@@ -36,7 +36,7 @@ VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", UNCHANGED: "#1f77b4",
                   INCONCLUSIVE: "#555555"}
 # What the ratio and its interval are, by the method the cells were compared with.
 RATIO_TEXT = {
-    PAIRED: "NEW / OLD, the geometric mean of the per-round ratios with its 95% interval",
+    PAIRED: "NEW / OLD, the median of the per-round ratios with its 95% interval",
     APART: "NEW / OLD median wall time, with its 95% interval widened by the drift",
 }
 
