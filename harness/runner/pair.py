@@ -50,8 +50,8 @@ class UntilDecided:
     sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
     control across every pair); a decided pair stops, an undecided one is given the rounds to
     the next look while the budget lasts and the last look (stats.LAST_LOOK) is not reached,
-    and once the budget is spent every pair given more rounds stops. The budget counts the seconds from the first look on: every pair gets the first
-    look's rounds."""
+    and once the budget is spent every pair given more rounds stops. The budget counts the
+    seconds from the first look on: every pair gets the first look's rounds."""
 
     pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
     threshold: float
