@@ -22,12 +22,10 @@ show it (harness.measure.rules).
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from harness.measure.events import pair_times, seq_event, wall_time
 from harness.spec.builds import DOUBLE_EPS
@@ -43,7 +41,7 @@ REPLAY_SAFETY = 2.0
 # Relative uncertainties (of L, for positions and velocities alike) tried after the printed
 # one: double's with headroom, then float's (2^-24 ~ 6e-8, a few roundings a step).
 PRECISION_LADDER: tuple[float, ...] = (1e-12, 1e-9, 1e-6)
-EVENT_CODES = {"free": 0, "pair": 1, "wall": 2}
+EVENT_CODES = {"free": 0, "pair": 1, "wall": 2}  # as the binary successors code EVENT
 EVENT_NAMES = {v: k for k, v in EVENT_CODES.items()}
 
 
@@ -58,7 +56,7 @@ class Successors:
     t: dict[int, np.ndarray]
 
 
-Replay = Callable[[bytes], str]  # replay input (replay_input) -> replay output text
+Replay = Callable[[bytes], bytes]  # replay input (replay_input) -> its output (read_successors)
 
 
 @dataclass(frozen=True)
@@ -120,28 +118,38 @@ def replay_input(n: int, L: float, r: float, states: list[tuple[int, np.ndarray]
     return b"".join(parts)
 
 
-def read_successors(text: str, n: int) -> Successors:
-    """The successors `--replay` printed, by label (the label of the state they follow)."""
+# The binary successors `--replay` writes for a binary input (variants/core/sim_replay.c): one
+# record a printed particle, states in input order.
+SUCCESSOR_RECORD = np.dtype([("k", "=i8"), ("i", "=i4"), ("x", "=f8"), ("y", "=f8"),
+                             ("vx", "=f8"), ("vy", "=f8"), ("t", "=f8"), ("j", "=i4"),
+                             ("e", "=u1")])
+
+
+def read_successors(data: bytes, n: int) -> Successors:
+    """The successors `--replay` wrote (binary), by label (the label of the state they
+    follow)."""
     values: dict[int, np.ndarray] = {}
     kind: dict[int, np.ndarray] = {}
     partner: dict[int, np.ndarray] = {}
     t: dict[int, np.ndarray] = {}
-    if not text.strip():
-        return Successors(values, kind, partner, t)
-    frame = pd.read_csv(io.StringIO(text), sep=" ", header=None,
-                        names=["k", "i", "x", "y", "vx", "vy", "e", "j", "t"])
-    frame["e"] = frame["e"].map(EVENT_CODES)
-    for label, rows in frame.groupby("k", sort=False):
-        k = int(label) - 1
-        idx = rows["i"].to_numpy()
+    if len(data) % SUCCESSOR_RECORD.itemsize:
+        raise ValueError(f"--replay wrote {len(data)} bytes, not a whole number of "
+                         f"{SUCCESSOR_RECORD.itemsize}-byte successor records")
+    records = np.frombuffer(data, dtype=SUCCESSOR_RECORD)
+    # A state's records are consecutive: a state begins where the label changes.
+    bounds = np.append(np.flatnonzero(np.diff(records["k"], prepend=-1) != 0), len(records))
+    for start, end in zip(bounds[:-1], bounds[1:], strict=True):
+        rows = records[start:end]
+        k = int(rows["k"][0]) - 1
+        idx = rows["i"]
         v = np.full((n, 4), np.nan)
-        v[idx] = rows[["x", "y", "vx", "vy"]].to_numpy()
+        v[idx] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
         e = np.full(n, -1, dtype=np.int64)
-        e[idx] = rows["e"].to_numpy()
+        e[idx] = rows["e"]
         p = np.full(n, -1, dtype=np.int64)
-        p[idx] = rows["j"].to_numpy()
+        p[idx] = rows["j"]
         tt = np.full(n, np.nan)
-        tt[idx] = rows["t"].to_numpy()
+        tt[idx] = rows["t"]
         values[k], kind[k], partner[k], t[k] = v, e, p, tt
     return Successors(values, kind, partner, t)
 
@@ -234,8 +242,8 @@ class _Explainer:
                 sign[second if c >= COPIES // 2 else ~second, c % 4] = 1.0
                 copies.append(((c + 1) * stride + k, self.states[k] + sign * amp[k]))
                 show.append(open_[k])
-        text = replay_input(self.n, self.L, self.r, copies, show)
-        perturbed = read_successors(self.replay(text), n)
+        perturbed = read_successors(self.replay(replay_input(self.n, self.L, self.r, copies,
+                                                             show)), n)
         still: dict[int, np.ndarray] = {}
         for k in steps:
             rows = np.flatnonzero(open_[k])
