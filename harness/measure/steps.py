@@ -1,5 +1,5 @@
 """A program judged step by step: each state it prints is advanced one step by the reference
-rules (`--replay` of the reference binary, one process for all steps), and its next state is
+rules (`--replay` of the reference binary, a process per chunk of steps), and its next state is
 compared with that successor. Every step is judged from where the program actually was, so the
 chaos of a whole trajectory (any change of precision or operation order grows by the free path
 over r at every collision) never enters the verdict.
