@@ -68,13 +68,13 @@ def main(argv: list[str] | None = None) -> int:
             text = out.read_text()
             replays: list[float] = []
 
-            def replay(data: bytes, replays: list[float] = replays) -> str:
+            def replay(data: bytes, replays: list[float] = replays) -> bytes:
                 started = time.perf_counter()
                 done = subprocess.run([str(replay_binary), "--replay"], input=data,
                                       capture_output=True, check=True,
                                       env={**os.environ, "OMP_NUM_THREADS": str(THREADS)})
                 replays.append(time.perf_counter() - started)
-                return done.stdout.decode()
+                return done.stdout
 
             started = time.perf_counter()
             verdict = agreement.judge(text, seq, args.n, args.steps, args.L, args.r, replay)

@@ -125,14 +125,14 @@ class ReplayError(RuntimeError):
 def _replay(binary: Path, env: Mapping[str, str], timeout_s: float) -> Replay:
     """`binary --replay` on states (harness.measure.steps.replay_input), their successors
     back."""
-    def run(data: bytes) -> str:
+    def run(data: bytes) -> bytes:
         with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
             states, out = Path(tmp) / "states", Path(tmp) / "successors"
             states.write_bytes(data)
             done = run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
             if done.returncode != 0:
                 raise ReplayError(_failure(f"{binary.name} --replay", done, timeout_s))
-            return out.read_text()
+            return out.read_bytes()
     return run
 
 

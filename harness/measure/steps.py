@@ -1,5 +1,5 @@
 """A program judged step by step: each state it prints is advanced one step by the reference
-rules (`--replay` of the reference binary, one process for all steps), and its next state is
+rules (`--replay` of the reference binary, a process per chunk of steps), and its next state is
 compared with that successor. Every step is judged from where the program actually was, so the
 chaos of a whole trajectory (any change of precision or operation order grows by the free path
 over r at every collision) never enters the verdict.
@@ -22,12 +22,11 @@ show it (harness.measure.rules).
 
 from __future__ import annotations
 
-import io
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from harness.measure.events import pair_times, seq_event, wall_time
 from harness.spec.builds import DOUBLE_EPS
@@ -43,7 +42,7 @@ REPLAY_SAFETY = 2.0
 # Relative uncertainties (of L, for positions and velocities alike) tried after the printed
 # one: double's with headroom, then float's (2^-24 ~ 6e-8, a few roundings a step).
 PRECISION_LADDER: tuple[float, ...] = (1e-12, 1e-9, 1e-6)
-EVENT_CODES = {"free": 0, "pair": 1, "wall": 2}
+EVENT_CODES = {"free": 0, "pair": 1, "wall": 2}  # as the binary successors code EVENT
 EVENT_NAMES = {v: k for k, v in EVENT_CODES.items()}
 
 
@@ -58,7 +57,7 @@ class Successors:
     t: dict[int, np.ndarray]
 
 
-Replay = Callable[[bytes], str]  # replay input (replay_input) -> replay output text
+Replay = Callable[[bytes], bytes]  # replay input (replay_input) -> its output (read_successors)
 
 
 @dataclass(frozen=True)
@@ -120,28 +119,38 @@ def replay_input(n: int, L: float, r: float, states: list[tuple[int, np.ndarray]
     return b"".join(parts)
 
 
-def read_successors(text: str, n: int) -> Successors:
-    """The successors `--replay` printed, by label (the label of the state they follow)."""
+# The binary successors `--replay` writes for a binary input (variants/core/sim_replay.c): one
+# record a printed particle, states in input order.
+SUCCESSOR_RECORD = np.dtype([("k", "=i8"), ("i", "=i4"), ("x", "=f8"), ("y", "=f8"),
+                             ("vx", "=f8"), ("vy", "=f8"), ("t", "=f8"), ("j", "=i4"),
+                             ("e", "=u1")])
+
+
+def read_successors(data: bytes, n: int) -> Successors:
+    """The successors `--replay` wrote (binary), by label (the label of the state they
+    follow)."""
     values: dict[int, np.ndarray] = {}
     kind: dict[int, np.ndarray] = {}
     partner: dict[int, np.ndarray] = {}
     t: dict[int, np.ndarray] = {}
-    if not text.strip():
-        return Successors(values, kind, partner, t)
-    frame = pd.read_csv(io.StringIO(text), sep=" ", header=None,
-                        names=["k", "i", "x", "y", "vx", "vy", "e", "j", "t"])
-    frame["e"] = frame["e"].map(EVENT_CODES)
-    for label, rows in frame.groupby("k", sort=False):
-        k = int(label) - 1
-        idx = rows["i"].to_numpy()
+    if len(data) % SUCCESSOR_RECORD.itemsize:
+        raise ValueError(f"--replay wrote {len(data)} bytes, not a whole number of "
+                         f"{SUCCESSOR_RECORD.itemsize}-byte successor records")
+    records = np.frombuffer(data, dtype=SUCCESSOR_RECORD)
+    # A state's records are consecutive: a state begins where the label changes.
+    bounds = np.append(np.flatnonzero(np.diff(records["k"], prepend=-1) != 0), len(records))
+    for start, end in itertools.pairwise(bounds):
+        rows = records[start:end]
+        k = int(rows["k"][0]) - 1
+        idx = rows["i"]
         v = np.full((n, 4), np.nan)
-        v[idx] = rows[["x", "y", "vx", "vy"]].to_numpy()
+        v[idx] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
         e = np.full(n, -1, dtype=np.int64)
-        e[idx] = rows["e"].to_numpy()
+        e[idx] = rows["e"]
         p = np.full(n, -1, dtype=np.int64)
-        p[idx] = rows["j"].to_numpy()
+        p[idx] = rows["j"]
         tt = np.full(n, np.nan)
-        tt[idx] = rows["t"].to_numpy()
+        tt[idx] = rows["t"]
         values[k], kind[k], partner[k], t[k] = v, e, p, tt
     return Successors(values, kind, partner, t)
 
@@ -172,23 +181,35 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
         if suspect.any():
             open_[k] = suspect
     explain = _Explainer(states, halves, n, L, r, replay, base, deviation, exact)
-    open_ = explain(None, open_)
+    # A value is wrong when neither the printed uncertainty nor the coarsest level explains it.
+    # Each value's answer at a level is its own (the replays of a step perturb the whole state
+    # alike), so the levels may be tried in any order, each only on what the others left, and
+    # steps in chunks from the first, stopping at the first wrong one. A program whose first
+    # step the printed uncertainty does not explain (a float build: every value) is tried at
+    # the coarsest level first: one replay of every step instead of two.
+    coarsest = PRECISION_LADDER[-1]
+    order: tuple[float | None, ...] = (None, coarsest)
+    wrong: dict[int, np.ndarray] = {}
+    for chunk in _chunks(sorted(open_)):
+        wrong = explain.left(order, {k: open_[k] for k in chunk})
+        if chunk[0] == min(open_) and explain.unexplained(None, chunk) > 0.5:
+            order = (coarsest, None)
+        if wrong:
+            k = min(wrong)
+            wrong = {k: wrong[k]}
+            break
+    # The precision the program reaches where it is right (the steps before the first wrong
+    # one): the finest level that, with the finer ones and the printed uncertainty, explains
+    # every value; a level fails at its first value left, usually within the first step.
+    before = [k for k in sorted(open_) if not wrong or k < min(wrong)]
     reached: float | None = None
-    if open_:
-        # The coarsest level first, on every step still open: what it cannot explain is wrong.
-        # The finer levels then only for the steps before the first wrong one: the precision
-        # the program reaches where it is right.
-        wrong = explain(PRECISION_LADDER[-1], open_)
-        first = min(wrong) if wrong else None
-        finer = {k: m for k, m in open_.items() if first is None or k < first}
-        for level in PRECISION_LADDER[:-1]:
-            if finer:
-                reached = level
-                finer = explain(level, finer)
-        if finer:
-            reached = PRECISION_LADDER[-1]
-        open_ = wrong
-    near_ties = explain.near_ties
+    for m, level in enumerate(PRECISION_LADDER):
+        if level == coarsest or explain.explains((level, *PRECISION_LADDER[:m], None),
+                                                 before, open_):
+            reached = None if explain.explains((None,), before, open_) else level
+            break
+    open_ = wrong
+    near_ties = explain.near_ties(open_)
     if not open_:
         return StepJudgement(reached, steps_judged=len(pairs), near_ties=near_ties)
     k = min(open_)
@@ -201,9 +222,20 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
                          base.partner[k], base.values[k])
 
 
+def _chunks(steps: list[int]) -> list[list[int]]:
+    """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop
+    early (at a wrong step, a level that fails) replays little, and one that cannot, few
+    processes."""
+    out, at, size = [], 0, 1
+    while at < len(steps):
+        out.append(steps[at:at + size])
+        at, size = at + size, 2 * size
+    return out
+
+
 class _Explainer:
-    """One level of the check: which of the open values the perturbed replays at an
-    uncertainty explain."""
+    """Which of the open values the perturbed replays at each uncertainty explain: replayed
+    only once per value and level, remembered."""
 
     def __init__(self, states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int,
                  L: float, r: float, replay: Replay, base: Successors,
@@ -212,12 +244,68 @@ class _Explainer:
         self.exact = exact
         self.replay, self.base, self.deviation = replay, base, deviation
         self.slack = ARITH_ULPS * DOUBLE_EPS * L
-        self.near_ties = 0
+        # Per (level, step): the particles tried, those explained, and those explained only
+        # by a replay that decided otherwise (a near-tie).
+        self.tried: dict[tuple[float | None, int], np.ndarray] = {}
+        self.good: dict[tuple[float | None, int], np.ndarray] = {}
+        self.tie: dict[tuple[float | None, int], np.ndarray] = {}
 
-    def __call__(self, level: float | None,
-                 open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
-        """The open values (per step, a mask of particles) that the replays at `level` (None:
-        the printed uncertainty; else this fraction of L) leave unexplained."""
+    def left(self, levels: tuple[float | None, ...],
+             open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+        """The open values (per step, a mask of particles) that none of `levels` (None: the
+        printed uncertainty; else this fraction of L) explains, trying them in this order,
+        each on what the ones before it left."""
+        # What a level's earlier replays explained needs no replay: subtracted first, so that
+        # a level is replayed only on what no level already explains.
+        still = {k: m & ~np.any([self._mask(self.good, level, k) for level in levels], axis=0)
+                 for k, m in open_.items()}
+        still = {k: m for k, m in still.items() if m.any()}
+        for level in levels:
+            todo = {k: m & ~self._mask(self.tried, level, k) for k, m in still.items()}
+            todo = {k: m for k, m in todo.items() if m.any()}
+            if todo:
+                self._replay(level, todo)
+            still = {k: m & ~self._mask(self.good, level, k) for k, m in still.items()}
+            still = {k: m for k, m in still.items() if m.any()}
+            if not still:
+                break
+        return still
+
+    def explains(self, levels: tuple[float | None, ...], steps: list[int],
+                 open_: dict[int, np.ndarray]) -> bool:
+        """Whether `levels` together explain every open value of `steps`, stopping at the
+        first chunk of steps with a value left."""
+        return not any(self.left(levels, {k: open_[k] for k in chunk})
+                       for chunk in _chunks(steps))
+
+    def unexplained(self, level: float | None, steps: list[int]) -> float:
+        """The share of the values tried at `level` in `steps` that it left."""
+        tried = sum(int(self._mask(self.tried, level, k).sum()) for k in steps)
+        good = sum(int(self._mask(self.good, level, k).sum()) for k in steps)
+        return (tried - good) / tried if tried else 0.0
+
+    def near_ties(self, wrong: dict[int, np.ndarray]) -> int:
+        """The values, not wrong, that the replays the check made explain only by a
+        near-tie."""
+        count = 0
+        for k in {k for _, k in self.tie}:
+            tie = np.zeros(self.n, dtype=bool)
+            plain = np.zeros(self.n, dtype=bool)
+            for (level, step), mask in self.tie.items():
+                if step == k:
+                    tie |= mask
+                    plain |= self.good[level, step] & ~mask
+            count += int(np.count_nonzero(tie & ~plain & ~wrong.get(k, np.zeros_like(tie))))
+        return count
+
+    def _mask(self, table: dict[tuple[float | None, int], np.ndarray], level: float | None,
+              k: int) -> np.ndarray:
+        mask = table.get((level, k))
+        return np.zeros(self.n, dtype=bool) if mask is None else mask
+
+    def _replay(self, level: float | None, open_: dict[int, np.ndarray]) -> None:
+        """Replay the open values (per step, a mask of particles) at `level` and remember
+        which it explains."""
         n = self.n
         steps = sorted(open_)
         amp = {k: self.halves[k] if level is None else np.maximum(self.halves[k], level * self.L)
@@ -234,9 +322,8 @@ class _Explainer:
                 sign[second if c >= COPIES // 2 else ~second, c % 4] = 1.0
                 copies.append(((c + 1) * stride + k, self.states[k] + sign * amp[k]))
                 show.append(open_[k])
-        text = replay_input(self.n, self.L, self.r, copies, show)
-        perturbed = read_successors(self.replay(text), n)
-        still: dict[int, np.ndarray] = {}
+        perturbed = read_successors(self.replay(replay_input(self.n, self.L, self.r, copies,
+                                                             show)), n)
         for k in steps:
             rows = np.flatnonzero(open_[k])
             ref = self.base.values[k][rows]
@@ -260,13 +347,12 @@ class _Explainer:
             best = self.deviation[k][rows]
             out_amp = 0.0 if level is None else level * self.L
             tolerance = self.halves[k + 1][rows] + self.slack + out_amp + REPLAY_SAFETY * spread
-            bad = np.any(best > tolerance, axis=1)
-            self.near_ties += int(np.count_nonzero(tie & ~bad))
-            if bad.any():
-                mask = np.zeros(n, dtype=bool)
-                mask[rows[bad]] = True
-                still[k] = mask
-        return still
+            explained = ~np.any(best > tolerance, axis=1)
+            for table, which in ((self.tried, np.ones(len(rows), dtype=bool)),
+                                 (self.good, explained), (self.tie, tie & explained)):
+                mask = self._mask(table, level, k).copy()
+                mask[rows[which]] = True
+                table[level, k] = mask
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the

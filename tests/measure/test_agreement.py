@@ -25,11 +25,11 @@ SEQ = """\
 SEQ_BINARY = repo.REPO_ROOT / "build" / "seq"
 
 
-def replay(data: bytes) -> str:
+def replay(data: bytes) -> bytes:
     if not SEQ_BINARY.is_file():
         pytest.skip("build/seq is not built (make all)")
     return subprocess.run([str(SEQ_BINARY), "--replay"], input=data, capture_output=True,
-                          check=True).stdout.decode()
+                          check=True).stdout
 
 
 def rows(fmt: str, changes: dict[tuple[int, int], str] | None = None,

@@ -61,10 +61,10 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def replay_by(seq: Path) -> Callable[[bytes], str]:
-    def replay(data: bytes) -> str:
+def replay_by(seq: Path) -> Callable[[bytes], bytes]:
+    def replay(data: bytes) -> bytes:
         return subprocess.run([str(seq), "--replay"], input=data, capture_output=True,
-                              check=True).stdout.decode()
+                              check=True).stdout
     return replay
 
 

@@ -57,7 +57,8 @@ static const char *const usage_text =
     "               test), repairs (the seed strategy it repairs, or null)\n"
     "  --replay     read states (`N L r`, then lines `k i x y vx vy [p]`, N per state) and\n"
     "               print each one's successor by this variant's rules, %%.17g, as lines\n"
-    "               `k+1 i x y vx vy EVENT PARTNER T` (sim_replay.c)\n"
+    "               `k+1 i x y vx vy EVENT PARTNER T`; a binary input, binary output\n"
+    "               (both binary forms: sim_replay.c)\n"
     "  --help       print this text\n";
 
 /* An argument or a path as a message may show it: escaped (sim_escape), at most

@@ -24,7 +24,11 @@
  * The same input in binary, for the harness's many perturbed copies of a state (formatting
  * and parsing millions of reals as text cost it seconds): the 8 bytes SIM_REPLAY_MAGIC, then
  * int64 N, double L, double r, then per state: int64 k, N x (double x, y, vx, vy), N flag
- * bytes; native byte order, no padding.
+ * bytes; native byte order, no padding. Its successors come back in binary too (parsing them
+ * as text cost the harness more than the replay itself): per printed particle one record of
+ * SIM_REPLAY_RECORD bytes, int64 k+1, int32 i, double x, y, vx, vy, T, int32 PARTNER, uint8
+ * EVENT (0 free, 1 pair, 2 wall), in the text form's order; native byte order, no padding.
+ * harness/measure/steps.py reads it.
  */
 #include <errno.h>
 #include <math.h>
@@ -37,6 +41,7 @@
 #define SIM_REPLAY_FIELDS 7 /* k i x y vx vy p */
 #define SIM_REPLAY_MAGIC "CBREPLAY"
 #define SIM_REPLAY_MAGIC_LEN 8
+#define SIM_REPLAY_RECORD (8 + 4 + 5 * 8 + 4 + 1)
 
 /* A cursor over the input's lines. */
 typedef struct replay_reader {
@@ -301,6 +306,30 @@ static int write_successor(FILE *out, const sim_world *w, long long k, const uns
     return 0;
 }
 
+/* write_successor in the binary form, through `buf` (SIM_REPLAY_RECORD bytes a particle). */
+static int write_successor_binary(FILE *out, const sim_world *w, long long k,
+                                  const unsigned char *show, const char *kind,
+                                  const int32_t *partner, const sim_real *t, unsigned char *buf)
+{
+    const int64_t label = k + 1;
+    unsigned char *p = buf;
+    for (int32_t i = 0; i < w->n; i++) {
+        if (!show[i])
+            continue;
+        const double v[5] = {(double)w->x[i], (double)w->y[i], (double)w->vx[i],
+                             (double)w->vy[i], (double)t[i]};
+        const uint8_t code = kind[i] == 'p' ? 1 : (kind[i] == 'w' ? 2 : 0);
+        memcpy(p, &label, sizeof label);
+        memcpy(p + 8, &i, sizeof i);
+        memcpy(p + 12, v, sizeof v);
+        memcpy(p + 52, &partner[i], sizeof partner[i]);
+        p[56] = code;
+        p += SIM_REPLAY_RECORD;
+    }
+    const size_t len = (size_t)(p - buf);
+    return fwrite(buf, 1, len, out) == len ? 0 : -1;
+}
+
 int sim_replay(FILE *out, const char *name, const char *text, size_t len, int threads)
 {
     replay_reader rd = {text, text + len, 0};
@@ -321,7 +350,8 @@ int sim_replay(FILE *out, const char *name, const char *text, size_t len, int th
     char *kind = malloc(n);
     int32_t *partner = malloc(n * sizeof *partner);
     sim_real *t = malloc(n * sizeof *t);
-    sim_stepper *s = show && kind && partner && t
+    unsigned char *record = binary ? malloc(n * SIM_REPLAY_RECORD) : NULL;
+    sim_stepper *s = show && kind && partner && t && (record || !binary)
                          ? sim_stepper_create(&w, &sim_variant_def, threads) : NULL;
     if (!s) {
         fprintf(stderr, "%s: out of memory for N=%ld particles\n", name, (long)h.n);
@@ -349,7 +379,8 @@ int sim_replay(FILE *out, const char *name, const char *text, size_t len, int th
         memset(partner, 0xff, n * sizeof *partner);
         memset(t, 0, n * sizeof *t);
         note_events(s, kind, partner, t);
-        if (write_successor(out, &w, k, show, kind, partner, t)) {
+        if (binary ? write_successor_binary(out, &w, k, show, kind, partner, t, record)
+                   : write_successor(out, &w, k, show, kind, partner, t)) {
             fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
             rc = SIM_EXIT_RUNTIME;
         }
@@ -360,6 +391,7 @@ int sim_replay(FILE *out, const char *name, const char *text, size_t len, int th
     free(kind);
     free(partner);
     free(t);
+    free(record);
     sim_world_free(&w);
     return rc;
 }
