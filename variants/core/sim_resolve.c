@@ -100,37 +100,24 @@ static void filter_chunk(const unsigned char *restrict taken, const sim_cand *re
     }
 }
 
-/* The walls of buffer b that are accepted, given the pairs' flags: a wall is accepted when no
- * accepted pair took its particle (sim_resolve says why). Returns how many; *end is one past
- * the last one accepted. */
-static size_t count_walls(const unsigned char *restrict taken, const sim_cand_buf *b,
-                          size_t *end)
+/* The walls of the stepper's buffers (particle order) that no accepted pair took the particle
+ * of (sim_resolve says why), written to out in order, their particles flagged; returns how
+ * many. Branch-free, as walk_one. The flags through the atomic accessors: on the team, a filter
+ * that lags may still read them (resolve_team). */
+static size_t walk_walls(const sim_stepper *s, unsigned char *restrict taken,
+                         sim_cand *restrict out)
 {
-    const sim_cand *restrict wall = b->items;
-    size_t nw = 0, last = 0;
-    for (size_t k = 0; k < b->len; k++) {
-        const unsigned ok = !taken[wall[k].i];
-        nw += ok;
-        last = ok ? k + 1 : last;
-    }
-    *end = last;
-    return nw;
-}
-
-/* The accepted walls of buffer b's items [0, end) written to out in order, their particles
- * flagged; returns how many. Branch-free, so out[count] is written too unless end is one past
- * the last accepted (count_walls), which keeps the writes within out[0, count). */
-static size_t write_walls(unsigned char *restrict taken, const sim_cand_buf *b, size_t end,
-                          sim_cand *restrict out)
-{
-    const sim_cand *restrict wall = b->items;
     size_t nw = 0;
-    for (size_t k = 0; k < end; k++) {
-        const sim_cand c = wall[k];
-        const unsigned ok = !taken[c.i];
-        taken[c.i] |= (unsigned char)(ok * SIM_TAKEN_WALL);
-        out[nw] = c;
-        nw += ok;
+    for (int b = 0; b < s->threads; b++) {
+        const sim_cand *restrict wall = s->walls[b].items;
+        for (size_t k = 0; k < s->walls[b].len; k++) {
+            const sim_cand c = wall[k];
+            const unsigned char f = flag_load(&taken[c.i]);
+            const unsigned ok = !f;
+            flag_store(&taken[c.i], (unsigned char)(f | ok * SIM_TAKEN_WALL));
+            out[nw] = c;
+            nw += ok;
+        }
     }
     return nw;
 }
@@ -153,7 +140,8 @@ static int reserve_chunks(sim_stepper *s, size_t chunks)
     return 0;
 }
 
-/* The walk on the team, with the serial walk's result, in one region:
+/* The walk on the team, with the serial walk's result, in one region and no barrier but its
+ * end (on a loaded machine a barrier can wait a scheduler tick for a descheduled thread):
  *  1. the pairs: thread 0, the walker, walks the chunks in order; the others, the filters,
  *     claim chunks ahead of it and mark in a mask the pairs neither of whose particles is taken
  *     yet. A flag the walker has set belongs to a pair before the filtered chunk (a filter
@@ -164,24 +152,21 @@ static int reserve_chunks(sim_stepper *s, size_t chunks)
  *     Every pair's fate is the walk's, whoever saw the chunk first: the result does not depend
  *     on timing. After the first chunks about a fifth of the pairs survive (most lose a particle
  *     to an earlier pair), and filtering, which only reads, costs less than walking;
- *  2. the walls, each thread its buffers (particles of its own): counted, then, from the
- *     offsets the counts give, written in particle order. wall_count holds each buffer's
- *     count, then each buffer's end (count_walls). */
+ *  2. the walls, by the walker once it has walked the pairs: one pass in particle order, a
+ *     fraction of the pairs' time (docs/grid_bound.md).
+ * Returns 0, or -1 when memory ran out. */
 static int resolve_team(sim_stepper *s, size_t count, size_t *np_out, size_t *nw_out)
 {
     const size_t chunks = (count + SIM_RESOLVE_CHUNK - 1) / SIM_RESOLVE_CHUNK;
-    size_t *wall_count = malloc(2 * (size_t)s->threads * sizeof *wall_count);
-    if (!wall_count || reserve_chunks(s, chunks)) {
-        free(wall_count);
+    if (reserve_chunks(s, chunks))
         return -1;
-    }
     for (size_t c = 0; c < chunks; c++)
         s->chunk_state[c] = CHUNK_OPEN;
     unsigned char *taken = s->taken;
     const sim_cand *cand = s->merged;
     uint64_t *mask = s->chunk_mask;
     int *state = s->chunk_state;
-    size_t next = 1, np = 0;
+    size_t next = 1, np = 0, nw = 0;
 #pragma omp parallel num_threads(s->threads)
     {
         if (omp_get_thread_num() == 0) {
@@ -197,6 +182,7 @@ static int resolve_team(sim_stepper *s, size_t count, size_t *np_out, size_t *nw
                 const size_t k1 = count - k0 < SIM_RESOLVE_CHUNK ? count : k0 + SIM_RESOLVE_CHUNK;
                 np = walk_range(taken, cand, k0, k1, s->pair_moves, np);
             }
+            nw = walk_walls(s, taken, s->wall_moves);
         } else {
             for (;;) {
                 const size_t c = __atomic_fetch_add(&next, 1, __ATOMIC_RELAXED);
@@ -210,22 +196,7 @@ static int resolve_team(sim_stepper *s, size_t count, size_t *np_out, size_t *nw
                 __atomic_store_n(&state[c], CHUNK_FILTERED, __ATOMIC_RELEASE);
             }
         }
-#pragma omp barrier
-#pragma omp for schedule(static)
-        for (int b = 0; b < s->threads; b++)
-            wall_count[b] = count_walls(taken, &s->walls[b], &wall_count[s->threads + b]);
-#pragma omp for schedule(static)
-        for (int b = 0; b < s->threads; b++) {
-            size_t at = 0;
-            for (int a = 0; a < b; a++)
-                at += wall_count[a];
-            write_walls(taken, &s->walls[b], wall_count[s->threads + b], s->wall_moves + at);
-        }
     }
-    size_t nw = 0;
-    for (int b = 0; b < s->threads; b++)
-        nw += wall_count[b];
-    free(wall_count);
     *np_out = np;
     *nw_out = nw;
     return 0;
@@ -252,8 +223,7 @@ int sim_resolve(sim_stepper *s, size_t count, sim_stats *stats)
             return -1;
     } else {
         np = walk_range(s->taken, s->merged, 0, count, s->pair_moves, 0);
-        for (int b = 0; b < s->threads; b++)
-            nw += write_walls(s->taken, &s->walls[b], s->walls[b].len, s->wall_moves + nw);
+        nw = walk_walls(s, s->taken, s->wall_moves);
     }
     s->wall_moves_len = nw;
     s->pair_moves_len = np;
