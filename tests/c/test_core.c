@@ -1270,6 +1270,179 @@ static void test_step_team_sort(void)
     sim_world_free(&b);
 }
 
+/* ---- the greedy walk on a team ---- */
+
+/* A finder of made-up candidates that stress the walk: each particle i pairs with i + d for a
+ * few offsets d (so pairs are unique), with times from {0, 1/4, 1/2, 3/4, 1} picked by (i, j)
+ * (mostly after its wall where a near-wall particle of walk_world takes part), so that equal times are the
+ * rule and (i, j) decides; the first HUBS particles pair with every
+ * third particle besides, so that many candidates share a particle. The near-wall particles of
+ * walk_world have wall times 1/4 and 1/2: a pair at the same time comes before the wall. */
+enum { WALK_N = 30000, WALK_HUBS = 8, WALK_HUB_STRIDE = 3 };
+static const int32_t walk_offsets[] = {1, 2, 3, 7, 16, 41, 97, 211};
+
+static double walk_time(int32_t i, int32_t j)
+{
+    const uint32_t h = (((uint32_t)i * 73856093u) ^ ((uint32_t)j * 19349663u)) >> 8;
+    if (i % 8 == 0 || j % 8 == 0) /* a near-wall particle's: 1/4 (its wall's time or before) for
+                                     * one in 8, else 1/2, 3/4 or 1 */
+        return h % 8 ? (double)(2 + h % 3) / 4 : 0.25;
+    return (double)(h % 5) / 4;
+}
+
+/* Every candidate of walk_world's finder, in any order, through emit. */
+static void walk_pairs(int32_t n, void (*emit)(void *ctx, sim_real t, int32_t i, int32_t j),
+                       void *ctx)
+{
+    for (int32_t i = 0; i < n; i++)
+        for (size_t k = 0; k < sizeof walk_offsets / sizeof *walk_offsets; k++)
+            if (i + walk_offsets[k] < n)
+                emit(ctx, walk_time(i, i + walk_offsets[k]), i, i + walk_offsets[k]);
+    for (int32_t h = 0; h < WALK_HUBS; h++)
+        for (int32_t j = 300 + h; j < n; j += WALK_HUB_STRIDE)
+            emit(ctx, walk_time(h, j), h, j);
+}
+
+static void emit_to_sink(void *ctx, sim_real t, int32_t i, int32_t j)
+{
+    sim_pair_sink *sink = ctx;
+    sim_cand_buf *buf = sim_sink_buf(sink, (int)((uint32_t)(i ^ j) % (uint32_t)sink->count));
+    buf->pair_tests++;
+    sim_cand_push(buf, t, i, j);
+}
+
+static void find_walk_pairs(const sim_world *w, sim_pair_sink *sink)
+{
+    walk_pairs(w->n, emit_to_sink, sink);
+}
+
+static const sim_variant walk_variant = {
+    .name = "walk", .exact = true, .parallel = true, .find_pairs = find_walk_pairs,
+};
+
+/* Slow particles away from the walls (no wall within a step), and every 8th next to the right
+ * wall moving into it at a wall time of exactly 1/2 or 1/4: about half of those walls lose
+ * their particle to a pair, the last of a thread's wall buffer among them. */
+static void walk_world(sim_world *w)
+{
+    world_init(w, WALK_N, 1000, 1);
+    for (int32_t i = 0; i < WALK_N; i++) {
+        const double y = 100 + 800 * rnd();
+        if (i % 8 == 0)
+            put(w, i, i % 16 ? 998.75 : 998.5, y, 1, 0);
+        else
+            put(w, i, 100 + 800 * rnd(), y, 2 * rnd() - 1, 2 * rnd() - 1);
+    }
+}
+
+/* SPEC §2's resolution as written, for walk_world's first step: every candidate, the walls
+ * included, sorted by the key (spec_key_cmp) and walked once. */
+typedef struct walk_list {
+    sim_cand *items;
+    size_t len;
+} walk_list;
+
+static void emit_to_list(void *ctx, sim_real t, int32_t i, int32_t j)
+{
+    walk_list *l = ctx;
+    l->items[l->len++] = (sim_cand){.t = t, .i = i, .j = j};
+}
+
+/* The first step's accepted collisions of each particle of w by the spec's walk: pcoll and
+ * wcoll (0 or 1 each); returns the pairs that no wall comes first for. */
+static size_t spec_walk(const sim_world *w, int64_t *pcoll, int64_t *wcoll)
+{
+    const size_t most = (size_t)w->n * (sizeof walk_offsets / sizeof *walk_offsets + 1) +
+                        (size_t)WALK_HUBS * ((size_t)w->n / WALK_HUB_STRIDE + 1);
+    walk_list l = {malloc(most * sizeof *l.items), 0};
+    if (!l.items) {
+        fprintf(stderr, "test_core: out of memory\n");
+        exit(1);
+    }
+    walk_pairs(w->n, emit_to_list, &l);
+    size_t kept = 0;
+    for (size_t k = 0; k < l.len; k++)
+        kept += !(sim_wall_time(w, l.items[k].i) < l.items[k].t ||
+                  sim_wall_time(w, l.items[k].j) < l.items[k].t);
+    for (int32_t i = 0; i < w->n; i++)
+        if (sim_wall_time(w, i) <= 1)
+            l.items[l.len++] = (sim_cand){.t = sim_wall_time(w, i), .i = i, .j = SIM_WALL};
+    qsort(l.items, l.len, sizeof *l.items, spec_key_cmp);
+    unsigned char *taken = calloc((size_t)w->n, 1);
+    if (!taken) {
+        fprintf(stderr, "test_core: out of memory\n");
+        exit(1);
+    }
+    for (int32_t i = 0; i < w->n; i++)
+        pcoll[i] = wcoll[i] = 0;
+    for (size_t k = 0; k < l.len; k++) {
+        const sim_cand c = l.items[k];
+        if (taken[c.i] || (c.j != SIM_WALL && taken[c.j]))
+            continue;
+        taken[c.i] = 1;
+        if (c.j == SIM_WALL) {
+            wcoll[c.i] = 1;
+        } else {
+            taken[c.j] = 1;
+            pcoll[c.i] = pcoll[c.j] = 1;
+        }
+    }
+    free(taken);
+    free(l.items);
+    return kept;
+}
+
+/* Above SIM_RESOLVE_TEAM_MIN pairs a parallel stepper walks on its team (a walker and filters
+ * ahead of it); its steps must be one thread's, whatever the team's timing, and its first step
+ * the spec's walk: many ties in t, pairs sharing particles, pairs tied with walls. */
+static void test_step_team_walk(void)
+{
+    sim_world first;
+    walk_world(&first);
+    int64_t *pcoll = malloc(WALK_N * sizeof *pcoll), *wcoll = malloc(WALK_N * sizeof *wcoll);
+    CHECK(pcoll && wcoll);
+    if (!pcoll || !wcoll)
+        return;
+    CHECK(spec_walk(&first, pcoll, wcoll) >= SIM_RESOLVE_TEAM_MIN);
+    int64_t pairs = 0, walls = 0;
+    for (int32_t i = 0; i < WALK_N; i++) {
+        pairs += pcoll[i];
+        walls += wcoll[i];
+    }
+    CHECK(pairs > WALK_N / 2 && walls > 1000);
+    sim_world one; /* the reference for later steps: one thread's serial walk */
+    for (int threads = 1; threads <= 4; threads++) {
+        for (int steps = 1; steps <= 3; steps += 2) {
+            sim_world w;
+            walk_world(&w);
+            for (int32_t i = 0; i < WALK_N; i++) /* walk_world draws its state afresh */
+                put(&w, i, first.x[i], first.y[i], first.vx[i], first.vy[i]);
+            sim_stats st = {0};
+            sim_stepper *s = sim_stepper_create(&w, &walk_variant, threads);
+            CHECK(s != NULL);
+            for (int k = 0; s && k < steps; k++)
+                CHECK_INT(sim_step(s, &w, &st), 0);
+            sim_stepper_destroy(s);
+            if (steps == 1) {
+                int32_t wrong = 0;
+                for (int32_t i = 0; i < WALK_N; i++)
+                    wrong += w.pcoll[i] != pcoll[i] || w.wcoll[i] != wcoll[i];
+                CHECK_INT(wrong, 0);
+                sim_world_free(&w);
+            } else if (threads == 1) {
+                one = w;
+            } else {
+                CHECK_INT(particles_differing(&w, &one), 0);
+                sim_world_free(&w);
+            }
+        }
+    }
+    sim_world_free(&one);
+    sim_world_free(&first);
+    free(pcoll);
+    free(wcoll);
+}
+
 /* The test finder, run by a parallel stepper: its wall candidates come from its threads. */
 static const sim_variant parallel_variant = {
     .name = "parallel", .exact = true, .parallel = true, .find_pairs = find_all_pairs,
@@ -1695,6 +1868,7 @@ static const test_case tests[] = {
     TEST(test_step_stats),
     TEST(test_step_order_independent),
     TEST(test_step_team_sort),
+    TEST(test_step_team_walk),
     TEST(test_step_carries_wall_candidates),
     TEST(test_step_wall_times_are_scalar),
     TEST(test_step_phase_times),

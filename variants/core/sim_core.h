@@ -109,6 +109,11 @@ void sim_stepper_destroy(sim_stepper *s);
  * the world only through sim_step (or make a new stepper). The world's pcoll and wcoll are
  * complete once the stepper is destroyed (it keeps the latest steps' counts until then). */
 int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats);
+/* From this many pairs that a wall does not come first for, a parallel stepper's greedy walk
+ * runs on its team (sim_resolve.c): a region's start costs microseconds, the walk about 5 ns a
+ * pair at a million particles (docs/grid_bound.md). The sort's team bound; the walk's own
+ * break-even is not measured. */
+#define SIM_RESOLVE_TEAM_MIN 65536
 /* Sort candidates by the SPEC §2 key (t; pair before wall; i; j); tmp holds n items. Returns
  * 0, or -1 when memory ran out (a in its order then). */
 int sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n);

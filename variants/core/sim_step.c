@@ -218,7 +218,8 @@ int sim_step(sim_stepper *s, sim_world *w, sim_stats *stats)
         return -1;
     stats->sort_s += lap(&t);
     /* 3. Resolution. */
-    sim_resolve(s, count, stats);
+    if (sim_resolve(s, count, stats))
+        return -1;
     stats->resolve_s += lap(&t);
     /* 4. Motion, and the wall candidates of the new state. */
     sim_clear_walls(s);

@@ -107,6 +107,8 @@ void sim_stepper_destroy(sim_stepper *s)
     free(s->wall_moves);
     free(s->pair_out);
     free(s->pair_moves);
+    free(s->chunk_state);
+    free(s->chunk_mask);
     free(s->taken);
     free(s->wall_t);
     free(s->pair_count);

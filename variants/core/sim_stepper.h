@@ -5,7 +5,7 @@
  *   sim_stepper.c  the stepper's memory and counters (create, destroy, --timing's figures);
  *   sim_walls.c    the wall candidates and every particle's wall time;
  *   sim_sort.c     the pair candidates merged and sorted by the SPEC key;
- *   sim_resolve.c  the greedy walk that accepts candidates;
+ *   sim_resolve.c  the greedy walk that accepts candidates (on the team when it pays);
  *   sim_motion.c   the moves of the accepted collisions, in vector lanes;
  *   sim_step.c     the step itself: the phases in order, and the motion of every particle.
  *
@@ -52,6 +52,11 @@ struct sim_stepper {
     /* The candidates the greedy walk accepted, walls and pairs apart, in walk order. */
     sim_cand *wall_moves, *pair_moves;
     size_t wall_moves_cap, pair_moves_cap, wall_moves_len, pair_moves_len;
+    /* The team's walk (sim_resolve.c): each chunk's state and survivor mask, for chunk_cap
+     * chunks. */
+    int *chunk_state;
+    uint64_t *chunk_mask;
+    size_t chunk_cap;
     /* The accepted pairs' new states, SIM_PAIR_OUT reals each, where a team moves them (see
      * sim_step.c). */
     sim_real *pair_out;
@@ -127,7 +132,9 @@ size_t sim_merge_candidates(sim_stepper *s, sim_stats *stats);
 /* ---- sim_resolve.c ---- */
 
 /* SPEC §2's greedy walk over the merged pairs and the walls: the accepted ones into
- * s->pair_moves and s->wall_moves, their particles flagged in s->taken. */
-void sim_resolve(sim_stepper *s, size_t count, sim_stats *stats);
+ * s->pair_moves and s->wall_moves, their particles flagged in s->taken; on the team when the
+ * stepper is parallel and the pairs are many, with the same result. Returns 0, or -1 when
+ * memory ran out. */
+int sim_resolve(sim_stepper *s, size_t count, sim_stats *stats);
 
 #endif /* SIM_STEPPER_H */
