@@ -373,14 +373,14 @@ def further_rounds(change: Change, threshold: float, look: int | None = None) ->
     return float(max(0, math.ceil(needed - change.n)))
 
 
-def _exact_change(ratio: float, threshold: float, n: int = 0) -> Change:
-    """A change without spread (every round the same ratio, or exact counts; `n` of them):
-    the claims are certain (p 0) or false (p 1)."""
+def _exact_change(ratio: float, threshold: float) -> Change:
+    """A change without spread (every round the same ratio, or exact counts): the claims are
+    certain (p 0) or false (p 1)."""
     margin = math.log1p(threshold)
     log_ratio = math.log(ratio)
     within = -margin <= log_ratio <= margin
     return Change(Interval(ratio, ratio, ratio), 0.0 if log_ratio > margin else 1.0,
-                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, n)
+                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
 
 
 # Per-round log ratios closer than this (relative) to their median are one ratio: beyond it lie
@@ -487,7 +487,7 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     centre = float(np.median(d))
     if float(np.abs(d - centre).max()) <= SAME_RATIO * abs(centre) or float(d.std()) == 0.0:
         # Every round the same ratio: no spread to test against.
-        return _exact_change(math.exp(centre), threshold, int(d.size))
+        return _exact_change(math.exp(centre), threshold)
     look = look if look is not None else look_index(int(d.size))
     weight = look_weight(look)
     margin = math.log1p(threshold)

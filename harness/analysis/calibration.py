@@ -87,9 +87,9 @@ def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
         pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
         if pair is None:
             continue
-        change = stats.paired_change(*pair, 0.0)
-        if change.n >= 2 and math.isfinite(change.sd):
-            found.append((change.sd, change.n))
+        sd = stats.paired_change(*pair, 0.0).sd  # 0 where every round gave one ratio
+        if math.isfinite(sd):
+            found.append((sd, len(pair[0])))
     return found
 
 

@@ -72,10 +72,11 @@ def test_a_paired_comparison_leaves_an_interfered_round_out() -> None:
     noisy = [0.95] + [0.05] * 11
     kept = compare.compare_cells(_cell(old, quiet), _cell(new, noisy), 0.01,
                                  compare.MEASURED_TOGETHER)
-    assert (kept.ratio, kept.low, kept.high) == (1.0, 1.0, 1.0)
+    assert (kept.ratio, kept.low, kept.high) == (1.0, 1.0, 1.0)  # the other 11 rounds alike
     unmeasured = compare.compare_cells(_cell(old, []), _cell(new, []), 0.01,
                                        compare.MEASURED_TOGETHER)
-    assert unmeasured.ratio > 1.0  # without noise measured, the round counts
+    assert unmeasured.change.n == 12  # without noise measured, the round counts
+    assert unmeasured.change.p_unchanged > kept.change.p_unchanged
 
 
 def test_a_noise_profile_counts_stolen_and_others_time() -> None:
