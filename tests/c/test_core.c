@@ -1274,9 +1274,9 @@ static void test_step_team_sort(void)
 
 /* A finder of made-up candidates that stress the walk: each particle i pairs with i + d for a
  * few offsets d (so pairs are unique), with times from {0, 1/4, 1/2, 3/4, 1} picked by (i, j)
- * (mostly after its wall where a near-wall particle of walk_world takes part), so that equal times are the
- * rule and (i, j) decides; the first HUBS particles pair with every
- * third particle besides, so that many candidates share a particle. The near-wall particles of
+ * (mostly after its wall where a near-wall particle of walk_world takes part), so that equal
+ * times are the rule and (i, j) decides; the first WALK_HUBS particles pair with every third
+ * particle besides, so that many candidates share a particle. The near-wall particles of
  * walk_world have wall times 1/4 and 1/2: a pair at the same time comes before the wall. */
 enum { WALK_N = 30000, WALK_HUBS = 8, WALK_HUB_STRIDE = 3 };
 static const int32_t walk_offsets[] = {1, 2, 3, 7, 16, 41, 97, 211};
@@ -1401,8 +1401,12 @@ static void test_step_team_walk(void)
     walk_world(&first);
     int64_t *pcoll = malloc(WALK_N * sizeof *pcoll), *wcoll = malloc(WALK_N * sizeof *wcoll);
     CHECK(pcoll && wcoll);
-    if (!pcoll || !wcoll)
+    if (!pcoll || !wcoll) {
+        free(pcoll);
+        free(wcoll);
+        sim_world_free(&first);
         return;
+    }
     CHECK(spec_walk(&first, pcoll, wcoll) >= SIM_RESOLVE_TEAM_MIN);
     int64_t pairs = 0, walls = 0;
     for (int32_t i = 0; i < WALK_N; i++) {

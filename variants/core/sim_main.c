@@ -262,7 +262,7 @@ static int simulate(const char *name, const sim_options *o, const sim_header *h,
         }
         const double t0 = omp_get_wtime();
         if (rc == SIM_EXIT_OK && sim_step(s, w, &rep->stats)) {
-            fprintf(stderr, "%s: out of memory for the candidates of step %lld\n", name,
+            fprintf(stderr, "%s: out of memory in step %lld\n", name,
                     (long long)step);
             rc = SIM_EXIT_RUNTIME;
         }

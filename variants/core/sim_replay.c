@@ -41,7 +41,15 @@
 #define SIM_REPLAY_FIELDS 7 /* k i x y vx vy p */
 #define SIM_REPLAY_MAGIC "CBREPLAY"
 #define SIM_REPLAY_MAGIC_LEN 8
-#define SIM_REPLAY_RECORD (8 + 4 + 5 * 8 + 4 + 1)
+/* The offsets of a binary successor record's fields (its layout: above). */
+enum {
+    SIM_REPLAY_AT_INDEX = 8,
+    SIM_REPLAY_AT_VALUES = SIM_REPLAY_AT_INDEX + 4,
+    SIM_REPLAY_AT_PARTNER = SIM_REPLAY_AT_VALUES + 5 * 8,
+    SIM_REPLAY_AT_CODE = SIM_REPLAY_AT_PARTNER + 4,
+    SIM_REPLAY_RECORD = SIM_REPLAY_AT_CODE + 1
+};
+_Static_assert(SIM_REPLAY_RECORD == 57, "the harness reads 57-byte successor records");
 
 /* A cursor over the input's lines. */
 typedef struct replay_reader {
@@ -320,10 +328,10 @@ static int write_successor_binary(FILE *out, const sim_world *w, long long k,
                              (double)w->vy[i], (double)t[i]};
         const uint8_t code = kind[i] == 'p' ? 1 : (kind[i] == 'w' ? 2 : 0);
         memcpy(p, &label, sizeof label);
-        memcpy(p + 8, &i, sizeof i);
-        memcpy(p + 12, v, sizeof v);
-        memcpy(p + 52, &partner[i], sizeof partner[i]);
-        p[56] = code;
+        memcpy(p + SIM_REPLAY_AT_INDEX, &i, sizeof i);
+        memcpy(p + SIM_REPLAY_AT_VALUES, v, sizeof v);
+        memcpy(p + SIM_REPLAY_AT_PARTNER, &partner[i], sizeof partner[i]);
+        p[SIM_REPLAY_AT_CODE] = code;
         p += SIM_REPLAY_RECORD;
     }
     const size_t len = (size_t)(p - buf);
@@ -371,7 +379,7 @@ int sim_replay(FILE *out, const char *name, const char *text, size_t len, int th
         /* A new state, not the stepper's last: its wall candidates must be found afresh. */
         s->walls_ready = false;
         if (sim_step(s, &w, &stats)) {
-            fprintf(stderr, "%s: out of memory for the candidates of step %lld\n", name, k);
+            fprintf(stderr, "%s: out of memory in step %lld\n", name, k);
             rc = SIM_EXIT_RUNTIME;
             break;
         }

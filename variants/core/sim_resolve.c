@@ -60,7 +60,7 @@ static inline size_t walk_one(unsigned char *taken, sim_cand c, sim_cand *pairs,
 }
 
 /* The walk over cand[k0, k1); returns the accepted count, np before. */
-static size_t walk_range(unsigned char *restrict taken, const sim_cand *restrict cand, size_t k0,
+static size_t walk_range(unsigned char *taken, const sim_cand *restrict cand, size_t k0,
                          size_t k1, sim_cand *restrict pairs, size_t np)
 {
     for (size_t k = k0; k < k1; k++) {
@@ -72,7 +72,7 @@ static size_t walk_range(unsigned char *restrict taken, const sim_cand *restrict
 }
 
 /* The walk over the pairs of chunk `chunk` whose bit in mask is set (a filter's survivors). */
-static size_t walk_mask(unsigned char *restrict taken, const sim_cand *restrict cand,
+static size_t walk_mask(unsigned char *taken, const sim_cand *restrict cand,
                         const uint64_t *restrict mask, size_t chunk, sim_cand *restrict pairs,
                         size_t np)
 {
@@ -85,7 +85,7 @@ static size_t walk_mask(unsigned char *restrict taken, const sim_cand *restrict 
 
 /* Chunk `chunk`'s survivors into mask: the pairs neither of whose particles a flag marks
  * taken as the filter reads them. Bits past the last pair stay clear. */
-static void filter_chunk(const unsigned char *restrict taken, const sim_cand *restrict cand,
+static void filter_chunk(const unsigned char *taken, const sim_cand *restrict cand,
                          uint64_t *restrict mask, size_t chunk, size_t count)
 {
     const size_t k0 = chunk * SIM_RESOLVE_CHUNK;
@@ -104,7 +104,7 @@ static void filter_chunk(const unsigned char *restrict taken, const sim_cand *re
  * of (sim_resolve says why), written to out in order, their particles flagged; returns how
  * many. Branch-free, as walk_one. The flags through the atomic accessors: on the team, a filter
  * that lags may still read them (resolve_team). */
-static size_t walk_walls(const sim_stepper *s, unsigned char *restrict taken,
+static size_t walk_walls(const sim_stepper *s, unsigned char *taken,
                          sim_cand *restrict out)
 {
     size_t nw = 0;
@@ -150,8 +150,9 @@ static int reserve_chunks(sim_stepper *s, size_t chunks)
  *     walk: the walker walks a filtered chunk's survivors only, in order, and an unfiltered
  *     chunk whole. It never waits for a filter; a filter that lags only costs its own time.
  *     Every pair's fate is the walk's, whoever saw the chunk first: the result does not depend
- *     on timing. After the first chunks about a fifth of the pairs survive (most lose a particle
- *     to an earlier pair), and filtering, which only reads, costs less than walking;
+ *     on timing. After the first chunks most pairs have lost a particle to an earlier pair and
+ *     do not survive (docs/grid_bound.md has the share), and filtering, which only reads,
+ *     costs less than walking;
  *  2. the walls, by the walker once it has walked the pairs: one pass in particle order, a
  *     fraction of the pairs' time (docs/grid_bound.md).
  * Returns 0, or -1 when memory ran out. */
