@@ -39,6 +39,10 @@ from harness.analysis.resultsets import (
     not_comparable,
 )
 from harness.store import layout, records
+from harness.store.columns import STOPPED_BUDGET, STOPPED_LAST_LOOK
+
+# A pair measured together that stopped undecided: its verdict is its last look's.
+FINAL_STOPS = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
 
 EXIT_OK = 0
 EXIT_SLOWER = 1
@@ -146,9 +150,13 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         notes.append("the input files differ")
     paired = paired_rounds(old, new)
     if paired is not None:
-        # the look of the rounds measured, dropped ones included: the looks taken so far
+        # the look of the rounds measured, dropped ones included: the looks taken so far;
+        # a pair that measures no more (its budget spent, or the last look reached) is at the
+        # last look, whose share of the error rate no earlier look has spent
         measured = len(old.by_round().keys() & new.by_round().keys())
-        change = stats.paired_change(*paired, threshold, stats.look_index(measured))
+        final = old.stopped in FINAL_STOPS and new.stopped in FINAL_STOPS
+        change = stats.paired_change(*paired, threshold,
+                                     stats.LAST_LOOK if final else stats.look_index(measured))
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
@@ -200,7 +208,8 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
                      "ratio). Rounds are added to undecided cells at looks "
                      f"{stats.look_rounds(1)}, {stats.look_rounds(2)}, {stats.look_rounds(3)}, "
                      f"... up to {stats.look_rounds(stats.LAST_LOOK)} rounds, each spending "
-                     "1/(2j(j+1)) of the error rate and the last the rest (a group-sequential "
+                     "1/(2j(j+1)) of the error rate and the last the rest, at which a pair "
+                     "stopped undecided by the budget is judged too (a group-sequential "
                      "design: stopping when a look decides does not inflate false verdicts); "
                      "intervals are at the level of the look.")
     if APART in used:

@@ -114,6 +114,7 @@ class Cell:
     stale: bool = False  # the binary changed since this cell was measured (results.csv)
     rounds: tuple[int, ...] = ()  # the round of each of `times`, where recorded
     round_seed: str = ""  # the seed of the rounds it was measured in
+    stopped: str = ""  # why its timing stopped (store.columns.STOPPED_REASONS), where recorded
     # The instruction lane (store.columns.INSTRUCTION_COLUMNS): the fewest and the most
     # instructions of its counted runs (nan: not counted) and the counter
     instructions: float = math.nan
@@ -224,6 +225,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
+            stopped=_text(row, "stopped"),
             instructions=_number(row, "instructions"),
             instructions_max=_number(row, "instructions_max"),
             instructions_tool=_text(row, "instructions_tool"),

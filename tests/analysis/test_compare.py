@@ -4,6 +4,7 @@ machines, matching, exit codes, and a real slow-down."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import shutil
 import subprocess
@@ -483,3 +484,22 @@ def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:
     assert "the method per cell" in figure.ratio_label([paired, apart])
     assert [p.suffix for p in figure.write_figure([paired], 0.01, tmp_path / "c")] == [
         ".png", ".svg"]
+
+
+def test_a_pair_stopped_by_its_budget_is_judged_at_the_last_look() -> None:
+    # The same 30 rounds (between the third and fourth looks), a 6% slow-down: stopped by the
+    # budget, the pair spends the last look's share of the error rate, which no earlier look
+    # spent; still measuring, it spends the fourth look's.
+    rng = np.random.default_rng(4)
+    rounds = list(range(1, 31))
+    old_times = rng.lognormal(0.0, 0.05, 30)
+    new_times = old_times * 1.06 * rng.lognormal(0.0, 0.05, 30)
+    cells = {stop: [dataclasses.replace(synthetic(t, rounds=rounds, seed="3"), stopped=stop)
+                    for t in (old_times, new_times)] for stop in ("", "budget", "last_look")}
+    judged = {stop: compare.compare_cells(*pair, 0.01, DRIFT).change
+              for stop, pair in cells.items()}
+    assert judged[""].look == stats.look_index(30) < stats.LAST_LOOK
+    assert judged["budget"].look == judged["last_look"].look == stats.LAST_LOOK
+    assert judged["budget"].p_slower == pytest.approx(
+        judged[""].p_slower * stats.look_weight(judged[""].look) / stats.look_weight(
+            stats.LAST_LOOK))
