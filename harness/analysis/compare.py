@@ -159,14 +159,7 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                                      stats.LAST_LOOK if final else stats.look_index(measured))
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
-        # Others' work while a side ran slowed its runs by up to about the share of the cores
-        # they took, whichever of its runs it hit: beyond the machine's drift, the interval
-        # allows for that on each side.
-        sigma = math.hypot(drift.sigma, old.interference, new.interference)
-        change, method = stats.drift_change(old.times, new.times, threshold, sigma), APART
-        if sigma > drift.sigma * 1.05:
-            notes.append(f"interference measured: others took {old.interference:.0%} (OLD) "
-                         f"and {new.interference:.0%} (NEW) of the cores, allowed for")
+        change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
     else:
         ratio = new.median / old.median if old.median > 0 else math.nan
         change, method = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan,
@@ -222,9 +215,8 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     if APART in used:
         lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
                      "bootstrap interval is widened by the machine's drift between runs "
-                     f"measured apart, {drift.sigma:.1%} ({drift.source}), and by the share "
-                     "of the cores' time other processes took while either side ran, where "
-                     "measured; p-value from a normal test against it.")
+                     f"measured apart, {drift.sigma:.1%} ({drift.source}); p-value from a "
+                     "normal test against it.")
     return lines
 
 

@@ -131,14 +131,6 @@ class Cell:
         return dict(zip(rounds, self.round_noise, strict=True)) \
             if len(rounds) == len(self.round_noise) else {}
 
-    @property
-    def interference(self) -> float:
-        """The share of its cores' time that other processes took or the hypervisor stole
-        while it was measured (0 where not measured)."""
-        if self.noise_capacity_s <= 0:
-            return 0.0
-        return (self.steal_s + self.other_cpu_s) / self.noise_capacity_s
-
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
         return stats.round_medians(self.times, self.rounds)

@@ -503,19 +503,3 @@ def test_a_pair_stopped_by_its_budget_is_judged_at_the_last_look() -> None:
     assert judged["budget"].p_slower == pytest.approx(
         judged[""].p_slower * stats.look_weight(judged[""].look) / stats.look_weight(
             stats.LAST_LOOK))
-
-
-def test_interference_measured_while_a_side_ran_widens_its_interval_apart() -> None:
-    # NEW's runs were measured while other processes took 30% of the cores: its 15% slower
-    # runs are what that interference can do, not a change shown; without interference
-    # measured the same runs are called slower.
-    old = synthetic([1.00, 1.01, 0.99, 1.00, 1.00])
-    new = synthetic([1.15, 1.16, 1.14, 1.15, 1.15])
-    loaded = dataclasses.replace(new, other_cpu_s=3.0, noise_capacity_s=10.0)
-    assert loaded.interference == pytest.approx(0.3)
-    drift = compare.Drift(0.0, "this calibration")
-    plain = compare.compare(side("OLD", [old]), side("NEW", [new]), 0.01, drift)
-    widened = compare.compare(side("OLD", [old]), side("NEW", [loaded]), 0.01, drift)
-    assert [r.kind for r in plain] == [compare.SLOWER]
-    assert [r.kind for r in widened] == [compare.INCONCLUSIVE]
-    assert "others took 0% (OLD) and 30% (NEW)" in widened[0].note
