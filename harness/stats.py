@@ -288,6 +288,12 @@ def look_index(rounds: int) -> int:
     return look
 
 
+def paired_look(rounds: int, final: bool) -> int:
+    """The look a pair measured together is judged at: LAST_LOOK once it measures no more
+    undecided (final), else the look its rounds count as (look_index)."""
+    return LAST_LOOK if final else look_index(rounds)
+
+
 def look_weight(look: int) -> float:
     """The share of the error rate look `look` spends: 1 / (2 j (j + 1)) before the last, and
     the rest (just over half) at the last, so that the shares sum to 1."""

@@ -39,10 +39,7 @@ from harness.analysis.resultsets import (
     not_comparable,
 )
 from harness.store import layout, records
-from harness.store.columns import STOPPED_BUDGET, STOPPED_LAST_LOOK
-
-# A pair measured together that stopped undecided: its verdict is its last look's.
-FINAL_STOPS = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
+from harness.store.columns import STOPPED_UNDECIDED
 
 EXIT_OK = 0
 EXIT_SLOWER = 1
@@ -150,13 +147,10 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         notes.append("the input files differ")
     paired = paired_rounds(old, new)
     if paired is not None:
-        # the look of the rounds measured, dropped ones included: the looks taken so far;
-        # a pair that measures no more (its budget spent, or the last look reached) is at the
-        # last look, whose share of the error rate no earlier look has spent
+        # the look of the rounds measured, dropped ones included: the looks taken so far
         measured = len(old.by_round().keys() & new.by_round().keys())
-        final = old.stopped in FINAL_STOPS and new.stopped in FINAL_STOPS
-        change = stats.paired_change(*paired, threshold,
-                                     stats.LAST_LOOK if final else stats.look_index(measured))
+        final = old.stopped in STOPPED_UNDECIDED and new.stopped in STOPPED_UNDECIDED
+        change = stats.paired_change(*paired, threshold, stats.paired_look(measured, final))
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART

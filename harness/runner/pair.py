@@ -32,7 +32,12 @@ from harness.spec.builds import make_binaries
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
-from harness.store.columns import STOPPED_BUDGET, STOPPED_DECIDED, STOPPED_LAST_LOOK
+from harness.store.columns import (
+    STOPPED_BUDGET,
+    STOPPED_DECIDED,
+    STOPPED_LAST_LOOK,
+    STOPPED_UNDECIDED,
+)
 from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
@@ -60,13 +65,16 @@ class UntilDecided:
     started: float = math.inf  # when the first pair reached the first look
     decided: dict[int, str] = field(default_factory=dict)  # pair index: verdict
 
-    def change(self, old: Unit, new: Unit) -> stats.Change:
+    def change(self, old: Unit, new: Unit, final: bool) -> stats.Change:
+        """The pair's change at its look, as `compare OUT/old OUT/new` will judge it (final:
+        it stops undecided now, or did)."""
         a = stats.round_medians(old.state.times, old.state.rounds)
         b = stats.round_medians(new.state.times, new.state.rounds)
         measured = len(a.keys() & b.keys())
         series = stats.paired_series(a, b, stats.rounds_to_drop(old.state.noise_by_round(),
                                                                 new.state.noise_by_round()))
-        return stats.paired_change(*series, self.threshold, stats.look_index(measured))
+        final = final or old.state.stopped in STOPPED_UNDECIDED
+        return stats.paired_change(*series, self.threshold, stats.paired_look(measured, final))
 
     def left_s(self) -> float:
         return self.budget_s - max(0.0, time.monotonic() - self.started)
@@ -79,29 +87,34 @@ class UntilDecided:
                    and self.pairs[k][1].state.stopped]
         if at_look:
             self.started = min(self.started, time.monotonic())
-            judged = [k for k, (a, b) in enumerate(self.pairs) if a.run and b.run
-                      and a.state.timed and b.state.timed and len(a.state.times) >= 2]
-            verdicts = dict(zip(judged, stats.decide([self.change(*self.pairs[k])
-                                                      for k in judged], self.q), strict=True))
-            for k in at_look:
-                old, new = self.pairs[k]
-                verdict = verdicts.get(k, stats.INCONCLUSIVE)
-                look = stats.look_index(len(set(old.state.rounds)))
-                if verdict != stats.INCONCLUSIVE:
-                    self._stop(k, STOPPED_DECIDED, verdict)
-                elif look >= stats.LAST_LOOK:
-                    self._stop(k, STOPPED_LAST_LOOK, verdict)
-                elif self.left_s() > 0:
-                    for unit in (old, new):
-                        unit.state.min_rounds = stats.look_rounds(look + 1)
-                        unit.state.stopped = ""
-                else:
-                    self._stop(k, STOPPED_BUDGET, verdict)
-        if self.left_s() <= 0:
-            # the first look's rounds are every pair's; the budget cuts only rounds added
-            for k in live:
-                if not self.pairs[k][0].state.stopped and self.pairs[k][0].state.min_rounds:
-                    self._stop(k, STOPPED_BUDGET, stats.INCONCLUSIVE)
+        spent = self.left_s() <= 0
+        # Once the budget is spent, the pairs at a look and those given more rounds stop
+        # (the first look's rounds are every pair's; the budget cuts only rounds added).
+        cut = [k for k in live if spent and not self.pairs[k][0].state.stopped
+               and self.pairs[k][0].state.min_rounds]
+        if not (at_look or cut):
+            return self.status()
+        ending = set(at_look if spent else ()) | set(cut)
+        judged = [k for k, (a, b) in enumerate(self.pairs) if a.run and b.run
+                  and a.state.timed and b.state.timed and len(a.state.times) >= 2]
+        verdicts = dict(zip(judged, stats.decide([self.change(*self.pairs[k], k in ending)
+                                                  for k in judged], self.q), strict=True))
+        for k in at_look:
+            old, new = self.pairs[k]
+            verdict = verdicts.get(k, stats.INCONCLUSIVE)
+            look = stats.look_index(len(set(old.state.rounds)))
+            if spent:
+                self._stop(k, STOPPED_BUDGET, verdict)
+            elif verdict != stats.INCONCLUSIVE:
+                self._stop(k, STOPPED_DECIDED, verdict)
+            elif look >= stats.LAST_LOOK:
+                self._stop(k, STOPPED_LAST_LOOK, verdict)
+            else:
+                for unit in (old, new):
+                    unit.state.min_rounds = stats.look_rounds(look + 1)
+                    unit.state.stopped = ""
+        for k in cut:
+            self._stop(k, STOPPED_BUDGET, verdicts.get(k, stats.INCONCLUSIVE))
         return self.status()
 
     def _stop(self, k: int, reason: str, verdict: str) -> None:

@@ -114,6 +114,9 @@ STOPPED_BUDGET = "budget"
 STOPPED_LAST_LOOK = "last_look"
 STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME,
                                     STOPPED_DECIDED, STOPPED_BUDGET, STOPPED_LAST_LOOK)
+# A pair that stopped undecided (its budget spent, or at the last look) is judged at the last
+# look, whose share of the error rate no earlier look spent.
+STOPPED_UNDECIDED: tuple[str, ...] = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
 # A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
 # rounding; empty: never), the rule that step breaks, and the data races ThreadSanitizer found
 # in it (`FILE:LINE and FILE:LINE (variables)`, `;`-separated; `none`; empty where it was not
