@@ -5,7 +5,7 @@
 #   tests/c/grid_scenes.sh build/asan     # ASan+UBSan build (scenes scaled down: ~5x slower)
 #   tests/c/grid_scenes.sh gen KIND ARGS  # print one generated input file (see gen_scene)
 #
-# grid must be byte-identical (--precise, cmp) to seq on every scene and for 1-4 threads:
+# grid must be byte-identical (--precise, cmp) to seq on every scene and for 1-4 and 8 threads:
 # random scenes from the binaries' own generator (fast: speeds L/8r..L/4) and listed scenes
 # from gen_scene (slow, dense with overlaps, huge sparse L, mixed and outlier speeds, contacts
 # placed exactly on grid slice and cell boundaries), and hand-computed scenes.
@@ -164,12 +164,12 @@ print(f"{dx / L:.3g} {dv / L:.3g} {cnt}")
 PY
 }
 
-# scene NAME FILE L SEED REL: seq reference; grid at 1-4 threads must match it byte for byte;
+# scene NAME FILE L SEED REL: seq reference; grid at 1-4 and 8 threads must match it byte for byte;
 # REL = exact: relative must too; REL = tol: within REL_TOL; REL = none: not compared.
 scene() {
     local name=$1 file=$2 L=$3 seed=$4 rel=$5
     "$BUILD/seq" --precise --seed "$seed" "$file" >"$TMP/seq.out"
-    for t in 1 2 3 4; do
+    for t in 1 2 3 4 8; do
         if "$BUILD/grid" --precise --seed "$seed" --threads "$t" "$file" >"$TMP/grid.out" &&
             cmp -s "$TMP/seq.out" "$TMP/grid.out"; then
             ok

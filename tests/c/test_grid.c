@@ -140,17 +140,17 @@ static sim_cand *reference_candidates(const sim_world *w, size_t *count)
     return buf.items ? buf.items : calloc(1, sizeof(sim_cand));
 }
 
-/* Does the grid find exactly the reference's candidates, at 1..4 threads? Returns the number
- * of candidates (for the callers' statistics). */
+/* Does the grid find exactly the reference's candidates, at 1..4 and 8 threads? Returns the
+ * number of candidates (for the callers' statistics). */
 static size_t check_world(const sim_world *w, const char *what)
 {
     size_t nref;
     sim_cand *ref = reference_candidates(w, &nref);
     /* Every thread count, with the cells the finder chooses and with each subdivision forced
      * (sub 1 .. GRID_SUB_MAX), whatever the scene would get; a team both ways (every particle
-     * binned in every band, and split into bands). */
+     * binned in every band, and split into bands); 8 threads give bands a row or two high. */
     for (int sub = 0; sub <= GRID_SUB_MAX; sub++)
-        for (int threads = 1; threads <= 4; threads++)
+        for (int threads = 1; threads <= 8; threads += threads < 4 ? 1 : 4)
             for (int banded = 0; banded <= (threads > 1); banded++) {
                 size_t ngot;
                 test_sub_force = sub;
@@ -165,7 +165,7 @@ static size_t check_world(const sim_world *w, const char *what)
                             nref);
                     free(got);
                     sub = GRID_SUB_MAX;
-                    threads = 4;
+                    threads = 8;
                     break;
                 }
                 free(got);

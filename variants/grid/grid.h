@@ -89,6 +89,11 @@ typedef int32_t grid_vi __attribute__((vector_size(GRID_LANES * sizeof(int32_t))
  * thread repeats costs less than the barriers and the split into bands on a step that takes
  * about a millisecond, and the scratch of N items a thread is small. */
 #define GRID_DIRECT_N 32768
+/* From this many threads the team shares out the plan of such a step (three barriers) and each
+ * slice's keys (one): at 2 threads one thread's plan and a band's keys of every particle cost
+ * less than a barrier that waits for a descheduled thread on a shared machine; on 16 cores the
+ * keys of every particle were half of a band's binning (docs/grid_bound.md). */
+#define GRID_PLAN_TEAM_MIN 4
 
 /* A particle's state in double, as the world holds it (the decisions are taken in double
  * whatever the build's real type). */
@@ -153,6 +158,9 @@ typedef struct grid_team {
                                * items, then its wide particles */
     struct grid_extent *extent; /* per thread: its particles' extent, for the plan */
     uint32_t *speeds;           /* per thread GRID_SPEED_BINS: its particles' speed counts */
+    /* N <= GRID_DIRECT_N on GRID_PLAN_TEAM_MIN threads or more: the slices' whole-grid keys and
+     * flags of the plan's floats (grid_whole_keys), two of each, for slices k even and odd. */
+    int32_t *whole_key[2], *whole_flag[2];
 } grid_team;
 
 typedef struct grid_scratch {
@@ -197,6 +205,9 @@ typedef struct grid_src {
     int32_t m;
     const int32_t *wide;
     int32_t nwide;
+    /* Or NULL: items [0, m)'s keys in the whole grid's numbering and their flags, computed by
+     * the team once (grid_whole_keys), from which a dense band takes its own. */
+    const int32_t *whole_key, *whole_flag;
 } grid_src;
 
 /* One band of one binned slice. Cells are numbered row-major with stride spanx from (row0,
@@ -293,6 +304,12 @@ void grid_plan_times(grid_scratch *s, const grid_plan *g);
 
 /* The first of the n sorted keys that is >= v. */
 int32_t grid_lower_bound(const uint64_t *key, int32_t n, uint64_t v);
+/* Whether the dense keys of the whole grid (rows 0 .. gy - 1 as one band) fit an int32_t. */
+int grid_whole_keys_fit(const grid_plan *g);
+/* The dense keys (and flags) of the source's items [e0, e1) in slice kf, numbered over the whole
+ * grid as one band: whole_key[e], whole_flag[e]. */
+void grid_whole_keys(const grid_src *src, int32_t e0, int32_t e1, const grid_plan *g, float kf,
+                     int32_t *restrict whole_key, int32_t *restrict whole_flag);
 /* Bin slice kf, the band of rows [row0, row1), from src into dst / wide; *b describes the
  * result. Returns 0, or -1 when memory is short. */
 int grid_bin_slice(const grid_src *src, const sim_world *w, const grid_plan *g, float kf,
@@ -333,8 +350,10 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
 void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
                    sim_cand_buf *buf);
 /* Thread `me` of a team on a small scene (N <= GRID_DIRECT_N): a band of rows a thread, each
- * binned from every particle (the plan's floats), no barrier between slices; scratch for N
- * items a thread. */
+ * binned from every particle (the plan's floats); scratch for N items a thread. Below
+ * GRID_PLAN_TEAM_MIN threads no barrier between slices; from it (where the team's key arrays
+ * are) each thread first computes the slice's keys of N / T particles, and a barrier later
+ * every band takes its own from them. Times its own busy seconds (barriers left out). */
 void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
                      sim_cand_buf *buf);
 

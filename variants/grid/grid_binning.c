@@ -63,6 +63,28 @@ static void slice_keys(int32_t m, const float *restrict bx, const float *restric
     }
 }
 
+/* The whole grid's numbering: rows 0 .. gy - 1 as one band (grid_bin_slice's cells). */
+static uint64_t whole_keys(const grid_plan *g, int32_t *spanx)
+{
+    *spanx = g->gx + 2 * g->sub + 1;
+    return ((uint64_t)g->gy * (uint64_t)*spanx + 1) << keys_shift(g->sub);
+}
+
+int grid_whole_keys_fit(const grid_plan *g)
+{
+    int32_t spanx;
+    return whole_keys(g, &spanx) + 2 <= INT32_MAX;
+}
+
+void grid_whole_keys(const grid_src *src, int32_t e0, int32_t e1, const grid_plan *g, float kf,
+                     int32_t *restrict whole_key, int32_t *restrict whole_flag)
+{
+    int32_t spanx;
+    whole_keys(g, &spanx);
+    slice_keys(e1 - e0, src->bx + e0, src->by + e0, src->ux + e0, src->uy + e0, kf, g, 0,
+               g->gy - 1, spanx, keys_shift(g->sub), whole_key + e0, whole_flag + e0);
+}
+
 /* LSD radix sort of a[0, n) on bits [shift, shift + kb); returns the buffer holding the
  * result (a or tmp). Stable. */
 static uint64_t *radix_sort(uint64_t *a, uint64_t *tmp, int32_t n, int shift, int kb,
@@ -174,6 +196,60 @@ static void item_cells(const grid_src *src, const sim_world *w, const grid_plan 
     }
 }
 
+/* The items count_whole chose placed: item sel[q] (of the source's arrays: no wide item) with
+ * key key[q] and flags flag[q], q < entries, each with all its arrays at once into slot
+ * pos[h + 1]++ (pos as after the counting sort's prefix sum), so that the items that are no
+ * entry of the band cost nothing here; the same entries in the same slots as place_entries. */
+static void place_chosen(const grid_src *src, float kf, grid_thread *th, grid_set *restrict dst,
+                         int32_t *restrict pos, int32_t entries, int32_t kshift)
+{
+    const int32_t *restrict key = th->cx0, *restrict flag = th->flag, *restrict sel = th->cy0;
+    int32_t *restrict scell = th->scell;
+    uint8_t *restrict sext = th->sext;
+    float *restrict bx = dst->bx, *restrict by = dst->by, *restrict ux = dst->ux;
+    float *restrict uy = dst->uy;
+    for (int32_t q = 0; q < entries; q++) {
+        const int32_t h = key[q], e = sel[q], d = pos[h + 1]++;
+        scell[d] = h >> kshift;
+        sext[d] = (uint8_t)flag[q];
+        bx[d] = src->bx[e], by[d] = src->by[e], ux[d] = src->ux[e], uy[d] = src->uy[e];
+        dst->id[d] = src_id(src, e);
+    }
+    for (int32_t d = 0; d < entries; d++)
+        dst->px[d] = slice_start(bx[d], ux[d], kf), dst->py[d] = slice_start(by[d], uy[d], kf);
+}
+
+/* A band's count from the whole grid's keys (grid_whole_keys) in one pass over the source's
+ * items (no wide one among them): the band's rows are the whole keys in [lo, hi) (a row's keys
+ * stay below the next row's), its key the whole key less row0's first. The entries are chosen
+ * (th->cy0: the item; cx0 and flag: its band key and flags; in item order) and counted into
+ * pos[h + 2], the wide listed, the items below the band counted. Returns the entries. */
+static int32_t count_whole(const grid_src *src, const grid_bins *b, grid_thread *th,
+                           int32_t *restrict pos, int32_t *restrict wide, int32_t *nw,
+                           int32_t *below)
+{
+    const int32_t lo = (int32_t)(((uint64_t)b->row0 * b->spanx) << b->kshift);
+    const int32_t hi = (int32_t)(((uint64_t)(b->rowlast + 1) * b->spanx) << b->kshift);
+    const int32_t *restrict whole_key = src->whole_key, *restrict whole_flag = src->whole_flag;
+    int32_t *restrict key = th->cx0, *restrict flag = th->flag, *restrict sel = th->cy0;
+    int32_t q = 0, n_wide = 0, n_below = 0;
+    for (int32_t e = 0; e < src->m; e++) {
+        const int32_t h = whole_key[e];
+        if (h >= lo && h < hi) {
+            pos[h - lo + 2]++;
+            key[q] = h - lo, flag[q] = whole_flag[e], sel[q] = e;
+            q++;
+        } else if (h == GRID_KEY_WIDE) {
+            wide[n_wide++] = src_id(src, e);
+        } else {
+            n_below += h < lo;
+        }
+    }
+    *nw = n_wide;
+    *below = n_below;
+    return q;
+}
+
 /* Dense: a counting sort on the keys (slice_keys), so that in every cell the entries reaching
  * further right come later. pos[h + 2] counts key h; after the prefix sum pos[h + 1] is where h
  * begins; the scatter advances it to where h ends, which leaves h's entries in [pos[h],
@@ -188,6 +264,19 @@ static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *
     const uint64_t keys = b->ncell << kshift;
     int32_t *restrict pos = th->pos;
     int32_t *restrict key = th->cx0, *restrict flag = th->flag;
+    int32_t nw = 0, below = 0;
+    memset(pos, 0, (size_t)(keys + 2) * sizeof *pos);
+    if (src->whole_key && src->nwide == 0) {
+        const int32_t entries = count_whole(src, b, th, pos, wide, &nw, &below);
+        for (uint64_t c = 1; c < keys + 2; c++)
+            pos[c] += pos[c - 1];
+        place_chosen(src, kf, th, dst, pos, entries, kshift);
+        b->ne = entries;
+        b->nw = nw;
+        b->below = below;
+        b->nbase = pos[b->base_end << kshift];
+        return;
+    }
     slice_keys(m, src->bx, src->by, src->ux, src->uy, kf, g, row0, rowlast, spanx, kshift, key,
                flag);
     for (int32_t e = m; e < items; e++) {
@@ -199,8 +288,6 @@ static void bin_dense(const grid_src *src, const sim_world *w, const grid_plan *
                   &flag[e]);
         key[e] = item_key(cx, cy, flag[e], row0, rowlast, spanx, g->sub, kshift);
     }
-    int32_t nw = 0, below = 0;
-    memset(pos, 0, (size_t)(keys + 2) * sizeof *pos);
     for (int32_t e = 0; e < items; e++) {
         const int32_t h = key[e];
         if (h >= 0)

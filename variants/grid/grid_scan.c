@@ -6,6 +6,7 @@
  * bands' items, then each bins and scans its band and writes its base entries back in cell
  * order, the next slice's source. A thread so holds about N / T items, whatever T.
  */
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -273,30 +274,44 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
 {
     grid_thread *th = &s->th[me];
     const int bands = g->bands < team ? g->bands : team;
+    /* The team shares each slice's keys out where it is big enough to have their arrays, and
+     * every thread has a band (all meet the barrier). */
+    const bool whole = s->team.whole_key[0] && bands == team && grid_whole_keys_fit(g);
     if (me >= bands)
         return;
-    if (grid_thread_reserve(th, s->n, 1)) {
-        buf->failed = true;
-        return;
-    }
+    if (grid_thread_reserve(th, s->n, 1))
+        buf->failed = true; /* keeps meeting the team's barriers, doing nothing */
     /* The plan's floats stay the source of every slice (a slice only moves where they land). */
-    const grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord,
-                          .m = s->n, .wide = NULL, .nwide = 0};
+    grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
+                    .wide = NULL, .nwide = 0, .whole_key = NULL, .whole_flag = NULL};
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
+    const int32_t p0 = (int32_t)((int64_t)s->n * me / team);
+    const int32_t p1 = (int32_t)((int64_t)s->n * (me + 1) / team);
     for (int k = 0; k < g->K; k++) {
+        double t0 = sim_busy_start();
+        if (whole) {
+            src.whole_key = s->team.whole_key[k & 1], src.whole_flag = s->team.whole_flag[k & 1];
+            grid_whole_keys(&src, p0, p1, g, (float)k, s->team.whole_key[k & 1],
+                            s->team.whole_flag[k & 1]);
+            sim_busy_stop(buf, t0);
+            /* Slice k + 1 writes the other arrays; slice k + 2 writes these again only after
+             * this barrier of slice k + 1, which every thread meets after its slice k. */
+#pragma omp barrier
+            t0 = sim_busy_start();
+        }
         band_bounds(s, g, (float)k, bands, th);
         const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
         grid_bins b;
-        if (run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0, &b)) {
+        if (!buf->failed && run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src,
+                                      0, &b))
             buf->failed = true;
-            return;
-        }
-        if (k == g->K - 1) {
+        if (!buf->failed && k == g->K - 1) {
             /* The bands' base entries in band order, then the wide particles: every particle
              * once, in this slice's cell order, the next step's start. */
             memcpy(s->ord_next + b.below, th->set[0].id, (size_t)b.nbase * sizeof(int32_t));
             if (me == 0)
                 memcpy(s->ord_next + (s->n - b.nw), th->wide[0], (size_t)b.nw * sizeof(int32_t));
         }
+        sim_busy_stop(buf, t0);
     }
 }

@@ -111,6 +111,8 @@ void grid_scratch_destroy(void *p)
     free(s->ord), free(s->ord_next);
     free(s->team.bx), free(s->team.by), free(s->team.ux), free(s->team.uy), free(s->team.id);
     free(s->team.wide), free(s->team.count), free(s->team.extent), free(s->team.speeds);
+    for (int b = 0; b < 2; b++)
+        free(s->team.whole_key[b]), free(s->team.whole_flag[b]);
     free(s);
 }
 
@@ -150,6 +152,11 @@ void *grid_scratch_create(const sim_world *w, int threads)
             s->th[k].sample = malloc((size_t)threads * GRID_BAND_SAMPLES * sizeof(int32_t));
             bad = !s->th[k].bound || !s->th[k].cur || !s->th[k].sample;
         }
+    }
+    for (int b = 0; b < 2 && !bad && threads >= GRID_PLAN_TEAM_MIN && w->n <= GRID_DIRECT_N; b++) {
+        s->team.whole_key[b] = malloc(n * sizeof(int32_t));
+        s->team.whole_flag[b] = malloc(n * sizeof(int32_t));
+        bad = !s->team.whole_key[b] || !s->team.whole_flag[b];
     }
     if (bad) {
         grid_scratch_destroy(s);
