@@ -140,6 +140,7 @@ typedef struct grid_thread {
     int32_t *bound; /* the bands' first rows, bands + 1 of them (the last is gy) */
     int32_t *cur;   /* where this thread's next item of each band goes in P */
     int32_t *sample; /* rows of GRID_BAND_SAMPLES items a band, for the bands' bounds */
+    uint32_t slices; /* slices binned so far in the run (grid_run_direct's lent bands) */
 } grid_thread;
 
 #define GRID_COUNT_STRIDE(threads) (2 * (threads) + 1)
@@ -161,6 +162,7 @@ typedef struct grid_team {
     /* N <= GRID_DIRECT_N on GRID_PLAN_TEAM_MIN threads or more: the slices' whole-grid keys and
      * flags of the plan's floats (grid_whole_keys), two of each, for slices k even and odd. */
     int32_t *whole_key[2], *whole_flag[2];
+    struct grid_band_share *share; /* per band: its binned slice, lent to the team's runs */
 } grid_team;
 
 typedef struct grid_scratch {
@@ -227,6 +229,17 @@ typedef struct grid_bins {
     uint64_t ncell;    /* cells numbered */
     uint64_t base_end; /* the first cell number above the band's base rows */
 } grid_bins;
+
+/* A band of grid_run_direct's team, lent to every thread: once its owner has binned slice
+ * `ready` (a count of the run's slices) into its set, any thread claims chunks of
+ * GRID_RUN_CHUNK of its base entries from `next` and looks at their runs. One a cache line. */
+typedef struct grid_band_share {
+    _Alignas(64) grid_bins b;
+    int32_t next;
+    uint32_t ready;
+} grid_band_share;
+/* Base entries a claim takes. */
+#define GRID_RUN_CHUNK 32
 
 /* Pairs the prefilter passed wait in a ring of GRID_QUEUE while their particles' double state
  * (s->part) and the kernel's inputs (the world's arrays) are prefetched: at N = 10^6 these are
@@ -327,10 +340,11 @@ void grid_queue_flush(const grid_ctx *cx);
 
 /* ---- grid_runs.c ---- */
 
-/* The runs of a binned slice's band, dense or sparse grids; the wide boxes against the band's
- * entries, and against each other. Each returns the pairs looked at. */
+/* The runs of a binned slice's band, dense or sparse grids (dense: of its base entries
+ * [a0, a1) only); the wide boxes against the band's entries, and against each other. Each
+ * returns the pairs looked at. */
 uint64_t grid_runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
-                         const grid_bins *b);
+                         const grid_bins *b, int32_t a0, int32_t a1);
 uint64_t grid_runs_sparse(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
                           const grid_bins *b);
 uint64_t grid_runs_wide(const grid_ctx *cx, const grid_thread *th, const grid_set *z,

@@ -57,14 +57,13 @@ __attribute__((noinline)) static uint64_t upper_runs_dense(const grid_ctx *cx, c
  * took up to 10% longer. */
 static inline __attribute__((always_inline)) uint64_t
 runs_dense_with(const grid_ctx *cx, const grid_thread *th, const grid_set *z, const grid_bins *b,
-                int32_t sub, int32_t kshift)
+                int32_t a0, int32_t a1, int32_t sub, int32_t kshift)
 {
     const grid_keys k = {th->pos, (int32_t)b->spanx, sub, kshift};
     const int32_t *restrict scell = th->scell;
     const uint8_t *restrict sext = th->sext;
-    const int32_t nbase = b->nbase;
     uint64_t tests = 0;
-    for (int32_t a = 0; a < nbase; a++) {
+    for (int32_t a = a0; a < a1; a++) {
         const int32_t c = scell[a];
         const int32_t ex = sext[a] & GRID_EXT_X_MASK, ey = sext[a] >> GRID_EXT_Y_SHIFT;
         /* The rest of cell c and the cells up to c + ex; the first row above. */
@@ -77,11 +76,11 @@ runs_dense_with(const grid_ctx *cx, const grid_thread *th, const grid_set *z, co
 }
 
 uint64_t grid_runs_dense(const grid_ctx *cx, const grid_thread *th, const grid_set *z,
-                         const grid_bins *b)
+                         const grid_bins *b, int32_t a0, int32_t a1)
 {
     /* Every subdivision has the shift of GRID_SUB_MAX's, a constant here. */
-    return b->sub == 1 ? runs_dense_with(cx, th, z, b, 1, keys_shift(1))
-                       : runs_dense_with(cx, th, z, b, b->sub, keys_shift(GRID_SUB_MAX));
+    return b->sub == 1 ? runs_dense_with(cx, th, z, b, a0, a1, 1, keys_shift(1))
+                       : runs_dense_with(cx, th, z, b, a0, a1, b->sub, keys_shift(GRID_SUB_MAX));
 }
 
 /* The first of the n sorted keys from `at` on that is >= v (a pointer that only moves on). */

@@ -6,6 +6,7 @@
  * bands' items, then each bins and scans its band and writes its base entries back in cell
  * order, the next slice's source. A thread so holds about N / T items, whatever T.
  */
+#include <sched.h>
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,7 +25,8 @@ static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t 
     int32_t *wide = th->wide[out];
     if (grid_bin_slice(src, cx->w, cx->g, (float)cx->k, row0, row1, th, dst, wide, b))
         return -1;
-    uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b) : grid_runs_sparse(cx, th, dst, b);
+    uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b, 0, b->nbase)
+                              : grid_runs_sparse(cx, th, dst, b);
     tests += grid_runs_wide(cx, th, dst, wide, b);
     tests += grid_wide_pairs(cx, wide, b->nw, first, stride);
     grid_queue_flush(cx);
@@ -205,6 +207,66 @@ static void write_back(const sim_world *w, grid_scratch *s, const grid_plan *g, 
     }
 }
 
+/* Slice cx->k of band `me` of a team that lends its bands (grid_run_direct from the team's
+ * whole keys): bin the band's rows [row0, row1) into th->set[0] (*b), lend it (slice number
+ * `slice`), then look at the runs of chunks of base entries claimed from every lent band, this
+ * thread's first, until none is left, so that a thread done early takes over part of a slow
+ * one's band; then the band's wide boxes. The band is lent even when it failed or is sparse,
+ * with no entries to claim, so that no thread waits for it. Returns 0, or -1 when memory is
+ * short. */
+static int run_slice_lent(const grid_ctx *cx, grid_scratch *s, grid_thread *th, int me,
+                          int bands, uint32_t slice, bool failed, const grid_src *src,
+                          grid_bins *b)
+{
+    grid_set *dst = &th->set[0];
+    int32_t *wide = th->wide[0];
+    const int bad = failed || grid_bin_slice(src, cx->w, cx->g, (float)cx->k, th->bound[me],
+                                             th->bound[me + 1], th, dst, wide, b);
+    grid_band_share *mine = &s->team.share[me];
+    mine->b = *b;
+    if (bad || !b->dense)
+        mine->b.nbase = 0;
+    __atomic_store_n(&mine->next, 0, __ATOMIC_RELAXED);
+    __atomic_store_n(&mine->ready, slice, __ATOMIC_RELEASE);
+    uint64_t tests = 0;
+    for (;;) {
+        bool left = false, took = false;
+        for (int i = 0; i < bands; i++) {
+            grid_band_share *lent = &s->team.share[(me + i) % bands];
+            if (__atomic_load_n(&lent->ready, __ATOMIC_ACQUIRE) != slice) {
+                left = true; /* its owner is still binning: come back to it */
+                continue;
+            }
+            const grid_thread *owner = &s->th[(me + i) % bands];
+            for (;;) {
+                const int32_t a0 = GRID_RUN_CHUNK * __atomic_fetch_add(&lent->next, 1,
+                                                                       __ATOMIC_RELAXED);
+                if (a0 >= lent->b.nbase)
+                    break;
+                const int32_t a1 = a0 + GRID_RUN_CHUNK < lent->b.nbase ? a0 + GRID_RUN_CHUNK
+                                                                       : lent->b.nbase;
+                tests += grid_runs_dense(cx, owner, &owner->set[0], &lent->b, a0, a1);
+                took = true;
+            }
+        }
+        if (!left)
+            break;
+        /* An owner still binning may be descheduled (more threads than CPUs): let it run. */
+        if (!took)
+            sched_yield();
+    }
+    if (bad)
+        return -1;
+    if (!b->dense)
+        tests += grid_runs_sparse(cx, th, dst, b);
+    tests += grid_runs_wide(cx, th, dst, wide, b);
+    tests += grid_wide_pairs(cx, wide, b->nw, me, bands);
+    grid_queue_flush(cx);
+    cx->buf->pair_tests += tests;
+    cx->buf->chunks++;
+    return 0;
+}
+
 void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int me, int team,
                    sim_cand_buf *buf)
 {
@@ -302,9 +364,14 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
         band_bounds(s, g, (float)k, bands, th);
         const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
         grid_bins b;
-        if (!buf->failed && run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src,
-                                      0, &b))
+        if (whole) {
+            /* Every thread lends its band, failed or not: the others wait for each band. */
+            if (run_slice_lent(&cx, s, th, me, bands, ++th->slices, buf->failed, &src, &b))
+                buf->failed = true;
+        } else if (!buf->failed && run_slice(&cx, th, th->bound[me], th->bound[me + 1], me,
+                                             bands, &src, 0, &b)) {
             buf->failed = true;
+        }
         if (!buf->failed && k == g->K - 1) {
             /* The bands' base entries in band order, then the wide particles: every particle
              * once, in this slice's cell order, the next step's start. */

@@ -113,6 +113,7 @@ void grid_scratch_destroy(void *p)
     free(s->team.wide), free(s->team.count), free(s->team.extent), free(s->team.speeds);
     for (int b = 0; b < 2; b++)
         free(s->team.whole_key[b]), free(s->team.whole_flag[b]);
+    free(s->team.share);
     free(s);
 }
 
@@ -157,6 +158,13 @@ void *grid_scratch_create(const sim_world *w, int threads)
         s->team.whole_key[b] = malloc(n * sizeof(int32_t));
         s->team.whole_flag[b] = malloc(n * sizeof(int32_t));
         bad = !s->team.whole_key[b] || !s->team.whole_flag[b];
+        if (!bad && b == 0) {
+            s->team.share = aligned_alloc(_Alignof(grid_band_share),
+                                          (size_t)threads * sizeof *s->team.share);
+            bad = !s->team.share;
+            for (int t = 0; t < threads && !bad; t++)
+                s->team.share[t].ready = 0;
+        }
     }
     if (bad) {
         grid_scratch_destroy(s);
