@@ -15,6 +15,20 @@
 
 #include "grid.h"
 
+/* The end of a band's slice, its entries' runs looked at (`tests` pairs): its wide boxes against
+ * its entries, the wide boxes' pairs of rows first, first + stride, ..., the queue decided, the
+ * counts for --timing. */
+static void end_slice(const grid_ctx *cx, const grid_thread *th, const grid_set *dst,
+                      const int32_t *wide, const grid_bins *b, uint64_t tests, int first,
+                      int stride)
+{
+    tests += grid_runs_wide(cx, th, dst, wide, b);
+    tests += grid_wide_pairs(cx, wide, b->nw, first, stride);
+    grid_queue_flush(cx);
+    cx->buf->pair_tests += tests;
+    cx->buf->chunks++;
+}
+
 /* Slice cx->k of the rows [row0, row1): bin src into th->set[out] / th->wide[out] (*b says
  * what came out) and look at every pair of the band once; the wide boxes' pairs of rows
  * first, first + stride, ... Returns 0, or -1 when memory is short. */
@@ -25,13 +39,9 @@ static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t 
     int32_t *wide = th->wide[out];
     if (grid_bin_slice(src, cx->w, cx->g, (float)cx->k, row0, row1, th, dst, wide, b))
         return -1;
-    uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b, 0, b->nbase)
-                              : grid_runs_sparse(cx, th, dst, b);
-    tests += grid_runs_wide(cx, th, dst, wide, b);
-    tests += grid_wide_pairs(cx, wide, b->nw, first, stride);
-    grid_queue_flush(cx);
-    cx->buf->pair_tests += tests;
-    cx->buf->chunks++;
+    const uint64_t tests = b->dense ? grid_runs_dense(cx, th, dst, b, 0, b->nbase)
+                                    : grid_runs_sparse(cx, th, dst, b);
+    end_slice(cx, th, dst, wide, b, tests, first, stride);
     return 0;
 }
 
@@ -259,11 +269,7 @@ static int run_slice_lent(const grid_ctx *cx, grid_scratch *s, grid_thread *th, 
         return -1;
     if (!b->dense)
         tests += grid_runs_sparse(cx, th, dst, b);
-    tests += grid_runs_wide(cx, th, dst, wide, b);
-    tests += grid_wide_pairs(cx, wide, b->nw, me, bands);
-    grid_queue_flush(cx);
-    cx->buf->pair_tests += tests;
-    cx->buf->chunks++;
+    end_slice(cx, th, dst, wide, b, tests, me, bands);
     return 0;
 }
 
