@@ -232,7 +232,8 @@ typedef struct grid_bins {
 
 /* A band of grid_run_direct's team, lent to every thread: once its owner has binned slice
  * `ready` (a count of the run's slices) into its set, any thread claims chunks of
- * GRID_RUN_CHUNK of its base entries from `next` and looks at their runs. One a cache line. */
+ * GRID_RUN_CHUNK of its base entries from `next` and looks at their runs. Each on cache lines
+ * of its own. */
 typedef struct grid_band_share {
     _Alignas(64) grid_bins b;
     int32_t next;

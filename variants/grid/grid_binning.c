@@ -63,26 +63,25 @@ static void slice_keys(int32_t m, const float *restrict bx, const float *restric
     }
 }
 
-/* The whole grid's numbering: rows 0 .. gy - 1 as one band (grid_bin_slice's cells). */
-static uint64_t whole_keys(const grid_plan *g, int32_t *spanx)
+/* Cells a numbered row holds (grid_bins' spanx): the columns, sub before them for the runs
+ * that start left of a column, sub + 1 after. */
+static uint64_t row_span(const grid_plan *g)
 {
-    *spanx = g->gx + 2 * g->sub + 1;
-    return ((uint64_t)g->gy * (uint64_t)*spanx + 1) << keys_shift(g->sub);
+    return (uint64_t)g->gx + 2 * (uint64_t)g->sub + 1;
 }
 
 int grid_whole_keys_fit(const grid_plan *g)
 {
-    int32_t spanx;
-    return whole_keys(g, &spanx) + 2 <= INT32_MAX;
+    /* The whole grid as one band: rows 0 .. gy - 1, and one cell more for the end. */
+    return (((uint64_t)g->gy * row_span(g) + 1) << keys_shift(g->sub)) + 2 <= INT32_MAX;
 }
 
 void grid_whole_keys(const grid_src *src, int32_t e0, int32_t e1, const grid_plan *g, float kf,
                      int32_t *restrict whole_key, int32_t *restrict whole_flag)
 {
-    int32_t spanx;
-    whole_keys(g, &spanx);
     slice_keys(e1 - e0, src->bx + e0, src->by + e0, src->ux + e0, src->uy + e0, kf, g, 0,
-               g->gy - 1, spanx, keys_shift(g->sub), whole_key + e0, whole_flag + e0);
+               g->gy - 1, (int32_t)row_span(g), keys_shift(g->sub), whole_key + e0,
+               whole_flag + e0);
 }
 
 /* LSD radix sort of a[0, n) on bits [shift, shift + kb); returns the buffer holding the
@@ -383,7 +382,7 @@ int grid_bin_slice(const grid_src *src, const sim_world *w, const grid_plan *g, 
     b->sub = g->sub;
     b->kshift = keys_shift(b->sub);
     b->rowlast = b->row1 + b->sub - 1 < g->gy ? b->row1 + b->sub - 1 : g->gy - 1;
-    b->spanx = (uint64_t)g->gx + 2 * (uint64_t)b->sub + 1;
+    b->spanx = row_span(g);
     /* Every cell a run of a base entry reaches, rows up to row1 + sub - 1 (empty where above
      * the grid), and one more for the end of the last. */
     b->ncell = (uint64_t)(b->row1 - b->row0 + b->sub) * b->spanx + 1;

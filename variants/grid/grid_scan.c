@@ -233,8 +233,9 @@ static int run_slice_lent(const grid_ctx *cx, grid_scratch *s, grid_thread *th, 
     const int bad = failed || grid_bin_slice(src, cx->w, cx->g, (float)cx->k, th->bound[me],
                                              th->bound[me + 1], th, dst, wide, b);
     grid_band_share *mine = &s->team.share[me];
-    mine->b = *b;
-    if (bad || !b->dense)
+    /* Nothing to claim where it failed (*b unset) or is sparse (runs only its owner reads). */
+    mine->b = bad ? (grid_bins){.nbase = 0} : *b;
+    if (!bad && !b->dense)
         mine->b.nbase = 0;
     __atomic_store_n(&mine->next, 0, __ATOMIC_RELAXED);
     __atomic_store_n(&mine->ready, slice, __ATOMIC_RELEASE);

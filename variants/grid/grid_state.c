@@ -154,17 +154,18 @@ void *grid_scratch_create(const sim_world *w, int threads)
             bad = !s->th[k].bound || !s->th[k].cur || !s->th[k].sample;
         }
     }
-    for (int b = 0; b < 2 && !bad && threads >= GRID_PLAN_TEAM_MIN && w->n <= GRID_DIRECT_N; b++) {
-        s->team.whole_key[b] = malloc(n * sizeof(int32_t));
-        s->team.whole_flag[b] = malloc(n * sizeof(int32_t));
-        bad = !s->team.whole_key[b] || !s->team.whole_flag[b];
-        if (!bad && b == 0) {
-            s->team.share = aligned_alloc(_Alignof(grid_band_share),
-                                          (size_t)threads * sizeof *s->team.share);
-            bad = !s->team.share;
-            for (int t = 0; t < threads && !bad; t++)
-                s->team.share[t].ready = 0;
+    if (!bad && threads >= GRID_PLAN_TEAM_MIN && w->n <= GRID_DIRECT_N) {
+        /* grid_run_direct's keys of every slice and its lent bands. */
+        grid_team *t = &s->team;
+        for (int b = 0; b < 2; b++) {
+            t->whole_key[b] = malloc(n * sizeof(int32_t));
+            t->whole_flag[b] = malloc(n * sizeof(int32_t));
+            bad = bad || !t->whole_key[b] || !t->whole_flag[b];
         }
+        t->share = aligned_alloc(_Alignof(grid_band_share), (size_t)threads * sizeof *t->share);
+        bad = bad || !t->share;
+        for (int k = 0; k < threads && !bad; k++)
+            t->share[k].ready = 0;
     }
     if (bad) {
         grid_scratch_destroy(s);
