@@ -455,16 +455,60 @@ def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
                         sum(s > NOISE_LIMIT for s in shares))
 
 
+@dataclass(frozen=True)
+class PairedRounds:
+    """The rounds both sides of a pair measured, in round order: each side's value and, where
+    the noise of both was measured, how much more of the cores' time others took during NEW's
+    side than during OLD's (shares, harness.measure.noise)."""
+
+    old: list[float]
+    new: list[float]
+    shift: list[float] | None = None
+
+
 def paired_series(old: dict[int, float], new: dict[int, float],
-                  dropped: frozenset[int] = frozenset()) -> tuple[list[float], list[float]]:
+                  dropped: frozenset[int] = frozenset(),
+                  old_noise: dict[int, float] | None = None,
+                  new_noise: dict[int, float] | None = None) -> PairedRounds:
     """The two sides' values of the rounds both have, in round order, without the rounds in
-    `dropped` (interfered with, on either side)."""
+    `dropped` (interfered with, on either side); with the interference shift of each round
+    where both sides' noise covers every one of them."""
     common = sorted((old.keys() & new.keys()) - dropped)
-    return [old[k] for k in common], [new[k] for k in common]
+    shift = None
+    if old_noise and new_noise and all(k in old_noise and k in new_noise for k in common):
+        shift = [new_noise[k] - old_noise[k] for k in common]
+    return PairedRounds([old[k] for k in common], [new[k] for k in common], shift)
+
+
+def interference_slope(log_ratios: np.ndarray, shift: np.ndarray) -> float:
+    """How far a round's log ratio moves per unit of interference shift: the Theil-Sen slope
+    (scipy.stats.theilslopes, robust to the rounds whose ratio moved for other reasons), at
+    least 0, since others taking the cores can only slow a side. 0 where the shift never
+    varies (a quiet machine, or noise not measured)."""
+    if log_ratios.size < 3 or float(np.ptp(shift)) == 0.0:
+        return 0.0
+    return max(0.0, float(sps.theilslopes(log_ratios, shift).slope))
+
+
+def without_interference(log_ratios: np.ndarray, shift: Sequence[float] | None) -> np.ndarray:
+    """The rounds' log ratios with the part their interference shift explains taken out.
+
+    Why: a round where others took the cores during one side only moves its ratio by about
+    the share they took, times how much this cell suffers from a share (on 2 vCPUs a 2-thread
+    cell slowed about 2x per unit of share, a 1-thread cell, which the kernel moves to the
+    free core, under 0.3x); the ratios left cluster around the change itself. Under identical
+    sides a shift is as likely either way, so taking it out cannot make a change where there
+    is none. It assumes the binaries do not change the share others get: a NEW that leaves a
+    core idle where OLD did not gives a waiting neighbour more, and part of its slow-down
+    would read as noise (docs/compare.md)."""
+    if shift is None:
+        return log_ratios
+    s = np.asarray(shift, dtype=float)
+    return log_ratios - interference_slope(log_ratios, s) * s
 
 
 def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
-                  look: int | None = None) -> Change:
+                  look: int | None = None, shift: Sequence[float] | None = None) -> Change:
     """The change from paired measurements: old[k] and new[k] were measured in the same round,
     one right after the other, so that the machine's drift is in both. The ratio is the median
     of the per-round ratios, its interval and p-values from the sign test on their logs
@@ -485,9 +529,16 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     interval is at that look's level, so that an interval shown inside the threshold is one
     the sequential design allows. `sd` is the per-round spread the interval implies (its
     half-width in logs over the normal quantile of its level, times the square root of the
-    rounds), what further_rounds and smallest_detectable read."""
+    rounds), what further_rounds and smallest_detectable read.
+
+    `shift` (per round, NEW's interference share less OLD's): the part of each ratio it
+    explains is taken out first (without_interference)."""
     d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
-    d = d[np.isfinite(d)]
+    finite = np.isfinite(d)
+    if shift is not None and len(shift) == d.size:
+        d = without_interference(d[finite], np.asarray(shift, dtype=float)[finite])
+    else:
+        d = d[finite]
     if d.size < 2:
         return NO_CHANGE_KNOWN
     centre = float(np.median(d))

@@ -2,16 +2,20 @@
 the per-round log ratios of a real comparison's cells (OUT/old, OUT/new of `compare --measure`)
 are centred on their median, resampled with random signs (the noise of one round, as likely
 either way), shifted by the slow-down, and judged look by look as `compare --measure` judges
-them, across all cells with the false-discovery control. Each of two tests, with each of two
+them, across all cells with the false-discovery control. Each of three tests, with each of two
 ways to spend the error rate over the looks:
 
   sign    the sign test on the logs (harness.stats.paired_change, what compare does);
+  rank    the Wilcoxon signed-rank test on the logs (scipy.stats.wilcoxon);
   t       a one-sample t-test on the logs clipped to 3 MADs of their median;
   last    half of the rate kept for the last look (harness.stats.look_weight);
   even    1/(j(j+1)) at look j, with no last look.
 
     .venv/bin/python scripts/paired_power.py OUT [--rounds 99] [--slowdown 0.05]
-        [--comparisons 40] [--seed 5]
+        [--comparisons 40] [--seed 5] [--raw]
+
+Each round's log ratio has the part its measured interference shift explains taken out first
+(harness.stats.without_interference, as compare does); --raw leaves it in.
 
 The rounds are cut at --rounds (what the budget reached). Prints one Markdown row per test and
 spending: cells called slower and faster per comparison, with and without the slow-down.
@@ -42,6 +46,10 @@ def t_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
 
 def sign_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
     return float(sps.quantile_test(d, q=value, p=0.5, alternative=alternative).pvalue)
+
+
+def rank_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
+    return float(sps.wilcoxon(d - value, alternative=alternative, method="approx").pvalue)
 
 
 def even_weight(look: int) -> float:
@@ -86,20 +94,24 @@ def main() -> None:
     parser.add_argument("--threshold", type=float, default=0.01)
     parser.add_argument("--comparisons", type=int, default=40)
     parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument("--raw", action="store_true",
+                        help="leave the interference each round measured in its ratio")
     args = parser.parse_args()
     old, new = side("OLD", args.out / "old"), side("NEW", args.out / "new")
     pools = []
     for key, a in old.cells.items():
         pair = paired_rounds(a, new.cells[key]) if key in new.cells else None
         if pair is not None:
-            d = np.log(np.asarray(pair[1])) - np.log(np.asarray(pair[0]))
+            d = stats.without_interference(np.log(np.asarray(pair.new))
+                                           - np.log(np.asarray(pair.old)),
+                                           None if args.raw else pair.shift)
             pools.append(d - np.median(d))
     print(f"{len(pools)} cells, per-round noise from {args.out}; {args.comparisons} "
           f"comparisons each, {args.rounds} rounds at most\n")
     print("| test | spending | slower (5% slower) | faster (5% slower) "
           "| slower or faster (identical) |")
     print("|---|---|---:|---:|---:|")
-    tests = {"sign": sign_pvalue, "t": t_pvalue}
+    tests = {"sign": sign_pvalue, "rank": rank_pvalue, "t": t_pvalue}
     weights = {"last": stats.look_weight, "even": even_weight}
     for (tname, pvalue), (wname, weight) in [(t, w) for t in tests.items()
                                              for w in weights.items()]:

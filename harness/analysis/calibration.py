@@ -87,9 +87,9 @@ def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
         pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
         if pair is None:
             continue
-        sd = stats.paired_change(*pair, 0.0).sd  # 0 where every round gave one ratio
+        sd = stats.paired_change(pair.old, pair.new, 0.0, shift=pair.shift).sd  # 0: one ratio
         if math.isfinite(sd):
-            found.append((sd, len(pair[0])))
+            found.append((sd, len(pair.old)))
     return found
 
 

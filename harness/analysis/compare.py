@@ -10,7 +10,8 @@ with its 95% interval, the p-value that it changed by more than the threshold, a
 How a cell is judged depends on how its two sides were measured:
 - together (`compare --measure`: both sides in the same rounds, one right after the other,
   with the same round seed): per round, the ratio of the two sides' runs, which the machine's
-  drift cannot move; the sign test on them (stats.paired_change);
+  drift cannot move, less what the interference measured on either side explains; the sign
+  test on them (stats.paired_change);
 - apart (two stored result sets, measured minutes or days apart): the ratio of the medians,
   its bootstrap interval widened by the machine's drift between runs measured apart (from its
   calibration, `compare --calibrate`, kept in <results>/calibration/machines/<id>.json, or an
@@ -123,15 +124,16 @@ class Row:
         return self.kind in VERDICTS
 
 
-def paired_rounds(old: Cell, new: Cell) -> tuple[list[float], list[float]] | None:
-    """The two sides' round medians, round by round, where they were measured together; the
-    rounds flagged as interfered with on either side left out."""
+def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
+    """The two sides' round medians, round by round, where they were measured together, with
+    each round's interference shift; the rounds flagged as interfered with on either side left
+    out."""
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     a, b = old.by_round(), new.by_round()
-    pair = stats.paired_series(a, b, stats.rounds_to_drop(old.noise_by_round(),
-                                                          new.noise_by_round()))
-    return pair if len(pair[0]) >= 2 else None
+    na, nb = old.noise_by_round(), new.noise_by_round()
+    pair = stats.paired_series(a, b, stats.rounds_to_drop(na, nb), na, nb)
+    return pair if len(pair.old) >= 2 else None
 
 
 def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
@@ -150,7 +152,8 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         # the look of the rounds measured, dropped ones included: the looks taken so far
         measured = len(old.by_round().keys() & new.by_round().keys())
         final = old.stopped in STOPPED_UNDECIDED and new.stopped in STOPPED_UNDECIDED
-        change = stats.paired_change(*paired, threshold, stats.paired_look(measured, final))
+        change = stats.paired_change(paired.old, paired.new, threshold,
+                                     stats.paired_look(measured, final), paired.shift)
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
@@ -196,8 +199,10 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
              f"held at {FDR_Q:g} (Benjamini-Hochberg)."]
     if PAIRED in used:
         lines.append(f"{PAIRED.capitalize()} (the same rounds): NEW/OLD is the median of the "
-                     "per-round ratios, which the machine's drift between rounds cannot move; "
-                     "95% interval and p-value from the sign test on them (a round whose two "
+                     "per-round ratios, which the machine's drift between rounds cannot move, "
+                     "each with the part taken out that the extra share of the cores others "
+                     "took during one side explains (where measured); 95% interval and p-value "
+                     "from the sign test on them (a round whose two "
                      "sides met the machine in different states costs one vote, whatever its "
                      "ratio). Rounds are added to undecided cells at looks "
                      f"{stats.look_rounds(1)}, {stats.look_rounds(2)}, {stats.look_rounds(3)}, "

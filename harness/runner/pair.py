@@ -71,10 +71,11 @@ class UntilDecided:
         a = stats.round_medians(old.state.times, old.state.rounds)
         b = stats.round_medians(new.state.times, new.state.rounds)
         measured = len(a.keys() & b.keys())
-        series = stats.paired_series(a, b, stats.rounds_to_drop(old.state.noise_by_round(),
-                                                                new.state.noise_by_round()))
+        na, nb = old.state.noise_by_round(), new.state.noise_by_round()
+        series = stats.paired_series(a, b, stats.rounds_to_drop(na, nb), na, nb)
         final = final or old.state.stopped in STOPPED_UNDECIDED
-        return stats.paired_change(*series, self.threshold, stats.paired_look(measured, final))
+        return stats.paired_change(series.old, series.new, self.threshold,
+                                   stats.paired_look(measured, final), series.shift)
 
     def left_s(self) -> float:
         return self.budget_s - max(0.0, time.monotonic() - self.started)
