@@ -230,7 +230,7 @@ typedef struct grid_bins {
     uint64_t base_end; /* the first cell number above the band's base rows */
 } grid_bins;
 
-/* A band of grid_run_direct's team, lent to every thread: once its owner has binned slice
+/* A band of a team's slice, lent to every thread: once its owner has binned slice
  * `ready` (a count of the run's slices) into its set, any thread claims chunks of
  * GRID_RUN_CHUNK of its base entries from `next` and looks at their runs. Each on cache lines
  * of its own. */

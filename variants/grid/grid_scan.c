@@ -218,7 +218,7 @@ static void write_back(const sim_world *w, grid_scratch *s, const grid_plan *g, 
 }
 
 /* Slice cx->k of band `me` of a team that lends its bands (grid_run_direct from the team's
- * whole keys): bin the band's rows [row0, row1) into th->set[0] (*b), lend it (slice number
+ * whole keys, grid_run_team from the band's items): bin the band's rows [row0, row1) into th->set[0] (*b), lend it (slice number
  * `slice`), then look at the runs of chunks of base entries claimed from every lent band, this
  * thread's first, until none is left, so that a thread done early takes over part of a slow
  * one's band; then the band's wide boxes. The band is lent even when it failed or is sparse,
@@ -280,6 +280,9 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
     grid_thread *th = &s->th[me];
     /* The runtime may give fewer threads than asked. */
     const int bands = g->bands < team ? g->bands : team;
+    /* Where every thread has a band, each band is lent to the team once binned, so that a
+     * thread whose core is slower or whose band is larger is helped. */
+    const bool lend = bands == team;
     const int32_t stride = GRID_COUNT_STRIDE(team);
     const int32_t p0 = (int32_t)((int64_t)s->n * me / team);
     const int32_t p1 = (int32_t)((int64_t)s->n * (me + 1) / team);
@@ -315,8 +318,9 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
         sim_busy_stop(buf, t0);
 #pragma omp barrier
         t0 = sim_busy_start();
-        if (me < bands && !failed) {
-            failed = grid_thread_reserve(th, items + nwide, 1) != 0;
+        if (me < bands && (lend || !failed)) {
+            if (!failed)
+                failed = grid_thread_reserve(th, items + nwide, 1) != 0;
             const grid_team *tm = &s->team;
             const grid_src src = {.bx = tm->bx + first, .by = tm->by + first,
                                   .ux = tm->ux + first, .uy = tm->uy + first,
@@ -324,7 +328,11 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
                                   .nwide = nwide};
             const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
             grid_bins b;
-            if (!failed)
+            if (lend)
+                /* Every band is lent, failed or not: the others wait for each band. */
+                failed = run_slice_lent(&cx, s, th, me, bands, ++th->slices, failed, &src,
+                                        &b) != 0;
+            else if (!failed)
                 failed = run_slice(&cx, th, th->bound[me], th->bound[me + 1], me, bands, &src, 0,
                                    &b) != 0;
             if (!failed)

@@ -145,8 +145,11 @@ void *grid_scratch_create(const sim_world *w, int threads)
         t->count = malloc((size_t)threads * GRID_COUNT_STRIDE((size_t)threads) * sizeof(int32_t));
         t->extent = malloc((size_t)threads * sizeof *t->extent);
         t->speeds = malloc((size_t)threads * GRID_SPEED_BINS * sizeof *t->speeds);
+        t->share = aligned_alloc(_Alignof(grid_band_share), (size_t)threads * sizeof *t->share);
         bad = !t->bx || !t->by || !t->ux || !t->uy || !t->id || !t->wide || !t->count ||
-              !t->extent || !t->speeds;
+              !t->extent || !t->speeds || !t->share;
+        for (int k = 0; k < threads && !bad; k++)
+            t->share[k].ready = 0;
         for (int k = 0; k < threads && !bad; k++) {
             s->th[k].bound = malloc(((size_t)threads + 1) * sizeof(int32_t));
             s->th[k].cur = malloc((size_t)threads * sizeof(int32_t));
@@ -155,17 +158,13 @@ void *grid_scratch_create(const sim_world *w, int threads)
         }
     }
     if (!bad && threads >= GRID_PLAN_TEAM_MIN && w->n <= GRID_DIRECT_N) {
-        /* grid_run_direct's keys of every slice and its lent bands. */
+        /* grid_run_direct's keys of every slice. */
         grid_team *t = &s->team;
         for (int b = 0; b < 2; b++) {
             t->whole_key[b] = malloc(n * sizeof(int32_t));
             t->whole_flag[b] = malloc(n * sizeof(int32_t));
             bad = bad || !t->whole_key[b] || !t->whole_flag[b];
         }
-        t->share = aligned_alloc(_Alignof(grid_band_share), (size_t)threads * sizeof *t->share);
-        bad = bad || !t->share;
-        for (int k = 0; k < threads && !bad; k++)
-            t->share[k].ready = 0;
     }
     if (bad) {
         grid_scratch_destroy(s);
