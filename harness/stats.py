@@ -480,14 +480,21 @@ def paired_series(old: dict[int, float], new: dict[int, float],
     return PairedRounds([old[k] for k in common], [new[k] for k in common], shift)
 
 
+# The fewest rounds whose interference shifts a paired test takes out of their ratios: the
+# slope is estimated from the same rounds, and on fewer its error ties the rounds' signs
+# together enough to raise the first look's rate of false verdicts (docs/compare.md).
+SHIFT_MIN_ROUNDS = 18
+
+
 def interference_slope(log_ratios: np.ndarray, shift: np.ndarray) -> float:
     """How far a round's log ratio moves per unit of interference shift: the Theil-Sen slope
-    (scipy.stats.theilslopes, robust to the rounds whose ratio moved for other reasons), at
-    least 0, since others taking the cores can only slow a side. 0 where the shift never
-    varies (a quiet machine, or noise not measured)."""
-    if log_ratios.size < 3 or float(np.ptp(shift)) == 0.0:
+    (scipy.stats.theilslopes, robust to the rounds whose ratio moved for other reasons), where
+    its 95% interval lies above 0 (others taking the cores can only slow a side); else 0, as
+    on a quiet machine, with noise not measured, or with fewer than SHIFT_MIN_ROUNDS rounds."""
+    if log_ratios.size < SHIFT_MIN_ROUNDS or float(np.ptp(shift)) == 0.0:
         return 0.0
-    return max(0.0, float(sps.theilslopes(log_ratios, shift).slope))
+    fit = sps.theilslopes(log_ratios, shift, alpha=CONFIDENCE)
+    return float(fit.slope) if fit.low_slope > 0.0 else 0.0
 
 
 def without_interference(log_ratios: np.ndarray, shift: Sequence[float] | None) -> np.ndarray:

@@ -377,3 +377,15 @@ def test_a_shift_that_would_speed_a_side_up_is_not_taken_out() -> None:
     assert stats.interference_slope(logs, shift) == 0.0
     assert np.array_equal(stats.without_interference(logs, shift), logs)
     assert stats.interference_slope(logs, np.zeros(30)) == 0.0
+
+
+def test_few_rounds_or_a_slope_not_shown_leave_the_ratios_as_they_are() -> None:
+    old, new, shift = _interfered(math.log(1.05), stats.SHIFT_MIN_ROUNDS - 1, 3)
+    logs = np.log(new) - np.log(old)
+    assert np.array_equal(stats.without_interference(logs, shift), logs)
+    rng = np.random.default_rng(9)
+    shift = rng.uniform(-0.3, 0.3, 40)
+    unrelated = rng.normal(0.05, 0.05, 40)  # ratios the shifts do not explain
+    assert stats.interference_slope(unrelated, shift) == 0.0
+    old, new, shift = _interfered(math.log(1.05), stats.SHIFT_MIN_ROUNDS, 3)
+    assert stats.interference_slope(np.log(new) - np.log(old), np.asarray(shift)) > 1.0

@@ -3,8 +3,9 @@
  * thread bins each slice from the previous slice's entries, already in nearly the right order.
  * A team cuts every slice into bands of rows, one a thread, with as many of the source's items
  * each: the threads split the source (the previous slice's entries in cell order) into the
- * bands' items, then each bins and scans its band and writes its base entries back in cell
- * order, the next slice's source. A thread so holds about N / T items, whatever T.
+ * bands' items, then each bins its band, lends it to the team where every thread has a band
+ * (its threads scan chunks of every band's runs, their own first) and writes its base entries
+ * back in cell order, the next slice's source. A thread so holds about N / T items, whatever T.
  */
 #include <sched.h>
 #include <stdbool.h>
