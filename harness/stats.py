@@ -503,11 +503,10 @@ def without_interference(log_ratios: np.ndarray, shift: Sequence[float] | None) 
     Why: a round where others took the cores during one side only moves its ratio by about
     the share they took, times how much this cell suffers from a share (a cell with a thread
     on every core much more than a lone thread, which the kernel moves to a free core); the
-    ratios left cluster around the change itself. Under identical
-    sides a shift is as likely either way, so taking it out cannot make a change where there
-    is none. It assumes the binaries do not change the share others get: a NEW that leaves a
-    core idle where OLD did not gives a waiting neighbour more, and part of its slow-down
-    would read as noise (docs/compare.md)."""
+    ratios left cluster around the change itself. Under identical sides a shift is as likely
+    either way, so taking it out moves no ratio either way on average. It assumes the binaries
+    do not change the share others get: a NEW that leaves a core idle where OLD did not gives a
+    waiting neighbour more, and part of its slow-down would read as noise (docs/compare.md)."""
     if shift is None:
         return log_ratios
     s = np.asarray(shift, dtype=float)

@@ -218,13 +218,13 @@ static void write_back(const sim_world *w, grid_scratch *s, const grid_plan *g, 
     }
 }
 
-/* Slice cx->k of band `me` of a team that lends its bands (grid_run_direct from the team's
- * whole keys, grid_run_team from the band's items): bin the band's rows [row0, row1) into th->set[0] (*b), lend it (slice number
- * `slice`), then look at the runs of chunks of base entries claimed from every lent band, this
- * thread's first, until none is left, so that a thread done early takes over part of a slow
- * one's band; then the band's wide boxes. The band is lent even when it failed or is sparse,
- * with no entries to claim, so that no thread waits for it. Returns 0, or -1 when memory is
- * short. */
+/* Slice cx->k of band `me` of a team that lends its bands (grid_run_direct from the team's whole
+ * keys, grid_run_team from the band's items): bin the band's rows [row0, row1) into th->set[0]
+ * (*b), lend it (slice number `slice`), then look at the runs of chunks of base entries claimed
+ * from every lent band, this thread's first, until none is left, so that a thread done early takes
+ * over part of a slow one's band; then the band's wide boxes. The band is lent even when it failed
+ * or is sparse, with no entries to claim, so that no thread waits for it. Returns 0, or -1 when
+ * memory is short. */
 static int run_slice_lent(const grid_ctx *cx, grid_scratch *s, grid_thread *th, int me,
                           int bands, uint32_t slice, bool failed, const grid_src *src,
                           grid_bins *b)
