@@ -467,12 +467,13 @@ class PairedRounds:
 
 
 def paired_series(old: dict[int, float], new: dict[int, float],
-                  dropped: frozenset[int] = frozenset(),
                   old_noise: dict[int, float] | None = None,
                   new_noise: dict[int, float] | None = None) -> PairedRounds:
-    """The two sides' values of the rounds both have, in round order, without the rounds in
-    `dropped` (interfered with, on either side); with the interference shift of each round
-    where both sides' noise covers every one of them."""
+    """The two sides' values of the rounds both have, in round order, without those
+    interfered with on either side (rounds_to_drop, from each side's interference share by
+    round); with the interference shift of each round where both sides' noise covers every
+    one of them."""
+    dropped = rounds_to_drop(old_noise or {}, new_noise or {})
     common = sorted((old.keys() & new.keys()) - dropped)
     shift = None
     if old_noise and new_noise and all(k in old_noise and k in new_noise for k in common):
@@ -541,10 +542,8 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     explains is taken out first (without_interference)."""
     d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
     finite = np.isfinite(d)
-    if shift is not None and len(shift) == d.size:
-        d = without_interference(d[finite], np.asarray(shift, dtype=float)[finite])
-    else:
-        d = d[finite]
+    d = without_interference(d[finite], None if shift is None
+                             else np.asarray(shift, dtype=float)[finite])
     if d.size < 2:
         return NO_CHANGE_KNOWN
     centre = float(np.median(d))

@@ -131,8 +131,7 @@ def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     a, b = old.by_round(), new.by_round()
-    na, nb = old.noise_by_round(), new.noise_by_round()
-    pair = stats.paired_series(a, b, stats.rounds_to_drop(na, nb), na, nb)
+    pair = stats.paired_series(a, b, old.noise_by_round(), new.noise_by_round())
     return pair if len(pair.old) >= 2 else None
 
 

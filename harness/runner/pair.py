@@ -71,8 +71,8 @@ class UntilDecided:
         a = stats.round_medians(old.state.times, old.state.rounds)
         b = stats.round_medians(new.state.times, new.state.rounds)
         measured = len(a.keys() & b.keys())
-        na, nb = old.state.noise_by_round(), new.state.noise_by_round()
-        series = stats.paired_series(a, b, stats.rounds_to_drop(na, nb), na, nb)
+        series = stats.paired_series(a, b, old.state.noise_by_round(),
+                                     new.state.noise_by_round())
         final = final or old.state.stopped in STOPPED_UNDECIDED
         return stats.paired_change(series.old, series.new, self.threshold,
                                    stats.paired_look(measured, final), series.shift)

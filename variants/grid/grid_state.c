@@ -148,9 +148,8 @@ void *grid_scratch_create(const sim_world *w, int threads)
         t->share = aligned_alloc(_Alignof(grid_band_share), (size_t)threads * sizeof *t->share);
         bad = !t->bx || !t->by || !t->ux || !t->uy || !t->id || !t->wide || !t->count ||
               !t->extent || !t->speeds || !t->share;
-        for (int k = 0; k < threads && !bad; k++)
-            t->share[k].ready = 0;
         for (int k = 0; k < threads && !bad; k++) {
+            t->share[k].ready = 0;
             s->th[k].bound = malloc(((size_t)threads + 1) * sizeof(int32_t));
             s->th[k].cur = malloc((size_t)threads * sizeof(int32_t));
             s->th[k].sample = malloc((size_t)threads * GRID_BAND_SAMPLES * sizeof(int32_t));
