@@ -405,6 +405,13 @@ def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, fl
     return {k: float(np.median(v)) for k, v in grouped.items()}
 
 
+def by_round(rounds: Sequence[int], values: Sequence[float]) -> dict[int, float]:
+    """A value recorded once per round (in round order), by round, for the rounds of a cell's
+    runs (`rounds`: the round of each run); empty unless every round has one."""
+    distinct = sorted(set(rounds))
+    return dict(zip(distinct, values, strict=True)) if len(distinct) == len(values) else {}
+
+
 # A round is interfered with when other processes' CPU time and stolen time on its cores
 # exceed this share of the cores' time during the round (harness.measure.noise): more than
 # half of what the runs could use went elsewhere. A paired test leaves such rounds out, both
@@ -458,8 +465,9 @@ def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
 @dataclass(frozen=True)
 class PairedRounds:
     """The rounds both sides of a pair measured, in round order: each side's value and, where
-    the noise of both was measured, how much more of the cores' time others took during NEW's
-    side than during OLD's (shares, harness.measure.noise)."""
+    the noise of both was measured, how much more interference NEW's side met than OLD's
+    (harness.measure.noise: the CPU pressure where the kernel gave it, else the share of the
+    cores others took)."""
 
     old: list[float]
     new: list[float]
@@ -468,16 +476,24 @@ class PairedRounds:
 
 def paired_series(old: dict[int, float], new: dict[int, float],
                   old_noise: dict[int, float] | None = None,
-                  new_noise: dict[int, float] | None = None) -> PairedRounds:
+                  new_noise: dict[int, float] | None = None,
+                  old_pressure: dict[int, float] | None = None,
+                  new_pressure: dict[int, float] | None = None) -> PairedRounds:
     """The two sides' values of the rounds both have, in round order, without those
     interfered with on either side (rounds_to_drop, from each side's interference share by
-    round); with the interference shift of each round where both sides' noise covers every
-    one of them."""
+    round); with the interference shift of each round: NEW's CPU pressure less OLD's where
+    both cover every one of the rounds, else NEW's share less OLD's where those do.
+
+    Why the pressure first: it counts the time a task waited for a core, which is what slows
+    a run whichever core the kernel moved it to; a share over all the cores misses that a
+    lone thread moved to an idle one is not slowed (docs/compare.md)."""
     dropped = rounds_to_drop(old_noise or {}, new_noise or {})
     common = sorted((old.keys() & new.keys()) - dropped)
     shift = None
-    if old_noise and new_noise and all(k in old_noise and k in new_noise for k in common):
-        shift = [new_noise[k] - old_noise[k] for k in common]
+    for before, after in ((old_pressure, new_pressure), (old_noise, new_noise)):
+        if before and after and all(k in before and k in after for k in common):
+            shift = [after[k] - before[k] for k in common]
+            break
     return PairedRounds([old[k] for k in common], [new[k] for k in common], shift)
 
 

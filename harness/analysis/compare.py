@@ -131,7 +131,8 @@ def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     a, b = old.by_round(), new.by_round()
-    pair = stats.paired_series(a, b, old.noise_by_round(), new.noise_by_round())
+    pair = stats.paired_series(a, b, old.noise_by_round(), new.noise_by_round(),
+                               old.pressure_by_round(), new.pressure_by_round())
     return pair if len(pair.old) >= 2 else None
 
 

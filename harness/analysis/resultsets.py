@@ -122,14 +122,17 @@ class Cell:
     instructions_tool: str = ""
     # each round's interference share (harness.measure.noise), in round order, where measured
     round_noise: tuple[float, ...] = ()
+    # each round's CPU pressure (harness.measure.noise), in round order, where the kernel gave it
+    round_pressure: tuple[float, ...] = ()
     steal_s: float = 0.0  # CPU seconds stolen on its cores over its rounds
     other_cpu_s: float = 0.0  # taken by other processes
     noise_capacity_s: float = 0.0  # the cores' seconds its rounds span
 
     def noise_by_round(self) -> dict[int, float]:
-        rounds = sorted(set(self.rounds))
-        return dict(zip(rounds, self.round_noise, strict=True)) \
-            if len(rounds) == len(self.round_noise) else {}
+        return stats.by_round(self.rounds, self.round_noise)
+
+    def pressure_by_round(self) -> dict[int, float]:
+        return stats.by_round(self.rounds, self.round_pressure)
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (empty without rounds)."""
@@ -230,6 +233,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             instructions_max=_number(row, "instructions_max"),
             instructions_tool=_text(row, "instructions_tool"),
             round_noise=tuple(records.split_floats(_text(row, "round_noise"))),
+            round_pressure=tuple(records.split_floats(_text(row, "round_pressure"))),
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 

@@ -1,7 +1,9 @@
 """What the machine did to a timed round, measured rather than guessed: from /proc/stat, the
 CPU time stolen by the hypervisor and the CPU time other processes took on the cores this
 process may use; from getrusage of the reaped children (hyperfine and the runs it timed),
-their own CPU time and involuntary context switches; the load average. A round whose cores
+their own CPU time and involuntary context switches; from the kernel's pressure stall
+information (/proc/pressure/cpu), how long some task waited for a CPU; the load average. A
+round whose cores
 were taken by others (or stolen) beyond NOISE_LIMIT of their time is flagged, and a paired
 comparison leaves it out on both sides (harness.analysis.compare).
 
@@ -20,6 +22,9 @@ from pathlib import Path
 from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
 
 PROC_STAT = Path("/proc/stat")
+# "some total=" is the microseconds during which at least one runnable task waited for a CPU
+# (the kernel's pressure stall information; absent without CONFIG_PSI or with psi=0).
+CPU_PRESSURE = Path("/proc/pressure/cpu")
 # /proc/stat's per-CPU fields, in ticks: user nice system idle iowait irq softirq steal ...
 BUSY_FIELDS = (0, 1, 2, 5, 6)  # user, nice, system, irq, softirq (guest time is in user)
 STEAL_FIELD = 7
@@ -54,6 +59,24 @@ def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] 
     return (busy, steal) if seen else None
 
 
+def cpu_pressure_s(text: str | None = None) -> float | None:
+    """The seconds so far during which some task waited for a CPU, from the kernel's pressure
+    stall information; None where the kernel does not give it."""
+    if text is None:
+        try:
+            text = CPU_PRESSURE.read_text()
+        except OSError:
+            return None
+    for line in text.splitlines():
+        fields = line.split()
+        if fields and fields[0] == "some":
+            for field in fields[1:]:
+                name, _, value = field.partition("=")
+                if name == "total" and value.isdigit():
+                    return int(value) / 1e6
+    return None
+
+
 @dataclass(frozen=True)
 class Sample:
     """The counters at one moment."""
@@ -63,12 +86,13 @@ class Sample:
     own_cpu_s: float  # user + system seconds of the reaped children
     own_nivcsw: int  # their involuntary context switches
     load1: float
+    pressure_s: float | None = None  # seconds some task waited for a CPU (cpu_pressure_s)
 
 
 def sample(cores: Sequence[int]) -> Sample:
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return Sample(time.monotonic(), cpu_ticks(cores), usage.ru_utime + usage.ru_stime,
-                  usage.ru_nivcsw, os.getloadavg()[0])
+                  usage.ru_nivcsw, os.getloadavg()[0], cpu_pressure_s())
 
 
 @dataclass(frozen=True)
@@ -82,6 +106,7 @@ class RoundNoise:
     nivcsw: int  # involuntary context switches of the timed children
     load1: float
     cores: int
+    waited_s: float | None = None  # how long some task waited for a CPU (None: not given)
 
     @property
     def share(self) -> float:
@@ -89,6 +114,15 @@ class RoundNoise:
         unknown)."""
         capacity = self.wall_s * self.cores
         return (self.steal_s + self.other_cpu_s) / capacity if capacity > 0 else 0.0
+
+    @property
+    def pressure(self) -> float | None:
+        """The share of the round's time during which some task waited for a CPU: what slows
+        a run that has to share a core, whichever core the kernel moved it to (None where the
+        kernel does not say)."""
+        if self.waited_s is None or self.wall_s <= 0:
+            return None
+        return min(1.0, self.waited_s / self.wall_s)
 
     @property
     def interfered(self) -> bool:
@@ -104,5 +138,8 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
         busy = (after.ticks[0] - before.ticks[0]) / tick
         steal = max(0.0, (after.ticks[1] - before.ticks[1]) / tick)
         other = max(0.0, busy - own)
+    waited = None
+    if before.pressure_s is not None and after.pressure_s is not None:
+        waited = max(0.0, after.pressure_s - before.pressure_s)
     return RoundNoise(after.at - before.at, steal, other, own,
-                      after.own_nivcsw - before.own_nivcsw, after.load1, cores)
+                      after.own_nivcsw - before.own_nivcsw, after.load1, cores, waited)

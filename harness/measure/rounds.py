@@ -37,7 +37,8 @@ from harness.store.hyperfine import is_unstable
 
 PARTIAL_VERSION = 2
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
-GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise")
+GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
+           "round_pressure")
 
 
 @dataclass
@@ -69,6 +70,9 @@ class CellRun:
     # Per successful call (round), the share of its cores' time others took or was stolen
     # (harness.measure.noise), and the totals of what the noise cost over its rounds
     round_noise: list[float] = field(default_factory=list)
+    # Per successful call where the kernel gives it, the share of its time some task waited
+    # for a CPU (RoundNoise.pressure): a paired comparison's interference shift
+    round_pressure: list[float] = field(default_factory=list)
     steal_s: float = 0.0
     other_cpu_s: float = 0.0
     nivcsw: int = 0
@@ -88,9 +92,11 @@ class CellRun:
 
     def noise_by_round(self) -> dict[int, float]:
         """Each round's interference share (harness.measure.noise), by round."""
-        rounds = sorted(set(self.rounds))
-        return dict(zip(rounds, self.round_noise, strict=True)) \
-            if len(rounds) == len(self.round_noise) else {}
+        return stats.by_round(self.rounds, self.round_noise)
+
+    def pressure_by_round(self) -> dict[int, float]:
+        """Each round's CPU pressure (harness.measure.noise), by round."""
+        return stats.by_round(self.rounds, self.round_pressure)
 
     def measure(self, measure: Measure) -> Measure:
         """The cell's measure, with at least the rounds a comparison asked for."""
@@ -119,6 +125,8 @@ class CellRun:
         self.exports.append(export.name)
         if timed.noise is not None:
             self.round_noise.append(timed.noise.share)
+            if timed.noise.pressure is not None:
+                self.round_pressure.append(timed.noise.pressure)
             self.steal_s += timed.noise.steal_s
             self.other_cpu_s += timed.noise.other_cpu_s
             self.nivcsw += timed.noise.nivcsw
@@ -267,6 +275,8 @@ def noise_fields(run: CellRun) -> dict[str, object]:
     return {"steal_s": run.steal_s, "other_cpu_s": run.other_cpu_s,
             "nivcsw_per_run": run.nivcsw / len(run.times) if run.times else None,
             "round_noise": " ".join(f"{s:.3f}" for s in run.round_noise),
+            "round_pressure": " ".join(f"{s:.4f}" for s in run.round_pressure)
+            if len(run.round_pressure) == len(run.exports) else None,
             "rounds_dropped": " ".join(str(r) for r, share in run.noise_by_round().items()
                                        if share > stats.NOISE_LIMIT),
             "noise_capacity_s": run.capacity_s}

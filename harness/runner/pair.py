@@ -72,7 +72,8 @@ class UntilDecided:
         b = stats.round_medians(new.state.times, new.state.rounds)
         measured = len(a.keys() & b.keys())
         series = stats.paired_series(a, b, old.state.noise_by_round(),
-                                     new.state.noise_by_round())
+                                     new.state.noise_by_round(), old.state.pressure_by_round(),
+                                     new.state.pressure_by_round())
         final = final or old.state.stopped in STOPPED_UNDECIDED
         return stats.paired_change(series.old, series.new, self.threshold,
                                    stats.paired_look(measured, final), series.shift)

@@ -97,10 +97,12 @@ ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "roun
 # What other work did to a cell's rounds (harness.measure.noise): CPU seconds stolen and taken
 # by other processes on its cores over its rounds, the timed runs' involuntary context switches
 # per run, each round's interference (the share of the cores' time others took or was stolen,
-# space-separated in round order), the rounds beyond the limit (left out of a paired test on
-# both sides), and the cores' seconds the rounds span. Only where some cell has them.
+# space-separated in round order), each round's CPU pressure (the share of its time some task
+# waited for a CPU, where the kernel gives it), the rounds beyond the limit (left out of a
+# paired test on both sides), and the cores' seconds the rounds span. Only where some cell has
+# them.
 NOISE_COLUMNS: tuple[str, ...] = ("steal_s", "other_cpu_s", "nivcsw_per_run", "round_noise",
-                                  "rounds_dropped", "noise_capacity_s")
+                                  "round_pressure", "rounds_dropped", "noise_capacity_s")
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
 # enough, or a limit was reached first.
 STOPPED_RUNS = "runs"
