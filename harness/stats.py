@@ -441,25 +441,31 @@ class NoiseProfile:
     stolen: float  # share of the cores' time stolen
     others: float  # share taken by other processes
     dropped: int  # rounds beyond NOISE_LIMIT (flagged)
+    waited: float | None = None  # mean share of a round's time some task waited for a CPU
 
     def line(self) -> str:
         if not self.rounds:
             return "no rounds with noise measured"
+        waited = (f"; some task waited for a CPU {self.waited:.1%} of the time"
+                  if self.waited is not None else "")
         return (f"{self.stolen:.1%} of the cores' time stolen, {self.others:.1%} taken by other "
-                f"processes; {self.dropped} of {self.rounds} rounds "
+                f"processes{waited}; {self.dropped} of {self.rounds} rounds "
                 f"({self.dropped / self.rounds:.1%}) interfered with beyond "
                 f"{NOISE_LIMIT:.0%} (a paired test leaves out the worst, at most "
                 f"{MAX_DROPPED_SHARE:.0%} of a cell's rounds)")
 
 
 def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
-            capacity_s: float) -> NoiseProfile:
+                  capacity_s: float, pressures: Sequence[float] = ()) -> NoiseProfile:
     """The profile of rounds with these interference shares, and totals over them (stolen and
-    others' seconds, and the cores' seconds they span)."""
+    others' seconds, and the cores' seconds they span), with the rounds' CPU pressures where
+    measured."""
+    dropped = sum(s > NOISE_LIMIT for s in shares)
+    waited = float(np.mean(pressures)) if len(pressures) else None
     if capacity_s <= 0:
-        return NoiseProfile(len(shares), 0.0, 0.0, sum(s > NOISE_LIMIT for s in shares))
-    return NoiseProfile(len(shares), steal_s / capacity_s, other_cpu_s / capacity_s,
-                        sum(s > NOISE_LIMIT for s in shares))
+        return NoiseProfile(len(shares), 0.0, 0.0, dropped, waited)
+    return NoiseProfile(len(shares), steal_s / capacity_s, other_cpu_s / capacity_s, dropped,
+                        waited)
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,7 @@ class Calibration:
     others: float = 0.0
     rounds_interfered: int = 0
     rounds_noise: int = 0
+    waited: float | None = None  # mean share of a round's time some task waited for a CPU
 
     def lines(self) -> list[str]:
         def share(false: int, compared: int) -> str:
@@ -69,7 +70,7 @@ class Calibration:
             f"{self.smallest_one:.1%} for one cell alone, {self.smallest_all:.1%} when all "
             "cells slow down",
             "  noise: " + stats.NoiseProfile(self.rounds_noise, self.stolen, self.others,
-                                             self.rounds_interfered).line(),
+                                             self.rounds_interfered, self.waited).line(),
         ]
 
 
@@ -135,7 +136,7 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
     noise = noise_profile([*old.cells.values(), *new.cells.values()])
     return Calibration(
         stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
-        rounds_noise=noise.rounds,
+        rounds_noise=noise.rounds, waited=noise.waited,
         machine_id=machine_id,
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         config=config, cells=cells, threshold=threshold, measured_false=measured_false,

@@ -183,7 +183,8 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
     """What other work did to the cells' rounds (where measured)."""
     return stats.noise_profile([s for c in cells for s in c.round_noise],
                                sum(c.steal_s for c in cells), sum(c.other_cpu_s for c in cells),
-                               sum(c.noise_capacity_s for c in cells))
+                               sum(c.noise_capacity_s for c in cells),
+                               [p for c in cells for p in c.round_pressure])
 
 
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:

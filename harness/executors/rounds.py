@@ -5,8 +5,8 @@ rounds: in each, every cell that still needs runs gets one hyperfine call, in an
 from the run's seed (recorded in each record), until every cell has its runs. The machine's
 slow drift thus falls on all cells alike. Two cells can be partners (the two sides of a
 comparison, harness.runner.pair): they then take the same runs a round (a few, for a fast
-cell: share_rounds) and stop together, so that each round holds runs of both and their rounds
-can be compared pair by pair.
+cell: share_rounds), one right after the other in a shuffled order (round_order), and stop
+together, so that each round holds runs of both and their rounds can be compared pair by pair.
 """
 
 from __future__ import annotations
@@ -98,6 +98,30 @@ def share_rounds(units: Sequence[Unit]) -> None:
             a.per_round = b.per_round = paired_per_round(max(a.run_s, b.run_s))
 
 
+def round_order(units: Sequence[Unit], rng: random.Random) -> list[Unit]:
+    """The order of a round: the units shuffled, each beside its partner (which of the two
+    comes first shuffled too).
+
+    Why beside: a burst of others' work lasts from milliseconds to a second, so partners
+    timed seconds apart in a round meet different bursts, and their round's ratio carries
+    both; timed back to back they mostly meet the same machine."""
+    present = {id(unit) for unit in units}
+    placed: set[int] = set()
+    blocks: list[list[Unit]] = []
+    for unit in units:
+        if id(unit) in placed:
+            continue
+        block = [unit]
+        partner = unit.partner
+        if partner is not None and id(partner) in present and id(partner) not in placed:
+            block.append(partner)
+        placed.update(id(u) for u in block)
+        rng.shuffle(block)
+        blocks.append(block)
+    rng.shuffle(blocks)
+    return [unit for block in blocks for unit in block]
+
+
 def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
                       seed: int | None, extend: Extend | None = None) -> int:
     """Start every unit, then time them in rounds; on_done(unit, record) as each is done;
@@ -120,8 +144,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     overhead = 0.0  # seconds a round's hyperfine call takes beyond its runs
     while active:
         round_index += 1
-        order = list(active)
-        random.Random(f"{seed}:{round_index}").shuffle(order)
+        order = round_order(active, random.Random(f"{seed}:{round_index}"))
         spent = runs = 0.0
         for unit in order:
             started = time.monotonic()

@@ -1,10 +1,12 @@
 """Cells measured in alternating rounds (harness.executors.rounds), on fake measurers: every
 cell started first, each round a run of every cell still short of its runs in an order
-shuffled from the seed, partners stopping together, each cell handed on once."""
+shuffled from the seed, partners back to back and stopping together, each cell handed on
+once."""
 
 from __future__ import annotations
 
 import io
+import random
 from dataclasses import dataclass, field
 
 from harness.executors.base import Progress
@@ -14,6 +16,7 @@ from harness.executors.rounds import (
     measure_in_rounds,
     pair_up,
     paired_per_round,
+    round_order,
     share_rounds,
 )
 from harness.measure.rounds import CellRun, next_runs, stop_reason
@@ -132,3 +135,25 @@ def test_partners_share_a_few_runs_a_round_by_the_slower_ones_time() -> None:
     # 8 rounds of 3 runs each, then done
     assert next_runs(fixed, [0.1] * 21, 3) == 3 and stop_reason(fixed, [0.1] * 21, 3) == ""
     assert stop_reason(fixed, [0.1] * 24, 3) == "runs" and next_runs(fixed, [0.1] * 24, 3) == 0
+
+
+def test_partners_are_timed_back_to_back_in_either_order() -> None:
+    measurer = FakeMeasurer(Measure(runs=2), [])
+    cells = units(measurer, ["a", "a'", "b", "b'", "c", "c'", "lone"])
+    for one, other in zip(cells[0:6:2], cells[1:6:2], strict=True):
+        one.partner, other.partner = other, one
+    firsts: set[str] = set()
+    orders: set[tuple[str, ...]] = set()
+    for round_index in range(40):
+        order = [u.cell_id for u in round_order(cells, random.Random(f"7:{round_index}"))]
+        assert sorted(order) == sorted(u.cell_id for u in cells)
+        for name in ("a", "b", "c"):
+            at = order.index(name)
+            assert name + "'" in order[max(0, at - 1):at + 2]  # beside its partner
+            firsts.add(order[min(at, order.index(name + "'"))])
+        orders.add(tuple(order))
+    assert {"a", "a'"} <= firsts  # either side of a pair comes first in some round
+    assert len(orders) > 20  # the pairs' places are shuffled too
+    # a partner not in the round (it stopped) leaves the other on its own
+    assert sorted(u.cell_id for u in round_order(cells[1:], random.Random(1))) == \
+        sorted(u.cell_id for u in cells[1:])

@@ -1,6 +1,7 @@
 """The noise of a round (harness.measure.noise): /proc/stat's stolen and others' CPU time on
-the cores, the timed children's own time and involuntary switches; which rounds a paired test
-leaves out; and the injector scripts/noise that makes a quiet machine noisy."""
+the cores, the timed children's own time and involuntary switches, the CPU pressure; which
+rounds a paired test leaves out and which shift it takes out; and the injector scripts/noise
+that makes a quiet machine noisy."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from harness import stats
 from harness.analysis import compare, resultsets
 from harness.measure import noise
@@ -41,6 +43,49 @@ def test_others_time_is_the_cores_busy_time_beyond_the_childrens_own() -> None:
     assert math.isclose(found.share, 1.1 / 2) and found.interfered  # beyond half the cores
 
 
+PRESSURE = """some avg10=1.50 avg60=0.20 avg300=0.00 total=2500000
+full avg10=0.00 avg60=0.00 avg300=0.00 total=0
+"""
+
+
+def test_the_cpu_pressure_is_the_some_total_in_seconds() -> None:
+    assert noise.cpu_pressure_s(PRESSURE) == 2.5
+    assert noise.cpu_pressure_s("full avg10=0.00 total=7\n") is None
+    assert noise.cpu_pressure_s("") is None
+    before = noise.Sample(10.0, None, 1.0, 0, 0.5, 2.0)
+    found = noise.between(before, noise.Sample(10.5, None, 1.2, 0, 0.5, 2.1), 2)
+    assert found.waited_s == pytest.approx(0.1) and found.pressure == pytest.approx(0.2)
+    unknown = noise.between(before, noise.Sample(10.5, None, 1.2, 0, 0.5, None), 2)
+    assert unknown.waited_s is None and unknown.pressure is None
+
+
+def _spin_child(seconds: float) -> noise.RoundNoise:
+    cores = noise.round_cores()
+    before = noise.sample(cores)
+    subprocess.run([sys.executable, "-c", "import time\nend = time.process_time() + "
+                    f"{seconds}\nwhile time.process_time() < end: pass"], check=True)
+    return noise.between(before, noise.sample(cores), len(cores))
+
+
+def test_a_child_that_shares_its_cores_with_spinners_is_seen_waiting() -> None:
+    if noise.cpu_pressure_s() is None:
+        pytest.skip("this kernel gives no CPU pressure (/proc/pressure/cpu)")
+    cores = noise.round_cores()
+    # one spinner more than the cores at full duty: some task always waits for a core
+    spinners = [subprocess.Popen([sys.executable, str(INJECTOR), "--duty", "1.0", "--seed",
+                                  "3", "--cores", ",".join(map(str, cores)), "--seconds", "20"])
+                for _ in range(2)]
+    try:
+        time.sleep(0.5)
+        crowded = _spin_child(0.3)
+    finally:
+        for spinner in spinners:
+            spinner.terminate()
+        for spinner in spinners:
+            spinner.wait(timeout=30)
+    assert crowded.pressure is not None and crowded.pressure > 0.5
+
+
 def test_a_real_sample_sees_the_childs_cpu_time() -> None:
     cores = noise.round_cores()
     before = noise.sample(cores)
@@ -57,12 +102,14 @@ def test_the_worst_interfered_rounds_are_dropped_at_most_a_quarter() -> None:
     assert stats.rounds_to_drop(old, old) == frozenset()
 
 
-def _cell(times: list[float], shares: list[float]) -> resultsets.Cell:
+def _cell(times: list[float], shares: list[float],
+          pressures: list[float] | tuple[float, ...] = ()) -> resultsets.Cell:
     key = resultsets.MatchKey("", "seq", "f64", "random", "200", "2000", "1", "5", "perf", "1",
                               "1", "")
     return resultsets.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
                            "", "", "", "", "", rounds=tuple(range(1, len(times) + 1)),
-                           round_seed="7", round_noise=tuple(shares))
+                           round_seed="7", round_noise=tuple(shares),
+                           round_pressure=tuple(pressures))
 
 
 def test_a_paired_comparison_leaves_an_interfered_round_out() -> None:
@@ -79,11 +126,47 @@ def test_a_paired_comparison_leaves_an_interfered_round_out() -> None:
     assert unmeasured.change.p_unchanged > kept.change.p_unchanged
 
 
+def test_a_lone_threads_slow_rounds_are_explained_by_the_cpu_pressure() -> None:
+    # A 1-thread cell 5% slower under bursts: the kernel moves the lone thread to a core
+    # without a burst, so the share others took of both cores says nothing of its rounds; the
+    # time a task waited for a core says how much each was slowed.
+    rng = np.random.default_rng(5)
+    n = 41
+    share_old, share_new = rng.uniform(0.1, 0.4, n), rng.uniform(0.1, 0.4, n)
+    waited_old = rng.choice([0.0, 0.3], n) * rng.uniform(0.5, 1.0, n)
+    waited_new = rng.choice([0.0, 0.3], n) * rng.uniform(0.5, 1.0, n)
+    old = np.exp(waited_old + rng.normal(0.0, 0.01, n))
+    new = np.exp(math.log(1.05) + waited_new + rng.normal(0.0, 0.01, n))
+    by_share = compare.compare_cells(_cell(list(old), list(share_old)),
+                                     _cell(list(new), list(share_new)), 0.01,
+                                     compare.MEASURED_TOGETHER)
+    by_pressure = compare.compare_cells(_cell(list(old), list(share_old), waited_old),
+                                        _cell(list(new), list(share_new), waited_new), 0.01,
+                                        compare.MEASURED_TOGETHER)
+    assert by_pressure.high / by_pressure.low < 1.05 and by_pressure.low < 1.05 < by_pressure.high
+    assert by_share.high / by_share.low > by_pressure.high / by_pressure.low
+    assert stats.decide([by_pressure.change], 0.05) == [stats.SLOWER]
+    assert stats.decide([by_share.change], 0.05) == [stats.INCONCLUSIVE]
+
+
+def test_the_shift_is_the_pressures_where_both_sides_have_them_else_the_shares() -> None:
+    old, new = {1: 1.0, 2: 1.0, 3: 1.0}, {1: 1.1, 2: 1.0, 3: 1.0}
+    shares_old, shares_new = {1: 0.1, 2: 0.1, 3: 0.1}, {1: 0.3, 2: 0.1, 3: 0.2}
+    waited_old, waited_new = {1: 0.0, 2: 0.05, 3: 0.0}, {1: 0.1, 2: 0.0, 3: 0.0}
+    both = stats.paired_series(old, new, shares_old, shares_new, waited_old, waited_new)
+    assert both.shift == pytest.approx([0.1, -0.05, 0.0])
+    partial = stats.paired_series(old, new, shares_old, shares_new, waited_old, {1: 0.1})
+    assert partial.shift == pytest.approx([0.2, 0.0, 0.1])
+    assert stats.paired_series(old, new).shift is None
+
+
 def test_a_noise_profile_counts_stolen_and_others_time() -> None:
     profile = stats.noise_profile([0.1, 0.6, 0.2, 0.9], 1.0, 10.0, 100.0)
     assert (profile.rounds, profile.dropped) == (4, 2)
     assert math.isclose(profile.stolen, 0.01) and math.isclose(profile.others, 0.1)
-    assert "2 of 4 rounds (50.0%)" in profile.line()
+    assert "2 of 4 rounds (50.0%)" in profile.line() and "waited" not in profile.line()
+    waited = stats.noise_profile([0.1, 0.6], 1.0, 10.0, 100.0, [0.1, 0.3])
+    assert "some task waited for a CPU 20.0% of the time" in waited.line()
 
 
 def _plan(*args: str) -> list[tuple[int, float, float]]:

@@ -104,6 +104,7 @@ def _round(run: CellRun, k: int) -> None:
     run.system_s += [0.1, 0.1]
     run.exports.append(f"c.hyperfine.{k}.json")
     run.round_noise.append(k / 100)
+    run.round_pressure.append(k / 1000)
     run.other_cpu_s += 0.01
     run.record["load_after"] = float(k)
 

@@ -12,6 +12,7 @@ import pytest
 from harness import stats
 from harness.analysis import compare, resultsets
 from harness.errors import HarnessError
+from harness.measure import noise
 from harness.repo import REPO_ROOT
 from harness.runner import pair
 from harness.runner.sides import BuildSide, build, resolve
@@ -51,6 +52,10 @@ def test_identical_sides_measured_together(real_binaries: Path, tmp_path: Path,
                            compare.Drift(0.04, "unused when measured together"))
     assert [r.method for r in rows] == [compare.PAIRED] * 2
     assert all(len(r.old.by_round()) == pair.MIN_ROUNDS for r in rows)  # type: ignore[union-attr]
+    if noise.cpu_pressure_s() is not None:  # each round's CPU pressure, the shift's source
+        for cell in (c for r in rows for c in (r.old, r.new)):
+            assert cell is not None and len(cell.pressure_by_round()) == pair.MIN_ROUNDS
+            assert all(0.0 <= p <= 1.0 for p in cell.round_pressure)
 
 
 def test_undecided_cells_get_rounds_until_the_budget_is_spent(
