@@ -310,8 +310,8 @@ class Change:
     a claim at level q means the interval at 1 - q lies beyond (inside) the threshold; NaN
     where the runs cannot tell. `sd`, `n` and `floor` say how the interval would narrow with
     more rounds (paired: the per-round spread on the log scale and the rounds) or runs (apart:
-    the standard error of the runs' own spread, from `n` runs a side, and the drift that more
-    runs cannot reduce)."""
+    the standard error of the runs' own spread, from `n` runs a side, and the drift and the
+    contention that more runs cannot reduce)."""
 
     ratio: Interval
     p_slower: float
@@ -600,18 +600,38 @@ def log_spread(ratio: Interval) -> tuple[float, float] | None:
     return math.log(ratio.point), (math.log(ratio.high) - math.log(ratio.low)) / (2 * Z95)
 
 
+# How far a run's log time moves per unit of CPU pressure (the share of its time some task
+# waited for a CPU, harness.measure.noise), at most: under scripts/noise at 30% duty on 2
+# vCPUs the Theil-Sen slopes of compare16's cells were 0.5-0.9 at one thread and 1.3-2.1 at
+# two (docs/compare.md).
+PRESSURE_SLOPE = 2.0
+
+
+def contention_spread(old_pressure: Sequence[float], new_pressure: Sequence[float]) -> float:
+    """What to allow on the log ratio of two sides measured apart for the CPU pressure they
+    met differently (a standard deviation): PRESSURE_SLOPE times the difference of their
+    rounds' mean pressures; 0 where either side's was not measured.
+
+    Why: a burst of others' work can cover every run of one side of a fast cell and none of
+    the other's, which neither side's own spread shows; the pressure each met says so."""
+    if not len(old_pressure) or not len(new_pressure):
+        return 0.0
+    return PRESSURE_SLOPE * abs(float(np.mean(new_pressure)) - float(np.mean(old_pressure)))
+
+
 def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
-                 drift: float) -> Change:
+                 drift: float, contention: float = 0.0) -> Change:
     """The change between two sets of runs measured apart in time: the ratio of their medians,
     its 95% bootstrap interval (ratio_ci), widened by the machine's drift between such runs
     (`drift`: the standard deviation of the log of a ratio of identical binaries measured
-    apart, beyond the runs' own spread), and normal-approximation p-values against it."""
+    apart, beyond the runs' own spread) and by `contention` (contention_spread), and
+    normal-approximation p-values against it."""
     base = ratio_ci(new, old)
     spread = log_spread(base)
     if spread is None:
         return Change(base, math.nan, math.nan)
     log_ratio, within = spread
-    se = math.hypot(within, drift)
+    se = math.hypot(within, drift, contention)
     if se == 0.0:
         return _exact_change(base.point, threshold)
     margin = math.log1p(threshold)
@@ -622,7 +642,7 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     runs = min(len(_clean(old)), len(_clean(new)))
     return Change(interval, float(sps.norm.sf((log_ratio - margin) / se)),
                   float(sps.norm.cdf((log_ratio + margin) / se)), min(1.0, 2.0 * unchanged),
-                  within * math.sqrt(runs), runs, drift)
+                  within * math.sqrt(runs), runs, math.hypot(drift, contention))
 
 
 def discoveries(p_values: Sequence[float], q: float) -> list[bool]:

@@ -389,3 +389,24 @@ def test_few_rounds_or_a_slope_not_shown_leave_the_ratios_as_they_are() -> None:
     assert stats.interference_slope(unrelated, shift) == 0.0
     old, new, shift = _interfered(math.log(1.05), stats.SHIFT_MIN_ROUNDS, 3)
     assert stats.interference_slope(np.log(new) - np.log(old), np.asarray(shift)) > 1.0
+
+
+def test_sides_measured_apart_under_different_cpu_pressure_are_not_told_apart() -> None:
+    # A fast cell's every run on OLD's side met a burst (pressure 0.15), NEW's none: NEW looks
+    # 15% faster, and neither side's runs spread. The pressure each met says why.
+    old = [1.15, 1.16, 1.15, 1.17, 1.16, 1.15]
+    new = [1.0, 1.01, 1.0, 1.01, 1.0, 1.0]
+    blind = stats.drift_change(old, new, 0.01, 0.05)
+    assert stats.decide([blind], 0.05) == [stats.FASTER]
+    contention = stats.contention_spread([0.15] * 6, [0.0] * 6)
+    assert contention == pytest.approx(stats.PRESSURE_SLOPE * 0.15)
+    seen = stats.drift_change(old, new, 0.01, 0.05, contention)
+    assert seen.ratio.low < 1.0 < seen.ratio.high
+    assert stats.decide([seen], 0.05) == [stats.INCONCLUSIVE]
+    assert math.isinf(stats.further_rounds(seen, 0.01))  # more runs cannot tell them apart
+    # the same pressure on both sides, or none measured, allows nothing more
+    assert stats.contention_spread([0.1, 0.2], [0.15, 0.15]) == pytest.approx(0.0)
+    assert stats.contention_spread([], [0.3]) == 0.0
+    # a real 3x slow-down stays slower under the same allowance
+    slow = stats.drift_change(new, [3 * t for t in new], 0.01, 0.05, contention)
+    assert stats.decide([slow], 0.05) == [stats.SLOWER]

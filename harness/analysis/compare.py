@@ -156,7 +156,10 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                                      stats.paired_look(measured, final), paired.shift)
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
-        change, method = stats.drift_change(old.times, new.times, threshold, drift.sigma), APART
+        change = stats.drift_change(old.times, new.times, threshold, drift.sigma,
+                                    stats.contention_spread(old.round_pressure,
+                                                            new.round_pressure))
+        method = APART
     else:
         ratio = new.median / old.median if old.median > 0 else math.nan
         change, method = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan,
@@ -214,8 +217,10 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     if APART in used:
         lines.append(f"{APART.capitalize()}: NEW/OLD is the ratio of the medians; its 95% "
                      "bootstrap interval is widened by the machine's drift between runs "
-                     f"measured apart, {drift.sigma:.1%} ({drift.source}); p-value from a "
-                     "normal test against it.")
+                     f"measured apart, {drift.sigma:.1%} ({drift.source}), and where the "
+                     "sides met different CPU pressure (the share of the time some task waited "
+                     f"for a CPU) by {stats.PRESSURE_SLOPE:g} times the difference of their "
+                     "means; p-value from a normal test against it.")
     return lines
 
 
