@@ -601,9 +601,9 @@ def log_spread(ratio: Interval) -> tuple[float, float] | None:
 
 
 # How far a run's log time moves per unit of CPU pressure (the share of its time some task
-# waited for a CPU, harness.measure.noise), at most: under scripts/noise at 30% duty on 2
-# vCPUs the Theil-Sen slopes of compare16's cells were 0.5-0.9 at one thread and 1.3-2.1 at
-# two (docs/compare.md).
+# waited for a CPU, harness.measure.noise), taken as a standard deviation: under scripts/noise
+# at 30% duty on 2 vCPUs the Theil-Sen slopes of compare16's cells were 0.2-1.1 at one thread
+# and 1.4-2.7 at two, all within 1.96 times this (docs/compare.md).
 PRESSURE_SLOPE = 2.0
 
 
