@@ -444,7 +444,10 @@ def test_real_runs_find_the_slowed_binary(real_binaries: Path, tmp_path: Path,
     old, new = sides(tmp_path / "old" / "gate", tmp_path / "new" / "gate")
     rows = {r.key.variant: r for r in compare.compare(old, new, compare.DEFAULT_THRESHOLD,
                                                       DRIFT)}
-    assert rows["probe"].kind == compare.SLOWER and rows["probe"].low > 2.0, printed
+    # The sleeps make NEW/OLD about 3. Sides that met different CPU pressure (a loaded CI
+    # machine) widen the interval by the pressure allowance, so its low end is not asserted
+    # beyond the verdict; the estimate itself is.
+    assert rows["probe"].kind == compare.SLOWER and 2.0 < rows["probe"].ratio < 3.5, printed
     # measured apart with an assumed 5% drift: not shown unchanged within 1%
     assert rows["steady"].kind == compare.INCONCLUSIVE, printed
     # seq itself runs ~1 ms, where a loaded machine's noise exceeds 5%: compared, no verdict
