@@ -607,6 +607,22 @@ def log_spread(ratio: Interval) -> tuple[float, float] | None:
 PRESSURE_SLOPE = 2.0
 
 
+# How much drift to allow between sides measured apart, per unit of the share of the cores'
+# time stolen or taken by others while a side ran, taken as a standard deviation. A CPU-bound
+# run on cores others take a share s of is slowed by up to about log(1/(1 - s)), nearly s for
+# small s, and whether a run was is luck that its own spread need not show: on 2 vCPUs under
+# scripts/noise at 30% duty, sets whose cells met no pressure of their own still differed by
+# 24-37% between runs minutes apart. 1 (the share itself) left no false verdict there and 0.5
+# left one (docs/compare.md).
+NOISE_DRIFT_SLOPE = 1.0
+
+
+def noise_drift(shares: Sequence[float]) -> float:
+    """The least drift to allow between sides measured apart whose cores' time others took or
+    was stolen in these shares (one a side): NOISE_DRIFT_SLOPE times the largest."""
+    return NOISE_DRIFT_SLOPE * max(shares, default=0.0)
+
+
 def contention_spread(old_pressure: Sequence[float], new_pressure: Sequence[float]) -> float:
     """What to allow on the log ratio of two sides measured apart for the CPU pressure they
     met differently (a standard deviation): PRESSURE_SLOPE times the difference of their

@@ -37,6 +37,7 @@ from harness.analysis.resultsets import (
     MatchKey,
     Side,
     matched,
+    noise_profile,
     not_comparable,
 )
 from harness.store import layout, records
@@ -77,6 +78,21 @@ class Drift:
 
 
 MEASURED_TOGETHER = Drift(0.0, PAIRED)  # sides measured in the same rounds share the drift
+
+
+def allow_noise(drift: Drift, old: Side, new: Side) -> Drift:
+    """The drift to allow between two sides measured apart: the machine's (calibrated or
+    assumed), or more where others took a larger share of the cores while a side ran
+    (stats.noise_drift): a busy machine moves a run's time by what no calibration of it quiet
+    saw."""
+    shares = {side.name: profile.stolen + profile.others for side in (old, new)
+              if (profile := noise_profile(list(side.cells.values()))).rounds}
+    if not shares or (sigma := stats.noise_drift(list(shares.values()))) <= drift.sigma:
+        return drift
+    name = max(shares, key=lambda k: shares[k])
+    return Drift(sigma, f"from the noise: others took or stole {shares[name]:.1%} of the cores' "
+                        f"time while {name} ran; the machine's own {drift.sigma:.1%} is "
+                        f"{drift.source}")
 
 def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
     """The drift of the machines of a comparison: the largest of their newest calibrations

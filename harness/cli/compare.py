@@ -20,6 +20,7 @@ from harness.analysis.compare import (
     MEASURED_TOGETHER,
     NOT_OK,
     Drift,
+    allow_noise,
     compare,
     exit_status,
     find_drift,
@@ -117,8 +118,9 @@ def execute(args: argparse.Namespace, stdout: TextIO | None = None) -> int:
         raise HarnessError(f"expected OLD and NEW result directories ({USAGE})")
     old_path, new_path = (Path(p) for p in paths)
     old, new = sides(old_path, new_path, args.old_machine, args.new_machine)
-    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()),
-                       (*roots_of(old_path), *roots_of(new_path), args.results_dir))
+    drift = allow_noise(find_drift((c.machine_id for s in (old, new) for c in s.cells.values()),
+                                   (*roots_of(old_path), *roots_of(new_path), args.results_dir)),
+                        old, new)
     return report(old, new, args, out, drift, (), out_stream)
 
 
