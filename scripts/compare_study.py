@@ -1,7 +1,7 @@
 """How often `compare` calls a change where there is none, and whether it finds a real one, on
 this machine with real runs (the numbers in docs/compare.md).
 
-    .venv/bin/python scripts/compare_study.py [--out DIR] [--parts aa,ab,apart,calibrate]
+    .venv/bin/python scripts/compare_study.py [--out DIR] [--parts aa,ab,apart,calibrate] [--reuse]
         [--config configs/compare16.yaml] [--repeats 3] [--slowdown 0.05]
         [--noise DUTY] [--budget SECONDS]
 
@@ -19,6 +19,8 @@ Parts, each a real measurement with this checkout's build/ (every command it run
              machine's calibration where the calibrate part made one; and per candidate
              estimator (harness.stats.ESTIMATORS), how far each cell's value moved between the
              runs (max/min - 1 over the runs: the median and the largest over the cells);
+             and how many cells a NEW slower by each of APART_SCALES would be called slower
+             (its stored times multiplied); --reuse judges the runs already under OUT;
   calibrate  `compare --calibrate CONFIG` into OUT/calibration (before apart, when both run);
   adaptive   each of --adaptive-configs as written and measured the other way (adaptive
              measures as a fixed 3 runs, or a fixed base measure as `runs: auto`),
@@ -34,6 +36,7 @@ Prints Markdown; everything measured stays under OUT.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -150,14 +153,31 @@ def part_calibrate(out: Path, config: Path) -> dict[str, object]:
     return {"exit": code, "seconds": round(seconds, 1), **data}
 
 
-def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]:
+# NEW's stored times multiplied by each: how large a change measured apart is found
+APART_SCALES = (1.3, 1.5, 2.0)
+
+
+def scaled(side_: Side, factor: float) -> Side:
+    """The side with every run `factor` times as long: a change of that size, measured with
+    the machine's noise as it was."""
+    return dataclasses.replace(side_, cells={
+        key: dataclasses.replace(cell, times=tuple(t * factor for t in cell.times),
+                                 median=cell.median * factor)
+        for key, cell in side_.cells.items()})
+
+
+def part_apart(out: Path, config: Path, repeats: int, reuse: bool) -> list[dict[str, object]]:
     roots = []
     for k in range(1, repeats + 1):
         root = out / f"apart-{k}"
-        code, _ = sh([*HARNESS, "run", config, "--results-dir", root, "--force",
-                            "--no-report"], out / f"apart-{k}.log")
-        if code != 0:
-            raise SystemExit(f"run {k} failed (exit {code}): see {out / f'apart-{k}.log'}")
+        if reuse:
+            if not root.is_dir():
+                raise SystemExit(f"--reuse: {root} does not exist")
+        else:
+            code, _ = sh([*HARNESS, "run", config, "--results-dir", root, "--force",
+                          "--no-report"], out / f"apart-{k}.log")
+            if code != 0:
+                raise SystemExit(f"run {k} failed (exit {code}): see {out / f'apart-{k}.log'}")
         roots.append(root)
     loaded = [side(f"run {k}", root) for k, root in enumerate(roots, start=1)]
     calibrated = compare.find_drift((c.machine_id for c in loaded[0].cells.values()),
@@ -173,8 +193,10 @@ def part_apart(out: Path, config: Path, repeats: int) -> list[dict[str, object]]
             # the drift compare allows: the machine's, or more where the sides met more noise
             drift = compare.allow_noise(machine, a, b)
             counts = verdicts(a, b, drift)
+            found = {f"{factor:g}x found": verdicts(a, scaled(b, factor), drift)[compare.SLOWER]
+                     for factor in APART_SCALES}
             results.append({"pair": f"{i} vs {j}", "drift": round(drift.sigma, 4),
-                            "drift_source": drift.source.split(":")[0], **counts,
+                            "drift_source": drift.source.split(":")[0], **counts, **found,
                             "without_drift": plain})
     return results
 
@@ -328,6 +350,8 @@ def main() -> int:
     parser.add_argument("--apart-repeats", type=int, default=None,
                         help="runs of the apart part (default: --repeats)")
     parser.add_argument("--slowdown", type=float, default=0.05)
+    parser.add_argument("--reuse", action="store_true",
+                        help="apart: judge the runs already in OUT/apart-* again, run none")
     parser.add_argument("--adaptive-configs", type=Path, nargs="*",
                         default=[REPO_ROOT / "configs" / "quickstart.yaml"])
     parser.add_argument("--adaptive-repeats", type=int, default=2)
@@ -375,7 +399,7 @@ def run_parts(args: argparse.Namespace, parts: Sequence[str], out: Path, config:
         elif part == "ab":
             summary[part] = part_ab(out, config, args.slowdown, args.repeats)
         elif part == "apart":
-            apart = part_apart(out, config, args.apart_repeats or args.repeats)
+            apart = part_apart(out, config, args.apart_repeats or args.repeats, args.reuse)
             summary["estimators"] = apart.pop(0)
             summary[part] = apart
         elif part == "sequential":

@@ -158,20 +158,20 @@ def busy(cell: resultsets.Cell, share: float) -> resultsets.Cell:
 
 def test_measured_apart_a_busy_machine_widens_the_drift_allowed() -> None:
     """Identical binaries, the second set 25% slower throughout, which no cell's own runs
-    show: where others took 30% of the cores while it ran, that is within the drift allowed
-    and no cell gets a verdict; on a quiet machine the same times are a slow-down."""
+    show, on a machine calibrated quiet: where others took 30% of the cores while it ran, that
+    is within the drift allowed and no cell gets a verdict; where they took 1%, the same times
+    are a slow-down."""
     rng = np.random.default_rng(5)
     old = [synthetic(noisy(rng, 5, 0.01), f"v{k}") for k in range(CELLS)]
     new = [synthetic(noisy(rng, 5, 0.01, 1.25), f"v{k}") for k in range(CELLS)]
-    assumed = compare.Drift(compare.ASSUMED_DRIFT, "assumed")
+    calibrated = compare.Drift(0.04, "calibrated")
     found = {}
     for share in (0.30, 0.01):
         sides = (side("OLD", [busy(c, 0.01) for c in old]),
                  side("NEW", [busy(c, share) for c in new]))
-        drift = compare.allow_noise(assumed, *sides)
-        assert drift.sigma == pytest.approx(max(compare.ASSUMED_DRIFT,
-                                                stats.NOISE_DRIFT_SLOPE * share))
-        assert ("while NEW ran" in drift.source) == (drift is not assumed)
+        drift = compare.allow_noise(calibrated, *sides)
+        assert drift.sigma == pytest.approx(max(0.04, stats.NOISE_DRIFT_SLOPE * share))
+        assert ("while NEW ran" in drift.source) == (drift is not calibrated)
         found[share] = Counter(r.kind for r in compare.compare(*sides, compare.DEFAULT_THRESHOLD,
                                                                drift))
     assert found[0.30] == {compare.INCONCLUSIVE: CELLS}
@@ -179,7 +179,7 @@ def test_measured_apart_a_busy_machine_widens_the_drift_allowed() -> None:
     assert found[0.01][compare.SLOWER] >= 0.75 * CELLS
     assert found[0.01][compare.SLOWER] + found[0.01][compare.INCONCLUSIVE] == CELLS
     # sides without noise measured keep the machine's drift
-    assert compare.allow_noise(assumed, side("OLD", old), side("NEW", new)) is assumed
+    assert compare.allow_noise(calibrated, side("OLD", old), side("NEW", new)) is calibrated
 
 
 def test_sides_of_one_round_seed_are_paired_and_others_not() -> None:
@@ -241,7 +241,7 @@ def times_text(times: Sequence[float]) -> str:
 
 
 BASE = (1.00, 1.01, 0.99, 1.02, 1.00)
-SLOW = (1.30, 1.31, 1.29, 1.32, 1.30)
+SLOW = (2.00, 2.02, 1.98, 2.04, 2.00)  # beyond the drift assumed without a calibration
 
 
 @pytest.fixture
@@ -255,7 +255,7 @@ def pair(tmp_path: Path) -> tuple[Path, Path]:
         {"variant": "grid", "cell_id": "d1", "wall_median_s": "1.0"},
     ], hyperfine={"a1": BASE, "b1": BASE, "d1": BASE})
     new = write_experiment(tmp_path / "new" / "exp", [
-        {"variant": "seq", "L": "2000", "cell_id": "a2", "wall_median_s": "1.3",
+        {"variant": "seq", "L": "2000", "cell_id": "a2", "wall_median_s": "2.0",
          "wall_times_s": times_text(SLOW), "machine_id": "0123456789abcdef", "machine": "M",
          "loaded": "True", "outliers": "False", "unstable": "True"},
         {"variant": "p1", "threads": "1.0", "cell_id": "b2", "wall_median_s": "1.0",
@@ -279,7 +279,7 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
         "seq": compare.SLOWER, "p1": compare.INCONCLUSIVE, "p1d": compare.NOT_OK,
         "grid": compare.OLD_ONLY, "relative": compare.NEW_ONLY}
     seq = kinds["seq"]  # "2000" matched "2000.0": numbers compare by value
-    assert seq.ratio == pytest.approx(1.30) and seq.low > 1.15 and seq.p_value < 0.05
+    assert seq.ratio == pytest.approx(2.0) and seq.low > 1.3 and seq.p_value < 0.05
     assert kinds["p1"].ratio == pytest.approx(1.0) and kinds["p1"].low < 1 < kinds["p1"].high
     text = (out / "compare.md").read_text()
     assert text + "wrote" in printed + "wrote" and printed.startswith(text)
@@ -292,7 +292,7 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert "not by more runs (the drift)" in text
     assert "| p1d random n=200 L=2000 r=1 S=5 T=1 | failed | ok |" in text
     assert "## Only in OLD" in text and "## Only in NEW" in text
-    assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 1.3 | 1.300 [" in text
+    assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 2 | 2.000 [" in text
     assert "**slower**" in text and "M (0123456789abcdef)" in text
     assert seq.note == "NEW: loaded, unstable"
     assert kinds["p1"].note == "OLD: stale (its binary changed since)"
@@ -310,7 +310,7 @@ def sides(old: Path, new: Path) -> tuple[resultsets.Side, resultsets.Side]:
 
 def test_an_undecided_cell_fails_the_gate_unless_told(pair: tuple[Path, Path],
                                                        tmp_path: Path) -> None:
-    # The same set against itself, measured apart with an assumed 5% drift: no cell is shown
+    # The same set against itself, measured apart with the assumed drift: no cell is shown
     # unchanged within 1%, so the gate does not pass it as unchanged (exit 3), unless only a
     # slower cell should fail it.
     old, _ = pair
@@ -356,7 +356,7 @@ def test_several_machines_need_a_choice(tmp_path: Path, capsys: pytest.CaptureFi
         {"variant": "seq", "cell_id": "m1", "wall_median_s": "1.0",
          "wall_times_s": times_text(BASE), "machine_id": "aaaa111122223333",
          "machine": "AMD EPYC 7B13 (Zen3) x2"},
-        {"variant": "seq", "cell_id": "m2", "wall_median_s": "1.3",
+        {"variant": "seq", "cell_id": "m2", "wall_median_s": "2.0",
          "wall_times_s": times_text(SLOW), "machine_id": "bbbb111122223333",
          "machine": "Intel Xeon x2"}])
     out = str(tmp_path / "out")
@@ -428,7 +428,7 @@ def test_script_on_committed_results(tmp_path: Path) -> None:
                               capture_output=True, text=True, check=False, timeout=120)
         # A set measured in rounds matches itself round by round: every per-round ratio is 1,
         # so each cell is unchanged with a zero-width interval. Rows without rounds count as
-        # measured apart, where the drift assumed without a calibration (5%) leaves each cell
+        # measured apart, where the drift assumed without a calibration leaves each cell
         # inconclusive within 1%, and the gate exits 3. Never slower or faster.
         together = "| 1.000 [1.000, 1.000] |" in done.stdout
         unchanged = cells if together else 0
@@ -483,7 +483,7 @@ def test_real_runs_find_the_slowed_binary(real_binaries: Path, tmp_path: Path,
     # Sides that met different CPU pressure widen the interval, so its low end is not asserted
     # beyond the verdict; the estimate itself is.
     assert rows["probe"].kind == compare.SLOWER and 15.0 < rows["probe"].ratio < 70.0, printed
-    # measured apart with an assumed 5% drift: not shown unchanged within 1%
+    # measured apart with the assumed drift: not shown unchanged within 1%
     assert rows["steady"].kind == compare.INCONCLUSIVE, printed
     # seq itself runs ~1 ms, where a loaded machine's noise exceeds 5%: compared, no verdict
     # asserted.
