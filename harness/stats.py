@@ -29,6 +29,7 @@ import math
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy import stats as sps
@@ -501,6 +502,23 @@ def paired_series(old: dict[int, float], new: dict[int, float],
             shift = [after[k] - before[k] for k in common]
             break
     return PairedRounds([old[k] for k in common], [new[k] for k in common], shift)
+
+
+class MeasuredInRounds(Protocol):
+    """One side of a pair measured in rounds: its value, interference share and CPU pressure
+    by round."""
+
+    def by_round(self) -> dict[int, float]: ...
+
+    def noise_by_round(self) -> dict[int, float]: ...
+
+    def pressure_by_round(self) -> dict[int, float]: ...
+
+
+def paired_sides(old: MeasuredInRounds, new: MeasuredInRounds) -> PairedRounds:
+    """paired_series of two sides' rounds."""
+    return paired_series(old.by_round(), new.by_round(), old.noise_by_round(),
+                         new.noise_by_round(), old.pressure_by_round(), new.pressure_by_round())
 
 
 # The fewest rounds whose interference shifts a paired test takes out of their ratios: the

@@ -148,9 +148,7 @@ def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     out."""
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
-    a, b = old.by_round(), new.by_round()
-    pair = stats.paired_series(a, b, old.noise_by_round(), new.noise_by_round(),
-                               old.pressure_by_round(), new.pressure_by_round())
+    pair = stats.paired_sides(old, new)
     return pair if len(pair.old) >= 2 else None
 
 

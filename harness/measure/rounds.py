@@ -90,6 +90,10 @@ class CellRun:
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
 
+    def by_round(self) -> dict[int, float]:
+        """The median of its runs in each round."""
+        return stats.round_medians(self.times, self.rounds)
+
     def noise_by_round(self) -> dict[int, float]:
         """Each round's interference share (harness.measure.noise), by round."""
         return stats.by_round(self.rounds, self.round_noise)

@@ -68,12 +68,8 @@ class UntilDecided:
     def change(self, old: Unit, new: Unit, final: bool) -> stats.Change:
         """The pair's change at its look, as `compare OUT/old OUT/new` will judge it (final:
         it stops undecided now, or did)."""
-        a = stats.round_medians(old.state.times, old.state.rounds)
-        b = stats.round_medians(new.state.times, new.state.rounds)
-        measured = len(a.keys() & b.keys())
-        series = stats.paired_series(a, b, old.state.noise_by_round(),
-                                     new.state.noise_by_round(), old.state.pressure_by_round(),
-                                     new.state.pressure_by_round())
+        measured = len(old.state.by_round().keys() & new.state.by_round().keys())
+        series = stats.paired_sides(old.state, new.state)
         final = final or old.state.stopped in STOPPED_UNDECIDED
         return stats.paired_change(series.old, series.new, self.threshold,
                                    stats.paired_look(measured, final), series.shift)
