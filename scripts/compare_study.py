@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import itertools
 import json
 import math
@@ -45,7 +46,7 @@ import statistics
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -54,7 +55,7 @@ from harness import stats
 from harness.analysis import compare
 from harness.analysis.calibration import side
 from harness.analysis.frame import read_results
-from harness.analysis.resultsets import Side, noise_profile
+from harness.analysis.resultsets import Cell, Side, noise_profile
 from harness.plan.binaries import needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.report.document import Table
@@ -201,15 +202,32 @@ def part_apart(out: Path, config: Path, repeats: int, reuse: bool) -> list[dict[
     return results
 
 
+def cleaner_half_median(cell: Cell) -> float:
+    """A candidate that reads the noise: the median of the runs whose round met at most the
+    cell's median CPU pressure (else interference share), all of them where none was
+    measured."""
+    noise = cell.pressure_by_round() or cell.noise_by_round()
+    if not noise or len(cell.rounds) != len(cell.times):
+        return stats.estimate(cell.times, stats.DEFAULT_ESTIMATOR)
+    cut = statistics.median(noise.values())
+    kept = [t for t, r in zip(cell.times, cell.rounds, strict=True) if noise.get(r, 1.0) <= cut]
+    return statistics.median(kept or cell.times)
+
+
 def estimator_spread(runs: Sequence[Side]) -> dict[str, object]:
-    """Per candidate estimator: how far a cell's value moved between the runs measured apart
-    (max/min - 1 over the runs), the median and the largest over the cells."""
+    """Per candidate estimator (and the cleaner half's median, which reads the noise): how far
+    a cell's value moved between the runs measured apart (max/min - 1 over the runs), the
+    median and the largest over the cells."""
     spread: dict[str, object] = {"pair": "estimators: median / max spread over cells"}
     keys = set.intersection(*(set(r.cells) for r in runs))
-    for name in stats.ESTIMATORS:
+    candidates: dict[str, Callable[[Cell], float]] = {
+        name: functools.partial(lambda cell, n: stats.estimate(cell.times, n), n=name)
+        for name in stats.ESTIMATORS}
+    candidates["cleaner half"] = cleaner_half_median
+    for name, estimate in candidates.items():
         moves = []
         for key in keys:
-            values = [stats.estimate(r.cells[key].times, name) for r in runs]
+            values = [estimate(r.cells[key]) for r in runs]
             if all(v > 0 for v in values):
                 moves.append(max(values) / min(values) - 1)
         spread[name] = (f"{statistics.median(moves):.1%} / {max(moves):.1%}" if moves else "-")
