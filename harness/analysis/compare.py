@@ -96,6 +96,7 @@ def allow_noise(drift: Drift, old: Side, new: Side) -> Drift:
                         f"time while {name} ran; the machine's own {drift.sigma:.1%} is "
                         f"{drift.source}")
 
+
 def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
     """The drift of the machines of a comparison: the largest of their newest calibrations
     (<root>/calibration/machines/<id>.json) under the given results roots; ASSUMED_DRIFT for a
