@@ -79,6 +79,14 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
             lines.append(f"- **{side.name}** noise: {profile.line()}")
     lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift))]
     lines += ["", f"**{summary(rows)}.**", ""]
+    undecidable = sum(r.kind == INCONCLUSIVE and r.method != PAIRED
+                      and not math.isfinite(r.further) for r in rows)
+    if undecidable:
+        lines += [f"{undecidable} of the cells measured apart cannot be decided by more runs: "
+                  f"the drift allowed between the sets ({drift.sigma:.1%}) is wider than what "
+                  "is left to show. Measure the two sides together (`compare --measure OLD NEW "
+                  "CONFIG...`), or calibrate the machine (`compare --calibrate CONFIG...`) where "
+                  "it drifts less than that.", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
     if flagged:
         lines += [f"Caution: {len(flagged)} of the compared cells carry a flag on a side "
