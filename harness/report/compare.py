@@ -83,8 +83,8 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
                       and not math.isfinite(r.further) for r in rows)
     if undecidable:
         lines += [f"{undecidable} of the cells measured apart cannot be decided by more runs: "
-                  f"the drift allowed between the sets ({drift.sigma:.1%}) is wider than what "
-                  "is left to show. Measure the two sides together (`compare --measure OLD NEW "
+                  f"the drift allowed between the sets ({drift.sigma:.1%}, more where their "
+                  "CPU pressure differed) is wider than what is left to show. Measure the two sides together (`compare --measure OLD NEW "
                   "CONFIG...`), or calibrate the machine (`compare --calibrate CONFIG...`) where "
                   "it drifts less than that.", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]

@@ -291,7 +291,7 @@ def test_compare_directories(pair: tuple[Path, Path], tmp_path: Path,
     assert kinds["p1"].low < 1 / 1.02 and kinds["p1"].high > 1.02
     assert "not by more runs (the drift)" in text
     assert "1 of the cells measured apart cannot be decided by more runs: the drift allowed " \
-           f"between the sets ({compare.ASSUMED_DRIFT:.1%})" in text and "compare --measure" in text
+           f"between the sets ({compare.ASSUMED_DRIFT:.1%}," in text and "compare --measure" in text
     assert "| p1d random n=200 L=2000 r=1 S=5 T=1 | failed | ok |" in text
     assert "## Only in OLD" in text and "## Only in NEW" in text
     assert "| seq random n=200 L=2000 r=1 S=5 T=1 | 1 | 2 | 2.000 [" in text
