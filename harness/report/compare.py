@@ -84,9 +84,9 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     if undecidable:
         lines += [f"{undecidable} of the cells measured apart cannot be decided by more runs: "
                   f"the drift allowed between the sets ({drift.sigma:.1%}, more where their "
-                  "CPU pressure differed) is wider than what is left to show. Measure the two sides together (`compare --measure OLD NEW "
-                  "CONFIG...`), or calibrate the machine (`compare --calibrate CONFIG...`) where "
-                  "it drifts less than that.", ""]
+                  "CPU pressure differed) is wider than what is left to show. Measure the two "
+                  "sides together (`compare --measure OLD NEW CONFIG...`), or calibrate the "
+                  "machine (`compare --calibrate CONFIG...`) where it drifts less than that.", ""]
     flagged = [r for r in rows if r.compared and (r.old.flags or r.new.flags)]  # type: ignore[union-attr]
     if flagged:
         lines += [f"Caution: {len(flagged)} of the compared cells carry a flag on a side "
