@@ -474,11 +474,13 @@ class PairedRounds:
     """The rounds both sides of a pair measured, in round order: each side's value and, where
     the noise of both was measured, how much more interference NEW's side met than OLD's
     (harness.measure.noise: the CPU pressure where the kernel gave it, else the share of the
-    cores others took)."""
+    cores others took); `measured`: the rounds both measured, the left-out ones included (the
+    look the pair has reached)."""
 
     old: list[float]
     new: list[float]
     shift: list[float] | None = None
+    measured: int = 0
 
 
 def paired_series(old: dict[int, float], new: dict[int, float],
@@ -501,7 +503,8 @@ def paired_series(old: dict[int, float], new: dict[int, float],
         if before and after and all(k in before and k in after for k in common):
             shift = [after[k] - before[k] for k in common]
             break
-    return PairedRounds([old[k] for k in common], [new[k] for k in common], shift)
+    return PairedRounds([old[k] for k in common], [new[k] for k in common], shift,
+                        len(old.keys() & new.keys()))
 
 
 class MeasuredInRounds(Protocol):

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
 import itertools
 import json
 import math
@@ -221,7 +220,7 @@ def estimator_spread(runs: Sequence[Side]) -> dict[str, object]:
     spread: dict[str, object] = {"pair": "estimators: median / max spread over cells"}
     keys = set.intersection(*(set(r.cells) for r in runs))
     candidates: dict[str, Callable[[Cell], float]] = {
-        name: functools.partial(lambda cell, n: stats.estimate(cell.times, n), n=name)
+        name: lambda cell, name=name: stats.estimate(cell.times, name)
         for name in stats.ESTIMATORS}
     candidates["cleaner half"] = cleaner_half_median
     for name, estimate in candidates.items():

@@ -166,11 +166,9 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
         notes.append("the input files differ")
     paired = paired_rounds(old, new)
     if paired is not None:
-        # the look of the rounds measured, dropped ones included: the looks taken so far
-        measured = len(old.by_round().keys() & new.by_round().keys())
         final = old.stopped in STOPPED_UNDECIDED and new.stopped in STOPPED_UNDECIDED
         change = stats.paired_change(paired.old, paired.new, threshold,
-                                     stats.paired_look(measured, final), paired.shift)
+                                     stats.paired_look(paired.measured, final), paired.shift)
         method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change = stats.drift_change(old.times, new.times, threshold, drift.sigma,

@@ -68,11 +68,10 @@ class UntilDecided:
     def change(self, old: Unit, new: Unit, final: bool) -> stats.Change:
         """The pair's change at its look, as `compare OUT/old OUT/new` will judge it (final:
         it stops undecided now, or did)."""
-        measured = len(old.state.by_round().keys() & new.state.by_round().keys())
         series = stats.paired_sides(old.state, new.state)
         final = final or old.state.stopped in STOPPED_UNDECIDED
         return stats.paired_change(series.old, series.new, self.threshold,
-                                   stats.paired_look(measured, final), series.shift)
+                                   stats.paired_look(series.measured, final), series.shift)
 
     def left_s(self) -> float:
         return self.budget_s - max(0.0, time.monotonic() - self.started)

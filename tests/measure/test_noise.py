@@ -155,7 +155,12 @@ def test_the_shift_is_the_pressures_where_both_sides_have_them_else_the_shares()
     shares_old, shares_new = {1: 0.1, 2: 0.1, 3: 0.1}, {1: 0.3, 2: 0.1, 3: 0.2}
     waited_old, waited_new = {1: 0.0, 2: 0.05, 3: 0.0}, {1: 0.1, 2: 0.0, 3: 0.0}
     both = stats.paired_series(old, new, shares_old, shares_new, waited_old, waited_new)
-    assert both.shift == pytest.approx([0.1, -0.05, 0.0])
+    assert both.shift == pytest.approx([0.1, -0.05, 0.0]) and both.measured == 3
+    # a round interfered with on a side is left out, and still counts as measured
+    four = {1: 1.0, 2: 1.0, 3: 1.0, 4: 1.0}
+    calm = {k: 0.1 for k in four}
+    dropped = stats.paired_series(four, four, calm, {**calm, 1: 0.9})
+    assert (len(dropped.old), dropped.measured) == (3, 4)
     partial = stats.paired_series(old, new, shares_old, shares_new, waited_old, {1: 0.1})
     assert partial.shift == pytest.approx([0.2, 0.0, 0.1])
     assert stats.paired_series(old, new).shift is None
