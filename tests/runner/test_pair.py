@@ -4,6 +4,7 @@ nothing written."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -142,7 +143,10 @@ def test_calibrate_keeps_what_it_learnt_beside_the_machine(real_binaries: Path, 
     results = tmp_path / "results"
     assert compare_main(["--calibrate", str(config), "--results-dir", str(results)]) == 0
     out = capsys.readouterr().out
-    assert "identical binaries measured together: false verdicts 0 of 2" in out
+    # at most 1 of the 2 cells: each may get a false verdict at the test's rate (5%) on a loaded
+    # machine; both together are the failure this guards against
+    together = re.search(r"identical binaries measured together: false verdicts (\d) of 2", out)
+    assert together is not None and int(together.group(1)) <= 1, out
     assert "drift between runs measured apart:" in out
     machines = list((results / "calibration" / "machines").glob("*.json"))
     assert len(machines) == 1
