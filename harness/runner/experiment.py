@@ -9,8 +9,10 @@ harness.measure measures one, harness.executors decides who measures the pending
 
 from __future__ import annotations
 
+import contextlib
 import shutil
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -29,6 +31,36 @@ from harness.spec.variants import VariantRegistry
 from harness.store import index, records
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+
+# results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
+# at a few thousand records a rebuild takes a second or more. After one, the next waits at least
+# this many times as long as it took, so that rebuilding costs at most about a tenth of a run
+# that ends many cells at once; a cheap rebuild still follows almost every record.
+CSV_REBUILD_SPACING = 10.0
+
+
+@dataclass
+class CsvRebuilds:
+    """When a run rebuilds results.csv as records arrive (each record is saved on its own as its
+    cell ends; the CSV is derived from them, and the run's end writes it whole)."""
+
+    write: Callable[[], None]
+    clock: Callable[[], float] = time.monotonic
+    spacing: float = CSV_REBUILD_SPACING
+    next_s: float = -float("inf")
+    pending: bool = False
+
+    def record_added(self) -> None:
+        self.pending = True
+        if self.clock() >= self.next_s:
+            self.flush()
+
+    def flush(self) -> None:
+        start = self.clock()
+        self.write()
+        end = self.clock()
+        self.pending = False
+        self.next_s = end + self.spacing * (end - start)
 
 
 @dataclass(frozen=True)
@@ -73,15 +105,24 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         index.write_env(experiment.directory, environment.collect(
             options.repo_root, options.make, options.hyperfine))
     measured: set[str] = set()
+    rebuilds = CsvRebuilds(experiment.store.write_csv)
 
     def on_record(cell: Cell, cid: str, record: records.Record) -> None:
         experiment.records[cid] = record
         measured.add(cid)
-        experiment.store.write_csv()
+        rebuilds.record_added()
         report_cell(cell, record, log)
 
     progress = Progress(config.name, order, frozenset(cid for _, cid in pending), log)
-    executor.run(experiment, pending, on_record, progress)
+    try:
+        executor.run(experiment, pending, on_record, progress)
+    except BaseException:
+        # an interrupted or failed run still leaves a CSV of the records it saved; the error
+        # that stopped it is the one to report, whatever this rebuild meets
+        if rebuilds.pending:
+            with contextlib.suppress(Exception):
+                rebuilds.flush()
+        raise
     progress.close()
     experiment.store.write_csv(prune=True)
     if env is not None:

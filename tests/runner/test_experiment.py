@@ -136,6 +136,71 @@ def test_cached_cells_are_not_measured_again(tmp_path: Path, fake_repo: Path) ->
     assert len(read_csv(first.directory / "results.csv")) == 6
 
 
+def test_results_csv_is_rebuilt_less_often_as_rebuilding_gets_dearer() -> None:
+    now = [0.0]
+    cost = [0.0]  # seconds a rebuild takes
+    writes: list[float] = []
+
+    def write() -> None:
+        writes.append(now[0])
+        now[0] += cost[0]
+
+    rebuilds = experiment_runner.CsvRebuilds(write, clock=lambda: now[0], spacing=10.0)
+    for _ in range(5):  # cheap: every record
+        rebuilds.record_added()
+        now[0] += 0.01
+    assert len(writes) == 5 and not rebuilds.pending
+    cost[0] = 1.0  # dear: the next waits ten times as long as this one took
+    rebuilds.record_added()
+    assert len(writes) == 6 and now[0] == pytest.approx(1.05)
+    for _ in range(99):  # records 0.1 s apart over the next 9.9 s: none rebuilds
+        now[0] += 0.1
+        rebuilds.record_added()
+    assert len(writes) == 6 and rebuilds.pending
+    now[0] = 11.1  # ten rebuilds' time after it ended
+    rebuilds.record_added()
+    assert len(writes) == 7 and not rebuilds.pending
+    rebuilds.record_added()
+    assert len(writes) == 7 and rebuilds.pending
+    rebuilds.flush()  # the run's end
+    assert len(writes) == 8 and not rebuilds.pending
+
+
+def test_an_interrupted_run_leaves_a_csv_of_the_records_it_saved(
+        tmp_path: Path, fake_repo: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    config = load_config(grid_config(tmp_path, "[seq, p1]", threads="[1, 2]"))
+    # rebuilds so dear that only the first record's follows it
+    rebuilds = experiment_runner.CsvRebuilds
+    monkeypatch.setattr(experiment_runner, "CsvRebuilds",
+                        lambda write: rebuilds(write, spacing=1e9))
+    real = experiment_runner.make_executor
+
+    def interrupted(name: str) -> executors_base.Executor:
+        executor = real(name)
+        run = executor.run
+
+        def run_until_third(experiment, pending, on_record, progress) -> None:
+            seen = []
+
+            def record(cell, cid, rec) -> None:
+                on_record(cell, cid, rec)
+                seen.append(cid)
+                if len(seen) == 3:
+                    raise KeyboardInterrupt
+
+            run(experiment, pending, record, progress)
+
+        executor.run = run_until_third  # type: ignore[method-assign]
+        return executor
+
+    monkeypatch.setattr(experiment_runner, "make_executor", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        experiment_runner.run_experiment(config, options(tmp_path, fake_repo), io.StringIO(),
+                                         io.StringIO())
+    rows = read_csv(tmp_path / "results" / "fake" / "results.csv")
+    assert len(rows) == 3 and all(r["status"] == "ok" for r in rows)
+
+
 def test_dry_run_lists_cells_and_measures_nothing(tmp_path: Path, fake_repo: Path) -> None:
     config = load_config(grid_config(tmp_path, "[seq, p1]"))
     out = io.StringIO()
