@@ -28,7 +28,7 @@ from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
 from harness.spec.programs import check_steps
-from harness.store import atomic, csvfile, index, records
+from harness.store import atomic, csvfile, history, index, records
 from harness.store.layout import ExperimentDir, ResultsRoot
 
 
@@ -183,7 +183,7 @@ class CellStore:
             ompcost_sha = self.sha(self.ompcost(cell))
             if ompcost_sha is None:
                 return None
-            extra["openmp_costs"] = {"binary_sha256": ompcost_sha}
+            extra[history.OPENMP_COSTS_KEY] = {"binary_sha256": ompcost_sha}
         omp = self.config.executor.omp_env()
         if omp:  # only then, as with checks
             extra["omp"] = omp

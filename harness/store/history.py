@@ -26,6 +26,7 @@ from harness.store.layout import ExperimentDir
 # Key fields that name a binary or the machine, not what was measured: a group ignores them.
 HASH_KEYS = ("binary_sha256", "baseline_sha256", records.MACHINE_KEY)
 CHECK_HASH_KEY = "reference_sha256"
+OPENMP_COSTS_KEY = "openmp_costs"
 UNKNOWN_MACHINE = ""
 
 
@@ -64,6 +65,9 @@ class Stored:
 def group_of(key: Mapping[str, object]) -> str:
     """The id of a key with its binary hashes and machine left out."""
     rest: dict[str, object] = {k: v for k, v in key.items() if k not in HASH_KEYS}
+    # the runtime's operation costs are measured beside a cell's runs, not in them: a record
+    # with them and one from before a config asked for them time the same thing
+    rest.pop(OPENMP_COSTS_KEY, None)
     checks = rest.get("checks")
     if isinstance(checks, dict):
         rest["checks"] = {k: v for k, v in checks.items() if k != CHECK_HASH_KEY}

@@ -48,6 +48,9 @@ def test_group_ignores_binaries_and_machine_only() -> None:
     checks = {"names": ["invariants"], "reference_sha256": {"seq": "1"}}
     assert store_history.group_of({**KEY, "checks": checks}) == store_history.group_of(
         {**KEY, "checks": {**checks, "reference_sha256": {"seq": "2"}}})
+    # a cell that also measures the runtime's costs times what it timed before it did
+    assert store_history.group_of(
+        {**KEY, "openmp_costs": {"binary_sha256": "f" * 64}}) == group
 
 
 def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> None:
