@@ -75,10 +75,9 @@ def group_of(key: Mapping[str, object]) -> str:
 
 
 # Records already read by this process, by path, with the (inode, mtime, size) they were read
-# at. results.csv is rebuilt from disk after every measured cell (records may come from other
-# processes or nodes), so without this a run of N cells parses N^2/2 records: 0.35 s a cell at
-# the 528 cells of configs/stability.yaml. Records are only ever replaced by a rename, which
-# changes the inode, so a changed file is always read again.
+# at. results.csv is rebuilt from disk as cells end (records may come from other processes or
+# nodes), so without this a run of N cells could parse N^2/2 records. Records are only ever
+# replaced by a rename, which changes the inode, so a changed file is always read again.
 _READ: dict[Path, tuple[tuple[int, int, int], Stored]] = {}
 
 
