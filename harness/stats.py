@@ -496,15 +496,14 @@ def paired_series(old: dict[int, float], new: dict[int, float],
     Why the pressure first: it counts the time a task waited for a core, which is what slows
     a run whichever core the kernel moved it to; a share over all the cores misses that a
     lone thread moved to an idle one is not slowed (docs/compare.md)."""
-    dropped = rounds_to_drop(old_noise or {}, new_noise or {})
-    common = sorted((old.keys() & new.keys()) - dropped)
+    both = old.keys() & new.keys()
+    common = sorted(both - rounds_to_drop(old_noise or {}, new_noise or {}))
     shift = None
     for before, after in ((old_pressure, new_pressure), (old_noise, new_noise)):
         if before and after and all(k in before and k in after for k in common):
             shift = [after[k] - before[k] for k in common]
             break
-    return PairedRounds([old[k] for k in common], [new[k] for k in common], shift,
-                        len(old.keys() & new.keys()))
+    return PairedRounds([old[k] for k in common], [new[k] for k in common], shift, len(both))
 
 
 class MeasuredInRounds(Protocol):

@@ -142,6 +142,13 @@ class Row:
     def compared(self) -> bool:
         return self.kind in VERDICTS
 
+    @property
+    def beyond_more_runs(self) -> bool:
+        """Inconclusive between sets measured apart, where no number of runs would decide it:
+        the drift allowed is wider than what is left to show."""
+        return (self.kind == INCONCLUSIVE and self.method != PAIRED
+                and not math.isfinite(self.further))
+
 
 def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     """The two sides' round medians, round by round, where they were measured together, with

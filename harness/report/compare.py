@@ -48,8 +48,10 @@ def _further_text(row: Row) -> str:
     if row.kind != INCONCLUSIVE:
         return ""
     unit = "rounds" if row.method == PAIRED else "runs a side"
+    if row.beyond_more_runs:
+        return "not by more runs (the drift)"
     if not math.isfinite(row.further):
-        return "not by more runs (the drift)" if row.method != PAIRED else "many"
+        return "many"
     if row.further > MANY_ROUNDS:
         return f"> {MANY_ROUNDS} {unit}"
     return f"~{row.further:.0f} {unit}"
@@ -79,8 +81,7 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
             lines.append(f"- **{side.name}** noise: {profile.line()}")
     lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift))]
     lines += ["", f"**{summary(rows)}.**", ""]
-    undecidable = sum(r.kind == INCONCLUSIVE and r.method != PAIRED
-                      and not math.isfinite(r.further) for r in rows)
+    undecidable = sum(r.beyond_more_runs for r in rows)
     if undecidable:
         lines += [f"{undecidable} of the cells measured apart cannot be decided by more runs: "
                   f"the drift allowed between the sets ({drift.sigma:.1%}, more where their "
