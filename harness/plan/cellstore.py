@@ -178,7 +178,8 @@ class CellStore:
             counted_sha = binary_sha if counted is None else self.sha(counted)
             if counted_sha is None:
                 return None
-            extra["instructions"] = {"tool": lane.machine_tool(), "binary_sha256": counted_sha}
+            extra[history.INSTRUCTIONS_KEY] = {"tool": lane.machine_tool(),
+                                               "binary_sha256": counted_sha}
         if measures_openmp_costs(self.config, cell):  # only then, as with checks
             ompcost_sha = self.sha(self.ompcost(cell))
             if ompcost_sha is None:

@@ -23,10 +23,11 @@ from pathlib import Path
 from harness.store import csvfile, layout, locks, records
 from harness.store.layout import ExperimentDir
 
-# Key fields that name a binary or the machine, not what was measured: a group ignores them.
-HASH_KEYS = ("binary_sha256", "baseline_sha256", records.MACHINE_KEY)
-CHECK_HASH_KEY = "reference_sha256"
+# Key fields that name a binary or the machine, not what was measured: a group ignores them
+# wherever they are (a check's or a program check's references are binaries built per machine).
+HASH_KEYS = ("binary_sha256", "baseline_sha256", "reference_sha256", records.MACHINE_KEY)
 OPENMP_COSTS_KEY = "openmp_costs"
+INSTRUCTIONS_KEY = "instructions"
 UNKNOWN_MACHINE = ""
 
 
@@ -64,14 +65,20 @@ class Stored:
 
 def group_of(key: Mapping[str, object]) -> str:
     """The id of a key with its binary hashes and machine left out."""
-    rest: dict[str, object] = {k: v for k, v in key.items() if k not in HASH_KEYS}
+    rest = _without_hashes(key)
     # the runtime's operation costs are measured beside a cell's runs, not in them: a record
     # with them and one from before a config asked for them time the same thing
     rest.pop(OPENMP_COSTS_KEY, None)
-    checks = rest.get("checks")
-    if isinstance(checks, dict):
-        rest["checks"] = {k: v for k, v in checks.items() if k != CHECK_HASH_KEY}
+    # counted or not stays apart (a counted record is not superseded by a plain run), but
+    # not which counter a machine has: perf on one, cachegrind on another count one cell
+    if INSTRUCTIONS_KEY in rest:
+        rest[INSTRUCTIONS_KEY] = True
     return records.cell_id(rest)
+
+
+def _without_hashes(key: Mapping[str, object]) -> dict[str, object]:
+    return {k: _without_hashes(v) if isinstance(v, Mapping) else v
+            for k, v in key.items() if k not in HASH_KEYS}
 
 
 # Records already read by this process, by path, with the (inode, mtime, size) they were read

@@ -51,6 +51,19 @@ def test_group_ignores_binaries_and_machine_only() -> None:
     # a cell that also measures the runtime's costs times what it timed before it did
     assert store_history.group_of(
         {**KEY, "openmp_costs": {"binary_sha256": "f" * 64}}) == group
+    # a program's check: the references are built on each machine
+    program = {"reference_sha256": {"f64": "1"}, "steps": 20}
+    assert store_history.group_of({**KEY, "program_check": program}) == store_history.group_of(
+        {**KEY, "program_check": {"reference_sha256": {"replay": "2"}, "steps": 20}})
+    assert store_history.group_of({**KEY, "program_check": program}) != store_history.group_of(
+        {**KEY, "program_check": {**program, "steps": 10}})
+    # a counted cell: one group whichever counter and lane binary a machine has, apart from
+    # the plain cell's
+    perf = store_history.group_of({**KEY, "instructions": {"tool": "perf",
+                                                          "binary_sha256": "1" * 64}})
+    assert perf == store_history.group_of(
+        {**KEY, "instructions": {"tool": "cachegrind", "binary_sha256": "2" * 64}})
+    assert perf != group
 
 
 def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> None:
