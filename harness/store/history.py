@@ -3,7 +3,8 @@
 A cell record's key (records.cell_id) holds the hashes of its binaries and the machine_id, so
 a new build or another machine gives new ids and the old records stay in cells/. Two records
 are of the same *group* when everything in their keys but those hashes and the machine agrees
-(variant, build, input, seed, threads, measure settings, checks); within a group, one record
+(variant, build, input, seed, threads, measure settings, checks, whether instructions were
+counted, but not with which counter); within a group, one record
 per machine is current: the newest. The others are *superseded*: prune() moves them, with
 their hyperfine JSON and kept output, to <experiment>/history/, so the committed cells/ holds
 what the report shows; load_history() reads them back ("earlier measurements").
@@ -54,6 +55,11 @@ class Stored:
         return group_of(key if isinstance(key, dict) else {})
 
     @functools.cached_property
+    def timed_group(self) -> str:
+        key = self.record.get("key")
+        return timed_group_of(key if isinstance(key, dict) else {})
+
+    @functools.cached_property
     def age(self) -> tuple[str, float]:
         """Sorts oldest first: measured_at (ISO seconds), then the file's mtime."""
         try:
@@ -74,6 +80,12 @@ def group_of(key: Mapping[str, object]) -> str:
     if INSTRUCTIONS_KEY in rest:
         rest[INSTRUCTIONS_KEY] = True
     return records.cell_id(rest)
+
+
+def timed_group_of(key: Mapping[str, object]) -> str:
+    """The group of a key whether or not its instructions were counted: every record that
+    timed the same cell."""
+    return group_of({k: v for k, v in key.items() if k != INSTRUCTIONS_KEY})
 
 
 def _without_hashes(key: Mapping[str, object]) -> dict[str, object]:
@@ -123,11 +135,11 @@ def load_history(experiment_dir: Path) -> list[records.Record]:
     return out
 
 
-def by_group(stored: Iterable[Stored]) -> dict[str, list[Stored]]:
-    """The records by group, each group oldest first."""
+def by_group(stored: Iterable[Stored], timed: bool = False) -> dict[str, list[Stored]]:
+    """The records by group (with `timed`, by timed_group), each group oldest first."""
     groups: dict[str, list[Stored]] = {}
     for item in stored:
-        groups.setdefault(item.group, []).append(item)
+        groups.setdefault(item.timed_group if timed else item.group, []).append(item)
     for members in groups.values():
         members.sort(key=lambda s: s.age)
     return groups

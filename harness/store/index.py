@@ -2,8 +2,9 @@
 
 results.csv lists, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
-and on every other machine present the newest record of the group. It is rebuilt from the
-records on disk under the directory's lock, so two writers never drop each other's rows.
+and on every other machine present the newest record that timed the cell, its instructions
+counted or not (history.timed_group_of). It is rebuilt from the records on disk under the
+directory's lock, so two writers never drop each other's rows.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from harness.store.history import (
     group_of,
     load_records,
     prune_locked,
+    timed_group_of,
 )
 from harness.store.layout import ExperimentDir
 
@@ -45,7 +47,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
     """results.csv's records, in plan order: per planned cell, this machine's current record
     (or its newest, stale), then the newest of each other machine (and of no known machine,
     unless a newer record of the group exists)."""
-    groups = by_group(stored)
+    groups, timed = by_group(stored), by_group(stored, timed=True)
     rows: list[Row] = []
     done: set[str] = set()
     for cell in planned:
@@ -54,7 +56,13 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             continue
         done.add(group)
         members = groups.get(group, [])
-        newest = current_by_machine(members)
+        # another machine's newest timing of the cell, its instructions counted or not: a
+        # config that starts counting them does not hide what other machines measured before
+        newest = {machine: item for machine, item in current_by_machine(
+            timed.get(timed_group_of(cell.key), [])).items() if machine != machine_id}
+        own = current_by_machine(members).get(machine_id)
+        if own is not None:
+            newest[machine_id] = own
         ordered = [machine_id, *sorted(m for m in newest if m != machine_id)]
         for machine in ordered:
             item = newest.get(machine)

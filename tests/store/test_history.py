@@ -103,6 +103,22 @@ def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:
     assert got == [(stale_old, True), (current, False), (other, None)]
 
 
+def test_counting_instructions_keeps_other_machines_rows_and_this_machines_plain_records(
+        tmp_path: Path) -> None:
+    counted = {"instructions": {"tool": "cachegrind", "binary_sha256": "6" * 64}}
+    plain_here = put(tmp_path, "2026-01-01T00:00:00+00:00")
+    plain_there = put(tmp_path, "2026-01-02T00:00:00+00:00", machine_id="m2")
+    counted_here = put(tmp_path, "2026-01-03T00:00:00+00:00", **counted)
+    stored = store_history.load_records(tmp_path / "cells")
+    rows = index.current_rows(stored, [planned(**counted)], "m1", ExperimentDir(tmp_path))
+    assert [(r.record["cell_id"], r.stale) for r in rows] == [(counted_here, False),
+                                                              (plain_there, None)]
+    # the counted record does not supersede the plain one: a plain run finds it cached
+    assert store_history.superseded(stored) == []
+    rows = index.current_rows(stored, [planned()], "m1", ExperimentDir(tmp_path))
+    assert [r.record["cell_id"] for r in rows] == [plain_here, plain_there]
+
+
 def test_rebuilt_csv_has_provenance_columns(tmp_path: Path) -> None:
     cid = put(tmp_path, "2026-01-01T00:00:00+00:00", times=[2.0, 1.0, 3.0])
     index.rebuild_csv(tmp_path, [planned()], "m1", "exp", "Exp")
