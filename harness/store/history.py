@@ -29,6 +29,8 @@ from harness.store.layout import ExperimentDir
 HASH_KEYS = ("binary_sha256", "baseline_sha256", "reference_sha256", records.MACHINE_KEY)
 OPENMP_COSTS_KEY = "openmp_costs"
 INSTRUCTIONS_KEY = "instructions"
+# How a cell's runs were taken (a config's `measure:` settings), not what they timed.
+MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s", "min_runs")
 UNKNOWN_MACHINE = ""
 
 
@@ -83,9 +85,10 @@ def group_of(key: Mapping[str, object]) -> str:
 
 
 def timed_group_of(key: Mapping[str, object]) -> str:
-    """The group of a key whether or not its instructions were counted: every record that
-    timed the same cell."""
-    return group_of({k: v for k, v in key.items() if k != INSTRUCTIONS_KEY})
+    """The group of a key whatever its measure settings and whether or not its instructions
+    were counted: every record that timed the same cell."""
+    return group_of({k: v for k, v in key.items()
+                     if k != INSTRUCTIONS_KEY and k not in MEASURE_KEYS})
 
 
 def _without_hashes(key: Mapping[str, object]) -> dict[str, object]:

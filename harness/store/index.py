@@ -2,8 +2,8 @@
 
 results.csv lists, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
-and on every other machine present the newest record that timed the cell, its instructions
-counted or not (history.timed_group_of). It is rebuilt from the records on disk under the
+and on every other machine present the newest record that timed the cell, whatever its
+measure settings and whether or not it counted instructions (history.timed_group_of). It is rebuilt from the records on disk under the
 directory's lock, so two writers never drop each other's rows.
 """
 
@@ -56,8 +56,9 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             continue
         done.add(group)
         members = groups.get(group, [])
-        # another machine's newest timing of the cell, its instructions counted or not: a
-        # config that starts counting them does not hide what other machines measured before
+        # another machine's newest timing of the cell, however its runs were taken: a config
+        # that changes its measure settings or starts counting instructions does not hide
+        # what other machines measured before
         newest = {machine: item for machine, item in current_by_machine(
             timed.get(timed_group_of(cell.key), [])).items() if machine != machine_id}
         own = current_by_machine(members).get(machine_id)

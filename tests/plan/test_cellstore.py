@@ -9,8 +9,9 @@ import pytest
 from harness.plan.cells import plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import REPO_ROOT
+from harness.spec.config import Measure
 from harness.spec.parse import load_config
-from harness.store import records
+from harness.store import history, records
 
 CONFIG = "variants: [seq, p1]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nvalidate: true\n"
 
@@ -32,6 +33,19 @@ def test_the_key_names_the_machine_the_binaries_and_the_input(store: CellStore) 
     other = CellStore(store.plan, REPO_ROOT, store.results_root, "m2")
     assert other.cell_id(cell) != store.cell_id(cell)
     assert records.portable_id(other.cell_key(cell)) == records.portable_id(key)
+
+
+def test_the_measure_settings_in_a_key_are_those_the_store_leaves_out_of_a_timing(
+        write_config) -> None:
+    config = load_config(write_config(
+        CONFIG + "measure: {runs: auto, ci: 0.03, max_runs: 9, max_time_s: 5}\n"))
+    plan = plan_cells(config)
+    measure = config.measure_for("p1")
+    for each in (measure, Measure(), Measure(runs=None, min_runs=4)):
+        assert set(each.key()) <= set(history.MEASURE_KEYS)
+    # at the key's top level, where the store looks for them
+    key = CellStore(plan, REPO_ROOT, Path("/nonexistent"), "m1").cell_key(plan.cells[1])
+    assert key is not None and {k: key[k] for k in measure.key()} == measure.key()
 
 
 def test_a_missing_binary_leaves_the_cell_without_an_id(store: CellStore) -> None:

@@ -119,6 +119,18 @@ def test_counting_instructions_keeps_other_machines_rows_and_this_machines_plain
     assert [r.record["cell_id"] for r in rows] == [plain_here, plain_there]
 
 
+def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings(
+        tmp_path: Path) -> None:
+    older_settings = put(tmp_path, "2026-01-02T00:00:00+00:00", machine_id="m2", runs=3)
+    here_before = put(tmp_path, "2026-01-01T00:00:00+00:00", runs=3)
+    stored = store_history.load_records(tmp_path / "cells")
+    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
+                              ExperimentDir(tmp_path))
+    # this machine measures the cell again; the other machine's timing stays listed
+    assert [r.record["cell_id"] for r in rows] == [older_settings]
+    assert here_before not in {s.cell_id for s in store_history.superseded(stored)}
+
+
 def test_rebuilt_csv_has_provenance_columns(tmp_path: Path) -> None:
     cid = put(tmp_path, "2026-01-01T00:00:00+00:00", times=[2.0, 1.0, 3.0])
     index.rebuild_csv(tmp_path, [planned()], "m1", "exp", "Exp")
