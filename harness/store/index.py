@@ -3,8 +3,9 @@
 results.csv lists, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
 and on every other machine present the newest record that timed the cell, whatever its
-measure settings and whether or not it counted instructions (history.timed_group_of). It is rebuilt from the records on disk under the
-directory's lock, so two writers never drop each other's rows.
+measure settings and whether or not it counted instructions (history.timed_group_of). It is
+rebuilt from the records on disk under the directory's lock, so two writers never drop each
+other's rows.
 """
 
 from __future__ import annotations
