@@ -4,10 +4,11 @@ A cell record's key (records.cell_id) holds the hashes of its binaries and the m
 a new build or another machine gives new ids and the old records stay in cells/. Two records
 are of the same *group* when everything in their keys but those hashes and the machine agrees
 (variant, build, input, seed, threads, measure settings, checks, whether instructions were
-counted, but not with which counter); within a group, one record
-per machine is current: the newest. The others are *superseded*: prune() moves them, with
-their hyperfine JSON and kept output, to <experiment>/history/, so the committed cells/ holds
-what the report shows; load_history() reads them back ("earlier measurements").
+counted, but not with which counter); within a group, one record per machine is current: the
+newest. The others are *superseded*: prune() moves them, with their hyperfine JSON and kept
+output, to <experiment>/history/, so the committed cells/ holds what the report shows;
+load_history() reads them back ("earlier measurements"). A *timed group* (timed_group_of) also
+leaves out how the runs were taken: the records of every machine that timed the same cell.
 
 A record from before machine ids (no `machine_id` in its key) belongs to no known machine: any
 newer record of its group supersedes it.
