@@ -13,8 +13,8 @@
 #   2. grid, n=1e6 L=2e5 r=1 S=10, threads 1 4 8 16, 2 runs each;
 #   3. grid's peak RSS, n=1e6 S=2, threads 1 2 4 8 16 (getrusage of the child, a C helper);
 #   4. p1d, n=10000 S=50 at 1 and 16 threads: a control of the machine's scaling;
-#   5. grid --timing at 16 threads on 1 and 2 (the phases, and each thread's busy time and
-#      pair tests).
+#   5. grid --timing at 16 threads on 1 and 2, and at 1 thread on 1 (the phases, each thread's
+#      busy time and pair tests, and the run's CPU time, page faults and context switches).
 # Wall times are the run's own (date +%s.%N around it), output to /dev/null. About 4-5 minutes
 # on 16 cores. Prints a compact table; with OUT set, writes runs.csv, rss.csv, timing.jsonl
 # and table.txt there as well.
@@ -38,7 +38,9 @@ trap 'rm -rf "$TMP"' EXIT
 OUTDIR=${OUT:-$TMP/out}
 mkdir -p "$OUTDIR"
 
-# Peak RSS of a child process (ru_maxrss, KiB), written to stderr's last line.
+# What a child process used (its rusage), written to stderr's last line: peak RSS (KiB), user
+# and system CPU seconds, minor page faults (first touches of memory: per-thread scratch shows
+# here), voluntary and involuntary context switches (threads waiting, threads preempted).
 cat >"$TMP/peakrss.c" <<'C'
 #include <stdio.h>
 #include <sys/resource.h>
@@ -57,7 +59,10 @@ int main(int argc, char **argv)
     struct rusage ru;
     if (wait4(p, &st, 0, &ru) < 0)
         return 1;
-    fprintf(stderr, "peak_rss_kb %ld\n", ru.ru_maxrss);
+    fprintf(stderr, "peak_rss_kb %ld user_s %.3f sys_s %.3f minflt %ld nvcsw %ld nivcsw %ld\n",
+            ru.ru_maxrss, ru.ru_utime.tv_sec + ru.ru_utime.tv_usec / 1e6,
+            ru.ru_stime.tv_sec + ru.ru_stime.tv_usec / 1e6, ru.ru_minflt, ru.ru_nvcsw,
+            ru.ru_nivcsw);
     return WIFEXITED(st) ? WEXITSTATUS(st) : 1;
 }
 C
@@ -79,7 +84,7 @@ scene "$BIG_SCENE" big
 scene "$RSS_SCENE" rss
 
 echo "case,build,threads,rep,seconds" >"$OUTDIR/runs.csv"
-echo "build,threads,peak_rss_kb" >"$OUTDIR/rss.csv"
+echo "build,threads,peak_rss_kb,user_s,sys_s,minflt,nvcsw,nivcsw" >"$OUTDIR/rss.csv"
 : >"$OUTDIR/timing.jsonl"
 
 # wall BIN ARGS...: the run's wall time in seconds; a failed run stops the script.
@@ -114,19 +119,27 @@ echo >&2; echo "peak RSS, grid $RSS_SCENE" >&2
 for t in $RSS_THREADS; do
     for build in base new; do
         dir=$BASE; [[ $build == new ]] && dir=$NEW
-        kb=$("$TMP/peakrss" "$dir/grid" --threads "$t" "$TMP/rss.in" 2>&1 >/dev/null |
-            awk '/^peak_rss_kb/ { print $2 }')
-        echo "$build,$t,$kb" >>"$OUTDIR/rss.csv"
+        use=$("$TMP/peakrss" "$dir/grid" --threads "$t" "$TMP/rss.in" 2>&1 >/dev/null |
+            awk '/^peak_rss_kb/ { print $2 "," $4 "," $6 "," $8 "," $10 "," $12 }')
+        echo "$build,$t,$use" >>"$OUTDIR/rss.csv"
     done
     echo -n "." >&2
 done
 echo >&2
-for sc in small big; do
-    for build in base new; do
-        dir=$BASE; [[ $build == new ]] && dir=$NEW
-        "$dir/grid" --threads 16 --timing "$TMP/$sc.in" 2>&1 >/dev/null | tail -n 1 |
-            sed "s/^{/{\"scene\": \"$sc\", \"build_dir\": \"$build\", /" >>"$OUTDIR/timing.jsonl"
-    done
+# --timing's JSON line with the run's rusage in front: a thread's pair tests per busy second at 1
+# and at 16 threads, and what the threads cost the kernel (faults, switches) around them.
+timing() {
+    local sc=$1 t=$2 build=$3 dir=$4
+    "$TMP/peakrss" "$dir/grid" --threads "$t" --timing "$TMP/$sc.in" 2>&1 >/dev/null | awk \
+        -v head="{\"scene\": \"$sc\", \"build_dir\": \"$build\", " '
+        /^\{/ { json = substr($0, 2) }
+        /^peak_rss_kb/ { use = sprintf("\"peak_rss_kb\": %s, \"user_s\": %s, \"sys_s\": %s, \"minflt\": %s, \"nvcsw\": %s, \"nivcsw\": %s, ", $2, $4, $6, $8, $10, $12) }
+        END { print head use json }' >>"$OUTDIR/timing.jsonl"
+}
+for build in base new; do
+    dir=$BASE; [[ $build == new ]] && dir=$NEW
+    timing small 1 "$build" "$dir"
+    for sc in small big; do timing "$sc" 16 "$build" "$dir"; done
 done
 
 # The table: median and fastest per case, build and thread count; new / base of the medians.
@@ -146,17 +159,20 @@ done
             }
         }' "$OUTDIR/runs.csv" | sort -k1,1 -k2,2n
     echo
-    echo "peak RSS (MiB), grid $RSS_SCENE"
-    awk -F, 'NR > 1 { r[$2, $1] = $3; t[$2] = 1 }
-        END { printf "threads      base       new\n"; for (x in t) printf "%7d %9.1f %9.1f\n", x, r[x, "base"] / 1024, r[x, "new"] / 1024 }' \
+    echo "peak RSS (MiB), minor page faults and involuntary context switches, grid $RSS_SCENE"
+    awk -F, 'NR > 1 { r[$2, $1] = $3; f[$2, $1] = $6; c[$2, $1] = $8; t[$2] = 1 }
+        END { printf "threads  base MiB   new MiB  base minflt  new minflt  base nivcsw  new nivcsw\n";
+              for (x in t) printf "%7d %9.1f %9.1f %12d %11d %12d %11d\n", x, r[x, "base"] / 1024, r[x, "new"] / 1024, f[x, "base"], f[x, "new"], c[x, "base"], c[x, "new"] }' \
         "$OUTDIR/rss.csv" | sort -n
     echo
-    echo "grid --timing at 16 threads (seconds; busy = each thread's time in the finder):"
+    echo "grid --timing (seconds; busy = each thread's time in the finder; tests/busy-s = a"
+    echo "thread's pair tests per second of its busy time, summed over threads / threads):"
     while read -r line; do
         echo "$line" | awk '{
             sub(/^\{"/, ""); n = split($0, f, ", \""); out = "";
-            for (i = 1; i <= n; i++) if (f[i] ~ /^(scene|build_dir|sim_s|broad_s|walls_s|sort_s|resolve_s|motion_s|output_s|input_s)"/) out = out " " f[i];
-            if (match($0, /"threads_busy_s": \[[^]]*\]/)) { b = substr($0, RSTART + 19, RLENGTH - 20); m = split(b, x, ", "); mx = 0; s = 0; for (i = 1; i <= m; i++) { s += x[i]; if (x[i] > mx) mx = x[i] } out = out sprintf(" busy_max: %.4f busy_mean: %.4f", mx, s / m) }
+            for (i = 1; i <= n; i++) if (f[i] ~ /^(scene|build_dir|threads|sim_s|broad_s|walls_s|sort_s|resolve_s|motion_s|output_s|input_s|user_s|sys_s|minflt|nivcsw)"/) out = out " " f[i];
+            tests = 0; if (match($0, /"pair_tests": [0-9]+/)) tests = substr($0, RSTART + 14, RLENGTH - 14) + 0;
+            if (match($0, /"threads_busy_s": \[[^]]*\]/)) { b = substr($0, RSTART + 19, RLENGTH - 20); m = split(b, x, ", "); mx = 0; s = 0; for (i = 1; i <= m; i++) { s += x[i]; if (x[i] > mx) mx = x[i] } out = out sprintf(" busy_max: %.4f busy_mean: %.4f", mx, s / m); if (s > 0) out = out sprintf(" tests/busy-s/thread: %.3g", tests / s) }
             gsub(/"/, "", out); print out }'
     done <"$OUTDIR/timing.jsonl"
 } | tee "$OUTDIR/table.txt"
