@@ -57,27 +57,18 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             continue
         done.add(group)
         members = groups.get(group, [])
+        current = next((m for m in members if m.cell_id == cell.cell_id), None)
+        own = current or current_by_machine(members).get(machine_id)
+        if own is not None:
+            rows.append(Row(own.record, current is None, exp.hyperfine(own.cell_id)))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
-        newest = {machine: item for machine, item in current_by_machine(
-            timed.get(timed_group_of(cell.key), [])).items() if machine != machine_id}
-        own = current_by_machine(members).get(machine_id)
-        if own is not None:
-            newest[machine_id] = own
-        ordered = [machine_id, *sorted(m for m in newest if m != machine_id)]
-        for machine in ordered:
-            item = newest.get(machine)
-            if item is None:
-                continue
-            if machine == machine_id:
-                current = next((m for m in members if m.cell_id == cell.cell_id), None)
-                item = current or item
-                stale: bool | None = current is None
-            elif machine == UNKNOWN_MACHINE:
-                stale = item.record.get("binary_sha256") != cell.key.get("binary_sha256")
-            else:
-                stale = None
+        others = current_by_machine(timed.get(timed_group_of(cell.key), []))
+        for machine in sorted(m for m in others if m != machine_id):
+            item = others[machine]
+            stale = (item.record.get("binary_sha256") != cell.key.get("binary_sha256")
+                     if machine == UNKNOWN_MACHINE else None)
             rows.append(Row(item.record, stale, exp.hyperfine(item.cell_id)))
     return rows
 
