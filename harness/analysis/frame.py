@@ -15,10 +15,12 @@ from harness.store.columns import (
     CSV_COLUMNS,
     DIVERGENCE_COLUMNS,
     FLAG_COLUMNS,
+    LIST_COLUMNS,
     NUMERIC_COLUMNS,
     REQUIRED_VALUES,
     STATUSES,
     TIMED_STATUSES,
+    parse_list,
 )
 from harness.store.records import MACHINE_KEY
 
@@ -65,6 +67,19 @@ def _parse_bool(text: pd.Series, path: Path, column: str) -> pd.Series:
     return values
 
 
+def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
+    """A column of space-separated items as tuples of the column's type (empty: ())."""
+    values = []
+    for index, cell in text.items():
+        try:
+            values.append(parse_list(cell, column))
+        except ValueError:
+            kind = LIST_COLUMNS[column].__name__
+            raise HarnessError(f"{path}: line {_line(index)}: column '{column}': {cell!r} is "
+                               f"not a space-separated list of {kind}") from None
+    return pd.Series(values, index=text.index, dtype=object)
+
+
 def read_results(path: Path) -> pd.DataFrame:
     """One results.csv, checked against the contract and typed: numbers as float64, flags as
     booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
@@ -84,6 +99,8 @@ def read_results(path: Path) -> pd.DataFrame:
             df[column] = _parse_numeric(df[column], path, column)
         elif column in BOOL_COLUMNS:
             df[column] = _parse_bool(df[column], path, column)
+    for column in LIST_COLUMNS.keys() & set(df.columns):
+        df[column] = _parse_lists(df[column], path, column)
     for column in FLAG_COLUMNS:
         if column in df.columns:
             df[column] = df[column].fillna(False).astype(bool)

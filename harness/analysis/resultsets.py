@@ -187,8 +187,14 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
                                [p for c in cells for p in c.round_pressure])
 
 
+def _items(row: pd.Series, column: str) -> tuple[float, ...]:
+    """A list column's items; () where the row or the file has none."""
+    value = row.get(column)
+    return tuple(value) if isinstance(value, tuple) else ()
+
+
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
-    rounds = tuple(int(r) for r in records.split_floats(_text(row, "wall_times_round")))
+    rounds = tuple(int(r) for r in _items(row, "wall_times_round"))
     return rounds if len(rounds) == runs else ()
 
 
@@ -205,12 +211,9 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
         key = MatchKey(experiment, *(_normal(row.get(c)) for c in MATCH_COLUMNS))
         cell_id = _text(row, "cell_id")
-        listed = _text(row, "wall_times_s")
+        listed = _items(row, "wall_times_s")
         export = exp.hyperfine(cell_id) if cell_id and not listed else None
         times = tuple(hyperfine.run_times(listed, export))
-        if listed and not times:
-            raise HarnessError(f"{exp.results_csv}: cell {cell_id}: column 'wall_times_s': "
-                               f"expected space-separated seconds, got {listed!r}")
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -233,8 +236,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             instructions=_number(row, "instructions"),
             instructions_max=_number(row, "instructions_max"),
             instructions_tool=_text(row, "instructions_tool"),
-            round_noise=tuple(records.split_floats(_text(row, "round_noise"))),
-            round_pressure=tuple(records.split_floats(_text(row, "round_pressure"))),
+            round_noise=_items(row, "round_noise"),
+            round_pressure=_items(row, "round_pressure"),
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 

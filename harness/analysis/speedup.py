@@ -21,12 +21,11 @@ from harness.analysis.flags import validation_text
 from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.variants import BASELINE, default_registry
 from harness.store.columns import OK, TIMED_STATUSES
-from harness.store.records import split_floats
 
 BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
 BASELINE_ONE_THREAD = "1 thread"  # ... against the same variant at one thread
-TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, space-separated seconds
+TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, seconds
 OVERSUBSCRIBED = "oversubscribed"  # results.csv's flag: more threads than the machine's cores
 
 
@@ -48,7 +47,7 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
     build (the validation baseline) where measured, else seq of the row's own build.
 
-    Returns columns `base_s` (seq's median), `base_times` (its per-run times, text) and
+    Returns columns `base_s` (seq's median), `base_times` (its per-run times) and
     `base_build`. seq is single-threaded whatever `threads` says, so its lowest-thread cell
     stands for all.
     """
@@ -95,7 +94,12 @@ def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
 
 def _with_times(df: pd.DataFrame) -> pd.DataFrame:
     """The rows with a `wall_times_s` column (empty where older results lack it)."""
-    return df if TIMES in df.columns else df.assign(**{TIMES: ""})
+    return df if TIMES in df.columns else df.assign(**{TIMES: [()] * len(df)})
+
+
+def _times(value: object) -> list[float]:
+    """A cell's run times from its column (NaN where a merge found no reference)."""
+    return list(value) if isinstance(value, tuple | list) else []  # type: ignore[arg-type]
 
 
 def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
@@ -104,8 +108,9 @@ def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
     either cell has fewer than two times, so tables fall back to the point value."""
     columns = {f"{m}{s}": np.full(len(out), np.nan)
                for m in ("speedup", "efficiency", "serial_fraction") for s in INTERVAL_SUFFIXES}
-    own_times = out[TIMES] if TIMES in out.columns else pd.Series("", index=out.index)
-    pairs = [(i, split_floats(b), split_floats(t))
+    own_times = out[TIMES] if TIMES in out.columns else pd.Series([()] * len(out),
+                                                                     index=out.index)
+    pairs = [(i, _times(b), _times(t))
              for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
     pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
              and pd.notna(out["speedup"].iloc[p[0]])]

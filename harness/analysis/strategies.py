@@ -19,7 +19,7 @@ import pandas as pd
 from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
 from harness.spec.variants import default_registry
-from harness.store import hyperfine, records
+from harness.store import hyperfine
 from harness.store.layout import ExperimentDir
 
 # The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
@@ -70,7 +70,8 @@ def repaired_by(variant: str) -> str | None:
 
 
 def thread_list(row: pd.Series, column: str) -> list[float]:
-    return records.split_floats(row.get(column))
+    value = row.get(column)
+    return [float(v) for v in value] if isinstance(value, tuple) else []
 
 
 def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:

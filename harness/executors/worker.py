@@ -27,6 +27,7 @@ from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
+from harness.store.model import CellKey
 
 
 def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root: Path,
@@ -39,7 +40,7 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     store = CellStore(plan_cells(config, quick, registry), repo_root, results_root.resolve(),
                       machine_id)
     cells = store.cells_by_id()
-    portable = {records.portable_id(cast(dict[str, object], store.cell_key(cell))): cid
+    portable = {cast(CellKey, store.cell_key(cell)).portable_id: cid
                 for cid, cell in cells.items()}
     chosen = [cid if cid in cells else portable.get(cid) for cid in cell_ids]
     unknown = [given for given, cid in zip(cell_ids, chosen, strict=True) if cid is None]

@@ -72,8 +72,9 @@ class Measurer:
     def start(self, cell: Cell, cell_id: str) -> CellRun:
         """The cell's runs that are not timed: its --precise run, validation and checks; or,
         when an interrupted run left the cell part-timed, where it stopped."""
-        key = self.store.cell_key(cell)
-        assert key is not None, "a cell is measured only once its binaries exist"
+        cell_key = self.store.cell_key(cell)
+        assert cell_key is not None, "a cell is measured only once its binaries exist"
+        key = cell_key.to_json()
         resumed = CellRun.load(self.store.layout.partial(cell_id), key)
         if resumed is not None:
             return resumed

@@ -17,7 +17,6 @@ from pathlib import Path
 
 from harness.measure.proc import run_process, tail
 from harness.plan.lane import CACHEGRIND, PASSIVE_ENV, PERF, PERF_COUNT, PERF_EVENT
-from harness.store import records
 
 COUNTS = 2
 # How much longer than the cell's timeout a counted run may take: cachegrind simulates every
@@ -43,7 +42,7 @@ class Counted:
             return {"instructions_tool": tool, "instructions_binary": binary,
                     "instructions_note": self.problem}
         return {"instructions": min(self.counts), "instructions_max": max(self.counts),
-                "instructions_counts": records.join_ints(self.counts),
+                "instructions_counts": list(self.counts),
                 "instructions_tool": tool, "instructions_binary": binary,
                 "instructions_note": self.problem}
 

@@ -13,8 +13,9 @@ from harness.measure.proc import exit_status, run_process, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
-from harness.store import atomic, records
+from harness.store import atomic
 from harness.store.columns import OK
+from harness.store.model import content_id
 
 # The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
 Environment = Callable[[int], Mapping[str, str]]
@@ -72,7 +73,7 @@ class References:
                      cache: bool) -> str | None:
         """`binary --precise` on the print-mode form of `scene`; with `cache`, kept under
         results/.cache/prints/ (references: seq, the truth), keyed by binary and input."""
-        key = records.cell_id({"binary_sha256": self.store.sha(binary), "threads": threads,
+        key = content_id({"binary_sha256": self.store.sha(binary), "threads": threads,
                                "input_sha256": scene.input_sha256, "seed": scene.seed})
         path = self.store.print_file(key)
         if cache and key in self.prints:

@@ -278,9 +278,9 @@ def noise_fields(run: CellRun) -> dict[str, object]:
         return {}
     return {"steal_s": run.steal_s, "other_cpu_s": run.other_cpu_s,
             "nivcsw_per_run": run.nivcsw / len(run.times) if run.times else None,
-            "round_noise": " ".join(f"{s:.3f}" for s in run.round_noise),
-            "round_pressure": " ".join(f"{s:.4f}" for s in run.round_pressure)
+            "round_noise": [round(s, 3) for s in run.round_noise],
+            "round_pressure": [round(s, 4) for s in run.round_pressure]
             if len(run.round_pressure) == len(run.exports) else None,
-            "rounds_dropped": " ".join(str(r) for r, share in run.noise_by_round().items()
-                                       if share > stats.NOISE_LIMIT),
+            "rounds_dropped": [r for r, share in run.noise_by_round().items()
+                               if share > stats.NOISE_LIMIT],
             "noise_capacity_s": run.capacity_s}

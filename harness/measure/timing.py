@@ -38,13 +38,13 @@ def imbalance(busy_s: Iterable[float]) -> float | None:
 
 def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
     """The per-thread columns a --timing object gives (None for what it lacks, e.g. an older
-    binary): its per-thread lists space-separated, and their imbalance."""
+    binary): its per-thread lists, and their imbalance."""
     fields: dict[str, object] = {}
     busy: list[float] | None = None
     for key in THREAD_TIMING_KEYS:
         value = timing.get(key)
         ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
-        fields[key] = " ".join(repr(v) for v in value) if ok and value else None
+        fields[key] = list(value) if ok and value else None
         if key == BUSY_KEY and ok:
             busy = [float(v) for v in value]
     fields["imbalance"] = imbalance(busy) if busy else None

@@ -11,6 +11,7 @@ is rebuilt from records, never kept from a measurement in this process.
 from __future__ import annotations
 
 import datetime
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,8 +29,18 @@ from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
 from harness.spec.programs import check_steps
-from harness.store import atomic, csvfile, history, index, records
+from harness.store import atomic, csvfile, index, records
 from harness.store.layout import ExperimentDir, ResultsRoot
+from harness.store.model import (
+    BinaryKey,
+    CellKey,
+    ChecksKey,
+    CountedKey,
+    Hashes,
+    OmpEnv,
+    ProgramCheckKey,
+    content_id,
+)
 
 
 def now_iso() -> str:
@@ -151,53 +162,65 @@ class CellStore:
     def check_references(self, cell: Cell) -> dict[str, Path]:
         return check_references(self.config, self.binaries, cell.build)
 
-    def cell_key(self, cell: Cell) -> dict[str, object] | None:
+    def cell_key(self, cell: Cell) -> CellKey | None:
         """Everything a measurement depends on; None while a binary is missing."""
         binary_sha = self.binary_sha(cell)
         baseline_sha = self.baseline_sha(cell)
         if binary_sha is None or (cell.validate and baseline_sha is None):
             return None
+        beside = self._beside_keys(cell, binary_sha)
+        if beside is None:
+            return None
         measure = self.config.measure_for(cell.variant)
-        extra: dict[str, object] = {}
+        return CellKey(
+            variant=cell.variant, build=cell.build, input_sha256=cell.scene.input_sha256,
+            seed=cell.scene.seed, threads=cell.threads, validate=cell.validate,
+            exact=cell.exact, keep_output=self.config.keep_output, binary_sha256=binary_sha,
+            baseline_sha256=baseline_sha, machine_id=self.machine_id,
+            schedule=cell.schedule or None, **measure.key(), **beside)
+
+    def _beside_keys(self, cell: Cell, binary_sha: str) -> dict[str, object] | None:
+        """The key's parts a cell has only where it checks, counts or measures more than its
+        runs (cells without them keep the ids they always had); None while a binary they rest
+        on is missing."""
+        parts: dict[str, object] = {}
         if cell.program:  # what its check compares with, and on how many steps
-            shas = {build: self.sha(path)
-                    for build, path in self.program_references(cell).items()}
-            if None in shas.values():
+            shas = self._hashes(self.program_references(cell))
+            if shas is None:
                 return None
-            extra["program_check"] = {"reference_sha256": shas, "steps": check_steps(
-                cell.scene.n, cell.scene.steps)}
-        if cell.schedule:  # only then: cells without a schedule axis keep their ids
-            extra["schedule"] = cell.schedule
-        if cell.checked:  # only then: the ids of unchecked cells stay what they were
-            shas = {name: self.sha(path) for name, path in self.check_references(cell).items()}
-            if None in shas.values():
+            parts["program_check"] = ProgramCheckKey(
+                steps=check_steps(cell.scene.n, cell.scene.steps), reference_sha256=shas)
+        if cell.checked:
+            shas = self._hashes(self.check_references(cell))
+            if shas is None:
                 return None
-            extra["checks"] = {**self.config.checks.key(), "reference_sha256": shas}
-        if self.config.counts_instructions:  # only then, as with checks
+            settings = {k: tuple(v) if isinstance(v, list) else v
+                        for k, v in self.config.checks.key().items()}
+            parts["checks"] = ChecksKey(**settings, reference_sha256=shas)
+        if self.config.counts_instructions:
             counted = self.counted_binary(cell)
             counted_sha = binary_sha if counted is None else self.sha(counted)
             if counted_sha is None:
                 return None
-            extra[history.INSTRUCTIONS_KEY] = {"tool": lane.machine_tool(),
-                                               "binary_sha256": counted_sha}
-        if measures_openmp_costs(self.config, cell):  # only then, as with checks
+            parts["instructions"] = CountedKey(tool=lane.machine_tool(),
+                                               binary_sha256=counted_sha)
+        if measures_openmp_costs(self.config, cell):
             ompcost_sha = self.sha(self.ompcost(cell))
             if ompcost_sha is None:
                 return None
-            extra[history.OPENMP_COSTS_KEY] = {"binary_sha256": ompcost_sha}
+            parts["openmp_costs"] = BinaryKey(binary_sha256=ompcost_sha)
         omp = self.config.executor.omp_env()
-        if omp:  # only then, as with checks
-            extra["omp"] = omp
-        return {**extra, records.MACHINE_KEY: self.machine_id,
-                "variant": cell.variant, "build": cell.build, "binary_sha256": binary_sha,
-                "input_sha256": cell.scene.input_sha256, "seed": cell.scene.seed,
-                "threads": cell.threads, **measure.key(), "validate": cell.validate,
-                "exact": cell.exact,
-                "baseline_sha256": baseline_sha, "keep_output": self.config.keep_output}
+        if omp:
+            parts["omp"] = OmpEnv(tuple(omp.items()))
+        return parts
+
+    def _hashes(self, paths: Mapping[str, Path]) -> Hashes | None:
+        shas = {name: self.sha(path) for name, path in paths.items()}
+        return None if None in shas.values() else Hashes(tuple(shas.items()))
 
     def cell_id(self, cell: Cell) -> str | None:
         key = self.cell_key(cell)
-        return None if key is None else records.cell_id(key)
+        return None if key is None else key.id
 
     def cells_by_id(self) -> dict[str, Cell]:
         """The plan's cells by id (cells whose binaries are missing have none)."""
@@ -211,15 +234,15 @@ class CellStore:
         assert key is not None, "a cell is recorded only once its binaries exist"
         scene = cell.scene
         return {
-            "version": records.RECORD_VERSION, "cell_id": cell_id, "key": key,
+            "version": records.RECORD_VERSION, "cell_id": cell_id, "key": key.to_json(),
             "variant": cell.variant, "build": cell.build, "scene": scene.label, "n": scene.n,
             "L": scene.L, "r": scene.r, "steps": scene.steps, "mode": scene.mode,
             "seed": scene.seed, "threads": cell.threads, "params": dict(scene.params),
-            "runs": 0, "unstable": False, "binary_sha256": key["binary_sha256"],
+            "runs": 0, "unstable": False, "binary_sha256": key.binary_sha256,
             "binary": self.runs_what(cell),
             "input_sha256": scene.input_sha256,
             "validated": cell.validate, "exact": cell.exact,
-            "baseline_sha256": key["baseline_sha256"], "identical": None, "note": "",
+            "baseline_sha256": key.baseline_sha256, "identical": None, "note": "",
             "measured_at": now_iso(),
         }
 
@@ -253,7 +276,7 @@ class CellStore:
             for cell in self.plan.cells:
                 key = self.cell_key(cell)
                 if key is not None:
-                    self.planned.append(index.PlannedCell(key, records.cell_id(key)))
+                    self.planned.append(index.PlannedCell(key))
         kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
                                  self.config.title, prune_first=prune)
         if self.config.checks.names:
@@ -268,7 +291,7 @@ class CellStore:
         return path
 
     def baseline_key(self, cell: Cell) -> str:
-        return records.cell_id({"baseline_sha256": self.baseline_sha(cell),
+        return content_id({"baseline_sha256": self.baseline_sha(cell),
                                 "input_sha256": cell.scene.input_sha256,
                                 "seed": cell.scene.seed})
 

@@ -179,6 +179,27 @@ BOOL_COLUMNS: frozenset[str] = frozenset({
     "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
     "chk_exact", "chk_shadow",
 })
+# Columns that hold a list, with the type of its items: a record keeps the list, results.csv
+# its items space-separated (exact: each float's repr).
+LIST_COLUMNS: dict[str, type] = {
+    "wall_times_s": float, "wall_times_round": int, "threads_busy_s": float,
+    "threads_pairs": int, "threads_chunks": int, "round_noise": float, "round_pressure": float,
+    "rounds_dropped": int, "instructions_counts": int,
+}
+
+
+def format_list(values: tuple[object, ...] | list[object]) -> str:
+    """A list column's text in results.csv."""
+    return " ".join(repr(v) if isinstance(v, float) else str(v) for v in values)
+
+
+def parse_list(text: str, column: str) -> tuple[float | int, ...]:
+    """A list column's items from its results.csv text (or an older record's); ValueError
+    when an item is not of the column's type."""
+    kind = LIST_COLUMNS[column]
+    return tuple(kind(float(v)) if kind is int else kind(v) for v in text.split())
+
+
 # Flags that are False where a row leaves them empty (a missing check stays missing).
 FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded", "stale")
 # Columns every row must fill in: without them a cell cannot be placed in any table.

@@ -11,7 +11,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from harness.store import atomic, hyperfine, records
+from harness.store import atomic, hyperfine
 from harness.store.columns import (
     CSV_COLUMNS,
     DIVERGENCE_CELL_COLUMNS,
@@ -20,7 +20,9 @@ from harness.store.columns import (
     LOW_QUANTILE_COLUMN,
     OPTIONAL_GROUPS,
     PROVENANCE_COLUMNS,
+    format_list,
 )
+from harness.store.records import MACHINE_KEY
 
 
 def uncertainty(times: Sequence[float]) -> dict[str, object]:
@@ -42,7 +44,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     values: dict[str, object] = {c: record.get(c) for c in PROVENANCE_COLUMNS}
     key = record.get("key")
     if values["machine_id"] is None and isinstance(key, dict):
-        values["machine_id"] = key.get(records.MACHINE_KEY)
+        values["machine_id"] = key.get(MACHINE_KEY)
     described = record.get("machine")
     values["machine"] = described.get("label") if isinstance(described, dict) else None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
@@ -53,7 +55,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
             from harness import stats
 
             values[LOW_QUANTILE_COLUMN] = stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)
-        values["wall_times_s"] = records.join_floats(times)
+        values["wall_times_s"] = list(times)
     else:
         values["wall_times_s"] = None
     warnings = record.get("hyperfine_warnings")
@@ -67,9 +69,6 @@ def csv_row(record: Mapping[str, object], experiment: str, title: str,
     row: dict[str, object] = {"experiment": experiment, "title": title}
     for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g)):
         row[column] = record.get(column)
-    rounds = record.get("wall_times_round")
-    row["wall_times_round"] = (" ".join(str(int(r)) for r in rounds)
-                               if isinstance(rounds, list) and rounds else None)
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
     return row
@@ -78,6 +77,8 @@ def csv_row(record: Mapping[str, object], experiment: str, title: str,
 def format_cell(value: object) -> str:
     if value is None:
         return ""
+    if isinstance(value, list | tuple):
+        return format_list(value)
     if isinstance(value, float):
         return "inf" if math.isinf(value) and value > 0 else repr(value)
     return str(value)

@@ -1,14 +1,13 @@
 """Which records are current, and history: superseded records move to history/.
 
-A cell record's key (records.cell_id) holds the hashes of its binaries and the machine_id, so
-a new build or another machine gives new ids and the old records stay in cells/. Two records
-are of the same *group* when everything in their keys but those hashes and the machine agrees
-(variant, build, input, seed, threads, measure settings, checks, whether instructions were
-counted, but not with which counter); within a group, one record per machine is current: the
-newest. The others are *superseded*: prune() moves them, with their hyperfine JSON and kept
-output, to <experiment>/history/, so the committed cells/ holds what the report shows;
-load_history() reads them back ("earlier measurements"). A *timed group* (timed_group_of) also
-leaves out how the runs were taken: the records of every machine that timed the same cell.
+A cell record's key (harness.store.model.CellKey) holds the hashes of its binaries and the
+machine, so a new build or another machine gives new ids and the old records stay in cells/.
+Two records are of the same *group* (CellKey.group) when they ran the same thing the same way,
+whatever binaries and machine; within a group, one record per machine is current: the newest.
+The others are *superseded*: prune() moves them, with their hyperfine JSON and kept output, to
+<experiment>/history/, so the committed cells/ holds what the report shows; load_history()
+reads them back ("earlier measurements"). A *timed group* (CellKey.timed_group) also leaves out
+how the runs were taken: the records of every machine that timed the same cell.
 
 A record from before machine ids (no `machine_id` in its key) belongs to no known machine: any
 newer record of its group supersedes it.
@@ -18,20 +17,14 @@ from __future__ import annotations
 
 import functools
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from harness.store import csvfile, layout, locks, records
 from harness.store.layout import ExperimentDir
+from harness.store.model import CellKey
 
-# Key fields that name a binary or the machine, not what was measured: a group ignores them
-# wherever they are (a check's or a program check's references are binaries built per machine).
-HASH_KEYS = ("binary_sha256", "baseline_sha256", "reference_sha256", records.MACHINE_KEY)
-OPENMP_COSTS_KEY = "openmp_costs"
-INSTRUCTIONS_KEY = "instructions"
-# How a cell's runs were taken (a config's `measure:` settings), not what they timed.
-MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s", "min_runs")
 UNKNOWN_MACHINE = ""
 
 
@@ -46,21 +39,13 @@ class Stored:
     def cell_id(self) -> str:
         return str(self.record["cell_id"])
 
+    @functools.cached_property
+    def key(self) -> CellKey:
+        return records.key_of(self.record)
+
     @property
     def machine_id(self) -> str:
-        key = self.record.get("key")
-        value = key.get(records.MACHINE_KEY) if isinstance(key, dict) else None
-        return str(value) if value else UNKNOWN_MACHINE
-
-    @functools.cached_property
-    def group(self) -> str:
-        key = self.record.get("key")
-        return group_of(key if isinstance(key, dict) else {})
-
-    @functools.cached_property
-    def timed_group(self) -> str:
-        key = self.record.get("key")
-        return timed_group_of(key if isinstance(key, dict) else {})
+        return self.key.machine_id or UNKNOWN_MACHINE
 
     @functools.cached_property
     def age(self) -> tuple[str, float]:
@@ -70,31 +55,6 @@ class Stored:
         except OSError:
             mtime = 0.0
         return str(self.record.get("measured_at") or ""), mtime
-
-
-def group_of(key: Mapping[str, object]) -> str:
-    """The id of a key with its binary hashes and machine left out."""
-    rest = _without_hashes(key)
-    # the runtime's operation costs are measured beside a cell's runs, not in them: a record
-    # with them and one from before a config asked for them time the same thing
-    rest.pop(OPENMP_COSTS_KEY, None)
-    # counted or not stays apart (a counted record is not superseded by a plain run), but
-    # not which counter a machine has: perf on one, cachegrind on another count one cell
-    if INSTRUCTIONS_KEY in rest:
-        rest[INSTRUCTIONS_KEY] = True
-    return records.cell_id(rest)
-
-
-def timed_group_of(key: Mapping[str, object]) -> str:
-    """The group of a key whatever its measure settings and whether or not its instructions
-    were counted: every record that timed the same cell."""
-    return group_of({k: v for k, v in key.items()
-                     if k != INSTRUCTIONS_KEY and k not in MEASURE_KEYS})
-
-
-def _without_hashes(key: Mapping[str, object]) -> dict[str, object]:
-    return {k: _without_hashes(v) if isinstance(v, Mapping) else v
-            for k, v in key.items() if k not in HASH_KEYS}
 
 
 # Records already read by this process, by path, with the (inode, mtime, size) they were read
@@ -143,7 +103,7 @@ def by_group(stored: Iterable[Stored], timed: bool = False) -> dict[str, list[St
     """The records by group (with `timed`, by timed_group), each group oldest first."""
     groups: dict[str, list[Stored]] = {}
     for item in stored:
-        groups.setdefault(item.timed_group if timed else item.group, []).append(item)
+        groups.setdefault(item.key.timed_group if timed else item.key.group, []).append(item)
     for members in groups.values():
         members.sort(key=lambda s: s.age)
     return groups

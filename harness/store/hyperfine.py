@@ -8,8 +8,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import records
-
 UNSTABLE_RELATIVE_STDDEV = 0.10
 OUTLIERS_WARNING = "Statistical outliers were detected"
 
@@ -77,13 +75,12 @@ def load_hyperfine(path: Path) -> HyperfineStats:
 
 
 def run_times(listed: object, export: Path | None) -> list[float]:
-    """A cell's per-run wall times: its `wall_times_s` (a list in a record, space-separated
-    text in results.csv), else those of its hyperfine export when there is one."""
-    if isinstance(listed, list) and listed:
+    """A cell's per-run wall times: its `wall_times_s` (a record's or a results.csv row's),
+    else those of its hyperfine export when there is one."""
+    if isinstance(listed, list | tuple) and listed:
         return [float(t) for t in listed]
-    times = records.split_floats(listed)
-    if times or export is None or not export.is_file():
-        return times
+    if export is None or not export.is_file():
+        return []
     try:
         return list(load_hyperfine(export).times)
     except ResultFormatError:

@@ -3,7 +3,7 @@
 results.csv lists, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
 and on every other machine present the newest record that timed the cell, whatever its
-measure settings and whether or not it counted instructions (history.timed_group_of). It is
+measure settings and whether or not it counted instructions (CellKey.timed_group). It is
 rebuilt from the records on disk under the directory's lock, so two writers never drop each
 other's rows.
 """
@@ -20,20 +20,22 @@ from harness.store.history import (
     Stored,
     by_group,
     current_by_machine,
-    group_of,
     load_records,
     prune_locked,
-    timed_group_of,
 )
 from harness.store.layout import ExperimentDir
+from harness.store.model import CellKey
 
 
 @dataclass(frozen=True)
 class PlannedCell:
-    """What results.csv needs of a planned cell: its key on this machine and that key's id."""
+    """What results.csv needs of a planned cell: its key on this machine."""
 
-    key: Mapping[str, object]
-    cell_id: str
+    key: CellKey
+
+    @property
+    def cell_id(self) -> str:
+        return self.key.id
 
 
 @dataclass(frozen=True)
@@ -52,7 +54,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
     rows: list[Row] = []
     done: set[str] = set()
     for cell in planned:
-        group = group_of(cell.key)
+        group = cell.key.group
         if group in done:
             continue
         done.add(group)
@@ -64,10 +66,10 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
-        others = current_by_machine(timed.get(timed_group_of(cell.key), []))
+        others = current_by_machine(timed.get(cell.key.timed_group, []))
         for machine in sorted(m for m in others if m != machine_id):
             item = others[machine]
-            stale = (item.record.get("binary_sha256") != cell.key.get("binary_sha256")
+            stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
             rows.append(Row(item.record, stale, exp.hyperfine(item.cell_id)))
     return rows

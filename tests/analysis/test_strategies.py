@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 from harness.analysis import strategies as study
 from harness.report.figures import strategies as figstrategies
+from harness.store.columns import parse_list
 
 BENCH = {"n": 10000, "L": 20000.0, "r": 1.0, "steps": 50}
 
@@ -17,8 +18,11 @@ def row(variant: str, median: float, *, threads: int = 2, schedule: str = "",
         busy: str = "", pairs: str = "", chunks: str = "", times: str = "",
         imbalance: float = float("nan"), status: str = "ok") -> dict[str, object]:
     return {"variant": variant, "build": "f64", "status": status, "threads": threads,
-            "wall_median_s": median, "schedule": schedule, "threads_busy_s": busy,
-            "threads_pairs": pairs, "threads_chunks": chunks, "wall_times_s": times,
+            "wall_median_s": median, "schedule": schedule,
+            # as results.csv reads back: list columns as tuples
+            **{column: parse_list(text, column) for column, text in (
+                ("threads_busy_s", busy), ("threads_pairs", pairs), ("threads_chunks", chunks),
+                ("wall_times_s", times))},
             "imbalance": imbalance, "cell_id": f"id-{variant}-{schedule}", **BENCH}
 
 

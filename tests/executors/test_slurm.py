@@ -17,6 +17,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import cast
 
 import pytest
 from harness import repo
@@ -30,7 +31,7 @@ from harness.report import pipeline
 from harness.spec.config import ExecutorSpec
 from harness.spec.parse import load_config
 from harness.store import atomic, columns, layout, records
-from harness.store.records import portable_id
+from harness.store.model import CellKey
 
 from commands import cell_store
 from commands import run_main as main
@@ -132,7 +133,7 @@ def test_six_cells_give_the_rows_of_a_local_run(cluster, real_binaries: Path, tm
     submitted = jobs(remote, "six")
     store = cell_store(plan_cells(load_config(config)), remote)
     assert sorted(c for j in submitted for c in j["cells"]) == sorted(
-        portable_id(dict(store.cell_key(cell) or {})) for cell in store.plan.cells)
+        cast(CellKey, store.cell_key(cell)).portable_id for cell in store.plan.cells)
     # one array per --cpus-per-task: 1 and 2 threads
     assert sorted(len(j["cells"]) for j in submitted) == [3, 3]
     # the same command again measures nothing and submits nothing
@@ -191,7 +192,7 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     root = tmp_path / "results"
     store = cell_store(plan_cells(load_config(config)), root)
     held_id = str(store.cell_id(store.plan.cells[1]))
-    held_portable = portable_id(dict(store.cell_key(store.plan.cells[1]) or {}))
+    held_portable = cast(CellKey, store.cell_key(store.plan.cells[1])).portable_id
     log = tmp_path / "submitter.log"
     proc = submitter(config, root, log)
     try:
@@ -335,13 +336,19 @@ def test_omp_binding_is_set_recorded_and_part_of_the_cell_id(
 
 def test_records_are_matched_without_their_machine(tmp_path: Path) -> None:
     """A node writes its record under the id of its own machine: the submitter finds it by
-    the key without the machine (worker.portable_id), and counts only new or rewritten files."""
-    key = {"variant": "p1", "threads": 2, "binary_sha256": "ab" * 32}
+    the key without the machine (CellKey.portable_id), and counts only new or rewritten
+    files."""
+    key = {"variant": "p1", "build": "f64", "binary_sha256": "ab" * 32, "input_sha256": "c",
+           "seed": 1, "threads": 2, "warmup": 0, "runs": 1, "timeout_s": 60.0,
+           "validate": False, "exact": True, "baseline_sha256": None, "keep_output": False}
+
+    def portable_id(key: dict[str, object]) -> str:
+        return CellKey.from_json(key).portable_id
     cells = tmp_path / "cells"
 
     def write(machine: str, stamp: str) -> str:
         full = {**key, "machine_id": machine}
-        cid = records.cell_id(full)
+        cid = CellKey.from_json(full).id
         atomic.atomic_write_json(cells / f"{cid}.json", {
             "version": records.RECORD_VERSION, "cell_id": cid, "key": full,
             "measured_at": stamp})

@@ -110,6 +110,6 @@ def test_a_failed_baseline_leaves_the_cell_unjudged_and_says_why(tmp_path: Path)
     (store.repo_root / "build" / "seq").write_text("#!/bin/sh\necho broken >&2\nexit 4\n")
     store.hashes.clear()
     cell = store.plan.cells[0]
-    record = measured(Measurer(store), cell, records.cell_id(store.cell_key(cell)))
+    record = measured(Measurer(store), cell, str(store.cell_id(cell)))
     assert record["status"] == "ok" and record["identical"] is None
     assert record["note"].startswith("baseline seq failed (exit 4): broken")

@@ -11,7 +11,8 @@ from harness.plan.cellstore import CellStore
 from harness.repo import REPO_ROOT
 from harness.spec.config import Measure
 from harness.spec.parse import load_config
-from harness.store import history, records
+from harness.store import records
+from harness.store.model import CellKey, Role, role_fields
 
 CONFIG = "variants: [seq, p1]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nvalidate: true\n"
 
@@ -25,27 +26,27 @@ def store(write_config, tmp_path: Path) -> CellStore:
 def test_the_key_names_the_machine_the_binaries_and_the_input(store: CellStore) -> None:
     cell = store.plan.cells[1]
     key = store.cell_key(cell)
-    assert key is not None and key["machine_id"] == "m1" and key["variant"] == "p1"
-    assert key["binary_sha256"] == records.sha256_file(REPO_ROOT / "build" / "p1")
-    assert key["baseline_sha256"] == records.sha256_file(REPO_ROOT / "build" / "seq")
-    assert key["input_sha256"] == cell.scene.input_sha256
-    assert store.cell_id(cell) == records.cell_id(key)
+    assert key is not None and key.machine_id == "m1" and key.variant == "p1"
+    assert key.binary_sha256 == records.sha256_file(REPO_ROOT / "build" / "p1")
+    assert key.baseline_sha256 == records.sha256_file(REPO_ROOT / "build" / "seq")
+    assert key.input_sha256 == cell.scene.input_sha256
+    assert store.cell_id(cell) == key.id
     other = CellStore(store.plan, REPO_ROOT, store.results_root, "m2")
     assert other.cell_id(cell) != store.cell_id(cell)
-    assert records.portable_id(other.cell_key(cell)) == records.portable_id(key)
+    other_key = other.cell_key(cell)
+    assert other_key is not None and other_key.portable_id == key.portable_id
 
 
-def test_the_measure_settings_in_a_key_are_those_the_store_leaves_out_of_a_timing(
+def test_the_measure_settings_in_a_key_are_the_fields_it_declares_how_runs_were_taken(
         write_config) -> None:
     config = load_config(write_config(
         CONFIG + "measure: {runs: auto, ci: 0.03, max_runs: 9, max_time_s: 5}\n"))
     plan = plan_cells(config)
     measure = config.measure_for("p1")
     for each in (measure, Measure(), Measure(runs=None, min_runs=4)):
-        assert set(each.key()) <= set(history.MEASURE_KEYS)
-    # at the key's top level, where the store looks for them
+        assert set(each.key()) <= set(role_fields(CellKey, Role.HOW))
     key = CellStore(plan, REPO_ROOT, Path("/nonexistent"), "m1").cell_key(plan.cells[1])
-    assert key is not None and {k: key[k] for k in measure.key()} == measure.key()
+    assert key is not None and {k: getattr(key, k) for k in measure.key()} == measure.key()
 
 
 def test_a_missing_binary_leaves_the_cell_without_an_id(store: CellStore) -> None:
@@ -58,7 +59,8 @@ def test_a_new_record_starts_with_the_cells_identity(store: CellStore) -> None:
     cell = store.plan.cells[1]
     cid = store.cell_id(cell)
     record = store.new_record(cell, cid)
-    assert record["cell_id"] == cid and record["key"] == store.cell_key(cell)
+    key = store.cell_key(cell)
+    assert record["cell_id"] == cid and key is not None and record["key"] == key.to_json()
     assert record["version"] == records.RECORD_VERSION and record["runs"] == 0
     assert (record["variant"], record["n"], record["threads"]) == ("p1", 10, 1)
     assert record["validated"] and record["exact"] and record["identical"] is None

@@ -11,7 +11,8 @@ import pytest
 from harness.executors.slurm import executor as slurm
 from harness.plan.cells import plan_cells
 from harness.spec.parse import load_config
-from harness.store import records
+from harness.store.columns import parse_list
+from harness.store.model import CellKey
 
 from commands import cell_store
 from commands import run_main as main
@@ -35,9 +36,10 @@ def fake_build(root: Path) -> Path:
 
 
 def keys(path: Path, repo: Path) -> list[dict[str, object] | None]:
+    """The planned cells' keys as stored (None where a binary is missing)."""
     plan = plan_cells(load_config(path))
     store = cell_store(plan, repo / "results", repo)
-    return [store.cell_key(c) for c in plan.cells]
+    return [None if k is None else k.to_json() for k in map(store.cell_key, plan.cells)]
 
 
 def test_cells_per_schedule_and_ids_unchanged_without(write_config, tmp_path: Path) -> None:
@@ -47,11 +49,11 @@ def test_cells_per_schedule_and_ids_unchanged_without(write_config, tmp_path: Pa
     swept = keys(write_config(BASE + 'schedule: [static, "dynamic,4"]\n', "swept"), repo)
     assert [(k["variant"], k["schedule"]) for k in swept if k] == [
         ("p1", "static"), ("p1", "dynamic,4"), ("seq", "static"), ("seq", "dynamic,4")]
-    ids = {records.cell_id(k) for k in swept if k}
-    assert len(ids) == 4 and not ids & {records.cell_id(k) for k in plain if k}
+    ids = {CellKey.from_json(k).id for k in swept if k}
+    assert len(ids) == 4 and not ids & {CellKey.from_json(k).id for k in plain if k}
     # Without the schedule key, the rest of a swept cell's key is the plain cell's key.
     rest = [{f: v for f, v in k.items() if f != "schedule"} for k in swept if k]
-    assert {records.cell_id(k) for k in rest} == {records.cell_id(k) for k in plain if k}
+    assert {CellKey.from_json(k).id for k in rest} == {CellKey.from_json(k).id for k in plain if k}
 
 
 def test_measure_by_variant_changes_only_that_variants_ids(write_config, tmp_path: Path) -> None:
@@ -94,7 +96,7 @@ def test_omp_schedule_reaches_the_binary(build_binaries, tmp_path: Path) -> None
     assert rows["static,1"]["threads_chunks"] == "300 300"  # one chunk a row
     for row in rows.values():
         assert row["status"] == "ok" and row["identical"] == "True"
-        busy = records.split_floats(row["threads_busy_s"])
+        busy = parse_list(row["threads_busy_s"], "threads_busy_s")
         assert len(busy) == 2 and min(busy) > 0
         assert float(row["imbalance"]) == pytest.approx(max(busy) / (sum(busy) / 2), rel=1e-6)
     (p1,) = read_csv(root / "plain" / "results.csv")

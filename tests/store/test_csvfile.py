@@ -13,32 +13,9 @@ from harness.measure import hyperfine as mhyperfine
 from harness.measure import timing
 from harness.store import atomic, columns, csvfile, records
 from harness.store import hyperfine as hf
+from harness.store.model import CellKey
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
-KEY = {
-    "variant": "p1d", "build": "f64", "binary_sha256": "ab" * 32, "input_sha256": "cd" * 32,
-    "seed": 1, "threads": 2, "warmup": 1, "runs": 3, "timeout_s": 600.0, "validate": True,
-    "exact": True, "baseline_sha256": "ef" * 32, "keep_output": False,
-}
-
-
-def test_cell_id_is_stable() -> None:
-    assert records.cell_id(KEY) == records.cell_id(dict(reversed(list(KEY.items()))))
-    assert len(records.cell_id(KEY)) == records.CELL_ID_CHARS
-
-
-@pytest.mark.parametrize("field", sorted(KEY))
-def test_changing_any_input_changes_the_cell_id(field: str) -> None:
-    value = KEY[field]
-    if isinstance(value, bool):
-        changed = not value
-    elif isinstance(value, int | float):
-        changed = value + 1
-    else:
-        changed = str(value) + "x"
-    assert records.cell_id({**KEY, field: changed}) != records.cell_id(KEY)
-
-
 def test_sha256_file(tmp_path: Path) -> None:
     path = tmp_path / "f"
     path.write_bytes(b"abc")
@@ -121,15 +98,20 @@ def test_atomic_write_leaves_no_temporary_files(tmp_path: Path) -> None:
 
 
 def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
+    key = {"variant": "p1", "build": "f64", "binary_sha256": "a", "input_sha256": "b",
+           "seed": 1, "threads": 2, "warmup": 0, "runs": 3, "timeout_s": 60.0,
+           "validate": False, "exact": True, "baseline_sha256": None, "keep_output": False}
+    cid = CellKey.from_json(key).id
     path = tmp_path / "c.json"
-    atomic.atomic_write_json(path, {"version": records.RECORD_VERSION, "cell_id": "abc"})
-    assert records.read_record(path, "abc") is not None
+    atomic.atomic_write_json(path, {"version": records.RECORD_VERSION, "cell_id": cid,
+                                    "key": key})
+    assert records.read_record(path, cid) is not None
     assert records.read_record(path, "abd") is None
-    atomic.atomic_write_json(path, {"version": -1, "cell_id": "abc"})
-    assert records.read_record(path, "abc") is None
+    atomic.atomic_write_json(path, {"version": -1, "cell_id": cid, "key": key})
+    assert records.read_record(path, cid) is None
     path.write_text("{truncated")
-    assert records.read_record(path, "abc") is None
-    assert records.read_record(tmp_path / "none.json", "abc") is None
+    assert records.read_record(path, cid) is None
+    assert records.read_record(tmp_path / "none.json", cid) is None
 
 
 # hyperfine 1.15 with `-N --style none`, on stderr, when a run is far from the others
@@ -152,12 +134,12 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
                 **csvfile.uncertainty([1.0, 1.2, 1.1]), "loaded": False,
                 "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
     values = csvfile.provenance(measured)
-    assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == "1.0 1.2 1.1"
+    assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == [1.0, 1.2, 1.1]
     assert values["wall_median_ci_low_s"] <= 1.1 <= values["wall_median_ci_high_s"]
     assert values["git_commit"].endswith("-dirty") and values["loaded"] is False
     older = csvfile.provenance({}, FIXTURES / "hyperfine_seq.json")
     times = hf.load_hyperfine(FIXTURES / "hyperfine_seq.json").times
-    assert older["wall_times_s"] == " ".join(repr(t) for t in times)
+    assert older["wall_times_s"] == list(times)
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
     # the low quantile, kept beside the median: between the fastest run and the median
     assert min(times) <= older[columns.LOW_QUANTILE_COLUMN] <= sorted(times)[len(times) // 2]
@@ -172,9 +154,9 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
 def test_thread_work_from_timing() -> None:
     fields = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
                                   "threads_chunks": [5, 5]})
-    assert fields["threads_busy_s"] == "0.3 0.1"
-    assert fields["threads_pairs"] == "30 10"
-    assert fields["threads_chunks"] == "5 5"
+    assert fields["threads_busy_s"] == [0.3, 0.1]
+    assert fields["threads_pairs"] == [30, 10]
+    assert fields["threads_chunks"] == [5, 5]
     assert fields["imbalance"] == pytest.approx(0.3 / 0.2)
 
 
@@ -194,13 +176,15 @@ def test_imbalance(busy: list[float], expected: float | None) -> None:
 
 def test_thread_columns_are_in_results_csv() -> None:
     record = {"variant": "p1", "schedule": "static,1", "imbalance": 1.25,
-              "threads_busy_s": "0.5 0.3", "threads_pairs": "3 1", "threads_chunks": "1 1"}
+              "threads_busy_s": [0.5, 0.3], "threads_pairs": [3, 1], "threads_chunks": [1, 1]}
     text = csvfile.render_csv([csvfile.csv_row(record, "e", "t")])
     row = next(csv.DictReader(io.StringIO(text)))
     assert row["schedule"] == "static,1" and row["imbalance"] == "1.25"
     assert row["threads_busy_s"] == "0.5 0.3" and row["threads_chunks"] == "1 1"
-    assert records.split_floats(row["threads_pairs"]) == [3.0, 1.0]
-    assert records.split_floats("") == [] and records.split_floats("a b") == []
+    assert columns.parse_list(row["threads_pairs"], "threads_pairs") == (3, 1)
+    assert columns.parse_list("", "threads_busy_s") == ()
+    with pytest.raises(ValueError):
+        columns.parse_list("a b", "threads_busy_s")
 
 
 def test_outside_broad_ns_counts_input_and_output_only_when_given() -> None:

@@ -13,6 +13,7 @@ from harness.cli import main as cli_main
 from harness.store import atomic, index, records
 from harness.store import history as store_history
 from harness.store.layout import ExperimentDir
+from harness.store.model import CellKey
 
 KEY = {"variant": "p1", "build": "f64", "binary_sha256": "a" * 64, "input_sha256": "c" * 64,
        "seed": 1, "threads": 2, "warmup": 0, "runs": 3, "timeout_s": 60.0, "validate": False,
@@ -23,7 +24,7 @@ def put(directory: Path, when: str, times: list[float] | None = None,
         **changes: object) -> str:
     """A record (and its hyperfine JSON) in directory/cells/, measured at `when`."""
     key = {k: v for k, v in {**KEY, **changes}.items() if v is not store_history.UNKNOWN_MACHINE}
-    cid = records.cell_id(key)
+    cid = CellKey.from_json(key).id
     times = times if times is not None else [1.0, 1.1, 1.2]
     record = {"version": records.RECORD_VERSION, "cell_id": cid, "key": key,
               "variant": key["variant"], "threads": key["threads"], "status": "ok",
@@ -39,31 +40,39 @@ def put(directory: Path, when: str, times: list[float] | None = None,
     return cid
 
 
+def group(key: dict[str, object]) -> str:
+    return CellKey.from_json(key).group
+
+
+CHECKS = {"names": ["invariants"], "truth": "seq", "shadow_steps": 4, "energy_ulps": 32.0,
+          "shadow_ulps": 64.0, "thread_counts": [1, 2]}
+
+
 def test_group_ignores_binaries_and_machine_only() -> None:
-    group = store_history.group_of(KEY)
-    assert store_history.group_of({**KEY, "binary_sha256": "b" * 64, "machine_id": "m2",
-                           "baseline_sha256": "d" * 64}) == group
+    plain = group(KEY)
+    assert group({**KEY, "binary_sha256": "b" * 64, "machine_id": "m2",
+                           "baseline_sha256": "d" * 64}) == plain
     for key, value in (("threads", 4), ("runs", 5), ("input_sha256", "e" * 64)):
-        assert store_history.group_of({**KEY, key: value}) != group
-    checks = {"names": ["invariants"], "reference_sha256": {"seq": "1"}}
-    assert store_history.group_of({**KEY, "checks": checks}) == store_history.group_of(
+        assert group({**KEY, key: value}) != plain
+    checks = {**CHECKS, "reference_sha256": {"seq": "1"}}
+    assert group({**KEY, "checks": checks}) == group(
         {**KEY, "checks": {**checks, "reference_sha256": {"seq": "2"}}})
     # a cell that also measures the runtime's costs times what it timed before it did
-    assert store_history.group_of(
-        {**KEY, "openmp_costs": {"binary_sha256": "f" * 64}}) == group
+    assert group(
+        {**KEY, "openmp_costs": {"binary_sha256": "f" * 64}}) == plain
     # a program's check: the references are built on each machine
     program = {"reference_sha256": {"f64": "1"}, "steps": 20}
-    assert store_history.group_of({**KEY, "program_check": program}) == store_history.group_of(
+    assert group({**KEY, "program_check": program}) == group(
         {**KEY, "program_check": {"reference_sha256": {"replay": "2"}, "steps": 20}})
-    assert store_history.group_of({**KEY, "program_check": program}) != store_history.group_of(
+    assert group({**KEY, "program_check": program}) != group(
         {**KEY, "program_check": {**program, "steps": 10}})
     # a counted cell: one group whichever counter and lane binary a machine has, apart from
     # the plain cell's
-    perf = store_history.group_of({**KEY, "instructions": {"tool": "perf",
+    perf = group({**KEY, "instructions": {"tool": "perf",
                                                           "binary_sha256": "1" * 64}})
-    assert perf == store_history.group_of(
+    assert perf == group(
         {**KEY, "instructions": {"tool": "cachegrind", "binary_sha256": "2" * 64}})
-    assert perf != group
+    assert perf != plain
 
 
 def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> None:
@@ -81,14 +90,13 @@ def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> 
     assert not (tmp_path / "cells" / f"{old}.hyperfine.json").exists()
     history = store_history.load_history(tmp_path)
     assert [r["cell_id"] for r in history] == [legacy, old]  # oldest first
-    assert history[0]["wall_times_s"] == "1.0 1.1 1.2"
+    assert history[0]["wall_times_s"] == [1.0, 1.1, 1.2]
     assert history[0]["wall_median_ci_low_s"] <= 1.1 <= history[0]["wall_median_ci_high_s"]
     assert store_history.prune(tmp_path).moved == 0
 
 
 def planned(**changes: object) -> index.PlannedCell:
-    key = {**KEY, **changes}
-    return index.PlannedCell(key, records.cell_id(key))
+    return index.PlannedCell(CellKey.from_json({**KEY, **changes}))
 
 
 def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:

@@ -111,7 +111,7 @@ class SlurmExecutor:
     are the config's `executor:` section with run.py's --partition over it; --collect adopts
     the jobs in flight and submits nothing.
 
-    Cells are named by their portable id (records.portable_id: the key without the machine) in
+    Cells are named by their portable id (CellKey.portable_id: the key without the machine) in
     the job scripts and jobs.json, and matched to the records the nodes write by the same id;
     on_record still gets the cell id the runner planned with.
     """
@@ -133,7 +133,7 @@ class SlurmExecutor:
         for cell, cid in pending:
             key = experiment.store.cell_key(cell)
             assert key is not None
-            cells[records.portable_id(key)] = (cell, cid)
+            cells[key.portable_id] = (cell, cid)
         log = experiment.log
         watch = RecordWatch(experiment.store.cells_dir)
         watch.snapshot()

@@ -62,9 +62,8 @@ class RecordWatch:
             self.seen[name] = stamp
             path = self.cells_dir / name
             record = records.read_record(path, layout.cell_id_of(path))
-            key = record.get("key") if record is not None else None
-            if record is not None and isinstance(key, dict) and not is_fault(record):
-                found[records.portable_id(key)] = record
+            if record is not None and not is_fault(record):
+                found[records.key_of(record).portable_id] = record
         return found
 
     def existing(self) -> dict[str, list[records.Record]]:
@@ -72,7 +71,6 @@ class RecordWatch:
         watched)."""
         found: dict[str, list[records.Record]] = {}
         for stored in history.load_records(self.cells_dir):
-            key = stored.record.get("key")
-            if isinstance(key, dict) and not stored.record.get(records.RETRY_KEY):
-                found.setdefault(records.portable_id(key), []).append(stored.record)
+            if not stored.record.get(records.RETRY_KEY):
+                found.setdefault(stored.key.portable_id, []).append(stored.record)
         return found
