@@ -173,8 +173,8 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step", "check_s", "replay_s", "instructions", "instructions_max", "steal_s", "other_cpu_s",
-    "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
+    "first_diff_step", "check_s", "replay_s", "instructions", "instructions_max", "steal_s",
+    "other_cpu_s", "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
