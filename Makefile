@@ -10,7 +10,11 @@
 #                         instruction lane counts under cachegrind
 #   make test-c           C tests: unit tests (optimised, ASan+UBSan, portable) and scene scripts
 #   make test             test-c, ruff and the Python tests, side by side
-#   make bench            the performance benchmarks (bench/bench.py), saved under results/
+#   make bench            the performance configs (BENCH_CONFIGS, default configs/bench-core,
+#                         bench-grid and relative) measured by the harness's run into
+#                         results/<name>/ and rendered into report/; BENCH_CONFIGS="$$(ls
+#                         configs/bench-*.yaml) configs/relative.yaml" adds the million,
+#                         the dense scene and the grading benchmark
 #   make fuzz             fuzz the config loader and the binaries' input reader (ASan builds)
 #                         for FUZZ_SECONDS (default 600); make test runs a few seconds of it
 #   make setup            Python environment (.venv) and hyperfine: what the harness needs
@@ -206,7 +210,8 @@ $(TEST_READY): requirements.txt requirements-test.txt pyproject.toml scripts/set
 setup-test:
 	scripts/setup.sh --test
 
-# RUN_FLAGS: more options for the quick start's run (e.g. RUN_FLAGS=--dry-run).
+# RUN_FLAGS: more options for the quick start's and the benchmarks' run (e.g.
+# RUN_FLAGS=--dry-run).
 RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
@@ -216,8 +221,10 @@ FUZZ_SECONDS ?= 600
 fuzz: $(TEST_READY) all asan
 	$(PYTHON) -m tests.hostile.fuzz --seconds $(FUZZ_SECONDS)
 
-bench: all $(PYTHON)
-	$(PYTHON) -m bench.bench
+BENCH_CONFIGS ?= configs/bench-core.yaml configs/bench-grid.yaml configs/relative.yaml
+# build/grid-f32: configs/bench-grading.yaml's float program
+bench: all build/grid-f32 $(PYTHON)
+	$(PYTHON) harness/run.py $(BENCH_CONFIGS) $(RUN_FLAGS)
 
 clean:
 	rm -rf build

@@ -24,6 +24,8 @@ from harness.store.columns import (
 )
 
 PROGRAM_KEYS = ("variant", "scene", "n", "L", "r", "steps", "threads")
+# What grading a program cost beyond its run (harness.measure.program).
+GRADING_COLUMNS = ("check_s", "replay_s")
 
 
 def is_program(df: pd.DataFrame) -> pd.Series:
@@ -43,12 +45,16 @@ def agreement_text(row: pd.Series) -> str:
 
 
 def program_table(df: pd.DataFrame) -> pd.DataFrame:
-    """One row per program cell: where it is, its status, its agreement and the detail."""
+    """One row per program cell: where it is, its status, its agreement, what its check cost
+    and the detail."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
     table = pd.DataFrame({k: rows[k] for k in keys})
     table["status"] = rows["status"]
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
+    for column in GRADING_COLUMNS:  # absent from results measured before they were kept
+        if column in rows.columns:
+            table[column] = rows[column]
     table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
     return sort_cells(table, keys)
 

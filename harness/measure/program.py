@@ -19,10 +19,12 @@ like any variant.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import shlex
 import signal
 import tempfile
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -90,12 +92,19 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
         record.update(agreement=AGREEMENT_FAILED,
                       note=f"not checked: {refs[REFERENCE].name}'s print-mode run failed")
         return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
-    replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s)
+    replays: list[float] = []
+    replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
+    judged = time.monotonic()
     try:
         verdict = judge(text, seq, cell.scene.n, steps, cell.scene.L, cell.scene.r, replay)
     except ReplayError as exc:
         record.update(agreement=AGREEMENT_FAILED, note=f"not checked: {exc}")
         return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+    finally:
+        # What grading costs beyond the program's run: its print-mode run and the verdict
+        # (reading, comparing, the replays); the reference's run is shared by the scene's cells.
+        record.update(check_s=checked.seconds + time.monotonic() - judged,
+                      replay_s=math.fsum(replays))
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
         verdict = _repeatable(program, store.input_file(scene), cell.threads, env, timeout_s,
                               text) or verdict
@@ -122,14 +131,16 @@ class ReplayError(RuntimeError):
     """The reference's --replay did not run to the end; the message says why."""
 
 
-def _replay(binary: Path, env: Mapping[str, str], timeout_s: float) -> Replay:
+def _replay(binary: Path, env: Mapping[str, str], timeout_s: float,
+            seconds: list[float]) -> Replay:
     """`binary --replay` on states (harness.measure.steps.replay_input), their successors
-    back."""
+    back; each run's seconds appended to `seconds`."""
     def run(data: bytes) -> bytes:
         with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
             states, out = Path(tmp) / "states", Path(tmp) / "successors"
             states.write_bytes(data)
             done = run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
+            seconds.append(done.seconds)
             if done.returncode != 0:
                 raise ReplayError(_failure(f"{binary.name} --replay", done, timeout_s))
             return out.read_bytes()

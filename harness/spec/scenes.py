@@ -20,6 +20,7 @@ import functools
 import hashlib
 import inspect
 import math
+import random
 import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -367,6 +368,28 @@ def lattice(
         vx = diagonal if row % 2 == 0 else -diagonal
         vy = diagonal if col % 2 == 0 else -diagonal
         particles.append((x, y, vx, vy))
+    return make_scene(L, r, steps, mode, particles)
+
+
+# The dense slow scene: discs moving about a radius a step, where the binaries' own
+# generator gives speeds of L/(8r) to L/4 (SPEC section 4), so a box this crowded would see
+# every disc cross it in a few steps.
+DENSE_SLOW_SPEEDS = (0.5, 1.5)  # radii per step
+DENSE_SLOW_SEED = 1
+
+
+@generator("dense_slow")
+def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
+               mode: str = "perf") -> GeneratedScene:
+    """n discs placed uniformly in the box (overlaps at the start allowed: overlapping pairs
+    pass through, SPEC section 1), each moving 0.5-1.5 radii a step in a uniform direction."""
+    rng = random.Random(DENSE_SLOW_SEED)
+    particles = []
+    for _ in range(n):
+        speed = r * rng.uniform(*DENSE_SLOW_SPEEDS)
+        angle = rng.uniform(0.0, 2.0 * math.pi)
+        x, y = rng.uniform(r, L - r), rng.uniform(r, L - r)
+        particles.append((x, y, speed * math.cos(angle), speed * math.sin(angle)))
     return make_scene(L, r, steps, mode, particles)
 
 

@@ -122,9 +122,11 @@ STOPPED_UNDECIDED: tuple[str, ...] = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
 # A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
 # rounding; empty: never), the rule that step breaks, and the data races ThreadSanitizer found
 # in it (`FILE:LINE and FILE:LINE (variables)`, `;`-separated; `none`; empty where it was not
-# checked: a program without `build:`, or another cell than its highest thread count's), only
-# where some cell is a program's.
-PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule", "races")
+# checked: a program without `build:`, or another cell than its highest thread count's), and
+# what grading it cost beyond its run (seconds: its print-mode check run and the verdict, and
+# of that the reference's replays), only where some cell is a program's.
+PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule", "races", "check_s",
+                                    "replay_s")
 NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
@@ -171,8 +173,8 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset({
     "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
     "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
     "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step", "instructions", "instructions_max", "steal_s", "other_cpu_s",
-    "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
+    "first_diff_step", "check_s", "replay_s", "instructions", "instructions_max", "steal_s",
+    "other_cpu_s", "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
 })
 BOOL_COLUMNS: frozenset[str] = frozenset({
     "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
