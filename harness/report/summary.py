@@ -56,6 +56,12 @@ def _fair(rows: pd.DataFrame) -> pd.DataFrame:
                 & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
 
 
+def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
+    """The cells that can be the best strategy: neither the baseline nor grid, nor a program's
+    (a student's, or a command timed as a whole such as two copies at once)."""
+    return fair[~fair["variant"].isin(NOT_STRATEGIES) & ~is_program(fair)]
+
+
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
@@ -63,7 +69,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
     fair = _fair(rows)
-    strategies = fair[~fair["variant"].isin(NOT_STRATEGIES)]
+    strategies = strategy_cells(fair)
     if not strategies.empty:
         best = strategies.loc[strategies["speedup"].idxmax()]
         found["best"] = Highlight(

@@ -7,9 +7,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from harness.measure import timing
 from harness.report.pipeline import render
+from harness.report.summary import strategy_cells
 from harness.store import csvfile
 
 BENCH = {"scene": "random", "n": 10000, "L": 20000.0, "r": 1.0, "steps": 50, "mode": "perf",
@@ -165,3 +167,14 @@ def test_with_runtime_costs_each_strategy_is_priced(tmp_path: Path) -> None:
     assert "predicted 30.7 s, its median 150 s, p2d_tiles's not measured" in text
     html = (out / "report.html").read_text(encoding="utf-8")
     assert 'id="strategies-overhead"' in html
+
+
+def test_a_program_is_never_the_best_strategy() -> None:
+    """Two copies of grid timed as one program (bench-grid) or a student's program beat every
+    strategy's speedup, but are not strategies."""
+    fair = pd.DataFrame([
+        {"variant": "seq", "agreement": ""}, {"variant": "grid", "agreement": ""},
+        {"variant": "p1d", "agreement": ""},
+        {"variant": "grid-2-at-once", "agreement": "identical"},
+        {"variant": "student", "agreement": "rounding"}])
+    assert list(strategy_cells(fair)["variant"]) == ["p1d"]
