@@ -10,7 +10,10 @@ from pathlib import Path
 from harness.store.columns import LIST_COLUMNS, parse_list
 from harness.store.model import MACHINE_FIELD, CellKey, KeyFormatError
 
-RECORD_VERSION = 1
+# The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
+# Version 1, their items space-separated, is read as well and given back as version 2.
+RECORD_VERSION = 2
+READ_VERSIONS = (1, RECORD_VERSION)
 # A record marked so (a Slurm task cancelled or lost with its node: no fault of the cell's) is
 # listed in results.csv but measured again by the next run.
 RETRY_KEY = "retry"
@@ -42,7 +45,7 @@ def read_record(path: Path, expected_id: str) -> Record | None:
     record = read_json(path)
     if not isinstance(record, dict):
         return None
-    if record.get("version") != RECORD_VERSION or record.get("cell_id") != expected_id:
+    if record.get("version") not in READ_VERSIONS or record.get("cell_id") != expected_id:
         return None
     try:
         key = CellKey.from_json(record.get("key"))
@@ -54,8 +57,11 @@ def read_record(path: Path, expected_id: str) -> Record | None:
 
 
 def _with_lists(record: Record) -> Record | None:
-    """The record with its list columns as lists (records written before they were kept as
-    lists hold their items space-separated); None when one does not parse."""
+    """The record in the format written now: a version 1 record's list columns, space-separated
+    text, as lists; None when one does not parse."""
+    if record["version"] == RECORD_VERSION:
+        return record
+    record["version"] = RECORD_VERSION
     for column in LIST_COLUMNS.keys() & record.keys():
         value = record[column]
         if isinstance(value, str):
