@@ -76,7 +76,8 @@ class Summary:
 def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                    registry: VariantRegistry | None = None) -> Summary:
     """Build, then measure every cell not already measured; or, with dry_run, list them."""
-    plan = plan_cells(config, options.quick, registry or VariantRegistry(options.repo_root))
+    registry = registry or VariantRegistry(options.repo_root)
+    plan = plan_cells(config, options.quick, registry)
     experiment = Experiment(plan, options, log)
     binaries = needed_binaries(plan, options.repo_root / BUILD_DIR)
     if options.dry_run:
@@ -87,6 +88,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
     make_binaries(options.repo_root, binaries, options.make)
+    # what the cells' variants are, stored with them: reading results never asks a binary
+    index.write_variants(experiment.directory, registry.known.to_json())
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)
