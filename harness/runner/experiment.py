@@ -25,8 +25,8 @@ from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR
-from harness.spec.builds import make_binaries
 from harness.spec.config import Config
+from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
 from harness.store.columns import DIVERGES, OK

@@ -22,7 +22,6 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
-from harness.spec.builds import make_binaries
 from harness.spec.facts import (
     BASELINE,
     COUNT_UNITS,
@@ -38,6 +37,7 @@ from harness.spec.facts import (
     family_of,
     ordered,
 )
+from harness.spec.make import make_binaries
 
 # The facts' types and their order live in harness.spec.facts (read where results are, with
 # no build); they are named here too for those who ask the binaries.
