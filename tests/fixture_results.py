@@ -5,6 +5,9 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from harness.spec.facts import Variants, read_variants
+from harness.store.layout import VARIANTS_JSON
+
 FIXTURE_RESULTS = Path(__file__).resolve().parent / "fixtures" / "results"
 
 
@@ -15,3 +18,8 @@ def results_with(tmp_path: Path, *names: str) -> Path:
     for name in names:
         shutil.copytree(FIXTURE_RESULTS / name, root / name)
     return root
+
+
+def fixture_facts() -> Variants:
+    """The variants' facts stored with the fixture results (every experiment's are the same)."""
+    return read_variants(FIXTURE_RESULTS / "strategies" / VARIANTS_JSON)

@@ -17,7 +17,9 @@ from harness.executors.base import Options
 from harness.report import pipeline
 from harness.runner.experiment import run_experiment
 from harness.spec import variants
+from harness.spec.facts import read_variants
 from harness.spec.parse import load_config
+from harness.store.layout import VARIANTS_JSON
 
 REPO_ROOT = repo.REPO_ROOT
 # A repair of p1 (rows dealt round-robin, as p1_cyclic), under a name nothing else knows.
@@ -95,6 +97,9 @@ def test_a_run_measures_and_validates_it_and_the_report_shows_it(copy: Path) -> 
             rows = [row for row in csv.DictReader(handle) if row["variant"] == "scratch"]
         assert [row["threads"] for row in rows] == ["1", "2"]
         assert all(row["identical"] == "True" for row in rows)  # byte for byte seq's
+        # the run stored the new variant's facts with its results, which the report reads
+        stored = read_variants(results / "trial" / VARIANTS_JSON)
+        assert stored["scratch"].repairs == "p1" and stored == registry.known
         report = pipeline.render(results, copy / "report").read_text()
     # the speedup table: one row per variant and thread count, p1's repair right after p1
     lines = report.splitlines()

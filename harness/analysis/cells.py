@@ -1,6 +1,6 @@
 """Which columns name a cell, and the selections every table starts from: pure functions of
 one experiment's results frame (harness.analysis.frame reads it). Variants sort in the
-registry's order (harness.spec.variants: from the binaries' own facts), builds in
+order of the facts stored with the results (harness.spec.facts), builds in
 harness.spec.builds' order.
 """
 
@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterable, Sequence
 import pandas as pd
 
 from harness.spec.builds import BUILDS
-from harness.spec.variants import default_registry
+from harness.spec.facts import current
 from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.frame)
@@ -110,7 +110,7 @@ def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
 
     def key(col: pd.Series) -> pd.Series:
         if col.name == "variant":
-            return _rank(default_registry().order)(col)
+            return _rank(current().order)(col)
         if col.name == "build":
             return _rank(BUILDS)(col)
         return col

@@ -18,7 +18,7 @@ import pandas as pd
 
 from harness.analysis.cells import timed_rows
 from harness.analysis.strategies import SEED_TIMES_S, repaired_by
-from harness.spec.variants import SyncFacts, default_registry
+from harness.spec.facts import SyncFacts, current
 from harness.store.columns import OMP_COST_COLUMNS
 
 NS_PER_S = 1e9
@@ -86,7 +86,7 @@ def overhead_table(df: pd.DataFrame) -> pd.DataFrame | None:
     measured overhead). None where no seed strategy ran or no cost was measured."""
     if not has_costs(df):
         return None
-    registry = default_registry()
+    registry = current()
     costs = cost_table(df)
     assert costs is not None
     by_threads = costs.set_index("threads")
@@ -142,7 +142,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
     n, steps = int(first["n"]), int(first["steps"])
     sentences = []
     for variant, group in table.groupby("variant", sort=False):
-        sync = default_registry()[str(variant)].sync
+        sync = current()[str(variant)].sync
         assert sync is not None
         asks = _operations(sync.per_step(n))
         parts = []

@@ -36,7 +36,7 @@ from harness.analysis.display import (
     format_sig3,
     series_label,
 )
-from harness.spec.variants import GRID
+from harness.spec.facts import GRID
 from harness.store.columns import PHASE_COLUMNS
 
 NS_PER_S = 1e9

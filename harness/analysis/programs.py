@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
-from harness.spec.variants import BASELINE
+from harness.spec.facts import BASELINE
 from harness.store.columns import (
     AGREEMENT_FAILED,
     AGREEMENTS,

@@ -19,7 +19,7 @@ from harness.analysis.cells import (
 )
 from harness.analysis.flags import validation_text
 from harness.spec.builds import DEFAULT_BUILD
-from harness.spec.variants import BASELINE, default_registry
+from harness.spec.facts import BASELINE, current
 from harness.store.columns import OK, TIMED_STATUSES
 
 BASELINE_BUILD = DEFAULT_BUILD
@@ -32,14 +32,14 @@ OVERSUBSCRIBED = "oversubscribed"  # results.csv's flag: more threads than the m
 def all_pairs(variants: pd.Series) -> pd.Series:
     """Per row, whether the variant tests every pair with seq's kernel (its --describe): its
     speedup over seq is then parallelism alone."""
-    registry = default_registry()
+    registry = current()
     return variants.map(lambda v: bool(getattr(registry.get(v), "all_pairs", False)))
 
 
 def single_threaded(variants: pd.Series) -> pd.Series:
     """Per row, whether the variant runs one thread whatever `--threads` says: a thread count
     is nominal for it."""
-    registry = default_registry()
+    registry = current()
     return variants.map(lambda v: registry.get(v) is not None and not registry[v].parallel)
 
 

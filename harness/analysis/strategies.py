@@ -18,7 +18,7 @@ import pandas as pd
 
 from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
-from harness.spec.variants import default_registry
+from harness.spec.facts import current
 from harness.store import hyperfine
 from harness.store.layout import ExperimentDir
 
@@ -64,8 +64,8 @@ def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
 
 def repaired_by(variant: str) -> str | None:
     """The variant that repairs `variant` (its --describe names it), if any."""
-    registry = default_registry()
-    fixes = registry.repaired_by(variant) if variant in registry.facts else ()
+    registry = current()
+    fixes = registry.repaired_by(variant) if variant in registry else ()
     return fixes[0] if fixes else None
 
 

@@ -12,7 +12,7 @@ import pandas as pd
 from harness.analysis.accuracy import pareto_mask
 from harness.analysis.cells import MACHINE, SCENE_KEYS, present, sort_cells, timed_rows
 from harness.analysis.display import DISPLAY_NAMES, format_value
-from harness.spec.variants import default_registry
+from harness.spec.facts import current
 
 # Each check's column and what it tests, in the order the tables show them.
 CHECKS: tuple[tuple[str, str, str], ...] = (
@@ -197,7 +197,7 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
 def own_arithmetic(variants: pd.Series) -> pd.Series:
     """Per row, whether the variant computes contact times with arithmetic of its own (it is
     not exact: its --describe says so): a build's verdict leaves it out."""
-    registry = default_registry()
+    registry = current()
     return variants.map(lambda v: registry.get(v) is not None and not registry[v].exact)
 
 

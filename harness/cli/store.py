@@ -1,4 +1,6 @@
-"""Move superseded cell records from cells/ to history/ (`store prune PATH...`)."""
+"""Move superseded cell records from cells/ to history/ (`store prune PATH...`); store the
+variants' facts of this repository's build with results measured before runs stored them
+(`store facts PATH...`)."""
 
 from __future__ import annotations
 
@@ -8,7 +10,9 @@ from pathlib import Path
 
 from harness.cli.common import Parser
 from harness.errors import HarnessError
-from harness.store import layout
+from harness.repo import REPO_ROOT
+from harness.spec.variants import VariantRegistry
+from harness.store import index, layout
 from harness.store.history import prune
 
 
@@ -19,21 +23,44 @@ def parser(prog: str) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="action", required=True)
     prune_parser = sub.add_parser("prune", help="prune experiment directories or results roots")
     prune_parser.add_argument("paths", nargs="+", type=Path)
+    facts_parser = sub.add_parser(
+        "facts", help=f"write {layout.VARIANTS_JSON} (the variants' --describe, from this "
+        "repository's build, made where stale) into experiment directories or results roots "
+        "that were measured with this build")
+    facts_parser.add_argument("paths", nargs="+", type=Path)
     return parser
 
 
-def experiment_dirs(path: Path) -> list[Path]:
-    """`path` itself when it has cells/, else its subdirectories that have."""
+def _has_cells_or_results(exp: layout.ExperimentDir) -> bool:
+    return layout.has_cells(exp) or layout.has_results(exp)
+
+
+def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
+    """`path` itself when it has cells/ (or, `with_results`, a results.csv), else its
+    subdirectories that have."""
     if not path.is_dir():
         raise HarnessError(f"{path}: not a directory")
-    found, _ = layout.experiments_under(path, layout.has_cells)
+    found, _ = layout.experiments_under(
+        path, _has_cells_or_results if with_results else layout.has_cells)
     if not found:
-        raise HarnessError(f"{path}: no experiment directory (one with {layout.CELLS}/) in it")
+        what = f"{layout.CELLS}/" + (f" or {layout.RESULTS_CSV}" if with_results else "")
+        raise HarnessError(f"{path}: no experiment directory (one with {what}) in it")
     return [exp.path for exp in found]
 
 
+def store_facts(directories: list[Path]) -> int:
+    facts = VariantRegistry(REPO_ROOT).known.to_json()
+    for directory in directories:
+        index.write_variants(directory, facts)
+        sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
+    return 0
+
+
 def execute(args: argparse.Namespace) -> int:
-    directories = [d for path in args.paths for d in experiment_dirs(path)]
+    with_results = args.action == "facts"
+    directories = [d for path in args.paths for d in experiment_dirs(path, with_results)]
+    if args.action == "facts":
+        return store_facts(directories)
     for directory in directories:
         done = prune(directory)
         sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "

@@ -1,6 +1,6 @@
 """The binaries a plan runs and where they are: in a build directory (the repository's build/,
 or a revision's when two are compared), unless the config names a binary of its own.
-harness.spec.builds.make_binaries builds them."""
+harness.spec.make.make_binaries builds them."""
 
 from __future__ import annotations
 

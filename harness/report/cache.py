@@ -9,8 +9,9 @@ by a hash of their input files, both remembered in one manifest beside the figur
   pandas nor matplotlib.
 
 "The code" is found, not listed: every module of the harness that the figures (or the whole
-report) import, directly or through others, read from their import statements (code_closure),
-together with the variants' facts, which decide the order and colours of what is drawn.
+report) import, directly or through others, read from their import statements (code_closure).
+A figure's key also holds the facts of the variants its results were measured with
+(harness.spec.facts.current), which decide the order and colours of what is drawn.
 
 Both are keyed by content, never by time, so the rendered report is the same whether a figure
 was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
@@ -25,6 +26,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from harness.spec.facts import current
 from harness.store.atomic import atomic_write_text
 from harness.store.records import sha256_file
 
@@ -109,12 +111,11 @@ class CodeVersions(NamedTuple):
     report: str
 
 
-def code_versions(facts: str = "") -> CodeVersions:
-    """The code's versions as it is now; `facts`: what else the drawings depend on beside the
-    code (the variants'). Reading every module is not free: a render computes this once for
-    all its pages."""
-    return CodeVersions(code_version(code_closure(FIGURE_MODULES), facts),
-                        code_version(code_closure(REPORT_MODULES), facts))
+def code_versions() -> CodeVersions:
+    """The code's versions as it is now. Reading every module is not free: a render computes
+    this once for all its pages."""
+    return CodeVersions(code_version(code_closure(FIGURE_MODULES)),
+                        code_version(code_closure(REPORT_MODULES)))
 
 
 def _digest_value(value: object, digest: Any) -> None:
@@ -159,6 +160,7 @@ class Manifest:
     def figure_key(self, function: Callable[..., object], args: tuple, kwargs: dict) -> str:
         digest = hashlib.sha256()
         digest.update(f"{function.__module__}.{function.__qualname__}\0{self.code.plot}\0".encode())
+        digest.update(f"{current().digest()}\0".encode())
         for value in args:
             _digest_value(value, digest)
         for name in sorted(kwargs):

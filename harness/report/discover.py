@@ -54,12 +54,13 @@ def _file_digest(path: Path) -> str:
 
 def input_digest(exp: ExperimentDir) -> str:
     """A hash of every file the experiment's section reads: results.csv, env.json,
-    divergence.csv and the kept outputs (the trajectory figure's input)."""
+    divergence.csv, variants.json and the kept outputs (the trajectory figure's input)."""
     parts: dict[str, object] = {
         "name": exp.name,
         layout.RESULTS_CSV: _file_digest(exp.results_csv),
         layout.ENV_JSON: _file_digest(exp.env_json),
         layout.DIVERGENCE_CSV: _file_digest(exp.divergence_csv),
+        layout.VARIANTS_JSON: _file_digest(exp.variants_json),
     }
     outputs = exp.outputs
     if outputs.is_dir():

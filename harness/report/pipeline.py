@@ -36,7 +36,7 @@ from harness.report.header import (
 from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
-from harness.spec.variants import default_registry
+from harness.spec.facts import read_variants, reading
 from harness.store.atomic import atomic_write_text
 from harness.store.layout import ExperimentDir
 from harness.store.locks import directory_lock
@@ -118,7 +118,9 @@ def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
 
     exp = load_experiment(found, machine)
     first = len(manifest.touched)
-    part = build_part(exp, experiment_section(exp, manifest))
+    # the facts of the variants the results were measured with: their order, colours, kinds
+    with reading(read_variants(found.variants_json)):
+        part = build_part(exp, experiment_section(exp, manifest))
     manifest.put_part(found.name, key, part.to_json(out_dir), manifest.touched[first:])
     return part
 
@@ -196,7 +198,7 @@ def render(
     rows = machines.read_rows(found)
     named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
     listed = machines.machines(rows, named - {""})
-    code = code_versions(default_registry().digest())
+    code = code_versions()
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would
     # delete each other's figures as stale; the second waits for the first instead.

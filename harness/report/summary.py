@@ -19,7 +19,7 @@ from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
 from harness.report.sections.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
 from harness.report.sections.programs import ANCHOR_SUFFIX as PROGRAMS_SUFFIX
-from harness.spec.variants import BASELINE, GRID
+from harness.spec.facts import BASELINE, GRID
 from harness.store.columns import AGREEING, INVALID, OK
 
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not

@@ -25,8 +25,8 @@ from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR
-from harness.spec.builds import make_binaries
 from harness.spec.config import Config
+from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import index, records
 from harness.store.columns import DIVERGES, OK
@@ -76,7 +76,8 @@ class Summary:
 def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                    registry: VariantRegistry | None = None) -> Summary:
     """Build, then measure every cell not already measured; or, with dry_run, list them."""
-    plan = plan_cells(config, options.quick, registry or VariantRegistry(options.repo_root))
+    registry = registry or VariantRegistry(options.repo_root)
+    plan = plan_cells(config, options.quick, registry)
     experiment = Experiment(plan, options, log)
     binaries = needed_binaries(plan, options.repo_root / BUILD_DIR)
     if options.dry_run:
@@ -87,6 +88,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
     make_binaries(options.repo_root, binaries, options.make)
+    # what the cells' variants are, stored with them: reading results never asks a binary
+    index.write_variants(experiment.directory, registry.known.to_json())
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)

@@ -22,8 +22,8 @@ from harness.repo import REPO_ROOT, VARIANTS_DIR
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import with_min_rounds
 from harness.runner.sides import BuildSide, build, git, resolve, rev_parse
-from harness.spec.builds import make_binaries
 from harness.spec.config import Config
+from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
 from harness.store.commits import CommitInfo, save_commits

@@ -28,8 +28,8 @@ from harness.plan.cellstore import CellStore
 from harness.repo import REPO_ROOT
 from harness.runner.experiment import built_cell_id, require_hyperfine, write_env_after
 from harness.runner.sides import BuildSide, build
-from harness.spec.builds import make_binaries
 from harness.spec.config import Config
+from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import records
 from harness.store.columns import (

@@ -16,7 +16,7 @@ from harness.errors import HarnessError
 from harness.measure.machine import compiler_command
 from harness.plan import lane
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
-from harness.spec.builds import has_rules, make_binaries
+from harness.spec.make import has_rules, make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store.layout import CACHE_DIR
 

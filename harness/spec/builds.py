@@ -1,14 +1,8 @@
 """The builds of a variant, named once: the double-precision default and the accuracy study's
 others (the Makefile's BUILDS builds them: `make build/NAME-f32`, ...), with the unit
-roundoff of the arithmetic each computes in; and building binaries with make."""
+roundoff of the arithmetic each computes in. Names only: harness.spec.make builds them."""
 
 from __future__ import annotations
-
-import subprocess
-from collections.abc import Iterable, Sequence
-from pathlib import Path
-
-from harness.errors import HarnessError
 
 DEFAULT_BUILD = "f64"
 TRUTH_BUILD = "f128"  # the accuracy study's truth: __float128
@@ -39,33 +33,3 @@ def unit_roundoff(build: str) -> float:
     """The unit roundoff of the build's arithmetic; a build the harness does not know (a
     custom binary) is taken as double."""
     return UNIT_ROUNDOFF.get(build, DOUBLE_EPS)
-
-
-def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
-                  capture: bool = False, extra: Sequence[str] = ()) -> None:
-    """One `make -s [EXTRA] build/a build/b ...` call (nothing when the list is empty); a
-    failure is a HarnessError. With `capture`, make's output goes into the error only."""
-    targets = [str(b.relative_to(repo_root)) for b in binaries]
-    if not targets:
-        return
-    try:
-        done = subprocess.run([make, "-s", *extra, *targets], cwd=repo_root, check=False,
-                              stdin=subprocess.DEVNULL, capture_output=capture, text=True)
-    except OSError as exc:
-        raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
-    if done.returncode != 0:
-        detail = f": {' '.join(done.stderr.split())[-500:]}" if capture and done.stderr else ""
-        raise HarnessError(f"make -s {' '.join([*extra, *targets])} failed with exit status "
-                           f"{done.returncode}{detail}")
-
-
-def has_rules(repo_root: Path, binaries: Iterable[Path], make: str = "make") -> bool:
-    """Whether the Makefile in `repo_root` can make every one of `binaries`: `make -n` (a dry
-    run, nothing built) finds a rule for each and for what each is made of."""
-    targets = [str(b.relative_to(repo_root)) for b in binaries]
-    try:
-        done = subprocess.run([make, "-n", "-s", *targets], cwd=repo_root, check=False,
-                              stdin=subprocess.DEVNULL, capture_output=True)
-    except OSError as exc:
-        raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
-    return done.returncode == 0

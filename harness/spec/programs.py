@@ -46,7 +46,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.spec.variants import BASELINE, GRID
+from harness.spec.facts import BASELINE, GRID
 
 # The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for

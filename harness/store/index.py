@@ -100,3 +100,9 @@ def write_env(experiment_dir: Path, env: Mapping[str, object]) -> None:
     machine_id = env.get(records.MACHINE_KEY)
     if machine_id:
         atomic.atomic_write_json(exp.machine(str(machine_id)), env)
+
+
+def write_variants(experiment_dir: Path, facts: Mapping[str, object]) -> None:
+    """variants.json: the facts of the variants of the build that measured last (analysis and
+    the report read them there, so that reading results never builds)."""
+    atomic.atomic_write_json(ExperimentDir(experiment_dir).variants_json, facts)

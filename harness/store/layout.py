@@ -14,6 +14,8 @@
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
+        variants.json                    the variants' facts (--describe) of the latest run's
+                                         build: what analysis and the report read of them
         machines/<machine_id>.json       the same, the latest of each machine
         history/                         superseded records with their hyperfine JSON
         history/<commit>/                `history`: a results root of the commit's measurements
@@ -45,6 +47,7 @@ OUTPUTS = "outputs"
 MACHINES = "machines"
 SLURM = "slurm"
 ENV_JSON = "env.json"
+VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
 DIVERGENCE_CSV = "divergence.csv"
 RECORD_SUFFIX = ".json"
@@ -124,6 +127,10 @@ class ExperimentDir:
     @property
     def env_json(self) -> Path:
         return self.path / ENV_JSON
+
+    @property
+    def variants_json(self) -> Path:
+        return self.path / VARIANTS_JSON
 
     @property
     def slurm(self) -> Path:

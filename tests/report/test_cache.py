@@ -79,6 +79,22 @@ def test_rendered_report_is_the_same_whether_figures_were_drawn_or_reused(
         k: v[2] for k, v in figure_state(fresh).items()}
 
 
+def test_a_change_in_the_stored_facts_redraws_just_that_experiments_figures(
+        tmp_path: Path) -> None:
+    root = results_with(tmp_path, "square", "radius")
+    out = tmp_path / "report"
+    pipeline.render(root, out)
+    before = figure_state(out)
+    stored = root / "square" / "variants.json"
+    facts = json.loads(stored.read_text(encoding="utf-8"))
+    facts["variants"][0]["summary"] += " (described again)"
+    stored.write_text(json.dumps(facts), encoding="utf-8")
+    pipeline.render(root, out)
+    after = figure_state(out)
+    changed = {name for name in after if after[name][:2] != before[name][:2]}
+    assert changed and all(name.startswith("square-") for name in changed)
+
+
 def test_a_missing_or_altered_figure_is_redrawn(tmp_path: Path) -> None:
     root = results_with(tmp_path, "square")
     out = tmp_path / "report"
@@ -223,5 +239,6 @@ def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:
     names = {p.relative_to(cache.PACKAGE_DIR).as_posix()
              for p in cache.code_closure(cache.FIGURE_MODULES)}
     assert {"report/figures/base.py", "analysis/speedup.py", "stats.py",
-            "spec/variants.py"} <= names
+            "spec/facts.py"} <= names
+    assert "spec/variants.py" not in names and "spec/make.py" not in names
     assert not any(n.startswith(("measure/", "executors/", "runner/")) for n in names)

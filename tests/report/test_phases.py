@@ -14,7 +14,9 @@ from harness.analysis import display, phases
 from harness.analysis.frame import read_results
 from harness.measure import timing as timing_line
 from harness.report.pipeline import render
-from harness.store import columns, csvfile
+from harness.store import columns, csvfile, index
+
+from fixture_results import fixture_facts
 
 BENCH = {"scene": "random", "L": 20000.0, "r": 1.0, "steps": 50, "mode": "perf", "seed": 1}
 # variant: sim_s, output_s and the five phases (seconds): seq's broad phase is nearly all of
@@ -49,6 +51,7 @@ def write_experiment(root: Path, name: str, records: list[dict], title: str = ""
     rows = [csvfile.csv_row(r, name, title or name.title()) for r in records]
     path = root / name / "results.csv"
     csvfile.write_results_csv(path, rows)
+    index.write_variants(root / name, fixture_facts().to_json())  # as a run stores them
     return path
 
 

@@ -12,7 +12,9 @@ import pytest
 from harness.measure import timing
 from harness.report.pipeline import render
 from harness.report.summary import strategy_cells
-from harness.store import csvfile
+from harness.store import csvfile, index
+
+from fixture_results import fixture_facts
 
 BENCH = {"scene": "random", "n": 10000, "L": 20000.0, "r": 1.0, "steps": 50, "mode": "perf",
          "seed": 1}
@@ -47,6 +49,7 @@ def record(variant: str, times: tuple[float, ...], busy: tuple[float, ...],
 def write_experiment(root: Path, name: str, records: list[dict]) -> None:
     rows = [csvfile.csv_row(r, name, name.title()) for r in records]
     csvfile.write_results_csv(root / name / "results.csv", rows)
+    index.write_variants(root / name, fixture_facts().to_json())  # as a run stores them
 
 
 @pytest.fixture(scope="module")

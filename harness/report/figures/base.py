@@ -28,7 +28,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
 
 from harness.analysis.cells import INTERVAL_SUFFIXES, sort_cells
-from harness.spec.variants import default_registry
+from harness.spec.facts import current
 from harness.store import atomic
 from harness.store.columns import INVALID, TIMED_STATUSES
 
@@ -139,8 +139,8 @@ def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
 
 def variant_color(variant: str) -> str:
     """A fixed color per variant, the same in every figure: each family (a variant and those
-    that repair it, harness.spec.variants) its own hue, a repair the light shade of it."""
-    registry = default_registry()
+    that repair it, harness.spec.facts) its own hue, a repair the light shade of it."""
+    registry = current()
     families = registry.families
     family = registry.family(variant)
     if family in families:
