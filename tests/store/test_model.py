@@ -97,7 +97,8 @@ def test_a_key_that_is_not_one_is_refused_by_name(changes: dict[str, object],
         key(**changes)
 
 
-def test_an_older_record_reads_as_now_and_one_not_under_its_key_id_not_at_all(tmp_path: Path) -> None:
+def test_older_records_read_as_now_and_one_not_under_its_key_id_not_at_all(
+        tmp_path: Path) -> None:
     good = key()
     path = tmp_path / f"{good.id}.json"
     record = {"version": 1, "cell_id": good.id, "key": good.to_json(),
