@@ -1,5 +1,6 @@
 """What every command shares: its argument parser's way with errors and the checks of its
-numeric arguments, the program's name, how a measuring command ends when stopped."""
+numeric arguments, the flags of the measuring commands (each defined once, here), the program's
+name, how a measuring command ends when stopped."""
 
 from __future__ import annotations
 
@@ -8,7 +9,11 @@ import math
 import signal
 import sys
 from collections.abc import Callable
-from typing import NoReturn, TypeVar
+from pathlib import Path
+from typing import Any, NoReturn, TypeVar
+
+from harness.repo import DEFAULT_RESULTS_DIR
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS
 
 T = TypeVar("T", int, float)
 
@@ -59,6 +64,30 @@ def seconds(text: str) -> float:
     """A duration in seconds, >= 0."""
     return _number(text, float, lambda v: math.isfinite(v) and v >= 0,
                    "seconds such as 300", "seconds >= 0")
+
+
+# The flags run, compare and history share: one definition and one help text each.
+FLAGS: dict[str, dict[str, Any]] = {
+    "--results-dir": dict(type=Path, default=DEFAULT_RESULTS_DIR,
+                          help="the results root: where measurements are kept, with the "
+                          "machine's calibrations and the revisions' worktrees (default: "
+                          "<repo>/results)"),
+    "--no-wait": dict(action="store_true",
+                      help="when another run is measuring on this machine, stop with an error "
+                      "instead of waiting for it"),
+    "--hyperfine": dict(default="hyperfine", help="hyperfine executable"),
+    "--metric": dict(choices=METRICS, default=None,
+                     help=f"what the cells are measured and compared by: {METRIC_TIME} (the "
+                     f"default), or {METRIC_INSTRUCTIONS}: the instructions each executes, "
+                     "counted and compared exactly, beside the times (overrides a config's "
+                     "metric:; docs/instructions.md)"),
+}
+
+
+def add_flags(parser: argparse.ArgumentParser, names: tuple[str, ...] = tuple(FLAGS)) -> None:
+    """The shared flags `names` (default: all of FLAGS) on `parser`."""
+    for name in names:
+        parser.add_argument(name, **FLAGS[name])
 
 
 def interrupt_on_sigterm() -> None:
