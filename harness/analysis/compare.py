@@ -318,7 +318,7 @@ class Metric:
     verdicts: tuple[tuple[str, str], ...]  # (verdict, as the summary counts it)
     listed: tuple[tuple[str, str], ...]  # (kind listed but not compared, as counted)
     worse: str  # the verdict that fails the gate (EXIT_SLOWER)
-    better: str
+    better: str  # a change the other way (shown in bold as the worse one is)
     undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
 
 

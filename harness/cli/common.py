@@ -8,18 +8,20 @@ import argparse
 import math
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 from harness.repo import DEFAULT_RESULTS_DIR
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS
+from harness.store.locks import RunLock
 
 T = TypeVar("T", int, float)
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130  # what a shell reports for a process Ctrl-C ended
 PROG = "collide-bench"
+QUICK_REPORT = "report-quick"  # where a --quick run's report goes, under the report's
 
 
 class Parser(argparse.ArgumentParser):
@@ -66,7 +68,7 @@ def seconds(text: str) -> float:
                    "seconds such as 300", "seconds >= 0")
 
 
-# The flags run, compare and history share: one definition and one help text each.
+# The flags the measuring commands share: one definition and one help text each.
 FLAGS: dict[str, dict[str, Any]] = {
     "--results-dir": dict(type=Path, default=DEFAULT_RESULTS_DIR,
                           help="the results root: where measurements are kept, with the "
@@ -81,13 +83,24 @@ FLAGS: dict[str, dict[str, Any]] = {
                      f"default), or {METRIC_INSTRUCTIONS}: the instructions each executes, "
                      "counted and compared exactly, beside the times (overrides a config's "
                      "metric:; docs/instructions.md)"),
+    "--report-dir": dict(type=Path, default=None,
+                         help="where the report (and history's pages, history/<config>.md) is "
+                         "rendered (default: <repo>/report for the default results root, else "
+                         f"<results-dir>/report; --quick runs go to <report-dir>/{QUICK_REPORT})"),
 }
+SHARED = ("--results-dir", "--no-wait", "--hyperfine", "--metric")  # run, compare and history
 
 
-def add_flags(parser: argparse.ArgumentParser, names: tuple[str, ...] = tuple(FLAGS)) -> None:
-    """The shared flags `names` (default: all of FLAGS) on `parser`."""
-    for name in names:
+def add_flags(parser: argparse.ArgumentParser, *also: str) -> None:
+    """The flags every measuring command takes (SHARED), and `also` of FLAGS, on `parser`."""
+    for name in (*SHARED, *also):
         parser.add_argument(name, **FLAGS[name])
+
+
+def measuring_lock(args: argparse.Namespace, words: Sequence[object]) -> RunLock:
+    """This machine's measuring lock, named by the command's words; --no-wait: an error where
+    another run holds it, instead of waiting."""
+    return RunLock(" ".join(str(w) for w in words), wait=not args.no_wait, log=sys.stderr)
 
 
 def interrupt_on_sigterm() -> None:

@@ -27,7 +27,7 @@ from harness.analysis.compare import (
     find_drift,
 )
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import Parser, add_flags, fraction, seconds
+from harness.cli.common import Parser, add_flags, fraction, measuring_lock, seconds
 from harness.errors import HarnessError
 from harness.measure import environment, machine
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
@@ -39,7 +39,6 @@ from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import atomic, layout, records
-from harness.store.locks import RunLock
 
 DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
 USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --calibrate "
@@ -166,7 +165,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
     configs = [with_metric(c, args.metric) for c in _configs(paths[2:], registry)]
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
-    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, paths)
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
                                  args.hyperfine, threshold=args.threshold, q=FDR_Q,
@@ -186,7 +185,7 @@ def _calibrate(args: argparse.Namespace, paths: list[str],
                out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
     configs = _configs(paths, registry)
-    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
         measured = calibrate_runs.measure(configs, root.calibration_runs, registry, lock,

@@ -29,6 +29,7 @@ from harness.cli.common import (
     Parser,
     add_flags,
     interrupt_on_sigterm,
+    measuring_lock,
     probability,
     whole_number,
 )
@@ -71,9 +72,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help=f"the p-value a change point needs (default: {DEFAULT_MAX_P:g})")
     parser.add_argument("--repo", type=Path, default=REPO_ROOT,
                         help="the git repository whose commits are measured (default: this one)")
-    add_flags(parser)
-    parser.add_argument("--report-dir", type=Path, default=None,
-                        help="where history/<config>.md goes (default: as for run)")
+    add_flags(parser, "--report-dir")
     return parser
 
 
@@ -99,7 +98,7 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
-    lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, args.items)
     try:
         with lock:
             measure_history(commits, configs, results_root, sys.stderr, repo,
