@@ -1,13 +1,16 @@
-"""Compare two result sets cell by cell (NEW against OLD): the verdicts of `collide-bench
-compare` (harness.cli.compare; how to read them: docs/compare.md).
+"""Compare two result sets cell by cell (NEW against OLD) by a metric: the verdicts of
+`collide-bench compare` (harness.cli.compare; how to read them: docs/compare.md).
 
 OLD and NEW are result directories: one experiment's `results/<name>` or a whole results root
 (every experiment under it). Cells are matched on what was measured (variant, build, scene and
 its parameters, threads, schedule), never on the machine or the binary, because comparing two
-machines or two commits is the point. For every matched cell: both medians, the ratio NEW/OLD
-with its 95% interval, the p-value that it changed by more than the threshold, and a verdict.
+machines or two commits is the point. A metric (Metric) says as data what a matched cell is
+compared by: its name and unit, the results.csv columns read, a cell's value with its interval,
+how two cells are judged and the verdicts that can come of it. One path (compare) serves both:
 
-How a cell is judged depends on how its two sides were measured:
+TIME: both medians, the ratio NEW/OLD with its 95% interval, the p-value that it changed by
+more than the threshold, and a verdict. How a cell is judged depends on how its two sides were
+measured:
 - together (`compare --measure`: both sides in the same rounds, one right after the other,
   with the same round seed): per round, the ratio of the two sides' runs, which the machine's
   drift cannot move, less what the interference measured on either side explains; the sign
@@ -18,13 +21,25 @@ How a cell is judged depends on how its two sides were measured:
   assumed value the output names; stats.drift_change).
 Across the cells of a comparison the false-discovery rate is held at FDR_Q
 (Benjamini-Hochberg): a cell is called slower or faster only as one of the discoveries.
+
+INSTRUCTIONS (the instruction lane, `--metric instructions`, harness.plan.lane): the
+instructions each cell executed, which no other process can change, so a change is not a matter
+of statistics. A side whose counted runs agree (one thread, or threads with fixed shares of the
+work) has one exact count: any difference is real, and the verdict says by how much. A side
+whose counts differ (threads that take work as it comes merge another split of it; nested teams
+reuse threads or start new ones) is a range [fewest, most], and its runs show less than all of
+its variation: a change is called only where the two ranges, each widened by the wider spread
+or VARYING_SHARE of the count, do not meet; otherwise the cell is within its variation. Counts
+of two counters (perf's hardware counter, cachegrind's simulation of another build) do not
+compare: such a cell is listed, not judged.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Sequence
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,11 +55,12 @@ from harness.analysis.resultsets import (
     noise_profile,
     not_comparable,
 )
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.store import layout, records
 from harness.store.columns import STOPPED_UNDECIDED
 
 EXIT_OK = 0
-EXIT_SLOWER = 1
+EXIT_SLOWER = 1  # a cell is worse: slower, or more instructions
 EXIT_INCONCLUSIVE = 3  # none slower, some undecided (with --fail-on inconclusive)
 # What fails the gate (--fail-on): a slower cell only, or also a cell not shown unchanged.
 FAIL_ON_SLOWER = "slower"
@@ -69,6 +85,20 @@ APART = "measured apart"
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
 VERDICTS = stats.VERDICTS
+
+# The instruction lane's verdicts and the kinds of its rows that are listed but not judged.
+MORE = "more instructions"
+FEWER = "fewer instructions"
+SAME = "same instructions"
+WITHIN = "within its variation"
+COUNT_VERDICTS = (MORE, FEWER, SAME, WITHIN)
+NOT_COUNTED = "not counted"
+OTHER_TOOL = "not compared (counters differ)"
+# A cell whose counts vary between runs varies by more than its two runs show: p3's nested
+# teams moved by most of this share between sessions whose own runs agreed closely
+# (docs/instructions.md). Such a cell's change is called only beyond this share of its count,
+# or its runs' spread where that is wider.
+VARYING_SHARE = 0.01
 
 
 @dataclass(frozen=True)
@@ -126,10 +156,10 @@ class Row:
     """One line of the comparison: a compared cell, or one listed with why it was not."""
 
     key: MatchKey
-    kind: str  # a verdict, NOT_OK, OLD_ONLY or NEW_ONLY
+    kind: str  # a verdict of its metric, or why it is listed and not compared
     old: Cell | None
     new: Cell | None
-    ratio: float = math.nan
+    ratio: float = math.nan  # NEW/OLD (of the fewest instructions of each side, where counted)
     low: float = math.nan
     high: float = math.nan
     p_value: float = math.nan  # of the claim it points to, before the false-discovery control
@@ -137,10 +167,11 @@ class Row:
     method: str = ""  # PAIRED or APART
     further: float = math.nan  # rounds (PAIRED) or runs a side (APART) that would likely decide
     change: stats.Change = stats.NO_CHANGE_KNOWN
+    difference: float = math.nan  # NEW - OLD, where exact (instructions)
 
     @property
     def compared(self) -> bool:
-        return self.kind in VERDICTS
+        return self.kind in VERDICTS or self.kind in COUNT_VERDICTS
 
     @property
     def beyond_more_runs(self) -> bool:
@@ -160,17 +191,21 @@ def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     return pair if len(pair.old) >= 2 else None
 
 
+def _inputs(old: Cell, new: Cell) -> list[str]:
+    differ = old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256
+    return ["the input files differ"] if differ else []
+
+
 def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                   note: str = "") -> Row:
-    """One matched cell, tested; its verdict waits for the false-discovery control
-    (compare)."""
+    """One matched cell's times, tested; its verdict waits for the false-discovery control
+    (decide_times)."""
     notes = [note] if note else []
     notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in (("OLD", old), ("NEW", new))
               if cell.flags]
     notes += [f"{side}: stale (its binary changed since)" for side, cell
               in (("OLD", old), ("NEW", new)) if cell.stale]
-    if old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256:
-        notes.append("the input files differ")
+    notes += _inputs(old, new)
     paired = paired_rounds(old, new)
     if paired is not None:
         final = old.stopped in STOPPED_UNDECIDED and new.stopped in STOPPED_UNDECIDED
@@ -193,16 +228,9 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                stats.further_rounds(change, threshold), change)
 
 
-def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
-    """Every key of either side, in order: compared, not compared, or one side only. The
-    compared cells are slower, faster or unchanged only as discoveries at FDR_Q, else
+def decide_times(rows: list[Row]) -> list[Row]:
+    """The tested cells slower, faster or unchanged only as discoveries at FDR_Q, else
     inconclusive."""
-    rows = []
-    for key, a, b, note in matched(old, new):
-        if (kind := not_comparable(a, b)) is not None:
-            rows.append(Row(key, kind, a, b, note=note))
-        else:
-            rows.append(compare_cells(a, b, threshold, drift, note))
     tested = [k for k, row in enumerate(rows) if row.compared]
     verdicts = stats.decide([rows[k].change for k in tested], FDR_Q)
     for k, verdict in zip(tested, verdicts, strict=True):
@@ -213,8 +241,124 @@ def compare(old: Side, new: Side, threshold: float, drift: Drift) -> list[Row]:
     return rows
 
 
-def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
+def _width(cell: Cell) -> float:
+    """How far the cell's counts spread (0 for one exact count)."""
+    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
+    return most - cell.instructions
+
+
+def _count_verdict(old: Cell, new: Cell, notes: list[str]) -> str:
+    """MORE, FEWER, SAME or WITHIN for two counted cells of one counter."""
+    difference = new.instructions - old.instructions
+    old_width, new_width = _width(old), _width(new)
+    if old_width == 0 and new_width == 0:
+        return MORE if difference > 0 else FEWER if difference < 0 else SAME
+    slack = max(old_width, new_width, VARYING_SHARE * old.instructions)
+    notes.append(f"counts vary between runs by up to {max(old_width, new_width):,.0f} "
+                 f"(threads take turns or work as they come): a change is called beyond "
+                 f"{slack:,.0f}")
+    if new.instructions - slack > old.instructions + old_width + slack:
+        return MORE
+    if new.instructions + new_width + slack < old.instructions - slack:
+        return FEWER
+    return WITHIN
+
+
+def judge_counts(old: Cell, new: Cell, threshold: float = 0.0,
+                 drift: Drift = MEASURED_TOGETHER, note: str = "") -> Row:
+    """One matched cell's instruction counts, judged exactly (threshold and drift are the
+    times'; a count needs neither), or listed with why not."""
+    notes = [note] if note else []
+    missing = " and ".join(side for side, cell in (("OLD", old), ("NEW", new))
+                           if not math.isfinite(cell.instructions))
+    if missing:
+        return Row(old.key, NOT_COUNTED, old, new, note="; ".join(
+            [*notes, f"no instruction count on {missing} (measure with --metric "
+             f"{METRIC_INSTRUCTIONS})"]))
+    if old.instructions_tool != new.instructions_tool:
+        return Row(old.key, OTHER_TOOL, old, new, note="; ".join(
+            [*notes, f"OLD counted by {old.instructions_tool or '?'}, NEW by "
+             f"{new.instructions_tool or '?'}"]))
+    ratio = new.instructions / old.instructions if old.instructions > 0 else math.nan
+    kind = _count_verdict(old, new, notes)
+    return Row(old.key, kind, old, new, ratio, note="; ".join([*notes, *_inputs(old, new)]),
+               difference=new.instructions - old.instructions)
+
+
+def time_value(cell: Cell) -> stats.Interval | None:
+    """The cell's time as the harness estimates it (results.csv), with its interval."""
+    if not math.isfinite(cell.median):
+        return None
+    if not cell.times:
+        return stats.Interval(cell.median, math.nan, math.nan)
+    ci = stats.median_ci(cell.times)
+    return stats.Interval(cell.median, ci.low, ci.high)
+
+
+def instructions_value(cell: Cell) -> stats.Interval | None:
+    """The instructions the cell executed: the fewest and the most of its counted runs (the
+    same for a deterministic binary)."""
+    if not math.isfinite(cell.instructions):
+        return None
+    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
+    return stats.Interval(cell.instructions, cell.instructions, most)
+
+
+@dataclass(frozen=True)
+class Metric:
+    """What cells are compared (and a history tracked) by."""
+
+    name: str  # --metric's value, history.csv's `metric`
+    unit: str
+    columns: tuple[str, ...]  # the results.csv columns its values come from
+    exact: bool  # counted, not sampled: any change is real, no statistics needed
+    value: Callable[[Cell], stats.Interval | None]  # a cell's estimate with its interval
+    judge: Callable[[Cell, Cell, float, Drift, str], Row]  # one matched pair of ok cells
+    decide: Callable[[list[Row]], list[Row]]  # the verdicts, across the judged cells
+    verdicts: tuple[tuple[str, str], ...]  # (verdict, as the summary counts it)
+    listed: tuple[tuple[str, str], ...]  # (kind listed but not compared, as counted)
+    worse: str  # the verdict that fails the gate (EXIT_SLOWER)
+    better: str  # a change the other way (shown in bold as the worse one is)
+    undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
+
+
+_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
+                 (NEW_ONLY, "new only"))
+TIME = Metric(METRIC_TIME, "s", ("wall_median_s", "wall_times_s", "wall_times_round"), False,
+              time_value, compare_cells, decide_times,
+              ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
+               (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
+INSTRUCTIONS = Metric(
+    METRIC_INSTRUCTIONS, "", ("instructions", "instructions_max", "instructions_tool"), True,
+    instructions_value, judge_counts, list,
+    ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
+    ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
+     (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
+METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
+
+
+def compare(old: Side, new: Side, threshold: float = DEFAULT_THRESHOLD,
+            drift: Drift = MEASURED_TOGETHER, metric: Metric = TIME) -> list[Row]:
+    """Every key of either side, in order: compared by `metric`, not compared, or one side
+    only."""
+    rows = []
+    for key, a, b, note in matched(old, new):
+        if (kind := not_comparable(a, b)) is not None:
+            rows.append(Row(key, kind, a, b, note=note))
+        else:
+            rows.append(metric.judge(a, b, threshold, drift, note))
+    return metric.decide(rows)
+
+
+def methods(rows: Sequence[Row], threshold: float, drift: Drift,
+            metric: Metric = TIME) -> list[str]:
     """How the verdicts were reached, in words, for the output's head."""
+    if metric.exact:
+        return ["Instructions are counted, not sampled: no other process can change them, so "
+                "a cell whose runs give one count is more or fewer by any difference at all; "
+                "where a cell's runs differ (threads that take turns or work as they come), a "
+                f"change is called only beyond that spread or {VARYING_SHARE:.0%} of its "
+                "count, whichever is wider."]
     used = {r.method for r in rows if r.compared}
     lines = [f"A cell is slower or faster when its change beyond the threshold ({threshold:.0%}: "
              f"NEW/OLD above {1 + threshold:.3f} or below {1 / (1 + threshold):.3f}) is shown, "
@@ -246,22 +390,22 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift) -> list[str]:
     return lines
 
 
-def exit_status(rows: Iterable[Row], fail_on: str = FAIL_ON_INCONCLUSIVE) -> int:
-    """EXIT_SLOWER when a cell is slower; else EXIT_INCONCLUSIVE when one is inconclusive and
-    that fails the gate; else EXIT_OK (every cell unchanged or faster)."""
+def exit_status(rows: Iterable[Row], fail_on: str = FAIL_ON_INCONCLUSIVE,
+                metric: Metric = TIME) -> int:
+    """EXIT_SLOWER when a cell is worse (slower, more instructions); else EXIT_INCONCLUSIVE
+    when one is undecided and that fails the gate; else EXIT_OK."""
     kinds = {r.kind for r in rows}
-    if SLOWER in kinds:
+    if metric.worse in kinds:
         return EXIT_SLOWER
-    if INCONCLUSIVE in kinds and fail_on == FAIL_ON_INCONCLUSIVE:
+    if metric.undecided in kinds and fail_on == FAIL_ON_INCONCLUSIVE:
         return EXIT_INCONCLUSIVE
     return EXIT_OK
 
 
-def summary(rows: Sequence[Row]) -> str:
-    counts = {kind: sum(1 for r in rows if r.kind == kind)
-              for kind in (*VERDICTS, NOT_OK, OLD_ONLY, NEW_ONLY)}
-    compared = sum(counts[v] for v in VERDICTS)
-    return (f"{compared} cells compared: {counts[SLOWER]} slower, {counts[FASTER]} faster, "
-            f"{counts[UNCHANGED]} unchanged, {counts[INCONCLUSIVE]} inconclusive; "
-            f"{counts[NOT_OK]} not compared (not ok), {counts[OLD_ONLY]} old only, "
-            f"{counts[NEW_ONLY]} new only")
+def summary(rows: Sequence[Row], metric: Metric = TIME) -> str:
+    counts = Counter(r.kind for r in rows)
+    compared = sum(counts[verdict] for verdict, _ in metric.verdicts)
+    by = f" by {metric.name}" if metric.exact else ""
+    verdicts, listed = (", ".join(f"{counts[kind]} {word}" for kind, word in pairs)
+                        for pairs in (metric.verdicts, metric.listed))
+    return f"{compared} cells compared{by}: {verdicts}; {listed}"

@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from harness.analysis.changepoints import (
@@ -21,9 +21,9 @@ from harness.analysis.changepoints import (
     change_points,
     exact_change_points,
 )
+from harness.analysis.compare import Metric
 from harness.analysis.resultsets import Cell, MatchKey, read_cells
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
-from harness.stats import Interval, median_ci
+from harness.stats import Interval
 from harness.store import atomic
 from harness.store.columns import (
     BUILD_FAILED_STATUS,
@@ -34,40 +34,6 @@ from harness.store.columns import (
 )
 from harness.store.commits import CommitInfo
 from harness.store.layout import ExperimentDir
-
-
-@dataclass(frozen=True)
-class Metric:
-    """What a history tracks of a cell: its value with an interval, or None."""
-
-    name: str  # history.csv's `metric`
-    unit: str
-    exact: bool  # no neighbour changes it: any change is real, no statistics needed
-    value: Callable[[Cell], Interval | None]
-
-
-def time_value(cell: Cell) -> Interval | None:
-    """The cell's time as the harness estimates it (results.csv), with its interval."""
-    if not math.isfinite(cell.median):
-        return None
-    if not cell.times:
-        return Interval(cell.median, math.nan, math.nan)
-    ci = median_ci(cell.times)
-    return Interval(cell.median, ci.low, ci.high)
-
-
-def instructions_value(cell: Cell) -> Interval | None:
-    """The instructions the cell executed: the fewest and the most of its counted runs (the
-    same for a deterministic binary)."""
-    if not math.isfinite(cell.instructions):
-        return None
-    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
-    return Interval(cell.instructions, cell.instructions, most)
-
-
-TIME = Metric(METRIC_TIME, "s", False, time_value)
-INSTRUCTIONS = Metric(METRIC_INSTRUCTIONS, "", True, instructions_value)
-METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
 
 
 @dataclass(frozen=True)

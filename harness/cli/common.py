@@ -1,5 +1,6 @@
 """What every command shares: its argument parser's way with errors and the checks of its
-numeric arguments, the program's name, how a measuring command ends when stopped."""
+numeric arguments, the flags of the measuring commands (each defined once, here), the program's
+name, how a measuring command ends when stopped."""
 
 from __future__ import annotations
 
@@ -7,14 +8,20 @@ import argparse
 import math
 import signal
 import sys
-from collections.abc import Callable
-from typing import NoReturn, TypeVar
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NoReturn, TypeVar
+
+from harness.repo import DEFAULT_RESULTS_DIR
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS
+from harness.store.locks import RunLock
 
 T = TypeVar("T", int, float)
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130  # what a shell reports for a process Ctrl-C ended
 PROG = "collide-bench"
+QUICK_REPORT = "report-quick"  # where a --quick run's report goes, under the report's
 
 
 class Parser(argparse.ArgumentParser):
@@ -59,6 +66,41 @@ def seconds(text: str) -> float:
     """A duration in seconds, >= 0."""
     return _number(text, float, lambda v: math.isfinite(v) and v >= 0,
                    "seconds such as 300", "seconds >= 0")
+
+
+# The flags the measuring commands share: one definition and one help text each.
+FLAGS: dict[str, dict[str, Any]] = {
+    "--results-dir": dict(type=Path, default=DEFAULT_RESULTS_DIR,
+                          help="the results root: where measurements are kept, with the "
+                          "machine's calibrations and the revisions' worktrees (default: "
+                          "<repo>/results)"),
+    "--no-wait": dict(action="store_true",
+                      help="when another run is measuring on this machine, stop with an error "
+                      "instead of waiting for it"),
+    "--hyperfine": dict(default="hyperfine", help="hyperfine executable"),
+    "--metric": dict(choices=METRICS, default=None,
+                     help=f"what the cells are measured and compared by: {METRIC_TIME} (the "
+                     f"default), or {METRIC_INSTRUCTIONS}: the instructions each executes, "
+                     "counted and compared exactly, beside the times (overrides a config's "
+                     "metric:; docs/instructions.md)"),
+    "--report-dir": dict(type=Path, default=None,
+                         help="where the report (and history's pages, history/<config>.md) is "
+                         "rendered (default: <repo>/report for the default results root, else "
+                         f"<results-dir>/report; --quick runs go to <report-dir>/{QUICK_REPORT})"),
+}
+SHARED = ("--results-dir", "--no-wait", "--hyperfine", "--metric")  # run, compare and history
+
+
+def add_flags(parser: argparse.ArgumentParser, *also: str) -> None:
+    """The flags every measuring command takes (SHARED), and `also` of FLAGS, on `parser`."""
+    for name in (*SHARED, *also):
+        parser.add_argument(name, **FLAGS[name])
+
+
+def measuring_lock(args: argparse.Namespace, words: Sequence[object]) -> RunLock:
+    """This machine's measuring lock, named by the command's words; --no-wait: an error where
+    another run holds it, instead of waiting."""
+    return RunLock(" ".join(str(w) for w in words), wait=not args.no_wait, log=sys.stderr)
 
 
 def interrupt_on_sigterm() -> None:

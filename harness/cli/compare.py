@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
-from harness.analysis import calibration, exact
+from harness.analysis import calibration
 from harness.analysis.compare import (
     CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
@@ -18,6 +18,7 @@ from harness.analysis.compare import (
     FAIL_ON_INCONCLUSIVE,
     FDR_Q,
     MEASURED_TOGETHER,
+    METRICS,
     NOT_OK,
     Drift,
     allow_noise,
@@ -26,20 +27,18 @@ from harness.analysis.compare import (
     find_drift,
 )
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import Parser, fraction, seconds
+from harness.cli.common import Parser, add_flags, fraction, measuring_lock, seconds
 from harness.errors import HarnessError
 from harness.measure import environment, machine
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
-from harness.report.compare_exact import write_exact
 from harness.runner import calibrate as calibrate_runs
 from harness.runner.pair import DEFAULT_BUDGET_S, measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS, with_metric
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import atomic, layout, records
-from harness.store.locks import RunLock
 
 DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
 USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --calibrate "
@@ -83,22 +82,12 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None,
                         help="where compare.md and compare.{png,svg} go, and with --measure the "
                         "sides' results (default: <repo>/results/compare)")
-    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
-                        help="the results root whose calibrations (and revision worktrees) are "
-                        "used (default: <repo>/results)")
+    add_flags(parser)
     parser.add_argument("--old-machine", metavar="ID-OR-LABEL",
                         help="use OLD's cells of this machine (machine_id prefix or label part)")
     parser.add_argument("--new-machine", metavar="ID-OR-LABEL",
                         help="use NEW's cells of this machine")
     parser.add_argument("--no-figure", action="store_true", help="write only compare.md")
-    parser.add_argument("--no-wait", action="store_true",
-                        help="with --measure or --calibrate: when another run is measuring on "
-                        "this machine, stop with an error instead of waiting for it")
-    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
-    parser.add_argument("--metric", choices=METRICS, default=None,
-                        help=f"what the cells are compared by (default: {METRIC_TIME}); "
-                        f"{METRIC_INSTRUCTIONS}: the instructions each executed, exactly (with "
-                        "--measure, both sides are counted; docs/instructions.md)")
     return parser
 
 
@@ -143,31 +132,20 @@ def roots_of(path: Path) -> list[Path]:
 
 def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Drift,
            head: Sequence[str], out_stream: TextIO) -> int:
-    if args.metric == METRIC_INSTRUCTIONS:
-        return report_instructions(old, new, out, head, out_stream)
-    rows = compare(old, new, args.threshold, drift)
+    """The comparison by --metric, written and printed; its exit status."""
+    metric = METRICS[args.metric or METRIC_TIME]
+    rows = compare(old, new, args.threshold, drift, metric)
     if not any(r.compared or r.kind == NOT_OK for r in rows):
+        counted = f" and counted on both sides (measure with --metric {metric.name})" \
+            if metric.exact else ""
         raise HarnessError(f"nothing matched: no cell of {new.path} measured what a cell of "
-                           f"{old.path} measured ({len(old.cells)} and {len(new.cells)} cells)")
+                           f"{old.path} measured{counted} ({len(old.cells)} and "
+                           f"{len(new.cells)} cells)")
     text, written = write_outputs(old, new, rows, args.threshold, out, drift,
-                                  figure=not args.no_figure, head=head)
+                                  figure=not args.no_figure, head=head, metric=metric)
     out_stream.write(text + "\n")
     out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
-    return exit_status(rows, args.fail_on)
-
-
-def report_instructions(old: Side, new: Side, out: Path, head: Sequence[str],
-                        out_stream: TextIO) -> int:
-    """The comparison on the instruction lane: exact counts, exit 1 where NEW executes more."""
-    rows = exact.compare_instructions(old, new)
-    if not any(r.compared for r in rows):
-        raise HarnessError(f"nothing to compare by instructions: no cell of {new.path} has a "
-                           f"count matching one of {old.path} (measure with --metric "
-                           f"{METRIC_INSTRUCTIONS})")
-    text, written = write_exact(old, new, rows, out, head)
-    out_stream.write(text + "\n")
-    out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
-    return exact.exit_status(rows)
+    return exit_status(rows, args.fail_on, metric)
 
 
 def _configs(paths: Sequence[str], registry: VariantRegistry) -> list:
@@ -187,7 +165,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
     configs = [with_metric(c, args.metric) for c in _configs(paths[2:], registry)]
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
-    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, paths)
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
                                  args.hyperfine, threshold=args.threshold, q=FDR_Q,
@@ -207,7 +185,7 @@ def _calibrate(args: argparse.Namespace, paths: list[str],
                out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
     configs = _configs(paths, registry)
-    lock = RunLock(" ".join(paths), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
         measured = calibrate_runs.measure(configs, root.calibration_runs, registry, lock,

@@ -10,10 +10,9 @@ from pathlib import Path
 from typing import TextIO
 
 from harness.analysis.changepoints import DEFAULT_MAX_P, ChangePoint
+from harness.analysis.compare import INSTRUCTIONS, TIME, Metric
 from harness.analysis.history import (
-    METRICS,
     Bisection,
-    Metric,
     Series,
     cell_point,
     detect,
@@ -28,19 +27,21 @@ from harness.analysis.resultsets import Cell, read_cells
 from harness.cli.common import (
     EXIT_INTERRUPTED,
     Parser,
+    add_flags,
     interrupt_on_sigterm,
+    measuring_lock,
     probability,
     whole_number,
 )
 from harness.cli.run import report_dir
 from harness.errors import HarnessError
 from harness.measure import machine
-from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.repo import REPO_ROOT
 from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
 from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, Config, with_metric
+from harness.spec.config import Config, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
@@ -63,10 +64,6 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--every", type=whole_number, default=1, metavar="K",
                         help="measure every K-th commit of the range (the first and last "
                         "always); --bisect then names the commit between")
-    parser.add_argument("--metric", choices=tuple(METRICS), default=METRIC_TIME,
-                        help="what is tracked: time, or with instructions the instruction "
-                        "lane too (each commit's cells counted as `run --metric "
-                        "instructions` does; the config's metric: counts as well)")
     parser.add_argument("--bisect", action="store_true",
                         help="where a change point falls between measured commits that are "
                         "not adjacent, measure the commits between (each against its "
@@ -75,15 +72,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help=f"the p-value a change point needs (default: {DEFAULT_MAX_P:g})")
     parser.add_argument("--repo", type=Path, default=REPO_ROOT,
                         help="the git repository whose commits are measured (default: this one)")
-    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
-                        help="results root: each commit's measurements go to "
-                        "<results>/<experiment>/history/<commit>/ (default: <repo>/results)")
-    parser.add_argument("--report-dir", type=Path, default=None,
-                        help="where history/<config>.md goes (default: as for run)")
-    parser.add_argument("--no-wait", action="store_true",
-                        help="when another run is measuring on this machine, stop with an "
-                        "error instead of waiting for it")
-    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    add_flags(parser, "--report-dir")
     return parser
 
 
@@ -103,23 +92,20 @@ def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
     interrupt_on_sigterm()
     revisions, paths = split_items(args.items)
     registry = VariantRegistry(REPO_ROOT)
-    metric = None if args.metric == METRIC_TIME else args.metric
-    configs = [with_metric(load_config(p, registry), metric) for p in paths]
+    configs = [with_metric(load_config(p, registry), args.metric) for p in paths]
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
-    lock = RunLock(" ".join(args.items), wait=not args.no_wait, log=sys.stderr)
+    lock = measuring_lock(args, args.items)
     try:
         with lock:
             measure_history(commits, configs, results_root, sys.stderr, repo,
                             hyperfine=args.hyperfine, run_lock=lock)
             machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
             for config in configs:
-                metrics = [METRICS[m] for m in
-                           ((METRIC_TIME, METRIC_INSTRUCTIONS) if config.counts_instructions
-                            else (METRIC_TIME,))]
+                metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
                 series = analyse(config, commits, metrics, machine_id, results_root,
                                  args.max_p)
                 if args.bisect:  # what the series found is kept should bisection stop
@@ -152,7 +138,7 @@ def publish(config: Config, series: Sequence[Series], order: Mapping[str, int],
     write_history_csv(exp, history_rows(config.name, written, order))
     command = "collide-bench history " + " ".join(args.items) + (
         f" --every {args.every}" if args.every > 1 else "") + (
-        f" --metric {args.metric}" if args.metric != METRIC_TIME else "") + (
+        f" --metric {args.metric}" if args.metric else "") + (
         " --bisect" if args.bisect else "")
     return page(config.name, written, report_dir(args), command), written
 

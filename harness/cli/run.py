@@ -8,18 +8,24 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm, whole_number
+from harness.cli.common import (
+    EXIT_INTERRUPTED,
+    QUICK_REPORT,
+    Parser,
+    add_flags,
+    interrupt_on_sigterm,
+    measuring_lock,
+    whole_number,
+)
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.experiment import run_experiment
-from harness.spec.config import DEFAULT_MAX_CELLS, METRIC_INSTRUCTIONS, METRICS, with_metric
+from harness.spec.config import DEFAULT_MAX_CELLS, with_metric
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
-from harness.store.locks import RunLock
 
-QUICK_REPORT = "report-quick"
 REPORT_SUBDIR = "report"  # a results root's own report, beside its experiments
 
 
@@ -32,23 +38,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="smoke run: n <= 400, steps <= 5, into results/<name>-quick/")
     parser.add_argument("--force", action="store_true", help="re-measure cached cells")
     parser.add_argument("--no-report", action="store_true", help="do not render the report")
-    parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
-                        help="results root (default: <repo>/results)")
-    parser.add_argument("--report-dir", type=Path, default=None,
-                        help="where the report is rendered (default: <repo>/report for the "
-                        "default results root, else <results-dir>/report; --quick runs go "
-                        f"to <report-dir>/{QUICK_REPORT})")
-    parser.add_argument("--no-wait", action="store_true",
-                        help="when another run is measuring on this machine, stop with an "
-                        "error instead of waiting for it")
     parser.add_argument("--max-cells", type=whole_number, default=DEFAULT_MAX_CELLS, metavar="N",
                         help="refuse a config that plans more than N cells, counted before "
                         f"anything is built (default {DEFAULT_MAX_CELLS})")
-    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
-    parser.add_argument("--metric", choices=METRICS, default=None,
-                        help="what cells are measured by (overrides the config's metric:); "
-                        f"{METRIC_INSTRUCTIONS}: also the instructions each executes "
-                        "(docs/instructions.md)")
+    add_flags(parser, "--report-dir")
     parser.add_argument("--executor", choices=tuple(EXECUTORS), default=None,
                         help="where cells are measured: local (one after another here; the "
                         "default) or slurm (one job-array task per cell); overrides the "
@@ -61,11 +54,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-
 def execute(args: argparse.Namespace) -> int:
     interrupt_on_sigterm()
-    run_lock = RunLock(" ".join(str(p) for p in args.configs), wait=not args.no_wait,
-                       log=sys.stderr)
+    run_lock = measuring_lock(args, args.configs)
     options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,

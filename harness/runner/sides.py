@@ -82,11 +82,9 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
     """Make what the side lacks. A revision builds its own sources with this checkout's
     compiler; a directory must already hold every binary."""
     if side.commit is None:
-        missing = [b for b in binaries if not b.is_file()]
+        missing = list(dict.fromkeys(b for b in binaries if not b.is_file()))
         if missing:
-            names = ", ".join(b.name for b in missing)
-            raise HarnessError(f"{side.name}: {side.given} has no {names} (the configs need "
-                               f"{', '.join(b.name for b in binaries)})")
+            raise HarnessError(missing_binaries(side, missing))
         return
     known = VariantRegistry(side.repo_root)
     absent = [v for v in dict.fromkeys(variants) if v not in known]
@@ -106,6 +104,23 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
                           extra=[f"CC={compiler}"])
     except HarnessError as exc:
         raise HarnessError(f"{side.name}: revision {side.label} does not build: {exc}") from None
+
+
+def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:
+    """What a directory side lacks, each binary once, and how to make it: a directory is
+    measured as it is, so its checkout's Makefile (`make all`, and `make lane` for the
+    instruction lane's builds under cachegrind) makes them, or a revision is given instead."""
+    shown = ", ".join(str(Path(side.given) / b.relative_to(side.build_dir)) for b in missing)
+    lane_dir = side.build_dir / lane.LANE_DIR
+    goals = [goal for goal, wanted in (("all", any(b.parent != lane_dir for b in missing)),
+                                       ("lane", any(b.parent == lane_dir for b in missing)))
+             if wanted]
+    here = side.build_dir == (REPO_ROOT / BUILD_DIR).resolve()
+    make = " ".join(["make", *([] if here else ["-C", str(side.build_dir.parent)]), *goals])
+    lanes = (f" (build/{lane.LANE_DIR}/: the instruction lane's {lane.LANE_ISA} builds, which "
+             "cachegrind counts)") if "lane" in goals else ""
+    return (f"{side.name}: {side.given} has no {shown}{lanes}; make them with `{make}`, or "
+            "give a git revision instead, which is built for you")
 
 
 def build_lanes(side: BuildSide, lanes: Sequence[Path], compiler: str) -> None:

@@ -1,7 +1,8 @@
-"""The instruction lane's verdicts (harness.analysis.exact): one exact count a side is more or
-fewer by any difference, at NEW/OLD to six decimals; counts that vary between runs call a change
-only beyond their spread; counts of different counters, missing counts and one-sided cells are
-listed, not judged; the exit status; the cell table's instructions beside times."""
+"""The instruction lane's verdicts (harness.analysis.compare's INSTRUCTIONS metric): one exact
+count a side is more or fewer by any difference, at NEW/OLD to six decimals; counts that vary
+between runs call a change only beyond their spread; counts of different counters, missing
+counts and one-sided cells are listed, not judged; the exit status; the report's page; the cell
+table's instructions beside times."""
 
 from __future__ import annotations
 
@@ -11,12 +12,25 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from harness.analysis import exact
+from harness.analysis import compare
 from harness.analysis.resultsets import Cell, MatchKey, Side
 from harness.analysis.speedup import cell_table
-from harness.report.compare_exact import render_exact
+from harness.report.compare import ratio_text, render_markdown
 
 KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "")
+
+
+def instructions(old: Side, new: Side) -> list[compare.Row]:
+    return compare.compare(old, new, metric=compare.INSTRUCTIONS)
+
+
+def status(rows: list[compare.Row]) -> int:
+    return compare.exit_status(rows, metric=compare.INSTRUCTIONS)
+
+
+def render(old: Side, new: Side, rows: list[compare.Row]) -> str:
+    return render_markdown(old, new, rows, compare.DEFAULT_THRESHOLD, None,
+                           compare.MEASURED_TOGETHER, metric=compare.INSTRUCTIONS)
 
 
 def cell(count: float, most: float | None = None, tool: str = "cachegrind",
@@ -28,16 +42,16 @@ def cell(count: float, most: float | None = None, tool: str = "cachegrind",
 
 
 @pytest.mark.parametrize(("old", "new", "kind", "ratio"), [
-    (cell(718_102_891), cell(718_102_891), exact.SAME, "1.000000"),
-    (cell(718_102_891), cell(718_102_892), exact.MORE, "1.000000"),  # one instruction more
-    (cell(1_000_000), cell(1_050_000), exact.MORE, "1.050000"),
-    (cell(1_000_000), cell(999_000), exact.FEWER, "0.999000"),
+    (cell(718_102_891), cell(718_102_891), compare.SAME, "1.000000"),
+    (cell(718_102_891), cell(718_102_892), compare.MORE, "1.000000"),  # one instruction more
+    (cell(1_000_000), cell(1_050_000), compare.MORE, "1.050000"),
+    (cell(1_000_000), cell(999_000), compare.FEWER, "0.999000"),
 ])
 def test_one_exact_count_a_side_calls_any_difference(old: Cell, new: Cell, kind: str,
                                                      ratio: str) -> None:
-    row = exact.judge(old, new)
+    row = compare.judge_counts(old, new)
     assert row.kind == kind
-    assert exact.ratio_text(row.ratio) == ratio
+    assert ratio_text(row, compare.INSTRUCTIONS) == ratio
     assert row.difference == new.instructions - old.instructions
     assert row.note == ""
 
@@ -45,53 +59,54 @@ def test_one_exact_count_a_side_calls_any_difference(old: Cell, new: Cell, kind:
 def test_counts_that_vary_call_a_change_only_beyond_their_variation() -> None:
     # p1d at two threads: its counts spread by ~1,000 in 374 million; 1% of it is 3,745,073
     old = cell(374_507_287, 374_508_245)
-    within = exact.judge(old, cell(374_508_000, 374_508_900))
-    assert within.kind == exact.WITHIN
+    within = compare.judge_counts(old, cell(374_508_000, 374_508_900))
+    assert within.kind == compare.WITHIN
     assert "counts vary between runs by up to 958" in within.note
     assert "a change is called beyond 3,745,073" in within.note
     # p3's nested teams: two sessions 0.78% apart, each with a narrow spread of its own
-    assert exact.judge(cell(53_206_368, 53_206_541), cell(53_619_417)).kind == exact.WITHIN
+    assert compare.judge_counts(cell(53_206_368, 53_206_541),
+                                cell(53_619_417)).kind == compare.WITHIN
     # beyond 1% on both sides of the range: called
-    assert exact.judge(old, cell(374_508_245 + 2 * 3_745_073 + 1)).kind == exact.MORE
-    assert exact.judge(old, cell(374_508_245 + 2 * 3_745_073 - 1)).kind == exact.WITHIN
-    assert exact.judge(old, cell(366_000_000, 366_000_100)).kind == exact.FEWER
+    assert compare.judge_counts(old, cell(374_508_245 + 2 * 3_745_073 + 1)).kind == compare.MORE
+    assert compare.judge_counts(old, cell(374_508_245 + 2 * 3_745_073 - 1)).kind == compare.WITHIN
+    assert compare.judge_counts(old, cell(366_000_000, 366_000_100)).kind == compare.FEWER
     # a spread wider than 1% is the slack itself
-    wide = exact.judge(cell(100, 150), cell(240))
-    assert wide.kind == exact.WITHIN and "called beyond 50" in wide.note
-    assert exact.judge(cell(100, 150), cell(251)).kind == exact.MORE
+    wide = compare.judge_counts(cell(100, 150), cell(240))
+    assert wide.kind == compare.WITHIN and "called beyond 50" in wide.note
+    assert compare.judge_counts(cell(100, 150), cell(251)).kind == compare.MORE
 
 
 def test_what_is_not_judged_is_listed_with_why() -> None:
     other = dataclasses.replace(KEY, variant="p1d")
     old = Side("OLD", Path("old"), {KEY: cell(100.0)})
     new = Side("NEW", Path("new"), {KEY: cell(100.0, tool="perf"), other: cell(5.0, key=other)})
-    rows = exact.compare_instructions(old, new)
-    assert [r.kind for r in rows] == [exact.NEW_ONLY, exact.OTHER_TOOL]
+    rows = instructions(old, new)
+    assert [r.kind for r in rows] == [compare.NEW_ONLY, compare.OTHER_TOOL]
     assert "OLD counted by cachegrind, NEW by perf" in rows[1].note
-    assert exact.exit_status(rows) == exact.EXIT_OK
-    uncounted = exact.compare_instructions(
+    assert status(rows) == compare.EXIT_OK
+    uncounted = instructions(
         Side("OLD", Path("old"), {KEY: cell(math.nan)}), Side("NEW", Path("new"),
                                                                {KEY: cell(100.0)}))
-    assert uncounted[0].kind == exact.NOT_COUNTED
+    assert uncounted[0].kind == compare.NOT_COUNTED
     assert "no instruction count on OLD" in uncounted[0].note
-    failed = exact.compare_instructions(
+    failed = instructions(
         Side("OLD", Path("old"), {KEY: cell(100.0, status="failed")}),
         Side("NEW", Path("new"), {KEY: cell(100.0)}))
-    assert failed[0].kind == exact.NOT_OK
+    assert failed[0].kind == compare.NOT_OK
 
 
 def test_more_instructions_anywhere_fails_the_gate_and_the_output_says_so() -> None:
     old = Side("OLD", Path("old"), {KEY: cell(1_000_000)})
     new = Side("NEW", Path("new"), {KEY: cell(1_000_001)})
-    rows = exact.compare_instructions(old, new)
-    assert exact.exit_status(rows) == exact.EXIT_MORE
-    text = render_exact(old, new, rows)
+    rows = instructions(old, new)
+    assert status(rows) == compare.EXIT_SLOWER
+    text = render(old, new, rows)
     assert "1 cells compared by instructions: 1 more, 0 fewer, 0 the same, 0 within" in text
     assert "| 1,000,000 | 1,000,001 | 1.000001 | +1 | **more instructions** |" in text
-    fewer = exact.compare_instructions(new, old)
-    assert exact.exit_status(fewer) == exact.EXIT_OK
+    fewer = instructions(new, old)
+    assert status(fewer) == compare.EXIT_OK
     assert "| 1,000,001 | 1,000,000 | 0.999999 | -1 | **fewer instructions** |" in \
-        render_exact(new, old, fewer)
+        render(new, old, fewer)
 
 
 def test_the_cell_table_shows_instructions_beside_times() -> None:

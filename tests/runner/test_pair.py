@@ -14,9 +14,10 @@ from harness import stats
 from harness.analysis import compare, resultsets
 from harness.errors import HarnessError
 from harness.measure import noise
-from harness.repo import REPO_ROOT
+from harness.plan import lane
+from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.runner import pair
-from harness.runner.sides import BuildSide, build, resolve
+from harness.runner.sides import BuildSide, build, missing_binaries, resolve
 
 from commands import compare_main
 
@@ -86,7 +87,7 @@ def test_undecided_cells_get_rounds_until_the_budget_is_spent(
 
 @pytest.mark.parametrize(("old", "new", "config", "message"), [
     ("no-such-rev", "build", CONFIG, "OLD: 'no-such-rev' is neither a directory of binaries"),
-    ("build", "/", CONFIG, "NEW: / has no seq, p1"),
+    ("build", "/", CONFIG, "NEW: / has no /seq, /p1; make them with `make -C / all`"),
     ("build", "build", CONFIG + "exclude: [{variant: [seq, p1]}]\n",
      "every cell is excluded: nothing to measure"),
 ])
@@ -103,6 +104,33 @@ def test_bad_sides_are_one_error_and_write_nothing(old: str, new: str, config: s
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err and err.count("\n") == 1, err
     assert not out.exists()
+
+
+def test_a_directory_without_the_lane_builds_names_each_once_and_how_to_make_them(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # under cachegrind a count runs the lane build, which a plain `make all` does not make
+    monkeypatch.setattr(lane, "machine_tool", lambda: lane.CACHEGRIND)
+    built = tmp_path / "checkout" / "build"
+    built.mkdir(parents=True)
+    for name in ("seq", "p1"):
+        (built / name).write_text("")
+    path = tmp_path / "c.yaml"
+    path.write_text(CONFIG)
+    assert compare_main(["--measure", str(built), str(built), str(path), "--metric",
+                         "instructions", "--out", str(tmp_path / "out"), "--results-dir",
+                         str(tmp_path / "results")]) == 2
+    err = capsys.readouterr().err
+    assert f"error: OLD: {built} has no {built}/lane/seq, {built}/lane/p1 (build/lane/: the " \
+        f"instruction lane's {lane.LANE_ISA} builds, which cachegrind counts); make them with " \
+        f"`make -C {built.parent} lane`, or give a git revision instead" in err, err
+    assert err.count("\n") == 1
+    # this checkout's build/, as `compare --measure build build` gives it
+    side = BuildSide("OLD", "build", (REPO_ROOT / BUILD_DIR).resolve(), REPO_ROOT, None)
+    lanes = side.build_dir / lane.LANE_DIR
+    message = missing_binaries(side, [lanes / "seq", lanes / "p1d", side.build_dir / "grid"])
+    assert message.startswith("OLD: build has no build/lane/seq, build/lane/p1d, build/grid (")
+    assert "make them with `make all lane`" in message
 
 
 def test_a_revision_without_a_variant_is_named() -> None:
