@@ -26,7 +26,8 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.measure.agreement import Agreement, first_difference, judge
+from harness.measure.agreement import Agreement, judge
+from harness.measure.printed import first_difference
 from harness.measure.proc import ProcessResult, exit_status, run_process, tail
 from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
