@@ -80,16 +80,7 @@ class Measurer:
             return resumed
         config, measure = self.config, self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule)
-        repo = self.store.repo_root
-        record = self.store.new_record(cell, cell_id)
-        record.update({
-            "cores": self.cores, "oversubscribed": cell.threads > self.cores,
-            "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
-            records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
-            "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
-        })
-        for old in self.store.layout.hyperfine_files(cell_id):
-            old.unlink(missing_ok=True)
+        record = self.new_record(cell, cell_id, env)
         if cell.program:
             return self.count(cell, start_program(self.store, self.references, cell, cell_id,
                                                   key, record, env, measure.timeout_s))
@@ -131,6 +122,21 @@ class Measurer:
             record.update(measure_costs(self.store.ompcost(cell), cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
                                         run_s=run_s))
+
+    def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> records.Record:
+        """A fresh record of the cell, with where and how it runs; an earlier measurement's
+        hyperfine files removed."""
+        repo = self.store.repo_root
+        record = self.store.new_record(cell, cell_id)
+        record.update({
+            "cores": self.cores, "oversubscribed": cell.threads > self.cores,
+            "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
+            records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
+            "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
+        })
+        for old in self.store.layout.hyperfine_files(cell_id):
+            old.unlink(missing_ok=True)
+        return record
 
     def count(self, cell: Cell, run: CellRun) -> CellRun:
         """With the instruction lane, the instructions of the cell's run (harness.measure.

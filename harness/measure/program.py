@@ -28,7 +28,8 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.measure.agreement import Agreement, first_difference, judge
+from harness.measure.agreement import Agreement, judge
+from harness.measure.printed import first_difference
 from harness.measure.proc import ProcessResult, exit_status, run_process, tail
 from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
@@ -106,16 +107,8 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
         record.update(check_s=checked.seconds + time.monotonic() - judged,
                       replay_s=math.fsum(replays))
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
-        verdict = _repeatable(program, store.input_file(scene), cell.threads, env, timeout_s,
-                              text) or verdict
-        if program.build:
-            small = small_scene(cell.scene)
-            check = find_races(program, store.input_file(small), small.describe(), env,
-                               timeout_s)
-            record.update(races=check.column(), race_check={
-                "threads": check.threads, "scene": check.scene, "note": check.note,
-                "races": [dataclasses.asdict(r) for r in check.races or ()]})
-            verdict = with_races(verdict, check)
+        verdict = _repeated_and_raced(program, store, cell, store.input_file(scene), env,
+                                      timeout_s, text, verdict, record)
     record.update(verdict.fields())
     where = []
     if steps < cell.scene.steps:
@@ -125,6 +118,23 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     record["note"] = "; ".join([verdict.note, *where] if verdict.note else where)
     status = OK if verdict.verdict in AGREEING else INVALID
     return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+
+
+def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_input: Path,
+                        env: Mapping[str, str], timeout_s: float, text: str,
+                        verdict: Agreement, record: records.Record) -> Agreement:
+    """At the config's most threads, the verdict with a second check run (the same output,
+    or its first difference) and, for a program built from its source, the race check (its
+    result into the record)."""
+    verdict = _repeatable(program, check_input, cell.threads, env, timeout_s, text) or verdict
+    if program.build:
+        small = small_scene(cell.scene)
+        check = find_races(program, store.input_file(small), small.describe(), env, timeout_s)
+        record.update(races=check.column(), race_check={
+            "threads": check.threads, "scene": check.scene, "note": check.note,
+            "races": [dataclasses.asdict(r) for r in check.races or ()]})
+        verdict = with_races(verdict, check)
+    return verdict
 
 
 class ReplayError(RuntimeError):

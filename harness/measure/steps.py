@@ -166,20 +166,7 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     slack = ARITH_ULPS * DOUBLE_EPS * L
     base = read_successors(replay(replay_input(n, L, r, [(k, states[k]) for k in pairs],
                                               [None] * len(pairs))), n)
-    # Per step: which particles are not yet explained, and how far off they are.
-    open_: dict[int, np.ndarray] = {}
-    deviation: dict[int, np.ndarray] = {}
-    for k in pairs:
-        dev = np.abs(states[k + 1] - base.values[k])
-        dev[~np.isfinite(dev)] = np.inf
-        deviation[k] = dev
-        # A particle the reference moves freely moves by x + vx: its printed uncertainty
-        # carries over exactly, without replays (most particles, in a sparse scene).
-        carried = np.where((base.kind[k] == EVENT_CODES["free"])[:, None],
-                           np.hstack([halves[k][:, :2] + halves[k][:, 2:], halves[k][:, 2:]]), 0)
-        suspect = np.any(dev > halves[k + 1] + slack + carried, axis=1)
-        if suspect.any():
-            open_[k] = suspect
+    open_, deviation = _suspects(states, halves, pairs, base, slack)
     explain = _Explainer(states, halves, n, L, r, replay, base, deviation, exact)
     # A value is wrong when neither the printed uncertainty nor the coarsest level explains it.
     # Each value's answer at a level is its own (the replays of a step perturb the whole state
@@ -198,16 +185,9 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
             k = min(wrong)
             wrong = {k: wrong[k]}
             break
-    # The precision the program reaches where it is right (the steps before the first wrong
-    # one): the finest level that, with the finer ones and the printed uncertainty, explains
-    # every value; a level fails at its first value left, usually within the first step.
-    before = [k for k in sorted(open_) if not wrong or k < min(wrong)]
-    reached: float | None = None
-    for m, level in enumerate(PRECISION_LADDER):
-        if level == coarsest or explain.explains((level, *PRECISION_LADDER[:m], None),
-                                                 before, open_):
-            reached = None if explain.explains((None,), before, open_) else level
-            break
+    # The precision the program reaches where it is right: the steps before the first wrong one.
+    reached = _reached(explain, [k for k in sorted(open_) if not wrong or k < min(wrong)],
+                       open_)
     open_ = wrong
     near_ties = explain.near_ties(open_)
     if not open_:
@@ -221,6 +201,40 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
                          event, float(np.max(deviation[k][i])), len(pairs), near_ties,
                          base.partner[k], base.values[k])
 
+
+
+def _suspects(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], pairs: list[int],
+              base: Successors, slack: float
+              ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """Per step: which particles the printed uncertainty does not explain without replays,
+    and how far off each particle's values are."""
+    open_: dict[int, np.ndarray] = {}
+    deviation: dict[int, np.ndarray] = {}
+    for k in pairs:
+        dev = np.abs(states[k + 1] - base.values[k])
+        dev[~np.isfinite(dev)] = np.inf
+        deviation[k] = dev
+        # A particle the reference moves freely moves by x + vx: its printed uncertainty
+        # carries over exactly, without replays (most particles, in a sparse scene).
+        carried = np.where((base.kind[k] == EVENT_CODES["free"])[:, None],
+                           np.hstack([halves[k][:, :2] + halves[k][:, 2:], halves[k][:, 2:]]), 0)
+        suspect = np.any(dev > halves[k + 1] + slack + carried, axis=1)
+        if suspect.any():
+            open_[k] = suspect
+    return open_, deviation
+
+
+def _reached(explain: _Explainer, before: list[int], open_: dict[int, np.ndarray]
+             ) -> float | None:
+    """The finest level of PRECISION_LADDER that, with the finer ones and the printed
+    uncertainty, explains every value of the steps `before` (None: the printed uncertainty
+    alone does); a level fails at its first value left, usually within the first step."""
+    coarsest = PRECISION_LADDER[-1]
+    for m, level in enumerate(PRECISION_LADDER):
+        if level == coarsest or explain.explains((level, *PRECISION_LADDER[:m], None),
+                                                 before, open_):
+            return None if explain.explains((None,), before, open_) else level
+    return None
 
 def _chunks(steps: list[int]) -> list[list[int]]:
     """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop

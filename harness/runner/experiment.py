@@ -93,20 +93,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
     warn_oversubscribed(plan, experiment.cores, log)
-    here = executor.name == "local"
-    env: dict[str, object] | None = None
-    # The measuring lock guards this machine's measurements; a remote executor measures
-    # elsewhere (each Slurm task has its node to itself by default).
-    if pending and here and options.run_lock is not None and not options.run_lock.held:
-        options.run_lock.acquire()  # may wait for another run; the load is sampled after
-        pending = not_cached(experiment, pending)  # that run may have measured some of them
-    # A remote executor's workers write the env of their machines (harness.worker).
-    if pending and here:
-        env = environment.collect(options.repo_root, options.make, options.hyperfine)
-        index.write_env(experiment.directory, env)
-    elif not pending and not experiment.store.layout.env_json.is_file():
-        index.write_env(experiment.directory, environment.collect(
-            options.repo_root, options.make, options.hyperfine))
+    pending, env = lock_and_describe(experiment, pending, here=executor.name == "local")
     measured: set[str] = set()
     rebuilds = CsvRebuilds(experiment.store.write_csv)
 
@@ -136,17 +123,45 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     elif missing:
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
+    return summarise(experiment, order, len(measured), len(missing))
+
+
+def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool
+                      ) -> tuple[list[tuple[Cell, str]], dict[str, object] | None]:
+    """Before measuring here: the machine-wide measuring lock (the cells still pending once
+    it is held) and env.json (the machine and tools; returned, to add the load after)."""
+    options = experiment.options
+    env: dict[str, object] | None = None
+    # The measuring lock guards this machine's measurements; a remote executor measures
+    # elsewhere (each Slurm task has its node to itself by default).
+    if pending and here and options.run_lock is not None and not options.run_lock.held:
+        options.run_lock.acquire()  # may wait for another run; the load is sampled after
+        pending = not_cached(experiment, pending)  # that run may have measured some of them
+    # A remote executor's workers write the env of their machines (harness.worker).
+    if pending and here:
+        env = environment.collect(options.repo_root, options.make, options.hyperfine)
+        index.write_env(experiment.directory, env)
+    elif not pending and not experiment.store.layout.env_json.is_file():
+        index.write_env(experiment.directory, environment.collect(
+            options.repo_root, options.make, options.hyperfine))
+    return pending, env
+
+
+def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measured: int,
+              missing: int) -> Summary:
+    """The run's cells by status, and its one line in the log."""
+    name = experiment.config.name
     statuses: dict[str, int] = {}
     for _, cid in order:
         if cid in experiment.records:  # all of them, but after --collect
             status = str(experiment.records[cid]["status"])
             statuses[status] = statuses.get(status, 0) + 1
-    summary = Summary(config.name, experiment.directory, len(order), len(measured),
-                      len(order) - len(measured) - len(missing), statuses)
+    summary = Summary(name, experiment.directory, len(order), measured,
+                      len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
-    log.write(f"{config.name}: {summary.cells} cells ({summary.measured} measured, "
-              f"{summary.cached} cached): {counts or 'none'}; results in "
-              f"{experiment.store.layout.results_csv}\n")
+    experiment.log.write(f"{name}: {summary.cells} cells ({summary.measured} measured, "
+                         f"{summary.cached} cached): {counts or 'none'}; results in "
+                         f"{experiment.store.layout.results_csv}\n")
     return summary
 
 

@@ -6,8 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from harness.errors import HarnessError
-from harness.store import atomic, records
+from harness.store import atomic
 from harness.store.layout import ExperimentDir
 
 SHORT_SHA = 10
@@ -28,16 +27,3 @@ def save_commits(exp: ExperimentDir, commits: Sequence[CommitInfo]) -> None:
     atomic.atomic_write_json(exp.history_commits, [
         {"commit": c.sha, "subject": c.subject, "touches_code": c.touches_code}
         for c in commits])
-
-
-def load_commits(exp: ExperimentDir) -> list[CommitInfo]:
-    data = records.read_json(exp.history_commits)
-    if not isinstance(data, list):
-        raise HarnessError(f"{exp.history_commits}: no history measured for {exp.name} "
-                           "(run `collide-bench history RANGE CONFIG` first)")
-    try:
-        return [CommitInfo(str(d["commit"]), str(d["subject"]), bool(d["touches_code"]))
-                for d in data]
-    except (KeyError, TypeError):
-        raise HarnessError(f"{exp.history_commits}: expected a list of commits with commit, "
-                           "subject and touches_code") from None

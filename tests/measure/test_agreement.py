@@ -9,7 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import agreement
+from harness.measure import agreement, printed, steps
 from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, ROUNDING, WRONG
 
 L, R = 100.0, 1.0
@@ -132,9 +132,9 @@ def test_non_numbers_fail_to_read_and_nan_is_wrong() -> None:
 
 
 def test_runs_that_print_the_same_rows_have_no_first_difference() -> None:
-    assert agreement.first_difference(rows("%.6f"), rows("%.6f")) is None
+    assert printed.first_difference(rows("%.6f"), rows("%.6f")) is None
     other = rows("%.6f", {(1, 1): "18.750001 10.000000 -1.250000 0.000000"})
-    assert agreement.first_difference(rows("%.6f"), other) == (
+    assert printed.first_difference(rows("%.6f"), other) == (
         1, 1, "(18.750000 10.000000 -1.250000 0.000000)",
         "(18.750001 10.000000 -1.250000 0.000000)")
 
@@ -143,14 +143,14 @@ def test_runs_that_print_the_same_rows_have_no_first_difference() -> None:
     ("12.345", 0.0005), ("-0.5", 0.05), ("17", 0.5), ("1.25e+02", 0.5), ("3.0E-3", 5e-5),
 ])
 def test_half_a_unit_in_the_last_printed_digit(token: str, half: float) -> None:
-    assert agreement.half_unit(token) == pytest.approx(half)
+    assert steps.half_units(np.array([token]))[0] == pytest.approx(half)
 
 
 def test_printed_like_compares_at_the_tokens_precision() -> None:
-    assert agreement.printed_like("12.346", 12.3456)
-    assert not agreement.printed_like("12.345", 12.3456)
-    assert agreement.printed_like("1.23e+02", 123.4)
-    assert agreement.printed_like("-0.000", -1e-9)
+    assert printed.printed_like("12.346", 12.3456)
+    assert not printed.printed_like("12.345", 12.3456)
+    assert printed.printed_like("1.23e+02", 123.4)
+    assert printed.printed_like("-0.000", -1e-9)
 
 
 @pytest.mark.parametrize("text", [
@@ -159,9 +159,9 @@ def test_printed_like_compares_at_the_tokens_precision() -> None:
     "0 0 1e-3 2 3 nan\n0 1 +4 5 6 inf\n1 0 1 2 3 4 5 6\n",
 ])
 def test_the_fast_readers_read_what_the_line_reader_reads(text: str) -> None:
-    slow = agreement._read_rows_by_line(text)
-    numeric = agreement._read_rows_numeric(text)
-    readers = [agreement._read_rows_fast(text), *([numeric] if "nan" not in text else [])]
+    slow = printed._read_rows_by_line(text)
+    numeric = printed._read_rows_numeric(text)
+    readers = [printed._read_rows_fast(text), *([numeric] if "nan" not in text else [])]
     assert (numeric is None) == ("nan" in text)  # nan and inf: the reader of strings
     for fast in readers:
         assert fast is not None
@@ -172,7 +172,7 @@ def test_the_fast_readers_read_what_the_line_reader_reads(text: str) -> None:
 
 
 def test_lines_that_are_no_rows_leave_the_fast_reader() -> None:
-    for reader in (agreement._read_rows_fast, agreement._read_rows_numeric):
+    for reader in (printed._read_rows_fast, printed._read_rows_numeric):
         assert reader("0 0 1 2 3 four\n") is None
         assert reader("0 0.5 1 2 3 4\n") is None
         assert reader("0 0 1 2 3 4 1e3 0\n") is None

@@ -238,7 +238,7 @@ def test_the_code_is_read_once_per_render_however_many_pages(
 def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:
     names = {p.relative_to(cache.PACKAGE_DIR).as_posix()
              for p in cache.code_closure(cache.FIGURE_MODULES)}
-    assert {"report/figures/base.py", "analysis/speedup.py", "stats.py",
+    assert {"report/figures/base.py", "analysis/speedup.py", "stats/intervals.py",
             "spec/facts.py"} <= names
     assert "spec/variants.py" not in names and "spec/make.py" not in names
     assert not any(n.startswith(("measure/", "executors/", "runner/")) for n in names)

@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import agreement, events
-from harness.measure.agreement import Agreement, read_rows
+from harness.measure import agreement, events, printed
+from harness.measure.agreement import Agreement
+from harness.measure.printed import read_rows
 from harness.spec import scenes
 from harness.store.columns import CORRECT, IDENTICAL, IMPRECISE, ROUNDING, WRONG
 
@@ -191,7 +192,7 @@ def test_the_race_changes_the_output_between_runs(programs: Path, scene: Path) -
                for _ in range(3)}
     assert len(outputs) > 1
     first = sorted(outputs)
-    found = agreement.first_difference(first[0], first[1])
+    found = printed.first_difference(first[0], first[1])
     assert found is not None and 0 <= found[0] <= STEPS
 
 

@@ -39,6 +39,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
 from harness.executors.slurm.client import (
@@ -307,9 +308,7 @@ class SlurmExecutor:
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
              tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
              progress: Progress) -> None:
-        poll = self.spec.poll_s
-        log = experiment.log
-        started = time.monotonic()
+        status = _Status(experiment.log, experiment.config.name, time.monotonic())
         open_tasks = dict(tasks)
         announced: set[str] = set()
 
@@ -320,12 +319,10 @@ class SlurmExecutor:
 
         ended_at: dict[str, float] = {}
         arrived: dict[str, records.Record] = {}
-        last_line, last_at = "", 0.0
-        last_done_at = started
+        last_done_at = status.started
         while open_tasks:
-            states: dict[str, dict[int, tuple[str, str]] | None] = {}
-            for job_id in sorted({t.job_id for t in open_tasks.values()}):
-                states[job_id] = queue_states(job_id)
+            states = {job_id: queue_states(job_id)
+                      for job_id in sorted({t.job_id for t in open_tasks.values()})}
             # after squeue: a task it shows ended has written its record by now
             arrived.update(watch.new_records())
             finals: dict[str, dict[int, str]] = {}
@@ -333,14 +330,7 @@ class SlurmExecutor:
             for pid, task in list(open_tasks.items()):
                 cell, cid = cells[pid]
                 record = arrived.get(pid)
-                queued = states[task.job_id]
-                seen = queued.get(task.index) if queued is not None else None
-                if seen is None and record is None:
-                    if task.job_id not in finals:
-                        finals[task.job_id] = completed_states(task.job_id)
-                    slurm_state = finals[task.job_id].get(task.index, "")
-                else:
-                    slurm_state = seen[0] if seen is not None else ""
+                slurm_state = _slurm_state(task, states, finals, record is not None)
                 if record is not None or slurm_state in RUNNING_STATES:
                     announce(pid, cid)
                 if record is not None:
@@ -365,18 +355,43 @@ class SlurmExecutor:
                     announce(pid, cid)
                     del open_tasks[pid]
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
-            done = len(tasks) - len(open_tasks)
-            elapsed = time.monotonic() - started
-            # from the throughput so far: queueing and start-up on the nodes included
-            eta = "?"
-            if done and open_tasks:
-                eta = format_seconds(elapsed / done * len(open_tasks))
-            line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
-                    f"running, {waiting} pending")
-            if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:
-                log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
-                          f"{eta if open_tasks else '0.0s'}\n")
-                log.flush()
-                last_line, last_at = line, time.monotonic()
+            status.show(len(tasks) - len(open_tasks), len(tasks), running, waiting)
             if open_tasks:
-                time.sleep(poll)
+                time.sleep(self.spec.poll_s)
+
+
+def _slurm_state(task: Task, states: Mapping[str, dict[int, tuple[str, str]] | None],
+                 finals: dict[str, dict[int, str]], arrived: bool) -> str:
+    """A task's Slurm state: squeue's while it lists the task, else sacct's for one whose
+    record has not arrived (asked once a job in `finals`), else none."""
+    queued = states[task.job_id]
+    seen = queued.get(task.index) if queued is not None else None
+    if seen is None and not arrived:
+        if task.job_id not in finals:
+            finals[task.job_id] = completed_states(task.job_id)
+        return finals[task.job_id].get(task.index, "")
+    return seen[0] if seen is not None else ""
+
+
+@dataclass
+class _Status:
+    """The sweep's status line in the log: written when it changes, else every
+    STATUS_EVERY_S."""
+
+    log: TextIO
+    name: str
+    started: float
+    last_line: str = ""
+    last_at: float = 0.0
+
+    def show(self, done: int, total: int, running: int, waiting: int) -> None:
+        elapsed = time.monotonic() - self.started
+        left = total - done
+        # from the throughput so far: queueing and start-up on the nodes included
+        eta = format_seconds(elapsed / done * left) if done and left else "?"
+        line = f"slurm: {self.name}: {done}/{total} done, {running} running, {waiting} pending"
+        if line != self.last_line or time.monotonic() - self.last_at >= STATUS_EVERY_S:
+            self.log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
+                           f"{eta if left else '0.0s'}\n")
+            self.log.flush()
+            self.last_line, self.last_at = line, time.monotonic()

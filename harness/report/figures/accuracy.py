@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -69,7 +70,6 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
     times = rows["wall_median_s"]
     builds = list(dict.fromkeys(rows["build"]))
     markers = {b: BUILD_MARKERS[i % len(BUILD_MARKERS)] for i, b in enumerate(builds)}
-    with_threads = rows["threads"].nunique() > 1
     fig, ax = new_figure(margins=LEGEND_RIGHT_MARGINS)
     for i in range(len(rows)):
         row = rows.iloc[i]
@@ -77,19 +77,7 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
                 color=variant_color(str(row["variant"])), mec="black", mew=0.6)
         if row["status"] == INVALID:
             ax.plot(times.iloc[i], shown.iloc[i], "x", color="black", ms=9, mew=2)
-    front = pareto_mask(times, rows[error]).to_numpy(dtype=bool)
-    order = np.argsort(times.to_numpy(dtype=float)[front])
-    front_t = times.to_numpy(dtype=float)[front][order]
-    front_e = shown.to_numpy(dtype=float)[front][order]
-    ax.plot(front_t, front_e, drawstyle="steps-post", color="black", lw=1, zorder=1)
-    ax.plot(front_t, front_e, "o", ls="none", ms=15, mfc="none", mec="black")
-    for i in np.flatnonzero(front):
-        row = rows.iloc[i]
-        text = f"{row['variant']}/{row['build']}"
-        if with_threads:
-            text += f" ({format_value('threads', row['threads'])} threads)"
-        ax.annotate(text, (times.iloc[i], shown.iloc[i]), xytext=(8, 6),
-                    textcoords="offset points", fontsize="small")
+    _draw_front(ax, rows, times, shown, pareto_mask(times, rows[error]).to_numpy(dtype=bool))
     has_zero = bool((rows[error] == 0).any())
     if has_zero:
         ax.axhline(floor, ls=":", color="gray")
@@ -103,6 +91,35 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
     ax.set_ylabel(ylabel or "max position error vs baseline [÷ L]")
     set_title(ax, title or "Error against run time")
     ax.grid(True, which="major", alpha=0.3)
+    handles = _error_time_handles(rows, markers, floor if has_zero else None)
+    ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
+              borderaxespad=0)
+    return save_figure(fig, out)
+
+
+def _draw_front(ax: Axes, rows: pd.DataFrame, times: pd.Series, shown: pd.Series,
+                front: np.ndarray) -> None:
+    """The Pareto front's cells ringed, joined as a staircase and named (with their threads
+    where the cells' threads differ)."""
+    order = np.argsort(times.to_numpy(dtype=float)[front])
+    front_t = times.to_numpy(dtype=float)[front][order]
+    front_e = shown.to_numpy(dtype=float)[front][order]
+    ax.plot(front_t, front_e, drawstyle="steps-post", color="black", lw=1, zorder=1)
+    ax.plot(front_t, front_e, "o", ls="none", ms=15, mfc="none", mec="black")
+    with_threads = rows["threads"].nunique() > 1
+    for i in np.flatnonzero(front):
+        row = rows.iloc[i]
+        text = f"{row['variant']}/{row['build']}"
+        if with_threads:
+            text += f" ({format_value('threads', row['threads'])} threads)"
+        ax.annotate(text, (times.iloc[i], shown.iloc[i]), xytext=(8, 6),
+                    textcoords="offset points", fontsize="small")
+
+
+def _error_time_handles(rows: pd.DataFrame, markers: dict[str, str],
+                        zero_floor: float | None) -> list[Line2D]:
+    """The legend of fig_error_time: variants by color, builds by marker, the front, and the
+    floor zero errors are drawn at (`zero_floor`, where some are) and invalid cells."""
     handles = [
         Line2D([], [], ls="none", marker="o", ms=8, color=variant_color(v), mec="black",
                mew=0.6, label=v)
@@ -111,19 +128,17 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
     handles += [
         Line2D([], [], ls="none", marker=markers[b], ms=8, mfc="none", mec="black",
                label=f"build {b}")
-        for b in builds
+        for b in markers
     ]
     handles.append(Line2D([], [], marker="o", ms=12, mfc="none", mec="black", color="black",
                           lw=1, label="Pareto front"))
-    if has_zero:
+    if zero_floor is not None:
         handles.append(Line2D([], [], ls=":", color="gray",
-                              label=f"zero error\n(drawn at {floor:.0e})"))
+                              label=f"zero error\n(drawn at {zero_floor:.0e})"))
     if (rows["status"] == INVALID).any():
         handles.append(Line2D([], [], ls="none", marker="x", color="black", mew=2,
                               label="invalid output"))
-    ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
-              borderaxespad=0)
-    return save_figure(fig, out)
+    return handles
 
 
 # --- divergence curves --------------------------------------------------------------------

@@ -91,9 +91,18 @@ def build(ctx: Context) -> list[Section]:
     error against time, divergence curves) from the check columns and divergence.csv."""
     if not has_check_data(ctx.exp.frame):
         return []
-    exp, figs = ctx.exp, ctx.figs
-    df = exp.frame
-    base = slug(exp.name)
+    base = slug(ctx.exp.name)
+    sections = [Section("Stability checks", f"{base}-stability",
+                        _stability_blocks(ctx.exp.frame))]
+    accuracy_blocks = _accuracy_blocks(ctx, base)
+    if accuracy_blocks:
+        sections.append(Section("Accuracy: shadow steps and divergence", f"{base}-accuracy",
+                                accuracy_blocks))
+    return sections
+
+
+def _stability_blocks(df: pd.DataFrame) -> tuple[Block, ...]:
+    """Pass/fail per scene and check, each check over the cells, and which build to trust."""
     blocks: list[Block] = [Paragraph(CHECKS_INTRO)]
     blocks.append(table_block(
         stability_matrix(df),
@@ -112,7 +121,14 @@ def build(ctx: Context) -> list[Section]:
         "accuracy table, not judged: chaos takes every precision there in a dense scene.",
         source=df,
     ))
-    sections = [Section("Stability checks", f"{base}-stability", tuple(blocks))]
+    return tuple(blocks)
+
+
+def _accuracy_blocks(ctx: Context, base: str) -> tuple[Block, ...]:
+    """The accuracy table of the timed cells, and per checked scene (the largest few) the
+    shadow error against time and the divergence curves."""
+    exp, figs = ctx.exp, ctx.figs
+    df = exp.frame
     timed = df["runs"].fillna(0) >= MIN_TIMED_RUNS
     accuracy_blocks: list[Block] = []
     if timed.any():
@@ -149,10 +165,7 @@ def build(ctx: Context) -> list[Section]:
                 paths, f"Step-by-step growth of the largest position deviation (÷ L) at "
                 f"{scene.label}, against seq in double (left) and the __float128 truth "
                 "(right); identical curves are drawn once; dashed: one radius."))
-    if accuracy_blocks:
-        sections.append(Section("Accuracy: shadow steps and divergence", f"{base}-accuracy",
-                                tuple(accuracy_blocks)))
-    return sections
+    return tuple(accuracy_blocks)
 
 
 def build_words(builds: pd.DataFrame) -> str:

@@ -1,0 +1,121 @@
+"""Reading a config: YAML -> defaults -> validation -> a frozen `Config` (harness.spec.config).
+
+Every mistake is a `HarnessError` naming the file, the key and what was expected. The known
+variants come from a variant registry (harness.spec.variants): the repository's variants/*.c.
+Each part of the config has its module: programs (variants, builds, binaries, programs), scene
+(the scene, combine, schedule, exclude) and measure (measure, validate, checks, executor).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import cast
+
+from harness.errors import MISSING, config_error
+from harness.spec import bounds, kinds
+from harness.spec.builds import DEFAULT_BUILD
+from harness.spec.config import (
+    DEFAULT_MAX_CELLS,
+    METRIC_TIME,
+    METRICS,
+    NAME_RULE,
+    TOP_KEYS,
+    Config,
+    is_valid_name,
+)
+from harness.spec.parse.measure import (
+    parse_checks,
+    parse_executor,
+    parse_measure,
+    parse_validate,
+    parse_variant_measures,
+)
+from harness.spec.parse.programs import parse_variants
+from harness.spec.parse.scene import (
+    check_exclude,
+    parse_combine,
+    parse_exclude,
+    parse_scene,
+    parse_schedules,
+)
+from harness.spec.points import expand_points
+from harness.spec.variants import VariantRegistry, default_registry
+from harness.spec.yamlfile import read_mapping
+
+
+def load_config(path: Path | str, registry: VariantRegistry | None = None,
+                max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
+    """Read, default and validate one config file; its variants must be among the registry's
+    (this repository's, by default) or its own `binaries:`. A config of more than max_cells
+    cells (None: any number), or whose scenes would not fit in free memory, is refused."""
+    source = Path(path)
+    raw = read_mapping(source)
+    names = (registry or default_registry()).names
+    return parse_config(with_defaults(raw, source), source, names, max_cells)
+
+
+def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
+    """The raw mapping with every optional top-level key filled in."""
+    result = dict(raw)
+    result.setdefault("name", source.stem)
+    result.setdefault("title", result["name"])
+    result.setdefault("builds", [DEFAULT_BUILD])
+    result.setdefault("threads", 1)
+    result.setdefault("combine", "product")
+    result.setdefault("measure", {})
+    result.setdefault("validate", False)
+    result.setdefault("keep_output", False)
+    result.setdefault("exclude", [])
+    result.setdefault("binaries", {})
+    result.setdefault("checks", [])
+    result.setdefault("accuracy", {})
+    result.setdefault("metric", METRIC_TIME)
+    result.setdefault("openmp_costs", False)
+    return result
+
+
+def parse_config(raw: Mapping[str, object], source: Path,
+                 known_variants: Sequence[str],
+                 max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
+    """Validate a defaulted mapping into a `Config`."""
+    kinds.reject_unknown(raw, TOP_KEYS, "", source)
+    name = kinds.scalar(raw, "name", "name", kinds.STRING, source)
+    if not is_valid_name(name):
+        raise config_error(source, "name", NAME_RULE, name)
+    variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
+    threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.THREADS, source)
+    scene = parse_scene(raw.get("scene", MISSING), source)
+    combine, zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
+    config = Config(
+        source=source,
+        name=str(name),
+        title=str(kinds.scalar(raw, "title", "title", kinds.STRING, source)),
+        variants=variants,
+        builds=builds,
+        scene=scene,
+        threads=tuple(cast(int, t) for t in threads),
+        threads_listed=threads_listed,
+        combine=combine,
+        zip_keys=zip_keys,
+        measure=parse_measure(raw["measure"], source),
+        validate=parse_validate(raw["validate"], source),
+        keep_output=bool(kinds.scalar(raw, "keep_output", "keep_output", kinds.BOOLEAN, source)),
+        exclude=parse_exclude(raw["exclude"], source),
+        binaries=binaries,
+        checks=parse_checks(raw["checks"], raw["accuracy"], source, known_variants),
+        executor=parse_executor(raw.get("executor", {}), source),
+        schedules=parse_schedules(raw.get("schedule"), source),
+        variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}),
+                                                 raw["measure"], variants, source),
+        programs=programs_,
+        metric=str(kinds.scalar(raw, "metric", "metric", kinds.one_of(METRICS), source)),
+        openmp_costs=bool(kinds.scalar(raw, "openmp_costs", "openmp_costs", kinds.BOOLEAN,
+                                       source)),
+    )
+    check_exclude(config)
+    if max_cells is not None:
+        bounds.check_cells(config, max_cells)
+    expand_points(config)  # zip lengths are checked here, so errors surface at load time
+    bounds.check_memory(config)
+    return config

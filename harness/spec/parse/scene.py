@@ -1,0 +1,185 @@
+"""A config's axes: its scene (a generator, several, an input file or random discs, each key a
+value or a list), how the lists combine, its OpenMP schedules, and the rules that exclude cells
+from their product."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import cast
+
+from harness.errors import MISSING, config_error
+from harness.spec import kinds, scenes
+from harness.spec.config import (
+    EXCLUDE_FIELDS,
+    EXCLUDE_NUMERIC_FIELDS,
+    EXCLUDE_OPS,
+    REQUIRED_RANDOM_KEYS,
+    SCHEDULE_KINDS,
+    SCHEDULE_PATTERN,
+    Condition,
+    Config,
+    ExcludeRule,
+    SceneSpec,
+)
+
+
+def parse_scene(value: object, source: Path) -> SceneSpec:
+    raw = dict(kinds.mapping(value, "scene", source))
+    if "generator" in raw and "file" in raw:
+        raise config_error(source, "scene.file", "either 'generator' or 'file', not both",
+                           raw["file"])
+    generators: tuple[str, ...] = ()
+    if "generator" in raw:
+        value = raw.pop("generator")
+        names = value if isinstance(value, list) else [value]
+        expected = "one of " + ", ".join(scenes.REGISTRY.names())
+        if not names:
+            raise config_error(source, "scene.generator", f"{expected}, or a non-empty list",
+                               value)
+        for name in names:
+            if not isinstance(name, str) or name not in scenes.REGISTRY:
+                raise config_error(source, "scene.generator", expected, name)
+        if len(set(names)) != len(names):
+            raise config_error(source, "scene.generator", "names without repeats", value)
+        infos = [scenes.REGISTRY.get(str(name)) for name in names]
+        # With several generators, a key must be one every one of them takes.
+        keys = {k: kinds.generator_kind(k, d) for k, d in infos[0].defaults.items()
+                 if all(k in info.defaults for info in infos[1:])}
+        keys["seed"] = kinds.SEED
+        kind_name = "generator"
+        generator_name = str(names[0]) if not isinstance(value, list) else None
+        if isinstance(value, list):
+            generators = tuple(str(n) for n in names)
+    elif "file" in raw:
+        keys = {"file": kinds.STRING, "seed": kinds.SEED}
+        kind_name, generator_name = "file", None
+    else:
+        keys = dict(kinds.RANDOM_KINDS)
+        for key in REQUIRED_RANDOM_KEYS:
+            if key not in raw:
+                raise config_error(source, f"scene.{key}", keys[key].expected, MISSING)
+        raw.setdefault("mode", scenes.DEFAULT_MODE)
+        kind_name, generator_name = "random", None
+    raw.setdefault("seed", scenes.DEFAULT_SEED)
+    kinds.reject_unknown(raw, tuple(keys), "scene.", source)
+    axes: list[tuple[str, tuple[object, ...]]] = []
+    listed = set()
+    if generators:  # a list of generators is one more axis
+        axes.append(("generator", generators))
+        listed.add("generator")
+    for key, values in raw.items():
+        parsed, is_list = kinds.axis(values, f"scene.{key}", keys[key], source)
+        if key == "file":
+            parsed = tuple(_resolve_file(str(p), source) for p in parsed)
+        axes.append((key, parsed))
+        if is_list:
+            listed.add(key)
+    return SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
+
+
+def _resolve_file(path: str, source: Path) -> Path:
+    resolved = (source.resolve().parent / path).resolve()
+    if not resolved.is_file():
+        raise config_error(source, "scene.file", "an input file relative to the config", path)
+    return resolved
+
+
+def parse_combine(value: object, scene: SceneSpec, threads_listed: bool,
+                   source: Path) -> tuple[str, tuple[str, ...]]:
+    listed = [k for k, _ in scene.axes if k in scene.listed]
+    if threads_listed:
+        listed.append("threads")
+    if value == "product":
+        return "product", ()
+    if value == "zip":
+        return "zip", tuple(listed)
+    if isinstance(value, dict) and set(value) == {"zip"} and isinstance(value["zip"], list):
+        keys = value["zip"]
+        for key in keys:
+            if key not in listed:
+                raise config_error(source, "combine.zip", "names of keys given as lists ("
+                                   + ", ".join(listed) + ")", key)
+        return "zip", tuple(keys)
+    raise config_error(source, "combine", "product, zip, or {zip: [keys]}", value)
+
+def _schedule(value: object) -> object:
+    if not isinstance(value, str):
+        raise ValueError
+    text = value.replace(" ", "").lower()
+    if not SCHEDULE_PATTERN.match(text):
+        raise ValueError
+    return text
+
+
+SCHEDULE = kinds.Kind("an OpenMP schedule: " + ", ".join(SCHEDULE_KINDS)
+                + ", the first three optionally with ',CHUNK' (e.g. \"dynamic,64\")", _schedule)
+
+
+def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
+    """The `schedule:` axis: () when absent, else its normalised OMP_SCHEDULE values."""
+    if value is None:
+        return ()
+    values, _ = kinds.axis(value, "schedule", SCHEDULE, source)
+    if len(set(values)) != len(values):
+        raise config_error(source, "schedule", "schedules without repeats", value)
+    return tuple(str(v) for v in values)
+
+def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
+    if not isinstance(value, list):
+        raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
+    rules = []
+    for index, item in enumerate(value):
+        label = f"exclude[{index}]"
+        raw = kinds.mapping(item, label, source)
+        if not raw:
+            raise config_error(source, label, "at least one condition", item)
+        conditions = []
+        for key, condition_value in raw.items():
+            field, _, op = str(key).rpartition("_")
+            if field in EXCLUDE_FIELDS and op in EXCLUDE_OPS:
+                if field not in EXCLUDE_NUMERIC_FIELDS:
+                    raise config_error(source, f"{label}.{key}", "a comparison (_gt, _ge, _lt, "
+                                       "_le) of one of " + ", ".join(EXCLUDE_NUMERIC_FIELDS),
+                                       condition_value)
+                try:
+                    bound = kinds.real(condition_value)
+                except ValueError:
+                    raise config_error(source, f"{label}.{key}", "a number",
+                                       condition_value) from None
+                conditions.append(Condition(field, op, bound))
+            elif key in EXCLUDE_FIELDS:
+                accepted = condition_value if isinstance(condition_value, list) else [
+                    condition_value]
+                conditions.append(Condition(str(key), "eq", tuple(accepted)))
+            else:
+                allowed = ", ".join(EXCLUDE_FIELDS)
+                raise config_error(source, f"{label}.{key}", f"one of {allowed}, optionally "
+                                   "with _gt, _ge, _lt or _le", "an unknown key")
+        rules.append(ExcludeRule(tuple(conditions)))
+    return tuple(rules)
+
+
+# The most values an error line lists.
+MAX_LISTED_VALUES = 12
+
+
+def check_exclude(config: Config) -> None:
+    """Each value an exclude rule names must be one the config has: a variant, build, thread
+    count, schedule or scene value it lists (a typo would silently exclude nothing). Fields
+    known only once the scenes are built (a file's n, a generator's default) are checked when
+    the plan is made (harness.plan.cells: a rule that matches no cell)."""
+    known: dict[str, tuple[object, ...]] = {
+        **dict(config.scene.axes), "variant": config.variants, "build": config.builds,
+        "threads": config.threads, "schedule": config.schedules or ("",),
+    }
+    for index, rule in enumerate(config.exclude):
+        for condition in rule.conditions:
+            values = known.get(condition.field)
+            if condition.op != "eq" or values is None:
+                continue
+            for value in cast(tuple[object, ...], condition.value):
+                if value not in values:
+                    shown = ", ".join(map(str, values[:MAX_LISTED_VALUES]))
+                    more = ", ..." if len(values) > MAX_LISTED_VALUES else ""
+                    raise config_error(config.source, f"exclude[{index}].{condition.field}",
+                                       f"one of the config's values ({shown}{more})", value)

@@ -1,0 +1,44 @@
+"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
+
+Everything here is scipy.stats: a percentile bootstrap for medians and for ratios and
+differences of medians (speedup, NEW/OLD), the sign test on the per-round log ratios of two
+sides measured together, a normal test for two measured apart (allowing for the machine's
+drift), Benjamini-Hochberg across a comparison's cells, and a least-squares fit with its
+standard error. The bootstrap's generator is seeded from the data itself, so the same times
+always give the same interval: results.csv and the report do not change when nothing was
+re-measured (and an interval asked for again is remembered, not resampled).
+
+Why the percentile bootstrap and not BCa: with the 3-5 runs most configs take, BCa's jackknife
+acceleration is degenerate (and scipy warns); the percentile interval of a median of n runs
+is the span of the middle order statistics, which is what a reader expects.
+
+What "95%" means with few runs (measured in tests/test_stats.py): the bootstrap cannot reach
+beyond the sample, so with 3 runs the interval of a median is [min, max], which holds the true
+median with probability 1 - 2/2^3 = 75% whatever the distribution; from 5 runs on it covers
+about 93-95%. A ratio of two 3-run medians gets [min/max', max/min'], which misses 1 for two
+identical distributions with probability 2/20 = 10% (the chance that one sample lies wholly
+above the other). That is why a verdict of compare never rests on such an interval alone: it
+tests against a threshold, and widens the interval of runs measured apart by the drift.
+
+Modules: intervals (estimators and bootstrap intervals), scaling (efficiency, Karp-Flatt, power
+fits), rounds (runs by round, the noise rounds met, a pair's rounds lined up), verdicts (the
+change, the sequential looks, the false-discovery control), paired (measured together) and
+apart (measured apart). Every public name is re-exported here: callers use `stats.NAME`.
+"""
+
+from harness.stats.apart import (NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, contention_spread,
+                                 drift_change, log_ratio_drift, log_spread, noise_drift)
+from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, LOW_QUANTILE,
+                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Interval,
+                                     difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
+                                     speedup_ci)
+from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
+                                  paired_change, smallest_detectable, without_interference)
+from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,
+                                  NoiseProfile, PairedRounds, by_round, noise_profile,
+                                  paired_series, paired_sides, round_medians, rounds_to_drop)
+from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit
+from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
+                                    LOOK_GROWTH, NO_CHANGE_KNOWN, SLOWER, UNCHANGED, VERDICTS,
+                                    Z95, Change, decide, discoveries, further_rounds,
+                                    look_index, look_rounds, look_weight, paired_look)

@@ -1,0 +1,189 @@
+"""Point estimates of run times and their percentile-bootstrap intervals: the median (or
+another estimator) of one side's runs, and the ratio or difference of two sides' medians, each
+resampled on its own. The generator is seeded from the data, and an interval asked for again is
+remembered."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import math
+import struct
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as sps
+
+CONFIDENCE = 0.95
+N_RESAMPLES = 4000
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its confidence interval (low <= point <= high, or NaN)."""
+
+    point: float
+    low: float
+    high: float
+
+    def excludes(self, value: float) -> bool:
+        """Whether the interval lies wholly on one side of `value`; False without an interval
+        (NaN ends), so that a missing interval never reads as a significant difference."""
+        if not (math.isfinite(self.low) and math.isfinite(self.high)):
+            return False
+        return not (self.low <= value <= self.high)
+
+    def map(self, function: Callable[[float], float]) -> Interval:
+        """The interval of a monotone function of the estimate (endpoints re-ordered)."""
+        low, high = sorted((function(self.low), function(self.high)))
+        return Interval(function(self.point), low, high)
+
+    def format(self, digits: int = 3) -> str:
+        """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
+        def fmt(value: float) -> str:
+            return f"{value:.{digits}g}"
+        if not (math.isfinite(self.low) and math.isfinite(self.high)):
+            return fmt(self.point)
+        return f"{fmt(self.point)} [{fmt(self.low)}, {fmt(self.high)}]"
+
+
+def _seed(*samples: Sequence[float]) -> int:
+    digest = hashlib.sha256()
+    for sample in samples:
+        digest.update(struct.pack(f"<{len(sample)}d", *sample))
+        digest.update(b"|")
+    return int.from_bytes(digest.digest()[:8], "little")
+
+
+def clean(times: Sequence[float]) -> np.ndarray:
+    return np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
+
+
+def _ratio(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis) / np.median(y, axis=axis)
+
+
+def _difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis) - np.median(y, axis=axis)
+
+
+def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(x, axis=axis)
+
+
+def _minimum(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.min(x, axis=axis)
+
+
+def _low_quantile(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.quantile(x, LOW_QUANTILE, axis=axis)
+
+
+def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.mean(x, axis=axis)
+
+
+# Estimators of what a binary costs from its runs' times. Interference only ever slows a run,
+# so the low end of the times is a candidate beside the median: docs/compare.md measures how
+# well each reproduces between reruns. Each is vectorized (for its bootstrap interval).
+LOW_QUANTILE = 0.25
+LOW_QUANTILE_ESTIMATOR = f"q{round(LOW_QUANTILE * 100)}"
+ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
+    "median": _median, "min": _minimum, LOW_QUANTILE_ESTIMATOR: _low_quantile,
+    "mean": _mean,
+}
+DEFAULT_ESTIMATOR = "median"
+
+
+def estimate(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> float:
+    """The run times' value by the named estimator (ESTIMATORS); NaN without runs."""
+    data = clean(times)
+    return float(ESTIMATORS[estimator](data)) if data.size else math.nan
+
+
+def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> Interval:
+    """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
+    same estimator (the interval of a minimum reaches only upwards of it)."""
+    data = clean(times)
+    if data.size < 2:
+        return Interval(estimate(times, estimator), math.nan, math.nan)
+    point = float(ESTIMATORS[estimator](data))
+    if np.all(data == data[0]):
+        return Interval(point, point, point)
+    return _interval(point, (data,), ESTIMATORS[estimator])
+
+
+@functools.lru_cache(maxsize=4096)
+def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
+               ) -> tuple[float, float]:
+    """The percentile bootstrap interval of `statistic` (one of this module's, vectorized) over
+    the samples, each resampled on its own. Remembered: a render asks for the same interval
+    from several places (a cell's speedup in its table, its figure and the summary), a
+    calibration for a ratio its comparison asks for again, and the answer is deterministic
+    (seeded by the samples)."""
+    result = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
+                           vectorized=True, paired=False, confidence_level=CONFIDENCE,
+                           n_resamples=N_RESAMPLES, method="percentile",
+                           rng=np.random.default_rng(_seed(*samples)))
+    low, high = (float(end) for end in result.confidence_interval)
+    return low, high
+
+
+def _interval(point: float, samples: tuple[np.ndarray, ...],
+              statistic: Callable[..., np.ndarray]) -> Interval:
+    """`point` with the bootstrap interval of `statistic` over the samples, widened to hold the
+    point."""
+    low, high = _bootstrap(statistic, *(tuple(s.tolist()) for s in samples))
+    return Interval(point, min(low, point), max(high, point))
+
+
+def median_ci(times: Sequence[float]) -> Interval:
+    """The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs)."""
+    data = clean(times)
+    if data.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(np.median(data))
+    if data.size < 2:
+        return Interval(point, math.nan, math.nan)
+    if np.all(data == data[0]):
+        return Interval(point, point, point)
+    return _interval(point, (data,), _median)
+
+
+def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
+                 ) -> Interval:
+    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples, each
+    resampled on its own (independent runs): NaN without runs on a side, no interval with one
+    run on a side."""
+    if a.size == 0 or b.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    point = float(statistic(a, b))
+    if a.size < 2 or b.size < 2:
+        return Interval(point, math.nan, math.nan)
+    if np.all(a == a[0]) and np.all(b == b[0]):
+        return Interval(point, point, point)
+    return _interval(point, (a, b), statistic)
+
+
+def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
+    """median(numerator) / median(denominator), each resampled on its own (independent runs).
+
+    compare.py's NEW/OLD is ratio_ci(new, old); a speedup over a baseline is
+    ratio_ci(baseline, cell)."""
+    a, b = clean(numerator), clean(denominator)
+    if b.size and float(np.median(b)) == 0.0:
+        return Interval(math.nan, math.nan, math.nan)
+    return _two_medians(a, b, _ratio)
+
+
+def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
+    """How many times faster `times` is than `baseline` (median over median)."""
+    return ratio_ci(baseline, times)
+
+
+
+def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
+    """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
+    e.g. the time a strategy adds over its repair."""
+    return _two_medians(clean(minuend), clean(subtrahend), _difference)

@@ -1,0 +1,167 @@
+"""What a comparison of two sides concludes about each cell: the change (ratio, interval and
+the p-values of its three claims), the sequential looks a paired comparison is judged at, the
+verdicts with their false-discovery rate held across the cells, and how many more rounds would
+likely decide an undecided one."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as sps
+
+from harness.stats.intervals import CONFIDENCE, Interval
+
+Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
+
+# What a comparison of two sides can say about a cell: a change beyond the threshold either
+# way, a change shown to lie within it (equivalence: the whole interval inside), or neither.
+SLOWER = "slower"
+FASTER = "faster"
+UNCHANGED = "unchanged"
+INCONCLUSIVE = "inconclusive"
+VERDICTS = (SLOWER, FASTER, UNCHANGED, INCONCLUSIVE)
+
+# Sequential looks of a paired comparison that adds rounds until its cells are decided: the
+# first look at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many rounds, the
+# last at LAST_LOOK. The error rate is spent over the looks (look j spends look_weight(j) of it,
+# the weights summing to 1), so that looking again and stopping when a look decides cannot
+# inflate the rate of false verdicts: a union bound over the looks (an alpha-spending
+# group-sequential design). Half of the rate is kept for the last look, where a cell that the
+# machine's noise left undecided is judged on the most rounds.
+FIRST_LOOK_ROUNDS = 12
+LOOK_GROWTH = 1.5
+LAST_LOOK = 7  # at look_rounds(LAST_LOOK) = 138 rounds; no rounds are added beyond it
+
+
+def look_rounds(look: int) -> int:
+    """The rounds at which look `look` (1, 2, ..., LAST_LOOK) is taken."""
+    return math.ceil(FIRST_LOOK_ROUNDS * LOOK_GROWTH ** (look - 1) - 1e-9)
+
+
+def look_index(rounds: int) -> int:
+    """The look a test of `rounds` rounds counts as: 1 up to the first look's rounds, then one
+    more for each look passed (a comparison stopped between looks, by its budget, spends the
+    next look's share), LAST_LOOK at most."""
+    look = 1
+    while look < LAST_LOOK and look_rounds(look) < rounds:
+        look += 1
+    return look
+
+
+def paired_look(rounds: int, final: bool) -> int:
+    """The look a pair measured together is judged at: LAST_LOOK once it measures no more
+    undecided (final), else the look its rounds count as (look_index)."""
+    return LAST_LOOK if final else look_index(rounds)
+
+
+def look_weight(look: int) -> float:
+    """The share of the error rate look `look` spends: 1 / (2 j (j + 1)) before the last, and
+    the rest (just over half) at the last, so that the shares sum to 1."""
+    if look < LAST_LOOK:
+        return 1.0 / (2 * look * (look + 1))
+    return 1.0 - (1.0 - 1.0 / LAST_LOOK) / 2
+
+
+@dataclass(frozen=True)
+class Change:
+    """NEW over OLD: the ratio with its interval, and the p-values of the three claims a
+    verdict can make: slower or faster by more than a threshold (one-sided), unchanged (two
+    one-sided tests that the change lies within it, the larger p-value), each doubled so that
+    a claim at level q means the interval at 1 - q lies beyond (inside) the threshold; NaN
+    where the runs cannot tell. `sd`, `n` and `floor` say how the interval would narrow with
+    more rounds (paired: the per-round spread on the log scale and the rounds) or runs (apart:
+    the standard error of the runs' own spread, from `n` runs a side, and the drift and the
+    contention that more runs cannot reduce)."""
+
+    ratio: Interval
+    p_slower: float
+    p_faster: float
+    p_unchanged: float = math.nan
+    sd: float = math.nan
+    n: int = 0
+    floor: float = 0.0
+    look: int = 1
+
+    @property
+    def p_value(self) -> float:
+        """That the cell changed (either way): the smaller one-sided p-value, doubled."""
+        if not (math.isfinite(self.p_slower) and math.isfinite(self.p_faster)):
+            return math.nan
+        return min(1.0, 2.0 * min(self.p_slower, self.p_faster))
+
+    @property
+    def claim(self) -> str:
+        """The verdict the cell's data point to (SLOWER, FASTER or UNCHANGED) before the
+        false-discovery control decides whether it is made; INCONCLUSIVE without p-values."""
+        if not math.isfinite(self.p_value):
+            return INCONCLUSIVE
+        if math.isfinite(self.p_unchanged) and self.p_unchanged < self.p_value:
+            return UNCHANGED
+        return SLOWER if self.p_slower < self.p_faster else FASTER
+
+    @property
+    def p_claim(self) -> float:
+        """The p-value of `claim` (the one the false-discovery control reads)."""
+        if self.claim == UNCHANGED:
+            return self.p_unchanged
+        return self.p_value
+
+
+NO_CHANGE_KNOWN = Change(Interval(math.nan, math.nan, math.nan), math.nan, math.nan)
+
+
+def decide(changes: Sequence[Change], q: float) -> list[str]:
+    """The verdict of each change, with the false-discovery rate of verdicts across them held
+    at q (Benjamini-Hochberg over the p-value of each one's claim): a claim that is not a
+    discovery is INCONCLUSIVE."""
+    found = discoveries([c.p_claim for c in changes], q)
+    return [c.claim if hit else INCONCLUSIVE for c, hit in zip(changes, found, strict=True)]
+
+
+def further_rounds(change: Change, threshold: float, look: int | None = None) -> float:
+    """Roughly how many more rounds (paired) or runs a side (apart) would likely decide the
+    cell at its observed spread and ratio: until its interval (at the next look's level)
+    clears the threshold on the side its point lies. 0 when the interval is already clear of
+    it, inf when no number would (a point on the threshold, or a drift between runs measured
+    apart as wide as the distance left)."""
+    if not (math.isfinite(change.sd) and change.n >= 2 and change.ratio.point > 0):
+        return math.inf
+    margin = math.log1p(threshold)
+    distance = abs(abs(math.log(change.ratio.point)) - margin)
+    if distance == 0.0:
+        return math.inf
+    next_look = min((look if look is not None else change.look) + 1, LAST_LOOK)
+    z = float(sps.norm.ppf(1 - (1 - CONFIDENCE) * look_weight(next_look) / 2))
+    allowed = (distance / z) ** 2 - change.floor ** 2
+    if allowed <= 0.0:
+        return math.inf
+    needed = change.sd ** 2 / allowed  # rounds (paired, sd per round) or runs (apart)
+    return float(max(0, math.ceil(needed - change.n)))
+
+
+def exact_change(ratio: float, threshold: float) -> Change:
+    """A change without spread (every round the same ratio, or exact counts): the claims are
+    certain (p 0) or false (p 1)."""
+    margin = math.log1p(threshold)
+    log_ratio = math.log(ratio)
+    within = -margin <= log_ratio <= margin
+    return Change(Interval(ratio, ratio, ratio), 0.0 if log_ratio > margin else 1.0,
+                  0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
+
+
+
+def discoveries(p_values: Sequence[float], q: float) -> list[bool]:
+    """Which of the tests are discoveries with the false-discovery rate controlled at q
+    (Benjamini-Hochberg, scipy.stats.false_discovery_control); a NaN p-value never is."""
+    finite = [k for k, p in enumerate(p_values) if math.isfinite(p)]
+    found = [False] * len(p_values)
+    if finite:
+        adjusted = sps.false_discovery_control(
+            np.asarray([p_values[k] for k in finite], dtype=float), method="bh")
+        for k, value in zip(finite, adjusted, strict=True):
+            found[k] = bool(value <= q)
+    return found
+
