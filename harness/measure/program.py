@@ -110,14 +110,19 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
         verdict = _repeated_and_raced(program, store, cell, store.input_file(scene), env,
                                       timeout_s, text, verdict, record)
     record.update(verdict.fields())
-    where = []
-    if steps < cell.scene.steps:
-        where.append(f"checked on its first {steps} of {cell.scene.steps} steps")
-    if refs[REFERENCE].name != BASELINE:
-        where.append(f"against {refs[REFERENCE].name}, byte-identical to {BASELINE}")
-    record["note"] = "; ".join([verdict.note, *where] if verdict.note else where)
+    record["note"] = _note(verdict.note, steps, cell.scene.steps, refs[REFERENCE].name)
     status = OK if verdict.verdict in AGREEING else INVALID
     return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+
+
+def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
+    """The record's note: the verdict's, and where the check was narrower than the run."""
+    where = []
+    if checked_steps < steps:
+        where.append(f"checked on its first {checked_steps} of {steps} steps")
+    if reference != BASELINE:
+        where.append(f"against {reference}, byte-identical to {BASELINE}")
+    return "; ".join([verdict_note, *where] if verdict_note else where)
 
 
 def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_input: Path,
