@@ -172,6 +172,11 @@ test-c: $(C_TEST_GROUPS)
 # others; each must pass. MAKEFLAGS is not passed on: the tests' own make commands run
 # without this make's jobs.
 SLURM_TESTS := tests/executors/test_slurm.py
+# The Slurm tests wait, they hardly compute: pytest-xdist runs them side by side, each worker
+# with a cluster of its own (tests/slurm_cluster.py picks free ports). With fewer tests than
+# twice the workers xdist deals them out one by one, round-robin in the file's order, so that
+# the four that wait up to a minute or more (the first four) start together.
+SLURM_XDIST := -n 5
 REPORT_TESTS := tests/report tests/test_readme.py
 # The slowest tests are listed at the end of each run: where the time goes.
 PYTEST := $(PYTHON) -m pytest -q --durations=8
@@ -179,7 +184,7 @@ PYTEST := $(PYTHON) -m pytest -q --durations=8
 # The fuzz tests (tests/hostile) run the ASan builds.
 test-python: $(TEST_READY) all asan
 	@unset MAKEFLAGS MFLAGS MAKELEVEL; mkdir -p build; \
-	$(PYTEST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
+	$(PYTEST) $(SLURM_XDIST) $(SLURM_TESTS) >build/pytest-slurm.log 2>&1 & slurm=$$!; \
 	$(PYTEST) $(REPORT_TESTS) >build/pytest-report.log 2>&1 & report=$$!; \
 	$(PYTEST) --ignore=$(SLURM_TESTS) $(addprefix --ignore=,$(REPORT_TESTS)); others=$$?; \
 	wait $$report; report=$$?; echo "== $(REPORT_TESTS)"; cat build/pytest-report.log; \

@@ -61,12 +61,15 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
     cells = root / "smoke" / "cells"
     stamps = {p.name: p.stat().st_mtime_ns for p in cells.iterdir()}
 
-    assert main([str(SMOKE), "--results-dir", str(root), "--no-report"]) == 0
+    # the second run, its report rendered after it (the first ran with --no-report)
+    report = tmp_path / "report"
+    assert main([str(SMOKE), "--results-dir", str(root), "--report-dir", str(report)]) == 0
     second = capsys.readouterr().err
     assert "smoke: 8 cells (0 measured, 8 cached): 8 ok" in second
     assert "elapsed" not in second
     assert stamps == {p.name: p.stat().st_mtime_ns for p in cells.iterdir()}
     assert read_csv(table) == rows
+    assert (report / "report.md").is_file()
 
 
 def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path) -> None:
@@ -93,16 +96,6 @@ def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path
     assert rows["liar"]["identical"] == "False" and rows["liar"]["count_mismatches"] == "1"
     assert rows["liar"]["max_pos_err"] == "0.0" and rows["liar"]["wall_mean_s"]
     assert rows["p1"]["identical"] == "True"
-
-
-def test_report_is_rendered_after_a_run(real_binaries: Path, tmp_path: Path) -> None:
-    config = tmp_path / "tiny.yaml"
-    config.write_text("variants: [seq, p1]\nscene: {n: 50, L: 500, r: 1, steps: 2}\n"
-                      "threads: [1, 2]\nmeasure: {warmup: 0, runs: 1}\nvalidate: true\n")
-    report = tmp_path / "report"
-    assert main([str(config), "--results-dir", str(tmp_path / "results"),
-                 "--report-dir", str(report)]) == 0
-    assert (report / "report.md").is_file()
 
 
 def run_script(python: str, *args: str, env: dict[str, str] | None = None,
