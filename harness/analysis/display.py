@@ -69,6 +69,8 @@ DISPLAY_NAMES: dict[str, str] = {
     "issue": "issue",
     "agreement": "agreement with seq",
     "detail": "where it leaves seq",
+    "check_s": "check [s]",
+    "replay_s": "of it replays [s]",
     # accuracy and stability checks
     "label": "variant/build",
     "check": "check",

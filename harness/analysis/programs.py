@@ -53,7 +53,7 @@ def program_table(df: pd.DataFrame) -> pd.DataFrame:
     table["status"] = rows["status"]
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
     for column in GRADING_COLUMNS:  # absent from results measured before they were kept
-        if column in rows.columns:
+        if column in rows.columns and rows[column].notna().any():
             table[column] = rows[column]
     table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
     return sort_cells(table, keys)
