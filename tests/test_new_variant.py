@@ -17,7 +17,7 @@ from harness.executors.base import Options
 from harness.report import pipeline
 from harness.runner.experiment import run_experiment
 from harness.spec import variants
-from harness.spec.facts import read_variants
+from harness.spec.facts import VariantFacts, read_variants
 from harness.spec.parse import load_config
 from harness.store.layout import VARIANTS_JSON
 
@@ -69,7 +69,7 @@ def test_make_lists_and_builds_the_new_file(copy: Path) -> None:
                             text=True, check=True).stdout.split()
     assert "scratch" in listed and "seq" in listed
     subprocess.run(["make", "-s", "build/scratch"], cwd=copy, check=True, timeout=300)
-    assert variants.describe(copy / "build" / "scratch") == variants.VariantFacts(
+    assert variants.describe(copy / "build" / "scratch") == VariantFacts(
         "scratch", "a variant written by a test", exact=True, parallel=True, all_pairs=True,
         repairs="p1")
 
@@ -77,9 +77,9 @@ def test_make_lists_and_builds_the_new_file(copy: Path) -> None:
 def test_the_registry_places_it_in_the_family_it_repairs(copy: Path) -> None:
     registry = variants.VariantRegistry(copy)
     assert "scratch" in registry.names
-    order = registry.order
-    assert order.index("scratch") > order.index("p1")
-    assert registry.family("scratch") == "p1" and "scratch" in registry.repaired_by("p1")
+    known = registry.known
+    assert known.order.index("scratch") > known.order.index("p1")
+    assert known.family("scratch") == "p1" and "scratch" in known.repaired_by("p1")
 
 
 def test_a_run_measures_and_validates_it_and_the_report_shows_it(copy: Path) -> None:

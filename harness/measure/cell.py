@@ -34,8 +34,8 @@ from harness.plan.binaries import measures_openmp_costs
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
+from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
-from harness.spec.variants import BASELINE
 from harness.store import atomic, records
 from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT, TIMING_KEYS
 

@@ -38,8 +38,8 @@ from harness.measure.steps import Replay
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
+from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
-from harness.spec.variants import BASELINE
 from harness.store import atomic, records
 from harness.store.columns import (
     AGREEING,

@@ -13,7 +13,8 @@ from harness.repo import BUILD_DIR, OMPCOST, REPO_ROOT
 from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
-from harness.spec.variants import BASELINE, default_registry
+from harness.spec.facts import BASELINE
+from harness.spec.variants import default_registry
 
 
 def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Path:

@@ -22,28 +22,9 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
-from harness.spec.facts import (
-    BASELINE,
-    COUNT_UNITS,
-    DESCRIBE_OPTION,
-    FACT_TYPES,
-    GRID,
-    SYNC_KEY,
-    SYNC_OPERATIONS,
-    Count,
-    SyncFacts,
-    VariantFacts,
-    Variants,
-    family_of,
-    ordered,
-)
+from harness.spec.facts import BASELINE, DESCRIBE_OPTION, VariantFacts, Variants
 from harness.spec.make import make_binaries
 
-# The facts' types and their order live in harness.spec.facts (read where results are, with
-# no build); they are named here too for those who ask the binaries.
-__all__ = ["BASELINE", "COUNT_UNITS", "DESCRIBE_OPTION", "FACT_TYPES", "GRID", "SYNC_KEY",
-           "SYNC_OPERATIONS", "Count", "SyncFacts", "VariantFacts", "VariantRegistry",
-           "Variants", "default_registry", "describe", "family_of", "ordered", "using"]
 DESCRIBE_TIMEOUT_S = 10.0
 
 
@@ -78,13 +59,8 @@ class VariantRegistry:
         return self.repo_root / BUILD_DIR / name
 
     @functools.cached_property
-    def facts(self) -> dict[str, VariantFacts]:
-        """Every variant's facts, by name (builds the binaries that make says are stale)."""
-        return dict(self.known.by_name)
-
-    @functools.cached_property
     def known(self) -> Variants:
-        """Every variant's facts (builds the binaries that make says are stale)."""
+        """Every variant's facts, ordered (builds the binaries that make says are stale)."""
         if self._given is not None:
             return Variants.of(self._given.values())
         binaries = [self.binary(n) for n in self.names]
@@ -92,41 +68,12 @@ class VariantRegistry:
         return Variants.of(describe(self.binary(name)) for name in self.names)
 
     def __getitem__(self, name: str) -> VariantFacts:
-        try:
-            return self.facts[name]
-        except KeyError:
-            raise HarnessError(f"unknown variant {name!r}; expected one of: "
-                               f"{', '.join(self.names)}") from None
-
-    @property
-    def order(self) -> tuple[str, ...]:
-        return self.known.order
+        return self.known[name]
 
     def get(self, name: str) -> VariantFacts | None:
         """A variant's facts; None for a name that is no variant of the repository (a custom
         binary, results of a variant since removed)."""
-        return self.facts.get(name)
-
-    def rank(self, name: str) -> int:
-        """A variant's position in `order`; after every known variant for any other name."""
-        return self.known.rank(name)
-
-    @property
-    def families(self) -> tuple[str, ...]:
-        """The variants that name a family, in order (harness.spec.facts.Variants.families)."""
-        return self.known.families
-
-    def family(self, name: str) -> str:
-        return self.known.family(name)
-
-    def repaired_by(self, name: str) -> tuple[str, ...]:
-        """The variants that repair `name`, in order."""
-        return self.known.repaired_by(name)
-
-    def digest(self) -> str:
-        """The facts as canonical JSON, for caches keyed on them."""
-        return self.known.digest()
-
+        return self.known.get(name)
 
 def describe(binary: Path) -> VariantFacts:
     """`binary --describe`, parsed; a HarnessError when it cannot run or says no JSON."""

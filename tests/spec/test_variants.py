@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 from harness.errors import HarnessError
 from harness.spec import variants
-from harness.spec.variants import BASELINE, VariantFacts, VariantRegistry, default_registry
+from harness.spec.facts import BASELINE, Count, SyncFacts, VariantFacts, ordered
+from harness.spec.variants import VariantRegistry, default_registry
 
 from conftest import build_or_skip
 
@@ -30,7 +31,7 @@ def test_the_binaries_describe_the_spec_variants() -> None:
     assert registry["seq"].parallel is False and registry["seq"].all_pairs
     assert [n for n in registry.names if not registry[n].exact] == ["relative"]
     assert not registry["grid"].all_pairs and not registry["relative"].all_pairs
-    assert registry.repaired_by("p1") == ("p1_cyclic",)
+    assert registry.known.repaired_by("p1") == ("p1_cyclic",)
     assert all(registry[n].summary for n in registry.names)
 
 
@@ -39,16 +40,16 @@ def test_order_puts_the_baseline_first_and_repairs_after_what_they_repair() -> N
         facts("zz_broad", all_pairs=False), facts("b"), facts("a_fix", repairs="b"),
         facts("a"), facts(BASELINE, parallel=False), facts("odd", repairs="gone"),
         facts("fast", all_pairs=False, exact=False))}
-    assert variants.ordered(table) == (BASELINE, "a", "b", "a_fix", "odd", "fast", "zz_broad")
+    assert ordered(table) == (BASELINE, "a", "b", "a_fix", "odd", "fast", "zz_broad")
     registry = VariantRegistry.of(table.values())
-    assert registry.families == (BASELINE, "a", "b", "odd", "fast", "zz_broad")
-    assert registry.family("a_fix") == "b" and registry.rank("nobody") == len(table)
+    assert registry.known.families == (BASELINE, "a", "b", "odd", "fast", "zz_broad")
+    assert registry.known.family("a_fix") == "b" and registry.known.rank("nobody") == len(table)
 
 
 def test_the_default_registry_can_be_replaced_for_a_while() -> None:
     mine = VariantRegistry.of([facts(BASELINE, parallel=False), facts("only")])
     with variants.using(mine):
-        assert default_registry() is mine and default_registry().order == (BASELINE, "only")
+        assert default_registry() is mine and default_registry().known.order == (BASELINE, "only")
     assert default_registry() is not mine
 
 
@@ -109,7 +110,7 @@ def test_the_seed_strategies_declare_their_operations_per_step() -> None:
 @pytest.mark.parametrize("n", [1, 2, 7, 4096, 4097, 10000])
 def test_tiles_per_step_are_every_rows_tiles(n: int) -> None:
     tile = 4096
-    count = variants.Count(tile=1)
+    count = Count(tile=1)
     assert count.per_step(n, tile) == sum(-(-(n - 1 - i) // tile) for i in range(n))
 
 
@@ -138,8 +139,8 @@ def sync_line(**changes: object) -> str:
 
 def test_a_sync_description_parses(tmp_path: Path) -> None:
     found = variants.describe(write_binary(tmp_path / "v", sync_line()))
-    assert found.sync == variants.SyncFacts(regions=variants.Count(step=1),
-                                            grabs=variants.Count(tile=2), tile=64)
+    assert found.sync == SyncFacts(regions=Count(step=1),
+                                            grabs=Count(tile=2), tile=64)
     assert found.sync.per_step(65)["grabs"] == 2 * 64  # rows 0..64: 64 rows of one tile
 
 
