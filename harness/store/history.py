@@ -33,15 +33,12 @@ class Stored:
     """A record on disk with the facts the store sorts by."""
 
     record: records.Record
+    key: CellKey
     path: Path
 
     @property
     def cell_id(self) -> str:
         return str(self.record["cell_id"])
-
-    @functools.cached_property
-    def key(self) -> CellKey:
-        return records.key_of(self.record)
 
     @property
     def machine_id(self) -> str:
@@ -77,9 +74,9 @@ def load_records(directory: Path) -> list[Stored]:
         if seen is not None and seen[0] == stamp:
             stored.append(seen[1])
             continue
-        record = records.read_record(path, layout.cell_id_of(path))
-        if record is not None:
-            item = Stored(record, path)
+        keyed = records.read_keyed(path, layout.cell_id_of(path))
+        if keyed is not None:
+            item = Stored(*keyed, path)
             _READ[path] = (stamp, item)
             stored.append(item)
     return stored

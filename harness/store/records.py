@@ -42,6 +42,12 @@ def read_json(path: Path) -> object | None:
 def read_record(path: Path, expected_id: str) -> Record | None:
     """A stored cell record, or None when absent, unreadable, from another harness version or
     not stored under its key's id."""
+    keyed = read_keyed(path, expected_id)
+    return None if keyed is None else keyed[0]
+
+
+def read_keyed(path: Path, expected_id: str) -> tuple[Record, CellKey] | None:
+    """read_record's record with its typed key (parsed once, to check the id)."""
     record = read_json(path)
     if not isinstance(record, dict):
         return None
@@ -53,7 +59,8 @@ def read_record(path: Path, expected_id: str) -> Record | None:
         return None
     if key.id != expected_id:
         return None
-    return _with_lists(record)
+    record = _with_lists(record)
+    return None if record is None else (record, key)
 
 
 def _with_lists(record: Record) -> Record | None:
@@ -70,9 +77,4 @@ def _with_lists(record: Record) -> Record | None:
             except ValueError:
                 return None
     return record
-
-
-def key_of(record: Record) -> CellKey:
-    """The typed key of a record read_record returned."""
-    return CellKey.from_json(record["key"])
 

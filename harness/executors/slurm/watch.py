@@ -61,9 +61,9 @@ class RecordWatch:
                 continue
             self.seen[name] = stamp
             path = self.cells_dir / name
-            record = records.read_record(path, layout.cell_id_of(path))
-            if record is not None and not is_fault(record):
-                found[records.key_of(record).portable_id] = record
+            keyed = records.read_keyed(path, layout.cell_id_of(path))
+            if keyed is not None and not is_fault(keyed[0]):
+                found[keyed[1].portable_id] = keyed[0]
         return found
 
     def existing(self) -> dict[str, list[records.Record]]:
