@@ -36,9 +36,8 @@ from harness.store.model import (
     CellKey,
     ChecksKey,
     CountedKey,
-    Hashes,
-    OmpEnv,
     ProgramCheckKey,
+    TextMap,
     content_id,
 )
 
@@ -211,12 +210,13 @@ class CellStore:
             parts["openmp_costs"] = BinaryKey(binary_sha256=ompcost_sha)
         omp = self.config.executor.omp_env()
         if omp:
-            parts["omp"] = OmpEnv(tuple(omp.items()))
+            parts["omp"] = TextMap(tuple(omp.items()))
         return parts
 
-    def _hashes(self, paths: Mapping[str, Path]) -> Hashes | None:
-        shas = {name: self.sha(path) for name, path in paths.items()}
-        return None if None in shas.values() else Hashes(tuple(shas.items()))
+    def _hashes(self, paths: Mapping[str, Path]) -> TextMap | None:
+        shas = [(name, self.sha(path)) for name, path in paths.items()]
+        known = [(name, sha) for name, sha in shas if sha is not None]
+        return TextMap(tuple(known)) if len(known) == len(shas) else None
 
     def cell_id(self, cell: Cell) -> str | None:
         key = self.cell_key(cell)

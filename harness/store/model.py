@@ -77,24 +77,9 @@ def _optional(role: Role) -> dict[str, object]:
 
 
 @dataclass(frozen=True)
-class Hashes:
-    """Binaries' hashes by name (a check's or a program's references)."""
-
-    items: tuple[tuple[str, str | None], ...]
-
-    def to_json(self) -> dict[str, object]:
-        return dict(self.items)
-
-    @classmethod
-    def from_json(cls, raw: object, where: str) -> Hashes:
-        mapping = _mapping(raw, where)
-        return cls(tuple((str(k), _typed(v, str | None, f"{where}.{k}"))  # type: ignore[misc]
-                         for k, v in mapping.items()))
-
-
-@dataclass(frozen=True)
-class OmpEnv:
-    """OMP_PROC_BIND / OMP_PLACES a config sets for every cell."""
+class TextMap:
+    """Names to text: binaries' hashes by name (a check's or a program's references), or the
+    OMP_PROC_BIND / OMP_PLACES a config sets for every cell."""
 
     items: tuple[tuple[str, str], ...]
 
@@ -102,7 +87,7 @@ class OmpEnv:
         return dict(self.items)
 
     @classmethod
-    def from_json(cls, raw: object, where: str) -> OmpEnv:
+    def from_json(cls, raw: object, where: str) -> TextMap:
         mapping = _mapping(raw, where)
         return cls(tuple((str(k), _typed(v, str, f"{where}.{k}")) for k, v in mapping.items()))
 
@@ -117,7 +102,7 @@ class ChecksKey:
     energy_ulps: float = field(metadata=_role(Role.WHAT))
     shadow_ulps: float = field(metadata=_role(Role.WHAT))
     thread_counts: tuple[int, ...] = field(metadata=_role(Role.WHAT))
-    reference_sha256: Hashes = field(metadata=_role(Role.BINARY))
+    reference_sha256: TextMap = field(metadata=_role(Role.BINARY))
 
 
 @dataclass(frozen=True)
@@ -125,7 +110,7 @@ class ProgramCheckKey:
     """What a program's step-by-step check compares with, and on how many steps."""
 
     steps: int = field(metadata=_role(Role.WHAT))
-    reference_sha256: Hashes = field(metadata=_role(Role.BINARY))
+    reference_sha256: TextMap = field(metadata=_role(Role.BINARY))
 
 
 @dataclass(frozen=True)
@@ -169,7 +154,7 @@ class CellKey:
     schedule: str | None = field(default=None, metadata=_optional(Role.WHAT))
     checks: ChecksKey | None = field(default=None, metadata=_optional(Role.WHAT))
     program_check: ProgramCheckKey | None = field(default=None, metadata=_optional(Role.WHAT))
-    omp: OmpEnv | None = field(default=None, metadata=_optional(Role.WHAT))
+    omp: TextMap | None = field(default=None, metadata=_optional(Role.WHAT))
     instructions: CountedKey | None = field(default=None, metadata=_optional(Role.COUNTED))
     openmp_costs: BinaryKey | None = field(default=None, metadata=_optional(Role.BESIDE))
 
