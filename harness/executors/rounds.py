@@ -22,8 +22,8 @@ from harness.executors.base import Progress
 from harness.measure.cell import Measurer
 from harness.measure.rounds import CellRun, runs_left
 from harness.plan.cells import Cell
-from harness.store import records
 from harness.store.columns import STOPPED_CI
+from harness.store.result import CellResult
 
 SEED_KEY = "round_seed"
 # A paired cell's round times a few runs a side, about PAIRED_ROUND_S of them (at most
@@ -54,7 +54,7 @@ class Unit:
                          self.state)
 
 
-OnDone = Callable[[Unit, records.Record], None]
+OnDone = Callable[[Unit, CellResult], None]
 # Called after each round with the units it timed, before the done ones finish: may stop
 # units or give them more rounds (rounds until decided, harness.runner.pair); what it returns
 # ends the round's progress line.

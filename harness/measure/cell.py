@@ -38,6 +38,7 @@ from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
 from harness.store import atomic, records
 from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT, TIMING_KEYS
+from harness.store.result import CellResult
 
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
 # A cell's `schedule` (the config's schedule axis) reaches `schedule(runtime)` loops through it.
@@ -127,7 +128,7 @@ class Measurer:
         """A fresh record of the cell, with where and how it runs; an earlier measurement's
         hyperfine files removed."""
         repo = self.store.repo_root
-        record = self.store.new_record(cell, cell_id)
+        record = self.store.new_record(cell, cell_id).to_json()
         record.update({
             "cores": self.cores, "oversubscribed": cell.threads > self.cores,
             "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
@@ -185,13 +186,14 @@ class Measurer:
         record["exit_code"] = run.exit_code
         return record
 
-    def finish(self, run: CellRun, seconds: float) -> records.Record:
+    def finish(self, run: CellRun, seconds: float) -> CellResult:
         """Write the cell's record (with the seconds measuring took); the record."""
         record = self.record_of(run)
         record["seconds"] = seconds
-        self.store.save(run.cell_id, record)
+        result = CellResult.from_json(record)
+        self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)
-        return record
+        return result
 
     def validate_cell(self, cell: Cell, output: str, record: records.Record) -> str:
         """Compare with the baseline; fill the metrics; return ok or invalid."""

@@ -23,6 +23,7 @@ from harness.store.columns import (
     format_list,
 )
 from harness.store.records import MACHINE_KEY
+from harness.store.result import CellResult
 
 
 def uncertainty(times: Sequence[float]) -> dict[str, object]:
@@ -74,6 +75,13 @@ def csv_row(record: Mapping[str, object], experiment: str, title: str,
     return row
 
 
+def result_row(result: CellResult, experiment: str, title: str,
+               hyperfine_json: Path | None = None, stale: bool | None = None
+               ) -> dict[str, object]:
+    """A cell's row of results.csv: a projection of its result."""
+    return csv_row(result.columns, experiment, title, hyperfine_json, stale)
+
+
 def format_cell(value: object) -> str:
     if value is None:
         return ""
@@ -121,9 +129,9 @@ def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
     return rows
 
 
-def write_divergence_csv(path: Path, records_: Iterable[Mapping[str, object]]) -> None:
+def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:
     """divergence.csv from the records that have curves; removed when none has."""
-    rows = [row for record in records_ for row in divergence_rows(record)]
+    rows = [row for result in results for row in divergence_rows(result.columns)]
     if not rows:
         path.unlink(missing_ok=True)
         return

@@ -84,6 +84,16 @@ class CellResult:
         return self.status in TIMED_STATUSES
 
     @property
+    def retry(self) -> bool:
+        """Marked to be measured again by the next run (a Slurm task lost with its node)."""
+        return bool(self.provenance and self.provenance.retry)
+
+    @property
+    def measured_at(self) -> str:
+        """When it was written (ISO, UTC, to the second); "" where the record does not say."""
+        return (self.provenance.measured_at or "") if self.provenance else ""
+
+    @property
     def run_times_s(self) -> tuple[float, ...]:
         return tuple(run.time_s for run in self.times)
 

@@ -167,7 +167,7 @@ def test_a_cut_short_cell_resumes_where_it_stopped(tmp_path: Path, monkeypatch) 
     again = Measurer(store)
     record = measured(again, cell, cid)
     assert len(log.read_text().splitlines()) == precise_runs + 1  # one more timed run only
-    assert record["runs"] == 2 and record["wall_times_round"] == [1, 2]
+    assert record.value("runs") == 2 and record.value("wall_times_round") == [1, 2]
     assert not store.layout.partial(cid).exists()
     assert [p.name for p in store.layout.hyperfine_exports(cid)] == [
         f"{cid}.hyperfine.1.json", f"{cid}.hyperfine.2.json"]

@@ -105,8 +105,8 @@ def test_older_records_read_as_now_and_one_not_under_its_key_id_not_at_all(
               "threads_busy_s": "0.5 0.25", "wall_times_s": [1.0, 2.0]}
     path.write_text(json.dumps(record))
     read = records.read_record(path, good.id)  # a version 1 record: its lists were text
-    assert read is not None and read["threads_busy_s"] == [0.5, 0.25]
-    assert read["version"] == records.RECORD_VERSION
+    assert read is not None and read.value("threads_busy_s") == [0.5, 0.25]
+    assert read.to_json()["version"] == records.RECORD_VERSION
     path.write_text(json.dumps({**record, "key": key(threads=3).to_json()}))
     assert records.read_record(path, good.id) is None
     path.write_text(json.dumps({**record, "threads_busy_s": "0.5 x"}))

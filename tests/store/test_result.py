@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
-from harness.store import columns
+from harness.store import columns, records
 from harness.store.measured import Checks, TimedRun, Validation
 from harness.store.model import CellKey
 from harness.store.result import RECORD_VERSION, CellResult, RecordFormatError, record_fields
@@ -100,3 +100,11 @@ def test_a_record_that_is_not_one_is_refused_by_name(changes: dict[str, object],
                                                      message: str) -> None:
     with pytest.raises(RecordFormatError, match=message.replace("(", r"\(").replace(")", r"\)")):
         CellResult.from_json(record(**changes))
+
+
+def test_a_record_with_an_unknown_field_on_disk_is_not_stored(tmp_path: Path) -> None:
+    path = tmp_path / f"{CELL_ID}.json"
+    path.write_text(json.dumps(record()))
+    assert records.read_record(path, CELL_ID) == CellResult.from_json(record())
+    path.write_text(json.dumps(record(runtime=1.0)))
+    assert records.read_record(path, CELL_ID) is None  # not stored: the cell is measured again
