@@ -211,7 +211,7 @@ def report_cell(cell: Cell, result: CellResult, log: TextIO) -> None:
     note = " ".join((result.note or "").split())
     if result.status != OK:
         log.write(f"warning: {cell.label}: {result.status}: {note}\n")
-    elif result.program and result.program.agreement == DIVERGES:  # ok, but say where
+    elif result.program_check and result.program_check.agreement == DIVERGES:  # say where
         log.write(f"note: {cell.label}: {DIVERGES}: {note}\n")
     timing = result.timing
     if timing and timing.unstable:

@@ -26,16 +26,15 @@ from harness.store.records import MACHINE_KEY
 from harness.store.result import CellResult
 
 
-def uncertainty(times: Sequence[float]) -> dict[str, object]:
-    """The record fields derived from hyperfine's per-run times: the times as a list, the 95%
-    bootstrap interval of their median and their low quantile."""
+def uncertainty(times: Sequence[float]) -> tuple[float | None, float | None, float]:
+    """What a record derives from its per-run times: the 95% bootstrap interval of their
+    median (None where there is none) and their low quantile."""
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
     interval = stats.median_ci(times)
-    return {"wall_times_s": list(times),
-            "wall_median_ci_low_s": interval.low if math.isfinite(interval.low) else None,
-            "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None,
-            LOW_QUANTILE_COLUMN: stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)}
+    return (interval.low if math.isfinite(interval.low) else None,
+            interval.high if math.isfinite(interval.high) else None,
+            stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR))
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
@@ -51,7 +50,9 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
     if times:
         if record.get("wall_median_ci_low_s") is None:
-            values.update(uncertainty(times))
+            low, high, q25 = uncertainty(times)
+            values.update({"wall_median_ci_low_s": low, "wall_median_ci_high_s": high,
+                           LOW_QUANTILE_COLUMN: q25})
         elif values[LOW_QUANTILE_COLUMN] is None:  # a record older than the column: no bootstrap
             from harness import stats
 

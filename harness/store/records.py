@@ -16,8 +16,6 @@ from harness.store.result import CellResult, RecordFormatError
 # The part of a cell key that names the machine (records of several machines sit side by side).
 MACHINE_KEY = MACHINE_FIELD
 
-Record = dict[str, object]
-
 
 def sha256_file(path: Path) -> str:
     digest = hashlib.sha256()

@@ -66,15 +66,15 @@ class CellResult:
     times: tuple[TimedRun, ...] = ()
     subject: Subject | None = None
     timing: Timing | None = None
-    rounds: Rounds | None = None
+    timed_rounds: Rounds | None = None
     noise: Noise | None = None
     phases: Phases | None = None
     counts: Counts | None = None
     thread_work: ThreadWork | None = None
     validation: Validation | None = None
     checks: Checks | None = None
-    program: ProgramVerdict | None = None
-    instructions: Instructions | None = None
+    program_check: ProgramVerdict | None = None
+    counted: Instructions | None = None
     openmp_costs: OmpCosts | None = None
     provenance: Provenance | None = None
 
@@ -138,15 +138,16 @@ class CellResult:
     def replace(self, **changes: object) -> CellResult:
         """A copy with these fields changed; a group's fields by their names, merged into
         the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
-        names = _leaf_names()
-        top = {k: v for k, v in changes.items() if k not in names}
+        names, groups = _leaf_names(), _group_types()
+        top = {k: _or_none(v) if k in groups and v is not None else v
+               for k, v in changes.items() if k not in names}
         merged: dict[str, dict[str, object]] = {}
         for name, value in changes.items():
             if name in names:
                 merged.setdefault(names[name], {})[name] = value
         for group, values in merged.items():
             current = getattr(self, group)
-            cls = _group_types()[group]
+            cls = groups[group]
             top[group] = _or_none(replace(current, **values) if current else cls(**values))
         return replace(self, **top)  # type: ignore[arg-type]
 

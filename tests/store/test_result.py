@@ -4,6 +4,7 @@ the name of its field."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -108,3 +109,9 @@ def test_a_record_with_an_unknown_field_on_disk_is_not_stored(tmp_path: Path) ->
     assert records.read_record(path, CELL_ID) == CellResult.from_json(record())
     path.write_text(json.dumps(record(runtime=1.0)))
     assert records.read_record(path, CELL_ID) is None  # not stored: the cell is measured again
+
+
+def test_no_group_is_named_as_a_field() -> None:
+    top = {"cell_id", "key", "status", "exit_code", "note", "times"}
+    groups = {f.name for f in dataclasses.fields(CellResult)} - top
+    assert len(groups) == 13 and not groups & record_fields()
