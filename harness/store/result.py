@@ -50,6 +50,7 @@ READ_VERSIONS = (1, RECORD_VERSION)
 TIMES_FIELD = "wall_times_s"
 ROUNDS_FIELD = "wall_times_round"
 
+
 class RecordFormatError(ValueError):
     """A stored record that is not a cell record of this harness."""
 
@@ -92,10 +93,6 @@ class CellResult:
     def measured_at(self) -> str:
         """When it was written (ISO, UTC, to the second); "" where the record does not say."""
         return (self.provenance.measured_at or "") if self.provenance else ""
-
-    @property
-    def run_times_s(self) -> tuple[float, ...]:
-        return tuple(run.time_s for run in self.times)
 
     def round_times(self) -> dict[int, tuple[float, ...]]:
         """The seconds of its runs by round, in round order; empty where the runs' rounds
