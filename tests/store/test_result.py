@@ -118,3 +118,12 @@ def test_no_group_is_named_as_a_field() -> None:
     top = {"cell_id", "key", "status", "exit_code", "note", "times"}
     groups = {f.name for f in dataclasses.fields(CellResult)} - top
     assert len(groups) == 13 and not groups & record_fields()
+
+
+def test_two_stored_results_pair_by_round() -> None:
+    from harness import stats
+
+    old = CellResult.from_json(record())
+    new = CellResult.from_json(record(wall_times_s=[2.0, 3.0, 4.0, 6.0]))
+    paired = stats.paired_sides(old, new)  # each round's median, in round order
+    assert (paired.old, paired.new, paired.shift) == ([2.0, 1.75], [4.0, 3.5], [0.0, 0.0])
