@@ -246,12 +246,22 @@ def _parse(values: Mapping[str, object]) -> CellResult:
     for name in ("cell_id", "status", "exit_code", "note"):
         if name in values or name == "cell_id":
             top[name] = _typed(values.get(name), hints[name], f"record.{name}")
-    for group, cls in _group_types().items():
-        leaf_hints = _hints(cls)
-        present = {f.name: _typed(values[f.name], leaf_hints[f.name], f"record.{f.name}")
-                   for f in fields(cls) if f.name in values}
-        top[group] = cls(**present) if present else None
+    leaves, groups = _leaf_hints(), _group_types()
+    present: dict[str, dict[str, object]] = {}
+    for name, value in values.items():
+        if name in leaves:
+            group, hint = leaves[name]
+            present.setdefault(group, {})[name] = _typed(value, hint, f"record.{name}")
+    for group, found in present.items():
+        top[group] = groups[group](**found)
     return CellResult(**top)
+
+
+@functools.cache
+def _leaf_hints() -> dict[str, tuple[str, object]]:
+    """Each group field's name in the record, with its group and its type."""
+    return {name: (group, _hints(_group_types()[group])[name])
+            for name, group in _leaf_names().items()}
 
 
 def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:
@@ -274,6 +284,8 @@ def _typed(value: object, hint: object, where: str) -> typing.Any:
             return value
         if origin is tuple and isinstance(value, list):
             item = typing.get_args(option)[0]
+            if all(type(v) is item for v in value):  # the common case, at once
+                return tuple(value)
             return tuple(_typed(v, item, f"{where}[{i}]") for i, v in enumerate(value))
         if origin is dict and isinstance(value, dict):
             return value
