@@ -25,8 +25,9 @@ from harness.plan.cells import Cell, Plan
 from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
 from harness.store import locks, records
+from harness.store.result import CellResult
 
-OnRecord = Callable[[Cell, str, records.Record], None]
+OnRecord = Callable[[Cell, str, CellResult], None]
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ class Experiment:
     plan: Plan
     options: Options
     log: TextIO
-    records: dict[str, records.Record] = field(default_factory=dict)
+    records: dict[str, CellResult] = field(default_factory=dict)
     cores: int = field(default_factory=machine.available_cores)
     store: CellStore = field(init=False)
 

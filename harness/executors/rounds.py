@@ -22,10 +22,9 @@ from harness.executors.base import Progress
 from harness.measure.cell import Measurer
 from harness.measure.rounds import CellRun, runs_left
 from harness.plan.cells import Cell
-from harness.store import records
 from harness.store.columns import STOPPED_CI
+from harness.store.result import CellResult
 
-SEED_KEY = "round_seed"
 # A paired cell's round times a few runs a side, about PAIRED_ROUND_S of them (at most
 # PAIRED_MAX_PER_ROUND): the round's ratio is then that of two medians, which one run slowed by
 # a descheduled thread (tens of percent, for a 2-thread cell on 2 cores) cannot move.
@@ -54,7 +53,7 @@ class Unit:
                          self.state)
 
 
-OnDone = Callable[[Unit, records.Record], None]
+OnDone = Callable[[Unit, CellResult], None]
 # Called after each round with the units it timed, before the done ones finish: may stop
 # units or give them more rounds (rounds until decided, harness.runner.pair); what it returns
 # ends the round's progress line.
@@ -134,7 +133,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
         started = time.monotonic()
         unit.run = unit.measurer.start(unit.cell, unit.cell_id)
-        unit.run.record[SEED_KEY] = seed
+        unit.run.record = unit.run.record.replace(round_seed=seed)
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
         active.append(unit)

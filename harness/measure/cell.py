@@ -27,8 +27,9 @@ from harness.measure.ompcost import measure_costs
 from harness.measure.proc import exit_status, run_process, tail
 from harness.measure.program import start_program
 from harness.measure.references import References
-from harness.measure.rounds import CellRun, next_runs, stop_reason, timing_fields
-from harness.measure.timing import parse_timing, thread_work
+from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
+from harness.measure.timing import parse_timing
+from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
 from harness.plan.binaries import measures_openmp_costs
 from harness.plan.cells import Cell
@@ -36,8 +37,9 @@ from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
-from harness.store import atomic, records
-from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT, TIMING_KEYS
+from harness.store import atomic
+from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT
+from harness.store.result import CellResult
 
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
 # A cell's `schedule` (the config's schedule axis) reaches `schedule(runtime)` loops through it.
@@ -87,7 +89,7 @@ class Measurer:
         binary = self.store.binary(cell)
         command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
                    str(self.store.input_file(cell.scene))]
-        record["command"] = shlex.join(command)
+        record = record.replace(command=shlex.join(command))
         keep = self.store.layout.output(cell_id)
         output_tmp = None
         if config.keep_output:
@@ -99,41 +101,40 @@ class Measurer:
                                   measure.timeout_s, output_tmp)
             run_s = precise.seconds
             status, exit_code = exit_status(precise.returncode)
-            timing = parse_timing(precise.stderr) or {}
-            record.update({k: timing.get(k) for k in TIMING_KEYS})
-            record.update(thread_work(timing))
-            record["stderr_tail"] = tail(precise.stderr)
+            phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
+            record = record.replace(phases=phases, counts=counts, thread_work=work,
+                                    stderr_tail=tail(precise.stderr))
             if status == TIMEOUT:
-                record["note"] = f"--precise run passed the {measure.timeout_s:g} s timeout"
+                record = record.replace(
+                    note=f"--precise run passed the {measure.timeout_s:g} s timeout")
             elif status != OK:
-                record["note"] = f"--precise run: {tail(precise.stderr).strip()}"
+                record = record.replace(note=f"--precise run: {tail(precise.stderr).strip()}")
             if status == OK and output_tmp is not None:
                 output = output_tmp.read_text()
                 if cell.validate:
-                    status = self.validate_cell(cell, output, record)
+                    status, record = self.validate_cell(cell, output, record)
                 if config.keep_output:
                     os.replace(output_tmp, keep)
             if status in TIMED_STATUSES and cell.checked:
-                self.checker.run_checks(cell, record)
+                record = record.replace(checks=self.checker.run_checks(cell))
         finally:
             if output_tmp is not None:
                 output_tmp.unlink(missing_ok=True)
         if measures_openmp_costs(config, cell):
-            record.update(measure_costs(self.store.ompcost(cell), cell.threads, env))
+            record = record.replace(openmp_costs=measure_costs(self.store.ompcost(cell),
+                                                              cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
                                         run_s=run_s))
 
-    def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> records.Record:
+    def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> CellResult:
         """A fresh record of the cell, with where and how it runs; an earlier measurement's
         hyperfine files removed."""
         repo = self.store.repo_root
-        record = self.store.new_record(cell, cell_id)
-        record.update({
-            "cores": self.cores, "oversubscribed": cell.threads > self.cores,
-            "omp_env": {k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
-            records.MACHINE_KEY: self.store.machine_id, "machine": machine.machine(repo),
-            "git_commit": environment.git_commit(repo), "schedule": cell.schedule,
-        })
+        record = self.store.new_record(cell, cell_id).replace(
+            cores=self.cores, oversubscribed=cell.threads > self.cores,
+            omp_env={k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
+            machine_id=self.store.machine_id, machine=machine.machine(repo),
+            git_commit=environment.git_commit(repo), schedule=cell.schedule)
         for old in self.store.layout.hyperfine_files(cell_id):
             old.unlink(missing_ok=True)
         return record
@@ -150,17 +151,18 @@ class Measurer:
         env = self.environment(cell.threads, cell.schedule)
         found = count_runs(tool, argv, env, measure.timeout_s,
                            input_file=None if cell.program else Path(run.command[-1]))
-        run.record.update(found.fields(tool, lane.described(tool, counted,
-                                                            self.store.binaries)))
+        run.record = run.record.replace(counted=found.instructions(
+            tool, lane.described(tool, counted, self.store.binaries)))
         return run
 
     def time_round(self, run: CellRun, round_index: int) -> None:
         """One round of the cell's timed runs (hyperfine), and whether it needs more."""
-        variant = str(run.record["variant"])
-        measure = run.measure(self.config.measure_for(variant))
+        subject = run.record.subject
+        assert subject is not None and subject.threads is not None, "a record names its cell"
+        measure = run.measure(self.config.measure_for(str(subject.variant)))
         runs = next_runs(measure, run.times, run.per_round)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
-        env = self.environment(int(str(run.record["threads"])), str(run.record["schedule"]))
+        env = self.environment(subject.threads, subject.schedule or "")
         warmup = measure.warmup if not run.exports else 0
         run.add(time_runs(self.hyperfine, run.command, env, export, runs, warmup,
                           measure.timeout_s, self.cores), round_index, export)
@@ -176,45 +178,31 @@ class Measurer:
         else:
             run.save(partial)
 
-    def record_of(self, run: CellRun) -> records.Record:
-        """The cell's record: what its checks filled and its timed runs."""
-        record = dict(run.record)
-        if run.timed or run.exports:
-            record.update(timing_fields(run))
-        record["status"] = run.status
-        record["exit_code"] = run.exit_code
-        return record
-
-    def finish(self, run: CellRun, seconds: float) -> records.Record:
+    def finish(self, run: CellRun, seconds: float) -> CellResult:
         """Write the cell's record (with the seconds measuring took); the record."""
-        record = self.record_of(run)
-        record["seconds"] = seconds
-        self.store.save(run.cell_id, record)
+        result = timed_result(run).replace(seconds=seconds)
+        self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)
-        return record
+        return result
 
-    def validate_cell(self, cell: Cell, output: str, record: records.Record) -> str:
-        """Compare with the baseline; fill the metrics; return ok or invalid."""
+    def validate_cell(self, cell: Cell, output: str, record: CellResult
+                      ) -> tuple[str, CellResult]:
+        """Compare with the baseline: ok or invalid, and the record with what it found."""
         if cell.variant == BASELINE:
             self.references.share_baseline(cell, output)
         reference, problem = self.references.baseline_output(cell)
         if reference is None:
-            record["note"] = problem
-            return OK
+            return OK, record.replace(note=problem)
         try:
             comparison = validate.compare(reference, output, cell.scene.L)
         except OutputFormatError as exc:
-            record["note"] = f"baseline output unreadable: {exc}"
-            return OK
-        record.update({
-            "identical": comparison.identical, "max_pos_err": comparison.max_pos_err,
-            "max_vel_err": comparison.max_vel_err,
-            "count_mismatches": comparison.count_mismatches,
-        })
+            return OK, record.replace(note=f"baseline output unreadable: {exc}")
+        record = record.replace(
+            identical=comparison.identical, max_pos_err=comparison.max_pos_err,
+            max_vel_err=comparison.max_vel_err, count_mismatches=comparison.count_mismatches)
         if not comparison.comparable:
-            record["note"] = "output does not match the baseline's particles or steps"
-            return INVALID
+            return INVALID, record.replace(
+                note="output does not match the baseline's particles or steps")
         if cell.exact and not comparison.identical:
-            record["note"] = "output differs from the sequential baseline"
-            return INVALID
-        return OK
+            return INVALID, record.replace(note="output differs from the sequential baseline")
+        return OK, record

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
 from harness.spec.output import Output, OutputFormatError, parse_output
-from harness.store import records
+from harness.store.measured import Checks
 
 
 @dataclass(frozen=True)
@@ -35,9 +36,10 @@ class _Run:
 
 @dataclass
 class _Found:
-    """What the checks found so far: the record's values, the checks failed, and notes."""
+    """What the checks found so far: their values (Checks' fields), the checks failed, and
+    notes."""
 
-    values: dict[str, object] = field(default_factory=dict)
+    values: dict[str, typing.Any] = field(default_factory=dict)
     failed: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
@@ -49,8 +51,8 @@ class Checker:
     store: CellStore
     references: References
 
-    def run_checks(self, cell: Cell, record: records.Record) -> None:
-        """The configured checks on the cell's print-mode run; values into the record."""
+    def run_checks(self, cell: Cell) -> Checks:
+        """The configured checks on the cell's print-mode run."""
         started = time.monotonic()
         names = self.store.config.checks.names
         printed = scenes.with_run(cell.scene, cell.scene.steps, "print")
@@ -73,14 +75,14 @@ class Checker:
             if "invariants" in names:
                 self._invariants(run, found)
             if "divergence" in names:
-                record["divergence"] = self._divergence(run, found)
+                found.values["divergence"] = self._divergence(run, found)
             if "shadow" in names:
-                record["shadow_per_step"] = self._shadow(run, found)
+                found.values["shadow_per_step"] = self._shadow(run, found)
         found.values["checks_passed"] = not found.failed
         found.values["checks_failed"] = " ".join(found.failed)
         found.values["checks_note"] = "; ".join(found.notes)
         found.values["checks_s"] = time.monotonic() - started
-        record.update(found.values)
+        return Checks(**found.values)
 
     def _invariants(self, run: _Run, found: _Found) -> None:
         """The invariants, the same output at the other thread counts, and (for a cell that
@@ -127,7 +129,7 @@ class Checker:
                                                                   scene.r / scene.L)
         return curves
 
-    def _shadow(self, run: _Run, found: _Found) -> list[dict[str, object]]:
+    def _shadow(self, run: _Run, found: _Found) -> tuple[dict[str, object], ...]:
         """The shadow steps against the truth; each step's comparison."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
         timeout = self.store.config.measure.timeout_s
@@ -154,4 +156,4 @@ class Checker:
             found.notes.append(f"{shade.failed} shadow step(s) could not be compared")
         if not shade.passed:
             found.failed.append("shadow")
-        return [dataclasses.asdict(s) for s in shade.steps]
+        return tuple(dataclasses.asdict(s) for s in shade.steps)

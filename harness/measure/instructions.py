@@ -17,6 +17,7 @@ from pathlib import Path
 
 from harness.measure.proc import run_process, tail
 from harness.plan.lane import CACHEGRIND, PASSIVE_ENV, PERF, PERF_COUNT, PERF_EVENT
+from harness.store.measured import Instructions
 
 COUNTS = 2
 # How much longer than the cell's timeout a counted run may take: cachegrind simulates every
@@ -36,15 +37,11 @@ class Counted:
     counts: tuple[int, ...]
     problem: str = ""
 
-    def fields(self, tool: str, binary: str) -> dict[str, object]:
+    def instructions(self, tool: str, binary: str) -> Instructions:
         """The record's instruction fields (harness.store.columns.INSTRUCTION_COLUMNS)."""
-        if not self.counts:
-            return {"instructions_tool": tool, "instructions_binary": binary,
-                    "instructions_note": self.problem}
-        return {"instructions": min(self.counts), "instructions_max": max(self.counts),
-                "instructions_counts": list(self.counts),
-                "instructions_tool": tool, "instructions_binary": binary,
-                "instructions_note": self.problem}
+        counts = self.counts
+        return Instructions(min(counts) if counts else None, max(counts) if counts else None,
+                            tuple(counts) if counts else None, tool, binary, self.problem)
 
 
 def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,

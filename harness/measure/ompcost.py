@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from harness.measure.proc import run_process, tail
-from harness.store.columns import OMP_COST_COLUMNS, OMP_COST_NOTE
+from harness.store.columns import OMP_COST_COLUMNS
+from harness.store.measured import OmpCosts
 
 # Seconds ompcost may take: four operations at its default 100 ms each, calibration, and the
 # slow batches of a team many times the cores.
@@ -47,19 +48,18 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
     return costs
 
 
-def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> dict[str, object]:
-    """The record's cost columns from one ompcost run; where it fails, every column empty and
-    its note (OMP_COST_NOTE) saying why (the cell itself is measured all the same)."""
+def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:
+    """The record's costs from one ompcost run; where it fails, every cost empty and its note
+    (OMP_COST_NOTE) saying why (the cell itself is measured all the same)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ompcost.json"
         done = run_process([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S, out)
         text = out.read_text() if out.exists() else ""
-    empty: dict[str, object] = dict.fromkeys(OMP_COST_COLUMNS)
     if done.returncode != 0:
         why = ("timed out" if done.returncode is None
                else f"exit {done.returncode}: {tail(done.stderr).strip()[-300:]}")
-        return {**empty, OMP_COST_NOTE: f"{binary.name} {why}"}
+        return OmpCosts(openmp_costs_note=f"{binary.name} {why}")
     try:
-        return {**parse_costs(text, threads), OMP_COST_NOTE: None}
+        return OmpCosts(**parse_costs(text, threads))
     except ValueError as exc:
-        return {**empty, OMP_COST_NOTE: f"{binary.name}: {exc}"}
+        return OmpCosts(openmp_costs_note=f"{binary.name}: {exc}")

@@ -40,7 +40,7 @@ from harness.plan.cellstore import CellStore
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
-from harness.store import atomic, records
+from harness.store import atomic
 from harness.store.columns import (
     AGREEING,
     AGREEMENT_FAILED,
@@ -49,6 +49,7 @@ from harness.store.columns import (
     NONDETERMINISTIC,
     OK,
 )
+from harness.store.result import CellResult
 
 COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
 SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
@@ -57,15 +58,15 @@ LAST_LINES = 3
 
 
 def start_program(store: CellStore, references: References, cell: Cell, cell_id: str,
-                  key: dict[str, object], record: records.Record, env: Mapping[str, str],
+                  key: dict[str, object], record: CellResult, env: Mapping[str, str],
                   timeout_s: float) -> CellRun:
     """The program's run and its check; the CellRun its timed rounds continue."""
     program = store.config.program(cell.variant)
     assert program is not None, "a program cell names a program"
     command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads)
-    record.update({"command": shlex.join(command), "program": _described(program)})
     done = run_process(command, env, timeout_s)
-    record["stderr_tail"] = tail(done.stderr)
+    record = record.replace(command=shlex.join(command), program=_described(program),
+                            stderr_tail=tail(done.stderr))
     status, code = _status(done)
     if status != OK:
         return _not_run(record, cell_id, key, command, status, code,
@@ -73,7 +74,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads)
-    record.update({"check_command": shlex.join(check), "check_steps": steps})
+    record = record.replace(check_command=shlex.join(check), check_steps=steps)
     output = atomic.temp_path(store.layout.check_output(cell_id))
     try:
         checked = run_process(check, env, timeout_s, output)
@@ -90,27 +91,28 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
-        record.update(agreement=AGREEMENT_FAILED,
-                      note=f"not checked: {refs[REFERENCE].name}'s print-mode run failed")
+        record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: "
+                                f"{refs[REFERENCE].name}'s print-mode run failed")
         return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
     replays: list[float] = []
     replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
     judged = time.monotonic()
+    verdict: Agreement | None = None
     try:
         verdict = judge(text, seq, cell.scene.n, steps, cell.scene.L, cell.scene.r, replay)
     except ReplayError as exc:
-        record.update(agreement=AGREEMENT_FAILED, note=f"not checked: {exc}")
+        record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: {exc}")
+    # What grading costs beyond the program's run: its print-mode run and the verdict
+    # (reading, comparing, the replays); the reference's run is shared by the scene's cells.
+    record = record.replace(check_s=checked.seconds + time.monotonic() - judged,
+                            replay_s=math.fsum(replays))
+    if verdict is None:
         return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
-    finally:
-        # What grading costs beyond the program's run: its print-mode run and the verdict
-        # (reading, comparing, the replays); the reference's run is shared by the scene's cells.
-        record.update(check_s=checked.seconds + time.monotonic() - judged,
-                      replay_s=math.fsum(replays))
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
-        verdict = _repeated_and_raced(program, store, cell, store.input_file(scene), env,
-                                      timeout_s, text, verdict, record)
-    record.update(verdict.fields())
-    record["note"] = _note(verdict.note, steps, cell.scene.steps, refs[REFERENCE].name)
+        verdict, record = _repeated_and_raced(program, store, cell, store.input_file(scene),
+                                              env, timeout_s, text, verdict, record)
+    record = record.replace(**verdict.fields(), note=_note(
+        verdict.note, steps, cell.scene.steps, refs[REFERENCE].name))
     status = OK if verdict.verdict in AGREEING else INVALID
     return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
 
@@ -127,7 +129,8 @@ def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> 
 
 def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_input: Path,
                         env: Mapping[str, str], timeout_s: float, text: str,
-                        verdict: Agreement, record: records.Record) -> Agreement:
+                        verdict: Agreement, record: CellResult
+                        ) -> tuple[Agreement, CellResult]:
     """At the config's most threads, the verdict with a second check run (the same output,
     or its first difference) and, for a program built from its source, the race check (its
     result into the record)."""
@@ -135,11 +138,11 @@ def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_in
     if program.build:
         small = small_scene(cell.scene)
         check = find_races(program, store.input_file(small), small.describe(), env, timeout_s)
-        record.update(races=check.column(), race_check={
+        record = record.replace(races=check.column(), race_check={
             "threads": check.threads, "scene": check.scene, "note": check.note,
             "races": [dataclasses.asdict(r) for r in check.races or ()]})
         verdict = with_races(verdict, check)
-    return verdict
+    return verdict, record
 
 
 class ReplayError(RuntimeError):
@@ -249,8 +252,8 @@ def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
     return f"{what}: {why}" + (f": {last}" if last else "")
 
 
-def _not_run(record: records.Record, cell_id: str, key: dict[str, object], command: list[str],
+def _not_run(record: CellResult, cell_id: str, key: dict[str, object], command: list[str],
              status: str, code: int | None, note: str, seconds: float) -> CellRun:
-    record.update(agreement=AGREEMENT_FAILED, note=note)
+    record = record.replace(agreement=AGREEMENT_FAILED, note=note)
     return CellRun(cell_id, key, record, status, code, command, run_s=seconds)
 

@@ -25,7 +25,7 @@ from pathlib import Path
 from harness import stats
 from harness.measure.hyperfine import Timed
 from harness.spec.config import Measure
-from harness.store import atomic, csvfile, records
+from harness.store import atomic, csvfile
 from harness.store.columns import (
     STOPPED_CI,
     STOPPED_MAX_RUNS,
@@ -34,6 +34,8 @@ from harness.store.columns import (
     TIMED_STATUSES,
 )
 from harness.store.hyperfine import is_unstable
+from harness.store.measured import Noise, TimedRun
+from harness.store.result import CellResult
 
 PARTIAL_VERSION = 2
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
@@ -48,7 +50,7 @@ class CellRun:
 
     cell_id: str
     key: dict[str, object]  # the cell's key when it started: a partial file of another is void
-    record: records.Record
+    record: CellResult  # what its untimed runs found
     status: str
     exit_code: int | None
     command: list[str]
@@ -114,13 +116,13 @@ class CellRun:
     def add(self, timed: Timed, round_index: int, export: Path) -> None:
         """One round's hyperfine call: its runs, or the status it failed with."""
         if not self.exports:
-            self.record["load_before"] = timed.load_before
-        self.record["load_after"] = timed.load_after
+            self.record = self.record.replace(load_before=timed.load_before)
+        self.record = self.record.replace(load_after=timed.load_after)
         self.loaded |= timed.loaded
         self.warnings += timed.warnings
         if timed.stats is None:
             self.status, self.exit_code = timed.status, timed.exit_code
-            self.record["note"] = timed.note
+            self.record = self.record.replace(note=timed.note)
             return
         self.times += timed.stats.times
         self.rounds += [round_index] * timed.stats.runs
@@ -141,6 +143,7 @@ class CellRun:
         (appended), or, where it was not (a new file, another run's, one whose last save was
         cut short), the whole state, written atomically."""
         state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        state["record"] = self.record.to_json()
         if self.saved is not None and self.saved[0] == path and path.is_file():
             kept = self.saved[1]
             line = {name: value[kept[name]:] if name in GROWING else value
@@ -172,7 +175,7 @@ class CellRun:
             for line in lines[1:]:
                 for name, value in json.loads(line).items():
                     first[name] = first[name] + value if name in GROWING else value
-            run = cls(**first)
+            run = cls(**{**first, "record": CellResult.from_json(first["record"])})
         except (ValueError, TypeError, KeyError, AttributeError):
             return None
         if run.key != key:
@@ -252,35 +255,41 @@ def narrow(times: Sequence[float], ci: float) -> bool:
     return relative_half_width(times) <= ci
 
 
-def timing_fields(run: CellRun) -> dict[str, object]:
-    """The record's timing of the cell's runs: hyperfine's statistics, over all its rounds."""
+def timed_result(run: CellRun) -> CellResult:
+    """The cell's result: what its untimed runs found, how it ended, and its timed runs with
+    hyperfine's statistics over all its rounds."""
+    result = run.record.replace(status=run.status, exit_code=run.exit_code)
+    if not (run.timed or run.exports):
+        return result
+    result = result.replace(rounds=len(run.exports), stopped=run.stopped or None)
     times = run.times
     if not times:
-        return {"runs": 0, "rounds": len(run.exports), "stopped": run.stopped or None}
+        return result.replace(runs=0)
     mean = statistics.fmean(times)
     stddev = statistics.stdev(times) if len(times) > 1 else None
-    return {
-        "runs": len(times), "wall_mean_s": mean, "wall_stddev_s": stddev,
-        "wall_median_s": statistics.median(times), "wall_min_s": min(times),
-        "wall_max_s": max(times), "wall_user_s": statistics.fmean(run.user_s),
-        "wall_system_s": statistics.fmean(run.system_s),
-        "unstable": is_unstable(mean, stddev),
-        **csvfile.uncertainty(times), "wall_times_round": list(run.rounds),
-        "rounds": len(run.exports), "stopped": run.stopped or None,
-        "hyperfine_exports": list(run.exports), "hyperfine_warnings": list(run.warnings),
-        "loaded": run.loaded, **noise_fields(run),
-    }
+    low, high, q25 = csvfile.uncertainty(times)
+    return result.replace(
+        runs=len(times), wall_mean_s=mean, wall_stddev_s=stddev,
+        wall_median_s=statistics.median(times), wall_min_s=min(times), wall_max_s=max(times),
+        wall_user_s=statistics.fmean(run.user_s), wall_system_s=statistics.fmean(run.system_s),
+        wall_median_ci_low_s=low, wall_median_ci_high_s=high, wall_q25_s=q25,
+        unstable=is_unstable(mean, stddev), hyperfine_exports=tuple(run.exports),
+        hyperfine_warnings=tuple(run.warnings), loaded=run.loaded,
+        times=tuple(TimedRun(t, r) for t, r in zip(times, run.rounds, strict=True)),
+        noise=round_noise(run))
 
 
-def noise_fields(run: CellRun) -> dict[str, object]:
-    """The record's noise of the cell's rounds (store.columns.NOISE_COLUMNS)."""
+def round_noise(run: CellRun) -> Noise | None:
+    """The noise of the cell's rounds (store.columns.NOISE_COLUMNS), where every round has
+    it."""
     if len(run.round_noise) != len(run.exports):
-        return {}
-    return {"steal_s": run.steal_s, "other_cpu_s": run.other_cpu_s,
-            "nivcsw_per_run": run.nivcsw / len(run.times) if run.times else None,
-            "round_noise": [round(s, 3) for s in run.round_noise],
-            "round_pressure": [round(s, 4) for s in run.round_pressure]
-            if len(run.round_pressure) == len(run.exports) else None,
-            "rounds_dropped": [r for r, share in run.noise_by_round().items()
-                               if share > stats.NOISE_LIMIT],
-            "noise_capacity_s": run.capacity_s}
+        return None
+    return Noise(
+        steal_s=run.steal_s, other_cpu_s=run.other_cpu_s,
+        nivcsw_per_run=run.nivcsw / len(run.times) if run.times else None,
+        round_noise=tuple(round(s, 3) for s in run.round_noise),
+        round_pressure=tuple(round(s, 4) for s in run.round_pressure)
+        if len(run.round_pressure) == len(run.exports) else None,
+        rounds_dropped=tuple(r for r, share in run.noise_by_round().items()
+                             if share > stats.NOISE_LIMIT),
+        noise_capacity_s=run.capacity_s)

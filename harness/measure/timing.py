@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import json
 import math
+import typing
 from collections.abc import Iterable, Mapping
+from dataclasses import fields
 
 from harness.store.columns import THREAD_TIMING_KEYS
+from harness.store.measured import Counts, Phases, ThreadWork
 
 BUSY_KEY = "threads_busy_s"
 
@@ -49,3 +52,16 @@ def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
             busy = [float(v) for v in value]
     fields["imbalance"] = imbalance(busy) if busy else None
     return fields
+
+
+def precise(timing: Mapping[str, object]) -> tuple[Phases, Counts, ThreadWork]:
+    """The phases, counts and per-thread work of a --timing object (None for what it lacks or
+    gives as no number)."""
+    def number(name: str, kind: type | tuple[type, ...]) -> typing.Any:
+        value = timing.get(name)
+        return value if isinstance(value, kind) and not isinstance(value, bool) else None
+
+    work = {k: tuple(v) if isinstance(v, list) else v for k, v in thread_work(timing).items()}
+    return (Phases(**{f.name: number(f.name, (int, float)) for f in fields(Phases)}),
+            Counts(**{f.name: number(f.name, int) for f in fields(Counts)}),
+            ThreadWork(**work))

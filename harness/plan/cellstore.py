@@ -31,6 +31,7 @@ from harness.spec.config import Config
 from harness.spec.programs import check_steps
 from harness.store import atomic, csvfile, index, records
 from harness.store.layout import ExperimentDir, ResultsRoot
+from harness.store.measured import Provenance, Subject, Timing, Validation
 from harness.store.model import (
     BinaryKey,
     CellKey,
@@ -40,6 +41,7 @@ from harness.store.model import (
     TextMap,
     content_id,
 )
+from harness.store.result import CellResult
 
 
 def now_iso() -> str:
@@ -227,44 +229,42 @@ class CellStore:
         ids = ((self.cell_id(cell), cell) for cell in self.plan.cells)
         return {cid: cell for cid, cell in ids if cid is not None}
 
-    def new_record(self, cell: Cell, cell_id: str) -> records.Record:
-        """The fields every record of the cell starts with: its identity, the binaries it ran
-        and when; the measurement (or a fault) adds the rest."""
+    def new_record(self, cell: Cell, cell_id: str) -> CellResult:
+        """What every record of the cell starts with: its identity, the binaries it ran and
+        when; the measurement (or a fault) adds the rest."""
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
         scene = cell.scene
-        return {
-            "version": records.RECORD_VERSION, "cell_id": cell_id, "key": key.to_json(),
-            "variant": cell.variant, "build": cell.build, "scene": scene.label, "n": scene.n,
-            "L": scene.L, "r": scene.r, "steps": scene.steps, "mode": scene.mode,
-            "seed": scene.seed, "threads": cell.threads, "params": dict(scene.params),
-            "runs": 0, "unstable": False, "binary_sha256": key.binary_sha256,
-            "binary": self.runs_what(cell),
-            "input_sha256": scene.input_sha256,
-            "validated": cell.validate, "exact": cell.exact,
-            "baseline_sha256": key.baseline_sha256, "identical": None, "note": "",
-            "measured_at": now_iso(),
-        }
+        return CellResult(
+            cell_id, key, note="",
+            subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
+                            scene.steps, scene.mode, scene.seed, cell.threads,
+                            params=dict(scene.params)),
+            timing=Timing(runs=0, unstable=False),
+            validation=Validation(validated=cell.validate, exact=cell.exact,
+                                  baseline_sha256=key.baseline_sha256),
+            provenance=Provenance(binary=self.runs_what(cell), binary_sha256=key.binary_sha256,
+                                  input_sha256=scene.input_sha256, measured_at=now_iso()))
 
     # --- records ---
 
     def record_path(self, cell_id: str) -> Path:
         return self.layout.record(cell_id)
 
-    def cached(self, cell_id: str) -> records.Record | None:
+    def cached(self, cell_id: str) -> CellResult | None:
         """The record that spares measuring the cell again. A record marked retry is listed in
         results.csv but measured again by the next run."""
         if self.force:
             return None
-        record = self.read(cell_id)
-        return None if record is None or record.get(records.RETRY_KEY) else record
+        result = self.read(cell_id)
+        return None if result is None or result.retry else result
 
-    def read(self, cell_id: str) -> records.Record | None:
+    def read(self, cell_id: str) -> CellResult | None:
         """The record on disk, whoever wrote it; None when absent or unreadable."""
         return records.read_record(self.record_path(cell_id), cell_id)
 
-    def save(self, cell_id: str, record: records.Record) -> None:
-        atomic.atomic_write_json(self.record_path(cell_id), record)
+    def save(self, result: CellResult) -> None:
+        records.write_record(self.record_path(result.cell_id), result)
 
     def write_csv(self, prune: bool = False) -> None:
         """results.csv (and divergence.csv with checks) rebuilt from the records on disk under

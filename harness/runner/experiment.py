@@ -28,9 +28,10 @@ from harness.repo import BUILD_DIR
 from harness.spec.config import Config
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
-from harness.store import index, records
+from harness.store import index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+from harness.store.result import CellResult
 
 # results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
 # at a few thousand records a rebuild takes a second or more. After one, the next waits at least
@@ -97,7 +98,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     measured: set[str] = set()
     rebuilds = CsvRebuilds(experiment.store.write_csv)
 
-    def on_record(cell: Cell, cid: str, record: records.Record) -> None:
+    def on_record(cell: Cell, cid: str, record: CellResult) -> None:
         experiment.records[cid] = record
         measured.add(cid)
         rebuilds.record_added()
@@ -154,7 +155,7 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
     statuses: dict[str, int] = {}
     for _, cid in order:
         if cid in experiment.records:  # all of them, but after --collect
-            status = str(experiment.records[cid]["status"])
+            status = str(experiment.records[cid].status)
             statuses[status] = statuses.get(status, 0) + 1
     summary = Summary(name, experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
@@ -206,17 +207,17 @@ def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
                   "this machine (oversubscribed; column 'oversubscribed')\n")
 
 
-def report_cell(cell: Cell, record: Mapping[str, object], log: TextIO) -> None:
-    status = record["status"]
-    note = " ".join(str(record.get("note", "")).split())
-    if status != OK:
-        log.write(f"warning: {cell.label}: {status}: {note}\n")
-    elif record.get("agreement") == DIVERGES:  # ok, but the reader should know where
+def report_cell(cell: Cell, result: CellResult, log: TextIO) -> None:
+    note = " ".join((result.note or "").split())
+    if result.status != OK:
+        log.write(f"warning: {cell.label}: {result.status}: {note}\n")
+    elif result.program_check and result.program_check.agreement == DIVERGES:  # say where
         log.write(f"note: {cell.label}: {DIVERGES}: {note}\n")
-    if record.get("unstable"):
+    timing = result.timing
+    if timing and timing.unstable:
         log.write(f"warning: {cell.label}: unstable (stddev "
-                  f"{record['wall_stddev_s']:.3g} s >= {UNSTABLE_RELATIVE_STDDEV:.0%} of mean "
-                  f"{record['wall_mean_s']:.3g} s)\n")
+                  f"{timing.wall_stddev_s:.3g} s >= {UNSTABLE_RELATIVE_STDDEV:.0%} of mean "
+                  f"{timing.wall_mean_s:.3g} s)\n")
 
 
 def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Summary:

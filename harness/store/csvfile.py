@@ -23,18 +23,18 @@ from harness.store.columns import (
     format_list,
 )
 from harness.store.records import MACHINE_KEY
+from harness.store.result import CellResult
 
 
-def uncertainty(times: Sequence[float]) -> dict[str, object]:
-    """The record fields derived from hyperfine's per-run times: the times as a list, the 95%
-    bootstrap interval of their median and their low quantile."""
+def uncertainty(times: Sequence[float]) -> tuple[float | None, float | None, float]:
+    """What a record derives from its per-run times: the 95% bootstrap interval of their
+    median (None where there is none) and their low quantile."""
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
     interval = stats.median_ci(times)
-    return {"wall_times_s": list(times),
-            "wall_median_ci_low_s": interval.low if math.isfinite(interval.low) else None,
-            "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None,
-            LOW_QUANTILE_COLUMN: stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)}
+    return (interval.low if math.isfinite(interval.low) else None,
+            interval.high if math.isfinite(interval.high) else None,
+            stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR))
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
@@ -50,7 +50,9 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
     if times:
         if record.get("wall_median_ci_low_s") is None:
-            values.update(uncertainty(times))
+            low, high, q25 = uncertainty(times)
+            values.update({"wall_median_ci_low_s": low, "wall_median_ci_high_s": high,
+                           LOW_QUANTILE_COLUMN: q25})
         elif values[LOW_QUANTILE_COLUMN] is None:  # a record older than the column: no bootstrap
             from harness import stats
 
@@ -72,6 +74,13 @@ def csv_row(record: Mapping[str, object], experiment: str, title: str,
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
     return row
+
+
+def result_row(result: CellResult, experiment: str, title: str,
+               hyperfine_json: Path | None = None, stale: bool | None = None
+               ) -> dict[str, object]:
+    """A cell's row of results.csv: a projection of its result."""
+    return csv_row(result.columns, experiment, title, hyperfine_json, stale)
 
 
 def format_cell(value: object) -> str:
@@ -121,9 +130,9 @@ def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
     return rows
 
 
-def write_divergence_csv(path: Path, records_: Iterable[Mapping[str, object]]) -> None:
+def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:
     """divergence.csv from the records that have curves; removed when none has."""
-    rows = [row for record in records_ for row in divergence_rows(record)]
+    rows = [row for result in results for row in divergence_rows(result.columns)]
     if not rows:
         path.unlink(missing_ok=True)
         return

@@ -24,6 +24,7 @@ from pathlib import Path
 from harness.store import csvfile, layout, locks, records
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
+from harness.store.result import CellResult
 
 UNKNOWN_MACHINE = ""
 
@@ -32,13 +33,16 @@ UNKNOWN_MACHINE = ""
 class Stored:
     """A record on disk with the facts the store sorts by."""
 
-    record: records.Record
-    key: CellKey
+    result: CellResult
     path: Path
 
     @property
+    def key(self) -> CellKey:
+        return self.result.key
+
+    @property
     def cell_id(self) -> str:
-        return str(self.record["cell_id"])
+        return self.result.cell_id
 
     @property
     def machine_id(self) -> str:
@@ -51,7 +55,7 @@ class Stored:
             mtime = self.path.stat().st_mtime
         except OSError:
             mtime = 0.0
-        return str(self.record.get("measured_at") or ""), mtime
+        return self.result.measured_at, mtime
 
 
 # Records already read by this process, by path, with the (inode, mtime, size) they were read
@@ -74,26 +78,22 @@ def load_records(directory: Path) -> list[Stored]:
         if seen is not None and seen[0] == stamp:
             stored.append(seen[1])
             continue
-        keyed = records.read_keyed(path, layout.cell_id_of(path))
-        if keyed is not None:
-            item = Stored(*keyed, path)
+        result = records.read_record(path, layout.cell_id_of(path))
+        if result is not None:
+            item = Stored(result, path)
             _READ[path] = (stamp, item)
             stored.append(item)
     return stored
 
 
-def load_history(experiment_dir: Path) -> list[records.Record]:
+def load_history(experiment_dir: Path) -> list[dict[str, object]]:
     """The superseded records of an experiment, oldest first (the report's "earlier
-    measurements"); each with `wall_times_s` and its interval filled in where hyperfine's JSON
-    is kept."""
+    measurements"), as results.csv's rows: `wall_times_s` and its interval filled in where
+    hyperfine's JSON is kept."""
     history = ExperimentDir(experiment_dir).history
-    out = []
-    for item in sorted(load_records(history), key=lambda s: s.age):
-        record = dict(item.record)
-        record.update(csvfile.provenance(
-            record, history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}"))
-        out.append(record)
-    return out
+    return [csvfile.result_row(item.result, "", "",
+                               history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
+            for item in sorted(load_records(history), key=lambda s: s.age)]
 
 
 def by_group(stored: Iterable[Stored], timed: bool = False) -> dict[str, list[Stored]]:

@@ -25,6 +25,7 @@ from harness.store.history import (
 )
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
+from harness.store.result import CellResult
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class PlannedCell:
 
 @dataclass(frozen=True)
 class Row:
-    record: records.Record
+    result: CellResult
     stale: bool | None
     hyperfine_json: Path
 
@@ -62,7 +63,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         current = next((m for m in members if m.cell_id == cell.cell_id), None)
         own = current or current_by_machine(members).get(machine_id)
         if own is not None:
-            rows.append(Row(own.record, current is None, exp.hyperfine(own.cell_id)))
+            rows.append(Row(own.result, current is None, exp.hyperfine(own.cell_id)))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
@@ -71,12 +72,12 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
-            rows.append(Row(item.record, stale, exp.hyperfine(item.cell_id)))
+            rows.append(Row(item.result, stale, exp.hyperfine(item.cell_id)))
     return rows
 
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
-                experiment: str, title: str, prune_first: bool = False) -> list[records.Record]:
+                experiment: str, title: str, prune_first: bool = False) -> list[CellResult]:
     """Rewrite results.csv from the records on disk, under the directory lock (with
     `prune_first`, after moving the superseded records to history/, as a run ends); the
     records listed are returned (for divergence.csv)."""
@@ -88,9 +89,9 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
         rows = current_rows(stored, planned, machine_id, exp)
         csvfile.write_results_csv(
             exp.results_csv,
-            [csvfile.csv_row(r.record, experiment, title, r.hyperfine_json, r.stale)
+            [csvfile.result_row(r.result, experiment, title, r.hyperfine_json, r.stale)
              for r in rows])
-    return [r.record for r in rows]
+    return [r.result for r in rows]
 
 
 def write_env(experiment_dir: Path, env: Mapping[str, object]) -> None:

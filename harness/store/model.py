@@ -217,7 +217,7 @@ def _parse(cls: type, raw: object, where: str) -> typing.Any:
     unknown = sorted(set(mapping) - set(known))
     if unknown:
         raise KeyFormatError(f"{where}: unknown field(s) {', '.join(unknown)}")
-    hints = typing.get_type_hints(cls)
+    hints = _hints(cls)
     values: dict[str, object] = {}
     for name, f in known.items():
         if name not in mapping:
@@ -226,6 +226,11 @@ def _parse(cls: type, raw: object, where: str) -> typing.Any:
             continue
         values[name] = _typed(mapping[name], hints[name], f"{where}.{name}")
     return cls(**values)
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, typing.Any]:
+    return typing.get_type_hints(cls)
 
 
 def _typed(value: object, hint: object, where: str) -> typing.Any:

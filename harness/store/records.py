@@ -1,5 +1,6 @@
-"""Cell records: the JSON file the harness keeps per measured cell, named by the id of its key
-(harness.store.model.CellKey: what the measurement depended on). Standard library only."""
+"""Cell records: the JSON file the harness keeps per measured cell (harness.store.result.
+CellResult's), named by the id of its key (harness.store.model.CellKey: what the measurement
+depended on). Standard library only."""
 
 from __future__ import annotations
 
@@ -7,20 +8,13 @@ import hashlib
 import json
 from pathlib import Path
 
-from harness.store.columns import LIST_COLUMNS, parse_list
-from harness.store.model import MACHINE_FIELD, CellKey, KeyFormatError
+from harness.store import atomic
+from harness.store.model import MACHINE_FIELD
+from harness.store.result import RECORD_VERSION as RECORD_VERSION
+from harness.store.result import CellResult, RecordFormatError
 
-# The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
-# Version 1, their items space-separated, is read as well and given back as version 2.
-RECORD_VERSION = 2
-READ_VERSIONS = (1, RECORD_VERSION)
-# A record marked so (a Slurm task cancelled or lost with its node: no fault of the cell's) is
-# listed in results.csv but measured again by the next run.
-RETRY_KEY = "retry"
 # The part of a cell key that names the machine (records of several machines sit side by side).
 MACHINE_KEY = MACHINE_FIELD
-
-Record = dict[str, object]
 
 
 def sha256_file(path: Path) -> str:
@@ -39,42 +33,19 @@ def read_json(path: Path) -> object | None:
         return None
 
 
-def read_record(path: Path, expected_id: str) -> Record | None:
-    """A stored cell record, or None when absent, unreadable, from another harness version or
-    not stored under its key's id."""
-    keyed = read_keyed(path, expected_id)
-    return None if keyed is None else keyed[0]
-
-
-def read_keyed(path: Path, expected_id: str) -> tuple[Record, CellKey] | None:
-    """read_record's record with its typed key (parsed once, to check the id)."""
-    record = read_json(path)
-    if not isinstance(record, dict):
-        return None
-    if record.get("version") not in READ_VERSIONS or record.get("cell_id") != expected_id:
+def read_record(path: Path, expected_id: str) -> CellResult | None:
+    """A stored cell record, or None when absent, unreadable, not a record of this harness
+    (RecordFormatError) or not stored under its key's id: a cell without one is measured
+    again."""
+    raw = read_json(path)
+    if not isinstance(raw, dict) or raw.get("cell_id") != expected_id:
         return None
     try:
-        key = CellKey.from_json(record.get("key"))
-    except KeyFormatError:
+        result = CellResult.from_json(raw)
+    except RecordFormatError:
         return None
-    if key.id != expected_id:
-        return None
-    record = _with_lists(record)
-    return None if record is None else (record, key)
+    return result if result.key.id == expected_id else None
 
 
-def _with_lists(record: Record) -> Record | None:
-    """The record in the format written now: a version 1 record's list columns, space-separated
-    text, as lists; None when one does not parse."""
-    if record["version"] == RECORD_VERSION:
-        return record
-    record["version"] = RECORD_VERSION
-    for column in LIST_COLUMNS.keys() & record.keys():
-        value = record[column]
-        if isinstance(value, str):
-            try:
-                record[column] = list(parse_list(value, column))
-            except ValueError:
-                return None
-    return record
-
+def write_record(path: Path, result: CellResult) -> None:
+    atomic.atomic_write_json(path, result.to_json())

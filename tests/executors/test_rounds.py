@@ -21,6 +21,13 @@ from harness.executors.rounds import (
 )
 from harness.measure.rounds import CellRun, next_runs, stop_reason
 from harness.spec.config import Measure
+from harness.store.model import CellKey
+from harness.store.result import CellResult
+
+RESULT = CellResult("c", CellKey.from_json({
+    "variant": "p1", "build": "f64", "binary_sha256": "a", "input_sha256": "b", "seed": 1,
+    "threads": 1, "warmup": 0, "runs": 3, "timeout_s": 60.0, "validate": False, "exact": True,
+    "baseline_sha256": None, "keep_output": False}))  # what a cell's untimed runs found
 
 
 @dataclass
@@ -44,7 +51,7 @@ class FakeMeasurer:
 
     def start(self, cell: object, cell_id: str) -> CellRun:
         self.log.append(f"start {cell_id}")
-        return CellRun(cell_id, {}, {}, self.status, 0, [cell_id], run_s=self.seconds)
+        return CellRun(cell_id, {}, RESULT, self.status, 0, [cell_id], run_s=self.seconds)
 
     def time_round(self, run: CellRun, round_index: int) -> None:
         self.log.append(f"round {round_index} {run.cell_id}")
@@ -111,8 +118,8 @@ def test_partners_stop_together() -> None:
     auto = Measure(runs=None, ci=0.02, max_runs=6)
     a, b = (Unit(FakeMeasurer(auto, []), Cell(), cid) for cid in ("a", "b"))  # type: ignore[arg-type]
     a.partner, b.partner = b, a
-    a.run = CellRun("a", {}, {}, "ok", 0, [], times=[1.0] * 3, stopped="ci")
-    b.run = CellRun("b", {}, {}, "ok", 0, [], times=[1.0, 1.2, 0.9])
+    a.run = CellRun("a", {}, RESULT, "ok", 0, [], times=[1.0] * 3, stopped="ci")
+    b.run = CellRun("b", {}, RESULT, "ok", 0, [], times=[1.0, 1.2, 0.9])
     pair_up([a, b])
     assert a.run.stopped == "" and b.run.stopped == ""  # a goes on while b needs runs
     a.run.stopped, b.run.stopped = "max_runs", ""
@@ -127,9 +134,9 @@ def test_partners_share_a_few_runs_a_round_by_the_slower_ones_time() -> None:
     a, b, alone = (Unit(FakeMeasurer(fixed, []), Cell(), cid)  # type: ignore[arg-type]
                    for cid in ("a", "b", "c"))
     a.partner, b.partner = b, a
-    a.run = CellRun("a", {}, {}, "ok", 0, [], run_s=0.05)
-    b.run = CellRun("b", {}, {}, "ok", 0, [], run_s=0.1)
-    alone.run = CellRun("c", {}, {}, "ok", 0, [], run_s=0.01)
+    a.run = CellRun("a", {}, RESULT, "ok", 0, [], run_s=0.05)
+    b.run = CellRun("b", {}, RESULT, "ok", 0, [], run_s=0.1)
+    alone.run = CellRun("c", {}, RESULT, "ok", 0, [], run_s=0.01)
     share_rounds([a, b, alone])
     assert (a.run.per_round, b.run.per_round, alone.run.per_round) == (3, 3, 1)
     # 8 rounds of 3 runs each, then done

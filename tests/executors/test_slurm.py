@@ -170,8 +170,8 @@ def test_a_task_over_its_time_limit_is_timeout_the_others_ok(
     # kept like a local timeout: a re-run submits nothing
     record = records.read_record(root / "limit" / "cells" / f"{rows['slow']['cell_id']}.json",
                                  rows["slow"]["cell_id"])
-    assert record is not None and record["status"] == "timeout"
-    assert record["slurm_state"] == "TIMEOUT"
+    assert record is not None and record.status == "timeout"
+    assert record.value("slurm_state") == "TIMEOUT"
     assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0
     assert "(0 measured, 3 cached)" in capsys.readouterr().err
     assert len(jobs(root, "limit")) == 1
@@ -212,7 +212,7 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
         "seq": "ok", "held": "failed", "p1": "ok"}
     assert "cancelled (scancel)" in rows["held"]["note"]
     kept = store.read(held_id)  # listed, and marked to be measured again
-    assert kept is not None and kept["retry"] is True and kept["slurm_state"] == "CANCELLED"
+    assert kept is not None and kept.retry and kept.value("slurm_state") == "CANCELLED"
     assert store.cached(held_id) is None
     assert pipeline.render(root, tmp_path / "report").is_file()  # the failed row renders
     others = {cid: store.record_path(cid).stat().st_mtime_ns
@@ -224,7 +224,7 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     assert len(rerun) == 2 and rerun[1]["cells"] == [held_portable]
     assert others == {cid: store.record_path(cid).stat().st_mtime_ns for cid in others}
     measured = store.read(held_id)
-    assert measured is not None and measured["status"] == "ok" and "retry" not in measured
+    assert measured is not None and measured.status == "ok" and not measured.retry
 
 
 def test_a_killed_submitter_is_resumed_without_duplicate_submissions(
@@ -327,9 +327,9 @@ def test_omp_binding_is_set_recorded_and_part_of_the_cell_id(
     row = read_csv(root / "bind" / "results.csv")[0]
     record = records.read_record(root / "bind" / "cells" / f"{row['cell_id']}.json",
                                  row["cell_id"])
-    assert record is not None and record["status"] == "ok"
+    assert record is not None and record.status == "ok"
     expected = {"OMP_NUM_THREADS": "2", "OMP_PLACES": "cores", "OMP_PROC_BIND": "close"}
-    assert {k: record["omp_env"].get(k) for k in expected} == expected
+    assert {k: record.value("omp_env").get(k) for k in expected} == expected
     store = cell_store(plan_cells(load_config(plain)), root)
     assert store.cell_id(store.plan.cells[0]) != row["cell_id"]
 
@@ -361,8 +361,8 @@ def test_records_are_matched_without_their_machine(tmp_path: Path) -> None:
     node = write("1" * 16, "2026-01-02T00:00:00+00:00")
     assert node != old and portable_id({**key, "machine_id": "1" * 16}) == portable_id(key)
     found = watch.new_records()
-    assert list(found) == [portable_id(key)] and found[portable_id(key)]["cell_id"] == node
+    assert list(found) == [portable_id(key)] and found[portable_id(key)].cell_id == node
     assert watch.new_records() == {}  # each file once
-    assert sorted(r["cell_id"] for r in watch.existing()[portable_id(key)]) == sorted(
+    assert sorted(r.cell_id for r in watch.existing()[portable_id(key)]) == sorted(
         [old, node])
     assert portable_id({**key, "threads": 1}) != portable_id(key)

@@ -14,6 +14,7 @@ from harness.plan.cells import plan_cells
 from harness.runner import experiment as experiment_runner
 from harness.spec.parse import load_config
 from harness.store import columns, csvfile, records
+from harness.store.result import CellResult
 
 from commands import cell_store
 
@@ -35,9 +36,10 @@ def worker(*args: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, check=False, timeout=300)
 
 
-def stable(record: records.Record, root: Path) -> dict[str, object]:
+def stable(record: CellResult, root: Path) -> dict[str, object]:
     """The record without what may differ; the command's input path made root-relative."""
-    kept = {k: v for k, v in record.items() if k not in VOLATILE and not k.startswith("wall_")}
+    kept = {k: v for k, v in record.columns.items()
+            if k not in VOLATILE and not k.startswith("wall_")}
     kept["command"] = str(kept["command"]).replace(str(root), "ROOT")
     return kept
 
@@ -62,15 +64,17 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
         remote = store.read(cid)
         local = records.read_record(local_root / "tiny" / "cells" / f"{cid}.json", cid)
         assert remote is not None and local is not None
-        assert remote["status"] == "ok" and remote["runs"] == 2 and remote["identical"] is True
-        assert remote["wall_median_s"] > 0 and remote["seconds"] > 0
-        assert remote["round_seed"] == 7 and remote["rounds"] == local["rounds"]
+        assert remote.status == "ok" and remote.value("runs") == 2
+        assert remote.value("identical") is True
+        assert remote.value("wall_median_s") > 0 and remote.value("seconds") > 0
+        assert remote.value("round_seed") == 7
+        assert remote.value("rounds") == local.value("rounds")
         assert stable(remote, remote_root) == stable(local, local_root)
-        assert set(remote) == set(local)
+        assert set(remote.columns) == set(local.columns)
         exports = store.layout.hyperfine_exports(cid)
-        assert [p.name for p in exports] == remote["hyperfine_exports"] and exports
-        local_row = csvfile.csv_row(local, config.name, config.title)
-        remote_row = csvfile.csv_row(remote, config.name, config.title)
+        assert [p.name for p in exports] == remote.value("hyperfine_exports") and exports
+        local_row = csvfile.result_row(local, config.name, config.title)
+        remote_row = csvfile.result_row(remote, config.name, config.title)
         assert list(local_row) == list(remote_row)  # the same results.csv columns
     assert sorted(p.name for p in store.cells_dir.glob("*.json")
                   if ".hyperfine." not in p.name) == sorted(f"{c}.json"

@@ -67,14 +67,14 @@ def test_the_record_holds_the_measurement_and_is_saved(tmp_path: Path, monkeypat
     cid = store.cell_id(cell)
     record = measured(Measurer(store), cell, cid)
     assert record == store.read(cid)
-    assert record["status"] == "ok" and record["identical"] is True
-    assert record["runs"] == 2 and len(record["wall_times_s"]) == 2
-    assert record["omp_env"]["OMP_NUM_THREADS"] == "3"
-    assert record["omp_env"]["OMP_SCHEDULE"] == "dynamic"
-    assert record["machine_id"] == "m1" and record["seconds"] > 0
+    assert record.value("status") == "ok" and record.value("identical") is True
+    assert record.value("runs") == 2 and len(record.value("wall_times_s")) == 2
+    assert record.value("omp_env")["OMP_NUM_THREADS"] == "3"
+    assert record.value("omp_env")["OMP_SCHEDULE"] == "dynamic"
+    assert record.value("machine_id") == "m1" and record.value("seconds") > 0
     assert [p.name for p in store.layout.hyperfine_exports(cid)] == [
         f"{cid}.hyperfine.1.json", f"{cid}.hyperfine.2.json"]
-    assert record["wall_times_round"] == [1, 2] and record["stopped"] == "runs"
+    assert record.value("wall_times_round") == [1, 2] and record.value("stopped") == "runs"
     runs = log.read_text().splitlines()
     assert all(line.endswith("same.sh 3 dynamic") for line in runs if "same.sh" in line)
     assert len([r for r in runs if "same.sh" in r]) == 1 + 2  # the --precise run, 2 timed
@@ -99,10 +99,10 @@ def test_an_exact_cell_that_differs_from_seq_is_invalid(tmp_path: Path) -> None:
     store = store_for(tmp_path, "[other]")
     cell = store.plan.cells[0]
     record = measured(Measurer(store), cell, store.cell_id(cell))
-    assert record["status"] == "invalid" and record["identical"] is False
-    assert record["count_mismatches"] == 1
-    assert record["note"] == "output differs from the sequential baseline"
-    assert record["runs"] == 2  # timed all the same: the times of an invalid cell are kept
+    assert record.value("status") == "invalid" and record.value("identical") is False
+    assert record.value("count_mismatches") == 1
+    assert record.value("note") == "output differs from the sequential baseline"
+    assert record.value("runs") == 2  # timed all the same: the times of an invalid cell are kept
 
 
 def test_a_failed_baseline_leaves_the_cell_unjudged_and_says_why(tmp_path: Path) -> None:
@@ -111,5 +111,5 @@ def test_a_failed_baseline_leaves_the_cell_unjudged_and_says_why(tmp_path: Path)
     store.hashes.clear()
     cell = store.plan.cells[0]
     record = measured(Measurer(store), cell, str(store.cell_id(cell)))
-    assert record["status"] == "ok" and record["identical"] is None
-    assert record["note"].startswith("baseline seq failed (exit 4): broken")
+    assert record.value("status") == "ok" and record.value("identical") is None
+    assert record.value("note").startswith("baseline seq failed (exit 4): broken")

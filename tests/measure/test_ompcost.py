@@ -65,8 +65,9 @@ def test_bad_arguments_are_one_line_and_status_2(ompcost: Path, args: list[str],
 
 def test_the_cell_columns_from_a_real_run(ompcost: Path) -> None:
     found = measure_costs(ompcost, 2, {**os.environ})
-    assert found[OMP_COST_NOTE] is None
-    assert all(isinstance(found[c], float) and found[c] > 0 for c in OMP_COST_COLUMNS)
+    assert getattr(found, OMP_COST_NOTE) is None
+    costs = [getattr(found, c) for c in OMP_COST_COLUMNS]
+    assert all(isinstance(c, float) and c > 0 for c in costs)
 
 
 @pytest.mark.parametrize(("line", "message"), [
@@ -99,5 +100,5 @@ def fake(tmp_path: Path, script: str) -> Path:
 def test_a_failed_run_leaves_the_columns_empty_with_a_note(tmp_path: Path, script: str,
                                                            note: str) -> None:
     found = measure_costs(fake(tmp_path, script), 2, {**os.environ})
-    assert all(found[c] is None for c in OMP_COST_COLUMNS)
-    assert found[OMP_COST_NOTE] == note
+    assert all(getattr(found, c) is None for c in OMP_COST_COLUMNS)
+    assert getattr(found, OMP_COST_NOTE) == note

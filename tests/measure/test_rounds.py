@@ -14,12 +14,18 @@ from harness.measure.rounds import (
     next_runs,
     runs_left,
     stop_reason,
-    timing_fields,
+    timed_result,
 )
 from harness.spec.config import Measure
+from harness.store.model import CellKey
+from harness.store.result import CellResult
 
 from measure.test_cell import measured, store_for
 
+RESULT = CellResult("c", CellKey.from_json({
+    "variant": "p1", "build": "f64", "binary_sha256": "a", "input_sha256": "b", "seed": 1,
+    "threads": 1, "warmup": 0, "runs": 3, "timeout_s": 60.0, "validate": False, "exact": True,
+    "baseline_sha256": None, "keep_output": False}))  # what a cell's untimed runs found
 AUTO = Measure(warmup=0, runs=None, ci=0.02, max_runs=12, max_time_s=1.0)
 
 
@@ -58,7 +64,7 @@ def test_adaptive_stops_when_the_interval_is_narrow_or_a_limit_is_reached() -> N
 
 
 def test_runs_left_bounds_an_adaptive_cell_by_its_limits() -> None:
-    run = CellRun("c", {}, {}, "ok", 0, ["x"], run_s=0.1, times=[0.1, 0.1])
+    run = CellRun("c", {}, RESULT, "ok", 0, ["x"], run_s=0.1, times=[0.1, 0.1])
     assert runs_left(Measure(runs=5), run) == (3.0, 3.0)
     fewest, most = runs_left(AUTO, run)
     assert fewest == 1.0 and most == pytest.approx(8.0)  # 0.8 s left at 0.1 s a run
@@ -67,21 +73,22 @@ def test_runs_left_bounds_an_adaptive_cell_by_its_limits() -> None:
 
 
 def test_the_record_holds_every_round() -> None:
-    run = CellRun("c", {}, {}, "ok", 0, ["x"], times=[1.0, 3.0, 2.0], rounds=[1, 2, 3],
+    run = CellRun("c", {}, RESULT, "ok", 0, ["x"], times=[1.0, 3.0, 2.0], rounds=[1, 2, 3],
                   user_s=[0.5] * 3, system_s=[0.1] * 3, exports=["c.hyperfine.1.json"] * 3,
                   stopped="runs")
-    fields = timing_fields(run)
+    fields = timed_result(run).columns
     assert fields["runs"] == 3 and fields["wall_median_s"] == 2.0 and fields["rounds"] == 3
     assert fields["wall_times_round"] == [1, 2, 3] and fields["stopped"] == "runs"
     assert fields["wall_min_s"] == 1.0 and fields["wall_stddev_s"] == pytest.approx(1.0)
     assert fields["wall_median_ci_low_s"] == 1.0 and fields["wall_median_ci_high_s"] == 3.0
+    assert timed_result(run).round_times() == {1: (1.0,), 2: (3.0,), 3: (2.0,)}
 
 
 def test_the_record_says_whether_its_runs_are_unstable() -> None:
     def unstable(times: list[float]) -> object:
-        run = CellRun("c", {}, {}, "ok", 0, ["x"], times=times, rounds=[1] * len(times),
+        run = CellRun("c", {}, RESULT, "ok", 0, ["x"], times=times, rounds=[1] * len(times),
                       user_s=[0.5] * len(times), system_s=[0.1] * len(times))
-        return timing_fields(run)["unstable"]
+        return timed_result(run).value("unstable")
 
     assert unstable([1.0, 3.0, 2.0]) is True  # stddev 1.0, half the mean
     assert unstable([1.0, 1.05, 0.95]) is False  # stddev 0.05: 5% of the mean
@@ -89,7 +96,8 @@ def test_the_record_says_whether_its_runs_are_unstable() -> None:
 
 
 def test_state_between_rounds_is_kept_for_its_key_only(tmp_path: Path) -> None:
-    run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"], times=[1.0], rounds=[1])
+    run = CellRun("c", {"k": 1}, RESULT.replace(note=""), "ok", 0, ["x"], times=[1.0],
+                  rounds=[1])
     run.save(tmp_path / "c.partial.jsonl")
     assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 1}) == run
     assert CellRun.load(tmp_path / "c.partial.jsonl", {"k": 2}) is None  # another cell's
@@ -106,12 +114,12 @@ def _round(run: CellRun, k: int) -> None:
     run.round_noise.append(k / 100)
     run.round_pressure.append(k / 1000)
     run.other_cpu_s += 0.01
-    run.record["load_after"] = float(k)
+    run.record = run.record.replace(load_after={"load1": float(k)})
 
 
 def test_a_round_appends_what_it_added_not_the_cells_runs_again(tmp_path: Path) -> None:
     path = tmp_path / "c.partial.jsonl"
-    run = CellRun("c", {"k": 1}, {"note": ""}, "ok", 0, ["x"])
+    run = CellRun("c", {"k": 1}, RESULT.replace(note=""), "ok", 0, ["x"])
     run.save(path)
     sizes = []
     for k in range(1, 41):
@@ -135,7 +143,7 @@ def test_a_round_appends_what_it_added_not_the_cells_runs_again(tmp_path: Path) 
 
 def test_a_save_cut_short_leaves_the_state_before_it(tmp_path: Path) -> None:
     path = tmp_path / "c.partial.jsonl"
-    run = CellRun("c", {"k": 1}, {}, "ok", 0, ["x"])
+    run = CellRun("c", {"k": 1}, RESULT, "ok", 0, ["x"])
     for k in range(1, 4):
         _round(run, k)
         run.save(path)
@@ -167,7 +175,7 @@ def test_a_cut_short_cell_resumes_where_it_stopped(tmp_path: Path, monkeypatch) 
     again = Measurer(store)
     record = measured(again, cell, cid)
     assert len(log.read_text().splitlines()) == precise_runs + 1  # one more timed run only
-    assert record["runs"] == 2 and record["wall_times_round"] == [1, 2]
+    assert record.value("runs") == 2 and record.value("wall_times_round") == [1, 2]
     assert not store.layout.partial(cid).exists()
     assert [p.name for p in store.layout.hyperfine_exports(cid)] == [
         f"{cid}.hyperfine.1.json", f"{cid}.hyperfine.2.json"]

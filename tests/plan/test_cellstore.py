@@ -60,22 +60,24 @@ def test_a_new_record_starts_with_the_cells_identity(store: CellStore) -> None:
     cid = store.cell_id(cell)
     record = store.new_record(cell, cid)
     key = store.cell_key(cell)
-    assert record["cell_id"] == cid and key is not None and record["key"] == key.to_json()
-    assert record["version"] == records.RECORD_VERSION and record["runs"] == 0
-    assert (record["variant"], record["n"], record["threads"]) == ("p1", 10, 1)
-    assert record["validated"] and record["exact"] and record["identical"] is None
-    assert str(record["measured_at"]).endswith("+00:00")
+    assert record.cell_id == cid and record.key == key
+    assert record.to_json()["version"] == records.RECORD_VERSION and record.value("runs") == 0
+    assert record.subject is not None
+    assert (record.subject.variant, record.subject.n, record.subject.threads) == ("p1", 10, 1)
+    assert record.validation is not None and record.validation.validated
+    assert record.validation.exact and record.validation.identical is None
+    assert record.measured_at.endswith("+00:00")
 
 
 def test_cached_reads_its_own_record_but_not_a_retry_nor_when_forced(store: CellStore) -> None:
     cell = store.plan.cells[0]
     cid = store.cell_id(cell)
     assert store.cached(cid) is None
-    store.save(cid, {**store.new_record(cell, cid), "status": "ok"})
-    assert store.cached(cid)["status"] == "ok"
-    store.save(cid, {**store.new_record(cell, cid), records.RETRY_KEY: True})
+    store.save(store.new_record(cell, cid).replace(status="ok"))
+    assert store.cached(cid).status == "ok"
+    store.save(store.new_record(cell, cid).replace(retry=True))
     assert store.cached(cid) is None and store.read(cid) is not None
-    store.save(cid, store.new_record(cell, cid))
+    store.save(store.new_record(cell, cid))
     forced = CellStore(store.plan, REPO_ROOT, store.results_root, "m1", force=True)
     assert forced.cached(cid) is None
 

@@ -106,7 +106,7 @@ def test_failures_are_recorded_and_the_grid_goes_on(tmp_path: Path, fake_repo: P
     cells = summary.directory / "cells"
     for row in rows.values():
         record = records.read_record(cells / f"{row['cell_id']}.json", row["cell_id"])
-        assert record is not None and record["status"] == row["status"]
+        assert record is not None and record.status == row["status"]
     # hyperfine's export of each round, as written
     assert sorted(p.name for p in cells.glob(f"{rows['seq']['cell_id']}.hyperfine.*")) == [
         f"{rows['seq']['cell_id']}.hyperfine.1.json", f"{rows['seq']['cell_id']}.hyperfine.2.json"]

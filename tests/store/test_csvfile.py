@@ -130,8 +130,10 @@ def test_hyperfine_warnings_are_kept_and_flag_outliers() -> None:
 
 
 def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
+    low, high, q25 = csvfile.uncertainty([1.0, 1.2, 1.1])
     measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
-                **csvfile.uncertainty([1.0, 1.2, 1.1]), "loaded": False,
+                "wall_times_s": [1.0, 1.2, 1.1], "wall_median_ci_low_s": low,
+                "wall_median_ci_high_s": high, columns.LOW_QUANTILE_COLUMN: q25, "loaded": False,
                 "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
     values = csvfile.provenance(measured)
     assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == [1.0, 1.2, 1.1]

@@ -107,7 +107,7 @@ def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:
     cells = [planned(threads=1), planned(), planned(threads=8)]  # threads=8: never measured
     rows = index.current_rows(store_history.load_records(tmp_path / "cells"), cells, "m1",
                               ExperimentDir(tmp_path))
-    got = [(r.record["cell_id"], r.stale) for r in rows]
+    got = [(r.result.cell_id, r.stale) for r in rows]
     assert got == [(stale_old, True), (current, False), (other, None)]
 
 
@@ -119,12 +119,12 @@ def test_counting_instructions_keeps_other_machines_rows_and_this_machines_plain
     counted_here = put(tmp_path, "2026-01-03T00:00:00+00:00", **counted)
     stored = store_history.load_records(tmp_path / "cells")
     rows = index.current_rows(stored, [planned(**counted)], "m1", ExperimentDir(tmp_path))
-    assert [(r.record["cell_id"], r.stale) for r in rows] == [(counted_here, False),
+    assert [(r.result.cell_id, r.stale) for r in rows] == [(counted_here, False),
                                                               (plain_there, None)]
     # the counted record does not supersede the plain one: a plain run finds it cached
     assert store_history.superseded(stored) == []
     rows = index.current_rows(stored, [planned()], "m1", ExperimentDir(tmp_path))
-    assert [r.record["cell_id"] for r in rows] == [plain_here, plain_there]
+    assert [r.result.cell_id for r in rows] == [plain_here, plain_there]
 
 
 def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings(
@@ -135,7 +135,7 @@ def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings
     rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
                               ExperimentDir(tmp_path))
     # this machine measures the cell again; the other machine's timing stays listed
-    assert [r.record["cell_id"] for r in rows] == [older_settings]
+    assert [r.result.cell_id for r in rows] == [older_settings]
     assert here_before not in {s.cell_id for s in store_history.superseded(stored)}
 
 
@@ -172,11 +172,11 @@ def test_records_read_again_only_when_their_file_was_replaced(tmp_path: Path) ->
     cid = put(tmp_path, "2026-11-23T10:00:00+00:00")
     cells = tmp_path / "cells"
     first = store_history.load_records(cells)
-    assert [s.record["status"] for s in first] == ["ok"]
+    assert [s.result.status for s in first] == ["ok"]
     assert store_history.load_records(cells)[0] is first[0]  # unchanged file: not parsed again
     record = json.loads((cells / f"{cid}.json").read_text())
     atomic.atomic_write_json(cells / f"{cid}.json", {**record, "status": "invalid"})
     again = store_history.load_records(cells)
-    assert [s.record["status"] for s in again] == ["invalid"]  # a replaced record is re-read
+    assert [s.result.status for s in again] == ["invalid"]  # a replaced record is re-read
     (cells / f"{cid}.json").unlink()
     assert store_history.load_records(cells) == []

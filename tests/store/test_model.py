@@ -41,19 +41,6 @@ def test_changing_any_field_changes_the_cell_id(field: str) -> None:
     assert key(**{field: changed}).id != key().id
 
 
-def test_every_committed_record_reads_back_its_key_and_id() -> None:
-    """Nothing stored is lost: each committed key parses, writes back as stored, and hashes to
-    the id its record is filed under."""
-    paths = [p for p in REPO.glob("results/*/cells/*.json") if ".hyperfine" not in p.name]
-    assert len(paths) > 100
-    for path in paths:
-        raw = json.loads(path.read_text())
-        parsed = CellKey.from_json(raw["key"])
-        assert parsed.to_json() == raw["key"], path
-        assert parsed.id == raw["cell_id"] == path.stem, path
-        assert records.read_record(path, path.stem) is not None, path
-
-
 def test_projections_follow_the_roles() -> None:
     plain = key()
     # binaries and the machine: the same group, another id
@@ -105,8 +92,8 @@ def test_older_records_read_as_now_and_one_not_under_its_key_id_not_at_all(
               "threads_busy_s": "0.5 0.25", "wall_times_s": [1.0, 2.0]}
     path.write_text(json.dumps(record))
     read = records.read_record(path, good.id)  # a version 1 record: its lists were text
-    assert read is not None and read["threads_busy_s"] == [0.5, 0.25]
-    assert read["version"] == records.RECORD_VERSION
+    assert read is not None and read.value("threads_busy_s") == [0.5, 0.25]
+    assert read.to_json()["version"] == records.RECORD_VERSION
     path.write_text(json.dumps({**record, "key": key(threads=3).to_json()}))
     assert records.read_record(path, good.id) is None
     path.write_text(json.dumps({**record, "threads_busy_s": "0.5 x"}))

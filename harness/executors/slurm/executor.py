@@ -16,7 +16,7 @@ the end), then what the client learns from Slurm.
 Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
 kept like a local timeout (not measured again unless --force or the record is removed); a
 task cancelled (scancel), lost with its node, or ended without a record gets a `failed` record
-with the reason in `note`, marked `retry` (records.RETRY_KEY): results.csv lists it, and the
+with the reason in `note`, marked `retry` (CellResult.retry): results.csv lists it, and the
 next run submits the cell again (its new record replaces the fault record). Both are written
 by the submitter, under the cell id it planned with.
 
@@ -54,12 +54,13 @@ from harness.executors.slurm.client import (
     submit_array,
 )
 from harness.executors.slurm.jobs import JOBS_FILE, LOCK_FILE, Job, JobState
-from harness.executors.slurm.watch import SLURM_STATE_KEY, RecordWatch, fault_record
+from harness.executors.slurm.watch import RecordWatch, fault_record
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
-from harness.store import atomic, locks, records
+from harness.store import atomic, locks
 from harness.store.columns import FAILED, TIMEOUT
+from harness.store.result import CellResult
 
 LOGS_DIR = "logs"
 # A task that Slurm reports COMPLETED has written its record before it exited; on a network
@@ -178,9 +179,9 @@ class SlurmExecutor:
             return
         existing = watch.existing()
         for pid, since in submitted.items():
-            mine = [r for r in existing.get(pid, []) if str(r.get("measured_at", "")) >= since]
+            mine = [r for r in existing.get(pid, []) if r.measured_at >= since]
             if mine:
-                record = max(mine, key=lambda r: str(r.get("measured_at", "")))
+                record = max(mine, key=lambda r: r.measured_at)
                 cell, cid = cells.pop(pid)
                 progress.starting(cid)
                 self.drop_fault(experiment, cid, record)
@@ -276,13 +277,13 @@ class SlurmExecutor:
     # --- waiting ---
 
     @staticmethod
-    def drop_fault(experiment: Experiment, cid: str, record: records.Record) -> None:
+    def drop_fault(experiment: Experiment, cid: str, result: CellResult) -> None:
         """The retry record of a cell that a node has now measured under another id (its own
         machine's) goes: results.csv shows the measurement only."""
-        if record.get("cell_id") == cid:
+        if result.cell_id == cid:
             return
         old = experiment.store.read(cid)
-        if old is not None and old.get(records.RETRY_KEY):
+        if old is not None and old.retry:
             experiment.store.record_path(cid).unlink(missing_ok=True)
 
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
@@ -291,18 +292,16 @@ class SlurmExecutor:
             limit = self.spec.time_limit_min
             note = (f"slurm task {task.name} passed its time limit"
                     + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
-            record = fault_record(experiment, cell, cid, TIMEOUT, note)
+            status, retry = TIMEOUT, False
         else:
             reason = FAULT_REASONS.get(slurm_state, f"ended in state {slurm_state or 'unknown'} "
                                        "without a record (Slurm no longer knows it)")
             logfile = experiment.store.layout.slurm / LOGS_DIR / f"{task.name}.out"
             note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
                     "next run submits it again")
-            record = fault_record(experiment, cell, cid, FAILED, note)
-            record[records.RETRY_KEY] = True
-        record["slurm_task"] = task.name
-        record[SLURM_STATE_KEY] = slurm_state
-        experiment.store.save(cid, record)
+            status, retry = FAILED, True
+        record = fault_record(experiment, cell, cid, status, note, task.name, slurm_state, retry)
+        experiment.store.save(record)
         on_record(cell, cid, record)
 
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
@@ -318,7 +317,7 @@ class SlurmExecutor:
                 progress.starting(cid)
 
         ended_at: dict[str, float] = {}
-        arrived: dict[str, records.Record] = {}
+        arrived: dict[str, CellResult] = {}
         last_done_at = status.started
         while open_tasks:
             states = {job_id: queue_states(job_id)

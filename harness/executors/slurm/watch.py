@@ -6,29 +6,29 @@ that ended without one (fault_record)."""
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.executors.base import Experiment
 from harness.plan.cells import Cell
 from harness.store import history, layout, records
+from harness.store.result import CellResult
 
-SLURM_STATE_KEY = "slurm_state"  # set on the records the submitter writes for a fault
 
-
-def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str,
-                 note: str) -> records.Record:
+def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str, note: str,
+                 task: str, slurm_state: str, retry: bool) -> CellResult:
     """The record of a cell whose task ended without one: the cell's identity, the status and
-    the reason (the columns a measurement would fill stay empty)."""
-    record = experiment.store.new_record(cell, cid)
-    record.update({"status": status, "exit_code": None, "note": note, "executor": "slurm"})
-    return record
+    the reason (the columns a measurement would fill stay empty); with `retry`, the next run
+    measures it again."""
+    return experiment.store.new_record(cell, cid).replace(
+        status=status, exit_code=None, note=note, executor="slurm", slurm_task=task,
+        slurm_state=slurm_state, retry=retry or None)
 
 
-def is_fault(record: Mapping[str, object]) -> bool:
+def is_fault(result: CellResult) -> bool:
     """A record the submitter wrote for a task that ended without one (fault_record)."""
-    return SLURM_STATE_KEY in record
+    return result.provenance is not None and result.provenance.slurm_state is not None
 
 
 @dataclass
@@ -53,24 +53,24 @@ class RecordWatch:
                 stat = path.stat()
                 yield path.name, (stat.st_mtime_ns, stat.st_ino)
 
-    def new_records(self) -> dict[str, records.Record]:
+    def new_records(self) -> dict[str, CellResult]:
         """portable id -> record, for each record file new or rewritten since the last call."""
-        found: dict[str, records.Record] = {}
+        found: dict[str, CellResult] = {}
         for name, stamp in self._stamps():
             if self.seen.get(name) == stamp:
                 continue
             self.seen[name] = stamp
             path = self.cells_dir / name
-            keyed = records.read_keyed(path, layout.cell_id_of(path))
-            if keyed is not None and not is_fault(keyed[0]):
-                found[keyed[1].portable_id] = keyed[0]
+            result = records.read_record(path, layout.cell_id_of(path))
+            if result is not None and not is_fault(result):
+                found[result.key.portable_id] = result
         return found
 
-    def existing(self) -> dict[str, list[records.Record]]:
+    def existing(self) -> dict[str, list[CellResult]]:
         """portable id -> every record in cells/ now (for cells finished while no submitter
         watched)."""
-        found: dict[str, list[records.Record]] = {}
+        found: dict[str, list[CellResult]] = {}
         for stored in history.load_records(self.cells_dir):
-            if not stored.record.get(records.RETRY_KEY):
-                found.setdefault(stored.key.portable_id, []).append(stored.record)
+            if not stored.result.retry:
+                found.setdefault(stored.key.portable_id, []).append(stored.result)
         return found

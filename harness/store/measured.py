@@ -1,0 +1,231 @@
+"""The groups of a measured cell's fields (harness.store.result.CellResult): its timed runs,
+and what its measurement found beside them, each group in the names of its record's fields
+(results.csv's columns, harness.store.columns). A field no measurement filled is None.
+Standard library only."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+JsonObject = dict[str, object]  # kept as it was measured: the harness reads no field of it
+
+
+@dataclass(frozen=True)
+class TimedRun:
+    """One timed run: its wall seconds, and the round it was taken in (None in records from
+    before rounds)."""
+
+    time_s: float
+    round: int | None = None
+
+
+@dataclass(frozen=True)
+class Subject:
+    """What ran, as the report names it (the key holds what it was hashed as)."""
+
+    variant: str | None = None
+    build: str | None = None
+    scene: str | None = None
+    n: int | None = None
+    L: float | None = None
+    r: float | None = None
+    steps: int | None = None
+    mode: str | None = None
+    seed: int | None = None
+    threads: int | None = None
+    schedule: str | None = None  # OMP_SCHEDULE's value; "" for none
+    params: JsonObject | None = None
+
+
+@dataclass(frozen=True)
+class Timing:
+    """hyperfine's statistics over the timed runs of every round, and how the runs went."""
+
+    runs: int | None = None
+    wall_mean_s: float | None = None
+    wall_stddev_s: float | None = None
+    wall_median_s: float | None = None
+    wall_min_s: float | None = None
+    wall_max_s: float | None = None
+    wall_user_s: float | None = None
+    wall_system_s: float | None = None
+    wall_median_ci_low_s: float | None = None
+    wall_median_ci_high_s: float | None = None
+    wall_q25_s: float | None = None
+    unstable: bool | None = None
+    loaded: bool | None = None
+    hyperfine_exports: tuple[str, ...] | None = None
+    hyperfine_warnings: tuple[str, ...] | None = None
+    load_before: JsonObject | None = None
+    load_after: JsonObject | None = None
+
+
+@dataclass(frozen=True)
+class Rounds:
+    """In how many rounds the cell was timed, why its timing stopped (columns.STOPPED_*) and
+    the seed that shuffled each round's order."""
+
+    rounds: int | None = None
+    stopped: str | None = None
+    round_seed: int | None = None
+
+
+@dataclass(frozen=True)
+class Noise:
+    """What other work did to the cell's rounds (columns.NOISE_COLUMNS); the per-round
+    values in round order."""
+
+    steal_s: float | None = None
+    other_cpu_s: float | None = None
+    nivcsw_per_run: float | None = None
+    round_noise: tuple[float, ...] | None = None
+    round_pressure: tuple[float, ...] | None = None
+    rounds_dropped: tuple[int, ...] | None = None
+    noise_capacity_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Phases:
+    """Where the --precise run's time went (--timing), in seconds."""
+
+    input_s: float | None = None
+    sim_s: float | None = None
+    output_s: float | None = None
+    broad_s: float | None = None
+    walls_s: float | None = None
+    sort_s: float | None = None
+    resolve_s: float | None = None
+    motion_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Counts:
+    """What the --precise run counted (--timing)."""
+
+    pair_tests: int | None = None
+    candidates: int | None = None
+    pair_collisions: int | None = None
+    wall_collisions: int | None = None
+
+
+@dataclass(frozen=True)
+class ThreadWork:
+    """The --precise run's per-thread work (columns.THREAD_COLUMNS)."""
+
+    imbalance: float | None = None
+    threads_busy_s: tuple[float, ...] | None = None
+    threads_pairs: tuple[int, ...] | None = None
+    threads_chunks: tuple[int, ...] | None = None
+
+
+@dataclass(frozen=True)
+class Validation:
+    """The output against the sequential baseline's."""
+
+    validated: bool | None = None
+    exact: bool | None = None
+    baseline_sha256: str | None = None
+    identical: bool | None = None
+    max_pos_err: float | None = None
+    max_vel_err: float | None = None
+    count_mismatches: int | None = None
+
+
+@dataclass(frozen=True)
+class Checks:
+    """The accuracy and stability checks (columns.CHECK_COLUMNS), with the divergence curves
+    and the shadow steps they were read from."""
+
+    checks_passed: bool | None = None
+    chk_finite: bool | None = None
+    chk_in_box: bool | None = None
+    chk_energy: bool | None = None
+    chk_pcoll_even: bool | None = None
+    chk_threads: bool | None = None
+    chk_exact: bool | None = None
+    chk_shadow: bool | None = None
+    energy_drift: float | None = None
+    energy_drift_max: float | None = None
+    energy_bound: float | None = None
+    pair_collisions_run: int | None = None
+    box_excess: float | None = None
+    shadow_states: int | None = None
+    shadow_pos_err: float | None = None
+    shadow_pos_err_max: float | None = None
+    shadow_vel_err: float | None = None
+    shadow_vel_err_max: float | None = None
+    shadow_set_diff: float | None = None
+    shadow_bound: float | None = None
+    shadow_err_r: float | None = None
+    div_f64_max: float | None = None
+    div_truth_max: float | None = None
+    div_truth_final: float | None = None
+    div_steps_to_r: int | None = None
+    checks_failed: str | None = None
+    checks_note: str | None = None
+    checks_s: float | None = None
+    divergence: JsonObject | None = None
+    shadow_per_step: tuple[JsonObject, ...] | None = None
+
+
+@dataclass(frozen=True)
+class ProgramVerdict:
+    """A program's check against seq (harness.measure.program) and what it cost."""
+
+    program: JsonObject | None = None
+    check_command: str | None = None
+    check_steps: int | None = None
+    agreement: str | None = None
+    first_diff_step: int | None = None
+    rule: str | None = None
+    agreement_detail: JsonObject | None = None
+    races: str | None = None
+    race_check: JsonObject | None = None
+    check_s: float | None = None
+    replay_s: float | None = None
+
+
+@dataclass(frozen=True)
+class Instructions:
+    """The instruction lane's counts (columns.INSTRUCTION_COLUMNS)."""
+
+    instructions: int | None = None
+    instructions_max: int | None = None
+    instructions_counts: tuple[int, ...] | None = None
+    instructions_tool: str | None = None
+    instructions_binary: str | None = None
+    instructions_note: str | None = None
+
+
+@dataclass(frozen=True)
+class OmpCosts:
+    """The OpenMP runtime's costs at the cell's threads (columns.OMP_COST_COLUMNS), in ns."""
+
+    region_ns: float | None = None
+    barrier_ns: float | None = None
+    grab_ns: float | None = None
+    nested_region_ns: float | None = None
+    openmp_costs_note: str | None = None
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where, with what and when the cell was measured, and by which executor."""
+
+    binary: str | None = None
+    binary_sha256: str | None = None
+    input_sha256: str | None = None
+    command: str | None = None
+    stderr_tail: str | None = None
+    cores: int | None = None
+    oversubscribed: bool | None = None
+    omp_env: JsonObject | None = None
+    machine_id: str | None = None
+    machine: JsonObject | None = None
+    git_commit: str | None = None
+    measured_at: str | None = None
+    seconds: float | None = None  # what measuring the cell took
+    executor: str | None = None
+    slurm_task: str | None = None
+    slurm_state: str | None = None  # set on a record the Slurm submitter wrote for a fault
+    retry: bool | None = None  # measured again by the next run (a fault of no cell's)

@@ -1,0 +1,303 @@
+"""A measured cell, typed: what its measurement gave, beside its key (harness.store.model).
+
+CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
+values (each run's seconds with the round it was taken in), and what the measurement found
+beside them sits in small groups (the phases and counts of the --precise run, the validation,
+the checks, the per-thread work, the rounds and their noise, a program's verdict, the counted
+instructions, the OpenMP runtime's costs, the provenance). A group no measurement filled is
+None.
+
+On disk a record is CellResult.to_json(): one flat JSON object whose names are the columns of
+results.csv (harness.store.columns) and a few more that only the record keeps. A group's
+fields are named as their columns, so that a column is read from one place, and an empty
+value is left out of the JSON. Reading a record refuses a field it does not know, naming it
+(RecordFormatError), as a key refuses one (KeyFormatError). Standard library only.
+"""
+
+from __future__ import annotations
+
+import functools
+import statistics
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, is_dataclass, replace
+
+from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
+from harness.store.measured import (
+    Checks,
+    Counts,
+    Instructions,
+    Noise,
+    OmpCosts,
+    Phases,
+    ProgramVerdict,
+    Provenance,
+    Rounds,
+    Subject,
+    ThreadWork,
+    TimedRun,
+    Timing,
+    Validation,
+)
+from harness.store.model import CellKey, KeyFormatError
+
+# The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
+# Version 1, their items space-separated, is read as well.
+RECORD_VERSION = 2
+READ_VERSIONS = (1, RECORD_VERSION)
+# The record's names of the timed runs: their seconds and, in the same order, their rounds.
+TIMES_FIELD = "wall_times_s"
+ROUNDS_FIELD = "wall_times_round"
+
+
+class RecordFormatError(ValueError):
+    """A stored record that is not a cell record of this harness."""
+
+
+@dataclass(frozen=True)
+class CellResult:
+    """A measured cell: its key, how it ended, its timed runs and the groups beside them."""
+
+    cell_id: str
+    key: CellKey
+    status: str | None = None  # columns.STATUSES; None in a record not measured yet
+    exit_code: int | None = None
+    note: str | None = None
+    times: tuple[TimedRun, ...] = ()
+    subject: Subject | None = None
+    timing: Timing | None = None
+    timed_rounds: Rounds | None = None
+    noise: Noise | None = None
+    phases: Phases | None = None
+    counts: Counts | None = None
+    thread_work: ThreadWork | None = None
+    validation: Validation | None = None
+    checks: Checks | None = None
+    program_check: ProgramVerdict | None = None
+    counted: Instructions | None = None
+    openmp_costs: OmpCosts | None = None
+    provenance: Provenance | None = None
+
+    @property
+    def timed(self) -> bool:
+        """Whether its runs are timed: it ran to the end (ok, or invalid output)."""
+        return self.status in TIMED_STATUSES
+
+    @property
+    def retry(self) -> bool:
+        """Marked to be measured again by the next run (a Slurm task lost with its node)."""
+        return bool(self.provenance and self.provenance.retry)
+
+    @property
+    def measured_at(self) -> str:
+        """When it was written (ISO, UTC, to the second); "" where the record does not say."""
+        return (self.provenance.measured_at or "") if self.provenance else ""
+
+    def round_times(self) -> dict[int, tuple[float, ...]]:
+        """The seconds of its runs by round, in round order; empty where the runs' rounds
+        are not recorded."""
+        if any(run.round is None for run in self.times):
+            return {}
+        grouped: dict[int, list[float]] = {}
+        for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
+            grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
+        return {k: tuple(v) for k, v in grouped.items()}
+
+    def by_round(self) -> dict[int, float]:
+        """The median of its runs in each round (stats.MeasuredInRounds)."""
+        return {k: float(statistics.median(v)) for k, v in self.round_times().items()}
+
+    def noise_by_round(self) -> dict[int, float]:
+        """Each round's interference share (harness.measure.noise), by round."""
+        return self._per_round(self.noise.round_noise if self.noise else None)
+
+    def pressure_by_round(self) -> dict[int, float]:
+        """Each round's CPU pressure, by round."""
+        return self._per_round(self.noise.round_pressure if self.noise else None)
+
+    def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
+        rounds = sorted(self.round_times())
+        if values is None or len(values) != len(rounds):
+            return {}
+        return dict(zip(rounds, values, strict=True))
+
+    def value(self, name: str) -> object:
+        """The record's field `name` (a results.csv column's value), None where it has none."""
+        return self.columns.get(name)
+
+    @functools.cached_property
+    def columns(self) -> dict[str, object]:
+        """Every field the record has a value for, by its name in the record, lists as lists;
+        its key as JSON."""
+        return _flatten(self)
+
+    def replace(self, **changes: object) -> CellResult:
+        """A copy with these fields changed; a group's fields by their names, merged into
+        the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
+        names, groups = _leaf_names(), _group_types()
+        top = {k: _or_none(v) if k in groups and v is not None else v
+               for k, v in changes.items() if k not in names}
+        merged: dict[str, dict[str, object]] = {}
+        for name, value in changes.items():
+            if name in names:
+                merged.setdefault(names[name], {})[name] = value
+        for group, values in merged.items():
+            current = getattr(self, group)
+            cls = groups[group]
+            top[group] = _or_none(replace(current, **values) if current else cls(**values))
+        return replace(self, **top)  # type: ignore[arg-type]
+
+    def to_json(self) -> dict[str, object]:
+        """The record as stored: the version, then every field that has a value."""
+        return {"version": RECORD_VERSION, **self.columns}
+
+    @classmethod
+    def from_json(cls, raw: object) -> CellResult:
+        """A stored record (version 1 or 2); RecordFormatError naming the field when it is
+        not one."""
+        if not isinstance(raw, Mapping):
+            raise RecordFormatError(f"record: expected an object, got {type(raw).__name__}")
+        if raw.get("version") not in READ_VERSIONS:
+            raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
+                                    f"{', '.join(map(str, READ_VERSIONS))}")
+        values = {k: v for k, v in raw.items() if k != "version" and v is not None}
+        unknown = sorted(set(values) - set(_leaf_names()) - _TOP_NAMES)
+        if unknown:
+            raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
+        if raw["version"] == 1:
+            values = _with_lists(values)
+        return _parse(values)
+
+
+_TOP_NAMES = frozenset({"cell_id", "key", "status", "exit_code", "note", TIMES_FIELD,
+                        ROUNDS_FIELD})
+
+
+def record_fields() -> frozenset[str]:
+    """Every name a record's field may have."""
+    return _TOP_NAMES | set(_leaf_names())
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, typing.Any]:
+    return typing.get_type_hints(cls)
+
+
+@functools.cache
+def _group_types() -> dict[str, type]:
+    """CellResult's groups (its fields of a dataclass's type), with their types."""
+    hints = _hints(CellResult)
+    groups = {f.name: typing.get_args(hints[f.name])[0] for f in fields(CellResult)
+              if isinstance(hints[f.name], types.UnionType)}
+    return {name: cls for name, cls in groups.items() if is_dataclass(cls)}
+
+
+@functools.cache
+def _leaf_names() -> dict[str, str]:
+    """Each group field's name in the record, with its group's."""
+    return {leaf.name: group for group, cls in _group_types().items() for leaf in fields(cls)}
+
+
+def _or_none(group: typing.Any) -> typing.Any:
+    """A group, or None when it holds nothing (as a record without its fields reads back)."""
+    return None if all(getattr(group, f.name) is None for f in fields(group)) else group
+
+
+def _flatten(result: CellResult) -> dict[str, object]:
+    out: dict[str, object] = {"cell_id": result.cell_id, "key": result.key.to_json()}
+    for name in ("status", "exit_code", "note"):
+        if getattr(result, name) is not None:
+            out[name] = getattr(result, name)
+    if result.times:
+        out[TIMES_FIELD] = [run.time_s for run in result.times]
+        if all(run.round is not None for run in result.times):
+            out[ROUNDS_FIELD] = [run.round for run in result.times]
+    for group in _group_types():
+        value = getattr(result, group)
+        for leaf in fields(value) if value is not None else ():
+            item = getattr(value, leaf.name)
+            if item is not None:
+                out[leaf.name] = list(item) if isinstance(item, tuple) else item
+    return out
+
+
+def _with_lists(values: dict[str, object]) -> dict[str, object]:
+    """A version 1 record's list columns, space-separated text, as lists."""
+    out = dict(values)
+    for column in LIST_COLUMNS.keys() & out.keys():
+        value = out[column]
+        if isinstance(value, str):
+            try:
+                out[column] = list(parse_list(value, column))
+            except ValueError as exc:
+                raise RecordFormatError(f"record.{column}: {value!r} is not a list of "
+                                        f"{LIST_COLUMNS[column].__name__}") from exc
+    return out
+
+
+def _parse(values: Mapping[str, object]) -> CellResult:
+    try:
+        key = CellKey.from_json(values.get("key"))
+    except KeyFormatError as exc:
+        raise RecordFormatError(f"record.{exc}") from exc
+    top: dict[str, typing.Any] = {"key": key, "times": _runs(values)}
+    hints = _hints(CellResult)
+    for name in ("cell_id", "status", "exit_code", "note"):
+        if name in values or name == "cell_id":
+            top[name] = _typed(values.get(name), hints[name], f"record.{name}")
+    leaves, groups = _leaf_hints(), _group_types()
+    present: dict[str, dict[str, object]] = {}
+    for name, value in values.items():
+        if name in leaves:
+            group, hint = leaves[name]
+            present.setdefault(group, {})[name] = _typed(value, hint, f"record.{name}")
+    for group, found in present.items():
+        top[group] = groups[group](**found)
+    return CellResult(**top)
+
+
+@functools.cache
+def _leaf_hints() -> dict[str, tuple[str, object]]:
+    """Each group field's name in the record, with its group and its type."""
+    return {name: (group, _hints(_group_types()[group])[name])
+            for name, group in _leaf_names().items()}
+
+
+def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:
+    times = _typed(values.get(TIMES_FIELD, []), tuple[float, ...], f"record.{TIMES_FIELD}")
+    rounds = values.get(ROUNDS_FIELD)
+    if rounds is None:
+        return tuple(TimedRun(t) for t in times)
+    rounds = _typed(rounds, tuple[int, ...], f"record.{ROUNDS_FIELD}")
+    if len(rounds) != len(times):
+        raise RecordFormatError(f"record.{ROUNDS_FIELD}: {len(rounds)} rounds for "
+                                f"{len(times)} runs")
+    return tuple(TimedRun(t, r) for t, r in zip(times, rounds, strict=True))
+
+
+def _typed(value: object, hint: object, where: str) -> typing.Any:
+    """`value` checked against the annotation `hint`; JSON numbers keep their own type (an
+    int stays an int where a float is allowed), so that a record reads back as it was."""
+    for origin, option in _options(hint):
+        if option is type(value) or (option is float and type(value) is int):
+            return value
+        if origin is tuple and isinstance(value, list):
+            item = typing.get_args(option)[0]
+            if all(type(v) is item for v in value):  # the common case, at once
+                return tuple(value)
+            return tuple(_typed(v, item, f"{where}[{i}]") for i, v in enumerate(value))
+        if origin is dict and isinstance(value, dict):
+            return value
+    raise RecordFormatError(f"{where}: {value!r} is not {_name(hint)}")
+
+
+@functools.cache
+def _options(hint: object) -> tuple[tuple[object, object], ...]:
+    """The types a value of `hint` may have, each with its generic origin (tuple, dict)."""
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    return tuple((typing.get_origin(option), option) for option in options)
+
+
+def _name(hint: object) -> str:
+    return getattr(hint, "__name__", None) or str(hint)
