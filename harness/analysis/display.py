@@ -117,7 +117,6 @@ DISPLAY_NAMES: dict[str, str] = {
 }
 
 
-
 def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
     """A legend label such as `p1d · f32 · threads=8` (variant and build go bare); the machine,
     the longest part, comes last, so that what tells the series of one machine apart leads."""
@@ -130,36 +129,19 @@ def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
         if key in ("variant", "build", "scene", MACHINE):
             parts.append(text)
         elif key == "threads":
-            parts.append(f"{text} thread{'' if text == '1' else 's'}")
+            parts.append(threads_text(int(value)))  # type: ignore[call-overload]
         else:
             parts.append(f"{DISPLAY_NAMES[key]}={text}")
     return " · ".join(parts)
 
 
+def threads_text(threads: int) -> str:
+    return f"{threads} thread{'' if threads == 1 else 's'}"
+
 
 MISSING_TEXT = "—"
 WHOLE_LIMIT = 1e12  # whole numbers below this are written out in full
 TIME_DIGITS = 4  # significant digits of a time: hyperfine's spread rarely supports more
-
-
-def _fmt_time(v: object) -> str:
-    return f"{float(v):.{TIME_DIGITS}g}"
-
-
-def _fmt_ratio(v: object) -> str:
-    return f"{float(v):.2f}"
-
-
-def _fmt_fraction(v: object) -> str:
-    return f"{float(v):.3f}"
-
-
-def _fmt_error(v: object) -> str:
-    return "0" if float(v) == 0 else f"{float(v):.2e}"
-
-
-def _fmt_int(v: object) -> str:
-    return f"{int(v)}"
 
 
 def _fmt_general(v: object) -> str:
@@ -169,61 +151,40 @@ def _fmt_general(v: object) -> str:
     return str(v)
 
 
-def _fmt_bool(v: object) -> str:
-    return "✓" if bool(v) else ""
+def _fmt(spec: str) -> Callable[[object], str]:
+    return lambda v: format(float(v), spec)
+
+
+def _fmt_sig3(v: object) -> str:
+    return format_sig3(float(v))
+
+
+def _fmt_error(v: object) -> str:
+    return "0" if float(v) == 0 else f"{float(v):.2e}"
 
 
 FORMATTERS: dict[str, Callable[[object], str]] = {
-    "median_s": _fmt_time,
-    "extra_s": _fmt_time,
-    "per_chunk_ns": lambda v: f"{float(v):.3g}",
-    "min_s": _fmt_time,
-    "stddev_s": _fmt_time,
-    "prefactor_s": lambda v: f"{float(v):.3e}",
-    "speedup": _fmt_ratio,
-    "efficiency": _fmt_ratio,
-    "imbalance": _fmt_ratio,
-    "exponent": _fmt_ratio,
-    "exponent_se": lambda v: f"{float(v):.2g}",
-    "serial_fraction": _fmt_fraction,
-    "max_pos_err": _fmt_error,
-    "max_vel_err": _fmt_error,
-    "shadow_pos_err": _fmt_error,
-    "shadow_pos_err_max": _fmt_error,
-    "shadow_err_r": _fmt_error,
-    "typical_err_r": _fmt_error,
-    "energy_drift_max": _fmt_error,
-    "div_truth_max": _fmt_error,
-    "shadow_set_diff": _fmt_ratio,
-    "div_steps_to_r": _fmt_int,
-    "checked": _fmt_int,
-    "passed": _fmt_int,
-    "failed": _fmt_int,
-    "scenes": _fmt_int,
-    "trusted": _fmt_int,
-    "runs": _fmt_int,
-    "points": _fmt_int,
-    "count_mismatches": _fmt_int,
-    "n": _fmt_int,
-    "steps": _fmt_int,
-    "seed": _fmt_int,
-    "threads": _fmt_int,
-    "cores": _fmt_int,
-    "pareto": _fmt_bool,
-    "oversubscribed": _fmt_bool,
-    "sim_s": _fmt_time,
-    **{column: _fmt_time for column in PHASE_NAMES},
-    "rest_ns": lambda v: format_sig3(float(v)),
-    **dict.fromkeys(("region_ns", "barrier_ns", "grab_ns", "nested_region_ns"),
-                    lambda v: format_sig3(float(v))),
-    "cells": _fmt_int,
+    **dict.fromkeys(("median_s", "extra_s", "min_s", "stddev_s", "sim_s", *PHASE_NAMES,
+                     "predicted_s", "reference_s", "measured_s"), _fmt(f".{TIME_DIGITS}g")),
+    **dict.fromkeys(("speedup", "efficiency", "imbalance", "exponent", "shadow_set_diff"),
+                    _fmt(".2f")),
+    **dict.fromkeys(("max_pos_err", "max_vel_err", "shadow_pos_err", "shadow_pos_err_max",
+                     "shadow_err_r", "typical_err_r", "energy_drift_max", "div_truth_max"),
+                    _fmt_error),
+    **dict.fromkeys(("div_steps_to_r", "checked", "passed", "failed", "scenes", "trusted",
+                     "runs", "points", "count_mismatches", "n", "steps", "seed", "threads",
+                     "cores", "cells"), lambda v: f"{int(v)}"),
+    **dict.fromkeys(("pareto", "oversubscribed"), lambda v: "✓" if bool(v) else ""),
+    **dict.fromkeys(("rest_ns", "region_ns", "barrier_ns", "grab_ns", "nested_region_ns",
+                     "instructions_per_particle_step"), _fmt_sig3),
     **dict.fromkeys(("regions_per_step", "nested_per_step", "barriers_per_step",
-                     "grabs_per_step"), lambda v: f"{float(v):,.0f}"),
-    **dict.fromkeys(("predicted_s", "reference_s", "measured_s"), _fmt_time),
-    "ratio": lambda v: f"{float(v):.3g}",
-    "instructions": lambda v: f"{float(v):,.0f}",
-    "instructions_per_pair_test": lambda v: f"{float(v):.1f}",
-    "instructions_per_particle_step": lambda v: format_sig3(float(v)),
+                     "grabs_per_step", "instructions"), _fmt(",.0f")),
+    "per_chunk_ns": _fmt(".3g"),
+    "ratio": _fmt(".3g"),
+    "prefactor_s": _fmt(".3e"),
+    "exponent_se": _fmt(".2g"),
+    "serial_fraction": _fmt(".3f"),
+    "instructions_per_pair_test": _fmt(".1f"),
 }
 
 

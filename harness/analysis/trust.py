@@ -71,16 +71,13 @@ def _failures(row: pd.Series) -> list[str]:
     return failed
 
 
-def _scene_order(df: pd.DataFrame) -> list[str]:
-    """Scene names in the order the experiment ran them."""
-    return list(dict.fromkeys(df.sort_values("scene_rank", kind="stable")["scene_name"]))
-
-
 def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
     """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
     rows = _checked(df)
     labels = list(dict.fromkeys(variant_build(r) for _, r in rows.iterrows()))
-    table = pd.DataFrame({"scene": _scene_order(rows)})
+    # the scenes in the order the experiment ran them
+    ran = rows.sort_values("scene_rank", kind="stable")["scene_name"]
+    table = pd.DataFrame({"scene": list(dict.fromkeys(ran))})
     for label in labels:
         marks = []
         for scene in table["scene"]:

@@ -9,7 +9,7 @@ import pandas as pd
 
 from harness.analysis import phases
 from harness.analysis.cells import INTERVAL_SUFFIXES
-from harness.analysis.display import format_value
+from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import flagged_cells, flagged_kinds
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -47,8 +47,7 @@ def ratio_text(row: pd.Series, column: str = "speedup") -> str:
 
 def _where(row: pd.Series) -> str:
     # The machine is the page's (harness.report.pipeline renders one page per machine).
-    threads = int(row["threads"])
-    return f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
+    return f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
 
 
 def _fair(rows: pd.DataFrame) -> pd.DataFrame:

@@ -57,22 +57,12 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
 
 def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     """The raw mapping with every optional top-level key filled in."""
-    result = dict(raw)
-    result.setdefault("name", source.stem)
-    result.setdefault("title", result["name"])
-    result.setdefault("builds", [DEFAULT_BUILD])
-    result.setdefault("threads", 1)
-    result.setdefault("combine", "product")
-    result.setdefault("measure", {})
-    result.setdefault("validate", False)
-    result.setdefault("keep_output", False)
-    result.setdefault("exclude", [])
-    result.setdefault("binaries", {})
-    result.setdefault("checks", [])
-    result.setdefault("accuracy", {})
-    result.setdefault("metric", METRIC_TIME)
-    result.setdefault("openmp_costs", False)
-    return result
+    name = raw.get("name", source.stem)
+    defaults = {"name": name, "title": name, "builds": [DEFAULT_BUILD], "threads": 1,
+                "combine": "product", "measure": {}, "validate": False, "keep_output": False,
+                "exclude": [], "binaries": {}, "checks": [], "accuracy": {},
+                "metric": METRIC_TIME, "openmp_costs": False}
+    return {**defaults, **raw}
 
 
 def parse_config(raw: Mapping[str, object], source: Path,
