@@ -26,58 +26,37 @@ PHASE_NAMES: dict[str, str] = dict(zip(
     strict=True))
 
 
-# Display headers for every column a builder can produce.
+# Display headers of the columns a builder can produce, where they differ from the column's
+# name (display_name).
 DISPLAY_NAMES: dict[str, str] = {
-    "experiment": "experiment",
-    MACHINE: "machine",
-    "variant": "variant",
-    "build": "build",
-    "scene": "scene",
     "n": "N",
-    "L": "L",
-    "r": "r",
     "steps": "S",
-    "mode": "mode",
-    "seed": "seed",
-    "threads": "threads",
     "oversubscribed": "threads > cores",
     "schedule": "OMP_SCHEDULE",
     "imbalance": "imbalance (max/mean busy)",
-    "cores": "cores",
-    "runs": "runs",
     "median_s": "median [s]",
     "extra_s": "extra time [s]",
     "per_chunk_ns": "per chunk [ns]",
     "min_s": "min [s]",
     "stddev_s": "stddev [s]",
-    "speedup": "speedup",
-    "efficiency": "efficiency",
     "serial_fraction": "serial fraction e",
     "baseline": "speedup vs",
-    "validation": "validation",
-    "series": "series",
     "exponent": "exponent k",
     "prefactor_s": "a [s]",
-    "points": "points",
     "x_min": "from",
     "x_max": "to",
     "max_pos_err": "max position error (÷L)",
     "max_vel_err": "max velocity error",
     "count_mismatches": "count mismatches",
     "pareto": "Pareto",
-    "status": "status",
-    "issue": "issue",
     "agreement": "agreement with seq",
     "detail": "where it leaves seq",
     "check_s": "check [s]",
     "replay_s": "of it replays [s]",
     # accuracy and stability checks
     "label": "variant/build",
-    "check": "check",
     "what": "what it checks",
     "checked": "cells",
-    "passed": "passed",
-    "failed": "failed",
     "where": "failing cells",
     "shadow_pos_err": "shadow error, mean (÷L)",
     "shadow_pos_err_max": "shadow error, max (÷L)",
@@ -86,8 +65,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "energy_drift_max": "energy drift, max",
     "div_steps_to_r": "steps until r apart",
     "div_truth_max": "deviation from truth, max (÷L)",
-    "scenes": "scenes",
-    "trusted": "trusted",
     "typical_err_r": "shadow error, median (÷r)",
     "worst": "worst scene",
     "not_trusted": "not trusted for",
@@ -100,7 +77,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "barrier_ns": "barrier [ns]",
     "grab_ns": "dynamic grab [ns]",
     "nested_region_ns": "nested region [ns]",
-    "cells": "cells",
     "regions_per_step": "regions per step",
     "nested_per_step": "nested regions per step",
     "barriers_per_step": "barriers per step",
@@ -111,10 +87,13 @@ DISPLAY_NAMES: dict[str, str] = {
     "measured_s": "measured overhead [s]",
     "ratio": "measured / predicted",
     # the instruction lane
-    "instructions": "instructions",
     "instructions_per_pair_test": "instructions per pair test",
     "instructions_per_particle_step": "instructions per particle-step",
 }
+
+
+def display_name(column: str) -> str:
+    return DISPLAY_NAMES.get(column, column)
 
 
 def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
@@ -131,7 +110,7 @@ def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
         elif key == "threads":
             parts.append(threads_text(int(value)))  # type: ignore[call-overload]
         else:
-            parts.append(f"{DISPLAY_NAMES[key]}={text}")
+            parts.append(f"{display_name(key)}={text}")
     return " · ".join(parts)
 
 
@@ -155,14 +134,6 @@ def _fmt(spec: str) -> Callable[[object], str]:
     return lambda v: format(float(v), spec)
 
 
-def _fmt_sig3(v: object) -> str:
-    return format_sig3(float(v))
-
-
-def _fmt_error(v: object) -> str:
-    return "0" if float(v) == 0 else f"{float(v):.2e}"
-
-
 FORMATTERS: dict[str, Callable[[object], str]] = {
     **dict.fromkeys(("median_s", "extra_s", "min_s", "stddev_s", "sim_s", *PHASE_NAMES,
                      "predicted_s", "reference_s", "measured_s"), _fmt(f".{TIME_DIGITS}g")),
@@ -170,13 +141,13 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
                     _fmt(".2f")),
     **dict.fromkeys(("max_pos_err", "max_vel_err", "shadow_pos_err", "shadow_pos_err_max",
                      "shadow_err_r", "typical_err_r", "energy_drift_max", "div_truth_max"),
-                    _fmt_error),
+                    lambda v: "0" if float(v) == 0 else f"{float(v):.2e}"),
     **dict.fromkeys(("div_steps_to_r", "checked", "passed", "failed", "scenes", "trusted",
                      "runs", "points", "count_mismatches", "n", "steps", "seed", "threads",
                      "cores", "cells"), lambda v: f"{int(v)}"),
     **dict.fromkeys(("pareto", "oversubscribed"), lambda v: "✓" if bool(v) else ""),
     **dict.fromkeys(("rest_ns", "region_ns", "barrier_ns", "grab_ns", "nested_region_ns",
-                     "instructions_per_particle_step"), _fmt_sig3),
+                     "instructions_per_particle_step"), lambda v: format_sig3(float(v))),
     **dict.fromkeys(("regions_per_step", "nested_per_step", "barriers_per_step",
                      "grabs_per_step", "instructions"), _fmt(",.0f")),
     "per_chunk_ns": _fmt(".3g"),
@@ -258,7 +229,7 @@ def format_table(df: pd.DataFrame) -> pd.DataFrame:
     """A built table as strings under display headers, ready for Markdown or HTML."""
     shown = pd.DataFrame(
         {
-            DISPLAY_NAMES.get(col, col): [format_with_uncertainty(df, col, i)
+            display_name(col): [format_with_uncertainty(df, col, i)
                                           for i in range(len(df))]
             for col in display_columns(df)
         },

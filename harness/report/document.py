@@ -116,15 +116,10 @@ def section_blocks(section: Section) -> list[Block]:
     return blocks
 
 
-def document_sections(doc: Document) -> list[Section]:
-    """The document's top-level sections in reading order."""
-    return [*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix]
-
-
 def document_files(doc: Document) -> set[Path]:
     """Every figure file the document shows or links."""
     files: set[Path] = set()
-    for section in document_sections(doc):
+    for section in (*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix):
         for block in section_blocks(section):
             if isinstance(block, Figure):
                 files |= {block.image, *block.alternates}

@@ -50,11 +50,6 @@ def _where(row: pd.Series) -> str:
     return f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
 
 
-def _fair(rows: pd.DataFrame) -> pd.DataFrame:
-    return rows[(rows["status"] == OK) & ~rows["oversubscribed"]
-                & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
-
-
 def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
     """The cells that can be the best strategy: neither the baseline nor grid, nor a program's
     (a student's, or a command timed as a whole such as two copies at once)."""
@@ -67,7 +62,8 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     rows = with_speedup(exp.frame)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
-    fair = _fair(rows)
+    fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]
+                & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
     strategies = strategy_cells(fair)
     if not strategies.empty:
         best = strategies.loc[strategies["speedup"].idxmax()]

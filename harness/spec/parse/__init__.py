@@ -76,7 +76,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
     threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.THREADS, source)
     scene = parse_scene(raw.get("scene", MISSING), source)
-    combine, zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
+    zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
     config = Config(
         source=source,
         name=str(name),
@@ -85,8 +85,6 @@ def parse_config(raw: Mapping[str, object], source: Path,
         builds=builds,
         scene=scene,
         threads=tuple(cast(int, t) for t in threads),
-        threads_listed=threads_listed,
-        combine=combine,
         zip_keys=zip_keys,
         measure=parse_measure(raw["measure"], source),
         validate=parse_validate(raw["validate"], source),
