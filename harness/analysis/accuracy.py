@@ -27,6 +27,16 @@ def pareto_mask(times: pd.Series, errors: pd.Series) -> pd.Series:
     return mask
 
 
+def pareto_by_scene(rows: pd.DataFrame, error: str) -> pd.Series:
+    """Per row, whether it is on its scene's front of time against `error` (cells of different
+    scenes are not comparable, so each scene has its own front); False where `error` is
+    missing."""
+    mask = pd.Series(False, index=rows.index)
+    for _, group in rows[rows[error].notna()].groupby(present(rows, SCENE_KEYS), dropna=False):
+        mask[group.index] = pareto_mask(group["wall_median_s"], group[error])
+    return mask
+
+
 def has_error_data(df: pd.DataFrame) -> bool:
     """Whether the rows carry a deviation worth plotting: several builds, or a nonzero error
     in an ok cell. An invalid cell's error is a defect, listed with the warnings, not a
@@ -47,9 +57,5 @@ def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     table["max_vel_err"] = rows["max_vel_err"]
     table["count_mismatches"] = rows["count_mismatches"]
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
-    # Cells of different scenes are not comparable, so each scene has its own front.
-    table["pareto"] = False
-    for _, group in rows.groupby(present(rows, SCENE_KEYS), dropna=False):
-        front = pareto_mask(group["wall_median_s"], group["max_pos_err"])
-        table.loc[front.index, "pareto"] = front
+    table["pareto"] = pareto_by_scene(rows, "max_pos_err")
     return sort_cells(table, keys)

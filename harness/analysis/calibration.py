@@ -94,9 +94,9 @@ def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
     return found
 
 
-def apart_drift(blocks: Sequence[Side]) -> tuple[float, int]:
+def apart_drift(blocks: Sequence[Side]) -> float:
     """The drift between the blocks (each pair of them, each cell): stats.log_ratio_drift of
-    their median ratios against the runs' own spread; and how many ratios it rests on."""
+    their median ratios against the runs' own spread."""
     ratios, variances = [], []
     for a, b in itertools.combinations(blocks, 2):
         for key, old in a.cells.items():
@@ -108,7 +108,7 @@ def apart_drift(blocks: Sequence[Side]) -> tuple[float, int]:
                 continue
             ratios.append(spread[0])
             variances.append(spread[1] ** 2)
-    return stats.log_ratio_drift(ratios, variances), len(ratios)
+    return stats.log_ratio_drift(ratios, variances)
 
 
 def false_verdicts(old: Side, new: Side, threshold: float, drift: Drift) -> tuple[int, int]:
@@ -127,7 +127,7 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
     sd = statistics.median(s for s, _ in spread) if spread else math.nan
     cells = len(old.cells)
     block_sides = [side(f"block {k + 1}", root) for k, root in enumerate(blocks)]
-    drift, _ = apart_drift(block_sides)
+    drift = apart_drift(block_sides)
     apart = Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
     apart_false = apart_compared = 0
     for a, b in itertools.combinations(block_sides, 2):

@@ -48,19 +48,19 @@ class ChangePoint:
     p: float
 
 
-def energy_split(x: np.ndarray, min_size: int = MIN_SEGMENT) -> tuple[int, float] | None:
+def energy_split(x: np.ndarray) -> tuple[int, float] | None:
     """The split tau of x (x[:tau], x[tau:]) with the largest E-Divisive statistic
     Q(tau) = tau (n - tau) / n * (2 E|X - Y| - E|X - X'| - E|Y - Y'|), and that statistic;
     None when x is too short to split."""
     n = len(x)
-    if n < 2 * min_size:
+    if n < 2 * MIN_SEGMENT:
         return None
     d = np.abs(x[:, None] - x[None, :])
     # prefix sums of the distance matrix: any block sum in O(1)
     s = np.zeros((n + 1, n + 1))
     s[1:, 1:] = d.cumsum(0).cumsum(1)
 
-    tau = np.arange(min_size, n - min_size + 1)
+    tau = np.arange(MIN_SEGMENT, n - MIN_SEGMENT + 1)
     m = n - tau
     between = (s[tau, n] - s[tau, tau] - s[0, n] + s[0, tau]) / (tau * m)
     within_left = s[tau, tau] / (tau * (tau - 1))
@@ -92,8 +92,7 @@ def _test_at(logs: np.ndarray, points: Sequence[int], k: int) -> tuple[float, In
     return step_test(logs[start:points[k]], logs[points[k]:end])
 
 
-def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P,
-                  min_size: int = MIN_SEGMENT) -> list[ChangePoint]:
+def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P) -> list[ChangePoint]:
     """The change points of a series of positive values, oldest first."""
     logs = np.log(np.asarray(values, dtype=float))
     points: list[int] = []
@@ -102,7 +101,7 @@ def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P,
     while open_segments:
         candidates = []
         for start, end in open_segments:
-            found = energy_split(logs[start:end], min_size)
+            found = energy_split(logs[start:end])
             if found is not None:
                 candidates.append((found[1], start, end, start + found[0]))
         if not candidates:

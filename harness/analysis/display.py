@@ -26,58 +26,37 @@ PHASE_NAMES: dict[str, str] = dict(zip(
     strict=True))
 
 
-# Display headers for every column a builder can produce.
+# Display headers of the columns a builder can produce, where they differ from the column's
+# name (display_name).
 DISPLAY_NAMES: dict[str, str] = {
-    "experiment": "experiment",
-    MACHINE: "machine",
-    "variant": "variant",
-    "build": "build",
-    "scene": "scene",
     "n": "N",
-    "L": "L",
-    "r": "r",
     "steps": "S",
-    "mode": "mode",
-    "seed": "seed",
-    "threads": "threads",
     "oversubscribed": "threads > cores",
     "schedule": "OMP_SCHEDULE",
     "imbalance": "imbalance (max/mean busy)",
-    "cores": "cores",
-    "runs": "runs",
     "median_s": "median [s]",
     "extra_s": "extra time [s]",
     "per_chunk_ns": "per chunk [ns]",
     "min_s": "min [s]",
     "stddev_s": "stddev [s]",
-    "speedup": "speedup",
-    "efficiency": "efficiency",
     "serial_fraction": "serial fraction e",
     "baseline": "speedup vs",
-    "validation": "validation",
-    "series": "series",
     "exponent": "exponent k",
     "prefactor_s": "a [s]",
-    "points": "points",
     "x_min": "from",
     "x_max": "to",
     "max_pos_err": "max position error (÷L)",
     "max_vel_err": "max velocity error",
     "count_mismatches": "count mismatches",
     "pareto": "Pareto",
-    "status": "status",
-    "issue": "issue",
     "agreement": "agreement with seq",
     "detail": "where it leaves seq",
     "check_s": "check [s]",
     "replay_s": "of it replays [s]",
     # accuracy and stability checks
     "label": "variant/build",
-    "check": "check",
     "what": "what it checks",
     "checked": "cells",
-    "passed": "passed",
-    "failed": "failed",
     "where": "failing cells",
     "shadow_pos_err": "shadow error, mean (÷L)",
     "shadow_pos_err_max": "shadow error, max (÷L)",
@@ -86,8 +65,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "energy_drift_max": "energy drift, max",
     "div_steps_to_r": "steps until r apart",
     "div_truth_max": "deviation from truth, max (÷L)",
-    "scenes": "scenes",
-    "trusted": "trusted",
     "typical_err_r": "shadow error, median (÷r)",
     "worst": "worst scene",
     "not_trusted": "not trusted for",
@@ -100,7 +77,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "barrier_ns": "barrier [ns]",
     "grab_ns": "dynamic grab [ns]",
     "nested_region_ns": "nested region [ns]",
-    "cells": "cells",
     "regions_per_step": "regions per step",
     "nested_per_step": "nested regions per step",
     "barriers_per_step": "barriers per step",
@@ -111,11 +87,13 @@ DISPLAY_NAMES: dict[str, str] = {
     "measured_s": "measured overhead [s]",
     "ratio": "measured / predicted",
     # the instruction lane
-    "instructions": "instructions",
     "instructions_per_pair_test": "instructions per pair test",
     "instructions_per_particle_step": "instructions per particle-step",
 }
 
+
+def display_name(column: str) -> str:
+    return DISPLAY_NAMES.get(column, column)
 
 
 def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
@@ -130,36 +108,19 @@ def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
         if key in ("variant", "build", "scene", MACHINE):
             parts.append(text)
         elif key == "threads":
-            parts.append(f"{text} thread{'' if text == '1' else 's'}")
+            parts.append(threads_text(int(value)))  # type: ignore[call-overload]
         else:
-            parts.append(f"{DISPLAY_NAMES[key]}={text}")
+            parts.append(f"{display_name(key)}={text}")
     return " · ".join(parts)
 
+
+def threads_text(threads: int) -> str:
+    return f"{threads} thread{'' if threads == 1 else 's'}"
 
 
 MISSING_TEXT = "—"
 WHOLE_LIMIT = 1e12  # whole numbers below this are written out in full
 TIME_DIGITS = 4  # significant digits of a time: hyperfine's spread rarely supports more
-
-
-def _fmt_time(v: object) -> str:
-    return f"{float(v):.{TIME_DIGITS}g}"
-
-
-def _fmt_ratio(v: object) -> str:
-    return f"{float(v):.2f}"
-
-
-def _fmt_fraction(v: object) -> str:
-    return f"{float(v):.3f}"
-
-
-def _fmt_error(v: object) -> str:
-    return "0" if float(v) == 0 else f"{float(v):.2e}"
-
-
-def _fmt_int(v: object) -> str:
-    return f"{int(v)}"
 
 
 def _fmt_general(v: object) -> str:
@@ -169,61 +130,32 @@ def _fmt_general(v: object) -> str:
     return str(v)
 
 
-def _fmt_bool(v: object) -> str:
-    return "✓" if bool(v) else ""
+def _fmt(spec: str) -> Callable[[object], str]:
+    return lambda v: format(float(v), spec)
 
 
 FORMATTERS: dict[str, Callable[[object], str]] = {
-    "median_s": _fmt_time,
-    "extra_s": _fmt_time,
-    "per_chunk_ns": lambda v: f"{float(v):.3g}",
-    "min_s": _fmt_time,
-    "stddev_s": _fmt_time,
-    "prefactor_s": lambda v: f"{float(v):.3e}",
-    "speedup": _fmt_ratio,
-    "efficiency": _fmt_ratio,
-    "imbalance": _fmt_ratio,
-    "exponent": _fmt_ratio,
-    "exponent_se": lambda v: f"{float(v):.2g}",
-    "serial_fraction": _fmt_fraction,
-    "max_pos_err": _fmt_error,
-    "max_vel_err": _fmt_error,
-    "shadow_pos_err": _fmt_error,
-    "shadow_pos_err_max": _fmt_error,
-    "shadow_err_r": _fmt_error,
-    "typical_err_r": _fmt_error,
-    "energy_drift_max": _fmt_error,
-    "div_truth_max": _fmt_error,
-    "shadow_set_diff": _fmt_ratio,
-    "div_steps_to_r": _fmt_int,
-    "checked": _fmt_int,
-    "passed": _fmt_int,
-    "failed": _fmt_int,
-    "scenes": _fmt_int,
-    "trusted": _fmt_int,
-    "runs": _fmt_int,
-    "points": _fmt_int,
-    "count_mismatches": _fmt_int,
-    "n": _fmt_int,
-    "steps": _fmt_int,
-    "seed": _fmt_int,
-    "threads": _fmt_int,
-    "cores": _fmt_int,
-    "pareto": _fmt_bool,
-    "oversubscribed": _fmt_bool,
-    "sim_s": _fmt_time,
-    **{column: _fmt_time for column in PHASE_NAMES},
-    "rest_ns": lambda v: format_sig3(float(v)),
-    **dict.fromkeys(("region_ns", "barrier_ns", "grab_ns", "nested_region_ns"),
-                    lambda v: format_sig3(float(v))),
-    "cells": _fmt_int,
+    **dict.fromkeys(("median_s", "extra_s", "min_s", "stddev_s", "sim_s", *PHASE_NAMES,
+                     "predicted_s", "reference_s", "measured_s"), _fmt(f".{TIME_DIGITS}g")),
+    **dict.fromkeys(("speedup", "efficiency", "imbalance", "exponent", "shadow_set_diff"),
+                    _fmt(".2f")),
+    **dict.fromkeys(("max_pos_err", "max_vel_err", "shadow_pos_err", "shadow_pos_err_max",
+                     "shadow_err_r", "typical_err_r", "energy_drift_max", "div_truth_max"),
+                    lambda v: "0" if float(v) == 0 else f"{float(v):.2e}"),
+    **dict.fromkeys(("div_steps_to_r", "checked", "passed", "failed", "scenes", "trusted",
+                     "runs", "points", "count_mismatches", "n", "steps", "seed", "threads",
+                     "cores", "cells"), lambda v: f"{int(v)}"),
+    **dict.fromkeys(("pareto", "oversubscribed"), lambda v: "✓" if bool(v) else ""),
+    **dict.fromkeys(("rest_ns", "region_ns", "barrier_ns", "grab_ns", "nested_region_ns",
+                     "instructions_per_particle_step"), lambda v: format_sig3(float(v))),
     **dict.fromkeys(("regions_per_step", "nested_per_step", "barriers_per_step",
-                     "grabs_per_step"), lambda v: f"{float(v):,.0f}"),
-    **dict.fromkeys(("predicted_s", "reference_s", "measured_s"), _fmt_time),
-    "ratio": lambda v: f"{float(v):.3g}",
-    "instructions": lambda v: f"{float(v):,.0f}",
-    "instructions_per_pair_test": lambda v: f"{float(v):.1f}",
-    "instructions_per_particle_step": lambda v: format_sig3(float(v)),
+                     "grabs_per_step", "instructions"), _fmt(",.0f")),
+    "per_chunk_ns": _fmt(".3g"),
+    "ratio": _fmt(".3g"),
+    "prefactor_s": _fmt(".3e"),
+    "exponent_se": _fmt(".2g"),
+    "serial_fraction": _fmt(".3f"),
+    "instructions_per_pair_test": _fmt(".1f"),
 }
 
 
@@ -297,7 +229,7 @@ def format_table(df: pd.DataFrame) -> pd.DataFrame:
     """A built table as strings under display headers, ready for Markdown or HTML."""
     shown = pd.DataFrame(
         {
-            DISPLAY_NAMES.get(col, col): [format_with_uncertainty(df, col, i)
+            display_name(col): [format_with_uncertainty(df, col, i)
                                           for i in range(len(df))]
             for col in display_columns(df)
         },

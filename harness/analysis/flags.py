@@ -104,11 +104,6 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
     return found
 
 
-def issue_text(row: pd.Series) -> str:
-    """Why a cell is flagged in the warnings: its status and any flags."""
-    return "; ".join(text for _, text in issues(row))
-
-
 def _flagged(df: pd.DataFrame) -> pd.DataFrame:
     """The flagged rows of an experiment's cells, in the warnings table's order."""
     mask = df["status"] != OK
@@ -125,7 +120,8 @@ def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     seq, or flagged), one row each with why."""
     flagged = _flagged(df)
     table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS})
-    table["issue"] = [issue_text(row) for _, row in flagged.iterrows()]
+    table["issue"] = ["; ".join(text for _, text in issues(row))
+                      for _, row in flagged.iterrows()]
     return table
 
 

@@ -4,6 +4,7 @@ HarnessError naming the file, the line and what is wrong. divergence.csv beside 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -80,16 +81,24 @@ def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
     return pd.Series(values, index=text.index, dtype=object)
 
 
+def _read_csv(path: Path, what: str, required: Sequence[str], **options: object
+              ) -> pd.DataFrame:
+    """A CSV file with the `required` columns; a HarnessError naming the file otherwise."""
+    try:
+        frame = pd.read_csv(path, **options)  # type: ignore[call-overload]
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise HarnessError(f"{path}: cannot read {what}: {e}") from e
+    missing = [c for c in required if c not in frame.columns]
+    if missing:
+        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
+    return frame
+
+
 def read_results(path: Path) -> pd.DataFrame:
     """One results.csv, checked against the contract and typed: numbers as float64, flags as
     booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
-    try:
-        raw = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
-        raise HarnessError(f"{path}: cannot read results: {e}") from e
-    missing = [c for c in CSV_COLUMNS if c not in raw.columns]
-    if missing:
-        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
+    raw = _read_csv(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
+                    skipinitialspace=True)
     # Every other column is kept (as text unless typed below), so a newer column reaches the
     # tables without a change here.
     optional = [c for c in raw.columns if c not in CSV_COLUMNS]
@@ -150,11 +159,4 @@ def read_divergence(path: Path) -> pd.DataFrame | None:
     """divergence.csv (step-by-step deviation curves), or None when there is none."""
     if not path.is_file():
         return None
-    try:
-        div = pd.read_csv(path)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
-        raise HarnessError(f"{path}: cannot read divergence curves: {e}") from e
-    missing = [c for c in DIVERGENCE_REQUIRED if c not in div.columns]
-    if missing:
-        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
-    return div
+    return _read_csv(path, "divergence curves", DIVERGENCE_REQUIRED)

@@ -17,6 +17,7 @@ import math
 import pandas as pd
 
 from harness.analysis.cells import timed_rows
+from harness.analysis.display import threads_text
 from harness.analysis.strategies import SEED_TIMES_S, repaired_by
 from harness.spec.facts import SyncFacts, current
 from harness.store.columns import OMP_COST_COLUMNS
@@ -149,7 +150,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
         for _, row in group.iterrows():
             t = int(row["threads"])
             if t not in by_threads.index:
-                parts.append(f"at {_threads(t)} no cost per operation was measured")
+                parts.append(f"at {threads_text(t)} no cost per operation was measured")
                 continue
             priced = ", ".join(
                 f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
@@ -161,7 +162,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
                             f"{_seconds(row['reference_s'])}")
             else:
                 measured = f"of a median of {_seconds(row['median_s'])}"
-            parts.append(f"at {_threads(t)} {priced or 'nothing to price'}: predicted "
+            parts.append(f"at {threads_text(t)} {priced or 'nothing to price'}: predicted "
                          f"{_seconds(row['predicted_s'])}, {measured}")
         unrepaired = "" if group["reference"].any() else \
             " (it has no repair to measure its overhead against)"
@@ -184,10 +185,6 @@ def _operations(counts: dict[str, float]) -> str:
     named = [f"{count:,.0f} {_NAMES[op][0] if count == 1 else _NAMES[op][1]}"
              for op, count in counts.items() if count]
     return " and ".join(named) if named else "nothing"
-
-
-def _threads(t: int) -> str:
-    return f"{t} thread{'' if t == 1 else 's'}"
 
 
 def _ns(value: float) -> str:

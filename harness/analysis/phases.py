@@ -35,6 +35,7 @@ from harness.analysis.display import (
     format_share,
     format_sig3,
     series_label,
+    threads_text,
 )
 from harness.spec.facts import GRID
 from harness.store.columns import PHASE_COLUMNS
@@ -184,8 +185,7 @@ def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
         return None
     cell = grid.sort_values(["n", TOTAL], kind="stable").iloc[-1]
     share = cell[f"{BROAD}{SHARE_SUFFIX}"]
-    threads = int(cell["threads"])
     return float(cell["n"]), (
         f"where grid's time goes: the broad phase is {format_share(share)} of its simulation "
         f"time, the rest of it {format_sig3(cell[REST_NS])} ns per particle-step "
-        f"(N = {int(cell['n'])}, {threads} thread{'' if threads == 1 else 's'}; {link})")
+        f"(N = {int(cell['n'])}, {threads_text(int(cell['threads']))}; {link})")

@@ -67,7 +67,7 @@ RANKED: frozenset[str] = frozenset({IMPRECISE, DIVERGES, CORRECT, ROUNDING, IDEN
 CLASS_KEYS = ("scene", "n", "L", "r", "steps")
 
 
-def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
+def class_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per program and scene, for grading a class: its verdict (the worst of its
     cells), first wrong step, particle-free rule, whether its runs were repeatable, its median
     time at each thread count, its speedup against seq (seq's fastest median on the scene)
@@ -93,7 +93,7 @@ def class_table(df: pd.DataFrame, baseline: str = BASELINE) -> pd.DataFrame:
         times = cells.set_index("threads")["wall_median_s"].dropna()
         for threads, seconds in times.sort_index().items():
             row[f"time_{int(threads)}t_s"] = float(seconds)
-        same = df[(df["variant"] == baseline)]
+        same = df[(df["variant"] == BASELINE)]
         for key, value in zip(keys, scene, strict=True):
             same = same[same[key] == value]
         seq_s = same["wall_median_s"].dropna().min() if len(same) else np.nan

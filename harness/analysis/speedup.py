@@ -192,19 +192,14 @@ def cell_table(
         # validation column, far right, says it too)
         table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED,
                      rows[OVERSUBSCRIBED].fillna(False).astype(bool))
-    table["runs"] = rows["runs"]
-    table["median_s"] = rows["wall_median_s"]
-    table["min_s"] = rows["wall_min_s"]
-    table["stddev_s"] = rows["wall_stddev_s"]
-    table["speedup"] = rows["speedup"]
-    table["speedup_low"], table["speedup_high"] = rows["speedup_low"], rows["speedup_high"]
-    table["efficiency"] = rows["efficiency"]
-    table["efficiency_low"] = rows["efficiency_low"]
-    table["efficiency_high"] = rows["efficiency_high"]
+    for column, source in (("runs", "runs"), ("median_s", "wall_median_s"),
+                           ("min_s", "wall_min_s"), ("stddev_s", "wall_stddev_s")):
+        table[column] = rows[source]
+    metrics = ("speedup", "efficiency", *(("serial_fraction",) if "threads" in keys else ()))
+    for metric in metrics:
+        for column in (metric, *(f"{metric}{s}" for s in INTERVAL_SUFFIXES)):
+            table[column] = rows[column]
     if "threads" in keys:
-        table["serial_fraction"] = rows["serial_fraction"]
-        table["serial_fraction_low"] = rows["serial_fraction_low"]
-        table["serial_fraction_high"] = rows["serial_fraction_high"]
         table["baseline"] = rows["baseline"]
     if "imbalance" in rows.columns and rows["imbalance"].notna().any():
         table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads

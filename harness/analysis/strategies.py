@@ -88,19 +88,15 @@ def one_scene(df: pd.DataFrame) -> bool:
     return len(timed) > 0 and len(timed.drop_duplicates(keys)) == 1
 
 
-def is_seed_benchmark(df: pd.DataFrame) -> bool:
-    """Whether every row simulates the seed's benchmark scene (its times compare with ours)."""
-    return bool(len(df)) and all(
-        (df[key] == value).all() for key, value in SEED_SCENE.items() if key in df.columns)
-
-
 # --- the seed's Table 2 beside ours -------------------------------------------------------
 
 
 def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
     """Per seed strategy measured here: our median and rank, the seed's time and rank, each
     speedup over its own sequential code, our imbalance, and the repair's median."""
-    if not is_seed_benchmark(df):
+    # only where every row simulates the seed's benchmark scene: its times compare with ours
+    if not len(df) or not all((df[key] == value).all()
+                              for key, value in SEED_SCENE.items() if key in df.columns):
         return None
     cells = _one_per_variant(df)
     ours = [v for v in SEED_TIMES_S if v in cells.index]

@@ -9,9 +9,9 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from harness.analysis.accuracy import pareto_mask
-from harness.analysis.cells import MACHINE, SCENE_KEYS, present, sort_cells, timed_rows
-from harness.analysis.display import DISPLAY_NAMES, format_value
+from harness.analysis.accuracy import pareto_by_scene
+from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows
+from harness.analysis.display import display_name, format_value
 from harness.spec.facts import current
 
 # Each check's column and what it tests, in the order the tables show them.
@@ -31,6 +31,7 @@ FAIL_MARK = "✗"
 # of the next step's contact decisions (a contact flips when it is within the error of
 # grazing or of t = 1): the level at which a build's trajectory is trustworthy.
 TRUST_ERR_R = 1e-6
+MAX_LISTED = 8  # failing cells a check's row names
 
 
 def has_check_data(df: pd.DataFrame) -> bool:
@@ -50,7 +51,7 @@ def scene_names(df: pd.DataFrame) -> pd.Series:
     if not keys:
         return df["scene"].astype(str)
     return df.apply(lambda row: " ".join([str(row["scene"])] + [
-        f"{DISPLAY_NAMES[k]}={format_value(k, row[k])}" for k in keys]), axis=1)
+        f"{display_name(k)}={format_value(k, row[k])}" for k in keys]), axis=1)
 
 
 def _checked(df: pd.DataFrame) -> pd.DataFrame:
@@ -71,16 +72,13 @@ def _failures(row: pd.Series) -> list[str]:
     return failed
 
 
-def _scene_order(df: pd.DataFrame) -> list[str]:
-    """Scene names in the order the experiment ran them."""
-    return list(dict.fromkeys(df.sort_values("scene_rank", kind="stable")["scene_name"]))
-
-
 def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
     """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
     rows = _checked(df)
     labels = list(dict.fromkeys(variant_build(r) for _, r in rows.iterrows()))
-    table = pd.DataFrame({"scene": _scene_order(rows)})
+    # the scenes in the order the experiment ran them
+    ran = rows.sort_values("scene_rank", kind="stable")["scene_name"]
+    table = pd.DataFrame({"scene": list(dict.fromkeys(ran))})
     for label in labels:
         marks = []
         for scene in table["scene"]:
@@ -97,7 +95,7 @@ def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def check_summary(df: pd.DataFrame, max_listed: int = 8) -> pd.DataFrame:
+def check_summary(df: pd.DataFrame) -> pd.DataFrame:
     """Per check: what it tests, cells checked, passed, failed and the failing cells."""
     rows = _checked(df)
     out = []
@@ -107,8 +105,8 @@ def check_summary(df: pd.DataFrame, max_listed: int = 8) -> pd.DataFrame:
         known = rows[rows[column].notna()]
         failed = known[~known[column].astype(bool)]
         where = [f"{r['scene_name']}: {variant_build(r)}" for _, r in failed.iterrows()]
-        listed = ", ".join(where[:max_listed]) + (f", … {len(where) - max_listed} more"
-                                                  if len(where) > max_listed else "")
+        listed = ", ".join(where[:MAX_LISTED]) + (f", … {len(where) - MAX_LISTED} more"
+                                                  if len(where) > MAX_LISTED else "")
         out.append({"check": name, "what": what, "checked": len(known),
                     "passed": len(known) - len(failed), "failed": len(failed),
                     "where": listed})
@@ -127,12 +125,8 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     for column in ("shadow_pos_err", "shadow_err_r", "shadow_set_diff", "energy_drift_max",
                    "div_steps_to_r"):
         table[column] = rows[column] if column in rows.columns else np.nan
-    table["pareto"] = False
-    if "shadow_pos_err" in rows.columns:
-        for _, group in rows[rows["shadow_pos_err"].notna()].groupby(
-                present(rows, SCENE_KEYS), dropna=False):
-            front = pareto_mask(group["wall_median_s"], group["shadow_pos_err"])
-            table.loc[front.index, "pareto"] = front
+    table["pareto"] = pareto_by_scene(rows, "shadow_pos_err") \
+        if "shadow_pos_err" in rows.columns else False
     return sort_cells(table, keys)
 
 

@@ -31,17 +31,15 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def _has_cells_or_results(exp: layout.ExperimentDir) -> bool:
-    return layout.has_cells(exp) or layout.has_results(exp)
-
-
 def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     """`path` itself when it has cells/ (or, `with_results`, a results.csv), else its
     subdirectories that have."""
     if not path.is_dir():
         raise HarnessError(f"{path}: not a directory")
-    found, _ = layout.experiments_under(
-        path, _has_cells_or_results if with_results else layout.has_cells)
+    def wanted(exp: layout.ExperimentDir) -> bool:
+        return layout.has_cells(exp) or (with_results and layout.has_results(exp))
+
+    found, _ = layout.experiments_under(path, wanted)
     if not found:
         what = f"{layout.CELLS}/" + (f" or {layout.RESULTS_CSV}" if with_results else "")
         raise HarnessError(f"{path}: no experiment directory (one with {what}) in it")

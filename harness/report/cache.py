@@ -96,8 +96,8 @@ def code_closure(modules: Iterable[str]) -> list[Path]:
     return sorted(seen)
 
 
-def code_version(files: Iterable[Path], extra: str = "") -> str:
-    digest = hashlib.sha256(extra.encode())
+def code_version(files: Iterable[Path]) -> str:
+    digest = hashlib.sha256()
     for path in files:
         digest.update(str(path.relative_to(PACKAGE_DIR)).encode())
         digest.update(path.read_bytes())

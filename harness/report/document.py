@@ -12,10 +12,11 @@ text.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 
 @dataclass(frozen=True)
@@ -115,15 +116,10 @@ def section_blocks(section: Section) -> list[Block]:
     return blocks
 
 
-def document_sections(doc: Document) -> list[Section]:
-    """The document's top-level sections in reading order."""
-    return [*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix]
-
-
 def document_files(doc: Document) -> set[Path]:
     """Every figure file the document shows or links."""
     files: set[Path] = set()
-    for section in document_sections(doc):
+    for section in (*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix):
         for block in section_blocks(section):
             if isinstance(block, Figure):
                 files |= {block.image, *block.alternates}
@@ -134,51 +130,38 @@ def document_files(doc: Document) -> set[Path]:
 
 # --- JSON form, for the section cache (paths relative to the report directory) ------------
 
-
-def block_to_json(block: Block, base: Path) -> dict[str, object]:
-    if isinstance(block, Details):
-        return {"kind": block.kind, "summary": block.summary, "anchor": block.anchor,
-                "blocks": [block_to_json(b, base) for b in block.blocks]}
-    if isinstance(block, Paragraph):
-        return {"kind": block.kind, "text": block.text}
-    if isinstance(block, Bullets):
-        return {"kind": block.kind, "items": list(block.items)}
-    if isinstance(block, Table):
-        return {"kind": block.kind, "columns": list(block.columns),
-                "rows": [list(r) for r in block.rows], "align_right": list(block.align_right),
-                "caption": block.caption,
-                "files": [p.relative_to(base).as_posix() for p in block.files]}
-    return {"kind": block.kind, "image": block.image.relative_to(base).as_posix(),
-            "caption": block.caption,
-            "alternates": [p.relative_to(base).as_posix() for p in block.alternates]}
+BLOCK_KINDS: dict[str, type] = {c.kind: c for c in (Paragraph, Bullets, Table, Figure, Details)}
+PATH_FIELDS = ("files", "image", "alternates")
+NESTED_FIELDS = ("blocks", "subsections")
 
 
-def block_from_json(data: dict, base: Path) -> Block:
-    kind = data["kind"]
-    if kind == Paragraph.kind:
-        return Paragraph(data["text"])
-    if kind == Bullets.kind:
-        return Bullets(tuple(data["items"]))
-    if kind == Table.kind:
-        return Table(tuple(data["columns"]), tuple(tuple(r) for r in data["rows"]),
-                     tuple(data["align_right"]), data["caption"],
-                     tuple(base / p for p in data.get("files", ())))
-    if kind == Figure.kind:
-        return Figure(base / data["image"], data["caption"],
-                      tuple(base / p for p in data["alternates"]))
-    if kind == Details.kind:
-        inner = tuple(block_from_json(b, base) for b in data["blocks"])
-        return Details(data["summary"], inner, data["anchor"])  # type: ignore[arg-type]
-    raise ValueError(f"unknown block kind {kind!r}")
+def to_json(item: Block | Section, base: Path) -> dict[str, object]:
+    """A block (with its kind) or a section as JSON: paths relative to `base`, tuples as
+    lists, nested blocks and sections likewise."""
+    def value(v: object) -> object:
+        if isinstance(v, Path):
+            return v.relative_to(base).as_posix()
+        if isinstance(v, tuple):
+            return [value(x) for x in v]
+        return to_json(v, base) if dataclasses.is_dataclass(v) else v  # type: ignore[arg-type]
+
+    data = {f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}
+    return {"kind": item.kind, **data} if not isinstance(item, Section) else data
 
 
-def section_to_json(section: Section, base: Path) -> dict[str, object]:
-    return {"title": section.title, "anchor": section.anchor,
-            "blocks": [block_to_json(b, base) for b in section.blocks],
-            "subsections": [section_to_json(s, base) for s in section.subsections]}
+def from_json(data: dict, base: Path) -> Any:
+    """A block or a section read back from to_json's form."""
+    if "kind" in data and data["kind"] not in BLOCK_KINDS:
+        raise ValueError(f"unknown block kind {data['kind']!r}")
 
+    def value(name: str, v: object) -> object:
+        if name in NESTED_FIELDS:
+            return tuple(from_json(x, base) for x in v)  # type: ignore[attr-defined]
+        if name in PATH_FIELDS:
+            return base / v if isinstance(v, str) else tuple(base / p for p in v)  # type: ignore[attr-defined]
+        if isinstance(v, list):
+            return tuple(tuple(x) if isinstance(x, list) else x for x in v)
+        return v
 
-def section_from_json(data: dict, base: Path) -> Section:
-    return Section(data["title"], data["anchor"],
-                   tuple(block_from_json(b, base) for b in data["blocks"]),
-                   tuple(section_from_json(s, base) for s in data["subsections"]))
+    cls = BLOCK_KINDS[data["kind"]] if "kind" in data else Section
+    return cls(**{k: value(k, v) for k, v in data.items() if k != "kind"})

@@ -15,8 +15,6 @@ from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
 
-# --- loading ------------------------------------------------------------------------------
-
 
 @dataclass(frozen=True, eq=False)
 class Experiment:

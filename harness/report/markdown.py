@@ -57,14 +57,11 @@ def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
     return lines
 
 
-def _heading(section: Section, level: int) -> list[str]:
+def _section(section: Section, level: int, out_dir: Path) -> list[str]:
     # An explicit anchor, so that the summary's links land on the same ids in Markdown as in
     # HTML; Markdown viewers derive their own ids from the heading text, which repeats.
-    return [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", ""]
-
-
-def _section(section: Section, level: int, out_dir: Path) -> list[str]:
-    lines = [*_heading(section, level), *markdown_blocks(section.blocks, out_dir)]
+    lines = [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", "",
+             *markdown_blocks(section.blocks, out_dir)]
     for sub in section.subsections:
         lines += _section(sub, level + 1, out_dir)
     return lines

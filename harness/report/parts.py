@@ -9,14 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from harness.report.document import (
-    Section,
-    Table,
-    block_from_json,
-    block_to_json,
-    section_from_json,
-    section_to_json,
-)
+from harness.report.document import Section, Table, from_json, to_json
 
 
 @dataclass(frozen=True)
@@ -66,8 +59,8 @@ class ExperimentPart:
 
     def to_json(self, base: Path) -> dict[str, Any]:
         return {
-            "name": self.name, "section": section_to_json(self.section, base),
-            "warnings": None if self.warnings is None else block_to_json(self.warnings, base),
+            "name": self.name, "section": to_json(self.section, base),
+            "warnings": None if self.warnings is None else to_json(self.warnings, base),
             "warning_kinds": [list(r) for r in self.warning_kinds],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
             "fidelity": list(self.fidelity.counts()), "fidelity_anchor": self.fidelity_anchor,
@@ -77,8 +70,8 @@ class ExperimentPart:
     @classmethod
     def from_json(cls, data: dict[str, Any], base: Path) -> ExperimentPart:
         return cls(
-            data["name"], section_from_json(data["section"], base),
-            None if data["warnings"] is None else block_from_json(data["warnings"], base),
+            data["name"], from_json(data["section"], base),
+            None if data["warnings"] is None else from_json(data["warnings"], base),
             tuple(tuple(r) for r in data["warning_kinds"]),
             {k: Highlight(*v) for k, v in data["highlights"].items()},
             Fidelity(*data["fidelity"]), data["fidelity_anchor"], data["programs_anchor"],

@@ -9,7 +9,7 @@ import pandas as pd
 
 from harness.analysis import phases
 from harness.analysis.cells import INTERVAL_SUFFIXES
-from harness.analysis.display import format_value
+from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import flagged_cells, flagged_kinds
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -47,13 +47,7 @@ def ratio_text(row: pd.Series, column: str = "speedup") -> str:
 
 def _where(row: pd.Series) -> str:
     # The machine is the page's (harness.report.pipeline renders one page per machine).
-    threads = int(row["threads"])
-    return f"N = {int(row['n'])}, {threads} thread{'' if threads == 1 else 's'}"
-
-
-def _fair(rows: pd.DataFrame) -> pd.DataFrame:
-    return rows[(rows["status"] == OK) & ~rows["oversubscribed"]
-                & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
+    return f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
 
 
 def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
@@ -68,7 +62,8 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     rows = with_speedup(exp.frame)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
-    fair = _fair(rows)
+    fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]
+                & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
     strategies = strategy_cells(fair)
     if not strategies.empty:
         best = strategies.loc[strategies["speedup"].idxmax()]

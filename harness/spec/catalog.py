@@ -41,8 +41,8 @@ DENSE_PACKING = (0.3, 0.5)  # area fraction N*pi*r^2 / L^2
 
 
 def _scene(particles: list[Particle], steps: int, mode: str, L: float = SMALL_L,
-           r: float = R, n: int | None = None) -> GeneratedScene:
-    return make_scene(L, r, steps, mode, particles, n=n)
+           n: int | None = None) -> GeneratedScene:
+    return make_scene(L, R, steps, mode, particles, n=n)
 
 
 # --- collisions and ties ------------------------------------------------------------------
@@ -243,10 +243,6 @@ def dense50(steps: int = 5, mode: str = "perf") -> GeneratedScene:
     return _dense(DENSE_PACKING[1], steps, mode)
 
 
-def _description(name: str) -> str:
-    return " ".join(REGISTRY.get(name).doc.split())
-
-
 # Catalog order: head_on and corner are generators of harness.spec.scenes.
 CATALOG_NAMES: tuple[str, ...] = (
     "head_on", "contact_t1", "tie4", "tie3", "cradle", "tangent", "touch_axis",
@@ -258,4 +254,4 @@ CATALOG_NAMES: tuple[str, ...] = (
 
 def catalog() -> dict[str, str]:
     """Each catalog scene's name and what it stresses (its generator's docstring)."""
-    return {name: _description(name) for name in CATALOG_NAMES}
+    return {name: " ".join(REGISTRY.get(name).doc.split()) for name in CATALOG_NAMES}

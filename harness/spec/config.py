@@ -291,9 +291,8 @@ class Config:
     builds: tuple[str, ...]
     scene: SceneSpec
     threads: tuple[int, ...]
-    threads_listed: bool
-    combine: str  # "product" or "zip"
-    zip_keys: tuple[str, ...]  # axes zipped together (all listed axes for plain `zip`)
+    # axes zipped together (`combine:`; all listed axes for plain `zip`, none for `product`)
+    zip_keys: tuple[str, ...]
     measure: Measure
     validate: Validation
     keep_output: bool

@@ -213,14 +213,6 @@ class Variants:
     def order(self) -> tuple[str, ...]:
         return ordered(self.by_name)
 
-    def rank(self, name: str) -> int:
-        """A variant's position in `order`; after every known variant for any other name."""
-        return self._ranks.get(name, len(self._ranks))
-
-    @functools.cached_property
-    def _ranks(self) -> dict[str, int]:
-        return {name: k for k, name in enumerate(self.order)}
-
     @functools.cached_property
     def families(self) -> tuple[str, ...]:
         """The variants that name a family (those repaired, and those that repair nothing),

@@ -62,18 +62,14 @@ def real(value: object) -> object:
     return result
 
 
-def choice(options: Sequence[str]) -> Callable[[object], object]:
+def one_of(options: Sequence[str]) -> Kind:
+    """A key that takes one of `options`."""
     def parse(value: object) -> object:
         if value not in options:
             raise ValueError
         return value
 
-    return parse
-
-
-def one_of(options: Sequence[str]) -> Kind:
-    """A key that takes one of `options`."""
-    return Kind("one of " + ", ".join(options), choice(options))
+    return Kind("one of " + ", ".join(options), parse)
 
 
 def string(value: object) -> object:

@@ -36,13 +36,6 @@ class Output:
     final: FinalState
     history: np.ndarray  # (rows, 6): s i x y vx vy; no rows in perf mode
 
-    def positions_at(self, step: int) -> np.ndarray:
-        """The (n, 2) positions printed for `step` (print mode), or the final ones."""
-        if step == self.final.step:
-            return self.final.position
-        rows = self.history[self.history[:, 0] == step]
-        return rows[:, 2:4]
-
 
 def parse_output(text: str) -> Output:
     """Parse a variant's stdout into arrays; raise OutputFormatError when it is malformed."""

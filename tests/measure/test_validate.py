@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from harness.measure.validate import compare
-from harness.spec.output import OutputFormatError, parse_output
+from harness.spec.output import OutputFormatError, parse_output, split_states
 
 L = 100.0
 REFERENCE = (
@@ -40,8 +40,8 @@ def test_parse_print_mode() -> None:
     out = parse_output(PRINT_MODE)
     assert out.history.shape == (4, 6)
     assert out.final.step == 2
-    assert out.positions_at(1).tolist() == [[11, 10], [19, 10]]
-    assert out.positions_at(2).tolist() == [[12, 10], [18, 10]]
+    positions = [p.tolist() for p, _ in split_states(out)]
+    assert positions[1:] == [[[11, 10], [19, 10]], [[12, 10], [18, 10]]]
 
 
 def test_identical() -> None:

@@ -14,8 +14,8 @@ from harness.report.document import (
     Paragraph,
     Section,
     Table,
-    section_from_json,
-    section_to_json,
+    from_json,
+    to_json,
 )
 from harness.report.html import image_size, render_html
 from harness.report.markdown import render_markdown
@@ -74,4 +74,4 @@ def test_folded_blocks_and_links_to_other_pages(tmp_path: Path) -> None:
 
 def test_a_section_with_folded_blocks_survives_the_cache(tmp_path: Path) -> None:
     section = document(tmp_path).sections[0]
-    assert section_from_json(section_to_json(section, tmp_path), tmp_path) == section
+    assert from_json(to_json(section, tmp_path), tmp_path) == section

@@ -70,15 +70,14 @@ TITLE_MARGIN_PT = 4  # between a wrapped title and the figure's top edge
 # --- the figure and its files --------------------------------------------------------------
 
 
-def new_figure(
-    figsize: tuple[float, float] = FIGSIZE, dpi: int = DPI, margins: dict[str, float] | None = None
-) -> tuple[Figure, Axes]:
+def new_figure(figsize: tuple[float, float] = FIGSIZE, margins: dict[str, float] | None = None
+               ) -> tuple[Figure, Axes]:
     """A figure on an Agg canvas with one axes.
 
     Margins are fixed rather than computed by a layout engine: constrained layout measured
     every tick label on every save and made a report take tens of seconds, not a few.
     """
-    fig = Figure(figsize=figsize, dpi=dpi)
+    fig = Figure(figsize=figsize, dpi=DPI)
     FigureCanvasAgg(fig)
     fig.subplots_adjust(**(margins or MARGINS))
     return fig, fig.subplots()
@@ -208,29 +207,21 @@ def plot_series(
         )
 
 
+# What each special marker of Marks looks like in the legend, in the legend's order.
+MARK_STYLES: dict[str, dict[str, object]] = {
+    "oversubscribed": dict(marker="o", mfc="white", mec="gray", mew=1.5,
+                           label="oversubscribed\n(threads > cores)"),
+    "invalid": dict(marker="x", color="black", ms=8, mew=2, label="invalid output"),
+    "intervals": dict(marker="|", color="gray", ms=10, label="95% interval"),
+    "failed": dict(marker="v", mfc="lightgray", mec="red", mew=1.5,
+                   label="no time: failed,\ncrashed or timeout"),
+}
+
+
 def marker_handles(marks: Marks) -> list[Line2D]:
     """Legend entries that say what the special markers mean."""
-    handles = []
-    if marks.oversubscribed:
-        handles.append(
-            Line2D([], [], ls="none", marker="o", mfc="white", mec="gray", mew=1.5,
-                   label="oversubscribed\n(threads > cores)")
-        )
-    if marks.invalid:
-        handles.append(
-            Line2D([], [], ls="none", marker="x", color="black", ms=8, mew=2,
-                   label="invalid output")
-        )
-    if marks.intervals:
-        handles.append(
-            Line2D([], [], ls="none", marker="|", color="gray", ms=10, label="95% interval")
-        )
-    if marks.failed:
-        handles.append(
-            Line2D([], [], ls="none", marker="v", mfc="lightgray", mec="red", mew=1.5,
-                   label="no time: failed,\ncrashed or timeout")
-        )
-    return handles
+    return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
+            for name, style in MARK_STYLES.items() if getattr(marks, name)]
 
 
 def legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:
@@ -249,10 +240,10 @@ def legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:
               bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
 
 
-def wrap_label(label: str, width: int = LEGEND_WRAP) -> str:
-    """A legend entry on lines of at most `width` characters where it can break (its own
+def wrap_label(label: str) -> str:
+    """A legend entry on lines of at most LEGEND_WRAP characters where it can break (its own
     line breaks kept)."""
-    return "\n".join(textwrap.fill(line, width, break_long_words=False)
+    return "\n".join(textwrap.fill(line, LEGEND_WRAP, break_long_words=False)
                      for line in label.split("\n"))
 
 

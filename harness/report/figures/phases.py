@@ -55,10 +55,6 @@ def _style(phase: str) -> dict[str, object]:
     return {"facecolor": PHASE_COLORS[phase], "edgecolor": "white", "linewidth": 0.4}
 
 
-def _seconds_text(value: float) -> str:
-    return f"{value:.3g} s"
-
-
 def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
     """Stacked horizontal bars per bar label, one pair of panels per scene: seconds (each
     scene on its own axis; sim_s's phases, then the output hatched; sim_s written at the end)
@@ -91,7 +87,7 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
         _stack(seconds, values, y)
         _stack(percent, shares, y)
         for yi, total, whole in zip(y, totals, sim, strict=True):
-            seconds.text(total, yi, " " + _seconds_text(whole), va="center", fontsize="small")
+            seconds.text(total, yi, f" {whole:.3g} s", va="center", fontsize="small")
         for yi, share in zip(y, shares[:, 0], strict=True):
             if share >= SHARE_LABEL_MIN:
                 percent.text(share / 2, yi, format_share(share), va="center", ha="center",

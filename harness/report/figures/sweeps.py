@@ -144,7 +144,9 @@ def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
 def _thread_metric_figure(
     df: pd.DataFrame, y: str, ylabel: str, title: str, out: Path, ideal: Callable[[Axes], str]
 ) -> list[Path]:
-    """A per-series plot of a speedup-derived metric against threads, with its ideal line."""
+    """A per-series plot of a speedup-derived metric against threads, with its ideal line:
+    the rows that have it, and those that produced no time (drawn on the axis)."""
+    df = df[df[y].notna() | ~df["status"].isin(TIMED_STATUSES)]
     keys = series_keys(df, "threads")
     groups = series_groups(df, keys)
     colors = series_colors(groups, keys)
@@ -163,55 +165,44 @@ def _thread_metric_figure(
     return save_figure(fig, out)
 
 
-def _threads_range(df: pd.DataFrame) -> np.ndarray:
-    return np.unique(df["threads"].to_numpy(dtype=float))
-
-
 def fig_speedup(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
     """Speedup against threads (rows from analysis.speedup.with_speedup), ideal S = p, log-log
     base 2."""
-    rows = df[df["speedup"].notna() | ~df["status"].isin(TIMED_STATUSES)]
-
     def ideal(ax: Axes) -> str:
-        p = _threads_range(df)
+        p = np.unique(df["threads"].to_numpy(dtype=float))
         ax.plot(p, p, "--", color="black", lw=1)
         if wants_log(p):
             log_axis(ax, "y", p, 2)
         return "ideal S = p"
 
     return _thread_metric_figure(
-        rows, "speedup", "speedup S = T(baseline) / T(p)", title or "Speedup against threads",
+        df, "speedup", "speedup S = T(baseline) / T(p)", title or "Speedup against threads",
         out, ideal,
     )
 
 
 def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
     """Parallel efficiency S/p against threads, ideal 1."""
-    rows = df[df["efficiency"].notna() | ~df["status"].isin(TIMED_STATUSES)]
-
     def ideal(ax: Axes) -> str:
         ax.axhline(1.0, ls="--", color="black", lw=1)
-        measured = rows["efficiency"].dropna()
+        measured = df["efficiency"].dropna()
         top = max(1.1, float(measured.max()) * 1.05) if len(measured) else 1.1
         ax.set_ylim(0, top)
         return "ideal E = 1"
 
     return _thread_metric_figure(
-        rows, "efficiency", "parallel efficiency E = S / p", title or "Efficiency against threads",
+        df, "efficiency", "parallel efficiency E = S / p", title or "Efficiency against threads",
         out, ideal,
     )
 
 
 def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
     """The Karp-Flatt serial fraction e against threads p > 1; ideal 0, rising e = overhead."""
-    rows = df[(df["threads"] > 1)
-              & (df["serial_fraction"].notna() | ~df["status"].isin(TIMED_STATUSES))]
-
     def ideal(ax: Axes) -> str:
         ax.axhline(0.0, ls="--", color="black", lw=1)
         return "ideal e = 0"
 
     return _thread_metric_figure(
-        rows, "serial_fraction", "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
+        df[df["threads"] > 1], "serial_fraction", "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
         title or "Karp–Flatt serial fraction against threads", out, ideal,
     )

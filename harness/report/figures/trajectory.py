@@ -37,9 +37,6 @@ GIF_COLORS = 128
 GIF_FRAME_MS = 600
 
 
-# --- trajectories (the course report's Figure 7) ------------------------------------------
-
-
 def _trajectory_arrays(traj: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Particle indices and their positions as (particles, states) arrays, subsampled evenly
     down to MAX_TRAJECTORY_PARTICLES."""

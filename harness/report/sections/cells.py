@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_keys
-from harness.analysis.display import DISPLAY_NAMES, format_value
+from harness.analysis.display import display_name, format_value
 from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
 from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
@@ -24,9 +24,9 @@ def fixed_text(df: pd.DataFrame) -> str:
     fixed = {k: v for k, v in fixed_params(df).items()
              if not (k == MACHINE and v == "")}
     fixed_parts = [
-        f"{DISPLAY_NAMES[k]} = {format_value(k, v)}" for k, v in fixed.items()
+        f"{display_name(k)} = {format_value(k, v)}" for k, v in fixed.items()
     ]
-    varied = [DISPLAY_NAMES[k] for k in varying_keys(df)]
+    varied = [display_name(k) for k in varying_keys(df)]
     text = "Fixed: " + (", ".join(fixed_parts) if fixed_parts else "nothing") + "."
     if varied:
         text += " Varied: " + ", ".join(varied) + "."
@@ -56,7 +56,9 @@ def build(ctx: Context) -> list[Section]:
         if len(baselines) <= 1:
             table = table.drop(columns="baseline")
             if baselines:
-                blocks.append(Paragraph(f"Speedup is against {_baseline_words(baselines[0])}."))
+                words = ("seq's median on the same scene" if baselines[0] == BASELINE_SEQ
+                         else "the same variant's median at 1 thread")
+                blocks.append(Paragraph(f"Speedup is against {words}."))
     if table["speedup"].isna().all():
         unused = ("speedup", "efficiency", "serial_fraction")
         table = drop_columns(table, unused)
@@ -91,9 +93,3 @@ def _instructions_text(df: pd.DataFrame) -> str:
             f"cell's counted runs, counted by {tools} with OpenMP's waiting threads asleep "
             f"(OMP_WAIT_POLICY=passive), on {shown or 'the cells’ binaries'}; per pair test "
             "and per particle-step (N × S) of that run.")
-
-
-def _baseline_words(baseline: str) -> str:
-    if baseline == BASELINE_SEQ:
-        return "seq's median on the same scene"
-    return "the same variant's median at 1 thread"

@@ -6,6 +6,7 @@ columns."""
 from __future__ import annotations
 
 from harness.analysis import phases
+from harness.analysis.display import threads_text
 from harness.report.blocks import figure_block, table_block
 from harness.report.document import Block, Paragraph, Section, slug
 from harness.report.figures.phases import fig_phases
@@ -25,10 +26,6 @@ INTRO = (
     "timed runs' output: it is drawn hatched after the simulation and is left out of the "
     "shares. Reading the input and starting the process are not counted."
 )
-
-
-def _thread_words(threads: int) -> str:
-    return f"{threads} thread{'' if threads == 1 else 's'}"
 
 
 def _left_out(sel: phases.Selection) -> str:
@@ -55,7 +52,7 @@ def build(ctx: Context) -> list[Section]:
     paths = figs.draw(fig_phases, frame,
                       figs.fig_dir / f"{name}-phases",
                       title=f"{exp.title}: where the time goes")
-    rule = (f"at {_thread_words(sel.threads)}, the thread count most of the experiment's "
+    rule = (f"at {threads_text(sel.threads)}, the thread count most of the experiment's "
             "cells with phases ran at (the fewest on a tie)")
     caption = (
         f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the output "

@@ -10,6 +10,17 @@ from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.sweeps import fig_efficiency, fig_karp_flatt, fig_speedup
 from harness.report.sections.context import Context
 
+# Per figure: the column it needs, how it is drawn, its file's suffix, title and caption.
+FIGURES = (
+    ("speedup", fig_speedup, "speedup", "speedup",
+     "Speedup against threads; dashed: ideal S = p."),
+    ("speedup", fig_efficiency, "efficiency", "efficiency",
+     "Parallel efficiency S/p against threads; dashed: ideal 1."),
+    ("serial_fraction", fig_karp_flatt, "karp-flatt", "Karp–Flatt serial fraction",
+     "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
+     "parallel overhead rather than a fixed serial part."),
+)
+
 
 def build(ctx: Context) -> list[Section]:
     """Speedup, efficiency and Karp-Flatt serial fraction against threads, for a thread
@@ -19,25 +30,10 @@ def build(ctx: Context) -> list[Section]:
     exp, figs = ctx.exp, ctx.figs
     rows = with_speedup(exp.frame, thread_baseline=True)
     base = figs.fig_dir / ctx.name
-    blocks: list[Block] = []
-    if rows["speedup"].notna().any():
-        blocks.append(figure_block(
-            figs.draw(fig_speedup, rows, base.with_name(f"{base.name}-speedup"),
-                              title=f"{exp.title}: speedup"),
-            "Speedup against threads; dashed: ideal S = p.",
-        ))
-        blocks.append(figure_block(
-            figs.draw(fig_efficiency, rows, base.with_name(f"{base.name}-efficiency"),
-                                 title=f"{exp.title}: efficiency"),
-            "Parallel efficiency S/p against threads; dashed: ideal 1.",
-        ))
-    if rows["serial_fraction"].notna().any():
-        blocks.append(figure_block(
-            figs.draw(fig_karp_flatt, rows, base.with_name(f"{base.name}-karp-flatt"),
-                                 title=f"{exp.title}: Karp–Flatt serial fraction"),
-            "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
-            "parallel overhead rather than a fixed serial part.",
-        ))
+    blocks: list[Block] = [
+        figure_block(figs.draw(draw, rows, base.with_name(f"{base.name}-{suffix}"),
+                               title=f"{exp.title}: {what}"), caption)
+        for column, draw, suffix, what, caption in FIGURES if rows[column].notna().any()]
     if blocks:
         blocks[:0] = _oversubscribed_words(rows)
     return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",

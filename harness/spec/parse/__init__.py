@@ -57,22 +57,12 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
 
 def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     """The raw mapping with every optional top-level key filled in."""
-    result = dict(raw)
-    result.setdefault("name", source.stem)
-    result.setdefault("title", result["name"])
-    result.setdefault("builds", [DEFAULT_BUILD])
-    result.setdefault("threads", 1)
-    result.setdefault("combine", "product")
-    result.setdefault("measure", {})
-    result.setdefault("validate", False)
-    result.setdefault("keep_output", False)
-    result.setdefault("exclude", [])
-    result.setdefault("binaries", {})
-    result.setdefault("checks", [])
-    result.setdefault("accuracy", {})
-    result.setdefault("metric", METRIC_TIME)
-    result.setdefault("openmp_costs", False)
-    return result
+    name = raw.get("name", source.stem)
+    defaults = {"name": name, "title": name, "builds": [DEFAULT_BUILD], "threads": 1,
+                "combine": "product", "measure": {}, "validate": False, "keep_output": False,
+                "exclude": [], "binaries": {}, "checks": [], "accuracy": {},
+                "metric": METRIC_TIME, "openmp_costs": False}
+    return {**defaults, **raw}
 
 
 def parse_config(raw: Mapping[str, object], source: Path,
@@ -86,7 +76,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
     threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.THREADS, source)
     scene = parse_scene(raw.get("scene", MISSING), source)
-    combine, zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
+    zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
     config = Config(
         source=source,
         name=str(name),
@@ -95,8 +85,6 @@ def parse_config(raw: Mapping[str, object], source: Path,
         builds=builds,
         scene=scene,
         threads=tuple(cast(int, t) for t in threads),
-        threads_listed=threads_listed,
-        combine=combine,
         zip_keys=zip_keys,
         measure=parse_measure(raw["measure"], source),
         validate=parse_validate(raw["validate"], source),

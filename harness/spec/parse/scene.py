@@ -85,21 +85,22 @@ def _resolve_file(path: str, source: Path) -> Path:
 
 
 def parse_combine(value: object, scene: SceneSpec, threads_listed: bool,
-                   source: Path) -> tuple[str, tuple[str, ...]]:
+                   source: Path) -> tuple[str, ...]:
+    """The axes `combine:` zips together (none for `product`)."""
     listed = [k for k, _ in scene.axes if k in scene.listed]
     if threads_listed:
         listed.append("threads")
     if value == "product":
-        return "product", ()
+        return ()
     if value == "zip":
-        return "zip", tuple(listed)
+        return tuple(listed)
     if isinstance(value, dict) and set(value) == {"zip"} and isinstance(value["zip"], list):
         keys = value["zip"]
         for key in keys:
             if key not in listed:
                 raise config_error(source, "combine.zip", "names of keys given as lists ("
                                    + ", ".join(listed) + ")", key)
-        return "zip", tuple(keys)
+        return tuple(keys)
     raise config_error(source, "combine", "product, zip, or {zip: [keys]}", value)
 
 def _schedule(value: object) -> object:
