@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -25,12 +26,24 @@ from harness.store.columns import (
 from harness.store.records import MACHINE_KEY
 
 
-def uncertainty(times: Sequence[float]) -> dict[str, object]:
+def uncertainty(times: Sequence[float], rounds: Sequence[int] | None = None,
+                session: float | None = None) -> dict[str, object]:
     """The record fields derived from hyperfine's per-run times: the times as a list, the 95%
-    bootstrap interval of their median and their low quantile."""
+    interval of their median and their low quantile. With the round of each run, the interval
+    is where another session's estimate lies (harness.stats.levels: over the rounds, and the
+    machine's `session` spread), widened to hold the median of the runs; without (a record
+    from before rounds), the bootstrap over the runs."""
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
-    interval = stats.median_ci(times)
+    if rounds is None:
+        interval = stats.median_ci(times)
+    else:
+        spread = stats.DEFAULT_SESSION_SPREAD.absolute if session is None else session
+        interval = stats.cell_estimate(times, rounds).rerun_interval(spread)
+        if math.isfinite(interval.low) and times:
+            median = statistics.median(times)
+            interval = stats.Interval(median, min(interval.low, median),
+                                      max(interval.high, median))
     return {"wall_times_s": list(times),
             "wall_median_ci_low_s": interval.low if math.isfinite(interval.low) else None,
             "wall_median_ci_high_s": interval.high if math.isfinite(interval.high) else None,
