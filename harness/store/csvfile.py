@@ -105,10 +105,10 @@ def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
     for group in OPTIONAL_GROUPS:
         if any(row.get(c) not in (None, "") for row in rows for c in group):
             columns = (*columns, *group)
-    return _csv_text(columns, rows)
+    return csv_text(columns, rows)
 
 
-def _csv_text(columns: Sequence[str], rows: Iterable[Mapping[str, object]]) -> str:
+def csv_text(columns: Sequence[str], rows: Iterable[Mapping[str, object]]) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(columns)
@@ -140,4 +140,4 @@ def write_divergence_csv(path: Path, records_: Iterable[Mapping[str, object]]) -
     if not rows:
         path.unlink(missing_ok=True)
         return
-    atomic.atomic_write_text(path, _csv_text(DIVERGENCE_COLUMNS, rows))
+    atomic.atomic_write_text(path, csv_text(DIVERGENCE_COLUMNS, rows))

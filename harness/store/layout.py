@@ -25,6 +25,7 @@
         history.json                     `history`: the commits of the latest range, oldest first
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
+        ratios.csv                       one row per ratio of two cells (speedups), by round
         divergence.csv                   the checks' divergence curves, where some cell has them
       calibration/machines/<machine_id>.json   a machine's description and its calibration
       calibration/runs/              the runs a calibration measures
@@ -50,6 +51,7 @@ ENV_JSON = "env.json"
 VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
 DIVERGENCE_CSV = "divergence.csv"
+RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
@@ -119,6 +121,10 @@ class ExperimentDir:
     @property
     def history_commits(self) -> Path:
         return self.path / HISTORY_COMMITS
+
+    @property
+    def ratios_csv(self) -> Path:
+        return self.path / RATIOS_CSV
 
     @property
     def divergence_csv(self) -> Path:
