@@ -37,7 +37,7 @@ from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, 
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, MIN_ROUNDS, Coverage, RoundEstimate,
                                   SessionSpread, cell_estimate, coverage, from_round_values,
                                   paired_ratio, round_half_width,
-                                  session_spread)
+                                  session_spread, t95)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)
 from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,

@@ -60,7 +60,9 @@ class SessionSpread:
 DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
 
 
-def _t(rounds: int) -> float:
+def t95(rounds: int) -> float:
+    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of
+    freedom)."""
     return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
 
 
@@ -83,7 +85,7 @@ class RoundEstimate:
         freedom), around the point; NaN ends with fewer than 2 rounds."""
         if self.rounds < 2 or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
-        half = _t(self.rounds) * self.log_se
+        half = t95(self.rounds) * self.log_se
         return _around(self.point, half)
 
     def rerun_interval(self, session: float) -> Interval:
@@ -91,7 +93,7 @@ class RoundEstimate:
         spread, each counted for both sessions (sqrt 2); NaN ends with fewer than 2 rounds."""
         if self.rounds < 2 or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
-        half = math.sqrt(2.0) * math.hypot(_t(self.rounds) * self.log_se, _z() * session)
+        half = math.sqrt(2.0) * math.hypot(t95(self.rounds) * self.log_se, _z() * session)
         return _around(self.point, half)
 
 

@@ -30,6 +30,7 @@
       calibration/machines/<machine_id>.json   a machine's description and its calibration
       calibration/runs/              the runs a calibration measures
       compare/                       compare.py's default output
+      reruns/rerun-<k>/              `reruns`: the k-th rerun's results root
 
 Standard library only.
 """
@@ -71,6 +72,7 @@ CACHE_DIR = ".cache"
 BASELINES = "baselines"
 PRINTS = "prints"
 COMPARE_DIR = "compare"
+RERUNS_DIR = "reruns"
 CALIBRATION_DIR = "calibration"
 CALIBRATION_RUNS = "runs"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory

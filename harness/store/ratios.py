@@ -59,16 +59,17 @@ def _finite(value: float) -> float | None:
 def _references(cells: Mapping[tuple[str, int], Row], variant: str, threads: int,
                 baseline: str) -> list[tuple[str, Row]]:
     """The cell's references among the cells of its group: its variant at one thread, and
-    the baseline (at one thread, else at the cell's threads, else its fewest)."""
+    the baseline (at one thread, else at the cell's threads, else its fewest); none for the
+    baseline itself."""
+    if variant == baseline:  # one thread whatever the cell asks: its own ratios say nothing
+        return []
     found = []
     if threads > 1 and (variant, 1) in cells:
         found.append((RATIO_OVER_ONE_THREAD, cells[(variant, 1)]))
-    if variant != baseline:
-        counts = sorted(t for v, t in cells if v == baseline)
-        pick = 1 if 1 in counts else threads if threads in counts else counts[0] if counts \
-            else None
-        if pick is not None:
-            found.append((RATIO_OVER_BASELINE, cells[(baseline, pick)]))
+    counts = sorted(t for v, t in cells if v == baseline)
+    pick = 1 if 1 in counts else threads if threads in counts else counts[0] if counts else None
+    if pick is not None:
+        found.append((RATIO_OVER_BASELINE, cells[(baseline, pick)]))
     return found
 
 

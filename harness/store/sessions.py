@@ -15,7 +15,8 @@ from harness.store.layout import ResultsRoot
 SESSION_KEY = "session"  # the entry `reruns` keeps beside a machine's description
 
 
-def _entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
+def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
+    """What `reruns` kept for the machine under this results root; None where nothing is."""
     data = records.read_json(ResultsRoot(root).calibration(machine_id))
     entry = data.get(SESSION_KEY) if isinstance(data, dict) else None
     if not isinstance(entry, dict):
@@ -28,7 +29,8 @@ def _entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
 def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
     """The newest session spread `reruns` kept for the machine under any of the roots;
     DEFAULT_SESSION_SPREAD where none has one."""
-    found = [e for root in dict.fromkeys(roots) if (e := _entry(root, machine_id)) is not None]
+    found = [e for root in dict.fromkeys(roots)
+             if (e := session_entry(root, machine_id)) is not None]
     if not found:
         return DEFAULT_SESSION_SPREAD
     newest = max(found, key=lambda e: str(e.get("date", "")))
