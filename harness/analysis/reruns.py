@@ -79,7 +79,7 @@ def ratio_value(row: Mapping[str, str]) -> Found | None:
         return None
     inner = _interval(ratio, row.get("round_ci_low"), row.get("round_ci_high"))
     se = math.nan
-    if inner is not None and rounds >= 2 and inner.low > 0:
+    if inner is not None and rounds >= stats.INTERVAL_MIN_ROUNDS and inner.low > 0:
         se = math.log(inner.high / inner.low) / (2 * stats.t95(rounds))
     estimate = stats.RoundEstimate(ratio, math.log(ratio), se, rounds)
     return estimate, _interval(ratio, row.get("ratio_ci_low"), row.get("ratio_ci_high"))

@@ -34,9 +34,9 @@ from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, 
                                      LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Interval,
                                      difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
                                      speedup_ci)
-from harness.stats.levels import (DEFAULT_SESSION_SPREAD, MIN_ROUNDS, Coverage, RoundEstimate,
-                                  SessionSpread, cell_estimate, coverage, from_round_values,
-                                  paired_ratio, round_half_width,
+from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
+                                  Coverage, RoundEstimate, SessionSpread, cell_estimate,
+                                  coverage, from_round_values, paired_ratio, round_half_width,
                                   session_spread, t95)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)

@@ -35,6 +35,9 @@ from harness.stats.rounds import round_medians
 # fewer the t-quantile (12.7 at two rounds, 4.3 at three) makes any interval wide, and rounds
 # of one moment cannot show the machine's drift over seconds.
 MIN_ROUNDS = 5
+# Fewer rounds than this give no interval at all: over two, the t-quantile of 12.7 makes one
+# wider than anything it could say (a factor of 10^17 on a cell whose two rounds were 3x apart).
+INTERVAL_MIN_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -82,16 +85,17 @@ class RoundEstimate:
 
     def interval(self) -> Interval:
         """The 95% interval of the value over its rounds alone (t with rounds - 1 degrees of
-        freedom), around the point; NaN ends with fewer than 2 rounds."""
-        if self.rounds < 2 or not math.isfinite(self.log_se):
+        freedom), around the point; NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
+        if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
         half = t95(self.rounds) * self.log_se
         return _around(self.point, half)
 
     def rerun_interval(self, session: float) -> Interval:
         """Where another session's estimate lies with 95%: the rounds' and the session's
-        spread, each counted for both sessions (sqrt 2); NaN ends with fewer than 2 rounds."""
-        if self.rounds < 2 or not math.isfinite(self.log_se):
+        spread, each counted for both sessions (sqrt 2); NaN ends with fewer than
+        INTERVAL_MIN_ROUNDS rounds."""
+        if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
         half = math.sqrt(2.0) * math.hypot(t95(self.rounds) * self.log_se, _z() * session)
         return _around(self.point, half)
