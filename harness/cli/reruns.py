@@ -7,7 +7,15 @@ import sys
 from pathlib import Path
 
 from harness.analysis import reruns as analysis
-from harness.cli.common import Parser, add_flags, measuring_lock, seconds, whole_number
+from harness.cli.common import (
+    EXIT_INTERRUPTED,
+    Parser,
+    add_flags,
+    interrupt_on_sigterm,
+    measuring_lock,
+    seconds,
+    whole_number,
+)
 from harness.errors import HarnessError
 from harness.measure import environment, machine
 from harness.repo import REPO_ROOT
@@ -59,10 +67,16 @@ def execute(args: argparse.Namespace) -> int:
     else:
         registry = VariantRegistry(REPO_ROOT)
         configs = [with_metric(load_config(p, registry), args.metric) for p in args.configs]
+        interrupt_on_sigterm()
         lock = measuring_lock(args, ["reruns", *args.configs])
-        with lock:
-            runner.measure(configs, out, args.times, args.pause, registry, lock, sys.stderr,
-                           args.hyperfine, quick=args.quick)
+        try:
+            with lock:
+                runner.measure(configs, out, args.times, args.pause, registry, lock,
+                               sys.stderr, args.hyperfine, quick=args.quick)
+        except KeyboardInterrupt:
+            sys.stderr.write(f"interrupted: the reruns so far are under {out}; measure them "
+                             "again (a rerun starts afresh)\n")
+            return EXIT_INTERRUPTED
     found = analysis.analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")
