@@ -36,6 +36,7 @@ from harness.report.header import (
 from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
+from harness.report.spread import session_words
 from harness.spec.facts import read_variants, reading
 from harness.store.atomic import atomic_write_text
 from harness.store.layout import ExperimentDir
@@ -80,6 +81,7 @@ def build_document(
 ) -> Document:
     """The whole page: what it shows, the summary, one section per experiment with data (its
     warnings folded in it), then the machines side by side and how to read the numbers."""
+    session = Paragraph(session_words(results_dir, shown.id if shown is not None else None))
     results_dir = _shown_path(results_dir)
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
@@ -98,7 +100,7 @@ def build_document(
     if environment:
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
     appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
-                            (Paragraph(HOW_TO_READ),)))
+                            (Paragraph(HOW_TO_READ), session)))
     return Document(TITLE, lead, tuple(others), summary_section(parts, more),
                     tuple(_with_warnings(p) for p in parts), tuple(appendix))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from harness.analysis.paired import paired_words
 from harness.analysis.speedup import with_speedup
 from harness.report.blocks import figure_block
 from harness.report.document import Block, Paragraph, Section
@@ -17,7 +18,7 @@ def build(ctx: Context) -> list[Section]:
     if "threads" not in ctx.axes:
         return []
     exp, figs = ctx.exp, ctx.figs
-    rows = with_speedup(exp.frame, thread_baseline=True)
+    rows = with_speedup(exp.frame, thread_baseline=True, ratios=exp.ratios)
     base = figs.fig_dir / ctx.name
     blocks: list[Block] = []
     if rows["speedup"].notna().any():
@@ -39,7 +40,8 @@ def build(ctx: Context) -> list[Section]:
             "parallel overhead rather than a fixed serial part.",
         ))
     if blocks:
-        blocks[:0] = _oversubscribed_words(rows)
+        paired = paired_words(exp.ratios)
+        blocks[:0] = [*_oversubscribed_words(rows), *([Paragraph(paired)] if paired else [])]
     return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",
                     tuple(blocks))]
 

@@ -1,0 +1,58 @@
+"""What "How to read the numbers" says of the session level: the session spread the page's
+machine has (learnt by `reruns`, harness.store.sessions, or the stated default) and, where
+`reruns` measured it, how often its intervals held another rerun's estimate."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+from harness.report.machines import UNKNOWN_ID
+from harness.stats.levels import DEFAULT_SESSION_SPREAD
+from harness.store.sessions import find_session, session_entry
+
+REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
+
+
+def session_words(results_dir: Path, machine_id: str | None) -> str:
+    """The session spread the page's intervals add and where it comes from, then the
+    coverage `reruns` measured on this machine or that none was."""
+    machine = machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
+    spread = DEFAULT_SESSION_SPREAD if machine is None else find_session([results_dir], machine)
+    text = (f"Intervals that say where another session's estimate lands (a cell's time "
+            f"measured in rounds, a ratio paired by round) add the machine's session spread: "
+            f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
+            f"{spread.source}.")
+    entry = None if machine is None else session_entry(results_dir, machine)
+    if entry is None:
+        return (f"{text} No reruns were measured on this machine (`{REUSE_COMMAND}` learns "
+                "its spread and how often the intervals hold a rerun's estimate): the default "
+                "applies, meant to be conservative on a quiet machine.")
+    coverage = entry.get("coverage")
+    if not isinstance(coverage, Mapping):
+        return f"{text} Its reruns kept no coverage."
+    found = [_coverage_text(name, coverage.get(key)) for key, name in
+             (("absolute", "absolute intervals"), ("ratio", "ratio intervals"))]
+    return (f"{text} Coverage measured by {entry.get('reruns', '?')} reruns of "
+            f"{entry.get('config', '?')} on this machine ({entry.get('date', '?')}), the "
+            "intervals as stored: " + "; ".join(found) + ".")
+
+
+def _percent(value: object) -> str:
+    if isinstance(value, int | float) and math.isfinite(value):
+        return f"{value:.1%}"
+    return "–"
+
+
+def _coverage_text(name: str, figures: object) -> str:
+    """One kind of interval's coverage as `reruns` kept it (analysis.reruns)."""
+    if not isinstance(figures, Mapping) or not figures.get("pairs"):
+        return f"{name}: no cell with two reruns"
+    held, pairs = figures.get("held", 0), figures["pairs"]
+    share = held / pairs if isinstance(held, int | float) and isinstance(pairs, int | float) \
+        else math.nan
+    return (f"{name} held another rerun's estimate in {held} of {pairs} (cell, rerun) pairs "
+            f"({_percent(share)}), moves between reruns {_percent(figures.get('median_move'))} "
+            f"median and {_percent(figures.get('largest_move'))} largest, median half-width "
+            f"{_percent(figures.get('median_half_width'))}")
