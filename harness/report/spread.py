@@ -1,6 +1,10 @@
 """What "How to read the numbers" says of the session level: the session spread the page's
 machine has (learnt by `reruns`, harness.store.sessions, or the stated default) and, where
-`reruns` measured it, how often its intervals held another rerun's estimate."""
+`reruns` measured it, how often its intervals held another rerun's estimate.
+
+The spread's home (harness.stats.levels) imports scipy, which an unchanged page never
+loads: the paragraph is kept in the page's manifest like an experiment's part, keyed by the
+machine's calibration file and the report's code."""
 
 from __future__ import annotations
 
@@ -8,17 +12,41 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
+from harness.report.cache import Manifest
 from harness.report.machines import UNKNOWN_ID
-from harness.stats.levels import DEFAULT_SESSION_SPREAD
-from harness.store.sessions import find_session, session_entry
+from harness.store.layout import ResultsRoot
+from harness.store.records import sha256_file
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
+SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
+
+
+def _known(machine_id: str | None) -> str | None:
+    return machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
+
+
+def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
+    """session_words, from the manifest where the machine's calibration file and the
+    report's code are unchanged."""
+    machine = _known(machine_id)
+    path = ResultsRoot(results_dir).calibration(machine) if machine is not None else None
+    digest = sha256_file(path) if path is not None and path.is_file() else "absent"
+    key = manifest.part_key(f"{machine}\0{digest}")
+    stored = manifest.get_part(SESSION_PART, key)
+    if stored is not None and isinstance(stored.get("text"), str):
+        return stored["text"]
+    text = session_words(results_dir, machine)
+    manifest.put_part(SESSION_PART, key, {"text": text}, [])
+    return text
 
 
 def session_words(results_dir: Path, machine_id: str | None) -> str:
     """The session spread the page's intervals add and where it comes from, then the
     coverage `reruns` measured on this machine or that none was."""
-    machine = machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+    from harness.store.sessions import find_session, session_entry
+
+    machine = _known(machine_id)
     spread = DEFAULT_SESSION_SPREAD if machine is None else find_session([results_dir], machine)
     text = (f"Intervals that say where another session's estimate lands (a cell's time "
             f"measured in rounds, a ratio paired by round) add the machine's session spread: "

@@ -135,7 +135,8 @@ def test_ratios_csv_without_its_columns_names_the_file(tmp_path: Path) -> None:
         paired.read_ratios(path)
 
 
-def test_the_reading_section_names_the_default_spread_without_reruns(tmp_path: Path) -> None:
+def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_measured(
+        tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
     with_runs(root / "strategies" / "results.csv")
     out = tmp_path / "report"
@@ -144,11 +145,6 @@ def test_the_reading_section_names_the_default_spread_without_reruns(tmp_path: P
     assert "11.0% for a cell's time and 5.0% for a ratio, default (no reruns of this " \
         "machine)" in text
     assert "No reruns were measured on this machine" in text
-
-
-def test_the_reading_section_quotes_the_coverage_reruns_measured(tmp_path: Path) -> None:
-    root = results_with(tmp_path, "strategies")
-    with_runs(root / "strategies" / "results.csv")
     share = {"held": 41, "pairs": 45, "median_move": 0.062, "largest_move": 0.31,
              "median_half_width": 0.18}
     entry = {"absolute": 0.07, "ratio": 0.03, "date": "2026-01-02T03:04:05+00:00",
@@ -157,8 +153,7 @@ def test_the_reading_section_quotes_the_coverage_reruns_measured(tmp_path: Path)
     path = ResultsRoot(root).calibration(MACHINE_ID)
     path.parent.mkdir(parents=True)
     path.write_text(json.dumps({"session": entry}), encoding="utf-8")
-    out = tmp_path / "report"
-    pipeline.render(root, out)
+    pipeline.render(root, out)  # the results are unchanged, the machine's calibration is not
     text = reading((out / "report.md").read_text(encoding="utf-8"))
     assert "7.0% for a cell's time and 3.0% for a ratio, learnt by reruns of " \
         f"configs/quickstart.yaml on machine {MACHINE_ID} (2026-01-02T03:04:05+00:00)" in text
