@@ -27,7 +27,6 @@ KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
 _NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
            "ratio_ci_high", "rounds")
 _NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "session_spread")
-METRICS = ("speedup", "efficiency", "serial_fraction")
 
 
 def read_ratios(path: Path) -> pd.DataFrame | None:
@@ -43,8 +42,14 @@ def read_ratios(path: Path) -> pd.DataFrame | None:
     if missing:
         raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
     frame = raw.copy()
-    for column in _NUMBERS:
-        frame[column] = pd.to_numeric(frame.get(column), errors="coerce")
+    for column in (c for c in _NUMBERS if c in frame.columns):
+        text = frame[column].str.strip()
+        frame[column] = pd.to_numeric(text, errors="coerce")
+        bad = frame[column].isna() & ~text.str.lower().isin(("", "nan"))
+        if bad.any():
+            line = int(bad.to_numpy().argmax()) + 2  # after the header, from 1
+            raise HarnessError(f"{path}: line {line}: column '{column}': "
+                               f"{text[bad].iloc[0]!r} is not a number")
     frame["_key"] = cell_keys(frame)
     paired = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
     return paired.reset_index(drop=True)
@@ -134,7 +139,8 @@ def paired_words(ratios: pd.DataFrame | None) -> str:
     empty where it holds no ratio paired by round."""
     if ratios is None or ratios.empty:
         return ""
-    spreads = sorted({float(s) for s in ratios["session_spread"].dropna()})
+    column = ratios["session_spread"] if "session_spread" in ratios.columns else pd.Series()
+    spreads = sorted({float(s) for s in column.dropna()})
     spread = (f", widened by the session spread for ratios ({_percent(spreads)})"
               if spreads else "")
     return (f"Speedup, efficiency and serial fraction are paired by round where ratios.csv "

@@ -11,9 +11,12 @@ from pathlib import Path
 import pytest
 from harness.analysis import frame, paired
 from harness.analysis import speedup as speedups
+from harness.errors import HarnessError
 from harness.report import pipeline
 from harness.report.discover import find_experiments
 from harness.report.load import load_experiment
+from harness.store import csvfile
+from harness.store import ratios as store_ratios
 from harness.store.columns import RATIO_COLUMNS, RATIO_OVER_BASELINE, RATIO_OVER_ONE_THREAD
 from harness.store.layout import RATIOS_CSV, ResultsRoot
 
@@ -131,7 +134,12 @@ def test_without_ratios_csv_nothing_is_paired() -> None:
 def test_ratios_csv_without_its_columns_names_the_file(tmp_path: Path) -> None:
     path = tmp_path / RATIOS_CSV
     path.write_text("variant,threads\np1,8\n", encoding="utf-8")
-    with pytest.raises(Exception, match=r"ratios.csv: missing column\(s\): experiment"):
+    with pytest.raises(HarnessError, match=r"ratios.csv: missing column\(s\): experiment"):
+        paired.read_ratios(path)
+    columns = [c for c in RATIO_COLUMNS if c != "session_spread"]
+    path.write_text(",".join(columns) + "\n" + ",".join(
+        "x" if c == "ratio" else "" for c in columns) + "\n", encoding="utf-8")
+    with pytest.raises(HarnessError, match=r"ratios.csv: line 2: column 'ratio': 'x' is not a"):
         paired.read_ratios(path)
 
 
@@ -161,3 +169,33 @@ def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_mea
     assert "ratio intervals held another rerun's estimate in 44 of 45 (cell, rerun) pairs " \
         "(97.8%)" in text
     assert "No reruns were measured" not in text
+
+
+def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
+    """results.csv and ratios.csv as a run writes them (store.csvfile, store.ratios): every
+    ratio finds its cell, whatever the two files make of numbers and empty schedules."""
+    scene = {"experiment": "e", "title": "t", "build": "f64", "scene": "random", "n": 100,
+             "L": 10.0, "r": 1.0, "steps": 5, "mode": "perf", "seed": 1, "schedule": None,
+             "machine_id": MACHINE_ID, "status": "ok", "round_seed": 7}
+    speed = [1.0, 1.3, 0.8, 1.25, 0.9]
+
+    def cell(variant: str, threads: int, seconds: float) -> dict[str, object]:
+        times = [seconds * s for s in speed]
+        return {**scene, "variant": variant, "threads": threads, "runs": len(times),
+                "wall_times_s": times, "wall_times_round": list(range(1, 6)),
+                "wall_median_s": sorted(times)[2], "wall_mean_s": sum(times) / 5}
+
+    rows = [cell("seq", 1, 1.0), cell("p1", 1, 1.1), cell("p1", 2, 0.6), cell("p1", 4, 0.4)]
+    results = tmp_path / "results.csv"
+    csvfile.write_results_csv(results, rows)
+    store_ratios.write_ratios_csv(tmp_path / RATIOS_CSV, rows, "seq", lambda machine: 0.05)
+    ratios = paired.read_ratios(tmp_path / RATIOS_CSV)
+    assert ratios is not None and len(ratios) == 5
+    out = speedups.with_speedup(frame.read_results(results), ratios=ratios)
+    p1 = out[out["variant"] == "p1"]
+    assert p1["speedup_paired"].all()
+    over_seq = ratios[ratios["kind"] == RATIO_OVER_BASELINE].set_index("threads")
+    for _, row in p1.iterrows():
+        written = over_seq.loc[str(int(row["threads"]))]
+        assert (row["speedup"], row["speedup_low"], row["speedup_high"]) == (
+            written["ratio"], written["ratio_ci_low"], written["ratio_ci_high"])
