@@ -12,6 +12,7 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
+from harness.repo import DEFAULT_RESULTS_DIR
 from harness.report.cache import Manifest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
@@ -25,13 +26,20 @@ def _known(machine_id: str | None) -> str | None:
     return machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
 
 
+def session_roots(results_dir: Path) -> tuple[Path, ...]:
+    """Where a run looks for its machine's spread (harness.store.index): its results root
+    and the repository's."""
+    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
+
+
 def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
-    """session_words, from the manifest where the machine's calibration file and the
+    """session_words, from the manifest where the machine's calibration files and the
     report's code are unchanged."""
     machine = _known(machine_id)
-    path = ResultsRoot(results_dir).calibration(machine) if machine is not None else None
-    digest = sha256_file(path) if path is not None and path.is_file() else "absent"
-    key = manifest.part_key(f"{machine}\0{digest}")
+    paths = [ResultsRoot(root).calibration(machine) for root in session_roots(results_dir)] \
+        if machine is not None else []
+    digests = [sha256_file(p) if p.is_file() else "absent" for p in paths]
+    key = manifest.part_key("\0".join([str(machine), *digests]))
     stored = manifest.get_part(SESSION_PART, key)
     if stored is not None and isinstance(stored.get("text"), str):
         return stored["text"]
@@ -44,27 +52,31 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     """The session spread the page's intervals add and where it comes from, then the
     coverage `reruns` measured on this machine or that none was."""
     from harness.stats.levels import DEFAULT_SESSION_SPREAD
-    from harness.store.sessions import find_session, session_entry
+    from harness.store.sessions import find_session, newest_entry
 
     machine = _known(machine_id)
-    spread = DEFAULT_SESSION_SPREAD if machine is None else find_session([results_dir], machine)
+    roots = session_roots(results_dir)
+    spread = DEFAULT_SESSION_SPREAD if machine is None else find_session(roots, machine)
     text = (f"Intervals that say where another session's estimate lands (a cell's time "
             f"measured in rounds, a ratio paired by round) add the machine's session spread: "
             f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
             f"{spread.source}.")
-    entry = None if machine is None else session_entry(results_dir, machine)
+    entry = None if machine is None else newest_entry(roots, machine)
     if entry is None:
         return (f"{text} No reruns were measured on this machine (`{REUSE_COMMAND}` learns "
                 "its spread and how often the intervals hold a rerun's estimate): the default "
                 "applies, meant to be conservative on a quiet machine.")
+    # A record's interval holds the spread of its own run: one measured before the reruns
+    # kept the default.
+    text += (" Cells measured before then keep the spread of their run (their records' "
+             "`session_spread` and `session_source`).")
     coverage = entry.get("coverage")
     if not isinstance(coverage, Mapping):
         return f"{text} Its reruns kept no coverage."
     found = [_coverage_text(name, coverage.get(key)) for key, name in
              (("absolute", "absolute intervals"), ("ratio", "ratio intervals"))]
-    return (f"{text} Coverage measured by {entry.get('reruns', '?')} reruns of "
-            f"{entry.get('config', '?')} on this machine ({entry.get('date', '?')}), the "
-            "intervals as stored: " + "; ".join(found) + ".")
+    return (f"{text} Coverage of its {entry.get('reruns', '?')} reruns, the intervals as "
+            "stored: " + "; ".join(found) + ".")
 
 
 def _percent(value: object) -> str:

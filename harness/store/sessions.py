@@ -26,14 +26,20 @@ def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
     return entry
 
 
+def newest_entry(roots: Iterable[Path], machine_id: str) -> Mapping[str, object] | None:
+    """The newest of what `reruns` kept for the machine under any of the roots; None where
+    none has one."""
+    found = [e for root in dict.fromkeys(roots)
+             if (e := session_entry(root, machine_id)) is not None]
+    return max(found, key=lambda e: str(e.get("date", ""))) if found else None
+
+
 def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
     """The newest session spread `reruns` kept for the machine under any of the roots;
     DEFAULT_SESSION_SPREAD where none has one."""
-    found = [e for root in dict.fromkeys(roots)
-             if (e := session_entry(root, machine_id)) is not None]
-    if not found:
+    newest = newest_entry(roots, machine_id)
+    if newest is None:
         return DEFAULT_SESSION_SPREAD
-    newest = max(found, key=lambda e: str(e.get("date", "")))
     return SessionSpread(float(newest["absolute"]), float(newest["ratio"]),  # type: ignore[arg-type]
                          f"learnt by reruns of {newest.get('config', '?')} on machine "
                          f"{machine_id} ({newest.get('date', '?')})")
