@@ -81,7 +81,7 @@ def cell_keys(frame: pd.DataFrame) -> pd.Series:
 
 
 def matches(out: pd.DataFrame, ratios: pd.DataFrame, kind: pd.Series) -> pd.Series:
-    """Per row of `out`, the position in `ratios` of its paired ratio of this kind (NaN where
+    """Per row of `out`, the index in `ratios` of its paired ratio of this kind (NaN where
     none): over seq against seq itself, over one thread against the same variant."""
     wanted = ratios[(ratios["kind"] != RATIO_OVER_BASELINE)
                     | (ratios["reference_variant"] == BASELINE)]
@@ -139,8 +139,8 @@ def paired_words(ratios: pd.DataFrame | None) -> str:
     empty where it holds no ratio paired by round."""
     if ratios is None or ratios.empty:
         return ""
-    column = ratios["session_spread"] if "session_spread" in ratios.columns else pd.Series()
-    spreads = sorted({float(s) for s in column.dropna()})
+    column = ratios.get("session_spread")
+    spreads = sorted({float(s) for s in column.dropna()}) if column is not None else []
     spread = (f", widened by the session spread for ratios ({_percent(spreads)})"
               if spreads else "")
     return (f"Speedup, efficiency and serial fraction are paired by round where ratios.csv "
