@@ -56,7 +56,7 @@ from harness.analysis.resultsets import (
     not_comparable,
 )
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
-from harness.store import layout, records
+from harness.store import layout, records, sessions
 from harness.store.columns import STOPPED_UNDECIDED
 
 EXIT_OK = 0
@@ -69,13 +69,14 @@ FAIL_ON = (FAIL_ON_INCONCLUSIVE, FAIL_ON_SLOWER)
 
 DEFAULT_THRESHOLD = 0.01  # a change within 1% is never called slower or faster
 FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
-# The drift assumed between runs measured apart on a machine without a calibration (the
-# standard deviation of the log ratio of identical binaries measured apart). On a 2-vCPU VM
-# with nothing else running, a cell's median moved by 12% between runs minutes apart (the
-# median over cells) and up to 33-45%, on cells of a few short runs that met no pressure; a
-# 5% allowance called 2 of 45 such pairs faster, 15% none of 255 quiet and under the injector
-# (docs/compare.md). A calibrated machine uses its own, near 0 where it is quiet.
-ASSUMED_DRIFT = 0.15
+# The drift assumed between runs measured apart on a machine without a calibration or reruns
+# (the standard deviation of the log ratio of identical binaries measured apart): the default
+# session spread's, for two sessions (stats.levels). On a 2-vCPU VM with nothing else running,
+# a cell's median moved by 12% between runs minutes apart (the median over cells) and up to
+# 33-45%, on cells of a few short runs that met no pressure; a 5% allowance called 2 of 45
+# such pairs faster, 15% none of 255 quiet and under the injector (docs/compare.md). A
+# calibrated machine uses its own, near 0 where it is quiet.
+ASSUMED_DRIFT = stats.DEFAULT_SESSION_SPREAD.apart()
 CALIBRATION_KEY = "calibration"  # a calibration's entry in layout.ResultsRoot.calibration
 PAIRED = "measured together"  # the method of a cell's verdict
 APART = "measured apart"
@@ -128,24 +129,30 @@ def allow_noise(drift: Drift, old: Side, new: Side) -> Drift:
 
 
 def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
-    """The drift of the machines of a comparison: the largest of their newest calibrations
-    (<root>/calibration/machines/<id>.json) under the given results roots; ASSUMED_DRIFT for a
-    machine without one."""
+    """The drift of the machines of a comparison: the largest of their newest calibrations or
+    session spreads learnt by reruns (<root>/calibration/machines/<id>.json) under the given
+    results roots; ASSUMED_DRIFT for a machine without one."""
     found: list[Drift] = []
     for machine_id in sorted(set(machine_ids)):
-        calibrations = []
+        learnt: list[tuple[str, Drift]] = []
         for root in dict.fromkeys(roots):
             data = records.read_json(layout.ResultsRoot(root).calibration(machine_id))
             entry = data.get(CALIBRATION_KEY) if isinstance(data, dict) else None
             if isinstance(entry, dict) and isinstance(entry.get("drift"), int | float):
-                calibrations.append(entry)
-        if calibrations:
-            newest = max(calibrations, key=lambda e: str(e.get("date", "")))
-            found.append(Drift(float(newest["drift"]), f"calibrated on machine {machine_id} "
-                               f"({newest.get('date', '?')}, {newest.get('config', '?')})"))
+                learnt.append((str(entry.get("date", "")), Drift(
+                    float(entry["drift"]), f"calibrated on machine {machine_id} "
+                    f"({entry.get('date', '?')}, {entry.get('config', '?')})")))
+            session = sessions.session_entry(root, machine_id)
+            if session is not None:  # two sessions' spread (stats.levels.SessionSpread.apart)
+                learnt.append((str(session.get("date", "")), Drift(
+                    math.sqrt(2.0) * float(session["absolute"]),  # type: ignore[arg-type]
+                    f"learnt by reruns on machine {machine_id} ({session.get('date', '?')}, "
+                    f"{session.get('config', '?')})")))
+        if learnt:
+            found.append(max(learnt, key=lambda dated: dated[0])[1])
         else:
             found.append(Drift(ASSUMED_DRIFT, f"assumed: no calibration of machine "
-                               f"{machine_id or 'unknown'} (run compare --calibrate)"))
+                               f"{machine_id or 'unknown'} (run reruns or compare --calibrate)"))
     if not found:
         return Drift(ASSUMED_DRIFT, "assumed: the machine is not recorded")
     return max(found, key=lambda d: d.sigma)

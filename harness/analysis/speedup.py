@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats
+from harness.analysis import paired
 from harness.analysis.cells import (
     INTERVAL_SUFFIXES,
     SCENE_KEYS,
@@ -140,12 +141,15 @@ def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
     return e.where(p > 1)
 
 
-def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataFrame:
+def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
+                 ratios: pd.DataFrame | None = None) -> pd.DataFrame:
     """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
 
     Speedup is the ok seq median on the same scene over the cell's median. With
     `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
-    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads.
+    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads. Where
+    `ratios` (ratios.csv, analysis.paired) pairs a row with its baseline by round, the three
+    and their intervals are that ratio's (`speedup_paired`).
     """
     out = df.copy()
     seq = _seq_baseline(df)
@@ -172,11 +176,14 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False) -> pd.DataF
     out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
     out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
     _speedup_intervals(out, base_times)
+    paired.use_paired(out, ratios, df["build"] == seq["base_build"], BASELINE_ONE_THREAD,
+                      BASELINE_SEQ)
     return out
 
 
 def cell_table(
-    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False
+    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
+    ratios: pd.DataFrame | None = None,
 ) -> pd.DataFrame:
     """One row per cell: its keys, runs, median/min/stddev, speedup, efficiency, validation.
 
@@ -184,7 +191,7 @@ def cell_table(
     "first/second/third time, shortest". When `threads` is among the keys, the Karp-Flatt
     serial fraction and the speedup baseline of each row are added.
     """
-    rows = with_speedup(df, thread_baseline=thread_baseline)
+    rows = with_speedup(df, thread_baseline=thread_baseline, ratios=ratios)
     table = pd.DataFrame({k: rows[k] for k in keys})
     if "threads" in keys and OVERSUBSCRIBED in rows.columns and \
             rows[OVERSUBSCRIBED].fillna(False).astype(bool).any():

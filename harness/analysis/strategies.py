@@ -18,8 +18,10 @@ import pandas as pd
 
 from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
+from harness.analysis.paired import paired_points
 from harness.spec.facts import current
 from harness.store import hyperfine
+from harness.store.columns import RATIO_OVER_BASELINE
 from harness.store.layout import ExperimentDir
 
 # The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
@@ -91,9 +93,10 @@ def one_scene(df: pd.DataFrame) -> bool:
 # --- the seed's Table 2 beside ours -------------------------------------------------------
 
 
-def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
+def seed_table(df: pd.DataFrame, ratios: pd.DataFrame | None = None) -> pd.DataFrame | None:
     """Per seed strategy measured here: our median and rank, the seed's time and rank, each
-    speedup over its own sequential code, our imbalance, and the repair's median."""
+    speedup over its own sequential code (ours paired by round where `ratios` has it), our
+    imbalance, and the repair's median."""
     # only where every row simulates the seed's benchmark scene: its times compare with ours
     if not len(df) or not all((df[key] == value).all()
                               for key, value in SEED_SCENE.items() if key in df.columns):
@@ -103,6 +106,7 @@ def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
     if len(ours) < 2:
         return None
     seq = cells["wall_median_s"].get("seq", math.nan)
+    paired_speedup = paired_points(cells, ratios, RATIO_OVER_BASELINE)
     our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank(
         method="min")
     seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank(method="min")
@@ -115,7 +119,8 @@ def seed_table(df: pd.DataFrame) -> pd.DataFrame | None:
             "threads": cell["threads"],
             "median_s": cell["wall_median_s"],
             "rank": int(our_rank[v]),
-            "speedup": seq / cell["wall_median_s"],
+            "speedup": paired_speedup[v] if pd.notna(paired_speedup[v])
+                       else seq / cell["wall_median_s"],
             "seed_s": SEED_TIMES_S[v],
             "seed_rank": int(seed_rank[v]),
             "seed_speedup": SEED_SEQ_S / SEED_TIMES_S[v],

@@ -16,7 +16,8 @@ from types import ModuleType
 from harness.cli.common import EXIT_ERROR, PROG
 from harness.errors import HarnessError
 
-COMMANDS: tuple[str, ...] = ("run", "compare", "history", "report", "store", "worker")
+COMMANDS: tuple[str, ...] = ("run", "compare", "reruns", "history", "report", "store",
+                             "worker")
 
 
 def command(name: str) -> ModuleType:

@@ -13,12 +13,14 @@ An executor takes the cells through their rounds, alternating them (harness.exec
 
 from __future__ import annotations
 
+import functools
 import os
 import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness import stats
 from harness.measure import environment, machine, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
@@ -34,10 +36,11 @@ from harness.plan import lane
 from harness.plan.binaries import measures_openmp_costs
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
+from harness.repo import DEFAULT_RESULTS_DIR
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
-from harness.store import atomic
+from harness.store import atomic, sessions
 from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT
 from harness.store.result import CellResult
 
@@ -64,6 +67,13 @@ class Measurer:
     @property
     def config(self) -> Config:
         return self.store.config
+
+    @functools.cached_property
+    def session(self) -> stats.SessionSpread:
+        """This machine's session spread (`reruns`), under this results root or the
+        repository's; the default until one is kept."""
+        return sessions.find_session((self.store.root.path, DEFAULT_RESULTS_DIR),
+                                     self.store.machine_id)
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
@@ -167,7 +177,7 @@ class Measurer:
         run.add(time_runs(self.hyperfine, run.command, env, export, runs, warmup,
                           measure.timeout_s, self.cores), round_index, export)
         if run.timed:
-            run.stopped = stop_reason(measure, run.times, run.per_round)
+            run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
         """Keep the state of a cell that needs more rounds on disk (an interrupted run resumes
@@ -180,7 +190,7 @@ class Measurer:
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
         """Write the cell's record (with the seconds measuring took); the record."""
-        result = timed_result(run).replace(seconds=seconds)
+        result = timed_result(run, self.session).replace(seconds=seconds)
         self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)
         return result

@@ -1,9 +1,9 @@
 """A cell timed in rounds. Each round gives a cell one hyperfine call of a few runs, and the
 rounds of all pending cells alternate (harness.executors), so that the machine's slow drift
-spreads over every cell instead of biasing the ones measured last. A fixed count (`runs: N`)
-takes one run a round; `runs: auto` starts with a few and then takes what its interval asks
-for (at most doubling a round) until the 95% interval of the median is within +-ci of it, or
-a limit is reached (harness.spec.config).
+spreads over every cell instead of biasing the ones measured last. A cell takes one run a
+round (a paired cell a few): a fixed count (`runs: N`) N rounds, `runs: auto` at least
+stats.MIN_ROUNDS and then rounds until the 95% interval of its value over its rounds
+(harness.stats.levels) is within +-ci of it, or a limit is reached (harness.spec.config).
 
 CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl after each,
 so that an interrupted run resumes a cell where it stopped instead of starting it again. The
@@ -196,41 +196,36 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     per_run = run.per_run_s
     if per_run > 0:
         most = min(most, max(1.0, (measure.max_time_s - math.fsum(run.times)) / per_run))
-    return float(max(1, measure.first_runs * run.per_round - done)), most
+    fewest = max(measure.first_runs, stats.MIN_ROUNDS) * run.per_round - done
+    return float(max(1, fewest)), most
 
 
 def next_runs(measure: Measure, times: Sequence[float], per_round: int = 1) -> int:
-    """How many runs the cell's next round times (none once it has them all).
-
-    A fixed count: `per_round` a round (one, but for a paired cell), so that its runs spread
-    over as many rounds as the measure counts runs. `runs: auto`: as many while a measured
-    comparison still needs rounds (min_runs); then the rest of its first runs
-    (Measure.first_runs, `per_round` times over) in one round, enough for an interval; then
-    as many as its interval says it needs to narrow to +-ci (a half-width shrinks as one over
-    the root of the runs), at most doubling its runs a round, so that a noisy cell still
-    spreads over several rounds, and within max_runs and max_time_s."""
-    done = len(times)
-    left = measure.most_runs * per_round - done
-    if left <= 0:
-        return 0
-    if not measure.adaptive or done < measure.min_runs * per_round:
-        return min(per_round, left)
-    first = measure.first_runs * per_round
-    if done < first:
-        return min(first - done, left)
-    needed = math.ceil(done * (relative_half_width(times) / measure.ci) ** 2) - done
-    runs = max(1, min(needed, done, left))
-    per_run = statistics.fmean(times)
-    if per_run > 0:
-        runs = min(runs, max(1, math.floor((measure.max_time_s - math.fsum(times)) / per_run)))
-    return runs
+    """How many runs the cell's next round times (none once it has them all): `per_round` a
+    round (one, but for a paired cell), fixed count or `runs: auto` alike, so that its runs
+    spread over as many rounds as it takes. An adaptive cell's interval is over its rounds
+    (stats.levels), so a round of more runs would not narrow it; it stops on that interval or
+    a limit (stop_reason)."""
+    return max(0, min(per_round, measure.most_runs * per_round - len(times)))
 
 
-def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
-    """Why a cell with these runs needs no more ("" while it does)."""
+def _rounds_of(times: Sequence[float], rounds: Sequence[int] | None,
+               per_round: int) -> Sequence[int]:
+    """The round of each run: as recorded, else `per_round` runs a round in order."""
+    if rounds is not None and len(rounds) == len(times):
+        return rounds
+    return [k // per_round for k in range(len(times))]
+
+
+def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
+                rounds: Sequence[int] | None = None) -> str:
+    """Why a cell with these runs (in these rounds) needs no more ("" while it does): an
+    adaptive cell stops on its interval from its first runs and stats.MIN_ROUNDS rounds on."""
     if not measure.adaptive:
         return STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
-    if len(times) >= measure.first_runs * per_round and narrow(times, measure.ci):
+    taken = _rounds_of(times, rounds, per_round)
+    if (len(times) >= measure.first_runs * per_round and len(set(taken)) >= stats.MIN_ROUNDS
+            and narrow(times, measure.ci, taken)):
         return STOPPED_CI
     if len(times) >= measure.max_runs * per_round:
         return STOPPED_MAX_RUNS
@@ -239,25 +234,18 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1) ->
     return ""
 
 
-def relative_half_width(times: Sequence[float]) -> float:
-    """The larger side of the 95% interval of the median, as a share of the median (inf
-    where there is no interval)."""
-    from harness import stats  # scipy when a cell is measured: a cached run needs none
-
-    interval = stats.median_ci(times)
-    if not (math.isfinite(interval.low) and math.isfinite(interval.high)) or interval.point <= 0:
-        return math.inf
-    return max(interval.point - interval.low, interval.high - interval.point) / interval.point
+def narrow(times: Sequence[float], ci: float, rounds: Sequence[int] | None = None) -> bool:
+    """Whether the 95% interval of the cell's value over its rounds (stats.levels; one run a
+    round where they are not given) lies within +-ci of it."""
+    return stats.round_half_width(times, _rounds_of(times, rounds, 1)) <= ci
 
 
-def narrow(times: Sequence[float], ci: float) -> bool:
-    """Whether the 95% interval of the median lies within +-ci of it."""
-    return relative_half_width(times) <= ci
-
-
-def timed_result(run: CellRun) -> CellResult:
+def timed_result(run: CellRun, session: stats.SessionSpread | None = None) -> CellResult:
     """The cell's result: what its untimed runs found, how it ended, and its timed runs with
-    hyperfine's statistics over all its rounds."""
+    hyperfine's statistics over all its rounds; the interval of the median is where another
+    session's would lie on a machine of this `session` spread (stats.levels; the default where
+    None)."""
+    session = session or stats.DEFAULT_SESSION_SPREAD
     result = run.record.replace(status=run.status, exit_code=run.exit_code)
     if not (run.timed or run.exports):
         return result
@@ -267,12 +255,13 @@ def timed_result(run: CellRun) -> CellResult:
         return result.replace(runs=0)
     mean = statistics.fmean(times)
     stddev = statistics.stdev(times) if len(times) > 1 else None
-    low, high, q25 = csvfile.uncertainty(times)
+    low, high, q25 = csvfile.uncertainty(times, run.rounds, session.absolute)
     return result.replace(
         runs=len(times), wall_mean_s=mean, wall_stddev_s=stddev,
         wall_median_s=statistics.median(times), wall_min_s=min(times), wall_max_s=max(times),
         wall_user_s=statistics.fmean(run.user_s), wall_system_s=statistics.fmean(run.system_s),
         wall_median_ci_low_s=low, wall_median_ci_high_s=high, wall_q25_s=q25,
+        session_spread=session.absolute, session_source=session.source,
         unstable=is_unstable(mean, stddev), hyperfine_exports=tuple(run.exports),
         hyperfine_warnings=tuple(run.warnings), loaded=run.loaded,
         times=tuple(TimedRun(t, r) for t, r in zip(times, run.rounds, strict=True)),

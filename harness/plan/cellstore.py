@@ -28,6 +28,7 @@ from harness.plan.cells import Cell, Plan
 from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
+from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
 from harness.store import atomic, csvfile, index, records
 from harness.store.layout import ExperimentDir, ResultsRoot
@@ -278,7 +279,7 @@ class CellStore:
                 if key is not None:
                     self.planned.append(index.PlannedCell(key))
         kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
-                                 self.config.title, prune_first=prune)
+                                 self.config.title, prune_first=prune, baseline=BASELINE)
         if self.config.checks.names:
             csvfile.write_divergence_csv(self.layout.divergence_csv, kept)
 

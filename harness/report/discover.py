@@ -54,7 +54,8 @@ def _file_digest(path: Path) -> str:
 
 def input_digest(exp: ExperimentDir) -> str:
     """A hash of every file the experiment's section reads: results.csv, env.json,
-    divergence.csv, variants.json and the kept outputs (the trajectory figure's input)."""
+    divergence.csv, variants.json, ratios.csv and the kept outputs (the trajectory figure's
+    input)."""
     parts: dict[str, object] = {
         "name": exp.name,
         layout.RESULTS_CSV: _file_digest(exp.results_csv),
@@ -62,6 +63,8 @@ def input_digest(exp: ExperimentDir) -> str:
         layout.DIVERGENCE_CSV: _file_digest(exp.divergence_csv),
         layout.VARIANTS_JSON: _file_digest(exp.variants_json),
     }
+    if exp.ratios_csv.is_file():  # absent, the digest of results from before ratios stands
+        parts[layout.RATIOS_CSV] = _file_digest(exp.ratios_csv)
     outputs = exp.outputs
     if outputs.is_dir():
         for path in sorted(outputs.iterdir()):

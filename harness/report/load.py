@@ -1,5 +1,6 @@
 """Reading results/<experiment>/ for the report: results.csv (harness.analysis.frame),
-divergence.csv and print-mode outputs (env.json is read by harness.report.pipeline)."""
+ratios.csv (harness.analysis.paired), divergence.csv and print-mode outputs (env.json is read
+by harness.report.pipeline)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.analysis.frame import read_divergence, read_results
+from harness.analysis.paired import read_ratios
 from harness.errors import HarnessError
 from harness.report.machines import UNKNOWN_ID
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
@@ -25,6 +27,7 @@ class Experiment:
     title: str
     frame: pd.DataFrame
     divergence: pd.DataFrame | None = None  # divergence.csv, when the checks wrote one
+    ratios: pd.DataFrame | None = None  # ratios.csv's ratios paired by round, where written
 
 
 def read_trajectory(path: Path) -> pd.DataFrame:
@@ -50,8 +53,17 @@ def load_experiment(found: ExperimentDir, machine: str | None = None) -> Experim
     frame = read_results(found.results_csv)
     titles = [t for t in frame["title"] if t]
     title = titles[0] if titles else found.name
-    if machine is not None and MACHINE_KEY in frame.columns:
-        ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
-        frame = frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
-    return Experiment(found.name, found.path, title, frame, read_divergence(found.divergence_csv))
+    ratios = read_ratios(found.ratios_csv)
+    if machine is not None:
+        frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
+    return Experiment(found.name, found.path, title, frame,
+                      read_divergence(found.divergence_csv), ratios)
+
+
+def _of_machine(frame: pd.DataFrame | None, machine: str) -> pd.DataFrame | None:
+    """The rows measured on the machine (an id; UNKNOWN_ID for rows without one)."""
+    if frame is None or MACHINE_KEY not in frame.columns:
+        return frame
+    ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
+    return frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
 

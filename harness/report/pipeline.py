@@ -36,6 +36,7 @@ from harness.report.header import (
 from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
+from harness.report.spread import cached_session_words
 from harness.spec.facts import read_variants, reading
 from harness.store.atomic import atomic_write_text
 from harness.store.layout import ExperimentDir
@@ -77,9 +78,11 @@ def build_document(
     shown: machines.Machine | None = None,
     others: Sequence[Link] = (),
     side_by_side: Section | None = None,
+    session: str = "",
 ) -> Document:
     """The whole page: what it shows, the summary, one section per experiment with data (its
-    warnings folded in it), then the machines side by side and how to read the numbers."""
+    warnings folded in it), then the machines side by side and how to read the numbers (with
+    `session`, what it says of the session spread: harness.report.spread)."""
     results_dir = _shown_path(results_dir)
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
@@ -98,7 +101,7 @@ def build_document(
     if environment:
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
     appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
-                            (Paragraph(HOW_TO_READ),)))
+                            (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
     return Document(TITLE, lead, tuple(others), summary_section(parts, more),
                     tuple(_with_warnings(p) for p in parts), tuple(appendix))
 
@@ -166,8 +169,9 @@ def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Pa
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
+    session = cached_session_words(results_dir, machine_id, manifest)
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
-                         side_by_side=side_by_side)
+                         side_by_side=side_by_side, session=session)
     _write_page(doc, page_dir)
     _remove_stale_figures(fig_dir, document_files(doc))
     manifest.save()

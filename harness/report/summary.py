@@ -59,7 +59,7 @@ def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
-    rows = with_speedup(exp.frame)
+    rows = with_speedup(exp.frame, ratios=exp.ratios)
     link = f"[{exp.name}](#{_anchor(section, '-cells')})"
     found: dict[str, Highlight] = {}
     fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]

@@ -20,7 +20,9 @@ identical distributions with probability 2/20 = 10% (the chance that one sample 
 above the other). That is why a verdict of compare never rests on such an interval alone: it
 tests against a threshold, and widens the interval of runs measured apart by the drift.
 
-Modules: intervals (estimators and bootstrap intervals), scaling (efficiency, Karp-Flatt, power
+Modules: intervals (estimators and bootstrap intervals), levels (the run, round and session
+levels: a cell's interval over its rounds and another session's, ratios paired by round,
+reruns' coverage), scaling (efficiency, Karp-Flatt, power
 fits), rounds (runs by round, the noise rounds met, a pair's rounds lined up), verdicts (the
 change, the sequential looks, the false-discovery control), paired (measured together) and
 apart (measured apart). Every public name is re-exported here: callers use `stats.NAME`.
@@ -32,6 +34,10 @@ from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, 
                                      LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Interval,
                                      difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
                                      speedup_ci)
+from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
+                                  Coverage, RoundEstimate, SessionSpread, cell_estimate,
+                                  coverage, from_round_values, paired_ratio, round_half_width,
+                                  session_spread, t95)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)
 from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,

@@ -162,6 +162,25 @@ DIVERGENCE_COLUMNS: tuple[str, ...] = (
 # The cell-describing columns a divergence row copies from its record.
 DIVERGENCE_CELL_COLUMNS: tuple[str, ...] = DIVERGENCE_COLUMNS[:10]
 
+# ratios.csv beside results.csv: one row per ratio of two cells' times on one machine (the
+# reference's time over this cell's, > 1 where this cell is faster), of cells that measured
+# the same scene with the same build and schedule: `kind` says which reference (RATIO_KINDS).
+# The ratio is taken round by round over the rounds both cells were measured in (the same
+# round_seed and round), its interval where another session's ratio lies (ratio_ci_*: the
+# rounds' spread and the machine's session spread for ratios, harness.stats.levels) and over
+# the rounds alone (round_ci_*); rounds: how many it rests on (0: the cells were measured in
+# different runs, the ratio of their medians, no interval). Over one thread, the parallel
+# efficiency (ratio / threads) and the Karp-Flatt serial fraction of the ratio.
+RATIO_OVER_ONE_THREAD = "over_one_thread"
+RATIO_OVER_BASELINE = "over_seq"
+RATIO_KINDS: tuple[str, ...] = (RATIO_OVER_ONE_THREAD, RATIO_OVER_BASELINE)
+RATIO_COLUMNS: tuple[str, ...] = (
+    "experiment", "kind", "variant", "threads", "reference_variant", "reference_threads",
+    "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
+    "efficiency", "karp_flatt", "build", *SCENE_COLUMNS, "schedule", "machine_id",
+    "session_spread",
+)
+
 # --- how each column reads back -----------------------------------------------------------
 
 NUMERIC_COLUMNS: frozenset[str] = frozenset({

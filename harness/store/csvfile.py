@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -26,12 +27,24 @@ from harness.store.records import MACHINE_KEY
 from harness.store.result import CellResult
 
 
-def uncertainty(times: Sequence[float]) -> tuple[float | None, float | None, float]:
-    """What a record derives from its per-run times: the 95% bootstrap interval of their
-    median (None where there is none) and their low quantile."""
+def uncertainty(times: Sequence[float], rounds: Sequence[int] | None = None,
+                session: float | None = None) -> tuple[float | None, float | None, float]:
+    """What a record derives from its per-run times: the 95% interval of their median (None
+    where there is none) and their low quantile. With the round of each run, the interval is
+    where another session's estimate lies (harness.stats.levels: over the rounds, and the
+    machine's `session` spread), widened to hold the median of the runs; without (a record
+    from before rounds), the bootstrap over the runs."""
     from harness import stats  # scipy only when an interval is computed: a cached run needs none
 
-    interval = stats.median_ci(times)
+    if rounds is None:
+        interval = stats.median_ci(times)
+    else:
+        spread = stats.DEFAULT_SESSION_SPREAD.absolute if session is None else session
+        interval = stats.cell_estimate(times, rounds).rerun_interval(spread)
+        if math.isfinite(interval.low) and times:
+            median = statistics.median(times)
+            interval = stats.Interval(median, min(interval.low, median),
+                                      max(interval.high, median))
     return (interval.low if math.isfinite(interval.low) else None,
             interval.high if math.isfinite(interval.high) else None,
             stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR))
@@ -101,10 +114,10 @@ def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
     for group in OPTIONAL_GROUPS:
         if any(row.get(c) not in (None, "") for row in rows for c in group):
             columns = (*columns, *group)
-    return _csv_text(columns, rows)
+    return csv_text(columns, rows)
 
 
-def _csv_text(columns: Sequence[str], rows: Iterable[Mapping[str, object]]) -> str:
+def csv_text(columns: Sequence[str], rows: Iterable[Mapping[str, object]]) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(columns)
@@ -136,4 +149,4 @@ def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:
     if not rows:
         path.unlink(missing_ok=True)
         return
-    atomic.atomic_write_text(path, _csv_text(DIVERGENCE_COLUMNS, rows))
+    atomic.atomic_write_text(path, csv_text(DIVERGENCE_COLUMNS, rows))

@@ -14,7 +14,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import atomic, csvfile, locks, records
+from harness.repo import DEFAULT_RESULTS_DIR
+from harness.store import atomic, csvfile, locks, ratios, records, sessions
 from harness.store.history import (
     UNKNOWN_MACHINE,
     Stored,
@@ -77,20 +78,25 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
 
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
-                experiment: str, title: str, prune_first: bool = False) -> list[CellResult]:
+                experiment: str, title: str, prune_first: bool = False,
+                baseline: str | None = None) -> list[CellResult]:
     """Rewrite results.csv from the records on disk, under the directory lock (with
-    `prune_first`, after moving the superseded records to history/, as a run ends); the
-    records listed are returned (for divergence.csv)."""
+    `prune_first`, after moving the superseded records to history/, as a run ends), and with
+    the `baseline` variant named, ratios.csv from its rows; the records listed are returned
+    (for divergence.csv)."""
     exp = ExperimentDir(experiment_dir)
     with locks.directory_lock(experiment_dir):
         stored = load_records(exp.cells)
         if prune_first:
             stored = prune_locked(experiment_dir, stored)
         rows = current_rows(stored, planned, machine_id, exp)
-        csvfile.write_results_csv(
-            exp.results_csv,
-            [csvfile.result_row(r.result, experiment, title, r.hyperfine_json, r.stale)
-             for r in rows])
+        written = [csvfile.result_row(r.result, experiment, title, r.hyperfine_json, r.stale)
+                   for r in rows]
+        csvfile.write_results_csv(exp.results_csv, written)
+        if baseline is not None:
+            roots = (experiment_dir.parent, DEFAULT_RESULTS_DIR)
+            ratios.write_ratios_csv(exp.ratios_csv, written, baseline,
+                                    lambda m: sessions.find_session(roots, m).ratio)
     return [r.result for r in rows]
 
 

@@ -25,10 +25,12 @@
         history.json                     `history`: the commits of the latest range, oldest first
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
+        ratios.csv                       one row per ratio of two cells (speedups), by round
         divergence.csv                   the checks' divergence curves, where some cell has them
       calibration/machines/<machine_id>.json   a machine's description and its calibration
       calibration/runs/              the runs a calibration measures
       compare/                       compare.py's default output
+      reruns/rerun-<k>/              `reruns`: the k-th rerun's results root
 
 Standard library only.
 """
@@ -50,6 +52,7 @@ ENV_JSON = "env.json"
 VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
 DIVERGENCE_CSV = "divergence.csv"
+RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
@@ -69,6 +72,7 @@ CACHE_DIR = ".cache"
 BASELINES = "baselines"
 PRINTS = "prints"
 COMPARE_DIR = "compare"
+RERUNS_DIR = "reruns"
 CALIBRATION_DIR = "calibration"
 CALIBRATION_RUNS = "runs"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
@@ -119,6 +123,10 @@ class ExperimentDir:
     @property
     def history_commits(self) -> Path:
         return self.path / HISTORY_COMMITS
+
+    @property
+    def ratios_csv(self) -> Path:
+        return self.path / RATIOS_CSV
 
     @property
     def divergence_csv(self) -> Path:

@@ -52,6 +52,10 @@ class Timing:
     wall_median_ci_low_s: float | None = None
     wall_median_ci_high_s: float | None = None
     wall_q25_s: float | None = None
+    # the machine's session spread (log scale) the interval of the median was widened by, and
+    # where it came from (harness.stats.levels, store.sessions)
+    session_spread: float | None = None
+    session_source: str | None = None
     unstable: bool | None = None
     loaded: bool | None = None
     hyperfine_exports: tuple[str, ...] | None = None

@@ -16,9 +16,9 @@ CONSOLE_SCRIPT = Path(sys.executable).with_name("collide-bench")
 def test_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
-    for name in ("run", "compare", "history", "report", "store", "worker"):
+    for name in ("run", "compare", "reruns", "history", "report", "store", "worker"):
         assert f"\n  {name} " in out
-    assert set(COMMANDS) == {"run", "compare", "history", "report", "store", "worker"}
+    assert set(COMMANDS) == {"run", "compare", "reruns", "history", "report", "store", "worker"}
 
 
 @pytest.mark.parametrize(("argv", "message"), [

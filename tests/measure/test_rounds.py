@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from harness import stats
 from harness.measure.cell import Measurer
 from harness.measure.rounds import (
     CellRun,
@@ -35,39 +36,48 @@ def test_a_fixed_count_takes_a_run_a_round_until_it_has_them() -> None:
     assert stop_reason(fixed, [1.0, 1.0]) == "" and stop_reason(fixed, [1.0] * 3) == "runs"
 
 
-def test_adaptive_takes_what_its_interval_needs_at_most_doubling_a_round() -> None:
-    assert next_runs(AUTO, []) == 3  # its first round: enough for an interval
-    assert next_runs(AUTO, [0.1]) == 2
-    steady = [0.100, 0.1002, 0.0999, 0.1001]
-    assert next_runs(AUTO, steady) == 1  # narrow already: the fewest
-    noisy = [0.10, 0.13, 0.08, 0.12]
-    assert next_runs(AUTO, noisy) == 4  # wide: as many as it has, no more
-    assert next_runs(AUTO, noisy * 2) == 1  # the time limit: 0.14 s of its 1 s left
-    roomy = Measure(warmup=0, runs=None, ci=0.02, max_runs=10, max_time_s=100.0)
-    assert next_runs(roomy, noisy * 2) == 2  # max_runs
-    assert next_runs(roomy, noisy * 3) == 0
+def test_adaptive_takes_a_run_a_round_within_its_limits() -> None:
+    assert [next_runs(AUTO, [0.1] * k) for k in (0, 1, 5, 11, 12)] == [1, 1, 1, 1, 0]
     paired = AUTO.at_least(8)  # a measured comparison: one a round until its 8 rounds
     assert [next_runs(paired, [0.1] * k) for k in (0, 3, 7)] == [1, 1, 1]
-    # its first runs as many times over as a round takes runs, within max_runs
-    assert next_runs(AUTO, [], 2) == 6 and next_runs(AUTO, [0.1] * 5, 2) == 1
-    assert next_runs(Measure(runs=None, max_runs=2), []) == 2
+    # a paired cell's round takes its runs a round, within max_runs
+    assert next_runs(AUTO, [], 2) == 2 and next_runs(AUTO, [0.1] * 23, 2) == 1
+    assert next_runs(Measure(runs=None, max_runs=2), [0.1] * 2) == 0
 
 
-def test_adaptive_stops_when_the_interval_is_narrow_or_a_limit_is_reached() -> None:
-    assert stop_reason(AUTO, [0.10, 0.10]) == ""  # fewer than its first runs
-    assert stop_reason(AUTO, [0.100, 0.101, 0.099]) == "ci"
+def test_adaptive_stops_on_its_rounds_interval_or_a_limit() -> None:
+    steady = [0.100, 0.101, 0.099, 0.1005, 0.0995]
+    assert stop_reason(AUTO, steady[:3]) == ""  # fewer than MIN_ROUNDS rounds
+    assert stop_reason(AUTO, steady) == "ci"
+    # five runs of one round agree, but one round is not five: no interval yet
+    assert stop_reason(AUTO, steady, rounds=[1] * 5) == ""
     spread = [0.10, 0.13, 0.08, 0.12, 0.09]
     assert not narrow(spread, 0.02) and stop_reason(AUTO, spread) == ""
     assert stop_reason(AUTO, spread * 3) == "max_runs"  # 15 runs >= 12
     assert stop_reason(AUTO, [0.3, 0.4, 0.2, 0.35]) == "max_time_s"  # 1.25 s >= 1 s
-    assert stop_reason(AUTO.at_least(8), [0.100, 0.101, 0.099]) == ""  # a pair needs 8
+    assert stop_reason(AUTO.at_least(8), steady) == ""  # a pair needs 8
+
+
+def test_the_rounds_interval_widens_when_rounds_disagree_though_their_runs_agree() -> None:
+    """Runs within a round agree to 0.2%; the rounds are up to 6% apart. A bootstrap over the
+    runs reads fifteen agreeing runs as a median known to +-2.5%; the interval over the rounds
+    does not, and the cell goes on."""
+    roomy = Measure(warmup=0, runs=None, ci=0.025, max_runs=30, max_time_s=100.0)
+    levels = [0.100, 0.103, 0.099, 0.102, 0.097]
+    times = [level * (1 + 0.001 * j) for level in levels for j in range(3)]
+    rounds = [k for k in range(1, 6) for _ in range(3)]
+    by_runs = stats.median_ci(times)
+    assert by_runs.high - by_runs.point < 0.025 * by_runs.point  # the runs' bootstrap: narrow
+    assert not narrow(times, 0.025, rounds) and stop_reason(roomy, times, 3, rounds) == ""
+    agreeing = [0.100 * (1 + 0.001 * j) for _ in range(5) for j in range(3)]
+    assert narrow(agreeing, 0.025, rounds) and stop_reason(roomy, agreeing, 3, rounds) == "ci"
 
 
 def test_runs_left_bounds_an_adaptive_cell_by_its_limits() -> None:
     run = CellRun("c", {}, RESULT, "ok", 0, ["x"], run_s=0.1, times=[0.1, 0.1])
     assert runs_left(Measure(runs=5), run) == (3.0, 3.0)
     fewest, most = runs_left(AUTO, run)
-    assert fewest == 1.0 and most == pytest.approx(8.0)  # 0.8 s left at 0.1 s a run
+    assert fewest == 3.0 and most == pytest.approx(8.0)  # MIN_ROUNDS; 0.8 s left at 0.1 s a run
     run.stopped = "ci"
     assert runs_left(AUTO, run) == (0.0, 0.0)
 
@@ -80,7 +90,9 @@ def test_the_record_holds_every_round() -> None:
     assert fields["runs"] == 3 and fields["wall_median_s"] == 2.0 and fields["rounds"] == 3
     assert fields["wall_times_round"] == [1, 2, 3] and fields["stopped"] == "runs"
     assert fields["wall_min_s"] == 1.0 and fields["wall_stddev_s"] == pytest.approx(1.0)
-    assert fields["wall_median_ci_low_s"] == 1.0 and fields["wall_median_ci_high_s"] == 3.0
+    # over three rounds that disagree by up to 3x, with the session's spread: wide
+    assert fields["wall_median_ci_low_s"] < 1.0 and fields["wall_median_ci_high_s"] > 3.0
+    assert fields["session_spread"] == stats.DEFAULT_SESSION_SPREAD.absolute
     assert timed_result(run).round_times() == {1: (1.0,), 2: (3.0,), 3: (2.0,)}
 
 

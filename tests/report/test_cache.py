@@ -15,6 +15,7 @@ import pytest
 from harness import repo
 from harness.report import cache, pipeline
 from harness.report.cache import MANIFEST_NAME
+from harness.report.spread import SESSION_PART
 
 from fixture_results import results_with
 
@@ -116,7 +117,7 @@ def test_removed_experiments_lose_their_figures_and_manifest_entries(tmp_path: P
     names = {p.name for p in (out / "figures").iterdir()}
     assert not [n for n in names if n.startswith("radius")]
     manifest = json.loads((out / "figures" / MANIFEST_NAME).read_text(encoding="utf-8"))
-    assert set(manifest["parts"]) == {"square"}
+    assert set(manifest["parts"]) == {"square", SESSION_PART}  # and the page's session words
     assert all(not name.startswith("radius") for name in manifest["figures"])
 
 

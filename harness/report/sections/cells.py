@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_keys
 from harness.analysis.display import display_name, format_value
+from harness.analysis.paired import paired_words
 from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
 from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
@@ -49,7 +50,7 @@ def build(ctx: Context) -> list[Section]:
     exp, axes = ctx.exp, ctx.swept
     df = exp.frame
     keys = varying_keys(df) or ["variant"]
-    table = cell_table(df, keys, thread_baseline="threads" in axes)
+    table = cell_table(df, keys, thread_baseline="threads" in axes, ratios=exp.ratios)
     blocks: list[Block] = []
     if "baseline" in table.columns:
         baselines = [b for b in table["baseline"].unique() if b]
@@ -70,9 +71,8 @@ def build(ctx: Context) -> list[Section]:
             "Efficiency and serial fraction are left blank where the speedup also counts a "
             "different algorithm or build (relative, grid, another build than seq's)."
         ))
-    counted = _instructions_text(df)
-    if counted:
-        blocks.append(Paragraph(counted))
+    blocks.extend(Paragraph(text) for text in (paired_words(exp.ratios), _instructions_text(df))
+                  if text)
     caption = f"Per-cell statistics{_course_table(axes, df)}."
     return [Section("Measurements", f"{ctx.name}-cells",
                     (table_block(table, caption, source=df), *blocks))]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from harness.analysis.paired import paired_words
 from harness.analysis.speedup import with_speedup
 from harness.report.blocks import figure_block
 from harness.report.document import Block, Paragraph, Section
@@ -28,14 +29,15 @@ def build(ctx: Context) -> list[Section]:
     if "threads" not in ctx.axes:
         return []
     exp, figs = ctx.exp, ctx.figs
-    rows = with_speedup(exp.frame, thread_baseline=True)
+    rows = with_speedup(exp.frame, thread_baseline=True, ratios=exp.ratios)
     base = figs.fig_dir / ctx.name
     blocks: list[Block] = [
         figure_block(figs.draw(draw, rows, base.with_name(f"{base.name}-{suffix}"),
                                title=f"{exp.title}: {what}"), caption)
         for column, draw, suffix, what, caption in FIGURES if rows[column].notna().any()]
     if blocks:
-        blocks[:0] = _oversubscribed_words(rows)
+        paired = paired_words(exp.ratios)
+        blocks[:0] = [*_oversubscribed_words(rows), *([Paragraph(paired)] if paired else [])]
     return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",
                     tuple(blocks))]
 

@@ -71,7 +71,7 @@ def build(ctx: Context) -> list[Section]:
     parts: list[Section] = []
     if not study.one_scene(df):
         return parts
-    seed = study.seed_table(df)
+    seed = study.seed_table(df, ctx.exp.ratios)
     if seed is not None:
         parts.append(Section("Against the seed's Table 2", f"{name}-seed", (
             Paragraph(SEED_INTRO),

@@ -1,0 +1,155 @@
+"""ratios.csv (harness.store.ratios) read back for the tables and figures: a cell's speedup
+over one thread or over seq, with its efficiency and Karp-Flatt serial fraction, taken from the
+ratio paired by round where ratios.csv has one for the cell and its reference. Cells without
+one keep the ratio of medians and its bootstrap over the runs (harness.analysis.speedup)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness import stats
+from harness.errors import HarnessError
+from harness.spec.facts import BASELINE
+from harness.store.columns import (
+    MATCH_COLUMNS,
+    NUMERIC_COLUMNS,
+    RATIO_OVER_BASELINE,
+    RATIO_OVER_ONE_THREAD,
+)
+from harness.store.records import MACHINE_KEY
+
+# What ties a ratio to a cell: the cell's experiment, what it measured and its machine.
+KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
+_NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
+           "ratio_ci_high", "rounds")
+_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "session_spread")
+
+
+def read_ratios(path: Path) -> pd.DataFrame | None:
+    """ratios.csv's rows paired by round (rounds > 0 and a ratio), keyed as cells are; None
+    where there is no file. A file without the columns it needs is a HarnessError."""
+    if not path.is_file():
+        return None
+    try:
+        raw = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+        raise HarnessError(f"{path}: cannot read ratios: {e}") from e
+    missing = [c for c in _NEEDED if c not in raw.columns and c not in ("schedule", MACHINE_KEY)]
+    if missing:
+        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
+    frame = raw.copy()
+    for column in (c for c in _NUMBERS if c in frame.columns):
+        text = frame[column].str.strip()
+        frame[column] = pd.to_numeric(text, errors="coerce")
+        bad = frame[column].isna() & ~text.str.lower().isin(("", "nan"))
+        if bad.any():
+            line = int(bad.to_numpy().argmax()) + 2  # after the header, from 1
+            raise HarnessError(f"{path}: line {line}: column '{column}': "
+                               f"{text[bad].iloc[0]!r} is not a number")
+    frame["_key"] = cell_keys(frame)
+    paired = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
+    return paired.reset_index(drop=True)
+
+
+def _key_text(value: object, numeric: bool) -> str:
+    # results.csv reads numbers as floats and ratios.csv as text: both to one spelling.
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if numeric:
+        try:
+            return repr(float(value))  # type: ignore[arg-type]
+        except ValueError:
+            return str(value).strip()
+    return str(value).strip()
+
+
+def cell_keys(frame: pd.DataFrame) -> pd.Series:
+    """Per row, the text that names its cell across results.csv and ratios.csv."""
+    parts = []
+    for column in KEY_COLUMNS:
+        values = frame[column] if column in frame.columns else pd.Series("", index=frame.index)
+        numeric = column in NUMERIC_COLUMNS
+        parts.append(values.map(lambda v, n=numeric: _key_text(v, n)))
+    if not parts or frame.empty:
+        return pd.Series([], index=frame.index, dtype=object)
+    return pd.Series(["\0".join(p) for p in zip(*parts, strict=True)], index=frame.index,
+                     dtype=object)
+
+
+def matches(out: pd.DataFrame, ratios: pd.DataFrame, kind: pd.Series) -> pd.Series:
+    """Per row of `out`, the index in `ratios` of its paired ratio of this kind (NaN where
+    none): over seq against seq itself, over one thread against the same variant."""
+    wanted = ratios[(ratios["kind"] != RATIO_OVER_BASELINE)
+                    | (ratios["reference_variant"] == BASELINE)]
+    lookup = {(k, t): i for i, k, t in zip(wanted.index, wanted["_key"], wanted["kind"],
+                                           strict=True)}
+    found = [lookup.get((k, t), np.nan) for k, t in zip(cell_keys(out), kind, strict=True)]
+    return pd.Series(found, index=out.index, dtype="float64")
+
+
+def paired_points(cells: pd.DataFrame, ratios: pd.DataFrame | None, kind: str) -> pd.Series:
+    """Per row of `cells`, its ratio of this kind paired by round; NaN where there is none."""
+    if ratios is None or ratios.empty or cells.empty:
+        return pd.Series(np.nan, index=cells.index, dtype="float64")
+    found = matches(cells, ratios, pd.Series(kind, index=cells.index))
+    return found.map(lambda i: float(ratios.at[int(i), "ratio"]) if pd.notna(i) else np.nan)
+
+
+def use_paired(out: pd.DataFrame, ratios: pd.DataFrame | None, same_build: pd.Series,
+               one_thread_label: str, seq_label: str) -> None:
+    """Replace `out`'s speedup, efficiency and serial fraction, points and intervals, by the
+    paired ratio where ratios.csv has one for the row's baseline (`baseline`, with seq's build
+    the row's own: `same_build`); `speedup_paired` says where."""
+    out["speedup_paired"] = False
+    if ratios is None or ratios.empty or out.empty:
+        return
+    kind = out["baseline"].map({seq_label: RATIO_OVER_BASELINE,
+                                one_thread_label: RATIO_OVER_ONE_THREAD}).fillna("")
+    kind = kind.where((kind != RATIO_OVER_BASELINE) | same_build, "")
+    found = matches(out, ratios, kind)
+    for position, row in found.dropna().items():
+        ratio = ratios.loc[int(row)]
+        _put(out, position, stats.Interval(float(ratio["ratio"]), float(ratio["ratio_ci_low"]),
+                                           float(ratio["ratio_ci_high"])))
+
+
+def _put(out: pd.DataFrame, position: object, speedup: stats.Interval) -> None:
+    """One row's three metrics from its paired speedup; efficiency and the serial fraction
+    only where the row defines them (the same work on both sides)."""
+    threads = int(out.at[position, "threads"])
+    metrics = {"speedup": speedup}
+    if pd.notna(out.at[position, "efficiency"]):
+        metrics["efficiency"] = stats.efficiency(speedup, threads)
+    if pd.notna(out.at[position, "serial_fraction"]):
+        metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
+    for name, interval in metrics.items():
+        finite = math.isfinite(interval.low) and math.isfinite(interval.high)
+        out.at[position, name] = interval.point
+        out.at[position, f"{name}_low"] = interval.low if finite else math.nan
+        out.at[position, f"{name}_high"] = interval.high if finite else math.nan
+    out.at[position, "speedup_paired"] = True
+
+
+def paired_words(ratios: pd.DataFrame | None) -> str:
+    """What the tables and figures take from ratios.csv, for the sections that show ratios;
+    empty where it holds no ratio paired by round."""
+    if ratios is None or ratios.empty:
+        return ""
+    column = ratios.get("session_spread")
+    spreads = sorted({float(s) for s in column.dropna()}) if column is not None else []
+    spread = (f", widened by the session spread for ratios ({_percent(spreads)})"
+              if spreads else "")
+    return (f"Speedup, efficiency and serial fraction are paired by round where ratios.csv "
+            f"pairs a cell with its reference ({len(ratios)} ratio(s)): the reference's time "
+            f"over the cell's in the rounds both were measured in, the interval over those "
+            f"rounds{spread}, so it holds another session's estimate; the other cells keep the "
+            "ratio of medians and its bootstrap over the runs.")
+
+
+def _percent(values: list[float]) -> str:
+    shown = [f"{v:.1%}" for v in values]
+    return shown[0] if len(shown) == 1 else f"{shown[0]} to {shown[-1]}"

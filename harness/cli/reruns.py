@@ -1,0 +1,94 @@
+"""Rerun configs K times apart: learn this machine's session spread and measure coverage."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from harness.analysis import reruns as analysis
+from harness.cli.common import (
+    EXIT_INTERRUPTED,
+    Parser,
+    add_flags,
+    interrupt_on_sigterm,
+    measuring_lock,
+    seconds,
+    whole_number,
+)
+from harness.errors import HarnessError
+from harness.measure import environment, machine
+from harness.repo import REPO_ROOT
+from harness.runner import reruns as runner
+from harness.spec.config import with_metric
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
+from harness.store import layout, records, sessions
+
+DEFAULT_TIMES = 5
+DEFAULT_PAUSE_S = 60.0
+
+
+def parser(prog: str) -> argparse.ArgumentParser:
+    parser = Parser(prog=prog, description="Run configs TIMES times, each into a results root "
+                    "of its own with every cell measured afresh, a pause between; learn this "
+                    "machine's session spread (how far a whole run's estimates move, beyond "
+                    "their rounds), keep it beside the machine's description in <results>/"
+                    f"{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
+                    f"{layout.RECORD_SUFFIX}, and report how often each rerun's intervals "
+                    "(results.csv's and ratios.csv's) held another rerun's estimate.")
+    parser.add_argument("configs", nargs="+", type=Path, help="experiment YAML files")
+    parser.add_argument("--times", type=whole_number, default=DEFAULT_TIMES, metavar="K",
+                        help=f"how many reruns, at least 2 (default: {DEFAULT_TIMES})")
+    parser.add_argument("--pause", type=seconds, default=DEFAULT_PAUSE_S, metavar="SECONDS",
+                        help=f"the pause between reruns (default: {DEFAULT_PAUSE_S:g})")
+    parser.add_argument("--out", type=Path, default=None,
+                        help=f"where the reruns' results roots go (default: "
+                        f"<results-dir>/{layout.RERUNS_DIR})")
+    parser.add_argument("--reuse", action="store_true",
+                        help="measure nothing: read the reruns already under --out again")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke reruns: n <= 400, steps <= 5")
+    parser.add_argument("--no-keep", action="store_true",
+                        help="report the coverage only; keep no session spread")
+    add_flags(parser)
+    return parser
+
+
+def execute(args: argparse.Namespace) -> int:
+    if args.times < 2:
+        raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
+    out = args.out if args.out is not None else args.results_dir / layout.RERUNS_DIR
+    roots = runner.rerun_roots(out, args.times)
+    if args.reuse:
+        missing = [r for r in roots if not r.is_dir()]
+        if missing:
+            raise HarnessError(f"--reuse: no rerun in {missing[0]} (measure them first)")
+    else:
+        registry = VariantRegistry(REPO_ROOT)
+        configs = [with_metric(load_config(p, registry), args.metric) for p in args.configs]
+        interrupt_on_sigterm()
+        lock = measuring_lock(args, ["reruns", *args.configs])
+        try:
+            with lock:
+                runner.measure(configs, out, args.times, args.pause, registry, lock,
+                               sys.stderr, args.hyperfine, quick=args.quick)
+        except KeyboardInterrupt:
+            sys.stderr.write(f"interrupted: the reruns so far are under {out}; measure them "
+                             "again (a rerun starts afresh)\n")
+            return EXIT_INTERRUPTED
+    found = analysis.analyse(roots)
+    if not found:
+        raise HarnessError(f"no cell was measured ok in two reruns under {out}")
+    here = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    config = " ".join(str(p) for p in args.configs)
+    for result in found:
+        sys.stdout.write("\n".join(result.lines()) + "\n")
+        if args.no_keep:
+            continue
+        description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine) \
+            if result.machine_id == here else {}
+        path = sessions.keep_session(args.results_dir, result.machine_id, description,
+                                     result.entry(config))
+        sys.stdout.write(f"  kept in {path}\n")
+    return 0

@@ -1,0 +1,98 @@
+"""What "How to read the numbers" says of the session level: the session spread the page's
+machine has (learnt by `reruns`, harness.store.sessions, or the stated default) and, where
+`reruns` measured it, how often its intervals held another rerun's estimate.
+
+The spread's home (harness.stats.levels) imports scipy, which an unchanged page never
+loads: the paragraph is kept in the page's manifest like an experiment's part, keyed by the
+machine's calibration file and the report's code."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+from harness.repo import DEFAULT_RESULTS_DIR
+from harness.report.cache import Manifest
+from harness.report.machines import UNKNOWN_ID
+from harness.store.layout import ResultsRoot
+from harness.store.records import sha256_file
+
+REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
+SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
+
+
+def _known(machine_id: str | None) -> str | None:
+    return machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
+
+
+def session_roots(results_dir: Path) -> tuple[Path, ...]:
+    """Where a run looks for its machine's spread (harness.store.index): its results root
+    and the repository's."""
+    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
+
+
+def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
+    """session_words, from the manifest where the machine's calibration files and the
+    report's code are unchanged."""
+    machine = _known(machine_id)
+    paths = [ResultsRoot(root).calibration(machine) for root in session_roots(results_dir)] \
+        if machine is not None else []
+    digests = [sha256_file(p) if p.is_file() else "absent" for p in paths]
+    key = manifest.part_key("\0".join([str(machine), *digests]))
+    stored = manifest.get_part(SESSION_PART, key)
+    if stored is not None and isinstance(stored.get("text"), str):
+        return stored["text"]
+    text = session_words(results_dir, machine)
+    manifest.put_part(SESSION_PART, key, {"text": text}, [])
+    return text
+
+
+def session_words(results_dir: Path, machine_id: str | None) -> str:
+    """The session spread the page's intervals add and where it comes from, then the
+    coverage `reruns` measured on this machine or that none was."""
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+    from harness.store.sessions import find_session, newest_entry
+
+    machine = _known(machine_id)
+    roots = session_roots(results_dir)
+    spread = DEFAULT_SESSION_SPREAD if machine is None else find_session(roots, machine)
+    text = (f"Intervals that say where another session's estimate lands (a cell's time "
+            f"measured in rounds, a ratio paired by round) add the machine's session spread: "
+            f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
+            f"{spread.source}.")
+    entry = None if machine is None else newest_entry(roots, machine)
+    if entry is None:
+        return (f"{text} No reruns were measured on this machine (`{REUSE_COMMAND}` learns "
+                "its spread and how often the intervals hold a rerun's estimate): the default "
+                "applies, meant to be conservative on a quiet machine.")
+    # A record's interval holds the spread of its own run: one measured before the reruns
+    # kept the default.
+    text += (" Cells measured before then keep the spread of their run (their records' "
+             "`session_spread` and `session_source`).")
+    coverage = entry.get("coverage")
+    if not isinstance(coverage, Mapping):
+        return f"{text} Its reruns kept no coverage."
+    found = [_coverage_text(name, coverage.get(key)) for key, name in
+             (("absolute", "absolute intervals"), ("ratio", "ratio intervals"))]
+    return (f"{text} Coverage of its {entry.get('reruns', '?')} reruns, the intervals as "
+            "stored: " + "; ".join(found) + ".")
+
+
+def _percent(value: object) -> str:
+    if isinstance(value, int | float) and math.isfinite(value):
+        return f"{value:.1%}"
+    return "–"
+
+
+def _coverage_text(name: str, figures: object) -> str:
+    """One kind of interval's coverage as `reruns` kept it (analysis.reruns)."""
+    if not isinstance(figures, Mapping) or not figures.get("pairs"):
+        return f"{name}: no cell with two reruns"
+    held, pairs = figures.get("held", 0), figures["pairs"]
+    share = held / pairs if isinstance(held, int | float) and isinstance(pairs, int | float) \
+        else math.nan
+    return (f"{name} held another rerun's estimate in {held} of {pairs} (cell, rerun) pairs "
+            f"({_percent(share)}), moves between reruns {_percent(figures.get('median_move'))} "
+            f"median and {_percent(figures.get('largest_move'))} largest, median half-width "
+            f"{_percent(figures.get('median_half_width'))}")

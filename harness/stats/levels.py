@@ -1,0 +1,212 @@
+"""Three levels of variation: runs within a round, rounds within a session (one `run` of a
+config), sessions on a machine.
+
+A cell's estimate comes from its rounds: each round's value is the median of the runs it
+timed, and the cell's is the median of those. The runs of one round share the machine's state
+of that moment, so they are not independent of each other: a bootstrap over runs reads their
+agreement as certainty even where the rounds disagree. The interval here is over the rounds
+(a t-interval on the logs of the round values, with as many degrees of freedom as rounds less
+one, honest for five), and an absolute one adds the session level: how far a whole session's
+estimate moves on this machine (a log-scale standard deviation, SessionSpread; learnt by the
+`reruns` command, else DEFAULT_SESSION_SPREAD).
+
+The absolute interval is one that another session's estimate of the cell lies in with 95%:
+both estimates carry a session's and their rounds' error, so the spread of their difference is
+sqrt(2) times that of one (a prediction interval, not one for the machine's long-run value).
+A ratio of two cells measured in the same rounds (speedup over one thread, over seq) is taken
+round by round: the machine's speed at that moment moves both sides alike and cancels, and
+what is left between sessions (where threads were placed, a neighbour's cache) is the ratio's
+own session spread.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as sps
+
+from harness.stats.intervals import CONFIDENCE, Interval
+from harness.stats.rounds import round_medians
+
+# A cell gets its runs in at least this many rounds before its interval may stop it: with
+# fewer the t-quantile (12.7 at two rounds, 4.3 at three) makes any interval wide, and rounds
+# of one moment cannot show the machine's drift over seconds.
+MIN_ROUNDS = 5
+# Fewer rounds than this give no interval at all: over two, the t-quantile of 12.7 makes one
+# wider than anything it could say (a factor of 10^17 on a cell whose two rounds were 3x apart).
+INTERVAL_MIN_ROUNDS = 3
+
+
+@dataclass(frozen=True)
+class SessionSpread:
+    """How far a session's estimate moves on a machine beyond its rounds' spread (standard
+    deviations of the log), for a cell's time and for a ratio of two cells paired by round;
+    and where the values come from."""
+
+    absolute: float
+    ratio: float
+    source: str
+
+    def apart(self) -> float:
+        """The spread of the log ratio of one cell's estimates in two sessions (compare's
+        drift between sides measured apart): sqrt(2) times a session's."""
+        return math.sqrt(2.0) * self.absolute
+
+
+# Until a machine's reruns are measured: 0.11 for a cell's time, whose sqrt(2) (0.156) is the
+# drift compare allowed between sets measured apart before (on a 2-vCPU VM, a cell's median
+# moved 12-15% between reruns minutes apart, the median over cells, and up to 54%); 0.05 for a
+# ratio paired by round, whose sides share their rounds' machine (docs/compare.md).
+DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
+
+
+def t95(rounds: int) -> float:
+    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of
+    freedom)."""
+    return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
+
+
+def _z() -> float:
+    return float(sps.norm.ppf(0.5 + CONFIDENCE / 2))
+
+
+@dataclass(frozen=True)
+class RoundEstimate:
+    """A value from its rounds: the point (median of the round values), the mean and standard
+    error of their logs, and how many rounds."""
+
+    point: float
+    log_mean: float
+    log_se: float  # NaN with fewer than 2 rounds
+    rounds: int
+
+    def interval(self) -> Interval:
+        """The 95% interval of the value over its rounds alone (t with rounds - 1 degrees of
+        freedom), around the point; NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
+        if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
+            return Interval(self.point, math.nan, math.nan)
+        half = t95(self.rounds) * self.log_se
+        return _around(self.point, half)
+
+    def rerun_interval(self, session: float) -> Interval:
+        """Where another session's estimate lies with 95%: the rounds' and the session's
+        spread, each counted for both sessions (sqrt 2); NaN ends with fewer than
+        INTERVAL_MIN_ROUNDS rounds."""
+        if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
+            return Interval(self.point, math.nan, math.nan)
+        half = math.sqrt(2.0) * math.hypot(t95(self.rounds) * self.log_se, _z() * session)
+        return _around(self.point, half)
+
+
+def _around(point: float, half_log: float) -> Interval:
+    return Interval(point, point * math.exp(-half_log), point * math.exp(half_log))
+
+
+def from_round_values(values: Sequence[float]) -> RoundEstimate:
+    """The estimate from one value a round (each positive; others are left out)."""
+    data = np.asarray([v for v in values if v is not None and math.isfinite(v) and v > 0],
+                      dtype=float)
+    if data.size == 0:
+        return RoundEstimate(math.nan, math.nan, math.nan, 0)
+    logs = np.log(data)
+    se = float(np.std(logs, ddof=1) / math.sqrt(data.size)) if data.size > 1 else math.nan
+    return RoundEstimate(float(np.median(data)), float(np.mean(logs)), se, int(data.size))
+
+
+def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimate:
+    """A cell's estimate from its runs and the round of each (round_medians); where the
+    rounds are not recorded, all its runs count as one round."""
+    by_round = round_medians(times, rounds)
+    if not by_round:
+        clean = [t for t in times if t is not None and math.isfinite(t)]
+        return from_round_values([float(np.median(clean))] if clean else [])
+    return from_round_values([by_round[k] for k in sorted(by_round)])
+
+
+def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
+    """The round-level interval's larger side as a share of the point (inf without one)."""
+    interval = cell_estimate(times, rounds).interval()
+    if not (math.isfinite(interval.low) and math.isfinite(interval.high)) or interval.point <= 0:
+        return math.inf
+    return max(interval.point - interval.low, interval.high - interval.point) / interval.point
+
+
+def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> RoundEstimate:
+    """reference / cell round by round over the rounds both have (values by round, e.g.
+    round_medians of cells measured in the same rounds): the machine's speed in a round moves
+    both alike and cancels."""
+    common = sorted(reference.keys() & cell.keys())
+    return from_round_values([reference[k] / cell[k] for k in common if cell[k] > 0])
+
+
+# --- sessions ---------------------------------------------------------------------------
+
+
+def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
+    """The session level from reruns: per cell, each session's (log estimate, log standard
+    error of its rounds); the variance of a cell's log estimates across sessions beyond the
+    mean of their squared standard errors (method of moments), pooled over the cells with at
+    least two sessions (weighted by sessions - 1) and floored at 0; NaN without any."""
+    excess, weight = 0.0, 0
+    for cell in sessions:
+        found = [(m, s) for m, s in cell if math.isfinite(m)]
+        if len(found) < 2:
+            continue
+        logs = np.asarray([m for m, _ in found])
+        within = [s * s for _, s in found if math.isfinite(s)]
+        between = float(np.var(logs, ddof=1))
+        excess += (len(found) - 1) * (between - (float(np.mean(within)) if within else 0.0))
+        weight += len(found) - 1
+    return math.sqrt(max(0.0, excess / weight)) if weight else math.nan
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """How intervals held other reruns' estimates: over every (cell, rerun, other rerun) with
+    both, how many held it; and how far a cell's estimate moved between its reruns (max/min
+    - 1 per cell), the median and the largest over the cells."""
+
+    held: int
+    pairs: int
+    median_move: float
+    largest_move: float
+    median_half_width: float  # of the intervals, as a share of their points
+
+    @property
+    def share(self) -> float:
+        return self.held / self.pairs if self.pairs else math.nan
+
+    def line(self, what: str) -> str:
+        if not self.pairs:
+            return f"{what}: no cell with two reruns"
+        return (f"{what}: {self.held} of {self.pairs} (cell, rerun) pairs ({self.share:.1%}) "
+                f"held another rerun's estimate; moves between reruns {self.median_move:.1%} "
+                f"median, {self.largest_move:.1%} largest; intervals' median half-width "
+                f"{self.median_half_width:.1%}")
+
+
+def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
+    """Coverage of the reruns of each cell (one Interval a rerun, None where the rerun has
+    none of the cell): each rerun's interval against every other rerun's point."""
+    held = pairs = 0
+    moves, widths = [], []
+    for reruns in cells.values():
+        found = [r for r in reruns if r is not None and math.isfinite(r.point) and r.point > 0]
+        points = [r.point for r in found]
+        if len(points) >= 2:
+            moves.append(max(points) / min(points) - 1.0)
+        for k, interval in enumerate(found):
+            if not (math.isfinite(interval.low) and math.isfinite(interval.high)):
+                continue
+            widths.append(max(interval.high - interval.point,
+                              interval.point - interval.low) / interval.point)
+            for j, other in enumerate(found):
+                if j != k:
+                    pairs += 1
+                    held += interval.low <= other.point <= interval.high
+    return Coverage(held, pairs, float(np.median(moves)) if moves else math.nan,
+                    max(moves, default=math.nan),
+                    float(np.median(widths)) if widths else math.nan)

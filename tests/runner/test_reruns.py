@@ -1,0 +1,60 @@
+"""`reruns` on real binaries: a tiny config measured twice apart, each rerun an ordinary
+results root with its ratios.csv, the machine's session spread kept beside its description
+and found again, the coverage reported; bad input is one error line."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+from harness.analysis import compare
+from harness.cli import main
+from harness.store import records, sessions
+
+CONFIG = ("name: twice\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 2}\n"
+          "threads: [1, 2]\nmeasure: {warmup: 0, runs: 5, timeout_s: 30}\n")
+
+
+def test_reruns_learn_the_session_spread_and_report_coverage(
+        real_binaries: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "twice.yaml"
+    config.write_text(CONFIG)
+    results = tmp_path / "results"
+    assert main(["reruns", str(config), "--times", "2", "--pause", "0.1",
+                 "--results-dir", str(results)]) == 0
+    out = capsys.readouterr().out
+    assert "session spread learnt:" in out
+    assert "absolute intervals as stored: " in out and "ratio intervals as stored: " in out
+    for k in (1, 2):
+        exp = results / "reruns" / f"rerun-{k}" / "twice"
+        assert (exp / "results.csv").is_file()
+        with (exp / "ratios.csv").open(newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        over_one = [r for r in rows if r["kind"] == "over_one_thread"]
+        assert {r["variant"] for r in over_one} == {"p1"}
+        assert all(r["rounds"] == "5" and float(r["ratio_ci_low"]) <= float(r["ratio"])
+                   <= float(r["ratio_ci_high"]) for r in over_one)
+    [kept] = (results / "calibration" / "machines").glob("*.json")
+    data = records.read_json(kept)
+    assert isinstance(data, dict) and "cpu_model" in data  # beside the machine's description
+    spread = sessions.find_session([results], kept.stem)
+    assert spread.absolute == data[sessions.SESSION_KEY]["absolute"]
+    assert spread.source.startswith("learnt by reruns")
+    # a comparison of stored sets of this machine allows for the same session spread
+    drift = compare.find_drift([kept.stem], [results])
+    assert drift.sigma == pytest.approx(spread.apart()) and "reruns" in drift.source
+    # read again without measuring
+    assert main(["reruns", str(config), "--times", "2", "--reuse", "--no-keep",
+                 "--results-dir", str(results)]) == 0
+    assert "kept in" not in capsys.readouterr().out
+
+
+def test_reruns_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "c.yaml"
+    config.write_text(CONFIG)
+    assert main(["reruns", str(config), "--times", "1", "--results-dir", str(tmp_path)]) == 2
+    assert "--times must be at least 2" in capsys.readouterr().err
+    assert main(["reruns", str(config), "--reuse", "--results-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --reuse: no rerun in") and err.count("\n") == 1
