@@ -12,8 +12,29 @@ import pytest
 from harness import repo
 
 REPO_ROOT = repo.REPO_ROOT
-FIXTURES = Path(__file__).resolve().parent / "fixtures"
+TESTS = Path(__file__).resolve().parent
+FIXTURES = TESTS / "fixtures"
 E2E_BINARIES = ("seq", "p1", "p1d")
+# The modules that take longest, the longest first: collected first, so that pytest-xdist
+# (`make test`: a module a unit of work) starts them first and no worker is left with one of
+# them once the others are done. The rest keep their order.
+LONGEST_MODULES = (
+    "runner/test_history.py", "analysis/test_compare.py", "test_readme.py",
+    "measure/test_instructions.py", "runner/test_pair.py", "report/test_cache.py",
+    "test_e2e.py", "report/test_pipeline.py", "runner/test_grading.py",
+    "runner/test_concurrency.py", "measure/test_shadow.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {name: k for k, name in enumerate(LONGEST_MODULES)}
+
+    def module_rank(item: pytest.Item) -> int:
+        path = Path(item.path)
+        name = path.relative_to(TESTS).as_posix() if path.is_relative_to(TESTS) else ""
+        return rank.get(name, len(LONGEST_MODULES))
+
+    items.sort(key=module_rank)  # stable: a module's tests keep their order
 
 
 @pytest.fixture
