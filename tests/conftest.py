@@ -20,9 +20,10 @@ E2E_BINARIES = ("seq", "p1", "p1d")
 # them once the others are done. The rest keep their order.
 LONGEST_MODULES = (
     "runner/test_history.py", "analysis/test_compare.py", "test_readme.py",
-    "measure/test_instructions.py", "runner/test_pair.py", "report/test_cache.py",
-    "test_e2e.py", "report/test_pipeline.py", "runner/test_grading.py",
-    "runner/test_concurrency.py", "measure/test_shadow.py",
+    "report/test_pipeline.py", "report/test_cache.py", "measure/test_instructions.py",
+    "runner/test_grading.py", "test_e2e.py", "runner/test_concurrency.py", "runner/test_pair.py",
+    "analysis/test_changepoints.py", "cli/test_cli.py", "report/test_browser.py",
+    "test_stats.py",
 )
 
 
