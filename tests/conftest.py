@@ -28,6 +28,10 @@ LONGEST_MODULES = (
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    missing = [name for name in LONGEST_MODULES if not (TESTS / name).is_file()]
+    if missing:  # a module renamed or removed would silently lose its place
+        raise pytest.UsageError(f"tests/conftest.py: LONGEST_MODULES names no module "
+                                f"{', '.join(missing)}")
     rank = {name: k for k, name in enumerate(LONGEST_MODULES)}
 
     def module_rank(item: pytest.Item) -> int:
