@@ -12,8 +12,34 @@ import pytest
 from harness import repo
 
 REPO_ROOT = repo.REPO_ROOT
-FIXTURES = Path(__file__).resolve().parent / "fixtures"
+TESTS = Path(__file__).resolve().parent
+FIXTURES = TESTS / "fixtures"
 E2E_BINARIES = ("seq", "p1", "p1d")
+# The modules that take longest, the longest first: collected first, so that pytest-xdist
+# (`make test`: a module a unit of work) starts them first and no worker is left with one of
+# them once the others are done. The rest keep their order.
+LONGEST_MODULES = (
+    "runner/test_history.py", "analysis/test_compare.py", "test_readme.py",
+    "report/test_pipeline.py", "report/test_cache.py", "measure/test_instructions.py",
+    "runner/test_grading.py", "test_e2e.py", "runner/test_concurrency.py", "runner/test_pair.py",
+    "analysis/test_changepoints.py", "cli/test_cli.py", "report/test_browser.py",
+    "test_stats.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    missing = [name for name in LONGEST_MODULES if not (TESTS / name).is_file()]
+    if missing:  # a module renamed or removed would silently lose its place
+        raise pytest.UsageError(f"tests/conftest.py: LONGEST_MODULES names no module "
+                                f"{', '.join(missing)}")
+    rank = {name: k for k, name in enumerate(LONGEST_MODULES)}
+
+    def module_rank(item: pytest.Item) -> int:
+        path = Path(item.path)
+        name = path.relative_to(TESTS).as_posix() if path.is_relative_to(TESTS) else ""
+        return rank.get(name, len(LONGEST_MODULES))
+
+    items.sort(key=module_rank)  # stable: a module's tests keep their order
 
 
 @pytest.fixture

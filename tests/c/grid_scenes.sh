@@ -31,7 +31,8 @@ set -euo pipefail
 #   slow N L R S SEED [VMIN VMAX]   every particle listed, x, y uniform in [r, L-r], speed uniform
 #                                   in [VMIN, VMAX] (default 0.5 1.5), direction uniform
 #   mixed N L R S SEED              speeds log-uniform over 1e-3 .. L: many "wide" particles
-#   outliers N L R S SEED           speeds ~1, and every 50th particle 1e3..1e6 times faster
+#   outliers N L R S SEED [EVERY]   speeds ~1, and every EVERY-th (default 50th) particle 1e3..1e6
+#                                   times faster
 #   lattice N L R S                 a square lattice (spacing 4r) moving on the axes at 2r per
 #                                   step: many head-on contacts at exactly the same time
 #   edges                           pairs whose contact times are 1/4, 1/2, 3/4, 1 and whose
@@ -51,6 +52,7 @@ kind, args = sys.argv[1], sys.argv[2:]
 if kind in ("slow", "mixed", "outliers"):
     n, L, r, S, seed = int(args[0]), float(args[1]), float(args[2]), int(args[3]), int(args[4])
     vmin, vmax = (float(args[5]), float(args[6])) if len(args) > 6 else (0.5, 1.5)
+    every = int(args[5]) if kind == "outliers" and len(args) > 5 else 50
     rng = random.Random(seed)
     parts = []
     for i in range(n):
@@ -60,7 +62,7 @@ if kind in ("slow", "mixed", "outliers"):
         elif kind == "mixed":
             sp = math.exp(rng.uniform(math.log(1e-3), math.log(L)))
         else:
-            sp = rng.uniform(0.5, 1.5) * (10 ** rng.uniform(3, 6) if i % 50 == 0 else 1)
+            sp = rng.uniform(0.5, 1.5) * (10 ** rng.uniform(3, 6) if i % every == 0 else 1)
         a = rng.uniform(0, 2 * math.pi)
         parts.append((x, y, sp * math.cos(a), sp * math.sin(a)))
     out(n, L, r, S, parts)
@@ -352,7 +354,7 @@ if ((SMALL)); then
     listed_scene mixed_speeds 200 tol mixed 300 200 1 3 14
     listed_scene outliers 300 tol outliers 300 300 1 3 15
     grid_only_scene fast_blocks slow 34000 2400 1 1 16 350 700
-    grid_only_scene outliers_blocks outliers 33000 3000 1 1 17
+    grid_only_scene outliers_blocks outliers 33000 3000 1 1 17 100
 else
     listed_scene slow_dense 150 tol slow 3000 150 1 8 11
     listed_scene slow_huge_L 1e7 tol slow 3000 1e7 1 5 12
@@ -361,11 +363,13 @@ else
     listed_scene outliers 1000 tol outliers 2000 1000 1 4 15
     # Above 32768 particles a thread works through blocks of slices (the large-N path; K = 16).
     listed_scene fast_blocks 2400 none slow 34000 2400 1 2 16 350 700
-    # The same path with wide particles (every 50th), whose pairs also go through the
-    # prefetch queue that grid uses only above 32768 particles. One step: its outliers make
-    # grid test each pair about twice a step (the second step more), the suite's costliest
-    # scene, and fast_blocks already runs this path over two steps.
-    listed_scene outliers_blocks 3000 tol outliers 33000 3000 1 1 17
+    # The same path with outliers (every 100th), whose pairs also go through the prefetch
+    # queue that grid uses only above 32768 particles. 330 outliers, more than the N / 128
+    # that v_ref leaves faster than itself: v_ref (~4e3) is an outlier's speed, the 257
+    # fastest are wide and the rest are binned, K ~ 40. Every 50th (660) passes the same
+    # paths with v_ref ~6e4 and K ~ 560, and made grid test each pair twice a step: 14 times
+    # this scene's work. One step: fast_blocks runs the large-N path over two.
+    listed_scene outliers_blocks 3000 tol outliers 33000 3000 1 1 17 100
 fi
 
 # ---- random scenes (the binaries' generator: fast, L/8r .. L/4 per step) ----
