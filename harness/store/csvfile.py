@@ -62,7 +62,9 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
     values["machine"] = described.get("label") if isinstance(described, dict) else None
     times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
     if times:
-        if record.get("wall_median_ci_low_s") is None:
+        if record.get("wall_median_ci_low_s") is None and not record.get("wall_times_round"):
+            # a record from before rounds; one measured in rounds kept its interval, or has
+            # none (too few rounds): the runs' bootstrap would claim what its rounds cannot
             low, high, q25 = uncertainty(times)
             values.update({"wall_median_ci_low_s": low, "wall_median_ci_high_s": high,
                            LOW_QUANTILE_COLUMN: q25})

@@ -150,6 +150,17 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
         -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
 
 
+def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs() -> None:
+    # two rounds give no interval over rounds; the runs' bootstrap would be far narrower than
+    # what a rerun shows, so the row keeps none (a record from before rounds still gets one)
+    two_rounds = {"wall_times_s": [0.1464, 0.1466, 0.1465], "wall_times_round": [1, 1, 2]}
+    values = csvfile.provenance(two_rounds)
+    assert values["wall_median_ci_low_s"] is None and values["wall_median_ci_high_s"] is None
+    assert values[columns.LOW_QUANTILE_COLUMN] is not None
+    before_rounds = csvfile.provenance({"wall_times_s": two_rounds["wall_times_s"]})
+    assert before_rounds["wall_median_ci_low_s"] is not None
+
+
 # --- per-thread work ------------------------------------------------------------------------
 
 
