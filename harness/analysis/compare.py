@@ -143,11 +143,10 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
                     float(entry["drift"]), f"calibrated on machine {machine_id} "
                     f"({entry.get('date', '?')}, {entry.get('config', '?')})")))
             session = sessions.session_entry(root, machine_id)
-            if session is not None:  # two sessions' spread (stats.levels.SessionSpread.apart)
-                learnt.append((str(session.get("date", "")), Drift(
-                    math.sqrt(2.0) * float(session["absolute"]),  # type: ignore[arg-type]
-                    f"learnt by reruns on machine {machine_id} ({session.get('date', '?')}, "
-                    f"{session.get('config', '?')})")))
+            if session is not None:  # the spread between two sessions
+                spread = sessions.spread_of(session, machine_id)
+                learnt.append((str(session.get("date", "")), Drift(spread.apart(),
+                                                                   spread.source)))
         if learnt:
             found.append(max(learnt, key=lambda dated: dated[0])[1])
         else:

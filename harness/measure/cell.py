@@ -36,7 +36,6 @@ from harness.plan import lane
 from harness.plan.binaries import measures_openmp_costs
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
-from harness.repo import DEFAULT_RESULTS_DIR
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
@@ -72,7 +71,7 @@ class Measurer:
     def session(self) -> stats.SessionSpread:
         """This machine's session spread (`reruns`), under this results root or the
         repository's; the default until one is kept."""
-        return sessions.find_session((self.store.root.path, DEFAULT_RESULTS_DIR),
+        return sessions.find_session(sessions.session_roots(self.store.root.path),
                                      self.store.machine_id)
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:

@@ -12,11 +12,11 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.repo import DEFAULT_RESULTS_DIR
 from harness.report.cache import Manifest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
 from harness.store.records import sha256_file
+from harness.store.sessions import find_session, newest_entry, session_roots
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
 SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
@@ -24,12 +24,6 @@ SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
 
 def _known(machine_id: str | None) -> str | None:
     return machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
-
-
-def session_roots(results_dir: Path) -> tuple[Path, ...]:
-    """Where a run looks for its machine's spread (harness.store.index): its results root
-    and the repository's."""
-    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
 
 
 def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
@@ -52,7 +46,6 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     """The session spread the page's intervals add and where it comes from, then the
     coverage `reruns` measured on this machine or that none was."""
     from harness.stats.levels import DEFAULT_SESSION_SPREAD
-    from harness.store.sessions import find_session, newest_entry
 
     machine = _known(machine_id)
     roots = session_roots(results_dir)

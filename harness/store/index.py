@@ -10,11 +10,11 @@ other's rows.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.repo import DEFAULT_RESULTS_DIR
 from harness.store import atomic, csvfile, locks, ratios, records, sessions
 from harness.store.history import (
     UNKNOWN_MACHINE,
@@ -94,9 +94,10 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
                    for r in rows]
         csvfile.write_results_csv(exp.results_csv, written)
         if baseline is not None:
-            roots = (experiment_dir.parent, DEFAULT_RESULTS_DIR)
-            ratios.write_ratios_csv(exp.ratios_csv, written, baseline,
-                                    lambda m: sessions.find_session(roots, m).ratio)
+            roots = sessions.session_roots(experiment_dir.parent)
+            # asked once a cell: each machine's calibration file is read once
+            session_of = functools.cache(lambda m: sessions.find_session(roots, m).ratio)
+            ratios.write_ratios_csv(exp.ratios_csv, written, baseline, session_of)
     return [r.result for r in rows]
 
 

@@ -7,12 +7,22 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from harness.stats.levels import DEFAULT_SESSION_SPREAD, SessionSpread
+from harness.repo import DEFAULT_RESULTS_DIR
 from harness.store import atomic, records
 from harness.store.layout import ResultsRoot
 
+if TYPE_CHECKING:  # stats.levels imports scipy, which an unchanged report page never loads
+    from harness.stats.levels import SessionSpread
+
 SESSION_KEY = "session"  # the entry `reruns` keeps beside a machine's description
+
+
+def session_roots(results_dir: Path) -> tuple[Path, ...]:
+    """Where a run under this results root looks for its machine's spread: the root, then the
+    repository's."""
+    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
 
 
 def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
@@ -37,12 +47,19 @@ def newest_entry(roots: Iterable[Path], machine_id: str) -> Mapping[str, object]
 def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
     """The newest session spread `reruns` kept for the machine under any of the roots;
     DEFAULT_SESSION_SPREAD where none has one."""
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+
     newest = newest_entry(roots, machine_id)
-    if newest is None:
-        return DEFAULT_SESSION_SPREAD
-    return SessionSpread(float(newest["absolute"]), float(newest["ratio"]),  # type: ignore[arg-type]
-                         f"learnt by reruns of {newest.get('config', '?')} on machine "
-                         f"{machine_id} ({newest.get('date', '?')})")
+    return DEFAULT_SESSION_SPREAD if newest is None else spread_of(newest, machine_id)
+
+
+def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
+    """The spread a `reruns` entry (session_entry) holds, naming where it was learnt."""
+    from harness.stats.levels import SessionSpread
+
+    return SessionSpread(float(entry["absolute"]), float(entry["ratio"]),  # type: ignore[arg-type]
+                         f"learnt by reruns of {entry.get('config', '?')} on machine "
+                         f"{machine_id} ({entry.get('date', '?')})")
 
 
 def keep_session(root: Path, machine_id: str, description: Mapping[str, object],
