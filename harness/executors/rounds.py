@@ -16,13 +16,15 @@ import random
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from harness.executors.base import Progress
 from harness.measure.cell import Measurer
-from harness.measure.rounds import CellRun, runs_left
+from harness.measure.rounds import CellRun, runs_a_round, runs_left
 from harness.plan.cells import Cell
+from harness.spec.facts import BASELINE
 from harness.store.columns import STOPPED_CI
+from harness.store.ratios import references
 from harness.store.result import CellResult
 
 # A paired cell's round times a few runs a side, about PAIRED_ROUND_S of them (at most
@@ -42,6 +44,9 @@ class Unit:
     run: CellRun | None = None
     seconds: float = 0.0  # spent measuring it
     partner: Unit | None = None
+    # The cells a ratio joins this one to (ratios.csv: its references, the cells it is a
+    # reference of): a ratio is taken in the rounds both sides have (harness.store.ratios)
+    ratio_sides: list[Unit] = field(default_factory=list)
 
     @property
     def state(self) -> CellRun:
@@ -77,6 +82,36 @@ def pair_up(units: Sequence[Unit]) -> None:
                 a.stopped = ""
             else:
                 b.stopped = a.stopped
+
+
+def join_ratios(units: Sequence[Unit]) -> None:
+    """Join each cell to the cells of its ratios (store.ratios.references: its variant at one
+    thread, the baseline), among the cells of its scene, build and schedule that one measurer
+    times (the two sides of a comparison are apart)."""
+    groups: dict[tuple[object, ...], dict[tuple[str, int], Unit]] = {}
+    for unit in units:
+        if unit.partner is not None:  # a comparison's cell stops with its partner
+            continue
+        cell = unit.cell
+        key = (id(unit.measurer), cell.build, cell.scene, cell.schedule, cell.program)
+        groups.setdefault(key, {}).setdefault((cell.variant, cell.threads), unit)
+    for group in groups.values():
+        for (variant, threads), unit in group.items():
+            for _, reference in references(group, variant, threads, BASELINE):
+                if reference is not unit:
+                    unit.ratio_sides.append(reference)
+                    reference.ratio_sides.append(unit)
+
+
+def hold_for_ratios(units: Sequence[Unit]) -> None:
+    """A cell whose interval stopped it goes on while a cell of its ratios still takes
+    rounds: a ratio's interval is over the rounds both sides have, so a reference that
+    stops at five rounds would leave its ratios five whatever their cells took."""
+    going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
+    for unit in units:
+        if unit.run is not None and unit.run.stopped == STOPPED_CI and any(
+                id(side) in going for side in unit.ratio_sides):
+            unit.run.stopped = ""
 
 
 def paired_per_round(run_s: float) -> int:
@@ -134,10 +169,14 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         started = time.monotonic()
         unit.run = unit.measurer.start(unit.cell, unit.cell_id)
         unit.run.record = unit.run.record.replace(round_seed=seed)
+        if not unit.run.times:  # a resumed cell keeps the rounds it started with
+            unit.run.per_round = runs_a_round(
+                unit.measurer.config.measure_for(unit.cell.variant), unit.run.run_s)
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
         active.append(unit)
     share_rounds(active)
+    join_ratios(active)
     round_index = max((u.state.rounds[-1] for u in active if u.state.rounds), default=0)
     active = _finish_done(active, on_done)
     overhead = 0.0  # seconds a round's hyperfine call takes beyond its runs
@@ -154,6 +193,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
             runs += sum(unit.state.times[before:])
         overhead = max(0.0, spent - runs) / len(order)
         pair_up(order)
+        hold_for_ratios(active)
         status = extend(order) if extend is not None else ""
         for unit in order:
             unit.measurer.keep(unit.state)

@@ -8,6 +8,7 @@ import math
 import statistics
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import TypeVar
 
 from harness import stats
 from harness.store import atomic
@@ -21,6 +22,7 @@ from harness.store.columns import (
 from harness.store.csvfile import csv_text
 
 Row = Mapping[str, object]
+T = TypeVar("T")
 # What a ratio's two cells share: the machine and what they measured, but for the variant and
 # its threads.
 _SHARED = ("machine_id", *(c for c in MATCH_COLUMNS if c not in ("variant", "threads")))
@@ -56,10 +58,11 @@ def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def _references(cells: Mapping[tuple[str, int], Row], variant: str, threads: int,
-                baseline: str) -> list[tuple[str, Row]]:
-    """The cell's references among the cells of its group: its variant at one thread, and
-    the baseline (at one thread, else at the cell's threads, else its fewest); none for the
+def references(cells: Mapping[tuple[str, int], T], variant: str, threads: int,
+               baseline: str) -> list[tuple[str, T]]:
+    """The cell's references among the cells of its group (by variant and threads; rows, or
+    cells being measured: harness.executors.rounds): its variant at one thread, and the
+    baseline (at one thread, else at the cell's threads, else its fewest); none for the
     baseline itself."""
     if variant == baseline:  # one thread whatever the cell asks: its own ratios say nothing
         return []
@@ -87,7 +90,7 @@ def ratio_rows(rows: Iterable[Row], baseline: str,
         for (variant, threads), cell in cells.items():
             machine = str(cell.get("machine_id") or "")
             session = session_of(machine)
-            for kind, reference in _references(cells, variant, threads, baseline):
+            for kind, reference in references(cells, variant, threads, baseline):
                 ratio = ratio_of(reference, cell, session)
                 found.append({**{c: cell.get(c) for c in RATIO_COLUMNS}, "kind": kind,
                               "reference_variant": reference["variant"],

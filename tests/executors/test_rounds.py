@@ -71,6 +71,17 @@ class FakeMeasurer:
 class Cell:
     label = "c"
     variant = "v"
+    threads = 1
+    build = "f64"
+    scene = "s"
+    schedule = ""
+    program = False
+
+
+@dataclass(frozen=True)
+class NamedCell(Cell):
+    variant: str = "v"
+    threads: int = 1
 
 
 def units(measurer: FakeMeasurer, ids: list[str]) -> list[Unit]:
@@ -142,6 +153,43 @@ def test_partners_share_a_few_runs_a_round_by_the_slower_ones_time() -> None:
     # 8 rounds of 3 runs each, then done
     assert next_runs(fixed, [0.1] * 21, 3) == 3 and stop_reason(fixed, [0.1] * 21, 3) == ""
     assert stop_reason(fixed, [0.1] * 24, 3) == "runs" and next_runs(fixed, [0.1] * 24, 3) == 0
+
+
+def test_a_short_cell_times_several_runs_a_round() -> None:
+    log: list[str] = []
+    measurer = FakeMeasurer(Measure(runs=None, max_runs=5, round_s=0.05), log, seconds=0.01)
+    measurer.time_round = lambda run, k: (  # type: ignore[method-assign]
+        run.times.extend([0.01] * next_runs(measurer.measure, run.times, run.per_round)),
+        run.rounds.extend([k] * (len(run.times) - len(run.rounds))),
+        setattr(run, "stopped", stop_reason(measurer.measure, run.times, run.per_round,
+                                            run.rounds)))
+    done: list[tuple[str, int]] = []
+    measure_in_rounds(units(measurer, ["a"]), lambda u, r: done.append((u.cell_id, r["runs"])),
+                      progress(["a"]), 1)
+    assert done == [("a", 25)]  # five rounds of ceil(0.05 / 0.01) runs
+
+
+def test_a_reference_takes_the_rounds_of_the_cells_whose_ratios_it_joins() -> None:
+    """seq's runs agree from the start (its interval stops it at five rounds), p1's spread
+    until its max_runs: seq goes on beside it, so that their ratio has all of p1's rounds."""
+    auto = Measure(warmup=0, runs=None, ci=0.02, max_runs=9)
+    spread = iter([0.10, 0.14, 0.08, 0.12, 0.09] * 4)
+
+    class Noisy(FakeMeasurer):
+        def time_round(self, run: CellRun, round_index: int) -> None:
+            run.times.append(0.1 if run.cell_id.startswith("seq") else next(spread))
+            run.rounds.append(round_index)
+            run.stopped = stop_reason(self.measure, run.times, 1, run.rounds)
+
+    measurer = Noisy(auto, [])
+    cells = {"seq": NamedCell("seq"), "p1": NamedCell("p1", 2), "seq-apart": NamedCell("seq")}
+    unit_list = [Unit(measurer, cell, cid) for cid, cell in cells.items()]  # type: ignore[arg-type]
+    unit_list[2] = Unit(FakeMeasurer(auto, []), cells["seq-apart"], "seq-apart")  # type: ignore[arg-type]
+    done: dict[str, int] = {}
+    measure_in_rounds(unit_list, lambda u, r: done.__setitem__(u.cell_id, r["runs"]),
+                      progress(list(cells)), 3)
+    # p1 runs to its max_runs, seq beside it; a cell another measurer times is not held
+    assert done == {"seq": 9, "p1": 9, "seq-apart": 5}
 
 
 def test_partners_are_timed_back_to_back_in_either_order() -> None:

@@ -28,7 +28,10 @@ def test_threads_config_loads_as_written() -> None:
     assert config.variants == ("p1d",)
     assert config.builds == ("f64",)
     assert config.threads == (1, 2, 4, 8, 16, 20, 32, 64, 128)
-    assert (config.measure.warmup, config.measure.runs, config.measure.timeout_s) == (1, 3, 600)
+    measure = config.measure
+    assert (measure.warmup, measure.runs, measure.timeout_s) == (1, None, 600)
+    assert (measure.ci, measure.max_runs) == (0.03, 10)
+    assert config.executor.omp_env() == {"OMP_PROC_BIND": "close", "OMP_PLACES": "cores"}
     assert config.validate.enabled and config.validate.max_n is None
     assert config.openmp_costs
     assert len(expand_points(config)) == 9
@@ -289,10 +292,11 @@ def test_bad_measure_by_variant(write_config, value: str, key: str, expected: st
 
 def test_runs_auto_takes_its_own_keys(write_config) -> None:
     config = load_config(write_config(
-        BASE + "measure: {runs: auto, ci: 0.05, max_runs: 12, max_time_s: 30}\n"))
+        BASE + "measure: {runs: auto, ci: 0.05, max_runs: 12, max_time_s: 30, round_s: 0.1}\n"))
     measure = config.measure
     assert measure.adaptive and measure.runs is None
-    assert (measure.ci, measure.max_runs, measure.max_time_s) == (0.05, 12, 30.0)
+    assert (measure.ci, measure.max_runs, measure.max_time_s, measure.round_s) == (
+        0.05, 12, 30.0, 0.1)
     assert measure.key()["runs"] == "auto" and measure.key()["ci"] == 0.05
     fixed = load_config(write_config(BASE)).measure
     assert fixed.key() == {"warmup": DEFAULT_WARMUP, "runs": DEFAULT_RUNS,
@@ -304,6 +308,8 @@ def test_runs_auto_takes_its_own_keys(write_config) -> None:
     ("{runs: auto, ci: 1.5}", "measure.ci", "a fraction in (0, 1)"),
     ("{runs: often}", "measure.runs", "a positive integer or auto"),
     ("{runs: auto, max_runs: 0}", "measure.max_runs", "a positive integer"),
+    ("{runs: 3, round_s: 0.1}", "measure.round_s", "runs: auto beside it"),
+    ("{runs: auto, round_s: -1}", "measure.round_s", "a non-negative number of seconds"),
 ])
 def test_adaptive_mistakes_name_the_key(write_config, measure: str, key: str,
                                         expected: str) -> None:
