@@ -83,19 +83,13 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
+    """A cell's row of results.csv: a projection of its record (CellResult.columns)."""
     row: dict[str, object] = {"experiment": experiment, "title": title}
     for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g)):
         row[column] = record.get(column)
     row.update(provenance(record, hyperfine_json))
     row["stale"] = stale
     return row
-
-
-def result_row(result: CellResult, experiment: str, title: str,
-               hyperfine_json: Path | None = None, stale: bool | None = None
-               ) -> dict[str, object]:
-    """A cell's row of results.csv: a projection of its result."""
-    return csv_row(result.columns, experiment, title, hyperfine_json, stale)
 
 
 def format_cell(value: object) -> str:

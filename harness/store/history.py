@@ -91,8 +91,8 @@ def load_history(experiment_dir: Path) -> list[dict[str, object]]:
     measurements"), as results.csv's rows: `wall_times_s` and its interval filled in where
     hyperfine's JSON is kept."""
     history = ExperimentDir(experiment_dir).history
-    return [csvfile.result_row(item.result, "", "",
-                               history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
+    return [csvfile.csv_row(item.result.columns, "", "",
+                            history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
             for item in sorted(load_records(history), key=lambda s: s.age)]
 
 
