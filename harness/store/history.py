@@ -116,7 +116,6 @@ def current_by_machine(members: Sequence[Stored]) -> dict[str, Stored]:
 
 
 def superseded(stored: Iterable[Stored]) -> list[Stored]:
-    """The records that are not current (current_by_machine)."""
     out = []
     for members in by_group(stored).values():
         current = current_by_machine(members)

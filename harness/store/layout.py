@@ -79,10 +79,6 @@ QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
 INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
 
-def experiment_name(name: str, quick: bool) -> str:
-    return name + (QUICK_SUFFIX if quick else "")
-
-
 class _Under:
     """A file or directory at a fixed place under the owner's `path`: one line per name."""
 
@@ -178,7 +174,7 @@ class ResultsRoot:
     calibration_runs = _Under(CALIBRATION_DIR, CALIBRATION_RUNS)
 
     def experiment(self, name: str, quick: bool = False) -> ExperimentDir:
-        return ExperimentDir(self.path / experiment_name(name, quick))
+        return ExperimentDir(self.path / (name + (QUICK_SUFFIX if quick else "")))
 
     def baseline(self, key: str) -> Path:
         return self.path / CACHE_DIR / BASELINES / f"{key}{OUTPUT_SUFFIX}"

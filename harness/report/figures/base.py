@@ -208,7 +208,6 @@ MARK_STYLES: dict[str, dict[str, object]] = {
 
 
 def marker_handles(marks: Marks) -> list[Line2D]:
-    """Legend entries that say what the special markers mean."""
     return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
             for name, style in MARK_STYLES.items() if getattr(marks, name)]
 
