@@ -123,11 +123,10 @@ def superseded(stored: Iterable[Stored]) -> list[Stored]:
     return out
 
 
-def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
+def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> None:
     """Move records with their hyperfine JSON (and kept --precise output) to history/."""
     exp = ExperimentDir(experiment_dir)
     history = exp.history
-    moved = 0
     for item in items:
         history.mkdir(parents=True, exist_ok=True)
         cid = item.cell_id
@@ -137,8 +136,6 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
             if source.is_file():
                 os.replace(source, target)
         os.replace(item.path, history / item.path.name)  # the record last: it names the rest
-        moved += 1
-    return moved
 
 
 @dataclass(frozen=True)
