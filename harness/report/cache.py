@@ -140,8 +140,6 @@ class Manifest:
         data = self._read()
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})
         self.parts: dict[str, dict[str, Any]] = data.get("parts", {})
-        self.drawn: list[str] = []  # stems drawn by this render, in order
-        self.reused: list[str] = []  # stems whose files were kept
         self.touched: list[str] = []  # stems drawn or kept, in order
         self._used_figures: set[str] = set()
         self._used_parts: set[str] = set()
@@ -184,13 +182,11 @@ class Manifest:
         self.touched.append(stem.name)
         entry = self.figures.get(stem.name)
         if entry is not None and entry.get("key") == key and self._intact(entry):
-            self.reused.append(stem.name)
             return [self.fig_dir / name for name in entry["files"]]
         result = function(data, stem, *more, **kwargs)
         paths = [result] if isinstance(result, Path) else list(result)
         self.figures[stem.name] = {"key": key,
                                    "files": {p.name: sha256_file(p) for p in paths}}
-        self.drawn.append(stem.name)
         return paths
 
     # --- experiment parts ------------------------------------------------------------------
@@ -208,7 +204,6 @@ class Manifest:
         if not all(f in self.figures and self._intact(self.figures[f]) for f in figures):
             return None
         self._used_figures.update(figures)
-        self.reused.extend(figures)
         return entry["part"]
 
     def put_part(self, name: str, key: str, part: dict[str, Any], figures: list[str]) -> None:

@@ -48,7 +48,7 @@ def find_experiments(
     return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
 
 
-def _file_digest(path: Path) -> str:
+def file_digest(path: Path) -> str:
     return sha256_file(path) if path.is_file() else "absent"
 
 
@@ -58,19 +58,19 @@ def input_digest(exp: ExperimentDir) -> str:
     input)."""
     parts: dict[str, object] = {
         "name": exp.name,
-        layout.RESULTS_CSV: _file_digest(exp.results_csv),
-        layout.ENV_JSON: _file_digest(exp.env_json),
-        layout.DIVERGENCE_CSV: _file_digest(exp.divergence_csv),
-        layout.VARIANTS_JSON: _file_digest(exp.variants_json),
+        layout.RESULTS_CSV: file_digest(exp.results_csv),
+        layout.ENV_JSON: file_digest(exp.env_json),
+        layout.DIVERGENCE_CSV: file_digest(exp.divergence_csv),
+        layout.VARIANTS_JSON: file_digest(exp.variants_json),
     }
     if exp.ratios_csv.is_file():  # absent, the digest of results from before ratios stands
-        parts[layout.RATIOS_CSV] = _file_digest(exp.ratios_csv)
+        parts[layout.RATIOS_CSV] = file_digest(exp.ratios_csv)
     outputs = exp.outputs
     if outputs.is_dir():
         for path in sorted(outputs.iterdir()):
             stat = path.stat()
             parts[f"{layout.OUTPUTS}/{path.name}"] = (
-                _file_digest(path) if stat.st_size <= HASHED_OUTPUT_BYTES
+                file_digest(path) if stat.st_size <= HASHED_OUTPUT_BYTES
                 else f"{stat.st_size}:{stat.st_mtime_ns}")
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 

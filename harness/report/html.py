@@ -27,7 +27,6 @@ def _markdown() -> MarkdownIt:
 
 
 def inline(text: str) -> Markup:
-    """Running text (CommonMark inline markup) as HTML."""
     return Markup(_markdown().renderInline(text))
 
 

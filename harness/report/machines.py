@@ -34,7 +34,6 @@ class Machine:
     id: str
     label: str
     last_measured: str  # the latest measured_at of its cells (ISO 8601, sorts as text)
-    cells: int
     name: str = ""  # how pages call it: its label, with the start of its id where shared
 
 
@@ -82,7 +81,7 @@ def machines(rows: Rows, preferred: Collection[str] = ()) -> list[Machine]:
     for machine_id, own in seen.items():
         labels = sorted({(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
         last = max((r.get(MEASURED_AT) or "" for r in own), default="")
-        found.append(Machine(machine_id, labels[0] if labels else "", last, len(own)))
+        found.append(Machine(machine_id, labels[0] if labels else "", last))
     found = [dataclasses.replace(m, name=_name(m, found)) for m in found]
     by_id = sorted(found, key=lambda m: m.id)
     # Stable: equal keys keep the order by id.

@@ -5,7 +5,7 @@ is read back from the manifest instead of rebuilt. Standard library only."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,11 +35,7 @@ class Fidelity:
     programs_agree: int = 0  # identical, rounding or diverges
 
     def __add__(self, other: Fidelity) -> Fidelity:
-        return Fidelity(*(a + b for a, b in zip(self.counts(), other.counts(), strict=True)))
-
-    def counts(self) -> tuple[int, ...]:
-        return (self.validated, self.identical, self.invalid, self.checked, self.checks_passed,
-                self.programs, self.programs_agree)
+        return Fidelity(*(a + b for a, b in zip(astuple(self), astuple(other), strict=True)))
 
 
 # In the summary's order; "phases": where grid's time goes.
@@ -63,7 +59,7 @@ class ExperimentPart:
             "warnings": None if self.warnings is None else to_json(self.warnings, base),
             "warning_kinds": [list(r) for r in self.warning_kinds],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
-            "fidelity": list(self.fidelity.counts()), "fidelity_anchor": self.fidelity_anchor,
+            "fidelity": list(astuple(self.fidelity)), "fidelity_anchor": self.fidelity_anchor,
             "programs_anchor": self.programs_anchor,
         }
 

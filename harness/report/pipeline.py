@@ -66,8 +66,7 @@ def _with_warnings(part: ExperimentPart) -> Section:
     if details is None:
         return part.section
     blocks = part.section.blocks
-    return Section(part.section.title, part.section.anchor,
-                   (*blocks[:1], details, *blocks[1:]), part.section.subsections)
+    return dataclasses.replace(part.section, blocks=(*blocks[:1], details, *blocks[1:]))
 
 
 def build_document(

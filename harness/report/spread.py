@@ -13,9 +13,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from harness.report.cache import Manifest
+from harness.report.discover import file_digest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
-from harness.store.records import sha256_file
 from harness.store.sessions import find_session, newest_entry, session_roots
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
@@ -32,7 +32,7 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
     machine = _known(machine_id)
     paths = [ResultsRoot(root).calibration(machine) for root in session_roots(results_dir)] \
         if machine is not None else []
-    digests = [sha256_file(p) if p.is_file() else "absent" for p in paths]
+    digests = [file_digest(p) for p in paths]
     key = manifest.part_key("\0".join([str(machine), *digests]))
     stored = manifest.get_part(SESSION_PART, key)
     if stored is not None and isinstance(stored.get("text"), str):

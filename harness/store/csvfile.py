@@ -72,9 +72,7 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
             from harness import stats
 
             values[LOW_QUANTILE_COLUMN] = stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)
-        values["wall_times_s"] = list(times)
-    else:
-        values["wall_times_s"] = None
+    values["wall_times_s"] = list(times) if times else None
     warnings = record.get("hyperfine_warnings")
     if isinstance(warnings, list):
         values["outliers"] = any(hyperfine.OUTLIERS_WARNING in str(w) for w in warnings)
@@ -83,19 +81,10 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
             hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
-    row: dict[str, object] = {"experiment": experiment, "title": title}
-    for column in (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g)):
-        row[column] = record.get(column)
-    row.update(provenance(record, hyperfine_json))
-    row["stale"] = stale
-    return row
-
-
-def result_row(result: CellResult, experiment: str, title: str,
-               hyperfine_json: Path | None = None, stale: bool | None = None
-               ) -> dict[str, object]:
-    """A cell's row of results.csv: a projection of its result."""
-    return csv_row(result.columns, experiment, title, hyperfine_json, stale)
+    """A cell's row of results.csv: a projection of its record (CellResult.columns)."""
+    columns = (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g))
+    return {"experiment": experiment, "title": title, **{c: record.get(c) for c in columns},
+            **provenance(record, hyperfine_json), "stale": stale}
 
 
 def format_cell(value: object) -> str:

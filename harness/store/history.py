@@ -91,8 +91,8 @@ def load_history(experiment_dir: Path) -> list[dict[str, object]]:
     measurements"), as results.csv's rows: `wall_times_s` and its interval filled in where
     hyperfine's JSON is kept."""
     history = ExperimentDir(experiment_dir).history
-    return [csvfile.result_row(item.result, "", "",
-                               history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
+    return [csvfile.csv_row(item.result.columns, "", "",
+                            history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
             for item in sorted(load_records(history), key=lambda s: s.age)]
 
 
@@ -116,7 +116,6 @@ def current_by_machine(members: Sequence[Stored]) -> dict[str, Stored]:
 
 
 def superseded(stored: Iterable[Stored]) -> list[Stored]:
-    """The records that are not current (current_by_machine)."""
     out = []
     for members in by_group(stored).values():
         current = current_by_machine(members)
@@ -124,11 +123,10 @@ def superseded(stored: Iterable[Stored]) -> list[Stored]:
     return out
 
 
-def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
+def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> None:
     """Move records with their hyperfine JSON (and kept --precise output) to history/."""
     exp = ExperimentDir(experiment_dir)
     history = exp.history
-    moved = 0
     for item in items:
         history.mkdir(parents=True, exist_ok=True)
         cid = item.cell_id
@@ -138,8 +136,6 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> int:
             if source.is_file():
                 os.replace(source, target)
         os.replace(item.path, history / item.path.name)  # the record last: it names the rest
-        moved += 1
-    return moved
 
 
 @dataclass(frozen=True)

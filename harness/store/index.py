@@ -90,8 +90,8 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
         if prune_first:
             stored = prune_locked(experiment_dir, stored)
         rows = current_rows(stored, planned, machine_id, exp)
-        written = [csvfile.result_row(r.result, experiment, title, r.hyperfine_json, r.stale)
-                   for r in rows]
+        written = [csvfile.csv_row(r.result.columns, experiment, title, r.hyperfine_json,
+                                   r.stale) for r in rows]
         csvfile.write_results_csv(exp.results_csv, written)
         if baseline is not None:
             roots = sessions.session_roots(experiment_dir.parent)

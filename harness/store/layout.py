@@ -79,8 +79,14 @@ QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
 INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
 
-def experiment_name(name: str, quick: bool) -> str:
-    return name + (QUICK_SUFFIX if quick else "")
+class _Under:
+    """A file or directory at a fixed place under the owner's `path`: one line per name."""
+
+    def __init__(self, *parts: str) -> None:
+        self.parts = parts
+
+    def __get__(self, owner: ExperimentDir | ResultsRoot, _type: type) -> Path:
+        return owner.path.joinpath(*self.parts)
 
 
 @dataclass(frozen=True)
@@ -88,22 +94,21 @@ class ExperimentDir:
     """The files of one experiment directory."""
 
     path: Path
+    cells = _Under(CELLS)
+    history = _Under(HISTORY)
+    results_csv = _Under(RESULTS_CSV)
+    history_csv = _Under(HISTORY_CSV)
+    history_commits = _Under(HISTORY_COMMITS)
+    ratios_csv = _Under(RATIOS_CSV)
+    divergence_csv = _Under(DIVERGENCE_CSV)
+    env_json = _Under(ENV_JSON)
+    variants_json = _Under(VARIANTS_JSON)
+    slurm = _Under(SLURM)
+    outputs = _Under(OUTPUTS)
 
     @property
     def name(self) -> str:
         return self.path.name
-
-    @property
-    def cells(self) -> Path:
-        return self.path / CELLS
-
-    @property
-    def history(self) -> Path:
-        return self.path / HISTORY
-
-    @property
-    def results_csv(self) -> Path:
-        return self.path / RESULTS_CSV
 
     def commit_root(self, commit: str) -> Path:
         """The results root of one commit's measurements (`history`)."""
@@ -115,38 +120,6 @@ class ExperimentDir:
     def bisect(self, old: str, new: str) -> Path:
         """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
         return self.history / BISECT / f"{old}-{new}"
-
-    @property
-    def history_csv(self) -> Path:
-        return self.path / HISTORY_CSV
-
-    @property
-    def history_commits(self) -> Path:
-        return self.path / HISTORY_COMMITS
-
-    @property
-    def ratios_csv(self) -> Path:
-        return self.path / RATIOS_CSV
-
-    @property
-    def divergence_csv(self) -> Path:
-        return self.path / DIVERGENCE_CSV
-
-    @property
-    def env_json(self) -> Path:
-        return self.path / ENV_JSON
-
-    @property
-    def variants_json(self) -> Path:
-        return self.path / VARIANTS_JSON
-
-    @property
-    def slurm(self) -> Path:
-        return self.path / SLURM
-
-    @property
-    def outputs(self) -> Path:
-        return self.path / OUTPUTS
 
     def record(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}{RECORD_SUFFIX}"
@@ -197,9 +170,11 @@ class ResultsRoot:
     """A results root: experiment directories and the caches they share."""
 
     path: Path
+    calibrations = _Under(CALIBRATION_DIR, MACHINES)
+    calibration_runs = _Under(CALIBRATION_DIR, CALIBRATION_RUNS)
 
     def experiment(self, name: str, quick: bool = False) -> ExperimentDir:
-        return ExperimentDir(self.path / experiment_name(name, quick))
+        return ExperimentDir(self.path / (name + (QUICK_SUFFIX if quick else "")))
 
     def baseline(self, key: str) -> Path:
         return self.path / CACHE_DIR / BASELINES / f"{key}{OUTPUT_SUFFIX}"
@@ -207,17 +182,9 @@ class ResultsRoot:
     def print_output(self, key: str) -> Path:
         return self.path / CACHE_DIR / PRINTS / f"{key}{OUTPUT_SUFFIX}"
 
-    @property
-    def calibrations(self) -> Path:
-        return self.path / CALIBRATION_DIR / MACHINES
-
     def calibration(self, machine_id: str) -> Path:
         """The machine's description with its calibration (`compare --calibrate`)."""
         return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
-
-    @property
-    def calibration_runs(self) -> Path:
-        return self.path / CALIBRATION_DIR / CALIBRATION_RUNS
 
 
 def is_record_name(name: str) -> bool:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import datetime
 import fcntl
+import functools
 import json
 import os
 import tempfile
@@ -129,17 +130,13 @@ class RunLock:
 
     def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
                  path: Path | None = None) -> None:
-        self.configs = configs
-        self.wait = wait
-        self.log = log
-        self.path = path
+        self._lock = functools.partial(measuring_lock, configs, wait, log, path)
         self._stack = contextlib.ExitStack()
         self.held = False
 
     def acquire(self) -> None:
         if not self.held:
-            self._stack.enter_context(measuring_lock(self.configs, self.wait, self.log,
-                                                     self.path))
+            self._stack.enter_context(self._lock())
             self.held = True
 
     def release(self) -> None:

@@ -89,7 +89,7 @@ class TextMap:
     @classmethod
     def from_json(cls, raw: object, where: str) -> TextMap:
         mapping = _mapping(raw, where)
-        return cls(tuple((str(k), _typed(v, str, f"{where}.{k}")) for k, v in mapping.items()))
+        return cls(tuple((str(k), typed(v, str, f"{where}.{k}")) for k, v in mapping.items()))
 
 
 @dataclass(frozen=True)
@@ -218,43 +218,49 @@ def _parse(cls: type, raw: object, where: str) -> typing.Any:
     unknown = sorted(set(mapping) - set(known))
     if unknown:
         raise KeyFormatError(f"{where}: unknown field(s) {', '.join(unknown)}")
-    hints = _hints(cls)
+    hints = type_hints(cls)
     values: dict[str, object] = {}
     for name, f in known.items():
         if name not in mapping:
             if not f.metadata["optional"]:
                 raise KeyFormatError(f"{where}.{name}: missing")
             continue
-        values[name] = _typed(mapping[name], hints[name], f"{where}.{name}")
+        values[name] = typed(mapping[name], hints[name], f"{where}.{name}")
     return cls(**values)
 
 
 @functools.cache
-def _hints(cls: type) -> dict[str, typing.Any]:
+def type_hints(cls: type) -> dict[str, typing.Any]:
     return typing.get_type_hints(cls)
 
 
-def _typed(value: object, hint: object, where: str) -> typing.Any:
-    """`value` checked against the annotation `hint`, with nested keys parsed; JSON numbers
-    keep their own type (an int stays an int where a float is allowed), as the id hashes it."""
-    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
-    if value is None and type(None) in options:
-        return None
-    for option in options:
-        origin = typing.get_origin(option)
+def typed(value: object, hint: object, where: str,
+          error: type[ValueError] = KeyFormatError) -> typing.Any:
+    """`value` checked against the annotation `hint`, with nested keys parsed; `error` naming
+    `where` when it is not one. JSON numbers keep their own type (an int stays an int where a
+    float is allowed), as the id hashes them and as a record reads back."""
+    for origin, option in _options(hint):
+        if option is type(value) or (option is float and type(value) is int):
+            return value
         if origin is tuple and isinstance(value, list):
-            (item,) = typing.get_args(option)[:1]
-            return tuple(_typed(v, item, f"{where}[{i}]") for i, v in enumerate(value))
+            item = typing.get_args(option)[0]
+            if all(type(v) is item for v in value):  # the common case, at once
+                return tuple(value)
+            return tuple(typed(v, item, f"{where}[{i}]", error) for i, v in enumerate(value))
+        if origin is dict and isinstance(value, dict):
+            return value
         if isinstance(option, type) and hasattr(option, "from_json"):
             return option.from_json(value, where)
         if isinstance(option, type) and is_dataclass(option):
             return _parse(option, value, where)
-        if option is float and isinstance(value, (int, float)) and not isinstance(value, bool):
-            return value
-        if isinstance(option, type) and isinstance(value, option) and not (
-                option is int and isinstance(value, bool)):
-            return value
-    raise KeyFormatError(f"{where}: {value!r} is not {hint}")
+    raise error(f"{where}: {value!r} is not {getattr(hint, '__name__', None) or hint}")
+
+
+@functools.cache
+def _options(hint: object) -> tuple[tuple[object, object], ...]:
+    """The types a value of `hint` may have, each with its generic origin (tuple, dict)."""
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    return tuple((typing.get_origin(option), option) for option in options)
 
 
 def _mapping(raw: object, where: str) -> Mapping[str, object]:

@@ -40,7 +40,7 @@ from harness.store.measured import (
     Timing,
     Validation,
 )
-from harness.store.model import CellKey, KeyFormatError
+from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
 # The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
 # Version 1, their items space-separated, is read as well.
@@ -135,13 +135,13 @@ class CellResult:
     def replace(self, **changes: object) -> CellResult:
         """A copy with these fields changed; a group's fields by their names, merged into
         the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
-        names, groups = _leaf_names(), _group_types()
+        leaves, groups = _leaves(), _group_types()
         top = {k: _or_none(v) if k in groups and v is not None else v
-               for k, v in changes.items() if k not in names}
+               for k, v in changes.items() if k not in leaves}
         merged: dict[str, dict[str, object]] = {}
         for name, value in changes.items():
-            if name in names:
-                merged.setdefault(names[name], {})[name] = value
+            if name in leaves:
+                merged.setdefault(leaves[name][0], {})[name] = value
         for group, values in merged.items():
             current = getattr(self, group)
             cls = groups[group]
@@ -162,7 +162,7 @@ class CellResult:
             raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
                                     f"{', '.join(map(str, READ_VERSIONS))}")
         values = {k: v for k, v in raw.items() if k != "version" and v is not None}
-        unknown = sorted(set(values) - set(_leaf_names()) - _TOP_NAMES)
+        unknown = sorted(set(values) - set(_leaves()) - _TOP_NAMES)
         if unknown:
             raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
         if raw["version"] == 1:
@@ -170,33 +170,31 @@ class CellResult:
         return _parse(values)
 
 
+# A record's fields are read as a key's are, refused as a record's.
+_typed = functools.partial(typed, error=RecordFormatError)
 _TOP_NAMES = frozenset({"cell_id", "key", "status", "exit_code", "note", TIMES_FIELD,
                         ROUNDS_FIELD})
 
 
 def record_fields() -> frozenset[str]:
     """Every name a record's field may have."""
-    return _TOP_NAMES | set(_leaf_names())
-
-
-@functools.cache
-def _hints(cls: type) -> dict[str, typing.Any]:
-    return typing.get_type_hints(cls)
+    return _TOP_NAMES | set(_leaves())
 
 
 @functools.cache
 def _group_types() -> dict[str, type]:
     """CellResult's groups (its fields of a dataclass's type), with their types."""
-    hints = _hints(CellResult)
+    hints = type_hints(CellResult)
     groups = {f.name: typing.get_args(hints[f.name])[0] for f in fields(CellResult)
               if isinstance(hints[f.name], types.UnionType)}
     return {name: cls for name, cls in groups.items() if is_dataclass(cls)}
 
 
 @functools.cache
-def _leaf_names() -> dict[str, str]:
-    """Each group field's name in the record, with its group's."""
-    return {leaf.name: group for group, cls in _group_types().items() for leaf in fields(cls)}
+def _leaves() -> dict[str, tuple[str, object]]:
+    """Each group field's name in the record, with its group's name and its type."""
+    return {name: (group, hint) for group, cls in _group_types().items()
+            for name, hint in type_hints(cls).items()}
 
 
 def _or_none(group: typing.Any) -> typing.Any:
@@ -242,11 +240,11 @@ def _parse(values: Mapping[str, object]) -> CellResult:
     except KeyFormatError as exc:
         raise RecordFormatError(f"record.{exc}") from exc
     top: dict[str, typing.Any] = {"key": key, "times": _runs(values)}
-    hints = _hints(CellResult)
+    hints = type_hints(CellResult)
     for name in ("cell_id", "status", "exit_code", "note"):
         if name in values or name == "cell_id":
             top[name] = _typed(values.get(name), hints[name], f"record.{name}")
-    leaves, groups = _leaf_hints(), _group_types()
+    leaves, groups = _leaves(), _group_types()
     present: dict[str, dict[str, object]] = {}
     for name, value in values.items():
         if name in leaves:
@@ -255,13 +253,6 @@ def _parse(values: Mapping[str, object]) -> CellResult:
     for group, found in present.items():
         top[group] = groups[group](**found)
     return CellResult(**top)
-
-
-@functools.cache
-def _leaf_hints() -> dict[str, tuple[str, object]]:
-    """Each group field's name in the record, with its group and its type."""
-    return {name: (group, _hints(_group_types()[group])[name])
-            for name, group in _leaf_names().items()}
 
 
 def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:
@@ -274,30 +265,3 @@ def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:
         raise RecordFormatError(f"record.{ROUNDS_FIELD}: {len(rounds)} rounds for "
                                 f"{len(times)} runs")
     return tuple(TimedRun(t, r) for t, r in zip(times, rounds, strict=True))
-
-
-def _typed(value: object, hint: object, where: str) -> typing.Any:
-    """`value` checked against the annotation `hint`; JSON numbers keep their own type (an
-    int stays an int where a float is allowed), so that a record reads back as it was."""
-    for origin, option in _options(hint):
-        if option is type(value) or (option is float and type(value) is int):
-            return value
-        if origin is tuple and isinstance(value, list):
-            item = typing.get_args(option)[0]
-            if all(type(v) is item for v in value):  # the common case, at once
-                return tuple(value)
-            return tuple(_typed(v, item, f"{where}[{i}]") for i, v in enumerate(value))
-        if origin is dict and isinstance(value, dict):
-            return value
-    raise RecordFormatError(f"{where}: {value!r} is not {_name(hint)}")
-
-
-@functools.cache
-def _options(hint: object) -> tuple[tuple[object, object], ...]:
-    """The types a value of `hint` may have, each with its generic origin (tuple, dict)."""
-    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
-    return tuple((typing.get_origin(option), option) for option in options)
-
-
-def _name(hint: object) -> str:
-    return getattr(hint, "__name__", None) or str(hint)

@@ -73,8 +73,8 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
         assert set(remote.columns) == set(local.columns)
         exports = store.layout.hyperfine_exports(cid)
         assert [p.name for p in exports] == remote.value("hyperfine_exports") and exports
-        local_row = csvfile.result_row(local, config.name, config.title)
-        remote_row = csvfile.result_row(remote, config.name, config.title)
+        local_row = csvfile.csv_row(local.columns, config.name, config.title)
+        remote_row = csvfile.csv_row(remote.columns, config.name, config.title)
         assert list(local_row) == list(remote_row)  # the same results.csv columns
     assert sorted(p.name for p in store.cells_dir.glob("*.json")
                   if ".hyperfine." not in p.name) == sorted(f"{c}.json"

@@ -9,8 +9,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
@@ -19,7 +17,6 @@ from harness.analysis.cells import sort_cells
 from harness.analysis.display import format_value
 from harness.report.figures.base import (
     BUILD_MARKERS,
-    DPI,
     LEGEND_RIGHT_MARGINS,
     MARGINS,
     TIME_LABEL,
@@ -179,10 +176,9 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
     truth). Pass one scene's rows of divergence.csv. Zero deviations sit on a dotted floor a
     decade below the smallest nonzero one; a dashed line marks a deviation of one radius."""
     references = [r for r in DIVERGENCE_REFERENCES if (div["reference"] == r).any()]
-    fig = Figure(figsize=DIVERGENCE_FIGSIZE, dpi=DPI)
-    FigureCanvasAgg(fig)
-    fig.subplots_adjust(**DIVERGENCE_MARGINS, wspace=0.25)
-    axes = fig.subplots(1, max(1, len(references)), sharey=True, squeeze=False)[0]
+    fig, axes = new_figure(DIVERGENCE_FIGSIZE, {**DIVERGENCE_MARGINS, "wspace": 0.25},
+                           ncols=max(1, len(references)), sharey=True, squeeze=False)
+    axes = axes[0]
     values = div["max_pos_dev"].to_numpy(dtype=float)
     finite = values[np.isfinite(values)]
     floor = error_floor(pd.Series(finite))

@@ -16,7 +16,7 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import matplotlib as mpl
 import numpy as np
@@ -70,9 +70,9 @@ TITLE_MARGIN_PT = 4  # between a wrapped title and the figure's top edge
 # --- the figure and its files --------------------------------------------------------------
 
 
-def new_figure(figsize: tuple[float, float] = FIGSIZE, margins: dict[str, float] | None = None
-               ) -> tuple[Figure, Axes]:
-    """A figure on an Agg canvas with one axes.
+def new_figure(figsize: tuple[float, float] = FIGSIZE, margins: dict[str, float] | None = None,
+               **subplots: Any) -> tuple[Figure, Any]:
+    """A figure on an Agg canvas with one axes (or, with `subplots`, Figure.subplots' grid).
 
     Margins are fixed rather than computed by a layout engine: constrained layout measured
     every tick label on every save and made a report take tens of seconds, not a few.
@@ -80,7 +80,7 @@ def new_figure(figsize: tuple[float, float] = FIGSIZE, margins: dict[str, float]
     fig = Figure(figsize=figsize, dpi=DPI)
     FigureCanvasAgg(fig)
     fig.subplots_adjust(**(margins or MARGINS))
-    return fig, fig.subplots()
+    return fig, fig.subplots(**subplots)
 
 
 def save_figure(fig: Figure, stem: Path) -> list[Path]:
@@ -162,10 +162,8 @@ def series_groups(df: pd.DataFrame, keys: Sequence[str]) -> list[tuple[tuple, pd
     ordered = sort_cells(df, keys)
     if not keys:
         return [((), ordered)] if len(ordered) else []
-    out = []
-    for values, group in ordered.groupby(list(keys), sort=False, dropna=False):
-        out.append((values if isinstance(values, tuple) else (values,), group))
-    return out
+    return [(values if isinstance(values, tuple) else (values,), group)
+            for values, group in ordered.groupby(list(keys), sort=False, dropna=False)]
 
 
 def plot_series(
@@ -193,18 +191,9 @@ def plot_series(
     failed = rows[~rows["status"].isin(TIMED_STATUSES)]
     if len(failed):
         marks.failed = True
-        ax.plot(
-            failed[x].to_numpy(dtype=float),
-            np.full(len(failed), 0.03),
-            "v",
-            ls="none",
-            mfc=color,
-            mec="red",
-            mew=1.5,
-            ms=8,
-            transform=ax.get_xaxis_transform(),
-            clip_on=False,
-        )
+        ax.plot(failed[x].to_numpy(dtype=float), np.full(len(failed), 0.03), "v", ls="none",
+                mfc=color, mec="red", mew=1.5, ms=8, transform=ax.get_xaxis_transform(),
+                clip_on=False)
 
 
 # What each special marker of Marks looks like in the legend, in the legend's order.
@@ -219,7 +208,6 @@ MARK_STYLES: dict[str, dict[str, object]] = {
 
 
 def marker_handles(marks: Marks) -> list[Line2D]:
-    """Legend entries that say what the special markers mean."""
     return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
             for name, style in MARK_STYLES.items() if getattr(marks, name)]
 
@@ -272,9 +260,8 @@ def positive_values(values: pd.Series | np.ndarray) -> np.ndarray:
 def wants_log(values: pd.Series | np.ndarray) -> bool:
     """Whether positive data spans enough decades that a log axis reads better."""
     arr = positive_values(values)
-    return len(arr) > 1 and len(arr) == len(np.asarray(values)) and arr.max() / arr.min() >= (
-        LOG_RATIO
-    )
+    return (len(arr) > 1 and len(arr) == len(np.asarray(values))
+            and arr.max() / arr.min() >= LOG_RATIO)
 
 
 def compact_number(value: float) -> str:
@@ -304,11 +291,8 @@ def log_axis(ax: Axes, which: str, values: pd.Series | np.ndarray, base: int = 1
     The default labels are mathtext (10^x), whose typesetting dominated render time. Across
     few decades the 2x and 5x ticks are labelled too, so the axis never shows a lone label.
     """
-    if which == "x":
-        ax.set_xscale("log", base=base)
-    else:
-        ax.set_yscale("log", base=base)
-    axis = ax.xaxis if which == "x" else ax.yaxis
+    getattr(ax, f"set_{which}scale")("log", base=base)
+    axis = getattr(ax, f"{which}axis")
     axis.set_major_formatter(FuncFormatter(_plain_tick))
     positive = positive_values(values)
     few_decades = len(positive) and np.log10(positive.max() / positive.min()) < MINOR_LABEL_DECADES

@@ -12,10 +12,8 @@ from harness.report.figures.base import compact_number, new_figure, save_figure,
 
 def work_figure(work: pd.DataFrame, stem: Path) -> list[Path]:
     """Two panels of grouped bars: busy seconds and pair tests per thread, per variant."""
-    fig, ax = new_figure(margins={"left": 0.1, "right": 0.98, "bottom": 0.12,
-                                        "top": 0.8, "wspace": 0.4})
-    ax.remove()
-    panels = fig.subplots(1, 2)
+    fig, panels = new_figure(margins={"left": 0.1, "right": 0.98, "bottom": 0.12, "top": 0.8,
+                                      "wspace": 0.4}, ncols=2)
     variants = list(dict.fromkeys(work["variant"]))
     width = 0.8 / len(variants)
     for panel, column, label in ((panels[0], "busy_s", "busy seconds in the pair finder"),

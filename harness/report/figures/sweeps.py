@@ -175,10 +175,8 @@ def fig_speedup(df: pd.DataFrame, out: Path, *, title: str | None = None) -> lis
             log_axis(ax, "y", p, 2)
         return "ideal S = p"
 
-    return _thread_metric_figure(
-        df, "speedup", "speedup S = T(baseline) / T(p)", title or "Speedup against threads",
-        out, ideal,
-    )
+    return _thread_metric_figure(df, "speedup", "speedup S = T(baseline) / T(p)",
+                                 title or "Speedup against threads", out, ideal)
 
 
 def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
@@ -190,10 +188,8 @@ def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
         ax.set_ylim(0, top)
         return "ideal E = 1"
 
-    return _thread_metric_figure(
-        df, "efficiency", "parallel efficiency E = S / p", title or "Efficiency against threads",
-        out, ideal,
-    )
+    return _thread_metric_figure(df, "efficiency", "parallel efficiency E = S / p",
+                                 title or "Efficiency against threads", out, ideal)
 
 
 def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
@@ -202,7 +198,6 @@ def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
         ax.axhline(0.0, ls="--", color="black", lw=1)
         return "ideal e = 0"
 
-    return _thread_metric_figure(
-        df[df["threads"] > 1], "serial_fraction", "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
-        title or "Karp–Flatt serial fraction against threads", out, ideal,
-    )
+    return _thread_metric_figure(df[df["threads"] > 1], "serial_fraction",
+                                 "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
+                                 title or "Karp–Flatt serial fraction against threads", out, ideal)

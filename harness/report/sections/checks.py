@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from harness.analysis.cells import CELL_KEYS, SCENE_KEYS, varying_keys
@@ -71,13 +70,10 @@ def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
     for _, cells in groups:
         first = cells.iloc[0]
         div = exp.divergence
-        if div is not None:
-            match = np.ones(len(div), dtype=bool)
-            for key in DIVERGENCE_MATCH:
-                match &= (div[key] == first[key]).to_numpy()
-            div = div[match]
-        else:
+        if div is None:
             div = pd.DataFrame(columns=list(DIVERGENCE_REQUIRED))
+        else:
+            div = div[(div[list(DIVERGENCE_MATCH)] == first[list(DIVERGENCE_MATCH)]).all(axis=1)]
         shadow = "shadow_pos_err" in cells and bool((cells["shadow_pos_err"].fillna(0) > 0).any())
         if shadow or bool((div["max_pos_dev"] > 0).any()):
             label = series_label(tuple(first[k] for k in ("scene", *varying)),

@@ -24,8 +24,7 @@ FIGURES = (
 
 
 def build(ctx: Context) -> list[Section]:
-    """Speedup, efficiency and Karp-Flatt serial fraction against threads, for a thread
-    sweep."""
+    """For a thread sweep, what the module's docstring names."""
     if "threads" not in ctx.axes:
         return []
     exp, figs = ctx.exp, ctx.figs

@@ -17,7 +17,6 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _sweep(ctx: Context, axis: str) -> Section:
-    """Time against one swept parameter, with growth exponents against N."""
     exp, figs = ctx.exp, ctx.figs
     sweep = SWEEPS[axis]
     stem = figs.fig_dir / f"{ctx.name}-time-vs-{axis.lower()}"

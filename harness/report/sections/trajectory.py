@@ -42,7 +42,6 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _trajectory(ctx: Context, row: pd.Series) -> Section:
-    """Figure 7: every particle's path through a print-mode run, plus an animated GIF."""
     exp, figs = ctx.exp, ctx.figs
     path = _output_path(exp, row)
     anchor = f"{ctx.name}-trajectory"
