@@ -40,7 +40,7 @@ def _line(index: object) -> int:
     return int(index) + HEADER_LINES + 1  # type: ignore[call-overload]
 
 
-def _parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
+def parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
     """A column of numbers; empty or `nan` cells are missing, anything else is an error."""
     missing = text.str.lower().isin(MISSING_TOKENS)
     values = pd.to_numeric(text.mask(missing), errors="coerce").astype("float64")
@@ -81,7 +81,7 @@ def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
     return pd.Series(values, index=text.index, dtype=object)
 
 
-def _read_csv(path: Path, what: str, required: Sequence[str], **options: object
+def read_csv_checked(path: Path, what: str, required: Sequence[str], **options: object
               ) -> pd.DataFrame:
     """A CSV file with the `required` columns; a HarnessError naming the file otherwise."""
     try:
@@ -97,7 +97,7 @@ def _read_csv(path: Path, what: str, required: Sequence[str], **options: object
 def read_results(path: Path) -> pd.DataFrame:
     """One results.csv, checked against the contract and typed: numbers as float64, flags as
     booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
-    raw = _read_csv(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
+    raw = read_csv_checked(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
                     skipinitialspace=True)
     # Every other column is kept (as text unless typed below), so a newer column reaches the
     # tables without a change here.
@@ -105,7 +105,7 @@ def read_results(path: Path) -> pd.DataFrame:
     df = pd.DataFrame({c: raw[c].str.strip() for c in (*CSV_COLUMNS, *optional)})
     for column in df.columns:
         if column in NUMERIC_COLUMNS:
-            df[column] = _parse_numeric(df[column], path, column)
+            df[column] = parse_numeric(df[column], path, column)
         elif column in BOOL_COLUMNS:
             df[column] = _parse_bool(df[column], path, column)
     for column in LIST_COLUMNS.keys() & set(df.columns):
@@ -159,4 +159,4 @@ def read_divergence(path: Path) -> pd.DataFrame | None:
     """divergence.csv (step-by-step deviation curves), or None when there is none."""
     if not path.is_file():
         return None
-    return _read_csv(path, "divergence curves", DIVERGENCE_REQUIRED)
+    return read_csv_checked(path, "divergence curves", DIVERGENCE_REQUIRED)

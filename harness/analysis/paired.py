@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats
-from harness.errors import HarnessError
+from harness.analysis.frame import parse_numeric, read_csv_checked
 from harness.spec.facts import BASELINE
 from harness.store.columns import (
     MATCH_COLUMNS,
@@ -26,33 +26,25 @@ from harness.store.records import MACHINE_KEY
 KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
 _NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
            "ratio_ci_high", "rounds")
-_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "session_spread")
+_OPTIONAL = ("schedule", MACHINE_KEY)
+_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
+            "session_spread")
 
 
-def read_ratios(path: Path) -> pd.DataFrame | None:
-    """ratios.csv's rows paired by round (rounds > 0 and a ratio), keyed as cells are; None
-    where there is no file. A file without the columns it needs is a HarnessError."""
+def read_ratios(path: Path, paired_only: bool = True) -> pd.DataFrame | None:
+    """ratios.csv's rows paired by round (rounds > 0 and a ratio; every row where not
+    `paired_only`), keyed as cells are; None where there is no file. A file without the
+    columns it needs is a HarnessError."""
     if not path.is_file():
         return None
-    try:
-        raw = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
-        raise HarnessError(f"{path}: cannot read ratios: {e}") from e
-    missing = [c for c in _NEEDED if c not in raw.columns and c not in ("schedule", MACHINE_KEY)]
-    if missing:
-        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
-    frame = raw.copy()
+    frame = read_csv_checked(path, "ratios", [c for c in _NEEDED if c not in _OPTIONAL],
+                             dtype=str, keep_default_na=False)
     for column in (c for c in _NUMBERS if c in frame.columns):
-        text = frame[column].str.strip()
-        frame[column] = pd.to_numeric(text, errors="coerce")
-        bad = frame[column].isna() & ~text.str.lower().isin(("", "nan"))
-        if bad.any():
-            line = int(bad.to_numpy().argmax()) + 2  # after the header, from 1
-            raise HarnessError(f"{path}: line {line}: column '{column}': "
-                               f"{text[bad].iloc[0]!r} is not a number")
+        frame[column] = parse_numeric(frame[column].str.strip(), path, column)
     frame["_key"] = cell_keys(frame)
-    paired = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
-    return paired.reset_index(drop=True)
+    if paired_only:
+        frame = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
+    return frame.reset_index(drop=True)
 
 
 def _key_text(value: object, numeric: bool) -> str:
