@@ -6,6 +6,7 @@ harness.spec.builds' order.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Sequence
 
 import pandas as pd
@@ -34,6 +35,19 @@ def companions(column: str) -> tuple[str, ...]:
     share."""
     return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}",
             f"{column}{SHARE_SUFFIX}")
+
+
+def key_text(value: object, numeric: bool = True) -> str:
+    """A matchable form of a results field, whether read as text or typed: numbers by value
+    (results.csv's floats and ratios.csv's text alike, where `numeric`), else stripped."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return ""
+    text = str(value).strip()
+    try:
+        number = float(text) if numeric else math.nan
+    except ValueError:
+        return text
+    return repr(number) if math.isfinite(number) else text
 
 
 def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:

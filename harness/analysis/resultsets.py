@@ -15,7 +15,8 @@ from pathlib import Path
 import pandas as pd
 
 from harness import stats
-from harness.analysis.flags import _is_true
+from harness.analysis.cells import key_text
+from harness.analysis.flags import _is_true, short_commit
 from harness.analysis.frame import read_results
 from harness.errors import HarnessError
 from harness.store import hyperfine, layout, records
@@ -81,18 +82,6 @@ def _short(value: str) -> str:
     except ValueError:
         return value
     return f"{number:g}"
-
-
-def _normal(value: object) -> str:
-    """A matchable form of a results field: numbers by value, anything else stripped."""
-    if value is None or (not isinstance(value, str) and pd.isna(value)):
-        return ""
-    text = str(value).strip()
-    try:
-        number = float(text)
-    except ValueError:
-        return text
-    return repr(number) if math.isfinite(number) else text
 
 
 @dataclass(frozen=True)
@@ -209,7 +198,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
     cells = []
     for _, row in frame.iterrows():
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
-        key = MatchKey(experiment, *(_normal(row.get(c)) for c in MATCH_COLUMNS))
+        key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
         cell_id = _text(row, "cell_id")
         listed = _items(row, "wall_times_s")
         export = exp.hyperfine(cell_id) if cell_id and not listed else None
@@ -263,7 +252,8 @@ class Side:
 
     def commits(self) -> list[str]:
         """The commits that measured the cells, abbreviated (keeping "-dirty")."""
-        return sorted({_abbreviate(c.git_commit) for c in self.cells.values() if c.git_commit})
+        return sorted({short_commit(c.git_commit, COMMIT_CHARS) for c in self.cells.values()
+                       if c.git_commit})
 
 
 COMMIT_CHARS = 12
@@ -290,11 +280,6 @@ def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell 
     for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
         note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
         yield key, old.cells.get(key), new.cells.get(key), note
-
-
-def _abbreviate(commit: str) -> str:
-    head, dirty, _ = commit.partition("-dirty")
-    return head[:COMMIT_CHARS] + dirty
 
 
 def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: bool,

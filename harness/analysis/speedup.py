@@ -107,27 +107,15 @@ def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
     """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
     intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
     either cell has fewer than two times, so tables fall back to the point value."""
-    columns = {f"{m}{s}": np.full(len(out), np.nan)
-               for m in ("speedup", "efficiency", "serial_fraction") for s in INTERVAL_SUFFIXES}
+    for metric in paired.METRICS:
+        for suffix in INTERVAL_SUFFIXES:
+            out[f"{metric}{suffix}"] = np.nan
     own_times = out[TIMES] if TIMES in out.columns else pd.Series([()] * len(out),
                                                                      index=out.index)
-    pairs = [(i, _times(b), _times(t))
-             for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
-    pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
-             and pd.notna(out["speedup"].iloc[p[0]])]
-    for i, base, own in pairs:
-        speedup = stats.speedup_ci(base, own)
-        threads = int(out["threads"].iloc[i])
-        metrics = {"speedup": speedup}
-        if pd.notna(out["efficiency"].iloc[i]):
-            metrics["efficiency"] = stats.efficiency(speedup, threads)
-        if pd.notna(out["serial_fraction"].iloc[i]):
-            metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
-        for name, interval in metrics.items():
-            columns[f"{name}_low"][i] = interval.low
-            columns[f"{name}_high"][i] = interval.high
-    for name, values in columns.items():
-        out[name] = values
+    for position, base, own in zip(out.index, base_times, own_times, strict=True):
+        base, own = _times(base), _times(own)
+        if len(base) >= 2 and len(own) >= 2 and pd.notna(out.at[position, "speedup"]):
+            paired.put_metrics(out, position, stats.speedup_ci(base, own), point=False)
 
 
 def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:

@@ -68,30 +68,14 @@ def _difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.median(x, axis=axis) - np.median(y, axis=axis)
 
 
-def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.median(x, axis=axis)
-
-
-def _minimum(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.min(x, axis=axis)
-
-
-def _low_quantile(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.quantile(x, LOW_QUANTILE, axis=axis)
-
-
-def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.mean(x, axis=axis)
-
-
 # Estimators of what a binary costs from its runs' times. Interference only ever slows a run,
 # so the low end of the times is a candidate beside the median: docs/compare.md measures how
 # well each reproduces between reruns. Each is vectorized (for its bootstrap interval).
 LOW_QUANTILE = 0.25
 LOW_QUANTILE_ESTIMATOR = f"q{round(LOW_QUANTILE * 100)}"
 ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
-    "median": _median, "min": _minimum, LOW_QUANTILE_ESTIMATOR: _low_quantile,
-    "mean": _mean,
+    "median": np.median, "min": np.min,
+    LOW_QUANTILE_ESTIMATOR: functools.partial(np.quantile, q=LOW_QUANTILE), "mean": np.mean,
 }
 DEFAULT_ESTIMATOR = "median"
 
@@ -138,17 +122,8 @@ def _interval(point: float, samples: tuple[np.ndarray, ...],
     return Interval(point, min(low, point), max(high, point))
 
 
-def median_ci(times: Sequence[float]) -> Interval:
-    """The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs)."""
-    data = clean(times)
-    if data.size == 0:
-        return Interval(math.nan, math.nan, math.nan)
-    point = float(np.median(data))
-    if data.size < 2:
-        return Interval(point, math.nan, math.nan)
-    if np.all(data == data[0]):
-        return Interval(point, point, point)
-    return _interval(point, (data,), _median)
+# The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs).
+median_ci = estimate_ci
 
 
 def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
@@ -177,10 +152,8 @@ def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interv
     return _two_medians(a, b, _ratio)
 
 
-def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
-    """How many times faster `times` is than `baseline` (median over median)."""
-    return ratio_ci(baseline, times)
-
+# How many times faster `times` is than `baseline`: speedup_ci(baseline, times).
+speedup_ci = ratio_ci
 
 
 def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
