@@ -11,6 +11,7 @@ import pandas as pd
 
 from harness.analysis.cells import MACHINE
 from harness.errors import HarnessError
+from harness.store import hyperfine
 from harness.store.columns import (
     BOOL_COLUMNS,
     CSV_COLUMNS,
@@ -23,6 +24,7 @@ from harness.store.columns import (
     TIMED_STATUSES,
     parse_list,
 )
+from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
 
 MACHINE_ID_SHOWN = 8  # hex digits of machine_id that tell machines with one label apart
@@ -132,6 +134,21 @@ def machine_labels(df: pd.DataFrame) -> pd.Series:
     labels = labels.where(labels != "", short)
     shared = ids.groupby(labels).transform("nunique") > 1
     return labels.where(~shared | (ids == ""), labels + " (" + short + ")")
+
+
+def items(row: pd.Series, column: str) -> tuple[float, ...]:
+    """A list column's items as numbers; () where the row or the file has none."""
+    value = row.get(column)
+    return tuple(float(v) for v in value) if isinstance(value, tuple) else ()
+
+
+def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
+    """A cell's per-run wall times: the `wall_times_s` column, else, in results written before
+    it, its hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
+    cell_id = row.get("cell_id")
+    export = (ExperimentDir(exp_path).hyperfine(cell_id)
+              if exp_path is not None and isinstance(cell_id, str) else None)
+    return hyperfine.run_times(row.get("wall_times_s"), export)
 
 
 def _check_rows(df: pd.DataFrame, path: Path) -> None:

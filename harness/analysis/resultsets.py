@@ -17,9 +17,9 @@ import pandas as pd
 from harness import stats
 from harness.analysis.cells import key_text
 from harness.analysis.flags import _is_true, short_commit
-from harness.analysis.frame import read_results
+from harness.analysis.frame import items, read_results, run_times
 from harness.errors import HarnessError
-from harness.store import hyperfine, layout, records
+from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.layout import ExperimentDir
 
@@ -156,10 +156,7 @@ def _env_machine(directory: Path) -> str:
 
 
 def _text(row: pd.Series, column: str) -> str:
-    value = row.get(column)
-    if value is None or (not isinstance(value, str) and pd.isna(value)):
-        return ""
-    return str(value).strip()
+    return key_text(row.get(column), numeric=False)
 
 
 def _number(row: pd.Series, column: str, default: float = math.nan) -> float:
@@ -176,14 +173,8 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
                                [p for c in cells for p in c.round_pressure])
 
 
-def _items(row: pd.Series, column: str) -> tuple[float, ...]:
-    """A list column's items; () where the row or the file has none."""
-    value = row.get(column)
-    return tuple(value) if isinstance(value, tuple) else ()
-
-
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
-    rounds = tuple(int(r) for r in _items(row, "wall_times_round"))
+    rounds = tuple(int(r) for r in items(row, "wall_times_round"))
     return rounds if len(rounds) == runs else ()
 
 
@@ -192,17 +183,13 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
 
     Per-run times come from the `wall_times_s` column, or, in results written before it, from
     the cell's hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
-    exp = ExperimentDir(directory)
-    frame = read_results(exp.results_csv)
+    frame = read_results(ExperimentDir(directory).results_csv)
     env_machine = None
     cells = []
     for _, row in frame.iterrows():
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
         key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
-        cell_id = _text(row, "cell_id")
-        listed = _items(row, "wall_times_s")
-        export = exp.hyperfine(cell_id) if cell_id and not listed else None
-        times = tuple(hyperfine.run_times(listed, export))
+        times = tuple(run_times(row, directory))
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -214,7 +201,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
                 env_machine = _env_machine(directory)
             machine = env_machine
         cells.append(Cell(
-            key=key, directory=directory, cell_id=cell_id,
+            key=key, directory=directory, cell_id=_text(row, "cell_id"),
             status=_text(row, "status") or "unknown", median=median, times=times,
             machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
@@ -225,8 +212,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             instructions=_number(row, "instructions"),
             instructions_max=_number(row, "instructions_max"),
             instructions_tool=_text(row, "instructions_tool"),
-            round_noise=_items(row, "round_noise"),
-            round_pressure=_items(row, "round_pressure"),
+            round_noise=items(row, "round_noise"),
+            round_pressure=items(row, "round_pressure"),
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 
