@@ -64,10 +64,8 @@ def _parse_bool(text: pd.Series, path: Path, column: str) -> pd.Series:
         raise HarnessError(
             f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not True/False"
         )
-    values = pd.Series(pd.NA, index=text.index, dtype="boolean")
-    values[lower.isin(TRUE_TOKENS)] = True
-    values[lower.isin(FALSE_TOKENS)] = False
-    return values
+    return lower.map({**dict.fromkeys(TRUE_TOKENS, True),
+                      **dict.fromkeys(FALSE_TOKENS, False)}).astype("boolean")
 
 
 def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:

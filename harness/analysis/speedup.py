@@ -237,15 +237,8 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
         if fit is None:
             continue
         label_values = values if isinstance(values, tuple) else (values,)
-        row: dict[str, object] = dict(zip(keys, label_values, strict=True))
-        row.update(
-            exponent=fit.exponent,
-            exponent_se=fit.stderr,
-            prefactor_s=fit.coefficient,
-            points=len(group),
-            x_min=group[x].min(),
-            x_max=group[x].max(),
-        )
-        rows.append(row)
+        rows.append({**dict(zip(keys, label_values, strict=True)), "exponent": fit.exponent,
+                     "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
+                     "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
     return sort_cells(pd.DataFrame(rows, columns=columns), keys)

@@ -90,12 +90,11 @@ def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> I
     """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
     same estimator (the interval of a minimum reaches only upwards of it)."""
     data = clean(times)
-    if data.size < 2:
-        return Interval(estimate(times, estimator), math.nan, math.nan)
-    point = float(ESTIMATORS[estimator](data))
-    if np.all(data == data[0]):
-        return Interval(point, point, point)
-    return _interval(point, (data,), ESTIMATORS[estimator])
+    return _interval(estimate(data, estimator), (data,), ESTIMATORS[estimator])
+
+
+# The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs).
+median_ci = estimate_ci
 
 
 @functools.lru_cache(maxsize=4096)
@@ -116,29 +115,24 @@ def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
 
 def _interval(point: float, samples: tuple[np.ndarray, ...],
               statistic: Callable[..., np.ndarray]) -> Interval:
-    """`point` with the bootstrap interval of `statistic` over the samples, widened to hold the
-    point."""
+    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, each
+    resampled on its own (independent runs), widened to hold the point: no interval with
+    fewer than two runs in a sample, the point itself where every sample is constant."""
+    if any(s.size < 2 for s in samples):
+        return Interval(point, math.nan, math.nan)
+    if all(np.all(s == s[0]) for s in samples):
+        return Interval(point, point, point)
     low, high = _bootstrap(statistic, *(tuple(s.tolist()) for s in samples))
     return Interval(point, min(low, point), max(high, point))
 
 
-# The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs).
-median_ci = estimate_ci
-
-
 def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
                  ) -> Interval:
-    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples, each
-    resampled on its own (independent runs): NaN without runs on a side, no interval with one
-    run on a side."""
+    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples: NaN
+    without runs on a side."""
     if a.size == 0 or b.size == 0:
         return Interval(math.nan, math.nan, math.nan)
-    point = float(statistic(a, b))
-    if a.size < 2 or b.size < 2:
-        return Interval(point, math.nan, math.nan)
-    if np.all(a == a[0]) and np.all(b == b[0]):
-        return Interval(point, point, point)
-    return _interval(point, (a, b), statistic)
+    return _interval(float(statistic(a, b)), (a, b), statistic)
 
 
 def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
