@@ -119,12 +119,10 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     ✓ marks each scene's Pareto front of time against the mean shadow error."""
     rows = _checked(df)
     rows = timed_rows(rows)
-    table = pd.DataFrame({k: rows[k] for k in keys})
-    table["median_s"] = rows["wall_median_s"]
-    table["max_pos_err"] = rows["max_pos_err"]
-    for column in ("shadow_pos_err", "shadow_err_r", "shadow_set_diff", "energy_drift_max",
-                   "div_steps_to_r"):
-        table[column] = rows[column] if column in rows.columns else np.nan
+    table = rows.reindex(columns=[
+        *keys, "wall_median_s", "max_pos_err", "shadow_pos_err", "shadow_err_r",
+        "shadow_set_diff", "energy_drift_max", "div_steps_to_r"]).rename(
+        columns={"wall_median_s": "median_s"})
     table["pareto"] = pareto_by_scene(rows, "shadow_pos_err") \
         if "shadow_pos_err" in rows.columns else False
     return sort_cells(table, keys)
