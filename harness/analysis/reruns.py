@@ -8,6 +8,7 @@ its two cells and its kind are."""
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import math
 from collections.abc import Mapping, Sequence
@@ -139,13 +140,11 @@ class MachineReruns:
 
     def entry(self, config: str) -> dict[str, object]:
         """What is kept beside the machine's description (store.sessions)."""
-        def share(c: stats.Coverage) -> dict[str, object]:
-            return {"held": c.held, "pairs": c.pairs, "median_move": c.median_move,
-                    "largest_move": c.largest_move, "median_half_width": c.median_half_width}
         return {"absolute": self.spread.absolute, "ratio": self.spread.ratio,
                 "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                 "config": config, "reruns": self.reruns,
-                "coverage": {"absolute": share(self.cells), "ratio": share(self.ratios)}}
+                "coverage": {"absolute": dataclasses.asdict(self.cells),
+                             "ratio": dataclasses.asdict(self.ratios)}}
 
 
 def analyse(roots: Sequence[Path]) -> list[MachineReruns]:
