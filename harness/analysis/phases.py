@@ -159,13 +159,11 @@ def phase_table(sel: Selection) -> pd.DataFrame:
 def plot_frame(sel: Selection) -> pd.DataFrame:
     """What the figure draws, one row per bar: its scene's label, its own, every phase."""
     cells = sel.cells
-    frame = pd.DataFrame({
+    return pd.DataFrame({
         GROUP: _labels(cells, sel.scene_keys) if sel.scene_keys else "",
         BAR: _labels(cells, sel.row_keys),
+        **{phase: cells[phase].to_numpy(dtype=float) for phase in PHASES},
     })
-    for phase in PHASES:
-        frame[phase] = cells[phase].to_numpy(dtype=float)
-    return frame
 
 
 # --- the headline -------------------------------------------------------------------------
