@@ -51,11 +51,8 @@ def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     """Per timed cell with a measured error: time, errors and whether it is on the Pareto front."""
     rows = timed_rows(df)
     rows = rows[rows["max_pos_err"].notna()]
-    table = pd.DataFrame({k: rows[k] for k in keys})
-    table["median_s"] = rows["wall_median_s"]
-    table["max_pos_err"] = rows["max_pos_err"]
-    table["max_vel_err"] = rows["max_vel_err"]
-    table["count_mismatches"] = rows["count_mismatches"]
+    table = rows[[*keys, "wall_median_s", "max_pos_err", "max_vel_err", "count_mismatches"]
+                 ].rename(columns={"wall_median_s": "median_s"})
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     table["pareto"] = pareto_by_scene(rows, "max_pos_err")
     return sort_cells(table, keys)

@@ -6,7 +6,8 @@ harness.spec.builds' order.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+import math
+from collections.abc import Iterable, Sequence
 
 import pandas as pd
 
@@ -34,6 +35,19 @@ def companions(column: str) -> tuple[str, ...]:
     share."""
     return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}",
             f"{column}{SHARE_SUFFIX}")
+
+
+def key_text(value: object, numeric: bool = True) -> str:
+    """A matchable form of a results field, whether read as text or typed: numbers by value
+    (results.csv's floats and ratios.csv's text alike, where `numeric`), else stripped."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return ""
+    text = str(value).strip()
+    try:
+        number = float(text) if numeric else math.nan
+    except ValueError:
+        return text
+    return repr(number) if math.isfinite(number) else text
 
 
 def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
@@ -92,14 +106,14 @@ def sweep_axes(df: pd.DataFrame) -> list[str]:
     return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
 
 
-def _rank(order: Sequence[str]) -> Callable[[pd.Series], pd.Series]:
-    """A sort key that puts the names of `order` first, in that order, then the rest."""
+def _canonical(col: pd.Series) -> pd.Series:
+    """A sort key: variants and builds with the names of their canonical order first, in that
+    order, then the rest; any other column as it is."""
+    order = current().order if col.name == "variant" else BUILDS if col.name == "build" else None
+    if order is None:
+        return col
     ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
-
-    def key(col: pd.Series) -> pd.Series:
-        return col.map(lambda v: ranks.get(v, f"999{v}"))
-
-    return key
+    return col.map(lambda v: ranks.get(v, f"999{v}"))
 
 
 def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
@@ -107,12 +121,4 @@ def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     keys = [k for k in keys if k in df.columns]
     if not keys:
         return df.reset_index(drop=True)
-
-    def key(col: pd.Series) -> pd.Series:
-        if col.name == "variant":
-            return _rank(current().order)(col)
-        if col.name == "build":
-            return _rank(BUILDS)(col)
-        return col
-
-    return df.sort_values(list(keys), key=key, kind="stable").reset_index(drop=True)
+    return df.sort_values(keys, key=_canonical, kind="stable").reset_index(drop=True)

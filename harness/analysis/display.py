@@ -170,10 +170,9 @@ def format_value(column: str, value: object) -> str:
 
 def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
     """Whether a built table's column holds numbers (right-aligned when shown)."""
+    dtype = df[column].dtype
     return column not in ("pareto", "oversubscribed") and pd.api.types.is_numeric_dtype(
-        df[column].dtype) and not (
-        pd.api.types.is_bool_dtype(df[column].dtype)
-    )
+        dtype) and not pd.api.types.is_bool_dtype(dtype)
 
 
 SHARE_WHOLE = (10.0, 99.5)  # between these a share is written in whole percent
@@ -227,12 +226,6 @@ def format_with_uncertainty(df: pd.DataFrame, column: str, index: int) -> str:
 
 def format_table(df: pd.DataFrame) -> pd.DataFrame:
     """A built table as strings under display headers, ready for Markdown or HTML."""
-    shown = pd.DataFrame(
-        {
-            display_name(col): [format_with_uncertainty(df, col, i)
-                                          for i in range(len(df))]
-            for col in display_columns(df)
-        },
-        dtype=object,
-    )
-    return shown
+    return pd.DataFrame({display_name(col): [format_with_uncertainty(df, col, i)
+                                             for i in range(len(df))]
+                         for col in display_columns(df)}, dtype=object)

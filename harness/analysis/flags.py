@@ -134,10 +134,9 @@ COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark i
 DIRTY_SUFFIX = "-dirty"
 
 
-def _short_commit(commit: str) -> str:
-    dirty = commit.endswith(DIRTY_SUFFIX)
-    core = commit[: -len(DIRTY_SUFFIX)] if dirty else commit
-    return core[:COMMIT_SHOWN] + (DIRTY_SUFFIX if dirty else "")
+def short_commit(commit: str, shown: int = COMMIT_SHOWN) -> str:
+    head, dirty, _ = commit.partition(DIRTY_SUFFIX)
+    return head[:shown] + dirty
 
 
 def provenance(df: pd.DataFrame) -> str:
@@ -146,7 +145,7 @@ def provenance(df: pd.DataFrame) -> str:
     sentences = []
     if "git_commit" in df.columns:
         commits = df["git_commit"].fillna("").astype(str).str.strip()
-        counts = commits[commits != ""].map(_short_commit).value_counts(sort=False)
+        counts = commits[commits != ""].map(short_commit).value_counts(sort=False)
         if len(counts) == 1:
             sentences.append(f"Measured at commit `{counts.index[0]}`.")
         elif len(counts) > 1:

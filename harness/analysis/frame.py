@@ -11,6 +11,7 @@ import pandas as pd
 
 from harness.analysis.cells import MACHINE
 from harness.errors import HarnessError
+from harness.store import hyperfine
 from harness.store.columns import (
     BOOL_COLUMNS,
     CSV_COLUMNS,
@@ -23,6 +24,7 @@ from harness.store.columns import (
     TIMED_STATUSES,
     parse_list,
 )
+from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
 
 MACHINE_ID_SHOWN = 8  # hex digits of machine_id that tell machines with one label apart
@@ -40,7 +42,7 @@ def _line(index: object) -> int:
     return int(index) + HEADER_LINES + 1  # type: ignore[call-overload]
 
 
-def _parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
+def parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
     """A column of numbers; empty or `nan` cells are missing, anything else is an error."""
     missing = text.str.lower().isin(MISSING_TOKENS)
     values = pd.to_numeric(text.mask(missing), errors="coerce").astype("float64")
@@ -62,10 +64,8 @@ def _parse_bool(text: pd.Series, path: Path, column: str) -> pd.Series:
         raise HarnessError(
             f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not True/False"
         )
-    values = pd.Series(pd.NA, index=text.index, dtype="boolean")
-    values[lower.isin(TRUE_TOKENS)] = True
-    values[lower.isin(FALSE_TOKENS)] = False
-    return values
+    return lower.map({**dict.fromkeys(TRUE_TOKENS, True),
+                      **dict.fromkeys(FALSE_TOKENS, False)}).astype("boolean")
 
 
 def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
@@ -81,7 +81,7 @@ def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
     return pd.Series(values, index=text.index, dtype=object)
 
 
-def _read_csv(path: Path, what: str, required: Sequence[str], **options: object
+def read_csv_checked(path: Path, what: str, required: Sequence[str], **options: object
               ) -> pd.DataFrame:
     """A CSV file with the `required` columns; a HarnessError naming the file otherwise."""
     try:
@@ -97,7 +97,7 @@ def _read_csv(path: Path, what: str, required: Sequence[str], **options: object
 def read_results(path: Path) -> pd.DataFrame:
     """One results.csv, checked against the contract and typed: numbers as float64, flags as
     booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
-    raw = _read_csv(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
+    raw = read_csv_checked(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
                     skipinitialspace=True)
     # Every other column is kept (as text unless typed below), so a newer column reaches the
     # tables without a change here.
@@ -105,7 +105,7 @@ def read_results(path: Path) -> pd.DataFrame:
     df = pd.DataFrame({c: raw[c].str.strip() for c in (*CSV_COLUMNS, *optional)})
     for column in df.columns:
         if column in NUMERIC_COLUMNS:
-            df[column] = _parse_numeric(df[column], path, column)
+            df[column] = parse_numeric(df[column], path, column)
         elif column in BOOL_COLUMNS:
             df[column] = _parse_bool(df[column], path, column)
     for column in LIST_COLUMNS.keys() & set(df.columns):
@@ -134,6 +134,21 @@ def machine_labels(df: pd.DataFrame) -> pd.Series:
     return labels.where(~shared | (ids == ""), labels + " (" + short + ")")
 
 
+def items(row: pd.Series, column: str) -> tuple[float, ...]:
+    """A list column's items as numbers; () where the row or the file has none."""
+    value = row.get(column)
+    return tuple(float(v) for v in value) if isinstance(value, tuple) else ()
+
+
+def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
+    """A cell's per-run wall times: the `wall_times_s` column, else, in results written before
+    it, its hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
+    cell_id = row.get("cell_id")
+    export = (ExperimentDir(exp_path).hyperfine(cell_id)
+              if exp_path is not None and isinstance(cell_id, str) else None)
+    return hyperfine.run_times(row.get("wall_times_s"), export)
+
+
 def _check_rows(df: pd.DataFrame, path: Path) -> None:
     """Every row names its cell and has a known status; timed cells have a median time."""
     for column in REQUIRED_VALUES:
@@ -159,4 +174,4 @@ def read_divergence(path: Path) -> pd.DataFrame | None:
     """divergence.csv (step-by-step deviation curves), or None when there is none."""
     if not path.is_file():
         return None
-    return _read_csv(path, "divergence curves", DIVERGENCE_REQUIRED)
+    return read_csv_checked(path, "divergence curves", DIVERGENCE_REQUIRED)

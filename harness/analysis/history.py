@@ -9,8 +9,6 @@ across commits on what it measured (resultsets.MatchKey), never on its binary.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -24,7 +22,7 @@ from harness.analysis.changepoints import (
 from harness.analysis.compare import Metric
 from harness.analysis.resultsets import Cell, MatchKey, read_cells
 from harness.stats import Interval
-from harness.store import atomic
+from harness.store import atomic, csvfile
 from harness.store.columns import (
     BUILD_FAILED_STATUS,
     HISTORY_COLUMNS,
@@ -186,8 +184,4 @@ def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
 
 
 def write_history_csv(exp: ExperimentDir, rows: Sequence[dict[str, str]]) -> None:
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=HISTORY_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic.atomic_write_text(exp.history_csv, text.getvalue())
+    atomic.atomic_write_text(exp.history_csv, csvfile.csv_text(HISTORY_COLUMNS, rows))

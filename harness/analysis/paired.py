@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 
 from harness import stats
-from harness.errors import HarnessError
+from harness.analysis.cells import key_text
+from harness.analysis.frame import parse_numeric, read_csv_checked
 from harness.spec.facts import BASELINE
 from harness.store.columns import (
     MATCH_COLUMNS,
@@ -26,54 +27,32 @@ from harness.store.records import MACHINE_KEY
 KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
 _NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
            "ratio_ci_high", "rounds")
-_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "session_spread")
+_OPTIONAL = ("schedule", MACHINE_KEY)
+METRICS = ("speedup", "efficiency", "serial_fraction")  # what a speedup gives a cell
+_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
+            "session_spread")
 
 
-def read_ratios(path: Path) -> pd.DataFrame | None:
-    """ratios.csv's rows paired by round (rounds > 0 and a ratio), keyed as cells are; None
-    where there is no file. A file without the columns it needs is a HarnessError."""
+def read_ratios(path: Path, paired_only: bool = True) -> pd.DataFrame | None:
+    """ratios.csv's rows paired by round (rounds > 0 and a ratio; every row where not
+    `paired_only`), keyed as cells are; None where there is no file. A file without the
+    columns it needs is a HarnessError."""
     if not path.is_file():
         return None
-    try:
-        raw = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as e:
-        raise HarnessError(f"{path}: cannot read ratios: {e}") from e
-    missing = [c for c in _NEEDED if c not in raw.columns and c not in ("schedule", MACHINE_KEY)]
-    if missing:
-        raise HarnessError(f"{path}: missing column(s): {', '.join(missing)}")
-    frame = raw.copy()
+    frame = read_csv_checked(path, "ratios", [c for c in _NEEDED if c not in _OPTIONAL],
+                             dtype=str, keep_default_na=False)
     for column in (c for c in _NUMBERS if c in frame.columns):
-        text = frame[column].str.strip()
-        frame[column] = pd.to_numeric(text, errors="coerce")
-        bad = frame[column].isna() & ~text.str.lower().isin(("", "nan"))
-        if bad.any():
-            line = int(bad.to_numpy().argmax()) + 2  # after the header, from 1
-            raise HarnessError(f"{path}: line {line}: column '{column}': "
-                               f"{text[bad].iloc[0]!r} is not a number")
+        frame[column] = parse_numeric(frame[column].str.strip(), path, column)
     frame["_key"] = cell_keys(frame)
-    paired = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
-    return paired.reset_index(drop=True)
-
-
-def _key_text(value: object, numeric: bool) -> str:
-    # results.csv reads numbers as floats and ratios.csv as text: both to one spelling.
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return ""
-    if numeric:
-        try:
-            return repr(float(value))  # type: ignore[arg-type]
-        except ValueError:
-            return str(value).strip()
-    return str(value).strip()
+    if paired_only:
+        frame = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
+    return frame.reset_index(drop=True)
 
 
 def cell_keys(frame: pd.DataFrame) -> pd.Series:
     """Per row, the text that names its cell across results.csv and ratios.csv."""
-    parts = []
-    for column in KEY_COLUMNS:
-        values = frame[column] if column in frame.columns else pd.Series("", index=frame.index)
-        numeric = column in NUMERIC_COLUMNS
-        parts.append(values.map(lambda v, n=numeric: _key_text(v, n)))
+    parts = [(frame[c] if c in frame.columns else pd.Series("", index=frame.index)).map(
+        lambda v, n=c in NUMERIC_COLUMNS: key_text(v, n)) for c in KEY_COLUMNS]
     if not parts or frame.empty:
         return pd.Series([], index=frame.index, dtype=object)
     return pd.Series(["\0".join(p) for p in zip(*parts, strict=True)], index=frame.index,
@@ -113,13 +92,15 @@ def use_paired(out: pd.DataFrame, ratios: pd.DataFrame | None, same_build: pd.Se
     found = matches(out, ratios, kind)
     for position, row in found.dropna().items():
         ratio = ratios.loc[int(row)]
-        _put(out, position, stats.Interval(float(ratio["ratio"]), float(ratio["ratio_ci_low"]),
-                                           float(ratio["ratio_ci_high"])))
+        out.at[position, "speedup_paired"] = True
+        put_metrics(out, position, stats.Interval(
+            float(ratio["ratio"]), float(ratio["ratio_ci_low"]), float(ratio["ratio_ci_high"])))
 
 
-def _put(out: pd.DataFrame, position: object, speedup: stats.Interval) -> None:
-    """One row's three metrics from its paired speedup; efficiency and the serial fraction
-    only where the row defines them (the same work on both sides)."""
+def put_metrics(out: pd.DataFrame, position: object, speedup: stats.Interval,
+                point: bool = True) -> None:
+    """One row's METRICS from its speedup (their points too, where `point`); efficiency and
+    the serial fraction only where the row defines them (the same work on both sides)."""
     threads = int(out.at[position, "threads"])
     metrics = {"speedup": speedup}
     if pd.notna(out.at[position, "efficiency"]):
@@ -128,10 +109,10 @@ def _put(out: pd.DataFrame, position: object, speedup: stats.Interval) -> None:
         metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
     for name, interval in metrics.items():
         finite = math.isfinite(interval.low) and math.isfinite(interval.high)
-        out.at[position, name] = interval.point
+        if point:
+            out.at[position, name] = interval.point
         out.at[position, f"{name}_low"] = interval.low if finite else math.nan
         out.at[position, f"{name}_high"] = interval.high if finite else math.nan
-    out.at[position, "speedup_paired"] = True
 
 
 def paired_words(ratios: pd.DataFrame | None) -> str:

@@ -148,15 +148,9 @@ def phase_table(sel: Selection) -> pd.DataFrame:
     """Per shown cell: its scene and bar keys, sim_s, each of its phases in seconds with its
     share (the `_share` companions, shown in parentheses), the simulation outside the broad
     phase per particle-step, and the output in seconds."""
-    cells = sel.cells
-    table = cells[[*sel.scene_keys, *sel.row_keys]].copy()
-    table[TOTAL] = cells[TOTAL]
-    for phase in SIM_PHASES:
-        table[phase] = cells[phase]
-        table[f"{phase}{SHARE_SUFFIX}"] = cells[f"{phase}{SHARE_SUFFIX}"]
-    table[REST_NS] = cells[REST_NS]
-    table[OUTPUT_PHASE] = cells[OUTPUT_PHASE]
-    return table
+    shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
+    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]
+                     ].copy()
 
 
 # --- what the figure draws ----------------------------------------------------------------
@@ -165,13 +159,11 @@ def phase_table(sel: Selection) -> pd.DataFrame:
 def plot_frame(sel: Selection) -> pd.DataFrame:
     """What the figure draws, one row per bar: its scene's label, its own, every phase."""
     cells = sel.cells
-    frame = pd.DataFrame({
+    return pd.DataFrame({
         GROUP: _labels(cells, sel.scene_keys) if sel.scene_keys else "",
         BAR: _labels(cells, sel.row_keys),
+        **{phase: cells[phase].to_numpy(dtype=float) for phase in PHASES},
     })
-    for phase in PHASES:
-        frame[phase] = cells[phase].to_numpy(dtype=float)
-    return frame
 
 
 # --- the headline -------------------------------------------------------------------------

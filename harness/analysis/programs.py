@@ -49,8 +49,7 @@ def program_table(df: pd.DataFrame) -> pd.DataFrame:
     and the detail."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
-    table = pd.DataFrame({k: rows[k] for k in keys})
-    table["status"] = rows["status"]
+    table = rows[[*keys, "status"]].copy()
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
     for column in GRADING_COLUMNS:  # absent from results measured before they were kept
         if column in rows.columns and rows[column].notna().any():

@@ -8,17 +8,20 @@ its two cells and its kind are."""
 
 from __future__ import annotations
 
-import csv
+import dataclasses
 import datetime
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
+
 from harness import stats
-from harness.errors import HarnessError
+from harness.analysis.frame import read_results
+from harness.analysis.paired import cell_keys, read_ratios
 from harness.store import layout
-from harness.store.columns import MATCH_COLUMNS, OK, RATIO_COLUMNS, parse_list
+from harness.store.columns import OK
 
 CellKey = tuple[str, ...]
 # One rerun's value of a cell or ratio: its estimate from its rounds, and its interval as
@@ -27,81 +30,62 @@ Found = tuple[stats.RoundEstimate, stats.Interval | None]
 # Per machine, per cell or ratio: the reruns' values (None where a rerun lacks it).
 ByMachine = dict[str, dict[CellKey, list[Found | None]]]
 
-_RATIO_KEY = tuple(c for c in RATIO_COLUMNS if c not in (
-    "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
-    "efficiency", "karp_flatt", "session_spread", "machine_id"))
+_RATIO_REFERENCE = ("kind", "reference_variant", "reference_threads")
 
 
-def _float(text: str | None) -> float:
-    try:
-        return float(text) if text not in (None, "") else math.nan
-    except ValueError:
-        return math.nan
+def _interval(point: float, low: float, high: float) -> stats.Interval | None:
+    return stats.Interval(point, low, high) if math.isfinite(low) and math.isfinite(high) \
+        else None
 
 
-def _interval(point: float, low: str | None, high: str | None) -> stats.Interval | None:
-    low_value, high_value = _float(low), _float(high)
-    if not (math.isfinite(low_value) and math.isfinite(high_value)):
-        return None
-    return stats.Interval(point, low_value, high_value)
-
-
-def _rows(path: Path) -> list[dict[str, str]]:
-    try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            return list(csv.DictReader(handle))
-    except FileNotFoundError:
-        return []
-    except (OSError, csv.Error, UnicodeDecodeError) as e:
-        raise HarnessError(f"{path}: cannot read: {e}") from e
-
-
-def cell_value(row: Mapping[str, str]) -> Found | None:
+def cell_value(row: pd.Series) -> Found | None:
     """A results.csv row's estimate from its runs and their rounds, with its stored interval;
     None for a cell not ok or without runs."""
-    if row.get("status") != OK or not row.get("wall_times_s"):
+    if row["status"] != OK or not row["wall_times_s"]:
         return None
-    times = [float(t) for t in parse_list(row["wall_times_s"], "wall_times_s")]
-    rounds_text = row.get("wall_times_round") or ""
-    rounds = [int(r) for r in parse_list(rounds_text, "wall_times_round")] if rounds_text else []
-    estimate = stats.cell_estimate(times, rounds)
-    median = _float(row.get("wall_median_s"))
+    estimate = stats.cell_estimate(list(row["wall_times_s"]),
+                                   [int(r) for r in row.get("wall_times_round", ())])
+    median = row["wall_median_s"]
     point = median if math.isfinite(median) else estimate.point
-    stored = _interval(point, row.get("wall_median_ci_low_s"), row.get("wall_median_ci_high_s"))
+    stored = _interval(point, row.get("wall_median_ci_low_s", math.nan),
+                       row.get("wall_median_ci_high_s", math.nan))
     return stats.RoundEstimate(point, estimate.log_mean, estimate.log_se, estimate.rounds), stored
 
 
-def ratio_value(row: Mapping[str, str]) -> Found | None:
+def ratio_value(row: pd.Series) -> Found | None:
     """A ratios.csv row's ratio with the standard error its rounds' interval implies, and its
     stored interval; None without a ratio."""
-    ratio, rounds = _float(row.get("ratio")), int(_float(row.get("rounds")) or 0)
+    ratio = row["ratio"]
+    rounds = int(row["rounds"]) if math.isfinite(row["rounds"]) else 0
     if not (math.isfinite(ratio) and ratio > 0):
         return None
-    inner = _interval(ratio, row.get("round_ci_low"), row.get("round_ci_high"))
+    inner = _interval(ratio, row.get("round_ci_low", math.nan), row.get("round_ci_high", math.nan))
     se = math.nan
     if inner is not None and rounds >= stats.INTERVAL_MIN_ROUNDS and inner.low > 0:
         se = math.log(inner.high / inner.low) / (2 * stats.t95(rounds))
     estimate = stats.RoundEstimate(ratio, math.log(ratio), se, rounds)
-    return estimate, _interval(ratio, row.get("ratio_ci_low"), row.get("ratio_ci_high"))
+    return estimate, _interval(ratio, row["ratio_ci_low"], row["ratio_ci_high"])
 
 
 def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine]:
-    """Every rerun's cells and ratios, by machine and key."""
+    """Every rerun's cells and ratios, by machine and key: a cell keyed as ratios.csv keys it
+    (analysis.paired.cell_keys), a ratio by its cell, its kind and its reference."""
     cells: ByMachine = {}
     ratios: ByMachine = {}
     for k, root in enumerate(roots):
         found, _ = layout.experiments_under(root, layout.has_results)
         for exp in found:
-            for row in _rows(exp.results_csv):
-                _put(cells, row, (exp.name, *(row.get(c, "") for c in MATCH_COLUMNS)),
-                     cell_value(row), k, len(roots))
-            for row in _rows(exp.ratios_csv):
-                _put(ratios, row, (exp.name, *(row.get(c, "") for c in _RATIO_KEY)),
-                     ratio_value(row), k, len(roots))
+            frame = read_results(exp.results_csv)
+            for key, (_, row) in zip(cell_keys(frame), frame.iterrows(), strict=True):
+                _put(cells, row, (exp.name, key), cell_value(row), k, len(roots))
+            frame = read_ratios(exp.ratios_csv, paired_only=False)
+            for _, row in (frame if frame is not None else pd.DataFrame()).iterrows():
+                key = (exp.name, row["_key"], *(str(row.get(c, "")) for c in _RATIO_REFERENCE))
+                _put(ratios, row, key, ratio_value(row), k, len(roots))
     return cells, ratios
 
 
-def _put(table: ByMachine, row: Mapping[str, str], key: CellKey, value: Found | None,
+def _put(table: ByMachine, row: pd.Series, key: CellKey, value: Found | None,
          rerun: int, reruns: int) -> None:
     if value is not None:
         by_key = table.setdefault(row.get("machine_id") or "", {})
@@ -156,13 +140,11 @@ class MachineReruns:
 
     def entry(self, config: str) -> dict[str, object]:
         """What is kept beside the machine's description (store.sessions)."""
-        def share(c: stats.Coverage) -> dict[str, object]:
-            return {"held": c.held, "pairs": c.pairs, "median_move": c.median_move,
-                    "largest_move": c.largest_move, "median_half_width": c.median_half_width}
         return {"absolute": self.spread.absolute, "ratio": self.spread.ratio,
                 "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                 "config": config, "reruns": self.reruns,
-                "coverage": {"absolute": share(self.cells), "ratio": share(self.ratios)}}
+                "coverage": {"absolute": dataclasses.asdict(self.cells),
+                             "ratio": dataclasses.asdict(self.ratios)}}
 
 
 def analyse(roots: Sequence[Path]) -> list[MachineReruns]:

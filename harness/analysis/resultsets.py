@@ -15,10 +15,11 @@ from pathlib import Path
 import pandas as pd
 
 from harness import stats
-from harness.analysis.flags import _is_true
-from harness.analysis.frame import read_results
+from harness.analysis.cells import key_text
+from harness.analysis.flags import _is_true, short_commit
+from harness.analysis.frame import items, read_results, run_times
 from harness.errors import HarnessError
-from harness.store import hyperfine, layout, records
+from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.layout import ExperimentDir
 
@@ -81,18 +82,6 @@ def _short(value: str) -> str:
     except ValueError:
         return value
     return f"{number:g}"
-
-
-def _normal(value: object) -> str:
-    """A matchable form of a results field: numbers by value, anything else stripped."""
-    if value is None or (not isinstance(value, str) and pd.isna(value)):
-        return ""
-    text = str(value).strip()
-    try:
-        number = float(text)
-    except ValueError:
-        return text
-    return repr(number) if math.isfinite(number) else text
 
 
 @dataclass(frozen=True)
@@ -167,10 +156,7 @@ def _env_machine(directory: Path) -> str:
 
 
 def _text(row: pd.Series, column: str) -> str:
-    value = row.get(column)
-    if value is None or (not isinstance(value, str) and pd.isna(value)):
-        return ""
-    return str(value).strip()
+    return key_text(row.get(column), numeric=False)
 
 
 def _number(row: pd.Series, column: str, default: float = math.nan) -> float:
@@ -187,14 +173,8 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
                                [p for c in cells for p in c.round_pressure])
 
 
-def _items(row: pd.Series, column: str) -> tuple[float, ...]:
-    """A list column's items; () where the row or the file has none."""
-    value = row.get(column)
-    return tuple(value) if isinstance(value, tuple) else ()
-
-
 def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
-    rounds = tuple(int(r) for r in _items(row, "wall_times_round"))
+    rounds = tuple(int(r) for r in items(row, "wall_times_round"))
     return rounds if len(rounds) == runs else ()
 
 
@@ -203,17 +183,13 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
 
     Per-run times come from the `wall_times_s` column, or, in results written before it, from
     the cell's hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
-    exp = ExperimentDir(directory)
-    frame = read_results(exp.results_csv)
+    frame = read_results(ExperimentDir(directory).results_csv)
     env_machine = None
     cells = []
     for _, row in frame.iterrows():
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
-        key = MatchKey(experiment, *(_normal(row.get(c)) for c in MATCH_COLUMNS))
-        cell_id = _text(row, "cell_id")
-        listed = _items(row, "wall_times_s")
-        export = exp.hyperfine(cell_id) if cell_id and not listed else None
-        times = tuple(hyperfine.run_times(listed, export))
+        key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
+        times = tuple(run_times(row, directory))
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -225,7 +201,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
                 env_machine = _env_machine(directory)
             machine = env_machine
         cells.append(Cell(
-            key=key, directory=directory, cell_id=cell_id,
+            key=key, directory=directory, cell_id=_text(row, "cell_id"),
             status=_text(row, "status") or "unknown", median=median, times=times,
             machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
             git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
@@ -236,8 +212,8 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             instructions=_number(row, "instructions"),
             instructions_max=_number(row, "instructions_max"),
             instructions_tool=_text(row, "instructions_tool"),
-            round_noise=_items(row, "round_noise"),
-            round_pressure=_items(row, "round_pressure"),
+            round_noise=items(row, "round_noise"),
+            round_pressure=items(row, "round_pressure"),
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 
@@ -263,7 +239,8 @@ class Side:
 
     def commits(self) -> list[str]:
         """The commits that measured the cells, abbreviated (keeping "-dirty")."""
-        return sorted({_abbreviate(c.git_commit) for c in self.cells.values() if c.git_commit})
+        return sorted({short_commit(c.git_commit, COMMIT_CHARS) for c in self.cells.values()
+                       if c.git_commit})
 
 
 COMMIT_CHARS = 12
@@ -290,11 +267,6 @@ def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell 
     for key in sorted(old.cells.keys() | new.cells.keys(), key=MatchKey.order):
         note = "; ".join(n for n in (old.notes.get(key), new.notes.get(key)) if n)
         yield key, old.cells.get(key), new.cells.get(key), note
-
-
-def _abbreviate(commit: str) -> str:
-    head, dirty, _ = commit.partition("-dirty")
-    return head[:COMMIT_CHARS] + dirty
 
 
 def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: bool,

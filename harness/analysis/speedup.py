@@ -44,6 +44,17 @@ def single_threaded(variants: pd.Series) -> pd.Series:
     return variants.map(lambda v: registry.get(v) is not None and not registry[v].parallel)
 
 
+def _lookup(df: pd.DataFrame, found: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """Per row of `df`, the first ok, timed row of `found` with the same `keys`: its median
+    (`base_s`) and run times (`base_times`), NaN where there is none."""
+    found = found[(found["status"] == OK) & found["wall_median_s"].notna()]
+    picked = found.drop_duplicates(keys)[[*keys, "wall_median_s", TIMES]].rename(
+        columns={"wall_median_s": "base_s", TIMES: "base_times"})
+    base = df[keys].merge(picked, how="left", on=keys)[["base_s", "base_times"]]
+    base.index = df.index
+    return base
+
+
 def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
     build (the validation baseline) where measured, else seq of the row's own build.
@@ -53,29 +64,13 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     stands for all.
     """
     df = _with_times(df)
-    seq = df[(df["variant"] == BASELINE) & (df["status"] == OK) & df["wall_median_s"].notna()]
-    seq = seq.sort_values("threads", kind="stable")
+    seq = df[df["variant"] == BASELINE].sort_values("threads", kind="stable")
     keys = present(df, SCENE_KEYS)
-    reference = (
-        seq[seq["build"] == BASELINE_BUILD]
-        .drop_duplicates(keys)[[*keys, "wall_median_s", TIMES, "build"]]
-        .rename(columns={"wall_median_s": "_ref_s", TIMES: "_ref_t", "build": "_ref_build"})
-    )
-    same_build = (
-        seq.drop_duplicates([*keys, "build"])[[*keys, "build", "wall_median_s", TIMES]]
-        .rename(columns={"wall_median_s": "_same_s", TIMES: "_same_t"})
-    )
-    merged = df[[*keys, "build"]].merge(reference, how="left", on=keys)
-    merged = merged.merge(same_build, how="left", on=[*keys, "build"])
-    has_ref = merged["_ref_s"].notna()
-    base = pd.DataFrame(
-        {
-            "base_s": merged["_ref_s"].where(has_ref, merged["_same_s"]),
-            "base_times": merged["_ref_t"].where(has_ref, merged["_same_t"]),
-            "base_build": merged["_ref_build"].where(has_ref, merged["build"]),
-        }
-    )
-    base.index = df.index
+    base = _lookup(df, seq, [*keys, "build"])
+    reference = _lookup(df, seq[seq["build"] == BASELINE_BUILD], keys)
+    has_ref = reference["base_s"].notna()
+    base[has_ref] = reference[has_ref]
+    base["base_build"] = df["build"].where(~has_ref, BASELINE_BUILD)
     return base
 
 
@@ -83,14 +78,7 @@ def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
     """Per row, the median (`base_s`) and run times (`base_times`) of the same variant and
     build at 1 thread on the same scene."""
     df = _with_times(df)
-    keys = [*present(df, SCENE_KEYS), "variant", "build"]
-    one = df[(df["threads"] == 1) & (df["status"] == OK) & df["wall_median_s"].notna()]
-    one = one.drop_duplicates(keys)[[*keys, "wall_median_s", TIMES]].rename(
-        columns={"wall_median_s": "base_s", TIMES: "base_times"}
-    )
-    base = df[keys].merge(one, how="left", on=keys)[["base_s", "base_times"]]
-    base.index = df.index
-    return base
+    return _lookup(df, df[df["threads"] == 1], [*present(df, SCENE_KEYS), "variant", "build"])
 
 
 def _with_times(df: pd.DataFrame) -> pd.DataFrame:
@@ -107,27 +95,15 @@ def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
     """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
     intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
     either cell has fewer than two times, so tables fall back to the point value."""
-    columns = {f"{m}{s}": np.full(len(out), np.nan)
-               for m in ("speedup", "efficiency", "serial_fraction") for s in INTERVAL_SUFFIXES}
+    for metric in paired.METRICS:
+        for suffix in INTERVAL_SUFFIXES:
+            out[f"{metric}{suffix}"] = np.nan
     own_times = out[TIMES] if TIMES in out.columns else pd.Series([()] * len(out),
                                                                      index=out.index)
-    pairs = [(i, _times(b), _times(t))
-             for i, (b, t) in enumerate(zip(base_times, own_times, strict=True))]
-    pairs = [p for p in pairs if len(p[1]) >= 2 and len(p[2]) >= 2
-             and pd.notna(out["speedup"].iloc[p[0]])]
-    for i, base, own in pairs:
-        speedup = stats.speedup_ci(base, own)
-        threads = int(out["threads"].iloc[i])
-        metrics = {"speedup": speedup}
-        if pd.notna(out["efficiency"].iloc[i]):
-            metrics["efficiency"] = stats.efficiency(speedup, threads)
-        if pd.notna(out["serial_fraction"].iloc[i]):
-            metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
-        for name, interval in metrics.items():
-            columns[f"{name}_low"][i] = interval.low
-            columns[f"{name}_high"][i] = interval.high
-    for name, values in columns.items():
-        out[name] = values
+    for position, base, own in zip(out.index, base_times, own_times, strict=True):
+        base, own = _times(base), _times(own)
+        if len(base) >= 2 and len(own) >= 2 and pd.notna(out.at[position, "speedup"]):
+            paired.put_metrics(out, position, stats.speedup_ci(base, own), point=False)
 
 
 def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
@@ -249,15 +225,8 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
         if fit is None:
             continue
         label_values = values if isinstance(values, tuple) else (values,)
-        row: dict[str, object] = dict(zip(keys, label_values, strict=True))
-        row.update(
-            exponent=fit.exponent,
-            exponent_se=fit.stderr,
-            prefactor_s=fit.coefficient,
-            points=len(group),
-            x_min=group[x].min(),
-            x_max=group[x].max(),
-        )
-        rows.append(row)
+        rows.append({**dict(zip(keys, label_values, strict=True)), "exponent": fit.exponent,
+                     "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
+                     "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
     return sort_cells(pd.DataFrame(rows, columns=columns), keys)

@@ -18,11 +18,10 @@ import pandas as pd
 
 from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
+from harness.analysis.frame import items, run_times
 from harness.analysis.paired import paired_points
 from harness.spec.facts import current
-from harness.store import hyperfine
 from harness.store.columns import RATIO_OVER_BASELINE
-from harness.store.layout import ExperimentDir
 
 # The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
 # its machine, a 20-thread Xeon, in seconds; and its sequential code on the same benchmark.
@@ -56,24 +55,11 @@ NS_PER_S = 1e9
 LITTLE_DIFFERENCE = 0.05
 
 
-def run_times(row: pd.Series, exp_path: Path | None = None) -> list[float]:
-    """A cell's per-run wall times: the `wall_times_s` column, else its hyperfine JSON."""
-    cell_id = row.get("cell_id")
-    export = (ExperimentDir(exp_path).hyperfine(cell_id)
-              if exp_path is not None and isinstance(cell_id, str) else None)
-    return hyperfine.run_times(row.get("wall_times_s"), export)
-
-
 def repaired_by(variant: str) -> str | None:
     """The variant that repairs `variant` (its --describe names it), if any."""
     registry = current()
     fixes = registry.repaired_by(variant) if variant in registry else ()
     return fixes[0] if fixes else None
-
-
-def thread_list(row: pd.Series, column: str) -> list[float]:
-    value = row.get(column)
-    return [float(v) for v in value] if isinstance(value, tuple) else []
 
 
 def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
@@ -183,7 +169,7 @@ def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
         if variant == "p2":  # a region per row and step is what the repair removes
             regions = float(cell["n"]) * float(cell["steps"])
             parts.append(f"{extra / regions * 1e6:.3g} µs per row's region")
-    chunks = sum(thread_list(cell, "threads_chunks"))
+    chunks = sum(items(cell, "threads_chunks"))
     if variant in ("p1d", "p2d") and chunks:
         parts.append(f"{chunks:.3g} chunks dealt")
     return ", ".join(parts)
@@ -199,8 +185,8 @@ def work_table(df: pd.DataFrame) -> pd.DataFrame | None:
     for v in WORK_VARIANTS:
         if v not in cells.index:
             continue
-        busy = thread_list(cells.loc[v], "threads_busy_s")
-        pairs = thread_list(cells.loc[v], "threads_pairs")
+        busy = items(cells.loc[v], "threads_busy_s")
+        pairs = items(cells.loc[v], "threads_pairs")
         if not busy or len(busy) != len(pairs):
             continue
         total = sum(pairs) or 1.0
@@ -236,7 +222,7 @@ def chunk_costs(df: pd.DataFrame, exp_path: Path | None = None) -> list[ChunkCos
         reference = next((r for r in references if r in cells.index), None)
         if variant not in cells.index or reference is None:
             continue
-        chunks = sum(thread_list(cells.loc[variant], "threads_chunks"))
+        chunks = sum(items(cells.loc[variant], "threads_chunks"))
         if chunks <= 0:
             continue
         a, b = run_times(cells.loc[variant], exp_path), run_times(cells.loc[reference], exp_path)
@@ -313,7 +299,7 @@ def schedule_rows(df: pd.DataFrame, exp_path: Path | None = None) -> pd.DataFram
         rows.append({"variant": cell["variant"], "threads": cell["threads"],
                      "schedule": cell["schedule"], "median": ci, "times": times,
                      "imbalance": cell.get("imbalance", math.nan),
-                     "chunks": sum(thread_list(cell, "threads_chunks")) or math.nan})
+                     "chunks": sum(items(cell, "threads_chunks")) or math.nan})
     out = pd.DataFrame(rows)
     if out.empty:
         return out

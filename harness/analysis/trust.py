@@ -39,10 +39,6 @@ def has_check_data(df: pd.DataFrame) -> bool:
     return "checks_passed" in df.columns and bool(df["checks_passed"].notna().any())
 
 
-def variant_build(row: pd.Series) -> str:
-    return f"{row['variant']}/{row['build']}"
-
-
 def scene_names(df: pd.DataFrame) -> pd.Series:
     """Per row, the name of its input: the scene label, plus the parameters that tell apart
     the inputs sharing that label (e.g. `random N=4000 L=12649.1 S=3`)."""
@@ -75,24 +71,15 @@ def _failures(row: pd.Series) -> list[str]:
 def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
     """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
     rows = _checked(df)
-    labels = list(dict.fromkeys(variant_build(r) for _, r in rows.iterrows()))
+    rows = rows.assign(label=rows["variant"] + "/" + rows["build"])
     # the scenes in the order the experiment ran them
-    ran = rows.sort_values("scene_rank", kind="stable")["scene_name"]
-    table = pd.DataFrame({"scene": list(dict.fromkeys(ran))})
-    for label in labels:
-        marks = []
-        for scene in table["scene"]:
-            cells = rows[(rows["scene_name"] == scene)
-                         & (rows["variant"] + "/" + rows["build"] == label)]
-            failed = list(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
-            if cells.empty:
-                marks.append("")
-            elif failed:
-                marks.append(f"{FAIL_MARK} " + ", ".join(failed))
-            else:
-                marks.append(PASS_MARK)
-        table[label] = marks
-    return table
+    scenes = list(dict.fromkeys(rows.sort_values("scene_rank", kind="stable")["scene_name"]))
+    marks = {}
+    for key, cells in rows.groupby(["scene_name", "label"], sort=False):
+        failed = list(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
+        marks[key] = f"{FAIL_MARK} " + ", ".join(failed) if failed else PASS_MARK
+    return pd.DataFrame({"scene": scenes, **{label: [marks.get((s, label), "") for s in scenes]
+                                             for label in dict.fromkeys(rows["label"])}})
 
 
 def check_summary(df: pd.DataFrame) -> pd.DataFrame:
@@ -104,7 +91,7 @@ def check_summary(df: pd.DataFrame) -> pd.DataFrame:
             continue
         known = rows[rows[column].notna()]
         failed = known[~known[column].astype(bool)]
-        where = [f"{r['scene_name']}: {variant_build(r)}" for _, r in failed.iterrows()]
+        where = [f"{r['scene_name']}: {r['variant']}/{r['build']}" for _, r in failed.iterrows()]
         listed = ", ".join(where[:MAX_LISTED]) + (f", … {len(where) - MAX_LISTED} more"
                                                   if len(where) > MAX_LISTED else "")
         out.append({"check": name, "what": what, "checked": len(known),
@@ -119,12 +106,10 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     ✓ marks each scene's Pareto front of time against the mean shadow error."""
     rows = _checked(df)
     rows = timed_rows(rows)
-    table = pd.DataFrame({k: rows[k] for k in keys})
-    table["median_s"] = rows["wall_median_s"]
-    table["max_pos_err"] = rows["max_pos_err"]
-    for column in ("shadow_pos_err", "shadow_err_r", "shadow_set_diff", "energy_drift_max",
-                   "div_steps_to_r"):
-        table[column] = rows[column] if column in rows.columns else np.nan
+    table = rows.reindex(columns=[
+        *keys, "wall_median_s", "max_pos_err", "shadow_pos_err", "shadow_err_r",
+        "shadow_set_diff", "energy_drift_max", "div_steps_to_r"]).rename(
+        columns={"wall_median_s": "median_s"})
     table["pareto"] = pareto_by_scene(rows, "shadow_pos_err") \
         if "shadow_pos_err" in rows.columns else False
     return sort_cells(table, keys)

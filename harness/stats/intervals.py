@@ -68,30 +68,14 @@ def _difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.median(x, axis=axis) - np.median(y, axis=axis)
 
 
-def _median(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.median(x, axis=axis)
-
-
-def _minimum(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.min(x, axis=axis)
-
-
-def _low_quantile(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.quantile(x, LOW_QUANTILE, axis=axis)
-
-
-def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    return np.mean(x, axis=axis)
-
-
 # Estimators of what a binary costs from its runs' times. Interference only ever slows a run,
 # so the low end of the times is a candidate beside the median: docs/compare.md measures how
 # well each reproduces between reruns. Each is vectorized (for its bootstrap interval).
 LOW_QUANTILE = 0.25
 LOW_QUANTILE_ESTIMATOR = f"q{round(LOW_QUANTILE * 100)}"
 ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
-    "median": _median, "min": _minimum, LOW_QUANTILE_ESTIMATOR: _low_quantile,
-    "mean": _mean,
+    "median": np.median, "min": np.min,
+    LOW_QUANTILE_ESTIMATOR: functools.partial(np.quantile, q=LOW_QUANTILE), "mean": np.mean,
 }
 DEFAULT_ESTIMATOR = "median"
 
@@ -106,12 +90,11 @@ def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> I
     """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
     same estimator (the interval of a minimum reaches only upwards of it)."""
     data = clean(times)
-    if data.size < 2:
-        return Interval(estimate(times, estimator), math.nan, math.nan)
-    point = float(ESTIMATORS[estimator](data))
-    if np.all(data == data[0]):
-        return Interval(point, point, point)
-    return _interval(point, (data,), ESTIMATORS[estimator])
+    return _interval(estimate(data, estimator), (data,), ESTIMATORS[estimator])
+
+
+# The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs).
+median_ci = estimate_ci
 
 
 @functools.lru_cache(maxsize=4096)
@@ -132,38 +115,24 @@ def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
 
 def _interval(point: float, samples: tuple[np.ndarray, ...],
               statistic: Callable[..., np.ndarray]) -> Interval:
-    """`point` with the bootstrap interval of `statistic` over the samples, widened to hold the
-    point."""
+    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, each
+    resampled on its own (independent runs), widened to hold the point: no interval with
+    fewer than two runs in a sample, the point itself where every sample is constant."""
+    if any(s.size < 2 for s in samples):
+        return Interval(point, math.nan, math.nan)
+    if all(np.all(s == s[0]) for s in samples):
+        return Interval(point, point, point)
     low, high = _bootstrap(statistic, *(tuple(s.tolist()) for s in samples))
     return Interval(point, min(low, point), max(high, point))
 
 
-def median_ci(times: Sequence[float]) -> Interval:
-    """The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs)."""
-    data = clean(times)
-    if data.size == 0:
-        return Interval(math.nan, math.nan, math.nan)
-    point = float(np.median(data))
-    if data.size < 2:
-        return Interval(point, math.nan, math.nan)
-    if np.all(data == data[0]):
-        return Interval(point, point, point)
-    return _interval(point, (data,), _median)
-
-
 def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
                  ) -> Interval:
-    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples, each
-    resampled on its own (independent runs): NaN without runs on a side, no interval with one
-    run on a side."""
+    """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples: NaN
+    without runs on a side."""
     if a.size == 0 or b.size == 0:
         return Interval(math.nan, math.nan, math.nan)
-    point = float(statistic(a, b))
-    if a.size < 2 or b.size < 2:
-        return Interval(point, math.nan, math.nan)
-    if np.all(a == a[0]) and np.all(b == b[0]):
-        return Interval(point, point, point)
-    return _interval(point, (a, b), statistic)
+    return _interval(float(statistic(a, b)), (a, b), statistic)
 
 
 def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
@@ -177,10 +146,8 @@ def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interv
     return _two_medians(a, b, _ratio)
 
 
-def speedup_ci(baseline: Sequence[float], times: Sequence[float]) -> Interval:
-    """How many times faster `times` is than `baseline` (median over median)."""
-    return ratio_ci(baseline, times)
-
+# How many times faster `times` is than `baseline`: speedup_ci(baseline, times).
+speedup_ci = ratio_ci
 
 
 def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Interval:
