@@ -196,9 +196,7 @@ class CellStore:
             shas = self._hashes(self.check_references(cell))
             if shas is None:
                 return None
-            settings = {k: tuple(v) if isinstance(v, list) else v
-                        for k, v in self.config.checks.key().items()}
-            parts["checks"] = ChecksKey(**settings, reference_sha256=shas)
+            parts["checks"] = ChecksKey(**self.config.checks.key(), reference_sha256=shas)
         if self.config.counts_instructions:
             counted = self.counted_binary(cell)
             counted_sha = binary_sha if counted is None else self.sha(counted)

@@ -26,6 +26,7 @@ file, the key and what was expected) and harness.spec.points expands its grid.
 from __future__ import annotations
 
 import dataclasses
+import operator
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -67,12 +68,7 @@ EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps"
                   "schedule")
 # The fields a comparison (_gt, _ge, _lt, _le) may test.
 EXCLUDE_NUMERIC_FIELDS = ("threads", "n", "L", "r", "steps", "seed")
-EXCLUDE_OPS = {
-    "gt": lambda a, b: a > b,
-    "ge": lambda a, b: a >= b,
-    "lt": lambda a, b: a < b,
-    "le": lambda a, b: a <= b,
-}
+EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": operator.le}
 # An experiment's, a custom binary's or a program's name: a folder and a file name under
 # results/, so characters every file system takes, and short enough beside its suffixes.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
@@ -206,10 +202,8 @@ class Checks:
         return bool(self.names) and (self.max_n is None or n <= self.max_n)
 
     def key(self) -> dict[str, object]:
-        """What the checks' results depend on (part of a checked cell's id)."""
-        return {"names": list(self.names), "truth": self.truth,
-                "shadow_steps": self.shadow_steps, "energy_ulps": self.energy_ulps,
-                "shadow_ulps": self.shadow_ulps, "thread_counts": list(self.thread_counts)}
+        """What the checks' results depend on (part of a checked cell's id): all but max_n."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if k != "max_n"}
 
 
 EXECUTOR_KINDS = ("local", "slurm")
