@@ -19,6 +19,7 @@ from harness.plan import lane
 from harness.plan.binaries import (
     baseline_path,
     binary_path,
+    cell_binaries,
     check_references,
     measures_openmp_costs,
     ompcost_path,
@@ -115,22 +116,6 @@ class CellStore:
     def program_references(self, cell: Cell) -> dict[str, Path]:
         return program_references(self.config, self.binaries, cell)
 
-    def binaries_of(self, cell: Cell) -> list[Path]:
-        """Every binary the cell's measurement runs."""
-        paths = [] if cell.program else [self.binary(cell)]
-        if cell.validate:
-            paths.append(self.baseline_binary(cell))
-        if cell.checked:
-            paths.extend(self.check_references(cell).values())
-        if cell.program:
-            paths.extend(self.program_references(cell).values())
-        counted = self.counted_binary(cell)
-        if counted is not None and counted not in paths:
-            paths.append(counted)
-        if measures_openmp_costs(self.config, cell):
-            paths.append(self.ompcost(cell))
-        return paths
-
     def ompcost(self, cell: Cell) -> Path:
         """build/ompcost, which a cell measuring the runtime's costs runs."""
         assert measures_openmp_costs(self.config, cell)
@@ -146,7 +131,8 @@ class CellStore:
 
     def missing_binary(self, cell: Cell) -> Path | None:
         """A binary the cell needs that is not there (its key waits for it), if any."""
-        return next((p for p in self.binaries_of(cell) if self.sha(p) is None), None)
+        return next((p for p in cell_binaries(self.config, self.binaries, cell)
+                     if self.sha(p) is None), None)
 
     def baseline_binary(self, cell: Cell) -> Path:
         return baseline_path(self.config, self.binaries, cell.build)
