@@ -24,13 +24,14 @@ from harness.measure import environment, machine
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
-from harness.repo import BUILD_DIR
+from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+from harness.store.locks import RunLock
 from harness.store.result import CellResult
 
 # results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
@@ -125,6 +126,18 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
     return summarise(experiment, order, len(measured), len(missing))
+
+
+def run_afresh(configs: Sequence[Config], root: Path, registry: VariantRegistry,
+               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+               quick: bool = False) -> None:
+    """Every config measured afresh into the results root `root`, emptied first (as `run
+    --force --results-dir ROOT`)."""
+    shutil.rmtree(root, ignore_errors=True)
+    options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
+                      hyperfine=hyperfine, run_lock=run_lock)
+    for config in configs:
+        run_experiment(config, options, log, log, registry)
 
 
 def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool
