@@ -257,11 +257,8 @@ class CellStore:
         (or its newest, marked stale) and every other machine's newest. With `prune`, the
         superseded records move to history/ first."""
         if self.planned is None:
-            self.planned = []
-            for cell in self.plan.cells:
-                key = self.cell_key(cell)
-                if key is not None:
-                    self.planned.append(index.PlannedCell(key))
+            keys = (self.cell_key(cell) for cell in self.plan.cells)
+            self.planned = [index.PlannedCell(key) for key in keys if key is not None]
         kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
                                  self.config.title, prune_first=prune, baseline=BASELINE)
         if self.config.checks.names:
