@@ -1,18 +1,10 @@
-"""The instruction lane (`metric: instructions`): which counter this machine offers, and which
-binary a cell's count runs.
-
-Two counters, chosen once per process and recorded with every count:
-  perf        the kernel's hardware counter (`perf stat -e instructions:u`), where it exposes
-              one: counts the cell's own binary, at native speed;
-  cachegrind  Valgrind's, everywhere else (a VM seldom passes counters through): tens of
-              times slower (docs/instructions.md), and unable to run AVX-512 code, so it
-              counts the Makefile's lane build (build/lane/, x86-64-v3) of a built variant;
-              a custom binary or a program is counted as it is.
-COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses one by hand (e.g. cachegrind on a machine
-with counters, to compare with counts taken in a VM).
-
-OpenMP threads that wait for work spin for a while before they sleep; the lane runs them with
-OMP_WAIT_POLICY=passive, so that the count is the work and not the waiting.
+"""The instruction lane (`metric: instructions`, docs/instructions.md): which counter this
+machine offers, and which binary a cell's count runs. Chosen once per process and recorded with
+every count: perf (`perf stat -e instructions:u`, the kernel's hardware counter, at native
+speed) where it counts, else Valgrind's cachegrind (a VM seldom passes counters through), which
+cannot run AVX-512 code, so it counts a built variant's lane build (build/lane/, x86-64-v3);
+COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses by hand. The lane runs OpenMP threads with
+OMP_WAIT_POLICY=passive, so that the count is the work and not the spinning of idle threads.
 """
 
 from __future__ import annotations

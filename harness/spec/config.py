@@ -1,26 +1,8 @@
-"""Experiment configs: YAML -> defaults -> validation -> a frozen `Config`, and grid expansion.
-
-A config names the experiment, the variants and builds, a base scene whose keys (and
-`threads`) may be lists to sweep, how those lists combine, and how to measure:
-
-    name: threads
-    variants: [p1d]
-    scene: {n: 10000, L: 20000, r: 1, steps: 50, mode: perf, seed: 1}
-    threads: [1, 2, 4]
-    measure: {warmup: 1, runs: 3, timeout_s: 600}
-    validate: true
-
-Implementations written elsewhere take part through `programs: {NAME: "COMMAND {threads}
-< {input}"}` and are listed in `variants` like the rest (harness.spec.programs).
-
-The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
-settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
-max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
-`scene: {generator: [A, B, ...]}` (several named scenes as one more axis).
-
-This module holds the typed config (frozen dataclasses) and the names of its keys and
-defaults; harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the
-file, the key and what was expected) and harness.spec.points expands its grid.
+"""Experiment configs: the typed config (frozen dataclasses) and the names of its keys and
+defaults. harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the file,
+the key and what was expected) and harness.spec.points expands its grid of points: the base
+scene's keys and `threads`, each a value or a list to sweep, combined as `combine:` says.
+docs/configs.md is the reference of the keys; programs (`programs:`) are docs/programs.md's.
 """
 
 from __future__ import annotations
