@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping
 
 from harness.errors import config_error
 from harness.spec.config import Config
+
+
+def scene_key(point: Mapping[str, object]) -> tuple[tuple[str, str], ...]:
+    """What makes a point's scene: every axis but threads."""
+    return tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
 
 
 def count_points(config: Config) -> int:
