@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import shutil
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -165,11 +166,8 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
               missing: int) -> Summary:
     """The run's cells by status, and its one line in the log."""
     name = experiment.config.name
-    statuses: dict[str, int] = {}
-    for _, cid in order:
-        if cid in experiment.records:  # all of them, but after --collect
-            status = str(experiment.records[cid].status)
-            statuses[status] = statuses.get(status, 0) + 1
+    statuses = Counter(str(experiment.records[cid].status) for _, cid in order
+                       if cid in experiment.records)  # all of them, but after --collect
     summary = Summary(name, experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))

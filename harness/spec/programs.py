@@ -135,12 +135,8 @@ class Program:
     def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:
         """The argv that builds the program with a compiler and flags of the harness's choice
         into `out`."""
-        sources = []
-        for path in self.source:
-            try:
-                sources.append(str(path.relative_to(self.directory)))
-            except ValueError:
-                sources.append(str(path))
+        sources = [str(p.relative_to(self.directory) if p.is_relative_to(self.directory) else p)
+                   for p in self.source]
         rendered = self.build.format(cc=shlex.quote(cc), cflags=cflags, out=shlex.quote(str(out)),
                                      source=shlex.join(sources))
         return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]

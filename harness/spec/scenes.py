@@ -100,9 +100,7 @@ class ScenePoint:
 
 def format_number(value: object) -> str:
     """Compact rendering of an axis value for labels: 20000.0 -> 20000, 1e7 -> 1e+07."""
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def format_real(value: float) -> str:
