@@ -49,10 +49,6 @@ def expand_points(config: Config) -> list[dict[str, object]]:
                 zip_placed = True
         else:
             groups.append(((key,), [(v,) for v in values]))
-    points = []
-    for combo in itertools.product(*(rows for _, rows in groups)):
-        point: dict[str, object] = {}
-        for (keys, _), row in zip(groups, combo, strict=True):
-            point.update(zip(keys, row, strict=True))
-        points.append(point)
-    return points
+    names = [key for keys, _ in groups for key in keys]
+    return [dict(zip(names, itertools.chain.from_iterable(combo), strict=True))
+            for combo in itertools.product(*(rows for _, rows in groups))]
