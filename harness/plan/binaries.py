@@ -60,11 +60,9 @@ def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
         paths.extend(check_references(config, build_dir, cell.build).values())
     if cell.program:
         paths.extend(program_references(config, build_dir, cell).values())
-    if config.counts_instructions:
-        counted = lane.counted_binary(config, build_dir, cell.variant, cell.build,
-                                      lane.machine_tool())
-        if counted is not None and counted not in paths:
-            paths.append(counted)
+    counted = lane.counted_binary(config, build_dir, cell)
+    if counted is not None and counted not in paths:
+        paths.append(counted)
     if measures_openmp_costs(config, cell):
         paths.append(ompcost_path())
     return paths

@@ -124,10 +124,7 @@ class CellStore:
     def counted_binary(self, cell: Cell) -> Path | None:
         """What the instruction lane counts for the cell (None without the lane, or for a
         program, whose command is counted)."""
-        if not self.config.counts_instructions:
-            return None
-        return lane.counted_binary(self.config, self.binaries, cell.variant, cell.build,
-                                   lane.machine_tool())
+        return lane.counted_binary(self.config, self.binaries, cell)
 
     def missing_binary(self, cell: Cell) -> Path | None:
         """A binary the cell needs that is not there (its key waits for it), if any."""

@@ -18,6 +18,7 @@ import subprocess
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.plan.cells import Cell
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
 
@@ -71,17 +72,16 @@ def machine_tool() -> str:
     return CACHEGRIND
 
 
-def counted_binary(config: Config, build_dir: Path, variant: str, build: str,
-                   tool: str) -> Path | None:
-    """What a cell's count runs: under cachegrind the lane build of a built variant, else the
-    cell's own binary; None for a program (its command is counted)."""
-    if config.program(variant) is not None:
+def counted_binary(config: Config, build_dir: Path, cell: Cell) -> Path | None:
+    """What a cell's count runs: nothing without the lane, nor for a program (its command is
+    counted); under cachegrind the lane build of a built variant; else the cell's own binary."""
+    if not config.counts_instructions or config.program(cell.variant) is not None:
         return None
-    custom = config.custom_binary(variant)
+    custom = config.custom_binary(cell.variant)
     if custom is not None:
         return custom
-    lane = build_dir / LANE_DIR if tool == CACHEGRIND else build_dir
-    return lane / binary_name(variant, build)
+    lane = build_dir / LANE_DIR if machine_tool() == CACHEGRIND else build_dir
+    return lane / binary_name(cell.variant, cell.build)
 
 
 def described(tool: str, binary: Path | None, build_dir: Path) -> str:
