@@ -32,40 +32,29 @@ class Parser(argparse.ArgumentParser):
         sys.exit(EXIT_ERROR)
 
 
-def _number(text: str, parse: Callable[[str], T], accept: Callable[[T], bool],
-            example: str, expected: str) -> T:
-    """`text` parsed, when it parses and is accepted; else argparse's one-line error."""
-    try:
-        value = parse(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {example}, got {text!r}") from None
-    if not accept(value):
-        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-    return value
+def _number(parse: Callable[[str], T], accept: Callable[[T], bool], example: str,
+            expected: str | None = None) -> Callable[[str], T]:
+    """An argparse type: the text parsed, where it parses and is accepted; else argparse's
+    one-line error, with `example` (where it does not parse) or `expected`."""
+    def convert(text: str) -> T:
+        try:
+            value = parse(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {example}, got {text!r}") from None
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {expected or example}, got {text!r}")
+        return value
+
+    return convert
 
 
-def whole_number(text: str) -> int:
-    """A count: a whole number >= 1."""
-    return _number(text, int, lambda v: v >= 1, "a whole number >= 1",
-                   "a whole number >= 1")
-
-
-def probability(text: str) -> float:
-    """A p-value limit, in (0, 1)."""
-    return _number(text, float, lambda v: 0.0 < v < 1.0, "a probability such as 0.002",
-                   "a probability in (0, 1)")
-
-
-def fraction(text: str) -> float:
-    """A relative change, in [0, 10)."""
-    return _number(text, float, lambda v: 0.0 <= v < 10.0, "a fraction such as 0.02",
-                   "a fraction in [0, 10)")
-
-
-def seconds(text: str) -> float:
-    """A duration in seconds, >= 0."""
-    return _number(text, float, lambda v: math.isfinite(v) and v >= 0,
-                   "seconds such as 300", "seconds >= 0")
+whole_number = _number(int, lambda v: v >= 1, "a whole number >= 1")  # a count
+probability = _number(float, lambda v: 0.0 < v < 1.0, "a probability such as 0.002",
+                      "a probability in (0, 1)")  # a p-value limit
+fraction = _number(float, lambda v: 0.0 <= v < 10.0, "a fraction such as 0.02",
+                   "a fraction in [0, 10)")  # a relative change
+seconds = _number(float, lambda v: math.isfinite(v) and v >= 0, "seconds such as 300",
+                  "seconds >= 0")
 
 
 # The flags the measuring commands share: one definition and one help text each.

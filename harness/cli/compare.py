@@ -148,10 +148,6 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
     return exit_status(rows, args.fail_on, metric)
 
 
-def _configs(paths: Sequence[str], registry: VariantRegistry) -> list:
-    return [load_config(Path(p), registry) for p in paths]
-
-
 def _measure_budget(args: argparse.Namespace) -> float:
     """The time lane's budget: an instruction count decides its cell exactly, so with that
     metric the times get only the first look's rounds unless a budget is asked for."""
@@ -162,7 +158,7 @@ def _measure_budget(args: argparse.Namespace) -> float:
 
 def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
-    configs = [with_metric(c, args.metric) for c in _configs(paths[2:], registry)]
+    configs = [with_metric(load_config(p, registry), args.metric) for p in paths[2:]]
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
     lock = measuring_lock(args, paths)
@@ -184,7 +180,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
 def _calibrate(args: argparse.Namespace, paths: list[str],
                out_stream: TextIO) -> int:
     registry = VariantRegistry(REPO_ROOT)
-    configs = _configs(paths, registry)
+    configs = [load_config(p, registry) for p in paths]
     lock = measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:

@@ -63,8 +63,7 @@ def execute(args: argparse.Namespace) -> int:
                       partition=args.partition, run_lock=run_lock)
     registry = VariantRegistry(REPO_ROOT)
     try:
-        configs = [with_metric(load_config(path, registry, args.max_cells),
-                                args.metric)
+        configs = [with_metric(load_config(path, registry, args.max_cells), args.metric)
                    for path in args.configs]
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
         if args.metric is not None and remote:

@@ -49,30 +49,31 @@ def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str,
                                          DEFAULT_BUILD)}
 
 
+def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
+    """Every binary the cell's measurement runs: its own (a program runs commands instead), seq
+    for a validated cell, the checks' references, the references of a program's check, what
+    the instruction lane counts, and build/ompcost where it prices the runtime."""
+    paths = [] if cell.program else [binary_path(config, build_dir, cell.variant, cell.build)]
+    if cell.validate:
+        paths.append(baseline_path(config, build_dir, cell.build))
+    if cell.checked:
+        paths.extend(check_references(config, build_dir, cell.build).values())
+    if cell.program:
+        paths.extend(program_references(config, build_dir, cell).values())
+    counted = lane.counted_binary(config, build_dir, cell)
+    if counted is not None and counted not in paths:
+        paths.append(counted)
+    if measures_openmp_costs(config, cell):
+        paths.append(ompcost_path())
+    return paths
+
+
 def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
-    """The make-built binaries the plan runs: each cell's, seq for validated cells, the
-    checks' references, the references of programs' checks, and the instruction lane's
-    builds."""
-    needed: dict[Path, None] = {}
-    tool = lane.machine_tool() if plan.config.counts_instructions else None
-    for cell in plan.cells:
-        if tool is not None and plan.config.is_built(cell.variant):
-            counted = lane.counted_binary(plan.config, build_dir, cell.variant, cell.build, tool)
-            assert counted is not None, "a built variant has a binary"
-            needed[counted] = None
-        if cell.program:
-            needed.update(dict.fromkeys(program_references(plan.config, build_dir,
-                                                           cell).values()))
-        elif plan.config.is_built(cell.variant):
-            needed[binary_path(plan.config, build_dir, cell.variant, cell.build)] = None
-        if cell.validate:
-            needed[baseline_path(plan.config, build_dir, cell.build)] = None
-        if cell.checked:
-            for path in check_references(plan.config, build_dir, cell.build).values():
-                needed[path] = None
-        if measures_openmp_costs(plan.config, cell):
-            needed[ompcost_path()] = None
-    return list(needed)
+    """The make-built binaries the plan runs: every cell's but the config's own binaries."""
+    custom = {path for _, path in plan.config.binaries}
+    needed = dict.fromkeys(path for cell in plan.cells
+                           for path in cell_binaries(plan.config, build_dir, cell))
+    return [path for path in needed if path not in custom]
 
 
 def ompcost_path() -> Path:

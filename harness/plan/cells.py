@@ -15,7 +15,7 @@ from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
-from harness.spec.points import expand_points
+from harness.spec.points import expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
 QUICK_MAX_N = 400
@@ -117,12 +117,12 @@ def plan_cells(config: Config, quick: bool = False,
     points: dict[tuple[object, ...], scenes.ScenePoint] = {}
     used: set[int] = set()
     for point in expand_points(config):
-        scene_key = tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
-        if scene_key not in points:
-            points[scene_key] = scene_point(config, point, quick)
+        at = scene_key(point)
+        if at not in points:
+            points[at] = scene_point(config, point, quick)
             if config.lists_particles:
-                points[scene_key] = scenes.with_every_particle(points[scene_key])
-        scene = points[scene_key]
+                points[at] = scenes.with_every_particle(points[at])
+        scene = points[at]
         threads = cast(int, point["threads"])
         for variant, build, schedule in itertools.product(config.variants, config.builds,
                                                           config.schedules or ("",)):

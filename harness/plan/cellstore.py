@@ -19,6 +19,7 @@ from harness.plan import lane
 from harness.plan.binaries import (
     baseline_path,
     binary_path,
+    cell_binaries,
     check_references,
     measures_openmp_costs,
     ompcost_path,
@@ -115,22 +116,6 @@ class CellStore:
     def program_references(self, cell: Cell) -> dict[str, Path]:
         return program_references(self.config, self.binaries, cell)
 
-    def binaries_of(self, cell: Cell) -> list[Path]:
-        """Every binary the cell's measurement runs."""
-        paths = [] if cell.program else [self.binary(cell)]
-        if cell.validate:
-            paths.append(self.baseline_binary(cell))
-        if cell.checked:
-            paths.extend(self.check_references(cell).values())
-        if cell.program:
-            paths.extend(self.program_references(cell).values())
-        counted = self.counted_binary(cell)
-        if counted is not None and counted not in paths:
-            paths.append(counted)
-        if measures_openmp_costs(self.config, cell):
-            paths.append(self.ompcost(cell))
-        return paths
-
     def ompcost(self, cell: Cell) -> Path:
         """build/ompcost, which a cell measuring the runtime's costs runs."""
         assert measures_openmp_costs(self.config, cell)
@@ -139,14 +124,12 @@ class CellStore:
     def counted_binary(self, cell: Cell) -> Path | None:
         """What the instruction lane counts for the cell (None without the lane, or for a
         program, whose command is counted)."""
-        if not self.config.counts_instructions:
-            return None
-        return lane.counted_binary(self.config, self.binaries, cell.variant, cell.build,
-                                   lane.machine_tool())
+        return lane.counted_binary(self.config, self.binaries, cell)
 
     def missing_binary(self, cell: Cell) -> Path | None:
         """A binary the cell needs that is not there (its key waits for it), if any."""
-        return next((p for p in self.binaries_of(cell) if self.sha(p) is None), None)
+        return next((p for p in cell_binaries(self.config, self.binaries, cell)
+                     if self.sha(p) is None), None)
 
     def baseline_binary(self, cell: Cell) -> Path:
         return baseline_path(self.config, self.binaries, cell.build)
@@ -196,9 +179,7 @@ class CellStore:
             shas = self._hashes(self.check_references(cell))
             if shas is None:
                 return None
-            settings = {k: tuple(v) if isinstance(v, list) else v
-                        for k, v in self.config.checks.key().items()}
-            parts["checks"] = ChecksKey(**settings, reference_sha256=shas)
+            parts["checks"] = ChecksKey(**self.config.checks.key(), reference_sha256=shas)
         if self.config.counts_instructions:
             counted = self.counted_binary(cell)
             counted_sha = binary_sha if counted is None else self.sha(counted)
@@ -273,11 +254,8 @@ class CellStore:
         (or its newest, marked stale) and every other machine's newest. With `prune`, the
         superseded records move to history/ first."""
         if self.planned is None:
-            self.planned = []
-            for cell in self.plan.cells:
-                key = self.cell_key(cell)
-                if key is not None:
-                    self.planned.append(index.PlannedCell(key))
+            keys = (self.cell_key(cell) for cell in self.plan.cells)
+            self.planned = [index.PlannedCell(key) for key in keys if key is not None]
         kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
                                  self.config.title, prune_first=prune, baseline=BASELINE)
         if self.config.checks.names:

@@ -1,18 +1,10 @@
-"""The instruction lane (`metric: instructions`): which counter this machine offers, and which
-binary a cell's count runs.
-
-Two counters, chosen once per process and recorded with every count:
-  perf        the kernel's hardware counter (`perf stat -e instructions:u`), where it exposes
-              one: counts the cell's own binary, at native speed;
-  cachegrind  Valgrind's, everywhere else (a VM seldom passes counters through): tens of
-              times slower (docs/instructions.md), and unable to run AVX-512 code, so it
-              counts the Makefile's lane build (build/lane/, x86-64-v3) of a built variant;
-              a custom binary or a program is counted as it is.
-COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses one by hand (e.g. cachegrind on a machine
-with counters, to compare with counts taken in a VM).
-
-OpenMP threads that wait for work spin for a while before they sleep; the lane runs them with
-OMP_WAIT_POLICY=passive, so that the count is the work and not the waiting.
+"""The instruction lane (`metric: instructions`, docs/instructions.md): which counter this
+machine offers, and which binary a cell's count runs. Chosen once per process and recorded with
+every count: perf (`perf stat -e instructions:u`, the kernel's hardware counter, at native
+speed) where it counts, else Valgrind's cachegrind (a VM seldom passes counters through), which
+cannot run AVX-512 code, so it counts a built variant's lane build (build/lane/, x86-64-v3);
+COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses by hand. The lane runs OpenMP threads with
+OMP_WAIT_POLICY=passive, so that the count is the work and not the spinning of idle threads.
 """
 
 from __future__ import annotations
@@ -26,6 +18,7 @@ import subprocess
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.plan.cells import Cell
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
 
@@ -79,17 +72,16 @@ def machine_tool() -> str:
     return CACHEGRIND
 
 
-def counted_binary(config: Config, build_dir: Path, variant: str, build: str,
-                   tool: str) -> Path | None:
-    """What a cell's count runs: under cachegrind the lane build of a built variant, else the
-    cell's own binary; None for a program (its command is counted)."""
-    if config.program(variant) is not None:
+def counted_binary(config: Config, build_dir: Path, cell: Cell) -> Path | None:
+    """What a cell's count runs: nothing without the lane, nor for a program (its command is
+    counted); under cachegrind the lane build of a built variant; else the cell's own binary."""
+    if not config.counts_instructions or config.program(cell.variant) is not None:
         return None
-    custom = config.custom_binary(variant)
+    custom = config.custom_binary(cell.variant)
     if custom is not None:
         return custom
-    lane = build_dir / LANE_DIR if tool == CACHEGRIND else build_dir
-    return lane / binary_name(variant, build)
+    lane = build_dir / LANE_DIR if machine_tool() == CACHEGRIND else build_dir
+    return lane / binary_name(cell.variant, cell.build)
 
 
 def described(tool: str, binary: Path | None, build_dir: Path) -> str:

@@ -5,15 +5,13 @@ harness.analysis.calibration's."""
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from harness.executors.base import Options
 from harness.repo import BUILD_DIR, REPO_ROOT
-from harness.runner.experiment import run_experiment
+from harness.runner.experiment import run_afresh
 from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import BuildSide
 from harness.spec.config import Config
@@ -44,12 +42,7 @@ def measure(configs: Sequence[Config], out: Path, registry: VariantRegistry,
                              budget_s=0.0)
     roots = []
     for k in range(1, blocks + 1):
-        root = out / APART / f"block-{k}"
-        shutil.rmtree(root, ignore_errors=True)
-        options = Options(repo_root=REPO_ROOT, results_root=root, force=True,
-                          hyperfine=hyperfine, run_lock=run_lock)
+        roots.append(out / APART / f"block-{k}")
         log.write(f"calibrate: block {k} of {blocks}, measured apart\n")
-        for config in configs:
-            run_experiment(config, options, log, log, registry)
-        roots.append(root)
+        run_afresh(configs, roots[-1], registry, run_lock, log, hyperfine)
     return Measured(together, roots)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import shutil
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,13 +25,14 @@ from harness.measure import environment, machine
 from harness.plan.binaries import needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
-from harness.repo import BUILD_DIR
+from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+from harness.store.locks import RunLock
 from harness.store.result import CellResult
 
 # results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
@@ -127,6 +129,18 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     return summarise(experiment, order, len(measured), len(missing))
 
 
+def run_afresh(configs: Sequence[Config], root: Path, registry: VariantRegistry,
+               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+               quick: bool = False) -> None:
+    """Every config measured afresh into the results root `root`, emptied first (as `run
+    --force --results-dir ROOT`)."""
+    shutil.rmtree(root, ignore_errors=True)
+    options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
+                      hyperfine=hyperfine, run_lock=run_lock)
+    for config in configs:
+        run_experiment(config, options, log, log, registry)
+
+
 def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool
                       ) -> tuple[list[tuple[Cell, str]], dict[str, object] | None]:
     """Before measuring here: the machine-wide measuring lock (the cells still pending once
@@ -152,11 +166,8 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
               missing: int) -> Summary:
     """The run's cells by status, and its one line in the log."""
     name = experiment.config.name
-    statuses: dict[str, int] = {}
-    for _, cid in order:
-        if cid in experiment.records:  # all of them, but after --collect
-            status = str(experiment.records[cid].status)
-            statuses[status] = statuses.get(status, 0) + 1
+    statuses = Counter(str(experiment.records[cid].status) for _, cid in order
+                       if cid in experiment.records)  # all of them, but after --collect
     summary = Summary(name, experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))

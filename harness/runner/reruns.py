@@ -5,15 +5,12 @@ harness.analysis.reruns'."""
 
 from __future__ import annotations
 
-import shutil
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
-from harness.executors.base import Options
-from harness.repo import REPO_ROOT
-from harness.runner.experiment import run_experiment
+from harness.runner.experiment import run_afresh
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
@@ -37,10 +34,6 @@ def measure(configs: Sequence[Config], out: Path, times: int, pause_s: float,
         if k > 1 and pause_s > 0:
             log.write(f"reruns: pausing {pause_s:g} s before rerun {k}\n")
             sleep(pause_s)
-        shutil.rmtree(root, ignore_errors=True)
-        options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
-                          hyperfine=hyperfine, run_lock=run_lock)
         log.write(f"reruns: rerun {k} of {times} into {root}\n")
-        for config in configs:
-            run_experiment(config, options, log, log, registry)
+        run_afresh(configs, root, registry, run_lock, log, hyperfine, quick)
     return roots

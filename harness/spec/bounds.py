@@ -12,7 +12,7 @@ import psutil
 from harness.errors import HarnessError
 from harness.spec import scenes
 from harness.spec.config import Config
-from harness.spec.points import count_points, expand_points
+from harness.spec.points import count_points, expand_points, scene_key
 
 # Peak memory of building one listed particle (a generator's tuple and its text row, or
 # with_every_particle's drawn particle): measured 460 to 620 bytes at 10^5 particles
@@ -25,21 +25,16 @@ FILE_HEAD_BYTES = 4096
 GIB = 2**30
 
 
-def count_cells(config: Config) -> int:
-    """The cells the config plans before exclusion: points x variants x builds x schedules."""
-    return (count_points(config) * len(config.variants) * len(config.builds)
-            * max(1, len(config.schedules)))
-
-
 def check_cells(config: Config, max_cells: int) -> None:
-    """A config error when the config plans more than max_cells cells."""
-    cells = count_cells(config)
+    """A config error when the config plans more than max_cells cells, counted before
+    exclusion: points x variants x builds x schedules."""
+    points, schedules = count_points(config), max(1, len(config.schedules))
+    cells = points * len(config.variants) * len(config.builds) * schedules
     if cells > max_cells:
-        raise HarnessError(f"{config.source}: key 'scene': {cells} cells ("
-                           f"{count_points(config)} points x {len(config.variants)} variants x "
-                           f"{len(config.builds)} builds x {max(1, len(config.schedules))} "
-                           f"schedules), more than {max_cells} (run --max-cells N to allow "
-                           "more)")
+        raise HarnessError(f"{config.source}: key 'scene': {cells} cells ({points} points x "
+                           f"{len(config.variants)} variants x {len(config.builds)} builds x "
+                           f"{schedules} schedules), more than {max_cells} (run --max-cells N "
+                           "to allow more)")
 
 
 def _file_n(path: Path) -> int:
@@ -58,7 +53,7 @@ def scene_bytes(config: Config) -> tuple[int, int, int]:
     total = listed = 0
     seen: set[tuple[tuple[str, str], ...]] = set()
     for point in expand_points(config):
-        key = tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
+        key = scene_key(point)
         if key in seen:
             continue
         seen.add(key)

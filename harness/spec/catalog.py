@@ -1,8 +1,8 @@
 """The stiff and extreme scene catalog: named scenes that stress one rule or one rounding each.
 
-Every entry is a generator registered with `@generator` (so a config names it as
+Every entry is a generator registered with `generator` (so a config names it as
 `scene: {generator: NAME}`, or sweeps several with `scene: {generator: [A, B, ...]}`), and
-`CATALOG` maps each name to the sentence saying what it stresses, in catalog order.
+`catalog()` maps each name to the sentence saying what it stresses, in catalog order.
 Every catalog generator takes `steps` and `mode`, so a config can set those for all of them;
 each has its own default step count (enough for its event, and the runs after it).
 
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Sequence
 
 from harness.spec.scenes import REGISTRY, GeneratedScene, Particle, generator, make_scene
 
@@ -40,150 +41,88 @@ DENSE_N = 400
 DENSE_PACKING = (0.3, 0.5)  # area fraction N*pi*r^2 / L^2
 
 
-def _scene(particles: list[Particle], steps: int, mode: str, L: float = SMALL_L,
-           n: int | None = None) -> GeneratedScene:
-    return make_scene(L, R, steps, mode, particles, n=n)
+def scene(name: str, default_steps: int, doc: str, particles: Sequence[Particle],
+          L: float = SMALL_L, n: int | None = None) -> None:
+    """Register generator `name`: the given particles (n > their number: the rest drawn by
+    the binaries) in a box of side L, `default_steps` steps unless a config says; its
+    docstring `doc` is the catalog's sentence."""
+    listed = list(particles)
+
+    def generate(steps: int = default_steps, mode: str = "perf") -> GeneratedScene:
+        return make_scene(L, R, steps, mode, listed, n=n)
+
+    generate.__doc__ = doc
+    generator(name)(generate)
 
 
 # --- collisions and ties ------------------------------------------------------------------
 
-
-@generator("contact_t1")
-def contact_t1(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """Two discs whose contact time is exactly 1.0 (c = 32, -b + sqrt(disc) = 32): the `t <= 1`
-    boundary of a step."""
-    return _scene([(MID - 3, MID, 2.0, 0.0), (MID + 3, MID, -2.0, 0.0)], steps, mode)
-
-
-@generator("tie4")
-def tie4(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """Four discs on a square's corners flying at its centre: four pair contacts with
-    bit-identical times, resolved only by the (i, j) tie-break."""
-    s = 4.5
-    particles = [(MID - 5, MID - 5, s, s), (MID + 5, MID - 5, -s, s),
-                 (MID - 5, MID + 5, s, -s), (MID + 5, MID + 5, -s, -s)]
-    return _scene(particles, steps, mode)
-
-
-@generator("tie3")
-def tie3(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """One disc at rest between two that approach it symmetrically: two contacts at the same
-    time share the middle disc, so one must pass through it."""
-    return _scene([(MID - 10, MID, 9.0, 0.0), (MID, MID, 0.0, 0.0), (MID + 10, MID, -9.0, 0.0)],
-                  steps, mode)
-
-
-@generator("cradle")
-def cradle(steps: int = 6, mode: str = "perf") -> GeneratedScene:
-    """Newton's cradle: a striker and a row of discs touching exactly (c == 0), so contacts at
-    t = 0 propagate one disc per step."""
-    row = [(MID + k * DIAMETER, MID, 0.0, 0.0) for k in range(5)]
-    return _scene([(MID - 6, MID, 5.0, 0.0), *row], steps, mode)
-
-
-@generator("tangent")
-def tangent(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """A grazing pair whose discriminant is exactly 0 (cross^2 == (2r)^2 a): the edge between a
-    hit and a miss, and the worst-conditioned contact time."""
-    return _scene([(MID, MID, 0.0, 0.0), (MID + 2.5, MID + 2.0, -5.0, 0.0)], steps, mode)
-
-
-@generator("touch_axis")
-def touch_axis(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """Two discs touching at the start along x (distance exactly 2r) and approaching: a
-    collision at t = 0."""
-    return _scene([(MID, MID, 1.0, 0.0), (MID + DIAMETER, MID, -1.0, 0.0)], steps, mode)
-
-
-@generator("touch_diagonal")
-def touch_diagonal(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """Two discs touching at the start at 45 degrees: 2r/sqrt(2) is inexact, so rounding of c
-    decides between a collision at t = 0 and passing through as overlapping."""
-    h = DIAMETER / math.sqrt(2.0)
-    return _scene([(MID, MID, 1.0, 1.0), (MID + h, MID + h, -1.0, -1.0)], steps, mode)
-
-
-@generator("overlap")
-def overlap(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """Two discs overlapping at the start (centres r apart) and approaching: c < 0, so they pass
-    through each other (seed assumption 1)."""
-    return _scene([(MID, MID, 1.0, 0.5), (MID + R, MID, -1.0, -0.5)], steps, mode)
-
-
-@generator("underflow")
-def underflow(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """A pair with equal velocities (D = 0, b = 0) and a pair approaching at |D| = 1e-170, whose
-    a = |D|^2 underflows to 0: the root must not divide by a."""
-    particles = [(20.0, 20.0, 1.0, 1.0), (20.0 + 3.0, 20.0, 1.0, 1.0),
-                 (60.0, 60.0, 0.0, 0.0), (60.0 + DIAMETER, 60.0, -UNDERFLOW_SPEED, 0.0)]
-    return _scene(particles, steps, mode)
-
+scene("contact_t1", 4, """Two discs whose contact time is exactly 1.0 (c = 32, -b + sqrt(disc) =
+      32): the `t <= 1` boundary of a step.""",
+      [(MID - 3, MID, 2.0, 0.0), (MID + 3, MID, -2.0, 0.0)])
+scene("tie4", 4, """Four discs on a square's corners flying at its centre: four pair contacts
+      with bit-identical times, resolved only by the (i, j) tie-break.""",
+      [(MID - 5, MID - 5, 4.5, 4.5), (MID + 5, MID - 5, -4.5, 4.5),
+       (MID - 5, MID + 5, 4.5, -4.5), (MID + 5, MID + 5, -4.5, -4.5)])
+scene("tie3", 4, """One disc at rest between two that approach it symmetrically: two contacts
+      at the same time share the middle disc, so one must pass through it.""",
+      [(MID - 10, MID, 9.0, 0.0), (MID, MID, 0.0, 0.0), (MID + 10, MID, -9.0, 0.0)])
+scene("cradle", 6, """Newton's cradle: a striker and a row of discs touching exactly (c == 0),
+      so contacts at t = 0 propagate one disc per step.""",
+      [(MID - 6, MID, 5.0, 0.0), *((MID + k * DIAMETER, MID, 0.0, 0.0) for k in range(5))])
+scene("tangent", 3, """A grazing pair whose discriminant is exactly 0 (cross^2 == (2r)^2 a):
+      the edge between a hit and a miss, and the worst-conditioned contact time.""",
+      [(MID, MID, 0.0, 0.0), (MID + 2.5, MID + 2.0, -5.0, 0.0)])
+scene("touch_axis", 3, """Two discs touching at the start along x (distance exactly 2r) and
+      approaching: a collision at t = 0.""",
+      [(MID, MID, 1.0, 0.0), (MID + DIAMETER, MID, -1.0, 0.0)])
+scene("touch_diagonal", 3, """Two discs touching at the start at 45 degrees: 2r/sqrt(2) is
+      inexact, so rounding of c decides between a collision at t = 0 and passing through as
+      overlapping.""",
+      [(MID, MID, 1.0, 1.0), (MID + DIAMETER / math.sqrt(2.0),
+                              MID + DIAMETER / math.sqrt(2.0), -1.0, -1.0)])
+scene("overlap", 3, """Two discs overlapping at the start (centres r apart) and approaching:
+      c < 0, so they pass through each other (seed assumption 1).""",
+      [(MID, MID, 1.0, 0.5), (MID + R, MID, -1.0, -0.5)])
+scene("underflow", 3, """A pair with equal velocities (D = 0, b = 0) and a pair approaching at
+      |D| = 1e-170, whose a = |D|^2 underflows to 0: the root must not divide by a.""",
+      [(20.0, 20.0, 1.0, 1.0), (20.0 + 3.0, 20.0, 1.0, 1.0),
+       (60.0, 60.0, 0.0, 0.0), (60.0 + DIAMETER, 60.0, -UNDERFLOW_SPEED, 0.0)])
 
 # --- walls --------------------------------------------------------------------------------
 
-
-@generator("wall_outward")
-def wall_outward(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """A disc exactly on the wall (x = L - r) moving outward: wall time 0, bounce at t = 0."""
-    return _scene([(SMALL_L - R, MID, 3.0, 0.5)], steps, mode)
-
-
-@generator("wall_near")
-def wall_near(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """A disc 1e-13 inside the wall moving outward: its wall time (~3e-14) rounds to about
-    zero, and a float build cannot even represent the gap."""
-    return _scene([(SMALL_L - R - NEAR_WALL_GAP, MID, 3.0, 0.5)], steps, mode)
-
-
-@generator("near_corner")
-def near_corner(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """A disc 1e-12 off the diagonal with vx == vy: the two axis times differ in the last bits,
-    so it bounces off one wall and then stops at the other for the rest of the step (compare
-    `corner`, the exact corner hit)."""
-    return _scene([(MID, MID + NEAR_CORNER_OFFSET, 20.0, 20.0)], steps, mode)
-
-
-@generator("wall_then_pair")
-def wall_then_pair(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """A disc bounces off a wall and then runs into a disc within the same step: it has had its
-    one collision, so they end the step overlapping and then pass through."""
-    return _scene([(SMALL_L - R - 1.5, MID, 4.0, 0.0), (SMALL_L - R - 4.4, MID, 0.0, 0.0)],
-                  steps, mode)
-
+scene("wall_outward", 3, """A disc exactly on the wall (x = L - r) moving outward: wall time 0,
+      bounce at t = 0.""",
+      [(SMALL_L - R, MID, 3.0, 0.5)])
+scene("wall_near", 3, """A disc 1e-13 inside the wall moving outward: its wall time (~3e-14)
+      rounds to about zero, and a float build cannot even represent the gap.""",
+      [(SMALL_L - R - NEAR_WALL_GAP, MID, 3.0, 0.5)])
+scene("near_corner", 4, """A disc 1e-12 off the diagonal with vx == vy: the two axis times
+      differ in the last bits, so it bounces off one wall and then stops at the other for the
+      rest of the step (compare `corner`, the exact corner hit).""",
+      [(MID, MID + NEAR_CORNER_OFFSET, 20.0, 20.0)])
+scene("wall_then_pair", 3, """A disc bounces off a wall and then runs into a disc within the
+      same step: it has had its one collision, so they end the step overlapping and then pass
+      through.""",
+      [(SMALL_L - R - 1.5, MID, 4.0, 0.0), (SMALL_L - R - 4.4, MID, 0.0, 0.0)])
 
 # --- scales -------------------------------------------------------------------------------
 
 
-@generator("far_grazing")
-def far_grazing(steps: int = 2, mode: str = "perf") -> GeneratedScene:
-    """L = 1e7, r = 1: pairs 9e5 apart closing at 1e6 per step with impact parameters from 0.5
-    to 1.000001 diameters; b*b - a*c cancels ~24 digits here (the textbook formula's failure)."""
+def _grazing_pairs() -> list[Particle]:
     particles: list[Particle] = []
     x0 = HUGE_L / 2 - GRAZE_APART / 2
     for k, impact in enumerate(GRAZE_IMPACTS):
         y = HUGE_L / 2 + (k - len(GRAZE_IMPACTS) / 2) * GRAZE_ROW_SPACING
         particles.append((x0, y, GRAZE_SPEED, 0.0))
         particles.append((x0 + GRAZE_APART, y + impact * DIAMETER, -GRAZE_SPEED, 0.0))
-    return _scene(particles, steps, mode, L=HUGE_L)
+    return particles
 
 
-@generator("tight_box")
-def tight_box(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """2r = L - 1e-9: the centres live in a 1e-9 square, every step hits walls at times ~1e-10,
-    and the two discs always overlap; a float build rounds the box to exactly 2r."""
-    L = DIAMETER + TIGHT_SLACK
-    hi = L - R  # computed as the core computes it, so the disc is exactly on the wall
-    return _scene([(R, R, 3.0, 2.0), (hi, R + (hi - R) / 2, -1.0, 0.5)], steps, mode, L=L)
-
-
-@generator("hex_gap")
-def hex_gap(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """Hexagonal packing with gaps of 1e-9 r and small random velocities: every disc has up to six
-    contacts within ~1e-6 of a step, and which one wins is decided near the rounding level."""
+def _hex_packed() -> list[Particle]:
     rng = random.Random(HEX_SEED)
     spacing = DIAMETER * (1 + HEX_GAP)
     row_height = spacing * math.sqrt(3.0) / 2
-    L = 2 * SMALL_L
     particles: list[Particle] = []
     for row in range(HEX_SIDE):
         for col in range(HEX_SIDE):
@@ -191,57 +130,44 @@ def hex_gap(steps: int = 3, mode: str = "perf") -> GeneratedScene:
             y = MID + row * row_height
             angle = rng.uniform(0.0, 2 * math.pi)
             particles.append((x, y, HEX_SPEED * math.cos(angle), HEX_SPEED * math.sin(angle)))
-    return _scene(particles, steps, mode, L=L)
+    return particles
 
 
-@generator("faster_than_box")
-def faster_than_box(steps: int = 4, mode: str = "perf") -> GeneratedScene:
-    """Discs moving 3.7 L per step: every step is a wall bounce and a stop at the opposite wall;
-    nothing may tunnel out of the box."""
-    v = FAST_FACTOR * SMALL_L
-    particles = [(30.0, 40.0, v, 0.3 * v), (70.0, 20.0, -0.6 * v, v), (50.0, 80.0, -v, -v)]
-    return _scene(particles, steps, mode)
+TIGHT_L = DIAMETER + TIGHT_SLACK
+TIGHT_HI = TIGHT_L - R  # computed as the core computes it, so the disc is exactly on the wall
+FAST_V = FAST_FACTOR * SMALL_L
 
+scene("far_grazing", 2, """L = 1e7, r = 1: pairs 9e5 apart closing at 1e6 per step with impact
+      parameters from 0.5 to 1.000001 diameters; b*b - a*c cancels ~24 digits here (the
+      textbook formula's failure).""",
+      _grazing_pairs(), L=HUGE_L)
+scene("tight_box", 4, """2r = L - 1e-9: the centres live in a 1e-9 square, every step hits walls
+      at times ~1e-10, and the two discs always overlap; a float build rounds the box to
+      exactly 2r.""",
+      [(R, R, 3.0, 2.0), (TIGHT_HI, R + (TIGHT_HI - R) / 2, -1.0, 0.5)], L=TIGHT_L)
+scene("hex_gap", 3, """Hexagonal packing with gaps of 1e-9 r and small random velocities: every
+      disc has up to six contacts within ~1e-6 of a step, and which one wins is decided near
+      the rounding level.""",
+      _hex_packed(), L=2 * SMALL_L)
+scene("faster_than_box", 4, """Discs moving 3.7 L per step: every step is a wall bounce and a
+      stop at the opposite wall; nothing may tunnel out of the box.""",
+      [(30.0, 40.0, FAST_V, 0.3 * FAST_V), (70.0, 20.0, -0.6 * FAST_V, FAST_V),
+       (50.0, 80.0, -FAST_V, -FAST_V)])
 
 # --- sizes --------------------------------------------------------------------------------
 
-
-@generator("empty")
-def empty(steps: int = 3, mode: str = "perf") -> GeneratedScene:
-    """N = 0: no particles at all."""
-    return _scene([], steps, mode)
-
-
-@generator("single")
-def single(steps: int = 5, mode: str = "perf") -> GeneratedScene:
-    """N = 1: one disc bouncing around, no pairs."""
-    return _scene([(MID, 30.0, 17.0, -23.0)], steps, mode)
-
-
-@generator("no_steps")
-def no_steps(steps: int = 0, mode: str = "perf") -> GeneratedScene:
-    """S = 0 (by default): the output is the input state, with zero collision counts."""
-    return _scene([(MID, MID, 1.0, 2.0), (MID + 10, MID, -1.0, 0.0)], steps, mode)
-
-
-def _dense(packing: float, steps: int, mode: str) -> GeneratedScene:
-    L = math.sqrt(DENSE_N * math.pi * R * R / packing)
-    return _scene([], steps, mode, L=L, n=DENSE_N)
-
-
-@generator("dense30")
-def dense30(steps: int = 5, mode: str = "perf") -> GeneratedScene:
-    """400 generated discs at 30% area packing (overlaps allowed), speeds 8-16 r per step: many
-    contacts per disc per step, most of them lost to the one-collision rule."""
-    return _dense(DENSE_PACKING[0], steps, mode)
-
-
-@generator("dense50")
-def dense50(steps: int = 5, mode: str = "perf") -> GeneratedScene:
-    """400 generated discs at 50% area packing: as dense30, with overlaps at the start the
-    rule, not the exception."""
-    return _dense(DENSE_PACKING[1], steps, mode)
-
+scene("empty", 3, "N = 0: no particles at all.", [])
+scene("single", 5, "N = 1: one disc bouncing around, no pairs.", [(MID, 30.0, 17.0, -23.0)])
+scene("no_steps", 0, """S = 0 (by default): the output is the input state, with zero collision
+      counts.""",
+      [(MID, MID, 1.0, 2.0), (MID + 10, MID, -1.0, 0.0)])
+scene("dense30", 5, """400 generated discs at 30% area packing (overlaps allowed), speeds 8-16 r
+      per step: many contacts per disc per step, most of them lost to the one-collision
+      rule.""",
+      [], L=math.sqrt(DENSE_N * math.pi * R * R / DENSE_PACKING[0]), n=DENSE_N)
+scene("dense50", 5, """400 generated discs at 50% area packing: as dense30, with overlaps at the
+      start the rule, not the exception.""",
+      [], L=math.sqrt(DENSE_N * math.pi * R * R / DENSE_PACKING[1]), n=DENSE_N)
 
 # Catalog order: head_on and corner are generators of harness.spec.scenes.
 CATALOG_NAMES: tuple[str, ...] = (

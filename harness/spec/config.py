@@ -1,31 +1,14 @@
-"""Experiment configs: YAML -> defaults -> validation -> a frozen `Config`, and grid expansion.
-
-A config names the experiment, the variants and builds, a base scene whose keys (and
-`threads`) may be lists to sweep, how those lists combine, and how to measure:
-
-    name: threads
-    variants: [p1d]
-    scene: {n: 10000, L: 20000, r: 1, steps: 50, mode: perf, seed: 1}
-    threads: [1, 2, 4]
-    measure: {warmup: 1, runs: 3, timeout_s: 600}
-    validate: true
-
-Implementations written elsewhere take part through `programs: {NAME: "COMMAND {threads}
-< {input}"}` and are listed in `variants` like the rest (harness.spec.programs).
-
-The accuracy and stability study adds `checks: [invariants, shadow, divergence]` with its
-settings under `accuracy: {truth, shadow_steps, energy_ulps, shadow_ulps, thread_counts,
-max_n}`, `validate: {baseline: f128}` (errors against seq in __float128), and
-`scene: {generator: [A, B, ...]}` (several named scenes as one more axis).
-
-This module holds the typed config (frozen dataclasses) and the names of its keys and
-defaults; harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the
-file, the key and what was expected) and harness.spec.points expands its grid.
+"""Experiment configs: the typed config (frozen dataclasses) and the names of its keys and
+defaults. harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the file,
+the key and what was expected) and harness.spec.points expands its grid of points: the base
+scene's keys and `threads`, each a value or a list to sweep, combined as `combine:` says.
+docs/configs.md is the reference of the keys; programs (`programs:`) are docs/programs.md's.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import operator
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -67,12 +50,7 @@ EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps"
                   "schedule")
 # The fields a comparison (_gt, _ge, _lt, _le) may test.
 EXCLUDE_NUMERIC_FIELDS = ("threads", "n", "L", "r", "steps", "seed")
-EXCLUDE_OPS = {
-    "gt": lambda a, b: a > b,
-    "ge": lambda a, b: a >= b,
-    "lt": lambda a, b: a < b,
-    "le": lambda a, b: a <= b,
-}
+EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": operator.le}
 # An experiment's, a custom binary's or a program's name: a folder and a file name under
 # results/, so characters every file system takes, and short enough beside its suffixes.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
@@ -212,10 +190,8 @@ class Checks:
         return bool(self.names) and (self.max_n is None or n <= self.max_n)
 
     def key(self) -> dict[str, object]:
-        """What the checks' results depend on (part of a checked cell's id)."""
-        return {"names": list(self.names), "truth": self.truth,
-                "shadow_steps": self.shadow_steps, "energy_ulps": self.energy_ulps,
-                "shadow_ulps": self.shadow_ulps, "thread_counts": list(self.thread_counts)}
+        """What the checks' results depend on (part of a checked cell's id): all but max_n."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if k != "max_n"}
 
 
 EXECUTOR_KINDS = ("local", "slurm")

@@ -22,6 +22,7 @@ import contextlib
 import contextvars
 import functools
 import json
+from collections import Counter
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -241,8 +242,7 @@ class Variants:
             raise HarnessError(f"{where}: expected an object with a list '{VARIANTS_KEY}'")
         members = [VariantFacts.from_json(item, f"{where}: {VARIANTS_KEY}[{k}]")
                    for k, item in enumerate(data[VARIANTS_KEY])]
-        names = [f.name for f in members]
-        twice = sorted({n for n in names if names.count(n) > 1})
+        twice = sorted(n for n, k in Counter(f.name for f in members).items() if k > 1)
         if twice:
             raise HarnessError(f"{where}: variant(s) listed twice: {', '.join(twice)}")
         return cls.of(members)

@@ -21,67 +21,44 @@ class Kind:
     parse: Callable[[object], object]
 
 
-def int_in(low: int, high: int | None = None) -> Callable[[object], object]:
+def accepting(test: Callable[[object], bool]) -> Callable[[object], object]:
+    """A parse that returns the value where `test` accepts it, and raises ValueError where not."""
     def parse(value: object) -> object:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError
-        if value < low or (high is not None and value > high):
+        if not test(value):
             raise ValueError
         return value
 
     return parse
 
 
-def positive_real(value: object) -> object:
-    if isinstance(value, bool):
-        raise ValueError
-    if isinstance(value, str):  # YAML 1.1 reads 1e7 as a string
-        value = float(value)
-    if not isinstance(value, int | float):
-        raise ValueError
-    result = float(value)
-    if not (math.isfinite(result) and result > 0):
-        raise ValueError
-    return result
+def int_in(low: int, high: int | None = None) -> Callable[[object], object]:
+    return accepting(lambda v: isinstance(v, int) and not isinstance(v, bool) and low <= v
+                     and (high is None or v <= high))
 
 
-def fraction(value: object) -> object:
-    """A number strictly between 0 and 1."""
-    result = positive_real(value)
-    if not result < 1:  # type: ignore[operator]
-        raise ValueError
-    return result
+def real_in(low: float = -math.inf, high: float = math.inf) -> Callable[[object], object]:
+    """A finite number strictly between low and high, as a float."""
+    def parse(value: object) -> object:
+        if isinstance(value, bool) or not isinstance(value, str | int | float):
+            raise ValueError
+        result = float(value)  # YAML 1.1 reads 1e7 as a string
+        if not (math.isfinite(result) and low < result < high):
+            raise ValueError
+        return result
+
+    return parse
 
 
-def real(value: object) -> object:
-    if isinstance(value, bool):
-        raise ValueError
-    result = float(value) if isinstance(value, str | int | float) else math.nan
-    if not math.isfinite(result):
-        raise ValueError
-    return result
+real = real_in()
+positive_real = real_in(0.0)
+fraction = real_in(0.0, 1.0)  # strictly between 0 and 1
+string = accepting(lambda v: isinstance(v, str) and bool(v))
+boolean = accepting(lambda v: isinstance(v, bool))
 
 
 def one_of(options: Sequence[str]) -> Kind:
     """A key that takes one of `options`."""
-    def parse(value: object) -> object:
-        if value not in options:
-            raise ValueError
-        return value
-
-    return Kind("one of " + ", ".join(options), parse)
-
-
-def string(value: object) -> object:
-    if not isinstance(value, str) or not value:
-        raise ValueError
-    return value
-
-
-def boolean(value: object) -> object:
-    if not isinstance(value, bool):
-        raise ValueError
-    return value
+    return Kind("one of " + ", ".join(options), accepting(lambda v: v in options))
 
 
 POSITIVE_INT = Kind("a positive integer", int_in(1))
@@ -116,7 +93,6 @@ def generator_kind(name: str, default: object) -> Kind:
     return STRING
 
 
-
 def reject_unknown(raw: Mapping[str, object], allowed: Sequence[str], prefix: str,
                     source: Path) -> None:
     for key in raw:
@@ -139,15 +115,12 @@ def scalar(raw: Mapping[str, object], key: str, label: str, kind: Kind, source: 
 def axis(value: object, label: str, kind: Kind, source: Path) -> tuple[tuple[object, ...], bool]:
     """A value or a non-empty list of values; returns the values and whether it was a list."""
     expected = f"{kind.expected} or a non-empty list of them"
-    if isinstance(value, list):
-        if not value:
-            raise config_error(source, label, expected, value)
-        try:
-            return tuple(kind.parse(v) for v in value), True
-        except (ValueError, TypeError):
-            raise config_error(source, label, expected, value) from None
+    listed = isinstance(value, list)
+    values = value if isinstance(value, list) else [value]
+    if not values:
+        raise config_error(source, label, expected, value)
     try:
-        return (kind.parse(value),), False
+        return tuple(kind.parse(v) for v in values), listed
     except (ValueError, TypeError):
         raise config_error(source, label, expected, value) from None
 

@@ -18,11 +18,7 @@ def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
     targets = [str(b.relative_to(repo_root)) for b in binaries]
     if not targets:
         return
-    try:
-        done = subprocess.run([make, "-s", *extra, *targets], cwd=repo_root, check=False,
-                              stdin=subprocess.DEVNULL, capture_output=capture, text=True)
-    except OSError as exc:
-        raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
+    done = _make(repo_root, make, ["-s", *extra, *targets], capture)
     if done.returncode != 0:
         detail = f": {' '.join(done.stderr.split())[-500:]}" if capture and done.stderr else ""
         raise HarnessError(f"make -s {' '.join([*extra, *targets])} failed with exit status "
@@ -33,9 +29,14 @@ def has_rules(repo_root: Path, binaries: Iterable[Path], make: str = "make") -> 
     """Whether the Makefile in `repo_root` can make every one of `binaries`: `make -n` (a dry
     run, nothing built) finds a rule for each and for what each is made of."""
     targets = [str(b.relative_to(repo_root)) for b in binaries]
+    return _make(repo_root, make, ["-n", "-s", *targets], capture=True).returncode == 0
+
+
+def _make(repo_root: Path, make: str, args: Sequence[str],
+          capture: bool) -> subprocess.CompletedProcess[str]:
     try:
-        done = subprocess.run([make, "-n", "-s", *targets], cwd=repo_root, check=False,
-                              stdin=subprocess.DEVNULL, capture_output=True)
+        return subprocess.run([make, *args], cwd=repo_root, check=False, text=True,
+                              errors="replace", stdin=subprocess.DEVNULL,
+                              capture_output=capture)
     except OSError as exc:
         raise HarnessError(f"cannot run {make}: {exc.strerror}") from None
-    return done.returncode == 0

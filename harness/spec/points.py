@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping
 
 from harness.errors import config_error
 from harness.spec.config import Config
+
+
+def scene_key(point: Mapping[str, object]) -> tuple[tuple[str, str], ...]:
+    """What makes a point's scene: every axis but threads."""
+    return tuple(sorted((k, str(v)) for k, v in point.items() if k != "threads"))
 
 
 def count_points(config: Config) -> int:
@@ -43,10 +49,6 @@ def expand_points(config: Config) -> list[dict[str, object]]:
                 zip_placed = True
         else:
             groups.append(((key,), [(v,) for v in values]))
-    points = []
-    for combo in itertools.product(*(rows for _, rows in groups)):
-        point: dict[str, object] = {}
-        for (keys, _), row in zip(groups, combo, strict=True):
-            point.update(zip(keys, row, strict=True))
-        points.append(point)
-    return points
+    names = [key for keys, _ in groups for key in keys]
+    return [dict(zip(names, itertools.chain.from_iterable(combo), strict=True))
+            for combo in itertools.product(*(rows for _, rows in groups))]

@@ -1,37 +1,13 @@
 """Programs: implementations of the model written elsewhere (a student's submission, another
-course's code), benchmarked and checked beside the variants.
+course's code), benchmarked and checked beside the variants. docs/programs.md is the guide: the
+forms of `programs:`, the placeholders of its templates, `check:`, a class of programs matched
+by a glob, and `source:` with `build:`, from which the harness builds a copy of its own
+(harness.measure.races: with ThreadSanitizer).
 
-A program is a name and a shell command template (`programs:` in a config):
-
-    programs:
-      alice: "./alice/sim {threads} < {input}"
-      bob:
-        command: "python3 bob.py --threads {threads} {input}"
-        check: "python3 bob.py --threads {threads} --print-all {input}"
-
-`{input}` becomes the path of an input file in SPEC's format (every particle listed, so no
-program's own generator decides the scene), `{threads}` the cell's thread count (also
-OMP_NUM_THREADS). The command runs through `sh -c` in the config file's directory. `check`,
-where given, is the command of the check run (the input then says `print`; a program that
-needs a flag to print every step takes it there); by default the check runs `command`.
-
-A program with its source may say how it is built, so that the harness can build a copy of
-its own (harness.measure.races: with ThreadSanitizer, to find its data races):
-
-    programs:
-      alice:
-        command: "./alice/sim {threads} < {input}"
-        source: alice/sim.c
-        build: "{cc} {cflags} {source} -o {out} -lm"
-
-`source:` is a file or directory (or a list of them) relative to the config; `build:` a shell
-command run in the config's directory, `{cc}` the compiler, `{cflags}` its flags, `{out}` the
-binary to write, `{source}` the source paths. That copy replaces the program's binary in its
-command: the first word of the command that names a file (a class's `{path}`).
-
-A program's cells are identified by its commands, the content of every file they name and of
-its source, and its build (a rebuilt program is measured again); nothing else about it is
-known to the harness.
+A command runs through `sh -c` in the config file's directory, given an input that lists every
+particle (so no program's own generator decides the scene). A program's cells are identified by
+its commands, the content of every file they name and of its source, and its build: a rebuilt
+program is measured again; nothing else about it is known to the harness.
 """
 
 from __future__ import annotations
@@ -159,12 +135,8 @@ class Program:
     def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:
         """The argv that builds the program with a compiler and flags of the harness's choice
         into `out`."""
-        sources = []
-        for path in self.source:
-            try:
-                sources.append(str(path.relative_to(self.directory)))
-            except ValueError:
-                sources.append(str(path))
+        sources = [str(p.relative_to(self.directory) if p.is_relative_to(self.directory) else p)
+                   for p in self.source]
         rendered = self.build.format(cc=shlex.quote(cc), cflags=cflags, out=shlex.quote(str(out)),
                                      source=shlex.join(sources))
         return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]

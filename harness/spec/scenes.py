@@ -91,23 +91,16 @@ class ScenePoint:
     def describe(self) -> str:
         """A short human label, e.g. `n=10000 L=20000 r=1 S=50` (plus the generator)."""
         head = "" if self.label == RANDOM_SCENE else f"{self.label} "
-        extra = "".join(
-            f" {k}={format_number(v)}"
-            for k, v in self.params
-            if k not in ("n", "L", "r", "steps", "mode")
-        )
+        extra = "".join(f" {k}={format_number(v)}" for k, v in self.params
+                        if k not in ("n", "L", "r", "steps", "mode"))
         mode = "" if self.mode == DEFAULT_MODE else f" {self.mode}"
-        return (
-            f"{head}n={self.n} L={format_number(self.L)} r={format_number(self.r)} "
-            f"S={self.steps}{mode} seed={self.seed}{extra}"
-        )
+        return (f"{head}n={self.n} L={format_number(self.L)} r={format_number(self.r)} "
+                f"S={self.steps}{mode} seed={self.seed}{extra}")
 
 
 def format_number(value: object) -> str:
     """Compact rendering of an axis value for labels: 20000.0 -> 20000, 1e7 -> 1e+07."""
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def format_real(value: float) -> str:
@@ -121,14 +114,15 @@ def header_text(n: int, L: float, r: float, steps: int, mode: str) -> str:
     return f"{n} {format_real(L)} {format_real(r)} {steps}\n{mode}\n"
 
 
-def make_scene(
-    L: float, r: float, steps: int, mode: str, particles: Iterable[Particle], n: int | None = None
-) -> GeneratedScene:
+def particle_row(index: int, particle: Particle) -> str:
+    """One particle line of an input: `i x y vx vy`, each real round-trip exact."""
+    return f"{index} " + " ".join(REAL_FORMAT % value for value in particle) + "\n"
+
+
+def make_scene(L: float, r: float, steps: int, mode: str, particles: Iterable[Particle],
+               n: int | None = None) -> GeneratedScene:
     """Write an input with the given particles as indices 0.. (n > len lets the rest be random)."""
-    rows = [
-        f"{i} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} {REAL_FORMAT % vy}\n"
-        for i, (x, y, vx, vy) in enumerate(particles)
-    ]
+    rows = [particle_row(i, particle) for i, particle in enumerate(particles)]
     total = len(rows) if n is None else n
     return GeneratedScene(header_text(total, L, r, steps, mode) + "".join(rows), total, L, r,
                           steps, mode)
@@ -194,15 +188,13 @@ def with_every_particle(point: ScenePoint) -> ScenePoint:
         if not 0 <= index < n or index in listed:
             raise HarnessError(f"{point.label}: particle index {index}: expected a new index "
                                f"in [0, {n})")
-        listed[index] = " ".join(body[k:k + 5])
+        listed[index] = " ".join(body[k:k + 5]) + "\n"
     missing = [i for i in range(n) if i not in listed]
     if not missing:
         return point
     drawn = generate(len(missing), point.L, point.r, point.seed)
-    for index, (x, y, vx, vy) in zip(missing, drawn, strict=True):
-        listed[index] = (f"{index} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} "
-                         f"{REAL_FORMAT % vy}")
-    rows = "".join(f"{listed[i]}\n" for i in sorted(listed))
+    listed.update((i, particle_row(i, p)) for i, p in zip(missing, drawn, strict=True))
+    rows = "".join(listed[i] for i in sorted(listed))
     head = " ".join(tokens[:4]) + "\n" + tokens[4] + "\n"
     return dataclasses.replace(point, text=head + rows)
 
@@ -350,10 +342,8 @@ def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -
 
 
 @generator("lattice")
-def lattice(
-    n: int = 100, L: float = 1000.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
-    speed: float = 10.0,
-) -> GeneratedScene:
+def lattice(n: int = 100, L: float = 1000.0, r: float = 1.0, steps: int = 10,
+            mode: str = "perf", speed: float = 10.0) -> GeneratedScene:
     """n discs on a square lattice; rows move alternately right/left and up/down at `speed`."""
     side = max(1, math.ceil(math.sqrt(n)))
     spacing = (L - 2 * r) / side
@@ -394,10 +384,8 @@ def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
 
 
 @generator("head_on")
-def head_on(
-    L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf", gap: float = 10.0,
-    speed: float = 2.0,
-) -> GeneratedScene:
+def head_on(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
+            gap: float = 10.0, speed: float = 2.0) -> GeneratedScene:
     """Two discs on the horizontal midline, `gap` apart (surface to surface), moving at each
     other at `speed`: one head-on pair collision, then wall bounces."""
     mid = L / 2
@@ -409,9 +397,8 @@ def head_on(
 
 
 @generator("corner")
-def corner(
-    L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf", speed: float = 7.0,
-) -> GeneratedScene:
+def corner(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
+           speed: float = 7.0) -> GeneratedScene:
     """One disc on the diagonal flying into the top-right corner: both axes hit at once."""
     start = L / 2
     diagonal = speed / math.sqrt(2.0)

@@ -2,14 +2,10 @@
 
 A variant is one file, variants/NAME.c; the Makefile builds every such file into build/NAME.
 What a variant is comes from its own definition in C (`sim_variant_def`), which its binary
-prints as one JSON line with `--describe`: whether its output is byte-identical to seq
-(`exact`), whether it uses threads (`parallel`), whether it tests every pair i < j with seq's
-kernel (`all_pairs`: its speedup over seq is parallelism alone), and which of the seed's
-strategies it repairs (`repairs`). The harness, the C scene scripts and the report read these
-facts and keep no list of their own, so a new variant needs no change anywhere else.
-
-A run stores the facts with its results (harness.spec.facts, which also orders them): the
-analysis and the report read them there and never ask a binary.
+prints as one JSON line with `--describe` (harness.spec.facts says what the facts are, orders
+them and stores them with a run's results, where the analysis and the report read them). The
+harness, the C scene scripts and the report keep no list of their own, so a new variant needs
+no change anywhere else.
 """
 
 from __future__ import annotations
@@ -71,8 +67,6 @@ class VariantRegistry:
         return self.known[name]
 
     def get(self, name: str) -> VariantFacts | None:
-        """A variant's facts; None for a name that is no variant of the repository (a custom
-        binary, results of a variant since removed)."""
         return self.known.get(name)
 
 def describe(binary: Path) -> VariantFacts:

@@ -65,6 +65,11 @@ def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
     return {**defaults, **raw}
 
 
+# The top-level keys of one value each, checked as they are (their defaults: with_defaults).
+SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
+           "openmp_costs": kinds.BOOLEAN}
+
+
 def parse_config(raw: Mapping[str, object], source: Path,
                  known_variants: Sequence[str],
                  max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
@@ -80,7 +85,7 @@ def parse_config(raw: Mapping[str, object], source: Path,
     config = Config(
         source=source,
         name=str(name),
-        title=str(kinds.scalar(raw, "title", "title", kinds.STRING, source)),
+        **{key: kinds.scalar(raw, key, key, kind, source) for key, kind in SCALARS.items()},
         variants=variants,
         builds=builds,
         scene=scene,
@@ -88,7 +93,6 @@ def parse_config(raw: Mapping[str, object], source: Path,
         zip_keys=zip_keys,
         measure=parse_measure(raw["measure"], source),
         validate=parse_validate(raw["validate"], source),
-        keep_output=bool(kinds.scalar(raw, "keep_output", "keep_output", kinds.BOOLEAN, source)),
         exclude=parse_exclude(raw["exclude"], source),
         binaries=binaries,
         checks=parse_checks(raw["checks"], raw["accuracy"], source, known_variants),
@@ -97,9 +101,6 @@ def parse_config(raw: Mapping[str, object], source: Path,
         variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}),
                                                  raw["measure"], variants, source),
         programs=programs_,
-        metric=str(kinds.scalar(raw, "metric", "metric", kinds.one_of(METRICS), source)),
-        openmp_costs=bool(kinds.scalar(raw, "openmp_costs", "openmp_costs", kinds.BOOLEAN,
-                                       source)),
     )
     check_exclude(config)
     if max_cells is not None:

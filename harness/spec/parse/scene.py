@@ -28,7 +28,7 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
     if "generator" in raw and "file" in raw:
         raise config_error(source, "scene.file", "either 'generator' or 'file', not both",
                            raw["file"])
-    generators: tuple[str, ...] = ()
+    generators: tuple[str, ...] = ()  # a list of generators is one more axis
     if "generator" in raw:
         value = raw.pop("generator")
         names = value if isinstance(value, list) else [value]
@@ -46,10 +46,8 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
         keys = {k: kinds.generator_kind(k, d) for k, d in infos[0].defaults.items()
                  if all(k in info.defaults for info in infos[1:])}
         keys["seed"] = kinds.SEED
-        kind_name = "generator"
-        generator_name = str(names[0]) if not isinstance(value, list) else None
-        if isinstance(value, list):
-            generators = tuple(str(n) for n in names)
+        kind_name, generator_name = "generator", None if isinstance(value, list) else str(value)
+        generators = tuple(map(str, names)) if isinstance(value, list) else ()
     elif "file" in raw:
         keys = {"file": kinds.STRING, "seed": kinds.SEED}
         kind_name, generator_name = "file", None
@@ -62,11 +60,8 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
         kind_name, generator_name = "random", None
     raw.setdefault("seed", scenes.DEFAULT_SEED)
     kinds.reject_unknown(raw, tuple(keys), "scene.", source)
-    axes: list[tuple[str, tuple[object, ...]]] = []
-    listed = set()
-    if generators:  # a list of generators is one more axis
-        axes.append(("generator", generators))
-        listed.add("generator")
+    axes: list[tuple[str, tuple[object, ...]]] = [("generator", generators)] if generators else []
+    listed = {key for key, _ in axes}
     for key, values in raw.items():
         parsed, is_list = kinds.axis(values, f"scene.{key}", keys[key], source)
         if key == "file":
