@@ -1,7 +1,6 @@
 """The invariants a correct run keeps (SPEC section 7), checked on one print-mode output.
 
-Pure: output text (or a parsed `Output`) in, an `Invariants` record of pass/fail and
-values out. The checks:
+Pure: a parsed `Output` in, an `Invariants` record of pass/fail and values out. The checks:
 
 * finite: every printed coordinate and velocity is a finite number;
 * in_box: every finite coordinate lies in [r, L - r] (a float build computes the box in float,
@@ -20,7 +19,7 @@ import numpy as np
 
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_ENERGY_ULPS
-from harness.spec.output import Output, parse_output, split_states
+from harness.spec.output import Output, split_states
 
 # L - r and r rounded to float can sit up to ~1.5 ulp(L) outside the double box.
 BOX_TOLERANCE_F32 = 2.0**-22
@@ -125,9 +124,3 @@ def check(out: Output, L: float, r: float, build: str,
         box_excess=excess / L,
         states=len(states),
     )
-
-
-def check_text(text: str, L: float, r: float, build: str,
-               energy_ulps: float = DEFAULT_ENERGY_ULPS) -> Invariants:
-    """`check` on output text; raises OutputFormatError when it is not an output."""
-    return check(parse_output(text), L, r, build, energy_ulps)

@@ -67,24 +67,12 @@ def read_text(path: Path) -> str | None:
         return None
 
 
-# --- the CPU ------------------------------------------------------------------------------
-
-
 def parse_cpuinfo(text: str) -> list[dict[str, str]]:
-    """/proc/cpuinfo as one dict per logical CPU."""
-    cpus: list[dict[str, str]] = []
-    current: dict[str, str] = {}
-    for line in text.splitlines():
-        if not line.strip():
-            if current:
-                cpus.append(current)
-                current = {}
-            continue
-        key, _, value = line.partition(":")
-        current[key.strip()] = value.strip()
-    if current:
-        cpus.append(current)
-    return cpus
+    """/proc/cpuinfo as one dict per logical CPU (blocks between blank lines)."""
+    blocks = re.split(r"\n\s*\n", text)
+    return [{key.strip(): value.strip() for key, _, value in
+             (line.partition(":") for line in block.splitlines())}
+            for block in blocks if block.strip()]
 
 
 def _int(value: str | None) -> int | None:
@@ -203,8 +191,6 @@ def machine_label(described: dict[str, object]) -> str:
     cpus = described.get("logical_cpus") or described.get("cores")
     return f"{name}{f' ({march})' if march else ''} x{cpus}"
 
-
-# --- the load -----------------------------------------------------------------------------
 
 # A cell is `loaded` when, at its start, other runnable tasks (the run queue less this process)
 # number at least this share of the cores: on 2 cores one busy neighbour takes a whole CPU from a

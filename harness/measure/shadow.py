@@ -74,9 +74,6 @@ def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) 
     return done.stdout if done.returncode == 0 else None
 
 
-# --- shadow steps -------------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class ShadowStep:
     state: int  # the printed step it started from
@@ -157,15 +154,15 @@ def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
 
 def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
     """One shadow step: the cell's and the truth's one-step outputs from the same state."""
+    failed = ShadowStep(state, math.nan, math.nan, False, False)
     if cell is None or truth is None:
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     try:
-        a = parse_output(cell).final
-        b = parse_output(truth).final
+        a, b = parse_output(cell).final, parse_output(truth).final
     except OutputFormatError:
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     if a.n != b.n or not np.array_equal(a.index, b.index):
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     if a.n == 0:
         return ShadowStep(state, 0.0, 0.0, False, True)
     pos = np.hypot(*(a.position - b.position).T).max() / L
@@ -211,7 +208,7 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
     def one(index: int) -> ShadowStep:
         positions, velocities = states[index]
         if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
-            return ShadowStep(index, math.nan, math.nan, False, False)
+            return compare_step(index, None, None, L)
         text = state_input(L_text, r_text, L, r, positions, velocities)
         return compare_step(index, runner(binary, text, threads), runner(truth, text, 1), L)
 
@@ -220,9 +217,6 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
     with ThreadPoolExecutor(max_workers=min(MAX_WORKERS, len(chosen))) as pool:
         steps = tuple(pool.map(one, chosen))
     return Shadow(steps, bound)
-
-
-# --- divergence ---------------------------------------------------------------------------
 
 
 def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:

@@ -162,8 +162,6 @@ class SlurmExecutor:
         self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
                   progress)
 
-    # --- what is already there ---
-
     def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
                        cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
                        progress: Progress) -> None:
@@ -210,8 +208,6 @@ class SlurmExecutor:
                 elif pid not in in_flight:
                     ended[pid] = (task, slurm_state)
         return in_flight, ended
-
-    # --- submission ---
 
     def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
         spec = self.spec
@@ -273,8 +269,6 @@ class SlurmExecutor:
             experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
                                  f"--cpus-per-task={cpus}; task logs in {logs}\n")
         return tasks
-
-    # --- waiting ---
 
     @staticmethod
     def drop_fault(experiment: Experiment, cid: str, result: CellResult) -> None:
