@@ -119,12 +119,8 @@ class Progress:
         self._cached_until(k)
         elapsed = time.monotonic() - self.started
         todo = len(self.pending) - len(self.durations)
-        if eta_s is not None and self.durations:
-            eta = format_seconds(eta_s + sum(self.durations) / len(self.durations) * todo)
-        elif self.durations:
-            eta = format_seconds(sum(self.durations) / len(self.durations) * todo)
-        else:
-            eta = "?"
+        eta = (format_seconds((eta_s or 0.0) + sum(self.durations) / len(self.durations) * todo)
+               if self.durations else "?")
         self.log.write(f"{self._prefix(k)}  elapsed {format_seconds(elapsed)}  eta {eta}\n")
         self.log.flush()
         self._next = max(self._next, k + 1)

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.measure.machine import read_text
 from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
 
 PROC_STAT = Path("/proc/stat")
@@ -41,11 +42,9 @@ def round_cores() -> list[int]:
 def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] | None:
     """(busy, steal) ticks summed over the cores, from /proc/stat; None where it cannot be read
     (not Linux)."""
+    text = read_text(PROC_STAT) if text is None else text
     if text is None:
-        try:
-            text = PROC_STAT.read_text()
-        except OSError:
-            return None
+        return None
     wanted = {f"cpu{c}" for c in cores}
     busy = steal = 0
     seen = 0
@@ -62,11 +61,9 @@ def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] 
 def cpu_pressure_s(text: str | None = None) -> float | None:
     """The seconds so far during which some task waited for a CPU, from the kernel's pressure
     stall information; None where the kernel does not give it."""
+    text = read_text(CPU_PRESSURE) if text is None else text
     if text is None:
-        try:
-            text = CPU_PRESSURE.read_text()
-        except OSError:
-            return None
+        return None
     for line in text.splitlines():
         fields = line.split()
         if fields and fields[0] == "some":

@@ -142,16 +142,11 @@ def read_successors(data: bytes, n: int) -> Successors:
     for start, end in itertools.pairwise(bounds):
         rows = records[start:end]
         k = int(rows["k"][0]) - 1
-        idx = rows["i"]
-        v = np.full((n, 4), np.nan)
-        v[idx] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
-        e = np.full(n, -1, dtype=np.int64)
-        e[idx] = rows["e"]
-        p = np.full(n, -1, dtype=np.int64)
-        p[idx] = rows["j"]
-        tt = np.full(n, np.nan)
-        tt[idx] = rows["t"]
-        values[k], kind[k], partner[k], t[k] = v, e, p, tt
+        values[k] = np.full((n, 4), np.nan)
+        values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
+        for table, name, missing in ((kind, "e", -1), (partner, "j", -1), (t, "t", np.nan)):
+            table[k] = np.full(n, missing, dtype=np.float64 if name == "t" else np.int64)
+            table[k][rows["i"]] = rows[name]
     return Successors(values, kind, partner, t)
 
 

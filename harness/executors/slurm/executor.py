@@ -39,7 +39,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO
+from typing import TextIO, cast
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
 from harness.executors.slurm.client import (
@@ -60,6 +60,7 @@ from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
 from harness.store import atomic, locks
 from harness.store.columns import FAILED, TIMEOUT
+from harness.store.model import CellKey
 from harness.store.result import CellResult
 
 LOGS_DIR = "logs"
@@ -131,11 +132,9 @@ class SlurmExecutor:
             options.partition or experiment.config.executor.partition))
         self.collect = options.collect
         slurm_dir = experiment.store.layout.slurm
-        cells: dict[str, tuple[Cell, str]] = {}  # portable id -> (cell, planned cell id)
-        for cell, cid in pending:
-            key = experiment.store.cell_key(cell)
-            assert key is not None
-            cells[key.portable_id] = (cell, cid)
+        # portable id -> (cell, planned cell id)
+        cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
+                 for cell, cid in pending}
         log = experiment.log
         watch = RecordWatch(experiment.store.cells_dir)
         watch.snapshot()
@@ -168,11 +167,9 @@ class SlurmExecutor:
         """Cells a task of ours measured after its submission (e.g. while the submitter was
         dead), whose record carries the node's machine and so escaped the runner's cache:
         recorded now, not submitted again."""
-        submitted: dict[str, str] = {}  # portable id -> when its latest job was submitted
-        for job in state.jobs:
-            for pid in job.cells:
-                if pid in cells:
-                    submitted[pid] = job.submitted_at
+        # portable id -> when its latest job was submitted
+        submitted = {pid: job.submitted_at for job in state.jobs for pid in job.cells
+                     if pid in cells}
         if not submitted:
             return
         existing = watch.existing()

@@ -7,7 +7,7 @@ themselves."""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.errors import HarnessError
@@ -24,10 +24,6 @@ class Job:
     cells: list[str]  # array task index -> cell id
     submitted_at: str
     submitter: str  # host:pid
-
-    def to_json(self) -> dict[str, object]:
-        return {"job_id": self.job_id, "cells": self.cells, "submitted_at": self.submitted_at,
-                "submitter": self.submitter}
 
 
 @dataclass
@@ -52,4 +48,4 @@ class JobState:
 
     def save(self) -> None:
         atomic.atomic_write_json(self.path, {"version": JOBS_VERSION,
-                                              "jobs": [j.to_json() for j in self.jobs]})
+                                              "jobs": [asdict(j) for j in self.jobs]})
