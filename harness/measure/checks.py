@@ -46,13 +46,10 @@ class _Found:
 
 @dataclass
 class Checker:
-    """Runs the configured checks of an experiment's cells."""
-
     store: CellStore
     references: References
 
     def run_checks(self, cell: Cell) -> Checks:
-        """The configured checks on the cell's print-mode run."""
         started = time.monotonic()
         names = self.store.config.checks.names
         printed = scenes.with_run(cell.scene, cell.scene.steps, "print")

@@ -76,8 +76,6 @@ def cpu_pressure_s(text: str | None = None) -> float | None:
 
 @dataclass(frozen=True)
 class Sample:
-    """The counters at one moment."""
-
     at: float  # monotonic seconds
     ticks: tuple[int, int] | None  # (busy, steal) on the cores
     own_cpu_s: float  # user + system seconds of the reaped children
@@ -127,7 +125,6 @@ class RoundNoise:
 
 
 def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
-    """The noise of what ran between two samples."""
     tick = float(os.sysconf("SC_CLK_TCK"))
     own = max(0.0, after.own_cpu_s - before.own_cpu_s)
     steal = other = 0.0

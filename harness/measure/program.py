@@ -210,7 +210,6 @@ def _described(program: Program) -> dict[str, str]:
 
 
 def _status(done: ProcessResult) -> tuple[str, int | None]:
-    """ok, failed, crashed or timeout."""
     status, code = exit_status(done.returncode)
     return (CRASHED if signal_of(code) is not None else status), code
 

@@ -100,30 +100,16 @@ class Shadow:
     def failed(self) -> int:
         return len(self.steps) - len(self.compared)
 
-    def _stat(self, values: list[float], how: Callable[[list[float]], float]) -> float:
-        return how(values) if values else math.nan
+    def _stat(self, name: str, how: Callable[[list[float]], float]) -> float:
+        values = [float(getattr(s, name)) for s in self.compared]
+        return float(how(values)) if values else math.nan
 
-    @property
-    def pos_err_mean(self) -> float:
-        return self._stat([s.pos_err for s in self.compared], lambda v: float(np.mean(v)))
-
-    @property
-    def pos_err_max(self) -> float:
-        return self._stat([s.pos_err for s in self.compared], max)
-
-    @property
-    def vel_err_mean(self) -> float:
-        return self._stat([s.vel_err for s in self.compared], lambda v: float(np.mean(v)))
-
-    @property
-    def vel_err_max(self) -> float:
-        return self._stat([s.vel_err for s in self.compared], max)
-
-    @property
-    def set_diff_rate(self) -> float:
-        """The fraction of compared steps whose accepted collisions differ."""
-        return self._stat([float(s.set_differs) for s in self.compared],
-                          lambda v: float(np.mean(v)))
+    pos_err_mean = property(lambda self: self._stat("pos_err", np.mean))
+    pos_err_max = property(lambda self: self._stat("pos_err", max))
+    vel_err_mean = property(lambda self: self._stat("vel_err", np.mean))
+    vel_err_max = property(lambda self: self._stat("vel_err", max))
+    # The fraction of compared steps whose accepted collisions differ.
+    set_diff_rate = property(lambda self: self._stat("set_differs", np.mean))
 
     @property
     def passed(self) -> bool:
@@ -237,7 +223,6 @@ def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:
 
 
 def first_step_at(curve: Sequence[float], threshold: float) -> int | None:
-    """The first step whose deviation reaches `threshold`, or None."""
     for step, value in enumerate(curve):
         if value >= threshold:
             return step

@@ -62,8 +62,6 @@ Replay = Callable[[bytes], bytes]  # replay input (replay_input) -> its output (
 
 @dataclass(frozen=True)
 class StepJudgement:
-    """What the step-local check found."""
-
     level: float | None  # None: every step right at the printed precision; else the ladder's
     wrong_step: int | None = None  # the first step no level explains
     particle: int | None = None

@@ -28,8 +28,6 @@ class Job:
 
 @dataclass
 class JobState:
-    """<experiment>/slurm/jobs.json: every array job submitted for the experiment."""
-
     path: Path
     jobs: list[Job] = field(default_factory=list)
 
