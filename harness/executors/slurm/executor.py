@@ -1,17 +1,11 @@
-"""Slurm as an executor: each pending cell is one task of a Slurm job array.
-
-A task runs `python -m harness worker --config C --results-dir R [--quick] CELL_ID` on its
-compute node (harness.executors.worker), which measures the cell there exactly as a local run
-does (the precise run, validation against seq's output, the checks, hyperfine) and writes the
-cell's record into the
-shared results directory. Validation therefore runs on the node: seq's baseline output is
-cached under results/.cache/ on the shared file system, so the first task that needs it
-computes it (two tasks racing for it both compute it; os.replace keeps one). The submitter
-only waits, reads the records back, and rebuilds results.csv and the report.
-
-The client (harness.executors.slurm.client) is plain sbatch / squeue / scontrol / sacct.
-A task's state comes from, in order: its record on disk (the truth for every task that ran to
-the end), then what the client learns from Slurm.
+"""Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
+(harness.executors.worker) measures on its compute node exactly as a local run does and
+writes the cell's record into the shared results directory. Validation therefore runs on the
+node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
+first task that needs it computes it (two tasks racing for it both compute it; os.replace
+keeps one). The submitter only waits, reads the records back, and rebuilds results.csv and
+the report. A task's state comes from, in order: its record on disk (the truth for every task
+that ran to the end), then what the client (harness.executors.slurm.client) learns from Slurm.
 
 Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
 kept like a local timeout (not measured again unless --force or the record is removed); a
