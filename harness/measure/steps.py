@@ -17,7 +17,7 @@ an exact input.
 A program that is locally right only with a coarser uncertainty (a float build, another contact-
 time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
 step no level explains is `wrong`, and the rule it breaks is named where the program's own states
-show it (harness.measure.rules).
+show it (harness.measure.events).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ with the reason in `note`, marked `retry` (CellResult.retry): results.csv lists 
 next run submits the cell again (its new record replaces the fault record). Both are written
 by the submitter, under the cell id it planned with.
 
-What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.jobs):
+What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.watch):
 `--collect` (or running the same command again) adopts the jobs still in flight and submits
 nothing new (`--collect`) or only the cells neither recorded nor in flight.
 """
@@ -47,8 +47,14 @@ from harness.executors.slurm.client import (
     queue_states,
     submit_array,
 )
-from harness.executors.slurm.jobs import JOBS_FILE, LOCK_FILE, Job, JobState
-from harness.executors.slurm.watch import RecordWatch, fault_record
+from harness.executors.slurm.watch import (
+    JOBS_FILE,
+    LOCK_FILE,
+    Job,
+    JobState,
+    RecordWatch,
+    fault_record,
+)
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
