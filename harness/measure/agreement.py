@@ -219,11 +219,9 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     assert found.reference_event is not None
     kind, partner, t = found.reference_event
     reference = np.array(found.reference_values)
-    event = reference_event(states[k - 1], _with_row(states[k - 1], i, reference), i, kind,
-                                  partner, t, L, r)
+    event = reference_event(states[k - 1], reference, i, kind, partner, t, L, r)
     partners = found.partners if found.partners is not None else np.full(n, -1)
-    rule = broken_rule(states[k - 1], states[k], i, event, reference, partners, L,
-                             r) or ""
+    rule = broken_rule(states[k - 1], states[k], i, event, reference, partners, L, r) or ""
     note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
             f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
             f", to {_values(reference)}; the reference in that step: {event.describe()}"
@@ -259,12 +257,6 @@ def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[f
         return None
     k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
     return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
-
-
-def _with_row(state: np.ndarray, i: int, row: np.ndarray) -> np.ndarray:
-    out = state.copy()
-    out[i] = row
-    return out
 
 
 def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],

@@ -142,8 +142,9 @@ def seq_event(before: np.ndarray, after: np.ndarray, i: int, L: float, r: float)
 
 def reference_event(before: np.ndarray, successor: np.ndarray, i: int, kind: str,
                     partner: int, t: float, L: float, r: float) -> Event:
-    """The reference's event for particle i as an Event: the walls it hit, and those it then
-    stopped at (its successor on a wall, its velocity into it)."""
+    """The reference's event for particle i as an Event, from its `successor` (x, y, vx, vy):
+    the walls it hit, and those it then stopped at (its successor on a wall, its velocity
+    into it)."""
     p, v = before[i, :2], before[i, 2:]
     walls: tuple[str, ...] = ()
     if kind == "wall":
@@ -151,7 +152,7 @@ def reference_event(before: np.ndarray, successor: np.ndarray, i: int, kind: str
         walls = tuple(wall_name(a, v[a]) for a in axes)
     stopped: tuple[str, ...] = ()
     if kind != "free":
-        end, w = successor[i, :2], successor[i, 2:]
+        end, w = successor[:2], successor[2:]
         stopped = tuple(wall_name(a, w[a]) for a in range(2)
                         if (w[a] > 0 and end[a] == L - r) or (w[a] < 0 and end[a] == r))
     return Event(kind, t, partner if kind == "pair" else None, walls, stopped)
