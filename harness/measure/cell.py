@@ -108,7 +108,6 @@ class Measurer:
         try:
             precise = run_process([*command[:-1], "--precise", "--timing", command[-1]], env,
                                   measure.timeout_s, output_tmp)
-            run_s = precise.seconds
             status, exit_code = exit_status(precise.returncode)
             phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
             record = record.replace(phases=phases, counts=counts, thread_work=work,
@@ -133,7 +132,7 @@ class Measurer:
             record = record.replace(openmp_costs=measure_costs(self.store.ompcost(cell),
                                                               cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
-                                        run_s=run_s))
+                                        run_s=precise.seconds))
 
     def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> CellResult:
         """A fresh record of the cell, with where and how it runs; an earlier measurement's

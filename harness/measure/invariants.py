@@ -105,10 +105,8 @@ def check(out: Output, L: float, r: float, build: str,
     finite = bool(np.all(np.isfinite(positions)) and np.all(np.isfinite(every_v)))
     coords = positions[np.isfinite(positions)]
     tolerance = BOX_TOLERANCE_F32 * L if build == "f32" else 0.0
-    lo, hi = r, L - r
-    excess = 0.0
-    if coords.size:
-        excess = max(0.0, float(lo - coords.min()), float(coords.max() - hi))
+    excess = (max(0.0, float(r - coords.min()), float(coords.max() - (L - r))) if coords.size
+              else 0.0)
     pcoll_sum = int(out.final.pcoll.sum())
     drift, drift_max = energy_drifts(velocities)
     bound = energy_bound(build, pcoll_sum // 2, energy_ulps)
