@@ -108,10 +108,9 @@ def seq_event(before: np.ndarray, after: np.ndarray, i: int, L: float, r: float)
                     and np.all(np.abs(v - target[2:]) <= tolerance))
 
     p0, v0 = before[i, :2].astype(float), before[i, 2:].astype(float)
-    candidates: list[tuple[float, int, int]] = []  # (t, 0 pair / 1 wall, partner)
     times = pair_times(before, i, r)
-    for j in np.flatnonzero(np.isfinite(times)):
-        candidates.append((float(times[j]), 0, int(j)))
+    # (t, 0 pair / 1 wall, partner)
+    candidates = [(float(times[j]), 0, int(j)) for j in np.flatnonzero(np.isfinite(times))]
     tw, axes = wall_time(p0, v0, L, r)
     if tw <= 1:
         candidates.append((tw, 1, -1))
