@@ -2,8 +2,8 @@
   start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
          output); with `openmp_costs: true`, build/ompcost at the cell's thread count
          (measure.ompcost); when validating, that output against `build/seq --precise` on the same
-         input (the baseline's output is cached under results/.cache/baselines/); with
-         `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
+         input (measure.references); with `checks:`, the accuracy and stability checks on a
+         print-mode run (measure.checks);
          for a program, its run and its check against seq (measure.program); with the
          instruction lane (`metric: instructions`), its counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);

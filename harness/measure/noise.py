@@ -3,9 +3,8 @@ CPU time stolen by the hypervisor and the CPU time other processes took on the c
 process may use; from getrusage of the reaped children (hyperfine and the runs it timed),
 their own CPU time and involuntary context switches; from the kernel's pressure stall
 information (/proc/pressure/cpu), how long some task waited for a CPU; the load average. A
-round whose cores
-were taken by others (or stolen) beyond NOISE_LIMIT of their time is flagged, and a paired
-comparison leaves it out on both sides (harness.analysis.compare).
+round whose cores were taken by others (or stolen) beyond NOISE_LIMIT of their time is
+flagged, and a paired comparison leaves it out on both sides (harness.analysis.compare).
 
 Migrations of the timed process are not counted: the kernel gives them only while the process
 lives (/proc/<pid>/sched), and the runs are hyperfine's children."""

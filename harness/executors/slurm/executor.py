@@ -111,8 +111,7 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
 @dataclass
 class SlurmExecutor:
     """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
-    are the config's `executor:` section with run.py's --partition over it; --collect adopts
-    the jobs in flight and submits nothing.
+    are the config's `executor:` section with run.py's --partition over it.
 
     Cells are named by their portable id (CellKey.portable_id: the key without the machine) in
     the job scripts and jobs.json, and matched to the records the nodes write by the same id;

@@ -43,13 +43,9 @@ def is_fault(result: CellResult) -> bool:
 
 @dataclass
 class RecordWatch:
-    """The records that appear in cells/ while we wait, by the portable id of their key.
-
-    A node writes a cell's record under the cell id of its own machine (the key holds the
-    machine's id), which the submitter cannot know beforehand; so it looks for new or
-    rewritten record files and matches them on the key without the machine (portable_id).
-    Files present when the run started count only once rewritten (--force).
-    """
+    """The records that appear in cells/ while we wait, by the portable id of their key (the
+    key without the machine). Files present when the run started count only once rewritten
+    (--force)."""
 
     cells_dir: Path
     seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
