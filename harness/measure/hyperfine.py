@@ -62,7 +62,7 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
     timeout = timeout_s * (warmup + runs) + HYPERFINE_SLACK_S
     load_before = machine.sample_load()
     loaded = machine.is_loaded(load_before, cores)
-    used = noise.round_cores()
+    used = machine.round_cores()
     try:
         before = noise.sample(used)
         done = run_process(argv, env, timeout)

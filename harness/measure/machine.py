@@ -42,12 +42,17 @@ IDENTITY_KEYS = ("vendor", "model_name", "family", "model", "stepping", "isa", "
                  "sockets", "cores", "threads_per_core", "numa_nodes", "memory_gib", "vm")
 
 
-def available_cores() -> int:
-    """The cores this process may run on (affinity), falling back to the CPU count."""
+def round_cores() -> list[int]:
+    """The cores this process may run on, and the timed runs with it (they inherit its
+    affinity): its affinity, falling back to every CPU."""
     try:
-        return len(os.sched_getaffinity(0))
+        return sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        return os.cpu_count() or 1
+        return list(range(os.cpu_count() or 1))
+
+
+def available_cores() -> int:
+    return len(round_cores())
 
 
 def command_output(argv: list[str], cwd: Path | None = None) -> str | None:

@@ -30,14 +30,6 @@ BUSY_FIELDS = (0, 1, 2, 5, 6)  # user, nice, system, irq, softirq (guest time is
 STEAL_FIELD = 7
 
 
-def round_cores() -> list[int]:
-    """The cores the timed runs may use: this process's affinity (they inherit it)."""
-    try:
-        return sorted(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return list(range(os.cpu_count() or 1))
-
-
 def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] | None:
     """(busy, steal) ticks summed over the cores, from /proc/stat; None where it cannot be read
     (not Linux)."""
