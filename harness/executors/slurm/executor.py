@@ -330,11 +330,10 @@ class SlurmExecutor:
                     last_done_at = time.monotonic()
                     self.drop_fault(experiment, cid, record)
                     on_record(cell, cid, record)
+                elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
+                    running += 1
                 elif slurm_state in ACTIVE_STATES:
-                    if slurm_state in RUNNING_STATES:
-                        running += 1
-                    else:
-                        waiting += 1
+                    waiting += 1
                 else:
                     # ended without a record; COMPLETED may still be in flight on the file system
                     first = ended_at.setdefault(pid, time.monotonic())
