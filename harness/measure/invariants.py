@@ -74,14 +74,9 @@ def energies(velocities: list[np.ndarray]) -> np.ndarray:
     finite = [v[np.isfinite(v)] for v in velocities]
     largest = max((float(np.abs(v).max()) for v in finite if v.size), default=0.0)
     scale = 1.0 if largest == 0.0 else math.ldexp(1.0, -math.frexp(largest)[1])
-    result = []
-    for v in velocities:
-        if not np.all(np.isfinite(v)):
-            result.append(math.nan)
-        else:
-            scaled = (v * scale).ravel()
-            result.append(math.fsum((scaled * scaled).tolist()))
-    return np.array(result, dtype=np.float64)
+    return np.array([math.fsum(np.square((v * scale).ravel()).tolist())
+                     if np.all(np.isfinite(v)) else math.nan for v in velocities],
+                    dtype=np.float64)
 
 
 def energy_drifts(velocities: list[np.ndarray]) -> tuple[float, float]:

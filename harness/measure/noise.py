@@ -12,6 +12,7 @@ lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
 from __future__ import annotations
 
 import os
+import re
 import resource
 import time
 from collections.abc import Sequence
@@ -55,14 +56,8 @@ def cpu_pressure_s(text: str | None = None) -> float | None:
     text = read_text(CPU_PRESSURE) if text is None else text
     if text is None:
         return None
-    for line in text.splitlines():
-        fields = line.split()
-        if fields and fields[0] == "some":
-            for field in fields[1:]:
-                name, _, value = field.partition("=")
-                if name == "total" and value.isdigit():
-                    return int(value) / 1e6
-    return None
+    found = re.search(r"^\s*some\s(?:.*\s)?total=(\d+)(?:\s|$)", text, re.MULTILINE)
+    return int(found[1]) / 1e6 if found else None
 
 
 @dataclass(frozen=True)

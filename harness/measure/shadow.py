@@ -198,9 +198,7 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
         text = state_input(L_text, r_text, L, r, positions, velocities)
         return compare_step(index, runner(binary, text, threads), runner(truth, text, 1), L)
 
-    if not chosen:
-        return Shadow((), bound)
-    with ThreadPoolExecutor(max_workers=min(MAX_WORKERS, len(chosen))) as pool:
+    with ThreadPoolExecutor(max_workers=max(1, min(MAX_WORKERS, len(chosen)))) as pool:
         steps = tuple(pool.map(one, chosen))
     return Shadow(steps, bound)
 
