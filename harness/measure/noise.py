@@ -38,16 +38,12 @@ def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] 
     if text is None:
         return None
     wanted = {f"cpu{c}" for c in cores}
-    busy = steal = 0
-    seen = 0
-    for line in text.splitlines():
-        fields = line.split()
-        if fields and fields[0] in wanted:
-            values = [int(v) for v in fields[1:]]
-            busy += sum(values[k] for k in BUSY_FIELDS if k < len(values))
-            steal += values[STEAL_FIELD] if len(values) > STEAL_FIELD else 0
-            seen += 1
-    return (busy, steal) if seen else None
+    rows = [[int(v) for v in fields[1:]] for fields in map(str.split, text.splitlines())
+            if fields and fields[0] in wanted]
+    if not rows:
+        return None
+    return (sum(row[k] for row in rows for k in BUSY_FIELDS if k < len(row)),
+            sum(row[STEAL_FIELD] for row in rows if len(row) > STEAL_FIELD))
 
 
 def cpu_pressure_s(text: str | None = None) -> float | None:
