@@ -218,15 +218,13 @@ def load() -> dict[str, object]:
 def sample_load() -> dict[str, object]:
     """The load averages now and the median run queue over a few samples (this process
     included in `runnable`)."""
-    samples = []
-    current = load()
-    for k in range(LOAD_SAMPLES):
-        if k:
-            time.sleep(LOAD_SAMPLE_INTERVAL_S)
-            current = load()
-        if current["runnable"] is not None:
-            samples.append(int(current["runnable"]))  # type: ignore[call-overload]
-    return {**current, "runnable": statistics.median_low(samples) if samples else None}
+    loads = [load()]
+    for _ in range(LOAD_SAMPLES - 1):
+        time.sleep(LOAD_SAMPLE_INTERVAL_S)
+        loads.append(load())
+    samples = [int(x["runnable"]) for x in loads  # type: ignore[call-overload]
+               if x["runnable"] is not None]
+    return {**loads[-1], "runnable": statistics.median_low(samples) if samples else None}
 
 
 def is_loaded(load: dict[str, object], cores: int) -> bool:
