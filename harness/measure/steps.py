@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -74,7 +74,6 @@ class StepJudgement:
     near_ties: int = 0  # values explained only by a replay that decided otherwise
     partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
     reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
-    details: dict[str, object] = field(default_factory=dict)
 
 
 def half_units(tokens: np.ndarray) -> np.ndarray:
@@ -195,7 +194,6 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
                          base.partner[k], base.values[k])
 
 
-
 def _suspects(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], pairs: list[int],
               base: Successors, slack: float
               ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
@@ -228,6 +226,7 @@ def _reached(explain: _Explainer, before: list[int], open_: dict[int, np.ndarray
                                                  before, open_):
             return None if explain.explains((None,), before, open_) else level
     return None
+
 
 def _chunks(steps: list[int]) -> list[list[int]]:
     """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop
