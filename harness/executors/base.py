@@ -5,11 +5,7 @@ to an executor. The executor measures each pending cell somewhere, makes sure it
 disk (CellStore.record_path: the measuring side writes it, Measurer.finish), and
 calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
 the record and rebuilds results.csv from all records. Nothing on the recording side assumes
-the measurement ran in this process.
-
-The executors (harness.executors.EXECUTORS): local measures the cells one after another in
-this process; slurm runs the worker (`collide-bench worker --config PATH --results-dir DIR
-[--quick] CELL_ID ...`) as Slurm array tasks, then reads each record back.
+the measurement ran in this process. The executors are harness.executors.EXECUTORS.
 """
 
 from __future__ import annotations
@@ -119,12 +115,8 @@ class Progress:
         self._cached_until(k)
         elapsed = time.monotonic() - self.started
         todo = len(self.pending) - len(self.durations)
-        if eta_s is not None and self.durations:
-            eta = format_seconds(eta_s + sum(self.durations) / len(self.durations) * todo)
-        elif self.durations:
-            eta = format_seconds(sum(self.durations) / len(self.durations) * todo)
-        else:
-            eta = "?"
+        eta = (format_seconds((eta_s or 0.0) + sum(self.durations) / len(self.durations) * todo)
+               if self.durations else "?")
         self.log.write(f"{self._prefix(k)}  elapsed {format_seconds(elapsed)}  eta {eta}\n")
         self.log.flush()
         self._next = max(self._next, k + 1)

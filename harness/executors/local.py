@@ -12,8 +12,6 @@ from harness.plan.cells import Cell
 
 
 class LocalExecutor:
-    """Measures the pending cells in this process, in rounds."""
-
     name = "local"
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],

@@ -2,8 +2,8 @@
 (`collide-bench worker --config PATH --results-dir DIR [--quick] CELL_ID ...`).
 
 It plans the config again (as a run would, with the same --quick), finds each cell by its id,
-measures the cells in rounds as a local run does (harness.executors.rounds, with the given
-round seed or a fresh one) and writes each record atomically to
+measures them with the local executor (in rounds, with the given round seed or a fresh one),
+which writes each record atomically to
 <results-dir>/<name>/cells/<id>.json. Progress goes to stderr (a Slurm task's log). It builds
 nothing and consults no cached record: the caller sends only pending cells, with the binaries
 already built on a shared file system. An id that is not a cell of the plan (or whose
@@ -18,15 +18,13 @@ from pathlib import Path
 from typing import TextIO, cast
 
 from harness.errors import HarnessError
-from harness.executors.base import Progress
-from harness.executors.rounds import Unit, measure_in_rounds
-from harness.measure import environment, machine
-from harness.measure.cell import Measurer
+from harness.executors.base import Experiment, Options, Progress
+from harness.executors.local import LocalExecutor
+from harness.measure import environment
 from harness.plan.cells import plan_cells
-from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
-from harness.store import index, records
+from harness.store import index
 from harness.store.model import CellKey
 
 
@@ -36,9 +34,10 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     repo_root = repo_root.resolve()
     registry = VariantRegistry(repo_root)
     config = load_config(config_path, registry, max_cells=None)  # the run accepted it
-    machine_id = str(machine.machine(repo_root)[records.MACHINE_KEY])
-    store = CellStore(plan_cells(config, quick, registry), repo_root, results_root.resolve(),
-                      machine_id)
+    experiment = Experiment(plan_cells(config, quick, registry),
+                            Options(repo_root, results_root.resolve(), quick, hyperfine=hyperfine,
+                                    round_seed=round_seed), log)
+    store = experiment.store
     cells = store.cells_by_id()
     portable = {cast(CellKey, store.cell_key(cell)).portable_id: cid
                 for cid, cell in cells.items()}
@@ -47,13 +46,10 @@ def measure_cells(config_path: Path, results_root: Path, quick: bool, repo_root:
     if unknown:
         raise HarnessError(f"{config_path}: no planned cell with id {' '.join(unknown)}"
                            f"{' (--quick)' if quick else ''}")
-    measurer = Measurer(store, hyperfine)
     ids = [cid for cid in chosen if cid is not None]
     order = [(cells[cid], cid) for cid in ids]
-    progress = Progress(config.name, order, frozenset(ids), log)
-    measure_in_rounds([Unit(measurer, cell, cid) for cell, cid in order],
-                      lambda unit, record: None,  # Measurer.finish has written it
-                      progress, round_seed)
+    LocalExecutor().run(experiment, order, lambda cell, cid, record: None,  # already written
+                        Progress(config.name, order, frozenset(ids), log))
     # the machine and tools of this node, once per machine (a submitter elsewhere cannot)
-    if not store.layout.machine(machine_id).is_file():
+    if not store.layout.machine(store.machine_id).is_file():
         index.write_env(store.directory, environment.collect(repo_root, hyperfine=hyperfine))

@@ -16,7 +16,7 @@ roundings of L (a correct program that orders its arithmetic differently). The v
   right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
   right only at a coarser precision, named; wrong: a step no precision explains, with its
   particle, both states, the reference's event and the rule broken where the program's states
-  show it (harness.measure.rules). A state at step 0 other than the input is wrong at step 0;
+  show it (harness.measure.events). A state at step 0 other than the input is wrong at step 0;
 * failed: nothing to compare (no output, no readable line, too few particles, no final state,
   no two consecutive steps printed to judge).
 """
@@ -28,8 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from harness.measure import rules
-from harness.measure.events import pair_times
+from harness.measure.events import broken_rule, pair_times, reference_event
 from harness.measure.printed import Rows, printed_like_all, read_rows, state_at
 from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
@@ -220,11 +219,9 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     assert found.reference_event is not None
     kind, partner, t = found.reference_event
     reference = np.array(found.reference_values)
-    event = rules.reference_event(states[k - 1], _with_row(states[k - 1], i, reference), i, kind,
-                                  partner, t, L, r)
+    event = reference_event(states[k - 1], reference, i, kind, partner, t, L, r)
     partners = found.partners if found.partners is not None else np.full(n, -1)
-    rule = rules.broken_rule(states[k - 1], states[k], i, event, reference, partners, L,
-                             r) or ""
+    rule = broken_rule(states[k - 1], states[k], i, event, reference, partners, L, r) or ""
     note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
             f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
             f", to {_values(reference)}; the reference in that step: {event.describe()}"
@@ -260,12 +257,6 @@ def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[f
         return None
     k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
     return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
-
-
-def _with_row(state: np.ndarray, i: int, row: np.ndarray) -> np.ndarray:
-    out = state.copy()
-    out[i] = row
-    return out
 
 
 def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],

@@ -2,8 +2,8 @@
   start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
          output); with `openmp_costs: true`, build/ompcost at the cell's thread count
          (measure.ompcost); when validating, that output against `build/seq --precise` on the same
-         input (the baseline's output is cached under results/.cache/baselines/); with
-         `checks:`, the accuracy and stability checks on a print-mode run (measure.checks);
+         input (measure.references); with `checks:`, the accuracy and stability checks on a
+         print-mode run (measure.checks);
          for a program, its run and its check against seq (measure.program); with the
          instruction lane (`metric: instructions`), its counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
@@ -108,7 +108,6 @@ class Measurer:
         try:
             precise = run_process([*command[:-1], "--precise", "--timing", command[-1]], env,
                                   measure.timeout_s, output_tmp)
-            run_s = precise.seconds
             status, exit_code = exit_status(precise.returncode)
             phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
             record = record.replace(phases=phases, counts=counts, thread_work=work,
@@ -133,7 +132,7 @@ class Measurer:
             record = record.replace(openmp_costs=measure_costs(self.store.ompcost(cell),
                                                               cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
-                                        run_s=run_s))
+                                        run_s=precise.seconds))
 
     def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> CellResult:
         """A fresh record of the cell, with where and how it runs; an earlier measurement's

@@ -46,13 +46,10 @@ class _Found:
 
 @dataclass
 class Checker:
-    """Runs the configured checks of an experiment's cells."""
-
     store: CellStore
     references: References
 
     def run_checks(self, cell: Cell) -> Checks:
-        """The configured checks on the cell's print-mode run."""
         started = time.monotonic()
         names = self.store.config.checks.names
         printed = scenes.with_run(cell.scene, cell.scene.steps, "print")
@@ -78,11 +75,9 @@ class Checker:
                 found.values["divergence"] = self._divergence(run, found)
             if "shadow" in names:
                 found.values["shadow_per_step"] = self._shadow(run, found)
-        found.values["checks_passed"] = not found.failed
-        found.values["checks_failed"] = " ".join(found.failed)
-        found.values["checks_note"] = "; ".join(found.notes)
-        found.values["checks_s"] = time.monotonic() - started
-        return Checks(**found.values)
+        return Checks(**found.values, checks_passed=not found.failed,
+                      checks_failed=" ".join(found.failed), checks_note="; ".join(found.notes),
+                      checks_s=time.monotonic() - started)
 
     def _invariants(self, run: _Run, found: _Found) -> None:
         """The invariants, the same output at the other thread counts, and (for a cell that

@@ -105,7 +105,6 @@ def py_cpuinfo() -> dict[str, object]:
 
 def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine",
             load_before: dict[str, object] | None = None) -> dict[str, object]:
-    """Everything env.json records."""
     described = machine(repo_root, make)
     compiler = compiler_command(repo_root, make)[0]
     return {

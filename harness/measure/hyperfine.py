@@ -62,24 +62,23 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
     timeout = timeout_s * (warmup + runs) + HYPERFINE_SLACK_S
     load_before = machine.sample_load()
     loaded = machine.is_loaded(load_before, cores)
-    used = noise.round_cores()
+    used = machine.round_cores()
     try:
         before = noise.sample(used)
         done = run_process(argv, env, timeout)
         interference = noise.between(before, noise.sample(used), len(used))
         load_after = machine.load()
-        warnings = hyperfine_warnings(done.stderr)
+        status, code, note = OK, 0, ""
+        stats: HyperfineStats | None = None
         if done.returncode is None:
-            return Timed(TIMEOUT, None, f"hyperfine passed its {timeout:g} s timeout",
-                         warnings=warnings, load_before=load_before, load_after=load_after,
-                         loaded=loaded)
-        if done.returncode != 0:
+            status, code, note = TIMEOUT, None, f"hyperfine passed its {timeout:g} s timeout"
+        elif done.returncode != 0:
             status, code = hyperfine_failure(done.stderr)
-            return Timed(status, code, f"hyperfine: {tail(done.stderr).strip()}",
-                         warnings=warnings, load_before=load_before, load_after=load_after,
-                         loaded=loaded)
-        stats = load_hyperfine(tmp)
-        os.replace(tmp, target)
+            note = f"hyperfine: {tail(done.stderr).strip()}"
+        else:
+            stats = load_hyperfine(tmp)
+            os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
-    return Timed(OK, 0, "", stats, warnings, load_before, load_after, loaded, interference)
+    return Timed(status, code, note, stats, hyperfine_warnings(done.stderr), load_before,
+                 load_after, loaded, interference if status == OK else None)

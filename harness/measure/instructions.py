@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.measure.proc import run_process, tail
+from harness.measure.proc import failure, run_process
 from harness.plan.lane import CACHEGRIND, PASSIVE_ENV, PERF, PERF_COUNT, PERF_EVENT
 from harness.store.measured import Instructions
 
@@ -93,11 +93,8 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
                        "--cachegrind-out-file=/dev/null", "--trace-children=yes",
                        f"--log-file={logs}/cachegrind.%p"]
         done = run_process([*wrapper, *argv], run_env, timeout_s)
-        if done.returncode is None:
-            return None, f"its {tool} run passed the {timeout_s:g} s timeout"
         if done.returncode != 0:
-            return None, (f"its {tool} run ended with exit status {done.returncode}: "
-                          f"{' '.join(tail(done.stderr).split())[-300:]}")
+            return None, failure(f"its {tool} run", done, timeout_s)
         texts = [p.read_text(errors="replace") for p in sorted(logs.iterdir())]
     if tool == PERF:
         found = [int(m.group(1)) for text in texts for line in text.splitlines()

@@ -42,12 +42,17 @@ IDENTITY_KEYS = ("vendor", "model_name", "family", "model", "stepping", "isa", "
                  "sockets", "cores", "threads_per_core", "numa_nodes", "memory_gib", "vm")
 
 
-def available_cores() -> int:
-    """The cores this process may run on (affinity), falling back to the CPU count."""
+def round_cores() -> list[int]:
+    """The cores this process may run on, and the timed runs with it (they inherit its
+    affinity): its affinity, falling back to every CPU."""
     try:
-        return len(os.sched_getaffinity(0))
+        return sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        return os.cpu_count() or 1
+        return list(range(os.cpu_count() or 1))
+
+
+def available_cores() -> int:
+    return len(round_cores())
 
 
 def command_output(argv: list[str], cwd: Path | None = None) -> str | None:
@@ -67,24 +72,12 @@ def read_text(path: Path) -> str | None:
         return None
 
 
-# --- the CPU ------------------------------------------------------------------------------
-
-
 def parse_cpuinfo(text: str) -> list[dict[str, str]]:
-    """/proc/cpuinfo as one dict per logical CPU."""
-    cpus: list[dict[str, str]] = []
-    current: dict[str, str] = {}
-    for line in text.splitlines():
-        if not line.strip():
-            if current:
-                cpus.append(current)
-                current = {}
-            continue
-        key, _, value = line.partition(":")
-        current[key.strip()] = value.strip()
-    if current:
-        cpus.append(current)
-    return cpus
+    """/proc/cpuinfo as one dict per logical CPU (blocks between blank lines)."""
+    blocks = re.split(r"\n\s*\n", text)
+    return [{key.strip(): value.strip() for key, _, value in
+             (line.partition(":") for line in block.splitlines())}
+            for block in blocks if block.strip()]
 
 
 def _int(value: str | None) -> int | None:
@@ -204,8 +197,6 @@ def machine_label(described: dict[str, object]) -> str:
     return f"{name}{f' ({march})' if march else ''} x{cpus}"
 
 
-# --- the load -----------------------------------------------------------------------------
-
 # A cell is `loaded` when, at its start, other runnable tasks (the run queue less this process)
 # number at least this share of the cores: on 2 cores one busy neighbour takes a whole CPU from a
 # 2-thread cell. The run queue and not the 1-minute load average decides, because the load
@@ -227,15 +218,13 @@ def load() -> dict[str, object]:
 def sample_load() -> dict[str, object]:
     """The load averages now and the median run queue over a few samples (this process
     included in `runnable`)."""
-    samples = []
-    current = load()
-    for k in range(LOAD_SAMPLES):
-        if k:
-            time.sleep(LOAD_SAMPLE_INTERVAL_S)
-            current = load()
-        if current["runnable"] is not None:
-            samples.append(int(current["runnable"]))  # type: ignore[call-overload]
-    return {**current, "runnable": statistics.median_low(samples) if samples else None}
+    loads = [load()]
+    for _ in range(LOAD_SAMPLES - 1):
+        time.sleep(LOAD_SAMPLE_INTERVAL_S)
+        loads.append(load())
+    samples = [int(x["runnable"]) for x in loads  # type: ignore[call-overload]
+               if x["runnable"] is not None]
+    return {**loads[-1], "runnable": statistics.median_low(samples) if samples else None}
 
 
 def is_loaded(load: dict[str, object], cores: int) -> bool:

@@ -3,9 +3,8 @@ CPU time stolen by the hypervisor and the CPU time other processes took on the c
 process may use; from getrusage of the reaped children (hyperfine and the runs it timed),
 their own CPU time and involuntary context switches; from the kernel's pressure stall
 information (/proc/pressure/cpu), how long some task waited for a CPU; the load average. A
-round whose cores
-were taken by others (or stolen) beyond NOISE_LIMIT of their time is flagged, and a paired
-comparison leaves it out on both sides (harness.analysis.compare).
+round whose cores were taken by others (or stolen) beyond NOISE_LIMIT of their time is
+flagged, and a paired comparison leaves it out on both sides (harness.analysis.compare).
 
 Migrations of the timed process are not counted: the kernel gives them only while the process
 lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
@@ -13,12 +12,14 @@ lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
 from __future__ import annotations
 
 import os
+import re
 import resource
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.measure.machine import read_text
 from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
 
 PROC_STAT = Path("/proc/stat")
@@ -30,57 +31,33 @@ BUSY_FIELDS = (0, 1, 2, 5, 6)  # user, nice, system, irq, softirq (guest time is
 STEAL_FIELD = 7
 
 
-def round_cores() -> list[int]:
-    """The cores the timed runs may use: this process's affinity (they inherit it)."""
-    try:
-        return sorted(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return list(range(os.cpu_count() or 1))
-
-
 def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] | None:
     """(busy, steal) ticks summed over the cores, from /proc/stat; None where it cannot be read
     (not Linux)."""
+    text = read_text(PROC_STAT) if text is None else text
     if text is None:
-        try:
-            text = PROC_STAT.read_text()
-        except OSError:
-            return None
+        return None
     wanted = {f"cpu{c}" for c in cores}
-    busy = steal = 0
-    seen = 0
-    for line in text.splitlines():
-        fields = line.split()
-        if fields and fields[0] in wanted:
-            values = [int(v) for v in fields[1:]]
-            busy += sum(values[k] for k in BUSY_FIELDS if k < len(values))
-            steal += values[STEAL_FIELD] if len(values) > STEAL_FIELD else 0
-            seen += 1
-    return (busy, steal) if seen else None
+    rows = [[int(v) for v in fields[1:]] for fields in map(str.split, text.splitlines())
+            if fields and fields[0] in wanted]
+    if not rows:
+        return None
+    return (sum(row[k] for row in rows for k in BUSY_FIELDS if k < len(row)),
+            sum(row[STEAL_FIELD] for row in rows if len(row) > STEAL_FIELD))
 
 
 def cpu_pressure_s(text: str | None = None) -> float | None:
     """The seconds so far during which some task waited for a CPU, from the kernel's pressure
     stall information; None where the kernel does not give it."""
+    text = read_text(CPU_PRESSURE) if text is None else text
     if text is None:
-        try:
-            text = CPU_PRESSURE.read_text()
-        except OSError:
-            return None
-    for line in text.splitlines():
-        fields = line.split()
-        if fields and fields[0] == "some":
-            for field in fields[1:]:
-                name, _, value = field.partition("=")
-                if name == "total" and value.isdigit():
-                    return int(value) / 1e6
-    return None
+        return None
+    found = re.search(r"^\s*some\s(?:.*\s)?total=(\d+)(?:\s|$)", text, re.MULTILINE)
+    return int(found[1]) / 1e6 if found else None
 
 
 @dataclass(frozen=True)
 class Sample:
-    """The counters at one moment."""
-
     at: float  # monotonic seconds
     ticks: tuple[int, int] | None  # (busy, steal) on the cores
     own_cpu_s: float  # user + system seconds of the reaped children
@@ -130,7 +107,6 @@ class RoundNoise:
 
 
 def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
-    """The noise of what ran between two samples."""
     tick = float(os.sysconf("SC_CLK_TCK"))
     own = max(0.0, after.own_cpu_s - before.own_cpu_s)
     steal = other = 0.0

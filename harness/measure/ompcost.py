@@ -13,7 +13,7 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.measure.proc import run_process, tail
+from harness.measure.proc import failure, run_process
 from harness.store.columns import OMP_COST_COLUMNS
 from harness.store.measured import OmpCosts
 
@@ -56,9 +56,7 @@ def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCost
         done = run_process([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S, out)
         text = out.read_text() if out.exists() else ""
     if done.returncode != 0:
-        why = ("timed out" if done.returncode is None
-               else f"exit {done.returncode}: {tail(done.stderr).strip()[-300:]}")
-        return OmpCosts(openmp_costs_note=f"{binary.name} {why}")
+        return OmpCosts(openmp_costs_note=failure(binary.name, done, OMPCOST_TIMEOUT_S))
     try:
         return OmpCosts(**parse_costs(text, threads))
     except ValueError as exc:

@@ -164,8 +164,8 @@ def _read_rows_fast(text: str) -> Rows | None:
 
 
 def _read_rows_by_line(text: str) -> Rows:
-    kept: dict[tuple[int, int], int] = {}
-    steps, indices, values, tokens, counts = [], [], [], [], []
+    # A (step, index) printed twice keeps its first line's place and its last line's values.
+    kept: dict[tuple[int, int], tuple[int, int, list[float], tuple[str, ...], list[int]]] = {}
     ignored, first_ignored = 0, ""
     for number, line in enumerate(text.splitlines(), start=1):
         fields = line.split()
@@ -177,19 +177,10 @@ def _read_rows_by_line(text: str) -> Rows:
             if not first_ignored:
                 first_ignored = f"line {number}: {line.strip()[:QUOTE_CHARS]!r}"
             continue
-        key = (row[0], row[1])
-        if key in kept:  # printed twice: the later line stands
-            k = kept[key]
-            values[k], tokens[k], counts[k] = row[2], row[3], row[4]
-            continue
-        kept[key] = len(steps)
-        steps.append(row[0])
-        indices.append(row[1])
-        values.append(row[2])
-        tokens.append(row[3])
-        counts.append(row[4])
+        kept[row[0], row[1]] = row
+    steps, indices, values, tokens, counts = zip(*kept.values(), strict=True) if kept else [()] * 5
     return Rows(np.array(steps, dtype=np.int64), np.array(indices, dtype=np.int64),
-                np.array(values, dtype=np.float64).reshape(-1, 4), tokens,
+                np.array(values, dtype=np.float64).reshape(-1, 4), list(tokens),
                 np.array(counts, dtype=np.int64).reshape(-1, 2), ignored, first_ignored)
 
 

@@ -16,6 +16,10 @@ from pathlib import Path
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 
 STDERR_TAIL_CHARS = 2000
+COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
+SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
+SHELL_SIGNALS = 64  # the signals that can be N (Linux's real-time ones included)
+LAST_LINES = 3  # the lines of stderr a one-line failure quotes
 
 
 @dataclass(frozen=True)
@@ -37,7 +41,7 @@ def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                                     stdin=subprocess.DEVNULL, env=dict(env),
                                     start_new_session=True)
         except OSError as exc:
-            return ProcessResult(127, f"cannot run {argv[0]}: {exc.strerror}\n", 0.0)
+            return ProcessResult(COMMAND_NOT_FOUND, f"cannot run {argv[0]}: {exc.strerror}\n", 0.0)
         returncode: int | None = None
         try:
             returncode = proc.wait(timeout=timeout_s)
@@ -67,3 +71,34 @@ def exit_status(returncode: int | None) -> tuple[str, int | None]:
 
 def tail(text: str) -> str:
     return text[-STDERR_TAIL_CHARS:]
+
+
+def signal_of(code: int | None) -> int | None:
+    """The signal that killed a run with this return code: a negative code's, or a shell's
+    128 + N; None for an exit (or a timeout)."""
+    if code is None:
+        return None
+    if code < 0:
+        return -code
+    shell = code - SHELL_SIGNAL_BASE
+    return shell if 0 < shell <= SHELL_SIGNALS else None
+
+
+def failure(what: str, done: ProcessResult, timeout_s: float) -> str:
+    """One line on why a run did not finish: its timeout, signal or exit and its last lines."""
+    if done.returncode is None:
+        return f"{what} passed the {timeout_s:g} s timeout"
+    code = done.returncode
+    last = " | ".join(done.stderr.strip().splitlines()[-LAST_LINES:])
+    number = signal_of(code)
+    if code == COMMAND_NOT_FOUND:
+        why = "exit 127: command not found"
+    elif number is not None:
+        try:
+            name = signal.Signals(number).name
+        except ValueError:
+            name = f"signal {number}"
+        why = f"killed by {name}" + (f" (exit {code})" if code > 0 else "")
+    else:
+        why = f"exit {code}"
+    return f"{what}: {why}" + (f": {last}" if last else "")

@@ -22,7 +22,6 @@ import dataclasses
 import math
 import os
 import shlex
-import signal
 import tempfile
 import time
 from collections.abc import Mapping
@@ -30,7 +29,7 @@ from pathlib import Path
 
 from harness.measure.agreement import Agreement, judge
 from harness.measure.printed import first_difference
-from harness.measure.proc import ProcessResult, exit_status, run_process, tail
+from harness.measure.proc import ProcessResult, exit_status, failure, run_process, signal_of, tail
 from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
@@ -51,11 +50,6 @@ from harness.store.columns import (
 )
 from harness.store.result import CellResult
 
-COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
-SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
-SHELL_SIGNALS = 64  # the signals that can be N (Linux's real-time ones included)
-LAST_LINES = 3
-
 
 def start_program(store: CellStore, references: References, cell: Cell, cell_id: str,
                   key: dict[str, object], record: CellResult, env: Mapping[str, str],
@@ -70,7 +64,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     status, code = _status(done)
     if status != OK:
         return _not_run(record, cell_id, key, command, status, code,
-                        _failure("its run", done, timeout_s), done.seconds)
+                        failure("its run", done, timeout_s), done.seconds)
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads)
@@ -81,7 +75,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
         check_status, check_code = _status(checked)
         if check_status != OK:
             return _not_run(record, cell_id, key, command, check_status, check_code,
-                            _failure("its check run (print mode)", checked, timeout_s),
+                            failure("its check run (print mode)", checked, timeout_s),
                             done.seconds)
         text = output.read_text(errors="replace")
         if store.config.keep_output:
@@ -160,7 +154,7 @@ def _replay(binary: Path, env: Mapping[str, str], timeout_s: float,
             done = run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
             seconds.append(done.seconds)
             if done.returncode != 0:
-                raise ReplayError(_failure(f"{binary.name} --replay", done, timeout_s))
+                raise ReplayError(failure(f"{binary.name} --replay", done, timeout_s))
             return out.read_bytes()
     return run
 
@@ -215,41 +209,9 @@ def _described(program: Program) -> dict[str, str]:
     return described
 
 
-def _signal(code: int | None) -> int | None:
-    """The signal that killed a run with this return code: a negative code's, or a shell's
-    128 + N; None for an exit (or a timeout)."""
-    if code is None:
-        return None
-    if code < 0:
-        return -code
-    shell = code - SHELL_SIGNAL_BASE
-    return shell if 0 < shell <= SHELL_SIGNALS else None
-
-
 def _status(done: ProcessResult) -> tuple[str, int | None]:
-    """ok, failed, crashed or timeout."""
     status, code = exit_status(done.returncode)
-    return (CRASHED if _signal(code) is not None else status), code
-
-
-def _failure(what: str, done: ProcessResult, timeout_s: float) -> str:
-    """One line on why a run of the program did not finish."""
-    if done.returncode is None:
-        return f"{what} passed the {timeout_s:g} s timeout"
-    code = done.returncode
-    last = " | ".join(done.stderr.strip().splitlines()[-LAST_LINES:])
-    number = _signal(code)
-    if code == COMMAND_NOT_FOUND:
-        why = "exit 127: command not found"
-    elif number is not None:
-        try:
-            name = signal.Signals(number).name
-        except ValueError:
-            name = f"signal {number}"
-        why = f"killed by {name}" + (f" (exit {code})" if code > 0 else "")
-    else:
-        why = f"exit {code}"
-    return f"{what}: {why}" + (f": {last}" if last else "")
+    return (CRASHED if signal_of(code) is not None else status), code
 
 
 def _not_run(record: CellResult, cell_id: str, key: dict[str, object], command: list[str],

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.measure.proc import run_process
+from harness.measure.proc import failure, run_process
 from harness.spec import scenes
 from harness.spec.programs import Program
 from harness.store.columns import NO_RACES
@@ -38,7 +38,6 @@ TSAN_N = 200
 TSAN_STEPS = 5
 TSAN_THREADS = 2
 PACKAGES = "clang libclang-rt-dev libomp-dev"  # Debian's: clang, its TSan runtime, Archer
-LAST_LINES = 3
 
 
 @dataclass(frozen=True)
@@ -186,11 +185,8 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         binary = Path(tmp) / f"{program.name}-tsan"
         built = run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
         if built.returncode != 0 or not binary.is_file():
-            why = ("passed the timeout" if built.returncode is None
-                   else f"exit {built.returncode}")
-            last = " | ".join(built.stderr.strip().splitlines()[-LAST_LINES:])
-            return skipped(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS}) failed: "
-                           f"{why}" + (f": {last}" if last else ""))
+            return skipped(failure(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS})",
+                                   built, timeout_s))
         template = program.with_binary(program.command, binary)
         if template is None:
             return skipped("its command names no file its build replaces (the program's "
@@ -204,8 +200,7 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         races = parse_reports(reports, program.directory)
         note = ""
         if ran.returncode != 0 and not races:
-            why = "passed the timeout" if ran.returncode is None else f"exit {ran.returncode}"
-            return skipped(f"its ThreadSanitizer run did not finish ({why})")
+            return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
         if races:
             note = (f"ThreadSanitizer found {len(races)} data race(s) at {threads} threads on "
                     f"{description}: " + "; ".join(r.describe() for r in races))

@@ -9,12 +9,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.measure.proc import exit_status, run_process, tail
+from harness.measure.proc import ProcessResult, exit_status, run_process, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
 from harness.store import atomic
-from harness.store.columns import OK
 from harness.store.model import content_id
 
 # The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
@@ -43,20 +42,11 @@ class References:
             self.baselines[key] = path.read_text()
             return self.baselines[key], ""
         seq = self.store.baseline_binary(cell)
-        argv = [str(seq), "--threads", "1", "--seed", str(cell.scene.seed), "--precise",
-                str(self.store.input_file(cell.scene))]
-        tmp = atomic.temp_path(path)
-        try:
-            done = run_process(argv, self.environment(1), self.timeout_s, tmp)
-            status, code = exit_status(done.returncode)
-            if status != OK:
-                self.baselines[key] = None
-                return None, f"baseline {seq.name} {status} (exit {code}): {tail(done.stderr)}"
-            text = tmp.read_text()
-            os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
+        done, text = self._run(seq, cell.scene, 1, path, keep=True)
         self.baselines[key] = text
+        if text is None:
+            status, code = exit_status(done.returncode)
+            return None, f"baseline {seq.name} {status} (exit {code}): {tail(done.stderr)}"
         return text, ""
 
     def share_baseline(self, cell: Cell, output: str) -> None:
@@ -81,16 +71,23 @@ class References:
         if cache and path.is_file():
             self.prints[key] = path.read_text()
             return self.prints[key]
+        text = self._run(binary, scene, threads, path, keep=cache)[1]
+        if cache:
+            self.prints[key] = text
+        return text
+
+    def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path,
+             keep: bool) -> tuple[ProcessResult, str | None]:
+        """`binary --precise` on the scene's input; its output (None where it failed), with
+        `keep` moved to `path`."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
         tmp = atomic.temp_path(path)
         try:
             done = run_process(argv, self.environment(threads), self.timeout_s, tmp)
             text = tmp.read_text() if done.returncode == 0 else None
-            if cache and text is not None:
+            if keep and text is not None:
                 os.replace(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)
-        if cache:
-            self.prints[key] = text
-        return text
+        return done, text

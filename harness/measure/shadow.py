@@ -74,9 +74,6 @@ def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) 
     return done.stdout if done.returncode == 0 else None
 
 
-# --- shadow steps -------------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class ShadowStep:
     state: int  # the printed step it started from
@@ -103,30 +100,16 @@ class Shadow:
     def failed(self) -> int:
         return len(self.steps) - len(self.compared)
 
-    def _stat(self, values: list[float], how: Callable[[list[float]], float]) -> float:
-        return how(values) if values else math.nan
+    def _stat(self, name: str, how: Callable[[list[float]], float]) -> float:
+        values = [float(getattr(s, name)) for s in self.compared]
+        return float(how(values)) if values else math.nan
 
-    @property
-    def pos_err_mean(self) -> float:
-        return self._stat([s.pos_err for s in self.compared], lambda v: float(np.mean(v)))
-
-    @property
-    def pos_err_max(self) -> float:
-        return self._stat([s.pos_err for s in self.compared], max)
-
-    @property
-    def vel_err_mean(self) -> float:
-        return self._stat([s.vel_err for s in self.compared], lambda v: float(np.mean(v)))
-
-    @property
-    def vel_err_max(self) -> float:
-        return self._stat([s.vel_err for s in self.compared], max)
-
-    @property
-    def set_diff_rate(self) -> float:
-        """The fraction of compared steps whose accepted collisions differ."""
-        return self._stat([float(s.set_differs) for s in self.compared],
-                          lambda v: float(np.mean(v)))
+    pos_err_mean = property(lambda self: self._stat("pos_err", np.mean))
+    pos_err_max = property(lambda self: self._stat("pos_err", max))
+    vel_err_mean = property(lambda self: self._stat("vel_err", np.mean))
+    vel_err_max = property(lambda self: self._stat("vel_err", max))
+    # The fraction of compared steps whose accepted collisions differ.
+    set_diff_rate = property(lambda self: self._stat("set_differs", np.mean))
 
     @property
     def passed(self) -> bool:
@@ -157,15 +140,15 @@ def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
 
 def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
     """One shadow step: the cell's and the truth's one-step outputs from the same state."""
+    failed = ShadowStep(state, math.nan, math.nan, False, False)
     if cell is None or truth is None:
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     try:
-        a = parse_output(cell).final
-        b = parse_output(truth).final
+        a, b = parse_output(cell).final, parse_output(truth).final
     except OutputFormatError:
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     if a.n != b.n or not np.array_equal(a.index, b.index):
-        return ShadowStep(state, math.nan, math.nan, False, False)
+        return failed
     if a.n == 0:
         return ShadowStep(state, 0.0, 0.0, False, True)
     pos = np.hypot(*(a.position - b.position).T).max() / L
@@ -211,18 +194,13 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
     def one(index: int) -> ShadowStep:
         positions, velocities = states[index]
         if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
-            return ShadowStep(index, math.nan, math.nan, False, False)
+            return compare_step(index, None, None, L)
         text = state_input(L_text, r_text, L, r, positions, velocities)
         return compare_step(index, runner(binary, text, threads), runner(truth, text, 1), L)
 
-    if not chosen:
-        return Shadow((), bound)
-    with ThreadPoolExecutor(max_workers=min(MAX_WORKERS, len(chosen))) as pool:
+    with ThreadPoolExecutor(max_workers=max(1, min(MAX_WORKERS, len(chosen)))) as pool:
         steps = tuple(pool.map(one, chosen))
     return Shadow(steps, bound)
-
-
-# --- divergence ---------------------------------------------------------------------------
 
 
 def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:
@@ -243,7 +221,6 @@ def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:
 
 
 def first_step_at(curve: Sequence[float], threshold: float) -> int | None:
-    """The first step whose deviation reaches `threshold`, or None."""
     for step, value in enumerate(curve):
         if value >= threshold:
             return step

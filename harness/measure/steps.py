@@ -17,14 +17,14 @@ an exact input.
 A program that is locally right only with a coarser uncertainty (a float build, another contact-
 time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
 step no level explains is `wrong`, and the rule it breaks is named where the program's own states
-show it (harness.measure.rules).
+show it (harness.measure.events).
 """
 
 from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -62,8 +62,6 @@ Replay = Callable[[bytes], bytes]  # replay input (replay_input) -> its output (
 
 @dataclass(frozen=True)
 class StepJudgement:
-    """What the step-local check found."""
-
     level: float | None  # None: every step right at the printed precision; else the ladder's
     wrong_step: int | None = None  # the first step no level explains
     particle: int | None = None
@@ -76,7 +74,6 @@ class StepJudgement:
     near_ties: int = 0  # values explained only by a replay that decided otherwise
     partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
     reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
-    details: dict[str, object] = field(default_factory=dict)
 
 
 def half_units(tokens: np.ndarray) -> np.ndarray:
@@ -142,16 +139,11 @@ def read_successors(data: bytes, n: int) -> Successors:
     for start, end in itertools.pairwise(bounds):
         rows = records[start:end]
         k = int(rows["k"][0]) - 1
-        idx = rows["i"]
-        v = np.full((n, 4), np.nan)
-        v[idx] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
-        e = np.full(n, -1, dtype=np.int64)
-        e[idx] = rows["e"]
-        p = np.full(n, -1, dtype=np.int64)
-        p[idx] = rows["j"]
-        tt = np.full(n, np.nan)
-        tt[idx] = rows["t"]
-        values[k], kind[k], partner[k], t[k] = v, e, p, tt
+        values[k] = np.full((n, 4), np.nan)
+        values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
+        for table, name, missing in ((kind, "e", -1), (partner, "j", -1), (t, "t", np.nan)):
+            table[k] = np.full(n, missing, dtype=np.float64 if name == "t" else np.int64)
+            table[k][rows["i"]] = rows[name]
     return Successors(values, kind, partner, t)
 
 
@@ -202,7 +194,6 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
                          base.partner[k], base.values[k])
 
 
-
 def _suspects(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], pairs: list[int],
               base: Successors, slack: float
               ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
@@ -235,6 +226,7 @@ def _reached(explain: _Explainer, before: list[int], open_: dict[int, np.ndarray
                                                  before, open_):
             return None if explain.explains((None,), before, open_) else level
     return None
+
 
 def _chunks(steps: list[int]) -> list[list[int]]:
     """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.spec.output import Output, OutputFormatError, parse_output
+from harness.spec.output import OutputFormatError, parse_output
 
 INCOMPARABLE = math.inf
 
@@ -38,11 +38,6 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
         cand = parse_output(candidate)
     except OutputFormatError:
         return _incomparable(ref.final.n, 0)
-    return compare_outputs(ref, cand, L, identical)
-
-
-def compare_outputs(ref: Output, cand: Output, L: float, identical: bool = False) -> Comparison:
-    """Metrics of two parsed outputs; `identical` is whether their texts were equal."""
     a, b = ref.final, cand.final
     if a.step != b.step or not np.array_equal(a.index, b.index):
         return _incomparable(a.n, b.n, identical)

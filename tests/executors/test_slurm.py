@@ -24,7 +24,7 @@ from harness import repo
 from harness.errors import HarnessError
 from harness.executors.slurm import client as slurm_client
 from harness.executors.slurm import executor as slurm
-from harness.executors.slurm import jobs as slurm_jobs
+from harness.executors.slurm import watch as slurm_watch
 from harness.measure import machine as machine_info
 from harness.plan.cells import plan_cells
 from harness.report import pipeline
@@ -65,7 +65,7 @@ def stable(row: dict[str, str]) -> dict[str, str]:
 
 
 def jobs(root: Path, name: str) -> list[dict[str, object]]:
-    path = root / name / layout.SLURM / slurm_jobs.JOBS_FILE
+    path = root / name / layout.SLURM / slurm_watch.JOBS_FILE
     return json.loads(path.read_text())["jobs"] if path.is_file() else []
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from harness import stats
 from harness.analysis import compare, resultsets
-from harness.measure import noise
+from harness.measure import machine, noise
 from harness.repo import REPO_ROOT
 
 INJECTOR = REPO_ROOT / "scripts" / "noise"
@@ -60,7 +60,7 @@ def test_the_cpu_pressure_is_the_some_total_in_seconds() -> None:
 
 
 def _spin_child(seconds: float) -> noise.RoundNoise:
-    cores = noise.round_cores()
+    cores = machine.round_cores()
     before = noise.sample(cores)
     subprocess.run([sys.executable, "-c", "import time\nend = time.process_time() + "
                     f"{seconds}\nwhile time.process_time() < end: pass"], check=True)
@@ -70,7 +70,7 @@ def _spin_child(seconds: float) -> noise.RoundNoise:
 def test_a_child_that_shares_its_cores_with_spinners_is_seen_waiting() -> None:
     if noise.cpu_pressure_s() is None:
         pytest.skip("this kernel gives no CPU pressure (/proc/pressure/cpu)")
-    cores = noise.round_cores()
+    cores = machine.round_cores()
     alone = _spin_child(0.3)
     if alone.pressure is not None and alone.pressure > 0.9:
         # pressure is a share of the time: a machine where some task already waits nearly

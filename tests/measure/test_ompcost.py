@@ -94,7 +94,7 @@ def fake(tmp_path: Path, script: str) -> Path:
 
 
 @pytest.mark.parametrize(("script", "note"), [
-    ("echo 'ompcost: broken' >&2; exit 3", "ompcost exit 3: ompcost: broken"),
+    ("echo 'ompcost: broken' >&2; exit 3", "ompcost: exit 3: ompcost: broken"),
     ("echo '{\"threads\": 2}'", "ompcost: lacks region_ns"),
 ])
 def test_a_failed_run_leaves_the_columns_empty_with_a_note(tmp_path: Path, script: str,

@@ -77,7 +77,7 @@ def real_output(study_binaries: Path) -> str:
 
 
 def test_a_real_output_passes(real_output: str) -> None:
-    inv = invariants.check_text(real_output, 2000.0, 1.0, "f64")
+    inv = invariants.check(output.parse_output(real_output), 2000.0, 1.0, "f64")
     assert inv.passed and inv.failures() == []
     assert inv.states == 7 and inv.energy_drift_max <= inv.energy_bound
 
@@ -97,7 +97,7 @@ def corrupt(text: str, line: int, field: int, value: str) -> str:
 ])
 def test_corrupted_outputs_fail(real_output: str, field: int, value: str, failure: str) -> None:
     bad = corrupt(real_output, 450, field, value)  # a state in the middle of the run
-    inv = invariants.check_text(bad, 2000.0, 1.0, "f64")
+    inv = invariants.check(output.parse_output(bad), 2000.0, 1.0, "f64")
     assert failure in inv.failures() and not inv.passed
 
 
@@ -105,7 +105,8 @@ def test_an_odd_pcoll_sum_fails(real_output: str) -> None:
     last = len(real_output.splitlines()) - 1
     fields = real_output.splitlines()[last].split()
     bad = corrupt(real_output, last, 6, str(int(fields[6]) + 1))
-    assert invariants.check_text(bad, 2000.0, 1.0, "f64").failures() == ["pcoll_even"]
+    inv = invariants.check(output.parse_output(bad), 2000.0, 1.0, "f64")
+    assert inv.failures() == ["pcoll_even"]
 
 
 def test_energy_bound_scales_with_collisions_and_precision() -> None:

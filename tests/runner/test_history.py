@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from harness.measure import noise
+from harness.measure import machine
 from harness.plan import lane
 from harness.runner.sides import LANE_SOURCES, build, resolve
 from harness.store.layout import ResultsRoot
@@ -106,7 +106,7 @@ def scratch(tmp_path_factory: pytest.TempPathFactory) -> Scratch:
 @contextlib.contextmanager
 def injected_noise(duty: float) -> Iterator[None]:
     """scripts/noise on the cores the rounds are measured on, for the block's time."""
-    cores = ",".join(str(c) for c in noise.round_cores())
+    cores = ",".join(str(c) for c in machine.round_cores())
     injector = subprocess.Popen([sys.executable, str(INJECTOR), "--duty", str(duty), "--seed",
                                  "1", "--cores", cores, "--seconds", "1800"])
     try:

@@ -1,17 +1,11 @@
-"""Slurm as an executor: each pending cell is one task of a Slurm job array.
-
-A task runs `python -m harness worker --config C --results-dir R [--quick] CELL_ID` on its
-compute node (harness.executors.worker), which measures the cell there exactly as a local run
-does (the precise run, validation against seq's output, the checks, hyperfine) and writes the
-cell's record into the
-shared results directory. Validation therefore runs on the node: seq's baseline output is
-cached under results/.cache/ on the shared file system, so the first task that needs it
-computes it (two tasks racing for it both compute it; os.replace keeps one). The submitter
-only waits, reads the records back, and rebuilds results.csv and the report.
-
-The client (harness.executors.slurm.client) is plain sbatch / squeue / scontrol / sacct.
-A task's state comes from, in order: its record on disk (the truth for every task that ran to
-the end), then what the client learns from Slurm.
+"""Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
+(harness.executors.worker) measures on its compute node exactly as a local run does and
+writes the cell's record into the shared results directory. Validation therefore runs on the
+node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
+first task that needs it computes it (two tasks racing for it both compute it; os.replace
+keeps one). The submitter only waits, reads the records back, and rebuilds results.csv and
+the report. A task's state comes from, in order: its record on disk (the truth for every task
+that ran to the end), then what the client (harness.executors.slurm.client) learns from Slurm.
 
 Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
 kept like a local timeout (not measured again unless --force or the record is removed); a
@@ -20,7 +14,7 @@ with the reason in `note`, marked `retry` (CellResult.retry): results.csv lists 
 next run submits the cell again (its new record replaces the fault record). Both are written
 by the submitter, under the cell id it planned with.
 
-What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.jobs):
+What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.watch):
 `--collect` (or running the same command again) adopts the jobs still in flight and submits
 nothing new (`--collect`) or only the cells neither recorded nor in flight.
 """
@@ -39,7 +33,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO
+from typing import TextIO, cast
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
 from harness.executors.slurm.client import (
@@ -53,13 +47,20 @@ from harness.executors.slurm.client import (
     queue_states,
     submit_array,
 )
-from harness.executors.slurm.jobs import JOBS_FILE, LOCK_FILE, Job, JobState
-from harness.executors.slurm.watch import RecordWatch, fault_record
+from harness.executors.slurm.watch import (
+    JOBS_FILE,
+    LOCK_FILE,
+    Job,
+    JobState,
+    RecordWatch,
+    fault_record,
+)
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
 from harness.store import atomic, locks
 from harness.store.columns import FAILED, TIMEOUT
+from harness.store.model import CellKey
 from harness.store.result import CellResult
 
 LOGS_DIR = "logs"
@@ -110,8 +111,7 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
 @dataclass
 class SlurmExecutor:
     """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
-    are the config's `executor:` section with run.py's --partition over it; --collect adopts
-    the jobs in flight and submits nothing.
+    are the config's `executor:` section with run.py's --partition over it.
 
     Cells are named by their portable id (CellKey.portable_id: the key without the machine) in
     the job scripts and jobs.json, and matched to the records the nodes write by the same id;
@@ -131,11 +131,9 @@ class SlurmExecutor:
             options.partition or experiment.config.executor.partition))
         self.collect = options.collect
         slurm_dir = experiment.store.layout.slurm
-        cells: dict[str, tuple[Cell, str]] = {}  # portable id -> (cell, planned cell id)
-        for cell, cid in pending:
-            key = experiment.store.cell_key(cell)
-            assert key is not None
-            cells[key.portable_id] = (cell, cid)
+        # portable id -> (cell, planned cell id)
+        cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
+                 for cell, cid in pending}
         log = experiment.log
         watch = RecordWatch(experiment.store.cells_dir)
         watch.snapshot()
@@ -162,19 +160,15 @@ class SlurmExecutor:
         self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
                   progress)
 
-    # --- what is already there ---
-
     def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
                        cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
                        progress: Progress) -> None:
         """Cells a task of ours measured after its submission (e.g. while the submitter was
         dead), whose record carries the node's machine and so escaped the runner's cache:
         recorded now, not submitted again."""
-        submitted: dict[str, str] = {}  # portable id -> when its latest job was submitted
-        for job in state.jobs:
-            for pid in job.cells:
-                if pid in cells:
-                    submitted[pid] = job.submitted_at
+        # portable id -> when its latest job was submitted
+        submitted = {pid: job.submitted_at for job in state.jobs for pid in job.cells
+                     if pid in cells}
         if not submitted:
             return
         existing = watch.existing()
@@ -210,8 +204,6 @@ class SlurmExecutor:
                 elif pid not in in_flight:
                     ended[pid] = (task, slurm_state)
         return in_flight, ended
-
-    # --- submission ---
 
     def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
         spec = self.spec
@@ -273,8 +265,6 @@ class SlurmExecutor:
             experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
                                  f"--cpus-per-task={cpus}; task logs in {logs}\n")
         return tasks
-
-    # --- waiting ---
 
     @staticmethod
     def drop_fault(experiment: Experiment, cid: str, result: CellResult) -> None:
@@ -340,11 +330,10 @@ class SlurmExecutor:
                     last_done_at = time.monotonic()
                     self.drop_fault(experiment, cid, record)
                     on_record(cell, cid, record)
+                elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
+                    running += 1
                 elif slurm_state in ACTIVE_STATES:
-                    if slurm_state in RUNNING_STATES:
-                        running += 1
-                    else:
-                        waiting += 1
+                    waiting += 1
                 else:
                     # ended without a record; COMPLETED may still be in flight on the file system
                     first = ended_at.setdefault(pid, time.monotonic())

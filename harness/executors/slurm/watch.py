@@ -1,19 +1,29 @@
 """What the Slurm executor reads back: the records the nodes write (RecordWatch: a node writes
 under the cell id of its own machine, which the submitter cannot know beforehand, so records
-are matched on their portable id), and the records the submitter writes itself for a task
-that ended without one (fault_record)."""
+are matched on their portable id), the records the submitter writes itself for a task that
+ended without one (fault_record), and <experiment>/slurm/jobs.json (JobState): every array
+job submitted for an experiment (job id, the cell of each array task, when and by whom it was
+submitted). Submitters take <experiment>/slurm/lock while they read Slurm's view of those jobs
+and submit, so two submitters never submit the same cell; a submitter killed mid-sweep loses
+nothing, since the tasks write their records themselves."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from harness.errors import HarnessError
 from harness.executors.base import Experiment
 from harness.plan.cells import Cell
-from harness.store import history, layout, records
+from harness.store import atomic, history, layout, records
 from harness.store.result import CellResult
+
+JOBS_FILE = "jobs.json"
+LOCK_FILE = "lock"
+JOBS_VERSION = 1
 
 
 def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str, note: str,
@@ -33,13 +43,9 @@ def is_fault(result: CellResult) -> bool:
 
 @dataclass
 class RecordWatch:
-    """The records that appear in cells/ while we wait, by the portable id of their key.
-
-    A node writes a cell's record under the cell id of its own machine (the key holds the
-    machine's id), which the submitter cannot know beforehand; so it looks for new or
-    rewritten record files and matches them on the key without the machine (portable_id).
-    Files present when the run started count only once rewritten (--force).
-    """
+    """The records that appear in cells/ while we wait, by the portable id of their key (the
+    key without the machine). Files present when the run started count only once rewritten
+    (--force)."""
 
     cells_dir: Path
     seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
@@ -74,3 +80,34 @@ class RecordWatch:
             if not stored.result.retry:
                 found.setdefault(stored.key.portable_id, []).append(stored.result)
         return found
+
+
+@dataclass
+class Job:
+    job_id: str
+    cells: list[str]  # array task index -> cell id
+    submitted_at: str
+    submitter: str  # host:pid
+
+
+@dataclass
+class JobState:
+    path: Path
+    jobs: list[Job] = field(default_factory=list)
+
+    @classmethod
+    def load(cls, path: Path) -> JobState:
+        try:
+            data = json.loads(path.read_text())
+        except FileNotFoundError:
+            return cls(path)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise HarnessError(f"{path}: unreadable Slurm job state ({exc}); remove it once "
+                               "no job of this experiment runs") from None
+        jobs = [Job(str(j["job_id"]), [str(c) for c in j["cells"]], str(j["submitted_at"]),
+                    str(j["submitter"])) for j in data.get("jobs", [])]
+        return cls(path, jobs)
+
+    def save(self) -> None:
+        atomic.atomic_write_json(self.path, {"version": JOBS_VERSION,
+                                              "jobs": [asdict(j) for j in self.jobs]})
