@@ -200,8 +200,8 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     return float(max(1, fewest)), most
 
 
-# The most runs an adaptive cell's round times, whatever its round_s: a median of nine has
-# all of the steadiness the rounds' spread lets it show.
+# The most runs an adaptive cell's round times, however short its runs: a round stays one
+# moment of the session, its value the median of a handful.
 ROUND_MAX_RUNS = 9
 
 
