@@ -12,6 +12,11 @@
 #   7. the SPEC §7 invariants on random scenes (dense and sparse, slow and fast);
 #   8. every exact variant byte-identical to seq on 20+ random scenes at 1, 2, 3 and 4 threads.
 #
+# For BUILD_DIR = build/portable (baseline x86-64: what differs from build is the compiler's
+# code for the numeric loops) parts 6 and 8 at 3 and 4 threads are left out: the timing line
+# and the teams' partitions are the same C code as in build, which runs them, and 8 at 1 and 2
+# threads runs every variant's loops on every random scene.
+#
 # The variants are those the Makefile builds (make print-variants), and what each is comes from
 # its own `--describe` line: the exact ones are compared with seq, the all-pairs ones must test
 # every pair, the serial ones run one thread. A variant whose binary is missing fails.
@@ -375,7 +380,10 @@ else
 fi
 
 # ---------------------------------------------------------------------------------------------
+PORTABLE_CUT=0
+[[ "$B" == *portable* ]] && PORTABLE_CUT=1
 part "--timing"
+if ((!PORTABLE_CUT)); then
 # check_timing WHAT VARIANT THREADS N S: the stderr of the last run holds the timing line.
 check_timing() {
     local what=$1 variant=$2 threads=$3 n=$4 s=$5 k problems=""
@@ -498,6 +506,7 @@ for v in "${ALL[@]}"; do
     done
 done
 # No timing line without --timing (the other runs check an empty stderr).
+fi
 
 # ---------------------------------------------------------------------------------------------
 # Random scenes. Generated ones ("N L r S" and a mode, particles from --seed) move fast: speeds
@@ -669,6 +678,7 @@ for k in $(seq 1 "$n_cross"); do
     for v in "${VARIANTS[@]}"; do
         [ "$v" = seq ] && continue
         for t in 1 2 3 4; do
+            ((PORTABLE_CUT)) && [ "$t" -gt 2 ] && continue
             if ((nested_cut)) && [ "$t" -gt 2 ] &&
                 [[ "${DESCRIBE[$v]}" == *'"nested_regions":{"'* ]]; then
                 continue
