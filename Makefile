@@ -143,7 +143,8 @@ endef
 
 $(eval $(call test_rules,f64,tests,))
 $(eval $(call test_rules,asan,tests-asan,$(SANITIZE)))
-$(eval $(call test_rules,portable,tests-portable,$(PORTABLE)))
+# TEST_PORTABLE: the portable unit tests check what their numeric code decides (test_grid).
+$(eval $(call test_rules,portable,tests-portable,$(PORTABLE) -DTEST_PORTABLE))
 
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
