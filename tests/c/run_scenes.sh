@@ -666,7 +666,7 @@ n_cross=$i
 # Under ASan a variant that opens a team per row (nested regions: p3) pays for every thread
 # it starts, at 3 and 4 threads 9 and 16 of them a row, the costliest runs of this part. The
 # sanitizer build runs it at 1 and 2 threads here; at 4 it runs it on the hand scenes above,
-# and the optimised and portable builds compare it here at every thread count.
+# and the optimised build compares it here at every thread count.
 nested_cut=0
 [[ "$B" == *asan* ]] && nested_cut=1
 for k in $(seq 1 "$n_cross"); do
