@@ -143,14 +143,15 @@ endef
 
 $(eval $(call test_rules,f64,tests,))
 $(eval $(call test_rules,asan,tests-asan,$(SANITIZE)))
-$(eval $(call test_rules,portable,tests-portable,$(PORTABLE)))
+# TEST_PORTABLE: the portable unit tests check what their numeric code decides (test_grid).
+$(eval $(call test_rules,portable,tests-portable,$(PORTABLE) -DTEST_PORTABLE))
 
 SCENE_SCRIPTS := $(sort $(wildcard tests/c/*_scenes.sh))
 
 # The C tests in four groups that make runs side by side: the unit tests of the optimised,
 # sanitizer and portable builds; every scene script against the optimised build, and against
-# the sanitizer build; run_scenes.sh (every exact variant against seq) against the portable
-# build.
+# the sanitizer build; run_scenes.sh (every exact variant against seq at 1 and 2 threads, the
+# parts the compiler's code for the numeric loops decides) against the portable build.
 C_TEST_GROUPS := test-c-unit test-c-scenes test-c-scenes-asan test-c-portable
 
 # The unit tests run teams of 2 to 8 threads through thousands of short regions (test_grid:

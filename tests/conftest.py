@@ -19,8 +19,8 @@ E2E_BINARIES = ("seq", "p1", "p1d")
 # (`make test`: a module a unit of work) starts them first and no worker is left with one of
 # them once the others are done. The rest keep their order.
 LONGEST_MODULES = (
-    "runner/test_history.py", "analysis/test_compare.py", "test_readme.py",
-    "report/test_pipeline.py", "report/test_cache.py", "measure/test_instructions.py",
+    "runner/test_history.py", "test_readme.py", "analysis/test_compare.py",
+    "report/test_cache.py", "report/test_pipeline.py", "measure/test_instructions.py",
     "runner/test_grading.py", "test_e2e.py", "runner/test_concurrency.py", "runner/test_pair.py",
     "analysis/test_changepoints.py", "cli/test_cli.py", "report/test_browser.py",
     "test_stats.py",

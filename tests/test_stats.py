@@ -9,6 +9,7 @@ from itertools import permutations
 import numpy as np
 import pytest
 from harness import stats
+from harness.stats import paired
 from scipy import stats as sps
 
 NAN = math.nan
@@ -174,6 +175,22 @@ def test_the_paired_test_is_the_sign_test_on_the_rounds_log_ratios() -> None:
     assert change.ratio.point == pytest.approx(math.exp(np.median(logs)))
     assert np.isclose(logs, math.log(change.ratio.low)).any()
     assert np.isclose(logs, math.log(change.ratio.high)).any()
+
+
+def test_the_sign_test_gives_scipys_quantile_test_exactly() -> None:
+    # paired_change's sign test without scipy's frozen distributions: the same p-values and
+    # interval, ties and rounds too few for an interval included.
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 5, 8, 12, 18, 19, 40):
+        for level in (0.95, 0.99, 0.9999):
+            d = np.round(rng.normal(0.0, 0.01, n), 2)  # rounded: ties, and values at q
+            q = float(rng.choice(d))
+            ci = sps.quantile_test(d, q=q, p=0.5).confidence_interval(level)
+            assert np.allclose(paired.sign_interval(np.sort(d), level), (ci.low, ci.high),
+                               equal_nan=True, rtol=0.0, atol=0.0)
+            for alternative in ("greater", "less"):
+                expected = sps.quantile_test(d, q=q, p=0.5, alternative=alternative).pvalue
+                assert paired.sign_p(d, q, alternative) == expected
 
 
 def test_rounds_run_in_different_machine_states_cost_the_sign_test_little() -> None:

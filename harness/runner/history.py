@@ -18,10 +18,10 @@ from harness.errors import HarnessError
 from harness.executors.base import Options
 from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import plan_cells
-from harness.repo import REPO_ROOT, VARIANTS_DIR
+from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import with_min_rounds
-from harness.runner.sides import BuildSide, build, git, resolve, rev_parse
+from harness.runner.sides import CODE_PATHS, BuildSide, build, git, resolve, rev_parse
 from harness.spec.config import Config
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
@@ -33,8 +33,6 @@ from harness.store.locks import RunLock
 # A commit's cell gets at least this many runs: the per-commit median the change-point test
 # reads then holds a 5% step at 5% run noise (docs/history.md).
 HISTORY_MIN_RUNS = 10
-# What a commit must change for its binaries to change (told apart on the history page).
-CODE_PATHS = (VARIANTS_DIR, "Makefile")
 
 # How one commit's config is measured: the ordinary run by default; the instruction lane
 # passes its own. Arguments: the config, the run's options, the commit's variant registry, the

@@ -5,6 +5,8 @@ already holds built variant binaries (e.g. `build`)."""
 
 from __future__ import annotations
 
+import hashlib
+import os
 import shlex
 import shutil
 import subprocess
@@ -21,7 +23,12 @@ from harness.spec.variants import VariantRegistry
 from harness.store.layout import CACHE_DIR
 
 REVISIONS = "revisions"
+# A revision's build/ is shared by the revisions with its code tree, under the results' cache:
+# commits that change no code (docs, configs) build nothing of their own.
+TREES = "trees"
 MAKEFILE = "Makefile"
+# What a commit must change for its binaries to change.
+CODE_PATHS = (VARIANTS_DIR, MAKEFILE)
 # Where a revision without the lane's rule has its lane binaries made (build_lanes), and the
 # compiler command there.
 LANE_SOURCES = "lane-sources"
@@ -75,7 +82,25 @@ def resolve(name: str, given: str, results_root: Path, repo: Path = REPO_ROOT) -
         if added.returncode != 0:
             raise HarnessError(f"{name}: cannot check out {given} ({commit[:12]}): "
                                f"{' '.join(added.stderr.split())[-300:]}")
+        share_build(tree, commit, results_root / CACHE_DIR / TREES)
     return BuildSide(name, given, tree / BUILD_DIR, tree, commit)
+
+
+def share_build(tree: Path, commit: str, trees: Path) -> None:
+    """Link a new worktree's build/ to the one its code tree (CODE_PATHS at the commit, built
+    with this checkout's compiler) shares, and date its code sources to the epoch, so that
+    make finds there what another commit of the same tree made, up to date, and makes only
+    what none has made yet. A commit without every code path keeps a build/ of its own."""
+    listed = git(["rev-parse", *(f"{commit}:{path}" for path in CODE_PATHS)], tree)
+    if listed.returncode != 0 or (tree / BUILD_DIR).exists():
+        return
+    key = "\0".join([*listed.stdout.split(), compiler_command(REPO_ROOT)[0]])
+    shared = trees / hashlib.sha256(key.encode()).hexdigest()[:32]
+    shared.mkdir(parents=True, exist_ok=True)
+    for path in CODE_PATHS:
+        for source in [tree / path, *(tree / path).rglob("*")]:
+            os.utime(source, (0, 0), follow_symlinks=False)
+    (tree / BUILD_DIR).symlink_to(shared, target_is_directory=True)
 
 
 def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) -> None:

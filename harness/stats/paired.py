@@ -90,12 +90,10 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     weight = look_weight(look)
     margin = math.log1p(threshold)
     level = 1 - (1 - CONFIDENCE) * weight
-    interval = sps.quantile_test(d, q=centre, p=0.5).confidence_interval(level)
-    low, high = float(interval.low), float(interval.high)
+    low, high = sign_interval(np.sort(d), level)
 
     def p(value: float, alternative: str) -> float:
-        return min(1.0, float(sps.quantile_test(d, q=value, p=0.5,
-                                                alternative=alternative).pvalue) / weight)
+        return min(1.0, sign_p(d, value, alternative) / weight)
 
     z = float(sps.norm.ppf(0.5 + level / 2))
     sd = (high - low) / (2 * z) * math.sqrt(d.size) if math.isfinite(high - low) else math.nan
@@ -103,6 +101,26 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
                   p(margin, "greater"), p(-margin, "less"),
                   min(1.0, 2.0 * max(p(-margin, "greater"), p(margin, "less"))),
                   sd, int(d.size), 0.0, look)
+
+
+def sign_interval(ordered: np.ndarray, level: float) -> tuple[float, float]:
+    """The median's two-sided interval at `level` from sorted values: the order statistics
+    scipy.stats.quantile_test(..., p=0.5).confidence_interval gives (nan where none holds it).
+    Why not that call: it builds a frozen binomial distribution (its docstrings included) each
+    time, most of a paired comparison's time."""
+    n, tail = ordered.size, (1 - level) / 2
+    low_index = int(sps.binom.ppf(tail, n, 0.5)) - 1
+    high_index = int(sps.binom.isf(tail, n, 0.5))
+    return (float(ordered[low_index]) if low_index >= 0 else math.nan,
+            float(ordered[high_index]) if high_index < n else math.nan)
+
+
+def sign_p(d: np.ndarray, value: float, alternative: str) -> float:
+    """The sign test's one-sided p-value that the median is above ("greater") or below
+    ("less") `value`, as scipy.stats.quantile_test(d, q=value, p=0.5) gives it."""
+    if alternative == "greater":
+        return float(sps.binom.cdf(np.count_nonzero(d <= value), d.size, 0.5))
+    return float(sps.binom.sf(np.count_nonzero(d < value) - 1, d.size, 0.5))
 
 
 def smallest_detectable(sd: float, rounds: int, threshold: float, alpha: float,

@@ -4,11 +4,13 @@ data change re-draws just the figures of that experiment; removed figures go awa
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -243,3 +245,28 @@ def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:
             "spec/facts.py"} <= names
     assert "spec/variants.py" not in names and "spec/make.py" not in names
     assert not any(n.startswith(("measure/", "executors/", "runner/")) for n in names)
+
+
+def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                         ) -> None:
+    """A render of the committed results draws no figure: the committed report/ was rendered
+    by the code as it is. Else every render of them (the README's `collide-bench report`
+    among them) redraws every figure, about 100 s of CPU; a figure about to be drawn fails the
+    test at once, before it costs that."""
+    if not (REPO_ROOT / "report" / "report.md").is_file():
+        pytest.skip("no committed report/")
+    out = tmp_path / "report"
+    shutil.copytree(REPO_ROOT / "report", out)
+    draw = cache.Manifest.draw
+
+    def refuse(self: cache.Manifest, function: Callable[..., object], data: object,
+               stem: Path, *more: object, **kwargs: object) -> list[Path]:
+        @functools.wraps(function)  # its name is in the figure's key
+        def stale(*args: object, **named: object) -> object:
+            raise AssertionError(f"{stem.name} would be drawn again: the figures' code or the "
+                                 "results changed since report/ was rendered; run `python -m "
+                                 "harness report` and commit report/")
+        return draw(self, stale, data, stem, *more, **kwargs)
+
+    monkeypatch.setattr(cache.Manifest, "draw", refuse)
+    pipeline.render(REPO_ROOT / "results", out)

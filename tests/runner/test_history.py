@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from harness.measure import machine
 from harness.plan import lane
-from harness.runner.sides import LANE_SOURCES, build, resolve
-from harness.store.layout import ResultsRoot
+from harness.runner.sides import LANE_SOURCES, TREES, build, resolve
+from harness.store.layout import CACHE_DIR, ResultsRoot
 
 from commands import history_main
 from tests.conftest import REPO_ROOT, build_or_skip
@@ -156,6 +156,15 @@ def test_the_commit_that_slows_seq_is_named_and_no_other(scratch: Scratch, tmp_p
     assert sum(v == "true" for v in code.values()) == 4  # the first commit made the code
     page = (tmp_path / "report" / "history" / "scratch.md").read_text()
     assert commits["slow"][:10] in page and "Build without optimisation" in page
+    # one build/ per code tree (first, lane, slow, broken): a docs commit's is the one of the
+    # commit before it, where make remade nothing after that commit was measured
+    assert len(list((results / CACHE_DIR / TREES).iterdir())) == 4
+    built = {name: resolve(name, sha, results, scratch.repo).build_dir.resolve()
+             for name, sha in commits.items()}
+    docs = resolve("docs", f"{commits['slow']}~1", results, scratch.repo).build_dir.resolve()
+    assert docs == built["lane"] and len(set(built.values())) == 4
+    lane_cells = exp.commit_root(commits["lane"]).rglob("cells/*.json")
+    assert (docs / "seq").stat().st_mtime_ns < min(p.stat().st_mtime_ns for p in lane_cells)
     assert list((tmp_path / "report" / "history").glob("*.png"))
 
     # resumable: a second run measures nothing again
