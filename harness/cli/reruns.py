@@ -72,7 +72,8 @@ def execute(args: argparse.Namespace) -> int:
         try:
             with lock:
                 runner.measure(configs, out, args.times, args.pause, registry, lock,
-                               sys.stderr, args.hyperfine, quick=args.quick)
+                               sys.stderr, args.hyperfine, quick=args.quick,
+                               spread_root=args.results_dir)
         except KeyboardInterrupt:
             sys.stderr.write(f"interrupted: the reruns so far are under {out}; measure them "
                              "again (a rerun starts afresh)\n")

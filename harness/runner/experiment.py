@@ -32,6 +32,7 @@ from harness.spec.variants import VariantRegistry
 from harness.store import index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
+from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 from harness.store.result import CellResult
 
@@ -131,10 +132,14 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
 
 def run_afresh(configs: Sequence[Config], root: Path, registry: VariantRegistry,
                run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
-               quick: bool = False) -> None:
+               quick: bool = False, spreads_of: Path | None = None) -> None:
     """Every config measured afresh into the results root `root`, emptied first (as `run
-    --force --results-dir ROOT`)."""
+    --force --results-dir ROOT`); with the machines' calibrations of the root `spreads_of`
+    copied in first, its intervals are those that root's session spreads give."""
     shutil.rmtree(root, ignore_errors=True)
+    kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
+    if kept is not None and kept.is_dir():
+        shutil.copytree(kept, ResultsRoot(root).calibrations)
     options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
                       hyperfine=hyperfine, run_lock=run_lock)
     for config in configs:

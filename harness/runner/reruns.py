@@ -26,14 +26,18 @@ def rerun_roots(out: Path, times: int) -> list[Path]:
 def measure(configs: Sequence[Config], out: Path, times: int, pause_s: float,
             registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
             hyperfine: str = "hyperfine", quick: bool = False,
-            sleep: Callable[[float], None] = time.sleep) -> list[Path]:
+            sleep: Callable[[float], None] = time.sleep,
+            spread_root: Path | None = None) -> list[Path]:
     """Every config measured `times` times, each rerun into its own root under OUT (emptied
-    first), `pause_s` apart; the roots."""
+    first), `pause_s` apart, with the session spread kept under `spread_root` (its machines'
+    calibration copied into each rerun's root: their intervals as stored are then those a run
+    there would store, the out-of-sample figure); the roots."""
     roots = rerun_roots(out, times)
     for k, root in enumerate(roots, start=1):
         if k > 1 and pause_s > 0:
             log.write(f"reruns: pausing {pause_s:g} s before rerun {k}\n")
             sleep(pause_s)
         log.write(f"reruns: rerun {k} of {times} into {root}\n")
-        run_afresh(configs, root, registry, run_lock, log, hyperfine, quick)
+        run_afresh(configs, root, registry, run_lock, log, hyperfine, quick,
+                   spreads_of=spread_root)
     return roots

@@ -48,6 +48,16 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     assert main(["reruns", str(config), "--times", "2", "--reuse", "--no-keep",
                  "--results-dir", str(results)]) == 0
     assert "kept in" not in capsys.readouterr().out
+    # measured again: each rerun's intervals are those of the spread just kept (out of sample)
+    again = tmp_path / "again"
+    assert main(["reruns", str(config), "--times", "2", "--pause", "0.1", "--no-keep",
+                 "--out", str(again), "--results-dir", str(results)]) == 0
+    with (again / "rerun-2" / "twice" / "ratios.csv").open(newline="") as handle:
+        assert {float(r["session_spread"]) for r in csv.DictReader(handle)} == {spread.ratio}
+    cell = next(p for p in (again / "rerun-1" / "twice" / "cells").glob("*.json")
+                if ".hyperfine." not in p.name)
+    stored = records.read_json(cell)
+    assert isinstance(stored, dict) and str(stored["session_source"]).startswith("learnt by")
 
 
 def test_reruns_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
