@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from harness.executors.base import Progress
 from harness.measure.cell import Measurer
-from harness.measure.rounds import CellRun, runs_a_round, runs_left
+from harness.measure.rounds import CellRun, runs_left
 from harness.plan.cells import Cell
 from harness.spec.facts import BASELINE
 from harness.store.columns import STOPPED_CI
@@ -169,9 +169,6 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         started = time.monotonic()
         unit.run = unit.measurer.start(unit.cell, unit.cell_id)
         unit.run.record = unit.run.record.replace(round_seed=seed)
-        if not unit.run.times:  # a resumed cell keeps the rounds it started with
-            unit.run.per_round = runs_a_round(
-                unit.measurer.config.measure_for(unit.cell.variant), unit.run.run_s)
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
         active.append(unit)

@@ -200,26 +200,12 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
     return float(max(1, fewest)), most
 
 
-# The most runs an adaptive cell's round times, however short its runs: a round stays one
-# moment of the session, its value the median of a handful.
-ROUND_MAX_RUNS = 9
-
-
-def runs_a_round(measure: Measure, run_s: float) -> int:
-    """The runs each round of a cell whose run takes about run_s times: an adaptive cell's
-    fill measure.round_s (at most ROUND_MAX_RUNS), any other's one."""
-    if not measure.adaptive or measure.round_s <= 0:
-        return 1
-    if run_s <= 0:
-        return ROUND_MAX_RUNS
-    return max(1, min(ROUND_MAX_RUNS, math.ceil(measure.round_s / run_s)))
-
-
 def next_runs(measure: Measure, times: Sequence[float], per_round: int = 1) -> int:
     """How many runs the cell's next round times (none once it has them all): `per_round` a
-    round (runs_a_round, or a paired cell's share_rounds), so that its runs spread over as
-    many rounds as it takes; the counts of the measure (runs, max_runs) are rounds. An
-    adaptive cell stops on the interval over its rounds or a limit (stop_reason)."""
+    round (one, but for a paired cell: share_rounds), so that its runs spread over as many
+    rounds as it takes; the counts of the measure (runs, max_runs) are rounds. An adaptive
+    cell's interval is over its rounds (stats.levels); it stops on that interval or a limit
+    (stop_reason)."""
     return max(0, min(per_round, measure.most_runs * per_round - len(times)))
 
 

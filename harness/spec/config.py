@@ -32,9 +32,9 @@ METRIC_TIME = "time"
 METRIC_INSTRUCTIONS = "instructions"
 METRICS = (METRIC_TIME, METRIC_INSTRUCTIONS)
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s", "round_s")
+MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
 # Adaptive repetition (`runs: auto`): its own keys, only beside it.
-ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s", "round_s")
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 AUTO_RUNS = "auto"
 VALIDATE_KEYS = ("max_n", "baseline")
 # The accuracy and stability checks a config may turn on (harness.measure.invariants and
@@ -102,10 +102,6 @@ class Measure:
     ci: float = DEFAULT_CI
     max_runs: int = DEFAULT_MAX_RUNS
     max_time_s: float = DEFAULT_MAX_TIME_S
-    # An adaptive cell's round times runs for about this long (harness.measure.rounds.
-    # runs_a_round): a round's value, the median of its runs, then resists one run slowed by
-    # a descheduled thread, which a round of one run carries whole; 0: one run a round.
-    round_s: float = 0.0
     # Adaptive repetition decides from this many runs on (a measured comparison needs rounds
     # enough for its paired test: harness.runner.pair); 0: AUTO_FIRST_RUNS.
     min_runs: int = 0
@@ -146,8 +142,6 @@ class Measure:
                                   "timeout_s": self.timeout_s}
         if self.adaptive:
             key.update(ci=self.ci, max_runs=self.max_runs, max_time_s=self.max_time_s)
-            if self.round_s:
-                key["round_s"] = self.round_s
             if self.min_runs:
                 key["min_runs"] = self.min_runs
         return key

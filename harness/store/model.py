@@ -150,7 +150,6 @@ class CellKey:
     max_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
     max_time_s: float | None = field(default=None, metadata=_optional(Role.HOW))
     min_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
-    round_s: float | None = field(default=None, metadata=_optional(Role.HOW))
     machine_id: str | None = field(default=None, metadata=_optional(Role.MACHINE))
     schedule: str | None = field(default=None, metadata=_optional(Role.WHAT))
     checks: ChecksKey | None = field(default=None, metadata=_optional(Role.WHAT))

@@ -155,20 +155,6 @@ def test_partners_share_a_few_runs_a_round_by_the_slower_ones_time() -> None:
     assert stop_reason(fixed, [0.1] * 24, 3) == "runs" and next_runs(fixed, [0.1] * 24, 3) == 0
 
 
-def test_a_short_cell_times_several_runs_a_round() -> None:
-    log: list[str] = []
-    measurer = FakeMeasurer(Measure(runs=None, max_runs=5, round_s=0.05), log, seconds=0.01)
-    measurer.time_round = lambda run, k: (  # type: ignore[method-assign]
-        run.times.extend([0.01] * next_runs(measurer.measure, run.times, run.per_round)),
-        run.rounds.extend([k] * (len(run.times) - len(run.rounds))),
-        setattr(run, "stopped", stop_reason(measurer.measure, run.times, run.per_round,
-                                            run.rounds)))
-    done: list[tuple[str, int]] = []
-    measure_in_rounds(units(measurer, ["a"]), lambda u, r: done.append((u.cell_id, r["runs"])),
-                      progress(["a"]), 1)
-    assert done == [("a", 25)]  # five rounds of ceil(0.05 / 0.01) runs
-
-
 def test_a_reference_takes_the_rounds_of_the_cells_whose_ratios_it_joins() -> None:
     """seq's runs agree from the start (its interval stops it at five rounds), p1's spread
     until its max_runs: seq goes on beside it, so that their ratio has all of p1's rounds."""

@@ -10,11 +10,9 @@ import pytest
 from harness import stats
 from harness.measure.cell import Measurer
 from harness.measure.rounds import (
-    ROUND_MAX_RUNS,
     CellRun,
     narrow,
     next_runs,
-    runs_a_round,
     runs_left,
     stop_reason,
     timed_result,
@@ -45,21 +43,6 @@ def test_adaptive_takes_a_run_a_round_within_its_limits() -> None:
     # a paired cell's round takes its runs a round, within max_runs
     assert next_runs(AUTO, [], 2) == 2 and next_runs(AUTO, [0.1] * 23, 2) == 1
     assert next_runs(Measure(runs=None, max_runs=2), [0.1] * 2) == 0
-
-
-def test_an_adaptive_round_fills_its_round_s_with_runs() -> None:
-    filled = Measure(runs=None, round_s=0.1)
-    assert runs_a_round(filled, 0.03) == 4  # ceil(0.1 / 0.03)
-    assert runs_a_round(filled, 0.5) == 1  # a run longer than the round: one
-    assert runs_a_round(filled, 0.001) == ROUND_MAX_RUNS
-    assert runs_a_round(filled, 0.0) == ROUND_MAX_RUNS  # no run time known: the most
-    assert runs_a_round(AUTO, 0.001) == 1  # no round_s: one run a round
-    assert runs_a_round(Measure(runs=5), 0.001) == 1  # a fixed count is rounds of one
-
-
-def test_round_s_belongs_to_the_cells_id_only_where_it_is_set() -> None:
-    assert "round_s" not in AUTO.key()
-    assert Measure(runs=None, round_s=0.1).key()["round_s"] == 0.1
 
 
 def test_adaptive_stops_on_its_rounds_interval_or_a_limit() -> None:

@@ -292,11 +292,10 @@ def test_bad_measure_by_variant(write_config, value: str, key: str, expected: st
 
 def test_runs_auto_takes_its_own_keys(write_config) -> None:
     config = load_config(write_config(
-        BASE + "measure: {runs: auto, ci: 0.05, max_runs: 12, max_time_s: 30, round_s: 0.1}\n"))
+        BASE + "measure: {runs: auto, ci: 0.05, max_runs: 12, max_time_s: 30}\n"))
     measure = config.measure
     assert measure.adaptive and measure.runs is None
-    assert (measure.ci, measure.max_runs, measure.max_time_s, measure.round_s) == (
-        0.05, 12, 30.0, 0.1)
+    assert (measure.ci, measure.max_runs, measure.max_time_s) == (0.05, 12, 30.0)
     assert measure.key()["runs"] == "auto" and measure.key()["ci"] == 0.05
     fixed = load_config(write_config(BASE)).measure
     assert fixed.key() == {"warmup": DEFAULT_WARMUP, "runs": DEFAULT_RUNS,
@@ -308,8 +307,6 @@ def test_runs_auto_takes_its_own_keys(write_config) -> None:
     ("{runs: auto, ci: 1.5}", "measure.ci", "a fraction in (0, 1)"),
     ("{runs: often}", "measure.runs", "a positive integer or auto"),
     ("{runs: auto, max_runs: 0}", "measure.max_runs", "a positive integer"),
-    ("{runs: 3, round_s: 0.1}", "measure.round_s", "runs: auto beside it"),
-    ("{runs: auto, round_s: -1}", "measure.round_s", "a non-negative number of seconds"),
 ])
 def test_adaptive_mistakes_name_the_key(write_config, measure: str, key: str,
                                         expected: str) -> None:

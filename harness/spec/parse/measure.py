@@ -60,24 +60,14 @@ def parse_measure(value: object, source: Path, label: str = "measure") -> Measur
                            kinds.POSITIVE_INT, source)
     max_time = kinds.check(raw.get("max_time_s", DEFAULT_MAX_TIME_S), f"{label}.max_time_s",
                            kinds.POSITIVE_REAL, source)
-    round_s = kinds.check(raw.get("round_s", 0.0), f"{label}.round_s", ROUND_S, source)
     return Measure(warmup=cast(int, warmup), runs=None, timeout_s=cast(float, timeout),
                    ci=cast(float, ci), max_runs=cast(int, max_runs),
-                   max_time_s=cast(float, max_time), round_s=float(cast(float, round_s)))
+                   max_time_s=cast(float, max_time))
 
 
 RUNS = kinds.Kind(f"a positive integer or {AUTO_RUNS}", kinds.int_in(1))
 CI = kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.fraction)
 
-
-def _non_negative(value: object) -> object:
-    result = kinds.real(value)
-    if not isinstance(result, float) or result < 0:
-        raise ValueError
-    return result
-
-
-ROUND_S = kinds.Kind("a non-negative number of seconds, e.g. 0.1", _non_negative)
 
 
 def parse_variant_measures(value: object, base: object, variants: Sequence[str],
