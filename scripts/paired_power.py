@@ -33,6 +33,7 @@ import scipy.stats as sps
 from harness import stats
 from harness.analysis.calibration import side
 from harness.analysis.compare import FDR_Q, paired_rounds
+from harness.stats.paired import sign_p
 
 CLIP_MADS = 3.0
 
@@ -42,10 +43,6 @@ def t_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
     med = float(np.median(d))
     clipped = np.clip(d, med - CLIP_MADS * mad, med + CLIP_MADS * mad) if mad else d
     return float(sps.ttest_1samp(clipped, value, alternative=alternative).pvalue)
-
-
-def sign_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
-    return float(sps.quantile_test(d, q=value, p=0.5, alternative=alternative).pvalue)
 
 
 def rank_pvalue(d: np.ndarray, value: float, alternative: str) -> float:
@@ -111,7 +108,7 @@ def main() -> None:
     print("| test | spending | slower (5% slower) | faster (5% slower) "
           "| slower or faster (identical) |")
     print("|---|---|---:|---:|---:|")
-    tests = {"sign": sign_pvalue, "rank": rank_pvalue, "t": t_pvalue}
+    tests = {"sign": sign_p, "rank": rank_pvalue, "t": t_pvalue}
     weights = {"last": stats.look_weight, "even": even_weight}
     for (tname, pvalue), (wname, weight) in [(t, w) for t in tests.items()
                                              for w in weights.items()]:

@@ -43,8 +43,10 @@ def key_text(value: object, numeric: bool = True) -> str:
     if value is None or (not isinstance(value, str) and pd.isna(value)):
         return ""
     text = str(value).strip()
+    if not numeric:
+        return text
     try:
-        number = float(text) if numeric else math.nan
+        number = float(text)
     except ValueError:
         return text
     return repr(number) if math.isfinite(number) else text

@@ -31,7 +31,7 @@ from harness.errors import HarnessError
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_SHADOW_ULPS
 from harness.spec.output import Output, OutputFormatError, parse_output, split_states
-from harness.spec.scenes import REAL_FORMAT
+from harness.spec.scenes import particle_row
 
 MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
 
@@ -57,8 +57,7 @@ def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndar
     lines = [f"{len(positions)} {L_text} {r_text} 1\nperf\n"]
     clamped = np.clip(positions, r, L - r)
     for i, ((x, y), (vx, vy)) in enumerate(zip(clamped, velocities, strict=True)):
-        lines.append(f"{i} {REAL_FORMAT % x} {REAL_FORMAT % y} {REAL_FORMAT % vx} "
-                     f"{REAL_FORMAT % vy}\n")
+        lines.append(particle_row(i, (x, y, vx, vy)))
     return "".join(lines)
 
 

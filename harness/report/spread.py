@@ -16,7 +16,7 @@ from harness.report.cache import Manifest
 from harness.report.discover import file_digest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
-from harness.store.sessions import find_session, newest_entry, session_roots
+from harness.store.sessions import newest_entry, session_roots, spread_of
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
 SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
@@ -48,13 +48,12 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     from harness.stats.levels import DEFAULT_SESSION_SPREAD
 
     machine = _known(machine_id)
-    roots = session_roots(results_dir)
-    spread = DEFAULT_SESSION_SPREAD if machine is None else find_session(roots, machine)
+    entry = None if machine is None else newest_entry(session_roots(results_dir), machine)
+    spread = DEFAULT_SESSION_SPREAD if entry is None else spread_of(entry, str(machine))
     text = (f"Intervals that say where another session's estimate lands (a cell's time "
             f"measured in rounds, a ratio paired by round) add the machine's session spread: "
             f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
             f"{spread.source}.")
-    entry = None if machine is None else newest_entry(roots, machine)
     if entry is None:
         return (f"{text} No reruns were measured on this machine (`{REUSE_COMMAND}` learns "
                 "its spread and how often the intervals hold a rerun's estimate): the default "

@@ -21,6 +21,7 @@ from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
 from harness.spec.make import has_rules, make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store.layout import CACHE_DIR
+from harness.store.locks import directory_lock
 
 REVISIONS = "revisions"
 # A revision's build/ is shared by the revisions with its code tree, under the results' cache:
@@ -119,16 +120,20 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
     compiler = compiler_command(REPO_ROOT)[0]
     lane_dir = side.build_dir / lane.LANE_DIR
     lanes = [b for b in binaries if b.parent == lane_dir]
-    try:
-        if lanes and not has_rules(side.repo_root, lanes):
-            make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
-                          make="make", capture=True, extra=[f"CC={compiler}"])
-            build_lanes(side, lanes, compiler)
-        else:
-            make_binaries(side.repo_root, binaries, make="make", capture=True,
-                          extra=[f"CC={compiler}"])
-    except HarnessError as exc:
-        raise HarnessError(f"{side.name}: revision {side.label} does not build: {exc}") from None
+    # One make at a time in a build/ that the commits of a code tree share (share_build):
+    # another history or compare may be making the same tree's binaries.
+    with directory_lock(side.build_dir):
+        try:
+            if lanes and not has_rules(side.repo_root, lanes):
+                make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
+                              make="make", capture=True, extra=[f"CC={compiler}"])
+                build_lanes(side, lanes, compiler)
+            else:
+                make_binaries(side.repo_root, binaries, make="make", capture=True,
+                              extra=[f"CC={compiler}"])
+        except HarnessError as exc:
+            raise HarnessError(f"{side.name}: revision {side.label} does not build: "
+                               f"{exc}") from None
 
 
 def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:

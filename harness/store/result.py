@@ -17,7 +17,6 @@ value is left out of the JSON. Reading a record refuses a field it does not know
 from __future__ import annotations
 
 import functools
-import statistics
 import types
 import typing
 from collections.abc import Mapping
@@ -104,9 +103,16 @@ class CellResult:
             grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
         return {k: tuple(v) for k, v in grouped.items()}
 
+    def _rounds(self) -> list[int]:
+        """The round of each run; empty where any is not recorded."""
+        rounds = [run.round for run in self.times]
+        return [] if None in rounds else typing.cast(list[int], rounds)
+
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (stats.MeasuredInRounds)."""
-        return {k: float(statistics.median(v)) for k, v in self.round_times().items()}
+        from harness.stats.rounds import round_medians  # scipy only where rounds are paired
+
+        return round_medians([run.time_s for run in self.times], self._rounds())
 
     def noise_by_round(self) -> dict[int, float]:
         """Each round's interference share (harness.measure.noise), by round."""
@@ -117,10 +123,10 @@ class CellResult:
         return self._per_round(self.noise.round_pressure if self.noise else None)
 
     def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
-        rounds = sorted(self.round_times())
-        if values is None or len(values) != len(rounds):
-            return {}
-        return dict(zip(rounds, values, strict=True))
+        from harness.stats.rounds import by_round
+
+        rounds = self._rounds()
+        return by_round(rounds, values) if values is not None and rounds else {}
 
     def value(self, name: str) -> object:
         """The record's field `name` (a results.csv column's value), None where it has none."""

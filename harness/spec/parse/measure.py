@@ -69,7 +69,6 @@ RUNS = kinds.Kind(f"a positive integer or {AUTO_RUNS}", kinds.int_in(1))
 CI = kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.fraction)
 
 
-
 def parse_variant_measures(value: object, base: object, variants: Sequence[str],
                             source: Path) -> tuple[tuple[str, Measure], ...]:
     """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s, ...}}`, over `measure`'s keys
