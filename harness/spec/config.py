@@ -32,20 +32,14 @@ METRIC_TIME = "time"
 METRIC_INSTRUCTIONS = "instructions"
 METRICS = (METRIC_TIME, METRIC_INSTRUCTIONS)
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-MEASURE_KEYS = ("warmup", "runs", "timeout_s", "ci", "max_runs", "max_time_s")
 # Adaptive repetition (`runs: auto`): its own keys, only beside it.
 ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 AUTO_RUNS = "auto"
-VALIDATE_KEYS = ("max_n", "baseline")
 # The accuracy and stability checks a config may turn on (harness.measure.invariants and
 # harness.measure.shadow); `accuracy:` holds their settings.
 CHECK_NAMES = ("invariants", "shadow", "divergence")
-ACCURACY_KEYS = ("truth", "shadow_steps", "energy_ulps", "shadow_ulps", "thread_counts", "max_n")
-DEFAULT_TRUTH = GRID  # build/grid-f128: byte-identical to seq-f128, and far faster
-DEFAULT_SHADOW_STEPS = 20
 DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
-DEFAULT_THREAD_COUNTS = (1,)
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
                   "schedule")
 # The fields a comparison (_gt, _ge, _lt, _le) may test.
@@ -69,9 +63,6 @@ def is_valid_name(name: object) -> bool:
 # i.e. p1_runtime): a kind, and for all but auto an optional positive chunk, as OpenMP spells it.
 SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
 SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
-MAX_SEED = 2**64 - 1
-# The binaries' --threads bound (variants/core/sim_main.c).
-MAX_THREADS = 4096
 # At most this many cells a config plans (`run --max-cells` changes it): counted before any
 # scene is built, so a config whose lists multiply to millions is refused at once.
 DEFAULT_MAX_CELLS = 10_000
@@ -79,11 +70,6 @@ DEFAULT_MAX_CELLS = 10_000
 DEFAULT_WARMUP = 1
 DEFAULT_RUNS = 3
 DEFAULT_TIMEOUT_S = 600.0
-# `runs: auto` adds rounds to a cell until the 95% interval of its median lies within +-ci of
-# it (a relative half-width), or it has max_runs runs, or max_time_s of timed runs.
-DEFAULT_CI = 0.02
-DEFAULT_MAX_RUNS = 30
-DEFAULT_MAX_TIME_S = 120.0
 # The runs of an adaptive cell's first round: the fewest from which an interval is worth
 # reading (with 3 runs the bootstrap interval of a median is [min, max]).
 AUTO_FIRST_RUNS = 3
@@ -93,15 +79,15 @@ AUTO_FIRST_RUNS = 3
 class Measure:
     """How a cell is timed: `runs` runs after `warmup` (each run at most `timeout_s`), one run
     a round, so that the cells of a run share the machine's drift; or, with runs None
-    (`runs: auto`), rounds until the interval of the median is narrow enough (ci) or a limit
-    is reached (max_runs, max_time_s)."""
+    (`runs: auto`), rounds until the 95% interval of the median lies within +-ci of it (a
+    relative half-width), or the cell has max_runs runs, or max_time_s of timed runs."""
 
     warmup: int = DEFAULT_WARMUP
     runs: int | None = DEFAULT_RUNS  # None: auto
     timeout_s: float = DEFAULT_TIMEOUT_S
-    ci: float = DEFAULT_CI
-    max_runs: int = DEFAULT_MAX_RUNS
-    max_time_s: float = DEFAULT_MAX_TIME_S
+    ci: float = 0.02
+    max_runs: int = 30
+    max_time_s: float = 120.0
     # Adaptive repetition decides from this many runs on (a measured comparison needs rounds
     # enough for its paired test: harness.runner.pair); 0: AUTO_FIRST_RUNS.
     min_runs: int = 0
@@ -173,11 +159,11 @@ class Checks:
     """
 
     names: tuple[str, ...] = ()
-    truth: str = DEFAULT_TRUTH
-    shadow_steps: int = DEFAULT_SHADOW_STEPS
+    truth: str = GRID  # build/grid-f128: byte-identical to seq-f128, and far faster
+    shadow_steps: int = 20
     energy_ulps: float = DEFAULT_ENERGY_ULPS
     shadow_ulps: float = DEFAULT_SHADOW_ULPS
-    thread_counts: tuple[int, ...] = DEFAULT_THREAD_COUNTS
+    thread_counts: tuple[int, ...] = (1,)
     max_n: int | None = None
 
     def applies_to(self, n: int) -> bool:
@@ -189,9 +175,6 @@ class Checks:
 
 
 EXECUTOR_KINDS = ("local", "slurm")
-EXECUTOR_KEYS = ("kind", "partition", "exclusive", "time_limit_min", "extra", "proc_bind",
-                 "places", "poll_s")
-DEFAULT_POLL_S = 2.0  # seconds between two looks at the Slurm queue
 
 
 @dataclass(frozen=True)
@@ -212,7 +195,7 @@ class ExecutorSpec:
     extra: tuple[str, ...] = ()
     proc_bind: str | None = None
     places: str | None = None
-    poll_s: float = DEFAULT_POLL_S
+    poll_s: float = 2.0  # seconds between two looks at the Slurm queue
 
     def omp_env(self) -> dict[str, str]:
         """OMP_PROC_BIND / OMP_PLACES as asked (each cell runs with them, either executor)."""

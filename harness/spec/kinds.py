@@ -7,10 +7,14 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from harness.errors import MISSING, config_error
-from harness.spec.config import MAX_SEED, MAX_THREADS
+from harness.errors import config_error
 from harness.spec.scenes import MAX_N, MAX_STEPS, MODES
+
+MAX_SEED = 2**64 - 1
+# The binaries' --threads bound (variants/core/sim_main.c).
+MAX_THREADS = 4096
 
 
 @dataclass(frozen=True)
@@ -50,33 +54,44 @@ def real_in(low: float = -math.inf, high: float = math.inf) -> Callable[[object]
 
 
 real = real_in()
-positive_real = real_in(0.0)
-fraction = real_in(0.0, 1.0)  # strictly between 0 and 1
-string = accepting(lambda v: isinstance(v, str) and bool(v))
-boolean = accepting(lambda v: isinstance(v, bool))
 
 
 def one_of(options: Sequence[str]) -> Kind:
-    """A key that takes one of `options`."""
     return Kind("one of " + ", ".join(options), accepting(lambda v: v in options))
+
+
+def optional(kind: Kind) -> Kind:
+    """`kind`, or null for the default (None)."""
+    return Kind(kind.expected, lambda v: None if v is None else kind.parse(v))
+
+
+def many(kind: Kind) -> Kind:
+    """A value or a non-empty list of values of `kind`, as a tuple."""
+    def parse(value: object) -> object:
+        values = value if isinstance(value, list) else [value]
+        if not values:
+            raise ValueError
+        return tuple(kind.parse(v) for v in values)
+
+    return Kind(f"{kind.expected} or a non-empty list of them", parse)
 
 
 POSITIVE_INT = Kind("a positive integer", int_in(1))
 NON_NEGATIVE_INT = Kind("a non-negative integer", int_in(0))
 SEED = Kind(f"an integer in [0, {MAX_SEED}]", int_in(0, MAX_SEED))
-POSITIVE_REAL = Kind("a positive finite number", positive_real)
+POSITIVE_REAL = Kind("a positive finite number", real_in(0.0))
 REAL = Kind("a finite number", real)
-MODE = one_of(MODES)
-STRING = Kind("a non-empty string", string)
-BOOLEAN = Kind("true or false", boolean)
+STRING = Kind("a non-empty string", accepting(lambda v: isinstance(v, str) and bool(v)))
+BOOLEAN = Kind("true or false", accepting(lambda v: isinstance(v, bool)))
 
-# The bounds of what the binaries accept (harness.spec.scenes, config.MAX_THREADS).
+# The bounds of what the binaries accept (harness.spec.scenes, MAX_THREADS).
 THREADS = Kind(f"a positive integer (at most {MAX_THREADS})", int_in(1, MAX_THREADS))
-COUNT = Kind(f"a positive integer (at most {MAX_N})", int_in(1, MAX_N))
-STEPS = Kind(f"a non-negative integer (at most {MAX_STEPS})", int_in(0, MAX_STEPS))
-
 RANDOM_KINDS: dict[str, Kind] = {
-    "n": COUNT, "L": POSITIVE_REAL, "r": POSITIVE_REAL, "steps": STEPS, "mode": MODE,
+    "n": Kind(f"a positive integer (at most {MAX_N})", int_in(1, MAX_N)),
+    "L": POSITIVE_REAL,
+    "r": POSITIVE_REAL,
+    "steps": Kind(f"a non-negative integer (at most {MAX_STEPS})", int_in(0, MAX_STEPS)),
+    "mode": one_of(MODES),
     "seed": SEED,
 }
 
@@ -108,21 +123,14 @@ def check(value: object, label: str, kind: Kind, source: Path) -> object:
         raise config_error(source, label, kind.expected, value) from None
 
 
-def scalar(raw: Mapping[str, object], key: str, label: str, kind: Kind, source: Path) -> object:
-    return check(raw.get(key, MISSING), label, kind, source)
-
-
-def axis(value: object, label: str, kind: Kind, source: Path) -> tuple[tuple[object, ...], bool]:
-    """A value or a non-empty list of values; returns the values and whether it was a list."""
-    expected = f"{kind.expected} or a non-empty list of them"
-    listed = isinstance(value, list)
-    values = value if isinstance(value, list) else [value]
-    if not values:
-        raise config_error(source, label, expected, value)
-    try:
-        return tuple(kind.parse(v) for v in values), listed
-    except (ValueError, TypeError):
-        raise config_error(source, label, expected, value) from None
+def settings(value: object, table: Mapping[str, Kind], label: str,
+             source: Path) -> dict[str, Any]:
+    """A mapping of the keys of `table`, each checked by its kind: the keys given, as the
+    keyword arguments of the dataclass they set (an absent key keeps its default)."""
+    raw = mapping(value, label, source)
+    reject_unknown(raw, tuple(table), f"{label}.", source)
+    return {key: check(raw[key], f"{label}.{key}", kind, source)
+            for key, kind in table.items() if key in raw}
 
 
 def name_list(value: object, label: str, known: Sequence[str], source: Path,

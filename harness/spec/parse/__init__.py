@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import cast
 
 from harness.errors import MISSING, config_error
 from harness.spec import bounds, kinds
@@ -75,22 +74,21 @@ def parse_config(raw: Mapping[str, object], source: Path,
                  max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
     """Validate a defaulted mapping into a `Config`."""
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
-    name = kinds.scalar(raw, "name", "name", kinds.STRING, source)
+    name = kinds.check(raw["name"], "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
-    threads, threads_listed = kinds.axis(raw["threads"], "threads", kinds.THREADS, source)
+    threads = kinds.check(raw["threads"], "threads", kinds.many(kinds.THREADS), source)
     scene = parse_scene(raw.get("scene", MISSING), source)
-    zip_keys = parse_combine(raw["combine"], scene, threads_listed, source)
     config = Config(
         source=source,
         name=str(name),
-        **{key: kinds.scalar(raw, key, key, kind, source) for key, kind in SCALARS.items()},
+        **{key: kinds.check(raw[key], key, kind, source) for key, kind in SCALARS.items()},
         variants=variants,
         builds=builds,
         scene=scene,
-        threads=tuple(cast(int, t) for t in threads),
-        zip_keys=zip_keys,
+        threads=threads,
+        zip_keys=parse_combine(raw["combine"], scene, isinstance(raw["threads"], list), source),
         measure=parse_measure(raw["measure"], source),
         validate=parse_validate(raw["validate"], source),
         exclude=parse_exclude(raw["exclude"], source),

@@ -63,11 +63,11 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
     axes: list[tuple[str, tuple[object, ...]]] = [("generator", generators)] if generators else []
     listed = {key for key, _ in axes}
     for key, values in raw.items():
-        parsed, is_list = kinds.axis(values, f"scene.{key}", keys[key], source)
+        parsed = kinds.check(values, f"scene.{key}", kinds.many(keys[key]), source)
         if key == "file":
             parsed = tuple(_resolve_file(str(p), source) for p in parsed)
         axes.append((key, parsed))
-        if is_list:
+        if isinstance(values, list):
             listed.add(key)
     return SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
 
@@ -115,7 +115,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
     """The `schedule:` axis: () when absent, else its normalised OMP_SCHEDULE values."""
     if value is None:
         return ()
-    values, _ = kinds.axis(value, "schedule", SCHEDULE, source)
+    values = kinds.check(value, "schedule", kinds.many(SCHEDULE), source)
     if len(set(values)) != len(values):
         raise config_error(source, "schedule", "schedules without repeats", value)
     return tuple(str(v) for v in values)
