@@ -148,59 +148,40 @@ class CellStore:
         return check_references(self.config, self.binaries, cell.build)
 
     def cell_key(self, cell: Cell) -> CellKey | None:
-        """Everything a measurement depends on; None while a binary is missing."""
+        """Everything a measurement depends on; None while a binary the cell runs is missing.
+        The parts a cell has only where it checks, counts or measures more than its runs are
+        absent from the others' keys, so that those keep the ids they always had."""
+        if self.missing_binary(cell) is not None:
+            return None
         binary_sha = self.binary_sha(cell)
-        baseline_sha = self.baseline_sha(cell)
-        if binary_sha is None or (cell.validate and baseline_sha is None):
-            return None
-        beside = self._beside_keys(cell, binary_sha)
-        if beside is None:
-            return None
-        measure = self.config.measure_for(cell.variant)
+        parts: dict[str, object] = {}
+        if cell.program:  # what its check compares with, and on how many steps
+            parts["program_check"] = ProgramCheckKey(
+                steps=check_steps(cell.scene.n, cell.scene.steps),
+                reference_sha256=self._hashes(self.program_references(cell)))
+        if cell.checked:
+            parts["checks"] = ChecksKey(**self.config.checks.key(),
+                                        reference_sha256=self._hashes(self.check_references(cell)))
+        if self.config.counts_instructions:
+            counted = self.counted_binary(cell)
+            parts["instructions"] = CountedKey(
+                tool=lane.machine_tool(),
+                binary_sha256=binary_sha if counted is None else self.sha(counted))
+        if measures_openmp_costs(self.config, cell):
+            parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(self.ompcost(cell)))
+        omp = self.config.executor.omp_env()
+        if omp:
+            parts["omp"] = TextMap(tuple(omp.items()))
         return CellKey(
             variant=cell.variant, build=cell.build, input_sha256=cell.scene.input_sha256,
             seed=cell.scene.seed, threads=cell.threads, validate=cell.validate,
             exact=cell.exact, keep_output=self.config.keep_output, binary_sha256=binary_sha,
-            baseline_sha256=baseline_sha, machine_id=self.machine_id,
-            schedule=cell.schedule or None, **measure.key(), **beside)
+            baseline_sha256=self.baseline_sha(cell), machine_id=self.machine_id,
+            schedule=cell.schedule or None, **self.config.measure_for(cell.variant).key(),
+            **parts)
 
-    def _beside_keys(self, cell: Cell, binary_sha: str) -> dict[str, object] | None:
-        """The key's parts a cell has only where it checks, counts or measures more than its
-        runs (cells without them keep the ids they always had); None while a binary they rest
-        on is missing."""
-        parts: dict[str, object] = {}
-        if cell.program:  # what its check compares with, and on how many steps
-            shas = self._hashes(self.program_references(cell))
-            if shas is None:
-                return None
-            parts["program_check"] = ProgramCheckKey(
-                steps=check_steps(cell.scene.n, cell.scene.steps), reference_sha256=shas)
-        if cell.checked:
-            shas = self._hashes(self.check_references(cell))
-            if shas is None:
-                return None
-            parts["checks"] = ChecksKey(**self.config.checks.key(), reference_sha256=shas)
-        if self.config.counts_instructions:
-            counted = self.counted_binary(cell)
-            counted_sha = binary_sha if counted is None else self.sha(counted)
-            if counted_sha is None:
-                return None
-            parts["instructions"] = CountedKey(tool=lane.machine_tool(),
-                                               binary_sha256=counted_sha)
-        if measures_openmp_costs(self.config, cell):
-            ompcost_sha = self.sha(self.ompcost(cell))
-            if ompcost_sha is None:
-                return None
-            parts["openmp_costs"] = BinaryKey(binary_sha256=ompcost_sha)
-        omp = self.config.executor.omp_env()
-        if omp:
-            parts["omp"] = TextMap(tuple(omp.items()))
-        return parts
-
-    def _hashes(self, paths: Mapping[str, Path]) -> TextMap | None:
-        shas = [(name, self.sha(path)) for name, path in paths.items()]
-        known = [(name, sha) for name, sha in shas if sha is not None]
-        return TextMap(tuple(known)) if len(known) == len(shas) else None
+    def _hashes(self, paths: Mapping[str, Path]) -> TextMap:
+        return TextMap(tuple((name, self.sha(path)) for name, path in paths.items()))
 
     def cell_id(self, cell: Cell) -> str | None:
         key = self.cell_key(cell)
