@@ -48,7 +48,6 @@ GLOB = "glob"
 SOURCE = "source"
 BUILD = "build"
 PROGRAM_KEYS = ("command", "check", GLOB, SOURCE, BUILD)
-TEMPLATE_KEYS = ("command", "check")  # the keys that hold a run's command template
 # The placeholders of `build:`: the compiler, its flags and the binary to write, which a
 # build must use (the harness builds its own copies with them), and the source paths.
 CC = "cc"
@@ -211,20 +210,25 @@ def _words(template: str) -> list[str]:
         return blank.split()
 
 
-def from_mapping(name: str, value: Mapping[str, object], directory: Path) -> Program:
+def from_mapping(name: str, value: Mapping[str, object], directory: Path,
+                 path: Path | None = None) -> Program:
     """A Program from `command` and optional `check`, `source` and `build` (already checked
-    to be strings, `source` a string or a list of them)."""
-    command = str(value["command"])
-    return Program(name, command, str(value.get("check", command)), directory,
-                   source_paths(value.get(SOURCE), directory), str(value.get(BUILD, "")))
+    to be strings, `source` a string or a list of them). A class's program (`path`, the file
+    its glob matched) has {path} and {dir} filled in: quoted in its templates, plain in
+    `source:`."""
+    def filled(template: object, quote: bool = True) -> str:
+        text = str(template)
+        for key, part in ((PATH, path), (DIR, None if path is None else path.parent)):
+            if part is not None:
+                shown = shlex.quote(str(part)).replace("{", "{{").replace("}", "}}")
+                text = text.replace("{" + key + "}", shown if quote else str(part))
+        return text
 
-
-def source_paths(value: object, directory: Path) -> tuple[Path, ...]:
-    """`source:` (a path or a list of paths relative to the directory) as absolute paths."""
-    if value is None:
-        return ()
-    listed = [value] if isinstance(value, str) else list(value)  # type: ignore[call-overload]
-    return tuple((directory / str(path)).resolve() for path in listed)
+    raw = value.get(SOURCE)
+    listed = [] if raw is None else [raw] if isinstance(raw, str) else list(raw)  # type: ignore[call-overload]
+    return Program(name, filled(value["command"]), filled(value.get("check", value["command"])),
+                   directory, tuple((directory / filled(s, False)).resolve() for s in listed),
+                   filled(value.get(BUILD, "")), "" if path is None else filled("{" + PATH + "}"))
 
 
 def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
@@ -240,22 +244,3 @@ def class_members(pattern: str, directory: Path) -> list[tuple[str, Path]]:
         name = re.sub(r"[^A-Za-z0-9_.-]", "_", "-".join(picked)).lstrip("_.-") or "program"
         found.append((name, directory / match))
     return found
-
-
-def member(name: str, value: Mapping[str, object], path: Path, directory: Path) -> Program:
-    """The program of one file a class's glob matched: its templates with {path} and {dir}
-    filled in (quoted; in `source:` as plain paths)."""
-    def quoted(text: Path) -> str:
-        return shlex.quote(str(text)).replace("{", "{{").replace("}", "}}")
-
-    def filled(template: str, path_text: str, dir_text: str) -> str:
-        return template.replace("{" + PATH + "}", path_text).replace("{" + DIR + "}", dir_text)
-
-    command, check = (filled(str(value.get(key, value["command"])), quoted(path),
-                             quoted(path.parent)) for key in TEMPLATE_KEYS)
-    raw = value.get(SOURCE)
-    listed = [] if raw is None else [raw] if isinstance(raw, str) else list(raw)  # type: ignore[call-overload]
-    sources = [filled(str(s), str(path), str(path.parent)) for s in listed]
-    build = filled(str(value.get(BUILD, "")), quoted(path), quoted(path.parent))
-    return Program(name, command, check, directory, source_paths(sources or None, directory),
-                   build, binary=quoted(path))

@@ -141,7 +141,7 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
         for member, path in members:
             _check_new_name(member, f"{label}.glob ({path})",
                             (*taken, name, *(p.name for p in result)), source)
-            result.append(programs.member(member, fields, path, directory))
+            result.append(programs.from_mapping(member, fields, directory, path))
             names.append(member)
         classes[name] = tuple(names)
     return tuple(result), classes
