@@ -1,4 +1,4 @@
-"""Reading a config: YAML -> defaults -> validation -> a frozen `Config` (harness.spec.config).
+"""Reading a config: YAML -> validation and defaults -> a frozen `Config` (harness.spec.config).
 
 Every mistake is a `HarnessError` naming the file, the key and what was expected. The known
 variants come from a variant registry (harness.spec.variants): the repository's variants/*.c.
@@ -8,15 +8,12 @@ Each part of the config has its module: programs (variants, builds, binaries, pr
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from harness.errors import MISSING, config_error
 from harness.spec import bounds, kinds
-from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.config import (
     DEFAULT_MAX_CELLS,
-    METRIC_TIME,
     METRICS,
     NAME_RULE,
     TOP_KEYS,
@@ -42,6 +39,10 @@ from harness.spec.points import expand_points
 from harness.spec.variants import VariantRegistry, default_registry
 from harness.spec.yamlfile import read_mapping
 
+# The top-level keys of one value each, checked as they are (title's default: the name).
+SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
+           "openmp_costs": kinds.BOOLEAN}
+
 
 def load_config(path: Path | str, registry: VariantRegistry | None = None,
                 max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
@@ -50,54 +51,37 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
     raw = read_mapping(source)
-    names = (registry or default_registry()).names
-    return parse_config(with_defaults(raw, source), source, names, max_cells)
-
-
-def with_defaults(raw: Mapping[str, object], source: Path) -> dict[str, object]:
-    """The raw mapping with every optional top-level key filled in."""
-    name = raw.get("name", source.stem)
-    defaults = {"name": name, "title": name, "builds": [DEFAULT_BUILD], "threads": 1,
-                "combine": "product", "measure": {}, "validate": False, "keep_output": False,
-                "exclude": [], "binaries": {}, "checks": [], "accuracy": {},
-                "metric": METRIC_TIME, "openmp_costs": False}
-    return {**defaults, **raw}
-
-
-# The top-level keys of one value each, checked as they are (their defaults: with_defaults).
-SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
-           "openmp_costs": kinds.BOOLEAN}
-
-
-def parse_config(raw: Mapping[str, object], source: Path,
-                 known_variants: Sequence[str],
-                 max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
-    """Validate a defaulted mapping into a `Config`."""
+    known_variants = (registry or default_registry()).names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
-    name = kinds.check(raw["name"], "name", kinds.STRING, source)
+    name = kinds.check(raw.get("name", source.stem), "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
-    threads = kinds.check(raw["threads"], "threads", kinds.many(kinds.THREADS), source)
+    threads = raw.get("threads", 1)
     scene = parse_scene(raw.get("scene", MISSING), source)
+    measure = raw.get("measure", {})
+    scalars = {key: kinds.check(raw[key], key, kind, source)
+               for key, kind in SCALARS.items() if key in raw}
     config = Config(
         source=source,
         name=str(name),
-        **{key: kinds.check(raw[key], key, kind, source) for key, kind in SCALARS.items()},
+        **{"title": name, "keep_output": False, **scalars},
         variants=variants,
         builds=builds,
         scene=scene,
-        threads=threads,
-        zip_keys=parse_combine(raw["combine"], scene, isinstance(raw["threads"], list), source),
-        measure=parse_measure(raw["measure"], source),
-        validate=parse_validate(raw["validate"], source),
-        exclude=parse_exclude(raw["exclude"], source),
+        threads=kinds.check(threads, "threads", kinds.many(kinds.THREADS), source),
+        zip_keys=parse_combine(raw.get("combine", "product"), scene, isinstance(threads, list),
+                               source),
+        measure=parse_measure(measure, source),
+        validate=parse_validate(raw.get("validate", False), source),
+        exclude=parse_exclude(raw.get("exclude", []), source),
         binaries=binaries,
-        checks=parse_checks(raw["checks"], raw["accuracy"], source, known_variants),
+        checks=parse_checks(raw.get("checks", []), raw.get("accuracy", {}), source,
+                            known_variants),
         executor=parse_executor(raw.get("executor", {}), source),
         schedules=parse_schedules(raw.get("schedule"), source),
-        variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}),
-                                                 raw["measure"], variants, source),
+        variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}), measure,
+                                                 variants, source),
         programs=programs_,
     )
     check_exclude(config)

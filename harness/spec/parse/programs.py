@@ -18,14 +18,14 @@ def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequ
     """The config's variants and builds, its binaries and its programs: a custom binary or a
     program is a new variant name, listed under `variants` (a class: every program its glob
     matched), and built f64 only."""
-    binaries = parse_binaries(raw.get("binaries"), source, known_variants)
+    binaries = parse_binaries(raw.get("binaries", {}), source, known_variants)
     taken = (*known_variants, *(b[0] for b in binaries))
     programs_, classes = parse_programs(raw.get("programs", {}), source, taken)
     known = (*taken, *(p.name for p in programs_), *classes)
     listed = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
     # A class in `variants` stands for every program its glob matched.
     variants = tuple(dict.fromkeys(m for v in listed for m in classes.get(v, (v,))))
-    builds = kinds.name_list(raw["builds"], "builds", BUILDS, source)
+    builds = kinds.name_list(raw.get("builds", [DEFAULT_BUILD]), "builds", BUILDS, source)
     for variant, _ in binaries:
         if variant in variants and builds != (DEFAULT_BUILD,):
             raise config_error(source, f"binaries.{variant}", "builds: [f64] with a custom "
