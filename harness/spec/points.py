@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping
 
 from harness.errors import config_error
@@ -19,11 +20,7 @@ def count_points(config: Config) -> int:
     lengths, a zipped group counting once."""
     axes = [*config.scene.axes, ("threads", config.threads)]
     zipped = [len(v) for k, v in axes if k in config.zip_keys]
-    count = max(zipped) if zipped else 1
-    for key, values in axes:
-        if key not in config.zip_keys:
-            count *= len(values)
-    return count
+    return max(zipped, default=1) * math.prod(len(v) for k, v in axes if k not in config.zip_keys)
 
 
 def expand_points(config: Config) -> list[dict[str, object]]:
@@ -40,15 +37,12 @@ def expand_points(config: Config) -> list[dict[str, object]]:
         raise config_error(config.source, "combine", "lists of equal length to zip",
                            f"lengths {got}")
     groups: list[tuple[tuple[str, ...], list[tuple[object, ...]]]] = []
-    zip_placed = False
     for key, values in axes:
-        if key in config.zip_keys:
-            if not zip_placed:
-                keys = tuple(k for k, _ in zipped)
-                groups.append((keys, list(zip(*(v for _, v in zipped), strict=True))))
-                zip_placed = True
-        else:
+        if key not in config.zip_keys:
             groups.append(((key,), [(v,) for v in values]))
+        elif key == zipped[0][0]:  # the zipped group, where its first axis is
+            groups.append((tuple(k for k, _ in zipped),
+                           list(zip(*(v for _, v in zipped), strict=True))))
     names = [key for keys, _ in groups for key in keys]
     return [dict(zip(names, itertools.chain.from_iterable(combo), strict=True))
             for combo in itertools.product(*(rows for _, rows in groups))]

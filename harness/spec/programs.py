@@ -80,19 +80,19 @@ class TemplateError(ValueError):
     """A command template that cannot be used; the message says what is wrong."""
 
 
-def placeholders(template: str, extra: tuple[str, ...] = (),
-                 known_here: tuple[str, ...] = PLACEHOLDERS,
-                 required: Mapping[str, str] | None = None) -> tuple[str, ...]:
-    """The {names} of a template; a TemplateError for an unknown one, a missing required one
-    (`required`: name -> what it stands for; default {input}) or stray braces. `extra`: names
-    allowed beside `known_here` ({path} in a class's template)."""
+def check_placeholders(template: str, extra: tuple[str, ...] = (),
+                       known_here: tuple[str, ...] = PLACEHOLDERS,
+                       required: Mapping[str, str] | None = None) -> None:
+    """A TemplateError for an unknown placeholder, a missing required one (`required`: name ->
+    what it stands for; default {input}) or stray braces. `extra`: names allowed beside
+    `known_here` ({path} in a class's template)."""
     known = (*known_here, *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
         raise TemplateError(f"unbalanced braces ({exc}; write {{{{ and }}}} for a literal "
                             "brace)") from None
-    names = []
+    names = set()
     for _, name, spec, conversion in parsed:
         if name is None:
             continue
@@ -101,15 +101,12 @@ def placeholders(template: str, extra: tuple[str, ...] = (),
                 (f":{spec}" if spec else "") + "}"
             raise TemplateError(f"unknown placeholder {field} (known: "
                                 + ", ".join("{" + p + "}" for p in known) + ")")
-        names.append(name)
-    if required is None:
-        if INPUT not in names:
-            raise TemplateError("no {input}: the program must be given the input file")
-        return tuple(names)
-    for name, meaning in required.items():
+        names.add(name)
+    if required is None and INPUT not in names:
+        raise TemplateError("no {input}: the program must be given the input file")
+    for name, meaning in (required or {}).items():
         if name not in names:
             raise TemplateError(f"no {{{name}}} ({meaning})")
-    return tuple(names)
 
 
 @dataclass(frozen=True)

@@ -117,10 +117,10 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
                 continue
             try:
                 if key == programs.BUILD:
-                    programs.placeholders(template, extra, programs.BUILD_PLACEHOLDERS,
-                                          programs.BUILD_REQUIRED)
+                    programs.check_placeholders(template, extra, programs.BUILD_PLACEHOLDERS,
+                                                programs.BUILD_REQUIRED)
                 else:
-                    programs.placeholders(template, extra)
+                    programs.check_placeholders(template, extra)
             except programs.TemplateError as exc:
                 raise config_error(source, where, f"{BUILD_FORM}: {exc}" if key == programs.BUILD
                                    else f"a command template with {{input}} and optionally "
@@ -137,11 +137,9 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
         if not members:
             raise config_error(source, f"{label}.glob", f"a pattern that matches files under "
                                f"{directory}", fields[programs.GLOB])
-        names = []
         for member, path in members:
             _check_new_name(member, f"{label}.glob ({path})",
                             (*taken, name, *(p.name for p in result)), source)
             result.append(programs.from_mapping(member, fields, directory, path))
-            names.append(member)
-        classes[name] = tuple(names)
+        classes[name] = tuple(member for member, _ in members)
     return tuple(result), classes
