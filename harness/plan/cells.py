@@ -67,23 +67,21 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
     """The concrete scene of one grid point (its `threads` is ignored)."""
     params = {k: v for k, v in point.items() if k != "threads"}
     seed = cast(int, params.pop("seed"))
+    kind = config.scene.kind
+    name = str(params.pop("generator", config.scene.generator))
     if quick:
-        defaults: Mapping[str, object] = {}
-        if config.scene.kind == "generator":  # a generator's own default counts as given
-            name = str(params.get("generator", config.scene.generator))
-            defaults = scenes.REGISTRY.get(name).defaults
+        # A generator's own default counts as given.
+        defaults = scenes.REGISTRY.get(name).defaults if kind == "generator" else {}
         for key, limit in (("n", QUICK_MAX_N), ("steps", QUICK_MAX_STEPS)):
             value = params.get(key, defaults.get(key))
             if isinstance(value, int) and not isinstance(value, bool):
                 params[key] = min(value, limit)
-    kind = config.scene.kind
     if kind == "file":
         try:
             return scenes.file_point(Path(str(params["file"])), seed)
         except HarnessError as exc:
             raise HarnessError(f"{config.source}: key 'scene.file': {exc}") from None
     if kind == "generator":
-        name = str(params.pop("generator", config.scene.generator))
         try:
             return scenes.generated_point(name, params, seed)
         except HarnessError as exc:
