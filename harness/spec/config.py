@@ -224,16 +224,6 @@ class Condition:
 
 
 @dataclass(frozen=True)
-class ExcludeRule:
-    """A cell is excluded when every condition of one rule holds."""
-
-    conditions: tuple[Condition, ...]
-
-    def matches(self, fields: Mapping[str, object]) -> bool:
-        return all(c.holds(fields) for c in self.conditions)
-
-
-@dataclass(frozen=True)
 class SceneSpec:
     kind: str  # "random", "generator" or "file"
     generator: str | None
@@ -255,7 +245,8 @@ class Config:
     measure: Measure
     validate: Validation
     keep_output: bool
-    exclude: tuple[ExcludeRule, ...]
+    # rules: a cell is excluded when every condition of one rule holds
+    exclude: tuple[tuple[Condition, ...], ...]
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()

@@ -18,7 +18,6 @@ from harness.spec.config import (
     SCHEDULE_PATTERN,
     Condition,
     Config,
-    ExcludeRule,
     SceneSpec,
 )
 
@@ -120,7 +119,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
         raise config_error(source, "schedule", "schedules without repeats", value)
     return tuple(str(v) for v in values)
 
-def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
+def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
     if not isinstance(value, list):
         raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
     rules = []
@@ -151,7 +150,7 @@ def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
                 allowed = ", ".join(EXCLUDE_FIELDS)
                 raise config_error(source, f"{label}.{key}", f"one of {allowed}, optionally "
                                    "with _gt, _ge, _lt or _le", "an unknown key")
-        rules.append(ExcludeRule(tuple(conditions)))
+        rules.append(tuple(conditions))
     return tuple(rules)
 
 
@@ -169,7 +168,7 @@ def check_exclude(config: Config) -> None:
         "threads": config.threads, "schedule": config.schedules or ("",),
     }
     for index, rule in enumerate(config.exclude):
-        for condition in rule.conditions:
+        for condition in rule:
             values = known.get(condition.field)
             if condition.op != "eq" or values is None:
                 continue
