@@ -108,11 +108,6 @@ class CellStore:
             self.fingerprints[program.name] = program.fingerprint()
         return self.fingerprints[program.name]
 
-    def runs_what(self, cell: Cell) -> str:
-        """The cell's binary, or a program's command template."""
-        program = self.config.program(cell.variant)
-        return str(self.binary(cell)) if program is None else program.command
-
     def program_references(self, cell: Cell) -> dict[str, Path]:
         return program_references(self.config, self.binaries, cell)
 
@@ -197,7 +192,7 @@ class CellStore:
         when; the measurement (or a fault) adds the rest."""
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
-        scene = cell.scene
+        scene, program = cell.scene, self.config.program(cell.variant)
         return CellResult(
             cell_id, key, note="",
             subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
@@ -206,7 +201,8 @@ class CellStore:
             timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
-            provenance=Provenance(binary=self.runs_what(cell), binary_sha256=key.binary_sha256,
+            provenance=Provenance(binary=str(self.binary(cell)) if program is None
+                                  else program.command, binary_sha256=key.binary_sha256,
                                   input_sha256=scene.input_sha256, measured_at=now_iso()))
 
     # --- records ---
