@@ -18,10 +18,7 @@ from harness.spec.variants import default_registry
 
 
 def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Path:
-    custom = config.custom_binary(variant)
-    if custom is not None:
-        return custom
-    return build_dir / binary_name(variant, build)
+    return config.custom_binary(variant) or build_dir / binary_name(variant, build)
 
 
 def baseline_path(config: Config, build_dir: Path, build: str) -> Path:

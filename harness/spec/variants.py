@@ -69,6 +69,7 @@ class VariantRegistry:
     def get(self, name: str) -> VariantFacts | None:
         return self.known.get(name)
 
+
 def describe(binary: Path) -> VariantFacts:
     """`binary --describe`, parsed; a HarnessError when it cannot run or says no JSON."""
     try:

@@ -97,6 +97,7 @@ def parse_combine(value: object, scene: SceneSpec, threads_listed: bool,
         return tuple(keys)
     raise config_error(source, "combine", "product, zip, or {zip: [keys]}", value)
 
+
 def _schedule(value: object) -> object:
     if not isinstance(value, str):
         raise ValueError
@@ -118,6 +119,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
     if len(set(values)) != len(values):
         raise config_error(source, "schedule", "schedules without repeats", value)
     return tuple(str(v) for v in values)
+
 
 def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
     if not isinstance(value, list):
