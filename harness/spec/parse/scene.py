@@ -121,6 +121,9 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
     return tuple(str(v) for v in values)
 
 
+NUMBER = kinds.Kind("a number", kinds.real)
+
+
 def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
     if not isinstance(value, list):
         raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
@@ -138,11 +141,7 @@ def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], .
                     raise config_error(source, f"{label}.{key}", "a comparison (_gt, _ge, _lt, "
                                        "_le) of one of " + ", ".join(EXCLUDE_NUMERIC_FIELDS),
                                        condition_value)
-                try:
-                    bound = kinds.real(condition_value)
-                except ValueError:
-                    raise config_error(source, f"{label}.{key}", "a number",
-                                       condition_value) from None
+                bound = kinds.check(condition_value, f"{label}.{key}", NUMBER, source)
                 conditions.append(Condition(field, op, bound))
             elif key in EXCLUDE_FIELDS:
                 accepted = condition_value if isinstance(condition_value, list) else [
