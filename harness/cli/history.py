@@ -25,10 +25,9 @@ from harness.analysis.history import (
 )
 from harness.analysis.resultsets import Cell, read_cells
 from harness.cli.common import (
-    EXIT_INTERRUPTED,
     Parser,
     add_flags,
-    interrupt_on_sigterm,
+    load_configs,
     measuring_lock,
     probability,
     whole_number,
@@ -41,8 +40,7 @@ from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
 from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import Config, with_metric
-from harness.spec.parse import load_config
+from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import records
 from harness.store.columns import MEASURED_BISECT
@@ -51,6 +49,7 @@ from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 
 CONFIG_SUFFIXES = (".yaml", ".yml")
+INTERRUPTED = "measured commits are saved; run again to resume"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -87,34 +86,27 @@ def split_items(items: Sequence[str]) -> tuple[list[str], list[Path]]:
     return revisions, configs
 
 
-def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    out = out or sys.stdout
-    interrupt_on_sigterm()
+def execute(args: argparse.Namespace) -> int:
+    out = sys.stdout
     revisions, paths = split_items(args.items)
-    registry = VariantRegistry(REPO_ROOT)
-    configs = [with_metric(load_config(p, registry), args.metric) for p in paths]
+    _, configs = load_configs(paths, args.metric)
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = measuring_lock(args, args.items)
-    try:
-        with lock:
-            measure_history(commits, configs, results_root, sys.stderr, repo,
-                            hyperfine=args.hyperfine, run_lock=lock)
-            machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-            for config in configs:
-                metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
-                series = analyse(config, commits, metrics, machine_id, results_root,
-                                 args.max_p)
-                if args.bisect:  # what the series found is kept should bisection stop
-                    publish(config, series, order, results_root, args)
-                    bisect_all(config, series, full, results_root, repo, lock, args, out)
-                summarise(config, series, order, len(commits), results_root, args, out)
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted: measured commits are saved; run again to resume\n")
-        return EXIT_INTERRUPTED
+    with lock:
+        measure_history(commits, configs, results_root, sys.stderr, repo,
+                        hyperfine=args.hyperfine, run_lock=lock)
+        machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+        for config in configs:
+            metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
+            series = analyse(config, commits, metrics, machine_id, results_root, args.max_p)
+            if args.bisect:  # what the series found is kept should bisection stop
+                publish(config, series, order, results_root, args)
+                bisect_all(config, series, full, results_root, repo, lock, args, out)
+            summarise(config, series, order, len(commits), results_root, args, out)
     return 0
 
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from harness.cli.common import EXIT_INTERRUPTED, Parser, interrupt_on_sigterm
+from harness.cli.common import Parser
 from harness.executors.worker import measure_cells
 from harness.repo import REPO_ROOT
+
+INTERRUPTED = "the cells finished so far are saved"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -27,11 +28,6 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 
 def execute(args: argparse.Namespace) -> int:
-    interrupt_on_sigterm()
-    try:
-        measure_cells(args.config, args.results_dir, args.quick, args.repo_root, args.cell_ids,
-                      args.hyperfine, args.round_seed)
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted: the cells finished so far are saved\n")
-        return EXIT_INTERRUPTED
+    measure_cells(args.config, args.results_dir, args.quick, args.repo_root, args.cell_ids,
+                  args.hyperfine, args.round_seed)
     return 0

@@ -130,20 +130,26 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     return summarise(experiment, order, len(measured), len(missing))
 
 
-def run_afresh(configs: Sequence[Config], root: Path, registry: VariantRegistry,
-               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
-               quick: bool = False, spreads_of: Path | None = None) -> None:
-    """Every config measured afresh into the results root `root`, emptied first (as `run
-    --force --results-dir ROOT`); with the machines' calibrations of the root `spreads_of`
-    copied in first, its intervals are those that root's session spreads give."""
-    shutil.rmtree(root, ignore_errors=True)
+def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,
+              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+              quick: bool = False, pause_s: float = 0.0, spreads_of: Path | None = None) -> None:
+    """Every config measured afresh into each results root in turn, `pause_s` apart, each root
+    emptied first (as `run --force --results-dir ROOT`); with the machines' calibrations of the
+    root `spreads_of` copied in first, its intervals are those that root's session spreads
+    give."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
-    if kept is not None and kept.is_dir():
-        shutil.copytree(kept, ResultsRoot(root).calibrations)
-    options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
-                      hyperfine=hyperfine, run_lock=run_lock)
-    for config in configs:
-        run_experiment(config, options, log, log, registry)
+    for k, root in enumerate(roots, start=1):
+        if k > 1 and pause_s > 0:
+            log.write(f"pausing {pause_s:g} s before run {k}\n")
+            time.sleep(pause_s)
+        log.write(f"run {k} of {len(roots)}, measured apart, into {root}\n")
+        shutil.rmtree(root, ignore_errors=True)
+        if kept is not None and kept.is_dir():
+            shutil.copytree(kept, ResultsRoot(root).calibrations)
+        options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
+                          hyperfine=hyperfine, run_lock=run_lock)
+        for config in configs:
+            run_experiment(config, options, log, log, registry)
 
 
 def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool

@@ -22,14 +22,17 @@ from harness.executors.base import Progress, format_seconds
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment, machine
 from harness.measure.cell import Measurer
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
-from harness.repo import REPO_ROOT
-from harness.runner.experiment import built_cell_id, require_hyperfine, write_env_after
-from harness.runner.sides import BuildSide, build
+from harness.repo import BUILD_DIR, REPO_ROOT
+from harness.runner.experiment import (
+    built_cell_id,
+    require_hyperfine,
+    run_apart,
+    write_env_after,
+)
+from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
-from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import records
 from harness.store.columns import (
@@ -47,6 +50,7 @@ MIN_ROUNDS = stats.FIRST_LOOK_ROUNDS
 # How long rounds are added to undecided cells, at most (seconds of measuring, --budget).
 DEFAULT_BUDGET_S = 600.0
 WORK_DIR = ".measure"  # OUT/.measure: the sides while they are measured
+BLOCKS = 3  # a calibration's runs measured apart
 
 
 @dataclass
@@ -152,18 +156,6 @@ def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]
     return plans
 
 
-def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
-    """Build (or find) every binary the plans need, on every side, before anything runs."""
-    for side in sides:
-        binaries: dict[Path, None] = {}
-        for plan in plans:
-            binaries.update(dict.fromkeys(needed_binaries(plan, side.build_dir)))
-        variants = [c.variant for p in plans for c in p.cells
-                    if p.config.is_built(c.variant)]
-        build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
-        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
-
-
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
                   hyperfine: str = "hyperfine", seed: int | None = None,
@@ -173,7 +165,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
     of measuring is spent; the two results roots, complete, under OUT."""
     plans = plans_of(configs, registry)
-    prepare((old, new), plans)
+    for side in (old, new):  # every binary built (or found) before anything runs
+        build_plans(side, plans)
     require_hyperfine(hyperfine)
     work = out / WORK_DIR
     machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
@@ -218,3 +211,21 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
     return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds, budget_s,
                          max(0.0, time.monotonic() - until.started))
+
+
+def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
+              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine"
+              ) -> tuple[MeasuredSides, list[Path]]:
+    """A calibration's measurements (`compare --calibrate`; what they say is
+    harness.analysis.calibration's): this checkout's binaries as two sides measured together
+    (OUT/together), then the configs BLOCKS times, one whole run after another, as separate
+    results roots measured apart (OUT/apart/block-K); the sides and those roots."""
+    build_dir = REPO_ROOT / BUILD_DIR
+    old, new = (BuildSide(name, str(build_dir), build_dir, REPO_ROOT, None) for name in SIDE_DIRS)
+    # The same binaries on both sides: the spread of a fixed number of rounds is what is
+    # learnt, so no rounds are added to decide verdicts (budget 0).
+    together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
+                             hyperfine, budget_s=0.0)
+    blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
+    run_apart(configs, blocks, registry, run_lock, log, hyperfine)
+    return together, blocks

@@ -17,6 +17,8 @@ from pathlib import Path
 from harness.errors import HarnessError
 from harness.measure.machine import compiler_command
 from harness.plan import lane
+from harness.plan.binaries import checkout_tools, needed_binaries
+from harness.plan.cells import Plan
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
 from harness.spec.make import has_rules, make_binaries
 from harness.spec.variants import VariantRegistry
@@ -134,6 +136,14 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
         except HarnessError as exc:
             raise HarnessError(f"{side.name}: revision {side.label} does not build: "
                                f"{exc}") from None
+
+
+def build_plans(side: BuildSide, plans: Sequence[Plan]) -> None:
+    """Build (or find) every binary the plans need on the side, and this checkout's tools."""
+    binaries = dict.fromkeys(b for plan in plans for b in needed_binaries(plan, side.build_dir))
+    variants = [c.variant for p in plans for c in p.cells if p.config.is_built(c.variant)]
+    build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
+    make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
 
 
 def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:
