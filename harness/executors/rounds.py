@@ -1,4 +1,4 @@
-"""Measuring many cells in alternating rounds, in this process.
+"""Measuring many cells in alternating rounds, in this process (the local executor).
 
 First every cell's untimed runs (its --precise run, validation, checks: Measurer.start), then
 rounds: in each, every cell that still needs runs gets one hyperfine call, in an order shuffled
@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from harness.executors.base import Progress
+from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
 from harness.measure.rounds import CellRun, runs_left
 from harness.plan.cells import Cell
@@ -230,3 +230,14 @@ def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
         guess = statistics.fmean(per_run) * len(to_start)
         low, high = low + guess, high + guess
     return low, high
+
+
+class LocalExecutor:
+    name = "local"
+
+    def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
+            on_record: OnRecord, progress: Progress) -> None:
+        measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
+        units = [Unit(measurer, cell, cid) for cell, cid in pending]
+        measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
+                          progress, experiment.options.round_seed)

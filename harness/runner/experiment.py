@@ -163,7 +163,7 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
     if pending and here and options.run_lock is not None and not options.run_lock.held:
         options.run_lock.acquire()  # may wait for another run; the load is sampled after
         pending = not_cached(experiment, pending)  # that run may have measured some of them
-    # A remote executor's workers write the env of their machines (harness.worker).
+    # A remote executor's workers write the env of their machines (collide-bench worker).
     if pending and here:
         env = environment.collect(options.repo_root, options.make, options.hyperfine)
         index.write_env(experiment.directory, env)

@@ -135,7 +135,6 @@ class MeasuredSides:
     old: Path  # the results roots
     new: Path
     seed: int
-    cells: int  # per side
     rounds: int  # the most rounds a cell pair took
     budget_s: float
     spent_s: float  # seconds of measuring
@@ -170,25 +169,22 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     require_hyperfine(hyperfine)
     work = out / WORK_DIR
     machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-    units: list[Unit] = []
     pairs: list[tuple[Unit, Unit]] = []
     stores: list[tuple[BuildSide, CellStore]] = []
     for plan in plans:
-        pair: dict[str, CellStore] = {}
+        measurers = []
         for side in (old, new):
             store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], machine_id,
                               force=True, build_dir=side.build_dir)
             stores.append((side, store))
-            pair[side.name] = store
-        measurers = {name: Measurer(store, hyperfine) for name, store in pair.items()}
+            measurers.append(Measurer(store, hyperfine))
         for cell in plan.cells:
-            a = Unit(measurers["OLD"], cell, built_cell_id(pair["OLD"], cell))
-            b = Unit(measurers["NEW"], cell, built_cell_id(pair["NEW"], cell), partner=a)
-            a.partner = b
-            units += [a, b]
+            a, b = (Unit(m, cell, built_cell_id(m.store, cell)) for m in measurers)
+            a.partner, b.partner = b, a
             pairs.append((a, b))
-    labels = {u.cell_id: f"{'OLD' if k % 2 == 0 else 'NEW'} {u.cell.label}"
-              for k, u in enumerate(units)}
+    units = [unit for pair in pairs for unit in pair]
+    labels = {u.cell_id: f"{name} {u.cell.label}" for pair in pairs
+              for name, u in zip(SIDE_DIRS, pair, strict=True)}
     progress = Progress("measure", [(u.cell, u.cell_id) for u in units],
                         frozenset(u.cell_id for u in units), log, labels=labels)
     if run_lock is not None:
@@ -200,18 +196,13 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     for side, store in stores:
         store.write_csv(prune=True)
         write_env_after(store.directory, env[side.name])
-    roots = {}
-    for side in (old, new):
-        target = out / SIDE_DIRS[side.name]
-        if target.exists():
-            shutil.rmtree(target)
-        (work / SIDE_DIRS[side.name]).rename(target)
-        roots[side.name] = target
+    for name in SIDE_DIRS.values():
+        shutil.rmtree(out / name, ignore_errors=True)
+        (work / name).rename(out / name)
     shutil.rmtree(work, ignore_errors=True)
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
-    return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds, budget_s,
+    return MeasuredSides(out / SIDE_DIRS["OLD"], out / SIDE_DIRS["NEW"], seed, rounds, budget_s,
                          max(0.0, time.monotonic() - until.started))
-
 
 def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine"

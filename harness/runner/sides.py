@@ -120,19 +120,17 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
         raise HarnessError(f"{side.name}: revision {side.label} has no variant "
                            f"{', '.join(absent)}")
     compiler = compiler_command(REPO_ROOT)[0]
-    lane_dir = side.build_dir / lane.LANE_DIR
-    lanes = [b for b in binaries if b.parent == lane_dir]
+    lanes = [b for b in binaries if b.parent == side.build_dir / lane.LANE_DIR]
     # One make at a time in a build/ that the commits of a code tree share (share_build):
     # another history or compare may be making the same tree's binaries.
     with directory_lock(side.build_dir):
         try:
-            if lanes and not has_rules(side.repo_root, lanes):
-                make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
-                              make="make", capture=True, extra=[f"CC={compiler}"])
+            if lanes and has_rules(side.repo_root, lanes):
+                lanes = []  # its Makefile makes them with the rest
+            make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
+                          capture=True, extra=[f"CC={compiler}"])
+            if lanes:
                 build_lanes(side, lanes, compiler)
-            else:
-                make_binaries(side.repo_root, binaries, make="make", capture=True,
-                              extra=[f"CC={compiler}"])
         except HarnessError as exc:
             raise HarnessError(f"{side.name}: revision {side.label} does not build: "
                                f"{exc}") from None

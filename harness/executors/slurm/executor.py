@@ -1,5 +1,5 @@
 """Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
-(harness.executors.worker) measures on its compute node exactly as a local run does and
+(`collide-bench worker`) measures on its compute node exactly as a local run does and
 writes the cell's record into the shared results directory. Validation therefore runs on the
 node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
 first task that needs it computes it (two tasks racing for it both compute it; os.replace
