@@ -46,19 +46,15 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     return [exp.path for exp in found]
 
 
-def store_facts(directories: list[Path]) -> int:
-    facts = VariantRegistry(REPO_ROOT).known.to_json()
-    for directory in directories:
-        index.write_variants(directory, facts)
-        sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
-    return 0
-
-
 def execute(args: argparse.Namespace) -> int:
     with_results = args.action == "facts"
     directories = [d for path in args.paths for d in experiment_dirs(path, with_results)]
     if args.action == "facts":
-        return store_facts(directories)
+        facts = VariantRegistry(REPO_ROOT).known.to_json()
+        for directory in directories:
+            index.write_variants(directory, facts)
+            sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
+        return 0
     for directory in directories:
         done = prune(directory)
         sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "

@@ -65,10 +65,6 @@ OnDone = Callable[[Unit, CellResult], None]
 Extend = Callable[[Sequence[Unit]], str]
 
 
-def new_seed() -> int:
-    return random.SystemRandom().randrange(2**32)
-
-
 def pair_up(units: Sequence[Unit]) -> None:
     """Partners stop together: one that found its interval narrow goes on while its partner
     needs runs; one that reached a limit stops its partner too."""
@@ -162,7 +158,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     extend(units timed) after each round. The rounds' order follows the seed (a fresh one
     where None); the seed."""
     if seed is None:
-        seed = new_seed()
+        seed = random.SystemRandom().randrange(2**32)
     active: list[Unit] = []
     for index, unit in enumerate(units):
         progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])

@@ -119,7 +119,6 @@ class SlurmExecutor:
     """
 
     spec: ExecutorSpec = field(default_factory=ExecutorSpec)
-    collect: bool = False
     name: str = "slurm"
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
@@ -129,7 +128,6 @@ class SlurmExecutor:
         options = experiment.options
         self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
             options.partition or experiment.config.executor.partition))
-        self.collect = options.collect
         slurm_dir = experiment.store.layout.slurm
         # portable id -> (cell, planned cell id)
         cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
@@ -144,7 +142,7 @@ class SlurmExecutor:
             tasks, ended = self.adopt(state, cells)
             # a timeout while nobody watched is recorded now; other faults are submitted again
             for pid, (task, final) in list(ended.items()):
-                if final in TIMEOUT_STATES or self.collect:
+                if final in TIMEOUT_STATES or options.collect:
                     cell, cid = cells.pop(pid)
                     self.record_fault(experiment, cell, cid, task, final, on_record)
             todo = [pid for pid in cells if pid not in tasks]
@@ -152,7 +150,7 @@ class SlurmExecutor:
                 log.write(f"slurm: {len(tasks)} cell(s) already in flight "
                           f"(job {', '.join(sorted({t.job_id for t in tasks.values()}))}); "
                           "not submitted again\n")
-            if todo and not self.collect:
+            if todo and not options.collect:
                 tasks.update(self.submit(experiment, state, cells, todo))
             elif todo:
                 log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "

@@ -36,11 +36,6 @@ def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str, note
         slurm_state=slurm_state, retry=retry or None)
 
 
-def is_fault(result: CellResult) -> bool:
-    """A record the submitter wrote for a task that ended without one (fault_record)."""
-    return result.provenance is not None and result.provenance.slurm_state is not None
-
-
 @dataclass
 class RecordWatch:
     """The records that appear in cells/ while we wait, by the portable id of their key (the
@@ -68,7 +63,9 @@ class RecordWatch:
             self.seen[name] = stamp
             path = self.cells_dir / name
             result = records.read_record(path, layout.cell_id_of(path))
-            if result is not None and not is_fault(result):
+            # not a record the submitter wrote for a task that ended without one (fault_record)
+            if result is not None and (result.provenance is None
+                                       or result.provenance.slurm_state is None):
                 found[result.key.portable_id] = result
         return found
 
