@@ -89,7 +89,6 @@ SHARED = ("--results-dir", "--no-wait", "--hyperfine", "--metric")  # run, compa
 
 
 def add_flags(parser: argparse.ArgumentParser, *also: str) -> None:
-    """The flags every measuring command takes (SHARED), and `also` of FLAGS, on `parser`."""
     for name in (*SHARED, *also):
         parser.add_argument(name, **FLAGS[name])
 

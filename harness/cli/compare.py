@@ -28,7 +28,8 @@ from harness.analysis.compare import (
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
 from harness.cli.common import Parser, add_flags, fraction, load_configs, measuring_lock, seconds
 from harness.errors import HarnessError
-from harness.measure import environment, machine
+from harness.executors.base import machine_id
+from harness.measure import environment
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
 from harness.runner.pair import BLOCKS, DEFAULT_BUDGET_S, calibrate, measure_sides
@@ -169,10 +170,10 @@ def _calibrate(args: argparse.Namespace, paths: list[str]) -> int:
         together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
                                      args.hyperfine)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
-    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-    result = calibration.calibrate(machine_id, " ".join(paths), (together.old, together.new),
+    here = machine_id()
+    result = calibration.calibrate(here, " ".join(paths), (together.old, together.new),
                                    blocks, args.threshold)
-    path = root.calibration(machine_id)
+    path = root.calibration(here)
     existing = records.read_json(path)
     atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
                                     **description,

@@ -33,7 +33,7 @@ from harness.cli.common import (
 )
 from harness.cli.run import report_dir
 from harness.errors import HarnessError
-from harness.measure import machine
+from harness.executors.base import machine_id
 from harness.repo import REPO_ROOT
 from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
@@ -41,7 +41,6 @@ from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
-from harness.store import records
 from harness.store.columns import MEASURED_BISECT
 from harness.store.commits import CommitInfo
 from harness.store.layout import ExperimentDir, ResultsRoot
@@ -97,12 +96,12 @@ def execute(args: argparse.Namespace) -> int:
     with lock:
         measure_history(commits, configs, results_root, sys.stderr, repo,
                         hyperfine=args.hyperfine, run_lock=lock)
-        machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+        here = machine_id()
         for config in configs:
             exp = ResultsRoot(results_root).experiment(config.name)
             metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
             series = [detect(s, args.max_p) for metric in metrics
-                      for s in read_series(exp, commits, metric, machine_id)]
+                      for s in read_series(exp, commits, metric, here)]
             if not series:
                 raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
             if args.bisect:  # what the series found is kept should bisection stop
@@ -203,7 +202,6 @@ def bisect(config: Config, s: Series, k: int, change: ChangePoint,
 
 
 def side_cell(side: Path, label: str) -> Cell:
-    """The cell `label` of one side of a pair measured together."""
     cells = {c.key.label(): c for c in read_cells(side, False)}
     if label not in cells:
         raise HarnessError(f"bisect: {side} has no cell {label}")

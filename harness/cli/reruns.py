@@ -16,10 +16,11 @@ from harness.cli.common import (
     whole_number,
 )
 from harness.errors import HarnessError
-from harness.measure import environment, machine
+from harness.executors.base import machine_id
+from harness.measure import environment
 from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_apart
-from harness.store import layout, records, sessions
+from harness.store import layout, sessions
 
 DEFAULT_TIMES = 5
 DEFAULT_PAUSE_S = 60.0
@@ -71,7 +72,7 @@ def execute(args: argparse.Namespace) -> int:
     found = analysis.analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")
-    here = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    here = machine_id()
     config = " ".join(str(p) for p in args.configs)
     for result in found:
         sys.stdout.write("\n".join(result.lines()) + "\n")

@@ -36,8 +36,6 @@ PAIRED_MAX_PER_ROUND = 5
 
 @dataclass(eq=False)
 class Unit:
-    """One cell measured by one measurer."""
-
     measurer: Measurer
     cell: Cell
     cell_id: str

@@ -1,10 +1,8 @@
 """Run one config's experiment: plan its cells, build the binaries, skip the cells already
 measured, hand the rest to an executor, rebuild results.csv as records arrive, summarise.
 
-A cell is one variant x build x scene point x thread count. A cell whose id (binary hash,
-input, seed, threads, settings) has a record is not measured again unless forced, so an
-interrupted grid resumes where it stopped. harness.plan plans and names the cells,
-harness.measure measures one, harness.executors decides who measures the pending ones.
+A cell whose id (binary hash, input, seed, threads, settings) has a record is not measured
+again unless forced, so an interrupted grid resumes where it stopped.
 """
 
 from __future__ import annotations

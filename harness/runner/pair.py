@@ -18,9 +18,9 @@ from typing import TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.executors.base import Progress, format_seconds
+from harness.executors.base import Progress, format_seconds, machine_id
 from harness.executors.rounds import Unit, measure_in_rounds
-from harness.measure import environment, machine
+from harness.measure import environment
 from harness.measure.cell import Measurer
 from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
@@ -34,7 +34,6 @@ from harness.runner.experiment import (
 from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
-from harness.store import records
 from harness.store.columns import (
     STOPPED_BUDGET,
     STOPPED_DECIDED,
@@ -168,13 +167,13 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
         build_plans(side, plans)
     require_hyperfine(hyperfine)
     work = out / WORK_DIR
-    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    here = machine_id()
     pairs: list[tuple[Unit, Unit]] = []
     stores: list[tuple[BuildSide, CellStore]] = []
     for plan in plans:
         measurers = []
         for side in (old, new):
-            store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], machine_id,
+            store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], here,
                               force=True, build_dir=side.build_dir)
             stores.append((side, store))
             measurers.append(Measurer(store, hyperfine))

@@ -176,8 +176,7 @@ class SlurmExecutor:
                 record = max(mine, key=lambda r: r.measured_at)
                 cell, cid = cells.pop(pid)
                 progress.starting(cid)
-                self.drop_fault(experiment, cid, record)
-                on_record(cell, cid, record)
+                self.accept(experiment, cell, cid, record, on_record)
 
     def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
               ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
@@ -265,14 +264,14 @@ class SlurmExecutor:
         return tasks
 
     @staticmethod
-    def drop_fault(experiment: Experiment, cid: str, result: CellResult) -> None:
-        """The retry record of a cell that a node has now measured under another id (its own
-        machine's) goes: results.csv shows the measurement only."""
-        if result.cell_id == cid:
-            return
-        old = experiment.store.read(cid)
+    def accept(experiment: Experiment, cell: Cell, cid: str, record: CellResult,
+               on_record: OnRecord) -> None:
+        """A node's record of the cell. Where the node measured it under another id (its own
+        machine's), the cell's retry record goes: results.csv shows the measurement only."""
+        old = experiment.store.read(cid) if record.cell_id != cid else None
         if old is not None and old.retry:
             experiment.store.record_path(cid).unlink(missing_ok=True)
+        on_record(cell, cid, record)
 
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
                      slurm_state: str, on_record: OnRecord) -> None:
@@ -326,8 +325,7 @@ class SlurmExecutor:
                     # progress lines' ETA follows the throughput
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
-                    self.drop_fault(experiment, cid, record)
-                    on_record(cell, cid, record)
+                    self.accept(experiment, cell, cid, record, on_record)
                 elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
                     running += 1
                 elif slurm_state in ACTIVE_STATES:
