@@ -36,10 +36,8 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     subdirectories that have."""
     if not path.is_dir():
         raise HarnessError(f"{path}: not a directory")
-    def wanted(exp: layout.ExperimentDir) -> bool:
-        return layout.has_cells(exp) or (with_results and layout.has_results(exp))
-
-    found, _ = layout.experiments_under(path, wanted)
+    found, _ = layout.experiments_under(path, lambda exp: layout.has_cells(exp) or (
+        with_results and layout.has_results(exp)))
     if not found:
         what = f"{layout.CELLS}/" + (f" or {layout.RESULTS_CSV}" if with_results else "")
         raise HarnessError(f"{path}: no experiment directory (one with {what}) in it")

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import cast
 
-from harness.cli.common import Parser
+from harness.cli.common import FLAGS, Parser
 from harness.errors import HarnessError
 from harness.executors.base import Experiment, Options, Progress
 from harness.executors.rounds import LocalExecutor
@@ -38,7 +38,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true", help="the cells of a --quick run")
     parser.add_argument("--repo-root", type=Path, default=REPO_ROOT,
                         help="repository whose build/ holds the binaries (default: this one)")
-    parser.add_argument("--hyperfine", default="hyperfine", help="hyperfine executable")
+    parser.add_argument("--hyperfine", **FLAGS["--hyperfine"])
     parser.add_argument("--round-seed", type=int, default=None,
                         help="seed of the rounds' order (default: a fresh one)")
     parser.add_argument("cell_ids", nargs="+", metavar="CELL_ID",

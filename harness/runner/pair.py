@@ -203,6 +203,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     return MeasuredSides(out / SIDE_DIRS["OLD"], out / SIDE_DIRS["NEW"], seed, rounds, budget_s,
                          max(0.0, time.monotonic() - until.started))
 
+
 def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine"
               ) -> tuple[MeasuredSides, list[Path]]:

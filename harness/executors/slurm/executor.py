@@ -53,7 +53,6 @@ from harness.executors.slurm.watch import (
     Job,
     JobState,
     RecordWatch,
-    fault_record,
 )
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
@@ -275,6 +274,9 @@ class SlurmExecutor:
 
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
                      slurm_state: str, on_record: OnRecord) -> None:
+        """The record of a cell whose task ended without one: the cell's identity, the status
+        and the reason (the columns a measurement would fill stay empty); a retry record's
+        cell the next run measures again."""
         if slurm_state in TIMEOUT_STATES:
             limit = self.spec.time_limit_min
             note = (f"slurm task {task.name} passed its time limit"
@@ -287,7 +289,9 @@ class SlurmExecutor:
             note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
                     "next run submits it again")
             status, retry = FAILED, True
-        record = fault_record(experiment, cell, cid, status, note, task.name, slurm_state, retry)
+        record = experiment.store.new_record(cell, cid).replace(
+            status=status, exit_code=None, note=note, executor="slurm", slurm_task=task.name,
+            slurm_state=slurm_state, retry=retry or None)
         experiment.store.save(record)
         on_record(cell, cid, record)
 
