@@ -67,12 +67,9 @@ def every_kth(commits: Sequence[CommitInfo], every: int) -> list[CommitInfo]:
 
 def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
     subject = git(["log", "-1", "--format=%s", sha], repo).stdout.strip()
-    parent = rev_parse(f"{sha}^", repo)
-    if parent is None:  # a root commit made all its files
-        touches = True
-    else:
-        diff = git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS], repo)
-        touches = diff.returncode == 1
+    parent = rev_parse(f"{sha}^", repo)  # None: a root commit, which made all its files
+    touches = parent is None or git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS],
+                                    repo).returncode == 1
     return CommitInfo(sha, subject, touches)
 
 
