@@ -67,7 +67,6 @@ class CsvRebuilds:
 
 @dataclass(frozen=True)
 class Summary:
-    name: str
     directory: Path
     cells: int
     measured: int
@@ -177,7 +176,7 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
     name = experiment.config.name
     statuses = Counter(str(experiment.records[cid].status) for _, cid in order
                        if cid in experiment.records)  # all of them, but after --collect
-    summary = Summary(name, experiment.directory, len(order), measured,
+    summary = Summary(experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
     experiment.log.write(f"{name}: {summary.cells} cells ({summary.measured} measured, "
@@ -264,4 +263,4 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
         names = " ".join(str(b.relative_to(experiment.options.repo_root)) for b in missing)
         out.write(f"  would build: {names}\n")
     out.writelines(lines)
-    return Summary(plan.config.name, experiment.directory, len(plan.cells), 0, cached, {})
+    return Summary(experiment.directory, len(plan.cells), 0, cached, {})
