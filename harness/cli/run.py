@@ -68,7 +68,7 @@ def execute(args: argparse.Namespace) -> int:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]
         if not (args.dry_run or args.no_report):
-            render_report(args, [s.directory.name for s in summaries])
+            render_report(options, report_dir(args), [s.directory.name for s in summaries])
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
     return 0
@@ -84,16 +84,15 @@ def report_dir(args: argparse.Namespace) -> Path:
     return args.results_dir / REPORT_SUBDIR
 
 
-def render_report(args: argparse.Namespace, names: list[str]) -> None:
-    """A full run renders every experiment under the results root into the report
-    directory; a --quick run renders only the quick experiments it just ran, into its
-    report-quick/."""
+def render_report(options: Options, report_dir: Path, names: list[str]) -> None:
+    """A full run renders every experiment under the results root into `report_dir`; a
+    --quick run renders only the quick experiments it just ran, into
+    `report_dir/report-quick`."""
     from harness.report.pipeline import render
 
-    root = args.results_dir.resolve()
-    if args.quick:
-        path = render(root, report_dir(args) / QUICK_REPORT, include_quick=True,
+    if options.quick:
+        path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
                       experiments=names)
     else:
-        path = render(root, report_dir(args))
+        path = render(options.results_root, report_dir)
     sys.stderr.write(f"report: {path}\n")
