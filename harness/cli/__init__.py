@@ -3,17 +3,19 @@ scripts harness/run.py and harness/compare.py for run and compare).
 
 Each command is a module here with `parser(prog)` and `execute(args) -> exit status`; main()
 parses, runs it, and prints any HarnessError as one `error: ...` line with exit status 2
-(real bugs keep their traceback).
+(real bugs keep their traceback). A measuring command also says, in INTERRUPTED (formatted with
+its arguments), what a Ctrl-C or SIGTERM keeps: it then ends with that line and status 130.
 """
 
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from harness.cli.common import EXIT_ERROR, PROG
+from harness.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, PROG
 from harness.errors import HarnessError
 
 COMMANDS: tuple[str, ...] = ("run", "compare", "reruns", "history", "report", "store",
@@ -45,8 +47,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_ERROR
     module = command(args[0])
     parsed = module.parser(f"{PROG} {args[0]}").parse_args(args[1:])
+    kept = getattr(module, "INTERRUPTED", None)
+    if kept is not None:
+        # SIGTERM (a kill, Slurm's time limit) ends it as Ctrl-C does: a KeyboardInterrupt, on
+        # which the running cell's processes are killed and the finished cells are kept.
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(module.execute(parsed))
     except HarnessError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_ERROR
+    except KeyboardInterrupt:
+        if kept is None:
+            raise
+        sys.stderr.write(f"interrupted: {kept.format(**vars(parsed))}\n")
+        return EXIT_INTERRUPTED
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt

@@ -1,19 +1,27 @@
 """What every command shares: its argument parser's way with errors and the checks of its
 numeric arguments, the flags of the measuring commands (each defined once, here), the program's
-name, how a measuring command ends when stopped."""
+name, how the measuring commands read their configs and take the measuring lock."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
-from harness.repo import DEFAULT_RESULTS_DIR
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, METRICS
+from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.spec.config import (
+    DEFAULT_MAX_CELLS,
+    METRIC_INSTRUCTIONS,
+    METRIC_TIME,
+    METRICS,
+    Config,
+    with_metric,
+)
+from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
 from harness.store.locks import RunLock
 
 T = TypeVar("T", int, float)
@@ -81,7 +89,6 @@ SHARED = ("--results-dir", "--no-wait", "--hyperfine", "--metric")  # run, compa
 
 
 def add_flags(parser: argparse.ArgumentParser, *also: str) -> None:
-    """The flags every measuring command takes (SHARED), and `also` of FLAGS, on `parser`."""
     for name in (*SHARED, *also):
         parser.add_argument(name, **FLAGS[name])
 
@@ -92,11 +99,8 @@ def measuring_lock(args: argparse.Namespace, words: Sequence[object]) -> RunLock
     return RunLock(" ".join(str(w) for w in words), wait=not args.no_wait, log=sys.stderr)
 
 
-def interrupt_on_sigterm() -> None:
-    """SIGTERM (a kill, Slurm's time limit) ends the command as Ctrl-C does: a KeyboardInterrupt,
-    on which the running cell's processes are killed and the finished cells are kept."""
-    signal.signal(signal.SIGTERM, _terminate)
-
-
-def _terminate(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
+def load_configs(paths: Sequence[str | Path], metric: str | None,
+                 max_cells: int = DEFAULT_MAX_CELLS) -> tuple[VariantRegistry, list[Config]]:
+    """This repository's variants, and the configs, each measured by `metric` where given."""
+    registry = VariantRegistry(REPO_ROOT)
+    return registry, [with_metric(load_config(p, registry, max_cells), metric) for p in paths]

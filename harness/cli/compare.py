@@ -8,7 +8,6 @@ import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
 
 from harness.analysis import calibration
 from harness.analysis.compare import (
@@ -27,17 +26,15 @@ from harness.analysis.compare import (
     find_drift,
 )
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import Parser, add_flags, fraction, measuring_lock, seconds
+from harness.cli.common import Parser, add_flags, fraction, load_configs, measuring_lock, seconds
 from harness.errors import HarnessError
-from harness.measure import environment, machine
+from harness.executors.base import machine_id
+from harness.measure import environment
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.report.compare import write_outputs
-from harness.runner import calibrate as calibrate_runs
-from harness.runner.pair import DEFAULT_BUDGET_S, measure_sides
+from harness.runner.pair import BLOCKS, DEFAULT_BUDGET_S, calibrate, measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME, with_metric
-from harness.spec.parse import load_config
-from harness.spec.variants import VariantRegistry
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.store import atomic, layout, records
 
 DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
@@ -64,7 +61,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                       "such as build)")
     mode.add_argument("--calibrate", action="store_true",
                       help="measure this checkout's binaries as two sides together and "
-                      f"{calibrate_runs.BLOCKS} times apart: the false-verdict rate, the drift "
+                      f"{BLOCKS} times apart: the false-verdict rate, the drift "
                       "between runs and the smallest slow-down found; kept in "
                       f"<results>/{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
                       f"{layout.RECORD_SUFFIX}")
@@ -91,26 +88,25 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace, stdout: TextIO | None = None) -> int:
-    out_stream = stdout or sys.stdout
+def execute(args: argparse.Namespace) -> int:
     paths = [str(p) for p in args.paths]
     out = args.out if args.out is not None else DEFAULT_OUT
     if args.calibrate:
         if not paths:
             raise HarnessError(f"--calibrate needs configs ({USAGE})")
-        return _calibrate(args, paths, out_stream)
+        return _calibrate(args, paths)
     if args.measure:
         if len(paths) < 3:
             raise HarnessError(f"--measure needs OLD, NEW and at least one config ({USAGE})")
-        return _measure(args, paths, out, out_stream)
+        return _measure(args, paths, out)
     if len(paths) != 2:
         raise HarnessError(f"expected OLD and NEW result directories ({USAGE})")
     old_path, new_path = (Path(p) for p in paths)
     old, new = sides(old_path, new_path, args.old_machine, args.new_machine)
-    drift = allow_noise(find_drift((c.machine_id for s in (old, new) for c in s.cells.values()),
-                                   (*roots_of(old_path), *roots_of(new_path), args.results_dir)),
-                        old, new)
-    return report(old, new, args, out, drift, (), out_stream)
+    # the results roots a result directory may sit in: itself and its parent
+    roots = (old_path, old_path.parent, new_path, new_path.parent, args.results_dir)
+    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots)
+    return report(old, new, args, out, allow_noise(drift, old, new), ())
 
 
 def sides(old_path: Path, new_path: Path, old_machine: str | None,
@@ -125,13 +121,8 @@ def sides(old_path: Path, new_path: Path, old_machine: str | None,
     return old, new
 
 
-def roots_of(path: Path) -> list[Path]:
-    """The results roots a result directory may sit in: itself and its parent."""
-    return [path, path.parent]
-
-
 def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Drift,
-           head: Sequence[str], out_stream: TextIO) -> int:
+           head: Sequence[str]) -> int:
     """The comparison by --metric, written and printed; its exit status."""
     metric = METRICS[args.metric or METRIC_TIME]
     rows = compare(old, new, args.threshold, drift, metric)
@@ -143,29 +134,23 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
                            f"{len(new.cells)} cells)")
     text, written = write_outputs(old, new, rows, args.threshold, out, drift,
                                   figure=not args.no_figure, head=head, metric=metric)
-    out_stream.write(text + "\n")
-    out_stream.write("wrote " + ", ".join(str(p) for p in written) + "\n")
+    sys.stdout.write(text + "\nwrote " + ", ".join(str(p) for p in written) + "\n")
     return exit_status(rows, args.fail_on, metric)
 
 
-def _measure_budget(args: argparse.Namespace) -> float:
-    """The time lane's budget: an instruction count decides its cell exactly, so with that
-    metric the times get only the first look's rounds unless a budget is asked for."""
-    if args.budget is not None:
-        return args.budget
-    return 0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S
-
-
-def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: TextIO) -> int:
-    registry = VariantRegistry(REPO_ROOT)
-    configs = [with_metric(load_config(p, registry), args.metric) for p in paths[2:]]
+def _measure(args: argparse.Namespace, paths: list[str], out: Path) -> int:
+    registry, configs = load_configs(paths[2:], args.metric)
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
+    # The time lane's budget: an instruction count decides its cell exactly, so with that
+    # metric the times get only the first look's rounds unless a budget is asked for.
+    budget_s = args.budget if args.budget is not None else (
+        0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S)
     lock = measuring_lock(args, paths)
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
                                  args.hyperfine, threshold=args.threshold, q=FDR_Q,
-                                 budget_s=_measure_budget(args))
+                                 budget_s=budget_s)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
@@ -174,27 +159,24 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, out_stream: 
             f"shuffled from seed {measured.seed}), rounds added to undecided cells for "
             f"{measured.spent_s:.0f} s of a {measured.budget_s:g} s budget; the sides' results: "
             f"{measured.old}, {measured.new}."]
-    return report(old, new, args, out, MEASURED_TOGETHER, head, out_stream)
+    return report(old, new, args, out, MEASURED_TOGETHER, head)
 
 
-def _calibrate(args: argparse.Namespace, paths: list[str],
-               out_stream: TextIO) -> int:
-    registry = VariantRegistry(REPO_ROOT)
-    configs = [load_config(p, registry) for p in paths]
+def _calibrate(args: argparse.Namespace, paths: list[str]) -> int:
+    registry, configs = load_configs(paths, None)
     lock = measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
-        measured = calibrate_runs.measure(configs, root.calibration_runs, registry, lock,
-                                          sys.stderr, args.hyperfine)
+        together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
+                                     args.hyperfine)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
-    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-    result = calibration.calibrate(machine_id, " ".join(paths),
-                                   (measured.together.old, measured.together.new),
-                                   measured.blocks, args.threshold)
-    path = root.calibration(machine_id)
+    here = machine_id()
+    result = calibration.calibrate(here, " ".join(paths), (together.old, together.new),
+                                   blocks, args.threshold)
+    path = root.calibration(here)
     existing = records.read_json(path)
     atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
                                     **description,
                                     CALIBRATION_KEY: dataclasses.asdict(result)})
-    out_stream.write("\n".join(result.lines()) + f"\nkept in {path}\n")
+    sys.stdout.write("\n".join(result.lines()) + f"\nkept in {path}\n")
     return 0

@@ -7,10 +7,9 @@ import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TextIO
 
 from harness.analysis.changepoints import DEFAULT_MAX_P, ChangePoint
-from harness.analysis.compare import INSTRUCTIONS, TIME, Metric
+from harness.analysis.compare import INSTRUCTIONS, TIME
 from harness.analysis.history import (
     Bisection,
     Series,
@@ -25,32 +24,30 @@ from harness.analysis.history import (
 )
 from harness.analysis.resultsets import Cell, read_cells
 from harness.cli.common import (
-    EXIT_INTERRUPTED,
     Parser,
     add_flags,
-    interrupt_on_sigterm,
+    load_configs,
     measuring_lock,
     probability,
     whole_number,
 )
 from harness.cli.run import report_dir
 from harness.errors import HarnessError
-from harness.measure import machine
+from harness.executors.base import machine_id
 from harness.repo import REPO_ROOT
 from harness.report.history import page
 from harness.runner.history import commits_in, every_kth, measure_history
 from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
-from harness.spec.config import Config, with_metric
-from harness.spec.parse import load_config
+from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
-from harness.store import records
 from harness.store.columns import MEASURED_BISECT
 from harness.store.commits import CommitInfo
-from harness.store.layout import ResultsRoot
+from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.locks import RunLock
 
 CONFIG_SUFFIXES = (".yaml", ".yml")
+INTERRUPTED = "measured commits are saved; run again to resume"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -87,53 +84,37 @@ def split_items(items: Sequence[str]) -> tuple[list[str], list[Path]]:
     return revisions, configs
 
 
-def execute(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    out = out or sys.stdout
-    interrupt_on_sigterm()
+def execute(args: argparse.Namespace) -> int:
     revisions, paths = split_items(args.items)
-    registry = VariantRegistry(REPO_ROOT)
-    configs = [with_metric(load_config(p, registry), args.metric) for p in paths]
+    _, configs = load_configs(paths, args.metric)
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = every_kth(full, args.every)
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = measuring_lock(args, args.items)
-    try:
-        with lock:
-            measure_history(commits, configs, results_root, sys.stderr, repo,
-                            hyperfine=args.hyperfine, run_lock=lock)
-            machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-            for config in configs:
-                metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
-                series = analyse(config, commits, metrics, machine_id, results_root,
-                                 args.max_p)
-                if args.bisect:  # what the series found is kept should bisection stop
-                    publish(config, series, order, results_root, args)
-                    bisect_all(config, series, full, results_root, repo, lock, args, out)
-                summarise(config, series, order, len(commits), results_root, args, out)
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted: measured commits are saved; run again to resume\n")
-        return EXIT_INTERRUPTED
+    with lock:
+        measure_history(commits, configs, results_root, sys.stderr, repo,
+                        hyperfine=args.hyperfine, run_lock=lock)
+        here = machine_id()
+        for config in configs:
+            exp = ResultsRoot(results_root).experiment(config.name)
+            metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
+            series = [detect(s, args.max_p) for metric in metrics
+                      for s in read_series(exp, commits, metric, here)]
+            if not series:
+                raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
+            if args.bisect:  # what the series found is kept should bisection stop
+                publish(config, exp, series, order, args)
+                bisect_all(config, series, full, order, results_root, repo, lock, args.hyperfine)
+            summarise(config, exp, series, order, len(commits), args)
     return 0
 
 
-def analyse(config: Config, commits: Sequence[CommitInfo], metrics: Sequence[Metric],
-            machine_id: str, results_root: Path, max_p: float) -> list[Series]:
-    """Every cell's series of every metric, with its change points."""
-    exp = ResultsRoot(results_root).experiment(config.name)
-    series = [detect(s, max_p) for metric in metrics
-              for s in read_series(exp, commits, metric, machine_id)]
-    if not series:
-        raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
-    return series
-
-
-def publish(config: Config, series: Sequence[Series], order: Mapping[str, int],
-            results_root: Path, args: argparse.Namespace) -> tuple[Path, list[Series]]:
+def publish(config: Config, exp: ExperimentDir, series: Sequence[Series],
+            order: Mapping[str, int], args: argparse.Namespace) -> tuple[Path, list[Series]]:
     """history.csv and the history page of the series, with what bisection measured in its
     place; the page's path and the series as written."""
-    exp = ResultsRoot(results_root).experiment(config.name)
     written = [with_bisections(s, order) for s in series]
     write_history_csv(exp, history_rows(config.name, written, order))
     command = "collide-bench history " + " ".join(args.items) + (
@@ -143,41 +124,39 @@ def publish(config: Config, series: Sequence[Series], order: Mapping[str, int],
     return page(config.name, written, report_dir(args), command), written
 
 
-def summarise(config: Config, series: Sequence[Series], order: Mapping[str, int],
-              commits: int, results_root: Path, args: argparse.Namespace, out: TextIO
-              ) -> None:
+def summarise(config: Config, exp: ExperimentDir, series: Sequence[Series],
+              order: Mapping[str, int], commits: int, args: argparse.Namespace) -> None:
     """Publish the series and print their change points and where they went."""
-    path, written = publish(config, series, order, results_root, args)
+    path, written = publish(config, exp, series, order, args)
     for s in written:
         for commit, change in named_commits(s):
-            out.write(f"{config.name}: {s.label} ({s.metric.name}): change at {commit.short} "
-                      f"{commit.subject!r}: {step_text(change.ratio)}, p {change.p:.3g}\n")
+            sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): change at "
+                             f"{commit.short} {commit.subject!r}: {step_text(change.ratio)}, "
+                             f"p {change.p:.3g}\n")
     found = sum(len(s.changes) for s in written)
     cells = len({s.label for s in written})
-    exp = ResultsRoot(results_root).experiment(config.name)
-    out.write(f"{config.name}: {cells} cells over {commits} commits, {found} change "
-              f"point(s); {exp.history_csv}; {path}\n")
+    sys.stdout.write(f"{config.name}: {cells} cells over {commits} commits, {found} change "
+                     f"point(s); {exp.history_csv}; {path}\n")
 
 
 def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
-               results_root: Path, repo: Path, lock: RunLock, args: argparse.Namespace,
-               out: TextIO) -> None:
+               order: Mapping[str, int], results_root: Path, repo: Path, lock: RunLock,
+               hyperfine: str) -> None:
     """Name the commit of each change point that falls between measured commits with
     unmeasured ones between them (each series' bisections)."""
-    position = {c.sha: k for k, c in enumerate(full)}
     pairs: dict[tuple[int, int], MeasuredSides] = {}  # what a metric's bisection measured
     for s in series:
         measured = [k for k, p in enumerate(s.points) if p.value is not None]
         for k, change in sorted(s.changes.items()):
             before = max(m for m in measured if m < k)
-            low, high = position[s.points[before].commit.sha], position[s.points[k].commit.sha]
+            low, high = order[s.points[before].commit.sha], order[s.points[k].commit.sha]
             if high - low <= 1:
                 continue
             found = bisect(config, s, k, change, full, low, high, results_root, repo, lock,
-                           args.hyperfine, pairs)
+                           hyperfine, pairs)
             s.bisections.append(found)
-            out.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
-                      f"{found.named.short} {found.named.subject!r}\n")
+            sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
+                             f"{found.named.short} {found.named.subject!r}\n")
 
 
 def bisect(config: Config, s: Series, k: int, change: ChangePoint,
@@ -223,7 +202,6 @@ def bisect(config: Config, s: Series, k: int, change: ChangePoint,
 
 
 def side_cell(side: Path, label: str) -> Cell:
-    """The cell `label` of one side of a pair measured together."""
     cells = {c.key.label(): c for c in read_cells(side, False)}
     if label not in cells:
         raise HarnessError(f"bisect: {side} has no cell {label}")

@@ -8,25 +8,24 @@ from pathlib import Path
 
 from harness.analysis import reruns as analysis
 from harness.cli.common import (
-    EXIT_INTERRUPTED,
     Parser,
     add_flags,
-    interrupt_on_sigterm,
+    load_configs,
     measuring_lock,
     seconds,
     whole_number,
 )
 from harness.errors import HarnessError
-from harness.measure import environment, machine
+from harness.executors.base import machine_id
+from harness.measure import environment
 from harness.repo import REPO_ROOT
-from harness.runner import reruns as runner
-from harness.spec.config import with_metric
-from harness.spec.parse import load_config
-from harness.spec.variants import VariantRegistry
-from harness.store import layout, records, sessions
+from harness.runner.experiment import run_apart
+from harness.store import layout, sessions
 
 DEFAULT_TIMES = 5
 DEFAULT_PAUSE_S = 60.0
+RERUN_PREFIX = "rerun-"
+INTERRUPTED = "the reruns so far are under {out}; measure them again (a rerun starts afresh)"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -58,30 +57,22 @@ def parser(prog: str) -> argparse.ArgumentParser:
 def execute(args: argparse.Namespace) -> int:
     if args.times < 2:
         raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
-    out = args.out if args.out is not None else args.results_dir / layout.RERUNS_DIR
-    roots = runner.rerun_roots(out, args.times)
+    out = args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
+    roots = [out / f"{RERUN_PREFIX}{k}" for k in range(1, args.times + 1)]
     if args.reuse:
         missing = [r for r in roots if not r.is_dir()]
         if missing:
             raise HarnessError(f"--reuse: no rerun in {missing[0]} (measure them first)")
     else:
-        registry = VariantRegistry(REPO_ROOT)
-        configs = [with_metric(load_config(p, registry), args.metric) for p in args.configs]
-        interrupt_on_sigterm()
+        registry, configs = load_configs(args.configs, args.metric)
         lock = measuring_lock(args, ["reruns", *args.configs])
-        try:
-            with lock:
-                runner.measure(configs, out, args.times, args.pause, registry, lock,
-                               sys.stderr, args.hyperfine, quick=args.quick,
-                               spread_root=args.results_dir)
-        except KeyboardInterrupt:
-            sys.stderr.write(f"interrupted: the reruns so far are under {out}; measure them "
-                             "again (a rerun starts afresh)\n")
-            return EXIT_INTERRUPTED
+        with lock:  # with --results-dir's session spreads: intervals out of sample
+            run_apart(configs, roots, registry, lock, sys.stderr, args.hyperfine, args.quick,
+                      args.pause, spreads_of=args.results_dir)
     found = analysis.analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")
-    here = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
+    here = machine_id()
     config = " ".join(str(p) for p in args.configs)
     for result in found:
         sys.stdout.write("\n".join(result.lines()) + "\n")

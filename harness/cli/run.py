@@ -5,15 +5,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 from harness.cli.common import (
-    EXIT_INTERRUPTED,
     QUICK_REPORT,
     Parser,
     add_flags,
-    interrupt_on_sigterm,
+    load_configs,
     measuring_lock,
     whole_number,
 )
@@ -22,11 +20,10 @@ from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.experiment import run_experiment
-from harness.spec.config import DEFAULT_MAX_CELLS, with_metric
-from harness.spec.parse import load_config
-from harness.spec.variants import VariantRegistry
+from harness.spec.config import DEFAULT_MAX_CELLS
 
 REPORT_SUBDIR = "report"  # a results root's own report, beside its experiments
+INTERRUPTED = "finished cells are saved; run again to resume"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -55,16 +52,13 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 
 def execute(args: argparse.Namespace) -> int:
-    interrupt_on_sigterm()
     run_lock = measuring_lock(args, args.configs)
     options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
                       partition=args.partition, run_lock=run_lock)
-    registry = VariantRegistry(REPO_ROOT)
     try:
-        configs = [with_metric(load_config(path, registry, args.max_cells), args.metric)
-                   for path in args.configs]
+        registry, configs = load_configs(args.configs, args.metric, args.max_cells)
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
         if args.metric is not None and remote:
             # a remote worker reads the config file, not this command line
@@ -77,10 +71,6 @@ def execute(args: argparse.Namespace) -> int:
             render_report(options, report_dir(args), [s.directory.name for s in summaries])
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
-        return 0
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted: finished cells are saved; run again to resume\n")
-        return EXIT_INTERRUPTED
     return 0
 
 
@@ -94,7 +84,7 @@ def report_dir(args: argparse.Namespace) -> Path:
     return args.results_dir / REPORT_SUBDIR
 
 
-def render_report(options: Options, report_dir: Path, names: Sequence[str]) -> None:
+def render_report(options: Options, report_dir: Path, names: list[str]) -> None:
     """A full run renders every experiment under the results root into `report_dir`; a
     --quick run renders only the quick experiments it just ran, into
     `report_dir/report-quick`."""
@@ -102,7 +92,7 @@ def render_report(options: Options, report_dir: Path, names: Sequence[str]) -> N
 
     if options.quick:
         path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
-                      experiments=list(names))
+                      experiments=names)
     else:
         path = render(options.results_root, report_dir)
     sys.stderr.write(f"report: {path}\n")

@@ -36,29 +36,23 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     subdirectories that have."""
     if not path.is_dir():
         raise HarnessError(f"{path}: not a directory")
-    def wanted(exp: layout.ExperimentDir) -> bool:
-        return layout.has_cells(exp) or (with_results and layout.has_results(exp))
-
-    found, _ = layout.experiments_under(path, wanted)
+    found, _ = layout.experiments_under(path, lambda exp: layout.has_cells(exp) or (
+        with_results and layout.has_results(exp)))
     if not found:
         what = f"{layout.CELLS}/" + (f" or {layout.RESULTS_CSV}" if with_results else "")
         raise HarnessError(f"{path}: no experiment directory (one with {what}) in it")
     return [exp.path for exp in found]
 
 
-def store_facts(directories: list[Path]) -> int:
-    facts = VariantRegistry(REPO_ROOT).known.to_json()
-    for directory in directories:
-        index.write_variants(directory, facts)
-        sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
-    return 0
-
-
 def execute(args: argparse.Namespace) -> int:
     with_results = args.action == "facts"
     directories = [d for path in args.paths for d in experiment_dirs(path, with_results)]
     if args.action == "facts":
-        return store_facts(directories)
+        facts = VariantRegistry(REPO_ROOT).known.to_json()
+        for directory in directories:
+            index.write_variants(directory, facts)
+            sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
+        return 0
     for directory in directories:
         done = prune(directory)
         sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "

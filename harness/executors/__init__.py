@@ -1,6 +1,7 @@
 """Who measures the pending cells, and where: the executor interface (base), the local
-executor, Slurm (slurm) and the worker a remote task runs. A new executor is one module with
-a class that has `name` and `run` (base.Executor), registered in EXECUTORS below."""
+executor (rounds) and Slurm (slurm, whose tasks run `collide-bench worker`). A new executor is
+one module with a class that has `name` and `run` (base.Executor), registered in EXECUTORS
+below."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from collections.abc import Callable
 
 from harness.errors import HarnessError
 from harness.executors.base import Executor
-from harness.executors.local import LocalExecutor
+from harness.executors.rounds import LocalExecutor
 from harness.executors.slurm.executor import SlurmExecutor
 
 EXECUTORS: dict[str, Callable[[], Executor]] = {"local": LocalExecutor, "slurm": SlurmExecutor}

@@ -5,7 +5,7 @@ to an executor. The executor measures each pending cell somewhere, makes sure it
 disk (CellStore.record_path: the measuring side writes it, Measurer.finish), and
 calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
 the record and rebuilds results.csv from all records. Nothing on the recording side assumes
-the measurement ran in this process. The executors are harness.executors.EXECUTORS.
+the measurement ran in this process.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from typing import Protocol, TextIO
 from harness.measure import machine
 from harness.plan.cells import Cell, Plan
 from harness.plan.cellstore import CellStore
+from harness.repo import REPO_ROOT
 from harness.spec.config import Config
 from harness.store import locks, records
 from harness.store.result import CellResult
@@ -28,8 +29,6 @@ OnRecord = Callable[[Cell, str, CellResult], None]
 
 @dataclass(frozen=True)
 class Options:
-    """How a run measures: where, with which tools, and what it may reuse."""
-
     repo_root: Path
     results_root: Path
     quick: bool = False
@@ -58,10 +57,9 @@ class Experiment:
     store: CellStore = field(init=False)
 
     def __post_init__(self) -> None:
-        machine_id = str(machine.machine(self.options.repo_root, self.options.make)
-                         [records.MACHINE_KEY])
         self.store = CellStore(self.plan, self.options.repo_root, self.options.results_root,
-                               machine_id, self.options.force)
+                               machine_id(self.options.repo_root, self.options.make),
+                               self.options.force)
 
     @property
     def config(self) -> Config:
@@ -70,6 +68,10 @@ class Experiment:
     @property
     def directory(self) -> Path:
         return self.store.directory
+
+
+def machine_id(repo_root: Path = REPO_ROOT, make: str = "make") -> str:
+    return str(machine.machine(repo_root, make)[records.MACHINE_KEY])
 
 
 def format_seconds(seconds: float) -> str:

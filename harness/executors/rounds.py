@@ -1,4 +1,4 @@
-"""Measuring many cells in alternating rounds, in this process.
+"""Measuring many cells in alternating rounds, in this process (the local executor).
 
 First every cell's untimed runs (its --precise run, validation, checks: Measurer.start), then
 rounds: in each, every cell that still needs runs gets one hyperfine call, in an order shuffled
@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from harness.executors.base import Progress
+from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
 from harness.measure.rounds import CellRun, runs_left
 from harness.plan.cells import Cell
@@ -36,8 +36,6 @@ PAIRED_MAX_PER_ROUND = 5
 
 @dataclass(eq=False)
 class Unit:
-    """One cell measured by one measurer."""
-
     measurer: Measurer
     cell: Cell
     cell_id: str
@@ -63,10 +61,6 @@ OnDone = Callable[[Unit, CellResult], None]
 # units or give them more rounds (rounds until decided, harness.runner.pair); what it returns
 # ends the round's progress line.
 Extend = Callable[[Sequence[Unit]], str]
-
-
-def new_seed() -> int:
-    return random.SystemRandom().randrange(2**32)
 
 
 def pair_up(units: Sequence[Unit]) -> None:
@@ -162,7 +156,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     extend(units timed) after each round. The rounds' order follows the seed (a fresh one
     where None); the seed."""
     if seed is None:
-        seed = new_seed()
+        seed = random.SystemRandom().randrange(2**32)
     active: list[Unit] = []
     for index, unit in enumerate(units):
         progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
@@ -230,3 +224,14 @@ def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
         guess = statistics.fmean(per_run) * len(to_start)
         low, high = low + guess, high + guess
     return low, high
+
+
+class LocalExecutor:
+    name = "local"
+
+    def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
+            on_record: OnRecord, progress: Progress) -> None:
+        measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
+        units = [Unit(measurer, cell, cid) for cell, cid in pending]
+        measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
+                          progress, experiment.options.round_seed)

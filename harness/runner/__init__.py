@@ -1,2 +1,2 @@
-"""Running experiments: one config at a time (experiment.run_experiment), planned, built,
-resumed from cached records, measured by an executor, summarised."""
+"""Running measurements: one config's experiment (experiment), two sides measured together
+(pair, with the sides' builds in sides), and every commit of a range (history)."""

@@ -1,10 +1,8 @@
 """Run one config's experiment: plan its cells, build the binaries, skip the cells already
 measured, hand the rest to an executor, rebuild results.csv as records arrive, summarise.
 
-A cell is one variant x build x scene point x thread count. A cell whose id (binary hash,
-input, seed, threads, settings) has a record is not measured again unless forced, so an
-interrupted grid resumes where it stopped. harness.plan plans and names the cells,
-harness.measure measures one, harness.executors decides who measures the pending ones.
+A cell whose id (binary hash, input, seed, threads, settings) has a record is not measured
+again unless forced, so an interrupted grid resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -69,7 +67,6 @@ class CsvRebuilds:
 
 @dataclass(frozen=True)
 class Summary:
-    name: str
     directory: Path
     cells: int
     measured: int
@@ -130,20 +127,26 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     return summarise(experiment, order, len(measured), len(missing))
 
 
-def run_afresh(configs: Sequence[Config], root: Path, registry: VariantRegistry,
-               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
-               quick: bool = False, spreads_of: Path | None = None) -> None:
-    """Every config measured afresh into the results root `root`, emptied first (as `run
-    --force --results-dir ROOT`); with the machines' calibrations of the root `spreads_of`
-    copied in first, its intervals are those that root's session spreads give."""
-    shutil.rmtree(root, ignore_errors=True)
+def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,
+              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+              quick: bool = False, pause_s: float = 0.0, spreads_of: Path | None = None) -> None:
+    """Every config measured afresh into each results root in turn, `pause_s` apart, each root
+    emptied first (as `run --force --results-dir ROOT`); with the machines' calibrations of the
+    root `spreads_of` copied in first, its intervals are those that root's session spreads
+    give."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
-    if kept is not None and kept.is_dir():
-        shutil.copytree(kept, ResultsRoot(root).calibrations)
-    options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
-                      hyperfine=hyperfine, run_lock=run_lock)
-    for config in configs:
-        run_experiment(config, options, log, log, registry)
+    for k, root in enumerate(roots, start=1):
+        if k > 1 and pause_s > 0:
+            log.write(f"pausing {pause_s:g} s before run {k}\n")
+            time.sleep(pause_s)
+        log.write(f"run {k} of {len(roots)}, measured apart, into {root}\n")
+        shutil.rmtree(root, ignore_errors=True)
+        if kept is not None and kept.is_dir():
+            shutil.copytree(kept, ResultsRoot(root).calibrations)
+        options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
+                          hyperfine=hyperfine, run_lock=run_lock)
+        for config in configs:
+            run_experiment(config, options, log, log, registry)
 
 
 def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool
@@ -157,7 +160,7 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
     if pending and here and options.run_lock is not None and not options.run_lock.held:
         options.run_lock.acquire()  # may wait for another run; the load is sampled after
         pending = not_cached(experiment, pending)  # that run may have measured some of them
-    # A remote executor's workers write the env of their machines (harness.worker).
+    # A remote executor's workers write the env of their machines (collide-bench worker).
     if pending and here:
         env = environment.collect(options.repo_root, options.make, options.hyperfine)
         index.write_env(experiment.directory, env)
@@ -173,7 +176,7 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
     name = experiment.config.name
     statuses = Counter(str(experiment.records[cid].status) for _, cid in order
                        if cid in experiment.records)  # all of them, but after --collect
-    summary = Summary(name, experiment.directory, len(order), measured,
+    summary = Summary(experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
     experiment.log.write(f"{name}: {summary.cells} cells ({summary.measured} measured, "
@@ -260,4 +263,4 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
         names = " ".join(str(b.relative_to(experiment.options.repo_root)) for b in missing)
         out.write(f"  would build: {names}\n")
     out.writelines(lines)
-    return Summary(plan.config.name, experiment.directory, len(plan.cells), 0, cached, {})
+    return Summary(experiment.directory, len(plan.cells), 0, cached, {})

@@ -10,20 +10,18 @@ from __future__ import annotations
 
 import dataclasses
 import io
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.executors.base import Options
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import with_min_rounds
-from harness.runner.sides import CODE_PATHS, BuildSide, build, git, resolve, rev_parse
+from harness.runner.sides import CODE_PATHS, BuildSide, build_plans, git, resolve, rev_parse
 from harness.spec.config import Config
-from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
 from harness.store.commits import CommitInfo, save_commits
@@ -33,11 +31,6 @@ from harness.store.locks import RunLock
 # A commit's cell gets at least this many runs: the per-commit median the change-point test
 # reads then holds a 5% step at 5% run noise (docs/history.md).
 HISTORY_MIN_RUNS = 10
-
-# How one commit's config is measured: the ordinary run by default; the instruction lane
-# passes its own. Arguments: the config, the run's options, the commit's variant registry, the
-# progress log.
-MeasureCommit = Callable[[Config, Options, VariantRegistry, TextIO], None]
 
 
 def commits_in(revisions: Sequence[str], repo: Path = REPO_ROOT) -> list[CommitInfo]:
@@ -74,29 +67,21 @@ def every_kth(commits: Sequence[CommitInfo], every: int) -> list[CommitInfo]:
 
 def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
     subject = git(["log", "-1", "--format=%s", sha], repo).stdout.strip()
-    parent = rev_parse(f"{sha}^", repo)
-    if parent is None:  # a root commit made all its files
-        touches = True
-    else:
-        diff = git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS], repo)
-        touches = diff.returncode == 1
+    parent = rev_parse(f"{sha}^", repo)  # None: a root commit, which made all its files
+    touches = parent is None or git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS],
+                                    repo).returncode == 1
     return CommitInfo(sha, subject, touches)
 
 
-def run_config(config: Config, options: Options, registry: VariantRegistry,
-               log: TextIO) -> None:
-    """The ordinary run of one config (its summary goes to the log, not stdout)."""
-    run_experiment(config, options, log, io.StringIO(), registry)
-
-
 def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
-                   measure: MeasureCommit, hyperfine: str, run_lock: RunLock | None) -> str:
-    """Build and measure one commit's cells of a config; 'built' or why not."""
+                   hyperfine: str, run_lock: RunLock | None) -> None:
+    """Build and measure one commit's cells of a config (the ordinary run: its summary goes to
+    the log, not stdout)."""
     exp = ResultsRoot(results_root).experiment(config.name)
     assert side.commit is not None, "a history measures revisions"
     failed = exp.build_failed(side.commit)
-    if failed.is_file():
-        return "did not build (recorded)"
+    if failed.is_file():  # did not build (recorded)
+        return
     registry = VariantRegistry(side.repo_root)
     config = with_min_rounds(config, HISTORY_MIN_RUNS)
     absent = [v for v in config.variants if config.is_built(v) and v not in registry]
@@ -106,26 +91,20 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         config = dataclasses.replace(
             config, variants=tuple(v for v in config.variants if v not in absent))
     try:  # planning asks the binaries what they are (--describe): it builds them too
-        plan = plan_cells(config, False, registry)
-        binaries = needed_binaries(plan, side.build_dir)
-        variants = [c.variant for c in plan.cells if config.is_built(c.variant)]
-        build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
-        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
+        build_plans(side, [plan_cells(config, False, registry)])
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
-                                          "error": str(exc)})
+                                   "error": str(exc)})
         log.write(f"{side.commit[:10]}: does not build: recorded, skipped ({exc})\n")
-        return "did not build"
+        return
     options = Options(repo_root=side.repo_root, results_root=exp.commit_root(side.commit),
                       hyperfine=hyperfine, executor="local", run_lock=run_lock)
-    measure(config, options, registry, log)
-    return "measured"
+    run_experiment(config, options, log, io.StringIO(), registry)
 
 
 def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
                     results_root: Path, log: TextIO, repo: Path = REPO_ROOT,
-                    measure: MeasureCommit = run_config, hyperfine: str = "hyperfine",
-                    run_lock: RunLock | None = None) -> None:
+                    hyperfine: str = "hyperfine", run_lock: RunLock | None = None) -> None:
     """Every commit's cells of every config, oldest first, each commit built once."""
     root = ResultsRoot(results_root)
     for config in configs:
@@ -134,4 +113,4 @@ def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
         log.write(f"history: [{k}/{len(commits)}] {commit.short} {commit.subject}\n")
         side = resolve(commit.short, commit.sha, results_root, repo)
         for config in configs:
-            measure_commit(side, config, results_root, log, measure, hyperfine, run_lock)
+            measure_commit(side, config, results_root, log, hyperfine, run_lock)

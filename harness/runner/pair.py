@@ -18,20 +18,22 @@ from typing import TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.executors.base import Progress, format_seconds
+from harness.executors.base import Progress, format_seconds, machine_id
 from harness.executors.rounds import Unit, measure_in_rounds
-from harness.measure import environment, machine
+from harness.measure import environment
 from harness.measure.cell import Measurer
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
-from harness.repo import REPO_ROOT
-from harness.runner.experiment import built_cell_id, require_hyperfine, write_env_after
-from harness.runner.sides import BuildSide, build
+from harness.repo import BUILD_DIR, REPO_ROOT
+from harness.runner.experiment import (
+    built_cell_id,
+    require_hyperfine,
+    run_apart,
+    write_env_after,
+)
+from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
-from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
-from harness.store import records
 from harness.store.columns import (
     STOPPED_BUDGET,
     STOPPED_DECIDED,
@@ -47,6 +49,7 @@ MIN_ROUNDS = stats.FIRST_LOOK_ROUNDS
 # How long rounds are added to undecided cells, at most (seconds of measuring, --budget).
 DEFAULT_BUDGET_S = 600.0
 WORK_DIR = ".measure"  # OUT/.measure: the sides while they are measured
+BLOCKS = 3  # a calibration's runs measured apart
 
 
 @dataclass
@@ -131,7 +134,6 @@ class MeasuredSides:
     old: Path  # the results roots
     new: Path
     seed: int
-    cells: int  # per side
     rounds: int  # the most rounds a cell pair took
     budget_s: float
     spent_s: float  # seconds of measuring
@@ -152,18 +154,6 @@ def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]
     return plans
 
 
-def prepare(sides: Sequence[BuildSide], plans: Sequence[Plan]) -> None:
-    """Build (or find) every binary the plans need, on every side, before anything runs."""
-    for side in sides:
-        binaries: dict[Path, None] = {}
-        for plan in plans:
-            binaries.update(dict.fromkeys(needed_binaries(plan, side.build_dir)))
-        variants = [c.variant for p in plans for c in p.cells
-                    if p.config.is_built(c.variant)]
-        build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
-        make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
-
-
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
                   hyperfine: str = "hyperfine", seed: int | None = None,
@@ -173,29 +163,27 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
     of measuring is spent; the two results roots, complete, under OUT."""
     plans = plans_of(configs, registry)
-    prepare((old, new), plans)
+    for side in (old, new):  # every binary built (or found) before anything runs
+        build_plans(side, plans)
     require_hyperfine(hyperfine)
     work = out / WORK_DIR
-    machine_id = str(machine.machine(REPO_ROOT)[records.MACHINE_KEY])
-    units: list[Unit] = []
+    here = machine_id()
     pairs: list[tuple[Unit, Unit]] = []
     stores: list[tuple[BuildSide, CellStore]] = []
     for plan in plans:
-        pair: dict[str, CellStore] = {}
+        measurers = []
         for side in (old, new):
-            store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], machine_id,
+            store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], here,
                               force=True, build_dir=side.build_dir)
             stores.append((side, store))
-            pair[side.name] = store
-        measurers = {name: Measurer(store, hyperfine) for name, store in pair.items()}
+            measurers.append(Measurer(store, hyperfine))
         for cell in plan.cells:
-            a = Unit(measurers["OLD"], cell, built_cell_id(pair["OLD"], cell))
-            b = Unit(measurers["NEW"], cell, built_cell_id(pair["NEW"], cell), partner=a)
-            a.partner = b
-            units += [a, b]
+            a, b = (Unit(m, cell, built_cell_id(m.store, cell)) for m in measurers)
+            a.partner, b.partner = b, a
             pairs.append((a, b))
-    labels = {u.cell_id: f"{'OLD' if k % 2 == 0 else 'NEW'} {u.cell.label}"
-              for k, u in enumerate(units)}
+    units = [unit for pair in pairs for unit in pair]
+    labels = {u.cell_id: f"{name} {u.cell.label}" for pair in pairs
+              for name, u in zip(SIDE_DIRS, pair, strict=True)}
     progress = Progress("measure", [(u.cell, u.cell_id) for u in units],
                         frozenset(u.cell_id for u in units), log, labels=labels)
     if run_lock is not None:
@@ -207,14 +195,28 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     for side, store in stores:
         store.write_csv(prune=True)
         write_env_after(store.directory, env[side.name])
-    roots = {}
-    for side in (old, new):
-        target = out / SIDE_DIRS[side.name]
-        if target.exists():
-            shutil.rmtree(target)
-        (work / SIDE_DIRS[side.name]).rename(target)
-        roots[side.name] = target
+    for name in SIDE_DIRS.values():
+        shutil.rmtree(out / name, ignore_errors=True)
+        (work / name).rename(out / name)
     shutil.rmtree(work, ignore_errors=True)
     rounds = max((len(u.state.exports) for u in units if u.run is not None), default=0)
-    return MeasuredSides(roots["OLD"], roots["NEW"], seed, len(units) // 2, rounds, budget_s,
+    return MeasuredSides(out / SIDE_DIRS["OLD"], out / SIDE_DIRS["NEW"], seed, rounds, budget_s,
                          max(0.0, time.monotonic() - until.started))
+
+
+def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
+              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine"
+              ) -> tuple[MeasuredSides, list[Path]]:
+    """A calibration's measurements (`compare --calibrate`; what they say is
+    harness.analysis.calibration's): this checkout's binaries as two sides measured together
+    (OUT/together), then the configs BLOCKS times, one whole run after another, as separate
+    results roots measured apart (OUT/apart/block-K); the sides and those roots."""
+    build_dir = REPO_ROOT / BUILD_DIR
+    old, new = (BuildSide(name, str(build_dir), build_dir, REPO_ROOT, None) for name in SIDE_DIRS)
+    # The same binaries on both sides: the spread of a fixed number of rounds is what is
+    # learnt, so no rounds are added to decide verdicts (budget 0).
+    together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
+                             hyperfine, budget_s=0.0)
+    blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
+    run_apart(configs, blocks, registry, run_lock, log, hyperfine)
+    return together, blocks

@@ -17,6 +17,8 @@ from pathlib import Path
 from harness.errors import HarnessError
 from harness.measure.machine import compiler_command
 from harness.plan import lane
+from harness.plan.binaries import checkout_tools, needed_binaries
+from harness.plan.cells import Plan
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
 from harness.spec.make import has_rules, make_binaries
 from harness.spec.variants import VariantRegistry
@@ -118,22 +120,28 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
         raise HarnessError(f"{side.name}: revision {side.label} has no variant "
                            f"{', '.join(absent)}")
     compiler = compiler_command(REPO_ROOT)[0]
-    lane_dir = side.build_dir / lane.LANE_DIR
-    lanes = [b for b in binaries if b.parent == lane_dir]
+    lanes = [b for b in binaries if b.parent == side.build_dir / lane.LANE_DIR]
     # One make at a time in a build/ that the commits of a code tree share (share_build):
     # another history or compare may be making the same tree's binaries.
     with directory_lock(side.build_dir):
         try:
-            if lanes and not has_rules(side.repo_root, lanes):
-                make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
-                              make="make", capture=True, extra=[f"CC={compiler}"])
+            if lanes and has_rules(side.repo_root, lanes):
+                lanes = []  # its Makefile makes them with the rest
+            make_binaries(side.repo_root, [b for b in binaries if b not in lanes],
+                          capture=True, extra=[f"CC={compiler}"])
+            if lanes:
                 build_lanes(side, lanes, compiler)
-            else:
-                make_binaries(side.repo_root, binaries, make="make", capture=True,
-                              extra=[f"CC={compiler}"])
         except HarnessError as exc:
             raise HarnessError(f"{side.name}: revision {side.label} does not build: "
                                f"{exc}") from None
+
+
+def build_plans(side: BuildSide, plans: Sequence[Plan]) -> None:
+    """Build (or find) every binary the plans need on the side, and this checkout's tools."""
+    binaries = dict.fromkeys(b for plan in plans for b in needed_binaries(plan, side.build_dir))
+    variants = [c.variant for p in plans for c in p.cells if p.config.is_built(c.variant)]
+    build(side, [b for b in binaries if b.is_relative_to(side.build_dir)], variants)
+    make_binaries(REPO_ROOT, checkout_tools(binaries), capture=True)
 
 
 def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:

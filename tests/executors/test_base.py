@@ -11,7 +11,7 @@ import pytest
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS, make_executor
 from harness.executors.base import Experiment, Options, Progress, format_seconds
-from harness.executors.local import LocalExecutor
+from harness.executors.rounds import LocalExecutor
 from harness.plan.cells import plan_cells
 from harness.spec.config import EXECUTOR_KINDS
 from harness.spec.parse import load_config
@@ -64,7 +64,7 @@ def test_the_local_executor_measures_in_rounds_and_hands_each_record_on(
     experiment = Experiment(plan, Options(Path("/nonexistent"), tmp_path, round_seed=3),
                             io.StringIO())
     log: list[str] = []
-    monkeypatch.setattr("harness.executors.local.Measurer",
+    monkeypatch.setattr("harness.executors.rounds.Measurer",
                         lambda store, hyperfine, cores: FakeMeasurer(config.measure, log))
     got: list[tuple[str, int]] = []
     progress = Progress("exp", order, frozenset(cid for _, cid in order), io.StringIO())

@@ -1,5 +1,5 @@
 """Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
-(harness.executors.worker) measures on its compute node exactly as a local run does and
+(`collide-bench worker`) measures on its compute node exactly as a local run does and
 writes the cell's record into the shared results directory. Validation therefore runs on the
 node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
 first task that needs it computes it (two tasks racing for it both compute it; os.replace
@@ -53,7 +53,6 @@ from harness.executors.slurm.watch import (
     Job,
     JobState,
     RecordWatch,
-    fault_record,
 )
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
@@ -119,7 +118,6 @@ class SlurmExecutor:
     """
 
     spec: ExecutorSpec = field(default_factory=ExecutorSpec)
-    collect: bool = False
     name: str = "slurm"
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
@@ -129,7 +127,6 @@ class SlurmExecutor:
         options = experiment.options
         self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
             options.partition or experiment.config.executor.partition))
-        self.collect = options.collect
         slurm_dir = experiment.store.layout.slurm
         # portable id -> (cell, planned cell id)
         cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
@@ -144,7 +141,7 @@ class SlurmExecutor:
             tasks, ended = self.adopt(state, cells)
             # a timeout while nobody watched is recorded now; other faults are submitted again
             for pid, (task, final) in list(ended.items()):
-                if final in TIMEOUT_STATES or self.collect:
+                if final in TIMEOUT_STATES or options.collect:
                     cell, cid = cells.pop(pid)
                     self.record_fault(experiment, cell, cid, task, final, on_record)
             todo = [pid for pid in cells if pid not in tasks]
@@ -152,7 +149,7 @@ class SlurmExecutor:
                 log.write(f"slurm: {len(tasks)} cell(s) already in flight "
                           f"(job {', '.join(sorted({t.job_id for t in tasks.values()}))}); "
                           "not submitted again\n")
-            if todo and not self.collect:
+            if todo and not options.collect:
                 tasks.update(self.submit(experiment, state, cells, todo))
             elif todo:
                 log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
@@ -178,8 +175,7 @@ class SlurmExecutor:
                 record = max(mine, key=lambda r: r.measured_at)
                 cell, cid = cells.pop(pid)
                 progress.starting(cid)
-                self.drop_fault(experiment, cid, record)
-                on_record(cell, cid, record)
+                self.accept(experiment, cell, cid, record, on_record)
 
     def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
               ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
@@ -267,17 +263,20 @@ class SlurmExecutor:
         return tasks
 
     @staticmethod
-    def drop_fault(experiment: Experiment, cid: str, result: CellResult) -> None:
-        """The retry record of a cell that a node has now measured under another id (its own
-        machine's) goes: results.csv shows the measurement only."""
-        if result.cell_id == cid:
-            return
-        old = experiment.store.read(cid)
+    def accept(experiment: Experiment, cell: Cell, cid: str, record: CellResult,
+               on_record: OnRecord) -> None:
+        """A node's record of the cell. Where the node measured it under another id (its own
+        machine's), the cell's retry record goes: results.csv shows the measurement only."""
+        old = experiment.store.read(cid) if record.cell_id != cid else None
         if old is not None and old.retry:
             experiment.store.record_path(cid).unlink(missing_ok=True)
+        on_record(cell, cid, record)
 
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
                      slurm_state: str, on_record: OnRecord) -> None:
+        """The record of a cell whose task ended without one: the cell's identity, the status
+        and the reason (the columns a measurement would fill stay empty); a retry record's
+        cell the next run measures again."""
         if slurm_state in TIMEOUT_STATES:
             limit = self.spec.time_limit_min
             note = (f"slurm task {task.name} passed its time limit"
@@ -290,7 +289,9 @@ class SlurmExecutor:
             note = (f"slurm task {task.name}: {reason} (log: {logfile}); not recorded, so the "
                     "next run submits it again")
             status, retry = FAILED, True
-        record = fault_record(experiment, cell, cid, status, note, task.name, slurm_state, retry)
+        record = experiment.store.new_record(cell, cid).replace(
+            status=status, exit_code=None, note=note, executor="slurm", slurm_task=task.name,
+            slurm_state=slurm_state, retry=retry or None)
         experiment.store.save(record)
         on_record(cell, cid, record)
 
@@ -328,8 +329,7 @@ class SlurmExecutor:
                     # progress lines' ETA follows the throughput
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
-                    self.drop_fault(experiment, cid, record)
-                    on_record(cell, cid, record)
+                    self.accept(experiment, cell, cid, record, on_record)
                 elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
                     running += 1
                 elif slurm_state in ACTIVE_STATES:

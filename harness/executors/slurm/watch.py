@@ -1,7 +1,6 @@
 """What the Slurm executor reads back: the records the nodes write (RecordWatch: a node writes
 under the cell id of its own machine, which the submitter cannot know beforehand, so records
-are matched on their portable id), the records the submitter writes itself for a task that
-ended without one (fault_record), and <experiment>/slurm/jobs.json (JobState): every array
+are matched on their portable id) and <experiment>/slurm/jobs.json (JobState): every array
 job submitted for an experiment (job id, the cell of each array task, when and by whom it was
 submitted). Submitters take <experiment>/slurm/lock while they read Slurm's view of those jobs
 and submit, so two submitters never submit the same cell; a submitter killed mid-sweep loses
@@ -16,29 +15,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.executors.base import Experiment
-from harness.plan.cells import Cell
 from harness.store import atomic, history, layout, records
 from harness.store.result import CellResult
 
 JOBS_FILE = "jobs.json"
 LOCK_FILE = "lock"
 JOBS_VERSION = 1
-
-
-def fault_record(experiment: Experiment, cell: Cell, cid: str, status: str, note: str,
-                 task: str, slurm_state: str, retry: bool) -> CellResult:
-    """The record of a cell whose task ended without one: the cell's identity, the status and
-    the reason (the columns a measurement would fill stay empty); with `retry`, the next run
-    measures it again."""
-    return experiment.store.new_record(cell, cid).replace(
-        status=status, exit_code=None, note=note, executor="slurm", slurm_task=task,
-        slurm_state=slurm_state, retry=retry or None)
-
-
-def is_fault(result: CellResult) -> bool:
-    """A record the submitter wrote for a task that ended without one (fault_record)."""
-    return result.provenance is not None and result.provenance.slurm_state is not None
 
 
 @dataclass
@@ -68,7 +50,9 @@ class RecordWatch:
             self.seen[name] = stamp
             path = self.cells_dir / name
             result = records.read_record(path, layout.cell_id_of(path))
-            if result is not None and not is_fault(result):
+            # not a record the submitter wrote for a task that ended without one (record_fault)
+            if result is not None and (result.provenance is None
+                                       or result.provenance.slurm_state is None):
                 found[result.key.portable_id] = result
         return found
 
