@@ -10,9 +10,8 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.accuracy import pareto_by_scene
-from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows
+from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows, variant_fact
 from harness.analysis.display import display_name, format_value
-from harness.spec.facts import current
 
 # Each check's column and what it tests, in the order the tables show them.
 CHECKS: tuple[tuple[str, str, str], ...] = (
@@ -173,13 +172,6 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out, columns=columns)
 
 
-def own_arithmetic(variants: pd.Series) -> pd.Series:
-    """Per row, whether the variant computes contact times with arithmetic of its own (it is
-    not exact: its --describe says so): a build's verdict leaves it out."""
-    registry = current()
-    return variants.map(lambda v: registry.get(v) is not None and not registry[v].exact)
-
-
 def _short_reason(cells: pd.DataFrame) -> str:
     """The gist of why a scene's cells are not trusted: the worst one-step error in radii,
     else differing collisions, else the failing checks."""
@@ -195,7 +187,8 @@ def build_trust(df: pd.DataFrame) -> pd.DataFrame:
     """Per build (precision or formula), over its variants that share the core's arithmetic:
     how many scenes all of them are trusted on, and the others with why."""
     rows = _checked(df)
-    rows = rows[~own_arithmetic(rows["variant"])]
+    # a variant that is not exact computes contact times with arithmetic of its own
+    rows = rows[~variant_fact(rows["variant"], lambda f: not f.exact)]
     out = []
     for build, group in rows.groupby("build", sort=False):
         scenes = list(dict.fromkeys(group["scene_name"]))
