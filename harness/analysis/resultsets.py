@@ -26,6 +26,9 @@ from harness.store.layout import ExperimentDir
 # The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
 # of its own), in the order a row's note names them.
 FLAG_COLUMNS = ("loaded", "outliers", "unstable", "oversubscribed")
+# The Cell fields that are results.csv's text columns of the same name.
+CELL_TEXTS = ("cell_id", "measured_at", "git_commit", "input_sha256", "stopped",
+              "instructions_tool")
 
 
 @dataclass(frozen=True)
@@ -201,19 +204,14 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
                 env_machine = _env_machine(directory)
             machine = env_machine
         cells.append(Cell(
-            key=key, directory=directory, cell_id=_text(row, "cell_id"),
-            status=_text(row, "status") or "unknown", median=median, times=times,
-            machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
-            git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
+            key=key, directory=directory, status=_text(row, "status") or "unknown",
+            median=median, times=times, machine_id=machine_id, machine=machine,
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
-            stopped=_text(row, "stopped"),
-            instructions=_number(row, "instructions"),
-            instructions_max=_number(row, "instructions_max"),
-            instructions_tool=_text(row, "instructions_tool"),
-            round_noise=items(row, "round_noise"),
-            round_pressure=items(row, "round_pressure"),
+            **{k: _text(row, k) for k in CELL_TEXTS},
+            **{k: _number(row, k) for k in ("instructions", "instructions_max")},
+            **{k: items(row, k) for k in ("round_noise", "round_pressure")},
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 
