@@ -284,8 +284,7 @@ def instructions_value(cell: Cell) -> stats.Interval | None:
     same for a deterministic binary)."""
     if not math.isfinite(cell.instructions):
         return None
-    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
-    return stats.Interval(cell.instructions, cell.instructions, most)
+    return stats.Interval(cell.instructions, cell.instructions, cell.instructions + _width(cell))
 
 
 @dataclass(frozen=True)
@@ -294,7 +293,6 @@ class Metric:
 
     name: str  # --metric's value, history.csv's `metric`
     unit: str
-    columns: tuple[str, ...]  # the results.csv columns its values come from
     exact: bool  # counted, not sampled: any change is real, no statistics needed
     value: Callable[[Cell], stats.Interval | None]  # a cell's estimate with its interval
     judge: Callable[[Cell, Cell, float, Drift, str], Row]  # one matched pair of ok cells
@@ -308,13 +306,11 @@ class Metric:
 
 _NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
                  (NEW_ONLY, "new only"))
-TIME = Metric(METRIC_TIME, "s", ("wall_median_s", "wall_times_s", "wall_times_round"), False,
-              time_value, compare_cells, decide_times,
+TIME = Metric(METRIC_TIME, "s", False, time_value, compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
 INSTRUCTIONS = Metric(
-    METRIC_INSTRUCTIONS, "", ("instructions", "instructions_max", "instructions_tool"), True,
-    instructions_value, judge_counts, list,
+    METRIC_INSTRUCTIONS, "", True, instructions_value, judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
      (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")

@@ -35,7 +35,7 @@ WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads")
 
 def _is_true(value: object) -> bool:
     """Whether a nullable boolean is a known True."""
-    return value is not None and not pd.isna(value) and bool(value)
+    return bool(pd.notna(value) and value)
 
 
 def _flags(row: pd.Series) -> list[str]:
@@ -47,7 +47,7 @@ def status_text(row: pd.Series) -> str:
     status = str(row["status"])
     text = status
     exit_code = row.get("exit_code")
-    if status in (FAILED, CRASHED) and exit_code is not None and pd.notna(exit_code):
+    if status in (FAILED, CRASHED) and pd.notna(exit_code):
         text = f"{status} (exit {int(exit_code)})"
     agreement = row.get("agreement")
     if agreement in AGREEMENTS and (agreement != AGREEMENT_FAILED or status == INVALID):
@@ -58,8 +58,7 @@ def status_text(row: pd.Series) -> str:
 def validation_text(row: pd.Series) -> str:
     """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
     parts = [status_text(row)]
-    identical = row.get("identical")
-    if identical is not None and not pd.isna(identical) and not identical and row["status"] == OK:
+    if pd.notna(row.get("identical")) and not row["identical"] and row["status"] == OK:
         parts.append("differs from seq")
     parts += [FLAG_WORDS[name] for name in _flags(row)]
     return " · ".join(parts)

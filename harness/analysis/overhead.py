@@ -39,8 +39,8 @@ def has_costs(df: pd.DataFrame) -> bool:
 
 
 def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
-    """Per thread count: the median ns of a region, a barrier, a dynamic grab and a nested
-    region over the cells that measured them, and how many did. None without any."""
+    """Per thread count: the median ns of each operation over the cells that measured them,
+    and how many did. None without any."""
     if not has_costs(df):
         return None
     present = [c for c in OMP_COST_COLUMNS if c in df.columns]

@@ -65,7 +65,6 @@ def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
 
 
 def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
-    """The timed rows with sim_s and every phase."""
     if not all(c in df.columns for c in PHASE_COLUMNS):
         return df.iloc[0:0]
     rows = timed_rows(df)
@@ -145,9 +144,8 @@ def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
-    """Per shown cell: its scene and bar keys, sim_s, each of its phases in seconds with its
-    share (the `_share` companions, shown in parentheses), the simulation outside the broad
-    phase per particle-step, and the output in seconds."""
+    """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
+    and the output."""
     shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
     return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]
                      ].copy()

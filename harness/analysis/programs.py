@@ -39,7 +39,7 @@ def agreement_text(row: pd.Series) -> str:
     """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
     agreement = str(row.get("agreement"))
     first = row.get("first_diff_step")
-    if first is not None and pd.notna(first):
+    if pd.notna(first):
         return f"{agreement} from step {int(first)}"
     return agreement
 

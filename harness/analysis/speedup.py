@@ -143,16 +143,10 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     return out
 
 
-def cell_table(
-    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
-    ratios: pd.DataFrame | None = None,
-) -> pd.DataFrame:
-    """One row per cell: its keys, runs, median/min/stddev, speedup, efficiency, validation.
-
-    The shape of the course report's Tables 2-6 with our statistics in place of its
-    "first/second/third time, shortest". When `threads` is among the keys, the Karp-Flatt
-    serial fraction and the speedup baseline of each row are added.
-    """
+def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
+               ratios: pd.DataFrame | None = None) -> pd.DataFrame:
+    """One row per cell: the shape of the course report's Tables 2-6 with our statistics in
+    place of its "first/second/third time, shortest"."""
     rows = with_speedup(df, thread_baseline=thread_baseline, ratios=ratios)
     table = rows[list(keys)].copy()
     over = flag(rows, OVERSUBSCRIBED)

@@ -80,9 +80,8 @@ def one_scene(df: pd.DataFrame) -> bool:
 
 
 def seed_table(df: pd.DataFrame, ratios: pd.DataFrame | None = None) -> pd.DataFrame | None:
-    """Per seed strategy measured here: our median and rank, the seed's time and rank, each
-    speedup over its own sequential code (ours paired by round where `ratios` has it), our
-    imbalance, and the repair's median."""
+    """Per seed strategy measured here, ours beside the seed's: each speedup is over its own
+    sequential code (ours paired by round where `ratios` has it)."""
     # only where every row simulates the seed's benchmark scene: its times compare with ours
     if not len(df) or not all((df[key] == value).all()
                               for key, value in SEED_SCENE.items() if key in df.columns):

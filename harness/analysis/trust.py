@@ -59,8 +59,7 @@ def _checked(df: pd.DataFrame) -> pd.DataFrame:
 
 def _failures(row: pd.Series) -> list[str]:
     failed = [name for name, column, _ in CHECKS
-              if column in row.index and row[column] is not None and not pd.isna(row[column])
-              and not bool(row[column])]
+              if pd.notna(row.get(column)) and not bool(row[column])]
     text = row.get("checks_failed")
     if isinstance(text, str) and "run" in text.split():
         failed.insert(0, "run")
@@ -116,7 +115,7 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
 
 def _known(row: pd.Series, column: str) -> float | None:
     value = row.get(column)
-    return None if value is None or pd.isna(value) else float(value)
+    return None if pd.isna(value) else float(value)
 
 
 def _trusted(row: pd.Series) -> bool:
