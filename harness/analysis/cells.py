@@ -83,14 +83,10 @@ def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]
 
 
 def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str, object]:
-    """The keys that take exactly one value across the rows, with that value."""
-    fixed: dict[str, object] = {}
-    for key in keys:
-        if key in df.columns and len(df) and df[key].nunique(dropna=False) == 1:
-            if df[key].iloc[0] == "":  # an axis the config did not set (schedule)
-                continue
-            fixed[key] = df[key].iloc[0]
-    return fixed
+    """The keys that take exactly one value across the rows, with that value; not an axis the
+    config did not set (an empty schedule)."""
+    return {key: df[key].iloc[0] for key in keys if key in df.columns and len(df)
+            and df[key].nunique(dropna=False) == 1 and df[key].iloc[0] != ""}
 
 
 def _follows(df: pd.DataFrame, key: str, x: str) -> bool:

@@ -2,8 +2,7 @@
 step (its binary's `--describe` sync facts: regions, nested regions, barriers, dynamic grabs as
 functions of N) times the steps, times the cost of one operation measured at the cell's thread
 count on the same machine (build/ompcost, the `openmp_costs: true` columns), beside the
-measured time the strategy spends over its repair. Tables are DataFrames and sentences strings,
-computed from results rows; harness.report.sections.strategies lays them out.
+measured time the strategy spends over its repair.
 
 The cost of one operation at a thread count is the median over that thread count's cells: each
 parallel cell ran ompcost once, and on a shared machine a single run can catch a team member

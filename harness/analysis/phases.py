@@ -1,8 +1,6 @@
 """Where the time goes: each cell's `--timing` run split into its phases (the columns
 store.columns.PHASE_COLUMNS and what sim_s holds beyond them), in seconds and as shares of the
-simulation time, and its output in seconds, as a table, a figure's frame and a headline
-sentence. Tables are DataFrames and sentences strings, computed from results rows; the report
-lays them out (harness.report.sections.phases, harness.report.figures.phases).
+simulation time, and its output in seconds, as a table, a figure's frame and a headline.
 
 The output gets no share: the --timing run writes it with --precise (every digit, for the
 validation), which costs some 20x the timed runs' output (`build/grid --threads 1 --timing`,

@@ -1,8 +1,7 @@
 """The two sides of a comparison, read from stored results: each results.csv row as a cell
-matched on what was measured (variant, build, scene and its parameters, threads, schedule),
-never on the machine or the binary, with its per-run times and the rounds they came from; one
-side per result set, after the machine filter and de-duplication (harness.analysis.compare
-judges them)."""
+matched on what was measured (MatchKey), never on the machine or the binary, with its per-run
+times and the rounds they came from; one side per result set, after the machine filter and
+de-duplication."""
 
 from __future__ import annotations
 

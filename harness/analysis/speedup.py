@@ -200,8 +200,7 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
                               group["wall_median_s"].astype(float).tolist())
         if fit is None:
             continue
-        label_values = values if isinstance(values, tuple) else (values,)
-        rows.append({**dict(zip(keys, label_values, strict=True)), "exponent": fit.exponent,
+        rows.append({**dict(zip(keys, values, strict=True)), "exponent": fit.exponent,
                      "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
                      "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]

@@ -1,7 +1,5 @@
 """The strategies and schedules read back: the seed's published times beside ours, whether
 the ranking agrees, per-thread work, the cost of a dispatched chunk, and the schedule study.
-Tables are DataFrames and sentences are strings, computed from results rows; the report wraps
-them into its sections (harness.report.sections.strategies).
 
 The per-thread columns come from `--timing` (store.columns.THREAD_COLUMNS): the busy seconds,
 pair tests and chunks of every candidate writer, space-separated.

@@ -153,8 +153,7 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
     rows = _checked(df)
     out = []
     for (variant, build), group in rows.groupby(["variant", "build"], sort=False):
-        errors = group["shadow_err_r"] if "shadow_err_r" in group.columns else pd.Series()
-        errors = errors.dropna()
+        errors = group.get("shadow_err_r", pd.Series(dtype=float)).dropna()
         worst = ""
         if len(errors) and float(errors.max()) > 0:
             at = errors.idxmax()
@@ -174,7 +173,7 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
 def _short_reason(cells: pd.DataFrame) -> str:
     """The gist of why a scene's cells are not trusted: the worst one-step error in radii,
     else differing collisions, else the failing checks."""
-    errors = cells["shadow_err_r"].dropna() if "shadow_err_r" in cells else pd.Series()
+    errors = cells.get("shadow_err_r", pd.Series(dtype=float)).dropna()
     if len(errors) and float(errors.max()) > TRUST_ERR_R:
         return f"{float(errors.max()):.1e} r per step"
     if "shadow_set_diff" in cells and (cells["shadow_set_diff"].fillna(0) > 0).any():
