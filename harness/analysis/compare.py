@@ -321,13 +321,9 @@ def compare(old: Side, new: Side, threshold: float = DEFAULT_THRESHOLD,
             drift: Drift = MEASURED_TOGETHER, metric: Metric = TIME) -> list[Row]:
     """Every key of either side, in order: compared by `metric`, not compared, or one side
     only."""
-    rows = []
-    for key, a, b, note in matched(old, new):
-        if (kind := not_comparable(a, b)) is not None:
-            rows.append(Row(key, kind, a, b, note=note))
-        else:
-            rows.append(metric.judge(a, b, threshold, drift, note))
-    return metric.decide(rows)
+    return metric.decide([
+        Row(key, kind, a, b, note=note) if (kind := not_comparable(a, b)) is not None
+        else metric.judge(a, b, threshold, drift, note) for key, a, b, note in matched(old, new)])
 
 
 def methods(rows: Sequence[Row], threshold: float, drift: Drift,

@@ -106,10 +106,10 @@ def read_results(path: Path) -> pd.DataFrame:
             df[column] = parse_numeric(df[column], path, column)
         elif column in BOOL_COLUMNS:
             df[column] = _parse_bool(df[column], path, column)
-    for column in LIST_COLUMNS.keys() & set(df.columns):
-        df[column] = _parse_lists(df[column], path, column)
+        elif column in LIST_COLUMNS:
+            df[column] = _parse_lists(df[column], path, column)
     for column in FLAG_COLUMNS:
-        if column in df.columns:
+        if column in df.columns:  # a flag not recorded is not set
             df[column] = flag(df, column)
     _check_rows(df, path)
     df[MACHINE] = machine_labels(df)

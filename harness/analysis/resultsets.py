@@ -54,20 +54,15 @@ class MatchKey:
     def label(self) -> str:
         """`p1d random n=10000 L=20000 r=1 S=50 T=2`; the build, mode and seed where they are
         not f64, perf and 1, the schedule where set, the experiment first where keyed on it."""
-        parts = [self.variant]
-        if self.build and self.build != "f64":
-            parts.append(self.build)
-        parts.append(self.scene or "?")
-        parts.append(f"n={_short(self.n)} L={_short(self.L)} r={_short(self.r)} "
-                     f"S={_short(self.steps)}")
-        if self.mode and self.mode != "perf":
-            parts.append(self.mode)
-        if self.seed and _short(self.seed) != "1":
-            parts.append(f"seed={_short(self.seed)}")
-        parts.append(f"T={_short(self.threads)}")
-        if self.schedule:
-            parts.append(f"schedule={self.schedule}")
-        text = " ".join(parts)
+        seed = _short(self.seed)
+        parts = (self.variant, self.build if self.build != "f64" else "", self.scene or "?",
+                 f"n={_short(self.n)} L={_short(self.L)} r={_short(self.r)} "
+                 f"S={_short(self.steps)}",
+                 self.mode if self.mode != "perf" else "",
+                 f"seed={seed}" if seed not in ("", "1") else "",
+                 f"T={_short(self.threads)}",
+                 f"schedule={self.schedule}" if self.schedule else "")
+        text = " ".join(part for part in parts if part)
         return f"{self.experiment}: {text}" if self.experiment else text
 
 

@@ -122,11 +122,9 @@ def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
     swaps = [(a, b) for i, a in enumerate(ours) for b in ours[i + 1:]
              if seed.index(a) > seed.index(b)]
     cells = _one_per_variant(df)
-    reasons = []
-    for a, b in swaps:
-        # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
-        reasons.append(f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
-                       f"{_evidence(b, cells, threads)})")
+    # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
+    reasons = [f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
+               f"{_evidence(b, cells, threads)})" for a, b in swaps]
     return (text + f"The ranking differs in {len(swaps)} pair(s): " + "; ".join(reasons) + ".")
 
 
