@@ -214,12 +214,12 @@ def format_with_uncertainty(df: pd.DataFrame, column: str, index: int) -> str:
     low, high = (f"{column}{s}" for s in INTERVAL_SUFFIXES)
     if low in df.columns and high in df.columns:
         a, b = df[low].iloc[index], df[high].iloc[index]
-        if math.isfinite(a) and math.isfinite(b):
+        if pd.notna(a) and pd.notna(b) and math.isfinite(a) and math.isfinite(b):
             return f"{text} [{format_value(column, a)}, {format_value(column, b)}]"
     se = f"{column}{SE_SUFFIX}"
     if se in df.columns:
         error = df[se].iloc[index]
-        if math.isfinite(error):
+        if pd.notna(error) and math.isfinite(error):
             return f"{text} ± {format_value(se, error)}"
     return text
 
