@@ -52,10 +52,8 @@ def read_ratios(path: Path, paired_only: bool = True) -> pd.DataFrame | None:
 
 def cell_keys(frame: pd.DataFrame) -> pd.Series:
     """Per row, the text that names its cell across results.csv and ratios.csv."""
-    parts = [(frame[c] if c in frame.columns else pd.Series("", index=frame.index)).map(
+    parts = [frame.get(c, pd.Series("", index=frame.index)).map(
         lambda v, n=c in NUMERIC_COLUMNS: key_text(v, n)) for c in KEY_COLUMNS]
-    if not parts or frame.empty:
-        return pd.Series([], index=frame.index, dtype=object)
     return pd.Series(["\0".join(p) for p in zip(*parts, strict=True)], index=frame.index,
                      dtype=object)
 

@@ -132,8 +132,7 @@ def _reason(row: pd.Series) -> str:
     """Why a cell is not trusted, with the measured numbers."""
     parts = []
     for failure in _failures(row):
-        if failure == "shadow" and row.get("shadow_set_diff", 0) and (
-                float(row["shadow_set_diff"]) > 0):
+        if failure == "shadow" and float(row.get("shadow_set_diff") or 0) > 0:
             parts.append(f"collisions differ from __float128 in "
                          f"{float(row['shadow_set_diff']):.0%} of steps")
         elif failure == "energy":
