@@ -129,10 +129,8 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
     block_sides = [side(f"block {k + 1}", root) for k, root in enumerate(blocks)]
     drift = apart_drift(block_sides)
     apart = Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
-    apart_false = apart_compared = 0
-    for a, b in itertools.combinations(block_sides, 2):
-        false, compared = false_verdicts(a, b, threshold, apart)
-        apart_false, apart_compared = apart_false + false, apart_compared + compared
+    apart_verdicts = [false_verdicts(a, b, threshold, apart)
+                      for a, b in itertools.combinations(block_sides, 2)]
     noise = noise_profile([*old.cells.values(), *new.cells.values()])
     return Calibration(
         stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
@@ -140,8 +138,9 @@ def calibrate(machine_id: str, config: str, measured: tuple[Path, Path],
         machine_id=machine_id,
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         config=config, cells=cells, threshold=threshold, measured_false=measured_false,
-        measured_compared=measured_compared, drift=apart.sigma, apart_false=apart_false,
-        apart_compared=apart_compared,
+        measured_compared=measured_compared, drift=apart.sigma,
+        apart_false=sum(f for f, _ in apart_verdicts),
+        apart_compared=sum(c for _, c in apart_verdicts),
         smallest_one=stats.smallest_detectable(sd, rounds, threshold, FDR_Q / max(1, cells),
                                                POWER),
         smallest_all=stats.smallest_detectable(sd, rounds, threshold, FDR_Q, POWER),

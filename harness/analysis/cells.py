@@ -1,18 +1,15 @@
 """Which columns name a cell, and the selections every table starts from: pure functions of
-one experiment's results frame (harness.analysis.frame reads it). Variants sort in the
-order of the facts stored with the results (harness.spec.facts), builds in
-harness.spec.builds' order.
-"""
+one experiment's results frame (harness.analysis.frame reads it)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import pandas as pd
 
 from harness.spec.builds import BUILDS
-from harness.spec.facts import current
+from harness.spec.facts import VariantFacts, current
 from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.frame)
@@ -31,8 +28,7 @@ SHARE_SUFFIX = "_share"  # a column's share of its row's total, in percent
 
 
 def companions(column: str) -> tuple[str, ...]:
-    """The columns that qualify `column` in a built table: its interval, standard error and
-    share."""
+    """The columns that qualify `column` in a built table."""
     return (*(f"{column}{s}" for s in INTERVAL_SUFFIXES), f"{column}{SE_SUFFIX}",
             f"{column}{SHARE_SUFFIX}")
 
@@ -63,6 +59,19 @@ def present(df: pd.DataFrame, keys: Iterable[str]) -> list[str]:
     return [k for k in keys if k in df.columns]
 
 
+def flag(df: pd.DataFrame, column: str) -> pd.Series:
+    """A flag column as booleans; False where missing, or where the frame has no such column."""
+    if column not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df[column].fillna(False).astype(bool)
+
+
+def variant_fact(variants: pd.Series, fact: Callable[[VariantFacts], bool]) -> pd.Series:
+    """Per row, `fact` of the variant's facts (its --describe); False for an unknown variant."""
+    registry = current()
+    return variants.map(lambda v: (f := registry.get(v)) is not None and bool(fact(f)))
+
+
 def timed_rows(df: pd.DataFrame) -> pd.DataFrame:
     """The rows of cells that were timed (ok or invalid) and have a median time."""
     return df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
@@ -74,14 +83,10 @@ def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]
 
 
 def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str, object]:
-    """The keys that take exactly one value across the rows, with that value."""
-    fixed: dict[str, object] = {}
-    for key in keys:
-        if key in df.columns and len(df) and df[key].nunique(dropna=False) == 1:
-            if df[key].iloc[0] == "":  # an axis the config did not set (schedule)
-                continue
-            fixed[key] = df[key].iloc[0]
-    return fixed
+    """The keys that take exactly one value across the rows, with that value; not an axis the
+    config did not set (an empty schedule)."""
+    return {key: df[key].iloc[0] for key in keys if key in df.columns and len(df)
+            and df[key].nunique(dropna=False) == 1 and df[key].iloc[0] != ""}
 
 
 def _follows(df: pd.DataFrame, key: str, x: str) -> bool:
@@ -109,8 +114,8 @@ def sweep_axes(df: pd.DataFrame) -> list[str]:
 
 
 def _canonical(col: pd.Series) -> pd.Series:
-    """A sort key: variants and builds with the names of their canonical order first, in that
-    order, then the rest; any other column as it is."""
+    """A sort key: variants in the order of the facts stored with the results, builds in
+    harness.spec.builds' order, unknown names after them; any other column as it is."""
     order = current().order if col.name == "variant" else BUILDS if col.name == "build" else None
     if order is None:
         return col

@@ -1,37 +1,15 @@
 """Compare two result sets cell by cell (NEW against OLD) by a metric: the verdicts of
-`collide-bench compare` (harness.cli.compare; how to read them: docs/compare.md).
+`collide-bench compare` (harness.cli.compare). How to read them: docs/compare.md; methods()
+says in the output's words how each was reached.
 
-OLD and NEW are result directories: one experiment's `results/<name>` or a whole results root
-(every experiment under it). Cells are matched on what was measured (variant, build, scene and
-its parameters, threads, schedule), never on the machine or the binary, because comparing two
-machines or two commits is the point. A metric (Metric) says as data what a matched cell is
-compared by: its name and unit, the results.csv columns read, a cell's value with its interval,
-how two cells are judged and the verdicts that can come of it. One path (compare) serves both:
-
-TIME: both medians, the ratio NEW/OLD with its 95% interval, the p-value that it changed by
-more than the threshold, and a verdict. How a cell is judged depends on how its two sides were
-measured:
-- together (`compare --measure`: both sides in the same rounds, one right after the other,
-  with the same round seed): per round, the ratio of the two sides' runs, which the machine's
-  drift cannot move, less what the interference measured on either side explains; the sign
-  test on them (stats.paired_change);
-- apart (two stored result sets, measured minutes or days apart): the ratio of the medians,
-  its bootstrap interval widened by the machine's drift between runs measured apart (from its
-  calibration, `compare --calibrate`, kept in <results>/calibration/machines/<id>.json, or an
-  assumed value the output names; stats.drift_change).
-Across the cells of a comparison the false-discovery rate is held at FDR_Q
-(Benjamini-Hochberg): a cell is called slower or faster only as one of the discoveries.
-
-INSTRUCTIONS (the instruction lane, `--metric instructions`, harness.plan.lane): the
-instructions each cell executed, which no other process can change, so a change is not a matter
-of statistics. A side whose counted runs agree (one thread, or threads with fixed shares of the
-work) has one exact count: any difference is real, and the verdict says by how much. A side
-whose counts differ (threads that take work as it comes merge another split of it; nested teams
-reuse threads or start new ones) is a range [fewest, most], and its runs show less than all of
-its variation: a change is called only where the two ranges, each widened by the wider spread
-or VARYING_SHARE of the count, do not meet; otherwise the cell is within its variation. Counts
-of two counters (perf's hardware counter, cachegrind's simulation of another build) do not
-compare: such a cell is listed, not judged.
+OLD and NEW are result directories: one experiment's `results/<name>` or a whole results root.
+Cells are matched on what was measured (resultsets.MatchKey), never on the machine or the
+binary, because comparing two machines or two commits is the point. A Metric says as data what
+a matched cell is compared by: TIME (sides measured together: the sign test on per-round
+ratios, which the machine's drift cannot move; apart: the ratio of medians, its interval
+widened by the machine's drift; the false-discovery rate held at FDR_Q across the cells) or
+INSTRUCTIONS (counted, not sampled: a change of an exact count is real; counts that vary
+between runs compare as ranges; counts of two different counters do not compare).
 """
 
 from __future__ import annotations
@@ -306,8 +284,7 @@ def instructions_value(cell: Cell) -> stats.Interval | None:
     same for a deterministic binary)."""
     if not math.isfinite(cell.instructions):
         return None
-    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
-    return stats.Interval(cell.instructions, cell.instructions, most)
+    return stats.Interval(cell.instructions, cell.instructions, cell.instructions + _width(cell))
 
 
 @dataclass(frozen=True)
@@ -316,7 +293,6 @@ class Metric:
 
     name: str  # --metric's value, history.csv's `metric`
     unit: str
-    columns: tuple[str, ...]  # the results.csv columns its values come from
     exact: bool  # counted, not sampled: any change is real, no statistics needed
     value: Callable[[Cell], stats.Interval | None]  # a cell's estimate with its interval
     judge: Callable[[Cell, Cell, float, Drift, str], Row]  # one matched pair of ok cells
@@ -330,13 +306,11 @@ class Metric:
 
 _NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
                  (NEW_ONLY, "new only"))
-TIME = Metric(METRIC_TIME, "s", ("wall_median_s", "wall_times_s", "wall_times_round"), False,
-              time_value, compare_cells, decide_times,
+TIME = Metric(METRIC_TIME, "s", False, time_value, compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
 INSTRUCTIONS = Metric(
-    METRIC_INSTRUCTIONS, "", ("instructions", "instructions_max", "instructions_tool"), True,
-    instructions_value, judge_counts, list,
+    METRIC_INSTRUCTIONS, "", True, instructions_value, judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
      (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
@@ -347,13 +321,9 @@ def compare(old: Side, new: Side, threshold: float = DEFAULT_THRESHOLD,
             drift: Drift = MEASURED_TOGETHER, metric: Metric = TIME) -> list[Row]:
     """Every key of either side, in order: compared by `metric`, not compared, or one side
     only."""
-    rows = []
-    for key, a, b, note in matched(old, new):
-        if (kind := not_comparable(a, b)) is not None:
-            rows.append(Row(key, kind, a, b, note=note))
-        else:
-            rows.append(metric.judge(a, b, threshold, drift, note))
-    return metric.decide(rows)
+    return metric.decide([
+        Row(key, kind, a, b, note=note) if (kind := not_comparable(a, b)) is not None
+        else metric.judge(a, b, threshold, drift, note) for key, a, b, note in matched(old, new)])
 
 
 def methods(rows: Sequence[Row], threshold: float, drift: Drift,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from harness.analysis.cells import sort_cells
+from harness.analysis.cells import flag, sort_cells
 from harness.analysis.programs import agreement_text
 from harness.store.columns import (
     AGREEMENT_FAILED,
@@ -35,17 +35,11 @@ WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads")
 
 def _is_true(value: object) -> bool:
     """Whether a nullable boolean is a known True."""
-    return value is not None and not pd.isna(value) and bool(value)
-
-
-def _is_false(value: object) -> bool:
-    """Whether a nullable boolean is a known False (not missing)."""
-    return value is not None and not pd.isna(value) and not bool(value)
+    return bool(pd.notna(value) and value)
 
 
 def _flags(row: pd.Series) -> list[str]:
-    """The flags set on a cell, in FLAG_WORDS' order."""
-    return [flag for flag in FLAG_WORDS if _is_true(row.get(flag))]
+    return [name for name in FLAG_WORDS if _is_true(row.get(name))]
 
 
 def status_text(row: pd.Series) -> str:
@@ -53,7 +47,7 @@ def status_text(row: pd.Series) -> str:
     status = str(row["status"])
     text = status
     exit_code = row.get("exit_code")
-    if status in (FAILED, CRASHED) and exit_code is not None and pd.notna(exit_code):
+    if status in (FAILED, CRASHED) and pd.notna(exit_code):
         text = f"{status} (exit {int(exit_code)})"
     agreement = row.get("agreement")
     if agreement in AGREEMENTS and (agreement != AGREEMENT_FAILED or status == INVALID):
@@ -64,15 +58,10 @@ def status_text(row: pd.Series) -> str:
 def validation_text(row: pd.Series) -> str:
     """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
     parts = [status_text(row)]
-    if _is_false(row.get("identical")) and row["status"] == OK:
+    if pd.notna(row.get("identical")) and not row["identical"] and row["status"] == OK:
         parts.append("differs from seq")
-    parts += [FLAG_WORDS[flag] for flag in _flags(row)]
+    parts += [FLAG_WORDS[name] for name in _flags(row)]
     return " · ".join(parts)
-
-
-def _status_kind(status: str) -> str:
-    """What the summary counts a cell with this status (not ok) as."""
-    return INVALID_OUTPUT if status == INVALID else status
 
 
 def issues(row: pd.Series) -> list[tuple[str, str]]:
@@ -81,6 +70,7 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
     else its status, and each flag)."""
     found: list[tuple[str, str]] = []
     status = str(row["status"])
+    status_kind = INVALID_OUTPUT if status == INVALID else status  # as the summary counts it
     agreement = row.get("agreement")
     if agreement in AGREEMENTS and agreement != IDENTICAL and isinstance(row.get("note"), str):
         # A program: its note says where it leaves seq and what seq did. One whose output
@@ -88,19 +78,19 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
         if agreement != AGREEMENT_FAILED:
             kind = str(agreement)
         else:
-            kind = NOT_CHECKED if status == OK else _status_kind(status)
+            kind = NOT_CHECKED if status == OK else status_kind
         found.append((kind, str(row["note"])))
     elif status == INVALID:
         found.append((INVALID_OUTPUT, INVALID_OUTPUT))
     elif status != OK:
-        found.append((_status_kind(status), status_text(row)))
-    for flag in _flags(row):
-        text = FLAG_WORDS[flag]
-        if flag == "oversubscribed":
+        found.append((status_kind, status_text(row)))
+    for name in _flags(row):
+        text = FLAG_WORDS[name]
+        if name == "oversubscribed":
             cores = row.get("cores")
             cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
             text += f" ({int(row['threads'])} threads{cores_text})"
-        found.append((FLAG_WORDS[flag], text))
+        found.append((FLAG_WORDS[name], text))
     return found
 
 
@@ -109,9 +99,8 @@ def _flagged(df: pd.DataFrame) -> pd.DataFrame:
     mask = df["status"] != OK
     if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
         mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
-    for flag in FLAG_WORDS:
-        if flag in df.columns:
-            mask |= df[flag].fillna(False).astype(bool)
+    for column in FLAG_WORDS:
+        mask |= flag(df, column)
     return sort_cells(df[mask], WARNING_ORDER)
 
 
@@ -155,9 +144,7 @@ def provenance(df: pd.DataFrame) -> str:
         unknown = int((commits == "").sum())
         if counts.any() and unknown:
             sentences.append(f"{unknown} cell(s) from before commits were recorded.")
-    if "stale" in df.columns:
-        stale = int(df["stale"].fillna(False).astype(bool).sum())
-        if stale:
-            sentences.append(f"{stale} stale cell(s): their binary changed since they were "
-                             "measured.")
+    stale = int(flag(df, "stale").sum())
+    if stale:
+        sentences.append(f"{stale} stale cell(s): their binary changed since they were measured.")
     return " ".join(sentences)

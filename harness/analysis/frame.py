@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.analysis.cells import MACHINE
+from harness.analysis.cells import MACHINE, flag
 from harness.errors import HarnessError
 from harness.store import hyperfine
 from harness.store.columns import (
@@ -42,16 +42,17 @@ def _line(index: object) -> int:
     return int(index) + HEADER_LINES + 1  # type: ignore[call-overload]
 
 
+def _bad(path: Path, index: object, column: str, value: object, what: str) -> HarnessError:
+    return HarnessError(f"{path}: line {_line(index)}: column '{column}': {value!r} is {what}")
+
+
 def parse_numeric(text: pd.Series, path: Path, column: str) -> pd.Series:
     """A column of numbers; empty or `nan` cells are missing, anything else is an error."""
     missing = text.str.lower().isin(MISSING_TOKENS)
     values = pd.to_numeric(text.mask(missing), errors="coerce").astype("float64")
     bad = values.isna() & ~missing
     if bad.any():
-        first = bad.idxmax()
-        raise HarnessError(
-            f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not a number"
-        )
+        raise _bad(path, bad.idxmax(), column, text[bad.idxmax()], "not a number")
     return values
 
 
@@ -60,10 +61,7 @@ def _parse_bool(text: pd.Series, path: Path, column: str) -> pd.Series:
     lower = text.str.lower()
     known = lower.isin(MISSING_TOKENS | TRUE_TOKENS | FALSE_TOKENS)
     if not known.all():
-        first = (~known).idxmax()
-        raise HarnessError(
-            f"{path}: line {_line(first)}: column '{column}': {text[first]!r} is not True/False"
-        )
+        raise _bad(path, (~known).idxmax(), column, text[(~known).idxmax()], "not True/False")
     return lower.map({**dict.fromkeys(TRUE_TOKENS, True),
                       **dict.fromkeys(FALSE_TOKENS, False)}).astype("boolean")
 
@@ -76,13 +74,13 @@ def _parse_lists(text: pd.Series, path: Path, column: str) -> pd.Series:
             values.append(parse_list(cell, column))
         except ValueError:
             kind = LIST_COLUMNS[column].__name__
-            raise HarnessError(f"{path}: line {_line(index)}: column '{column}': {cell!r} is "
-                               f"not a space-separated list of {kind}") from None
+            raise _bad(path, index, column, cell,
+                       f"not a space-separated list of {kind}") from None
     return pd.Series(values, index=text.index, dtype=object)
 
 
 def read_csv_checked(path: Path, what: str, required: Sequence[str], **options: object
-              ) -> pd.DataFrame:
+                     ) -> pd.DataFrame:
     """A CSV file with the `required` columns; a HarnessError naming the file otherwise."""
     try:
         frame = pd.read_csv(path, **options)  # type: ignore[call-overload]
@@ -98,7 +96,7 @@ def read_results(path: Path) -> pd.DataFrame:
     """One results.csv, checked against the contract and typed: numbers as float64, flags as
     booleans, text stripped. Raises HarnessError naming the file and what is wrong."""
     raw = read_csv_checked(path, "results", CSV_COLUMNS, dtype=str, keep_default_na=False,
-                    skipinitialspace=True)
+                           skipinitialspace=True)
     # Every other column is kept (as text unless typed below), so a newer column reaches the
     # tables without a change here.
     optional = [c for c in raw.columns if c not in CSV_COLUMNS]
@@ -108,11 +106,11 @@ def read_results(path: Path) -> pd.DataFrame:
             df[column] = parse_numeric(df[column], path, column)
         elif column in BOOL_COLUMNS:
             df[column] = _parse_bool(df[column], path, column)
-    for column in LIST_COLUMNS.keys() & set(df.columns):
-        df[column] = _parse_lists(df[column], path, column)
+        elif column in LIST_COLUMNS:
+            df[column] = _parse_lists(df[column], path, column)
     for column in FLAG_COLUMNS:
-        if column in df.columns:
-            df[column] = df[column].fillna(False).astype(bool)
+        if column in df.columns:  # a flag not recorded is not set
+            df[column] = flag(df, column)
     _check_rows(df, path)
     df[MACHINE] = machine_labels(df)
     return df
@@ -155,19 +153,13 @@ def _check_rows(df: pd.DataFrame, path: Path) -> None:
         empty = df[column].isna() | (df[column].astype(str) == "")
         if empty.any():
             raise HarnessError(f"{path}: line {_line(empty.idxmax())}: column '{column}' is empty")
-    unknown = ~df["status"].isin(STATUSES)
-    if unknown.any():
-        first = unknown.idxmax()
-        raise HarnessError(
-            f"{path}: line {_line(first)}: status {df['status'][first]!r} is not one of "
-            f"{', '.join(sorted(STATUSES))}"
-        )
-    untimed = df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].isna()
-    if untimed.any():
-        raise HarnessError(
-            f"{path}: line {_line(untimed.idxmax())}: status "
-            f"{df['status'][untimed.idxmax()]!r} but no wall_median_s"
-        )
+    known = f"is not one of {', '.join(sorted(STATUSES))}"
+    for rows, what in ((~df["status"].isin(STATUSES), known),
+                       (df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].isna(),
+                        "but no wall_median_s")):
+        if rows.any():
+            status = df["status"][rows.idxmax()]
+            raise HarnessError(f"{path}: line {_line(rows.idxmax())}: status {status!r} {what}")
 
 
 def read_divergence(path: Path) -> pd.DataFrame | None:

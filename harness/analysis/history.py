@@ -144,8 +144,12 @@ def with_bisections(series: Series, order: Mapping[str, int]) -> Series:
                    bisected=frozenset(at[sha] for sha in named.values()))
 
 
-def _number(value: float) -> str:
-    return "" if not math.isfinite(value) else f"{value:.10g}"
+def _ends(names: tuple[str, str, str], interval: Interval | None) -> dict[str, str]:
+    """An interval's point and ends under `names`, empty where it is missing or NaN."""
+    if interval is None:
+        return dict.fromkeys(names, "")
+    ends = zip(names, (interval.point, interval.low, interval.high), strict=True)
+    return {name: f"{v:.10g}" if math.isfinite(v) else "" for name, v in ends}
 
 
 def step_text(ratio: Interval, digits: int = 4) -> str:
@@ -165,7 +169,6 @@ def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
     rows = []
     for s in series:
         for k, point in enumerate(s.points):
-            value = point.value or Interval(math.nan, math.nan, math.nan)
             change = s.changes.get(k)
             rows.append({
                 "config": config, "cell": s.label, "metric": s.metric.name,
@@ -173,12 +176,9 @@ def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
                 "subject": point.commit.subject,
                 "touches_code": str(point.commit.touches_code).lower(),
                 "measured": point.measured, "status": point.status,
-                "value": _number(value.point), "low": _number(value.low),
-                "high": _number(value.high), "unit": s.metric.unit,
+                **_ends(("value", "low", "high"), point.value), "unit": s.metric.unit,
                 "change_point": str(change is not None).lower(),
-                "ratio": _number(change.ratio.point) if change else "",
-                "ratio_low": _number(change.ratio.low) if change else "",
-                "ratio_high": _number(change.ratio.high) if change else "",
+                **_ends(("ratio", "ratio_low", "ratio_high"), change and change.ratio),
                 "p": f"{change.p:.3g}" if change else ""})
     return rows
 

@@ -2,8 +2,7 @@
 step (its binary's `--describe` sync facts: regions, nested regions, barriers, dynamic grabs as
 functions of N) times the steps, times the cost of one operation measured at the cell's thread
 count on the same machine (build/ompcost, the `openmp_costs: true` columns), beside the
-measured time the strategy spends over its repair. Tables are DataFrames and sentences strings,
-computed from results rows; harness.report.sections.strategies lays them out.
+measured time the strategy spends over its repair.
 
 The cost of one operation at a thread count is the median over that thread count's cells: each
 parallel cell ran ompcost once, and on a shared machine a single run can catch a team member
@@ -16,7 +15,7 @@ import math
 
 import pandas as pd
 
-from harness.analysis.cells import timed_rows
+from harness.analysis.cells import flag, timed_rows
 from harness.analysis.display import threads_text
 from harness.analysis.strategies import SEED_TIMES_S, repaired_by
 from harness.spec.facts import SyncFacts, current
@@ -39,8 +38,8 @@ def has_costs(df: pd.DataFrame) -> bool:
 
 
 def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
-    """Per thread count: the median ns of a region, a barrier, a dynamic grab and a nested
-    region over the cells that measured them, and how many did. None without any."""
+    """Per thread count: the median ns of each operation over the cells that measured them,
+    and how many did. None without any."""
     if not has_costs(df):
         return None
     present = [c for c in OMP_COST_COLUMNS if c in df.columns]
@@ -49,10 +48,9 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
     table = groups[present].median().reindex(columns=list(OMP_COST_COLUMNS))
     table["cells"] = groups.size()
     table = table.reset_index()
-    if "oversubscribed" in rows.columns:
-        over = groups["oversubscribed"].agg(lambda s: bool(s.fillna(False).astype(bool).any()))
-        if over.any():  # a column of blanks says nothing
-            table.insert(1, "oversubscribed", over.to_numpy())
+    over = flag(rows, "oversubscribed").groupby(rows["threads"], sort=True).any()
+    if over.any():  # a column of blanks says nothing
+        table.insert(1, "oversubscribed", over.to_numpy())
     return table
 
 
@@ -97,23 +95,22 @@ def overhead_table(df: pd.DataFrame) -> pd.DataFrame | None:
         facts = registry.get(variant)
         if facts is None or facts.sync is None:
             continue
+        repair = repaired_by(variant)
+        repair_sync = getattr(registry.get(repair) if repair else None, "sync", None)
         for threads, cells in df[df["variant"] == variant].groupby("threads", sort=True):
             first = cells.iloc[0]
             n, steps, t = int(first["n"]), int(first["steps"]), int(threads)
             at = by_threads.loc[t] if t in by_threads.index else pd.Series(dtype=float)
-            repair = repaired_by(variant)
             same = timed[timed["threads"] == t]
-            repair_facts = registry.get(repair) if repair else None
             predicted = predicted_s(facts.sync, n, steps, t, at)
-            if repair_facts is not None and repair_facts.sync is not None:
-                predicted -= predicted_s(repair_facts.sync, n, steps, t, at)
+            if repair_sync is not None:
+                predicted -= predicted_s(repair_sync, n, steps, t, at)
             median = _median(same, variant)
             reference = _median(same, repair) if repair else math.nan
             counts = facts.sync.per_step(n)
             rows.append({
                 "variant": variant, "threads": t,
-                "oversubscribed": bool(cells["oversubscribed"].fillna(False).astype(bool).any())
-                if "oversubscribed" in cells.columns else False,
+                "oversubscribed": bool(flag(cells, "oversubscribed").any()),
                 "regions_per_step": counts["regions"],
                 "nested_per_step": counts["nested_regions"],
                 "barriers_per_step": counts["barriers"],

@@ -29,6 +29,7 @@ _NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
            "ratio_ci_high", "rounds")
 _OPTIONAL = ("schedule", MACHINE_KEY)
 METRICS = ("speedup", "efficiency", "serial_fraction")  # what a speedup gives a cell
+ONE_THREAD = "1 thread"  # a cell's `baseline` where its speedup is over its own one thread
 _NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
             "session_spread")
 
@@ -51,10 +52,8 @@ def read_ratios(path: Path, paired_only: bool = True) -> pd.DataFrame | None:
 
 def cell_keys(frame: pd.DataFrame) -> pd.Series:
     """Per row, the text that names its cell across results.csv and ratios.csv."""
-    parts = [(frame[c] if c in frame.columns else pd.Series("", index=frame.index)).map(
+    parts = [frame.get(c, pd.Series("", index=frame.index)).map(
         lambda v, n=c in NUMERIC_COLUMNS: key_text(v, n)) for c in KEY_COLUMNS]
-    if not parts or frame.empty:
-        return pd.Series([], index=frame.index, dtype=object)
     return pd.Series(["\0".join(p) for p in zip(*parts, strict=True)], index=frame.index,
                      dtype=object)
 
@@ -78,16 +77,15 @@ def paired_points(cells: pd.DataFrame, ratios: pd.DataFrame | None, kind: str) -
     return found.map(lambda i: float(ratios.at[int(i), "ratio"]) if pd.notna(i) else np.nan)
 
 
-def use_paired(out: pd.DataFrame, ratios: pd.DataFrame | None, same_build: pd.Series,
-               one_thread_label: str, seq_label: str) -> None:
+def use_paired(out: pd.DataFrame, ratios: pd.DataFrame | None, same_build: pd.Series) -> None:
     """Replace `out`'s speedup, efficiency and serial fraction, points and intervals, by the
     paired ratio where ratios.csv has one for the row's baseline (`baseline`, with seq's build
     the row's own: `same_build`); `speedup_paired` says where."""
     out["speedup_paired"] = False
     if ratios is None or ratios.empty or out.empty:
         return
-    kind = out["baseline"].map({seq_label: RATIO_OVER_BASELINE,
-                                one_thread_label: RATIO_OVER_ONE_THREAD}).fillna("")
+    kind = out["baseline"].map({BASELINE: RATIO_OVER_BASELINE,
+                                ONE_THREAD: RATIO_OVER_ONE_THREAD}).fillna("")
     kind = kind.where((kind != RATIO_OVER_BASELINE) | same_build, "")
     found = matches(out, ratios, kind)
     for position, row in found.dropna().items():

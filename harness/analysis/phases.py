@@ -1,8 +1,6 @@
 """Where the time goes: each cell's `--timing` run split into its phases (the columns
 store.columns.PHASE_COLUMNS and what sim_s holds beyond them), in seconds and as shares of the
-simulation time, and its output in seconds, as a table, a figure's frame and a headline
-sentence. Tables are DataFrames and sentences strings, computed from results rows; the report
-lays them out (harness.report.sections.phases, harness.report.figures.phases).
+simulation time, and its output in seconds, as a table, a figure's frame and a headline.
 
 The output gets no share: the --timing run writes it with --precise (every digit, for the
 validation), which costs some 20x the timed runs' output (`build/grid --threads 1 --timing`,
@@ -65,7 +63,6 @@ def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
 
 
 def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
-    """The timed rows with sim_s and every phase."""
     if not all(c in df.columns for c in PHASE_COLUMNS):
         return df.iloc[0:0]
     rows = timed_rows(df)
@@ -145,9 +142,8 @@ def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
-    """Per shown cell: its scene and bar keys, sim_s, each of its phases in seconds with its
-    share (the `_share` companions, shown in parentheses), the simulation outside the broad
-    phase per particle-step, and the output in seconds."""
+    """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
+    and the output."""
     shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
     return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]
                      ].copy()

@@ -39,7 +39,7 @@ def agreement_text(row: pd.Series) -> str:
     """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
     agreement = str(row.get("agreement"))
     first = row.get("first_diff_step")
-    if first is not None and pd.notna(first):
+    if pd.notna(first):
         return f"{agreement} from step {int(first)}"
     return agreement
 
@@ -92,26 +92,20 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
         times = cells.set_index("threads")["wall_median_s"].dropna()
         for threads, seconds in times.sort_index().items():
             row[f"time_{int(threads)}t_s"] = float(seconds)
-        same = df[(df["variant"] == BASELINE)]
-        for key, value in zip(keys, scene, strict=True):
-            same = same[same[key] == value]
-        seq_s = same["wall_median_s"].dropna().min() if len(same) else np.nan
+        seq = df[(df["variant"] == BASELINE) & (df[keys] == scene).all(axis=1)]
+        seq_s = seq["wall_median_s"].min()
         top = int(times.index.max()) if len(times) else None
+        row["fastest"] = fastest = float(times[top]) if top is not None else np.nan
         row["threads_max"] = top
-        fastest = float(times[top]) if top is not None else np.nan
-        row["speedup_vs_seq"] = seq_s / fastest if top is not None and seq_s > 0 else np.nan
-        self_1 = float(times[1]) if 1 in times.index else np.nan
-        row["speedup_vs_1t"] = self_1 / fastest if top is not None else np.nan
+        row["speedup_vs_seq"] = seq_s / fastest if seq_s > 0 else np.nan
+        row["speedup_vs_1t"] = float(times.get(1, np.nan)) / fastest
         row["efficiency"] = row["speedup_vs_1t"] / top if top else np.nan
         out.append(row)
     table = pd.DataFrame(out)
     if not len(table):
         return table
     right = table["verdict"].isin(RANKED)
-    times_at_max = [row.get(f"time_{int(row['threads_max'])}t_s", np.nan)
-                    if pd.notna(row["threads_max"]) else np.nan for _, row in table.iterrows()]
-    table["rank"] = pd.Series(np.where(right, times_at_max, np.nan)).rank(
-        method="min").astype("Int64")
+    table["rank"] = table["fastest"].where(right).rank(method="min").astype("Int64")
     table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
     time_columns = sorted((c for c in table.columns if c.startswith("time_")),
                           key=lambda c: int(c[5:-3]))

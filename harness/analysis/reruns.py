@@ -153,15 +153,14 @@ def analyse(roots: Sequence[Path]) -> list[MachineReruns]:
     cells, ratios = gather(roots)
     found = []
     for machine in sorted(cells.keys() | ratios.keys()):
-        absolute = spread_of(cells.get(machine, {}))
-        ratio = spread_of(ratios.get(machine, {}))
+        its_cells, its_ratios = cells.get(machine, {}), ratios.get(machine, {})
+        absolute, ratio = spread_of(its_cells), spread_of(its_ratios)
         if not math.isfinite(absolute):
             continue
         if not math.isfinite(ratio):
             ratio = stats.DEFAULT_SESSION_SPREAD.ratio
         spread = stats.SessionSpread(absolute, ratio, f"{len(roots)} reruns")
-        found.append(MachineReruns(
-            machine, len(roots), spread, coverage(cells.get(machine, {})),
-            coverage(ratios.get(machine, {})), coverage(cells.get(machine, {}), absolute),
-            coverage(ratios.get(machine, {}), ratio)))
+        found.append(MachineReruns(machine, len(roots), spread, coverage(its_cells),
+                                   coverage(its_ratios), coverage(its_cells, absolute),
+                                   coverage(its_ratios, ratio)))
     return found

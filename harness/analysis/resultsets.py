@@ -1,8 +1,7 @@
 """The two sides of a comparison, read from stored results: each results.csv row as a cell
-matched on what was measured (variant, build, scene and its parameters, threads, schedule),
-never on the machine or the binary, with its per-run times and the rounds they came from; one
-side per result set, after the machine filter and de-duplication (harness.analysis.compare
-judges them)."""
+matched on what was measured (MatchKey), never on the machine or the binary, with its per-run
+times and the rounds they came from; one side per result set, after the machine filter and
+de-duplication."""
 
 from __future__ import annotations
 
@@ -26,6 +25,9 @@ from harness.store.layout import ExperimentDir
 # The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
 # of its own), in the order a row's note names them.
 FLAG_COLUMNS = ("loaded", "outliers", "unstable", "oversubscribed")
+# The Cell fields that are results.csv's text columns of the same name.
+CELL_TEXTS = ("cell_id", "measured_at", "git_commit", "input_sha256", "stopped",
+              "instructions_tool")
 
 
 @dataclass(frozen=True)
@@ -52,20 +54,15 @@ class MatchKey:
     def label(self) -> str:
         """`p1d random n=10000 L=20000 r=1 S=50 T=2`; the build, mode and seed where they are
         not f64, perf and 1, the schedule where set, the experiment first where keyed on it."""
-        parts = [self.variant]
-        if self.build and self.build != "f64":
-            parts.append(self.build)
-        parts.append(self.scene or "?")
-        parts.append(f"n={_short(self.n)} L={_short(self.L)} r={_short(self.r)} "
-                     f"S={_short(self.steps)}")
-        if self.mode and self.mode != "perf":
-            parts.append(self.mode)
-        if self.seed and _short(self.seed) != "1":
-            parts.append(f"seed={_short(self.seed)}")
-        parts.append(f"T={_short(self.threads)}")
-        if self.schedule:
-            parts.append(f"schedule={self.schedule}")
-        text = " ".join(parts)
+        seed = _short(self.seed)
+        parts = (self.variant, self.build if self.build != "f64" else "", self.scene or "?",
+                 f"n={_short(self.n)} L={_short(self.L)} r={_short(self.r)} "
+                 f"S={_short(self.steps)}",
+                 self.mode if self.mode != "perf" else "",
+                 f"seed={seed}" if seed not in ("", "1") else "",
+                 f"T={_short(self.threads)}",
+                 f"schedule={self.schedule}" if self.schedule else "")
+        text = " ".join(part for part in parts if part)
         return f"{self.experiment}: {text}" if self.experiment else text
 
 
@@ -201,19 +198,14 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
                 env_machine = _env_machine(directory)
             machine = env_machine
         cells.append(Cell(
-            key=key, directory=directory, cell_id=_text(row, "cell_id"),
-            status=_text(row, "status") or "unknown", median=median, times=times,
-            machine_id=machine_id, machine=machine, measured_at=_text(row, "measured_at"),
-            git_commit=_text(row, "git_commit"), input_sha256=_text(row, "input_sha256"),
+            key=key, directory=directory, status=_text(row, "status") or "unknown",
+            median=median, times=times, machine_id=machine_id, machine=machine,
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
             stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
-            stopped=_text(row, "stopped"),
-            instructions=_number(row, "instructions"),
-            instructions_max=_number(row, "instructions_max"),
-            instructions_tool=_text(row, "instructions_tool"),
-            round_noise=items(row, "round_noise"),
-            round_pressure=items(row, "round_pressure"),
+            **{k: _text(row, k) for k in CELL_TEXTS},
+            **{k: _number(row, k) for k in ("instructions", "instructions_max")},
+            **{k: items(row, k) for k in ("round_noise", "round_pressure")},
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 

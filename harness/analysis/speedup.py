@@ -14,34 +14,37 @@ from harness.analysis import paired
 from harness.analysis.cells import (
     INTERVAL_SUFFIXES,
     SCENE_KEYS,
+    flag,
     present,
     series_keys,
     sort_cells,
+    variant_fact,
 )
 from harness.analysis.flags import validation_text
 from harness.spec.builds import DEFAULT_BUILD
-from harness.spec.facts import BASELINE, current
+from harness.spec.facts import BASELINE
 from harness.store.columns import OK, TIMED_STATUSES
 
 BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
-BASELINE_ONE_THREAD = "1 thread"  # ... against the same variant at one thread
+BASELINE_ONE_THREAD = paired.ONE_THREAD  # ... against the same variant at one thread
 TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, seconds
 OVERSUBSCRIBED = "oversubscribed"  # results.csv's flag: more threads than the machine's cores
+# A cell table's timing columns, from results.csv's.
+TIMING = {"runs": "runs", "wall_median_s": "median_s", "wall_min_s": "min_s",
+          "wall_stddev_s": "stddev_s"}
 
 
 def all_pairs(variants: pd.Series) -> pd.Series:
     """Per row, whether the variant tests every pair with seq's kernel (its --describe): its
     speedup over seq is then parallelism alone."""
-    registry = current()
-    return variants.map(lambda v: bool(getattr(registry.get(v), "all_pairs", False)))
+    return variant_fact(variants, lambda f: f.all_pairs)
 
 
 def single_threaded(variants: pd.Series) -> pd.Series:
     """Per row, whether the variant runs one thread whatever `--threads` says: a thread count
     is nominal for it."""
-    registry = current()
-    return variants.map(lambda v: registry.get(v) is not None and not registry[v].parallel)
+    return variant_fact(variants, lambda f: not f.parallel)
 
 
 def _lookup(df: pd.DataFrame, found: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -56,14 +59,10 @@ def _lookup(df: pd.DataFrame, found: pd.DataFrame, keys: list[str]) -> pd.DataFr
 
 
 def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
-    """Per row, the ok `seq` cell on the same scene its speedup is measured against: the f64
-    build (the validation baseline) where measured, else seq of the row's own build.
-
-    Returns columns `base_s` (seq's median), `base_times` (its per-run times) and
-    `base_build`. seq is single-threaded whatever `threads` says, so its lowest-thread cell
-    stands for all.
-    """
-    df = _with_times(df)
+    """Per row, _lookup's columns and `base_build` of the ok `seq` cell on the same scene its
+    speedup is measured against: the f64 build (the validation baseline) where measured, else
+    seq of the row's own build. seq is single-threaded whatever `threads` says, so its
+    lowest-thread cell stands for all."""
     seq = df[df["variant"] == BASELINE].sort_values("threads", kind="stable")
     keys = present(df, SCENE_KEYS)
     base = _lookup(df, seq, [*keys, "build"])
@@ -74,32 +73,18 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     return base
 
 
-def _one_thread_baseline(df: pd.DataFrame) -> pd.DataFrame:
-    """Per row, the median (`base_s`) and run times (`base_times`) of the same variant and
-    build at 1 thread on the same scene."""
-    df = _with_times(df)
-    return _lookup(df, df[df["threads"] == 1], [*present(df, SCENE_KEYS), "variant", "build"])
-
-
-def _with_times(df: pd.DataFrame) -> pd.DataFrame:
-    """The rows with a `wall_times_s` column (empty where older results lack it)."""
-    return df if TIMES in df.columns else df.assign(**{TIMES: [()] * len(df)})
-
-
 def _times(value: object) -> list[float]:
     """A cell's run times from its column (NaN where a merge found no reference)."""
     return list(value) if isinstance(value, tuple | list) else []  # type: ignore[arg-type]
 
 
-def _speedup_intervals(out: pd.DataFrame, base_times: pd.Series) -> None:
+def _speedup_intervals(out: pd.DataFrame, own_times: pd.Series, base_times: pd.Series) -> None:
     """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
     intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
     either cell has fewer than two times, so tables fall back to the point value."""
     for metric in paired.METRICS:
         for suffix in INTERVAL_SUFFIXES:
             out[f"{metric}{suffix}"] = np.nan
-    own_times = out[TIMES] if TIMES in out.columns else pd.Series([()] * len(out),
-                                                                     index=out.index)
     for position, base, own in zip(out.index, base_times, own_times, strict=True):
         base, own = _times(base), _times(own)
         if len(base) >= 2 and len(own) >= 2 and pd.notna(out.at[position, "speedup"]):
@@ -128,6 +113,8 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     and their intervals are that ratio's (`speedup_paired`).
     """
     out = df.copy()
+    if TIMES not in df.columns:  # results written before the column
+        df = df.assign(**{TIMES: [()] * len(df)})
     seq = _seq_baseline(df)
     base = seq["base_s"]
     base_times = seq["base_times"]
@@ -139,7 +126,7 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     # seq told to use p threads still uses one: S/p would charge it for threads it never ran.
     same_work &= ~(single_threaded(df["variant"]) & (df["threads"] > 1))
     if thread_baseline:
-        own = _one_thread_baseline(df)
+        own = _lookup(df, df[df["threads"] == 1], [*present(df, SCENE_KEYS), "variant", "build"])
         use_own = base.isna() & own["base_s"].notna()
         base = base.where(~use_own, own["base_s"])
         base_times = base_times.where(~use_own, own["base_times"])
@@ -151,37 +138,26 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     out["speedup"] = (base / out["wall_median_s"]).where(timed)
     out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
     out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
-    _speedup_intervals(out, base_times)
-    paired.use_paired(out, ratios, df["build"] == seq["base_build"], BASELINE_ONE_THREAD,
-                      BASELINE_SEQ)
+    _speedup_intervals(out, df[TIMES], base_times)
+    paired.use_paired(out, ratios, df["build"] == seq["base_build"])
     return out
 
 
-def cell_table(
-    df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
-    ratios: pd.DataFrame | None = None,
-) -> pd.DataFrame:
-    """One row per cell: its keys, runs, median/min/stddev, speedup, efficiency, validation.
-
-    The shape of the course report's Tables 2-6 with our statistics in place of its
-    "first/second/third time, shortest". When `threads` is among the keys, the Karp-Flatt
-    serial fraction and the speedup baseline of each row are added.
-    """
+def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
+               ratios: pd.DataFrame | None = None) -> pd.DataFrame:
+    """One row per cell: the shape of the course report's Tables 2-6 with our statistics in
+    place of its "first/second/third time, shortest"."""
     rows = with_speedup(df, thread_baseline=thread_baseline, ratios=ratios)
-    table = pd.DataFrame({k: rows[k] for k in keys})
-    if "threads" in keys and OVERSUBSCRIBED in rows.columns and \
-            rows[OVERSUBSCRIBED].fillna(False).astype(bool).any():
+    table = rows[list(keys)].copy()
+    over = flag(rows, OVERSUBSCRIBED)
+    if "threads" in keys and over.any():
         # beside the thread count, where a sweep past the cores shows it at a glance (the
         # validation column, far right, says it too)
-        table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED,
-                     rows[OVERSUBSCRIBED].fillna(False).astype(bool))
-    for column, source in (("runs", "runs"), ("median_s", "wall_median_s"),
-                           ("min_s", "wall_min_s"), ("stddev_s", "wall_stddev_s")):
-        table[column] = rows[source]
+        table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED, over)
+    table = table.join(rows[list(TIMING)].rename(columns=TIMING))
     metrics = ("speedup", "efficiency", *(("serial_fraction",) if "threads" in keys else ()))
-    for metric in metrics:
-        for column in (metric, *(f"{metric}{s}" for s in INTERVAL_SUFFIXES)):
-            table[column] = rows[column]
+    table = table.join(rows[[f"{m}{suffix}" for m in metrics
+                             for suffix in ("", *INTERVAL_SUFFIXES)]])
     if "threads" in keys:
         table["baseline"] = rows["baseline"]
     if "imbalance" in rows.columns and rows["imbalance"].notna().any():
@@ -224,8 +200,7 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
                               group["wall_median_s"].astype(float).tolist())
         if fit is None:
             continue
-        label_values = values if isinstance(values, tuple) else (values,)
-        rows.append({**dict(zip(keys, label_values, strict=True)), "exponent": fit.exponent,
+        rows.append({**dict(zip(keys, values, strict=True)), "exponent": fit.exponent,
                      "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
                      "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]

@@ -1,7 +1,5 @@
 """The strategies and schedules read back: the seed's published times beside ours, whether
 the ranking agrees, per-thread work, the cost of a dispatched chunk, and the schedule study.
-Tables are DataFrames and sentences are strings, computed from results rows; the report wraps
-them into its sections (harness.report.sections.strategies).
 
 The per-thread columns come from `--timing` (store.columns.THREAD_COLUMNS): the busy seconds,
 pair tests and chunks of every candidate writer, space-separated.
@@ -80,41 +78,32 @@ def one_scene(df: pd.DataFrame) -> bool:
 
 
 def seed_table(df: pd.DataFrame, ratios: pd.DataFrame | None = None) -> pd.DataFrame | None:
-    """Per seed strategy measured here: our median and rank, the seed's time and rank, each
-    speedup over its own sequential code (ours paired by round where `ratios` has it), our
-    imbalance, and the repair's median."""
+    """Per seed strategy measured here, ours beside the seed's: each speedup is over its own
+    sequential code (ours paired by round where `ratios` has it)."""
     # only where every row simulates the seed's benchmark scene: its times compare with ours
     if not len(df) or not all((df[key] == value).all()
                               for key, value in SEED_SCENE.items() if key in df.columns):
         return None
     cells = _one_per_variant(df)
-    ours = [v for v in SEED_TIMES_S if v in cells.index]
+    ours = cells.loc[[v for v in SEED_TIMES_S if v in cells.index]]
     if len(ours) < 2:
         return None
     seq = cells["wall_median_s"].get("seq", math.nan)
-    paired_speedup = paired_points(cells, ratios, RATIO_OVER_BASELINE)
-    our_rank = pd.Series([cells.at[v, "wall_median_s"] for v in ours], index=ours).rank(
-        method="min")
-    seed_rank = pd.Series([SEED_TIMES_S[v] for v in ours], index=ours).rank(method="min")
-    rows = []
-    for v in ours:
-        cell = cells.loc[v]
-        repair = repaired_by(v)
-        rows.append({
-            "variant": v,
-            "threads": cell["threads"],
-            "median_s": cell["wall_median_s"],
-            "rank": int(our_rank[v]),
-            "speedup": paired_speedup[v] if pd.notna(paired_speedup[v])
-                       else seq / cell["wall_median_s"],
-            "seed_s": SEED_TIMES_S[v],
-            "seed_rank": int(seed_rank[v]),
-            "seed_speedup": SEED_SEQ_S / SEED_TIMES_S[v],
-            "imbalance": cell.get("imbalance", math.nan),
-            "repair": f"{repair}: {cells.at[repair, 'wall_median_s']:.3g} s"
-                      if repair in cells.index else "",
-        })
-    return pd.DataFrame(rows)
+    seed_s = ours["variant"].map(SEED_TIMES_S)
+    return pd.DataFrame({
+        "variant": ours["variant"],
+        "threads": ours["threads"],
+        "median_s": ours["wall_median_s"],
+        "rank": ours["wall_median_s"].rank(method="min").astype(int),
+        "speedup": paired_points(ours, ratios, RATIO_OVER_BASELINE).fillna(
+            seq / ours["wall_median_s"]),
+        "seed_s": seed_s,
+        "seed_rank": seed_s.rank(method="min").astype(int),
+        "seed_speedup": SEED_SEQ_S / seed_s,
+        "imbalance": ours.get("imbalance", math.nan),
+        "repair": [f"{r}: {cells.at[r, 'wall_median_s']:.3g} s" if r in cells.index else ""
+                   for r in ours["variant"].map(repaired_by)],
+    }).reset_index(drop=True)
 
 
 def _order(table: pd.DataFrame, column: str) -> list[str]:
@@ -133,11 +122,9 @@ def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
     swaps = [(a, b) for i, a in enumerate(ours) for b in ours[i + 1:]
              if seed.index(a) > seed.index(b)]
     cells = _one_per_variant(df)
-    reasons = []
-    for a, b in swaps:
-        # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
-        reasons.append(f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
-                       f"{_evidence(b, cells, threads)})")
+    # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
+    reasons = [f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
+               f"{_evidence(b, cells, threads)})" for a, b in swaps]
     return (text + f"The ranking differs in {len(swaps)} pair(s): " + "; ".join(reasons) + ".")
 
 
@@ -270,15 +257,10 @@ def chunk_sentence(costs: Sequence[ChunkCost]) -> str:
 
 def seed_display(table: pd.DataFrame) -> pd.DataFrame:
     """seed_table under the report's headers (numbers stay numbers, right-aligned)."""
-    return pd.DataFrame({
-        "variant": table["variant"], "threads": table["threads"],
-        "median_s": table["median_s"], "rank here": table["rank"],
-        "speedup": table["speedup"],
-        f"seed's time [s] ({SEED_THREADS} threads)": table["seed_s"],
-        "seed's rank": table["seed_rank"],
-        f"seed's speedup (its seq: {SEED_SEQ_S:g} s)": table["seed_speedup"].round(2),
-        "imbalance": table["imbalance"], "repaired by": table["repair"],
-    })
+    return table.assign(seed_speedup=table["seed_speedup"].round(2)).rename(columns={
+        "rank": "rank here", "seed_s": f"seed's time [s] ({SEED_THREADS} threads)",
+        "seed_rank": "seed's rank", "seed_speedup": f"seed's speedup (its seq: {SEED_SEQ_S:g} s)",
+        "repair": "repaired by"})
 
 
 # --- the schedule study -------------------------------------------------------------------

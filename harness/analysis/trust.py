@@ -10,9 +10,8 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.accuracy import pareto_by_scene
-from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows
+from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows, variant_fact
 from harness.analysis.display import display_name, format_value
-from harness.spec.facts import current
 
 # Each check's column and what it tests, in the order the tables show them.
 CHECKS: tuple[tuple[str, str, str], ...] = (
@@ -60,8 +59,7 @@ def _checked(df: pd.DataFrame) -> pd.DataFrame:
 
 def _failures(row: pd.Series) -> list[str]:
     failed = [name for name, column, _ in CHECKS
-              if column in row.index and row[column] is not None and not pd.isna(row[column])
-              and not bool(row[column])]
+              if pd.notna(row.get(column)) and not bool(row[column])]
     text = row.get("checks_failed")
     if isinstance(text, str) and "run" in text.split():
         failed.insert(0, "run")
@@ -117,7 +115,7 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
 
 def _known(row: pd.Series, column: str) -> float | None:
     value = row.get(column)
-    return None if value is None or pd.isna(value) else float(value)
+    return None if pd.isna(value) else float(value)
 
 
 def _trusted(row: pd.Series) -> bool:
@@ -134,8 +132,7 @@ def _reason(row: pd.Series) -> str:
     """Why a cell is not trusted, with the measured numbers."""
     parts = []
     for failure in _failures(row):
-        if failure == "shadow" and row.get("shadow_set_diff", 0) and (
-                float(row["shadow_set_diff"]) > 0):
+        if failure == "shadow" and float(row.get("shadow_set_diff") or 0) > 0:
             parts.append(f"collisions differ from __float128 in "
                          f"{float(row['shadow_set_diff']):.0%} of steps")
         elif failure == "energy":
@@ -155,8 +152,7 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
     rows = _checked(df)
     out = []
     for (variant, build), group in rows.groupby(["variant", "build"], sort=False):
-        errors = group["shadow_err_r"] if "shadow_err_r" in group.columns else pd.Series()
-        errors = errors.dropna()
+        errors = group.get("shadow_err_r", pd.Series(dtype=float)).dropna()
         worst = ""
         if len(errors) and float(errors.max()) > 0:
             at = errors.idxmax()
@@ -173,17 +169,10 @@ def trust_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out, columns=columns)
 
 
-def own_arithmetic(variants: pd.Series) -> pd.Series:
-    """Per row, whether the variant computes contact times with arithmetic of its own (it is
-    not exact: its --describe says so): a build's verdict leaves it out."""
-    registry = current()
-    return variants.map(lambda v: registry.get(v) is not None and not registry[v].exact)
-
-
 def _short_reason(cells: pd.DataFrame) -> str:
     """The gist of why a scene's cells are not trusted: the worst one-step error in radii,
     else differing collisions, else the failing checks."""
-    errors = cells["shadow_err_r"].dropna() if "shadow_err_r" in cells else pd.Series()
+    errors = cells.get("shadow_err_r", pd.Series(dtype=float)).dropna()
     if len(errors) and float(errors.max()) > TRUST_ERR_R:
         return f"{float(errors.max()):.1e} r per step"
     if "shadow_set_diff" in cells and (cells["shadow_set_diff"].fillna(0) > 0).any():
@@ -195,7 +184,8 @@ def build_trust(df: pd.DataFrame) -> pd.DataFrame:
     """Per build (precision or formula), over its variants that share the core's arithmetic:
     how many scenes all of them are trusted on, and the others with why."""
     rows = _checked(df)
-    rows = rows[~own_arithmetic(rows["variant"])]
+    # a variant that is not exact computes contact times with arithmetic of its own
+    rows = rows[~variant_fact(rows["variant"], lambda f: not f.exact)]
     out = []
     for build, group in rows.groupby("build", sort=False):
         scenes = list(dict.fromkeys(group["scene_name"]))
