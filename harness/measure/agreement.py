@@ -216,21 +216,18 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
                          note=f"every step locally right only to {level:g} of L, coarser "
                               f"than it prints (levels tried: {ladder}); it {departure}{ties}")
     k, i = found.wrong_step, int(found.particle or 0)
-    assert found.reference_event is not None
+    assert found.reference_event is not None and found.reference_state is not None
+    assert found.partners is not None
     kind, partner, t = found.reference_event
-    reference = np.array(found.reference_values)
-    event = reference_event(states[k - 1], reference, i, kind, partner, t, L, r)
-    partners = found.partners if found.partners is not None else np.full(n, -1)
-    rule = broken_rule(states[k - 1], states[k], i, event, reference, partners, L, r) or ""
-    note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
-            f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
-            f", to {_values(reference)}; the reference in that step: {event.describe()}"
-            + (f"; rule: {rule}" if rule else ""))
-    if found.reference_state is not None:
-        detail["neighbourhood"] = neighbourhood(states[k - 1], states[k], found.reference_state,
-                                                i, partners, r)
-    return Agreement(WRONG, k, i, found.program_values, found.reference_values, found.deviation,
-                     level, event.describe(), rule, compared, note, detail)
+    before, after, reference = states[k - 1], states[k], found.reference_state
+    event = reference_event(before, reference[i], i, kind, partner, t, L, r)
+    rule = broken_rule(before, after, i, event, reference[i], found.partners, L, r) or ""
+    note = (f"wrong at step {k}: particle {i} is {_values(after[i])} where the rules take its "
+            f"state at step {k - 1}, {_values(before[i])}, to {_values(reference[i])}; the "
+            f"reference in that step: {event.describe()}" + (f"; rule: {rule}" if rule else ""))
+    detail["neighbourhood"] = neighbourhood(before, after, reference, i, found.partners, r)
+    return Agreement(WRONG, k, i, tuple(map(float, after[i])), tuple(map(float, reference[i])),
+                     found.deviation, level, event.describe(), rule, compared, note, detail)
 
 
 NEIGHBOURS = 8  # the most partners the wrong step's figure shows beside the particle

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from harness.measure.steps import half_unit_exp, half_units
 from harness.spec.output import FINAL_FIELDS, HISTORY_FIELDS
 
 QUOTE_CHARS = 60
@@ -196,11 +195,41 @@ def _row(fields: list[str]) -> tuple[int, int, list[float], tuple[str, ...], lis
     return step, index, values, tuple(fields[2:6]), counts
 
 
+def half_units(tokens: np.ndarray) -> np.ndarray:
+    """Half a unit in the last printed digit of each token (an array of str), vectorised for
+    plain decimals; tokens with an exponent take the slow path."""
+    tokens = np.asarray(tokens, dtype=str)
+    out = 0.5 * 10.0 ** (-_decimals(tokens).astype(np.float64))
+    exponent = np.char.find(np.char.lower(tokens), "e") >= 0
+    for k in np.flatnonzero(exponent.ravel()):
+        out.flat[k] = half_unit_exp(str(tokens.flat[k]))
+    return out
+
+
+def _decimals(tokens: np.ndarray) -> np.ndarray:
+    """The digits after the point of each token without an exponent."""
+    point = np.char.find(tokens, ".")
+    return np.where(point >= 0, np.char.str_len(tokens) - point - 1, 0)
+
+
+def _digits(token: str) -> tuple[int, str]:
+    """The digits after the point of a token's mantissa, and its exponent ('' for none)."""
+    mantissa, _, exponent = token.lower().lstrip("+-").partition("e")
+    return (len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0), exponent
+
+
+def half_unit_exp(token: str) -> float:
+    decimals, exponent = _digits(token)
+    try:
+        return 0.5 * 10.0 ** (int(exponent) - decimals)
+    except ValueError:
+        return 0.5 * 10.0 ** -decimals
+
+
 def printed_like(token: str, value: float) -> bool:
     """Whether `value` printed with the token's digits reads as the token."""
-    mantissa, e, _ = token.lower().lstrip("+-").partition("e")
-    decimals = len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
-    text = f"{value:.{decimals}e}" if e else f"{value:.{decimals}f}"
+    decimals, exponent = _digits(token)
+    text = f"{value:.{decimals}e}" if exponent else f"{value:.{decimals}f}"
     try:
         return float(text) == float(token)
     except ValueError:
@@ -227,8 +256,7 @@ def printed_like_all(rows: Rows, which: np.ndarray, values: np.ndarray,
     values = values[edge_rows]
     for column in range(tokens.shape[1]):
         texts, numbers = tokens[:, column], values[:, column]
-        point = np.char.find(texts, ".")
-        decimals = np.where(point >= 0, np.char.str_len(texts) - point - 1, 0)
+        decimals = _decimals(texts)
         plain = np.char.find(np.char.lower(texts), "e") < 0
         if plain.all() and (decimals == decimals[0]).all():
             redone = np.char.mod(f"%.{int(decimals[0])}f", numbers).astype(np.float64)

@@ -65,38 +65,12 @@ class StepJudgement:
     level: float | None  # None: every step right at the printed precision; else the ladder's
     wrong_step: int | None = None  # the first step no level explains
     particle: int | None = None
-    program_before: tuple[float, ...] = ()  # the particle at the step before, as printed
-    program_values: tuple[float, ...] = ()  # its state at the wrong step
-    reference_values: tuple[float, ...] = ()  # the reference's successor of the state before
     reference_event: tuple[str, int, float] | None = None  # (free|pair|wall, partner, t)
     deviation: float | None = None
     steps_judged: int = 0
     near_ties: int = 0  # values explained only by a replay that decided otherwise
     partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
     reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
-
-
-def half_units(tokens: np.ndarray) -> np.ndarray:
-    """Half a unit in the last printed digit of each token (an array of str), vectorised for
-    plain decimals; tokens with an exponent take the slow path."""
-    tokens = np.asarray(tokens, dtype=str)
-    length = np.char.str_len(tokens)
-    point = np.char.find(tokens, ".")
-    decimals = np.where(point >= 0, length - point - 1, 0)
-    out = 0.5 * 10.0 ** (-decimals.astype(np.float64))
-    exponent = np.char.find(np.char.lower(tokens), "e") >= 0
-    for k in np.flatnonzero(exponent.ravel()):
-        out.flat[k] = half_unit_exp(str(tokens.flat[k]))
-    return out
-
-
-def half_unit_exp(token: str) -> float:
-    mantissa, _, exponent = token.lower().lstrip("+-").partition("e")
-    decimals = len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
-    try:
-        return 0.5 * 10.0 ** (int(exponent) - decimals)
-    except ValueError:
-        return 0.5 * 10.0 ** -decimals
 
 
 REPLAY_MAGIC = b"CBREPLAY"  # variants/core/sim_replay.c's binary form
@@ -188,10 +162,8 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     i = int(np.flatnonzero(open_[k])[0])
     event = (EVENT_NAMES.get(int(base.kind[k][i]), "free"), int(base.partner[k][i]),
              float(base.t[k][i]))
-    return StepJudgement(reached, k + 1, i, tuple(map(float, states[k][i])),
-                         tuple(map(float, states[k + 1][i])), tuple(map(float, base.values[k][i])),
-                         event, float(np.max(deviation[k][i])), len(pairs), near_ties,
-                         base.partner[k], base.values[k])
+    return StepJudgement(reached, k + 1, i, event, float(np.max(deviation[k][i])), len(pairs),
+                         near_ties, base.partner[k], base.values[k])
 
 
 def _suspects(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], pairs: list[int],

@@ -9,7 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import agreement, printed, steps
+from harness.measure import agreement, printed
 from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, ROUNDING, WRONG
 
 L, R = 100.0, 1.0
@@ -143,7 +143,7 @@ def test_runs_that_print_the_same_rows_have_no_first_difference() -> None:
     ("12.345", 0.0005), ("-0.5", 0.05), ("17", 0.5), ("1.25e+02", 0.5), ("3.0E-3", 5e-5),
 ])
 def test_half_a_unit_in_the_last_printed_digit(token: str, half: float) -> None:
-    assert steps.half_units(np.array([token]))[0] == pytest.approx(half)
+    assert printed.half_units(np.array([token]))[0] == pytest.approx(half)
 
 
 def test_printed_like_compares_at_the_tokens_precision() -> None:
