@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import shlex
 import tempfile
 import time
@@ -29,7 +28,15 @@ from pathlib import Path
 
 from harness.measure.agreement import Agreement, judge
 from harness.measure.printed import first_difference
-from harness.measure.proc import ProcessResult, exit_status, failure, run_process, signal_of, tail
+from harness.measure.proc import (
+    ProcessResult,
+    exit_status,
+    failure,
+    run_captured,
+    run_process,
+    signal_of,
+    tail,
+)
 from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
@@ -39,7 +46,6 @@ from harness.plan.cellstore import CellStore
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
-from harness.store import atomic
 from harness.store.columns import (
     AGREEING,
     AGREEMENT_FAILED,
@@ -69,19 +75,13 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads)
     record = record.replace(check_command=shlex.join(check), check_steps=steps)
-    output = atomic.temp_path(store.layout.check_output(cell_id))
-    try:
-        checked = run_process(check, env, timeout_s, output)
-        check_status, check_code = _status(checked)
-        if check_status != OK:
-            return _not_run(record, cell_id, key, command, check_status, check_code,
-                            failure("its check run (print mode)", checked, timeout_s),
-                            done.seconds)
-        text = output.read_text(errors="replace")
-        if store.config.keep_output:
-            os.replace(output, store.layout.output(cell_id))
-    finally:
-        output.unlink(missing_ok=True)
+    checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
+                                 store.layout.output(cell_id) if store.config.keep_output
+                                 else None)
+    check_status, check_code = _status(checked)
+    if check_status != OK:
+        return _not_run(record, cell_id, key, command, check_status, check_code,
+                        failure("its check run (print mode)", checked, timeout_s), done.seconds)
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
@@ -169,12 +169,10 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
         if again == 1 and threads == 1:
             continue
         argv = program.shell_command(program.check, input_file, again)
-        with tempfile.TemporaryDirectory(prefix="rerun-") as tmp:
-            out = Path(tmp) / "stdout"
-            done = run_process(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s, out)
-            if done.returncode != 0:
-                return None
-            found = first_difference(first, out.read_text(errors="replace"))
+        done, text = run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
+        if done.returncode != 0:
+            return None
+        found = first_difference(first, text)
         if found is not None:
             step, particle, mine, theirs = found
             return Agreement(NONDETERMINISTIC, step, particle, steps_compared=0,

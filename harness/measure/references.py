@@ -4,12 +4,11 @@ references (results/.cache/prints/), keyed by binary and input."""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.measure.proc import ProcessResult, exit_status, run_process, tail
+from harness.measure.proc import ProcessResult, exit_status, run_captured, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
@@ -82,12 +81,6 @@ class References:
         `keep` moved to `path`."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
-        tmp = atomic.temp_path(path)
-        try:
-            done = run_process(argv, self.environment(threads), self.timeout_s, tmp)
-            text = tmp.read_text() if done.returncode == 0 else None
-            if keep and text is not None:
-                os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return done, text
+        done, text = run_captured(argv, self.environment(threads), self.timeout_s, path,
+                                  path if keep else None)
+        return done, text if done.returncode == 0 else None
