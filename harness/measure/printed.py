@@ -42,13 +42,10 @@ class Rows:
 def read_rows(text: str) -> Rows:
     """The rows of an output, whoever printed it: pandas' C reader of numbers with the
     tokens' digits counted on the bytes where every line is such a row of plain numbers (the
-    common case, a thousand times faster), pandas' reader of strings where some value is
-    not (nan, inf), else line by line."""
-    for reader in (_read_rows_numeric, _read_rows_fast):
-        fast = reader(text)
-        if fast is not None:
-            return fast
-    return _read_rows_by_line(text)
+    common case, five times faster), else line by line (measured: only 1.7 times slower than
+    pandas' reader of strings, for the outputs with nan or inf)."""
+    rows = _read_rows_numeric(text)
+    return rows if rows is not None else _read_rows_by_line(text)
 
 
 class _Tokens(Sequence[tuple[str, ...]]):
@@ -131,35 +128,6 @@ def _last_of_each(step: np.ndarray, index: np.ndarray) -> np.ndarray:
     first = key.groupby(["s", "i"], sort=False).ngroup().to_numpy()
     order = np.argsort(first[last], kind="stable")
     return np.flatnonzero(last)[order]
-
-
-def _read_rows_fast(text: str) -> Rows | None:
-    """read_rows where every non-blank line is a row of plain numbers; None otherwise."""
-    if not text.strip():
-        return None
-    try:
-        frame = pd.read_csv(io.StringIO(text), sep=r"\s+", header=None, dtype=str,
-                            names=list(range(FINAL_FIELDS)), engine="c", keep_default_na=False,
-                            na_values=[""])
-    except (ValueError, pd.errors.ParserError):
-        return None
-    present = frame.notna().to_numpy()
-    width = present.sum(axis=1)
-    if not np.all((width == HISTORY_FIELDS) | (width == FINAL_FIELDS)) or not np.all(
-            present[:, :HISTORY_FIELDS]):
-        return None
-    final = width == FINAL_FIELDS
-    try:  # numpy's conversions, in C: int() refuses '1.0', float() reads 'nan' and 'inf'
-        step = frame[0].to_numpy(dtype=object).astype(np.int64)
-        index = frame[1].to_numpy(dtype=object).astype(np.int64)
-        numbers = frame[[2, 3, 4, 5]].to_numpy(dtype=object).astype(np.float64)
-        counts = np.full((len(frame), 2), -1, dtype=np.int64)
-        counts[final] = frame.loc[final, [6, 7]].to_numpy(dtype=object).astype(np.int64)
-    except (ValueError, OverflowError):
-        return None
-    rows = _last_of_each(step, index)
-    tokens = list(map(tuple, frame[[2, 3, 4, 5]].to_numpy()[rows]))
-    return Rows(step[rows], index[rows], numbers[rows], tokens, counts[rows])
 
 
 def _read_rows_by_line(text: str) -> Rows:
