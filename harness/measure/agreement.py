@@ -23,6 +23,7 @@ roundings of L (a correct program that orders its arithmetic differently). The v
 
 from __future__ import annotations
 
+import typing
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -75,6 +76,7 @@ def _failed(note: str) -> Agreement:
 def _keys(rows: Rows, n: int) -> np.ndarray:
     return rows.step * (n + 1) + rows.index
 
+
 def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
           replay: Replay) -> Agreement:
     """The verdict on a program's print-mode output against seq's (`--precise`) on the same
@@ -121,13 +123,10 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
         level0 = next((u for u in PRECISION_LADDER
                        if not np.any(deviation[zero] > tolerance[zero] + u * L)), None)
         if level0 is None:
-            return Agreement(WRONG, 0, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
-                             worst, seq_did="nothing yet (the initial state, as the input lists "
-                             "it)", steps_compared=compared, details=extra,
-                             rule="the state at step 0 is the input's",
-                             note=f"wrong at step 0: particle {particle} is {_values(p[k])} "
-                                  f"where the input has {_values(q[k])}; rule: the state at "
-                                  "step 0 is the input's")
+            return _wrong(0, particle, p[k], "the state at step 0 is the input's",
+                          f" where the input has {_values(q[k])}", seq_values=_floats(q[k]),
+                          deviation=worst, steps_compared=compared, details=extra,
+                          seq_did="nothing yet (the initial state, as the input lists it)")
     initial = state_at(theirs, n, 0) if level0 is None else None
     return _step_local(ours, inside, n, L, r, replay, compared, extra,
                        f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0,
@@ -192,10 +191,8 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     if broken is not None and (found is None or found.wrong_step is None
                                or broken[0] < found.wrong_step):
         step, i, values = broken
-        return Agreement(WRONG, step, i, values, steps_compared=compared, details=extra,
-                         note=f"wrong at step {step}: particle {i} is {_values(np.array(values))}"
-                              "; rule: every coordinate and velocity is a finite number",
-                         rule="every coordinate and velocity is a finite number")
+        return _wrong(step, i, values, "every coordinate and velocity is a finite number",
+                      steps_compared=compared, details=extra)
     if found is None:
         return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
                        "step by step (print every step in the check command)")
@@ -222,12 +219,20 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     before, after, reference = states[k - 1], states[k], found.reference_state
     event = reference_event(before, reference[i], i, kind, partner, t, L, r)
     rule = broken_rule(before, after, i, event, reference[i], found.partners, L, r) or ""
-    note = (f"wrong at step {k}: particle {i} is {_values(after[i])} where the rules take its "
-            f"state at step {k - 1}, {_values(before[i])}, to {_values(reference[i])}; the "
-            f"reference in that step: {event.describe()}" + (f"; rule: {rule}" if rule else ""))
     detail["neighbourhood"] = neighbourhood(before, after, reference, i, found.partners, r)
-    return Agreement(WRONG, k, i, tuple(map(float, after[i])), tuple(map(float, reference[i])),
-                     found.deviation, level, event.describe(), rule, compared, note, detail)
+    return _wrong(k, i, after[i], rule, f" where the rules take its state at step {k - 1}, "
+                  f"{_values(before[i])}, to {_values(reference[i])}; the reference in that "
+                  f"step: {event.describe()}", seq_values=_floats(reference[i]),
+                  deviation=found.deviation, precision=level, seq_did=event.describe(),
+                  steps_compared=compared, details=detail)
+
+
+def _wrong(step: int, i: int, program: np.ndarray, rule: str, where: str = "",
+           **fields: typing.Any) -> Agreement:
+    """A wrong verdict at a step, its note naming the particle's values and the rule broken."""
+    note = (f"wrong at step {step}: particle {i} is {_values(program)}{where}"
+            + (f"; rule: {rule}" if rule else ""))
+    return Agreement(WRONG, step, i, _floats(program), rule=rule, note=note, **fields)
 
 
 NEIGHBOURS = 8  # the most partners the wrong step's figure shows beside the particle
@@ -247,13 +252,13 @@ def neighbourhood(before: np.ndarray, program: np.ndarray, reference: np.ndarray
             "reference": reference[picked].tolist()}
 
 
-def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[float, ...]] | None:
+def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, np.ndarray] | None:
     """The first (step, particle, values) with a value that is not a finite number."""
     bad = np.flatnonzero(inside & ~np.all(np.isfinite(rows.values), axis=1))
     if not len(bad):
         return None
     k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
-    return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
+    return int(rows.step[k]), int(rows.index[k]), rows.values[k]
 
 
 def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
@@ -274,6 +279,10 @@ def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, n
             states[int(step)] = state
             halves[int(step)] = half
     return states, halves
+
+
+def _floats(row: np.ndarray) -> tuple[float, ...]:
+    return tuple(map(float, row))
 
 
 def _values(row: np.ndarray) -> str:
