@@ -70,13 +70,14 @@ class RaceCheck:
         return "; ".join(r.describe() for r in self.races) if self.races else NO_RACES
 
 
-WARNING = re.compile(r"^WARNING: ThreadSanitizer: data race")
+# A report: the lines after its WARNING line, up to its separator (or the next report).
+REPORT = re.compile(r"^WARNING: ThreadSanitizer: data race[^\n]*\n(.*?)"
+                    r"(?=^={10,}$|^WARNING: ThreadSanitizer: data race|\Z)", re.M | re.S)
 ACCESS = re.compile(r"^\s+(Previous )?(atomic )?(read|write) of size \d+ at ", re.IGNORECASE)
 # `#0 function /path/file.c:116:16 (binary+0x...)`; a C++ function's name has spaces.
 FRAME = re.compile(r"^\s+#\d+ .* (?P<file>\S+?):(?P<line>\d+)(?::\d+)? \(")
 ANY_FRAME = re.compile(r"^\s+#\d+ ")
 LOCATION = re.compile(r"^\s+Location is global '(?P<name>[^']+)'")
-SEPARATOR = re.compile(r"^={10,}$")
 
 
 def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
@@ -85,7 +86,7 @@ def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
     `directory` (the program's own code; shown relative to it), else its first frame with a
     file."""
     found: dict[tuple[str, str], list[str]] = {}
-    for block in _blocks(text):
+    for block in map(str.splitlines, REPORT.findall(text)):
         accesses: list[list[str]] = []
         variable = ""
         stack = False  # in the frames of an access's stack (they follow its line at once)
@@ -115,20 +116,6 @@ def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
 def _place_key(place: str) -> tuple[str, int]:
     file, _, line = place.rpartition(":")
     return file, int(line)
-
-
-def _blocks(text: str) -> list[list[str]]:
-    blocks: list[list[str]] = []
-    current: list[str] | None = None
-    for line in text.splitlines():
-        if WARNING.match(line):
-            current = []
-            blocks.append(current)
-        elif SEPARATOR.match(line):
-            current = None
-        elif current is not None:
-            current.append(line)
-    return blocks
 
 
 def _shown(file: str, directory: Path) -> str:
