@@ -79,8 +79,7 @@ def _keys(rows: Rows, n: int) -> np.ndarray:
 
 def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
           replay: Replay) -> Agreement:
-    """The verdict on a program's print-mode output against seq's (`--precise`) on the same
-    input of n particles and `steps` steps; `replay` runs the reference's `--replay`."""
+    """The verdict on a program's print-mode output against seq's (`--precise`)."""
     if not program.strip():
         return _failed("printed nothing on stdout")
     ours = read_rows(program)
@@ -134,8 +133,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
 
 
 def _incomplete(ours: Rows, inside: np.ndarray, n: int, steps: int) -> str | None:
-    """Why the program's output is too incomplete to compare (a step without every particle,
-    no state after the last step); None when it is not."""
+    """Why the program's output is too incomplete to compare, or None."""
     printed_steps = np.unique(ours.step[inside])
     for step in printed_steps:
         got = np.unique(ours.index[inside & (ours.step == step)])
@@ -263,8 +261,7 @@ def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, np.ndar
 
 def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
                                                                    dict[int, np.ndarray]]:
-    """Every complete printed state of the program (n, 4) by step, and the half-units of its
-    printed values."""
+    """The program's complete states by step, and the half-units of their values."""
     states: dict[int, np.ndarray] = {}
     halves: dict[int, np.ndarray] = {}
     printed_half = rows.halves()

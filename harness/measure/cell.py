@@ -136,8 +136,7 @@ class Measurer:
         return record
 
     def count(self, cell: Cell, run: CellRun) -> CellRun:
-        """With the instruction lane, the instructions of the cell's run (harness.measure.
-        instructions) into its record; only a cell that ran to the end is counted."""
+        """With the instruction lane, the instructions of a cell that ran to the end."""
         if not self.config.counts_instructions or not run.timed:
             return run
         tool = lane.machine_tool()
@@ -152,7 +151,6 @@ class Measurer:
         return run
 
     def time_round(self, run: CellRun, round_index: int) -> None:
-        """One round of the cell's timed runs (hyperfine), and whether it needs more."""
         subject = run.record.subject
         assert subject is not None and subject.threads is not None, "a record names its cell"
         measure = run.measure(self.config.measure_for(str(subject.variant)))
@@ -166,8 +164,7 @@ class Measurer:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
-        """Keep the state of a cell that needs more rounds on disk (an interrupted run resumes
-        it there); a cell that needs none has none."""
+        """Keep on disk the state of a cell that needs more rounds (a rerun resumes it)."""
         partial = self.store.layout.partial(run.cell_id)
         if run.done:
             partial.unlink(missing_ok=True)
@@ -175,7 +172,6 @@ class Measurer:
             run.save(partial)
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
-        """Write the cell's record (with the seconds measuring took); the record."""
         result = timed_result(run, self.session).replace(seconds=seconds)
         self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)

@@ -54,8 +54,7 @@ class Timed:
 
 def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
               runs: int, warmup: int, timeout_s: float, cores: int) -> Timed:
-    """Time `runs` runs of `command` after `warmup`; the export goes to `target` (written and
-    renamed), the load around the call is sampled."""
+    """Time `runs` runs of `command` after `warmup`, sampling the load around the call."""
     tmp = atomic.temp_path(target)
     argv = [hyperfine, "-N", "--style", "none", "--warmup", str(warmup), "--runs", str(runs),
             "--export-json", str(tmp), shlex.join(command)]

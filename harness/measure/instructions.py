@@ -61,7 +61,6 @@ def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
 
 
 def fixed_env(env: Mapping[str, str]) -> dict[str, str]:
-    """PATH and the OpenMP variables of env: what a built binary's count runs with."""
     return {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
 
 
@@ -75,8 +74,8 @@ def pinned() -> list[str]:
 
 def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                input_file: Path | None = None) -> tuple[int | None, str]:
-    """The instructions of one run of argv, with OpenMP's waiting threads asleep; or None
-    and why."""
+    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and
+    why."""
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
         logs = Path(tmp) / "logs"
         logs.mkdir()

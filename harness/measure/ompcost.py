@@ -48,8 +48,8 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
 
 
 def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:
-    """The record's costs from one ompcost run; where it fails, every cost empty and its note
-    (OMP_COST_NOTE) saying why (the cell itself is measured all the same)."""
+    """The record's costs from one ompcost run; where it fails, none and a note saying why
+    (the cell itself is measured all the same)."""
     done, text = run_captured([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S)
     if done.returncode != 0:
         return OmpCosts(openmp_costs_note=failure(binary.name, done, OMPCOST_TIMEOUT_S))

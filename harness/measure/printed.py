@@ -18,8 +18,6 @@ QUOTE_CHARS = 60
 
 @dataclass(frozen=True)
 class Rows:
-    """The readable rows of an output, the last one of each (step, index) kept."""
-
     step: np.ndarray  # (k,) int64
     index: np.ndarray  # (k,) int64
     values: np.ndarray  # (k, 4) x y vx vy
@@ -33,7 +31,6 @@ class Rows:
         return len(self.step)
 
     def halves(self) -> np.ndarray:
-        """half_units of every token, (k, 4)."""
         if self.half is not None:
             return self.half
         return half_units(np.array(list(self.tokens), dtype=str).reshape(-1, 4))
@@ -236,8 +233,7 @@ def printed_like_all(rows: Rows, which: np.ndarray, values: np.ndarray,
 
 
 def first_difference(a: str, b: str) -> tuple[int, int, str, str] | None:
-    """The first (step, particle) whose printed values differ between two outputs of one
-    program, with both as printed; None when they print the same rows."""
+    """The first (step, particle) whose printed values differ, with both as printed."""
     if a == b:
         return None
     one, two = read_rows(a), read_rows(b)

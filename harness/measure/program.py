@@ -112,7 +112,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
 
 
 def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
-    """The record's note: the verdict's, and where the check was narrower than the run."""
+    """The verdict's note, and where the check was narrower than the run."""
     where = []
     if checked_steps < steps:
         where.append(f"checked on its first {checked_steps} of {steps} steps")
@@ -125,9 +125,8 @@ def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_in
                         env: Mapping[str, str], timeout_s: float, text: str,
                         verdict: Agreement, record: CellResult
                         ) -> tuple[Agreement, CellResult]:
-    """At the config's most threads, the verdict with a second check run (the same output,
-    or its first difference) and, for a program built from its source, the race check (its
-    result into the record)."""
+    """The verdict after the check's reruns and, for a program built from its source, the
+    race check (into the record)."""
     verdict = _repeatable(program, check_input, cell.threads, env, timeout_s, text) or verdict
     if program.build:
         small = small_scene(cell.scene)
@@ -145,8 +144,7 @@ class ReplayError(RuntimeError):
 
 def _replay(binary: Path, env: Mapping[str, str], timeout_s: float,
             seconds: list[float]) -> Replay:
-    """`binary --replay` on states (harness.measure.steps.replay_input), their successors
-    back; each run's seconds appended to `seconds`."""
+    """`binary --replay` on states, each run's seconds appended to `seconds`."""
     def run(data: bytes) -> bytes:
         with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
             states, out = Path(tmp) / "states", Path(tmp) / "successors"

@@ -146,15 +146,13 @@ def small_scene(scene: scenes.ScenePoint) -> scenes.ScenePoint:
 
 
 def archer_library(clang: str) -> Path | None:
-    """Archer of clang's own LLVM installation (its bin/ beside its lib/), if installed."""
     path = Path(os.path.realpath(clang)).parent.parent / "lib" / ARCHER
     return path if path.is_file() else None
 
 
 def find_races(program: Program, input_file: Path, description: str, env: Mapping[str, str],
                timeout_s: float, threads: int = TSAN_THREADS) -> RaceCheck:
-    """Build the program with ThreadSanitizer (its `build:`, clang's flags), run its command
-    on `input_file` at `threads` threads with Archer, and read the races reported."""
+    """Build the program with ThreadSanitizer and run its command with Archer."""
     def skipped(why: str) -> RaceCheck:
         return RaceCheck(None, f"not checked for races: {why}", threads, description)
 

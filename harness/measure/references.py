@@ -30,8 +30,7 @@ class References:
     prints: dict[str, str | None] = field(default_factory=dict)
 
     def baseline_output(self, cell: Cell) -> tuple[str | None, str]:
-        """The sequential baseline's --precise output for the cell's input (cached), and why
-        there is none when it failed."""
+        """seq's --precise output for the cell's input, or None and why."""
         key = self.store.baseline_key(cell)
         seq = self.store.baseline_binary(cell)
         done, text = self._kept(self.baselines, key, self.store.baseline_file(key), seq,

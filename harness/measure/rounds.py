@@ -45,9 +45,6 @@ GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "roun
 
 @dataclass
 class CellRun:
-    """What a cell being measured has so far: the record its checks filled, its status, and
-    its timed runs with the round of each."""
-
     cell_id: str
     key: dict[str, object]  # the cell's key when it started: a partial file of another is void
     record: CellResult  # what its untimed runs found

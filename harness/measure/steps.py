@@ -98,8 +98,7 @@ SUCCESSOR_RECORD = np.dtype([("k", "=i8"), ("i", "=i4"), ("x", "=f8"), ("y", "=f
 
 
 def read_successors(data: bytes, n: int) -> Successors:
-    """The successors `--replay` wrote (binary), by label (the label of the state they
-    follow)."""
+    """The successors `--replay` wrote, by the label of the state they follow."""
     values: dict[int, np.ndarray] = {}
     kind: dict[int, np.ndarray] = {}
     partner: dict[int, np.ndarray] = {}
@@ -251,8 +250,7 @@ class _Explainer:
 
     def explains(self, levels: tuple[float | None, ...], steps: list[int],
                  open_: dict[int, np.ndarray]) -> bool:
-        """Whether `levels` together explain every open value of `steps`, stopping at the
-        first chunk of steps with a value left."""
+        """Whether `levels` together explain every open value of `steps`."""
         return not any(self.left(levels, {k: open_[k] for k in chunk})
                        for chunk in _chunks(steps))
 
@@ -282,8 +280,7 @@ class _Explainer:
         return np.zeros(self.n, dtype=bool) if mask is None else mask
 
     def _replay(self, level: float | None, open_: dict[int, np.ndarray]) -> None:
-        """Replay the open values (per step, a mask of particles) at `level` and remember
-        which it explains."""
+        """Replay the open values at `level` and remember which it explains."""
         n = self.n
         steps = sorted(open_)
         amp = {k: self.halves[k] if level is None else np.maximum(self.halves[k], level * self.L)
