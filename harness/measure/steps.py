@@ -99,10 +99,7 @@ SUCCESSOR_RECORD = np.dtype([("k", "=i8"), ("i", "=i4"), ("x", "=f8"), ("y", "=f
 
 def read_successors(data: bytes, n: int) -> Successors:
     """The successors `--replay` wrote, by the label of the state they follow."""
-    values: dict[int, np.ndarray] = {}
-    kind: dict[int, np.ndarray] = {}
-    partner: dict[int, np.ndarray] = {}
-    t: dict[int, np.ndarray] = {}
+    out = Successors({}, {}, {}, {})
     if len(data) % SUCCESSOR_RECORD.itemsize:
         raise ValueError(f"--replay wrote {len(data)} bytes, not a whole number of "
                          f"{SUCCESSOR_RECORD.itemsize}-byte successor records")
@@ -112,12 +109,13 @@ def read_successors(data: bytes, n: int) -> Successors:
     for start, end in itertools.pairwise(bounds):
         rows = records[start:end]
         k = int(rows["k"][0]) - 1
-        values[k] = np.full((n, 4), np.nan)
-        values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
-        for table, name, missing in ((kind, "e", -1), (partner, "j", -1), (t, "t", np.nan)):
+        out.values[k] = np.full((n, 4), np.nan)
+        out.values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
+        for table, name, missing in ((out.kind, "e", -1), (out.partner, "j", -1),
+                                     (out.t, "t", np.nan)):
             table[k] = np.full(n, missing, dtype=np.float64 if name == "t" else np.int64)
             table[k][rows["i"]] = rows[name]
-    return Successors(values, kind, partner, t)
+    return out
 
 
 def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int, L: float,
