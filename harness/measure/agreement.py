@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from harness.measure.events import broken_rule, pair_times, reference_event
-from harness.measure.printed import Rows, printed_like_all, read_rows, state_at
+from harness.measure.printed import Rows, printed_like_all, read_rows
 from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.store.columns import (
@@ -126,7 +126,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
                           f" where the input has {_values(q[k])}", seq_values=_floats(q[k]),
                           deviation=worst, steps_compared=compared, details=extra,
                           seq_did="nothing yet (the initial state, as the input lists it)")
-    initial = state_at(theirs, n, 0) if level0 is None else None
+    initial = _states(theirs, theirs.step == 0, n)[0].get(0) if level0 is None else None
     return _step_local(ours, inside, n, L, r, replay, compared, extra,
                        f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0,
                        initial)
@@ -177,7 +177,7 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
     the input's exact state, which a program that prints it within rounding holds: its first
     step is judged from there, with no uncertainty (an exact tie in the input is one)."""
-    states, halves = _program_states(ours, inside, n)
+    states, halves = _states(ours, inside, n)
     exact: frozenset[int] = frozenset()
     if initial is not None and 0 in states:
         # Its arithmetic may still round otherwise than the reference's: ARITH_ULPS of L.
@@ -259,9 +259,10 @@ def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, np.ndar
     return int(rows.step[k]), int(rows.index[k]), rows.values[k]
 
 
-def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
-                                                                   dict[int, np.ndarray]]:
-    """The program's complete states by step, and the half-units of their values."""
+def _states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
+                                                          dict[int, np.ndarray]]:
+    """The complete, finite states of the rows `inside` by step, and the half-units of their
+    values."""
     states: dict[int, np.ndarray] = {}
     halves: dict[int, np.ndarray] = {}
     printed_half = rows.halves()

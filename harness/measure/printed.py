@@ -246,13 +246,3 @@ def first_difference(a: str, b: str) -> tuple[int, int, str, str] | None:
         if tx != ty:
             return key[0], key[1], f"({tx})", f"({ty})"
     return None
-
-
-def state_at(rows: Rows, n: int, step: int) -> np.ndarray | None:
-    """Every particle's (x, y, vx, vy) at a step, by index; None unless all are printed."""
-    at = rows.step == step
-    if np.count_nonzero(at) != n:
-        return None
-    state = np.empty((n, 4))
-    state[rows.index[at]] = rows.values[at]
-    return state
