@@ -99,7 +99,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
         return _failed("no line matches a (step, particle) that seq prints")
     p, q = ours.values[mine], theirs.values[match]
     step_of = ours.step[mine]
-    half = ours.halves()[mine]
+    half = ours.half[mine]
     tolerance = half + ARITH_ULPS * DOUBLE_EPS * L
     with np.errstate(invalid="ignore"):
         deviation = np.where(np.isfinite(p), np.abs(p - q), np.inf)
@@ -265,14 +265,13 @@ def _states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarra
     values."""
     states: dict[int, np.ndarray] = {}
     halves: dict[int, np.ndarray] = {}
-    printed_half = rows.halves()
     for step in np.unique(rows.step[inside]):
         at = np.flatnonzero(inside & (rows.step == step))
         if len(at) != n:
             continue
         state, half = np.empty((n, 4)), np.empty((n, 4))
         state[rows.index[at]] = rows.values[at]
-        half[rows.index[at]] = printed_half[at]
+        half[rows.index[at]] = rows.half[at]
         if np.all(np.isfinite(state)):
             states[int(step)] = state
             halves[int(step)] = half

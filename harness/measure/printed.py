@@ -22,18 +22,13 @@ class Rows:
     index: np.ndarray  # (k,) int64
     values: np.ndarray  # (k, 4) x y vx vy
     tokens: Sequence[tuple[str, ...]]  # the four values as printed
+    half: np.ndarray  # (k, 4) half a unit in the last digit of each token
     counts: np.ndarray  # (k, 2) pcoll wcoll; -1 where the row has none
     ignored: int = 0  # lines that are no such row
     first_ignored: str = ""
-    half: np.ndarray | None = None  # (k, 4) half a unit in the last digit of each token
 
     def __len__(self) -> int:
         return len(self.step)
-
-    def halves(self) -> np.ndarray:
-        if self.half is not None:
-            return self.half
-        return half_units(np.array(list(self.tokens), dtype=str).reshape(-1, 4))
 
 
 def read_rows(text: str) -> Rows:
@@ -114,7 +109,7 @@ def _read_rows_numeric(text: str) -> Rows | None:
             half.flat[flat] = half_unit_exp(data[vs.flat[flat]:ve.flat[flat]].decode())
     rows = _last_of_each(step, index)
     return Rows(step[rows], index[rows], numbers[rows, 2:6], _Tokens(data, vs[rows], ve[rows]),
-                counts[rows], half=half[rows])
+                half[rows], counts[rows])
 
 
 def _last_of_each(step: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -145,6 +140,7 @@ def _read_rows_by_line(text: str) -> Rows:
     steps, indices, values, tokens, counts = zip(*kept.values(), strict=True) if kept else [()] * 5
     return Rows(np.array(steps, dtype=np.int64), np.array(indices, dtype=np.int64),
                 np.array(values, dtype=np.float64).reshape(-1, 4), list(tokens),
+                half_units(np.array(tokens, dtype=str).reshape(-1, 4)),
                 np.array(counts, dtype=np.int64).reshape(-1, 2), ignored, first_ignored)
 
 

@@ -164,7 +164,7 @@ def test_the_fast_readers_read_what_the_line_reader_reads(text: str) -> None:
     assert (numeric is None) == ("nan" in text)  # nan and inf: the line reader
     for fast in [numeric] if numeric is not None else []:
         assert list(fast.tokens) == list(slow.tokens)
-        assert np.array_equal(fast.halves(), slow.halves())
+        assert np.array_equal(fast.half, slow.half)
         for name in ("step", "index", "values", "counts"):
             assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
 
