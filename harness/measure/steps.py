@@ -300,22 +300,19 @@ class _Explainer:
         for k in steps:
             rows = np.flatnonzero(open_[k])
             ref = self.base.values[k][rows]
-            others, changes = [], []
-            for c in range(COPIES):
-                label = (c + 1) * stride + k
-                others.append((perturbed.kind[label][rows] != self.base.kind[k][rows])
-                              | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
-                changes.append(np.abs(perturbed.values[label][rows] - ref))
+            labels = [(c + 1) * stride + k for c in range(COPIES)]
+            others = np.array([(perturbed.kind[label][rows] != self.base.kind[k][rows])
+                               | (perturbed.partner[label][rows] != self.base.partner[k][rows])
+                               for label in labels])
+            changes = np.array([np.abs(perturbed.values[label][rows] - ref) for label in labels])
             # A state known exactly (the input, as the program holds it), or a real tie in a
             # printed one, has no near-ties: a coarser precision explains the values of its
             # decisions, never other decisions.
             decided = np.full(len(rows), k in self.exact)
-            flipped = np.any(others, axis=0)
+            flipped = others.any(axis=0)
             if not decided.all() and flipped.any():
                 decided[flipped] = self.real_ties(k, rows[flipped])
-            spread = np.zeros((len(rows), 4))
-            for other, change in zip(others, changes, strict=True):
-                spread += np.where((other & decided)[:, None], 0.0, change)
+            spread = np.where((others & decided)[..., None], 0.0, changes).sum(axis=0)
             tie = flipped & ~decided
             best = self.deviation[k][rows]
             out_amp = 0.0 if level is None else level * self.L
