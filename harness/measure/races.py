@@ -151,10 +151,11 @@ def archer_library(clang: str) -> Path | None:
 
 
 def find_races(program: Program, input_file: Path, description: str, env: Mapping[str, str],
-               timeout_s: float, threads: int = TSAN_THREADS) -> RaceCheck:
-    """Build the program with ThreadSanitizer and run its command with Archer."""
+               timeout_s: float) -> RaceCheck:
+    """Build the program with ThreadSanitizer and run its command with Archer at TSAN_THREADS
+    threads."""
     def skipped(why: str) -> RaceCheck:
-        return RaceCheck(None, f"not checked for races: {why}", threads, description)
+        return RaceCheck(None, f"not checked for races: {why}", scene=description)
 
     clang = shutil.which(TSAN_CC)
     if clang is None:
@@ -177,9 +178,9 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
             return skipped("its command names no file its build replaces (the program's "
                            "binary must be a word of its command)")
         log = Path(tmp) / "tsan"
-        run_env = {**env, "OMP_NUM_THREADS": str(threads), "OMP_TOOL_LIBRARIES": str(archer),
+        run_env = {**env, "OMP_NUM_THREADS": str(TSAN_THREADS), "OMP_TOOL_LIBRARIES": str(archer),
                    "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
-        ran = run_process(program.shell_command(template, input_file, threads), run_env,
+        ran = run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
                           timeout_s)
         reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
         races = parse_reports(reports, program.directory)
@@ -187,6 +188,6 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         if ran.returncode != 0 and not races:
             return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
         if races:
-            note = (f"ThreadSanitizer found {len(races)} data race(s) at {threads} threads on "
+            note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
                     f"{description}: " + "; ".join(r.describe() for r in races))
-        return RaceCheck(races, note, threads, description)
+        return RaceCheck(races, note, scene=description)
