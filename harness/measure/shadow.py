@@ -41,14 +41,6 @@ MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small 
 Runner = Callable[[Path, str, int], str | None]
 
 
-def header_tokens(text: str) -> tuple[str, str, str]:
-    """N, L and r of an input as written (so a state input keeps L and r bit for bit)."""
-    tokens = text.split(maxsplit=3)
-    if len(tokens) < 3:
-        raise HarnessError("input header must start with 'N L r'")
-    return tokens[0], tokens[1], tokens[2]
-
-
 def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndarray,
                 velocities: np.ndarray) -> str:
     """A one-step perf input listing every particle of a state.
@@ -173,7 +165,10 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
     when given: a float build prints its state 0 already rounded to float, and the step from
     the input as written is the one whose rounding matters.
     """
-    _, L_text, r_text = header_tokens(input_text)
+    header = input_text.split(maxsplit=3)  # L and r as written: a state input keeps them
+    if len(header) < 3:
+        raise HarnessError("input header must start with 'N L r'")
+    L_text, r_text = header[1:3]
     states = split_states(out)[:-1]
     if initial is not None and states:
         first = split_states(initial)[0]
