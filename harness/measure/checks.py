@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import time
 import typing
 from dataclasses import dataclass, field
@@ -110,11 +111,8 @@ class Checker:
     def _shadow(self, run: _Run) -> tuple[dict[str, object], ...]:
         """The shadow steps against the truth; each step's comparison."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
-        timeout = self.store.config.measure.timeout_s
-
-        def runner(path: Path, text: str, threads: int) -> str | None:
-            return shadow.run_binary(path, text, threads, timeout)
-
+        runner = functools.partial(shadow.run_binary,
+                                   timeout_s=self.store.config.measure.timeout_s)
         truth_text = self.references.print_output(run.refs["truth"], run.printed, 1, cache=True)
         initial = None
         if truth_text is not None:
