@@ -92,7 +92,6 @@ def energy_drifts(velocities: list[np.ndarray]) -> tuple[float, float]:
 
 def check(out: Output, L: float, r: float, build: str,
           energy_ulps: float = DEFAULT_ENERGY_ULPS) -> Invariants:
-    """The invariants of one parsed output of a run of `build` on a box of side L, radius r."""
     states = split_states(out)  # the final state at least
     positions = np.concatenate([p for p, _ in states])
     velocities = [v for _, v in states]

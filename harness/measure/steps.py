@@ -278,7 +278,6 @@ class _Explainer:
         return np.zeros(self.n, dtype=bool) if mask is None else mask
 
     def _replay(self, level: float | None, open_: dict[int, np.ndarray]) -> None:
-        """Replay the open values at `level` and remember which it explains."""
         n = self.n
         steps = sorted(open_)
         amp = {k: self.halves[k] if level is None else np.maximum(self.halves[k], level * self.L)

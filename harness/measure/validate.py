@@ -31,7 +31,6 @@ class Comparison:
 
 
 def compare(reference: str, candidate: str, L: float) -> Comparison:
-    """Metrics of `candidate`'s output against `reference`'s (the sequential baseline)."""
     ref = parse_output(reference)
     identical = reference == candidate
     try:
