@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import subprocess
+import tempfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
+from harness.measure.proc import run_captured
 from harness.measure.validate import compare, max_distance
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_SHADOW_ULPS
@@ -56,15 +57,14 @@ def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndar
 
 
 def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) -> str | None:
-    """The default Runner: `binary --threads T --precise -` with the input on stdin."""
-    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
-    try:
-        done = subprocess.run([str(binary), "--threads", str(threads), "--precise", "-"],
-                              input=text, capture_output=True, text=True, env=env,
-                              timeout=timeout_s, check=False)
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    return done.stdout if done.returncode == 0 else None
+    """The default Runner: `binary --threads T --precise` on the input text."""
+    with tempfile.TemporaryDirectory(prefix="shadow-") as tmp:
+        scene = Path(tmp) / "input.txt"
+        scene.write_text(text)
+        done, out = run_captured([str(binary), "--threads", str(threads), "--precise",
+                                  str(scene)], {**os.environ, "OMP_NUM_THREADS": str(threads)},
+                                 timeout_s)
+    return out if done.returncode == 0 else None
 
 
 @dataclass(frozen=True)
