@@ -23,13 +23,14 @@ roundings of L (a correct program that orders its arithmetic differently). The v
 
 from __future__ import annotations
 
+import typing
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from harness.measure.events import broken_rule, pair_times, reference_event
-from harness.measure.printed import Rows, printed_like_all, read_rows, state_at
+from harness.measure.printed import Rows, printed_like_all, read_rows
 from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.store.columns import (
@@ -75,10 +76,10 @@ def _failed(note: str) -> Agreement:
 def _keys(rows: Rows, n: int) -> np.ndarray:
     return rows.step * (n + 1) + rows.index
 
+
 def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
           replay: Replay) -> Agreement:
-    """The verdict on a program's print-mode output against seq's (`--precise`) on the same
-    input of n particles and `steps` steps; `replay` runs the reference's `--replay`."""
+    """The verdict on a program's print-mode output against seq's (`--precise`)."""
     if not program.strip():
         return _failed("printed nothing on stdout")
     ours = read_rows(program)
@@ -98,7 +99,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
         return _failed("no line matches a (step, particle) that seq prints")
     p, q = ours.values[mine], theirs.values[match]
     step_of = ours.step[mine]
-    half = ours.halves()[mine]
+    half = ours.half[mine]
     tolerance = half + ARITH_ULPS * DOUBLE_EPS * L
     with np.errstate(invalid="ignore"):
         deviation = np.where(np.isfinite(p), np.abs(p - q), np.inf)
@@ -121,22 +122,18 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
         level0 = next((u for u in PRECISION_LADDER
                        if not np.any(deviation[zero] > tolerance[zero] + u * L)), None)
         if level0 is None:
-            return Agreement(WRONG, 0, particle, tuple(map(float, p[k])), tuple(map(float, q[k])),
-                             worst, seq_did="nothing yet (the initial state, as the input lists "
-                             "it)", steps_compared=compared, details=extra,
-                             rule="the state at step 0 is the input's",
-                             note=f"wrong at step 0: particle {particle} is {_values(p[k])} "
-                                  f"where the input has {_values(q[k])}; rule: the state at "
-                                  "step 0 is the input's")
-    initial = state_at(theirs, n, 0) if level0 is None else None
+            return _wrong(0, particle, p[k], "the state at step 0 is the input's",
+                          f" where the input has {_values(q[k])}", seq_values=_floats(q[k]),
+                          deviation=worst, steps_compared=compared, details=extra,
+                          seq_did="nothing yet (the initial state, as the input lists it)")
+    initial = _states(theirs, theirs.step == 0, n)[0].get(0) if level0 is None else None
     return _step_local(ours, inside, n, L, r, replay, compared, extra,
                        f"leaves seq's trajectory at step {first} by up to {worst:.3g}", level0,
                        initial)
 
 
 def _incomplete(ours: Rows, inside: np.ndarray, n: int, steps: int) -> str | None:
-    """Why the program's output is too incomplete to compare (a step without every particle,
-    no state after the last step); None when it is not."""
+    """Why the program's output is too incomplete to compare, or None."""
     printed_steps = np.unique(ours.step[inside])
     for step in printed_steps:
         got = np.unique(ours.index[inside & (ours.step == step)])
@@ -180,7 +177,7 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
     the input's exact state, which a program that prints it within rounding holds: its first
     step is judged from there, with no uncertainty (an exact tie in the input is one)."""
-    states, halves = _program_states(ours, inside, n)
+    states, halves = _states(ours, inside, n)
     exact: frozenset[int] = frozenset()
     if initial is not None and 0 in states:
         # Its arithmetic may still round otherwise than the reference's: ARITH_ULPS of L.
@@ -192,10 +189,8 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
     if broken is not None and (found is None or found.wrong_step is None
                                or broken[0] < found.wrong_step):
         step, i, values = broken
-        return Agreement(WRONG, step, i, values, steps_compared=compared, details=extra,
-                         note=f"wrong at step {step}: particle {i} is {_values(np.array(values))}"
-                              "; rule: every coordinate and velocity is a finite number",
-                         rule="every coordinate and velocity is a finite number")
+        return _wrong(step, i, values, "every coordinate and velocity is a finite number",
+                      steps_compared=compared, details=extra)
     if found is None:
         return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
                        "step by step (print every step in the check command)")
@@ -216,21 +211,26 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
                          note=f"every step locally right only to {level:g} of L, coarser "
                               f"than it prints (levels tried: {ladder}); it {departure}{ties}")
     k, i = found.wrong_step, int(found.particle or 0)
-    assert found.reference_event is not None
+    assert found.reference_event is not None and found.reference_state is not None
+    assert found.partners is not None
     kind, partner, t = found.reference_event
-    reference = np.array(found.reference_values)
-    event = reference_event(states[k - 1], reference, i, kind, partner, t, L, r)
-    partners = found.partners if found.partners is not None else np.full(n, -1)
-    rule = broken_rule(states[k - 1], states[k], i, event, reference, partners, L, r) or ""
-    note = (f"wrong at step {k}: particle {i} is {_values(np.array(found.program_values))} where "
-            f"the rules take its state at step {k - 1}, {_values(np.array(found.program_before))}"
-            f", to {_values(reference)}; the reference in that step: {event.describe()}"
+    before, after, reference = states[k - 1], states[k], found.reference_state
+    event = reference_event(before, reference[i], i, kind, partner, t, L, r)
+    rule = broken_rule(before, after, i, event, reference[i], found.partners, L, r) or ""
+    detail["neighbourhood"] = neighbourhood(before, after, reference, i, found.partners, r)
+    return _wrong(k, i, after[i], rule, f" where the rules take its state at step {k - 1}, "
+                  f"{_values(before[i])}, to {_values(reference[i])}; the reference in that "
+                  f"step: {event.describe()}", seq_values=_floats(reference[i]),
+                  deviation=found.deviation, precision=level, seq_did=event.describe(),
+                  steps_compared=compared, details=detail)
+
+
+def _wrong(step: int, i: int, program: np.ndarray, rule: str, where: str = "",
+           **fields: typing.Any) -> Agreement:
+    """A wrong verdict at a step, its note naming the particle's values and the rule broken."""
+    note = (f"wrong at step {step}: particle {i} is {_values(program)}{where}"
             + (f"; rule: {rule}" if rule else ""))
-    if found.reference_state is not None:
-        detail["neighbourhood"] = neighbourhood(states[k - 1], states[k], found.reference_state,
-                                                i, partners, r)
-    return Agreement(WRONG, k, i, found.program_values, found.reference_values, found.deviation,
-                     level, event.describe(), rule, compared, note, detail)
+    return Agreement(WRONG, step, i, _floats(program), rule=rule, note=note, **fields)
 
 
 NEIGHBOURS = 8  # the most partners the wrong step's figure shows beside the particle
@@ -250,33 +250,36 @@ def neighbourhood(before: np.ndarray, program: np.ndarray, reference: np.ndarray
             "reference": reference[picked].tolist()}
 
 
-def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, tuple[float, ...]] | None:
+def _first_not_finite(rows: Rows, inside: np.ndarray) -> tuple[int, int, np.ndarray] | None:
     """The first (step, particle, values) with a value that is not a finite number."""
     bad = np.flatnonzero(inside & ~np.all(np.isfinite(rows.values), axis=1))
     if not len(bad):
         return None
     k = bad[np.lexsort((rows.index[bad], rows.step[bad]))[0]]
-    return int(rows.step[k]), int(rows.index[k]), tuple(map(float, rows.values[k]))
+    return int(rows.step[k]), int(rows.index[k]), rows.values[k]
 
 
-def _program_states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
-                                                                   dict[int, np.ndarray]]:
-    """Every complete printed state of the program (n, 4) by step, and the half-units of its
-    printed values."""
+def _states(rows: Rows, inside: np.ndarray, n: int) -> tuple[dict[int, np.ndarray],
+                                                          dict[int, np.ndarray]]:
+    """The complete, finite states of the rows `inside` by step, and the half-units of their
+    values."""
     states: dict[int, np.ndarray] = {}
     halves: dict[int, np.ndarray] = {}
-    printed_half = rows.halves()
     for step in np.unique(rows.step[inside]):
         at = np.flatnonzero(inside & (rows.step == step))
         if len(at) != n:
             continue
         state, half = np.empty((n, 4)), np.empty((n, 4))
         state[rows.index[at]] = rows.values[at]
-        half[rows.index[at]] = printed_half[at]
+        half[rows.index[at]] = rows.half[at]
         if np.all(np.isfinite(state)):
             states[int(step)] = state
             halves[int(step)] = half
     return states, halves
+
+
+def _floats(row: np.ndarray) -> tuple[float, ...]:
+    return tuple(map(float, row))
 
 
 def _values(row: np.ndarray) -> str:

@@ -26,7 +26,7 @@ from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
 from harness.measure.ompcost import measure_costs
-from harness.measure.proc import exit_status, run_process, tail
+from harness.measure.proc import exit_status, failure, run_captured, run_process, tail
 from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
@@ -39,8 +39,8 @@ from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
-from harness.store import atomic, sessions
-from harness.store.columns import INVALID, OK, TIMED_STATUSES, TIMEOUT
+from harness.store import sessions
+from harness.store.columns import INVALID, OK, TIMED_STATUSES
 from harness.store.result import CellResult
 
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
@@ -99,35 +99,23 @@ class Measurer:
         command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
                    str(self.store.input_file(cell.scene))]
         record = record.replace(command=shlex.join(command))
-        keep = self.store.layout.output(cell_id)
-        output_tmp = None
-        if config.keep_output:
-            output_tmp = atomic.temp_path(keep)
+        argv = [*command[:-1], "--precise", "--timing", command[-1]]
+        keep = self.store.layout.output(cell_id) if config.keep_output else None
+        if keep is not None or cell.validate:
+            precise, output = run_captured(argv, env, measure.timeout_s,
+                                           keep or self.store.layout.run_output(cell_id), keep)
+        else:
+            precise, output = run_process(argv, env, measure.timeout_s), ""
+        status, exit_code = exit_status(precise.returncode)
+        phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
+        record = record.replace(phases=phases, counts=counts, thread_work=work,
+                                stderr_tail=tail(precise.stderr))
+        if status != OK:
+            record = record.replace(note=failure("--precise run", precise, measure.timeout_s))
         elif cell.validate:
-            output_tmp = atomic.temp_path(self.store.layout.run_output(cell_id))
-        try:
-            precise = run_process([*command[:-1], "--precise", "--timing", command[-1]], env,
-                                  measure.timeout_s, output_tmp)
-            status, exit_code = exit_status(precise.returncode)
-            phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
-            record = record.replace(phases=phases, counts=counts, thread_work=work,
-                                    stderr_tail=tail(precise.stderr))
-            if status == TIMEOUT:
-                record = record.replace(
-                    note=f"--precise run passed the {measure.timeout_s:g} s timeout")
-            elif status != OK:
-                record = record.replace(note=f"--precise run: {tail(precise.stderr).strip()}")
-            if status == OK and output_tmp is not None:
-                output = output_tmp.read_text()
-                if cell.validate:
-                    status, record = self.validate_cell(cell, output, record)
-                if config.keep_output:
-                    os.replace(output_tmp, keep)
-            if status in TIMED_STATUSES and cell.checked:
-                record = record.replace(checks=self.checker.run_checks(cell))
-        finally:
-            if output_tmp is not None:
-                output_tmp.unlink(missing_ok=True)
+            status, record = self.validate_cell(cell, output, record)
+        if status in TIMED_STATUSES and cell.checked:
+            record = record.replace(checks=self.checker.run_checks(cell))
         if measures_openmp_costs(config, cell):
             record = record.replace(openmp_costs=measure_costs(self.store.ompcost(cell),
                                                               cell.threads, env))
@@ -148,8 +136,7 @@ class Measurer:
         return record
 
     def count(self, cell: Cell, run: CellRun) -> CellRun:
-        """With the instruction lane, the instructions of the cell's run (harness.measure.
-        instructions) into its record; only a cell that ran to the end is counted."""
+        """With the instruction lane, the instructions of a cell that ran to the end."""
         if not self.config.counts_instructions or not run.timed:
             return run
         tool = lane.machine_tool()
@@ -164,7 +151,6 @@ class Measurer:
         return run
 
     def time_round(self, run: CellRun, round_index: int) -> None:
-        """One round of the cell's timed runs (hyperfine), and whether it needs more."""
         subject = run.record.subject
         assert subject is not None and subject.threads is not None, "a record names its cell"
         measure = run.measure(self.config.measure_for(str(subject.variant)))
@@ -178,8 +164,7 @@ class Measurer:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
-        """Keep the state of a cell that needs more rounds on disk (an interrupted run resumes
-        it there); a cell that needs none has none."""
+        """Keep on disk the state of a cell that needs more rounds (a rerun resumes it)."""
         partial = self.store.layout.partial(run.cell_id)
         if run.done:
             partial.unlink(missing_ok=True)
@@ -187,7 +172,6 @@ class Measurer:
             run.save(partial)
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
-        """Write the cell's record (with the seconds measuring took); the record."""
         result = timed_result(run, self.session).replace(seconds=seconds)
         self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import time
 import typing
 from dataclasses import dataclass, field
@@ -22,9 +23,10 @@ from harness.spec.output import Output, OutputFormatError, parse_output
 from harness.store.measured import Checks
 
 
-@dataclass(frozen=True)
+@dataclass
 class _Run:
-    """A cell's print-mode run the checks read: its scene, binary, references and output."""
+    """A cell's print-mode run the checks read, and what they found: their values (Checks'
+    fields, a failed check's chk_ False) and notes."""
 
     cell: Cell
     printed: scenes.ScenePoint
@@ -32,15 +34,7 @@ class _Run:
     refs: dict[str, Path]
     text: str
     output: Output
-
-
-@dataclass
-class _Found:
-    """What the checks found so far: their values (Checks' fields), the checks failed, and
-    notes."""
-
     values: dict[str, typing.Any] = field(default_factory=dict)
-    failed: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
 
@@ -54,57 +48,47 @@ class Checker:
         names = self.store.config.checks.names
         printed = scenes.with_run(cell.scene, cell.scene.steps, "print")
         binary = self.store.binary(cell)
-        refs = self.store.check_references(cell)
-        found = _Found()
         text = self.references.print_output(binary, printed, cell.threads, cache=False)
-        output = None
-        if text is not None:
-            try:
-                output = parse_output(text)
-            except OutputFormatError as exc:
-                found.notes.append(f"print-mode output unreadable: {exc}")
-        else:
-            found.notes.append("print-mode run failed")
-        if output is None or text is None:
-            found.failed.append("run")
-        else:
-            run = _Run(cell, printed, binary, refs, text, output)
-            if "invariants" in names:
-                self._invariants(run, found)
-            if "divergence" in names:
-                found.values["divergence"] = self._divergence(run, found)
-            if "shadow" in names:
-                found.values["shadow_per_step"] = self._shadow(run, found)
-        return Checks(**found.values, checks_passed=not found.failed,
-                      checks_failed=" ".join(found.failed), checks_note="; ".join(found.notes),
-                      checks_s=time.monotonic() - started)
+        try:
+            output = parse_output(text) if text is not None else None
+            problem = "print-mode run failed"
+        except OutputFormatError as exc:
+            output, problem = None, f"print-mode output unreadable: {exc}"
+        if text is None or output is None:
+            return Checks(checks_passed=False, checks_failed="run", checks_note=problem,
+                          checks_s=time.monotonic() - started)
+        run = _Run(cell, printed, binary, self.store.check_references(cell), text, output)
+        if "invariants" in names:
+            self._invariants(run)
+        if "divergence" in names:
+            run.values["divergence"] = self._divergence(run)
+        if "shadow" in names:
+            run.values["shadow_per_step"] = self._shadow(run)
+        failed = [name.removeprefix("chk_") for name, value in run.values.items()
+                  if name.startswith("chk_") and not value]
+        return Checks(**run.values, checks_passed=not failed, checks_failed=" ".join(failed),
+                      checks_note="; ".join(run.notes), checks_s=time.monotonic() - started)
 
-    def _invariants(self, run: _Run, found: _Found) -> None:
+    def _invariants(self, run: _Run) -> None:
         """The invariants, the same output at the other thread counts, and (for a cell that
         promises it) seq's output."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
         inv = invariants.check(run.output, scene.L, scene.r, cell.build, checks.energy_ulps)
-        found.values.update({
-            "chk_finite": inv.finite, "chk_in_box": inv.in_box, "chk_energy": inv.energy,
-            "chk_pcoll_even": inv.pcoll_even, "energy_drift": inv.energy_drift,
+        run.values.update({
+            "chk_finite": inv.finite, "chk_in_box": inv.in_box, "chk_pcoll_even": inv.pcoll_even,
+            "chk_energy": inv.energy, "energy_drift": inv.energy_drift,
             "energy_drift_max": inv.energy_drift_max, "energy_bound": inv.energy_bound,
             "pair_collisions_run": inv.pair_collisions, "box_excess": inv.box_excess,
         })
-        found.failed += inv.failures()
         others = [t for t in checks.thread_counts if t != cell.threads]
-        same = all(self.references.print_output(run.binary, run.printed, t, cache=False)
-                   == run.text for t in others)
-        found.values["chk_threads"] = same
-        if not same:
-            found.failed.append("threads")
+        run.values["chk_threads"] = all(
+            self.references.print_output(run.binary, run.printed, t, cache=False) == run.text
+            for t in others)
         if cell.promises_exact:
-            exact = run.binary == run.refs["seq"] or self.references.print_output(
+            run.values["chk_exact"] = run.binary == run.refs["seq"] or self.references.print_output(
                 run.refs["seq"], run.printed, 1, cache=True) == run.text
-            found.values["chk_exact"] = exact
-            if not exact:
-                found.failed.append("exact")
 
-    def _divergence(self, run: _Run, found: _Found) -> dict[str, list[float]]:
+    def _divergence(self, run: _Run) -> dict[str, list[float]]:
         """The divergence curves against seq of the build (f64) and the truth."""
         scene = run.cell.scene
         curves: dict[str, list[float]] = {}
@@ -112,26 +96,23 @@ class Checker:
             reference = self.references.print_output(run.refs[name], run.printed, 1,
                                                       cache=True)
             if reference is None:
-                found.notes.append(f"{name} reference run failed")
+                run.notes.append(f"{name} reference run failed")
                 continue
             curve = shadow.divergence_curve(run.output, parse_output(reference), scene.L)
             if len(curve):
                 curves[name] = [float(v) for v in curve]
-                found.values[f"div_{name}_max"] = float(curve.max())
+                run.values[f"div_{name}_max"] = float(curve.max())
         if "truth" in curves:
-            found.values["div_truth_final"] = curves["truth"][-1]
-            found.values["div_steps_to_r"] = shadow.first_step_at(curves["truth"],
-                                                                  scene.r / scene.L)
+            run.values["div_truth_final"] = curves["truth"][-1]
+            run.values["div_steps_to_r"] = shadow.first_step_at(curves["truth"],
+                                                                scene.r / scene.L)
         return curves
 
-    def _shadow(self, run: _Run, found: _Found) -> tuple[dict[str, object], ...]:
+    def _shadow(self, run: _Run) -> tuple[dict[str, object], ...]:
         """The shadow steps against the truth; each step's comparison."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
-        timeout = self.store.config.measure.timeout_s
-
-        def runner(path: Path, text: str, threads: int) -> str | None:
-            return shadow.run_binary(path, text, threads, timeout)
-
+        runner = functools.partial(shadow.run_binary,
+                                   timeout_s=self.store.config.measure.timeout_s)
         truth_text = self.references.print_output(run.refs["truth"], run.printed, 1, cache=True)
         initial = None
         if truth_text is not None:
@@ -140,7 +121,7 @@ class Checker:
         shade = shadow.shadow(run.output, scene.text, scene.L, scene.r, cell.build, run.binary,
                               run.refs["truth"], cell.threads, checks.shadow_steps,
                               checks.shadow_ulps, runner, initial)
-        found.values.update({
+        run.values.update({
             "chk_shadow": shade.passed, "shadow_states": shade.states,
             "shadow_pos_err": shade.pos_err_mean, "shadow_pos_err_max": shade.pos_err_max,
             "shadow_vel_err": shade.vel_err_mean, "shadow_vel_err_max": shade.vel_err_max,
@@ -148,7 +129,5 @@ class Checker:
             "shadow_err_r": shade.pos_err_max * scene.L / scene.r,
         })
         if shade.failed:
-            found.notes.append(f"{shade.failed} shadow step(s) could not be compared")
-        if not shade.passed:
-            found.failed.append("shadow")
+            run.notes.append(f"{shade.failed} shadow step(s) could not be compared")
         return tuple(dataclasses.asdict(s) for s in shade.steps)

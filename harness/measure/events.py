@@ -53,15 +53,9 @@ def wall_name(axis: int, velocity: float) -> str:
 
 def wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, list[int]]:
     """SPEC's wall time of one particle and the axes that hit at it (inf, [] for none)."""
-    times = []
-    for axis in range(2):
-        if w[axis] > 0:
-            times.append((L - r - q[axis]) / w[axis])
-        elif w[axis] < 0:
-            times.append((r - q[axis]) / w[axis])
-        else:
-            times.append(math.inf)
-    tw = min(times)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        times = np.where(w > 0, (L - r - q) / w, np.where(w < 0, (r - q) / w, math.inf))
+    tw = float(times.min())
     return tw, [axis for axis in range(2) if times[axis] == tw and math.isfinite(tw)]
 
 
@@ -180,8 +174,7 @@ def broken_rule(before: np.ndarray, after: np.ndarray, i: int, event: Event,
     if mine is not None and (mine.kind, mine.partner) != (event.kind, event.partner):
         other = mine.partner
         if other is not None and partners[other] not in (-1, i):
-            return (f"particle {other} takes part in two collisions in one step: with "
-                    f"{partners[other]}, which the rules accept first, and with {i}")
+            return _twice(other, int(partners[other]), i)
         if mine.kind == "free":
             return f"the collision the rules accept ({event.describe()}) is ignored"
         if math.isclose(mine.t, event.t, rel_tol=1e-12, abs_tol=1e-15):
@@ -206,12 +199,16 @@ def broken_rule(before: np.ndarray, after: np.ndarray, i: int, event: Event,
     if event.kind == "free" and changed[i]:
         for m in np.flatnonzero(np.isfinite(pair_times(before, i, r))):
             if partners[m] not in (-1, i) and changed[m]:
-                return (f"particle {m} takes part in two collisions in one step: with "
-                        f"{partners[m]}, which the rules accept first, and with {i}")
+                return _twice(int(m), int(partners[m]), i)
         return "a particle with no collision in the step changed its velocity"
     if event.kind == "free" and not changed[i]:
         return "a particle with no collision moves by its velocity (x += vx, y += vy)"
     return None
+
+
+def _twice(m: int, first: int, i: int) -> str:
+    return (f"particle {m} takes part in two collisions in one step: with {first}, which the "
+            f"rules accept first, and with {i}")
 
 
 def _pair_rule(before: np.ndarray, after: np.ndarray, i: int, j: int, t: float,

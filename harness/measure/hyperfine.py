@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.measure import machine, noise
-from harness.measure.proc import run_process, tail
+from harness.measure.proc import failure, run_process
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 from harness.store.hyperfine import HyperfineStats, load_hyperfine
@@ -54,8 +54,7 @@ class Timed:
 
 def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
               runs: int, warmup: int, timeout_s: float, cores: int) -> Timed:
-    """Time `runs` runs of `command` after `warmup`; the export goes to `target` (written and
-    renamed), the load around the call is sampled."""
+    """Time `runs` runs of `command` after `warmup`, sampling the load around the call."""
     tmp = atomic.temp_path(target)
     argv = [hyperfine, "-N", "--style", "none", "--warmup", str(warmup), "--runs", str(runs),
             "--export-json", str(tmp), shlex.join(command)]
@@ -68,17 +67,17 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
         done = run_process(argv, env, timeout)
         interference = noise.between(before, noise.sample(used), len(used))
         load_after = machine.load()
-        status, code, note = OK, 0, ""
+        status, code = OK, 0
         stats: HyperfineStats | None = None
         if done.returncode is None:
-            status, code, note = TIMEOUT, None, f"hyperfine passed its {timeout:g} s timeout"
+            status, code = TIMEOUT, None
         elif done.returncode != 0:
             status, code = hyperfine_failure(done.stderr)
-            note = f"hyperfine: {tail(done.stderr).strip()}"
         else:
             stats = load_hyperfine(tmp)
             os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
+    note = "" if status == OK else failure("hyperfine", done, timeout)
     return Timed(status, code, note, stats, hyperfine_warnings(done.stderr), load_before,
                  load_after, loaded, interference if status == OK else None)

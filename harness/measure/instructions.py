@@ -45,14 +45,14 @@ class Counted:
 
 
 def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
-               runs: int = COUNTS, input_file: Path | None = None) -> Counted:
-    """`runs` counts of argv (its first failure ends them, and says why). With `input_file`
+               input_file: Path | None = None) -> Counted:
+    """COUNTS counts of argv (its first failure ends them, and says why). With `input_file`
     (argv's last word), a built binary's run: it reads the input through a path of a fixed
     length and sees only PATH and the OpenMP variables of `env`, because the loader and the
     runtime read both, and a longer path or a larger environment costs instructions of its
     own."""
     counts = []
-    for _ in range(runs):
+    for _ in range(COUNTS):
         count, problem = count_once(tool, argv, env, timeout_s * SLOWDOWN[tool], input_file)
         if count is None:
             return Counted(tuple(counts), problem)
@@ -61,7 +61,6 @@ def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
 
 
 def fixed_env(env: Mapping[str, str]) -> dict[str, str]:
-    """PATH and the OpenMP variables of env: what a built binary's count runs with."""
     return {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
 
 
@@ -75,8 +74,8 @@ def pinned() -> list[str]:
 
 def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                input_file: Path | None = None) -> tuple[int | None, str]:
-    """The instructions of one run of argv, with OpenMP's waiting threads asleep; or None
-    and why."""
+    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and
+    why."""
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
         logs = Path(tmp) / "logs"
         logs.mkdir()

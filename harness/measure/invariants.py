@@ -92,12 +92,11 @@ def energy_drifts(velocities: list[np.ndarray]) -> tuple[float, float]:
 
 def check(out: Output, L: float, r: float, build: str,
           energy_ulps: float = DEFAULT_ENERGY_ULPS) -> Invariants:
-    """The invariants of one parsed output of a run of `build` on a box of side L, radius r."""
-    states = split_states(out)
-    positions = np.concatenate([p for p, _ in states]) if states else np.empty((0, 2))
+    states = split_states(out)  # the final state at least
+    positions = np.concatenate([p for p, _ in states])
     velocities = [v for _, v in states]
-    every_v = np.concatenate(velocities) if velocities else np.empty((0, 2))
-    finite = bool(np.all(np.isfinite(positions)) and np.all(np.isfinite(every_v)))
+    finite = bool(np.all(np.isfinite(positions))
+                  and np.all(np.isfinite(np.concatenate(velocities))))
     coords = positions[np.isfinite(positions)]
     tolerance = BOX_TOLERANCE_F32 * L if build == "f32" else 0.0
     excess = (max(0.0, float(r - coords.min()), float(coords.max() - (L - r))) if coords.size

@@ -43,8 +43,7 @@ IDENTITY_KEYS = ("vendor", "model_name", "family", "model", "stepping", "isa", "
 
 
 def round_cores() -> list[int]:
-    """The cores this process may run on, and the timed runs with it (they inherit its
-    affinity): its affinity, falling back to every CPU."""
+    """The cores this process (and the timed runs, which inherit it) may run on."""
     try:
         return sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
@@ -56,7 +55,6 @@ def available_cores() -> int:
 
 
 def command_output(argv: list[str], cwd: Path | None = None) -> str | None:
-    """stdout of a command, stripped, or None when it is missing or fails."""
     try:
         done = subprocess.run(argv, cwd=cwd, capture_output=True, text=True,
                               timeout=COMMAND_TIMEOUT_S, check=False)
@@ -73,7 +71,6 @@ def read_text(path: Path) -> str | None:
 
 
 def parse_cpuinfo(text: str) -> list[dict[str, str]]:
-    """/proc/cpuinfo as one dict per logical CPU (blocks between blank lines)."""
     blocks = re.split(r"\n\s*\n", text)
     return [{key.strip(): value.strip() for key, _, value in
              (line.partition(":") for line in block.splitlines())}
@@ -88,7 +85,6 @@ def _int(value: str | None) -> int | None:
 
 
 def cpu_description(cpus: list[dict[str, str]]) -> dict[str, object]:
-    """Vendor, model, family/model/stepping, ISA flags, sockets and threads from /proc/cpuinfo."""
     first = cpus[0] if cpus else {}
     flags = set(first.get("flags", "").split())
     sockets = len({c["physical id"] for c in cpus if "physical id" in c}) or None
@@ -183,7 +179,6 @@ def machine(repo_root: Path | None = None, make: str = "make") -> dict[str, obje
 
 
 def machine_id(described: dict[str, object]) -> str:
-    """16 hex chars of a hash of the hardware parts of a machine description."""
     canonical = json.dumps({k: described.get(k) for k in IDENTITY_KEYS}, sort_keys=True,
                            separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()[:MACHINE_ID_CHARS]
@@ -216,8 +211,7 @@ def load() -> dict[str, object]:
 
 
 def sample_load() -> dict[str, object]:
-    """The load averages now and the median run queue over a few samples (this process
-    included in `runnable`)."""
+    """load(), with the median run queue over a few samples."""
     loads = [load()]
     for _ in range(LOAD_SAMPLES - 1):
         time.sleep(LOAD_SAMPLE_INTERVAL_S)

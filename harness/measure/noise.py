@@ -32,8 +32,7 @@ STEAL_FIELD = 7
 
 
 def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] | None:
-    """(busy, steal) ticks summed over the cores, from /proc/stat; None where it cannot be read
-    (not Linux)."""
+    """(busy, steal) ticks summed over the cores; None where /proc/stat cannot be read."""
     text = read_text(PROC_STAT) if text is None else text
     if text is None:
         return None
@@ -47,8 +46,7 @@ def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] 
 
 
 def cpu_pressure_s(text: str | None = None) -> float | None:
-    """The seconds so far during which some task waited for a CPU, from the kernel's pressure
-    stall information; None where the kernel does not give it."""
+    """The seconds so far during which some task waited for a CPU (None: not given)."""
     text = read_text(CPU_PRESSURE) if text is None else text
     if text is None:
         return None
@@ -87,8 +85,7 @@ class RoundNoise:
 
     @property
     def share(self) -> float:
-        """Others' and stolen time as a share of the cores' time in the round (0 where
-        unknown)."""
+        """Others' and stolen time as a share of the cores' time in the round."""
         capacity = self.wall_s * self.cores
         return (self.steal_s + self.other_cpu_s) / capacity if capacity > 0 else 0.0
 

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import json
 import math
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.measure.proc import failure, run_process
+from harness.measure.proc import failure, run_captured
 from harness.store.columns import OMP_COST_COLUMNS
 from harness.store.measured import OmpCosts
 
@@ -49,12 +48,9 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
 
 
 def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:
-    """The record's costs from one ompcost run; where it fails, every cost empty and its note
-    (OMP_COST_NOTE) saying why (the cell itself is measured all the same)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "ompcost.json"
-        done = run_process([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S, out)
-        text = out.read_text() if out.exists() else ""
+    """The record's costs from one ompcost run; where it fails, none and a note saying why
+    (the cell itself is measured all the same)."""
+    done, text = run_captured([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S)
     if done.returncode != 0:
         return OmpCosts(openmp_costs_note=failure(binary.name, done, OMPCOST_TIMEOUT_S))
     try:

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 
 STDERR_TAIL_CHARS = 2000
@@ -52,6 +53,22 @@ def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
         err.seek(0)
         stderr = err.read().decode(errors="replace")
     return ProcessResult(returncode, stderr, time.monotonic() - started)
+
+
+def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
+                 scratch: Path | None = None, keep: Path | None = None
+                 ) -> tuple[ProcessResult, str]:
+    """run_process with stdout to a fresh file beside `scratch` (the system's temporary
+    directory by default): the run and its stdout, moved to `keep` where it exited 0."""
+    out = atomic.temp_path(scratch or Path(tempfile.gettempdir()) / "collide-stdout")
+    try:
+        done = run_process(argv, env, timeout_s, out)
+        text = out.read_text(errors="replace")
+        if keep is not None and done.returncode == 0:
+            os.replace(out, keep)
+    finally:
+        out.unlink(missing_ok=True)
+    return done, text
 
 
 def _kill_group(proc: subprocess.Popen[bytes]) -> None:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import shlex
 import tempfile
 import time
@@ -29,7 +28,15 @@ from pathlib import Path
 
 from harness.measure.agreement import Agreement, judge
 from harness.measure.printed import first_difference
-from harness.measure.proc import ProcessResult, exit_status, failure, run_process, signal_of, tail
+from harness.measure.proc import (
+    ProcessResult,
+    exit_status,
+    failure,
+    run_captured,
+    run_process,
+    signal_of,
+    tail,
+)
 from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
@@ -39,7 +46,6 @@ from harness.plan.cellstore import CellStore
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
-from harness.store import atomic
 from harness.store.columns import (
     AGREEING,
     AGREEMENT_FAILED,
@@ -69,19 +75,13 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads)
     record = record.replace(check_command=shlex.join(check), check_steps=steps)
-    output = atomic.temp_path(store.layout.check_output(cell_id))
-    try:
-        checked = run_process(check, env, timeout_s, output)
-        check_status, check_code = _status(checked)
-        if check_status != OK:
-            return _not_run(record, cell_id, key, command, check_status, check_code,
-                            failure("its check run (print mode)", checked, timeout_s),
-                            done.seconds)
-        text = output.read_text(errors="replace")
-        if store.config.keep_output:
-            os.replace(output, store.layout.output(cell_id))
-    finally:
-        output.unlink(missing_ok=True)
+    checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
+                                 store.layout.output(cell_id) if store.config.keep_output
+                                 else None)
+    check_status, check_code = _status(checked)
+    if check_status != OK:
+        return _not_run(record, cell_id, key, command, check_status, check_code,
+                        failure("its check run (print mode)", checked, timeout_s), done.seconds)
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
@@ -112,7 +112,7 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
 
 
 def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
-    """The record's note: the verdict's, and where the check was narrower than the run."""
+    """The verdict's note, and where the check was narrower than the run."""
     where = []
     if checked_steps < steps:
         where.append(f"checked on its first {checked_steps} of {steps} steps")
@@ -125,9 +125,8 @@ def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_in
                         env: Mapping[str, str], timeout_s: float, text: str,
                         verdict: Agreement, record: CellResult
                         ) -> tuple[Agreement, CellResult]:
-    """At the config's most threads, the verdict with a second check run (the same output,
-    or its first difference) and, for a program built from its source, the race check (its
-    result into the record)."""
+    """The verdict after the check's reruns and, for a program built from its source, the
+    race check (into the record)."""
     verdict = _repeatable(program, check_input, cell.threads, env, timeout_s, text) or verdict
     if program.build:
         small = small_scene(cell.scene)
@@ -145,8 +144,7 @@ class ReplayError(RuntimeError):
 
 def _replay(binary: Path, env: Mapping[str, str], timeout_s: float,
             seconds: list[float]) -> Replay:
-    """`binary --replay` on states (harness.measure.steps.replay_input), their successors
-    back; each run's seconds appended to `seconds`."""
+    """`binary --replay` on states, each run's seconds appended to `seconds`."""
     def run(data: bytes) -> bytes:
         with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
             states, out = Path(tmp) / "states", Path(tmp) / "successors"
@@ -169,12 +167,10 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
         if again == 1 and threads == 1:
             continue
         argv = program.shell_command(program.check, input_file, again)
-        with tempfile.TemporaryDirectory(prefix="rerun-") as tmp:
-            out = Path(tmp) / "stdout"
-            done = run_process(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s, out)
-            if done.returncode != 0:
-                return None
-            found = first_difference(first, out.read_text(errors="replace"))
+        done, text = run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
+        if done.returncode != 0:
+            return None
+        found = first_difference(first, text)
         if found is not None:
             step, particle, mine, theirs = found
             return Agreement(NONDETERMINISTIC, step, particle, steps_compared=0,

@@ -70,13 +70,14 @@ class RaceCheck:
         return "; ".join(r.describe() for r in self.races) if self.races else NO_RACES
 
 
-WARNING = re.compile(r"^WARNING: ThreadSanitizer: data race")
+# A report: the lines after its WARNING line, up to its separator (or the next report).
+REPORT = re.compile(r"^WARNING: ThreadSanitizer: data race[^\n]*\n(.*?)"
+                    r"(?=^={10,}$|^WARNING: ThreadSanitizer: data race|\Z)", re.M | re.S)
 ACCESS = re.compile(r"^\s+(Previous )?(atomic )?(read|write) of size \d+ at ", re.IGNORECASE)
 # `#0 function /path/file.c:116:16 (binary+0x...)`; a C++ function's name has spaces.
 FRAME = re.compile(r"^\s+#\d+ .* (?P<file>\S+?):(?P<line>\d+)(?::\d+)? \(")
 ANY_FRAME = re.compile(r"^\s+#\d+ ")
 LOCATION = re.compile(r"^\s+Location is global '(?P<name>[^']+)'")
-SEPARATOR = re.compile(r"^={10,}$")
 
 
 def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
@@ -85,7 +86,7 @@ def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
     `directory` (the program's own code; shown relative to it), else its first frame with a
     file."""
     found: dict[tuple[str, str], list[str]] = {}
-    for block in _blocks(text):
+    for block in map(str.splitlines, REPORT.findall(text)):
         accesses: list[list[str]] = []
         variable = ""
         stack = False  # in the frames of an access's stack (they follow its line at once)
@@ -117,20 +118,6 @@ def _place_key(place: str) -> tuple[str, int]:
     return file, int(line)
 
 
-def _blocks(text: str) -> list[list[str]]:
-    blocks: list[list[str]] = []
-    current: list[str] | None = None
-    for line in text.splitlines():
-        if WARNING.match(line):
-            current = []
-            blocks.append(current)
-        elif SEPARATOR.match(line):
-            current = None
-        elif current is not None:
-            current.append(line)
-    return blocks
-
-
 def _shown(file: str, directory: Path) -> str:
     path = Path(file)
     try:
@@ -159,17 +146,16 @@ def small_scene(scene: scenes.ScenePoint) -> scenes.ScenePoint:
 
 
 def archer_library(clang: str) -> Path | None:
-    """Archer of clang's own LLVM installation (its bin/ beside its lib/), if installed."""
     path = Path(os.path.realpath(clang)).parent.parent / "lib" / ARCHER
     return path if path.is_file() else None
 
 
 def find_races(program: Program, input_file: Path, description: str, env: Mapping[str, str],
-               timeout_s: float, threads: int = TSAN_THREADS) -> RaceCheck:
-    """Build the program with ThreadSanitizer (its `build:`, clang's flags), run its command
-    on `input_file` at `threads` threads with Archer, and read the races reported."""
+               timeout_s: float) -> RaceCheck:
+    """Build the program with ThreadSanitizer and run its command with Archer at TSAN_THREADS
+    threads."""
     def skipped(why: str) -> RaceCheck:
-        return RaceCheck(None, f"not checked for races: {why}", threads, description)
+        return RaceCheck(None, f"not checked for races: {why}", scene=description)
 
     clang = shutil.which(TSAN_CC)
     if clang is None:
@@ -192,9 +178,9 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
             return skipped("its command names no file its build replaces (the program's "
                            "binary must be a word of its command)")
         log = Path(tmp) / "tsan"
-        run_env = {**env, "OMP_NUM_THREADS": str(threads), "OMP_TOOL_LIBRARIES": str(archer),
+        run_env = {**env, "OMP_NUM_THREADS": str(TSAN_THREADS), "OMP_TOOL_LIBRARIES": str(archer),
                    "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
-        ran = run_process(program.shell_command(template, input_file, threads), run_env,
+        ran = run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
                           timeout_s)
         reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
         races = parse_reports(reports, program.directory)
@@ -202,6 +188,6 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         if ran.returncode != 0 and not races:
             return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
         if races:
-            note = (f"ThreadSanitizer found {len(races)} data race(s) at {threads} threads on "
+            note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
                     f"{description}: " + "; ".join(r.describe() for r in races))
-        return RaceCheck(races, note, threads, description)
+        return RaceCheck(races, note, scene=description)

@@ -4,12 +4,11 @@ references (results/.cache/prints/), keyed by binary and input."""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.measure.proc import ProcessResult, exit_status, run_process, tail
+from harness.measure.proc import ProcessResult, exit_status, run_captured, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
@@ -31,23 +30,17 @@ class References:
     prints: dict[str, str | None] = field(default_factory=dict)
 
     def baseline_output(self, cell: Cell) -> tuple[str | None, str]:
-        """The sequential baseline's --precise output for the cell's input (cached), and why
-        there is none when it failed."""
+        """seq's --precise output for the cell's input, or None and why."""
         key = self.store.baseline_key(cell)
-        if key in self.baselines:
-            text = self.baselines[key]
-            return text, "" if text is not None else "baseline run failed"
-        path = self.store.baseline_file(key)
-        if path.is_file():
-            self.baselines[key] = path.read_text()
-            return self.baselines[key], ""
         seq = self.store.baseline_binary(cell)
-        done, text = self._run(seq, cell.scene, 1, path, keep=True)
-        self.baselines[key] = text
-        if text is None:
-            status, code = exit_status(done.returncode)
-            return None, f"baseline {seq.name} {status} (exit {code}): {tail(done.stderr)}"
-        return text, ""
+        done, text = self._kept(self.baselines, key, self.store.baseline_file(key), seq,
+                                cell.scene, 1)
+        if text is not None:
+            return text, ""
+        if done is None:
+            return None, "baseline run failed"
+        status, code = exit_status(done.returncode)
+        return None, f"baseline {seq.name} {status} (exit {code}): {tail(done.stderr)}"
 
     def share_baseline(self, cell: Cell, output: str) -> None:
         """A seq cell's own output is the baseline of its input: keep it, run seq once less."""
@@ -64,30 +57,28 @@ class References:
         """`binary --precise` on the print-mode form of `scene`; with `cache`, kept under
         results/.cache/prints/ (references: seq, the truth), keyed by binary and input."""
         key = content_id({"binary_sha256": self.store.sha(binary), "threads": threads,
-                               "input_sha256": scene.input_sha256, "seed": scene.seed})
+                          "input_sha256": scene.input_sha256, "seed": scene.seed})
         path = self.store.print_file(key)
-        if cache and key in self.prints:
-            return self.prints[key]
-        if cache and path.is_file():
-            self.prints[key] = path.read_text()
-            return self.prints[key]
-        text = self._run(binary, scene, threads, path, keep=cache)[1]
-        if cache:
-            self.prints[key] = text
-        return text
+        if not cache:
+            return self._run(binary, scene, threads, path, keep=False)[1]
+        return self._kept(self.prints, key, path, binary, scene, threads)[1]
+
+    def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
+              scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
+        """The output kept in memory or at `path`, else run now and kept in both; with the run
+        when it ran now."""
+        if key not in kept and path.is_file():
+            kept[key] = path.read_text()
+        if key in kept:
+            return None, kept[key]
+        done, kept[key] = self._run(binary, scene, threads, path, keep=True)
+        return done, kept[key]
 
     def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path,
              keep: bool) -> tuple[ProcessResult, str | None]:
-        """`binary --precise` on the scene's input; its output (None where it failed), with
-        `keep` moved to `path`."""
+        """`binary --precise` on the scene's input; its output (None where it failed)."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
-        tmp = atomic.temp_path(path)
-        try:
-            done = run_process(argv, self.environment(threads), self.timeout_s, tmp)
-            text = tmp.read_text() if done.returncode == 0 else None
-            if keep and text is not None:
-                os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return done, text
+        done, text = run_captured(argv, self.environment(threads), self.timeout_s, path,
+                                  path if keep else None)
+        return done, text if done.returncode == 0 else None

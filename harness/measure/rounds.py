@@ -45,9 +45,6 @@ GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "roun
 
 @dataclass
 class CellRun:
-    """What a cell being measured has so far: the record its checks filled, its status, and
-    its timed runs with the round of each."""
-
     cell_id: str
     key: dict[str, object]  # the cell's key when it started: a partial file of another is void
     record: CellResult  # what its untimed runs found
@@ -93,19 +90,15 @@ class CellRun:
         return not self.timed or bool(self.stopped)
 
     def by_round(self) -> dict[int, float]:
-        """The median of its runs in each round."""
         return stats.round_medians(self.times, self.rounds)
 
     def noise_by_round(self) -> dict[int, float]:
-        """Each round's interference share (harness.measure.noise), by round."""
         return stats.by_round(self.rounds, self.round_noise)
 
     def pressure_by_round(self) -> dict[int, float]:
-        """Each round's CPU pressure (harness.measure.noise), by round."""
         return stats.by_round(self.rounds, self.round_pressure)
 
     def measure(self, measure: Measure) -> Measure:
-        """The cell's measure, with at least the rounds a comparison asked for."""
         return measure.at_least(self.min_rounds) if self.min_rounds else measure
 
     @property
@@ -114,7 +107,6 @@ class CellRun:
         return statistics.fmean(self.times) if self.times else self.run_s
 
     def add(self, timed: Timed, round_index: int, export: Path) -> None:
-        """One round's hyperfine call: its runs, or the status it failed with."""
         if not self.exports:
             self.record = self.record.replace(load_before=timed.load_before)
         self.record = self.record.replace(load_after=timed.load_after)
@@ -186,7 +178,7 @@ class CellRun:
 
 
 def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
-    """The fewest and the most runs the cell may still take (equal for a fixed count)."""
+    """(fewest, most) runs the cell may still take."""
     done = len(run.times)
     if run.done:
         return 0.0, 0.0
@@ -201,11 +193,9 @@ def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
 
 
 def next_runs(measure: Measure, times: Sequence[float], per_round: int = 1) -> int:
-    """How many runs the cell's next round times (none once it has them all): `per_round` a
-    round (one, but for a paired cell: share_rounds), so that its runs spread over as many
-    rounds as it takes; the counts of the measure (runs, max_runs) are rounds. An adaptive
-    cell's interval is over its rounds (stats.levels); it stops on that interval or a limit
-    (stop_reason)."""
+    """How many runs the cell's next round times: `per_round` (a paired cell's share_rounds)
+    until it has them all, so that its runs spread over as many rounds as it takes; the
+    measure's counts (runs, max_runs) are rounds."""
     return max(0, min(per_round, measure.most_runs * per_round - len(times)))
 
 
@@ -241,10 +231,9 @@ def narrow(times: Sequence[float], ci: float, rounds: Sequence[int] | None = Non
 
 
 def timed_result(run: CellRun, session: stats.SessionSpread | None = None) -> CellResult:
-    """The cell's result: what its untimed runs found, how it ended, and its timed runs with
-    hyperfine's statistics over all its rounds; the interval of the median is where another
-    session's would lie on a machine of this `session` spread (stats.levels; the default where
-    None)."""
+    """The cell's record with its timed runs' statistics over all its rounds; the interval of
+    the median is where another session's would lie on a machine of this `session` spread
+    (stats.levels)."""
     session = session or stats.DEFAULT_SESSION_SPREAD
     result = run.record.replace(status=run.status, exit_code=run.exit_code)
     if not (run.timed or run.exports):
@@ -269,8 +258,7 @@ def timed_result(run: CellRun, session: stats.SessionSpread | None = None) -> Ce
 
 
 def round_noise(run: CellRun) -> Noise | None:
-    """The noise of the cell's rounds (store.columns.NOISE_COLUMNS), where every round has
-    it."""
+    """The noise of the cell's rounds, where every round has it."""
     if len(run.round_noise) != len(run.exports):
         return None
     return Noise(

@@ -17,9 +17,10 @@ The energy drift lives in harness.measure.invariants. The functions that compare
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-import subprocess
+import tempfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -28,23 +29,17 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
+from harness.measure.proc import run_captured
+from harness.measure.validate import compare, max_distance
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_SHADOW_ULPS
-from harness.spec.output import Output, OutputFormatError, parse_output, split_states
+from harness.spec.output import Output, OutputFormatError, split_states
 from harness.spec.scenes import particle_row
 
 MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
 
 # Run `binary` (threads) on an input text; the stdout, or None when it did not exit 0.
 Runner = Callable[[Path, str, int], str | None]
-
-
-def header_tokens(text: str) -> tuple[str, str, str]:
-    """N, L and r of an input as written (so a state input keeps L and r bit for bit)."""
-    tokens = text.split(maxsplit=3)
-    if len(tokens) < 3:
-        raise HarnessError("input header must start with 'N L r'")
-    return tokens[0], tokens[1], tokens[2]
 
 
 def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndarray,
@@ -62,15 +57,14 @@ def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndar
 
 
 def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) -> str | None:
-    """The default Runner: `binary --threads T --precise -` with the input on stdin."""
-    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
-    try:
-        done = subprocess.run([str(binary), "--threads", str(threads), "--precise", "-"],
-                              input=text, capture_output=True, text=True, env=env,
-                              timeout=timeout_s, check=False)
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    return done.stdout if done.returncode == 0 else None
+    """The default Runner: `binary --threads T --precise` on the input text."""
+    with tempfile.TemporaryDirectory(prefix="shadow-") as tmp:
+        scene = Path(tmp) / "input.txt"
+        scene.write_text(text)
+        done, out = run_captured([str(binary), "--threads", str(threads), "--precise",
+                                  str(scene)], {**os.environ, "OMP_NUM_THREADS": str(threads)},
+                                 timeout_s)
+    return out if done.returncode == 0 else None
 
 
 @dataclass(frozen=True)
@@ -139,23 +133,15 @@ def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
 
 def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
     """One shadow step: the cell's and the truth's one-step outputs from the same state."""
-    failed = ShadowStep(state, math.nan, math.nan, False, False)
-    if cell is None or truth is None:
-        return failed
-    try:
-        a, b = parse_output(cell).final, parse_output(truth).final
-    except OutputFormatError:
-        return failed
-    if a.n != b.n or not np.array_equal(a.index, b.index):
-        return failed
-    if a.n == 0:
-        return ShadowStep(state, 0.0, 0.0, False, True)
-    pos = np.hypot(*(a.position - b.position).T).max() / L
-    vel = np.hypot(*(a.velocity - b.velocity).T).max() / L
-    differs = bool(np.any((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
-    if not (math.isfinite(pos) and math.isfinite(vel)):
-        pos, vel = math.inf, math.inf
-    return ShadowStep(state, float(pos), float(vel), differs, True)
+    if cell is not None and truth is not None:
+        with contextlib.suppress(OutputFormatError):
+            found = compare(truth, cell, L)
+            if found.comparable:
+                # A velocity that is not finite fails the step as a position would.
+                pos = found.max_pos_err if math.isfinite(found.max_vel_err) else math.inf
+                return ShadowStep(state, pos, found.max_vel_err, found.count_mismatches > 0,
+                                  True)
+    return ShadowStep(state, math.nan, math.nan, False, False)
 
 
 def shadow_states(total: int, limit: int) -> list[int]:
@@ -179,7 +165,10 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
     when given: a float build prints its state 0 already rounded to float, and the step from
     the input as written is the one whose rounding matters.
     """
-    _, L_text, r_text = header_tokens(input_text)
+    header = input_text.split(maxsplit=3)  # L and r as written: a state input keeps them
+    if len(header) < 3:
+        raise HarnessError("input header must start with 'N L r'")
+    L_text, r_text = header[1:3]
     states = split_states(out)[:-1]
     if initial is not None and states:
         first = split_states(initial)[0]
@@ -209,18 +198,9 @@ def divergence_curve(cell: Output, reference: Output, L: float) -> np.ndarray:
     a, b = split_states(cell), split_states(reference)
     if len(a) != len(b) or any(p.shape != q.shape for (p, _), (q, _) in zip(a, b, strict=True)):
         return np.empty(0)
-    curve = []
-    for (p, _), (q, _) in zip(a, b, strict=True):
-        if not len(p):
-            curve.append(0.0)
-            continue
-        d = np.hypot(*(p - q).T)
-        curve.append(float(d.max()) / L if np.all(np.isfinite(d)) else math.inf)
-    return np.array(curve, dtype=np.float64)
+    return np.array([max_distance(p, q) / L for (p, _), (q, _) in zip(a, b, strict=True)],
+                    dtype=np.float64)
 
 
 def first_step_at(curve: Sequence[float], threshold: float) -> int | None:
-    for step, value in enumerate(curve):
-        if value >= threshold:
-            return step
-    return None
+    return next((step for step, value in enumerate(curve) if value >= threshold), None)

@@ -65,38 +65,12 @@ class StepJudgement:
     level: float | None  # None: every step right at the printed precision; else the ladder's
     wrong_step: int | None = None  # the first step no level explains
     particle: int | None = None
-    program_before: tuple[float, ...] = ()  # the particle at the step before, as printed
-    program_values: tuple[float, ...] = ()  # its state at the wrong step
-    reference_values: tuple[float, ...] = ()  # the reference's successor of the state before
     reference_event: tuple[str, int, float] | None = None  # (free|pair|wall, partner, t)
     deviation: float | None = None
     steps_judged: int = 0
     near_ties: int = 0  # values explained only by a replay that decided otherwise
     partners: np.ndarray | None = None  # each particle's partner in the reference's wrong step
     reference_state: np.ndarray | None = None  # the reference's successor there, (n, 4)
-
-
-def half_units(tokens: np.ndarray) -> np.ndarray:
-    """Half a unit in the last printed digit of each token (an array of str), vectorised for
-    plain decimals; tokens with an exponent take the slow path."""
-    tokens = np.asarray(tokens, dtype=str)
-    length = np.char.str_len(tokens)
-    point = np.char.find(tokens, ".")
-    decimals = np.where(point >= 0, length - point - 1, 0)
-    out = 0.5 * 10.0 ** (-decimals.astype(np.float64))
-    exponent = np.char.find(np.char.lower(tokens), "e") >= 0
-    for k in np.flatnonzero(exponent.ravel()):
-        out.flat[k] = half_unit_exp(str(tokens.flat[k]))
-    return out
-
-
-def half_unit_exp(token: str) -> float:
-    mantissa, _, exponent = token.lower().lstrip("+-").partition("e")
-    decimals = len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
-    try:
-        return 0.5 * 10.0 ** (int(exponent) - decimals)
-    except ValueError:
-        return 0.5 * 10.0 ** -decimals
 
 
 REPLAY_MAGIC = b"CBREPLAY"  # variants/core/sim_replay.c's binary form
@@ -124,12 +98,8 @@ SUCCESSOR_RECORD = np.dtype([("k", "=i8"), ("i", "=i4"), ("x", "=f8"), ("y", "=f
 
 
 def read_successors(data: bytes, n: int) -> Successors:
-    """The successors `--replay` wrote (binary), by label (the label of the state they
-    follow)."""
-    values: dict[int, np.ndarray] = {}
-    kind: dict[int, np.ndarray] = {}
-    partner: dict[int, np.ndarray] = {}
-    t: dict[int, np.ndarray] = {}
+    """The successors `--replay` wrote, by the label of the state they follow."""
+    out = Successors({}, {}, {}, {})
     if len(data) % SUCCESSOR_RECORD.itemsize:
         raise ValueError(f"--replay wrote {len(data)} bytes, not a whole number of "
                          f"{SUCCESSOR_RECORD.itemsize}-byte successor records")
@@ -139,12 +109,13 @@ def read_successors(data: bytes, n: int) -> Successors:
     for start, end in itertools.pairwise(bounds):
         rows = records[start:end]
         k = int(rows["k"][0]) - 1
-        values[k] = np.full((n, 4), np.nan)
-        values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
-        for table, name, missing in ((kind, "e", -1), (partner, "j", -1), (t, "t", np.nan)):
+        out.values[k] = np.full((n, 4), np.nan)
+        out.values[k][rows["i"]] = np.column_stack([rows["x"], rows["y"], rows["vx"], rows["vy"]])
+        for table, name, missing in ((out.kind, "e", -1), (out.partner, "j", -1),
+                                     (out.t, "t", np.nan)):
             table[k] = np.full(n, missing, dtype=np.float64 if name == "t" else np.int64)
             table[k][rows["i"]] = rows[name]
-    return Successors(values, kind, partner, t)
+    return out
 
 
 def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n: int, L: float,
@@ -188,10 +159,8 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     i = int(np.flatnonzero(open_[k])[0])
     event = (EVENT_NAMES.get(int(base.kind[k][i]), "free"), int(base.partner[k][i]),
              float(base.t[k][i]))
-    return StepJudgement(reached, k + 1, i, tuple(map(float, states[k][i])),
-                         tuple(map(float, states[k + 1][i])), tuple(map(float, base.values[k][i])),
-                         event, float(np.max(deviation[k][i])), len(pairs), near_ties,
-                         base.partner[k], base.values[k])
+    return StepJudgement(reached, k + 1, i, event, float(np.max(deviation[k][i])), len(pairs),
+                         near_ties, base.partner[k], base.values[k])
 
 
 def _suspects(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], pairs: list[int],
@@ -279,8 +248,7 @@ class _Explainer:
 
     def explains(self, levels: tuple[float | None, ...], steps: list[int],
                  open_: dict[int, np.ndarray]) -> bool:
-        """Whether `levels` together explain every open value of `steps`, stopping at the
-        first chunk of steps with a value left."""
+        """Whether `levels` together explain every open value of `steps`."""
         return not any(self.left(levels, {k: open_[k] for k in chunk})
                        for chunk in _chunks(steps))
 
@@ -310,8 +278,6 @@ class _Explainer:
         return np.zeros(self.n, dtype=bool) if mask is None else mask
 
     def _replay(self, level: float | None, open_: dict[int, np.ndarray]) -> None:
-        """Replay the open values (per step, a mask of particles) at `level` and remember
-        which it explains."""
         n = self.n
         steps = sorted(open_)
         amp = {k: self.halves[k] if level is None else np.maximum(self.halves[k], level * self.L)
@@ -333,22 +299,19 @@ class _Explainer:
         for k in steps:
             rows = np.flatnonzero(open_[k])
             ref = self.base.values[k][rows]
-            others, changes = [], []
-            for c in range(COPIES):
-                label = (c + 1) * stride + k
-                others.append((perturbed.kind[label][rows] != self.base.kind[k][rows])
-                              | (perturbed.partner[label][rows] != self.base.partner[k][rows]))
-                changes.append(np.abs(perturbed.values[label][rows] - ref))
+            labels = [(c + 1) * stride + k for c in range(COPIES)]
+            others = np.array([(perturbed.kind[label][rows] != self.base.kind[k][rows])
+                               | (perturbed.partner[label][rows] != self.base.partner[k][rows])
+                               for label in labels])
+            changes = np.array([np.abs(perturbed.values[label][rows] - ref) for label in labels])
             # A state known exactly (the input, as the program holds it), or a real tie in a
             # printed one, has no near-ties: a coarser precision explains the values of its
             # decisions, never other decisions.
             decided = np.full(len(rows), k in self.exact)
-            flipped = np.any(others, axis=0)
+            flipped = others.any(axis=0)
             if not decided.all() and flipped.any():
                 decided[flipped] = self.real_ties(k, rows[flipped])
-            spread = np.zeros((len(rows), 4))
-            for other, change in zip(others, changes, strict=True):
-                spread += np.where((other & decided)[:, None], 0.0, change)
+            spread = np.where((others & decided)[..., None], 0.0, changes).sum(axis=0)
             tie = flipped & ~decided
             best = self.deviation[k][rows]
             out_amp = 0.0 if level is None else level * self.L

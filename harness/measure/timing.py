@@ -55,8 +55,7 @@ def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
 
 
 def precise(timing: Mapping[str, object]) -> tuple[Phases, Counts, ThreadWork]:
-    """The phases, counts and per-thread work of a --timing object (None for what it lacks or
-    gives as no number)."""
+    """The phases, counts and per-thread work of a --timing object (None for what it lacks)."""
     def number(name: str, kind: type | tuple[type, ...]) -> typing.Any:
         value = timing.get(name)
         return value if isinstance(value, kind) and not isinstance(value, bool) else None

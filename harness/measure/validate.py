@@ -31,7 +31,6 @@ class Comparison:
 
 
 def compare(reference: str, candidate: str, L: float) -> Comparison:
-    """Metrics of `candidate`'s output against `reference`'s (the sequential baseline)."""
     ref = parse_output(reference)
     identical = reference == candidate
     try:
@@ -41,20 +40,20 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
     a, b = ref.final, cand.final
     if a.step != b.step or not np.array_equal(a.index, b.index):
         return _incomparable(a.n, b.n, identical)
-    pos = _max_distance(a.position, b.position)
-    vel = _max_distance(a.velocity, b.velocity)
+    pos = max_distance(a.position, b.position)
+    vel = max_distance(a.velocity, b.velocity)
     same_rows = ref.history.shape == cand.history.shape and np.array_equal(
         ref.history[:, :2], cand.history[:, :2])
     if not same_rows:
         return _incomparable(a.n, b.n, identical)
     if len(ref.history):
-        pos = max(pos, _max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
-        vel = max(vel, _max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
+        pos = max(pos, max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
+        vel = max(vel, max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
     mismatches = int(np.count_nonzero((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
     return Comparison(identical, True, a.n, b.n, pos / L, vel / L, mismatches)
 
 
-def _max_distance(p: np.ndarray, q: np.ndarray) -> float:
+def max_distance(p: np.ndarray, q: np.ndarray) -> float:
     if len(p) == 0:
         return 0.0
     distance = np.hypot(p[:, 0] - q[:, 0], p[:, 1] - q[:, 1])
