@@ -26,6 +26,5 @@ def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None =
 
 
 def figure_block(paths: Sequence[Path], caption: str) -> Figure:
-    """The PNG of a figure shown, its other files offered as links."""
-    image = next(p for p in paths if p.suffix == ".png")
-    return Figure(image, caption, tuple(p for p in paths if p != image))
+    """A figure's first file (its PNG, or a GIF) shown, the others (the SVG) offered as links."""
+    return Figure(paths[0], caption, tuple(paths[1:]))

@@ -42,15 +42,16 @@ def _course_table(axes: Sequence[str], df: pd.DataFrame) -> str:
     return " (cf. the course report's Table 2)" if df["variant"].nunique() > 1 else ""
 
 
-def build(ctx: Context) -> list[Section]:
+def build(ctx: Context, alone: bool) -> list[Section]:
     """Table 2-6 shape: one row per cell with our statistics, speedup and validation: whenever
-    something varies (a checked catalog aside), and a lone cell when nothing else shows it."""
-    if ctx.catalog or not (ctx.varies or ctx.alone):
+    something varies (a checked catalog aside), and a lone cell when no main part (`alone`)
+    shows it."""
+    if ctx.catalog or not (ctx.varying or alone):
         return []
     exp, axes = ctx.exp, ctx.swept
     df = exp.frame
-    keys = varying_keys(df) or ["variant"]
-    table = cell_table(df, keys, thread_baseline="threads" in axes, ratios=exp.ratios)
+    table = cell_table(df, ctx.varying or ["variant"], thread_baseline="threads" in axes,
+                       ratios=exp.ratios)
     blocks: list[Block] = []
     if "baseline" in table.columns:
         baselines = [b for b in table["baseline"].unique() if b]
@@ -74,8 +75,7 @@ def build(ctx: Context) -> list[Section]:
     blocks.extend(Paragraph(text) for text in (paired_words(exp.ratios), _instructions_text(df))
                   if text)
     caption = f"Per-cell statistics{_course_table(axes, df)}."
-    return [Section("Measurements", f"{ctx.name}-cells",
-                    (table_block(table, caption, source=df), *blocks))]
+    return [ctx.section("Measurements", "cells", (table_block(table, caption, source=df), *blocks))]
 
 
 def _instructions_text(df: pd.DataFrame) -> str:

@@ -1,15 +1,19 @@
 """What every part of an experiment's section reads: the experiment, the figure manifest, and
-what its rows vary (decided once, from the rows)."""
+what its rows vary (decided once, from the rows); and how a part names its figures and
+subsections (after the experiment)."""
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
-from harness.analysis.cells import sweep_axes, varying_keys
+from harness.analysis.cells import CELL_KEYS, sweep_axes, varying_keys
 from harness.analysis.trust import has_check_data
+from harness.report.blocks import figure_block
 from harness.report.cache import Manifest
-from harness.report.document import slug
+from harness.report.document import Block, Figure, Section, slug
 from harness.report.load import Experiment
 from harness.store.columns import TIMED_STATUSES
 
@@ -18,8 +22,6 @@ from harness.store.columns import TIMED_STATUSES
 class Context:
     exp: Experiment
     figs: Manifest
-    # No main part showed anything (set for the fallback parts: harness.report.sections).
-    alone: bool = False
 
     @property
     def name(self) -> str:
@@ -50,5 +52,20 @@ class Context:
         return has_check_data(frame) and frame["scene"].nunique() > 1
 
     @functools.cached_property
-    def varies(self) -> bool:
-        return bool(varying_keys(self.exp.frame))
+    def varying(self) -> list[str]:
+        return varying_keys(self.exp.frame)
+
+    @property
+    def cell_keys(self) -> list[str]:
+        """The columns that name a cell in a table: variant, build and what varies."""
+        shown = {"variant", "build", *self.varying}
+        return [k for k in CELL_KEYS if k in shown]
+
+    def figure(self, draw: Callable[..., Any], data: object, suffix: str, caption: str,
+               **kwargs: object) -> Figure:
+        """`draw` into <figures>/<experiment>-<suffix> (or its files reused), as a block."""
+        stem = self.figs.fig_dir / f"{self.name}-{suffix}"
+        return figure_block(self.figs.draw(draw, data, stem, **kwargs), caption)
+
+    def section(self, title: str, suffix: str, blocks: Iterable[Block]) -> Section:
+        return Section(title, f"{self.name}-{suffix}", tuple(blocks))

@@ -9,8 +9,7 @@ import pandas as pd
 
 from harness.analysis.cells import sort_cells
 from harness.analysis.display import format_value
-from harness.report.blocks import figure_block
-from harness.report.document import Block, Figure, Paragraph, Section
+from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.trajectory import fig_trajectory, gif_trajectory
 from harness.report.load import Experiment, read_trajectory
 from harness.report.sections.context import Context
@@ -42,15 +41,12 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _trajectory(ctx: Context, row: pd.Series) -> Section:
-    exp, figs = ctx.exp, ctx.figs
-    path = _output_path(exp, row)
-    anchor = f"{ctx.name}-trajectory"
-    title = "Trajectories"
+    path = _output_path(ctx.exp, row)
     if path.stat().st_size > MAX_TRAJECTORY_BYTES:
-        return Section(title, anchor, (Paragraph(f"`{path.name}` is too large to plot."),))
+        blocks: list[Block] = [Paragraph(f"`{path.name}` is too large to plot.")]
+        return ctx.section("Trajectories", "trajectory", blocks)
     traj = read_trajectory(path)
     box = float(row["L"])
-    stem = figs.fig_dir / f"{ctx.name}-trajectory"
     steps = int(traj["step"].max()) if len(traj) else 0
     caption = (
         f"Positions after each of the {steps} steps of `{row['variant']}` "
@@ -58,11 +54,7 @@ def _trajectory(ctx: Context, row: pd.Series) -> Section:
         f"r = {format_value('r', row['r'])}), one color per particle, consecutive "
         "states joined by straight segments (cf. the course report's Figure 7)."
     )
-    blocks: list[Block] = [
-        figure_block(figs.draw(fig_trajectory, traj, stem, box=box, title=exp.title),
-                     caption)
-    ]
-    gif = figs.draw(gif_trajectory, traj, stem.with_name(f"{stem.name}-animation"),
-                    box=box)
-    blocks.append(Figure(gif[0], "The same run, one frame per step."))
-    return Section(title, anchor, tuple(blocks))
+    blocks = [ctx.figure(fig_trajectory, traj, "trajectory", caption, box=box, title=ctx.exp.title),
+              ctx.figure(gif_trajectory, traj, "trajectory-animation",
+                         "The same run, one frame per step.", box=box)]
+    return ctx.section("Trajectories", "trajectory", blocks)
