@@ -14,9 +14,8 @@ from harness.report.document import Figure, Table
 
 def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None,
                 files: Sequence[Path] = ()) -> Table:
-    """A built table formatted for display, numbers right-aligned; with `source` (the cells
-    it was built from) the caption says which commit(s) measured them; `files` (the table as a
-    CSV) are linked after it."""
+    """A built table formatted for display, numbers right-aligned; with `source` (its cells) the
+    caption names the commit(s) that measured them; `files` (a CSV) are linked after it."""
     if source is not None:
         caption = " ".join(t for t in (caption, provenance(source)) if t)
     align = tuple(is_numeric_column(table, c) for c in display_columns(table))

@@ -102,7 +102,6 @@ def kind(block: Block) -> str:
 
 
 def slug(text: str) -> str:
-    """A file-name and anchor-safe form of a name."""
     return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-").lower() or "x"
 
 
@@ -136,8 +135,7 @@ NESTED_FIELDS = ("blocks", "subsections")
 
 
 def to_json(item: Block | Section, base: Path) -> dict[str, object]:
-    """A block (with its kind) or a section as JSON: paths relative to `base`, tuples as
-    lists, nested blocks and sections likewise."""
+    """A block (with its kind) or a section as JSON, paths relative to `base`."""
     def value(v: object) -> object:
         if isinstance(v, Path):
             return v.relative_to(base).as_posix()
@@ -150,7 +148,6 @@ def to_json(item: Block | Section, base: Path) -> dict[str, object]:
 
 
 def from_json(data: dict, base: Path) -> Any:
-    """A block or a section read back from to_json's form."""
     if "kind" in data and data["kind"] not in BLOCK_KINDS:
         raise ValueError(f"unknown block kind {data['kind']!r}")
 

@@ -54,7 +54,5 @@ def image_size(path: Path) -> tuple[int, int] | None:
 
 
 def render_html(doc: Document, out_dir: Path) -> str:
-    """The whole document as one HTML page written into `out_dir` (figures linked relative to
-    it)."""
     template = _environment().get_template(PAGE_TEMPLATE)
     return template.render(doc=doc, base=Path(out_dir), suffix=SUFFIX)

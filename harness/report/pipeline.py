@@ -154,16 +154,15 @@ def _write_page(doc: Document, page_dir: Path) -> None:
 
 
 def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
-                 code: CodeVersions, machine: machines.Machine | None = None,
-                 others: Sequence[Link] = (), side_by_side: Section | None = None,
-                 rows: machines.Rows | None = None) -> Document:
+                 code: CodeVersions, rows: machines.Rows, machine: machines.Machine | None,
+                 others: Sequence[Link] = (), side_by_side: Section | None = None) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, code)
-    if machine is not None and rows is not None:
-        found = [f for f in found
-                 if any(machines.machine_of(r) == machine.id for r in rows[f.name])]
     machine_id = machine.id if machine is not None else None
+    if machine_id is not None:
+        found = [f for f in found
+                 if any(machines.machine_of(r) == machine_id for r in rows[f.name])]
     parts = [experiment_part(f, manifest, page_dir, machine_id) for f in found]
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
@@ -210,7 +209,7 @@ def render(
         if len(listed) < 2:
             # One machine (or none recorded): one page, its figures beside it.
             shown = machines.pick(listed, machine) if listed or machine else None
-            _render_page(found, results_dir, out_dir, code, shown, rows=rows)
+            _render_page(found, results_dir, out_dir, code, rows, shown)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
@@ -221,9 +220,9 @@ def render(
                          .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:
-            doc = _render_page(found, results_dir, pages[page.id], code, page,
+            doc = _render_page(found, results_dir, pages[page.id], code, rows, page,
                                links(pages[page.id], page.id),
-                               machines.side_by_side(rows, page, listed), rows)
+                               machines.side_by_side(rows, page, listed))
             if page.id == top.id:
                 _write_page(dataclasses.replace(doc, others=tuple(links(out_dir, top.id))),
                             out_dir)

@@ -60,7 +60,8 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
     rows = with_speedup(exp.frame, ratios=exp.ratios)
-    link = f"[{exp.name}](#{_anchor(section, 'cells')})"
+    cells = _anchor(section, "cells")
+    link = f"[{exp.name}](#{cells})"
     found: dict[str, Highlight] = {}
     fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]
                 & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
@@ -70,14 +71,12 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         found["best"] = Highlight(
             float(best["speedup"]),
             f"best strategy: `{best['variant']}`, {ratio_text(best)} faster than seq "
-            f"({_where(best)}; {link})", _anchor(section, "cells"))
+            f"({_where(best)}; {link})", cells)
     grid = fair[fair["variant"] == GRID]
     if not grid.empty:
         largest = grid.sort_values(["n", "speedup"], kind="stable").iloc[-1]
-        found["grid"] = Highlight(
-            float(largest["n"]),
-            f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
-            _anchor(section, "cells"))
+        found["grid"] = Highlight(float(largest["n"]), f"grid against seq: {ratio_text(largest)} "
+                                  f"faster ({_where(largest)}; {link})", cells)
     selection = phases.select(exp.frame)
     if selection is not None:
         anchor = _anchor(section, phases_part.ANCHOR)

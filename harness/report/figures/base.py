@@ -83,7 +83,6 @@ def new_figure(figsize: tuple[float, float] = FIGSIZE, margins: dict[str, float]
 
 
 def save_figure(fig: Figure, stem: Path) -> list[Path]:
-    """Write the figure as `<stem>.png` and `<stem>.svg`; return the paths."""
     written = []
     for fmt in FORMATS:
         target = stem.with_name(f"{stem.name}.{fmt}")

@@ -22,13 +22,10 @@ COURSE_NUMBER: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
 
 def fixed_text(df: pd.DataFrame) -> str:
     # An empty machine is a results.csv from before machine identity: nothing to name.
-    fixed = {k: v for k, v in fixed_params(df).items()
-             if not (k == MACHINE and v == "")}
-    fixed_parts = [
-        f"{display_name(k)} = {format_value(k, v)}" for k, v in fixed.items()
-    ]
+    fixed = [f"{display_name(k)} = {format_value(k, v)}" for k, v in fixed_params(df).items()
+             if not (k == MACHINE and v == "")]
     varied = [display_name(k) for k in varying_keys(df)]
-    text = "Fixed: " + (", ".join(fixed_parts) if fixed_parts else "nothing") + "."
+    text = "Fixed: " + (", ".join(fixed) if fixed else "nothing") + "."
     if varied:
         text += " Varied: " + ", ".join(varied) + "."
     return text

@@ -73,8 +73,6 @@ def _checked_scenes(exp: Experiment) -> list[tuple[str, pd.DataFrame, pd.DataFra
 
 
 def build(ctx: Context) -> list[Section]:
-    """Stability (pass/fail per scene and check, which build to trust) and accuracy (shadow
-    error against time, divergence curves) from the check columns and divergence.csv."""
     if not has_check_data(ctx.exp.frame):
         return []
     sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame))]
@@ -86,7 +84,6 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _stability_blocks(df: pd.DataFrame) -> list[Block]:
-    """Pass/fail per scene and check, each check over the cells, and which build to trust."""
     trust = trust_table(df)
     return [
         Paragraph(CHECKS_INTRO),

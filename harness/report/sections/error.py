@@ -32,8 +32,7 @@ def error_scenes(df: pd.DataFrame) -> list[pd.DataFrame]:
 
 
 def build(ctx: Context) -> list[Section]:
-    """Error against run time per variant and build, Pareto front marked, one figure a scene:
-    where the cells carry a deviation worth plotting (a checked catalog aside)."""
+    """Where the cells carry a deviation worth plotting (a checked catalog aside)."""
     if ctx.catalog or not has_error_data(ctx.exp.frame):
         return []
     df = ctx.exp.frame

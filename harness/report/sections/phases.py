@@ -42,7 +42,6 @@ def _left_out(sel: phases.Selection) -> str:
 
 
 def build(ctx: Context) -> list[Section]:
-    """The figure and the table, or nothing when no timed cell has phases."""
     sel = phases.select(ctx.exp.frame)
     if sel is None:
         return []

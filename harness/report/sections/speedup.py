@@ -23,7 +23,6 @@ FIGURES = (
 
 
 def build(ctx: Context) -> list[Section]:
-    """For a thread sweep, what the module's docstring names."""
     if "threads" not in ctx.axes:
         return []
     exp = ctx.exp

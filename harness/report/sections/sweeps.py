@@ -19,7 +19,6 @@ GROWTH_TEXT = (
 
 
 def build(ctx: Context) -> list[Section]:
-    """Time against each swept parameter (Figures 3-6), in the course report's order."""
     return [_sweep(ctx, axis) for axis in ctx.axes]
 
 

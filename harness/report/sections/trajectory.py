@@ -35,7 +35,6 @@ def _output_path(exp: Experiment, row: pd.Series) -> Path:
 
 
 def build(ctx: Context) -> list[Section]:
-    """Figure 7 for the experiment's print-mode cell with a kept output, if it has one."""
     row = trajectory_cell(ctx.exp)
     return [] if row is None else [_trajectory(ctx, row)]
 
