@@ -185,24 +185,22 @@ class Manifest:
 
     # --- experiment parts ------------------------------------------------------------------
 
-    def part_key(self, input_digest: str) -> str:
-        return hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
-
-    def get_part(self, name: str, key: str) -> dict[str, Any] | None:
-        """A stored part made from the same inputs whose figures are all intact, or None."""
+    def part(self, name: str, input_digest: str, build: Callable[[], dict[str, Any]]
+             ) -> dict[str, Any]:
+        """The part stored under `name` when it was made from the same inputs and code and its
+        figures are all intact, else `build()` stored with the figures it drew."""
         self._used_parts.add(name)
+        key = hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
         entry = self.parts.get(name)
-        if entry is None or entry.get("key") != key:
-            return None
-        figures = entry.get("figures", [])
-        if not all(f in self.figures and self._intact(self.figures[f]) for f in figures):
-            return None
-        self.touched += figures
-        return entry["part"]
-
-    def put_part(self, name: str, key: str, part: dict[str, Any], figures: list[str]) -> None:
-        self._used_parts.add(name)
-        self.parts[name] = {"key": key, "part": part, "figures": sorted(figures)}
+        if entry is not None and entry.get("key") == key:
+            figures = entry.get("figures", [])
+            if all(f in self.figures and self._intact(self.figures[f]) for f in figures):
+                self.touched += figures
+                return entry["part"]
+        first = len(self.touched)
+        part = build()
+        self.parts[name] = {"key": key, "part": part, "figures": sorted(self.touched[first:])}
+        return part
 
     # --- writing ---------------------------------------------------------------------------
 

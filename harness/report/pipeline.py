@@ -14,6 +14,7 @@ import os
 import shutil
 from collections.abc import Collection, Sequence
 from pathlib import Path
+from typing import Any
 
 from harness.repo import REPO_ROOT
 from harness.report import machines
@@ -109,22 +110,19 @@ def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
                     machine: str | None = None) -> ExperimentPart:
     """The experiment's part (of one machine's cells, with `machine`) from the manifest when
     its inputs are unchanged, else built."""
-    key = manifest.part_key(input_digest(found) + (f"\0{machine}" if machine else ""))
-    stored = manifest.get_part(found.name, key)
-    if stored is not None:
-        return ExperimentPart.from_json(stored, out_dir)
-    # Building needs pandas (and matplotlib for a figure that changed): imported only here.
-    from harness.report.load import load_experiment
-    from harness.report.sections import experiment_section
-    from harness.report.summary import experiment_part as build_part
+    def build() -> dict[str, Any]:
+        # Building needs pandas (and matplotlib for a figure that changed): imported only here.
+        from harness.report.load import load_experiment
+        from harness.report.sections import experiment_section
+        from harness.report.summary import experiment_part as build_part
 
-    exp = load_experiment(found, machine)
-    first = len(manifest.touched)
-    # the facts of the variants the results were measured with: their order, colours, kinds
-    with reading(read_variants(found.variants_json)):
-        part = build_part(exp, experiment_section(exp, manifest))
-    manifest.put_part(found.name, key, part.to_json(out_dir), manifest.touched[first:])
-    return part
+        exp = load_experiment(found, machine)
+        # the facts of the variants the results were measured with: their order, colours, kinds
+        with reading(read_variants(found.variants_json)):
+            return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
+
+    digest = input_digest(found) + (f"\0{machine}" if machine else "")
+    return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
 
 
 def _remove_stale_figures(fig_dir: Path, keep: set[Path]) -> None:

@@ -13,12 +13,12 @@ from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import flagged_cells, flagged_kinds
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
-from harness.report.blocks import table_block
 from harness.report.document import Section
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
 from harness.report.sections import phases as phases_part
 from harness.report.sections import programs as programs_part
+from harness.report.sections.context import table_block
 from harness.spec.facts import BASELINE, GRID
 from harness.store.columns import AGREEING, INVALID, OK
 

@@ -113,15 +113,11 @@ def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
     low, high = INTERVAL_COLUMNS.get(y, tuple(f"{y}{s}" for s in INTERVAL_SUFFIXES))
     if low not in rows.columns or high not in rows.columns:
         return None
-    values = rows[y].to_numpy(dtype=float)
-    lows = rows[low].to_numpy(dtype=float)
-    highs = rows[high].to_numpy(dtype=float)
+    values, lows, highs = (rows[c].to_numpy(dtype=float) for c in (y, low, high))
     known = np.isfinite(lows) & np.isfinite(highs)
     if not known.any():
         return None
-    below = np.where(known, np.clip(values - lows, 0, None), 0.0)
-    above = np.where(known, np.clip(highs - values, 0, None), 0.0)
-    return np.vstack([below, above])
+    return np.where(known, np.clip(np.vstack([values - lows, highs - values]), 0, None), 0.0)
 
 
 def variant_color(variant: str) -> str:

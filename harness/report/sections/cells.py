@@ -12,9 +12,8 @@ from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_
 from harness.analysis.display import display_name, format_value
 from harness.analysis.paired import paired_words
 from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 # Which table of the course report a sweep reproduces; its figure has the same number.
 COURSE_NUMBER: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}

@@ -19,11 +19,10 @@ from harness.analysis.trust import (
     stability_matrix,
     trust_table,
 )
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import fig_divergence, fig_error_time
 from harness.report.load import Experiment
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 from harness.spec.builds import DESCRIPTIONS
 
 MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)

@@ -8,10 +8,9 @@ import pandas as pd
 from harness.analysis.accuracy import error_table, has_error_data
 from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import error_floor, fig_error_time
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 MAX_ERROR_FIGURES = 4  # error-vs-time figures per experiment (one per scene)
 

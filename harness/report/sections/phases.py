@@ -7,10 +7,9 @@ from __future__ import annotations
 
 from harness.analysis import phases
 from harness.analysis.display import threads_text
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.phases import fig_phases
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 TITLE = "Where the time goes"
 ANCHOR = "phases"

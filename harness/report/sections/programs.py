@@ -10,10 +10,9 @@ from pathlib import Path
 import pandas as pd
 
 from harness.analysis.programs import class_table, is_program, program_table
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.programs import fig_wrong_step
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 from harness.store import atomic
 from harness.store.columns import WRONG
 from harness.store.layout import ExperimentDir

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 from harness.analysis import overhead
 from harness.analysis import strategies as study
-from harness.report.blocks import table_block
 from harness.report.document import Paragraph, Section
 from harness.report.figures.strategies import work_figure
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 SEED_INTRO = (
     f"The seed report's Table 2 measured its five strategies on this benchmark on "

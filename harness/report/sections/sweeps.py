@@ -4,11 +4,10 @@ against N."""
 from __future__ import annotations
 
 from harness.analysis.speedup import growth_exponents
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.sweeps import SWEEPS, fig_time_vs
 from harness.report.sections.cells import COURSE_NUMBER
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 GROWTH_TEXT = (
     "Least-squares fit of log t = k·log N + log a per series. A power law t ≈ a·N^k is a "
