@@ -45,19 +45,15 @@ class Context:
         return slug(self.exp.name)
 
     @functools.cached_property
-    def timed(self) -> bool:
-        """Whether some cell was timed (without, a figure would be an empty frame)."""
-        return bool(self.exp.frame["status"].isin(TIMED_STATUSES).any())
-
-    @functools.cached_property
     def swept(self) -> list[str]:
         """The parameters some variant and build was measured at several values of."""
         return sweep_axes(self.exp.frame)
 
     @property
     def axes(self) -> list[str]:
-        """The sweeps that get a figure: those of an experiment with timed cells."""
-        return self.swept if self.timed else []
+        """The sweeps that get a figure: those of an experiment with timed cells (without, a
+        figure would be an empty frame)."""
+        return self.swept if self.exp.frame["status"].isin(TIMED_STATUSES).any() else []
 
     @functools.cached_property
     def catalog(self) -> bool:
