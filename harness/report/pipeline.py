@@ -91,12 +91,12 @@ def build_document(
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
     if shown is not None:
         lead = f"Measured on **{shown.name}**. " + lead
-    more = []
+    more, appendix = [], []
     if side_by_side is not None:
         more.append(f"other machines: {len(others)}, each with its own report (linked under "
                     f"the title); [side by side](#{side_by_side.anchor}) on the cells they "
                     "share with this one")
-    appendix = [*([side_by_side] if side_by_side else [])]
+        appendix.append(side_by_side)
     environment = environment_bullets(environments)
     if environment:
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))

@@ -15,7 +15,6 @@ from harness.report.figures.programs import fig_wrong_step
 from harness.report.sections.context import Context, table_block
 from harness.store import atomic
 from harness.store.columns import WRONG
-from harness.store.layout import ExperimentDir
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
@@ -68,7 +67,7 @@ def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
     wrong = programs[programs["agreement"] == WRONG].sort_values(["variant", "threads"])
     for variant, cells in wrong.groupby("variant", sort=True):
         row = cells.iloc[0]
-        shown = _neighbourhood(ExperimentDir(ctx.exp.path).record(str(row["cell_id"])))
+        shown = _neighbourhood(ctx.exp.dir.record(str(row["cell_id"])))
         if shown is None:
             continue
         data, r = shown

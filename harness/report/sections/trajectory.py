@@ -3,8 +3,6 @@ Figure 7), and the run animated."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
@@ -14,7 +12,6 @@ from harness.report.figures.trajectory import fig_trajectory, gif_trajectory
 from harness.report.load import Experiment, read_trajectory
 from harness.report.sections.context import Context
 from harness.store.columns import OK
-from harness.store.layout import ExperimentDir
 
 MAX_TRAJECTORY_BYTES = 64 * 1024 * 1024  # larger print-mode outputs are not plotted
 PRINT_MODE = "print"
@@ -25,13 +22,9 @@ def trajectory_cell(exp: Experiment) -> pd.Series | None:
     df = exp.frame
     rows = df[(df["mode"] == PRINT_MODE) & (df["status"] == OK) & (df["steps"] >= 1)]
     for _, row in sort_cells(rows, ["variant", "build", "threads"]).iterrows():
-        if _output_path(exp, row).is_file():
+        if exp.dir.output(str(row["cell_id"])).is_file():
             return row
     return None
-
-
-def _output_path(exp: Experiment, row: pd.Series) -> Path:
-    return ExperimentDir(exp.path).output(str(row["cell_id"]))
 
 
 def build(ctx: Context) -> list[Section]:
@@ -40,7 +33,7 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _trajectory(ctx: Context, row: pd.Series) -> Section:
-    path = _output_path(ctx.exp, row)
+    path = ctx.exp.dir.output(str(row["cell_id"]))
     if path.stat().st_size > MAX_TRAJECTORY_BYTES:
         blocks: list[Block] = [Paragraph(f"`{path.name}` is too large to plot.")]
         return ctx.section("Trajectories", "trajectory", blocks)
