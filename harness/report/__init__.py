@@ -7,11 +7,4 @@ page a machine: with several machines each has report/machines/<machine_id>/ and
 is the latest's. A part appears only when the data it needs exists; what it shows is decided by
 what the experiment's rows vary (particles, square size, radius, threads, builds, print-mode
 output), its title by the experiment's `title`.
-
-Modules: document (the model), blocks (tables and figures as blocks), sections (one module a
-part of an experiment's section, registered in sections.PARTS), figures (one module a kind of
-figure), summary, header and parts (what spans experiments), machines (which machines, and
-them side by side), markdown and html with templates/ (writing it: Jinja2, markdown-it-py),
-cache (render only what changed), discover and load (what to read), pipeline (a page per
-machine, under a lock), compare (compare's output).
 """

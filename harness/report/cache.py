@@ -23,6 +23,7 @@ import ast
 import hashlib
 import json
 from collections.abc import Callable, Iterable
+from importlib.util import resolve_name
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -69,10 +70,7 @@ def imported(path: Path) -> set[str]:
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join([*anchor, *([base] if base else [])])
+            base = resolve_name("." * node.level + (node.module or ""), package)
             found.add(base)
             found.update(f"{base}.{alias.name}" for alias in node.names)
     return {name for name in found if name == PACKAGE or name.startswith(PACKAGE + ".")}
@@ -112,8 +110,7 @@ class CodeVersions(NamedTuple):
 
 
 def code_versions() -> CodeVersions:
-    """The code's versions as it is now. Reading every module is not free: a render computes
-    this once for all its pages."""
+    """Reading every module is not free: a render computes this once for all its pages."""
     return CodeVersions(code_version(code_closure(FIGURE_MODULES)),
                         code_version(code_closure(REPORT_MODULES)))
 
@@ -140,8 +137,7 @@ class Manifest:
         data = self._read()
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})
         self.parts: dict[str, dict[str, Any]] = data.get("parts", {})
-        self.touched: list[str] = []  # stems drawn or kept, in order
-        self._used_figures: set[str] = set()
+        self.touched: list[str] = []  # stems drawn, kept or reused with a part, in order
         self._used_parts: set[str] = set()
 
     def _read(self) -> dict[str, Any]:
@@ -172,18 +168,16 @@ class Manifest:
             (self.fig_dir / name).is_file() and sha256_file(self.fig_dir / name) == sha
             for name, sha in files.items())
 
-    def draw(self, function: Callable[..., Any], data: object, stem: Path, *more: object,
+    def draw(self, function: Callable[..., Any], data: object, stem: Path,
              **kwargs: object) -> list[Path]:
-        """`function(data, stem, *more, **kwargs)` unless its files from the same inputs are
-        on disk. Returns the figure's files (a one-file function's path in a list)."""
-        args = (data, *more)
-        key = self.figure_key(function, (stem, *args), kwargs)
-        self._used_figures.add(stem.name)
+        """`function(data, stem, **kwargs)` unless its files from the same inputs are on disk.
+        Returns the figure's files (a one-file function's path in a list)."""
+        key = self.figure_key(function, (stem, data), kwargs)
         self.touched.append(stem.name)
         entry = self.figures.get(stem.name)
         if entry is not None and entry.get("key") == key and self._intact(entry):
             return [self.fig_dir / name for name in entry["files"]]
-        result = function(data, stem, *more, **kwargs)
+        result = function(data, stem, **kwargs)
         paths = [result] if isinstance(result, Path) else list(result)
         self.figures[stem.name] = {"key": key,
                                    "files": {p.name: sha256_file(p) for p in paths}}
@@ -191,32 +185,31 @@ class Manifest:
 
     # --- experiment parts ------------------------------------------------------------------
 
-    def part_key(self, input_digest: str) -> str:
-        return hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
-
-    def get_part(self, name: str, key: str) -> dict[str, Any] | None:
-        """A stored part made from the same inputs whose figures are all intact, or None."""
+    def part(self, name: str, input_digest: str, build: Callable[[], dict[str, Any]]
+             ) -> dict[str, Any]:
+        """The part stored under `name` when it was made from the same inputs and code and its
+        figures are all intact, else `build()` stored with the figures it drew."""
         self._used_parts.add(name)
+        key = hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
         entry = self.parts.get(name)
-        if entry is None or entry.get("key") != key:
-            return None
-        figures = entry.get("figures", [])
-        if not all(f in self.figures and self._intact(self.figures[f]) for f in figures):
-            return None
-        self._used_figures.update(figures)
-        return entry["part"]
-
-    def put_part(self, name: str, key: str, part: dict[str, Any], figures: list[str]) -> None:
-        self._used_parts.add(name)
-        self.parts[name] = {"key": key, "part": part, "figures": sorted(figures)}
+        if entry is not None and entry.get("key") == key:
+            figures = entry.get("figures", [])
+            if all(f in self.figures and self._intact(self.figures[f]) for f in figures):
+                self.touched += figures
+                return entry["part"]
+        first = len(self.touched)
+        part = build()
+        self.parts[name] = {"key": key, "part": part, "figures": sorted(self.touched[first:])}
+        return part
 
     # --- writing ---------------------------------------------------------------------------
 
     def save(self) -> None:
         """Keep only what this render used (removed figures and experiments drop out)."""
+        used = set(self.touched)
         data = {
             "version": MANIFEST_VERSION,
-            "figures": {k: v for k, v in sorted(self.figures.items()) if k in self._used_figures},
+            "figures": {k: v for k, v in sorted(self.figures.items()) if k in used},
             "parts": {k: v for k, v in sorted(self.parts.items()) if k in self._used_parts},
         }
         atomic_write_text(self.path, json.dumps(data, indent=1, sort_keys=True) + "\n")

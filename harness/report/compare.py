@@ -97,8 +97,7 @@ def _table(columns: Sequence[Column], rows: Iterable[Row]) -> list[str]:
 
 
 def _sides(old: Side, new: Side, metric: Metric) -> list[str]:
-    """A line per side: its cells, machine and commit (and counter), and the noise times
-    met."""
+    """A line per side (cells, machine, commit, counter), and the noise each side met."""
     lines = []
     for side in (old, new):
         commits = ", ".join(side.commits()) or "not recorded"
@@ -137,8 +136,7 @@ def _cautions(rows: Sequence[Row], drift: Drift, metric: Metric) -> list[str]:
 def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
                     figure: str | None, drift: Drift, head: Sequence[str] = (),
                     metric: Metric = TIME) -> str:
-    """The comparison as a Markdown document; `head`: lines about how the sides were
-    measured (compare --measure)."""
+    """`head`: lines about how the sides were measured (compare --measure)."""
     by = f" by {metric.name}" if metric.exact else ""
     lines = [f"# Comparison{by}: {new.path} against {old.path}", "", *_sides(old, new, metric)]
     lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift, metric))]
@@ -176,8 +174,7 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
 def write_outputs(old: Side, new: Side, rows: Sequence[Row], threshold: float, out: Path,
                   drift: Drift, figure: bool = True, head: Sequence[str] = (),
                   metric: Metric = TIME) -> tuple[str, list[Path]]:
-    """compare.md and, for times, the figure under `out`, each written atomically; the
-    Markdown text and the paths written."""
+    """compare.md and, for times, its figure under `out`; the Markdown and the paths."""
     figures = write_figure(rows, threshold, out / OUT_STEM) if figure and not metric.exact \
         else []
     text = render_markdown(old, new, rows, threshold, f"{OUT_STEM}.png" if figures else None,

@@ -53,9 +53,8 @@ def file_digest(path: Path) -> str:
 
 
 def input_digest(exp: ExperimentDir) -> str:
-    """A hash of every file the experiment's section reads: results.csv, env.json,
-    divergence.csv, variants.json, ratios.csv and the kept outputs (the trajectory figure's
-    input)."""
+    """A hash of every file the experiment's section reads (the kept outputs: the trajectory
+    figure's)."""
     parts: dict[str, object] = {
         "name": exp.name,
         layout.RESULTS_CSV: file_digest(exp.results_csv),

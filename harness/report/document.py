@@ -16,7 +16,7 @@ import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, get_args
 
 
 @dataclass(frozen=True)
@@ -24,13 +24,11 @@ class Paragraph:
     """Running text, in CommonMark inline markup."""
 
     text: str
-    kind: ClassVar[str] = "paragraph"
 
 
 @dataclass(frozen=True)
 class Bullets:
     items: tuple[str, ...]
-    kind: ClassVar[str] = "bullets"
 
 
 @dataclass(frozen=True)
@@ -42,7 +40,6 @@ class Table:
     align_right: tuple[bool, ...]
     caption: str
     files: tuple[Path, ...] = ()  # the table as files (a CSV), linked after the caption
-    kind: ClassVar[str] = "table"
 
 
 @dataclass(frozen=True)
@@ -52,7 +49,6 @@ class Figure:
     image: Path
     caption: str
     alternates: tuple[Path, ...] = ()
-    kind: ClassVar[str] = "figure"
 
 
 @dataclass(frozen=True)
@@ -63,7 +59,6 @@ class Details:
     summary: str
     blocks: tuple[Paragraph | Bullets | Table | Figure, ...]
     anchor: str = ""
-    kind: ClassVar[str] = "details"
 
 
 Block = Paragraph | Bullets | Table | Figure | Details
@@ -101,8 +96,12 @@ class Document:
     appendix: tuple[Section, ...] = ()
 
 
+def kind(block: Block) -> str:
+    """"paragraph", "table", ...: what the JSON form and the HTML template call a block."""
+    return type(block).__name__.lower()
+
+
 def slug(text: str) -> str:
-    """A file-name and anchor-safe form of a name."""
     return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-").lower() or "x"
 
 
@@ -130,14 +129,13 @@ def document_files(doc: Document) -> set[Path]:
 
 # --- JSON form, for the section cache (paths relative to the report directory) ------------
 
-BLOCK_KINDS: dict[str, type] = {c.kind: c for c in (Paragraph, Bullets, Table, Figure, Details)}
+BLOCK_KINDS: dict[str, type] = {c.__name__.lower(): c for c in get_args(Block)}
 PATH_FIELDS = ("files", "image", "alternates")
 NESTED_FIELDS = ("blocks", "subsections")
 
 
 def to_json(item: Block | Section, base: Path) -> dict[str, object]:
-    """A block (with its kind) or a section as JSON: paths relative to `base`, tuples as
-    lists, nested blocks and sections likewise."""
+    """A block (with its kind) or a section as JSON, paths relative to `base`."""
     def value(v: object) -> object:
         if isinstance(v, Path):
             return v.relative_to(base).as_posix()
@@ -146,11 +144,10 @@ def to_json(item: Block | Section, base: Path) -> dict[str, object]:
         return to_json(v, base) if dataclasses.is_dataclass(v) else v  # type: ignore[arg-type]
 
     data = {f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}
-    return {"kind": item.kind, **data} if not isinstance(item, Section) else data
+    return {"kind": kind(item), **data} if not isinstance(item, Section) else data
 
 
 def from_json(data: dict, base: Path) -> Any:
-    """A block or a section read back from to_json's form."""
     if "kind" in data and data["kind"] not in BLOCK_KINDS:
         raise ValueError(f"unknown block kind {data['kind']!r}")
 

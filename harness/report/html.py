@@ -6,14 +6,14 @@ works offline from a copy of the report directory."""
 from __future__ import annotations
 
 import functools
-import struct
 from pathlib import Path
 
 import jinja2
 from markdown_it import MarkdownIt
 from markupsafe import Markup
+from PIL import Image
 
-from harness.report.document import Document
+from harness.report.document import Document, kind
 
 SUFFIX = ".html"
 TEMPLATES = Path(__file__).resolve().parent / "templates"
@@ -36,7 +36,7 @@ def _environment() -> jinja2.Environment:
                              trim_blocks=True, lstrip_blocks=True,
                              undefined=jinja2.StrictUndefined)
     env.filters["inline"] = inline
-    env.filters["kind"] = lambda block: block.kind
+    env.filters["kind"] = kind
     env.filters["relative"] = lambda path, base: Path(path).relative_to(base).as_posix()
     env.globals["image_size"] = image_size
     env.globals["zip"] = zip
@@ -44,24 +44,15 @@ def _environment() -> jinja2.Environment:
 
 
 def image_size(path: Path) -> tuple[int, int] | None:
-    """A PNG's or GIF's width and height from its header (so the page reserves their space
-    before they load), or None for anything else."""
+    """A PNG's or GIF's width and height (so the page reserves their space before they load),
+    or None for anything else."""
     try:
-        with Path(path).open("rb") as handle:
-            head = handle.read(24)
-    except OSError:
+        with Image.open(path) as image:  # reads the header only
+            return image.size if image.format in ("PNG", "GIF") else None
+    except OSError:  # not an image PIL knows (an SVG), or missing
         return None
-    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
-        width, height = struct.unpack(">II", head[16:24])
-        return int(width), int(height)
-    if head[:6] in (b"GIF87a", b"GIF89a"):
-        width, height = struct.unpack("<HH", head[6:10])
-        return int(width), int(height)
-    return None
 
 
 def render_html(doc: Document, out_dir: Path) -> str:
-    """The whole document as one HTML page written into `out_dir` (figures linked relative to
-    it)."""
     template = _environment().get_template(PAGE_TEMPLATE)
     return template.render(doc=doc, base=Path(out_dir), suffix=SUFFIX)

@@ -23,7 +23,7 @@ class Experiment:
     """One results/<name>/ directory: its cells and its title."""
 
     name: str
-    path: Path
+    dir: ExperimentDir
     title: str
     frame: pd.DataFrame
     divergence: pd.DataFrame | None = None  # divergence.csv, when the checks wrote one
@@ -56,7 +56,7 @@ def load_experiment(found: ExperimentDir, machine: str | None = None) -> Experim
     ratios = read_ratios(found.ratios_csv)
     if machine is not None:
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
-    return Experiment(found.name, found.path, title, frame,
+    return Experiment(found.name, found, title, frame,
                       read_divergence(found.divergence_csv), ratios)
 
 

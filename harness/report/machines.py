@@ -41,7 +41,6 @@ Rows = dict[str, list[dict[str, str]]]  # experiment name -> its results.csv row
 
 
 def read_rows(found: Sequence[ExperimentDir]) -> Rows:
-    """Every experiment's results.csv rows (as text)."""
     rows: Rows = {}
     for exp in found:
         try:

@@ -14,6 +14,7 @@ import os
 import shutil
 from collections.abc import Collection, Sequence
 from pathlib import Path
+from typing import Any
 
 from harness.repo import REPO_ROOT
 from harness.report import machines
@@ -90,12 +91,12 @@ def build_document(
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
     if shown is not None:
         lead = f"Measured on **{shown.name}**. " + lead
-    more = []
+    more, appendix = [], []
     if side_by_side is not None:
         more.append(f"other machines: {len(others)}, each with its own report (linked under "
                     f"the title); [side by side](#{side_by_side.anchor}) on the cells they "
                     "share with this one")
-    appendix = [*([side_by_side] if side_by_side else [])]
+        appendix.append(side_by_side)
     environment = environment_bullets(environments)
     if environment:
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
@@ -109,22 +110,19 @@ def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
                     machine: str | None = None) -> ExperimentPart:
     """The experiment's part (of one machine's cells, with `machine`) from the manifest when
     its inputs are unchanged, else built."""
-    key = manifest.part_key(input_digest(found) + (f"\0{machine}" if machine else ""))
-    stored = manifest.get_part(found.name, key)
-    if stored is not None:
-        return ExperimentPart.from_json(stored, out_dir)
-    # Building needs pandas (and matplotlib for a figure that changed): imported only here.
-    from harness.report.load import load_experiment
-    from harness.report.sections import experiment_section
-    from harness.report.summary import experiment_part as build_part
+    def build() -> dict[str, Any]:
+        # Building needs pandas (and matplotlib for a figure that changed): imported only here.
+        from harness.report.load import load_experiment
+        from harness.report.sections import experiment_section
+        from harness.report.summary import experiment_part as build_part
 
-    exp = load_experiment(found, machine)
-    first = len(manifest.touched)
-    # the facts of the variants the results were measured with: their order, colours, kinds
-    with reading(read_variants(found.variants_json)):
-        part = build_part(exp, experiment_section(exp, manifest))
-    manifest.put_part(found.name, key, part.to_json(out_dir), manifest.touched[first:])
-    return part
+        exp = load_experiment(found, machine)
+        # the facts of the variants the results were measured with: their order, colours, kinds
+        with reading(read_variants(found.variants_json)):
+            return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
+
+    digest = input_digest(found) + (f"\0{machine}" if machine else "")
+    return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
 
 
 def _remove_stale_figures(fig_dir: Path, keep: set[Path]) -> None:
@@ -154,16 +152,15 @@ def _write_page(doc: Document, page_dir: Path) -> None:
 
 
 def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
-                 code: CodeVersions, machine: machines.Machine | None = None,
-                 others: Sequence[Link] = (), side_by_side: Section | None = None,
-                 rows: machines.Rows | None = None) -> Document:
+                 code: CodeVersions, rows: machines.Rows, machine: machines.Machine | None,
+                 others: Sequence[Link] = (), side_by_side: Section | None = None) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, code)
-    if machine is not None and rows is not None:
-        found = [f for f in found
-                 if any(machines.machine_of(r) == machine.id for r in rows[f.name])]
     machine_id = machine.id if machine is not None else None
+    if machine_id is not None:
+        found = [f for f in found
+                 if any(machines.machine_of(r) == machine_id for r in rows[f.name])]
     parts = [experiment_part(f, manifest, page_dir, machine_id) for f in found]
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
@@ -210,7 +207,7 @@ def render(
         if len(listed) < 2:
             # One machine (or none recorded): one page, its figures beside it.
             shown = machines.pick(listed, machine) if listed or machine else None
-            _render_page(found, results_dir, out_dir, code, shown, rows=rows)
+            _render_page(found, results_dir, out_dir, code, rows, shown)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
@@ -221,9 +218,9 @@ def render(
                          .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:
-            doc = _render_page(found, results_dir, pages[page.id], code, page,
+            doc = _render_page(found, results_dir, pages[page.id], code, rows, page,
                                links(pages[page.id], page.id),
-                               machines.side_by_side(rows, page, listed), rows)
+                               machines.side_by_side(rows, page, listed))
             if page.id == top.id:
                 _write_page(dataclasses.replace(doc, others=tuple(links(out_dir, top.id))),
                             out_dir)

@@ -32,14 +32,10 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
     machine = _known(machine_id)
     paths = [ResultsRoot(root).calibration(machine) for root in session_roots(results_dir)] \
         if machine is not None else []
-    digests = [file_digest(p) for p in paths]
-    key = manifest.part_key("\0".join([str(machine), *digests]))
-    stored = manifest.get_part(SESSION_PART, key)
-    if stored is not None and isinstance(stored.get("text"), str):
-        return stored["text"]
-    text = session_words(results_dir, machine)
-    manifest.put_part(SESSION_PART, key, {"text": text}, [])
-    return text
+    digest = "\0".join([str(machine), *(file_digest(p) for p in paths)])
+    part = manifest.part(SESSION_PART, digest,
+                         lambda: {"text": session_words(results_dir, machine)})
+    return part["text"]
 
 
 def session_words(results_dir: Path, machine_id: str | None) -> str:

@@ -13,12 +13,12 @@ from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import flagged_cells, flagged_kinds
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
-from harness.report.blocks import table_block
 from harness.report.document import Section
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
-from harness.report.sections.phases import ANCHOR_SUFFIX as PHASES_SUFFIX
-from harness.report.sections.programs import ANCHOR_SUFFIX as PROGRAMS_SUFFIX
+from harness.report.sections import phases as phases_part
+from harness.report.sections import programs as programs_part
+from harness.report.sections.context import table_block
 from harness.spec.facts import BASELINE, GRID
 from harness.store.columns import AGREEING, INVALID, OK
 
@@ -28,9 +28,9 @@ NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
 
 
 def _anchor(section: Section, suffix: str) -> str:
-    """The anchor of the subsection ending in `suffix`, else the section's own."""
+    """The anchor of the subsection ending in `-suffix`, else the section's own."""
     for sub in section.subsections:
-        if sub.anchor.endswith(suffix):
+        if sub.anchor.endswith(f"-{suffix}"):
             return sub.anchor
     return section.anchor
 
@@ -60,7 +60,8 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
     rows = with_speedup(exp.frame, ratios=exp.ratios)
-    link = f"[{exp.name}](#{_anchor(section, '-cells')})"
+    cells = _anchor(section, "cells")
+    link = f"[{exp.name}](#{cells})"
     found: dict[str, Highlight] = {}
     fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]
                 & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
@@ -70,17 +71,15 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         found["best"] = Highlight(
             float(best["speedup"]),
             f"best strategy: `{best['variant']}`, {ratio_text(best)} faster than seq "
-            f"({_where(best)}; {link})", _anchor(section, "-cells"))
+            f"({_where(best)}; {link})", cells)
     grid = fair[fair["variant"] == GRID]
     if not grid.empty:
         largest = grid.sort_values(["n", "speedup"], kind="stable").iloc[-1]
-        found["grid"] = Highlight(
-            float(largest["n"]),
-            f"grid against seq: {ratio_text(largest)} faster ({_where(largest)}; {link})",
-            _anchor(section, "-cells"))
+        found["grid"] = Highlight(float(largest["n"]), f"grid against seq: {ratio_text(largest)} "
+                                  f"faster ({_where(largest)}; {link})", cells)
     selection = phases.select(exp.frame)
     if selection is not None:
-        anchor = _anchor(section, PHASES_SUFFIX)
+        anchor = _anchor(section, phases_part.ANCHOR)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
@@ -119,9 +118,9 @@ def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
     """The section with the experiment's warnings table and headline candidates."""
     flagged = flagged_cells(exp.frame)
     warnings = table_block(flagged, "") if len(flagged) else None
-    anchor = _anchor(section, "-stability")
+    anchor = _anchor(section, "stability")
     if anchor == section.anchor:
-        anchor = _anchor(section, "-cells")
+        anchor = _anchor(section, "cells")
     return ExperimentPart(exp.name, section, warnings, tuple(flagged_kinds(exp.frame)),
                           highlights(exp, section), fidelity(exp), anchor,
-                          _anchor(section, PROGRAMS_SUFFIX))
+                          _anchor(section, programs_part.ANCHOR))

@@ -61,7 +61,6 @@ def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]
 
 
 def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path]:
-    """NEW/OLD per compared cell with its interval, the line at 1 and the threshold band."""
     plottable = [r for r in rows if r.compared and math.isfinite(r.ratio) and r.ratio > 0]
     if not plottable:
         return []

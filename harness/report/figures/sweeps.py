@@ -18,7 +18,6 @@ from harness.analysis.display import series_label
 from harness.analysis.speedup import growth_exponents, single_threaded
 from harness.report.figures.base import (
     TIME_LABEL,
-    Marks,
     legend,
     log_axis,
     marker_handles,
@@ -72,7 +71,7 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
     colors = series_colors(groups, keys)
     exponents = growth_exponents(df, x) if x == "n" else pd.DataFrame()
     fig, ax = new_figure()
-    marks = Marks()
+    marks: set[str] = set()
     extra: list[Line2D] = []
     for (values, rows), color in zip(groups, colors, strict=True):
         label = series_label(values, keys)
@@ -151,7 +150,7 @@ def _thread_metric_figure(
     groups = series_groups(df, keys)
     colors = series_colors(groups, keys)
     fig, ax = new_figure()
-    marks = Marks()
+    marks: set[str] = set()
     for (values, rows), color in zip(groups, colors, strict=True):
         plot_series(ax, rows, "threads", y, color, series_label(values, keys), marks)
     ideal_label = ideal(ax)

@@ -43,17 +43,15 @@ def _trajectory_arrays(traj: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.n
     xs = traj.pivot(index="particle", columns="step", values="x").sort_index()
     ys = traj.pivot(index="particle", columns="step", values="y").sort_index()
     ids = xs.index.to_numpy()
-    if len(ids) > MAX_TRAJECTORY_PARTICLES:
-        keep = np.linspace(0, len(ids) - 1, MAX_TRAJECTORY_PARTICLES).round().astype(int)
-        return ids[keep], xs.to_numpy()[keep], ys.to_numpy()[keep]
-    return ids, xs.to_numpy(), ys.to_numpy()
+    count = min(len(ids), MAX_TRAJECTORY_PARTICLES)  # all, or an even subsample
+    keep = np.linspace(0, len(ids) - 1, count).round().astype(int)
+    return ids[keep], xs.to_numpy()[keep], ys.to_numpy()[keep]
 
 
-def _segments(x: np.ndarray, y: np.ndarray, upto: int) -> np.ndarray:
-    """Line segments joining each particle's consecutive states 0..upto: (particles*upto, 2, 2)."""
-    starts = np.stack([x[:, :upto], y[:, :upto]], axis=-1)
-    ends = np.stack([x[:, 1 : upto + 1], y[:, 1 : upto + 1]], axis=-1)
-    return np.stack([starts, ends], axis=2).reshape(-1, 2, 2)
+def _segments(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2)."""
+    points = np.stack([x, y], axis=-1)
+    return np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
 
 
 def _draw_box(ax: Axes, box: float) -> None:
@@ -81,7 +79,7 @@ def fig_trajectory(
     fig, ax = new_figure(margins=TRAJECTORY_MARGINS)
     colors = cmap(norm(ids))
     segments = LineCollection(
-        _segments(x, y, states - 1), colors=np.repeat(colors, states - 1, axis=0), lw=1.0,
+        _segments(x, y), colors=np.repeat(colors, states - 1, axis=0), lw=1.0,
         alpha=0.75,
     )
     ax.add_collection(segments)

@@ -12,9 +12,8 @@ from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_
 from harness.analysis.display import display_name, format_value
 from harness.analysis.paired import paired_words
 from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
-from harness.report.blocks import table_block
 from harness.report.document import Block, Paragraph, Section
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 # Which table of the course report a sweep reproduces; its figure has the same number.
 COURSE_NUMBER: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
@@ -22,13 +21,10 @@ COURSE_NUMBER: dict[str, str] = {"n": "3", "L": "4", "r": "5", "threads": "6"}
 
 def fixed_text(df: pd.DataFrame) -> str:
     # An empty machine is a results.csv from before machine identity: nothing to name.
-    fixed = {k: v for k, v in fixed_params(df).items()
-             if not (k == MACHINE and v == "")}
-    fixed_parts = [
-        f"{display_name(k)} = {format_value(k, v)}" for k, v in fixed.items()
-    ]
+    fixed = [f"{display_name(k)} = {format_value(k, v)}" for k, v in fixed_params(df).items()
+             if not (k == MACHINE and v == "")]
     varied = [display_name(k) for k in varying_keys(df)]
-    text = "Fixed: " + (", ".join(fixed_parts) if fixed_parts else "nothing") + "."
+    text = "Fixed: " + (", ".join(fixed) if fixed else "nothing") + "."
     if varied:
         text += " Varied: " + ", ".join(varied) + "."
     return text
@@ -42,15 +38,16 @@ def _course_table(axes: Sequence[str], df: pd.DataFrame) -> str:
     return " (cf. the course report's Table 2)" if df["variant"].nunique() > 1 else ""
 
 
-def build(ctx: Context) -> list[Section]:
+def build(ctx: Context, alone: bool) -> list[Section]:
     """Table 2-6 shape: one row per cell with our statistics, speedup and validation: whenever
-    something varies (a checked catalog aside), and a lone cell when nothing else shows it."""
-    if ctx.catalog or not (ctx.varies or ctx.alone):
+    something varies (a checked catalog aside), and a lone cell when no main part (`alone`)
+    shows it."""
+    if ctx.catalog or not (ctx.varying or alone):
         return []
     exp, axes = ctx.exp, ctx.swept
     df = exp.frame
-    keys = varying_keys(df) or ["variant"]
-    table = cell_table(df, keys, thread_baseline="threads" in axes, ratios=exp.ratios)
+    table = cell_table(df, ctx.varying or ["variant"], thread_baseline="threads" in axes,
+                       ratios=exp.ratios)
     blocks: list[Block] = []
     if "baseline" in table.columns:
         baselines = [b for b in table["baseline"].unique() if b]
@@ -74,8 +71,7 @@ def build(ctx: Context) -> list[Section]:
     blocks.extend(Paragraph(text) for text in (paired_words(exp.ratios), _instructions_text(df))
                   if text)
     caption = f"Per-cell statistics{_course_table(axes, df)}."
-    return [Section("Measurements", f"{ctx.name}-cells",
-                    (table_block(table, caption, source=df), *blocks))]
+    return [ctx.section("Measurements", "cells", (table_block(table, caption, source=df), *blocks))]
 
 
 def _instructions_text(df: pd.DataFrame) -> str:

@@ -3,11 +3,9 @@ shadow error against time and divergence curves."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pandas as pd
 
-from harness.analysis.cells import CELL_KEYS, SCENE_KEYS, varying_keys
+from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
 from harness.analysis.frame import DIVERGENCE_REQUIRED
 from harness.analysis.trust import (
@@ -21,11 +19,10 @@ from harness.analysis.trust import (
     stability_matrix,
     trust_table,
 )
-from harness.report.blocks import figure_block, table_block
-from harness.report.document import Block, Paragraph, Section, slug
+from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import fig_divergence, fig_error_time
 from harness.report.load import Experiment
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 from harness.spec.builds import DESCRIPTIONS
 
 MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)
@@ -51,17 +48,9 @@ CHECKS_INTRO = (
 DIVERGENCE_MATCH: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "seed")
 
 
-@dataclass(frozen=True, eq=False)
-class CheckedScene:
-    """One simulated input of a checked experiment: its cells and divergence curves."""
-
-    label: str
-    cells: pd.DataFrame
-    divergence: pd.DataFrame
-
-
-def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
-    """The inputs to draw figures for: the largest (n·steps) with nonzero deviations."""
+def _checked_scenes(exp: Experiment) -> list[tuple[str, pd.DataFrame, pd.DataFrame]]:
+    """The inputs to draw figures for, each as its label, its cells and its divergence curves:
+    the largest (n·steps) with nonzero deviations."""
     df = exp.frame
     groups = list(df.groupby(list(SCENE_KEYS), dropna=False, sort=False))
     groups.sort(key=lambda g: -float((g[1]["n"] * g[1]["steps"]).max()))
@@ -77,91 +66,77 @@ def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
         shadow = "shadow_pos_err" in cells and bool((cells["shadow_pos_err"].fillna(0) > 0).any())
         if shadow or bool((div["max_pos_dev"] > 0).any()):
             label = series_label(tuple(first[k] for k in ("scene", *varying)),
-                                        ["scene", *varying])
-            chosen.append(CheckedScene(label, cells, div))
+                                 ["scene", *varying])
+            chosen.append((label, cells, div))
     return chosen[:MAX_CHECK_FIGURES]
 
 
 def build(ctx: Context) -> list[Section]:
-    """Stability (pass/fail per scene and check, which build to trust) and accuracy (shadow
-    error against time, divergence curves) from the check columns and divergence.csv."""
     if not has_check_data(ctx.exp.frame):
         return []
-    base = slug(ctx.exp.name)
-    sections = [Section("Stability checks", f"{base}-stability",
-                        _stability_blocks(ctx.exp.frame))]
-    accuracy_blocks = _accuracy_blocks(ctx, base)
+    sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame))]
+    accuracy_blocks = _accuracy_blocks(ctx)
     if accuracy_blocks:
-        sections.append(Section("Accuracy: shadow steps and divergence", f"{base}-accuracy",
-                                accuracy_blocks))
+        sections.append(ctx.section("Accuracy: shadow steps and divergence", "accuracy",
+                                    accuracy_blocks))
     return sections
 
 
-def _stability_blocks(df: pd.DataFrame) -> tuple[Block, ...]:
-    """Pass/fail per scene and check, each check over the cells, and which build to trust."""
-    blocks: list[Block] = [Paragraph(CHECKS_INTRO)]
-    blocks.append(table_block(
-        stability_matrix(df),
-        f"Scene × variant/build: {PASS_MARK} every check passed, {FAIL_MARK} the "
-        "checks that failed.", source=df,
-    ))
-    blocks.append(table_block(check_summary(df), "Each check over all checked cells."))
+def _stability_blocks(df: pd.DataFrame) -> list[Block]:
     trust = trust_table(df)
-    blocks.append(Paragraph(build_words(build_trust(df))))
-    blocks.append(Paragraph(trust_words(trust)))
-    blocks.append(table_block(
-        trust,
-        "Which build to trust for which scene: trusted where every check passed and one step "
-        f"is within {TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median and "
-        "worst over the scenes). How soon a whole run is a radius off the truth is in the "
-        "accuracy table, not judged: chaos takes every precision there in a dense scene.",
-        source=df,
-    ))
-    return tuple(blocks)
+    return [
+        Paragraph(CHECKS_INTRO),
+        table_block(stability_matrix(df), f"Scene × variant/build: {PASS_MARK} every check "
+                    f"passed, {FAIL_MARK} the checks that failed.", source=df),
+        table_block(check_summary(df), "Each check over all checked cells."),
+        Paragraph(build_words(build_trust(df))),
+        Paragraph(trust_words(trust)),
+        table_block(
+            trust,
+            "Which build to trust for which scene: trusted where every check passed and one "
+            f"step is within {TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median and "
+            "worst over the scenes). How soon a whole run is a radius off the truth is in the "
+            "accuracy table, not judged: chaos takes every precision there in a dense scene.",
+            source=df,
+        ),
+    ]
 
 
-def _accuracy_blocks(ctx: Context, base: str) -> tuple[Block, ...]:
+def _accuracy_blocks(ctx: Context) -> list[Block]:
     """The accuracy table of the timed cells, and per checked scene (the largest few) the
     shadow error against time and the divergence curves."""
-    exp, figs = ctx.exp, ctx.figs
-    df = exp.frame
+    df = ctx.exp.frame
     timed = df["runs"].fillna(0) >= MIN_TIMED_RUNS
-    accuracy_blocks: list[Block] = []
+    blocks: list[Block] = []
     if timed.any():
-        shown = {"variant", "build", *varying_keys(df)}
-        keys = [k for k in CELL_KEYS if k in shown]
-        accuracy_blocks.append(table_block(
-            accuracy_table(df[timed], keys),
+        blocks.append(table_block(
+            accuracy_table(df[timed], ctx.cell_keys),
             "Error against run time: the whole-run deviation from the baseline (÷ L), the mean "
             "shadow-step error (one step against __float128, ÷ L) and its worst in radii, the "
             "share of steps whose accepted collisions differ, the energy drift and the steps "
             "until the run is a radius from the truth; ✓ marks the Pareto front of time "
             "against shadow error.", source=df[timed],
         ))
-    scenes = _checked_scenes(exp)
-    for index, scene in enumerate(scenes):
+    scenes = _checked_scenes(ctx.exp)
+    for index, (label, scene, divergence) in enumerate(scenes):
         suffix = f"-{index + 1}" if len(scenes) > 1 else ""
-        cells = scene.cells[timed.loc[scene.cells.index]]
+        cells = scene[timed.loc[scene.index]]
         if not cells.empty and cells["shadow_pos_err"].notna().any():
-            stem = figs.fig_dir / f"{base}-shadow-vs-time{suffix}"
-            paths = figs.draw(fig_error_time,
-                cells[cells["shadow_pos_err"].notna()], stem,
-                title=f"Shadow-step error against time ({scene.label})",
-                error="shadow_pos_err", ylabel="shadow-step error, mean [÷ L]")
-            accuracy_blocks.append(figure_block(
-                paths, f"Median time against the mean one-step error against __float128 at "
-                f"{scene.label}; the ringed cells joined by the line form the Pareto front."))
-        if not scene.divergence.empty:
-            first = scene.cells.iloc[0]
-            stem = figs.fig_dir / f"{base}-divergence{suffix}"
-            paths = figs.draw(fig_divergence, scene.divergence, stem,
-                              box=float(first["L"]), radius=float(first["r"]),
-                              title=f"Divergence ({scene.label})")
-            accuracy_blocks.append(figure_block(
-                paths, f"Step-by-step growth of the largest position deviation (÷ L) at "
-                f"{scene.label}, against seq in double (left) and the __float128 truth "
-                "(right); identical curves are drawn once; dashed: one radius."))
-    return tuple(accuracy_blocks)
+            blocks.append(ctx.figure(
+                fig_error_time, cells[cells["shadow_pos_err"].notna()], f"shadow-vs-time{suffix}",
+                f"Median time against the mean one-step error against __float128 at {label}; "
+                "the ringed cells joined by the line form the Pareto front.",
+                title=f"Shadow-step error against time ({label})", error="shadow_pos_err",
+                ylabel="shadow-step error, mean [÷ L]"))
+        if not divergence.empty:
+            first = scene.iloc[0]
+            blocks.append(ctx.figure(
+                fig_divergence, divergence, f"divergence{suffix}",
+                f"Step-by-step growth of the largest position deviation (÷ L) at {label}, "
+                "against seq in double (left) and the __float128 truth (right); identical "
+                "curves are drawn once; dashed: one radius.",
+                box=float(first["L"]), radius=float(first["r"]), title=f"Divergence ({label})"))
+    return blocks
 
 
 def build_words(builds: pd.DataFrame) -> str:

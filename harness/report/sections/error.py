@@ -6,12 +6,11 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.accuracy import error_table, has_error_data
-from harness.analysis.cells import CELL_KEYS, SCENE_KEYS, varying_keys
+from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
-from harness.report.blocks import figure_block, table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import error_floor, fig_error_time
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 MAX_ERROR_FIGURES = 4  # error-vs-time figures per experiment (one per scene)
 
@@ -32,40 +31,31 @@ def error_scenes(df: pd.DataFrame) -> list[pd.DataFrame]:
 
 
 def build(ctx: Context) -> list[Section]:
-    """Error against run time per variant and build, Pareto front marked, one figure a scene:
-    where the cells carry a deviation worth plotting (a checked catalog aside)."""
+    """Where the cells carry a deviation worth plotting (a checked catalog aside)."""
     if ctx.catalog or not has_error_data(ctx.exp.frame):
         return []
-    exp, figs = ctx.exp, ctx.figs
-    df = exp.frame
-    shown = {"variant", "build", *varying_keys(df)}
-    keys = [k for k in CELL_KEYS if k in shown]
+    df = ctx.exp.frame
     blocks: list[Block] = [table_block(
-        error_table(df, keys),
+        error_table(df, ctx.cell_keys),
         "Deviation from the baseline output (maximum over particles; positions relative to L) "
         "and median time; ✓ marks the Pareto front of each scene.", source=df,
     )]
     scenes = error_scenes(df)
-    varying = [k for k in SCENE_KEYS if k in varying_keys(df)]
+    varying = [k for k in SCENE_KEYS if k in ctx.varying]
     for index, group in enumerate(scenes[:MAX_ERROR_FIGURES]):
         label = series_label(tuple(group[k].iloc[0] for k in varying), varying)
-        suffix = f"-{index + 1}" if len(scenes) > 1 else ""
-        title = f"{exp.title}: error against time" + (f" ({label})" if varying else "")
-        stem = figs.fig_dir / f"{ctx.name}-error-vs-time{suffix}"
-        paths = figs.draw(fig_error_time, group, stem, title=title)
-        floor = error_floor(group["max_pos_err"])
-        zero_note = (f" Exact cells (error 0) are drawn at {floor:.0e}."
-                     if (group["max_pos_err"] == 0).any() else "")
-        diverged = int(np.isinf(group["max_pos_err"]).sum())
-        if diverged:
-            zero_note += f" {diverged} cell(s) with an infinite error are left out."
-        blocks.append(figure_block(
-            paths,
-            "Median time against maximum position error per variant and build"
-            + (f" at {label}" if varying else "")
-            + f"; the ringed cells joined by the line form the Pareto front.{zero_note}",
-        ))
+        at = f" at {label}" if varying else ""
+        errors = group["max_pos_err"]
+        notes = (f" Exact cells (error 0) are drawn at {error_floor(errors):.0e}."
+                 if (errors == 0).any() else "")
+        if diverged := int(np.isinf(errors).sum()):
+            notes += f" {diverged} cell(s) with an infinite error are left out."
+        blocks.append(ctx.figure(
+            fig_error_time, group, "error-vs-time" + (f"-{index + 1}" if len(scenes) > 1 else ""),
+            f"Median time against maximum position error per variant and build{at}; the ringed "
+            f"cells joined by the line form the Pareto front.{notes}",
+            title=f"{ctx.exp.title}: error against time" + (f" ({label})" if varying else "")))
     if len(scenes) > MAX_ERROR_FIGURES:
         blocks.append(Paragraph(f"Figures for {len(scenes) - MAX_ERROR_FIGURES} more scenes "
                                 "are left out; the table lists them."))
-    return [Section("Error against run time", f"{ctx.name}-error", tuple(blocks))]
+    return [ctx.section("Error against run time", "error", blocks)]

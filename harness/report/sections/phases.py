@@ -7,13 +7,12 @@ from __future__ import annotations
 
 from harness.analysis import phases
 from harness.analysis.display import threads_text
-from harness.report.blocks import figure_block, table_block
-from harness.report.document import Block, Paragraph, Section, slug
+from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.phases import fig_phases
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 TITLE = "Where the time goes"
-ANCHOR_SUFFIX = "-phases"
+ANCHOR = "phases"
 INTRO = (
     "Each cell's `--timing` run (one run beside hyperfine's timed runs) splits its simulation "
     "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
@@ -42,16 +41,10 @@ def _left_out(sel: phases.Selection) -> str:
 
 
 def build(ctx: Context) -> list[Section]:
-    """The figure and the table, or nothing when no timed cell has phases."""
-    exp, figs = ctx.exp, ctx.figs
-    sel = phases.select(exp.frame)
+    sel = phases.select(ctx.exp.frame)
     if sel is None:
         return []
-    name = slug(exp.name)
     frame = phases.plot_frame(sel)
-    paths = figs.draw(fig_phases, frame,
-                      figs.fig_dir / f"{name}-phases",
-                      title=f"{exp.title}: where the time goes")
     rule = (f"at {threads_text(sel.threads)}, the thread count most of the experiment's "
             "cells with phases ran at (the fewest on a tie)")
     caption = (
@@ -60,15 +53,16 @@ def build(ctx: Context) -> list[Section]:
         + ("; each scene has its own scale" if frame[phases.GROUP].nunique() > 1 else "")
         + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
     )
-    blocks: list[Block] = [Paragraph(INTRO), figure_block(paths, caption)]
-    table = phases.phase_table(sel)
-    blocks.append(table_block(
-        table,
-        "Seconds per phase of the cells in the figure, each with its share of the "
-        "simulation time in parentheses; then the simulation outside the broad phase per "
-        "particle and step, and the `--precise` output.", source=sel.cells))
+    blocks: list[Block] = [
+        Paragraph(INTRO),
+        ctx.figure(fig_phases, frame, "phases", caption,
+                   title=f"{ctx.exp.title}: where the time goes"),
+        table_block(phases.phase_table(sel), "Seconds per phase of the cells in the figure, "
+                    "each with its share of the simulation time in parentheses; then the "
+                    "simulation outside the broad phase per particle and step, and the "
+                    "`--precise` output.", source=sel.cells),
+    ]
     left_out = _left_out(sel)
     if left_out:
         blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
-    return [Section(TITLE, f"{name}{ANCHOR_SUFFIX}", tuple(blocks))]
-
+    return [ctx.section(TITLE, ANCHOR, blocks)]

@@ -10,13 +10,11 @@ from pathlib import Path
 import pandas as pd
 
 from harness.analysis.programs import class_table, is_program, program_table
-from harness.report.blocks import figure_block, table_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.programs import fig_wrong_step
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 from harness.store import atomic
 from harness.store.columns import WRONG
-from harness.store.layout import ExperimentDir
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
@@ -38,7 +36,7 @@ INTRO = (
     "the rank orders the programs that are right by their time there."
 )
 
-ANCHOR_SUFFIX = "-programs"
+ANCHOR = "programs"
 
 
 def write_csv(table: pd.DataFrame, stem: Path) -> Path:
@@ -53,16 +51,14 @@ def build(ctx: Context) -> list[Section]:
         return []
     programs = frame[is_program(frame)]
     grades = class_table(frame)
-    stem = ctx.figs.fig_dir / f"{ctx.name}-programs"
-    csv = ctx.figs.draw(write_csv, grades, stem)[0]
+    csv = ctx.figs.draw(write_csv, grades, ctx.figs.fig_dir / f"{ctx.name}-programs")[0]
     blocks: list[Block] = [
         Paragraph(INTRO),
         table_block(grades, "The class: one row per program (also as a CSV, for a gradebook).",
                     programs, files=[csv]),
         table_block(program_table(frame), "Each program cell's verdict.", programs),
     ]
-    blocks += _wrong_steps(ctx, programs)
-    return [Section("Programs", f"{ctx.name}{ANCHOR_SUFFIX}", tuple(blocks))]
+    return [ctx.section("Programs", ANCHOR, blocks + _wrong_steps(ctx, programs))]
 
 
 def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
@@ -71,19 +67,18 @@ def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
     wrong = programs[programs["agreement"] == WRONG].sort_values(["variant", "threads"])
     for variant, cells in wrong.groupby("variant", sort=True):
         row = cells.iloc[0]
-        shown = _neighbourhood(ExperimentDir(ctx.exp.path).record(str(row["cell_id"])))
+        shown = _neighbourhood(ctx.exp.dir.record(str(row["cell_id"])))
         if shown is None:
             continue
         data, r = shown
         step = int(row["first_diff_step"])
-        stem = ctx.figs.fig_dir / f"{ctx.name}-wrong-{variant}"
-        title = f"{variant}: step {step}, particle {int(data['particle'].iloc[0])}"
-        blocks.append(figure_block(
-            ctx.figs.draw(fig_wrong_step, data, stem, r=r, title=title),
+        rule = row.get("rule") if isinstance(row.get("rule"), str) else ""
+        blocks.append(ctx.figure(
+            fig_wrong_step, data, f"wrong-{variant}",
             f"`{variant}`'s first wrong step ({step}, at {int(row['threads'])} thread(s)): "
             f"the particle (labelled first) and those it could meet, dashed before the step, "
-            f"red where the program put them, blue where the rules do. "
-            f"{row.get('rule') if isinstance(row.get('rule'), str) else ''}"))
+            f"red where the program put them, blue where the rules do. {rule}",
+            r=r, title=f"{variant}: step {step}, particle {int(data['particle'].iloc[0])}"))
     return blocks
 
 

@@ -6,7 +6,6 @@ import pandas as pd
 
 from harness.analysis.paired import paired_words
 from harness.analysis.speedup import with_speedup
-from harness.report.blocks import figure_block
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.sweeps import fig_efficiency, fig_karp_flatt, fig_speedup
 from harness.report.sections.context import Context
@@ -24,21 +23,17 @@ FIGURES = (
 
 
 def build(ctx: Context) -> list[Section]:
-    """For a thread sweep, what the module's docstring names."""
     if "threads" not in ctx.axes:
         return []
-    exp, figs = ctx.exp, ctx.figs
+    exp = ctx.exp
     rows = with_speedup(exp.frame, thread_baseline=True, ratios=exp.ratios)
-    base = figs.fig_dir / ctx.name
     blocks: list[Block] = [
-        figure_block(figs.draw(draw, rows, base.with_name(f"{base.name}-{suffix}"),
-                               title=f"{exp.title}: {what}"), caption)
+        ctx.figure(draw, rows, suffix, caption, title=f"{exp.title}: {what}")
         for column, draw, suffix, what, caption in FIGURES if rows[column].notna().any()]
     if blocks:
         paired = paired_words(exp.ratios)
         blocks[:0] = [*_oversubscribed_words(rows), *([Paragraph(paired)] if paired else [])]
-    return [Section("Speedup, efficiency and serial fraction", f"{ctx.name}-speedup",
-                    tuple(blocks))]
+    return [ctx.section("Speedup, efficiency and serial fraction", "speedup", blocks)]
 
 
 def _oversubscribed_words(rows: pd.DataFrame) -> list[Paragraph]:

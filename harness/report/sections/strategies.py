@@ -6,14 +6,11 @@ and sentence; this module only lays them out, and only where the data has them.
 
 from __future__ import annotations
 
-import pandas as pd
-
 from harness.analysis import overhead
 from harness.analysis import strategies as study
-from harness.report.blocks import figure_block, table_block
 from harness.report.document import Paragraph, Section
 from harness.report.figures.strategies import work_figure
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, table_block
 
 SEED_INTRO = (
     f"The seed report's Table 2 measured its five strategies on this benchmark on "
@@ -66,14 +63,13 @@ def build(ctx: Context) -> list[Section]:
     """The subsections the experiment's rows support, in reading order (none for most). The
     rows are one machine's (a page shows one): its strategies are compared with each other,
     never with another machine's."""
-    exp, figs, name = ctx.exp, ctx.figs, ctx.name
-    df = exp.frame
-    parts: list[Section] = []
+    df = ctx.exp.frame
     if not study.one_scene(df):
-        return parts
+        return []
+    parts: list[Section] = []
     seed = study.seed_table(df, ctx.exp.ratios)
     if seed is not None:
-        parts.append(Section("Against the seed's Table 2", f"{name}-seed", (
+        parts.append(ctx.section("Against the seed's Table 2", "seed", (
             Paragraph(SEED_INTRO),
             table_block(study.seed_display(seed),
                         f"Ours against the seed's published times (on {study.SEED_MACHINE})."),
@@ -81,47 +77,45 @@ def build(ctx: Context) -> list[Section]:
         )))
     work = study.work_table(df)
     if work is not None:
-        paths = figs.draw(work_figure, work, figs.fig_dir / f"{name}-work-per-thread")
-        parts.append(Section("Work per thread", f"{name}-work",
-                             (figure_block(paths, WORK_CAPTION),)))
-    parts += _overhead(df, name)
-    costs = study.chunk_costs(df, exp.path)
+        parts.append(ctx.section("Work per thread", "work", (
+            ctx.figure(work_figure, work, "work-per-thread", WORK_CAPTION),)))
+    parts += _overhead(ctx)
+    costs = study.chunk_costs(df, ctx.exp.dir.path)
     if costs:
-        parts.append(Section("Cost per dispatched chunk", f"{name}-chunks", (
+        parts.append(ctx.section("Cost per dispatched chunk", "chunks", (
             Paragraph(CHUNK_INTRO),
             table_block(study.chunk_table(costs), "Extra time over the reference, per chunk."),
             Paragraph(study.chunk_sentence(costs)),
         )))
-    if study.has_schedules(df):
-        rows = study.schedule_rows(df, exp.path)
-        if len(rows):
-            parts.append(Section("Schedules", f"{name}-schedules", (
-                Paragraph(SCHEDULE_INTRO),
-                table_block(study.schedule_table(rows), "Median time per OMP_SCHEDULE, fastest "
-                            "first; chunks dealt over the --timing run (for guided a lower "
-                            "bound: chunks one thread takes back to back count once)."),
-                Paragraph(study.schedule_sentence(rows)),
-            )))
+    rows = study.schedule_rows(df, ctx.exp.dir.path) if study.has_schedules(df) else []
+    if len(rows):
+        parts.append(ctx.section("Schedules", "schedules", (
+            Paragraph(SCHEDULE_INTRO),
+            table_block(study.schedule_table(rows), "Median time per OMP_SCHEDULE, fastest "
+                        "first; chunks dealt over the --timing run (for guided a lower "
+                        "bound: chunks one thread takes back to back count once)."),
+            Paragraph(study.schedule_sentence(rows)),
+        )))
     return parts
 
 
-def _overhead(df: pd.DataFrame, name: str) -> list[Section]:
+def _overhead(ctx: Context) -> list[Section]:
     """The seed strategies' runtime operations priced at this machine's measured costs, beside
     their measured time over their repairs; where no cost was measured, a line saying so."""
+    df = ctx.exp.frame
     if not any(v in study.SEED_TIMES_S for v in df["variant"].unique()):
         return []
-    title, anchor = "What the runtime's operations cost", f"{name}-overhead"
+    title = "What the runtime's operations cost"
     table = overhead.overhead_table(df)
     if table is None:
-        return [Section(title, anchor, (Paragraph(overhead.MISSING_COSTS),))]
+        return [ctx.section(title, "overhead", (Paragraph(overhead.MISSING_COSTS),))]
     costs = overhead.cost_table(df)
     assert costs is not None
-    blocks = [
+    return [ctx.section(title, "overhead", (
         Paragraph(OVERHEAD_INTRO),
         table_block(costs, COST_CAPTION, source=df),
         table_block(table, "Per seed strategy and thread count: its operations per step, "
                     "the predicted seconds they cost over its repair's, and the measured ones "
                     "(medians).", source=df),
         *(Paragraph(s) for s in overhead.overhead_sentences(table, df)),
-    ]
-    return [Section(title, anchor, tuple(blocks))]
+    ))]

@@ -3,19 +3,15 @@ Figure 7), and the run animated."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
 from harness.analysis.display import format_value
-from harness.report.blocks import figure_block
-from harness.report.document import Block, Figure, Paragraph, Section
+from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.trajectory import fig_trajectory, gif_trajectory
 from harness.report.load import Experiment, read_trajectory
 from harness.report.sections.context import Context
 from harness.store.columns import OK
-from harness.store.layout import ExperimentDir
 
 MAX_TRAJECTORY_BYTES = 64 * 1024 * 1024  # larger print-mode outputs are not plotted
 PRINT_MODE = "print"
@@ -26,31 +22,23 @@ def trajectory_cell(exp: Experiment) -> pd.Series | None:
     df = exp.frame
     rows = df[(df["mode"] == PRINT_MODE) & (df["status"] == OK) & (df["steps"] >= 1)]
     for _, row in sort_cells(rows, ["variant", "build", "threads"]).iterrows():
-        if _output_path(exp, row).is_file():
+        if exp.dir.output(str(row["cell_id"])).is_file():
             return row
     return None
 
 
-def _output_path(exp: Experiment, row: pd.Series) -> Path:
-    return ExperimentDir(exp.path).output(str(row["cell_id"]))
-
-
 def build(ctx: Context) -> list[Section]:
-    """Figure 7 for the experiment's print-mode cell with a kept output, if it has one."""
     row = trajectory_cell(ctx.exp)
     return [] if row is None else [_trajectory(ctx, row)]
 
 
 def _trajectory(ctx: Context, row: pd.Series) -> Section:
-    exp, figs = ctx.exp, ctx.figs
-    path = _output_path(exp, row)
-    anchor = f"{ctx.name}-trajectory"
-    title = "Trajectories"
+    path = ctx.exp.dir.output(str(row["cell_id"]))
     if path.stat().st_size > MAX_TRAJECTORY_BYTES:
-        return Section(title, anchor, (Paragraph(f"`{path.name}` is too large to plot."),))
+        blocks: list[Block] = [Paragraph(f"`{path.name}` is too large to plot.")]
+        return ctx.section("Trajectories", "trajectory", blocks)
     traj = read_trajectory(path)
     box = float(row["L"])
-    stem = figs.fig_dir / f"{ctx.name}-trajectory"
     steps = int(traj["step"].max()) if len(traj) else 0
     caption = (
         f"Positions after each of the {steps} steps of `{row['variant']}` "
@@ -58,11 +46,7 @@ def _trajectory(ctx: Context, row: pd.Series) -> Section:
         f"r = {format_value('r', row['r'])}), one color per particle, consecutive "
         "states joined by straight segments (cf. the course report's Figure 7)."
     )
-    blocks: list[Block] = [
-        figure_block(figs.draw(fig_trajectory, traj, stem, box=box, title=exp.title),
-                     caption)
-    ]
-    gif = figs.draw(gif_trajectory, traj, stem.with_name(f"{stem.name}-animation"),
-                    box=box)
-    blocks.append(Figure(gif[0], "The same run, one frame per step."))
-    return Section(title, anchor, tuple(blocks))
+    blocks = [ctx.figure(fig_trajectory, traj, "trajectory", caption, box=box, title=ctx.exp.title),
+              ctx.figure(gif_trajectory, traj, "trajectory-animation",
+                         "The same run, one frame per step.", box=box)]
+    return ctx.section("Trajectories", "trajectory", blocks)
