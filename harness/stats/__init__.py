@@ -31,7 +31,7 @@ apart (measured apart). Every public name is re-exported here: callers use `stat
 from harness.stats.apart import (NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, contention_spread,
                                  drift_change, log_ratio_drift, log_spread, noise_drift)
 from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, LOW_QUANTILE,
-                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Interval,
+                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Z95, Interval,
                                      difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
                                      speedup_ci)
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
@@ -46,5 +46,5 @@ from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRoun
 from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit
 from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
                                     LOOK_GROWTH, NO_CHANGE_KNOWN, SLOWER, UNCHANGED, VERDICTS,
-                                    Z95, Change, decide, discoveries, further_rounds,
+                                    Change, decide, discoveries, further_rounds,
                                     look_index, look_rounds, look_weight, paired_look)

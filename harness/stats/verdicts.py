@@ -14,8 +14,6 @@ from scipy import stats as sps
 
 from harness.stats.intervals import CONFIDENCE, Interval
 
-Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
-
 # What a comparison of two sides can say about a cell: a change beyond the threshold either
 # way, a change shown to lie within it (equivalence: the whole interval inside), or neither.
 SLOWER = "slower"
@@ -150,7 +148,6 @@ def exact_change(ratio: float, threshold: float) -> Change:
     within = -margin <= log_ratio <= margin
     return Change(Interval(ratio, ratio, ratio), 0.0 if log_ratio > margin else 1.0,
                   0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
-
 
 
 def discoveries(p_values: Sequence[float], q: float) -> list[bool]:

@@ -4,6 +4,10 @@ their order, with the type each is read back as. Everything that writes or reads
 
 from __future__ import annotations
 
+from dataclasses import fields
+
+from harness.store import measured
+
 # --- statuses -----------------------------------------------------------------------------
 
 OK = "ok"
@@ -71,38 +75,21 @@ PROVENANCE_COLUMNS: tuple[str, ...] = (
 # rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
 # After the provenance columns, and only where some cell has them.
 PHASE_COLUMNS: tuple[str, ...] = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
-# The accuracy and stability checks (`checks:` in a config): only in a results.csv where some
-# cell was checked. chk_* are True/False, or empty where a check does not apply (chk_exact for
-# relative, chk_shadow without `shadow`).
-CHECK_COLUMNS: tuple[str, ...] = (
-    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
-    "chk_exact", "chk_shadow", "energy_drift", "energy_drift_max", "energy_bound",
-    "pair_collisions_run", "box_excess", "shadow_states", "shadow_pos_err",
-    "shadow_pos_err_max", "shadow_vel_err", "shadow_vel_err_max", "shadow_set_diff",
-    "shadow_bound", "shadow_err_r", "div_f64_max", "div_truth_max", "div_truth_final",
-    "div_steps_to_r", "checks_failed", "checks_note", "checks_s",
-)
-# The OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its --timing
-# run (one entry per candidate writer: the threads, T*T for p3), space-separated;
-# `imbalance` is max over mean busy seconds (1 = perfectly even). Last, and only where some
-# cell has them.
-THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "threads_pairs",
-                                   "threads_chunks")
+# A group's fields in results.csv: all but JSON objects, which only the record keeps.
+def _columns(group: type) -> tuple[str, ...]:
+    return tuple(f.name for f in fields(group) if "JsonObject" not in str(f.type))
+
+
+CHECK_COLUMNS = _columns(measured.Checks)
+# The OMP_SCHEDULE a cell ran with (empty when none), then its per-thread work.
+THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
 # How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
 # that the machine's drift is shared), the round of each of its runs (space-separated, as
 # wall_times_s), why its timing stopped (STOPPED_REASONS), and the seed that shuffled each
 # round's order (cells with one seed were measured in the same rounds). Only where some cell
 # has them (results from before rounds have none).
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
-# What other work did to a cell's rounds (harness.measure.noise): CPU seconds stolen and taken
-# by other processes on its cores over its rounds, the timed runs' involuntary context switches
-# per run, each round's interference (the share of the cores' time others took or was stolen,
-# space-separated in round order), each round's CPU pressure (the share of its time some task
-# waited for a CPU, where the kernel gives it), the rounds beyond the limit (left out of a
-# paired test on both sides), and the cores' seconds the rounds span. Only where some cell has
-# them.
-NOISE_COLUMNS: tuple[str, ...] = ("steal_s", "other_cpu_s", "nivcsw_per_run", "round_noise",
-                                  "round_pressure", "rounds_dropped", "noise_capacity_s")
+NOISE_COLUMNS = _columns(measured.Noise)
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
 # enough, or a limit was reached first.
 STOPPED_RUNS = "runs"
@@ -140,13 +127,7 @@ TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "c
 # Only where some cell has them.
 OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
 OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
-# The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the most
-# instructions of the cell's counted runs (user space, every thread), each count
-# (space-separated), the counter (perf or cachegrind), the binary it ran (under cachegrind a
-# build without AVX-512), and why a count is missing. Only where some cell was counted.
-INSTRUCTION_COLUMNS: tuple[str, ...] = ("instructions", "instructions_max", "instructions_counts",
-                                        "instructions_tool", "instructions_binary",
-                                        "instructions_note")
+INSTRUCTION_COLUMNS = _columns(measured.Instructions)
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,

@@ -142,17 +142,16 @@ class CellResult:
         """A copy with these fields changed; a group's fields by their names, merged into
         the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
         leaves, groups = _leaves(), _group_types()
-        top = {k: _or_none(v) if k in groups and v is not None else v
-               for k, v in changes.items() if k not in leaves}
-        merged: dict[str, dict[str, object]] = {}
+        top: dict[str, typing.Any] = {}
         for name, value in changes.items():
-            if name in leaves:
-                merged.setdefault(leaves[name][0], {})[name] = value
-        for group, values in merged.items():
-            current = getattr(self, group)
-            cls = groups[group]
-            top[group] = _or_none(replace(current, **values) if current else cls(**values))
-        return replace(self, **top)  # type: ignore[arg-type]
+            if name not in leaves:
+                top[name] = value
+                continue
+            group = leaves[name][0]
+            current = top.get(group, getattr(self, group)) or groups[group]()
+            top[group] = replace(current, **{name: value})
+        return replace(self, **{k: _or_none(v) if k in groups and v is not None else v
+                                for k, v in top.items()})
 
     def to_json(self) -> dict[str, object]:
         """The record as stored: the version, then every field that has a value."""
@@ -178,8 +177,8 @@ class CellResult:
 
 # A record's fields are read as a key's are, refused as a record's.
 _typed = functools.partial(typed, error=RecordFormatError)
-_TOP_NAMES = frozenset({"cell_id", "key", "status", "exit_code", "note", TIMES_FIELD,
-                        ROUNDS_FIELD})
+_SCALARS = ("cell_id", "status", "exit_code", "note")
+_TOP_NAMES = frozenset({*_SCALARS, "key", TIMES_FIELD, ROUNDS_FIELD})
 
 
 def record_fields() -> frozenset[str]:
@@ -209,10 +208,8 @@ def _or_none(group: typing.Any) -> typing.Any:
 
 
 def _flatten(result: CellResult) -> dict[str, object]:
-    out: dict[str, object] = {"cell_id": result.cell_id, "key": result.key.to_json()}
-    for name in ("status", "exit_code", "note"):
-        if getattr(result, name) is not None:
-            out[name] = getattr(result, name)
+    out = {name: getattr(result, name) for name in _SCALARS if getattr(result, name) is not None}
+    out["key"] = result.key.to_json()
     if result.times:
         out[TIMES_FIELD] = [run.time_s for run in result.times]
         if all(run.round is not None for run in result.times):
@@ -247,7 +244,7 @@ def _parse(values: Mapping[str, object]) -> CellResult:
         raise RecordFormatError(f"record.{exc}") from exc
     top: dict[str, typing.Any] = {"key": key, "times": _runs(values)}
     hints = type_hints(CellResult)
-    for name in ("cell_id", "status", "exit_code", "note"):
+    for name in _SCALARS:
         if name in values or name == "cell_id":
             top[name] = _typed(values.get(name), hints[name], f"record.{name}")
     leaves, groups = _leaves(), _group_types()
