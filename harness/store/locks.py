@@ -96,23 +96,21 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
         os.close(fd)
 
 
-@contextlib.contextmanager
-def file_lock(path: Path) -> Iterator[None]:
+def file_lock(path: Path) -> contextlib.AbstractContextManager[None]:
     """An exclusive flock on `path` (created if missing) for the body."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    return _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666))
+
+
+def directory_lock(directory: Path) -> contextlib.AbstractContextManager[None]:
+    """Exclusive lock on a results directory (created if missing) for the body."""
+    directory.mkdir(parents=True, exist_ok=True)
+    return _flocked(os.open(directory, os.O_RDONLY))
 
 
 @contextlib.contextmanager
-def directory_lock(directory: Path) -> Iterator[None]:
-    """Exclusive lock on a results directory (created if missing) for the body."""
-    directory.mkdir(parents=True, exist_ok=True)
-    fd = os.open(directory, os.O_RDONLY)
+def _flocked(fd: int) -> Iterator[None]:
+    """An exclusive flock on the open `fd` for the body; the fd is closed after."""
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
         try:
