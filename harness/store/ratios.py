@@ -104,7 +104,7 @@ def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
     if kind != RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
         return {}
     speedup = stats.Interval(ratio, math.nan, math.nan)
-    return {"efficiency": stats.efficiency(speedup, threads).point,
+    return {"efficiency": ratio / threads,
             "karp_flatt": _finite(stats.karp_flatt(speedup, threads).point)}
 
 

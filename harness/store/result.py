@@ -96,11 +96,9 @@ class CellResult:
     def round_times(self) -> dict[int, tuple[float, ...]]:
         """The seconds of its runs by round, in round order; empty where the runs' rounds
         are not recorded."""
-        if any(run.round is None for run in self.times):
-            return {}
-        grouped: dict[int, list[float]] = {}
-        for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
-            grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
+        from harness.stats.rounds import runs_by_round  # scipy only where rounds are paired
+
+        grouped = runs_by_round([run.time_s for run in self.times], self._rounds())
         return {k: tuple(v) for k, v in grouped.items()}
 
     def _rounds(self) -> list[int]:
@@ -110,7 +108,7 @@ class CellResult:
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (stats.MeasuredInRounds)."""
-        from harness.stats.rounds import round_medians  # scipy only where rounds are paired
+        from harness.stats.rounds import round_medians
 
         return round_medians([run.time_s for run in self.times], self._rounds())
 
