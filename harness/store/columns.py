@@ -4,6 +4,7 @@ their order, with the type each is read back as. Everything that writes or reads
 
 from __future__ import annotations
 
+import typing
 from dataclasses import fields
 
 from harness.store import measured
@@ -164,30 +165,20 @@ RATIO_COLUMNS: tuple[str, ...] = (
 
 # --- how each column reads back -----------------------------------------------------------
 
-NUMERIC_COLUMNS: frozenset[str] = frozenset({
-    "n", "L", "r", "steps", "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s",
-    "wall_median_s", "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests",
-    "exit_code", "max_pos_err", "max_vel_err", "count_mismatches", "cores",
-    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance", *PHASE_COLUMNS,
-    "energy_drift", "energy_drift_max", "energy_bound", "pair_collisions_run", "box_excess",
-    "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
-    "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
-    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step", "check_s", "replay_s", "instructions", "instructions_max", "steal_s",
-    "other_cpu_s", "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
-})
-BOOL_COLUMNS: frozenset[str] = frozenset({
-    "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
-    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
-    "chk_exact", "chk_shadow",
-})
+# Each record field's type, None aside (a list's: tuple[item, ...]).
+_TYPES: dict[str, object] = {name: typing.get_args(hint)[0] for group in measured.GROUPS
+                             for name, hint in typing.get_type_hints(group).items()}
+# round_seed is a name for a run's rounds: compared as text, and a float would round it.
+NUMERIC_COLUMNS: frozenset[str] = frozenset(
+    {"exit_code", *(n for n, t in _TYPES.items() if t in (int, float))} - {"round_seed"})
+# With the two results.csv derives from a record's other fields.
+BOOL_COLUMNS: frozenset[str] = frozenset(
+    {"outliers", "stale", *(n for n, t in _TYPES.items() if t is bool)})
 # Columns that hold a list, with the type of its items: a record keeps the list, results.csv
 # its items space-separated (exact: each float's repr).
-LIST_COLUMNS: dict[str, type] = {
-    "wall_times_s": float, "wall_times_round": int, "threads_busy_s": float,
-    "threads_pairs": int, "threads_chunks": int, "round_noise": float, "round_pressure": float,
-    "rounds_dropped": int, "instructions_counts": int,
-}
+LIST_COLUMNS: dict[str, type] = {"wall_times_s": float, "wall_times_round": int, **{
+    n: typing.get_args(t)[0] for n, t in _TYPES.items()
+    if typing.get_origin(t) is tuple and typing.get_args(t)[0] in (int, float)}}
 
 
 def format_list(values: tuple[object, ...] | list[object]) -> str:

@@ -246,3 +246,9 @@ class Provenance:
     slurm_task: str | None = None
     slurm_state: str | None = None  # set on a record the Slurm submitter wrote for a fault
     retry: bool | None = None  # measured again by the next run (a fault of no cell's)
+
+
+# Every group, in CellResult's order.
+GROUPS: tuple[type, ...] = (Subject, Timing, Rounds, Noise, Phases, Counts, ThreadWork,
+                            Validation, Checks, ProgramVerdict, Instructions, OmpCosts,
+                            Provenance)

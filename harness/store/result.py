@@ -2,9 +2,7 @@
 
 CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
 values (each run's seconds with the round it was taken in), and what the measurement found
-beside them sits in small groups (the phases and counts of the --precise run, the validation,
-the checks, the per-thread work, the rounds and their noise, a program's verdict, the counted
-instructions, the OpenMP runtime's costs, the provenance). A group no measurement filled is
+beside them sits in small groups (harness.store.measured). A group no measurement filled is
 None.
 
 On disk a record is CellResult.to_json(): one flat JSON object whose names are the columns of
@@ -113,11 +111,9 @@ class CellResult:
         return round_medians([run.time_s for run in self.times], self._rounds())
 
     def noise_by_round(self) -> dict[int, float]:
-        """Each round's interference share (harness.measure.noise), by round."""
         return self._per_round(self.noise.round_noise if self.noise else None)
 
     def pressure_by_round(self) -> dict[int, float]:
-        """Each round's CPU pressure, by round."""
         return self._per_round(self.noise.round_pressure if self.noise else None)
 
     def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
@@ -127,7 +123,7 @@ class CellResult:
         return by_round(rounds, values) if values is not None and rounds else {}
 
     def value(self, name: str) -> object:
-        """The record's field `name` (a results.csv column's value), None where it has none."""
+        """A results.csv column's value; None where the record has none."""
         return self.columns.get(name)
 
     @functools.cached_property
@@ -152,7 +148,6 @@ class CellResult:
                                 for k, v in top.items()})
 
     def to_json(self) -> dict[str, object]:
-        """The record as stored: the version, then every field that has a value."""
         return {"version": RECORD_VERSION, **self.columns}
 
     @classmethod
@@ -186,7 +181,7 @@ def record_fields() -> frozenset[str]:
 
 @functools.cache
 def _group_types() -> dict[str, type]:
-    """CellResult's groups (its fields of a dataclass's type), with their types."""
+    """CellResult's fields of a dataclass's type (its groups), with their types."""
     hints = type_hints(CellResult)
     groups = {f.name: typing.get_args(hints[f.name])[0] for f in fields(CellResult)
               if isinstance(hints[f.name], types.UnionType)}

@@ -36,16 +36,20 @@ def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
     return entry
 
 
-def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
-    """The newest session spread `reruns` kept for the machine under any of the roots;
-    DEFAULT_SESSION_SPREAD where none has one."""
-    from harness.stats.levels import DEFAULT_SESSION_SPREAD
-
+def newest_entry(roots: Iterable[Path], machine_id: str) -> Mapping[str, object] | None:
+    """The newest of what `reruns` kept for the machine under any of the roots; None where
+    none has one."""
     found = [e for root in dict.fromkeys(roots)
              if (e := session_entry(root, machine_id)) is not None]
-    if not found:
-        return DEFAULT_SESSION_SPREAD
-    return spread_of(max(found, key=lambda e: str(e.get("date", ""))), machine_id)
+    return max(found, key=lambda e: str(e.get("date", ""))) if found else None
+
+
+def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
+    """newest_entry's spread; DEFAULT_SESSION_SPREAD where none has one."""
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+
+    newest = newest_entry(roots, machine_id)
+    return DEFAULT_SESSION_SPREAD if newest is None else spread_of(newest, machine_id)
 
 
 def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
