@@ -20,12 +20,7 @@ identical distributions with probability 2/20 = 10% (the chance that one sample 
 above the other). That is why a verdict of compare never rests on such an interval alone: it
 tests against a threshold, and widens the interval of runs measured apart by the drift.
 
-Modules: intervals (estimators and bootstrap intervals), levels (the run, round and session
-levels: a cell's interval over its rounds and another session's, ratios paired by round,
-reruns' coverage), scaling (efficiency, Karp-Flatt, power
-fits), rounds (runs by round, the noise rounds met, a pair's rounds lined up), verdicts (the
-change, the sequential looks, the false-discovery control), paired (measured together) and
-apart (measured apart). Every public name is re-exported here: callers use `stats.NAME`.
+Every public name of the modules is re-exported here: callers use `stats.NAME`.
 """
 
 from harness.stats.apart import (NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, contention_spread,

@@ -45,9 +45,12 @@ def uncertainty(times: Sequence[float], rounds: Sequence[int] | None = None,
             median = statistics.median(times)
             interval = stats.Interval(median, min(interval.low, median),
                                       max(interval.high, median))
-    return (interval.low if math.isfinite(interval.low) else None,
-            interval.high if math.isfinite(interval.high) else None,
+    return (finite(interval.low), finite(interval.high),
             stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR))
+
+
+def finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None

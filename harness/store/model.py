@@ -29,7 +29,6 @@ from dataclasses import dataclass, field, fields, is_dataclass
 # The version hashed into every id: the ids of stored records depend on it, so it stays.
 ID_VERSION = 1
 ID_CHARS = 16
-MACHINE_FIELD = "machine_id"
 
 
 class Role(enum.Enum):
