@@ -136,16 +136,15 @@ class CellResult:
         """A copy with these fields changed; a group's fields by their names, merged into
         the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
         leaves, groups = _leaves(), _group_types()
-        top: dict[str, typing.Any] = {}
-        for name, value in changes.items():
-            if name not in leaves:
-                top[name] = value
-                continue
-            group = leaves[name][0]
+        top = {k: v for k, v in changes.items() if k not in leaves}
+        merged: dict[str, dict[str, object]] = {}
+        for name in changes.keys() & leaves.keys():
+            merged.setdefault(leaves[name][0], {})[name] = changes[name]
+        for group, values in merged.items():
             current = top.get(group, getattr(self, group)) or groups[group]()
-            top[group] = replace(current, **{name: value})
+            top[group] = replace(current, **values)
         return replace(self, **{k: _or_none(v) if k in groups and v is not None else v
-                                for k, v in top.items()})
+                                for k, v in top.items()})  # type: ignore[arg-type]
 
     def to_json(self) -> dict[str, object]:
         return {"version": RECORD_VERSION, **self.columns}
@@ -240,15 +239,9 @@ def _parse(values: Mapping[str, object]) -> CellResult:
     for name in _SCALARS:
         if name in values or name == "cell_id":
             top[name] = _typed(values.get(name), hints[name], f"record.{name}")
-    leaves, groups = _leaves(), _group_types()
-    present: dict[str, dict[str, object]] = {}
-    for name, value in values.items():
-        if name in leaves:
-            group, hint = leaves[name]
-            present.setdefault(group, {})[name] = _typed(value, hint, f"record.{name}")
-    for group, found in present.items():
-        top[group] = groups[group](**found)
-    return CellResult(**top)
+    leaves = _leaves()
+    return CellResult(**top).replace(**{name: _typed(value, leaves[name][1], f"record.{name}")
+                                        for name, value in values.items() if name in leaves})
 
 
 def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:
