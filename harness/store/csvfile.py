@@ -101,8 +101,7 @@ def format_cell(value: object) -> str:
 
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
-    """results.csv text: the contract, extra and provenance columns, then the phase columns,
-    the check columns and the per-thread columns, each group when some row has a value."""
+    """results.csv's text: the fixed columns, then each optional group some row fills."""
     rows = list(rows)
     columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
     for group in OPTIONAL_GROUPS:
