@@ -15,13 +15,13 @@ value is left out of the JSON. Reading a record refuses a field it does not know
 from __future__ import annotations
 
 import functools
-import types
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, is_dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
 from harness.store.measured import (
+    GROUPS,
     Checks,
     Counts,
     Instructions,
@@ -180,11 +180,10 @@ def record_fields() -> frozenset[str]:
 
 @functools.cache
 def _group_types() -> dict[str, type]:
-    """CellResult's fields of a dataclass's type (its groups), with their types."""
+    """CellResult's fields of a group's type (measured.GROUPS), with their types."""
     hints = type_hints(CellResult)
-    groups = {f.name: typing.get_args(hints[f.name])[0] for f in fields(CellResult)
-              if isinstance(hints[f.name], types.UnionType)}
-    return {name: cls for name, cls in groups.items() if is_dataclass(cls)}
+    return {f.name: cls for f in fields(CellResult)
+            for cls in typing.get_args(hints[f.name])[:1] if cls in GROUPS}
 
 
 @functools.cache
