@@ -147,9 +147,8 @@ def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
         found = [(m, s) for m, s in cell if math.isfinite(m)]
         if len(found) < 2:
             continue
-        logs = np.asarray([m for m, _ in found])
         within = [s * s for _, s in found if math.isfinite(s)]
-        between = float(np.var(logs, ddof=1))
+        between = float(np.var([m for m, _ in found], ddof=1))
         excess += (len(found) - 1) * (between - (float(np.mean(within)) if within else 0.0))
         weight += len(found) - 1
     return math.sqrt(max(0.0, excess / weight)) if weight else math.nan
@@ -195,10 +194,9 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
                 continue
             widths.append(max(interval.high - interval.point,
                               interval.point - interval.low) / interval.point)
-            for j, other in enumerate(found):
-                if j != k:
-                    pairs += 1
-                    held += interval.low <= other.point <= interval.high
+            others = [other.point for j, other in enumerate(found) if j != k]
+            pairs += len(others)
+            held += sum(interval.low <= point <= interval.high for point in others)
     return Coverage(held, pairs, float(np.median(moves)) if moves else math.nan,
                     max(moves, default=math.nan),
                     float(np.median(widths)) if widths else math.nan)

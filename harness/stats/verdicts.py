@@ -153,12 +153,9 @@ def exact_change(ratio: float, threshold: float) -> Change:
 def discoveries(p_values: Sequence[float], q: float) -> list[bool]:
     """Which of the tests are discoveries with the false-discovery rate controlled at q
     (Benjamini-Hochberg, scipy.stats.false_discovery_control); a NaN p-value never is."""
-    finite = [k for k, p in enumerate(p_values) if math.isfinite(p)]
-    found = [False] * len(p_values)
-    if finite:
-        adjusted = sps.false_discovery_control(
-            np.asarray([p_values[k] for k in finite], dtype=float), method="bh")
-        for k, value in zip(finite, adjusted, strict=True):
-            found[k] = bool(value <= q)
-    return found
+    p = np.asarray(p_values, dtype=float)
+    found = np.isfinite(p)
+    if found.any():
+        found[found] = sps.false_discovery_control(p[found], method="bh") <= q
+    return found.tolist()
 
