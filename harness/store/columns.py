@@ -119,8 +119,7 @@ NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
-TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
-                                "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
+TIMING_KEYS = (*_columns(measured.Phases), *_columns(measured.Counts))
 # The OpenMP runtime's cost of one operation at the cell's thread count on its machine
 # (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
 # closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
