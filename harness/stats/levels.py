@@ -115,7 +115,7 @@ def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimat
     if not by_round:
         runs = clean(times)
         return from_round_values([float(np.median(runs))] if runs.size else [])
-    return from_round_values([by_round[k] for k in sorted(by_round)])
+    return from_round_values(list(by_round.values()))  # in round order
 
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:

@@ -129,11 +129,9 @@ def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
     if not isinstance(curves, dict):
         return []
     base = {c: record.get(c) for c in DIVERGENCE_CELL_COLUMNS}
-    rows = []
-    for reference, curve in curves.items():
-        for step, value in enumerate(curve if isinstance(curve, list) else []):
-            rows.append({**base, "reference": reference, "step": step, "max_pos_dev": value})
-    return rows
+    return [{**base, "reference": reference, "step": step, "max_pos_dev": value}
+            for reference, curve in curves.items()
+            for step, value in enumerate(curve if isinstance(curve, list) else [])]
 
 
 def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:
