@@ -11,9 +11,10 @@ class HarnessError(Exception):
 
 
 def config_error(path: Path | str, key: str, expected: str, got: object) -> HarnessError:
-    """An error naming the config file, the offending key, what was expected and what was got."""
-    return HarnessError(f"{path}: key '{describe_key(key)}': expected {expected}, got "
-                        f"{describe_value(got)}")
+    """An error naming the config file, the offending key (as it is when short and printable,
+    else previewed), what was expected and what was got."""
+    shown = key if len(key) <= MAX_VALUE_CHARS and key.isprintable() else describe_value(key)
+    return HarnessError(f"{path}: key '{shown}': expected {expected}, got {describe_value(got)}")
 
 
 MAX_VALUE_CHARS = 80
@@ -46,13 +47,6 @@ def describe_value(value: object) -> str:
         return "nothing (the key is missing)"
     text = _PREVIEW.repr(value)
     return text if len(text) <= MAX_VALUE_CHARS else text[: MAX_VALUE_CHARS - 3] + "..."
-
-
-def describe_key(key: str) -> str:
-    """A key path for a message: as it is when short and printable, else previewed."""
-    if len(key) <= MAX_VALUE_CHARS and key.isprintable():
-        return key
-    return describe_value(key)
 
 
 class _Missing:

@@ -23,18 +23,13 @@ REEXEC_MARKER = "COLLIDE_BENCH_REEXEC"
 EXIT_MISSING = 2
 
 
-def _venv_python() -> Path:
-    repo = runpy.run_path(str(Path(__file__).with_name("repo.py")))
-    return Path(repo["VENV_PYTHON"])
-
-
 def ensure_packages(entry: Sequence[str]) -> None:
     """Return when every required module imports; else re-exec `.venv/bin/python ENTRY
     ARGS...`, or print one error line and exit 2. `entry` is a script path or ["-m", NAME]."""
     missing = [m for m in REQUIRED_MODULES if importlib.util.find_spec(m) is None]
     if not missing:
         return
-    venv = _venv_python()
+    venv = Path(runpy.run_path(str(Path(__file__).with_name("repo.py")))["VENV_PYTHON"])
     if venv.exists() and os.environ.get(REEXEC_MARKER) != "1":
         argv = [str(venv), *entry, *sys.argv[1:]]
         os.execve(argv[0], argv, {**os.environ, REEXEC_MARKER: "1"})

@@ -20,18 +20,13 @@ identical distributions with probability 2/20 = 10% (the chance that one sample 
 above the other). That is why a verdict of compare never rests on such an interval alone: it
 tests against a threshold, and widens the interval of runs measured apart by the drift.
 
-Modules: intervals (estimators and bootstrap intervals), levels (the run, round and session
-levels: a cell's interval over its rounds and another session's, ratios paired by round,
-reruns' coverage), scaling (efficiency, Karp-Flatt, power
-fits), rounds (runs by round, the noise rounds met, a pair's rounds lined up), verdicts (the
-change, the sequential looks, the false-discovery control), paired (measured together) and
-apart (measured apart). Every public name is re-exported here: callers use `stats.NAME`.
+Every public name of the modules is re-exported here: callers use `stats.NAME`.
 """
 
 from harness.stats.apart import (NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, contention_spread,
                                  drift_change, log_ratio_drift, log_spread, noise_drift)
 from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, LOW_QUANTILE,
-                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Interval,
+                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Z95, Interval,
                                      difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
                                      speedup_ci)
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
@@ -46,5 +41,5 @@ from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRoun
 from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit
 from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
                                     LOOK_GROWTH, NO_CHANGE_KNOWN, SLOWER, UNCHANGED, VERDICTS,
-                                    Z95, Change, decide, discoveries, further_rounds,
+                                    Change, decide, discoveries, further_rounds,
                                     look_index, look_rounds, look_weight, paired_look)

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import stats as sps
 
-from harness.stats.intervals import Interval, clean, ratio_ci
-from harness.stats.verdicts import Z95, Change, exact_change
+from harness.stats.intervals import Z95, Interval, clean, ratio_ci
+from harness.stats.verdicts import Change, exact_change
 
 
 def log_spread(ratio: Interval) -> tuple[float, float] | None:
@@ -82,7 +82,6 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     return Change(interval, float(sps.norm.sf((log_ratio - margin) / se)),
                   float(sps.norm.cdf((log_ratio + margin) / se)), min(1.0, 2.0 * unchanged),
                   within * math.sqrt(runs), runs, math.hypot(drift, contention))
-
 
 
 def log_ratio_drift(log_ratios: Sequence[float], within_variances: Sequence[float]) -> float:

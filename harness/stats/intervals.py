@@ -16,6 +16,7 @@ import numpy as np
 from scipy import stats as sps
 
 CONFIDENCE = 0.95
+Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
 N_RESAMPLES = 4000
 
 
@@ -27,12 +28,15 @@ class Interval:
     low: float
     high: float
 
+    @property
+    def bounded(self) -> bool:
+        """Whether both ends are finite (an interval was computed)."""
+        return math.isfinite(self.low) and math.isfinite(self.high)
+
     def excludes(self, value: float) -> bool:
         """Whether the interval lies wholly on one side of `value`; False without an interval
         (NaN ends), so that a missing interval never reads as a significant difference."""
-        if not (math.isfinite(self.low) and math.isfinite(self.high)):
-            return False
-        return not (self.low <= value <= self.high)
+        return self.bounded and not (self.low <= value <= self.high)
 
     def map(self, function: Callable[[float], float]) -> Interval:
         """The interval of a monotone function of the estimate (endpoints re-ordered)."""
@@ -43,7 +47,7 @@ class Interval:
         """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
         def fmt(value: float) -> str:
             return f"{value:.{digits}g}"
-        if not (math.isfinite(self.low) and math.isfinite(self.high)):
+        if not self.bounded:
             return fmt(self.point)
         return f"{fmt(self.point)} [{fmt(self.low)}, {fmt(self.high)}]"
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from harness.stats.intervals import CONFIDENCE, Interval
+from harness.stats.intervals import CONFIDENCE, Z95, Interval, clean
 from harness.stats.rounds import round_medians
 
 # A cell gets its runs in at least this many rounds before its interval may stop it: with
@@ -69,10 +69,6 @@ def t95(rounds: int) -> float:
     return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
 
 
-def _z() -> float:
-    return float(sps.norm.ppf(0.5 + CONFIDENCE / 2))
-
-
 @dataclass(frozen=True)
 class RoundEstimate:
     """A value from its rounds: the point (median of the round values), the mean and standard
@@ -86,23 +82,19 @@ class RoundEstimate:
     def interval(self) -> Interval:
         """The 95% interval of the value over its rounds alone (t with rounds - 1 degrees of
         freedom), around the point; NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
-        if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
-            return Interval(self.point, math.nan, math.nan)
-        half = t95(self.rounds) * self.log_se
-        return _around(self.point, half)
+        return self._widened(0.0, 1.0)
 
     def rerun_interval(self, session: float) -> Interval:
         """Where another session's estimate lies with 95%: the rounds' and the session's
         spread, each counted for both sessions (sqrt 2); NaN ends with fewer than
         INTERVAL_MIN_ROUNDS rounds."""
+        return self._widened(session, math.sqrt(2.0))
+
+    def _widened(self, session: float, sessions: float) -> Interval:
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
-        half = math.sqrt(2.0) * math.hypot(t95(self.rounds) * self.log_se, _z() * session)
-        return _around(self.point, half)
-
-
-def _around(point: float, half_log: float) -> Interval:
-    return Interval(point, point * math.exp(-half_log), point * math.exp(half_log))
+        half = sessions * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
+        return Interval(self.point, self.point * math.exp(-half), self.point * math.exp(half))
 
 
 def from_round_values(values: Sequence[float]) -> RoundEstimate:
@@ -121,15 +113,15 @@ def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimat
     rounds are not recorded, all its runs count as one round."""
     by_round = round_medians(times, rounds)
     if not by_round:
-        clean = [t for t in times if t is not None and math.isfinite(t)]
-        return from_round_values([float(np.median(clean))] if clean else [])
-    return from_round_values([by_round[k] for k in sorted(by_round)])
+        runs = clean(times)
+        return from_round_values([float(np.median(runs))] if runs.size else [])
+    return from_round_values(list(by_round.values()))  # in round order
 
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
     """The round-level interval's larger side as a share of the point (inf without one)."""
     interval = cell_estimate(times, rounds).interval()
-    if not (math.isfinite(interval.low) and math.isfinite(interval.high)) or interval.point <= 0:
+    if not interval.bounded or interval.point <= 0:
         return math.inf
     return max(interval.point - interval.low, interval.high - interval.point) / interval.point
 
@@ -155,9 +147,8 @@ def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
         found = [(m, s) for m, s in cell if math.isfinite(m)]
         if len(found) < 2:
             continue
-        logs = np.asarray([m for m, _ in found])
         within = [s * s for _, s in found if math.isfinite(s)]
-        between = float(np.var(logs, ddof=1))
+        between = float(np.var([m for m, _ in found], ddof=1))
         excess += (len(found) - 1) * (between - (float(np.mean(within)) if within else 0.0))
         weight += len(found) - 1
     return math.sqrt(max(0.0, excess / weight)) if weight else math.nan
@@ -199,14 +190,13 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
         if len(points) >= 2:
             moves.append(max(points) / min(points) - 1.0)
         for k, interval in enumerate(found):
-            if not (math.isfinite(interval.low) and math.isfinite(interval.high)):
+            if not interval.bounded:
                 continue
             widths.append(max(interval.high - interval.point,
                               interval.point - interval.low) / interval.point)
-            for j, other in enumerate(found):
-                if j != k:
-                    pairs += 1
-                    held += interval.low <= other.point <= interval.high
+            others = [other.point for j, other in enumerate(found) if j != k]
+            pairs += len(others)
+            held += sum(interval.low <= point <= interval.high for point in others)
     return Coverage(held, pairs, float(np.median(moves)) if moves else math.nan,
                     max(moves, default=math.nan),
                     float(np.median(widths)) if widths else math.nan)

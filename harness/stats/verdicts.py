@@ -14,8 +14,6 @@ from scipy import stats as sps
 
 from harness.stats.intervals import CONFIDENCE, Interval
 
-Z95 = float(sps.norm.ppf(0.5 + CONFIDENCE / 2))  # the normal quantile of a 95% interval
-
 # What a comparison of two sides can say about a cell: a change beyond the threshold either
 # way, a change shown to lie within it (equivalence: the whole interval inside), or neither.
 SLOWER = "slower"
@@ -152,16 +150,12 @@ def exact_change(ratio: float, threshold: float) -> Change:
                   0.0 if log_ratio < -margin else 1.0, 0.0 if within else 1.0, 0.0, 0)
 
 
-
 def discoveries(p_values: Sequence[float], q: float) -> list[bool]:
     """Which of the tests are discoveries with the false-discovery rate controlled at q
     (Benjamini-Hochberg, scipy.stats.false_discovery_control); a NaN p-value never is."""
-    finite = [k for k, p in enumerate(p_values) if math.isfinite(p)]
-    found = [False] * len(p_values)
-    if finite:
-        adjusted = sps.false_discovery_control(
-            np.asarray([p_values[k] for k in finite], dtype=float), method="bh")
-        for k, value in zip(finite, adjusted, strict=True):
-            found[k] = bool(value <= q)
-    return found
+    p = np.asarray(p_values, dtype=float)
+    found = np.isfinite(p)
+    if found.any():
+        found[found] = sps.false_discovery_control(p[found], method="bh") <= q
+    return found.tolist()
 

@@ -17,7 +17,8 @@ FILE_MODE = 0o644
 
 
 def temp_path(path: Path) -> Path:
-    """A fresh name beside `path` for a file a subprocess writes before it is os.replace'd."""
+    """A fresh empty file beside `path` (a subprocess's output, or atomic_write's), to be
+    os.replace'd onto it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
@@ -27,25 +28,20 @@ def temp_path(path: Path) -> Path:
 def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
     """Call `write(handle)` on a temporary sibling of `path`, then rename it into place; a
     failure leaves `path` as it was and no temporary file behind."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    tmp = temp_path(path)
     try:
-        with os.fdopen(fd, "wb") as handle:
+        with tmp.open("wb") as handle:
             write(handle)
         os.chmod(tmp, FILE_MODE)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
     return path
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> Path:
-    return atomic_write(path, lambda handle: handle.write(data))
-
-
 def atomic_write_text(path: Path, text: str) -> Path:
-    return atomic_write_bytes(path, text.encode("utf-8"))
+    return atomic_write(path, lambda handle: handle.write(text.encode("utf-8")))
 
 
 def atomic_write_json(path: Path, value: object) -> Path:

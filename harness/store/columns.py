@@ -4,6 +4,11 @@ their order, with the type each is read back as. Everything that writes or reads
 
 from __future__ import annotations
 
+import typing
+from dataclasses import fields
+
+from harness.store import measured
+
 # --- statuses -----------------------------------------------------------------------------
 
 OK = "ok"
@@ -71,38 +76,21 @@ PROVENANCE_COLUMNS: tuple[str, ...] = (
 # rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
 # After the provenance columns, and only where some cell has them.
 PHASE_COLUMNS: tuple[str, ...] = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
-# The accuracy and stability checks (`checks:` in a config): only in a results.csv where some
-# cell was checked. chk_* are True/False, or empty where a check does not apply (chk_exact for
-# relative, chk_shadow without `shadow`).
-CHECK_COLUMNS: tuple[str, ...] = (
-    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
-    "chk_exact", "chk_shadow", "energy_drift", "energy_drift_max", "energy_bound",
-    "pair_collisions_run", "box_excess", "shadow_states", "shadow_pos_err",
-    "shadow_pos_err_max", "shadow_vel_err", "shadow_vel_err_max", "shadow_set_diff",
-    "shadow_bound", "shadow_err_r", "div_f64_max", "div_truth_max", "div_truth_final",
-    "div_steps_to_r", "checks_failed", "checks_note", "checks_s",
-)
-# The OMP_SCHEDULE a cell ran with (empty when none), and the per-thread work of its --timing
-# run (one entry per candidate writer: the threads, T*T for p3), space-separated;
-# `imbalance` is max over mean busy seconds (1 = perfectly even). Last, and only where some
-# cell has them.
-THREAD_COLUMNS: tuple[str, ...] = ("schedule", "imbalance", "threads_busy_s", "threads_pairs",
-                                   "threads_chunks")
+# A group's fields in results.csv: all but JSON objects, which only the record keeps.
+def _columns(group: type) -> tuple[str, ...]:
+    return tuple(f.name for f in fields(group) if "JsonObject" not in str(f.type))
+
+
+CHECK_COLUMNS = _columns(measured.Checks)
+# The OMP_SCHEDULE a cell ran with (empty when none), then its per-thread work.
+THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
 # How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
 # that the machine's drift is shared), the round of each of its runs (space-separated, as
 # wall_times_s), why its timing stopped (STOPPED_REASONS), and the seed that shuffled each
 # round's order (cells with one seed were measured in the same rounds). Only where some cell
 # has them (results from before rounds have none).
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
-# What other work did to a cell's rounds (harness.measure.noise): CPU seconds stolen and taken
-# by other processes on its cores over its rounds, the timed runs' involuntary context switches
-# per run, each round's interference (the share of the cores' time others took or was stolen,
-# space-separated in round order), each round's CPU pressure (the share of its time some task
-# waited for a CPU, where the kernel gives it), the rounds beyond the limit (left out of a
-# paired test on both sides), and the cores' seconds the rounds span. Only where some cell has
-# them.
-NOISE_COLUMNS: tuple[str, ...] = ("steal_s", "other_cpu_s", "nivcsw_per_run", "round_noise",
-                                  "round_pressure", "rounds_dropped", "noise_capacity_s")
+NOISE_COLUMNS = _columns(measured.Noise)
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
 # enough, or a limit was reached first.
 STOPPED_RUNS = "runs"
@@ -131,8 +119,7 @@ NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
-TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "candidates",
-                                "pair_collisions", "wall_collisions", *PHASE_COLUMNS)
+TIMING_KEYS = (*_columns(measured.Phases), *_columns(measured.Counts))
 # The OpenMP runtime's cost of one operation at the cell's thread count on its machine
 # (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
 # closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
@@ -140,13 +127,7 @@ TIMING_KEYS: tuple[str, ...] = ("input_s", "sim_s", "output_s", "pair_tests", "c
 # Only where some cell has them.
 OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
 OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
-# The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the most
-# instructions of the cell's counted runs (user space, every thread), each count
-# (space-separated), the counter (perf or cachegrind), the binary it ran (under cachegrind a
-# build without AVX-512), and why a count is missing. Only where some cell was counted.
-INSTRUCTION_COLUMNS: tuple[str, ...] = ("instructions", "instructions_max", "instructions_counts",
-                                        "instructions_tool", "instructions_binary",
-                                        "instructions_note")
+INSTRUCTION_COLUMNS = _columns(measured.Instructions)
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
@@ -183,30 +164,20 @@ RATIO_COLUMNS: tuple[str, ...] = (
 
 # --- how each column reads back -----------------------------------------------------------
 
-NUMERIC_COLUMNS: frozenset[str] = frozenset({
-    "n", "L", "r", "steps", "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s",
-    "wall_median_s", "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests",
-    "exit_code", "max_pos_err", "max_vel_err", "count_mismatches", "cores",
-    "wall_median_ci_low_s", "wall_median_ci_high_s", "imbalance", *PHASE_COLUMNS,
-    "energy_drift", "energy_drift_max", "energy_bound", "pair_collisions_run", "box_excess",
-    "shadow_states", "shadow_pos_err", "shadow_pos_err_max", "shadow_vel_err",
-    "shadow_vel_err_max", "shadow_set_diff", "shadow_bound", "shadow_err_r", "div_f64_max",
-    "div_truth_max", "div_truth_final", "div_steps_to_r", "checks_s", "rounds",
-    "first_diff_step", "check_s", "replay_s", "instructions", "instructions_max", "steal_s",
-    "other_cpu_s", "nivcsw_per_run", "noise_capacity_s", *OMP_COST_COLUMNS,
-})
-BOOL_COLUMNS: frozenset[str] = frozenset({
-    "identical", "oversubscribed", "unstable", "outliers", "loaded", "stale",
-    "checks_passed", "chk_finite", "chk_in_box", "chk_energy", "chk_pcoll_even", "chk_threads",
-    "chk_exact", "chk_shadow",
-})
+# Each record field's type, None aside (a list's: tuple[item, ...]).
+_TYPES: dict[str, object] = {name: typing.get_args(hint)[0] for group in measured.GROUPS
+                             for name, hint in typing.get_type_hints(group).items()}
+# round_seed is a name for a run's rounds: compared as text, and a float would round it.
+NUMERIC_COLUMNS: frozenset[str] = frozenset(
+    {"exit_code", *(n for n, t in _TYPES.items() if t in (int, float))} - {"round_seed"})
+# With the two results.csv derives from a record's other fields.
+BOOL_COLUMNS: frozenset[str] = frozenset(
+    {"outliers", "stale", *(n for n, t in _TYPES.items() if t is bool)})
 # Columns that hold a list, with the type of its items: a record keeps the list, results.csv
 # its items space-separated (exact: each float's repr).
-LIST_COLUMNS: dict[str, type] = {
-    "wall_times_s": float, "wall_times_round": int, "threads_busy_s": float,
-    "threads_pairs": int, "threads_chunks": int, "round_noise": float, "round_pressure": float,
-    "rounds_dropped": int, "instructions_counts": int,
-}
+LIST_COLUMNS: dict[str, type] = {"wall_times_s": float, "wall_times_round": int, **{
+    n: typing.get_args(t)[0] for n, t in _TYPES.items()
+    if typing.get_origin(t) is tuple and typing.get_args(t)[0] in (int, float)}}
 
 
 def format_list(values: tuple[object, ...] | list[object]) -> str:

@@ -9,8 +9,6 @@ from dataclasses import dataclass
 from harness.store import atomic
 from harness.store.layout import ExperimentDir
 
-SHORT_SHA = 10
-
 
 @dataclass(frozen=True)
 class CommitInfo:
@@ -20,7 +18,7 @@ class CommitInfo:
 
     @property
     def short(self) -> str:
-        return self.sha[:SHORT_SHA]
+        return self.sha[:10]
 
 
 def save_commits(exp: ExperimentDir, commits: Sequence[CommitInfo]) -> None:

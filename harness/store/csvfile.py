@@ -45,9 +45,12 @@ def uncertainty(times: Sequence[float], rounds: Sequence[int] | None = None,
             median = statistics.median(times)
             interval = stats.Interval(median, min(interval.low, median),
                                       max(interval.high, median))
-    return (interval.low if math.isfinite(interval.low) else None,
-            interval.high if math.isfinite(interval.high) else None,
+    return (finite(interval.low), finite(interval.high),
             stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR))
+
+
+def finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
@@ -98,8 +101,7 @@ def format_cell(value: object) -> str:
 
 
 def render_csv(rows: Iterable[Mapping[str, object]]) -> str:
-    """results.csv text: the contract, extra and provenance columns, then the phase columns,
-    the check columns and the per-thread columns, each group when some row has a value."""
+    """results.csv's text: the fixed columns, then each optional group some row fills."""
     rows = list(rows)
     columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
     for group in OPTIONAL_GROUPS:
@@ -127,11 +129,9 @@ def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
     if not isinstance(curves, dict):
         return []
     base = {c: record.get(c) for c in DIVERGENCE_CELL_COLUMNS}
-    rows = []
-    for reference, curve in curves.items():
-        for step, value in enumerate(curve if isinstance(curve, list) else []):
-            rows.append({**base, "reference": reference, "step": step, "max_pos_dev": value})
-    return rows
+    return [{**base, "reference": reference, "step": step, "max_pos_dev": value}
+            for reference, curve in curves.items()
+            for step, value in enumerate(curve if isinstance(curve, list) else [])]
 
 
 def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:

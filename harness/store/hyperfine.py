@@ -53,15 +53,10 @@ def parse_hyperfine(data: Mapping[str, object]) -> HyperfineStats:
     try:
         return HyperfineStats(
             command=str(entry["command"]),
-            mean=float(entry["mean"]),
             stddev=None if entry.get("stddev") is None else float(entry["stddev"]),
-            median=float(entry["median"]),
-            min=float(entry["min"]),
-            max=float(entry["max"]),
-            user=float(entry["user"]),
-            system=float(entry["system"]),
             times=tuple(float(t) for t in entry["times"]),
             exit_codes=tuple(None if c is None else int(c) for c in entry.get("exit_codes", [])),
+            **{k: float(entry[k]) for k in ("mean", "median", "min", "max", "user", "system")},
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise ResultFormatError(f"bad hyperfine entry: {exc!r}") from None

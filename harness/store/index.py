@@ -49,9 +49,8 @@ class Row:
 
 def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str,
                  exp: ExperimentDir) -> list[Row]:
-    """results.csv's records, in plan order: per planned cell, this machine's current record
-    (or its newest, stale), then the newest timing of the cell of each other machine (and of
-    no known machine, unless a newer timing of the cell exists)."""
+    """results.csv's records, in plan order (the module's docstring says which); one of no
+    known machine unless a newer timing of the cell exists."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
     rows: list[Row] = []
     done: set[str] = set()

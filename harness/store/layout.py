@@ -44,7 +44,6 @@ from pathlib import Path
 
 CELLS = "cells"
 HISTORY = "history"
-INPUTS = "inputs"
 OUTPUTS = "outputs"
 MACHINES = "machines"
 SLURM = "slurm"
@@ -56,25 +55,12 @@ RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
-PARTIAL_SUFFIX = ".partial.jsonl"
 OUTPUT_SUFFIX = ".txt"
-# The outputs a cell's measurement compares and then deletes (written under a temporary name
-# beside these: harness.store.atomic.temp_path).
-RUN_OUTPUT_SUFFIX = ".out"  # a validated cell's --precise output
-CHECK_OUTPUT_SUFFIX = ".check.out"  # a program's check run's output
-HISTORY_CSV = "history.csv"
-HISTORY_COMMITS = "history.json"
-BUILD_FAILED = "build.json"
-BISECT = "bisect"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
-INPUT_SUFFIX = ".in"
 CACHE_DIR = ".cache"
-BASELINES = "baselines"
-PRINTS = "prints"
 COMPARE_DIR = "compare"
 RERUNS_DIR = "reruns"
 CALIBRATION_DIR = "calibration"
-CALIBRATION_RUNS = "runs"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
 INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
@@ -97,8 +83,8 @@ class ExperimentDir:
     cells = _Under(CELLS)
     history = _Under(HISTORY)
     results_csv = _Under(RESULTS_CSV)
-    history_csv = _Under(HISTORY_CSV)
-    history_commits = _Under(HISTORY_COMMITS)
+    history_csv = _Under("history.csv")
+    history_commits = _Under("history.json")
     ratios_csv = _Under(RATIOS_CSV)
     divergence_csv = _Under(DIVERGENCE_CSV)
     env_json = _Under(ENV_JSON)
@@ -115,11 +101,11 @@ class ExperimentDir:
         return self.history / commit
 
     def build_failed(self, commit: str) -> Path:
-        return self.commit_root(commit) / BUILD_FAILED
+        return self.commit_root(commit) / "build.json"
 
     def bisect(self, old: str, new: str) -> Path:
         """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
-        return self.history / BISECT / f"{old}-{new}"
+        return self.history / "bisect" / f"{old}-{new}"
 
     def record(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}{RECORD_SUFFIX}"
@@ -144,22 +130,24 @@ class ExperimentDir:
         return [self.hyperfine(cell_id), *self.hyperfine_exports(cell_id)]
 
     def partial(self, cell_id: str) -> Path:
-        return self.cells / f"{cell_id}{PARTIAL_SUFFIX}"
+        return self.cells / f"{cell_id}.partial.jsonl"
 
     def output(self, cell_id: str) -> Path:
         return self.outputs / f"{cell_id}{OUTPUT_SUFFIX}"
 
+    # The outputs a cell's measurement compares and then deletes (written under a temporary
+    # name beside these: harness.store.atomic.temp_path).
     def run_output(self, cell_id: str) -> Path:
         """Where a validated cell's --precise output goes while it is compared (unless kept:
         output())."""
-        return self.cells / f"{cell_id}{RUN_OUTPUT_SUFFIX}"
+        return self.cells / f"{cell_id}.out"
 
     def check_output(self, cell_id: str) -> Path:
         """Where a program's check run's output goes while it is judged."""
-        return self.cells / f"{cell_id}{CHECK_OUTPUT_SUFFIX}"
+        return self.cells / f"{cell_id}.check.out"
 
     def input(self, sha256: str) -> Path:
-        return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}{INPUT_SUFFIX}"
+        return self.path / "inputs" / f"{sha256[:INPUT_NAME_CHARS]}.in"
 
     def machine(self, machine_id: str) -> Path:
         return self.path / MACHINES / f"{machine_id}{RECORD_SUFFIX}"
@@ -171,16 +159,16 @@ class ResultsRoot:
 
     path: Path
     calibrations = _Under(CALIBRATION_DIR, MACHINES)
-    calibration_runs = _Under(CALIBRATION_DIR, CALIBRATION_RUNS)
+    calibration_runs = _Under(CALIBRATION_DIR, "runs")
 
     def experiment(self, name: str, quick: bool = False) -> ExperimentDir:
         return ExperimentDir(self.path / (name + (QUICK_SUFFIX if quick else "")))
 
     def baseline(self, key: str) -> Path:
-        return self.path / CACHE_DIR / BASELINES / f"{key}{OUTPUT_SUFFIX}"
+        return self.path / CACHE_DIR / "baselines" / f"{key}{OUTPUT_SUFFIX}"
 
     def print_output(self, key: str) -> Path:
-        return self.path / CACHE_DIR / PRINTS / f"{key}{OUTPUT_SUFFIX}"
+        return self.path / CACHE_DIR / "prints" / f"{key}{OUTPUT_SUFFIX}"
 
     def calibration(self, machine_id: str) -> Path:
         """The machine's description with its calibration (`compare --calibrate`)."""

@@ -41,11 +41,6 @@ class LockBusy(HarnessError):
     """Another run holds the measuring lock and this one was told not to wait."""
 
 
-def lock_path() -> Path:
-    directory = os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()
-    return Path(directory) / LOCK_NAME
-
-
 def describe_holder(path: Path) -> str:
     """"pid 123, configs/threads.yaml, since 2026-...": what the holder wrote, as far as read."""
     try:
@@ -61,7 +56,8 @@ def describe_holder(path: Path) -> str:
 def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
                    path: Path | None = None) -> Iterator[Path]:
     """Hold the machine-wide measuring lock for the body; see the module docstring."""
-    path = path if path is not None else lock_path()
+    if path is None:
+        path = Path(os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()) / LOCK_NAME
     path.parent.mkdir(parents=True, exist_ok=True)
     # O_APPEND-free, no truncation on open: the holder's description must survive our open
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -96,23 +92,21 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
         os.close(fd)
 
 
-@contextlib.contextmanager
-def file_lock(path: Path) -> Iterator[None]:
+def file_lock(path: Path) -> contextlib.AbstractContextManager[None]:
     """An exclusive flock on `path` (created if missing) for the body."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    return _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666))
+
+
+def directory_lock(directory: Path) -> contextlib.AbstractContextManager[None]:
+    """Exclusive lock on a results directory (created if missing) for the body."""
+    directory.mkdir(parents=True, exist_ok=True)
+    return _flocked(os.open(directory, os.O_RDONLY))
 
 
 @contextlib.contextmanager
-def directory_lock(directory: Path) -> Iterator[None]:
-    """Exclusive lock on a results directory (created if missing) for the body."""
-    directory.mkdir(parents=True, exist_ok=True)
-    fd = os.open(directory, os.O_RDONLY)
+def _flocked(fd: int) -> Iterator[None]:
+    """An exclusive flock on the open `fd` for the body; the fd is closed after."""
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
         try:

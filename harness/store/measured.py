@@ -76,8 +76,13 @@ class Rounds:
 
 @dataclass(frozen=True)
 class Noise:
-    """What other work did to the cell's rounds (columns.NOISE_COLUMNS); the per-round
-    values in round order."""
+    """What other work did to the cell's rounds (harness.measure.noise), results.csv's
+    NOISE_COLUMNS where some cell has them: CPU seconds stolen and taken by other processes on
+    its cores over its rounds, the timed runs' involuntary context switches per run, each
+    round's interference (the share of the cores' time others took or was stolen), each
+    round's CPU pressure (the share of its time some task waited for a CPU, where the kernel
+    gives it), the rounds beyond the limit (left out of a paired test on both sides), and the
+    cores' seconds the rounds span. Per-round values in round order."""
 
     steal_s: float | None = None
     other_cpu_s: float | None = None
@@ -114,7 +119,9 @@ class Counts:
 
 @dataclass(frozen=True)
 class ThreadWork:
-    """The --precise run's per-thread work (columns.THREAD_COLUMNS)."""
+    """The per-thread work of the --timing run (results.csv's THREAD_COLUMNS, after the
+    schedule, where some cell has them): one entry per candidate writer (the threads, T*T for
+    p3); `imbalance` is max over mean busy seconds (1 = perfectly even)."""
 
     imbalance: float | None = None
     threads_busy_s: tuple[float, ...] | None = None
@@ -137,8 +144,10 @@ class Validation:
 
 @dataclass(frozen=True)
 class Checks:
-    """The accuracy and stability checks (columns.CHECK_COLUMNS), with the divergence curves
-    and the shadow steps they were read from."""
+    """The accuracy and stability checks (`checks:` in a config; results.csv's CHECK_COLUMNS,
+    where some cell was checked), with the divergence curves and the shadow steps they were
+    read from (JSON objects: the record's only). chk_* are True/False, or None where a check
+    does not apply (chk_exact for relative, chk_shadow without `shadow`)."""
 
     checks_passed: bool | None = None
     chk_finite: bool | None = None
@@ -191,7 +200,11 @@ class ProgramVerdict:
 
 @dataclass(frozen=True)
 class Instructions:
-    """The instruction lane's counts (columns.INSTRUCTION_COLUMNS)."""
+    """The instruction lane (`metric: instructions`, harness.plan.lane; results.csv's
+    INSTRUCTION_COLUMNS where some cell was counted): the fewest and the most instructions of
+    the cell's counted runs (user space, every thread), each count, the counter (perf or
+    cachegrind), the binary it ran (under cachegrind a build without AVX-512), and why a count
+    is missing."""
 
     instructions: int | None = None
     instructions_max: int | None = None
@@ -233,3 +246,9 @@ class Provenance:
     slurm_task: str | None = None
     slurm_state: str | None = None  # set on a record the Slurm submitter wrote for a fault
     retry: bool | None = None  # measured again by the next run (a fault of no cell's)
+
+
+# Every group, in CellResult's order.
+GROUPS: tuple[type, ...] = (Subject, Timing, Rounds, Noise, Phases, Counts, ThreadWork,
+                            Validation, Checks, ProgramVerdict, Instructions, OmpCosts,
+                            Provenance)

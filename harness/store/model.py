@@ -29,7 +29,6 @@ from dataclasses import dataclass, field, fields, is_dataclass
 # The version hashed into every id: the ids of stored records depend on it, so it stays.
 ID_VERSION = 1
 ID_CHARS = 16
-MACHINE_FIELD = "machine_id"
 
 
 class Role(enum.Enum):
@@ -66,14 +65,10 @@ def content_id(value: Mapping[str, object]) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()[:ID_CHARS]
 
 
-def _role(role: Role) -> dict[str, object]:
-    """A key field's declaration: its role."""
-    return {"role": role, "optional": False}
-
-
-def _optional(role: Role) -> dict[str, object]:
-    """A key field left out of the JSON while None (keys without it keep their ids)."""
-    return {"role": role, "optional": True}
+def _role(role: Role, optional: bool = False) -> dict[str, object]:
+    """A key field's declaration: its role; an optional field is left out of the JSON while
+    None (keys without it keep their ids)."""
+    return {"role": role, "optional": optional}
 
 
 @dataclass(frozen=True)
@@ -146,17 +141,17 @@ class CellKey:
     warmup: int = field(metadata=_role(Role.HOW))
     runs: int | str = field(metadata=_role(Role.HOW))
     timeout_s: float = field(metadata=_role(Role.HOW))
-    ci: float | None = field(default=None, metadata=_optional(Role.HOW))
-    max_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
-    max_time_s: float | None = field(default=None, metadata=_optional(Role.HOW))
-    min_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
-    machine_id: str | None = field(default=None, metadata=_optional(Role.MACHINE))
-    schedule: str | None = field(default=None, metadata=_optional(Role.WHAT))
-    checks: ChecksKey | None = field(default=None, metadata=_optional(Role.WHAT))
-    program_check: ProgramCheckKey | None = field(default=None, metadata=_optional(Role.WHAT))
-    omp: TextMap | None = field(default=None, metadata=_optional(Role.WHAT))
-    instructions: CountedKey | None = field(default=None, metadata=_optional(Role.COUNTED))
-    openmp_costs: BinaryKey | None = field(default=None, metadata=_optional(Role.BESIDE))
+    ci: float | None = field(default=None, metadata=_role(Role.HOW, True))
+    max_runs: int | None = field(default=None, metadata=_role(Role.HOW, True))
+    max_time_s: float | None = field(default=None, metadata=_role(Role.HOW, True))
+    min_runs: int | None = field(default=None, metadata=_role(Role.HOW, True))
+    machine_id: str | None = field(default=None, metadata=_role(Role.MACHINE, True))
+    schedule: str | None = field(default=None, metadata=_role(Role.WHAT, True))
+    checks: ChecksKey | None = field(default=None, metadata=_role(Role.WHAT, True))
+    program_check: ProgramCheckKey | None = field(default=None, metadata=_role(Role.WHAT, True))
+    omp: TextMap | None = field(default=None, metadata=_role(Role.WHAT, True))
+    instructions: CountedKey | None = field(default=None, metadata=_role(Role.COUNTED, True))
+    openmp_costs: BinaryKey | None = field(default=None, metadata=_role(Role.BESIDE, True))
 
     def to_json(self) -> dict[str, object]:
         """The key as stored in a record (and hashed into its id)."""

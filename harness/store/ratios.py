@@ -19,7 +19,7 @@ from harness.store.columns import (
     RATIO_OVER_BASELINE,
     RATIO_OVER_ONE_THREAD,
 )
-from harness.store.csvfile import csv_text
+from harness.store.csvfile import csv_text, finite
 
 Row = Mapping[str, object]
 T = TypeVar("T")
@@ -47,15 +47,11 @@ def ratio_of(reference: Row, cell: Row, session: float) -> dict[str, object]:
         if estimate.rounds:
             outer, inner = estimate.rerun_interval(session), estimate.interval()
             return {"ratio": estimate.point, "rounds": estimate.rounds,
-                    "ratio_ci_low": _finite(outer.low), "ratio_ci_high": _finite(outer.high),
-                    "round_ci_low": _finite(inner.low), "round_ci_high": _finite(inner.high)}
+                    "ratio_ci_low": finite(outer.low), "ratio_ci_high": finite(outer.high),
+                    "round_ci_low": finite(inner.low), "round_ci_high": finite(inner.high)}
     ref, own = _times(reference, "wall_times_s"), _times(cell, "wall_times_s")
     ratio = statistics.median(ref) / statistics.median(own) if ref and own else math.nan
     return {"ratio": ratio if math.isfinite(ratio) and ratio > 0 else None, "rounds": 0}
-
-
-def _finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None
 
 
 def references(cells: Mapping[tuple[str, int], T], variant: str, threads: int,
@@ -104,8 +100,8 @@ def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
     if kind != RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
         return {}
     speedup = stats.Interval(ratio, math.nan, math.nan)
-    return {"efficiency": stats.efficiency(speedup, threads).point,
-            "karp_flatt": _finite(stats.karp_flatt(speedup, threads).point)}
+    return {"efficiency": ratio / threads,
+            "karp_flatt": finite(stats.karp_flatt(speedup, threads).point)}
 
 
 def write_ratios_csv(path: Path, rows: Sequence[Row], baseline: str,

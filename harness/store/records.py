@@ -9,12 +9,11 @@ import json
 from pathlib import Path
 
 from harness.store import atomic
-from harness.store.model import MACHINE_FIELD
 from harness.store.result import RECORD_VERSION as RECORD_VERSION
 from harness.store.result import CellResult, RecordFormatError
 
 # The part of a cell key that names the machine (records of several machines sit side by side).
-MACHINE_KEY = MACHINE_FIELD
+MACHINE_KEY = "machine_id"
 
 
 def sha256_file(path: Path) -> str:

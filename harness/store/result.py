@@ -2,9 +2,7 @@
 
 CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
 values (each run's seconds with the round it was taken in), and what the measurement found
-beside them sits in small groups (the phases and counts of the --precise run, the validation,
-the checks, the per-thread work, the rounds and their noise, a program's verdict, the counted
-instructions, the OpenMP runtime's costs, the provenance). A group no measurement filled is
+beside them sits in small groups (harness.store.measured). A group no measurement filled is
 None.
 
 On disk a record is CellResult.to_json(): one flat JSON object whose names are the columns of
@@ -17,13 +15,13 @@ value is left out of the JSON. Reading a record refuses a field it does not know
 from __future__ import annotations
 
 import functools
-import types
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, is_dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
 from harness.store.measured import (
+    GROUPS,
     Checks,
     Counts,
     Instructions,
@@ -96,11 +94,9 @@ class CellResult:
     def round_times(self) -> dict[int, tuple[float, ...]]:
         """The seconds of its runs by round, in round order; empty where the runs' rounds
         are not recorded."""
-        if any(run.round is None for run in self.times):
-            return {}
-        grouped: dict[int, list[float]] = {}
-        for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
-            grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
+        from harness.stats.rounds import runs_by_round  # scipy only where rounds are paired
+
+        grouped = runs_by_round([run.time_s for run in self.times], self._rounds())
         return {k: tuple(v) for k, v in grouped.items()}
 
     def _rounds(self) -> list[int]:
@@ -110,16 +106,14 @@ class CellResult:
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (stats.MeasuredInRounds)."""
-        from harness.stats.rounds import round_medians  # scipy only where rounds are paired
+        from harness.stats.rounds import round_medians
 
         return round_medians([run.time_s for run in self.times], self._rounds())
 
     def noise_by_round(self) -> dict[int, float]:
-        """Each round's interference share (harness.measure.noise), by round."""
         return self._per_round(self.noise.round_noise if self.noise else None)
 
     def pressure_by_round(self) -> dict[int, float]:
-        """Each round's CPU pressure, by round."""
         return self._per_round(self.noise.round_pressure if self.noise else None)
 
     def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
@@ -129,7 +123,7 @@ class CellResult:
         return by_round(rounds, values) if values is not None and rounds else {}
 
     def value(self, name: str) -> object:
-        """The record's field `name` (a results.csv column's value), None where it has none."""
+        """A results.csv column's value; None where the record has none."""
         return self.columns.get(name)
 
     @functools.cached_property
@@ -142,20 +136,17 @@ class CellResult:
         """A copy with these fields changed; a group's fields by their names, merged into
         the group (`note=`, `status=`, `validation=Validation(...)`, `round_seed=7`)."""
         leaves, groups = _leaves(), _group_types()
-        top = {k: _or_none(v) if k in groups and v is not None else v
-               for k, v in changes.items() if k not in leaves}
+        top = {k: v for k, v in changes.items() if k not in leaves}
         merged: dict[str, dict[str, object]] = {}
-        for name, value in changes.items():
-            if name in leaves:
-                merged.setdefault(leaves[name][0], {})[name] = value
+        for name in changes.keys() & leaves.keys():
+            merged.setdefault(leaves[name][0], {})[name] = changes[name]
         for group, values in merged.items():
-            current = getattr(self, group)
-            cls = groups[group]
-            top[group] = _or_none(replace(current, **values) if current else cls(**values))
-        return replace(self, **top)  # type: ignore[arg-type]
+            current = top.get(group, getattr(self, group)) or groups[group]()
+            top[group] = replace(current, **values)
+        return replace(self, **{k: _or_none(v) if k in groups and v is not None else v
+                                for k, v in top.items()})  # type: ignore[arg-type]
 
     def to_json(self) -> dict[str, object]:
-        """The record as stored: the version, then every field that has a value."""
         return {"version": RECORD_VERSION, **self.columns}
 
     @classmethod
@@ -178,8 +169,8 @@ class CellResult:
 
 # A record's fields are read as a key's are, refused as a record's.
 _typed = functools.partial(typed, error=RecordFormatError)
-_TOP_NAMES = frozenset({"cell_id", "key", "status", "exit_code", "note", TIMES_FIELD,
-                        ROUNDS_FIELD})
+_SCALARS = ("cell_id", "status", "exit_code", "note")
+_TOP_NAMES = frozenset({*_SCALARS, "key", TIMES_FIELD, ROUNDS_FIELD})
 
 
 def record_fields() -> frozenset[str]:
@@ -189,11 +180,10 @@ def record_fields() -> frozenset[str]:
 
 @functools.cache
 def _group_types() -> dict[str, type]:
-    """CellResult's groups (its fields of a dataclass's type), with their types."""
+    """CellResult's fields of a group's type (measured.GROUPS), with their types."""
     hints = type_hints(CellResult)
-    groups = {f.name: typing.get_args(hints[f.name])[0] for f in fields(CellResult)
-              if isinstance(hints[f.name], types.UnionType)}
-    return {name: cls for name, cls in groups.items() if is_dataclass(cls)}
+    return {f.name: cls for f in fields(CellResult)
+            for cls in typing.get_args(hints[f.name])[:1] if cls in GROUPS}
 
 
 @functools.cache
@@ -209,10 +199,8 @@ def _or_none(group: typing.Any) -> typing.Any:
 
 
 def _flatten(result: CellResult) -> dict[str, object]:
-    out: dict[str, object] = {"cell_id": result.cell_id, "key": result.key.to_json()}
-    for name in ("status", "exit_code", "note"):
-        if getattr(result, name) is not None:
-            out[name] = getattr(result, name)
+    out = {name: getattr(result, name) for name in _SCALARS if getattr(result, name) is not None}
+    out["key"] = result.key.to_json()
     if result.times:
         out[TIMES_FIELD] = [run.time_s for run in result.times]
         if all(run.round is not None for run in result.times):
@@ -247,18 +235,12 @@ def _parse(values: Mapping[str, object]) -> CellResult:
         raise RecordFormatError(f"record.{exc}") from exc
     top: dict[str, typing.Any] = {"key": key, "times": _runs(values)}
     hints = type_hints(CellResult)
-    for name in ("cell_id", "status", "exit_code", "note"):
+    for name in _SCALARS:
         if name in values or name == "cell_id":
             top[name] = _typed(values.get(name), hints[name], f"record.{name}")
-    leaves, groups = _leaves(), _group_types()
-    present: dict[str, dict[str, object]] = {}
-    for name, value in values.items():
-        if name in leaves:
-            group, hint = leaves[name]
-            present.setdefault(group, {})[name] = _typed(value, hint, f"record.{name}")
-    for group, found in present.items():
-        top[group] = groups[group](**found)
-    return CellResult(**top)
+    leaves = _leaves()
+    return CellResult(**top).replace(**{name: _typed(value, leaves[name][1], f"record.{name}")
+                                        for name, value in values.items() if name in leaves})
 
 
 def _runs(values: Mapping[str, object]) -> tuple[TimedRun, ...]:

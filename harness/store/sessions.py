@@ -45,8 +45,7 @@ def newest_entry(roots: Iterable[Path], machine_id: str) -> Mapping[str, object]
 
 
 def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
-    """The newest session spread `reruns` kept for the machine under any of the roots;
-    DEFAULT_SESSION_SPREAD where none has one."""
+    """newest_entry's spread; DEFAULT_SESSION_SPREAD where none has one."""
     from harness.stats.levels import DEFAULT_SESSION_SPREAD
 
     newest = newest_entry(roots, machine_id)
