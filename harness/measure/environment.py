@@ -103,8 +103,7 @@ def py_cpuinfo() -> dict[str, object]:
     return {k: info.get(k) for k in keys}
 
 
-def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine",
-            load_before: dict[str, object] | None = None) -> dict[str, object]:
+def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -> dict[str, object]:
     described = machine(repo_root, make)
     compiler = make_compiler(repo_root, make)
     return {
@@ -127,5 +126,5 @@ def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine",
         "git": git_info(repo_root),
         "omp_env": {k: v for k, v in sorted(os.environ.items()) if k.startswith(("OMP_", "GOMP_"))},
         "python": sys.version.split()[0],
-        "load_before": load_before if load_before is not None else load(),
+        "load_before": load(),
     }
