@@ -53,13 +53,11 @@ ROW_KEYS: tuple[str, ...] = (MACHINE, "variant", "build", "schedule")
 MAX_BARS = 36
 GROUP = "group"  # a plotted frame's scene label
 BAR = "bar"  # a plotted frame's bar label
-def outside_broad_ns(sim_s, broad_s, particle_steps, input_s=0.0, output_s=0.0):
-    """Nanoseconds per particle-step spent outside the broad phase: sim_s - broad_s, plus the
-    input and output where they are given (the earlier benchmark tool counted them, with its
-    timed runs' plain output: results/bench/; the report leaves them out: its --timing run
-    writes the output with --precise, some 20x slower). Floats or pandas Series alike; the
-    caller guards particle_steps > 0."""
-    return (sim_s - broad_s + input_s + output_s) / particle_steps * NS_PER_S
+def outside_broad_ns(sim_s, broad_s, particle_steps):
+    """Nanoseconds per particle-step spent outside the broad phase, input and output left out
+    (the --timing run writes its output with --precise, some 20x slower than a timed run's).
+    Floats or pandas Series alike; the caller guards particle_steps > 0."""
+    return (sim_s - broad_s) / particle_steps * NS_PER_S
 
 
 def phase_rows(df: pd.DataFrame) -> pd.DataFrame:

@@ -51,7 +51,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if kept is not None:
         # SIGTERM (a kill, Slurm's time limit) ends it as Ctrl-C does: a KeyboardInterrupt, on
         # which the running cell's processes are killed and the finished cells are kept.
-        signal.signal(signal.SIGTERM, _terminate)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         return int(module.execute(parsed))
     except HarnessError as exc:
@@ -62,7 +62,3 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         sys.stderr.write(f"interrupted: {kept.format(**vars(parsed))}\n")
         return EXIT_INTERRUPTED
-
-
-def _terminate(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt

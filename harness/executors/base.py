@@ -2,7 +2,7 @@
 
 run_experiment (harness.runner) plans the cells, resolves the cached ones and hands the rest
 to an executor. The executor measures each pending cell somewhere, makes sure its record is on
-disk (CellStore.record_path: the measuring side writes it, Measurer.finish), and
+disk (CellStore.layout.record: the measuring side writes it, Measurer.finish), and
 calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
 the record and rebuilds results.csv from all records. Nothing on the recording side assumes
 the measurement ran in this process.

@@ -33,7 +33,7 @@ from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
 from harness.measure.timing import parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
-from harness.plan.binaries import measures_openmp_costs
+from harness.plan.binaries import measures_openmp_costs, ompcost_path
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec.config import Config
@@ -117,8 +117,7 @@ class Measurer:
         if status in TIMED_STATUSES and cell.checked:
             record = record.replace(checks=self.checker.run_checks(cell))
         if measures_openmp_costs(config, cell):
-            record = record.replace(openmp_costs=measure_costs(self.store.ompcost(cell),
-                                                              cell.threads, env))
+            record = record.replace(openmp_costs=measure_costs(ompcost_path(), cell.threads, env))
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
                                         run_s=precise.seconds))
 

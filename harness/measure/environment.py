@@ -20,10 +20,10 @@ from harness.measure.machine import (
     CPU_SYS,
     available_cores,
     command_output,
-    compiler_command,
     container,
     load,
     machine,
+    make_compiler,
     print_flags,
     read_text,
 )
@@ -64,7 +64,7 @@ def libgomp(compiler: str) -> dict[str, str | None]:
 def compiler_info(repo_root: Path, make: str) -> dict[str, str | None]:
     """`make -s print-flags` (the compiler make uses and its flags) and that compiler's version."""
     flags = print_flags(repo_root, make)
-    version = command_output([*compiler_command(repo_root, make), "--version"])
+    version = command_output([make_compiler(repo_root, make), "--version"])
     return {
         "print_flags": flags,
         "cc_version": version.splitlines()[0] if version else None,
@@ -103,10 +103,9 @@ def py_cpuinfo() -> dict[str, object]:
     return {k: info.get(k) for k in keys}
 
 
-def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine",
-            load_before: dict[str, object] | None = None) -> dict[str, object]:
+def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -> dict[str, object]:
     described = machine(repo_root, make)
-    compiler = compiler_command(repo_root, make)[0]
+    compiler = make_compiler(repo_root, make)
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "hostname": socket.gethostname(),
@@ -127,5 +126,5 @@ def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine",
         "git": git_info(repo_root),
         "omp_env": {k: v for k, v in sorted(os.environ.items()) if k.startswith(("OMP_", "GOMP_"))},
         "python": sys.version.split()[0],
-        "load_before": load_before if load_before is not None else load(),
+        "load_before": load(),
     }

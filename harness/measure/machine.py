@@ -111,10 +111,10 @@ def numa_nodes() -> int | None:
         return None
 
 
-def compiler_command(repo_root: Path | None, make: str = "make") -> list[str]:
+def make_compiler(repo_root: Path | None, make: str = "make") -> str:
     """The compiler make uses, from `make -s print-flags` (its first word), else `cc`."""
     flags = print_flags(repo_root, make) if repo_root is not None else None
-    return [flags.split()[0]] if flags else ["cc"]
+    return flags.split()[0] if flags else "cc"
 
 
 @functools.cache
@@ -165,7 +165,7 @@ def machine(repo_root: Path | None = None, make: str = "make") -> dict[str, obje
         cpu["threads_per_core"] = logical // cores
     described: dict[str, object] = {
         **{k: v for k, v in cpu.items() if k != "hypervisor_flag"},
-        "march": native_march(compiler_command(repo_root, make)[0]),
+        "march": native_march(make_compiler(repo_root, make)),
         "sockets": cpu["sockets"] or 1,
         "cores": cores,
         "logical_cpus": logical,

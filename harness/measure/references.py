@@ -33,7 +33,7 @@ class References:
         """seq's --precise output for the cell's input, or None and why."""
         key = self.store.baseline_key(cell)
         seq = self.store.baseline_binary(cell)
-        done, text = self._kept(self.baselines, key, self.store.baseline_file(key), seq,
+        done, text = self._kept(self.baselines, key, self.store.root.baseline(key), seq,
                                 cell.scene, 1)
         if text is not None:
             return text, ""
@@ -47,7 +47,7 @@ class References:
         if self.store.binary(cell) != self.store.baseline_binary(cell):
             return
         key = self.store.baseline_key(cell)
-        path = self.store.baseline_file(key)
+        path = self.store.root.baseline(key)
         if key not in self.baselines and not path.is_file():
             atomic.atomic_write_text(path, output)
             self.baselines[key] = output
@@ -58,7 +58,7 @@ class References:
         results/.cache/prints/ (references: seq, the truth), keyed by binary and input."""
         key = content_id({"binary_sha256": self.store.sha(binary), "threads": threads,
                           "input_sha256": scene.input_sha256, "seed": scene.seed})
-        path = self.store.print_file(key)
+        path = self.store.root.print_output(key)
         if not cache:
             return self._run(binary, scene, threads, path, keep=False)[1]
         return self._kept(self.prints, key, path, binary, scene, threads)[1]

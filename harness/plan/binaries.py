@@ -39,11 +39,9 @@ def check_references(config: Config, build_dir: Path, build: str) -> dict[str, P
 def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str, Path]:
     """The binaries a program's check uses: the one whose output it is compared with (seq,
     grid for a big scene) and the one whose `--replay` judges its steps."""
-    n = cell.scene.n
-    return {programs.REFERENCE: binary_path(config, build_dir, programs.reference_variant(n),
-                                            DEFAULT_BUILD),
-            programs.REPLAY: binary_path(config, build_dir, programs.replay_variant(n),
-                                         DEFAULT_BUILD)}
+    reference = binary_path(config, build_dir, programs.reference_variant(cell.scene.n),
+                            DEFAULT_BUILD)
+    return {programs.REFERENCE: reference, programs.REPLAY: reference}
 
 
 def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:

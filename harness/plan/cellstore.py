@@ -87,10 +87,6 @@ class CellStore:
     def directory(self) -> Path:
         return self.layout.path
 
-    @property
-    def cells_dir(self) -> Path:
-        return self.layout.cells
-
     # --- ids ---
 
     def binary(self, cell: Cell) -> Path:
@@ -110,11 +106,6 @@ class CellStore:
 
     def program_references(self, cell: Cell) -> dict[str, Path]:
         return program_references(self.config, self.binaries, cell)
-
-    def ompcost(self, cell: Cell) -> Path:
-        """build/ompcost, which a cell measuring the runtime's costs runs."""
-        assert measures_openmp_costs(self.config, cell)
-        return ompcost_path()
 
     def counted_binary(self, cell: Cell) -> Path | None:
         """What the instruction lane counts for the cell (None without the lane, or for a
@@ -163,7 +154,7 @@ class CellStore:
                 tool=lane.machine_tool(),
                 binary_sha256=binary_sha if counted is None else self.sha(counted))
         if measures_openmp_costs(self.config, cell):
-            parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(self.ompcost(cell)))
+            parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(ompcost_path()))
         omp = self.config.executor.omp_env()
         if omp:
             parts["omp"] = TextMap(tuple(omp.items()))
@@ -207,9 +198,6 @@ class CellStore:
 
     # --- records ---
 
-    def record_path(self, cell_id: str) -> Path:
-        return self.layout.record(cell_id)
-
     def cached(self, cell_id: str) -> CellResult | None:
         """The record that spares measuring the cell again. A record marked retry is listed in
         results.csv but measured again by the next run."""
@@ -220,10 +208,10 @@ class CellStore:
 
     def read(self, cell_id: str) -> CellResult | None:
         """The record on disk, whoever wrote it; None when absent or unreadable."""
-        return records.read_record(self.record_path(cell_id), cell_id)
+        return records.read_record(self.layout.record(cell_id), cell_id)
 
     def save(self, result: CellResult) -> None:
-        records.write_record(self.record_path(result.cell_id), result)
+        records.write_record(self.layout.record(result.cell_id), result)
 
     def write_csv(self, prune: bool = False) -> None:
         """results.csv (and divergence.csv with checks) rebuilt from the records on disk under
@@ -250,9 +238,3 @@ class CellStore:
         return content_id({"baseline_sha256": self.baseline_sha(cell),
                                 "input_sha256": cell.scene.input_sha256,
                                 "seed": cell.scene.seed})
-
-    def baseline_file(self, key: str) -> Path:
-        return self.root.baseline(key)
-
-    def print_file(self, key: str) -> Path:
-        return self.root.print_output(key)

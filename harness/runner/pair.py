@@ -156,8 +156,7 @@ def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]
 
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
-                  hyperfine: str = "hyperfine", seed: int | None = None,
-                  threshold: float = 0.01, q: float = 0.05,
+                  hyperfine: str = "hyperfine", threshold: float = 0.01, q: float = 0.05,
                   budget_s: float = DEFAULT_BUDGET_S) -> MeasuredSides:
     """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
@@ -191,7 +190,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     env = {side.name: environment.collect(side.repo_root, hyperfine=hyperfine)
            for side in (old, new)}
     until = UntilDecided(pairs, threshold, q, budget_s)
-    seed = measure_in_rounds(units, lambda unit, record: None, progress, seed, until)
+    seed = measure_in_rounds(units, lambda unit, record: None, progress, None, until)
     for side, store in stores:
         store.write_csv(prune=True)
         write_env_after(store.directory, env[side.name])

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.measure.machine import compiler_command
+from harness.measure.machine import make_compiler
 from harness.plan import lane
 from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Plan
@@ -97,7 +97,7 @@ def share_build(tree: Path, commit: str, trees: Path) -> None:
     listed = git(["rev-parse", *(f"{commit}:{path}" for path in CODE_PATHS)], tree)
     if listed.returncode != 0 or (tree / BUILD_DIR).exists():
         return
-    key = "\0".join([*listed.stdout.split(), compiler_command(REPO_ROOT)[0]])
+    key = "\0".join([*listed.stdout.split(), make_compiler(REPO_ROOT)])
     shared = trees / hashlib.sha256(key.encode()).hexdigest()[:32]
     shared.mkdir(parents=True, exist_ok=True)
     for path in CODE_PATHS:
@@ -119,7 +119,7 @@ def build(side: BuildSide, binaries: Sequence[Path], variants: Sequence[str]) ->
     if absent:
         raise HarnessError(f"{side.name}: revision {side.label} has no variant "
                            f"{', '.join(absent)}")
-    compiler = compiler_command(REPO_ROOT)[0]
+    compiler = make_compiler(REPO_ROOT)
     lanes = [b for b in binaries if b.parent == side.build_dir / lane.LANE_DIR]
     # One make at a time in a build/ that the commits of a code tree share (share_build):
     # another history or compare may be making the same tree's binaries.

@@ -28,12 +28,10 @@ from harness.spec.facts import BASELINE, GRID
 # states printed (its first steps, for a big scene: at least one), compared with seq's; for
 # more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6; seq's
 # all pairs cost ~50 ms a step at 10,000 particles, a 50-step reference 13 s where grid takes
-# 2 s). Its steps are judged from the program's own states by `--replay` of seq, or of grid
-# from REPLAY_GRID_MIN_N particles (the same successors; a check replays each step up to 25
-# times).
+# 2 s). Its steps are judged from the program's own states by `--replay` of the same
+# reference (the same successors; a check replays each step up to 25 times).
 CHECK_MAX_STATES = 200_000
-REPLAY_GRID_MIN_N = 2_000
-CHECK_SEQ_MAX_N = REPLAY_GRID_MIN_N - 1
+CHECK_SEQ_MAX_N = 1_999
 FAST_REFERENCE = GRID
 # The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
 REFERENCE = "reference"
@@ -67,13 +65,9 @@ def check_steps(n: int, steps: int) -> int:
 
 
 def reference_variant(n: int) -> str:
-    """The variant a program's output is compared with at n particles."""
+    """The variant a program's output is compared with at n particles, and whose `--replay`
+    judges its steps."""
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
-
-
-def replay_variant(n: int) -> str:
-    """The variant whose `--replay` judges a program's steps at n particles."""
-    return BASELINE if n < REPLAY_GRID_MIN_N else FAST_REFERENCE
 
 
 class TemplateError(ValueError):

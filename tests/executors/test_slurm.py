@@ -215,14 +215,14 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
     assert kept is not None and kept.retry and kept.value("slurm_state") == "CANCELLED"
     assert store.cached(held_id) is None
     assert pipeline.render(root, tmp_path / "report").is_file()  # the failed row renders
-    others = {cid: store.record_path(cid).stat().st_mtime_ns
+    others = {cid: store.layout.record(cid).stat().st_mtime_ns
               for cid in (rows["seq"]["cell_id"], rows["p1"]["cell_id"])}
     marker.unlink()
     assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0
     assert "cancel: 3 cells (1 measured, 2 cached): 3 ok" in capsys.readouterr().err
     rerun = jobs(root, "cancel")
     assert len(rerun) == 2 and rerun[1]["cells"] == [held_portable]
-    assert others == {cid: store.record_path(cid).stat().st_mtime_ns for cid in others}
+    assert others == {cid: store.layout.record(cid).stat().st_mtime_ns for cid in others}
     measured = store.read(held_id)
     assert measured is not None and measured.status == "ok" and not measured.retry
 

@@ -76,7 +76,7 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
         local_row = csvfile.csv_row(local.columns, config.name, config.title)
         remote_row = csvfile.csv_row(remote.columns, config.name, config.title)
         assert list(local_row) == list(remote_row)  # the same results.csv columns
-    assert sorted(p.name for p in store.cells_dir.glob("*.json")
+    assert sorted(p.name for p in store.layout.cells.glob("*.json")
                   if ".hyperfine." not in p.name) == sorted(f"{c}.json"
                                                                        for c in chosen)
     assert not list(remote_root.rglob("*.tmp"))

@@ -86,8 +86,8 @@ def test_files_live_where_the_layout_says(store: CellStore) -> None:
     cell = store.plan.cells[0]
     path = store.input_file(cell.scene)
     assert path.parent == store.directory / "inputs" and path.read_text() == cell.scene.text
-    assert store.record_path("abc") == store.directory / "cells" / "abc.json"
+    assert store.layout.record("abc") == store.directory / "cells" / "abc.json"
     assert store.layout.hyperfine("abc") == store.directory / "cells" / "abc.hyperfine.json"
     key = store.baseline_key(cell)
     assert key == store.baseline_key(store.plan.cells[1])  # one baseline per input
-    assert store.baseline_file(key).parent == store.results_root / ".cache" / "baselines"
+    assert store.root.baseline(key).parent == store.results_root / ".cache" / "baselines"

@@ -132,7 +132,7 @@ class SlurmExecutor:
         cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
                  for cell, cid in pending}
         log = experiment.log
-        watch = RecordWatch(experiment.store.cells_dir)
+        watch = RecordWatch(experiment.store.layout.cells)
         watch.snapshot()
         with locks.file_lock(slurm_dir / LOCK_FILE):
             state = JobState.load(slurm_dir / JOBS_FILE)
@@ -269,7 +269,7 @@ class SlurmExecutor:
         machine's), the cell's retry record goes: results.csv shows the measurement only."""
         old = experiment.store.read(cid) if record.cell_id != cid else None
         if old is not None and old.retry:
-            experiment.store.record_path(cid).unlink(missing_ok=True)
+            experiment.store.layout.record(cid).unlink(missing_ok=True)
         on_record(cell, cid, record)
 
     def record_fault(self, experiment: Experiment, cell: Cell, cid: str, task: Task,
