@@ -53,6 +53,8 @@ ROW_KEYS: tuple[str, ...] = (MACHINE, "variant", "build", "schedule")
 MAX_BARS = 36
 GROUP = "group"  # a plotted frame's scene label
 BAR = "bar"  # a plotted frame's bar label
+
+
 def outside_broad_ns(sim_s, broad_s, particle_steps):
     """Nanoseconds per particle-step spent outside the broad phase, input and output left out
     (the --timing run writes its output with --precise, some 20x slower than a timed run's).

@@ -95,7 +95,8 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
         seq = df[(df["variant"] == BASELINE) & (df[keys] == scene).all(axis=1)]
         seq_s = seq["wall_median_s"].min()
         top = int(times.index.max()) if len(times) else None
-        row["fastest"] = fastest = float(times[top]) if top is not None else np.nan
+        fastest = float(times[top]) if top is not None else np.nan
+        row["fastest"] = fastest
         row["threads_max"] = top
         row["speedup_vs_seq"] = seq_s / fastest if seq_s > 0 else np.nan
         row["speedup_vs_1t"] = float(times.get(1, np.nan)) / fastest

@@ -57,7 +57,8 @@ def parser(prog: str) -> argparse.ArgumentParser:
 def execute(args: argparse.Namespace) -> int:
     if args.times < 2:
         raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
-    out = args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
+    args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
+    out = args.out
     roots = [out / f"{RERUN_PREFIX}{k}" for k in range(1, args.times + 1)]
     if args.reuse:
         missing = [r for r in roots if not r.is_dir()]
@@ -67,8 +68,8 @@ def execute(args: argparse.Namespace) -> int:
         registry, configs = load_configs(args.configs, args.metric)
         lock = measuring_lock(args, ["reruns", *args.configs])
         with lock:  # with --results-dir's session spreads: intervals out of sample
-            run_apart(configs, roots, registry, lock, sys.stderr, args.hyperfine, args.quick,
-                      args.pause, spreads_of=args.results_dir)
+            run_apart(configs, roots, registry, lock, sys.stderr, ("reruns", "rerun"),
+                      args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir)
     found = analysis.analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")

@@ -138,8 +138,7 @@ def plan_cells(config: Config, quick: bool = False,
                             config.checks.applies_to(scene.n), schedule,
                             variant in registry and registry[variant].exact)
             fields = cell.fields()
-            matching = {k for k, rule in enumerate(config.exclude)
-                        if all(c.holds(fields) for c in rule)}
+            matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
             used |= matching
             (excluded if matching else cells).append(cell)
     # A rule that excludes nothing is a mistake (a value the config does not have); --quick
@@ -148,7 +147,7 @@ def plan_cells(config: Config, quick: bool = False,
     if unused and not quick:
         rule = config.exclude[unused[0]]
         raise config_error(config.source, f"exclude[{unused[0]}]", "a rule that matches at "
-                           "least one cell", ", ".join(c.describe() for c in rule))
+                           "least one cell", ", ".join(c.describe() for c in rule.conditions))
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 

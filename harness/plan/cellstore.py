@@ -183,7 +183,10 @@ class CellStore:
         when; the measurement (or a fault) adds the rest."""
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
-        scene, program = cell.scene, self.config.program(cell.variant)
+        scene = cell.scene
+        program = self.config.program(cell.variant)
+        # what the cell runs itself: a program's command, else the variant's binary
+        runs_what = str(self.binary(cell)) if program is None else program.command
         return CellResult(
             cell_id, key, note="",
             subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
@@ -192,8 +195,7 @@ class CellStore:
             timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
-            provenance=Provenance(binary=str(self.binary(cell)) if program is None
-                                  else program.command, binary_sha256=key.binary_sha256,
+            provenance=Provenance(binary=runs_what, binary_sha256=key.binary_sha256,
                                   input_sha256=scene.input_sha256, measured_at=now_iso()))
 
     # --- records ---

@@ -64,13 +64,14 @@ EXECUTOR = {
 
 
 def parse_measure(value: object, source: Path, label: str = "measure") -> Measure:
-    fields = kinds.settings(value, MEASURE, label, source)
-    if fields.get("runs", DEFAULT_RUNS) is not None:
+    raw = kinds.mapping(value, label, source)
+    kinds.reject_unknown(raw, tuple(MEASURE), f"{label}.", source)
+    if raw.get("runs", DEFAULT_RUNS) != AUTO_RUNS:  # a misplaced key before its value
         for key in ADAPTIVE_KEYS:
-            if key in fields:
+            if key in raw:
                 raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
-                                   "adaptive repetition)", fields[key])
-    return Measure(**fields)
+                                   "adaptive repetition)", raw[key])
+    return Measure(**kinds.settings(raw, MEASURE, label, source))
 
 
 def parse_variant_measures(value: object, base: object, variants: Sequence[str],
@@ -108,10 +109,14 @@ def parse_checks(names: object, options: object, source: Path,
                   variants: Sequence[str]) -> Checks:
     items = kinds.name_list(names, "checks", CHECK_NAMES, source, allow_empty=True)
     table = {"truth": kinds.one_of(variants), **ACCURACY}
-    fields = kinds.settings(options, table, "accuracy", source)
-    if fields and not items:
+    raw = kinds.mapping(options, "accuracy", source)
+    kinds.reject_unknown(raw, tuple(table), "accuracy.", source)
+    if raw and not items:
         raise config_error(source, "checks", "a non-empty list of " + ", ".join(CHECK_NAMES)
                            + " where 'accuracy' is set", names)
+    fields = kinds.settings(raw, table, "accuracy", source)
+    if items:  # the default truth too must be a variant the checks can build
+        kinds.check(fields.get("truth", Checks.truth), "accuracy.truth", table["truth"], source)
     return Checks(items, **fields)
 
 

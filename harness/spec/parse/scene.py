@@ -18,6 +18,7 @@ from harness.spec.config import (
     SCHEDULE_PATTERN,
     Condition,
     Config,
+    ExcludeRule,
     SceneSpec,
 )
 
@@ -124,7 +125,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
 NUMBER = kinds.Kind("a number", kinds.real)
 
 
-def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
+def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
     if not isinstance(value, list):
         raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
     rules = []
@@ -151,7 +152,7 @@ def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], .
                 allowed = ", ".join(EXCLUDE_FIELDS)
                 raise config_error(source, f"{label}.{key}", f"one of {allowed}, optionally "
                                    "with _gt, _ge, _lt or _le", "an unknown key")
-        rules.append(tuple(conditions))
+        rules.append(ExcludeRule(tuple(conditions)))
     return tuple(rules)
 
 
@@ -169,7 +170,7 @@ def check_exclude(config: Config) -> None:
         "threads": config.threads, "schedule": config.schedules or ("",),
     }
     for index, rule in enumerate(config.exclude):
-        for condition in rule:
+        for condition in rule.conditions:
             values = known.get(condition.field)
             if condition.op != "eq" or values is None:
                 continue
