@@ -98,23 +98,25 @@ def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path
     assert rows["p1"]["identical"] == "True"
 
 
-def run_script(python: str, *args: str, env: dict[str, str] | None = None,
-               module: bool = False) -> subprocess.CompletedProcess[str]:
-    entry = ["-m", "harness.run"] if module else ["harness/run.py"]
-    return subprocess.run([python, *entry, *args], cwd=REPO_ROOT, capture_output=True,
+def run_script(python: str, *args: str, env: dict[str, str] | None = None
+               ) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([python, "harness/run.py", *args], cwd=REPO_ROOT, capture_output=True,
                           text=True, check=False, env=env, timeout=120)
 
 
-def test_entry_points(real_binaries: Path, tmp_path: Path) -> None:
+def test_entry_points(real_binaries: Path, tmp_path: Path,
+                      capsys: pytest.CaptureFixture[str]) -> None:
+    """harness/run.py under a plain python3 (re-executed under .venv where it lacks the
+    packages; tests/cli/test_cli.py runs the module entry points); --quick's own experiment
+    directory in this process; a bad config one error line and exit 2 from the script."""
     root = str(tmp_path / "results")
     plain = shutil.which("python3") or sys.executable
     as_script = run_script(plain, str(SMOKE), "--dry-run", "--results-dir", root)
     assert as_script.returncode == 0, as_script.stderr
     assert as_script.stdout.startswith("smoke: 8 cells (0 cached, 8 to run, 0 excluded)")
-    as_module = run_script(sys.executable, str(SMOKE), "--dry-run", "--quick",
-                           "--results-dir", root, module=True)
-    assert as_module.returncode == 0, as_module.stderr
-    assert f"-> {root}/smoke-quick" in as_module.stdout
+    capsys.readouterr()
+    assert main([str(SMOKE), "--dry-run", "--quick", "--results-dir", root]) == 0
+    assert f"-> {root}/smoke-quick" in capsys.readouterr().out
     bad = tmp_path / "bad.yaml"
     bad.write_text("variants: [p1d]\nscene: {n: abc, L: 1000, r: 1, steps: 5}\n")
     failed = run_script(plain, str(bad), "--results-dir", root)

@@ -1522,7 +1522,7 @@ static void test_step_wall_times_are_scalar(void)
 static void test_step_phase_times(void)
 {
     for (int threads = 1; threads <= 3; threads += 2) {
-        enum { N = 5000, STEPS = 20 };
+        enum { N = 5000, STEPS = 4 };
         sim_world w;
         dense_world(&w, N, 300);
         sim_stats st = {0};

@@ -1,5 +1,5 @@
 """`collide-bench worker` in a fresh process (real binaries, real hyperfine) writes the same
-records a local run writes; an unknown cell id is one error line and exit 2."""
+records a local run writes; an unknown cell id is one error line and exit 2 (in this process)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from harness import repo
+from harness.cli import main
 from harness.executors import base as executors_base
 from harness.plan.cells import plan_cells
 from harness.runner import experiment as experiment_runner
@@ -87,22 +89,34 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
     assert (again.measured, again.cached) == (2, 2)
 
 
-def test_worker_rejects_an_unknown_cell_id(real_binaries: Path, tmp_path: Path) -> None:
+def in_process_worker(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
+    """`collide-bench worker ARGS...` in this process: its status and stderr (the error paths;
+    the fresh process is the test above's)."""
+    capsys.readouterr()
+    try:
+        status = main(["worker", *args])
+    except SystemExit as exc:
+        status = exc.code
+    return int(status or 0), capsys.readouterr().err
+
+
+def test_worker_rejects_an_unknown_cell_id(real_binaries: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
     config_path = tmp_path / "tiny.yaml"
     config_path.write_text(TINY)
     store = cell_store(plan_cells(load_config(config_path)), tmp_path / "res")
     good = str(store.cell_id(store.plan.cells[0]))
-    done = worker("--config", str(config_path), "--results-dir", str(tmp_path / "res"), good,
-                  "0123456789abcdef")
-    assert done.returncode == 2
-    assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: ")
-    assert "0123456789abcdef" in done.stderr and good not in done.stderr
+    status, err = in_process_worker(capsys, "--config", str(config_path), "--results-dir",
+                                    str(tmp_path / "res"), good, "0123456789abcdef")
+    assert status == 2
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    assert "0123456789abcdef" in err and good not in err
     assert not (tmp_path / "res" / "tiny" / "cells").exists()  # nothing measured
     # --quick plans other cells (n <= 400): a full run's cell id is not one of them
     big = tmp_path / "big.yaml"
     big.write_text(TINY.replace("n: 60", "n: 1000").replace("name: tiny", "name: big"))
     full = cell_store(plan_cells(load_config(big)), tmp_path / "res")
     full_id = str(full.cell_id(full.plan.cells[0]))
-    done = worker("--config", str(big), "--results-dir", str(tmp_path / "res"), "--quick",
-                  full_id)
-    assert done.returncode == 2 and "(--quick)" in done.stderr
+    status, err = in_process_worker(capsys, "--config", str(big), "--results-dir",
+                                    str(tmp_path / "res"), "--quick", full_id)
+    assert status == 2 and "(--quick)" in err
