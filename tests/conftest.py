@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import functools
 import os
 import shutil
 import subprocess
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -111,17 +110,3 @@ def slurm_cluster():  # -> tests/slurm_cluster.SlurmCluster
     finally:
         cluster.stop()
         shutil.rmtree(cluster.root, ignore_errors=True)
-
-
-@pytest.fixture(scope="session", autouse=True)
-def py_cpuinfo_once() -> Iterator[None]:
-    """py-cpuinfo's probe (a Python subprocess of its own, about half a CPU second and one to
-    four seconds on a busy machine) once per test process, not at every measuring run's
-    environment.collect(): the CPU it describes does not change within a session. Harness
-    commands the tests start in a subprocess still probe."""
-    from harness.measure import environment
-
-    probe = functools.cache(environment.py_cpuinfo)
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(environment, "py_cpuinfo", lambda: dict(probe()))
-        yield

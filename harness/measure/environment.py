@@ -94,13 +94,20 @@ def git_commit(repo_root: Path) -> str | None:
 
 def py_cpuinfo() -> dict[str, object]:
     """What py-cpuinfo adds to /proc/cpuinfo: advertised clock, cache sizes (slow; see above)."""
+    return dict(_py_cpuinfo())
+
+
+@functools.cache
+def _py_cpuinfo() -> tuple[tuple[str, object], ...]:
+    # Once per process: the probe starts an interpreter of its own (about a CPU second), and
+    # the CPU it describes does not change while a process measures one config after another.
     try:
         import cpuinfo
         info = cpuinfo.get_cpu_info()
     except Exception:
-        return {}
+        return ()
     keys = ("brand_raw", "hz_advertised_friendly", "l2_cache_size", "l3_cache_size", "arch")
-    return {k: info.get(k) for k in keys}
+    return tuple((k, info.get(k)) for k in keys)
 
 
 def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -> dict[str, object]:
