@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.measure import machine, noise
-from harness.measure.proc import failure, run_process
+from harness.measure.proc import failure, run_process, tail
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 from harness.store.hyperfine import HyperfineStats, load_hyperfine
@@ -78,6 +78,10 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
             os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
-    note = "" if status == OK else failure("hyperfine", done, timeout)
+    note = ""
+    if status == TIMEOUT:
+        note = failure("hyperfine", done, timeout)
+    elif status != OK:  # hyperfine's stderr names the cell's exit code; its own is always 1
+        note = f"hyperfine: {tail(done.stderr).strip()}"
     return Timed(status, code, note, stats, hyperfine_warnings(done.stderr), load_before,
                  load_after, loaded, interference if status == OK else None)

@@ -59,7 +59,8 @@ def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                  scratch: Path | None = None, keep: Path | None = None
                  ) -> tuple[ProcessResult, str]:
     """run_process with stdout to a fresh file beside `scratch` (the system's temporary
-    directory by default): the run and its stdout, moved to `keep` where it exited 0."""
+    directory by default): the run and its stdout, moved to `keep` where it exited 0. Bytes
+    that are not UTF-8 are read as U+FFFD: such output fails its validation, not the harness."""
     out = atomic.temp_path(scratch or Path(tempfile.gettempdir()) / "collide-stdout")
     try:
         done = run_process(argv, env, timeout_s, out)

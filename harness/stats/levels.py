@@ -90,10 +90,10 @@ class RoundEstimate:
         INTERVAL_MIN_ROUNDS rounds."""
         return self._widened(session, math.sqrt(2.0))
 
-    def _widened(self, session: float, sessions: float) -> Interval:
+    def _widened(self, session: float, factor: float) -> Interval:
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
-        half = sessions * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
+        half = factor * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
         return Interval(self.point, self.point * math.exp(-half), self.point * math.exp(half))
 
 

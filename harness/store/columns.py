@@ -76,12 +76,15 @@ PROVENANCE_COLUMNS: tuple[str, ...] = (
 # rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
 # After the provenance columns, and only where some cell has them.
 PHASE_COLUMNS: tuple[str, ...] = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
-# A group's fields in results.csv: all but JSON objects, which only the record keeps.
+
+
+# A group's fields in results.csv: all but JSON objects, which only the record keeps. So a
+# field added to one of these record groups is a results.csv column too.
 def _columns(group: type) -> tuple[str, ...]:
     return tuple(f.name for f in fields(group) if "JsonObject" not in str(f.type))
 
 
-CHECK_COLUMNS = _columns(measured.Checks)
+CHECK_COLUMNS: tuple[str, ...] = _columns(measured.Checks)
 # The OMP_SCHEDULE a cell ran with (empty when none), then its per-thread work.
 THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
 # How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
@@ -90,7 +93,7 @@ THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
 # round's order (cells with one seed were measured in the same rounds). Only where some cell
 # has them (results from before rounds have none).
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
-NOISE_COLUMNS = _columns(measured.Noise)
+NOISE_COLUMNS: tuple[str, ...] = _columns(measured.Noise)
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
 # enough, or a limit was reached first.
 STOPPED_RUNS = "runs"
@@ -119,7 +122,7 @@ NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
-TIMING_KEYS = (*_columns(measured.Phases), *_columns(measured.Counts))
+TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.Counts))
 # The OpenMP runtime's cost of one operation at the cell's thread count on its machine
 # (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
 # closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
@@ -127,7 +130,7 @@ TIMING_KEYS = (*_columns(measured.Phases), *_columns(measured.Counts))
 # Only where some cell has them.
 OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
 OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
-INSTRUCTION_COLUMNS = _columns(measured.Instructions)
+INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,

@@ -92,16 +92,20 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
         os.close(fd)
 
 
-def file_lock(path: Path) -> contextlib.AbstractContextManager[None]:
+@contextlib.contextmanager
+def file_lock(path: Path) -> Iterator[None]:
     """An exclusive flock on `path` (created if missing) for the body."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    return _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666))
+    with _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)):
+        yield
 
 
-def directory_lock(directory: Path) -> contextlib.AbstractContextManager[None]:
+@contextlib.contextmanager
+def directory_lock(directory: Path) -> Iterator[None]:
     """Exclusive lock on a results directory (created if missing) for the body."""
     directory.mkdir(parents=True, exist_ok=True)
-    return _flocked(os.open(directory, os.O_RDONLY))
+    with _flocked(os.open(directory, os.O_RDONLY)):
+        yield
 
 
 @contextlib.contextmanager

@@ -71,6 +71,10 @@ def _role(role: Role, optional: bool = False) -> dict[str, object]:
     return {"role": role, "optional": optional}
 
 
+def _optional(role: Role) -> dict[str, object]:
+    return _role(role, optional=True)
+
+
 @dataclass(frozen=True)
 class TextMap:
     """Names to text: binaries' hashes by name (a check's or a program's references), or the
@@ -141,17 +145,17 @@ class CellKey:
     warmup: int = field(metadata=_role(Role.HOW))
     runs: int | str = field(metadata=_role(Role.HOW))
     timeout_s: float = field(metadata=_role(Role.HOW))
-    ci: float | None = field(default=None, metadata=_role(Role.HOW, True))
-    max_runs: int | None = field(default=None, metadata=_role(Role.HOW, True))
-    max_time_s: float | None = field(default=None, metadata=_role(Role.HOW, True))
-    min_runs: int | None = field(default=None, metadata=_role(Role.HOW, True))
-    machine_id: str | None = field(default=None, metadata=_role(Role.MACHINE, True))
-    schedule: str | None = field(default=None, metadata=_role(Role.WHAT, True))
-    checks: ChecksKey | None = field(default=None, metadata=_role(Role.WHAT, True))
-    program_check: ProgramCheckKey | None = field(default=None, metadata=_role(Role.WHAT, True))
-    omp: TextMap | None = field(default=None, metadata=_role(Role.WHAT, True))
-    instructions: CountedKey | None = field(default=None, metadata=_role(Role.COUNTED, True))
-    openmp_costs: BinaryKey | None = field(default=None, metadata=_role(Role.BESIDE, True))
+    ci: float | None = field(default=None, metadata=_optional(Role.HOW))
+    max_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
+    max_time_s: float | None = field(default=None, metadata=_optional(Role.HOW))
+    min_runs: int | None = field(default=None, metadata=_optional(Role.HOW))
+    machine_id: str | None = field(default=None, metadata=_optional(Role.MACHINE))
+    schedule: str | None = field(default=None, metadata=_optional(Role.WHAT))
+    checks: ChecksKey | None = field(default=None, metadata=_optional(Role.WHAT))
+    program_check: ProgramCheckKey | None = field(default=None, metadata=_optional(Role.WHAT))
+    omp: TextMap | None = field(default=None, metadata=_optional(Role.WHAT))
+    instructions: CountedKey | None = field(default=None, metadata=_optional(Role.COUNTED))
+    openmp_costs: BinaryKey | None = field(default=None, metadata=_optional(Role.BESIDE))
 
     def to_json(self) -> dict[str, object]:
         """The key as stored in a record (and hashed into its id)."""
