@@ -185,14 +185,16 @@ class Manifest:
 
     # --- experiment parts ------------------------------------------------------------------
 
-    def part(self, name: str, input_digest: str, build: Callable[[], dict[str, Any]]
-             ) -> dict[str, Any]:
-        """The part stored under `name` when it was made from the same inputs and code and its
-        figures are all intact, else `build()` stored with the figures it drew."""
+    def part(self, name: str, input_digest: str, build: Callable[[], dict[str, Any]],
+             valid: Callable[[dict[str, Any]], bool] | None = None) -> dict[str, Any]:
+        """The part stored under `name` when it was made from the same inputs and code, its
+        figures are all intact and `valid` (if given) accepts it, else `build()` stored with
+        the figures it drew."""
         self._used_parts.add(name)
         key = hashlib.sha256(f"{input_digest}\0{self.code.report}".encode()).hexdigest()
         entry = self.parts.get(name)
-        if entry is not None and entry.get("key") == key:
+        if entry is not None and entry.get("key") == key \
+                and (valid is None or valid(entry["part"])):
             figures = entry.get("figures", [])
             if all(f in self.figures and self._intact(self.figures[f]) for f in figures):
                 self.touched += figures

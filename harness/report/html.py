@@ -11,7 +11,6 @@ from pathlib import Path
 import jinja2
 from markdown_it import MarkdownIt
 from markupsafe import Markup
-from PIL import Image
 
 from harness.report.document import Document, kind
 
@@ -46,6 +45,8 @@ def _environment() -> jinja2.Environment:
 def image_size(path: Path) -> tuple[int, int] | None:
     """A PNG's or GIF's width and height (so the page reserves their space before they load),
     or None for anything else."""
+    from PIL import Image  # only here: importing this module stays light
+
     try:
         with Image.open(path) as image:  # reads the header only
             return image.size if image.format in ("PNG", "GIF") else None

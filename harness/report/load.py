@@ -23,7 +23,7 @@ class Experiment:
     """One results/<name>/ directory: its cells and its title."""
 
     name: str
-    dir: ExperimentDir
+    directory: ExperimentDir
     title: str
     frame: pd.DataFrame
     divergence: pd.DataFrame | None = None  # divergence.csv, when the checks wrote one

@@ -34,7 +34,8 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
         if machine is not None else []
     digest = "\0".join([str(machine), *(file_digest(p) for p in paths)])
     part = manifest.part(SESSION_PART, digest,
-                         lambda: {"text": session_words(results_dir, machine)})
+                         lambda: {"text": session_words(results_dir, machine)},
+                         valid=lambda stored: isinstance(stored.get("text"), str))
     return part["text"]
 
 

@@ -18,6 +18,7 @@ from harness.analysis.display import series_label
 from harness.analysis.speedup import growth_exponents, single_threaded
 from harness.report.figures.base import (
     TIME_LABEL,
+    Marks,
     legend,
     log_axis,
     marker_handles,
@@ -71,7 +72,7 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
     colors = series_colors(groups, keys)
     exponents = growth_exponents(df, x) if x == "n" else pd.DataFrame()
     fig, ax = new_figure()
-    marks: set[str] = set()
+    marks = Marks()
     extra: list[Line2D] = []
     for (values, rows), color in zip(groups, colors, strict=True):
         label = series_label(values, keys)
@@ -150,7 +151,7 @@ def _thread_metric_figure(
     groups = series_groups(df, keys)
     colors = series_colors(groups, keys)
     fig, ax = new_figure()
-    marks: set[str] = set()
+    marks = Marks()
     for (values, rows), color in zip(groups, colors, strict=True):
         plot_series(ax, rows, "threads", y, color, series_label(values, keys), marks)
     ideal_label = ideal(ax)

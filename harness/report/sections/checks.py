@@ -3,6 +3,8 @@ shadow error against time and divergence curves."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS
@@ -48,9 +50,17 @@ CHECKS_INTRO = (
 DIVERGENCE_MATCH: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "seed")
 
 
-def _checked_scenes(exp: Experiment) -> list[tuple[str, pd.DataFrame, pd.DataFrame]]:
-    """The inputs to draw figures for, each as its label, its cells and its divergence curves:
-    the largest (n·steps) with nonzero deviations."""
+@dataclass(frozen=True, eq=False)
+class CheckedScene:
+    """One simulated input of a checked experiment: its cells and divergence curves."""
+
+    label: str
+    cells: pd.DataFrame
+    divergence: pd.DataFrame
+
+
+def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
+    """The inputs to draw figures for: the largest (n·steps) with nonzero deviations."""
     df = exp.frame
     groups = list(df.groupby(list(SCENE_KEYS), dropna=False, sort=False))
     groups.sort(key=lambda g: -float((g[1]["n"] * g[1]["steps"]).max()))
@@ -67,7 +77,7 @@ def _checked_scenes(exp: Experiment) -> list[tuple[str, pd.DataFrame, pd.DataFra
         if shadow or bool((div["max_pos_dev"] > 0).any()):
             label = series_label(tuple(first[k] for k in ("scene", *varying)),
                                  ["scene", *varying])
-            chosen.append((label, cells, div))
+            chosen.append(CheckedScene(label, cells, div))
     return chosen[:MAX_CHECK_FIGURES]
 
 
@@ -118,24 +128,25 @@ def _accuracy_blocks(ctx: Context) -> list[Block]:
             "against shadow error.", source=df[timed],
         ))
     scenes = _checked_scenes(ctx.exp)
-    for index, (label, scene, divergence) in enumerate(scenes):
+    for index, scene in enumerate(scenes):
         suffix = f"-{index + 1}" if len(scenes) > 1 else ""
-        cells = scene[timed.loc[scene.index]]
+        cells = scene.cells[timed.loc[scene.cells.index]]
         if not cells.empty and cells["shadow_pos_err"].notna().any():
             blocks.append(ctx.figure(
                 fig_error_time, cells[cells["shadow_pos_err"].notna()], f"shadow-vs-time{suffix}",
-                f"Median time against the mean one-step error against __float128 at {label}; "
+                f"Median time against the mean one-step error against __float128 at {scene.label}; "
                 "the ringed cells joined by the line form the Pareto front.",
-                title=f"Shadow-step error against time ({label})", error="shadow_pos_err",
+                title=f"Shadow-step error against time ({scene.label})", error="shadow_pos_err",
                 ylabel="shadow-step error, mean [÷ L]"))
-        if not divergence.empty:
-            first = scene.iloc[0]
+        if not scene.divergence.empty:
+            first = scene.cells.iloc[0]
             blocks.append(ctx.figure(
-                fig_divergence, divergence, f"divergence{suffix}",
-                f"Step-by-step growth of the largest position deviation (÷ L) at {label}, "
+                fig_divergence, scene.divergence, f"divergence{suffix}",
+                f"Step-by-step growth of the largest position deviation (÷ L) at {scene.label}, "
                 "against seq in double (left) and the __float128 truth (right); identical "
                 "curves are drawn once; dashed: one radius.",
-                box=float(first["L"]), radius=float(first["r"]), title=f"Divergence ({label})"))
+                box=float(first["L"]), radius=float(first["r"]),
+                title=f"Divergence ({scene.label})"))
     return blocks
 
 

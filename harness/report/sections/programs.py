@@ -67,7 +67,7 @@ def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
     wrong = programs[programs["agreement"] == WRONG].sort_values(["variant", "threads"])
     for variant, cells in wrong.groupby("variant", sort=True):
         row = cells.iloc[0]
-        shown = _neighbourhood(ctx.exp.dir.record(str(row["cell_id"])))
+        shown = _neighbourhood(ctx.exp.directory.record(str(row["cell_id"])))
         if shown is None:
             continue
         data, r = shown

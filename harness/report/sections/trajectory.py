@@ -22,7 +22,7 @@ def trajectory_cell(exp: Experiment) -> pd.Series | None:
     df = exp.frame
     rows = df[(df["mode"] == PRINT_MODE) & (df["status"] == OK) & (df["steps"] >= 1)]
     for _, row in sort_cells(rows, ["variant", "build", "threads"]).iterrows():
-        if exp.dir.output(str(row["cell_id"])).is_file():
+        if exp.directory.output(str(row["cell_id"])).is_file():
             return row
     return None
 
@@ -33,7 +33,7 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _trajectory(ctx: Context, row: pd.Series) -> Section:
-    path = ctx.exp.dir.output(str(row["cell_id"]))
+    path = ctx.exp.directory.output(str(row["cell_id"]))
     if path.stat().st_size > MAX_TRAJECTORY_BYTES:
         blocks: list[Block] = [Paragraph(f"`{path.name}` is too large to plot.")]
         return ctx.section("Trajectories", "trajectory", blocks)
