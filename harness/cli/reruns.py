@@ -68,7 +68,7 @@ def execute(args: argparse.Namespace) -> int:
         registry, configs = load_configs(args.configs, args.metric)
         lock = measuring_lock(args, ["reruns", *args.configs])
         with lock:  # with --results-dir's session spreads: intervals out of sample
-            run_apart(configs, roots, registry, lock, sys.stderr, ("reruns", "rerun"),
+            run_apart(configs, roots, registry, lock, sys.stderr, "reruns",
                       args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir)
     found = analysis.analyse(roots)
     if not found:

@@ -53,9 +53,17 @@ def wall_name(axis: int, velocity: float) -> str:
 
 def wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, list[int]]:
     """SPEC's wall time of one particle and the axes that hit at it (inf, [] for none)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        times = np.where(w > 0, (L - r - q) / w, np.where(w < 0, (r - q) / w, math.inf))
-    tw = float(times.min())
+    # Two axes, once per particle on the grading path: a scalar loop is several times faster
+    # than numpy on arrays of two.
+    times = []
+    for axis in range(2):
+        if w[axis] > 0:
+            times.append((L - r - q[axis]) / w[axis])
+        elif w[axis] < 0:
+            times.append((r - q[axis]) / w[axis])
+        else:
+            times.append(math.inf)
+    tw = min(times)
     return tw, [axis for axis in range(2) if times[axis] == tw and math.isfinite(tw)]
 
 

@@ -59,14 +59,17 @@ def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                  scratch: Path | None = None, keep: Path | None = None
                  ) -> tuple[ProcessResult, str]:
     """run_process with stdout to a fresh file beside `scratch` (the system's temporary
-    directory by default): the run and its stdout, moved to `keep` where it exited 0. Bytes
-    that are not UTF-8 are read as U+FFFD: such output fails its validation, not the harness."""
+    directory by default): the run and, where it exited 0, its stdout (moved to `keep`);
+    "" otherwise, unread. Bytes that are not UTF-8 are read as U+FFFD: such output fails its
+    validation, not the harness."""
     out = atomic.temp_path(scratch or Path(tempfile.gettempdir()) / "collide-stdout")
+    text = ""
     try:
         done = run_process(argv, env, timeout_s, out)
-        text = out.read_text(errors="replace")
-        if keep is not None and done.returncode == 0:
-            os.replace(out, keep)
+        if done.returncode == 0:
+            text = out.read_text(errors="replace")
+            if keep is not None:
+                os.replace(out, keep)
     finally:
         out.unlink(missing_ok=True)
     return done, text

@@ -62,7 +62,7 @@ def run_binary(binary: Path, text: str, threads: int, timeout_s: float = 600.0) 
         scene.write_text(text)
         done, out = run_captured([str(binary), "--threads", str(threads), "--precise",
                                   str(scene)], {**os.environ, "OMP_NUM_THREADS": str(threads)},
-                                 timeout_s)
+                                 timeout_s, scratch=Path(tmp) / "stdout")
     return out if done.returncode == 0 else None
 
 

@@ -128,21 +128,20 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
 
 
 def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,
-              run_lock: RunLock | None, log: TextIO, what: tuple[str, str],
+              run_lock: RunLock | None, log: TextIO, command: str,
               hyperfine: str = "hyperfine", quick: bool = False, pause_s: float = 0.0,
               spreads_of: Path | None = None) -> None:
     """Every config measured afresh into each results root in turn, `pause_s` apart so that
     the runs meet the machine at different moments, each root emptied first (as `run --force
     --results-dir ROOT`); with the machines' calibrations of the root `spreads_of` copied in
-    first, its intervals are those that root's session spreads give. `what`: the command and
-    its name for a run, in the progress lines (("reruns", "rerun"))."""
-    command, noun = what
+    first, its intervals are those that root's session spreads give. `command` begins the
+    progress lines."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
     for k, root in enumerate(roots, start=1):
         if k > 1 and pause_s > 0:
-            log.write(f"{command}: pausing {pause_s:g} s before {noun} {k}\n")
+            log.write(f"{command}: pausing {pause_s:g} s before {root.name}\n")
             time.sleep(pause_s)
-        log.write(f"{command}: {noun} {k} of {len(roots)}, measured apart, into {root}\n")
+        log.write(f"{command}: {root.name} ({k} of {len(roots)}), measured apart, into {root}\n")
         shutil.rmtree(root, ignore_errors=True)
         if kept is not None and kept.is_dir():
             shutil.copytree(kept, ResultsRoot(root).calibrations)

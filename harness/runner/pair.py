@@ -217,5 +217,5 @@ def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
     together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
                              hyperfine, budget_s=0.0)
     blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
-    run_apart(configs, blocks, registry, run_lock, log, ("calibrate", "block"), hyperfine)
+    run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine)
     return together, blocks

@@ -100,7 +100,7 @@ def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
     if kind != RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
         return {}
     speedup = stats.Interval(ratio, math.nan, math.nan)
-    return {"efficiency": ratio / threads,
+    return {"efficiency": stats.efficiency(speedup, threads).point,
             "karp_flatt": finite(stats.karp_flatt(speedup, threads).point)}
 
 

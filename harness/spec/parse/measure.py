@@ -115,8 +115,8 @@ def parse_checks(names: object, options: object, source: Path,
         raise config_error(source, "checks", "a non-empty list of " + ", ".join(CHECK_NAMES)
                            + " where 'accuracy' is set", names)
     fields = kinds.settings(raw, table, "accuracy", source)
-    if items:  # the default truth too must be a variant the checks can build
-        kinds.check(fields.get("truth", Checks.truth), "accuracy.truth", table["truth"], source)
+    if items and "truth" not in fields:  # the default too must be a variant checks can build
+        kinds.check(Checks.truth, "accuracy.truth", table["truth"], source)
     return Checks(items, **fields)
 
 
