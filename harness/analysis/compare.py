@@ -106,10 +106,12 @@ def allow_noise(drift: Drift, old: Side, new: Side) -> Drift:
                         f"{drift.source}")
 
 
-def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
+def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
+               noise: float = math.nan) -> Drift:
     """The drift of the machines of a comparison: the largest of their newest calibrations or
     session spreads learnt by reruns (<root>/calibration/machines/<id>.json) under the given
-    results roots; ASSUMED_DRIFT for a machine without one."""
+    results roots, the spread at the sides' `noise` (stats.spread_at; the newest level's
+    where it is unknown); ASSUMED_DRIFT for a machine without one."""
     found: list[Drift] = []
     for machine_id in sorted(set(machine_ids)):
         learnt: list[tuple[str, Drift]] = []
@@ -120,11 +122,11 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path]) -> Drift:
                 learnt.append((str(entry.get("date", "")), Drift(
                     float(entry["drift"]), f"calibrated on machine {machine_id} "
                     f"({entry.get('date', '?')}, {entry.get('config', '?')})")))
-            session = sessions.session_entry(root, machine_id)
-            if session is not None:  # the spread between two sessions
-                spread = sessions.spread_of(session, machine_id)
-                learnt.append((str(session.get("date", "")), Drift(spread.apart(),
-                                                                   spread.source)))
+            levels = sessions.kept_levels([root], machine_id)
+            if levels:  # the spread between two sessions
+                spread = sessions.find_session([root], machine_id, noise)
+                learnt.append((str(levels[0].get("date", "")), Drift(spread.apart(),
+                                                                     spread.source)))
         if learnt:
             found.append(max(learnt, key=lambda dated: dated[0])[1])
         else:

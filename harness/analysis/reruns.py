@@ -29,6 +29,8 @@ CellKey = tuple[str, ...]
 Found = tuple[stats.RoundEstimate, stats.Interval | None]
 # Per machine, per cell or ratio: the reruns' values (None where a rerun lacks it).
 ByMachine = dict[str, dict[CellKey, list[Found | None]]]
+# Per machine, per rerun: the noise of every round of its cells (stats.session_noise).
+NoiseByMachine = dict[str, dict[int, list[float]]]
 
 _RATIO_REFERENCE = ("kind", "reference_variant", "reference_threads")
 
@@ -67,22 +69,28 @@ def ratio_value(row: pd.Series) -> Found | None:
     return estimate, _interval(ratio, row["ratio_ci_low"], row["ratio_ci_high"])
 
 
-def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine]:
+def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine, NoiseByMachine]:
     """Every rerun's cells and ratios, by machine and key: a cell keyed as ratios.csv keys it
-    (analysis.paired.cell_keys), a ratio by its cell, its kind and its reference."""
+    (analysis.paired.cell_keys), a ratio by its cell, its kind and its reference; and each
+    rerun's rounds' noise."""
     cells: ByMachine = {}
     ratios: ByMachine = {}
+    noise: NoiseByMachine = {}
     for k, root in enumerate(roots):
         found, _ = layout.experiments_under(root, layout.has_results)
         for exp in found:
             frame = read_results(exp.results_csv)
             for key, (_, row) in zip(cell_keys(frame), frame.iterrows(), strict=True):
                 _put(cells, row, (exp.name, key), cell_value(row), k, len(roots))
+                shares = row.get("round_noise")
+                if row["status"] == OK and isinstance(shares, list | tuple):
+                    noise.setdefault(row.get("machine_id") or "", {}).setdefault(
+                        k, []).extend(shares)
             frame = read_ratios(exp.ratios_csv, paired_only=False)
             for _, row in (frame if frame is not None else pd.DataFrame()).iterrows():
                 key = (exp.name, row["_key"], *(str(row.get(c, "")) for c in _RATIO_REFERENCE))
                 _put(ratios, row, key, ratio_value(row), k, len(roots))
-    return cells, ratios
+    return cells, ratios, noise
 
 
 def _put(table: ByMachine, row: pd.Series, key: CellKey, value: Found | None,
@@ -119,7 +127,7 @@ class MachineReruns:
 
     machine_id: str
     reruns: int
-    spread: stats.SessionSpread
+    spread: stats.SessionSpread  # its noise: the median of the reruns' (stats.session_noise)
     cells: stats.Coverage
     ratios: stats.Coverage
     cells_learnt: stats.Coverage
@@ -130,7 +138,7 @@ class MachineReruns:
             f"machine {self.machine_id or 'unknown'}, {self.reruns} reruns:",
             f"  session spread learnt: {self.spread.absolute:.1%} for a cell's time, "
             f"{self.spread.ratio:.1%} for a ratio paired by round (log-scale standard "
-            "deviations beyond the rounds' spread)",
+            f"deviations beyond the rounds' spread){self._under()}",
             "  " + self.cells.line("absolute intervals as stored"),
             "  " + self.ratios.line("ratio intervals as stored"),
             "  " + self.cells_learnt.line("absolute intervals with the spread learnt (in "
@@ -138,9 +146,16 @@ class MachineReruns:
             "  " + self.ratios_learnt.line("ratio intervals with the spread learnt (in sample)"),
         ]
 
+    def _under(self) -> str:
+        if not math.isfinite(self.spread.noise):
+            return ""
+        return (f", under noise {self.spread.noise:.1%} (the median share of the cores' time "
+                "others took over a rerun's rounds)")
+
     def entry(self, config: str) -> dict[str, object]:
         """What is kept beside the machine's description (store.sessions)."""
         return {"absolute": self.spread.absolute, "ratio": self.spread.ratio,
+                **({"noise": self.spread.noise} if math.isfinite(self.spread.noise) else {}),
                 "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                 "config": config, "reruns": self.reruns,
                 "coverage": {"absolute": dataclasses.asdict(self.cells),
@@ -150,7 +165,7 @@ class MachineReruns:
 def analyse(roots: Sequence[Path]) -> list[MachineReruns]:
     """Each machine's reruns, from the reruns' results roots; a machine whose ratios were in
     fewer than two reruns keeps the default spread for ratios."""
-    cells, ratios = gather(roots)
+    cells, ratios, noise = gather(roots)
     found = []
     for machine in sorted(cells.keys() | ratios.keys()):
         its_cells, its_ratios = cells.get(machine, {}), ratios.get(machine, {})
@@ -159,7 +174,9 @@ def analyse(roots: Sequence[Path]) -> list[MachineReruns]:
             continue
         if not math.isfinite(ratio):
             ratio = stats.DEFAULT_SESSION_SPREAD.ratio
-        spread = stats.SessionSpread(absolute, ratio, f"{len(roots)} reruns")
+        by_rerun = [stats.session_noise(shares) for shares in noise.get(machine, {}).values()]
+        spread = stats.SessionSpread(absolute, ratio, f"{len(roots)} reruns",
+                                     stats.session_noise(by_rerun))
         found.append(MachineReruns(machine, len(roots), spread, coverage(its_cells),
                                    coverage(its_ratios), coverage(its_cells, absolute),
                                    coverage(its_ratios, ratio)))

@@ -9,6 +9,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from harness import stats
 from harness.analysis import calibration
 from harness.analysis.compare import (
     CALIBRATION_KEY,
@@ -105,7 +106,9 @@ def execute(args: argparse.Namespace) -> int:
     old, new = sides(old_path, new_path, args.old_machine, args.new_machine)
     # the results roots a result directory may sit in: itself and its parent
     roots = (old_path, old_path.parent, new_path, new_path.parent, args.results_dir)
-    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots)
+    cells = [c for side in (old, new) for c in side.cells.values()]
+    drift = find_drift((c.machine_id for c in cells), roots,
+                       stats.session_noise(s for c in cells for s in c.round_noise))
     return report(old, new, args, out, allow_noise(drift, old, new), ())
 
 

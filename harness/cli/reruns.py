@@ -32,7 +32,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser = Parser(prog=prog, description="Run configs TIMES times, each into a results root "
                     "of its own with every cell measured afresh, a pause between; learn this "
                     "machine's session spread (how far a whole run's estimates move, beyond "
-                    "their rounds), keep it beside the machine's description in <results>/"
+                    "their rounds) under the noise the reruns measured, keep it beside the "
+                    "machine's description (one per noise level: a later run takes the "
+                    "spread at its own noise) in <results>/"
                     f"{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
                     f"{layout.RECORD_SUFFIX}, and report how often each rerun's intervals "
                     "(results.csv's and ratios.csv's) held another rerun's estimate.")

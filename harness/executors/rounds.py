@@ -18,9 +18,10 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from harness import stats
 from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
-from harness.measure.rounds import CellRun, runs_left
+from harness.measure.rounds import CellRun, limit_reason, runs_left
 from harness.plan.cells import Cell
 from harness.spec.facts import BASELINE
 from harness.store.columns import STOPPED_CI
@@ -98,14 +99,38 @@ def join_ratios(units: Sequence[Unit]) -> None:
 
 
 def hold_for_ratios(units: Sequence[Unit]) -> None:
-    """A cell whose interval stopped it goes on while a cell of its ratios still takes
-    rounds: a ratio's interval is over the rounds both sides have, so a reference that
-    stops at five rounds would leave its ratios five whatever their cells took."""
+    """A cell that its interval stopped goes on, within its limits, while a cell of its
+    ratios still takes rounds, or while one of its ratios is wider than `ci` (its other side
+    stopped by its interval too). A ratio's interval is over the rounds both sides have, so a
+    reference that stops at five rounds would leave its ratios five whatever their cells
+    took; and a round's ratio carries the run noise of both sides, so two sides that stop at
+    +-ci each leave their ratio wider."""
     going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
-    for unit in units:
-        if unit.run is not None and unit.run.stopped == STOPPED_CI and any(
-                id(side) in going for side in unit.ratio_sides):
-            unit.run.stopped = ""
+    held = [unit for unit in units if unit.run is not None and unit.run.stopped == STOPPED_CI
+            and not _at_limit(unit) and any(id(side) in going or not _ratio_narrow(unit, side)
+                                            for side in unit.ratio_sides)]
+    for unit in held:
+        unit.state.stopped = ""
+
+
+def _at_limit(unit: Unit) -> bool:
+    """Whether the cell reached its max_runs or max_time_s (its interval stopped it first)."""
+    measure = unit.state.measure(unit.measurer.config.measure_for(unit.cell.variant))
+    return bool(limit_reason(measure, unit.state.times, unit.state.per_round))
+
+
+def _ratio_narrow(unit: Unit, side: Unit) -> bool:
+    """Whether the ratio of the two cells needs no more rounds: within the larger of their
+    `ci` over their common rounds, or the other side stopped on something else than its
+    interval (its rounds will not grow)."""
+    if side.run is None or side.run.stopped != STOPPED_CI or _at_limit(side):
+        return True
+    ci = max(u.measurer.config.measure_for(u.cell.variant).ci for u in (unit, side))
+    interval = stats.paired_ratio(side.state.by_round(), unit.state.by_round()).interval()
+    if not interval.bounded:
+        return False
+    return max(interval.high - interval.point, interval.point - interval.low) <= \
+        ci * interval.point
 
 
 def paired_per_round(run_s: float) -> int:

@@ -13,7 +13,6 @@ An executor takes the cells through their rounds, alternating them (harness.exec
 
 from __future__ import annotations
 
-import functools
 import os
 import shlex
 from collections.abc import Mapping
@@ -57,6 +56,8 @@ class Measurer:
     cores: int = field(default_factory=machine.available_cores)
     references: References = field(init=False)
     checker: Checker = field(init=False)
+    # Every round's noise this measurer timed: its session's (stats.session_noise)
+    round_noise: list[float] = field(default_factory=list, init=False)
 
     def __post_init__(self) -> None:
         self.references = References(self.store, self.environment,
@@ -67,12 +68,13 @@ class Measurer:
     def config(self) -> Config:
         return self.store.config
 
-    @functools.cached_property
     def session(self) -> stats.SessionSpread:
-        """This machine's session spread (`reruns`), under this results root or the
-        repository's; the default until one is kept."""
+        """This machine's session spread (`reruns`, under this results root or the
+        repository's) at the noise of this session's rounds so far; the default until one is
+        kept."""
         return sessions.find_session(sessions.session_roots(self.store.root.path),
-                                     self.store.machine_id)
+                                     self.store.machine_id,
+                                     stats.session_noise(self.round_noise))
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
@@ -157,8 +159,11 @@ class Measurer:
         export = self.store.layout.hyperfine(run.cell_id, round_index)
         env = self.environment(subject.threads, subject.schedule or "")
         warmup = measure.warmup if not run.exports else 0
-        run.add(time_runs(self.hyperfine, run.command, env, export, runs, warmup,
-                          measure.timeout_s, self.cores), round_index, export)
+        timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
+                          measure.timeout_s, self.cores)
+        run.add(timed, round_index, export)
+        if timed.stats is not None and timed.noise is not None:
+            self.round_noise.append(timed.noise.share)
         if run.timed:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
@@ -171,7 +176,7 @@ class Measurer:
             run.save(partial)
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
-        result = timed_result(run, self.session).replace(seconds=seconds)
+        result = timed_result(run, self.session()).replace(seconds=seconds)
         self.store.save(result)
         self.store.layout.partial(run.cell_id).unlink(missing_ok=True)
         return result

@@ -217,6 +217,12 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
     if (len(times) >= measure.first_runs * per_round and len(set(taken)) >= stats.MIN_ROUNDS
             and narrow(times, measure.ci, taken)):
         return STOPPED_CI
+    return limit_reason(measure, times, per_round)
+
+
+def limit_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
+    """The limit an adaptive cell with these runs reached, whatever its interval says (""
+    while none)."""
     if len(times) >= measure.max_runs * per_round:
         return STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:

@@ -16,7 +16,7 @@ from harness.report.cache import Manifest
 from harness.report.discover import file_digest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
-from harness.store.sessions import newest_entry, session_roots, spread_of
+from harness.store.sessions import kept_levels, noise_of, session_roots, spread_of
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
 SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
@@ -40,32 +40,45 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
 
 
 def session_words(results_dir: Path, machine_id: str | None) -> str:
-    """The session spread the page's intervals add and where it comes from, then the
-    coverage `reruns` measured on this machine or that none was."""
+    """The session spreads the page's intervals add (one per noise level the machine's
+    reruns were measured under) and where they come from, with the coverage `reruns`
+    measured for each; or the default and that no reruns were measured."""
     from harness.stats.levels import DEFAULT_SESSION_SPREAD
 
     machine = _known(machine_id)
-    entry = None if machine is None else newest_entry(session_roots(results_dir), machine)
-    spread = DEFAULT_SESSION_SPREAD if entry is None else spread_of(entry, str(machine))
-    text = (f"Intervals that say where another session's estimate lands (a cell's time "
-            f"measured in rounds, a ratio paired by round) add the machine's session spread: "
-            f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
-            f"{spread.source}.")
-    if entry is None:
-        return (f"{text} No reruns were measured on this machine (`{REUSE_COMMAND}` learns "
-                "its spread and how often the intervals hold a rerun's estimate): the default "
-                "applies, meant to be conservative on a quiet machine.")
+    levels = [] if machine is None else kept_levels(session_roots(results_dir), machine)
+    text = ("Intervals that say where another session's estimate lands (a cell's time "
+            "measured in rounds, a ratio paired by round) add the machine's session spread")
+    if not levels:
+        spread = DEFAULT_SESSION_SPREAD
+        return (f"{text}: {spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for "
+                f"a ratio, {spread.source}. No reruns were measured on this machine "
+                f"(`{REUSE_COMMAND}` learns its spread and how often the intervals hold a "
+                "rerun's estimate): the default applies, meant to be conservative on a quiet "
+                "machine.")
+    if len(levels) > 1:
+        text += (" at the noise of their session (the median share of the cores' time others "
+                 "took over its rounds; between two levels, interpolated)")
+    levels = sorted(levels, key=lambda e: (not math.isfinite(noise_of(e)), noise_of(e)))
     # A record's interval holds the spread of its own run: one measured before the reruns
     # kept the default.
-    text += (" Cells measured before then keep the spread of their run (their records' "
-             "`session_spread` and `session_source`).")
+    return (f"{text}: " + "; ".join(_level_text(e, str(machine)) for e in levels) + ". Cells "
+            "measured before then keep the spread of their run (their records' "
+            "`session_spread` and `session_source`).")
+
+
+def _level_text(entry: Mapping[str, object], machine: str) -> str:
+    spread = spread_of(entry, machine)
+    noise = f", under noise {spread.noise:.1%}" if math.isfinite(spread.noise) else ""
+    text = (f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
+            f"{spread.source}{noise}")
     coverage = entry.get("coverage")
     if not isinstance(coverage, Mapping):
-        return f"{text} Its reruns kept no coverage."
+        return f"{text} (its reruns kept no coverage)"
     found = [_coverage_text(name, coverage.get(key)) for key, name in
              (("absolute", "absolute intervals"), ("ratio", "ratio intervals"))]
-    return (f"{text} Coverage of its {entry.get('reruns', '?')} reruns, the intervals as "
-            "stored: " + "; ".join(found) + ".")
+    return (f"{text} (coverage of its {entry.get('reruns', '?')} reruns, the intervals as "
+            "stored: " + "; ".join(found) + ")")
 
 
 def _percent(value: object) -> str:

@@ -32,7 +32,7 @@ from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, 
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
                                   Coverage, RoundEstimate, SessionSpread, cell_estimate,
                                   coverage, from_round_values, paired_ratio, round_half_width,
-                                  session_spread, t95)
+                                  session_noise, session_spread, spread_at, t95)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)
 from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,

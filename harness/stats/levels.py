@@ -17,12 +17,19 @@ A ratio of two cells measured in the same rounds (speedup over one thread, over 
 round by round: the machine's speed at that moment moves both sides alike and cancels, and
 what is left between sessions (where threads were placed, a neighbour's cache) is the ratio's
 own session spread.
+
+The session level depends on how busy the machine is: a noisy neighbour makes a cell's runs
+fall into two modes (its team waits, or it does not), and a session's median then lands in
+either. A spread is learnt under the noise its reruns measured (the median share of the
+cores' time others took over their rounds), a machine may keep one per noise level, and a
+session takes the spread at its own noise (spread_at).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +42,9 @@ from harness.stats.rounds import round_medians
 # fewer the t-quantile (12.7 at two rounds, 4.3 at three) makes any interval wide, and rounds
 # of one moment cannot show the machine's drift over seconds.
 MIN_ROUNDS = 5
+# A session's rounds are taken to agree no closer than this (a log standard error): the
+# weight of a session whose rounds agreed exactly is then finite.
+MIN_LOG_SE = 1e-3
 # Fewer rounds than this give no interval at all: over two, the t-quantile of 12.7 makes one
 # wider than anything it could say (a factor of 10^17 on a cell whose two rounds were 3x apart).
 INTERVAL_MIN_ROUNDS = 3
@@ -49,6 +59,9 @@ class SessionSpread:
     absolute: float
     ratio: float
     source: str
+    # The noise of the reruns it was learnt from: the median over them of a session's noise
+    # (session_noise); NaN where unknown
+    noise: float = math.nan
 
     def apart(self) -> float:
         """The spread of the log ratio of one cell's estimates in two sessions (compare's
@@ -61,6 +74,43 @@ class SessionSpread:
 # moved 12-15% between reruns minutes apart, the median over cells, and up to 54%); 0.05 for a
 # ratio paired by round, whose sides share their rounds' machine (docs/compare.md).
 DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
+# How far a session's noise may lie above the noisiest level learnt before its spread says
+# so: the quiet sessions of one machine differ by a few points (2-5% on a 2-vCPU VM).
+NOISE_MARGIN = 0.05
+
+
+def session_noise(shares: Iterable[float]) -> float:
+    """A session's noise: the median over its rounds (every cell's) of the share of their
+    cores' time others took or was stolen (harness.measure.noise); NaN without any."""
+    found = [s for s in shares if s is not None and math.isfinite(s)]
+    return float(np.median(found)) if found else math.nan
+
+
+def spread_at(levels: Sequence[SessionSpread], noise: float) -> SessionSpread:
+    """The spread for a session of this noise from the spreads learnt at several: between two
+    levels, interpolated linearly in the noise; below the quietest, the quietest's; above the
+    noisiest, the noisiest's, not extrapolated (its source says by how much the session was
+    noisier). Without a known noise, the first level (the caller's newest)."""
+    known = sorted((s for s in levels if math.isfinite(s.noise)), key=lambda s: s.noise)
+    if not levels:
+        return DEFAULT_SESSION_SPREAD
+    if not known or not math.isfinite(noise):
+        return levels[0]
+    if noise <= known[0].noise:
+        return known[0]
+    if noise >= known[-1].noise:
+        top = known[-1]
+        return top if noise - top.noise <= NOISE_MARGIN else dataclasses.replace(
+            top, source=f"{top.source}; this session's noise {noise:.0%} is above the "
+            f"{top.noise:.0%} it was learnt at: reruns as noisy would say more")
+    above = next(k for k, s in enumerate(known) if s.noise >= noise)
+    low, high = known[above - 1], known[above]
+    share = (noise - low.noise) / (high.noise - low.noise)
+    return SessionSpread(
+        low.absolute + share * (high.absolute - low.absolute),
+        low.ratio + share * (high.ratio - low.ratio),
+        f"between {low.source} (noise {low.noise:.0%}) and {high.source} (noise "
+        f"{high.noise:.0%}), at this session's noise {noise:.0%}", noise)
 
 
 def t95(rounds: int) -> float:
@@ -139,19 +189,25 @@ def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> R
 
 def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
     """The session level from reruns: per cell, each session's (log estimate, log standard
-    error of its rounds); the variance of a cell's log estimates across sessions beyond the
-    mean of their squared standard errors (method of moments), pooled over the cells with at
-    least two sessions (weighted by sessions - 1) and floored at 0; NaN without any."""
-    excess, weight = 0.0, 0
+    error of its rounds). The variance between a cell's sessions beyond what their standard
+    errors explain, pooled over the cells with at least two sessions as DerSimonian and Laird
+    pool a random effect over studies (each cell its own mean, each session weighted by the
+    inverse square of its standard error, floored at MIN_LOG_SE): a cell whose rounds are
+    noisy (three rounds of a per-row pathology, a 5 ms cell) says little about the session
+    level and counts for little. Floored at 0; NaN without any cell in two sessions."""
+    excess = dof = scale = 0.0
     for cell in sessions:
-        found = [(m, s) for m, s in cell if math.isfinite(m)]
+        found = [(m, max(s, MIN_LOG_SE) if math.isfinite(s) else MIN_LOG_SE)
+                 for m, s in cell if math.isfinite(m)]
         if len(found) < 2:
             continue
-        within = [s * s for _, s in found if math.isfinite(s)]
-        between = float(np.var([m for m, _ in found], ddof=1))
-        excess += (len(found) - 1) * (between - (float(np.mean(within)) if within else 0.0))
-        weight += len(found) - 1
-    return math.sqrt(max(0.0, excess / weight)) if weight else math.nan
+        logs = np.array([m for m, _ in found])
+        weights = np.array([1.0 / (s * s) for _, s in found])
+        mean = float(np.sum(weights * logs) / np.sum(weights))
+        excess += float(np.sum(weights * (logs - mean) ** 2))
+        dof += len(found) - 1
+        scale += float(np.sum(weights) - np.sum(weights ** 2) / np.sum(weights))
+    return math.sqrt(max(0.0, (excess - dof) / scale)) if scale > 0 else math.nan
 
 
 @dataclass(frozen=True)

@@ -94,8 +94,8 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
         csvfile.write_results_csv(exp.results_csv, written)
         if baseline is not None:
             roots = sessions.session_roots(experiment_dir.parent)
-            # asked once a cell: each machine's calibration file is read once
-            session_of = functools.cache(lambda m: sessions.find_session(roots, m).ratio)
+            session_of = functools.cache(  # each (machine, noise) asked once
+                lambda m, noise: sessions.find_session(roots, m, noise).ratio)
             ratios.write_ratios_csv(exp.ratios_csv, written, baseline, session_of)
     return [r.result for r in rows]
 

@@ -73,9 +73,10 @@ def references(cells: Mapping[tuple[str, int], T], variant: str, threads: int,
 
 
 def ratio_rows(rows: Iterable[Row], baseline: str,
-               session_of: Callable[[str], float]) -> list[dict[str, object]]:
+               session_of: Callable[[str, float], float]) -> list[dict[str, object]]:
     """ratios.csv's rows of results.csv's (ok cells only), in results.csv's order;
-    session_of(machine_id): the machine's session spread for ratios."""
+    session_of(machine_id, noise): the machine's session spread for ratios at the noise of
+    the two cells' rounds (stats.session_noise)."""
     groups: dict[tuple, dict[tuple[str, int], Row]] = {}
     for row in rows:
         if row.get("status") == OK and isinstance(row.get("threads"), int):
@@ -85,8 +86,9 @@ def ratio_rows(rows: Iterable[Row], baseline: str,
     for cells in groups.values():
         for (variant, threads), cell in cells.items():
             machine = str(cell.get("machine_id") or "")
-            session = session_of(machine)
             for kind, reference in references(cells, variant, threads, baseline):
+                session = session_of(machine, stats.session_noise(
+                    [*_times(cell, "round_noise"), *_times(reference, "round_noise")]))
                 ratio = ratio_of(reference, cell, session)
                 found.append({**{c: cell.get(c) for c in RATIO_COLUMNS}, "kind": kind,
                               "reference_variant": reference["variant"],
@@ -105,7 +107,7 @@ def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
 
 
 def write_ratios_csv(path: Path, rows: Sequence[Row], baseline: str,
-                     session_of: Callable[[str], float]) -> None:
+                     session_of: Callable[[str, float], float]) -> None:
     """ratios.csv from results.csv's rows; removed where no cell has a reference."""
     found = ratio_rows(rows, baseline, session_of)
     if not found:

@@ -1,10 +1,14 @@
 """A machine's session spread (harness.stats.levels.SessionSpread), kept beside its description
-in <root>/calibration/machines/<machine_id>.json under SESSION_KEY: written by `reruns`, read
-where a cell's interval is computed and where compare allows for the drift between sets
-measured apart."""
+in <root>/calibration/machines/<machine_id>.json: written by `reruns`, read where a cell's
+interval is computed and where compare allows for the drift between sets measured apart.
+
+SESSION_KEY holds the newest entry; LEVELS_KEY one entry per noise level it was learnt at
+(a newer one replaces one of about the same noise), from which a session takes the spread of
+the noise nearest its own (stats.spread_at)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,7 +20,8 @@ from harness.store.layout import ResultsRoot
 if TYPE_CHECKING:  # stats.levels imports scipy, which an unchanged report page never loads
     from harness.stats.levels import SessionSpread
 
-SESSION_KEY = "session"  # the entry `reruns` keeps beside a machine's description
+SESSION_KEY = "session"  # the newest entry `reruns` kept beside a machine's description
+LEVELS_KEY = "session_levels"  # its entries by the noise they were learnt at
 
 
 def session_roots(results_dir: Path) -> tuple[Path, ...]:
@@ -25,31 +30,65 @@ def session_roots(results_dir: Path) -> tuple[Path, ...]:
     return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
 
 
+def _valid(entry: object) -> bool:
+    return isinstance(entry, dict) and all(
+        isinstance(entry.get(k), int | float) for k in ("absolute", "ratio"))
+
+
 def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
-    """What `reruns` kept for the machine under this results root; None where nothing is."""
+    """What `reruns` kept last for the machine under this results root; None where nothing
+    is."""
     data = records.read_json(ResultsRoot(root).calibration(machine_id))
     entry = data.get(SESSION_KEY) if isinstance(data, dict) else None
-    if not isinstance(entry, dict):
-        return None
-    if not all(isinstance(entry.get(k), int | float) for k in ("absolute", "ratio")):
-        return None
-    return entry
+    return entry if _valid(entry) else None
 
 
-def newest_entry(roots: Iterable[Path], machine_id: str) -> Mapping[str, object] | None:
-    """The newest of what `reruns` kept for the machine under any of the roots; None where
-    none has one."""
-    found = [e for root in dict.fromkeys(roots)
-             if (e := session_entry(root, machine_id)) is not None]
-    return max(found, key=lambda e: str(e.get("date", ""))) if found else None
+def level_entries(root: Path, machine_id: str) -> list[Mapping[str, object]]:
+    """Every noise level's entry kept for the machine under this results root (a file kept
+    before levels: its one entry)."""
+    data = records.read_json(ResultsRoot(root).calibration(machine_id))
+    levels = data.get(LEVELS_KEY) if isinstance(data, dict) else None
+    if isinstance(levels, list):
+        return [e for e in levels if _valid(e)]
+    entry = session_entry(root, machine_id)
+    return [] if entry is None else [entry]
 
 
-def find_session(roots: Iterable[Path], machine_id: str) -> SessionSpread:
-    """newest_entry's spread; DEFAULT_SESSION_SPREAD where none has one."""
-    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+def noise_of(entry: Mapping[str, object]) -> float:
+    """The noise an entry was learnt under; NaN where it was kept before levels."""
+    noise = entry.get("noise")
+    return float(noise) if isinstance(noise, int | float) else math.nan
 
-    newest = newest_entry(roots, machine_id)
-    return DEFAULT_SESSION_SPREAD if newest is None else spread_of(newest, machine_id)
+
+def _same_level(a: Mapping[str, object], b: Mapping[str, object]) -> bool:
+    from harness.stats.levels import NOISE_MARGIN
+
+    return not abs(noise_of(a) - noise_of(b)) > NOISE_MARGIN  # NaN (unknown) matches any
+
+
+def kept_levels(roots: Iterable[Path], machine_id: str) -> list[Mapping[str, object]]:
+    """The machine's levels kept under the roots, newest first: where two roots keep one of
+    the same noise, the newer."""
+    found = sorted((e for root in dict.fromkeys(roots) for e in level_entries(root, machine_id)),
+                   key=lambda e: str(e.get("date", "")), reverse=True)
+    levels: list[Mapping[str, object]] = []
+    for entry in found:
+        if not any(_same_level(entry, kept) for kept in levels):
+            levels.append(entry)
+    return levels
+
+
+def find_session(roots: Iterable[Path], machine_id: str,
+                 noise: float = math.nan) -> SessionSpread:
+    """The spread for a session of this noise (stats.spread_at) from the levels kept under
+    the roots; with the noise unknown, the newest's; DEFAULT_SESSION_SPREAD where none is
+    kept."""
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD, spread_at
+
+    levels = kept_levels(roots, machine_id)
+    if not levels:
+        return DEFAULT_SESSION_SPREAD
+    return spread_at([spread_of(e, machine_id) for e in levels], noise)
 
 
 def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
@@ -58,15 +97,18 @@ def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
 
     return SessionSpread(float(entry["absolute"]), float(entry["ratio"]),  # type: ignore[arg-type]
                          f"learnt by reruns of {entry.get('config', '?')} on machine "
-                         f"{machine_id} ({entry.get('date', '?')})")
+                         f"{machine_id} ({entry.get('date', '?')})", noise_of(entry))
 
 
 def keep_session(root: Path, machine_id: str, description: Mapping[str, object],
                  entry: Mapping[str, object]) -> Path:
     """Keep the machine's session spread (with its description) in its calibration file,
-    beside what else is kept there; the file."""
+    beside what else is kept there, as the newest entry and as its noise level's (replacing
+    one of about the same noise); the file."""
     path = ResultsRoot(root).calibration(machine_id)
     existing = records.read_json(path)
-    atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
-                                    **description, SESSION_KEY: dict(entry)})
+    existing = existing if isinstance(existing, dict) else {}
+    levels = [e for e in level_entries(root, machine_id) if not _same_level(e, entry)]
+    atomic.atomic_write_json(path, {**existing, **description, SESSION_KEY: dict(entry),
+                                    LEVELS_KEY: [*levels, dict(entry)]})
     return path

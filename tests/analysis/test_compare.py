@@ -19,7 +19,7 @@ from harness import repo, stats
 from harness.analysis import compare, resultsets
 from harness.cli.common import EXIT_ERROR
 from harness.report.figures import compare as figcompare
-from harness.store import atomic, csvfile
+from harness.store import atomic, csvfile, sessions
 
 from commands import compare_main, run_main
 
@@ -216,6 +216,17 @@ def test_the_drift_comes_from_the_newest_calibration(tmp_path: Path) -> None:
     assert compare.find_drift(["m1"], [tmp_path]).sigma == 0.031
     unknown = compare.find_drift(["m2"], [tmp_path])
     assert unknown.sigma == compare.ASSUMED_DRIFT and "assumed" in unknown.source
+
+
+def test_the_drift_is_the_session_spread_at_the_sides_noise(tmp_path: Path) -> None:
+    for noise, spread, date in ((0.03, 0.05, "2026-11-20"), (0.3, 0.2, "2026-11-21")):
+        sessions.keep_session(tmp_path, "m1", {}, {"absolute": spread, "ratio": 0.01,
+                                                   "noise": noise, "date": date})
+    quiet = compare.find_drift(["m1"], [tmp_path], noise=0.02)
+    noisy = compare.find_drift(["m1"], [tmp_path], noise=0.35)
+    assert quiet.sigma == pytest.approx(math.sqrt(2) * 0.05)
+    assert noisy.sigma == pytest.approx(math.sqrt(2) * 0.2)
+    assert compare.find_drift(["m1"], [tmp_path]).sigma == noisy.sigma  # unknown: the newest
 
 
 # --- result directories -------------------------------------------------------------------

@@ -30,7 +30,7 @@ def rerun(root: Path, seconds: float, low: float, high: float, speedup: float, k
     rows = [row("p1", 1, seconds, low, high, k), row("p1", 2, seconds / speedup, 0.0, 9.0, k)]
     (root / "e").mkdir(parents=True)
     csvfile.write_results_csv(root / "e" / "results.csv", rows)
-    ratios.write_ratios_csv(root / "e" / "ratios.csv", rows, "seq", lambda m: 0.02)
+    ratios.write_ratios_csv(root / "e" / "ratios.csv", rows, "seq", lambda m, noise: 0.02)
     return root
 
 
@@ -51,12 +51,12 @@ def test_coverage_and_the_session_spread_of_synthetic_reruns(tmp_path: Path) -> 
     one = np.log([1.0, 1.1, 1.5])
     two = np.log([0.5, 0.55, 1.5 / 2.2])
     pooled = math.sqrt((np.var(one, ddof=1) + np.var(two, ddof=1)) / 2)
-    assert machine.spread.absolute == pytest.approx(pooled)
+    assert machine.spread.absolute == pytest.approx(pooled, rel=1e-3)
     # the speedup, paired by round: 2.0, 2.0 and 2.2; each rerun's interval is the session's
     # 2% alone (its rounds agree), so 2.0 holds 2.0 and no interval holds across 2.0 to 2.2
     assert (machine.ratios.held, machine.ratios.pairs) == (2, 6)
     assert machine.ratios.median_move == pytest.approx(0.1)
-    assert machine.spread.ratio == pytest.approx(np.std(np.log([2.0, 2.0, 2.2]), ddof=1))
+    assert machine.spread.ratio == pytest.approx(np.std(np.log([2.0, 2.0, 2.2]), ddof=1), rel=1e-3)
     # with the spread just learnt, the intervals are wider and hold more
     assert (machine.cells_learnt.held, machine.cells_learnt.pairs) == (12, 12)
     assert machine.ratios_learnt.held == 6
@@ -67,8 +67,47 @@ def test_coverage_and_the_session_spread_of_synthetic_reruns(tmp_path: Path) -> 
 def test_the_session_spread_counts_only_what_the_rounds_do_not_explain() -> None:
     # two sessions 10% apart whose rounds' standard error alone explains it: no session level
     assert stats.session_spread([[(0.0, 0.1), (0.1, 0.1)]]) == 0.0
-    assert stats.session_spread([[(0.0, 0.0), (0.1, 0.0)]]) == pytest.approx(0.1 / math.sqrt(2))
+    assert stats.session_spread([[(0.0, 0.0), (0.1, 0.0)]]) == pytest.approx(0.1 / math.sqrt(2),
+                                                                              rel=1e-3)
     assert math.isnan(stats.session_spread([[(0.0, 0.0)]]))  # one session: nothing to learn
+    # a cell whose rounds are noisy counts for little: a precise cell 5% apart in two
+    # sessions and a noisy one (standard error 30%) 60% apart give about the precise one's
+    precise, noisy = [(0.0, 0.01), (0.05, 0.01)], [(0.0, 0.3), (0.6, 0.3)]
+    assert stats.session_spread([precise, noisy]) == pytest.approx(
+        stats.session_spread([precise]), rel=0.05)
+    assert stats.session_spread([noisy]) == pytest.approx(0.3)  # alone: 0.18 - 0.09
     cover = stats.coverage({"a": [stats.Interval(1.0, 0.9, 1.1), stats.Interval(1.05, 1.0, 1.1),
                                   None]})
     assert (cover.held, cover.pairs, cover.median_move) == (2, 2, pytest.approx(0.05))
+
+
+def test_a_session_takes_the_spread_learnt_under_the_noise_nearest_its_own() -> None:
+    quiet = stats.SessionSpread(0.05, 0.01, "quiet", 0.02)
+    noisy = stats.SessionSpread(0.25, 0.03, "noisy", 0.22)
+    levels = [noisy, quiet]
+    assert stats.spread_at(levels, 0.01) == quiet  # below the quietest: the quietest's
+    assert stats.spread_at(levels, 0.25) == noisy  # a little above the noisiest: its own
+    halfway = stats.spread_at(levels, 0.12)
+    assert (halfway.absolute, halfway.ratio) == (pytest.approx(0.15), pytest.approx(0.02))
+    assert "quiet" in halfway.source and "noisy" in halfway.source and halfway.noise == 0.12
+    # far above every level learnt: the noisiest's, and its source says so
+    busier = stats.spread_at(levels, 0.6)
+    assert busier.absolute == 0.25 and "above the 22% it was learnt at" in busier.source
+    assert stats.spread_at(levels, math.nan) == noisy  # noise unknown: the first (newest)
+    assert stats.spread_at([], 0.1) == stats.DEFAULT_SESSION_SPREAD
+    assert stats.session_noise([0.1, math.nan, 0.3, 0.0]) == pytest.approx(0.1)
+    assert math.isnan(stats.session_noise([]))
+
+
+def test_reruns_learn_the_noise_they_were_measured_under(tmp_path: Path) -> None:
+    roots = []
+    for k, noise in enumerate(([0.0, 0.1, 0.2], [0.3, 0.3, 0.4]), start=1):
+        rows = [{**row("p1", 1, 1.0 + k / 10, 0.9, 1.5, k), "round_noise": noise * 2}]
+        (tmp_path / str(k) / "e").mkdir(parents=True)
+        csvfile.write_results_csv(tmp_path / str(k) / "e" / "results.csv", rows)
+        roots.append(tmp_path / str(k))
+    [machine] = reruns.analyse(roots)
+    # each rerun's median round noise (0.1, then 0.3), and their median
+    assert machine.spread.noise == pytest.approx(0.2)
+    assert machine.entry("c.yaml")["noise"] == pytest.approx(0.2)
+    assert "under noise 20.0%" in machine.lines()[1]

@@ -198,3 +198,35 @@ def test_partners_are_timed_back_to_back_in_either_order() -> None:
     # a partner not in the round (it stopped) leaves the other on its own
     assert sorted(u.cell_id for u in round_order(cells[1:], random.Random(1))) == \
         sorted(u.cell_id for u in cells[1:])
+
+
+def test_the_sides_of_a_ratio_go_on_until_the_ratio_is_within_their_ci() -> None:
+    """Each side's rounds agree within 3% (their own intervals stop them at five rounds), but
+    they move in opposite directions, so their ratio's rounds move by 6%: both go on until the
+    ratio's interval is within ci, well short of max_runs; moving together, they stop at
+    five. A ratio that never narrows holds them to max_runs, not past it."""
+    auto = Measure(warmup=0, runs=None, ci=0.05, max_runs=20)
+
+    def measured(sign: int, size: float = 0.03) -> dict[str, int]:
+        class Swinging(FakeMeasurer):
+            def time_round(self, run: CellRun, round_index: int) -> None:
+                swing = size * (1 if round_index % 2 else -1)
+                side = 1 if run.cell_id == "seq" else sign
+                run.times.append(0.1 * (1 + side * swing))
+                run.rounds.append(round_index)
+                run.stopped = stop_reason(self.measure, run.times, 1, run.rounds)
+
+        measurer = Swinging(auto, [])
+        cells = {"seq": NamedCell("seq"), "p1": NamedCell("p1", 2)}
+        done: dict[str, int] = {}
+        measure_in_rounds([Unit(measurer, cell, cid) for cid, cell in cells.items()],  # type: ignore[arg-type]
+                          lambda u, r: done.__setitem__(u.cell_id, r["runs"]),
+                          progress(list(cells)), 3)
+        return done
+
+    together, opposite = measured(1), measured(-1)
+    assert together == {"seq": 5, "p1": 5}
+    assert opposite["seq"] == opposite["p1"] and 5 < opposite["p1"] < 20
+    # each side 5.5% off a round: narrow alone after a few more rounds, but their ratio's
+    # swing of 11% a round is not within 5% at twenty
+    assert measured(-1, 0.055) == {"seq": 20, "p1": 20}

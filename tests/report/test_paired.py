@@ -169,6 +169,17 @@ def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_mea
     assert "ratio intervals held another rerun's estimate in 44 of 45 (cell, rerun) pairs " \
         "(97.8%)" in text
     assert "No reruns were measured" not in text
+    # two noise levels: both named, the quieter first, and how a session picks between them
+    noisy = {**entry, "absolute": 0.25, "ratio": 0.12, "noise": 0.3,
+             "date": "2026-01-03T00:00:00+00:00"}
+    path.write_text(json.dumps({"session": noisy, "session_levels": [
+        {**entry, "noise": 0.04}, noisy]}), encoding="utf-8")
+    pipeline.render(root, out)
+    text = reading((out / "report.md").read_text(encoding="utf-8"))
+    assert "at the noise of their session" in text
+    quiet_at = text.index("7.0% for a cell's time and 3.0% for a ratio")
+    assert quiet_at < text.index("25.0% for a cell's time and 12.0% for a ratio")
+    assert ", under noise 4.0% (coverage of its 5 reruns" in text
 
 
 def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
@@ -188,7 +199,7 @@ def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
     rows = [cell("seq", 1, 1.0), cell("p1", 1, 1.1), cell("p1", 2, 0.6), cell("p1", 4, 0.4)]
     results = tmp_path / "results.csv"
     csvfile.write_results_csv(results, rows)
-    store_ratios.write_ratios_csv(tmp_path / RATIOS_CSV, rows, "seq", lambda machine: 0.05)
+    store_ratios.write_ratios_csv(tmp_path / RATIOS_CSV, rows, "seq", lambda machine, noise: 0.05)
     ratios = paired.read_ratios(tmp_path / RATIOS_CSV)
     assert ratios is not None and len(ratios) == 5
     out = speedups.with_speedup(frame.read_results(results), ratios=ratios)

@@ -8,6 +8,7 @@ import csv
 from pathlib import Path
 
 import pytest
+from harness import stats
 from harness.analysis import compare
 from harness.cli import main
 from harness.store import records, sessions
@@ -48,16 +49,28 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     assert main(["reruns", str(config), "--times", "2", "--reuse", "--no-keep",
                  "--results-dir", str(results)]) == 0
     assert "kept in" not in capsys.readouterr().out
+    [level] = data[sessions.LEVELS_KEY]  # kept with the noise its reruns measured
+    assert level["absolute"] == spread.absolute and 0.0 <= level["noise"] <= 1.0
+    # a level learnt under heavy noise beside it: a run takes the spread at its own noise
+    sessions.keep_session(results, kept.stem, {}, {
+        "absolute": 0.5, "ratio": 0.4, "noise": 1.0, "date": "9999-12-31T00:00:00+00:00"})
     # measured again: each rerun's intervals are those of the spread just kept (out of sample)
     again = tmp_path / "again"
     assert main(["reruns", str(config), "--times", "2", "--pause", "0.1", "--no-keep",
                  "--out", str(again), "--results-dir", str(results)]) == 0
-    with (again / "rerun-2" / "twice" / "ratios.csv").open(newline="") as handle:
-        assert {float(r["session_spread"]) for r in csv.DictReader(handle)} == {spread.ratio}
-    cell = next(p for p in (again / "rerun-1" / "twice" / "cells").glob("*.json")
-                if ".hyperfine." not in p.name)
-    stored = records.read_json(cell)
-    assert isinstance(stored, dict) and str(stored["session_source"]).startswith("learnt by")
+    cells = [records.read_json(p) for p in (again / "rerun-1" / "twice" / "cells").glob(
+        "*.json") if ".hyperfine." not in p.name]
+    # every cell took its five rounds together, so each finished at the session's noise: the
+    # median of every round's
+    noise = stats.session_noise(s for c in cells for s in c["round_noise"])
+    expected = sessions.find_session([again / "rerun-1"], kept.stem, noise)
+    assert spread.absolute <= expected.absolute < 0.5
+    for stored in cells:
+        assert stored["session_spread"] == pytest.approx(expected.absolute)
+        assert stored["session_source"] == expected.source
+    with (again / "rerun-1" / "twice" / "ratios.csv").open(newline="") as handle:
+        for row in csv.DictReader(handle):
+            assert spread.ratio <= float(row["session_spread"]) < 0.4
 
 
 def test_reruns_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

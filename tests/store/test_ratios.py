@@ -7,6 +7,7 @@ import io
 import math
 from pathlib import Path
 
+import pytest
 from harness import stats
 from harness.store import columns, ratios
 
@@ -34,7 +35,7 @@ def rows_of(path: Path) -> list[dict[str, str]]:
 def test_ratios_paired_by_round_cancel_the_drift_both_sides_share(tmp_path: Path) -> None:
     rows = [cell("seq", 1, 1.0), cell("p1", 1, 1.0), cell("p1", 2, 0.5)]
     path = tmp_path / "ratios.csv"
-    ratios.write_ratios_csv(path, rows, "seq", lambda machine: 0.0)
+    ratios.write_ratios_csv(path, rows, "seq", lambda machine, noise: 0.0)
     written = rows_of(path)
     assert tuple(csv.reader(io.StringIO(path.read_text())).__next__()) == columns.RATIO_COLUMNS
     found = {(r["variant"], r["threads"], r["kind"]): r for r in written}
@@ -55,7 +56,7 @@ def test_ratios_paired_by_round_cancel_the_drift_both_sides_share(tmp_path: Path
 
 def test_the_session_spread_widens_the_ratios_interval(tmp_path: Path) -> None:
     rows = [cell("p1", 1, 1.0), cell("p1", 2, 0.5)]
-    got = ratios.ratio_rows(rows, "seq", lambda machine: 0.05)
+    got = ratios.ratio_rows(rows, "seq", lambda machine, noise: 0.05)
     assert [r["kind"] for r in got] == ["over_one_thread"]
     low, high = got[0]["ratio_ci_low"], got[0]["ratio_ci_high"]
     # sqrt(2) x 1.96 x 0.05 on the log: about +-15%
@@ -65,11 +66,25 @@ def test_the_session_spread_widens_the_ratios_interval(tmp_path: Path) -> None:
 
 def test_cells_of_different_runs_are_not_paired(tmp_path: Path) -> None:
     rows = [cell("p1", 1, 1.0, seed=1), cell("p1", 2, 0.5, seed=2, speed=SPEED[::-1])]
-    got = ratios.ratio_rows(rows, "seq", lambda machine: 0.0)
+    got = ratios.ratio_rows(rows, "seq", lambda machine, noise: 0.0)
     assert got[0]["rounds"] == 0 and got[0]["ratio"] == 2.0 and got[0]["ratio_ci_low"] is None
     failed = {**cell("p1", 2, 0.5), "status": "failed"}
-    assert ratios.ratio_rows([cell("p1", 1, 1.0), failed], "seq", lambda m: 0.0) == []
+    assert ratios.ratio_rows([cell("p1", 1, 1.0), failed], "seq", lambda m, noise: 0.0) == []
     path = tmp_path / "ratios.csv"
     path.write_text("old")
-    ratios.write_ratios_csv(path, [cell("seq", 1, 1.0)], "seq", lambda m: 0.0)
+    ratios.write_ratios_csv(path, [cell("seq", 1, 1.0)], "seq", lambda m, noise: 0.0)
     assert not path.exists()  # nothing to compare: no stale file left
+
+
+def test_each_ratio_asks_for_the_spread_at_the_noise_of_its_two_cells() -> None:
+    asked: list[tuple[str, float]] = []
+
+    def session_of(machine: str, noise: float) -> float:
+        asked.append((machine, noise))
+        return 0.0
+
+    rows = [{**cell("seq", 1, 1.0), "round_noise": [0.0, 0.1, 0.1]},
+            {**cell("p1", 2, 0.5), "round_noise": [0.3, 0.4, 0.5]}]
+    ratios.ratio_rows(rows, "seq", session_of)
+    # p1's ratio over seq: the median of the six rounds' noise
+    assert [noise for _, noise in asked] == [pytest.approx(0.2)]
