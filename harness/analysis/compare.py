@@ -110,8 +110,8 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
                noise: float = math.nan) -> Drift:
     """The drift of the machines of a comparison: the largest of their newest calibrations or
     session spreads learnt by reruns (<root>/calibration/machines/<id>.json) under the given
-    results roots, the spread at the sides' `noise` (stats.spread_at; the newest level's
-    where it is unknown); ASSUMED_DRIFT for a machine without one."""
+    results roots, the spread at `noise` (the noisier side's session noise: stats.spread_at;
+    the newest level's where it is unknown); ASSUMED_DRIFT for a machine without one."""
     found: list[Drift] = []
     for machine_id in sorted(set(machine_ids)):
         learnt: list[tuple[str, Drift]] = []
@@ -124,7 +124,8 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
                     f"({entry.get('date', '?')}, {entry.get('config', '?')})")))
             levels = sessions.kept_levels([root], machine_id)
             if levels:  # the spread between two sessions
-                spread = sessions.find_session([root], machine_id, noise)
+                spread = stats.spread_at([sessions.spread_of(e, machine_id) for e in levels],
+                                         noise)
                 learnt.append((str(levels[0].get("date", "")), Drift(spread.apart(),
                                                                      spread.source)))
         if learnt:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -106,9 +107,10 @@ def execute(args: argparse.Namespace) -> int:
     old, new = sides(old_path, new_path, args.old_machine, args.new_machine)
     # the results roots a result directory may sit in: itself and its parent
     roots = (old_path, old_path.parent, new_path, new_path.parent, args.results_dir)
-    cells = [c for side in (old, new) for c in side.cells.values()]
-    drift = find_drift((c.machine_id for c in cells), roots,
-                       stats.session_noise(s for c in cells for s in c.round_noise))
+    noise = [stats.session_noise(s for c in side.cells.values() for s in c.round_noise)
+             for side in (old, new)]
+    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots,
+                       max((n for n in noise if math.isfinite(n)), default=math.nan))
     return report(old, new, args, out, allow_noise(drift, old, new), ())
 
 

@@ -126,11 +126,8 @@ def _ratio_narrow(unit: Unit, side: Unit) -> bool:
     if side.run is None or side.run.stopped != STOPPED_CI or _at_limit(side):
         return True
     ci = max(u.measurer.config.measure_for(u.cell.variant).ci for u in (unit, side))
-    interval = stats.paired_ratio(side.state.by_round(), unit.state.by_round()).interval()
-    if not interval.bounded:
-        return False
-    return max(interval.high - interval.point, interval.point - interval.low) <= \
-        ci * interval.point
+    return stats.paired_ratio(side.state.by_round(),
+                              unit.state.by_round()).interval().half_width() <= ci
 
 
 def paired_per_round(run_s: float) -> int:

@@ -13,6 +13,7 @@ An executor takes the cells through their rounds, alternating them (harness.exec
 
 from __future__ import annotations
 
+import functools
 import os
 import shlex
 from collections.abc import Mapping
@@ -56,7 +57,8 @@ class Measurer:
     cores: int = field(default_factory=machine.available_cores)
     references: References = field(init=False)
     checker: Checker = field(init=False)
-    # Every round's noise this measurer timed: its session's (stats.session_noise)
+    # The noise of every round this measurer timed (one measurer times one run of an
+    # experiment): its session's so far (stats.session_noise)
     round_noise: list[float] = field(default_factory=list, init=False)
 
     def __post_init__(self) -> None:
@@ -68,13 +70,17 @@ class Measurer:
     def config(self) -> Config:
         return self.store.config
 
+    @functools.cached_property
+    def levels(self) -> list[stats.SessionSpread]:
+        """This machine's session spreads (`reruns`, under this results root or the
+        repository's), one per noise level."""
+        return sessions.spreads(sessions.session_roots(self.store.root.path),
+                                self.store.machine_id)
+
     def session(self) -> stats.SessionSpread:
-        """This machine's session spread (`reruns`, under this results root or the
-        repository's) at the noise of this session's rounds so far; the default until one is
-        kept."""
-        return sessions.find_session(sessions.session_roots(self.store.root.path),
-                                     self.store.machine_id,
-                                     stats.session_noise(self.round_noise))
+        """The session spread at the noise of this session's rounds so far; the default until
+        one is kept."""
+        return stats.spread_at(self.levels, stats.session_noise(self.round_noise))
 
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}

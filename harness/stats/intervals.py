@@ -33,6 +33,13 @@ class Interval:
         """Whether both ends are finite (an interval was computed)."""
         return math.isfinite(self.low) and math.isfinite(self.high)
 
+    def half_width(self) -> float:
+        """The larger of its two sides as a share of the point; inf without an interval or a
+        positive point."""
+        if not self.bounded or not self.point > 0:
+            return math.inf
+        return max(self.point - self.low, self.high - self.point) / self.point
+
     def excludes(self, value: float) -> bool:
         """Whether the interval lies wholly on one side of `value`; False without an interval
         (NaN ends), so that a missing interval never reads as a significant difference."""

@@ -74,8 +74,9 @@ class SessionSpread:
 # moved 12-15% between reruns minutes apart, the median over cells, and up to 54%); 0.05 for a
 # ratio paired by round, whose sides share their rounds' machine (docs/compare.md).
 DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
-# How far a session's noise may lie above the noisiest level learnt before its spread says
-# so: the quiet sessions of one machine differ by a few points (2-5% on a 2-vCPU VM).
+# Noise levels this close are one: a newer spread learnt within it replaces an older one, and
+# a session's noise may lie this far above the noisiest level learnt before its spread says
+# so. The quiet sessions of one machine differ by a few points (2-9% on a 2-vCPU VM).
 NOISE_MARGIN = 0.05
 
 
@@ -170,10 +171,7 @@ def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimat
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
     """The round-level interval's larger side as a share of the point (inf without one)."""
-    interval = cell_estimate(times, rounds).interval()
-    if not interval.bounded or interval.point <= 0:
-        return math.inf
-    return max(interval.point - interval.low, interval.high - interval.point) / interval.point
+    return cell_estimate(times, rounds).interval().half_width()
 
 
 def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> RoundEstimate:
@@ -194,11 +192,11 @@ def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
     pool a random effect over studies (each cell its own mean, each session weighted by the
     inverse square of its standard error, floored at MIN_LOG_SE): a cell whose rounds are
     noisy (three rounds of a per-row pathology, a 5 ms cell) says little about the session
-    level and counts for little. Floored at 0; NaN without any cell in two sessions."""
+    level and counts for little, and a session without a standard error (one round, a ratio
+    of two rounds) is left out. Floored at 0; NaN without any cell in two sessions."""
     excess = dof = scale = 0.0
     for cell in sessions:
-        found = [(m, max(s, MIN_LOG_SE) if math.isfinite(s) else MIN_LOG_SE)
-                 for m, s in cell if math.isfinite(m)]
+        found = [(m, max(s, MIN_LOG_SE)) for m, s in cell if math.isfinite(m) and math.isfinite(s)]
         if len(found) < 2:
             continue
         logs = np.array([m for m, _ in found])
@@ -248,8 +246,7 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
         for k, interval in enumerate(found):
             if not interval.bounded:
                 continue
-            widths.append(max(interval.high - interval.point,
-                              interval.point - interval.low) / interval.point)
+            widths.append(interval.half_width())
             others = [other.point for j, other in enumerate(found) if j != k]
             pairs += len(others)
             held += sum(interval.low <= point <= interval.high for point in others)

@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness import stats
 from harness.store import atomic, csvfile, locks, ratios, records, sessions
 from harness.store.history import (
     UNKNOWN_MACHINE,
@@ -94,8 +95,11 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
         csvfile.write_results_csv(exp.results_csv, written)
         if baseline is not None:
             roots = sessions.session_roots(experiment_dir.parent)
-            session_of = functools.cache(  # each (machine, noise) asked once
-                lambda m, noise: sessions.find_session(roots, m, noise).ratio)
+            levels = functools.cache(lambda m: sessions.spreads(roots, m))  # read once each
+
+            def session_of(machine: str, noise: float) -> float:
+                return stats.spread_at(levels(machine), noise).ratio
+
             ratios.write_ratios_csv(exp.ratios_csv, written, baseline, session_of)
     return [r.result for r in rows]
 

@@ -3,8 +3,8 @@ in <root>/calibration/machines/<machine_id>.json: written by `reruns`, read wher
 interval is computed and where compare allows for the drift between sets measured apart.
 
 SESSION_KEY holds the newest entry; LEVELS_KEY one entry per noise level it was learnt at
-(a newer one replaces one of about the same noise), from which a session takes the spread of
-the noise nearest its own (stats.spread_at)."""
+(a newer one supersedes one of about the same noise), from which a session takes the spread
+at its own noise (stats.spread_at: interpolated between the two levels around it)."""
 
 from __future__ import annotations
 
@@ -43,39 +43,55 @@ def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
     return entry if _valid(entry) else None
 
 
+def _date(entry: Mapping[str, object]) -> str:
+    return str(entry.get("date", ""))
+
+
 def level_entries(root: Path, machine_id: str) -> list[Mapping[str, object]]:
-    """Every noise level's entry kept for the machine under this results root (a file kept
-    before levels: its one entry)."""
+    """Every noise level's entry kept for the machine under this results root, and the
+    newest entry where it is newer than all of them (a file kept before levels, or one a
+    harness without levels wrote last)."""
     data = records.read_json(ResultsRoot(root).calibration(machine_id))
     levels = data.get(LEVELS_KEY) if isinstance(data, dict) else None
-    if isinstance(levels, list):
-        return [e for e in levels if _valid(e)]
-    entry = session_entry(root, machine_id)
-    return [] if entry is None else [entry]
+    found = [e for e in levels if _valid(e)] if isinstance(levels, list) else []
+    newest = session_entry(root, machine_id)
+    if newest is not None and all(_date(newest) > _date(e) for e in found):
+        found.append(newest)
+    return found
 
 
 def noise_of(entry: Mapping[str, object]) -> float:
-    """The noise an entry was learnt under; NaN where it was kept before levels."""
+    """The noise an entry was learnt under; NaN where unknown (kept before levels, or reruns
+    that measured none)."""
     noise = entry.get("noise")
     return float(noise) if isinstance(noise, int | float) else math.nan
 
 
-def _same_level(a: Mapping[str, object], b: Mapping[str, object]) -> bool:
+def _supersedes(newer: Mapping[str, object], older: Mapping[str, object]) -> bool:
+    """Whether a newer entry makes an older one of no use: the older's noise is unknown, or
+    the newer's is known and within NOISE_MARGIN of it (an entry of unknown noise leaves
+    every level of known noise as it is)."""
     from harness.stats.levels import NOISE_MARGIN
 
-    return not abs(noise_of(a) - noise_of(b)) > NOISE_MARGIN  # NaN (unknown) matches any
+    old, new = noise_of(older), noise_of(newer)
+    return math.isnan(old) or (math.isfinite(new) and abs(new - old) <= NOISE_MARGIN)
 
 
 def kept_levels(roots: Iterable[Path], machine_id: str) -> list[Mapping[str, object]]:
-    """The machine's levels kept under the roots, newest first: where two roots keep one of
-    the same noise, the newer."""
+    """The machine's levels kept under the roots, newest first, without those a newer one
+    supersedes (where two roots keep one of the same noise, the newer)."""
     found = sorted((e for root in dict.fromkeys(roots) for e in level_entries(root, machine_id)),
-                   key=lambda e: str(e.get("date", "")), reverse=True)
+                   key=_date, reverse=True)
     levels: list[Mapping[str, object]] = []
     for entry in found:
-        if not any(_same_level(entry, kept) for kept in levels):
+        if not any(_supersedes(kept, entry) for kept in levels):
             levels.append(entry)
     return levels
+
+
+def spreads(roots: Iterable[Path], machine_id: str) -> list[SessionSpread]:
+    """kept_levels' spreads, newest first (stats.spread_at picks among them)."""
+    return [spread_of(e, machine_id) for e in kept_levels(roots, machine_id)]
 
 
 def find_session(roots: Iterable[Path], machine_id: str,
@@ -83,12 +99,9 @@ def find_session(roots: Iterable[Path], machine_id: str,
     """The spread for a session of this noise (stats.spread_at) from the levels kept under
     the roots; with the noise unknown, the newest's; DEFAULT_SESSION_SPREAD where none is
     kept."""
-    from harness.stats.levels import DEFAULT_SESSION_SPREAD, spread_at
+    from harness.stats.levels import spread_at
 
-    levels = kept_levels(roots, machine_id)
-    if not levels:
-        return DEFAULT_SESSION_SPREAD
-    return spread_at([spread_of(e, machine_id) for e in levels], noise)
+    return spread_at(spreads(roots, machine_id), noise)
 
 
 def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
@@ -103,12 +116,12 @@ def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
 def keep_session(root: Path, machine_id: str, description: Mapping[str, object],
                  entry: Mapping[str, object]) -> Path:
     """Keep the machine's session spread (with its description) in its calibration file,
-    beside what else is kept there, as the newest entry and as its noise level's (replacing
-    one of about the same noise); the file."""
+    beside what else is kept there, as the newest entry and as its noise level's (in place of
+    those it supersedes); the file."""
     path = ResultsRoot(root).calibration(machine_id)
     existing = records.read_json(path)
     existing = existing if isinstance(existing, dict) else {}
-    levels = [e for e in level_entries(root, machine_id) if not _same_level(e, entry)]
+    levels = [e for e in level_entries(root, machine_id) if not _supersedes(entry, e)]
     atomic.atomic_write_json(path, {**existing, **description, SESSION_KEY: dict(entry),
                                     LEVELS_KEY: [*levels, dict(entry)]})
     return path

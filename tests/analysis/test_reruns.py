@@ -76,6 +76,9 @@ def test_the_session_spread_counts_only_what_the_rounds_do_not_explain() -> None
     assert stats.session_spread([precise, noisy]) == pytest.approx(
         stats.session_spread([precise]), rel=0.05)
     assert stats.session_spread([noisy]) == pytest.approx(0.3)  # alone: 0.18 - 0.09
+    # a session without a standard error (one round) is left out, not weighted as certain
+    unknown = [(0.0, math.nan), (0.2, math.nan)]
+    assert stats.session_spread([precise, unknown]) == stats.session_spread([precise])
     cover = stats.coverage({"a": [stats.Interval(1.0, 0.9, 1.1), stats.Interval(1.05, 1.0, 1.1),
                                   None]})
     assert (cover.held, cover.pairs, cover.median_move) == (2, 2, pytest.approx(0.05))

@@ -17,7 +17,7 @@ def entry(absolute: float, noise: float | None, date: str) -> dict[str, object]:
     return found if noise is None else {**found, "noise": noise}
 
 
-def test_levels_are_kept_by_noise_and_a_session_finds_the_nearest(tmp_path: Path) -> None:
+def test_levels_are_kept_by_noise_and_a_session_takes_the_spread_at_its_own(tmp_path: Path) -> None:
     path = sessions.keep_session(tmp_path, "m1", {"cpu_model": "x"}, entry(0.05, 0.02, "1"))
     sessions.keep_session(tmp_path, "m1", {}, entry(0.25, 0.22, "2"))
     # a newer quiet one replaces the quiet level, not the noisy one
@@ -40,9 +40,23 @@ def test_a_file_kept_before_levels_is_one_level_of_unknown_noise(tmp_path: Path)
     path.write_text(json.dumps({sessions.SESSION_KEY: entry(0.06, None, "1")}))
     assert sessions.find_session([tmp_path], "m1", 0.3).absolute == 0.06
     assert math.isnan(sessions.find_session([tmp_path], "m1", 0.3).noise)
-    # the next one kept replaces it (its noise unknown, it matches any level)
+    # the next one kept supersedes it (its noise unknown)
     sessions.keep_session(tmp_path, "m1", {}, entry(0.25, 0.22, "2"))
     assert [e["absolute"] for e in records.read_json(path)[sessions.LEVELS_KEY]] == [0.25]
+    # one of unknown noise kept later leaves the known levels be: it serves a session whose
+    # noise is unknown
+    sessions.keep_session(tmp_path, "m1", {}, entry(0.09, None, "3"))
+    assert [e["absolute"] for e in records.read_json(path)[sessions.LEVELS_KEY]] == [0.25, 0.09]
+    assert sessions.find_session([tmp_path], "m1", 0.3).absolute == 0.25
+    assert sessions.find_session([tmp_path], "m1").absolute == 0.09
+
+
+def test_an_entry_written_last_by_a_harness_without_levels_counts(tmp_path: Path) -> None:
+    path = sessions.keep_session(tmp_path, "m1", {}, entry(0.05, 0.02, "1"))
+    data = records.read_json(path)
+    path.write_text(json.dumps({**data, sessions.SESSION_KEY: entry(0.3, None, "2")}))
+    assert sessions.find_session([tmp_path], "m1").absolute == 0.3  # the newest, noise unknown
+    assert sessions.find_session([tmp_path], "m1", 0.02).absolute == 0.05
 
 
 def test_the_newest_of_two_roots_keeps_a_level(tmp_path: Path) -> None:
