@@ -51,9 +51,11 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     assert "kept in" not in capsys.readouterr().out
     [level] = data[sessions.LEVELS_KEY]  # kept with the noise its reruns measured
     assert level["absolute"] == spread.absolute and 0.0 <= level["noise"] <= 1.0
-    # a level learnt under heavy noise beside it: a run takes the spread at its own noise
+    # a level learnt under heavy noise beside it, wider by 0.5: a run takes the spread at its
+    # own noise, between the two
     sessions.keep_session(results, kept.stem, {}, {
-        "absolute": 0.5, "ratio": 0.4, "noise": 1.0, "date": "9999-12-31T00:00:00+00:00"})
+        "absolute": spread.absolute + 0.5, "ratio": spread.ratio + 0.5, "noise": 1.0,
+        "date": "9999-12-31T00:00:00+00:00"})
     # measured again: each rerun's intervals are those of the spread just kept (out of sample)
     again = tmp_path / "again"
     assert main(["reruns", str(config), "--times", "2", "--pause", "0.1", "--no-keep",
@@ -64,13 +66,13 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     # median of every round's
     noise = stats.session_noise(s for c in cells for s in c["round_noise"])
     expected = sessions.find_session([again / "rerun-1"], kept.stem, noise)
-    assert spread.absolute <= expected.absolute < 0.5
+    assert spread.absolute <= expected.absolute < spread.absolute + 0.5
     for stored in cells:  # (the record keeps each round's noise to three decimals)
-        assert stored["session_spread"] == pytest.approx(expected.absolute, rel=1e-2)
+        assert stored["session_spread"] == pytest.approx(expected.absolute, abs=1e-3)
         assert stored["session_source"].startswith(("learnt by", "between learnt by"))
     with (again / "rerun-1" / "twice" / "ratios.csv").open(newline="") as handle:
         for row in csv.DictReader(handle):
-            assert spread.ratio <= float(row["session_spread"]) < 0.4
+            assert spread.ratio <= float(row["session_spread"]) < spread.ratio + 0.5
 
 
 def test_reruns_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
