@@ -94,7 +94,10 @@ def _coverage_text(name: str, figures: object) -> str:
     held, pairs = figures.get("held", 0), figures["pairs"]
     share = held / pairs if isinstance(held, int | float) and isinstance(pairs, int | float) \
         else math.nan
+    quartiles = [figures.get(k) for k in ("low_half_width", "high_half_width")]
+    spread = f" (quartiles {', '.join(map(_percent, quartiles))})" \
+        if all(isinstance(q, int | float) and math.isfinite(q) for q in quartiles) else ""
     return (f"{name} held another rerun's estimate in {held} of {pairs} (cell, rerun) pairs "
             f"({_percent(share)}), moves between reruns {_percent(figures.get('median_move'))} "
             f"median and {_percent(figures.get('largest_move'))} largest, median half-width "
-            f"{_percent(figures.get('median_half_width'))}")
+            f"{_percent(figures.get('median_half_width'))}{spread}")

@@ -219,6 +219,9 @@ class Coverage:
     median_move: float
     largest_move: float
     median_half_width: float  # of the intervals, as a share of their points
+    # the quartiles of the same half-widths (their distribution: a few wide ones or many)
+    low_half_width: float = math.nan
+    high_half_width: float = math.nan
 
     @property
     def share(self) -> float:
@@ -230,7 +233,8 @@ class Coverage:
         return (f"{what}: {self.held} of {self.pairs} (cell, rerun) pairs ({self.share:.1%}) "
                 f"held another rerun's estimate; moves between reruns {self.median_move:.1%} "
                 f"median, {self.largest_move:.1%} largest; intervals' median half-width "
-                f"{self.median_half_width:.1%}")
+                f"{self.median_half_width:.1%} (quartiles {self.low_half_width:.1%}, "
+                f"{self.high_half_width:.1%})")
 
 
 def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
@@ -250,6 +254,6 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
             others = [other.point for j, other in enumerate(found) if j != k]
             pairs += len(others)
             held += sum(interval.low <= point <= interval.high for point in others)
+    low, mid, high = np.percentile(widths, [25, 50, 75]) if widths else [math.nan] * 3
     return Coverage(held, pairs, float(np.median(moves)) if moves else math.nan,
-                    max(moves, default=math.nan),
-                    float(np.median(widths)) if widths else math.nan)
+                    max(moves, default=math.nan), float(mid), float(low), float(high))

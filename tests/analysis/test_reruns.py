@@ -82,6 +82,10 @@ def test_the_session_spread_counts_only_what_the_rounds_do_not_explain() -> None
     cover = stats.coverage({"a": [stats.Interval(1.0, 0.9, 1.1), stats.Interval(1.05, 1.0, 1.1),
                                   None]})
     assert (cover.held, cover.pairs, cover.median_move) == (2, 2, pytest.approx(0.05))
+    # the half-widths' quartiles beside their median: 10% and 1/21 (4.8%)
+    assert cover.low_half_width < cover.median_half_width < cover.high_half_width
+    assert cover.median_half_width == pytest.approx((0.1 + 0.05 / 1.05) / 2)
+    assert "(quartiles 6.1%, 8.7%)" in cover.line("x")
 
 
 def test_a_session_takes_the_spread_learnt_under_the_noise_nearest_its_own() -> None:

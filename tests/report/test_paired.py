@@ -180,6 +180,8 @@ def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_mea
     quiet_at = text.index("7.0% for a cell's time and 3.0% for a ratio")
     assert quiet_at < text.index("25.0% for a cell's time and 12.0% for a ratio")
     assert ", under noise 4.0% (coverage of its 5 reruns" in text
+    assert "median half-width 18.0%" in text and "quartiles" not in text  # none kept
+
 
 
 def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
