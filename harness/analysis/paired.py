@@ -106,7 +106,7 @@ def put_metrics(out: pd.DataFrame, position: object, speedup: stats.Interval,
     if pd.notna(out.at[position, "serial_fraction"]):
         metrics["serial_fraction"] = stats.karp_flatt(speedup, threads)
     for name, interval in metrics.items():
-        finite = math.isfinite(interval.low) and math.isfinite(interval.high)
+        finite = interval.bounded
         if point:
             out.at[position, name] = interval.point
         out.at[position, f"{name}_low"] = interval.low if finite else math.nan

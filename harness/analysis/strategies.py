@@ -242,7 +242,7 @@ def chunk_sentence(costs: Sequence[ChunkCost]) -> str:
     interval), and which the runs cannot tell from their reference."""
     parts, unresolved = [], []
     for c in costs:
-        single = not (math.isfinite(c.extra.low) and math.isfinite(c.extra.high))
+        single = not c.extra.bounded
         if single or c.extra.excludes(0.0):
             parts.append(f"{c.variant} costs {c.per_chunk_ns.format(3)} ns a chunk more than "
                          f"{c.reference} takes for the same pairs"

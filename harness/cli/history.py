@@ -86,7 +86,7 @@ def split_items(items: Sequence[str]) -> tuple[list[str], list[Path]]:
 
 def execute(args: argparse.Namespace) -> int:
     revisions, paths = split_items(args.items)
-    _, configs = load_configs(paths, args.metric)
+    registry, configs = load_configs(paths, args.metric)
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
@@ -106,7 +106,8 @@ def execute(args: argparse.Namespace) -> int:
                 raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
             if args.bisect:  # what the series found is kept should bisection stop
                 publish(config, exp, series, order, args)
-                bisect_all(config, series, full, order, results_root, repo, lock, args.hyperfine)
+                bisect_all(config, series, full, order, results_root, repo, lock, args.hyperfine,
+                           registry)
             summarise(config, exp, series, order, len(commits), args)
     return 0
 
@@ -141,7 +142,7 @@ def summarise(config: Config, exp: ExperimentDir, series: Sequence[Series],
 
 def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
                order: Mapping[str, int], results_root: Path, repo: Path, lock: RunLock,
-               hyperfine: str) -> None:
+               hyperfine: str, registry: VariantRegistry) -> None:
     """Name the commit of each change point that falls between measured commits with
     unmeasured ones between them (each series' bisections)."""
     pairs: dict[tuple[int, int], MeasuredSides] = {}  # what a metric's bisection measured
@@ -153,7 +154,7 @@ def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitIn
             if high - low <= 1:
                 continue
             found = bisect(config, s, k, change, full, low, high, results_root, repo, lock,
-                           hyperfine, pairs)
+                           hyperfine, pairs, registry)
             s.bisections.append(found)
             sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
                              f"{found.named.short} {found.named.subject!r}\n")
@@ -161,13 +162,13 @@ def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitIn
 
 def bisect(config: Config, s: Series, k: int, change: ChangePoint,
            full: Sequence[CommitInfo], low: int, high: int, results_root: Path, repo: Path,
-           lock: RunLock, hyperfine: str, pairs: dict[tuple[int, int], MeasuredSides]
-           ) -> Bisection:
+           lock: RunLock, hyperfine: str, pairs: dict[tuple[int, int], MeasuredSides],
+           registry: VariantRegistry) -> Bisection:
     """Halve [low, high] (low before the step, high after it) by measuring the middle commit
     against `low`'s, together in interleaved rounds: a ratio nearer the step than 1 puts the
     step at or before the middle. `pairs`: the commits measured together so far (another
-    metric's bisection of the same cells reuses them)."""
-    registry = VariantRegistry(REPO_ROOT)
+    metric's bisection of the same cells reuses them); `registry`: this repository's variants,
+    as the configs were loaded with."""
     label = s.label
     points = []
     while high - low > 1:

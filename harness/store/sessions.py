@@ -94,16 +94,6 @@ def spreads(roots: Iterable[Path], machine_id: str) -> list[SessionSpread]:
     return [spread_of(e, machine_id) for e in kept_levels(roots, machine_id)]
 
 
-def find_session(roots: Iterable[Path], machine_id: str,
-                 noise: float = math.nan) -> SessionSpread:
-    """The spread for a session of this noise (stats.spread_at) from the levels kept under
-    the roots; with the noise unknown, the newest's; DEFAULT_SESSION_SPREAD where none is
-    kept."""
-    from harness.stats.levels import spread_at
-
-    return spread_at(spreads(roots, machine_id), noise)
-
-
 def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
     """The spread a `reruns` entry (session_entry) holds, naming where it was learnt."""
     from harness.stats.levels import SessionSpread

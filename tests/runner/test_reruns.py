@@ -5,6 +5,7 @@ and found again, the coverage reported; bad input is one error line."""
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import pytest
@@ -39,7 +40,7 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     [kept] = (results / "calibration" / "machines").glob("*.json")
     data = records.read_json(kept)
     assert isinstance(data, dict) and "cpu_model" in data  # beside the machine's description
-    spread = sessions.find_session([results], kept.stem)
+    spread = stats.spread_at(sessions.spreads([results], kept.stem), math.nan)
     assert spread.absolute == data[sessions.SESSION_KEY]["absolute"]
     assert spread.source.startswith("learnt by reruns")
     # a comparison of stored sets of this machine allows for the same session spread
@@ -65,7 +66,7 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     # every cell took its five rounds together, so each finished at the session's noise: the
     # median of every round's
     noise = stats.session_noise(s for c in cells for s in c["round_noise"])
-    expected = sessions.find_session([again / "rerun-1"], kept.stem, noise)
+    expected = stats.spread_at(sessions.spreads([again / "rerun-1"], kept.stem), noise)
     assert spread.absolute <= expected.absolute < spread.absolute + 0.5
     for stored in cells:  # (the record keeps each round's noise to three decimals)
         assert stored["session_spread"] == pytest.approx(expected.absolute, abs=1e-3)
