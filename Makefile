@@ -21,6 +21,10 @@
 #   make setup-test       setup, and what only the tests need (requirements-test.txt; as root,
 #                         Debian's Slurm and chromium); make test runs it first
 #   make quickstart       setup, build, run configs/quickstart.yaml and render report/
+#   make publish          the project's published measurements (published/results, committed):
+#                         PUBLISH_CONFIGS (default: the config of every published experiment)
+#                         measured on this machine, published/report rendered from every
+#                         machine's; make publish-report renders it only
 #
 # A variant is a file variants/NAME.c, with, if it is split into pieces, the files
 # variants/NAME/*.c and its own headers variants/NAME/*.h; adding one needs no change here.
@@ -95,7 +99,7 @@ $(foreach b,$(BUILDS),$(eval $(call build_rules,lane-$(b),build/lane/%-$(b),$(LA
 # Keep the objects: they are prerequisites of many binaries.
 .SECONDARY:
 
-.PHONY: all asan portable lane fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart clean print-flags print-variants print-builds
+.PHONY: all asan portable lane fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart publish publish-report clean print-flags print-variants print-builds
 
 all: $(addprefix build/,$(VARIANTS)) build/ompcost
 
@@ -228,6 +232,17 @@ RUN_FLAGS ?=
 quickstart: setup
 	$(MAKE) all
 	$(PYTHON) harness/run.py configs/quickstart.yaml $(RUN_FLAGS)
+
+# A user's runs write only results/ and report/, which git ignores; the project's own
+# measurements are published/, refreshed only by these.
+PUBLISHED := published/results
+PUBLISHED_NAMES := $(notdir $(patsubst %/cells,%,$(wildcard $(PUBLISHED)/*/cells)))
+PUBLISH_CONFIGS ?= $(foreach n,$(PUBLISHED_NAMES),$(firstword $(wildcard configs/$(n).yaml examples/$(n)/$(n).yaml)))
+publish: all $(PYTHON)
+	$(PYTHON) harness/run.py --results-dir $(PUBLISHED) $(PUBLISH_CONFIGS) $(RUN_FLAGS)
+
+publish-report: $(PYTHON)
+	$(PYTHON) -m harness report --results-dir $(PUBLISHED)
 
 FUZZ_SECONDS ?= 600
 fuzz: $(TEST_READY) all asan

@@ -91,8 +91,10 @@ def build_binaries() -> Callable[..., Path]:
 def private_measuring_lock(tmp_path_factory: pytest.TempPathFactory,
                            monkeypatch: pytest.MonkeyPatch) -> None:
     """Tests take their own measuring lock (harness.lock), never the machine-wide one: a test
-    run neither waits for a real benchmark nor holds one up."""
+    run neither waits for a real benchmark nor holds one up. Nor do their runs wait for quiet:
+    they share the cores with each other (a test of the waiting sets its own)."""
     monkeypatch.setenv("COLLIDE_BENCH_LOCK_DIR", str(tmp_path_factory.getbasetemp()))
+    monkeypatch.setenv("COLLIDE_BENCH_QUIET_WAIT_S", "0")
 
 
 @pytest.fixture(scope="session")

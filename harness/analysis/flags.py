@@ -4,6 +4,8 @@ warnings table, and which commits measured the cells."""
 
 from __future__ import annotations
 
+import math
+
 import pandas as pd
 
 from harness.analysis.cells import flag, sort_cells
@@ -16,6 +18,7 @@ from harness.store.columns import (
     IDENTICAL,
     INVALID,
     OK,
+    UNPLANNED,
 )
 
 # How each of a cell's flags (store.columns.FLAG_COLUMNS) is written, in the order shown.
@@ -24,7 +27,12 @@ FLAG_WORDS: dict[str, str] = {
     "unstable": "unstable timing",  # stddev >= 10% of the mean
     "outliers": "outliers",  # hyperfine warned about statistical outliers
     "loaded": "loaded machine",  # other processes loaded the machine when the cell started
+    # other processes took more than stats.DISTURBED_LIMIT of the cores over its rounds
+    "disturbed": "disturbed",
     "stale": "stale binary",  # its binary changed since it was measured
+    # measured under an earlier version of its config (by a machine that has not measured it
+    # since): config_changed says in what
+    "earlier_config": "earlier config",
 }
 INVALID_OUTPUT = "invalid output"
 NOT_CHECKED = "not checked"  # a program left unjudged: seq's own print-mode run failed
@@ -90,8 +98,28 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
             cores = row.get("cores")
             cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
             text += f" ({int(row['threads'])} threads{cores_text})"
+        elif name == "disturbed":
+            text += disturbed_words(row.get("others_share"))
+        elif name == "earlier_config":
+            text += _config_change(row.get("config_changed"))
         found.append((FLAG_WORDS[name], text))
     return found
+
+
+def disturbed_words(share: object) -> str:
+    """How much of the CPU others took, as the warnings and the summaries say it."""
+    if not isinstance(share, float) or math.isnan(share):
+        return ""
+    return f" ({share:.0%} of the CPU went to other processes)"
+
+
+def _config_change(changed: object) -> str:
+    """What an earlier config differed in, as the warnings say it."""
+    if not isinstance(changed, str) or not changed:
+        return ""
+    if changed == UNPLANNED:
+        return " (the config no longer plans this cell)"
+    return f" (it differed in: {', '.join(changed.split())})"
 
 
 def _flagged(df: pd.DataFrame) -> pd.DataFrame:
@@ -148,3 +176,29 @@ def provenance(df: pd.DataFrame) -> str:
     if stale:
         sentences.append(f"{stale} stale cell(s): their binary changed since they were measured.")
     return " ".join(sentences)
+
+
+def disturbed_text(df: pd.DataFrame) -> str:
+    """The cells' disturbance in a sentence, for the first line of what shows them (empty
+    where no cell was disturbed): how much of the CPU others took, on how many cells."""
+    disturbed = flag(df, "disturbed")
+    if not disturbed.any():
+        return ""
+    shares = pd.to_numeric(df.loc[disturbed, "others_share"], errors="coerce").dropna()
+    words = f"{shares.mean():.0%} of the CPU went to other processes" if len(shares) else (
+        "other processes took the CPU")
+    return (f"Disturbed: {words} while {int(disturbed.sum())} of these {len(df)} cells were "
+            "measured; their times and speedups are not what this machine gives when quiet.")
+
+
+def earlier_config_text(df: pd.DataFrame) -> str:
+    """How many cells an earlier version of the config measured, and in what it differed
+    (empty where none did)."""
+    earlier = flag(df, "earlier_config")
+    if not earlier.any():
+        return ""
+    changed = sorted({f for text in df.loc[earlier, "config_changed"].dropna().astype(str)
+                      for f in text.split()} - {UNPLANNED})
+    what = f" (it differed in: {', '.join(changed)})" if changed else ""
+    return (f"{int(earlier.sum())} of these {len(df)} cells were measured under an earlier "
+            f"version of the config{what}, by a machine that has not measured it since.")

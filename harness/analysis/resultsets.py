@@ -5,9 +5,10 @@ de-duplication."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import statistics
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from harness.analysis.frame import items, read_results, run_times
 from harness.errors import HarnessError
 from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
+from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
 
 # The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
@@ -262,9 +264,13 @@ def matched(old: Side, new: Side) -> Iterator[tuple[MatchKey, Cell | None, Cell 
 
 
 def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: bool,
-              directories: Sequence[Path]) -> Side:
-    """Read every experiment of one side; pick one machine; one cell per key."""
-    cells = [c for d in directories for c in read_cells(d, keyed_on_experiment)]
+              directories: Sequence[Path], labels: Mapping[str, str] | None = None) -> Side:
+    """Read every experiment of one side; pick one machine; one cell per key. Machines go by
+    `labels` (store.labels: over both sides), else by those of this side's machines."""
+    if labels is None:
+        labels = machine_labels(read_machines(directories))
+    cells = [dataclasses.replace(c, machine=labels.get(c.machine_id, c.machine))
+             for d in directories for c in read_cells(d, keyed_on_experiment)]
     option = f"--{name.lower()}-machine"
     if selector is not None:
         chosen = [c for c in cells if machine_matches(c, selector)]

@@ -38,6 +38,7 @@ from harness.runner.pair import BLOCKS, DEFAULT_BUDGET_S, calibrate, measure_sid
 from harness.runner.sides import resolve
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.store import atomic, layout, records
+from harness.store.labels import machine_labels, read_machines
 
 DEFAULT_OUT = DEFAULT_RESULTS_DIR / layout.COMPARE_DIR
 USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --calibrate "
@@ -119,8 +120,9 @@ def sides(old_path: Path, new_path: Path, old_machine: str | None,
     old_dirs, old_root = experiment_dirs(old_path, "OLD")
     new_dirs, new_root = experiment_dirs(new_path, "NEW")
     by_experiment = old_root and new_root
-    old = load_side("OLD", old_path, old_machine, by_experiment, old_dirs)
-    new = load_side("NEW", new_path, new_machine, by_experiment, new_dirs)
+    labels = machine_labels(read_machines([*old_dirs, *new_dirs]))
+    old = load_side("OLD", old_path, old_machine, by_experiment, old_dirs, labels)
+    new = load_side("NEW", new_path, new_machine, by_experiment, new_dirs, labels)
     if not old.cells and not new.cells:
         raise HarnessError(f"nothing to compare: no cells in {old_path} or {new_path}")
     return old, new

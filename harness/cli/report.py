@@ -7,7 +7,7 @@ from pathlib import Path
 
 from harness.cli.common import Parser
 from harness.errors import HarnessError
-from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR
+from harness.repo import DEFAULT_RESULTS_DIR, default_report_dir
 from harness.store.layout import QUICK_SUFFIX
 
 
@@ -15,8 +15,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
     parser = Parser(prog=prog, description=__doc__)
     parser.add_argument("--results-dir", type=Path, default=DEFAULT_RESULTS_DIR,
                         help="where results/<experiment>/results.csv live (default: %(default)s)")
-    parser.add_argument("--out", type=Path, default=DEFAULT_REPORT_DIR,
-                        help="report directory to write (default: %(default)s)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="report directory to write (default: report/ for results/, "
+                        "published/report for published/results, else <results-dir>/report)")
     parser.add_argument("--include-quick", action="store_true",
                         help=f"also report the *{QUICK_SUFFIX} smoke-run experiments")
     parser.add_argument("--experiment", action="append", metavar="NAME",
@@ -32,7 +33,8 @@ def execute(args: argparse.Namespace) -> int:
     from harness.report.pipeline import render
 
     try:
-        path = render(args.results_dir, args.out, include_quick=args.include_quick,
+        out = args.out if args.out is not None else default_report_dir(args.results_dir)
+        path = render(args.results_dir, out, include_quick=args.include_quick,
                       experiments=args.experiment, machine=args.machine)
     except OSError as exc:
         raise HarnessError(str(exc)) from None

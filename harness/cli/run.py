@@ -13,17 +13,23 @@ from harness.cli.common import (
     add_flags,
     load_configs,
     measuring_lock,
+    seconds,
     whole_number,
 )
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
-from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.plan.cellstore import now_iso
+from harness.repo import REPO_ROOT, default_report_dir
 from harness.runner.experiment import run_experiment
 from harness.spec.config import DEFAULT_MAX_CELLS
 
-REPORT_SUBDIR = "report"  # a results root's own report, beside its experiments
 INTERRUPTED = "finished cells are saved; run again to resume"
+# A run waits at most this long, per experiment, for a busy machine to be quiet again: long
+# enough for a build or an update to pass, short enough that a machine busy for good still
+# gets measured (and its cells flagged disturbed).
+QUIET_WAIT_S = 60.0
+QUIET_WAIT_VAR = "COLLIDE_BENCH_QUIET_WAIT_S"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -48,7 +54,22 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         "run) and record them; submit nothing")
     parser.add_argument("--partition", default=None,
                         help="slurm: the partition (overrides the config's executor.partition)")
+    parser.add_argument("--quiet-wait", type=seconds, default=default_quiet_wait(),
+                        metavar="SECONDS",
+                        help="how long an experiment may wait, in all, for other processes to "
+                        "leave the cores before it takes a round they disturbed again (0: "
+                        f"never; default {QUIET_WAIT_S:g}, or ${QUIET_WAIT_VAR})")
     return parser
+
+
+def default_quiet_wait() -> float:
+    """QUIET_WAIT_S, or what $COLLIDE_BENCH_QUIET_WAIT_S says (the tests' runs share two cores
+    with each other: waiting for quiet there would only slow them)."""
+    text = os.environ.get(QUIET_WAIT_VAR, "")
+    try:
+        return max(0.0, float(text)) if text else QUIET_WAIT_S
+    except ValueError:
+        raise SystemExit(f"error: ${QUIET_WAIT_VAR}: expected seconds, got {text!r}") from None
 
 
 def execute(args: argparse.Namespace) -> int:
@@ -56,7 +77,8 @@ def execute(args: argparse.Namespace) -> int:
     options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
-                      partition=args.partition, run_lock=run_lock)
+                      partition=args.partition, run_lock=run_lock,
+                      quiet_wait_s=args.quiet_wait, started=now_iso())
     try:
         registry, configs = load_configs(args.configs, args.metric, args.max_cells)
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
@@ -67,27 +89,29 @@ def execute(args: argparse.Namespace) -> int:
         with run_lock:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]
-        if not (args.dry_run or args.no_report):
-            render_report(options, report_dir(args), [s.directory.name for s in summaries])
+        names = [s.directory.name for s in summaries]
+        if not args.dry_run:
+            page = None if args.no_report else render_report(options, report_dir(args), names)
+            from harness.report.terminal import run_summary
+
+            sys.stdout.write(run_summary(options.results_root, names, page))
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
     return 0
 
 
 def report_dir(args: argparse.Namespace) -> Path:
-    """The report of the repository's results is the repository's; another results root
-    gets its own, inside it (a run elsewhere never overwrites the committed report)."""
+    """The report of the repository's results root (a user's, or the published one) is the
+    repository's beside it; another results root gets its own, inside it."""
     if args.report_dir is not None:
         return Path(args.report_dir)
-    if args.results_dir.resolve() == DEFAULT_RESULTS_DIR.resolve():
-        return DEFAULT_REPORT_DIR
-    return args.results_dir / REPORT_SUBDIR
+    return default_report_dir(args.results_dir)
 
 
-def render_report(options: Options, report_dir: Path, names: list[str]) -> None:
+def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     """A full run renders every experiment under the results root into `report_dir`; a
     --quick run renders only the quick experiments it just ran, into
-    `report_dir/report-quick`."""
+    `report_dir/report-quick`. The page to open (report.html)."""
     from harness.report.pipeline import render
 
     if options.quick:
@@ -95,4 +119,4 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> None:
                       experiments=names)
     else:
         path = render(options.results_root, report_dir)
-    sys.stderr.write(f"report: {path}\n")
+    return path.with_suffix(".html")

@@ -40,6 +40,10 @@ class Options:
     collect: bool = False  # slurm: adopt the jobs in flight, submit nothing
     partition: str | None = None  # slurm: overrides the config's executor.partition
     round_seed: int | None = None  # the order of the cells in each round; None: a fresh one
+    # How long an experiment's run may wait, in all, for others to leave the cores before it
+    # takes a disturbed round again (harness.measure.noise.QuietWait); 0: it never waits
+    quiet_wait_s: float = 0.0
+    started: str = ""  # when the run began (ISO 8601): env.json's run_started
     # The machine-wide measuring lock of this run (harness.store.locks), taken before the first
     # cell is measured; None: measure without it (tests that fake hyperfine).
     run_lock: locks.RunLock | None = None

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from harness import stats
 from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
+from harness.measure.noise import QuietWait
 from harness.measure.rounds import CellRun, limit_reason, runs_left
 from harness.plan.cells import Cell
 from harness.spec.facts import BASELINE
@@ -254,6 +255,9 @@ class LocalExecutor:
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
+        if experiment.options.quiet_wait_s > 0:
+            measurer.quiet = QuietWait(experiment.options.quiet_wait_s, experiment.log,
+                                       experiment.config.name)
         units = [Unit(measurer, cell, cid) for cell, cid in pending]
         measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
                           progress, experiment.options.round_seed)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness import stats
-from harness.measure import environment, machine, validate
+from harness.measure import environment, machine, noise, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
@@ -44,6 +44,9 @@ from harness.store.columns import INVALID, OK, TIMED_STATUSES
 from harness.store.result import CellResult
 
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
+# The most times one round of a cell is taken again because others disturbed it: a burst of
+# others' work passes in seconds, a busy neighbour does not, and the run's wait is bounded.
+MAX_RETAKES = 3
 # A cell's `schedule` (the config's schedule axis) reaches `schedule(runtime)` loops through it.
 OMP_SCHEDULE_VAR = "OMP_SCHEDULE"
 
@@ -60,6 +63,9 @@ class Measurer:
     # The noise of every round this measurer timed (one measurer times one run of an
     # experiment): its session's so far (stats.session_noise)
     round_noise: list[float] = field(default_factory=list, init=False)
+    # The run's patience with a busy machine: a disturbed round is taken again once it is
+    # quiet (None: never; a comparison's rounds are paired, and its test drops the worst)
+    quiet: noise.QuietWait | None = None
 
     def __post_init__(self) -> None:
         self.references = References(self.store, self.environment,
@@ -167,6 +173,14 @@ class Measurer:
         warmup = measure.warmup if not run.exports else 0
         timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
                           measure.timeout_s, self.cores)
+        while (timed.noise is not None and timed.noise.disturbed and self.quiet is not None
+               and run.retaken < MAX_RETAKES and self.quiet.wait(machine.round_cores())):
+            # kept beside the cell's exports, under a name no reader takes for a round's
+            os.replace(export, self.store.layout.disturbed(run.cell_id, round_index,
+                                                           run.retaken))
+            run.retaken += 1
+            timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
+                              measure.timeout_s, self.cores)
         run.add(timed, round_index, export)
         if timed.stats is not None and timed.noise is not None:
             self.round_noise.append(timed.noise.share)

@@ -27,7 +27,7 @@ from harness.measure.machine import (
     print_flags,
     read_text,
 )
-from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR
+from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, PUBLISHED_DIR
 
 
 def clock() -> dict[str, object]:
@@ -71,13 +71,13 @@ def compiler_info(repo_root: Path, make: str) -> dict[str, str | None]:
     }
 
 
-GENERATED_PATHS = (DEFAULT_RESULTS_DIR.name, DEFAULT_REPORT_DIR.name)
+GENERATED_PATHS = (DEFAULT_RESULTS_DIR.name, DEFAULT_REPORT_DIR.name, PUBLISHED_DIR.name)
 
 
 def git_info(repo_root: Path) -> dict[str, object]:
     commit = command_output(["git", "rev-parse", "HEAD"], cwd=repo_root)
-    # results/ and report/ are what measuring writes: a run's own output must not make the
-    # sources it measured look modified.
+    # results/, report/ and published/ are what measuring writes: a run's own output must not
+    # make the sources it measured look modified.
     status = command_output(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
                              *(f":!{path}" for path in GENERATED_PATHS)], cwd=repo_root)
     return {"commit": commit, "dirty": bool(status) if status is not None else None}

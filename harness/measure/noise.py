@@ -15,12 +15,13 @@ import os
 import re
 import resource
 import time
+import typing
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from harness.measure.machine import read_text
-from harness.stats import NOISE_LIMIT  # a round beyond it is flagged (and may be dropped)
+from harness.stats import DISTURBED_LIMIT, NOISE_LIMIT
 
 PROC_STAT = Path("/proc/stat")
 # "some total=" is the microseconds during which at least one runnable task waited for a CPU
@@ -85,9 +86,10 @@ class RoundNoise:
 
     @property
     def share(self) -> float:
-        """Others' and stolen time as a share of the cores' time in the round."""
+        """Others' and stolen time as a share of the cores' time in the round, at most 1 (the
+        kernel's ticks and the wall clock are read a moment apart)."""
         capacity = self.wall_s * self.cores
-        return (self.steal_s + self.other_cpu_s) / capacity if capacity > 0 else 0.0
+        return min(1.0, (self.steal_s + self.other_cpu_s) / capacity) if capacity > 0 else 0.0
 
     @property
     def pressure(self) -> float | None:
@@ -101,6 +103,10 @@ class RoundNoise:
     @property
     def interfered(self) -> bool:
         return self.share > NOISE_LIMIT
+
+    @property
+    def disturbed(self) -> bool:
+        return self.share > DISTURBED_LIMIT
 
 
 def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
@@ -116,3 +122,54 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
         waited = max(0.0, after.pressure_s - before.pressure_s)
     return RoundNoise(after.at - before.at, steal, other, own,
                       after.own_nivcsw - before.own_nivcsw, after.load1, cores, waited)
+
+
+# How long a probe of the machine watches it, and how often a wait looks again.
+PROBE_S = 0.5
+
+
+def others_share(cores: Sequence[int], seconds: float = PROBE_S) -> float | None:
+    """The share of the cores' time others took (or was stolen) over the next `seconds`, this
+    process idle meanwhile; None where /proc/stat cannot be read."""
+    before = sample(cores)
+    time.sleep(seconds)
+    return between(before, sample(cores), len(cores)).share if before.ticks else None
+
+
+@dataclass
+class QuietWait:
+    """A run's patience with a busy machine: before a disturbed round is taken again, it waits
+    until others take at most DISTURBED_LIMIT of the cores, for at most `budget_s` over the
+    whole run, saying why on `log` while it waits. Without budget left nothing is retaken."""
+
+    budget_s: float
+    log: typing.TextIO
+    label: str = ""
+    waited_s: float = 0.0
+    probe: typing.Callable[[Sequence[int]], float | None] = others_share
+
+    @property
+    def left_s(self) -> float:
+        return max(0.0, self.budget_s - self.waited_s)
+
+    def wait(self, cores: Sequence[int]) -> bool:
+        """Wait for quiet within the budget left; whether the machine is quiet now."""
+        if self.left_s <= 0:
+            return False
+        said = 0.0
+        while True:
+            started = time.monotonic()
+            share = self.probe(cores)
+            self.waited_s += time.monotonic() - started
+            if share is None or share <= DISTURBED_LIMIT:
+                return True
+            if self.left_s <= 0:
+                self.log.write(f"{self.label}: the machine stays busy ({share:.0%} of the CPU "
+                               f"went to other processes); waited {self.waited_s:.0f} s, "
+                               "going on without quiet\n")
+                return False
+            if self.waited_s - said >= 5 or said == 0:
+                said = self.waited_s or 1e-9
+                self.log.write(f"{self.label}: waiting for quiet: {share:.0%} of the CPU "
+                               f"went to other processes (waited {self.waited_s:.0f} s of at "
+                               f"most {self.budget_s:.0f} s)\n")

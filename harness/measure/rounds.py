@@ -76,6 +76,7 @@ class CellRun:
     other_cpu_s: float = 0.0
     nivcsw: int = 0
     capacity_s: float = 0.0  # the cores' seconds over its rounds
+    retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
     saved: tuple[Path, dict[str, int]] | None = field(default=None, init=False, repr=False,
                                                       compare=False)
@@ -267,6 +268,7 @@ def round_noise(run: CellRun) -> Noise | None:
     """The noise of the cell's rounds, where every round has it."""
     if len(run.round_noise) != len(run.exports):
         return None
+    others = min(1.0, (run.steal_s + run.other_cpu_s) / run.capacity_s) if run.capacity_s else 0.0
     return Noise(
         steal_s=run.steal_s, other_cpu_s=run.other_cpu_s,
         nivcsw_per_run=run.nivcsw / len(run.times) if run.times else None,
@@ -275,4 +277,5 @@ def round_noise(run: CellRun) -> Noise | None:
         if len(run.round_pressure) == len(run.exports) else None,
         rounds_dropped=tuple(r for r, share in run.noise_by_round().items()
                              if share > stats.NOISE_LIMIT),
-        noise_capacity_s=run.capacity_s)
+        noise_capacity_s=run.capacity_s, rounds_retaken=run.retaken,
+        others_share=round(others, 3), disturbed=others > stats.DISTURBED_LIMIT)

@@ -32,6 +32,7 @@ from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
 from harness.store import atomic, csvfile, index, records
+from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.measured import Provenance, Subject, Timing, Validation
 from harness.store.model import (
@@ -44,6 +45,15 @@ from harness.store.model import (
     content_id,
 )
 from harness.store.result import CellResult
+
+
+def subject(cell: Cell) -> tuple[str, ...]:
+    """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
+    scene = cell.scene
+    return match_values({"variant": cell.variant, "build": cell.build, "scene": scene.label,
+                         "n": scene.n, "L": scene.L, "r": scene.r, "steps": scene.steps,
+                         "mode": scene.mode, "seed": scene.seed, "threads": cell.threads,
+                         "schedule": cell.schedule or ""})
 
 
 def now_iso() -> str:
@@ -221,8 +231,9 @@ class CellStore:
         (or its newest, marked stale) and every other machine's newest. With `prune`, the
         superseded records move to history/ first."""
         if self.planned is None:
-            keys = (self.cell_key(cell) for cell in self.plan.cells)
-            self.planned = [index.PlannedCell(key) for key in keys if key is not None]
+            keyed = ((self.cell_key(cell), cell) for cell in self.plan.cells)
+            self.planned = [index.PlannedCell(key, subject(cell)) for key, cell in keyed
+                            if key is not None]
         kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
                                  self.config.title, prune_first=prune, baseline=BASELINE)
         if self.config.checks.names:

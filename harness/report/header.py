@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 from harness.report.document import Bullets, Details, Paragraph, Section, Table
 from harness.report.parts import HIGHLIGHT_KINDS, ExperimentPart, Fidelity
@@ -97,7 +97,8 @@ HOW_TO_READ = (
     "cell's status against the baseline output (ok, invalid, failed, crashed, timeout) with "
     "its flags: oversubscribed, unstable timing (stddev ≥ 10% of the mean), outliers "
     "(hyperfine warned), loaded machine (other processes were running), stale binary "
-    "(rebuilt since)."
+    "(rebuilt since), earlier config (measured under an earlier version of the experiment's "
+    "config, by a machine that has not measured it since)."
 )
 
 
@@ -180,13 +181,50 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     return "fidelity: " + "; ".join(sentences)
 
 
-def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = ()
-                    ) -> Section | None:
-    """The headline: what a reader came for, each point linking to where it is shown; `more`
-    adds lines (what spans machines)."""
-    items = [text for text in (*(_best(parts, k) for k in HIGHLIGHT_KINDS),
-                               fidelity_text(parts), warnings_text(parts), *more) if text]
+def when_text(stamp: str) -> str:
+    """An ISO 8601 time as a reader reads it: `2026-12-02 14:03 UTC` (a date alone stays)."""
+    day, _, rest = stamp.partition("T")
+    return f"{day} {rest[:5]} UTC" if len(rest) >= 5 else day
+
+
+def by_run(parts: Sequence[ExperimentPart], runs: Mapping[str, str]
+           ) -> list[tuple[str, list[ExperimentPart]]]:
+    """The parts by the run that measured them last (`runs`: an experiment's run start, from
+    its env.json; else its newest cell's time), the newest run first."""
+    def when(part: ExperimentPart) -> str:
+        return runs.get(part.name) or part.measured
+
+    grouped: dict[str, list[ExperimentPart]] = {}
+    for part in sorted(parts, key=when, reverse=True):
+        grouped.setdefault(when(part), []).append(part)
+    return list(grouped.items())
+
+
+def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
+                    runs: Mapping[str, str] | None = None) -> Section | None:
+    """The headline of the newest run (`runs` as by_run's; without, of every part): what a
+    reader came for, each point linking to where it is shown, and whether others disturbed
+    it; then the earlier runs under their dates. `more` adds lines (what spans machines)."""
+    grouped = by_run(parts, runs or {}) if runs is not None else [("", list(parts))]
+    if not grouped:
+        return None
+    when, latest = grouped[0]
+    items = [text for text in (*(p.disturbed for p in latest),
+                               *(_best(latest, k) for k in HIGHLIGHT_KINDS),
+                               fidelity_text(latest), warnings_text(latest), *more) if text]
     if not items:
         return None
-    items = [f"{text[0].upper()}{text[1:]}." for text in items]
-    return Section("Summary", SUMMARY_ANCHOR, (Bullets(tuple(items)),))
+    items = [f"{text[0].upper()}{text[1:].rstrip('.')}." for text in items]
+    blocks: list[Paragraph | Bullets] = []
+    if runs is not None:
+        names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
+        blocks.append(Paragraph(f"The latest run, {when_text(when)}: {names}."))
+    blocks.append(Bullets(tuple(items)))
+    if len(grouped) > 1:
+        blocks.append(Paragraph("Earlier runs, newest first (their sections follow the "
+                                "latest run's):"))
+        blocks.append(Bullets(tuple(
+            f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
+                                                for p in group)
+            for stamp, group in grouped[1:])))
+    return Section("Summary", SUMMARY_ANCHOR, tuple(blocks))

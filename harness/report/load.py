@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.analysis.cells import MACHINE
 from harness.analysis.frame import read_divergence, read_results
 from harness.analysis.paired import read_ratios
 from harness.errors import HarnessError
@@ -47,15 +48,18 @@ def read_trajectory(path: Path) -> pd.DataFrame:
     return traj
 
 
-def load_experiment(found: ExperimentDir, machine: str | None = None) -> Experiment:
+def load_experiment(found: ExperimentDir, machine: str | None = None, label: str = ""
+                    ) -> Experiment:
     """One experiment directory read and checked (HarnessError naming the file otherwise);
-    with `machine` (an id), only that machine's cells."""
+    with `machine` (an id), only that machine's cells, which go by `label` where given."""
     frame = read_results(found.results_csv)
     titles = [t for t in frame["title"] if t]
     title = titles[0] if titles else found.name
     ratios = read_ratios(found.ratios_csv)
     if machine is not None:
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
+        if label and frame is not None:
+            frame[MACHINE] = label
     return Experiment(found.name, found, title, frame,
                       read_divergence(found.divergence_csv), ratios)
 

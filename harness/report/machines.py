@@ -11,7 +11,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 from harness.errors import HarnessError
@@ -65,10 +65,12 @@ def machine_of(row: dict[str, str]) -> str:
     return (row.get(MACHINE_KEY) or "").strip() or UNKNOWN_ID
 
 
-def machines(rows: Rows, preferred: Collection[str] = ()) -> list[Machine]:
+def machines(rows: Rows, preferred: Collection[str] = (),
+             labels: Mapping[str, str] | None = None) -> list[Machine]:
     """The machines that measured the rows, the one that measured last first; between equal
     times (rows without `measured_at`) a `preferred` one (the machine an env.json names: it
-    measured the latest run), then by id. Empty when no row records its machine."""
+    measured the latest run), then by id. Empty when no row records its machine. Each goes by
+    its name in `labels` (store.labels) where it has one."""
     if not any((row.get(MACHINE_KEY) or "").strip() for table in rows.values()
                for row in table):
         return []
@@ -78,10 +80,11 @@ def machines(rows: Rows, preferred: Collection[str] = ()) -> list[Machine]:
             seen.setdefault(machine_of(row), []).append(row)
     found = []
     for machine_id, own in seen.items():
-        labels = sorted({(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
+        own_labels = sorted({(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
         last = max((r.get(MEASURED_AT) or "" for r in own), default="")
-        found.append(Machine(machine_id, labels[0] if labels else "", last))
-    found = [dataclasses.replace(m, name=_name(m, found)) for m in found]
+        found.append(Machine(machine_id, own_labels[0] if own_labels else "", last))
+    names = labels or {}
+    found = [dataclasses.replace(m, name=names.get(m.id) or _name(m, found)) for m in found]
     by_id = sorted(found, key=lambda m: m.id)
     # Stable: equal keys keep the order by id.
     return sorted(by_id, key=lambda m: (m.last_measured, m.id in preferred), reverse=True)

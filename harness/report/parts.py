@@ -52,6 +52,8 @@ class ExperimentPart:
     fidelity: Fidelity = Fidelity()
     fidelity_anchor: str = ""  # where the checks or validation of this experiment are shown
     programs_anchor: str = ""  # where its programs' agreement is shown
+    measured: str = ""  # when its newest cell on the page was measured (ISO 8601)
+    disturbed: str = ""  # its cells' disturbance in a sentence (analysis.flags.disturbed_text)
 
     def to_json(self, base: Path) -> dict[str, Any]:
         return {
@@ -60,7 +62,8 @@ class ExperimentPart:
             "warning_kinds": [list(r) for r in self.warning_kinds],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
             "fidelity": list(astuple(self.fidelity)), "fidelity_anchor": self.fidelity_anchor,
-            "programs_anchor": self.programs_anchor,
+            "programs_anchor": self.programs_anchor, "measured": self.measured,
+            "disturbed": self.disturbed,
         }
 
     @classmethod
@@ -71,4 +74,5 @@ class ExperimentPart:
             tuple(tuple(r) for r in data["warning_kinds"]),
             {k: Highlight(*v) for k, v in data["highlights"].items()},
             Fidelity(*data["fidelity"]), data["fidelity_anchor"], data["programs_anchor"],
+            data.get("measured", ""), data.get("disturbed", ""),
         )

@@ -30,6 +30,7 @@ from harness.report.document import (
 )
 from harness.report.header import (
     HOW_TO_READ,
+    by_run,
     environment_bullets,
     summary_section,
     warnings_details,
@@ -40,9 +41,10 @@ from harness.report.parts import ExperimentPart
 from harness.report.spread import cached_session_words
 from harness.spec.facts import read_variants, reading
 from harness.store.atomic import atomic_write_text
+from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
 from harness.store.locks import directory_lock
-from harness.store.records import MACHINE_KEY
+from harness.store.records import MACHINE_KEY, RUN_STARTED
 
 FIGURES_DIR = "figures"
 MACHINES_DIR = "machines"  # other machines' pages: <report>/machines/<machine_id>/
@@ -87,6 +89,8 @@ def build_document(
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))
+    runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
+    parts = [part for _, group in by_run(parts, runs) for part in group]
     names = ", ".join(f"`{p.name}`" for p in parts)
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
     if shown is not None:
@@ -102,26 +106,26 @@ def build_document(
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
     appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
                             (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
-    return Document(TITLE, lead, tuple(others), summary_section(parts, more),
+    return Document(TITLE, lead, tuple(others), summary_section(parts, more, runs),
                     tuple(_with_warnings(p) for p in parts), tuple(appendix))
 
 
 def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
-                    machine: str | None = None) -> ExperimentPart:
-    """The experiment's part (of one machine's cells, with `machine`) from the manifest when
-    its inputs are unchanged, else built."""
+                    machine: str | None = None, label: str = "") -> ExperimentPart:
+    """The experiment's part (of one machine's cells, with `machine`, which goes by `label`)
+    from the manifest when its inputs are unchanged, else built."""
     def build() -> dict[str, Any]:
         # Building needs pandas (and matplotlib for a figure that changed): imported only here.
         from harness.report.load import load_experiment
         from harness.report.sections import experiment_section
         from harness.report.summary import experiment_part as build_part
 
-        exp = load_experiment(found, machine)
+        exp = load_experiment(found, machine, label)
         # the facts of the variants the results were measured with: their order, colours, kinds
         with reading(read_variants(found.variants_json)):
             return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
 
-    digest = input_digest(found) + (f"\0{machine}" if machine else "")
+    digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
     return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
 
 
@@ -161,7 +165,8 @@ def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Pa
     if machine_id is not None:
         found = [f for f in found
                  if any(machines.machine_of(r) == machine_id for r in rows[f.name])]
-    parts = [experiment_part(f, manifest, page_dir, machine_id) for f in found]
+    label = machine.name if machine is not None else ""
+    parts = [experiment_part(f, manifest, page_dir, machine_id, label) for f in found]
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
@@ -197,7 +202,8 @@ def render(
     found = find_experiments(results_dir, include_quick=include_quick, only=experiments)
     rows = machines.read_rows(found)
     named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
-    listed = machines.machines(rows, named - {""})
+    listed = machines.machines(rows, named - {""},
+                               machine_labels(read_machines(f.path for f in found)))
     code = code_versions()
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would

@@ -10,7 +10,12 @@ import pandas as pd
 from harness.analysis import phases
 from harness.analysis.cells import INTERVAL_SUFFIXES
 from harness.analysis.display import format_value, threads_text
-from harness.analysis.flags import flagged_cells, flagged_kinds
+from harness.analysis.flags import (
+    disturbed_text,
+    disturbed_words,
+    flagged_cells,
+    flagged_kinds,
+)
 from harness.analysis.programs import is_program
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
@@ -47,7 +52,10 @@ def ratio_text(row: pd.Series, column: str = "speedup") -> str:
 
 def _where(row: pd.Series) -> str:
     # The machine is the page's (harness.report.pipeline renders one page per machine).
-    return f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
+    where = f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
+    if bool(row.get("disturbed")) and pd.notna(row.get("disturbed")):
+        where += f"; disturbed{disturbed_words(row.get('others_share'))}"
+    return where
 
 
 def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
@@ -121,6 +129,9 @@ def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
     anchor = _anchor(section, "stability")
     if anchor == section.anchor:
         anchor = _anchor(section, "cells")
+    measured = exp.frame["measured_at"].dropna().astype(str) if (
+        "measured_at" in exp.frame.columns) else pd.Series(dtype=str)
     return ExperimentPart(exp.name, section, warnings, tuple(flagged_kinds(exp.frame)),
                           highlights(exp, section), fidelity(exp), anchor,
-                          _anchor(section, programs_part.ANCHOR))
+                          _anchor(section, programs_part.ANCHOR),
+                          max(measured, default=""), disturbed_text(exp.frame))

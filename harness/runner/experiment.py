@@ -32,6 +32,7 @@ from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
 from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
+from harness.store.records import RUN_STARTED
 from harness.store.result import CellResult
 
 # results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
@@ -165,6 +166,8 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
     # A remote executor's workers write the env of their machines (collide-bench worker).
     if pending and here:
         env = environment.collect(options.repo_root, options.make, options.hyperfine)
+        if options.started:
+            env[RUN_STARTED] = options.started
         index.write_env(experiment.directory, env)
     elif not pending and not experiment.store.layout.env_json.is_file():
         index.write_env(experiment.directory, environment.collect(

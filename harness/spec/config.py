@@ -68,7 +68,11 @@ SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$"
 DEFAULT_MAX_CELLS = 10_000
 
 DEFAULT_WARMUP = 1
-DEFAULT_RUNS = 3
+# By default a cell takes rounds until its interval is within +-DEFAULT_CI: a strategy 10%
+# faster than another then shows as such (two intervals of +-5% do not overlap), and on a
+# 2-vCPU VM a session moves a cell by about 5% anyway, which no number of rounds narrows.
+DEFAULT_RUNS: int | None = None  # auto
+DEFAULT_CI = 0.05
 DEFAULT_TIMEOUT_S = 600.0
 # The runs of an adaptive cell's first round: the fewest from which an interval is worth
 # reading (with 3 runs the bootstrap interval of a median is [min, max]).
@@ -85,9 +89,9 @@ class Measure:
     warmup: int = DEFAULT_WARMUP
     runs: int | None = DEFAULT_RUNS  # None: auto
     timeout_s: float = DEFAULT_TIMEOUT_S
-    ci: float = 0.02
-    max_runs: int = 30
-    max_time_s: float = 120.0
+    ci: float = DEFAULT_CI
+    max_runs: int = 20
+    max_time_s: float = 60.0
     # Adaptive repetition decides from this many runs on (a measured comparison needs rounds
     # enough for its paired test: harness.runner.pair); 0: AUTO_FIRST_RUNS.
     min_runs: int = 0

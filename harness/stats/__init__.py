@@ -35,7 +35,7 @@ from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, M
                                   session_noise, session_spread, spread_at, t95)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)
-from harness.stats.rounds import (MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,
+from harness.stats.rounds import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,
                                   NoiseProfile, PairedRounds, by_round, noise_profile,
                                   paired_series, paired_sides, round_medians, rounds_to_drop)
 from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit

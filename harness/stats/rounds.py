@@ -42,6 +42,12 @@ def by_round(rounds: Sequence[int], values: Sequence[float]) -> dict[int, float]
 # the spread of the rest then widens the interval instead.
 NOISE_LIMIT = 0.5
 MAX_DROPPED_SHARE = 0.25
+# A round is disturbed when others took more than this share of its cores' time: on a quiet
+# 2-vCPU VM they take 3-5% (the kernel, the hypervisor, the harness's own bookkeeping), while a
+# neighbour busy a quarter of the time on both cores takes about 20% and moves a 2-thread cell
+# by tens of percent. A run waits for quiet and takes a disturbed round again; a cell whose
+# rounds stay disturbed is flagged, and its speedups carry the warning.
+DISTURBED_LIMIT = 0.10
 
 
 def rounds_to_drop(old: dict[int, float], new: dict[int, float],

@@ -63,12 +63,17 @@ EXTRA_COLUMNS: tuple[str, ...] = (
 # measured again; empty where an older record cannot tell (outliers, loaded, machine).
 # stale: True when the cell's binary changed since it was measured on this machine (empty for
 # another machine's record, whose build this run cannot see).
+# earlier_config: True when the cell was measured under an earlier version of its config (its
+# key differs from what the config plans now in more than binaries and machine: a machine that
+# has not measured the config since it changed); config_changed names the key's fields that
+# differ (`unplanned`: the config plans no such cell any more).
 # wall_q25_s: the runs' 25% quantile, the low-end estimator kept beside the median, minimum and
 # mean (harness.stats.ESTIMATORS; docs/compare.md measures how each reproduces).
 LOW_QUANTILE_COLUMN = "wall_q25_s"
 PROVENANCE_COLUMNS: tuple[str, ...] = (
     "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", LOW_QUANTILE_COLUMN,
-    "wall_times_s", "outliers", "loaded", "stale", "git_commit", "measured_at",
+    "wall_times_s", "outliers", "loaded", "stale", "earlier_config", "config_changed",
+    "git_commit", "measured_at",
 )
 # Where the simulation time goes, from --timing, seconds summed over the run: the variant's
 # pair finder (broad phase and pair tests), wall candidates, merging and sorting the
@@ -175,7 +180,7 @@ NUMERIC_COLUMNS: frozenset[str] = frozenset(
     {"exit_code", *(n for n, t in _TYPES.items() if t in (int, float))} - {"round_seed"})
 # With the two results.csv derives from a record's other fields.
 BOOL_COLUMNS: frozenset[str] = frozenset(
-    {"outliers", "stale", *(n for n, t in _TYPES.items() if t is bool)})
+    {"outliers", "stale", "earlier_config", *(n for n, t in _TYPES.items() if t is bool)})
 # Columns that hold a list, with the type of its items: a record keeps the list, results.csv
 # its items space-separated (exact: each float's repr).
 LIST_COLUMNS: dict[str, type] = {"wall_times_s": float, "wall_times_round": int, **{
@@ -196,7 +201,22 @@ def parse_list(text: str, column: str) -> tuple[float | int, ...]:
 
 
 # Flags that are False where a row leaves them empty (a missing check stays missing).
-FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded", "stale")
+FLAG_COLUMNS: tuple[str, ...] = ("oversubscribed", "unstable", "outliers", "loaded",
+                                  "disturbed", "stale", "earlier_config")
+UNPLANNED = "unplanned"  # config_changed of a cell the config no longer plans
+
+
+def match_values(values: typing.Mapping[str, object]) -> tuple[str, ...]:
+    """What names a cell to a reader (MATCH_COLUMNS), as text that compares by value whatever
+    the source's types (a record's int n, a plan's float L)."""
+    def text(value: object) -> str:
+        if value is None:
+            return ""
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            return repr(float(value))
+        return str(value)
+
+    return tuple(text(values.get(c)) for c in MATCH_COLUMNS)
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
 

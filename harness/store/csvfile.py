@@ -83,11 +83,15 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 
 
 def csv_row(record: Mapping[str, object], experiment: str, title: str,
-            hyperfine_json: Path | None = None, stale: bool | None = None) -> dict[str, object]:
-    """A cell's row of results.csv: a projection of its record (CellResult.columns)."""
+            hyperfine_json: Path | None = None, stale: bool | None = None,
+            config_changed: str = "") -> dict[str, object]:
+    """A cell's row of results.csv: a projection of its record (CellResult.columns); with
+    `config_changed`, the key fields in which it differs from what its config plans now."""
     columns = (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g))
     return {"experiment": experiment, "title": title, **{c: record.get(c) for c in columns},
-            **provenance(record, hyperfine_json), "stale": stale}
+            **provenance(record, hyperfine_json), "stale": stale,
+            "earlier_config": bool(config_changed) or None,
+            "config_changed": config_changed or None}
 
 
 def format_cell(value: object) -> str:

@@ -153,10 +153,11 @@ def prune(experiment_dir: Path) -> PruneResult:
     return PruneResult(experiment_dir, len(stored) - len(kept), len(kept))
 
 
-def prune_locked(experiment_dir: Path, stored: Sequence[Stored]) -> list[Stored]:
-    """Move the superseded among `stored` to history/ (the caller holds the directory lock);
-    the records that stay in cells/."""
-    old = superseded(stored)
+def prune_locked(experiment_dir: Path, stored: Sequence[Stored],
+                 also: Sequence[Stored] = ()) -> list[Stored]:
+    """Move the superseded among `stored`, and `also`, to history/ (the caller holds the
+    directory lock); the records that stay in cells/."""
+    old = list({id(s): s for s in (*superseded(stored), *also)}.values())
     move_to_history(experiment_dir, old)
     gone = {id(s) for s in old}
     return [s for s in stored if id(s) not in gone]

@@ -3,7 +3,10 @@
 results.csv lists, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
 and on every other machine present the newest record that timed the cell, whatever its
-measure settings and whether or not it counted instructions (CellKey.timed_group). It is
+measure settings and whether or not it counted instructions (CellKey.timed_group). Then each
+machine's newest record of every other cell it measured, marked `earlier_config`: measured
+under an earlier version of the config, which a machine that has not measured it since keeps
+showing. It is
 rebuilt from the records on disk under the directory's lock, so two writers never drop each
 other's rows.
 """
@@ -17,6 +20,7 @@ from pathlib import Path
 
 from harness import stats
 from harness.store import atomic, csvfile, locks, ratios, records, sessions
+from harness.store.columns import UNPLANNED, match_values
 from harness.store.history import (
     UNKNOWN_MACHINE,
     Stored,
@@ -32,9 +36,11 @@ from harness.store.result import CellResult
 
 @dataclass(frozen=True)
 class PlannedCell:
-    """What results.csv needs of a planned cell: its key on this machine."""
+    """What results.csv needs of a planned cell: its key on this machine, and what names it
+    to a reader (store.columns.match_values)."""
 
     key: CellKey
+    subject: tuple[str, ...] = ()
 
     @property
     def cell_id(self) -> str:
@@ -46,12 +52,29 @@ class Row:
     result: CellResult
     stale: bool | None
     hyperfine_json: Path
+    config_changed: str = ""  # the key fields in which it differs from the plan (UNPLANNED)
+
+
+def _subject(item: Stored) -> tuple[str, ...]:
+    return match_values(item.result.columns)
+
+
+def changed_fields(key: CellKey, planned: CellKey | None) -> str:
+    """The fields of `key` (what ran and how) that differ from the `planned` key's, or
+    UNPLANNED where the config plans no such cell."""
+    if planned is None:
+        return UNPLANNED
+    mine, theirs = key.group_fields(), planned.group_fields()
+    return " ".join(sorted(k for k in mine.keys() | theirs.keys()
+                           if mine.get(k) != theirs.get(k))) or UNPLANNED
 
 
 def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str,
                  exp: ExperimentDir) -> list[Row]:
     """results.csv's records, in plan order (the module's docstring says which); one of no
-    known machine unless a newer timing of the cell exists."""
+    known machine unless a newer timing of the cell exists. Then, for each machine, its newest
+    record of every cell it has no row of yet: measured under an earlier version of the config
+    (marked, never dropped)."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
     rows: list[Row] = []
     done: set[str] = set()
@@ -74,7 +97,33 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
             rows.append(Row(item.result, stale, exp.hyperfine(item.cell_id)))
-    return rows
+    return rows + earlier_rows(stored, planned, rows, exp)
+
+
+def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Row],
+                 exp: ExperimentDir) -> list[Row]:
+    """Each machine's newest record of each cell it has no row of among `rows`: measured
+    under an earlier version of the config, by subject and machine."""
+    listed = {(r.result.key.machine_id or UNKNOWN_MACHINE, match_values(r.result.columns))
+              for r in rows}
+    plan_of = {cell.subject: cell.key for cell in planned}
+    newest: dict[tuple[str, tuple[str, ...]], Stored] = {}
+    for item in sorted(stored, key=lambda s: s.age):
+        place = (item.machine_id, _subject(item))
+        if place not in listed:
+            newest[place] = item
+    return [Row(item.result, None, exp.hyperfine(item.cell_id),
+                changed_fields(item.key, plan_of.get(place[1])))
+            for place, item in sorted(newest.items())]
+
+
+def replaced(stored: Sequence[Stored], planned: Sequence[PlannedCell]) -> list[Stored]:
+    """Records that a record of the current plan replaces: of a cell the same machine has
+    measured again since its config changed (another group, the same subject)."""
+    groups = {cell.key.group for cell in planned}
+    renewed = {(s.machine_id, _subject(s)) for s in stored if s.key.group in groups}
+    return [s for s in stored if s.key.group not in groups
+            and (s.machine_id, _subject(s)) in renewed]
 
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
@@ -88,10 +137,10 @@ def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id
     with locks.directory_lock(experiment_dir):
         stored = load_records(exp.cells)
         if prune_first:
-            stored = prune_locked(experiment_dir, stored)
+            stored = prune_locked(experiment_dir, stored, replaced(stored, planned))
         rows = current_rows(stored, planned, machine_id, exp)
         written = [csvfile.csv_row(r.result.columns, experiment, title, r.hyperfine_json,
-                                   r.stale) for r in rows]
+                                   r.stale, r.config_changed) for r in rows]
         csvfile.write_results_csv(exp.results_csv, written)
         if baseline is not None:
             roots = sessions.session_roots(experiment_dir.parent)

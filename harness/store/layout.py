@@ -8,6 +8,8 @@
         cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
                                          written (<cell_id>.hyperfine.json: one for all runs,
                                          in records from before rounds)
+        cells/<cell_id>.hyperfine.<k>.disturbed<a>.json   a round others disturbed, taken
+                                         again (the a-th retake of the cell)
         cells/<cell_id>.partial.jsonl    a cell whose rounds an interruption cut short
         cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
         cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
@@ -115,6 +117,12 @@ class ExperimentDir:
         if round_index is None:
             return self.cells / f"{cell_id}{HYPERFINE_SUFFIX}"
         return self.cells / f"{cell_id}{HYPERFINE_INFIX}{round_index}{RECORD_SUFFIX}"
+
+    def disturbed(self, cell_id: str, round_index: int, attempt: int) -> Path:
+        """A round's export that others disturbed, kept as hyperfine wrote it when the round
+        was taken again (`attempt`: the cell's retakes before it)."""
+        return self.cells / (f"{cell_id}{HYPERFINE_INFIX}{round_index}.disturbed{attempt}"
+                             f"{RECORD_SUFFIX}")
 
     def hyperfine_exports(self, cell_id: str) -> list[Path]:
         """Every hyperfine export the cell left in cells/, by round."""

@@ -81,8 +81,10 @@ class Noise:
     its cores over its rounds, the timed runs' involuntary context switches per run, each
     round's interference (the share of the cores' time others took or was stolen), each
     round's CPU pressure (the share of its time some task waited for a CPU, where the kernel
-    gives it), the rounds beyond the limit (left out of a paired test on both sides), and the
-    cores' seconds the rounds span. Per-round values in round order."""
+    gives it), the rounds beyond the limit (left out of a paired test on both sides), the
+    cores' seconds the rounds span, the rounds taken again because others disturbed them, and
+    others' share of the cores' time over the rounds kept, with whether it passed the limit
+    of a disturbed cell (stats.DISTURBED_LIMIT). Per-round values in round order."""
 
     steal_s: float | None = None
     other_cpu_s: float | None = None
@@ -91,6 +93,9 @@ class Noise:
     round_pressure: tuple[float, ...] | None = None
     rounds_dropped: tuple[int, ...] | None = None
     noise_capacity_s: float | None = None
+    rounds_retaken: int | None = None
+    others_share: float | None = None
+    disturbed: bool | None = None
 
 
 @dataclass(frozen=True)

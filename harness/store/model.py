@@ -182,6 +182,10 @@ class CellKey:
     def timed_group(self) -> str:
         return content_id(_project(self, "timed"))
 
+    def group_fields(self) -> dict[str, object]:
+        """The fields the group is hashed from, by name (what ran and how)."""
+        return _project(self, "group")
+
 
 def role_fields(cls: type, role: Role) -> tuple[str, ...]:
     """The names of `cls`'s fields that play `role`."""

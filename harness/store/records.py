@@ -14,6 +14,9 @@ from harness.store.result import CellResult, RecordFormatError
 
 # The part of a cell key that names the machine (records of several machines sit side by side).
 MACHINE_KEY = "machine_id"
+# env.json's start of the run that measured the experiment last: the experiments a run measured
+# share it (the report leads with the newest run's).
+RUN_STARTED = "run_started"
 
 
 def sha256_file(path: Path) -> str:

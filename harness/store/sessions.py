@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from harness.repo import DEFAULT_RESULTS_DIR
+from harness.repo import DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR
 from harness.store import atomic, records
 from harness.store.layout import ResultsRoot
 
@@ -26,8 +26,8 @@ LEVELS_KEY = "session_levels"  # its entries by the noise they were learnt at
 
 def session_roots(results_dir: Path) -> tuple[Path, ...]:
     """Where a run under this results root looks for its machine's spread: the root, then the
-    repository's."""
-    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR)))
+    repository's (the user's, then the published one)."""
+    return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR)))
 
 
 def _valid(entry: object) -> bool:

@@ -434,9 +434,9 @@ def test_committed_results_and_the_script(tmp_path: Path,
     harness/compare.py` (re-executing under .venv), once: its error line and exit status.
     (The comparisons run in this process: a new interpreter each would import scipy and
     matplotlib again for what the one script run shows.)"""
-    experiment = REPO_ROOT / "results" / "threads"
+    experiment = REPO_ROOT / "published" / "results" / "threads"
     if not (experiment / "results.csv").is_file():
-        pytest.skip("no committed results/threads")
+        pytest.skip("no committed published/results/threads")
     python = shutil.which("python3") or sys.executable
     with (experiment / "results.csv").open() as handle:
         machines = Counter(row["machine_id"] for row in csv.DictReader(handle))

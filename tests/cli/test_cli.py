@@ -85,6 +85,8 @@ def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) 
         return run_cli.report_dir(run_cli.parser("run").parse_args([*argv, "x.yaml"]))
 
     assert report_dir() == REPO_ROOT / "report"
+    assert report_dir("--results-dir", str(REPO_ROOT / "published" / "results")) == (
+        REPO_ROOT / "published" / "report")
     assert report_dir("--results-dir", str(tmp_path)) == tmp_path / "report"
     assert report_dir("--results-dir", str(tmp_path), "--report-dir",
                       str(tmp_path / "r")) == tmp_path / "r"

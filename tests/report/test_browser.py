@@ -147,10 +147,11 @@ def test_a_folded_warning_opens_where_the_summary_links(browser: object,
 
 
 def test_the_committed_report(browser: object) -> None:
-    """report/report.html as committed, rendered from results/ (and each machine's page)."""
-    report = repo.REPO_ROOT / "report"
+    """published/report/report.html as committed, rendered from published/results/ (and each
+    machine's page)."""
+    report = repo.PUBLISHED_REPORT_DIR
     pages = sorted(report.rglob("report.html"))
     if not pages:
-        pytest.skip("no rendered report in report/")
+        pytest.skip("no rendered report in published/report/")
     for page in pages:
         check_page(browser, page)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.repo import PUBLISHED_REPORT_DIR, PUBLISHED_RESULTS_DIR
 from harness.report import cache, pipeline
 from harness.report.cache import MANIFEST_NAME
 from harness.report.spread import SESSION_PART
@@ -249,14 +250,14 @@ def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:
 
 def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
                                          ) -> None:
-    """A render of the committed results draws no figure: the committed report/ was rendered
-    by the code as it is. Else every render of them (the README's `collide-bench report`
-    among them) redraws every figure, about 100 s of CPU; a figure about to be drawn fails the
-    test at once, before it costs that."""
-    if not (REPO_ROOT / "report" / "report.md").is_file():
-        pytest.skip("no committed report/")
+    """A render of the published results draws no figure: the committed published/report was
+    rendered by the code as it is. Else every render of them (`make publish` among them)
+    redraws every figure, about 100 s of CPU; a figure about to be drawn fails the test at
+    once, before it costs that."""
+    if not (PUBLISHED_REPORT_DIR / "report.md").is_file():
+        pytest.skip("no committed published/report")
     out = tmp_path / "report"
-    shutil.copytree(REPO_ROOT / "report", out)
+    shutil.copytree(PUBLISHED_REPORT_DIR, out)
     draw = cache.Manifest.draw
 
     def refuse(self: cache.Manifest, function: Callable[..., object], data: object,
@@ -264,9 +265,9 @@ def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.Mon
         @functools.wraps(function)  # its name is in the figure's key
         def stale(*args: object, **named: object) -> object:
             raise AssertionError(f"{stem.name} would be drawn again: the figures' code or the "
-                                 "results changed since report/ was rendered; run `python -m "
-                                 "harness report` and commit report/")
+                                 "results changed since published/report was rendered; run "
+                                 "`make publish-report` and commit published/report")
         return draw(self, stale, data, stem, *more, **kwargs)
 
     monkeypatch.setattr(cache.Manifest, "draw", refuse)
-    pipeline.render(REPO_ROOT / "results", out)
+    pipeline.render(PUBLISHED_RESULTS_DIR, out)

@@ -5,6 +5,9 @@ table. A new part is a new module and one line below."""
 
 from __future__ import annotations
 
+import pandas as pd
+
+from harness.analysis.flags import disturbed_text, earlier_config_text
 from harness.report.cache import Manifest
 from harness.report.document import Paragraph, Section, slug
 from harness.report.load import Experiment
@@ -34,6 +37,18 @@ def experiment_section(exp: Experiment, figs: Manifest) -> Section:
     beside = [s for build in BESIDE for s in build(ctx)]
     main = [s for build in MAIN for s in build(ctx)]
     parts = [s for s in (*cells.build(ctx, alone=not main), *beside, *main) if s.blocks]
-    intro = Paragraph(f"Experiment `{exp.name}`: {len(exp.frame)} cell(s). "
-                      + cells.fixed_text(exp.frame))
+    words = [disturbed_text(exp.frame), measured_text(exp.frame),
+             f"Experiment `{exp.name}`: {len(exp.frame)} cell(s).", cells.fixed_text(exp.frame),
+             earlier_config_text(exp.frame)]
+    intro = Paragraph(" ".join(w for w in words if w))
     return Section(exp.title, slug(exp.name), (intro,), tuple(parts))
+
+
+def measured_text(df: pd.DataFrame) -> str:
+    """When the cells were measured: `Measured 2026-12-02.`, or the first and last day."""
+    if "measured_at" not in df.columns:
+        return ""
+    days = sorted({str(t)[:10] for t in df["measured_at"].dropna() if str(t)})
+    if not days:
+        return ""
+    return f"Measured {days[0]}." if len(days) == 1 else f"Measured {days[0]} to {days[-1]}."

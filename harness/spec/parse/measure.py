@@ -66,7 +66,7 @@ EXECUTOR = {
 def parse_measure(value: object, source: Path, label: str = "measure") -> Measure:
     raw = kinds.mapping(value, label, source)
     kinds.reject_unknown(raw, tuple(MEASURE), f"{label}.", source)
-    if raw.get("runs", DEFAULT_RUNS) != AUTO_RUNS:  # a misplaced key before its value
+    if raw.get("runs", DEFAULT_RUNS or AUTO_RUNS) != AUTO_RUNS:  # a misplaced key before its value
         for key in ADAPTIVE_KEYS:
             if key in raw:
                 raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
