@@ -44,7 +44,8 @@ from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
 # The fewest rounds a cell pair gets (the sequential test's first look): the paired test needs
-# them to find a 5% change on a shared machine (docs/compare.md has the numbers).
+# them to find a 5% change on a shared machine (docs/log/compare.md, "A side 5% slower", has
+# the numbers).
 MIN_ROUNDS = stats.FIRST_LOOK_ROUNDS
 # How long rounds are added to undecided cells, at most (seconds of measuring, --budget).
 DEFAULT_BUDGET_S = 600.0
