@@ -12,12 +12,14 @@ from __future__ import annotations
 import importlib
 import signal
 import sys
+import textwrap
 from collections.abc import Sequence
 from types import ModuleType
 
 from harness.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, PROG
 from harness.errors import HarnessError
 
+USAGE_WIDTH = 100
 COMMANDS: tuple[str, ...] = ("run", "compare", "reruns", "history", "report", "store",
                              "worker")
 
@@ -28,10 +30,18 @@ def command(name: str) -> ModuleType:
     return importlib.import_module(f"harness.cli.{name}")
 
 
+def summary(doc: str | None) -> str:
+    """A command's docstring's first sentence, whole, however many lines it spans."""
+    paragraph = " ".join((doc or "").strip().split("\n\n")[0].split())
+    end = paragraph.find(". ")
+    return paragraph if end < 0 else paragraph[:end + 1]
+
+
 def usage() -> str:
     lines = [f"usage: {PROG} COMMAND [ARGS...]", "", "commands:"]
     for name in COMMANDS:
-        lines.append(f"  {name:<8} {(command(name).__doc__ or '').strip().splitlines()[0]}")
+        lines += textwrap.wrap(summary(command(name).__doc__), USAGE_WIDTH,
+                               initial_indent=f"  {name:<8} ", subsequent_indent=" " * 11)
     lines.append(f"\n`{PROG} COMMAND --help` says more.")
     return "\n".join(lines) + "\n"
 

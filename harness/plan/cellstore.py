@@ -46,6 +46,8 @@ from harness.store.model import (
 )
 from harness.store.result import CellResult
 
+UNBUILT = "unbuilt"  # the hash of a binary an assume_built store has not seen built
+
 
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
@@ -74,6 +76,9 @@ class CellStore:
     hashes: dict[Path, str | None] = field(default_factory=dict)
     fingerprints: dict[str, str] = field(default_factory=dict)  # program -> its fingerprint
     build_dir: Path | None = None  # where the binaries are; None: the repository's build/
+    # A binary not built yet hashes to UNBUILT instead of holding its cell's key back: the
+    # plan's groups (which leave binaries out) without building anything.
+    assume_built: bool = False
     # What write_csv lists, after every record: computed once, as the hashes it rests on are.
     planned: list[index.PlannedCell] | None = field(default=None, init=False, repr=False)
 
@@ -132,7 +137,8 @@ class CellStore:
 
     def sha(self, path: Path) -> str | None:
         if path not in self.hashes:
-            self.hashes[path] = records.sha256_file(path) if path.is_file() else None
+            self.hashes[path] = (records.sha256_file(path) if path.is_file()
+                                 else UNBUILT if self.assume_built else None)
         return self.hashes[path]
 
     def baseline_sha(self, cell: Cell) -> str | None:

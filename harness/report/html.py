@@ -6,6 +6,7 @@ works offline from a copy of the report directory."""
 from __future__ import annotations
 
 import functools
+import re
 from pathlib import Path
 
 import jinja2
@@ -29,12 +30,25 @@ def inline(text: str) -> Markup:
     return Markup(_markdown().renderInline(text))
 
 
+# A number's 95% interval after it (`0.0453 [0.0449, 0.0456]`): kept on one line, so that a
+# narrow column breaks between the number and its interval, never inside either.
+_INTERVAL = re.compile(r"^(.*?) (\[[^\[\]]*\])$")
+
+
+def number(text: str) -> Markup:
+    found = _INTERVAL.match(text)
+    if found is None:
+        return Markup.escape(text)
+    return Markup('{} <span class="ci">{}</span>').format(found[1], found[2])
+
+
 @functools.cache
 def _environment() -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True,
                              trim_blocks=True, lstrip_blocks=True,
                              undefined=jinja2.StrictUndefined)
     env.filters["inline"] = inline
+    env.filters["number"] = number
     env.filters["kind"] = kind
     env.filters["relative"] = lambda path, base: Path(path).relative_to(base).as_posix()
     env.globals["image_size"] = image_size

@@ -116,10 +116,15 @@ def current_by_machine(members: Sequence[Stored]) -> dict[str, Stored]:
 
 
 def superseded(stored: Iterable[Stored]) -> list[Stored]:
+    """The records a newer one replaces: of the same group and machine; and one of no known
+    machine that any newer record timed the same cell as (whatever its settings)."""
+    stored = list(stored)
     out = []
     for members in by_group(stored).values():
         current = current_by_machine(members)
         out += [m for m in members if current.get(m.machine_id) is not m]
+    for members in by_group(stored, timed=True).values():
+        out += [m for m in members[:-1] if m.machine_id == UNKNOWN_MACHINE and m not in out]
     return out
 
 

@@ -28,6 +28,7 @@ from harness.store.history import (
     current_by_machine,
     load_records,
     prune_locked,
+    superseded,
 )
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
@@ -108,7 +109,8 @@ def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows:
               for r in rows}
     plan_of = {cell.subject: cell.key for cell in planned}
     newest: dict[tuple[str, tuple[str, ...]], Stored] = {}
-    for item in sorted(stored, key=lambda s: s.age):
+    old = {id(s) for s in superseded(stored)}
+    for item in sorted((s for s in stored if id(s) not in old), key=lambda s: s.age):
         place = (item.machine_id, _subject(item))
         if place not in listed:
             newest[place] = item

@@ -24,8 +24,8 @@ from harness.store.layout import CACHE_DIR, ResultsRoot
 from commands import history_main
 from tests.conftest import REPO_ROOT, build_or_skip
 
-CONFIG = ("name: scratch\nvariants: [seq]\nscene: {n: 1000, L: 2000, r: 1, steps: 10}\n"
-          "threads: 1\nmeasure: {warmup: 1, runs: 3, timeout_s: 60}\nvalidate: false\n")
+CONFIG = ("name: scratch\nvariants: [seq]\nscene: {n: 2000, L: 4000, r: 1, steps: 10}\n"
+          "threads: 1\nmeasure: {warmup: 1, runs: 5, timeout_s: 60}\nvalidate: false\n")
 # The instruction lane counts under cachegrind where the machine has no counters: a scene
 # small enough for that.
 LANE_CONFIG = ("name: lane\nvariants: [seq]\nscene: {n: 200, L: 400, r: 1, steps: 5}\n"
