@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # run_scenes.sh BUILD_DIR: end-to-end tests of the variant binaries in BUILD_DIR (build, or
-# build/asan for the ASan+UBSan builds), against SPEC.md.
+# build/asan for the ASan+UBSan builds), against the model (docs/model.md).
 #
 #   1. hand-computed scenes (tests/c/scenes/*.in, derivations in *.md) through every exact
 #      variant at 1 and 4 threads, in %.8f and (exact in binary) in --precise;

@@ -1,5 +1,5 @@
 /*
- * test_core.c: unit tests of the shared simulation core (variants/core), against SPEC.md.
+ * test_core.c: unit tests of the shared simulation core (variants/core), against the model (docs/model.md).
  *
  * Plain C, no framework. Every failed check prints one line `file:line: what (values)`; the
  * last line is `P passed, F failed` counting test functions; the exit status is 1 when any

@@ -297,8 +297,14 @@ def test_runs_auto_takes_its_own_keys(write_config) -> None:
     assert measure.adaptive and measure.runs is None
     assert (measure.ci, measure.max_runs, measure.max_time_s) == (0.05, 12, 30.0)
     assert measure.key()["runs"] == "auto" and measure.key()["ci"] == 0.05
-    fixed = load_config(write_config(BASE)).measure
-    assert fixed.key() == {"warmup": DEFAULT_WARMUP, "runs": DEFAULT_RUNS,
+    # without `measure:`, rounds until +-5%: a config that says nothing gets an interval
+    # narrow enough to act on, or is told it did not
+    default = load_config(write_config(BASE)).measure
+    assert default.adaptive and default.key() == {
+        "warmup": DEFAULT_WARMUP, "runs": "auto", "timeout_s": DEFAULT_TIMEOUT_S, "ci": 0.05,
+        "max_runs": 20, "max_time_s": 60.0}
+    fixed = load_config(write_config(BASE + "measure: {runs: 3}\n")).measure
+    assert fixed.key() == {"warmup": DEFAULT_WARMUP, "runs": 3,
                            "timeout_s": DEFAULT_TIMEOUT_S}  # the keys cells always had
 
 

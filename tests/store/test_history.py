@@ -13,6 +13,7 @@ from harness.cli import main as cli_main
 from harness.store import atomic, index, records
 from harness.store import history as store_history
 from harness.store.layout import ExperimentDir
+from harness.store.columns import match_values
 from harness.store.model import CellKey
 
 KEY = {"variant": "p1", "build": "f64", "binary_sha256": "a" * 64, "input_sha256": "c" * 64,
@@ -96,7 +97,8 @@ def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> 
 
 
 def planned(**changes: object) -> index.PlannedCell:
-    return index.PlannedCell(CellKey.from_json({**KEY, **changes}))
+    key = CellKey.from_json({**KEY, **changes})
+    return index.PlannedCell(key, match_values({"variant": key.variant, "threads": key.threads}))
 
 
 def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:
@@ -134,9 +136,18 @@ def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings
     stored = store_history.load_records(tmp_path / "cells")
     rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
                               ExperimentDir(tmp_path))
-    # this machine measures the cell again; the other machine's timing stays listed
-    assert [r.result.cell_id for r in rows] == [older_settings]
+    # the other machine's timing stays listed; this machine's, of settings the config no
+    # longer asks for, is listed marked until this machine measures the cell again
+    assert [(r.result.cell_id, r.config_changed) for r in rows] == [
+        (older_settings, ""), (here_before, "ci runs")]
     assert here_before not in {s.cell_id for s in store_history.superseded(stored)}
+    again = put(tmp_path, "2026-01-03T00:00:00+00:00", runs="auto", ci=0.05)
+    stored = store_history.load_records(tmp_path / "cells")
+    assert [s.cell_id for s in index.replaced(stored, [planned(runs="auto", ci=0.05)])] == [
+        here_before]
+    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
+                              ExperimentDir(tmp_path))
+    assert [r.result.cell_id for r in rows] == [again, older_settings]
 
 
 def test_rebuilt_csv_has_provenance_columns(tmp_path: Path) -> None:
