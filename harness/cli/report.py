@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from harness.cli.common import Parser
-from harness.errors import HarnessError
+from harness.cli.common import Parser, check_derived, directory_option
+from harness.errors import HarnessError, os_error_text
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR
 from harness.store.layout import QUICK_SUFFIX
 
@@ -31,10 +32,12 @@ def parser(prog: str) -> argparse.ArgumentParser:
 def execute(args: argparse.Namespace) -> int:
     from harness.report.pipeline import render
 
+    check_derived(directory_option(args.results_dir), sys.stderr)
     try:
-        path = render(args.results_dir, args.out, include_quick=args.include_quick,
-                      experiments=args.experiment, machine=args.machine)
+        path = render(args.results_dir, directory_option(args.out, "--out"),
+                      include_quick=args.include_quick, experiments=args.experiment,
+                      machine=args.machine)
     except OSError as exc:
-        raise HarnessError(str(exc)) from None
+        raise HarnessError(os_error_text(exc)) from None
     print(f"wrote {path} and {path.with_name('report.html')}")
     return 0

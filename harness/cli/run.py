@@ -11,6 +11,8 @@ from harness.cli.common import (
     QUICK_REPORT,
     Parser,
     add_flags,
+    check_derived,
+    directory_option,
     load_configs,
     measuring_lock,
     whole_number,
@@ -53,10 +55,11 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 def execute(args: argparse.Namespace) -> int:
     run_lock = measuring_lock(args, args.configs)
-    options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
+    options = Options(repo_root=REPO_ROOT, results_root=directory_option(args.results_dir),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
                       partition=args.partition, run_lock=run_lock)
+    report = None if args.dry_run or args.no_report else report_dir(args)  # checked first
     try:
         registry, configs = load_configs(args.configs, args.metric, args.max_cells)
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
@@ -67,8 +70,8 @@ def execute(args: argparse.Namespace) -> int:
         with run_lock:
             summaries = [run_experiment(c, options, sys.stderr, sys.stdout, registry)
                          for c in configs]
-        if not (args.dry_run or args.no_report):
-            render_report(options, report_dir(args), [s.directory.name for s in summaries])
+        if report is not None:
+            render_report(options, report, [s.directory.name for s in summaries])
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
     return 0
@@ -78,7 +81,7 @@ def report_dir(args: argparse.Namespace) -> Path:
     """The report of the repository's results is the repository's; another results root
     gets its own, inside it (a run elsewhere never overwrites the committed report)."""
     if args.report_dir is not None:
-        return Path(args.report_dir)
+        return directory_option(args.report_dir, "--report-dir")
     if args.results_dir.resolve() == DEFAULT_RESULTS_DIR.resolve():
         return DEFAULT_REPORT_DIR
     return args.results_dir / REPORT_SUBDIR
@@ -90,6 +93,7 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> None:
     `report_dir/report-quick`."""
     from harness.report.pipeline import render
 
+    check_derived(options.results_root, sys.stderr)
     if options.quick:
         path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
                       experiments=names)

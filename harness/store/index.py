@@ -10,13 +10,12 @@ other's rows.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness import stats
-from harness.store import atomic, csvfile, locks, ratios, records, sessions
+from harness.store import atomic, derived, locks, records
+from harness.store.derived import Listed
 from harness.store.history import (
     UNKNOWN_MACHINE,
     Stored,
@@ -41,15 +40,11 @@ class PlannedCell:
         return self.key.id
 
 
-@dataclass(frozen=True)
-class Row:
-    result: CellResult
-    stale: bool | None
-    hyperfine_json: Path
+Row = Listed
 
 
-def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str,
-                 exp: ExperimentDir) -> list[Row]:
+def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str
+                 ) -> list[Row]:
     """results.csv's records, in plan order (the module's docstring says which); one of no
     known machine unless a newer timing of the cell exists."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
@@ -64,7 +59,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         current = next((m for m in members if m.cell_id == cell.cell_id), None)
         own = current or current_by_machine(members).get(machine_id)
         if own is not None:
-            rows.append(Row(own.result, current is None, exp.hyperfine(own.cell_id)))
+            rows.append(Row(own.result, current is None))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
@@ -73,34 +68,26 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
-            rows.append(Row(item.result, stale, exp.hyperfine(item.cell_id)))
+            rows.append(Row(item.result, stale))
     return rows
 
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
                 experiment: str, title: str, prune_first: bool = False,
-                baseline: str | None = None) -> list[CellResult]:
+                baseline: str | None = None, divergence: bool = False) -> list[CellResult]:
     """Rewrite results.csv from the records on disk, under the directory lock (with
-    `prune_first`, after moving the superseded records to history/, as a run ends), and with
-    the `baseline` variant named, ratios.csv from its rows; the records listed are returned
-    (for divergence.csv)."""
+    `prune_first`, after moving the superseded records to history/, as a run ends); with the
+    `baseline` variant named, ratios.csv from its rows, and with `divergence`, divergence.csv
+    (harness.store.derived, with the index that vouches for them); the records listed are
+    returned."""
     exp = ExperimentDir(experiment_dir)
     with locks.directory_lock(experiment_dir):
         stored = load_records(exp.cells)
         if prune_first:
             stored = prune_locked(experiment_dir, stored)
-        rows = current_rows(stored, planned, machine_id, exp)
-        written = [csvfile.csv_row(r.result.columns, experiment, title, r.hyperfine_json,
-                                   r.stale) for r in rows]
-        csvfile.write_results_csv(exp.results_csv, written)
-        if baseline is not None:
-            roots = sessions.session_roots(experiment_dir.parent)
-            levels = functools.cache(lambda m: sessions.spreads(roots, m))  # read once each
-
-            def session_of(machine: str, noise: float) -> float:
-                return stats.spread_at(levels(machine), noise).ratio
-
-            ratios.write_ratios_csv(exp.ratios_csv, written, baseline, session_of)
+        rows = current_rows(stored, planned, machine_id)
+        derived.write_derived(exp, derived.Derivation(experiment, title, baseline, divergence),
+                              rows)
     return [r.result for r in rows]
 
 
