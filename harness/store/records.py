@@ -56,8 +56,8 @@ def check_record(path: Path, expected_id: str) -> CellResult | None:
     try:
         result = CellResult.from_json(json.loads(text))
     except json.JSONDecodeError as exc:
-        raise DamagedFile(path, f"record is not JSON ({exc.msg} at line {exc.lineno}, "
-                          f"{len(text)} bytes)") from None
+        raise DamagedFile(path, f"record is not JSON ({exc.msg}: line {exc.lineno} column "
+                          f"{exc.colno} of {len(text)} bytes)") from None
     except RecordFormatError as exc:
         raise DamagedFile(path, f"not a record of this harness ({exc})") from None
     if result.cell_id != expected_id or result.key.id != expected_id:
