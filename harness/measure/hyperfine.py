@@ -1,6 +1,8 @@
 """Timing runs of a cell with hyperfine: `hyperfine -N --warmup W --runs R --export-json`,
 killed as a process group if it runs past (warmup + runs) timeouts; the export is kept as
-hyperfine wrote it. A cell is timed in rounds (harness.measure.rounds), one call a round."""
+hyperfine wrote it. A cell is timed in rounds (harness.measure.rounds), one call a round. The
+command's exit or signal is the cell's result; hyperfine unable to write its export, or leaving
+one that does not read, is a StorageError: the harness's fault, no result."""
 
 from __future__ import annotations
 
