@@ -75,6 +75,7 @@ def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
             text = out.read_text(errors="replace")
             if keep is not None:
                 with atomic.writing(keep):
+                    keep.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(out, keep)
     return done, text
 
