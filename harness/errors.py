@@ -2,12 +2,43 @@
 
 from __future__ import annotations
 
+import errno
 import reprlib
 from pathlib import Path
 
 
 class HarnessError(Exception):
     """A user-facing error: bad config, missing tool, failed build. Printed as `error: ...`."""
+
+
+class StorageError(HarnessError):
+    """The harness cannot keep what it measures: the place it writes to is full, read-only, not
+    its to write, or not a directory. A fault of the machine or of the place it was pointed
+    at, never a cell's result: no record is written and the run stops."""
+
+
+# The OS errors a user causes by where the harness is pointed or what it is left: a full disk
+# or quota, a file-size limit, a read-only place, a missing permission, a file where a
+# directory should be (or the reverse), a path too long or looping. Each ends a command with
+# one `error:` line (exit 2), never a traceback.
+USER_ERRNOS: frozenset[int] = frozenset({
+    errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM,
+    errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG, errno.ELOOP})
+
+
+def is_user_os_error(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in USER_ERRNOS
+
+
+def os_error_text(exc: OSError) -> str:
+    """An OS error as `PATH: why` (the path it names, where it names one)."""
+    why = exc.strerror or str(exc)
+    return f"{exc.filename}: {why}" if exc.filename is not None else why
+
+
+def storage_error(path: Path | str, exc: OSError, doing: str = "write") -> StorageError:
+    """`PATH: cannot DOING: why`, for an OS error met while keeping results at `path`."""
+    return StorageError(f"{path}: cannot {doing}: {exc.strerror or exc}")
 
 
 def config_error(path: Path | str, key: str, expected: str, got: object) -> HarnessError:

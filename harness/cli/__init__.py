@@ -2,9 +2,11 @@
 scripts harness/run.py and harness/compare.py for run and compare).
 
 Each command is a module here with `parser(prog)` and `execute(args) -> exit status`; main()
-parses, runs it, and prints any HarnessError as one `error: ...` line with exit status 2
-(real bugs keep their traceback). A measuring command also says, in INTERRUPTED (formatted with
-its arguments), what a Ctrl-C or SIGTERM keeps: it then ends with that line and status 130.
+parses, runs it, and prints any HarnessError, and any OS error a user can cause (a full disk, a
+read-only or forbidden place, a file where a directory should be: harness.errors.USER_ERRNOS),
+as one `error: ...` line with exit status 2 (real bugs keep their traceback). A measuring
+command also says, in INTERRUPTED (formatted with its arguments), what a Ctrl-C or SIGTERM
+keeps: it then ends with that line and status 130.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from harness.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, PROG
-from harness.errors import HarnessError
+from harness.errors import HarnessError, is_user_os_error, os_error_text
 
 USAGE_WIDTH = 100
 COMMANDS: tuple[str, ...] = ("run", "compare", "reruns", "history", "report", "store",
@@ -66,6 +68,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(module.execute(parsed))
     except HarnessError as exc:
         sys.stderr.write(f"error: {exc}\n")
+        return EXIT_ERROR
+    except OSError as exc:  # a full disk, a read-only place, a file where a directory should be
+        if not is_user_os_error(exc):
+            raise
+        sys.stderr.write(f"error: {os_error_text(exc)}\n")
         return EXIT_ERROR
     except KeyboardInterrupt:
         if kept is None:

@@ -9,8 +9,9 @@ import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NoReturn, TypeVar
+from typing import Any, NoReturn, TextIO, TypeVar
 
+from harness.errors import HarnessError
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.spec.config import (
     DEFAULT_MAX_CELLS,
@@ -22,6 +23,7 @@ from harness.spec.config import (
 )
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
+from harness.store import derived, layout
 from harness.store.locks import RunLock
 
 T = TypeVar("T", int, float)
@@ -104,3 +106,29 @@ def load_configs(paths: Sequence[str | Path], metric: str | None,
     """This repository's variants, and the configs, each measured by `metric` where given."""
     registry = VariantRegistry(REPO_ROOT)
     return registry, [with_metric(load_config(p, registry, max_cells), metric) for p in paths]
+
+
+def directory_option(path: Path, flag: str = "--results-dir") -> Path:
+    """A directory given on the command line (a results root, a report's), resolved; where
+    it (or the nearest place above it that exists) is not a directory, one error line."""
+    resolved = path.resolve()
+    for place in (resolved, *resolved.parents):
+        if place.exists():
+            if not place.is_dir():
+                where = "" if place == resolved else f" ({place} is a file)"
+                raise HarnessError(f"{flag} {path}: not a directory{where}")
+            break
+    return resolved
+
+
+def check_derived(path: Path, log: TextIO) -> None:
+    """results.csv and the files derived with it, under `path` (a results root or one
+    experiment), checked against what was written before they are read: a damaged one is
+    named in one line and derived again from its records (harness.store.derived)."""
+    if not path.is_dir():
+        return
+    found, _ = layout.experiments_under(path, lambda exp: exp.results_index.is_file())
+    for exp in found:
+        done = derived.repair(exp)
+        if done is not None:
+            log.write(f"warning: {done}\n")

@@ -28,7 +28,15 @@ from harness.analysis.compare import (
     find_drift,
 )
 from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import Parser, add_flags, fraction, load_configs, measuring_lock, seconds
+from harness.cli.common import (
+    Parser,
+    add_flags,
+    check_derived,
+    fraction,
+    load_configs,
+    measuring_lock,
+    seconds,
+)
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
 from harness.measure import environment
@@ -117,6 +125,8 @@ def execute(args: argparse.Namespace) -> int:
 
 def sides(old_path: Path, new_path: Path, old_machine: str | None,
           new_machine: str | None) -> tuple[Side, Side]:
+    for path in (old_path, new_path):
+        check_derived(path, sys.stderr)
     old_dirs, old_root = experiment_dirs(old_path, "OLD")
     new_dirs, new_root = experiment_dirs(new_path, "NEW")
     by_experiment = old_root and new_root

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from harness.cli.common import Parser
-from harness.errors import HarnessError
+from harness.cli.common import Parser, check_derived, directory_option
+from harness.errors import HarnessError, os_error_text
 from harness.repo import DEFAULT_RESULTS_DIR, default_report_dir
 from harness.store.layout import QUICK_SUFFIX
 
@@ -32,11 +33,13 @@ def parser(prog: str) -> argparse.ArgumentParser:
 def execute(args: argparse.Namespace) -> int:
     from harness.report.pipeline import render
 
+    check_derived(directory_option(args.results_dir), sys.stderr)
     try:
         out = args.out if args.out is not None else default_report_dir(args.results_dir)
-        path = render(args.results_dir, out, include_quick=args.include_quick,
-                      experiments=args.experiment, machine=args.machine)
+        path = render(args.results_dir, directory_option(out, "--out"),
+                      include_quick=args.include_quick, experiments=args.experiment,
+                      machine=args.machine)
     except OSError as exc:
-        raise HarnessError(str(exc)) from None
+        raise HarnessError(os_error_text(exc)) from None
     print(f"wrote {path} and {path.with_name('report.html')}")
     return 0

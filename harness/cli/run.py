@@ -11,6 +11,8 @@ from harness.cli.common import (
     QUICK_REPORT,
     Parser,
     add_flags,
+    check_derived,
+    directory_option,
     load_configs,
     measuring_lock,
     seconds,
@@ -74,11 +76,12 @@ def default_quiet_wait() -> float:
 
 def execute(args: argparse.Namespace) -> int:
     run_lock = measuring_lock(args, args.configs)
-    options = Options(repo_root=REPO_ROOT, results_root=args.results_dir.resolve(),
+    options = Options(repo_root=REPO_ROOT, results_root=directory_option(args.results_dir),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
                       partition=args.partition, run_lock=run_lock,
                       quiet_wait_s=args.quiet_wait, started=now_iso())
+    report = None if args.dry_run or args.no_report else report_dir(args)  # checked first
     try:
         registry, configs = load_configs(args.configs, args.metric, args.max_cells)
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
@@ -91,7 +94,7 @@ def execute(args: argparse.Namespace) -> int:
                          for c in configs]
         names = [s.directory.name for s in summaries]
         if not args.dry_run:
-            page = None if args.no_report else render_report(options, report_dir(args), names)
+            page = None if report is None else render_report(options, report, names)
             from harness.report.terminal import run_summary
 
             sys.stdout.write(run_summary(options.results_root, names, page))
@@ -104,7 +107,7 @@ def report_dir(args: argparse.Namespace) -> Path:
     """The report of the repository's results root (a user's, or the published one) is the
     repository's beside it; another results root gets its own, inside it."""
     if args.report_dir is not None:
-        return Path(args.report_dir)
+        return directory_option(args.report_dir, "--report-dir")
     return default_report_dir(args.results_dir)
 
 
@@ -114,6 +117,7 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     `report_dir/report-quick`. The page to open (report.html)."""
     from harness.report.pipeline import render
 
+    check_derived(options.results_root, sys.stderr)
     if options.quick:
         path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
                       experiments=names)

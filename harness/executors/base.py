@@ -116,6 +116,14 @@ class Progress:
                 self.log.write(f"{self._prefix(k)}  cached\n")
         self._next = max(self._next, stop)
 
+    def resumed(self, count: int) -> None:
+        """Say how many cells an interrupted run left part-measured, which go on where it
+        stopped."""
+        if count:
+            self.log.write(f"{self.name}: {count} cell{'s' if count > 1 else ''} resumed from "
+                           "an interrupted run (their untimed runs and rounds so far kept)\n")
+            self.log.flush()
+
     def starting(self, cell_id: str, eta_s: float | None = None) -> None:
         k = self._index[cell_id]
         self._cached_until(k)

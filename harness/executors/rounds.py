@@ -180,12 +180,17 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     where None); the seed."""
     if seed is None:
         seed = random.SystemRandom().randrange(2**32)
+    for unit in units:
+        unit.run = unit.measurer.resume(unit.cell, unit.cell_id)
+    progress.resumed(sum(unit.run is not None for unit in units))
     active: list[Unit] = []
     for index, unit in enumerate(units):
         progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
         started = time.monotonic()
-        unit.run = unit.measurer.start(unit.cell, unit.cell_id)
+        if unit.run is None:
+            unit.run = unit.measurer.start(unit.cell, unit.cell_id)
         unit.run.record = unit.run.record.replace(round_seed=seed)
+        unit.measurer.keep(unit.run)  # an interruption from here on keeps its start
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
         active.append(unit)
@@ -202,6 +207,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
             started = time.monotonic()
             before = len(unit.state.times)
             unit.measurer.time_round(unit.state, round_index)
+            unit.measurer.keep(unit.state)  # an interruption from here on keeps this round
             unit.seconds += time.monotonic() - started
             spent += time.monotonic() - started
             runs += sum(unit.state.times[before:])
@@ -254,7 +260,8 @@ class LocalExecutor:
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
-        measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores)
+        measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores,
+                            log=experiment.log)
         if experiment.options.quiet_wait_s > 0:
             measurer.quiet = QuietWait(experiment.options.quiet_wait_s, experiment.log,
                                        experiment.config.name)

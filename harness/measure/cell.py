@@ -16,9 +16,11 @@ from __future__ import annotations
 import functools
 import os
 import shlex
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 from harness import stats
 from harness.measure import environment, machine, noise, validate
@@ -40,7 +42,7 @@ from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError
 from harness.store import sessions
-from harness.store.columns import INVALID, OK, TIMED_STATUSES
+from harness.store.columns import INVALID, OK, TIMED_STATUSES, UNVALIDATED
 from harness.store.result import CellResult
 
 OMP_THREADS_VAR = "OMP_NUM_THREADS"
@@ -58,6 +60,7 @@ class Measurer:
     store: CellStore
     hyperfine: str = "hyperfine"
     cores: int = field(default_factory=machine.available_cores)
+    log: TextIO | None = None  # where a damaged file is named (None: stderr)
     references: References = field(init=False)
     checker: Checker = field(init=False)
     # The noise of every round this measurer timed (one measurer times one run of an
@@ -69,7 +72,7 @@ class Measurer:
 
     def __post_init__(self) -> None:
         self.references = References(self.store, self.environment,
-                                     self.config.measure.timeout_s)
+                                     self.config.measure.timeout_s, self.warn)
         self.checker = Checker(self.store, self.references)
 
     @property
@@ -88,21 +91,34 @@ class Measurer:
         one is kept."""
         return stats.spread_at(self.levels, stats.session_noise(self.round_noise))
 
+    def warn(self, text: str) -> None:
+        log = self.log or sys.stderr
+        log.write(f"warning: {text}\n")
+        log.flush()
+
     def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
         if schedule:
             env[OMP_SCHEDULE_VAR] = schedule
         return env
 
+    def key(self, cell: Cell) -> dict[str, object]:
+        cell_key = self.store.cell_key(cell)
+        assert cell_key is not None, "a cell is measured only once its binaries exist"
+        return cell_key.to_json()
+
+    def resume(self, cell: Cell, cell_id: str) -> CellRun | None:
+        """Where an interrupted run left the cell (its untimed runs done, some rounds timed),
+        if it did."""
+        return CellRun.load(self.store.layout.partial(cell_id), self.key(cell))
+
     def start(self, cell: Cell, cell_id: str) -> CellRun:
         """The cell's runs that are not timed: its --precise run, validation and checks; or,
         when an interrupted run left the cell part-timed, where it stopped."""
-        cell_key = self.store.cell_key(cell)
-        assert cell_key is not None, "a cell is measured only once its binaries exist"
-        key = cell_key.to_json()
-        resumed = CellRun.load(self.store.layout.partial(cell_id), key)
+        resumed = self.resume(cell, cell_id)
         if resumed is not None:
             return resumed
+        key = self.key(cell)
         config, measure = self.config, self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule)
         record = self.new_record(cell, cell_id, env)
@@ -188,12 +204,9 @@ class Measurer:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
-        """Keep on disk the state of a cell that needs more rounds (a rerun resumes it)."""
-        partial = self.store.layout.partial(run.cell_id)
-        if run.done:
-            partial.unlink(missing_ok=True)
-        else:
-            run.save(partial)
+        """Keep on disk the state of a cell until its record is written (finish): a rerun
+        resumes it there."""
+        run.save(self.store.layout.partial(run.cell_id))
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
         result = timed_result(run, self.session()).replace(seconds=seconds)
@@ -208,11 +221,12 @@ class Measurer:
             self.references.share_baseline(cell, output)
         reference, problem = self.references.baseline_output(cell)
         if reference is None:
-            return OK, record.replace(note=problem)
+            return UNVALIDATED, record.replace(validated=False, note=problem)
         try:
             comparison = validate.compare(reference, output, cell.scene.L)
         except OutputFormatError as exc:
-            return OK, record.replace(note=f"baseline output unreadable: {exc}")
+            return UNVALIDATED, record.replace(validated=False,
+                                               note=f"baseline output unreadable: {exc}")
         record = record.replace(
             identical=comparison.identical, max_pos_err=comparison.max_pos_err,
             max_vel_err=comparison.max_vel_err, count_mismatches=comparison.count_mismatches)

@@ -36,7 +36,9 @@ def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
     timeout, or on any exception (Ctrl-C), the whole group is killed."""
     started = time.monotonic()
     target = stdout if stdout is not None else Path(os.devnull)
-    with target.open("wb") as out, tempfile.TemporaryFile() as err:
+    with atomic.writing(target):
+        out = target.open("wb")
+    with out, tempfile.TemporaryFile() as err:
         try:
             proc = subprocess.Popen(list(argv), stdout=out, stderr=err,
                                     stdin=subprocess.DEVNULL, env=dict(env),
@@ -61,17 +63,20 @@ def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
     """run_process with stdout to a fresh file beside `scratch` (the system's temporary
     directory by default): the run and, where it exited 0, its stdout (moved to `keep`);
     "" otherwise, unread. Bytes that are not UTF-8 are read as U+FFFD: such output fails its
-    validation, not the harness."""
-    out = atomic.temp_path(scratch or Path(tempfile.gettempdir()) / "collide-stdout")
+    validation, not the harness. A run that did not finish where that file can take no more
+    (a full disk, a file-size limit) failed for want of room, not of its own: a StorageError
+    naming the place (atomic.check_room), and no result."""
     text = ""
-    try:
+    with atomic.temporary(scratch or Path(tempfile.gettempdir()) / "collide-stdout") as out:
         done = run_process(argv, env, timeout_s, out)
+        if done.returncode not in (0, None):
+            atomic.check_room(out, f"the output of {Path(argv[0]).name}")
         if done.returncode == 0:
             text = out.read_text(errors="replace")
             if keep is not None:
-                os.replace(out, keep)
-    finally:
-        out.unlink(missing_ok=True)
+                with atomic.writing(keep):
+                    keep.parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(out, keep)
     return done, text
 
 

@@ -12,7 +12,7 @@ from harness.measure.proc import ProcessResult, exit_status, run_captured, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
-from harness.store import atomic
+from harness.store import trust
 from harness.store.model import content_id
 
 # The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
@@ -21,11 +21,14 @@ Environment = Callable[[int], Mapping[str, str]]
 
 @dataclass
 class References:
-    """The reference outputs of one experiment's cells, read or run once per process."""
+    """The reference outputs of one experiment's cells, read or run once per process. A kept
+    output is read back only where its bytes are those written (harness.store.trust); a
+    damaged one is named (`warn`) and run again."""
 
     store: CellStore
     environment: Environment
     timeout_s: float
+    warn: Callable[[str], None]
     baselines: dict[str, str | None] = field(default_factory=dict)  # key -> output; None: failed
     prints: dict[str, str | None] = field(default_factory=dict)
 
@@ -47,9 +50,8 @@ class References:
         if self.store.binary(cell) != self.store.baseline_binary(cell):
             return
         key = self.store.baseline_key(cell)
-        path = self.store.root.baseline(key)
-        if key not in self.baselines and not path.is_file():
-            atomic.atomic_write_text(path, output)
+        if key not in self.baselines and self._read(self.store.root.baseline(key)) is None:
+            trust.write_kept(self.store.root.baseline(key), output)
             self.baselines[key] = output
 
     def print_output(self, binary: Path, scene: scenes.ScenePoint, threads: int,
@@ -60,25 +62,37 @@ class References:
                           "input_sha256": scene.input_sha256, "seed": scene.seed})
         path = self.store.root.print_output(key)
         if not cache:
-            return self._run(binary, scene, threads, path, keep=False)[1]
+            return self._run(binary, scene, threads, path)[1]
         return self._kept(self.prints, key, path, binary, scene, threads)[1]
 
     def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
               scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
         """The output kept in memory or at `path`, else run now and kept in both; with the run
         when it ran now."""
-        if key not in kept and path.is_file():
-            kept[key] = path.read_text()
+        if key not in kept:
+            text = self._read(path)
+            if text is not None:
+                kept[key] = text
         if key in kept:
             return None, kept[key]
-        done, kept[key] = self._run(binary, scene, threads, path, keep=True)
+        done, kept[key] = self._run(binary, scene, threads, path)
+        if kept[key] is not None:
+            trust.write_kept(path, kept[key])
         return done, kept[key]
 
-    def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path,
-             keep: bool) -> tuple[ProcessResult, str | None]:
-        """`binary --precise` on the scene's input; its output (None where it failed)."""
+    def _read(self, path: Path) -> str | None:
+        """The output kept at `path` where it can be trusted; a damaged one named."""
+        try:
+            return trust.read_kept(path)
+        except trust.DamagedFile as exc:
+            self.warn(f"{exc}; run again")
+            return None
+
+    def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path
+             ) -> tuple[ProcessResult, str | None]:
+        """`binary --precise` on the scene's input, its output written beside `path` while it
+        runs; its output (None where it failed)."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
-        done, text = run_captured(argv, self.environment(threads), self.timeout_s, path,
-                                  path if keep else None)
+        done, text = run_captured(argv, self.environment(threads), self.timeout_s, path)
         return done, text if done.returncode == 0 else None

@@ -5,12 +5,12 @@ round (a paired cell a few): a fixed count (`runs: N`) N rounds, `runs: auto` at
 stats.MIN_ROUNDS and then rounds until the 95% interval of its value over its rounds
 (harness.stats.levels) is within +-ci of it, or a limit is reached (harness.spec.config).
 
-CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl after each,
-so that an interrupted run resumes a cell where it stopped instead of starting it again. The
-file is a log: its first line the whole state, then a line a round with what the round added
-to the lists that only grow (times, rounds, ...) and the rest as it is then; a round writes
-what it added, not every run of the cell again (a cell of many rounds would rewrite its runs
-quadratically often).
+CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl once its
+untimed runs are done and after each of its hyperfine calls, so that an interrupted run
+resumes a cell where it stopped instead of starting it again. The file is a log: its first
+line the whole state, then a line a save with what was added to the lists that only grow
+(times, rounds, ...) and the other fields that changed; a save writes what changed, not every
+run of the cell again (a cell of many rounds would rewrite its runs quadratically often).
 """
 
 from __future__ import annotations
@@ -37,7 +37,9 @@ from harness.store.hyperfine import is_unstable
 from harness.store.measured import Noise, TimedRun
 from harness.store.result import CellResult
 
-PARTIAL_VERSION = 2
+# 3: a line after the first holds only the fields that changed, the record's too
+PARTIAL_VERSION = 3
+RECORD_FIELD = "record."  # how a record's field is named among the fields a save compares
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
 GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
            "round_pressure")
@@ -78,8 +80,11 @@ class CellRun:
     capacity_s: float = 0.0  # the cores' seconds over its rounds
     retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
-    saved: tuple[Path, dict[str, int]] | None = field(default=None, init=False, repr=False,
-                                                      compare=False)
+    # and the JSON text of every other field
+    saved: tuple[Path, dict[str, int], dict[str, str]] | None = field(
+        default=None, init=False, repr=False, compare=False)
+    # Read back from its partial file: an interrupted run's cell, resumed where it stopped
+    resumed: bool = field(default=False, init=False, repr=False, compare=False)
 
     @property
     def timed(self) -> bool:
@@ -133,20 +138,33 @@ class CellRun:
 
     def save(self, path: Path) -> None:
         """Keep the state in `path`: a line with what changed since it was last kept there
-        (appended), or, where it was not (a new file, another run's, one whose last save was
-        cut short), the whole state, written atomically."""
+        (appended; nothing where nothing did), or, where it was not (a new file, another
+        run's, one whose last save was cut short), the whole state, written atomically."""
         state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
         state["record"] = self.record.to_json()
+        fixed = _texts(state)
         if self.saved is not None and self.saved[0] == path and path.is_file():
-            kept = self.saved[1]
-            line = {name: value[kept[name]:] if name in GROWING else value
-                    for name, value in state.items()}
-            with path.open("a", encoding="utf-8") as handle:
-                handle.write(json.dumps(line, sort_keys=True, default=str) + "\n")
+            lengths, before = self.saved[1], self.saved[2]
+            line = {name: state[name][lengths[name]:] for name in GROWING
+                    if len(state[name]) > lengths[name]}
+            record: dict[str, object] = {}
+            for name in sorted(fixed.keys() | before.keys()):
+                if fixed.get(name) == before.get(name):
+                    continue
+                if name.startswith(RECORD_FIELD):  # a record's field, None where it is gone
+                    record[name[len(RECORD_FIELD):]] = state["record"].get(
+                        name[len(RECORD_FIELD):])
+                else:
+                    line[name] = state[name]
+            if record:
+                line["record"] = record
+            if line:
+                with atomic.writing(path), path.open("a", encoding="utf-8") as handle:
+                    handle.write(json.dumps(line, sort_keys=True, default=str) + "\n")
         else:
             atomic.atomic_write_text(path, json.dumps({"version": PARTIAL_VERSION, **state},
                                                       sort_keys=True, default=str) + "\n")
-        self.saved = (path, {name: len(state[name]) for name in GROWING})
+        self.saved = (path, {name: len(state[name]) for name in GROWING}, fixed)
 
     @classmethod
     def load(cls, path: Path, key: dict[str, object]) -> CellRun | None:
@@ -167,15 +185,35 @@ class CellRun:
                 return None
             for line in lines[1:]:
                 for name, value in json.loads(line).items():
-                    first[name] = first[name] + value if name in GROWING else value
+                    if name == "record":  # the record's fields that changed
+                        merged = {**first["record"], **value}
+                        first["record"] = {k: v for k, v in merged.items() if v is not None}
+                    else:
+                        first[name] = first[name] + value if name in GROWING else value
             run = cls(**{**first, "record": CellResult.from_json(first["record"])})
         except (ValueError, TypeError, KeyError, AttributeError):
             return None
         if run.key != key:
             return None
+        run.resumed = True
         if whole:
-            run.saved = (path, {name: len(getattr(run, name)) for name in GROWING})
+            run.saved = (path, {name: len(getattr(run, name)) for name in GROWING},
+                         _texts(first))
         return run
+
+
+def _texts(state: dict[str, object]) -> dict[str, str]:
+    """The JSON text of each field of a partial state that is not a GROWING list, and of each
+    field of its record (named RECORD_FIELD + name): a save writes again only those that
+    changed."""
+    texts = {}
+    for name, value in state.items():
+        if name == "record" and isinstance(value, dict):
+            texts.update({RECORD_FIELD + k: json.dumps(v, sort_keys=True, default=str)
+                          for k, v in value.items()})
+        elif name not in GROWING:
+            texts[name] = json.dumps(value, sort_keys=True, default=str)
+    return texts
 
 
 def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:

@@ -31,7 +31,7 @@ from harness.spec import scenes
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
-from harness.store import atomic, csvfile, index, records
+from harness.store import atomic, index, records, trust
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.measured import Provenance, Subject, Timing, Validation
@@ -217,12 +217,17 @@ class CellStore:
     # --- records ---
 
     def cached(self, cell_id: str) -> CellResult | None:
-        """The record that spares measuring the cell again. A record marked retry is listed in
-        results.csv but measured again by the next run."""
+        """The record that spares measuring the cell again: one that reads, with the hyperfine
+        exports it rests on; a DamagedFile naming the file where one of them is damaged (the
+        cell is then measured again). A record marked retry is listed in results.csv but
+        measured again by the next run."""
         if self.force:
             return None
-        result = self.read(cell_id)
-        return None if result is None or result.retry else result
+        result = records.check_record(self.layout.record(cell_id), cell_id)
+        if result is None or result.retry:
+            return None
+        trust.check_exports(result, self.layout.cells)
+        return result
 
     def read(self, cell_id: str) -> CellResult | None:
         """The record on disk, whoever wrote it; None when absent or unreadable."""
@@ -240,10 +245,9 @@ class CellStore:
             keyed = ((self.cell_key(cell), cell) for cell in self.plan.cells)
             self.planned = [index.PlannedCell(key, subject(cell)) for key, cell in keyed
                             if key is not None]
-        kept = index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
-                                 self.config.title, prune_first=prune, baseline=BASELINE)
-        if self.config.checks.names:
-            csvfile.write_divergence_csv(self.layout.divergence_csv, kept)
+        index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
+                          self.config.title, prune_first=prune, baseline=BASELINE,
+                          divergence=bool(self.config.checks.names))
 
     # --- files ---
 

@@ -156,9 +156,14 @@ def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
 def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
     """The verdict on correctness: invalid cells, byte identity, the checks."""
     total = sum((p.fidelity for p in parts), Fidelity())
-    if not total.validated and not total.checked and not total.programs:
+    if not (total.validated or total.unvalidated or total.checked or total.programs):
         return None
     sentences = []
+    if total.unvalidated:
+        first = next(p for p in parts if p.fidelity.unvalidated)
+        cells = "cell" if total.unvalidated == 1 else "cells"
+        sentences.append(f"{total.unvalidated} {cells} NOT VALIDATED: their baseline could not "
+                         f"be run or read ([warnings](#{warnings_anchor(first)}))")
     if total.validated:
         if total.invalid:
             first = next(p for p in parts if p.fidelity.invalid)

@@ -33,6 +33,7 @@ class Fidelity:
     checks_passed: int = 0
     programs: int = 0  # program cells (their verdict is their agreement with seq)
     programs_agree: int = 0  # identical, rounding or diverges
+    unvalidated: int = 0  # to be validated, but their baseline could not be run or read
 
     def __add__(self, other: Fidelity) -> Fidelity:
         return Fidelity(*(a + b for a, b in zip(astuple(self), astuple(other), strict=True)))

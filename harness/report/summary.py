@@ -25,7 +25,7 @@ from harness.report.sections import phases as phases_part
 from harness.report.sections import programs as programs_part
 from harness.report.sections.context import table_block
 from harness.spec.facts import BASELINE, GRID
-from harness.store.columns import AGREEING, INVALID, OK
+from harness.store.columns import AGREEING, INVALID, OK, UNVALIDATED
 
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
 # oversubscribed, against seq on the same scene and machine.
@@ -119,6 +119,7 @@ def fidelity(exp: Experiment) -> Fidelity:
         else 0,
         programs=int(program.sum()),
         programs_agree=int(agreement.isin(AGREEING).sum()),
+        unvalidated=int((df["status"] == UNVALIDATED).sum()),
     )
 
 

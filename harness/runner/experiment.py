@@ -27,13 +27,14 @@ from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
-from harness.store import index
+from harness.store import atomic, index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
 from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 from harness.store.records import RUN_STARTED
 from harness.store.result import CellResult
+from harness.store.trust import DamagedFile
 
 # results.csv is rebuilt from every record in the directory, all machines' (harness.store.index):
 # at a few thousand records a rebuild takes a second or more. After one, the next waits at least
@@ -90,6 +91,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
     make_binaries(options.repo_root, binaries, options.make)
+    sweep_temporaries(experiment.store, log)
     # what the cells' variants are, stored with them: reading results never asks a binary
     index.write_variants(experiment.directory, registry.known.to_json())
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
@@ -162,7 +164,8 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
     # elsewhere (each Slurm task has its node to itself by default).
     if pending and here and options.run_lock is not None and not options.run_lock.held:
         options.run_lock.acquire()  # may wait for another run; the load is sampled after
-        pending = not_cached(experiment, pending)  # that run may have measured some of them
+        # that run may have measured some of them (a damaged record is named once)
+        pending = not_cached(experiment, pending, warn=False)
     # A remote executor's workers write the env of their machines (collide-bench worker).
     if pending and here:
         env = environment.collect(options.repo_root, options.make, options.hyperfine)
@@ -209,18 +212,32 @@ def write_env_after(directory: Path, env: Mapping[str, object]) -> None:
     index.write_env(directory, {**env, "load_after": machine.load()})
 
 
-def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]]
+def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]], warn: bool = True
                ) -> list[tuple[Cell, str]]:
     """The (cell, cell_id)s without a cached record; the cached records go into
-    experiment.records."""
+    experiment.records. A damaged record (or hyperfine export) is named, and its cell is
+    measured again."""
     pending = []
     for cell, cid in cells:
-        record = experiment.store.cached(cid)
+        try:
+            record = experiment.store.cached(cid)
+        except DamagedFile as exc:
+            if warn:
+                experiment.log.write(f"warning: {exc}: the cell is measured again\n")
+            record = None
         if record is None:
             pending.append((cell, cid))
         else:
             experiment.records[cid] = record
     return pending
+
+
+def sweep_temporaries(store: CellStore, log: TextIO) -> None:
+    """Remove the temporary files a killed run left where this one writes."""
+    removed = atomic.sweep([*store.layout.written(), *store.root.caches()])
+    if removed:
+        log.write(f"{store.config.name}: removed {len(removed)} temporary file(s) a killed run "
+                  "left\n")
 
 
 def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
@@ -253,10 +270,10 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
         cid = experiment.store.cell_id(cell)
         if cid is None:
             what = "run (binary not built yet)"
-        elif experiment.store.cached(cid) is not None:
-            what, cached = f"cached {cid}", cached + 1
-        else:
+        elif not_cached(experiment, [(cell, cid)]):
             what = f"run {cid}"
+        else:
+            what, cached = f"cached {cid}", cached + 1
         check = (" +validate" if cell.validate else "") + (" +checks" if cell.checked else "")
         lines.append(f"  [{k}/{len(plan.cells)}] {cell.label}{check}  {what}\n")
     for cell in plan.excluded:

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, StorageError
 from harness.executors.base import Options
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT
@@ -92,6 +92,8 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
             config, variants=tuple(v for v in config.variants if v not in absent))
     try:  # planning asks the binaries what they are (--describe): it builds them too
         build_plans(side, [plan_cells(config, False, registry)])
+    except StorageError:  # no room or no right to write: the machine's fault, not the commit's
+        raise
     except HarnessError as exc:
         atomic_write_json(failed, {"commit": side.commit, "status": "build_failed",
                                    "error": str(exc)})

@@ -13,12 +13,15 @@ from harness.store import measured
 
 OK = "ok"
 INVALID = "invalid"  # ran to the end; its output disagrees with the baseline
+# ran to the end and was to be validated, but could not be: the baseline's run failed, or its
+# output could not be read (the note says which); timed, not counted as validated
+UNVALIDATED = "unvalidated"
 FAILED = "failed"  # exit status other than 0
 CRASHED = "crashed"  # killed by a signal
 TIMEOUT = "timeout"  # past the cell's timeout
-STATUSES: tuple[str, ...] = (OK, INVALID, FAILED, CRASHED, TIMEOUT)
+STATUSES: tuple[str, ...] = (OK, INVALID, UNVALIDATED, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
-TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID})
+TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID, UNVALIDATED})
 
 # A program's verdict (harness.measure.agreement): the same numbers as seq at the precision it
 # prints; within that rounding at every step; every step locally right from its own state

@@ -138,10 +138,7 @@ def divergence_rows(record: Mapping[str, object]) -> list[dict[str, object]]:
             for step, value in enumerate(curve if isinstance(curve, list) else [])]
 
 
-def write_divergence_csv(path: Path, results: Iterable[CellResult]) -> None:
-    """divergence.csv from the records that have curves; removed when none has."""
+def divergence_text(results: Iterable[CellResult]) -> str | None:
+    """divergence.csv's text from the records that have curves; None where none has."""
     rows = [row for result in results for row in divergence_rows(result.columns)]
-    if not rows:
-        path.unlink(missing_ok=True)
-        return
-    atomic.atomic_write_text(path, csv_text(DIVERGENCE_COLUMNS, rows))
+    return csv_text(DIVERGENCE_COLUMNS, rows) if rows else None

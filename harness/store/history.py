@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import csvfile, layout, locks, records
+from harness.store import atomic, csvfile, layout, locks, records
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import CellResult
@@ -133,14 +133,15 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> None:
     exp = ExperimentDir(experiment_dir)
     history = exp.history
     for item in items:
-        history.mkdir(parents=True, exist_ok=True)
         cid = item.cell_id
         companions = [(path, history / path.name) for path in exp.hyperfine_files(cid)]
         companions.append((exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}"))
-        for source, target in companions:
-            if source.is_file():
-                os.replace(source, target)
-        os.replace(item.path, history / item.path.name)  # the record last: it names the rest
+        with atomic.writing(history, "move superseded records into"):
+            history.mkdir(parents=True, exist_ok=True)
+            for source, target in companions:
+                if source.is_file():
+                    os.replace(source, target)
+            os.replace(item.path, history / item.path.name)  # the record last: it names the rest
 
 
 @dataclass(frozen=True)

@@ -13,14 +13,13 @@ other's rows.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness import stats
-from harness.store import atomic, csvfile, locks, ratios, records, sessions
+from harness.store import atomic, derived, locks, records
 from harness.store.columns import UNPLANNED, match_values
+from harness.store.derived import Listed
 from harness.store.history import (
     UNKNOWN_MACHINE,
     Stored,
@@ -48,12 +47,7 @@ class PlannedCell:
         return self.key.id
 
 
-@dataclass(frozen=True)
-class Row:
-    result: CellResult
-    stale: bool | None
-    hyperfine_json: Path
-    config_changed: str = ""  # the key fields in which it differs from the plan (UNPLANNED)
+Row = Listed
 
 
 def _subject(item: Stored) -> tuple[str, ...]:
@@ -70,8 +64,8 @@ def changed_fields(key: CellKey, planned: CellKey | None) -> str:
                            if mine.get(k) != theirs.get(k))) or UNPLANNED
 
 
-def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str,
-                 exp: ExperimentDir) -> list[Row]:
+def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str
+                 ) -> list[Row]:
     """results.csv's records, in plan order (the module's docstring says which); one of no
     known machine unless a newer timing of the cell exists. Then, for each machine, its newest
     record of every cell it has no row of yet: measured under an earlier version of the config
@@ -88,7 +82,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         current = next((m for m in members if m.cell_id == cell.cell_id), None)
         own = current or current_by_machine(members).get(machine_id)
         if own is not None:
-            rows.append(Row(own.result, current is None, exp.hyperfine(own.cell_id)))
+            rows.append(Row(own.result, current is None))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
@@ -97,12 +91,12 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
-            rows.append(Row(item.result, stale, exp.hyperfine(item.cell_id)))
-    return rows + earlier_rows(stored, planned, rows, exp)
+            rows.append(Row(item.result, stale))
+    return rows + earlier_rows(stored, planned, rows)
 
 
-def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Row],
-                 exp: ExperimentDir) -> list[Row]:
+def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Row]
+                 ) -> list[Row]:
     """Each machine's newest record of each cell it has no row of among `rows`: measured
     under an earlier version of the config, by subject and machine."""
     listed = {(r.result.key.machine_id or UNKNOWN_MACHINE, match_values(r.result.columns))
@@ -114,8 +108,7 @@ def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows:
         place = (item.machine_id, _subject(item))
         if place not in listed:
             newest[place] = item
-    return [Row(item.result, None, exp.hyperfine(item.cell_id),
-                changed_fields(item.key, plan_of.get(place[1])))
+    return [Row(item.result, None, changed_fields(item.key, plan_of.get(place[1])))
             for place, item in sorted(newest.items())]
 
 
@@ -130,28 +123,20 @@ def replaced(stored: Sequence[Stored], planned: Sequence[PlannedCell]) -> list[S
 
 def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
                 experiment: str, title: str, prune_first: bool = False,
-                baseline: str | None = None) -> list[CellResult]:
+                baseline: str | None = None, divergence: bool = False) -> list[CellResult]:
     """Rewrite results.csv from the records on disk, under the directory lock (with
-    `prune_first`, after moving the superseded records to history/, as a run ends), and with
-    the `baseline` variant named, ratios.csv from its rows; the records listed are returned
-    (for divergence.csv)."""
+    `prune_first`, after moving the superseded records to history/, as a run ends); with the
+    `baseline` variant named, ratios.csv from its rows, and with `divergence`, divergence.csv
+    (harness.store.derived, with the index that vouches for them); the records listed are
+    returned."""
     exp = ExperimentDir(experiment_dir)
     with locks.directory_lock(experiment_dir):
         stored = load_records(exp.cells)
         if prune_first:
             stored = prune_locked(experiment_dir, stored, replaced(stored, planned))
-        rows = current_rows(stored, planned, machine_id, exp)
-        written = [csvfile.csv_row(r.result.columns, experiment, title, r.hyperfine_json,
-                                   r.stale, r.config_changed) for r in rows]
-        csvfile.write_results_csv(exp.results_csv, written)
-        if baseline is not None:
-            roots = sessions.session_roots(experiment_dir.parent)
-            levels = functools.cache(lambda m: sessions.spreads(roots, m))  # read once each
-
-            def session_of(machine: str, noise: float) -> float:
-                return stats.spread_at(levels(machine), noise).ratio
-
-            ratios.write_ratios_csv(exp.ratios_csv, written, baseline, session_of)
+        rows = current_rows(stored, planned, machine_id)
+        derived.write_derived(exp, derived.Derivation(experiment, title, baseline, divergence),
+                              rows)
     return [r.result for r in rows]
 
 

@@ -3,6 +3,8 @@
     results/                         a results root
       .cache/baselines/<key>.txt     seq's --precise output per input (validation)
       .cache/prints/<key>.txt        reference print-mode outputs (the checks)
+      .cache/*/<key>.txt.sha256      the sha256 of each, written with it: read back only
+                                     where the bytes still have it
       <name>/  (<name>-quick/)       one experiment (a --quick smoke run)
         cells/<cell_id>.json             the harness's record of one cell
         cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
@@ -13,6 +15,7 @@
         cells/<cell_id>.partial.jsonl    a cell whose rounds an interruption cut short
         cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
         cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
+        .../.<name>.<pid>@<host>.*.tmp   any file while it is written (harness.store.atomic)
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
@@ -27,6 +30,9 @@
         history.json                     `history`: the commits of the latest range, oldest first
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
+        results.index.json               what results.csv, ratios.csv and divergence.csv were
+                                         derived from (the records, in order) and their
+                                         sha256: checked before they are read
         ratios.csv                       one row per ratio of two cells (speedups), by round
         divergence.csv                   the checks' divergence curves, where some cell has them
       calibration/machines/<machine_id>.json   a machine's description and its calibration
@@ -52,12 +58,15 @@ SLURM = "slurm"
 ENV_JSON = "env.json"
 VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
+RESULTS_INDEX = "results.index.json"
 DIVERGENCE_CSV = "divergence.csv"
 RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
 OUTPUT_SUFFIX = ".txt"
+DIGEST_SUFFIX = ".sha256"
+INPUTS = "inputs"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 CACHE_DIR = ".cache"
 COMPARE_DIR = "compare"
@@ -85,6 +94,7 @@ class ExperimentDir:
     cells = _Under(CELLS)
     history = _Under(HISTORY)
     results_csv = _Under(RESULTS_CSV)
+    results_index = _Under(RESULTS_INDEX)
     history_csv = _Under("history.csv")
     history_commits = _Under("history.json")
     ratios_csv = _Under(RATIOS_CSV)
@@ -126,11 +136,9 @@ class ExperimentDir:
 
     def hyperfine_exports(self, cell_id: str) -> list[Path]:
         """Every hyperfine export the cell left in cells/, by round."""
-        def round_of(path: Path) -> int:
-            middle = path.name[len(cell_id) + len(HYPERFINE_INFIX):-len(RECORD_SUFFIX)]
-            return int(middle) if middle.isdigit() else 0
         found = self.cells.glob(f"{cell_id}{HYPERFINE_INFIX}*")
-        return sorted((p for p in found if p.name.endswith(RECORD_SUFFIX)), key=round_of)
+        return sorted((p for p in found if p.name.endswith(RECORD_SUFFIX)),
+                      key=lambda p: export_round(cell_id, p.name) or 0)
 
     def hyperfine_files(self, cell_id: str) -> list[Path]:
         """Where the cell's hyperfine exports may be: the one for all its runs, then those of
@@ -155,10 +163,15 @@ class ExperimentDir:
         return self.cells / f"{cell_id}.check.out"
 
     def input(self, sha256: str) -> Path:
-        return self.path / "inputs" / f"{sha256[:INPUT_NAME_CHARS]}.in"
+        return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}.in"
 
     def machine(self, machine_id: str) -> Path:
         return self.path / MACHINES / f"{machine_id}{RECORD_SUFFIX}"
+
+    def written(self) -> list[Path]:
+        """The directories a run writes files into (each through a temporary file)."""
+        return [self.path, self.cells, self.path / INPUTS, self.outputs, self.path / MACHINES,
+                self.slurm]
 
 
 @dataclass(frozen=True)
@@ -178,6 +191,10 @@ class ResultsRoot:
     def print_output(self, key: str) -> Path:
         return self.path / CACHE_DIR / "prints" / f"{key}{OUTPUT_SUFFIX}"
 
+    def caches(self) -> list[Path]:
+        """The directories of the reference outputs (written through temporary files)."""
+        return [self.path / CACHE_DIR / "baselines", self.path / CACHE_DIR / "prints"]
+
     def calibration(self, machine_id: str) -> Path:
         """The machine's description with its calibration (`compare --calibrate`)."""
         return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
@@ -196,6 +213,18 @@ def record_paths(directory: Path) -> list[Path]:
     except FileNotFoundError:
         return []
     return [directory / n for n in names if is_record_name(n)]
+
+
+def export_round(cell_id: str, name: str) -> int | None:
+    """The round of a hyperfine export's file name (`<cell_id>.hyperfine.<k>.json`); None for
+    the one export of all runs (`<cell_id>.hyperfine.json`) or another name."""
+    middle = name[len(cell_id) + len(HYPERFINE_INFIX):-len(RECORD_SUFFIX)]
+    return int(middle) if name.startswith(cell_id) and middle.isdigit() else None
+
+
+def digest_of(path: Path) -> Path:
+    """Where the sha256 of a kept reference output is written, beside it."""
+    return path.with_name(path.name + DIGEST_SUFFIX)
 
 
 def cell_id_of(path: Path) -> str:

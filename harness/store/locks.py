@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TextIO
 
 from harness.errors import HarnessError
+from harness.store.atomic import writing
 
 # Where the machine-wide lock lives; the tests point it at their own directory.
 LOCK_DIR_VAR = "COLLIDE_BENCH_LOCK_DIR"
@@ -103,8 +104,10 @@ def file_lock(path: Path) -> Iterator[None]:
 @contextlib.contextmanager
 def directory_lock(directory: Path) -> Iterator[None]:
     """Exclusive lock on a results directory (created if missing) for the body."""
-    directory.mkdir(parents=True, exist_ok=True)
-    with _flocked(os.open(directory, os.O_RDONLY)):
+    with writing(directory, "create the directory"):
+        directory.mkdir(parents=True, exist_ok=True)
+        fd = os.open(directory, os.O_RDONLY)
+    with _flocked(fd):
         yield
 
 

@@ -106,11 +106,18 @@ def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
             "karp_flatt": finite(stats.karp_flatt(speedup, threads).point)}
 
 
+def ratios_text(rows: Sequence[Row], baseline: str,
+                session_of: Callable[[str, float], float]) -> str | None:
+    """ratios.csv's text from results.csv's rows; None where no cell has a reference."""
+    found = ratio_rows(rows, baseline, session_of)
+    return csv_text(RATIO_COLUMNS, found) if found else None
+
+
 def write_ratios_csv(path: Path, rows: Sequence[Row], baseline: str,
                      session_of: Callable[[str, float], float]) -> None:
     """ratios.csv from results.csv's rows; removed where no cell has a reference."""
-    found = ratio_rows(rows, baseline, session_of)
-    if not found:
+    text = ratios_text(rows, baseline, session_of)
+    if text is None:
         path.unlink(missing_ok=True)
         return
-    atomic.atomic_write_text(path, csv_text(RATIO_COLUMNS, found))
+    atomic.atomic_write_text(path, text)

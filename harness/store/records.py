@@ -11,6 +11,7 @@ from pathlib import Path
 from harness.store import atomic
 from harness.store.result import RECORD_VERSION as RECORD_VERSION
 from harness.store.result import CellResult, RecordFormatError
+from harness.store.trust import DamagedFile
 
 # The part of a cell key that names the machine (records of several machines sit side by side).
 MACHINE_KEY = "machine_id"
@@ -31,22 +32,41 @@ def read_json(path: Path) -> object | None:
     """A JSON file's value, or None when it is absent or unreadable."""
     try:
         return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError):
         return None
 
 
 def read_record(path: Path, expected_id: str) -> CellResult | None:
-    """A stored cell record, or None when absent, unreadable, not a record of this harness
-    (RecordFormatError) or not stored under its key's id: a cell without one is measured
-    again."""
-    raw = read_json(path)
-    if not isinstance(raw, dict) or raw.get("cell_id") != expected_id:
-        return None
+    """A stored cell record, or None when absent or damaged (check_record): a cell without one
+    is measured again."""
     try:
-        result = CellResult.from_json(raw)
-    except RecordFormatError:
+        return check_record(path, expected_id)
+    except DamagedFile:
         return None
-    return result if result.key.id == expected_id else None
+
+
+def check_record(path: Path, expected_id: str) -> CellResult | None:
+    """A stored cell record; None when there is none; DamagedFile, naming it and why, when
+    the file there is not a readable record of this harness (RecordFormatError) stored under
+    its key's id."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DamagedFile(path, f"record cannot be read ({getattr(exc, 'strerror', exc)})"
+                          ) from None
+    try:
+        result = CellResult.from_json(json.loads(text))
+    except json.JSONDecodeError as exc:
+        raise DamagedFile(path, f"record is not JSON ({exc.msg}: line {exc.lineno} column "
+                          f"{exc.colno} of {len(text)} bytes)") from None
+    except RecordFormatError as exc:
+        raise DamagedFile(path, f"not a record of this harness ({exc})") from None
+    if result.cell_id != expected_id or result.key.id != expected_id:
+        raise DamagedFile(path, f"record of another cell ({result.cell_id}, key "
+                          f"{result.key.id})")
+    return result
 
 
 def write_record(path: Path, result: CellResult) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -90,3 +92,24 @@ def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) 
     assert report_dir("--results-dir", str(tmp_path)) == tmp_path / "report"
     assert report_dir("--results-dir", str(tmp_path), "--report-dir",
                       str(tmp_path / "r")) == tmp_path / "r"
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS, errno.EACCES, errno.ENOTDIR])
+def test_an_os_error_a_user_can_cause_is_one_line_wherever_it_is_met(
+        code: int, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    def fails(args: object) -> int:
+        raise OSError(code, os.strerror(code), "/some/place")
+
+    monkeypatch.setattr("harness.cli.store.execute", fails)
+    assert main(["store", "prune", "/some/place"]) == 2
+    assert capsys.readouterr().err == f"error: /some/place: {os.strerror(code)}\n"
+
+
+def test_an_os_error_of_the_harness_own_keeps_its_traceback(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    def fails(args: object) -> int:
+        raise OSError(errno.EBADF, os.strerror(errno.EBADF))
+
+    monkeypatch.setattr("harness.cli.store.execute", fails)
+    with pytest.raises(OSError, match="Bad file descriptor"):
+        main(["store", "prune", "/some/place"])

@@ -63,14 +63,14 @@ def test_the_local_executor_measures_in_rounds_and_hands_each_record_on(
     order = [(cell, f"id{k}") for k, cell in enumerate(plan.cells)]
     experiment = Experiment(plan, Options(Path("/nonexistent"), tmp_path, round_seed=3),
                             io.StringIO())
-    log: list[str] = []
+    runs: list[str] = []
     monkeypatch.setattr("harness.executors.rounds.Measurer",
-                        lambda store, hyperfine, cores: FakeMeasurer(config.measure, log))
+                        lambda store, hyperfine, cores, log: FakeMeasurer(config.measure, runs))
     got: list[tuple[str, int]] = []
     progress = Progress("exp", order, frozenset(cid for _, cid in order), io.StringIO())
     LocalExecutor().run(experiment, order, lambda c, cid, r: got.append((cid, r["runs"])),
                         progress)
-    assert log[:2] == ["start id0", "start id1"]
-    assert sorted(log[2:4]) == ["round 1 id0", "round 1 id1"]
+    assert runs[:2] == ["start id0", "start id1"]
+    assert sorted(runs[2:4]) == ["round 1 id0", "round 1 id1"]
     assert sorted(got) == [("id0", 2), ("id1", 2)]
     assert "exp: round 2: 2 cell(s) timed, 2 done, 0 need more" in progress.log.getvalue()

@@ -49,6 +49,9 @@ class FakeMeasurer:
 
         self.config = Settings()
 
+    def resume(self, cell: object, cell_id: str) -> CellRun | None:
+        return None
+
     def start(self, cell: object, cell_id: str) -> CellRun:
         self.log.append(f"start {cell_id}")
         return CellRun(cell_id, {}, RESULT, self.status, 0, [cell_id], run_s=self.seconds)

@@ -105,11 +105,12 @@ def test_an_exact_cell_that_differs_from_seq_is_invalid(tmp_path: Path) -> None:
     assert record.value("runs") == 2  # timed all the same: the times of an invalid cell are kept
 
 
-def test_a_failed_baseline_leaves_the_cell_unjudged_and_says_why(tmp_path: Path) -> None:
+def test_a_failed_baseline_leaves_the_cell_unvalidated_and_says_why(tmp_path: Path) -> None:
     store = store_for(tmp_path, "[same]")
     (store.repo_root / "build" / "seq").write_text("#!/bin/sh\necho broken >&2\nexit 4\n")
     store.hashes.clear()
     cell = store.plan.cells[0]
     record = measured(Measurer(store), cell, str(store.cell_id(cell)))
-    assert record.value("status") == "ok" and record.value("identical") is None
+    assert record.value("status") == "unvalidated" and record.value("identical") is None
+    assert record.value("validated") is False and record.value("runs") == 2  # timed
     assert record.value("note").startswith("baseline seq failed (exit 4): broken")

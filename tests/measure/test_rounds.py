@@ -3,6 +3,7 @@ narrow interval, a limit), what it keeps between rounds, and resuming a cut-shor
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -151,6 +152,22 @@ def test_a_round_appends_what_it_added_not_the_cells_runs_again(tmp_path: Path) 
     resumed.save(path)
     assert len(path.read_text().splitlines()) == 42
     assert CellRun.load(path, {"k": 1}) == resumed and len(resumed.times) == 82
+
+
+def test_a_save_writes_only_the_fields_that_changed_the_records_too(tmp_path: Path) -> None:
+    path = tmp_path / "c.partial.jsonl"
+    run = CellRun("c", {"k": 1}, RESULT.replace(note="x", load_after={"a": 1.0}), "ok", 0,
+                  ["x"])
+    run.save(path)
+    size = path.stat().st_size
+    run.save(path)
+    assert path.stat().st_size == size  # nothing changed: nothing written
+    run.record = run.record.replace(note=None, load_after={"a": 2.0})
+    run.stopped = "runs"
+    run.save(path)
+    assert json.loads(path.read_text().splitlines()[-1]) == {
+        "record": {"load_after": {"a": 2.0}, "note": None}, "stopped": "runs"}
+    assert CellRun.load(path, {"k": 1}) == run  # the note gone, the load replaced
 
 
 def test_a_save_cut_short_leaves_the_state_before_it(tmp_path: Path) -> None:

@@ -136,6 +136,25 @@ def test_cached_cells_are_not_measured_again(tmp_path: Path, fake_repo: Path) ->
     assert len(read_csv(first.directory / "results.csv")) == 6
 
 
+def test_a_timeout_is_kept_until_the_cells_timeout_grows(tmp_path: Path, fake_repo: Path
+                                                          ) -> None:
+    executable(fake_repo / "build" / "p1", GOOD.replace("timing=0", "sleep 1\ntiming=0"))
+    path = grid_config(tmp_path, "[p1]", runs=1)
+    path.write_text(path.read_text().replace(f"timeout_s: {TIMEOUT_S}", "timeout_s: 0.5"))
+    opts = options(tmp_path, fake_repo)
+    first = experiment_runner.run_experiment(load_config(path), opts, io.StringIO(),
+                                             io.StringIO())
+    assert first.statuses == {"timeout": 1}
+    again = experiment_runner.run_experiment(load_config(path), opts, io.StringIO(),
+                                             io.StringIO())
+    assert (again.measured, again.cached, again.statuses) == (0, 1, {"timeout": 1})
+    path.write_text(path.read_text().replace("timeout_s: 0.5", "timeout_s: 30"))
+    longer = experiment_runner.run_experiment(load_config(path), opts, io.StringIO(),
+                                              io.StringIO())
+    assert (longer.measured, longer.cached, longer.statuses) == (1, 0, {"ok": 1})
+    assert [r["status"] for r in read_csv(longer.directory / "results.csv")] == ["ok"]
+
+
 def test_results_csv_is_rebuilt_less_often_as_rebuilding_gets_dearer() -> None:
     now = [0.0]
     cost = [0.0]  # seconds a rebuild takes

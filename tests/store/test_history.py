@@ -12,7 +12,6 @@ import pytest
 from harness.cli import main as cli_main
 from harness.store import atomic, index, records
 from harness.store import history as store_history
-from harness.store.layout import ExperimentDir
 from harness.store.columns import match_values
 from harness.store.model import CellKey
 
@@ -107,8 +106,7 @@ def test_rows_list_current_stale_and_other_machines(tmp_path: Path) -> None:
     other = put(tmp_path, "2026-01-03T00:00:00+00:00", machine_id="m2",
                 binary_sha256="5" * 64)
     cells = [planned(threads=1), planned(), planned(threads=8)]  # threads=8: never measured
-    rows = index.current_rows(store_history.load_records(tmp_path / "cells"), cells, "m1",
-                              ExperimentDir(tmp_path))
+    rows = index.current_rows(store_history.load_records(tmp_path / "cells"), cells, "m1")
     got = [(r.result.cell_id, r.stale) for r in rows]
     assert got == [(stale_old, True), (current, False), (other, None)]
 
@@ -120,12 +118,12 @@ def test_counting_instructions_keeps_other_machines_rows_and_this_machines_plain
     plain_there = put(tmp_path, "2026-01-02T00:00:00+00:00", machine_id="m2")
     counted_here = put(tmp_path, "2026-01-03T00:00:00+00:00", **counted)
     stored = store_history.load_records(tmp_path / "cells")
-    rows = index.current_rows(stored, [planned(**counted)], "m1", ExperimentDir(tmp_path))
+    rows = index.current_rows(stored, [planned(**counted)], "m1")
     assert [(r.result.cell_id, r.stale) for r in rows] == [(counted_here, False),
                                                               (plain_there, None)]
     # the counted record does not supersede the plain one: a plain run finds it cached
     assert store_history.superseded(stored) == []
-    rows = index.current_rows(stored, [planned()], "m1", ExperimentDir(tmp_path))
+    rows = index.current_rows(stored, [planned()], "m1")
     assert [r.result.cell_id for r in rows] == [plain_here, plain_there]
 
 
@@ -134,8 +132,7 @@ def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings
     older_settings = put(tmp_path, "2026-01-02T00:00:00+00:00", machine_id="m2", runs=3)
     here_before = put(tmp_path, "2026-01-01T00:00:00+00:00", runs=3)
     stored = store_history.load_records(tmp_path / "cells")
-    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
-                              ExperimentDir(tmp_path))
+    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1")
     # the other machine's timing stays listed; this machine's, of settings the config no
     # longer asks for, is listed marked until this machine measures the cell again
     assert [(r.result.cell_id, r.config_changed) for r in rows] == [
@@ -145,8 +142,7 @@ def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings
     stored = store_history.load_records(tmp_path / "cells")
     assert [s.cell_id for s in index.replaced(stored, [planned(runs="auto", ci=0.05)])] == [
         here_before]
-    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1",
-                              ExperimentDir(tmp_path))
+    rows = index.current_rows(stored, [planned(runs="auto", ci=0.05)], "m1")
     assert [r.result.cell_id for r in rows] == [again, older_settings]
 
 
