@@ -15,6 +15,7 @@ value is left out of the JSON. Reading a record refuses a field it does not know
 from __future__ import annotations
 
 import functools
+import statistics
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
@@ -94,21 +95,16 @@ class CellResult:
     def round_times(self) -> dict[int, tuple[float, ...]]:
         """The seconds of its runs by round, in round order; empty where the runs' rounds
         are not recorded."""
-        from harness.stats.rounds import runs_by_round  # scipy only where rounds are paired
-
-        grouped = runs_by_round([run.time_s for run in self.times], self._rounds())
+        if any(run.round is None for run in self.times):
+            return {}
+        grouped: dict[int, list[float]] = {}
+        for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
+            grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
         return {k: tuple(v) for k, v in grouped.items()}
-
-    def _rounds(self) -> list[int]:
-        """The round of each run; empty where any is not recorded."""
-        rounds = [run.round for run in self.times]
-        return [] if None in rounds else typing.cast(list[int], rounds)
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (stats.MeasuredInRounds)."""
-        from harness.stats.rounds import round_medians
-
-        return round_medians([run.time_s for run in self.times], self._rounds())
+        return {k: statistics.median(v) for k, v in self.round_times().items()}
 
     def noise_by_round(self) -> dict[int, float]:
         return self._per_round(self.noise.round_noise if self.noise else None)
@@ -117,10 +113,11 @@ class CellResult:
         return self._per_round(self.noise.round_pressure if self.noise else None)
 
     def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
-        from harness.stats.rounds import by_round
-
-        rounds = self._rounds()
-        return by_round(rounds, values) if values is not None and rounds else {}
+        """A value recorded once per round, by round; empty unless every round has one."""
+        rounds = list(self.round_times())
+        if values is None or len(rounds) != len(values):
+            return {}
+        return dict(zip(rounds, values, strict=True))
 
     def value(self, name: str) -> object:
         """A results.csv column's value; None where the record has none."""
