@@ -41,6 +41,7 @@ from harness.store.columns import (
     OPTIONAL_GROUPS,
     PROVENANCE_COLUMNS,
     RATIO_COLUMNS,
+    RATIO_NUMBERS,
     REQUIRED_VALUES,
     STATUSES,
     TIMED_STATUSES,
@@ -130,7 +131,7 @@ def text_of(value: object) -> str:
 def _typed(name: str, values: list[object]) -> pd.Series:
     """One column typed by the contract: numbers float64 (missing NaN), flags nullable
     booleans, lists tuples of their items' type, anything else its text."""
-    if name in NUMERIC_COLUMNS:
+    if name in NUMERIC_COLUMNS or name in RATIO_NUMBERS:
         return pd.Series([math.nan if v is None or v == "" else float(v)  # type: ignore[arg-type]
                           for v in values], dtype="float64")
     if name in BOOL_COLUMNS:
