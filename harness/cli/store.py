@@ -1,6 +1,7 @@
 """Move superseded cell records from cells/ to history/ (`store prune PATH...`); store the
 variants' facts of this repository's build with results measured before runs stored them
-(`store facts PATH...`)."""
+(`store facts PATH...`); rewrite records of earlier versions in the current one (`store upgrade
+PATH...`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from harness.repo import REPO_ROOT
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
 from harness.store.history import prune
+from harness.store.trust import DamagedFile
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -28,6 +30,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
         "repository's build, made where stale) into experiment directories or results roots "
         "that were measured with this build")
     facts_parser.add_argument("paths", nargs="+", type=Path)
+    upgrade_parser = sub.add_parser(
+        "upgrade", help="rewrite the records of earlier versions of the harness under "
+        "experiment directories or results roots as the current version keeps them")
+    upgrade_parser.add_argument("paths", nargs="+", type=Path)
     return parser
 
 
@@ -52,6 +58,17 @@ def execute(args: argparse.Namespace) -> int:
         for directory in directories:
             index.write_variants(directory, facts)
             sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
+        return 0
+    if args.action == "upgrade":
+        from harness.analysis.upgrade import upgrade_experiment
+
+        for directory in directories:
+            try:
+                done = upgrade_experiment(layout.ExperimentDir(directory))
+            except DamagedFile as exc:
+                raise HarnessError(str(exc)) from None
+            sys.stdout.write(f"{directory}: {done.rewritten} of {done.records} record(s) "
+                             "rewritten in the current version\n")
         return 0
     for directory in directories:
         done = prune(directory)

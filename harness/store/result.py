@@ -41,7 +41,7 @@ from harness.store.measured import (
 from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
 # The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
-# Version 1, their items space-separated, is read as well.
+# Version 1, their items space-separated, is upgraded where it is read (upgrade).
 RECORD_VERSION = 2
 READ_VERSIONS = (1, RECORD_VERSION)
 # The record's names of the timed runs: their seconds and, in the same order, their rounds.
@@ -155,12 +155,10 @@ class CellResult:
         if raw.get("version") not in READ_VERSIONS:
             raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
                                     f"{', '.join(map(str, READ_VERSIONS))}")
-        values = {k: v for k, v in raw.items() if k != "version" and v is not None}
+        values = {k: v for k, v in upgrade(raw).items() if k != "version" and v is not None}
         unknown = sorted(set(values) - set(_leaves()) - _TOP_NAMES)
         if unknown:
             raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
-        if raw["version"] == 1:
-            values = _with_lists(values)
         return _parse(values)
 
 
@@ -208,6 +206,16 @@ def _flatten(result: CellResult) -> dict[str, object]:
             item = getattr(value, leaf.name)
             if item is not None:
                 out[leaf.name] = list(item) if isinstance(item, tuple) else item
+    return out
+
+
+def upgrade(raw: Mapping[str, object]) -> dict[str, object]:
+    """A stored record as the current version has it: the one place that knows the formats
+    of earlier versions (1 kept the list columns as space-separated text)."""
+    out = dict(raw)
+    if out.get("version") == 1:
+        out = _with_lists(out)
+    out["version"] = RECORD_VERSION
     return out
 
 
