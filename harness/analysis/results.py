@@ -6,10 +6,10 @@ cell or its stale one, every other machine's newest timing of it, each machine's
 earlier config marked); without an index (results from before it), every record no newer one
 of its group and machine supersedes. Each row is its record's fields by their column names
 (store.columns), with what the record itself does not hold derived here once: the machine's
-label, an older record's interval and run times from its kept hyperfine export, whether
-hyperfine warned of outliers. The rows, typed once by the columns' contract, are the frame
-every reader uses (the report, compare, history, reruns, the class table); the ratios of each
-cell to its references are computed from them (analysis.ratios). results.csv and ratios.csv
+label, whether hyperfine warned of outliers (records of earlier versions are rewritten once as
+the current version keeps them: analysis.upgrade). The rows, typed once by the columns'
+contract, are the frame every reader uses (the report, compare, history, reruns, the class
+table); the ratios of each cell to its references are computed from them (analysis.ratios). results.csv and ratios.csv
 are exports of these (analysis.export), which no harness code reads back."""
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ from harness.store.columns import (
     EXTRA_COLUMNS,
     FLAG_COLUMNS,
     LIST_COLUMNS,
-    LOW_QUANTILE_COLUMN,
     NUMERIC_COLUMNS,
     OPTIONAL_GROUPS,
     PROVENANCE_COLUMNS,
@@ -62,27 +61,16 @@ def finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
-               ) -> Row:
-    """PROVENANCE_COLUMNS of a record: its own fields, else derived (times from its hyperfine
-    JSON, the interval from the times, outliers from kept warnings)."""
+def provenance(record: Mapping[str, object]) -> Row:
+    """PROVENANCE_COLUMNS of a record: its own fields, with the machine's id from its key
+    where the record has none, its label from its description, and whether hyperfine warned
+    of outliers (from the warnings it kept)."""
     values: Row = {c: record.get(c) for c in PROVENANCE_COLUMNS}
     key = record.get("key")
     if values["machine_id"] is None and isinstance(key, dict):
         values["machine_id"] = key.get(MACHINE_KEY)
     described = record.get("machine")
     values["machine"] = described.get("label") if isinstance(described, dict) else None
-    times = hyperfine.run_times(record.get("wall_times_s"), hyperfine_json)
-    if times:
-        if record.get("wall_median_ci_low_s") is None and not record.get("wall_times_round"):
-            # a record from before rounds; one measured in rounds kept its interval, or has
-            # none (too few rounds): the runs' bootstrap would claim what its rounds cannot
-            low, high, q25 = stats.time_interval(times)
-            values.update({"wall_median_ci_low_s": low, "wall_median_ci_high_s": high,
-                           LOW_QUANTILE_COLUMN: q25})
-        elif values[LOW_QUANTILE_COLUMN] is None:  # a record older than the column
-            values[LOW_QUANTILE_COLUMN] = stats.estimate(times, stats.LOW_QUANTILE_ESTIMATOR)
-    values["wall_times_s"] = list(times) if times else None
     warnings = record.get("hyperfine_warnings")
     if isinstance(warnings, list):
         values["outliers"] = any(hyperfine.OUTLIERS_WARNING in str(w) for w in warnings)
@@ -90,22 +78,20 @@ def provenance(record: Mapping[str, object], hyperfine_json: Path | None = None
 
 
 def row(record: Mapping[str, object], experiment: str, title: str,
-        hyperfine_json: Path | None = None, stale: bool | None = None,
-        config_changed: str = "") -> Row:
+        stale: bool | None = None, config_changed: str = "") -> Row:
     """A record's row (its CellResult.columns): its fields by their column names, and its
     provenance; with `config_changed`, the key fields in which it differs from what its
     config plans now."""
     columns = (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g))
     return {"experiment": experiment, "title": title, **{c: record.get(c) for c in columns},
-            **provenance(record, hyperfine_json), "stale": stale,
+            **provenance(record), "stale": stale,
             "earlier_config": bool(config_changed) or None,
             "config_changed": config_changed or None}
 
 
 def row_of(item: Listed, exp: ExperimentDir, title: str) -> Row:
     """A listed record's row in its experiment."""
-    return row(item.result.columns, exp.name, title, exp.hyperfine(item.result.cell_id),
-               item.stale, item.config_changed)
+    return row(item.result.columns, exp.name, title, item.stale, item.config_changed)
 
 
 def columns_of(rows: Sequence[Row]) -> tuple[str, ...]:

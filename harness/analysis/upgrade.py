@@ -1,8 +1,8 @@
 """Records of earlier versions rewritten, once, as the current version keeps them (`collide-bench
 store upgrade PATH...`): the format (store.result.upgrade), and what a record from before
-rounds did not keep itself: its runs' times, from the one hyperfine export it has, with the
-interval of their median and their low quantile (stats.time_interval, the bootstrap over the
-runs). Afterwards no reader needs to know an earlier format."""
+rounds did not keep itself: its runs' times, from the one hyperfine export it has, the interval
+of their median (stats.time_interval, the bootstrap over the runs) and their low quantile.
+Afterwards no reader needs to know an earlier format."""
 
 from __future__ import annotations
 
@@ -26,14 +26,29 @@ class Upgraded:
 
 
 def _times_from_export(result: CellResult, export: Path) -> CellResult:
-    """A record from before rounds with the times of its one export, and their interval."""
+    """A record from before rounds with the times of its one export."""
     try:
-        times = list(load_hyperfine(export).times)
+        times = load_hyperfine(export).times
     except ResultFormatError as exc:
         raise DamagedFile(export, f"hyperfine's export cannot be read ({exc})") from None
+    return result.replace(times=tuple(TimedRun(t) for t in times))
+
+
+def _statistics(result: CellResult) -> CellResult:
+    """A record older than its statistics with them: the interval of a median measured
+    before rounds (where it has none), and the low quantile of its runs."""
+    times = [run.time_s for run in result.times]
+    timing = result.timing
+    if not times or timing is None:
+        return result
+    before_rounds = any(run.round is None for run in result.times)
     low, high, q25 = stats.time_interval(times)
-    return result.replace(times=tuple(TimedRun(t) for t in times), wall_median_ci_low_s=low,
-                          wall_median_ci_high_s=high, wall_q25_s=q25)
+    changes: dict[str, object] = {}
+    if timing.wall_q25_s is None:
+        changes["wall_q25_s"] = q25
+    if before_rounds and timing.wall_median_ci_low_s is None and low is not None:
+        changes.update(wall_median_ci_low_s=low, wall_median_ci_high_s=high)
+    return result.replace(**changes) if changes else result
 
 
 def upgrade_experiment(exp: ExperimentDir) -> Upgraded:
@@ -49,6 +64,7 @@ def upgrade_experiment(exp: ExperimentDir) -> Upgraded:
             export = directory / f"{result.cell_id}{layout.HYPERFINE_SUFFIX}"
             if not result.times and export.is_file():
                 result = _times_from_export(result, export)
+            result = _statistics(result)
             if result.to_json() != json.loads(json.dumps(raw)) or raw.get("version") != \
                     RECORD_VERSION:
                 records.write_record(path, result)
