@@ -9,8 +9,9 @@ of its group and machine supersedes. Each row is its record's fields by their co
 label, whether hyperfine warned of outliers (records of earlier versions are rewritten once as
 the current version keeps them: analysis.upgrade). The rows, typed once by the columns'
 contract, are the frame every reader uses (the report, compare, history, reruns, the class
-table); the ratios of each cell to its references are computed from them (analysis.ratios). results.csv and ratios.csv
-are exports of these (analysis.export), which no harness code reads back."""
+table); the ratios of each cell to its references are computed from them (analysis.ratios).
+results.csv and ratios.csv are exports of these (analysis.export), which no harness code reads
+back."""
 
 from __future__ import annotations
 
