@@ -1,20 +1,27 @@
-"""Experiments the tests read, written as a run leaves them: one record per cell, and the index
-that lists them (store.index), from rows named by results.csv's columns. A row's values may be
-results.csv's text or Python values; what the row does not say gets a neutral value (a key
-built from what names the cell, one machine, a fixed time)."""
+"""Experiments the tests read, written as a run leaves them: one record per cell, their exports
+and the index that lists them (store.index), from rows named by results.csv's columns. A row's
+values may be results.csv's text or Python values; what the row does not say gets a neutral
+value (a key built from what names the cell, one machine, a fixed time)."""
 
 from __future__ import annotations
 
 import hashlib
+import json
+import shutil
+import statistics
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-from harness.store import atomic, records
-from harness.store.columns import LIST_COLUMNS, SCENE_COLUMNS, parse_list
-from harness.store.index import Listed, write_index
+import pandas as pd
+from harness import stats
+from harness.analysis import export, results
+from harness.store import atomic, records, sessions
+from harness.store.columns import LIST_COLUMNS, SCENE_COLUMNS
+from harness.store.index import Listed, index_files, index_rows
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
+from harness.store.records import MACHINE_KEY
 from harness.store.result import ROUNDS_FIELD, TIMES_FIELD, CellResult, _leaves
 
 Row = Mapping[str, object]
@@ -98,21 +105,102 @@ def record_of(row: Row) -> CellResult:
     return CellResult.from_json(raw)
 
 
+def write_hyperfine(exp: ExperimentDir, cell_id: str, times: Sequence[float]) -> None:
+    """cells/<cell_id>.hyperfine.json: a cell's runs as hyperfine exported them (where records
+    from before wall_times_s keep them)."""
+    atomic.atomic_write_json(exp.hyperfine(cell_id), {"results": [{
+        "command": "x", "mean": statistics.mean(times), "stddev": None,
+        "median": statistics.median(times), "min": min(times), "max": max(times), "user": 0.0,
+        "system": 0.0, "times": list(times), "exit_codes": [0] * len(times)}]})
+
+
 def write_experiment(root: Path, name: str, rows: Sequence[Row], title: str = "",
-                     baseline: str | None = "seq", divergence: bool = False) -> ExperimentDir:
-    """The experiment `name` under `root` as a run leaves it: a record per row, and the
-    index listing them in the rows' order (a row's `stale` kept as its mark)."""
+                     baseline: str | None = "seq", divergence: bool = False,
+                     hyperfine: Mapping[str, Sequence[float]] | None = None) -> ExperimentDir:
+    """The experiment `name` under `root` as a run leaves it: a record per row, their exports
+    (analysis.export) and the index listing them in the rows' order (a row's `stale` kept as
+    its mark); with `hyperfine`, the runs of the rows it names (by their `cell_id`, which the
+    record's key replaces) in hyperfine's export beside the record, as results from before
+    wall_times_s keep them."""
     exp = ExperimentDir(root / name)
     listed = []
     for row in rows:
         result = record_of(row)
         records.write_record(exp.record(result.cell_id), result)
+        if hyperfine and row.get("cell_id") in hyperfine:
+            write_hyperfine(exp, result.cell_id, hyperfine[str(row["cell_id"])])
         stale = row.get("stale")
         mark = None if stale in (None, "") else str(stale).lower() == "true"
         listed.append(Listed(result, mark, str(row.get("config_changed") or "")))
     exp.cells.mkdir(parents=True, exist_ok=True)
-    write_index(exp, name, title or name, baseline, divergence, listed, {})
+    export.write(exp, export.Derivation(name, title or name, baseline, divergence), listed)
     return exp
+
+
+def frame_of(directory: Path) -> pd.DataFrame:
+    """The rows of the experiment in `directory` as every reader takes them (analysis.results)."""
+    return results.load_experiment(ExperimentDir(directory)).frame
+
+
+def rows_of(directory: Path) -> list[dict[str, object]]:
+    """The rows of the experiment in `directory` as its records hold them, named as
+    write_experiment's are (the machine by its label, each record's mark beside it): what
+    it writes back."""
+    found = []
+    for item in results.listed(ExperimentDir(directory)):
+        row = {k: v for k, v in item.result.columns.items() if k not in ("key", "machine")}
+        machine = item.result.columns.get("machine")
+        found.append({**row, MACHINE_KEY: item.result.key.to_json().get(MACHINE_KEY),
+                      "machine": machine.get("label") if isinstance(machine, dict) else None,
+                      "stale": item.stale, "config_changed": item.config_changed})
+    return found
+
+
+def rewrite_experiment(directory: Path, rows: Sequence[Row]) -> ExperimentDir:
+    """The experiment in `directory` with `rows` in place of its records, its title, baseline
+    and divergence kept (as a run of other cells leaves it)."""
+    exp = ExperimentDir(directory)
+    (_, title, baseline, divergence), _ = index_files(exp)
+    shutil.rmtree(exp.cells)
+    return write_experiment(directory.parent, directory.name, rows, title, baseline, divergence)
+
+
+def change_rows(directory: Path, change: Callable[[dict[str, object]], Mapping[str, object]]
+                ) -> list[dict[str, object]]:
+    """Each row of the experiment in `directory` (rows_of) with the values `change(row)`
+    gives it, written back (rewrite_experiment); the rows written."""
+    rows = [{**row, **change(row)} for row in rows_of(directory)]
+    rewrite_experiment(directory, rows)
+    return rows
+
+
+def doubled(directory: Path,
+            machine: Callable[[dict[str, object], bool], Mapping[str, object]]) -> None:
+    """The experiment in `directory` with every row twice, as two machines' cells of one
+    config: each copy with the values `machine(row, first)` gives it (first: the first copy)."""
+    rows = rows_of(directory)
+    rewrite_experiment(directory, [{**row, **machine(row, first)}
+                                   for first in (True, False) for row in rows])
+
+
+def edit_record(directory: Path, position: int,
+                change: Callable[[dict[str, object]], Mapping[str, object]]) -> Path:
+    """The JSON of the record the index of the experiment in `directory` lists at `position`,
+    written again as `change` gives it (a record damaged or edited by hand): its path."""
+    exp = ExperimentDir(directory)
+    rows = index_rows(exp)
+    assert rows is not None, f"{directory}: no index"
+    path = exp.record(rows[position][0])
+    path.write_text(json.dumps(change(json.loads(path.read_text(encoding="utf-8")))),
+                    encoding="utf-8")
+    return path
+
+
+def kept_spreads(roots: Sequence[Path], machine_id: str) -> list[stats.SessionSpread]:
+    """The machine's session spreads kept under the roots, newest first, without those a newer
+    one supersedes (what a run picks its spread among: stats.spread_at)."""
+    return stats.spreads_of(sessions.kept_levels(roots, machine_id, stats.supersedes),
+                            machine_id)
 
 
 def write_variants(exp: ExperimentDir, text: str) -> None:

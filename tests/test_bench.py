@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 from harness import repo
-from harness.analysis.frame import read_results
 from harness.analysis.programs import program_table
 from harness.plan.cells import plan_cells
 from harness.spec import scenes
@@ -20,6 +19,7 @@ from harness.spec.parse import load_config
 from harness.store.columns import IDENTICAL, IMPRECISE, PHASE_COLUMNS
 
 from commands import run_main
+from tests.records import frame_of
 
 CONFIGS = repo.REPO_ROOT / "configs"
 
@@ -89,7 +89,7 @@ def test_the_grading_group_times_each_check_through_the_runner(
     root = tmp_path / "results"
     assert run_main([str(CONFIGS / "bench-grading.yaml"), "--quick", "--results-dir", str(root),
                      "--no-report"]) == 0
-    frame = read_results(root / "bench-grading-quick" / "results.csv")
+    frame = frame_of(root / "bench-grading-quick")
     by_program = {row["variant"]: row for _, row in frame.iterrows()}
     exact, single = by_program["grid-print"], by_program["grid-f32-print"]
     assert (exact["agreement"], single["agreement"]) == (IDENTICAL, IMPRECISE)

@@ -1,22 +1,22 @@
 """The project's published measurements (published/results) agree with the configs that made
 them: the machine that published an experiment last holds every cell its config plans now, so
 a change of a cell's identity comes with a re-measure (`make publish`) in the same change; and
-results.csv lists every machine's newest record of every cell it measured (one of an earlier
-config marked), never dropping another machine's."""
+its rows (harness.analysis.results, what results.csv exports) list every machine's newest record
+of every cell it measured (one of an earlier config marked), never dropping another machine's."""
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.analysis import results
 from harness.plan.cells import plan_cells
 from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.columns import match_values
-from harness.store.history import load_records, superseded
+from harness.store.history import UNKNOWN_MACHINE, load_records, superseded
 from harness.store.layout import ExperimentDir
 
 PUBLISHED = repo.PUBLISHED_RESULTS_DIR
@@ -57,23 +57,13 @@ def test_the_last_publisher_holds_every_planned_cell(name: str,
 
 
 @pytest.mark.parametrize("name", EXPERIMENTS)
-def test_no_machine_s_cell_is_dropped_from_results_csv(name: str) -> None:
+def test_no_machine_s_cell_is_dropped_from_the_rows(name: str) -> None:
     exp = ExperimentDir(PUBLISHED / name)
-    with exp.results_csv.open(newline="", encoding="utf-8") as handle:
-        listed = {(row["machine_id"], match_values(row)) for row in csv.DictReader(handle)}
+    listed = {(str(row["machine_id"] or UNKNOWN_MACHINE), match_values(row))
+              for row in results.load_experiment(exp).rows}
     records = load_records(exp.cells)
     old = {id(s) for s in superseded(records)}  # a newer record of its group replaces it
     stored = {(s.machine_id, match_values(s.result.columns)) for s in records
               if id(s) not in old}
-    # results.csv's text reads back as text: compare both as text
-    listed_text = {(m, tuple(_number_text(v) for v in values)) for m, values in listed}
-    dropped = sorted(m[:8] + " " + " ".join(v) for m, v in stored
-                     if (m, tuple(_number_text(x) for x in v)) not in listed_text)
-    assert not dropped, f"results.csv of published/results/{name} drops: {dropped[:5]}"
-
-
-def _number_text(value: str) -> str:
-    try:
-        return repr(float(value))
-    except ValueError:
-        return value
+    dropped = sorted(m[:8] + " " + " ".join(v) for m, v in stored if (m, v) not in listed)
+    assert not dropped, f"the rows of published/results/{name} drop: {dropped[:5]}"

@@ -20,12 +20,8 @@ import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
-
-from harness import stats
-from harness.analysis import ratios
-from harness.analysis.cells import MACHINE, flag
 from harness.errors import HarnessError
 from harness.spec.facts import Variants, read_variants
 from harness.store import hyperfine, layout, sessions
@@ -53,6 +49,9 @@ from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import QUICK_SUFFIX, ExperimentDir
 from harness.store.records import MACHINE_KEY, read_json
 from harness.store.trust import DamagedFile
+
+if TYPE_CHECKING:  # pandas and scipy (harness.stats) only where rows are typed or computed:
+    import pandas as pd  # an unchanged report page reads its rows and loads neither
 
 Row = dict[str, object]
 DIVERGENCE_NUMBERS = ("step", "max_pos_dev")
@@ -118,6 +117,8 @@ def text_of(value: object) -> str:
 def _typed(name: str, values: list[object]) -> pd.Series:
     """One column typed by the contract: numbers float64 (missing NaN), flags nullable
     booleans, lists tuples of their items' type, anything else its text."""
+    import pandas as pd
+
     if name in NUMERIC_COLUMNS or name in RATIO_NUMBERS:
         return pd.Series([math.nan if v is None or v == "" else float(v)  # type: ignore[arg-type]
                           for v in values], dtype="float64")
@@ -133,6 +134,10 @@ def _typed(name: str, values: list[object]) -> pd.Series:
 
 def frame_of(rows: Sequence[Row], columns: Sequence[str] | None = None) -> pd.DataFrame:
     """Rows as the typed frame every reader uses (columns_of's, or `columns`)."""
+    import pandas as pd
+
+    from harness.analysis.cells import flag
+
     names = columns_of(rows) if columns is None else columns
     frame = pd.DataFrame({c: _typed(c, [row.get(c) for row in rows]) for c in names})
     for column in FLAG_COLUMNS:
@@ -184,6 +189,9 @@ def ratio_rows_of(rows: Sequence[Row], exp: ExperimentDir, baseline: str) -> lis
     """Each cell's ratios to its references (analysis.ratios), each with the machine's session
     spread for ratios at the noise of its two cells' rounds, as the results root keeps it (so
     that results read the same wherever they are read)."""
+    from harness import stats
+    from harness.analysis import ratios
+
     levels = functools.cache(lambda machine: stats.spreads_of(sessions.kept_levels(
         [exp.path.parent], machine, stats.supersedes), machine))
 
@@ -219,6 +227,8 @@ class Experiment:
 
     @functools.cached_property
     def frame(self) -> pd.DataFrame:
+        from harness.analysis.cells import MACHINE
+
         frame = frame_of(self.rows)
         check_rows(frame, self.directory.path)
         ids = frame[MACHINE_KEY].fillna("").astype(str)
@@ -235,6 +245,8 @@ class Experiment:
         rows = [r for item in self.listed for r in divergence_rows(item.result.columns)]
         if not rows:
             return None
+        import pandas as pd
+
         frame = frame_of(rows, DIVERGENCE_COLUMNS)
         for column in DIVERGENCE_NUMBERS:  # a curve's own columns beside the cell's
             frame[column] = pd.to_numeric(frame[column])

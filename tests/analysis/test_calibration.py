@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness.analysis import calibration
-from harness.store import csvfile
+
+from tests.records import write_experiment
 
 SCENE = {"scene": "random", "n": 200, "L": 2000.0, "r": 1.0, "steps": 5, "mode": "perf",
          "seed": 1, "build": "f64", "status": "ok", "machine_id": "m1"}
@@ -27,7 +28,7 @@ def write_set(root: Path, times: dict[str, list[float]], seed: str = "",
             row.update(wall_times_round=" ".join(str(k + 1) for k in range(len(runs))),
                        round_seed=seed)
         rows.append(row)
-    csvfile.write_results_csv(root / "cal" / "results.csv", rows)
+    write_experiment(root, "cal", rows)
     return root
 
 

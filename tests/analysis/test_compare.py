@@ -3,7 +3,6 @@ machines, matching, exit codes, and a real slow-down."""
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import shutil
@@ -16,12 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo, stats
-from harness.analysis import compare, resultsets
+from harness.analysis import compare, results, resultsets
+from harness.analysis.upgrade import upgrade_experiment
 from harness.cli.common import EXIT_ERROR
 from harness.report.figures import compare as figcompare
-from harness.store import atomic, csvfile, sessions
+from harness.store import atomic, sessions
+from harness.store.layout import ExperimentDir
 
 from commands import compare_main, run_main
+from tests import records
 
 REPO_ROOT = repo.REPO_ROOT
 DRIFT = compare.Drift(compare.ASSUMED_DRIFT, "assumed")
@@ -221,7 +223,8 @@ def test_the_drift_comes_from_the_newest_calibration(tmp_path: Path) -> None:
 def test_the_drift_is_the_session_spread_at_the_sides_noise(tmp_path: Path) -> None:
     for noise, spread, date in ((0.03, 0.05, "2026-11-20"), (0.3, 0.2, "2026-11-21")):
         sessions.keep_session(tmp_path, "m1", {}, {"absolute": spread, "ratio": 0.01,
-                                                   "noise": noise, "date": date})
+                                                   "noise": noise, "date": date},
+                              stats.supersedes)
     quiet = compare.find_drift(["m1"], [tmp_path], noise=0.02)
     noisy = compare.find_drift(["m1"], [tmp_path], noise=0.35)
     assert quiet.sigma == pytest.approx(math.sqrt(2) * 0.05)
@@ -233,19 +236,16 @@ def test_the_drift_is_the_session_spread_at_the_sides_noise(tmp_path: Path) -> N
 
 
 def write_experiment(directory: Path, rows: Sequence[Mapping[str, object]],
-                     hyperfine: Mapping[str, Sequence[float]] = ()) -> Path:  # type: ignore[assignment]
-    """A results/<name> directory: results.csv with the given fields (SCENE by default) and
-    cells/<id>.hyperfine.json for the ids in `hyperfine`."""
-    directory.mkdir(parents=True)
-    csvfile.write_results_csv(directory / "results.csv", [
+                     hyperfine: Mapping[str, Sequence[float]] | None = None) -> Path:
+    """A results/<name> directory as a run leaves it: a record per row with the given fields
+    (SCENE by default); with `hyperfine`, the runs of the rows it names (by their cell_id) in
+    hyperfine's export, as records from before wall_times_s keep them, upgraded (`store
+    upgrade` writes them into the records)."""
+    exp = records.write_experiment(directory.parent, directory.name, [
         {"experiment": directory.name, "build": "f64", "threads": "1", "status": "ok", **SCENE,
-         **row} for row in rows])
-    for cell_id, times in dict(hyperfine).items():
-        document = {"results": [{"command": "x", "mean": float(np.mean(times)), "stddev": None,
-                                 "median": float(np.median(times)), "min": min(times),
-                                 "max": max(times), "user": 0.0, "system": 0.0,
-                                 "times": list(times), "exit_codes": [0] * len(times)}]}
-        atomic.atomic_write_json(directory / "cells" / f"{cell_id}.hyperfine.json", document)
+         **row} for row in rows], hyperfine=hyperfine)
+    if hyperfine:
+        upgrade_experiment(exp)
     return directory
 
 
@@ -259,7 +259,8 @@ SLOW = (2.00, 2.02, 1.98, 2.04, 2.00)  # beyond the drift assumed without a cali
 
 @pytest.fixture
 def pair(tmp_path: Path) -> tuple[Path, Path]:
-    """OLD from before the wall_times_s column (times in hyperfine JSON), NEW with it."""
+    """OLD from before the wall_times_s column (times in hyperfine JSON, upgraded), NEW with
+    it."""
     old = write_experiment(tmp_path / "old" / "exp", [
         {"variant": "seq", "cell_id": "a1", "wall_median_s": "1.0"},
         {"variant": "p1", "cell_id": "b1", "wall_median_s": "1.0", "stale": "True",
@@ -388,7 +389,7 @@ def test_several_machines_need_a_choice(tmp_path: Path, capsys: pytest.CaptureFi
         capsys.readouterr().err
 
 
-@pytest.mark.parametrize("case", ["missing", "no_csv", "unmatched", "threshold", "bad_times"])
+@pytest.mark.parametrize("case", ["missing", "no_cells", "unmatched", "threshold", "bad_times"])
 def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
                              capsys: pytest.CaptureFixture[str]) -> None:
     old, new = pair
@@ -397,10 +398,10 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
     if case == "missing":
         args[1] = str(tmp_path / "nope")
         expected = f"error: NEW directory not found: {tmp_path / 'nope'}"
-    elif case == "no_csv":
+    elif case == "no_cells":
         (tmp_path / "empty" / "sub").mkdir(parents=True)
         args[0] = str(tmp_path / "empty")
-        expected = f"error: OLD: no results.csv in {tmp_path / 'empty'} or in any directory"
+        expected = f"error: OLD: no measured cell in {tmp_path / 'empty'} or in any directory"
     elif case == "unmatched":
         other = write_experiment(tmp_path / "other", [
             {"variant": "seq", "n": "999", "cell_id": "z", "wall_median_s": "1"}])
@@ -411,10 +412,11 @@ def test_usage_errors_exit_2(case: str, pair: tuple[Path, Path], tmp_path: Path,
         expected = "error: argument --threshold: expected a fraction such as 0.02, got 'five'"
     else:
         bad = write_experiment(tmp_path / "bad", [
-            {"variant": "seq", "cell_id": "q", "wall_median_s": "1", "wall_times_s": "1.0 fast"}])
+            {"variant": "seq", "cell_id": "q", "wall_median_s": "1", "wall_times_s": "1.0 1.1"}])
+        record = records.edit_record(bad, 0, lambda r: {**r, "wall_times_s": [1.0, "fast"]})
         args[1] = str(bad)
-        expected = (f"error: {bad / 'results.csv'}: line 2: column 'wall_times_s': '1.0 fast' "
-                    "is not a space-separated list of float")
+        expected = (f"error: {record}: not a record of this harness (record.wall_times_s[1]: "
+                    "'fast' is not float) (listed by ")
     try:
         status = compare_main([*args, "--out", str(tmp_path / "out")])
     except SystemExit as exc:  # argparse's errors
@@ -435,11 +437,11 @@ def test_committed_results_and_the_script(tmp_path: Path,
     (The comparisons run in this process: a new interpreter each would import scipy and
     matplotlib again for what the one script run shows.)"""
     experiment = REPO_ROOT / "published" / "results" / "threads"
-    if not (experiment / "results.csv").is_file():
+    if not (experiment / "cells").is_dir():
         pytest.skip("no committed published/results/threads")
     python = shutil.which("python3") or sys.executable
-    with (experiment / "results.csv").open() as handle:
-        machines = Counter(row["machine_id"] for row in csv.DictReader(handle))
+    machines = Counter(row["machine_id"] for row in
+                       results.load_experiment(ExperimentDir(experiment)).rows)
     for machine, cells in machines.items():
         status = compare_main([str(experiment), str(experiment), "--old-machine", machine,
                                "--new-machine", machine, "--out", str(tmp_path / machine)])

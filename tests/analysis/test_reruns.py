@@ -1,5 +1,6 @@
 """What reruns say: the session spread beyond the rounds' and how often each rerun's interval
-held another rerun's estimate, on synthetic reruns written as results.csv and ratios.csv."""
+held another rerun's estimate, on synthetic reruns written as a run leaves them (records, and
+the session spread their ratios' intervals take, kept in the rerun's root)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ import numpy as np
 import pytest
 from harness import stats
 from harness.analysis import reruns
-from harness.store import csvfile, ratios
+from harness.store import sessions
+
+from tests.records import write_experiment
 
 SCENE = {"experiment": "e", "build": "f64", "scene": "s", "n": 100, "L": 10.0, "r": 1.0,
          "steps": 5, "mode": "perf", "seed": 1, "machine_id": "m1", "status": "ok"}
@@ -28,9 +31,10 @@ def row(variant: str, threads: int, seconds: float, low: float, high: float,
 
 def rerun(root: Path, seconds: float, low: float, high: float, speedup: float, k: int) -> Path:
     rows = [row("p1", 1, seconds, low, high, k), row("p1", 2, seconds / speedup, 0.0, 9.0, k)]
-    (root / "e").mkdir(parents=True)
-    csvfile.write_results_csv(root / "e" / "results.csv", rows)
-    ratios.write_ratios_csv(root / "e" / "ratios.csv", rows, "seq", lambda m, noise: 0.02)
+    write_experiment(root, "e", rows)
+    # the ratios' intervals add this spread (of unknown noise: at every noise)
+    sessions.keep_session(root, "m1", {}, {"absolute": 0.02, "ratio": 0.02, "date": "1",
+                                           "config": "c.yaml"}, stats.supersedes)
     return root
 
 
@@ -110,8 +114,7 @@ def test_reruns_learn_the_noise_they_were_measured_under(tmp_path: Path) -> None
     roots = []
     for k, noise in enumerate(([0.0, 0.1, 0.2], [0.3, 0.3, 0.4]), start=1):
         rows = [{**row("p1", 1, 1.0 + k / 10, 0.9, 1.5, k), "round_noise": noise * 2}]
-        (tmp_path / str(k) / "e").mkdir(parents=True)
-        csvfile.write_results_csv(tmp_path / str(k) / "e" / "results.csv", rows)
+        write_experiment(tmp_path / str(k), "e", rows)
         roots.append(tmp_path / str(k))
     [machine] = reruns.analyse(roots)
     # each rerun's median round noise (0.1, then 0.3), and their median

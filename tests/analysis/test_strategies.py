@@ -8,8 +8,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from harness.analysis import strategies as study
+from harness.analysis.upgrade import upgrade_experiment
 from harness.report.figures import strategies as figstrategies
 from harness.store.columns import parse_list
+
+from tests.records import frame_of, write_experiment
 
 BENCH = {"n": 10000, "L": 20000.0, "r": 1.0, "steps": 50}
 
@@ -90,14 +93,12 @@ def test_chunk_cost_is_extra_time_over_chunks() -> None:
 
 
 def test_chunk_cost_reads_hyperfine_json_without_wall_times(tmp_path: Path) -> None:
-    cells = tmp_path / "cells"
-    cells.mkdir()
-    for variant, times in (("p1d", [3.0, 3.2]), ("p1_cyclic", [2.0, 2.2])):
-        (cells / f"id-{variant}-.hyperfine.json").write_text(
-            '{"results": [{"command": "x", "mean": 1, "stddev": 0, "median": 1, "min": 1, '
-            f'"max": 1, "user": 0, "system": 0, "times": {times}}}]}}')
-    df = frame(row("p1d", 3.1, chunks="250000 250000"), row("p1_cyclic", 2.1))
-    (cost,) = study.chunk_costs(df, tmp_path)
+    # records from before wall_times_s: their runs are in hyperfine's export beside them, from
+    # where `store upgrade` writes them into the records
+    rows = [row("p1d", 3.1, chunks="250000 250000"), row("p1_cyclic", 2.1)]
+    upgrade_experiment(write_experiment(tmp_path, "e", rows, hyperfine={
+        "id-p1d-": [3.0, 3.2], "id-p1_cyclic-": [2.0, 2.2]}))
+    (cost,) = study.chunk_costs(frame_of(tmp_path / "e"))
     assert cost.extra.point == pytest.approx(1.0) and cost.per_chunk_ns.point == pytest.approx(
         1.0 / 500000 * 1e9)
     assert study.chunk_sentence([cost]).startswith("Measured: p1d costs 2e+03 [")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import csv
+import json
 import math
 
 import numpy as np
@@ -11,24 +11,23 @@ import pytest
 from harness import stats
 from harness.analysis import accuracy as accuracy_tables
 from harness.analysis import cells as acells
-from harness.analysis import display, flags, frame
+from harness.analysis import display, flags
 from harness.analysis import speedup as speedups
 
-from fixture_results import FIXTURE_RESULTS
+from fixture_results import FIXTURE_RESULTS, fixture_frame
 
-
-def load(name: str) -> pd.DataFrame:
-    return frame.read_results(FIXTURE_RESULTS / name / "results.csv")
+load = fixture_frame
 
 
 def raw_medians(name: str) -> dict[tuple[str, int], float]:
-    """(variant, threads) -> wall_median_s, read with the csv module, not the code under test."""
-    with open(FIXTURE_RESULTS / name / "results.csv", newline="") as handle:
-        return {
-            (row["variant"], int(row["threads"])): float(row["wall_median_s"])
-            for row in csv.DictReader(handle)
-            if row["wall_median_s"]
-        }
+    """(variant, threads) -> wall_median_s of the records the index lists, read with the json
+    module, not the code under test."""
+    experiment = FIXTURE_RESULTS / name
+    listed = json.loads((experiment / "results.index.json").read_text())["rows"]
+    stored = [json.loads((experiment / "cells" / f"{cell_id}.json").read_text())
+              for cell_id, *_ in listed]
+    return {(row["variant"], int(row["threads"])): float(row["wall_median_s"])
+            for row in stored if row.get("wall_median_s") is not None}
 
 
 def test_strategies_table_has_one_row_per_variant_in_the_registry_order() -> None:
@@ -249,7 +248,7 @@ def test_format_table_writes_units_and_dashes() -> None:
 
 
 def contract_frame(rows: list[dict[str, object]]) -> pd.DataFrame:
-    """Cells as frame.read_results types them, from a few keys per row."""
+    """Cells as the read model types them (analysis.results), from a few keys per row."""
     base = {"title": "t", "build": "f64", "scene": "random", "n": 1000.0, "L": 2000.0,
             "r": 1.0, "steps": 5.0, "mode": "perf", "seed": 1.0, "runs": 3.0,
             "wall_min_s": np.nan, "wall_stddev_s": 0.0, "status": "ok", "exit_code": 0.0,
@@ -268,7 +267,7 @@ P1_TIMES = [2.0, 2.05, 2.1]
 
 
 def times_text(times: list[float]) -> tuple[float, ...]:
-    """A row's run times as results.csv reads them back."""
+    """A row's run times as the read model types them."""
     return tuple(times)
 
 

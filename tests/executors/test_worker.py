@@ -10,12 +10,13 @@ from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.analysis import results
 from harness.cli import main
 from harness.executors import base as executors_base
 from harness.plan.cells import plan_cells
 from harness.runner import experiment as experiment_runner
 from harness.spec.parse import load_config
-from harness.store import columns, csvfile, records
+from harness.store import columns, records
 from harness.store.result import CellResult
 
 from commands import cell_store
@@ -75,8 +76,8 @@ def test_worker_writes_the_record_a_local_run_writes(real_binaries: Path, tmp_pa
         assert set(remote.columns) == set(local.columns)
         exports = store.layout.hyperfine_exports(cid)
         assert [p.name for p in exports] == remote.value("hyperfine_exports") and exports
-        local_row = csvfile.csv_row(local.columns, config.name, config.title)
-        remote_row = csvfile.csv_row(remote.columns, config.name, config.title)
+        local_row = results.row(local.columns, config.name, config.title)
+        remote_row = results.row(remote.columns, config.name, config.title)
         assert list(local_row) == list(remote_row)  # the same results.csv columns
     assert sorted(p.name for p in store.layout.cells.glob("*.json")
                   if ".hyperfine." not in p.name) == sorted(f"{c}.json"

@@ -1,6 +1,7 @@
 """Every stored file is checked before it is trusted: a damaged record, hyperfine export,
-kept baseline or results.csv is named in one warning line and measured again or derived again,
-and no cell reads as validated that was not. Real binaries and hyperfine on tiny scenes."""
+kept baseline or export (results.csv, ratios.csv) is named in one warning line and measured
+again or written again, a damaged index of the records is named and read from no further, and
+no cell reads as validated that was not. Real binaries and hyperfine on tiny scenes."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from harness.cli import main
+from harness.cli.common import EXIT_ERROR
 from harness.executors.base import Options
 from harness.runner.experiment import run_experiment
 from harness.spec.parse import load_config
@@ -136,7 +138,7 @@ def test_a_cell_whose_baseline_cannot_run_is_unvalidated_and_counted_so(
 
 
 @pytest.mark.parametrize("damage", ["cut short", "missing", "ratios altered"])
-def test_a_damaged_results_csv_is_named_and_derived_again_before_it_is_read(
+def test_a_damaged_export_is_named_and_written_again_before_a_command_reads_on(
         damage: str, real_binaries: Path, tmp_path: Path, capsys) -> None:
     measure(tmp_path, capsys, TINY.replace("measure:", "threads: [1, 2]\nmeasure:"))
     exp = layout.ExperimentDir(tmp_path / "results" / "tiny")
@@ -151,23 +153,28 @@ def test_a_damaged_results_csv_is_named_and_derived_again_before_it_is_read(
                 str(tmp_path / "report"))
     what = {"cut short": "results.csv cut short or altered", "missing": "results.csv missing",
             "ratios altered": "ratios.csv cut short or altered"}[damage]
-    assert warnings(lines) == [f"{exp.path}: {what} since written; derived again from the "
+    assert warnings(lines) == [f"{exp.path}: {what} since written; written again from the "
                                "8 records its index lists"]
     assert {p: p.read_bytes() for p in written} == written  # byte for byte
     assert not warnings(run(capsys, "report", "--results-dir", str(tmp_path / "results"),
                             "--out", str(tmp_path / "report")))
 
 
-def test_a_damaged_index_is_named_and_the_files_read_as_they_are(
+def test_a_damaged_index_is_named_and_no_rows_are_read_past_it(
         real_binaries: Path, tmp_path: Path, capsys) -> None:
     measure(tmp_path, capsys)
     exp = layout.ExperimentDir(tmp_path / "results" / "tiny")
     cut(exp.results_index)
-    lines = run(capsys, "report", "--results-dir", str(tmp_path / "results"), "--out",
-                str(tmp_path / "report"))
+    # the index lists the experiment's rows: the report names it and stops, showing none
+    assert main(["report", "--results-dir", str(tmp_path / "results"), "--out",
+                 str(tmp_path / "report")]) == EXIT_ERROR
+    lines = capsys.readouterr().err.splitlines()
+    assert not any("Traceback" in line for line in lines)
     assert len(warnings(lines)) == 1
     assert warnings(lines)[0].startswith(f"{exp.results_index}: damaged (")
-    assert warnings(lines)[0].endswith("a run of the experiment's config derives them again")
+    assert warnings(lines)[0].endswith("a run of the experiment's config writes them again")
+    assert lines[-1].startswith(f"error: {exp.results_index}: damaged (")
+    assert not (tmp_path / "report" / "report.md").exists()
     measure(tmp_path, capsys)
     assert not warnings(run(capsys, "report", "--results-dir", str(tmp_path / "results"),
                             "--out", str(tmp_path / "report")))

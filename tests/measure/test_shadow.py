@@ -11,8 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness.analysis import frame as results_frame
-from harness.analysis import trust
+from harness.analysis import export, trust
 from harness.errors import HarnessError
 from harness.measure import invariants
 from harness.measure import shadow as accuracy
@@ -21,9 +20,10 @@ from harness.report import pipeline
 from harness.spec import catalog, output, scenes
 from harness.spec.parse import load_config
 from harness.spec.variants import default_registry
-from harness.store import columns, csvfile
+from harness.store import columns
 
 from commands import run_main as main
+from tests.records import frame_of
 
 BENIGN = "200 2000 1 6\nprint\n"  # generated discs, few collisions per step
 
@@ -189,9 +189,9 @@ def test_check_keys_parse_and_unknown_ones_are_rejected(write_config) -> None:
 
 
 def test_check_columns_only_when_checked() -> None:
-    plain = csvfile.render_csv([{"variant": "seq"}]).splitlines()[0].split(",")
+    plain = export.render_csv([{"variant": "seq"}]).splitlines()[0].split(",")
     assert "checks_passed" not in plain
-    checked = csvfile.render_csv([{"variant": "seq", "checks_passed": True}])
+    checked = export.render_csv([{"variant": "seq", "checks_passed": True}])
     header = checked.splitlines()[0].split(",")
     base = (*columns.CSV_COLUMNS, *columns.EXTRA_COLUMNS, *columns.PROVENANCE_COLUMNS)
     assert tuple(header[:len(base)]) == base and header[len(base):] == list(
@@ -225,5 +225,5 @@ def test_checked_experiment_end_to_end(study_binaries: Path, tmp_path: Path) -> 
     figures = {p.name for p in (tmp_path / "report" / "figures").iterdir()}
     assert any(f.startswith("study-divergence") and f.endswith(".png") for f in figures)
     assert any(f.startswith("study-shadow-vs-time") and f.endswith(".png") for f in figures)
-    frame = results_frame.read_results(root / "study" / "results.csv")
+    frame = frame_of(root / "study")
     assert trust.has_check_data(frame) and frame["chk_energy"].all()

@@ -20,6 +20,7 @@ from harness import repo
 from harness.report import pipeline
 
 from fixture_results import results_with
+from tests.records import doubled
 
 WIDTH = 1400
 HEIGHT = 1000
@@ -68,12 +69,9 @@ def two_machines(tmp_path_factory: pytest.TempPathFactory) -> Path:
     a machine they do not record: a page each under machines/, one of them on top."""
     tmp = tmp_path_factory.mktemp("browser")
     root = results_with(tmp, "strategies", "threads", "grid", "trajectory", "accuracy")
-    csv_path = root / "threads" / "results.csv"
-    lines = csv_path.read_text(encoding="utf-8").splitlines()
-    header = [*lines[0].split(","), "machine_id", "machine", "measured_at"]
-    rows = [f"{line},{mid},Box x2,2026-0{k}-01T00:00:00+00:00"
-            for k, mid in ((1, "a" * 16), (2, "b" * 16)) for line in lines[1:]]
-    csv_path.write_text("\n".join([",".join(header), *rows]) + "\n", encoding="utf-8")
+    doubled(root / "threads", lambda row, first: {
+        "machine_id": ("a" if first else "b") * 16, "machine": "Box x2",
+        "measured_at": f"2026-0{1 if first else 2}-01T00:00:00+00:00"})
     out = tmp / "report"
     pipeline.render(root, out)
     return out

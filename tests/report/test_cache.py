@@ -3,7 +3,6 @@ data change re-draws just the figures of that experiment; removed figures go awa
 
 from __future__ import annotations
 
-import csv
 import functools
 import json
 import os
@@ -21,6 +20,7 @@ from harness.report.cache import MANIFEST_NAME
 from harness.report.spread import SESSION_PART
 
 from fixture_results import results_with
+from tests.records import rewrite_experiment, rows_of
 
 REPO_ROOT = repo.REPO_ROOT
 
@@ -55,13 +55,9 @@ def test_a_data_change_redraws_just_that_experiments_figures(tmp_path: Path) -> 
     out = tmp_path / "report"
     pipeline.render(root, out)
     before = figure_state(out)
-    csv = root / "square" / "results.csv"
-    lines = csv.read_text(encoding="utf-8").splitlines()
-    header = lines[0].split(",")
-    column = header.index("wall_median_s")
-    fields = lines[1].split(",")
-    fields[column] = str(float(fields[column]) * 2)
-    csv.write_text("\n".join([lines[0], ",".join(fields), *lines[2:]]) + "\n", encoding="utf-8")
+    rows = rows_of(root / "square")  # its first cell measured again, twice as slow
+    rows[0]["wall_median_s"] = 2 * float(rows[0]["wall_median_s"])  # type: ignore[arg-type]
+    rewrite_experiment(root / "square", rows)
     pipeline.render(root, out)
     after = figure_state(out)
     assert after.keys() == before.keys()

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from harness.analysis import cells as acells
-from harness.analysis import display, frame, speedup
+from harness.analysis import display, speedup
 from harness.report import load as report_load
 from harness.report.figures import accuracy as figaccuracy
 from harness.report.figures import base as figbase
@@ -18,14 +18,13 @@ from harness.report.figures import trajectory as figtrajectory
 from harness.store import atomic
 from PIL import Image
 
-from fixture_results import FIXTURE_RESULTS
+from fixture_results import FIXTURE_RESULTS, fixture_frame
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 GIF_SIGNATURE = b"GIF89a"
 
 
-def load(name: str) -> pd.DataFrame:
-    return frame.read_results(FIXTURE_RESULTS / name / "results.csv")
+load = fixture_frame
 
 
 def assert_valid_png(path: Path) -> None:

@@ -1,66 +1,71 @@
-"""The report's ratios from ratios.csv where it pairs a cell with its reference by round, the
-runs' bootstrap elsewhere; and what "How to read the numbers" says of the session spread."""
+"""The report's ratios paired by round where a cell and its reference were measured in the same
+rounds, the runs' bootstrap elsewhere; and what "How to read the numbers" says of the session
+spread."""
 
 from __future__ import annotations
 
-import csv
 import json
 import re
 from pathlib import Path
 
 import pytest
-from harness.analysis import frame, paired
+from harness import stats
+from harness.analysis import paired, results
 from harness.analysis import speedup as speedups
-from harness.errors import HarnessError
 from harness.report import pipeline
 from harness.report.discover import find_experiments
 from harness.report.load import load_experiment
-from harness.store import csvfile
-from harness.store import ratios as store_ratios
-from harness.store.columns import RATIO_COLUMNS, RATIO_OVER_BASELINE, RATIO_OVER_ONE_THREAD
-from harness.store.layout import RATIOS_CSV, ResultsRoot
+from harness.spec.facts import BASELINE
+from harness.store.columns import RATIO_OVER_BASELINE
+from harness.store.layout import ExperimentDir, ResultsRoot
 
 from fixture_results import FIXTURE_RESULTS, results_with
+from tests.records import change_rows, write_experiment
 
 MACHINE_ID = "0123456789abcdef"
+# The machine's speed in each of five rounds, shared by every cell measured in that round.
+SPEED = (1.0, 1.3, 0.8, 1.25, 0.9)
+ROUND_SEED = "7"
 
 
-def with_runs(csv_path: Path) -> list[dict[str, str]]:
+def with_runs(directory: Path, paired_with: dict[tuple[str, int], float] | None = None
+              ) -> list[dict[str, object]]:
     """Give every row a machine and three run times around its median (a bootstrap interval);
-    the rows."""
-    with csv_path.open(newline="", encoding="utf-8") as handle:
-        rows = list(csv.DictReader(handle))
-    for row in rows:
-        median = float(row["wall_median_s"]) if row["wall_median_s"] else 0.0
-        row.update(machine_id=MACHINE_ID, machine="Test machine", wall_times_s=" ".join(
-            repr(median * f) for f in (0.98, 1.0, 1.03)) if median else "")
-    with csv_path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    return rows
+    those `paired_with` names by (variant, threads) five rounds instead, measured together
+    (one round_seed): a second at the machine's speed in each round, divided by the row's
+    ratio in that round (round_factors). The rows."""
+    def runs(row: dict[str, object]) -> dict[str, object]:
+        median = float(row.get("wall_median_s") or 0.0)  # type: ignore[arg-type]
+        own = (paired_with or {}).get((str(row["variant"]), int(row["threads"])))  # type: ignore[call-overload]
+        if own is not None:
+            times = [s / factor for s, factor in zip(SPEED, round_factors(own), strict=True)]
+            return {"machine_id": MACHINE_ID, "machine": "Test machine", "wall_times_s": times,
+                    "wall_times_round": [1, 2, 3, 4, 5], "round_seed": ROUND_SEED}
+        return {"machine_id": MACHINE_ID, "machine": "Test machine",
+                "wall_times_s": [median * f for f in (0.98, 1.0, 1.03)] if median else None}
+    return change_rows(directory, runs)
 
 
-def write_ratios(path: Path, cell: dict[str, str], kind: str, reference: str,
-                 ratio: tuple[float, float, float]) -> None:
-    row = {c: cell.get(c, "") for c in RATIO_COLUMNS}
-    row.update(kind=kind, reference_variant=reference, reference_threads="1",
-               ratio=ratio[0], ratio_ci_low=ratio[1], ratio_ci_high=ratio[2], rounds=5,
-               session_spread=0.05)
-    with path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(RATIO_COLUMNS))
-        writer.writeheader()
-        writer.writerow(row)
+def round_factors(ratio: float) -> list[float]:
+    """What a paired cell's time is divided by in each round: `ratio` over its reference's,
+    which is 1 (the reference's own)."""
+    return [1.0] * len(SPEED) if ratio == 1.0 else [ratio * f for f in (0.9, 0.95, 1.0, 1.05,
+                                                                         1.1)]
+
+
+def paired_interval(ratio: float) -> stats.Interval:
+    """The ratio round_factors gives, paired by round, with its interval where another
+    session's lies (the default session spread: the machine has no reruns), as stats gives
+    it."""
+    estimate = stats.from_round_values(round_factors(ratio))
+    return estimate.rerun_interval(stats.DEFAULT_SESSION_SPREAD.ratio)
 
 
 def strategies_with_p1_paired(tmp_path: Path) -> Path:
-    """The strategies fixture, p1 over seq paired by round at 3.21 [2.50, 4.60] where its
-    runs make 4.00 with a bootstrap about ±3%."""
+    """The strategies fixture, p1 measured in the same rounds as seq, at 3.21 over it round by
+    round (paired_interval) where its median makes 4.00 with a bootstrap about ±3%."""
     root = results_with(tmp_path, "strategies")
-    rows = with_runs(root / "strategies" / "results.csv")
-    p1 = next(r for r in rows if r["variant"] == "p1")
-    write_ratios(root / "strategies" / RATIOS_CSV, p1, RATIO_OVER_BASELINE, "seq",
-                 (3.21, 2.50, 4.60))
+    with_runs(root / "strategies", {("seq", 1): 1.0, ("p1", 8): 3.21})
     return root
 
 
@@ -72,17 +77,19 @@ def reading(markdown: str) -> str:
     return markdown.split("## How to read the numbers", 1)[1]
 
 
-def test_the_cell_table_shows_the_paired_interval_where_ratios_csv_has_one(
+def test_the_cell_table_shows_the_paired_interval_where_a_cell_has_one(
         tmp_path: Path) -> None:
     root = strategies_with_p1_paired(tmp_path)
     out = tmp_path / "report"
     pipeline.render(root, out, experiments=["strategies"])
     table = cells_table((out / "report.md").read_text(encoding="utf-8"))
     p1 = next(line for line in table.splitlines() if line.startswith("| p1 |"))
-    assert "| 3.21 [2.50, 4.60] |" in p1
+    expected = paired_interval(3.21)
+    assert expected.point == pytest.approx(3.21) and expected.high - expected.low > 0.5
+    assert f"| 3.21 [{expected.low:.2f}, {expected.high:.2f}] |" in p1
     assert "4.00" not in p1
     # p1 at 8 threads does seq's work: its efficiency is the paired speedup over 8.
-    assert "| 0.40 [0.31, 0.57] |" in p1
+    assert f"| 0.40 [{expected.low / 8:.2f}, {expected.high / 8:.2f}] |" in p1
     # p1d has no paired ratio: the ratio of medians and its bootstrap over the runs.
     p1d = next(line for line in table.splitlines() if line.startswith("| p1d |"))
     assert re.search(r"\| 6\.25 \[\d\.\d\d, \d\.\d\d\] \|", p1d)
@@ -100,7 +107,13 @@ def test_the_figures_and_headline_take_the_same_paired_numbers(tmp_path: Path) -
     exp = load_experiment(found)
     rows = speedups.with_speedup(exp.frame, ratios=exp.ratios)
     p1 = rows[rows["variant"] == "p1"].iloc[0]
-    assert (p1["speedup"], p1["speedup_low"], p1["speedup_high"]) == (3.21, 2.50, 4.60)
+    assert exp.ratios is not None
+    [ratio] = exp.ratios[exp.ratios["variant"] == "p1"].itertuples()
+    assert (p1["speedup"], p1["speedup_low"], p1["speedup_high"]) == (
+        ratio.ratio, ratio.ratio_ci_low, ratio.ratio_ci_high)
+    expected = paired_interval(3.21)
+    assert (ratio.ratio, ratio.ratio_ci_low, ratio.ratio_ci_high) == pytest.approx(
+        (expected.point, expected.low, expected.high))
     assert bool(p1["speedup_paired"])
     unpaired = speedups.with_speedup(exp.frame)
     assert unpaired[unpaired["variant"] == "p1"]["speedup"].iloc[0] == pytest.approx(4.0)
@@ -109,44 +122,36 @@ def test_the_figures_and_headline_take_the_same_paired_numbers(tmp_path: Path) -
 def test_a_thread_sweep_takes_efficiency_and_karp_flatt_from_the_paired_ratio(
         tmp_path: Path) -> None:
     root = results_with(tmp_path, "threads")
-    rows = with_runs(root / "threads" / "results.csv")
-    p1_4 = next(r for r in rows if r["variant"] == "p1" and r["threads"] == "4")
-    write_ratios(root / "threads" / RATIOS_CSV, p1_4, RATIO_OVER_ONE_THREAD, "p1",
-                 (3.0, 2.0, 3.5))
-    df = frame.read_results(root / "threads" / "results.csv")
-    ratios = paired.read_ratios(root / "threads" / RATIOS_CSV)
-    out = speedups.with_speedup(df, thread_baseline=True, ratios=ratios)
+    with_runs(root / "threads", {("p1", 1): 1.0, ("p1", 4): 3.0})
+    exp = results.load_experiment(ExperimentDir(root / "threads"))
+    ratios = paired.paired(exp.ratios(BASELINE))
+    out = speedups.with_speedup(exp.frame, thread_baseline=True, ratios=ratios)
     cell = out[(out["variant"] == "p1") & (out["threads"] == 4)].iloc[0]
-    assert (cell["speedup"], cell["speedup_low"], cell["speedup_high"]) == (3.0, 2.0, 3.5)
+    speedup = paired_interval(3.0)
+    low, high = speedup.low, speedup.high
+    assert speedup.point == pytest.approx(3.0) and 2.0 < low < 3.0 < high < 4.0
+    assert (cell["speedup"], cell["speedup_low"], cell["speedup_high"]) == pytest.approx(
+        (3.0, low, high))
     assert (cell["efficiency_low"], cell["efficiency"], cell["efficiency_high"]) == \
-        pytest.approx((0.5, 0.75, 0.875))
+        pytest.approx((low / 4, 0.75, high / 4))
     # Karp-Flatt falls as the speedup rises: the interval's ends swap.
+    karp_flatt = [(1 / s - 1 / 4) / (1 - 1 / 4) for s in (high, 3.0, low)]
     assert (cell["serial_fraction_low"], cell["serial_fraction"],
-            cell["serial_fraction_high"]) == pytest.approx((1 / 21, 1 / 9, 1 / 3))
+            cell["serial_fraction_high"]) == pytest.approx(karp_flatt)
+    assert karp_flatt[1] == pytest.approx(1 / 9)
     others = out[~((out["variant"] == "p1") & (out["threads"] == 4))]
     assert not others["speedup_paired"].any()
 
 
-def test_without_ratios_csv_nothing_is_paired() -> None:
-    assert paired.read_ratios(FIXTURE_RESULTS / "strategies" / RATIOS_CSV) is None
-
-
-def test_ratios_csv_without_its_columns_names_the_file(tmp_path: Path) -> None:
-    path = tmp_path / RATIOS_CSV
-    path.write_text("variant,threads\np1,8\n", encoding="utf-8")
-    with pytest.raises(HarnessError, match=r"ratios.csv: missing column\(s\): experiment"):
-        paired.read_ratios(path)
-    columns = [c for c in RATIO_COLUMNS if c != "session_spread"]
-    path.write_text(",".join(columns) + "\n" + ",".join(
-        "x" if c == "ratio" else "" for c in columns) + "\n", encoding="utf-8")
-    with pytest.raises(HarnessError, match=r"ratios.csv: line 2: column 'ratio': 'x' is not a"):
-        paired.read_ratios(path)
+def test_without_rounds_measured_together_nothing_is_paired() -> None:
+    found = load_experiment(ExperimentDir(FIXTURE_RESULTS / "strategies")).ratios
+    assert found is None or found.empty
 
 
 def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_measured(
         tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
-    with_runs(root / "strategies" / "results.csv")
+    with_runs(root / "strategies")
     out = tmp_path / "report"
     pipeline.render(root, out)
     text = reading((out / "report.md").read_text(encoding="utf-8"))
@@ -185,30 +190,27 @@ def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_mea
 
 
 def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
-    """results.csv and ratios.csv as a run writes them (store.csvfile, store.ratios): every
-    ratio finds its cell, whatever the two files make of numbers and empty schedules."""
+    """Records as a run writes them, read back (analysis.results): every ratio finds its cell,
+    whatever the cells' rows and their ratios make of numbers and empty schedules."""
     scene = {"experiment": "e", "title": "t", "build": "f64", "scene": "random", "n": 100,
              "L": 10.0, "r": 1.0, "steps": 5, "mode": "perf", "seed": 1, "schedule": None,
              "machine_id": MACHINE_ID, "status": "ok", "round_seed": 7}
-    speed = [1.0, 1.3, 0.8, 1.25, 0.9]
 
     def cell(variant: str, threads: int, seconds: float) -> dict[str, object]:
-        times = [seconds * s for s in speed]
+        times = [seconds * s for s in SPEED]
         return {**scene, "variant": variant, "threads": threads, "runs": len(times),
                 "wall_times_s": times, "wall_times_round": list(range(1, 6)),
                 "wall_median_s": sorted(times)[2], "wall_mean_s": sum(times) / 5}
 
     rows = [cell("seq", 1, 1.0), cell("p1", 1, 1.1), cell("p1", 2, 0.6), cell("p1", 4, 0.4)]
-    results = tmp_path / "results.csv"
-    csvfile.write_results_csv(results, rows)
-    store_ratios.write_ratios_csv(tmp_path / RATIOS_CSV, rows, "seq", lambda machine, noise: 0.05)
-    ratios = paired.read_ratios(tmp_path / RATIOS_CSV)
+    exp = results.load_experiment(write_experiment(tmp_path, "e", rows))
+    ratios = paired.paired(exp.ratios(BASELINE))
     assert ratios is not None and len(ratios) == 5
-    out = speedups.with_speedup(frame.read_results(results), ratios=ratios)
+    out = speedups.with_speedup(exp.frame, ratios=ratios)
     p1 = out[out["variant"] == "p1"]
     assert p1["speedup_paired"].all()
     over_seq = ratios[ratios["kind"] == RATIO_OVER_BASELINE].set_index("threads")
     for _, row in p1.iterrows():
-        written = over_seq.loc[str(int(row["threads"]))]
+        written = over_seq.loc[row["threads"]]
         assert (row["speedup"], row["speedup_low"], row["speedup_high"]) == (
             written["ratio"], written["ratio_ci_low"], written["ratio_ci_high"])

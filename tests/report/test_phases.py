@@ -10,13 +10,13 @@ from pathlib import Path
 
 import pytest
 from harness.analysis import cells as acells
-from harness.analysis import display, phases
-from harness.analysis.frame import read_results
+from harness.analysis import display, export, phases, results
 from harness.measure import timing as timing_line
 from harness.report.pipeline import render
-from harness.store import columns, csvfile, index
+from harness.store import columns
 
-from fixture_results import fixture_facts
+from fixture_results import write_measured
+from tests.records import frame_of
 
 BENCH = {"scene": "random", "L": 20000.0, "r": 1.0, "steps": 50, "mode": "perf", "seed": 1}
 # variant: sim_s, output_s and the five phases (seconds): seq's broad phase is nearly all of
@@ -48,11 +48,7 @@ def record(variant: str, sim: float, output: float, phase: dict[str, float] | No
 
 
 def write_experiment(root: Path, name: str, records: list[dict], title: str = "") -> Path:
-    rows = [csvfile.csv_row(r, name, title or name.title()) for r in records]
-    path = root / name / "results.csv"
-    csvfile.write_results_csv(path, rows)
-    index.write_variants(root / name, fixture_facts().to_json())  # as a run stores them
-    return path
+    return write_measured(root, name, records, title).path
 
 
 def section(markdown: str, title: str, after: str = "") -> str:
@@ -98,7 +94,7 @@ def test_columns_are_stored_from_the_timing_line() -> None:
     timing = timing_line.parse_timing(stderr)
     assert timing is not None
     record = {k: timing.get(k) for k in columns.TIMING_KEYS}
-    text = csvfile.render_csv([csvfile.csv_row(record, "e", "t")])
+    text = export.render_csv([results.row(record, "e", "t")])
     header, row = text.splitlines()
     values = dict(zip(header.split(","), row.split(","), strict=True))
     for key in columns.PHASE_COLUMNS:
@@ -107,7 +103,7 @@ def test_columns_are_stored_from_the_timing_line() -> None:
 
 
 def test_older_records_have_no_phase_columns() -> None:
-    header = csvfile.render_csv([csvfile.csv_row({"sim_s": 1.0}, "e", "t")]).splitlines()[0]
+    header = export.render_csv([results.row({"sim_s": 1.0}, "e", "t")]).splitlines()[0]
     assert not set(columns.PHASE_COLUMNS) & set(header.split(","))
 
 
@@ -142,7 +138,7 @@ def test_table_shows_the_columns_numbers(rendered: Path) -> None:
 
 
 def test_shares_sum_to_100_percent(results_root: Path) -> None:
-    sel = phases.select(read_results(results_root / "bench" / "results.csv"))
+    sel = phases.select(frame_of(results_root / "bench"))
     assert sel is not None
     table = phases.phase_table(sel)
     shares = table[[f"{p}{acells.SHARE_SUFFIX}" for p in phases.SIM_PHASES]].sum(axis=1)
@@ -156,7 +152,7 @@ def test_rounding_above_sim_s_is_no_negative_overhead(tmp_path: Path) -> None:
     # Five phases each rounded up by a microsecond pass sim_s: `other` is 0, not negative.
     phase = {k: 0.2 for k in columns.PHASE_COLUMNS}
     path = write_experiment(tmp_path, "e", [record("grid", 0.999997, 0.0, phase)])
-    frame = phases.with_phases(phases.phase_rows(read_results(path)))
+    frame = phases.with_phases(phases.phase_rows(frame_of(path)))
     assert frame[display.OTHER_PHASE].iloc[0] == 0
     shares = frame[[f"{p}{acells.SHARE_SUFFIX}" for p in phases.SIM_PHASES]].sum(axis=1)
     assert shares.iloc[0] == pytest.approx(100.0)
@@ -182,7 +178,7 @@ def test_one_thread_count_per_experiment_and_notes(tmp_path: Path) -> None:
     records += [record("grid", *CELLS["grid"], threads=t) for t in (1, 2)]
     records.append(record("seq", *CELLS["seq"][:2], None, threads=1))  # an older binary
     write_experiment(root, "sweep", records)
-    frame = read_results(root / "sweep" / "results.csv")
+    frame = frame_of(root / "sweep")
     sel = phases.select(frame)
     assert sel is not None
     # 1 and 2 threads have two cells with phases each: the fewest wins the tie.
@@ -205,7 +201,7 @@ def test_scenes_get_their_own_rows_and_the_largest_grid_leads_the_summary(
             records.append(record(variant, sim * scale, output * scale,
                                   {k: v * scale for k, v in phase.items()}, n=n))
     write_experiment(root, "sizes", records)
-    frame = read_results(root / "sizes" / "results.csv")
+    frame = frame_of(root / "sizes")
     sel = phases.select(frame)
     assert sel is not None and sel.scene_keys == ("n",)
     plotted = phases.plot_frame(sel)
@@ -227,7 +223,7 @@ def test_too_many_bars_leave_the_cheapest_scenes_out(tmp_path: Path) -> None:
             records.append(record(variant, sim * scale, output,
                                   {k: v * scale for k, v in phase.items()}, n=n))
     path = write_experiment(tmp_path, "many", records)
-    sel = phases.select(read_results(path))
+    sel = phases.select(frame_of(path))
     assert sel is not None
     shown = sorted(set(sel.cells["n"]))
     assert len(sel.cells) <= phases.MAX_BARS < len(sel.cells) + len(CELLS)
@@ -241,7 +237,7 @@ def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
     sim, output, phase = 3.0, 0.5, {"broad_s": 1.5, "walls_s": 0.25, "sort_s": 0.25,
                                     "resolve_s": 0.25, "motion_s": 0.25}
     path = write_experiment(tmp_path, "e", [record("grid", sim, output, phase)])
-    sel = phases.select(read_results(path))
+    sel = phases.select(frame_of(path))
     assert sel is not None
     table = phases.phase_table(sel)
     assert table["sim_s"].iloc[0] == 3.0 and table["output_s"].iloc[0] == 0.5
@@ -256,9 +252,9 @@ def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
 
 def test_machines_are_bars_beside_each_other_not_scenes(tmp_path: Path) -> None:
     records = [{**record(v, *CELLS[v]), "machine_id": machine * 8, "cell_id": f"{v}{machine}",
-                "machine": {"label": f"box {machine}"}}
+                "machine": f"box {machine}"}
                for v in ("seq", "grid") for machine in ("aa", "bb")]
-    sel = phases.select(read_results(write_experiment(tmp_path, "two", records)))
+    sel = phases.select(frame_of(write_experiment(tmp_path, "two", records)))
     assert sel is not None
     assert sel.scene_keys == () and sel.row_keys == (acells.MACHINE, "variant")
     assert list(phases.plot_frame(sel)[phases.BAR]) == [

@@ -7,17 +7,18 @@ import re
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
 from harness import repo
-from harness.analysis import frame
 from harness.cli import main as cli_main
 from harness.errors import HarnessError
 from harness.report import pipeline
+from harness.store.layout import ExperimentDir
 
 from fixture_results import FIXTURE_RESULTS, results_with
+from tests.records import change_rows, doubled, edit_record, frame_of
 
 REPO_ROOT = repo.REPO_ROOT
 ALL_EXPERIMENTS = (
@@ -146,18 +147,8 @@ def test_a_thread_sweep_is_recognised_by_its_data_not_its_name(tmp_path: Path) -
 
 def test_an_experiment_without_times_gets_its_table_but_no_figure(tmp_path: Path) -> None:
     root = results_with(tmp_path, "particles")
-    csv = root / "particles" / "results.csv"
-    lines = csv.read_text(encoding="utf-8").splitlines()
-    header = lines[0].split(",")
-    blank = {header.index(c) for c in header if c.startswith("wall_")}
-    status = header.index("status")
-    rows = []
-    for line in lines[1:]:
-        values = line.split(",")
-        values = ["" if i in blank else v for i, v in enumerate(values)]
-        values[status] = "timeout"
-        rows.append(",".join(values))
-    csv.write_text("\n".join([lines[0], *rows]) + "\n", encoding="utf-8")
+    change_rows(root / "particles", lambda row: {
+        **{c: None for c in row if c.startswith("wall_")}, "status": "timeout"})
     out = tmp_path / "report"
     pipeline.render(root, out)
     markdown = (out / "report.md").read_text(encoding="utf-8")
@@ -234,51 +225,40 @@ def test_nested_environment_fields_are_understood(tmp_path: Path) -> None:
 # --- malformed input -----------------------------------------------------------------------
 
 
-def rewrite_csv(path: Path, transform: object) -> None:
-    lines = path.read_text(encoding="utf-8").splitlines()
-    path.write_text("\n".join(transform(lines)) + "\n", encoding="utf-8")  # type: ignore[operator]
-
-
-def drop_column(lines: list[str], column: str) -> list[str]:
-    header = lines[0].split(",")
-    index = header.index(column)
-    return [",".join(v for i, v in enumerate(line.split(",")) if i != index) for line in lines]
-
-
-def test_missing_column_names_the_file_and_column(tmp_path: Path) -> None:
+def test_a_damaged_index_names_the_file(tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
-    csv = root / "strategies" / "results.csv"
-    rewrite_csv(csv, lambda lines: drop_column(lines, "wall_median_s"))
-    with pytest.raises(HarnessError, match=r"results\.csv: missing column\(s\): wall_median_s"):
+    index = ExperimentDir(root / "strategies").results_index
+    listed = json.loads(index.read_text(encoding="utf-8"))
+    index.write_text(json.dumps({k: v for k, v in listed.items() if k != "rows"}),
+                     encoding="utf-8")
+    with pytest.raises(HarnessError, match=rf"{re.escape(str(index))}: damaged \(no rows\)"):
         pipeline.render(root, tmp_path / "report")
-    with pytest.raises(HarnessError) as info:
-        frame.read_results(csv)
-    assert str(csv) in str(info.value)
+    index.write_text(json.dumps(listed)[:100], encoding="utf-8")  # cut short
+    with pytest.raises(HarnessError, match=rf"{re.escape(str(index))}: damaged"):
+        pipeline.render(root, tmp_path / "report")
 
 
-def test_non_numeric_time_names_the_file_line_and_column(tmp_path: Path) -> None:
+def test_non_numeric_time_names_the_record_and_field(tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
-    csv = root / "strategies" / "results.csv"
-    rewrite_csv(csv, lambda lines: [lines[0], lines[1], lines[2].replace(",0.625,", ",fast,", 1),
-                                    *lines[3:]])
+    record = edit_record(root / "strategies", 1, lambda r: {**r, "wall_median_s": "fast"})
     with pytest.raises(HarnessError) as info:
         pipeline.render(root, tmp_path / "report")
     message = str(info.value)
-    assert str(csv) in message
-    assert "line 3" in message and "'wall_median_s'" in message and "'fast'" in message
+    assert message.startswith(f"{record}: ")
+    assert "wall_median_s" in message and "'fast'" in message
 
 
 def test_unknown_status_and_untimed_ok_cells_are_errors(tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
-    csv = root / "strategies" / "results.csv"
-    original = csv.read_text(encoding="utf-8")
-    csv.write_text(original.replace(",ok,", ",fine,", 1), encoding="utf-8")
-    with pytest.raises(HarnessError, match="status 'fine' is not one of"):
-        frame.read_results(csv)
-    rewrite_csv(csv, lambda lines: [lines[0], lines[1].replace(",fine,", ",ok,", 1)
-                                    .replace(",2.5,", ",,", 1), *lines[2:]])
-    with pytest.raises(HarnessError, match="line 2: status 'ok' but no wall_median_s"):
-        frame.read_results(csv)
+    exp = ExperimentDir(root / "strategies")
+    record = edit_record(exp.path, 0, lambda r: {**r, "status": "fine"})
+    with pytest.raises(HarnessError, match=rf"cell {record.stem}: status 'fine' is not a"):
+        frame_of(exp.path)
+    edit_record(exp.path, 0, lambda r: {**{k: v for k, v in r.items() if k != "wall_median_s"},
+                                        "status": "ok"})
+    with pytest.raises(HarnessError, match=rf"^{re.escape(str(exp.path))}: cell {record.stem}: "
+                       "status 'ok' but no wall_median_s"):
+        frame_of(exp.path)
 
 
 def test_malformed_trajectory_output_names_the_file(tmp_path: Path) -> None:
@@ -292,11 +272,13 @@ def test_malformed_trajectory_output_names_the_file(tmp_path: Path) -> None:
 
 def test_main_prints_error_and_returns_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     root = results_with(tmp_path, "strategies")
-    rewrite_csv(root / "strategies" / "results.csv", lambda lines: drop_column(lines, "status"))
+    record = edit_record(root / "strategies", 2,
+                         lambda r: {k: v for k, v in r.items() if k != "status"})
     code = cli_main(["report", "--results-dir", str(root), "--out", str(tmp_path / "report")])
     assert code == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and "results.csv" in err and "status" in err
+    assert err.startswith(f"error: {root / 'strategies'}: cell {record.stem}: 'status' is "
+                          "empty")
     assert len(err.strip().splitlines()) == 1
 
 
@@ -389,31 +371,18 @@ def test_wide_tables_scroll_inside_their_own_box(rendered: Path) -> None:
     assert re.search(r"\.table-wrap \{[^}]*overflow-x: auto", page)
 
 
-# --- the shared contract's columns, when a results.csv has them ----------------------------
+# --- the shared contract's columns, when the records have them -----------------------------
 
 
-def add_columns(csv_path: Path, values: object) -> None:
-    """Append columns to every row: `values(row) -> dict` (rows as csv.DictReader gives)."""
-    import csv
-
-    with csv_path.open(newline="", encoding="utf-8") as handle:
-        rows = list(csv.DictReader(handle))
-    extra = [{**row, **values(row)} for row in rows]  # type: ignore[operator]
-    with csv_path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(extra[0]))
-        writer.writeheader()
-        writer.writerows(extra)
-
-
-def run_times(row: dict[str, str]) -> str:
+def run_times(row: Mapping[str, object]) -> list[float] | None:
     """Three run times around the row's median: median, 2% below, 3% above."""
-    median = float(row["wall_median_s"]) if row["wall_median_s"] else 0.0
-    return " ".join(repr(t) for t in (median * 0.98, median, median * 1.03)) if median else ""
+    median = float(row.get("wall_median_s") or 0.0)  # type: ignore[arg-type]
+    return [median * 0.98, median, median * 1.03] if median else None
 
 
 def test_one_machine_is_named_and_intervals_appear(tmp_path: Path) -> None:
     root = results_with(tmp_path, "strategies")
-    add_columns(root / "strategies" / "results.csv", lambda row: {
+    change_rows(root / "strategies", lambda row: {
         "machine_id": "0123456789abcdef", "machine": "AMD EPYC 7B13 (Zen3) x2",
         "wall_times_s": run_times(row), "git_commit": "abcdef0123456789",
         "outliers": "True" if row["variant"] == "p2" else "False", "loaded": "False",
@@ -442,7 +411,7 @@ def test_a_programs_note_is_counted_by_its_agreement(tmp_path: Path) -> None:
             "(0.001): particle 0 is (1, 2) where seq has (1, 3); seq in that step: collided "
             "with particle 0 (wall)")
     root = results_with(tmp_path, "strategies")
-    add_columns(root / "strategies" / "results.csv", lambda row: {
+    change_rows(root / "strategies", lambda row: {
         "agreement": "differs", "first_diff_step": "3", "note": note, "status": "invalid",
     } if row["variant"] == "p2" else {"agreement": "", "first_diff_step": "", "note": ""})
     out = tmp_path / "report"
@@ -455,38 +424,21 @@ def test_a_programs_note_is_counted_by_its_agreement(tmp_path: Path) -> None:
     assert f"| {note} |" in block
 
 
-def doubled(root: Path, name: str) -> tuple[Path, Callable[[dict[str, str]], int]]:
-    """results/<name>/results.csv with every row twice, and a function telling, row by row as
-    add_columns reads them, which copy (1 or 2) a row is: two machines' cells of one config."""
-    csv_path = root / name / "results.csv"
-    lines = csv_path.read_text(encoding="utf-8").splitlines()
-    csv_path.write_text("\n".join([*lines, *lines[1:]]) + "\n", encoding="utf-8")
-    seen: dict[str, int] = {}
-
-    def copy(row: dict[str, str]) -> int:
-        seen[row["cell_id"]] = seen.get(row["cell_id"], 0) + 1
-        return seen[row["cell_id"]]
-
-    return csv_path, copy
-
-
 def test_each_machine_gets_its_own_page_and_a_comparison(tmp_path: Path) -> None:
     """Two machines' cells of one config: report.md shows the one that measured last, the
     other gets machines/<id>/report.md, each page links the other, and both set the machines
     side by side on the cells they share."""
     root = results_with(tmp_path, "threads")
-    csv_path, copy = doubled(root, "threads")
 
-    def machine(row: dict[str, str]) -> dict[str, str]:
-        first = copy(row) == 1
-        slower = {k: str(2 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
-                                                      "wall_min_s", "wall_max_s") if row[k]}
+    def machine(row: dict[str, object], first: bool) -> dict[str, object]:
+        slower = {k: 2 * float(row[k]) for k in ("wall_mean_s", "wall_median_s",  # type: ignore[arg-type]
+                                                 "wall_min_s", "wall_max_s") if row.get(k)}
         return {"machine_id": ("aa" if first else "bb") * 8, "machine": "AMD EPYC",
                 "git_commit": "c0ffee" if first else "decade",
                 "measured_at": "2026-01-01T00:00:00+00:00" if first
                 else "2026-02-01T00:00:00+00:00", **({} if first else slower)}
 
-    add_columns(csv_path, machine)
+    doubled(root / "threads", machine)
     out = tmp_path / "report"
     pipeline.render(root, out)
     main = (out / "report.md").read_text(encoding="utf-8")
@@ -528,16 +480,15 @@ def test_without_measured_at_the_machine_of_env_json_is_the_latest(tmp_path: Pat
     """Two machines' cells side by side and no measurement times: the page on top is the
     machine env.json names (the latest run's), and its headlines come from its cells."""
     root = results_with(tmp_path, "grid")
-    csv_path, copy = doubled(root, "grid")
 
-    def machine(row: dict[str, str]) -> dict[str, str]:
-        old = copy(row) == 2
-        slower = {k: str(3 * float(row[k])) for k in ("wall_mean_s", "wall_median_s",
-                                                      "wall_min_s", "wall_max_s") if row[k]}
+    def machine(row: dict[str, object], first: bool) -> dict[str, object]:
+        old = not first
+        slower = {k: 3 * float(row[k]) for k in ("wall_mean_s", "wall_median_s",  # type: ignore[arg-type]
+                                                 "wall_min_s", "wall_max_s") if row.get(k)}
         return {"machine_id": ("0d" if old else "1a") * 8,
                 "machine": "Old box x2" if old else "New box x2", **(slower if old else {})}
 
-    add_columns(csv_path, machine)
+    doubled(root / "grid", machine)
     env_path = root / "grid" / "env.json"
     env = json.loads(env_path.read_text(encoding="utf-8"))
     env_path.write_text(json.dumps({**env, "machine_id": "1a" * 8}), encoding="utf-8")

@@ -12,9 +12,8 @@ import pytest
 from harness.measure import timing
 from harness.report.pipeline import render
 from harness.report.summary import strategy_cells
-from harness.store import csvfile, index
 
-from fixture_results import fixture_facts
+from fixture_results import write_measured
 
 BENCH = {"scene": "random", "n": 10000, "L": 20000.0, "r": 1.0, "steps": 50, "mode": "perf",
          "seed": 1}
@@ -47,9 +46,7 @@ def record(variant: str, times: tuple[float, ...], busy: tuple[float, ...],
 
 
 def write_experiment(root: Path, name: str, records: list[dict]) -> None:
-    rows = [csvfile.csv_row(r, name, name.title()) for r in records]
-    csvfile.write_results_csv(root / name / "results.csv", rows)
-    index.write_variants(root / name, fixture_facts().to_json())  # as a run stores them
+    write_measured(root, name, records)
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +117,7 @@ def test_each_machine_gets_its_own_study(tmp_path: Path) -> None:
     for label, (machine_id, scale) in boxes.items():
         for variant, (times, *rest) in STRATEGIES.items():
             rec = record(variant, tuple(t * scale for t in times), *rest)
-            rec.update(machine={"label": label}, machine_id=machine_id,
+            rec.update(machine=label, machine_id=machine_id,
                        cell_id=f"{variant}-{machine_id}")
             records.append(rec)
     root = tmp_path / "results"

@@ -91,6 +91,7 @@ def waits_and_refuses(real_binaries: Path, tmp_path: Path,
 WRITER = """
 import sys
 from pathlib import Path
+from harness.analysis import export
 from harness.store import atomic, index, records
 from harness.store.model import CellKey
 directory, machine, count = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
@@ -105,7 +106,7 @@ for k in range(count):
         "threads": 1, "status": "ok", "measured_at": "2026-01-01T00:00:00+00:00"})
     planned = [index.PlannedCell(CellKey.from_json(
         {**base, "input_sha256": str(j), "machine_id": machine})) for j in range(count)]
-    index.rebuild_csv(directory, planned, machine, "exp", "Exp")
+    export.rebuild(directory, planned, machine, "exp", "Exp")
 """
 
 

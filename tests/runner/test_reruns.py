@@ -14,6 +14,8 @@ from harness.analysis import compare
 from harness.cli import main
 from harness.store import records, sessions
 
+from tests.records import kept_spreads
+
 CONFIG = ("name: twice\nvariants: [seq, p1]\nscene: {n: 60, L: 600, r: 1, steps: 2}\n"
           "threads: [1, 2]\nmeasure: {warmup: 0, runs: 5, timeout_s: 30}\n")
 
@@ -40,7 +42,7 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     [kept] = (results / "calibration" / "machines").glob("*.json")
     data = records.read_json(kept)
     assert isinstance(data, dict) and "cpu_model" in data  # beside the machine's description
-    spread = stats.spread_at(sessions.spreads([results], kept.stem), math.nan)
+    spread = stats.spread_at(kept_spreads([results], kept.stem), math.nan)
     assert spread.absolute == data[sessions.SESSION_KEY]["absolute"]
     assert spread.source.startswith("learnt by reruns")
     # a comparison of stored sets of this machine allows for the same session spread
@@ -56,7 +58,7 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     # own noise, between the two
     sessions.keep_session(results, kept.stem, {}, {
         "absolute": spread.absolute + 0.5, "ratio": spread.ratio + 0.5, "noise": 1.0,
-        "date": "9999-12-31T00:00:00+00:00"})
+        "date": "9999-12-31T00:00:00+00:00"}, stats.supersedes)
     # measured again: each rerun's intervals are those of the spread just kept (out of sample)
     again = tmp_path / "again"
     assert main(["reruns", str(config), "--times", "2", "--pause", "0.1", "--no-keep",
@@ -66,7 +68,7 @@ def test_reruns_learn_the_session_spread_and_report_coverage(
     # every cell took its five rounds together, so each finished at the session's noise: the
     # median of every round's
     noise = stats.session_noise(s for c in cells for s in c["round_noise"])
-    expected = stats.spread_at(sessions.spreads([again / "rerun-1"], kept.stem), noise)
+    expected = stats.spread_at(kept_spreads([again / "rerun-1"], kept.stem), noise)
     assert spread.absolute <= expected.absolute < spread.absolute + 0.5
     for stored in cells:  # (the record keeps each round's noise to three decimals)
         assert stored["session_spread"] == pytest.approx(expected.absolute, abs=1e-3)

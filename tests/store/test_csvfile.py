@@ -1,19 +1,21 @@
-"""Cell ids, hyperfine and --timing parsing, records and results.csv."""
+"""Cell ids, hyperfine and --timing parsing, records and what a record's row derives from them."""
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from pathlib import Path
 
 import pytest
-from harness.analysis import phases
+from harness import stats
+from harness.analysis import export, phases, results
+from harness.analysis.upgrade import upgrade_experiment
 from harness.measure import hyperfine as mhyperfine
 from harness.measure import timing
-from harness.store import atomic, columns, csvfile, records
+from harness.store import atomic, columns, records
 from harness.store import hyperfine as hf
 from harness.store.model import CellKey
+
+from tests.records import write_experiment
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
 def test_sha256_file(tmp_path: Path) -> None:
@@ -68,27 +70,6 @@ def test_parse_timing_takes_the_json_line() -> None:
     assert timing.parse_timing("{not json\n") is None
 
 
-def test_csv_columns_contract() -> None:
-    text = csvfile.render_csv([])
-    header = next(csv.reader(io.StringIO(text)))
-    assert tuple(header[:len(columns.CSV_COLUMNS)]) == (
-        "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode",
-        "seed", "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s",
-        "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status",
-        "exit_code", "identical", "max_pos_err", "max_vel_err", "count_mismatches",
-        "oversubscribed", "unstable", "cores", "cell_id", "binary_sha256")
-
-
-def test_csv_rows_format_values() -> None:
-    record = {"variant": "seq", "n": 10, "L": 2000.0, "identical": None, "unstable": False,
-              "max_pos_err": float("inf"), "status": "ok"}
-    row = csvfile.csv_row(record, "exp", "A title, with a comma")
-    parsed = list(csv.DictReader(io.StringIO(csvfile.render_csv([row]))))
-    assert parsed[0]["experiment"] == "exp" and parsed[0]["title"] == "A title, with a comma"
-    assert parsed[0]["L"] == "2000.0" and parsed[0]["identical"] == ""
-    assert parsed[0]["unstable"] == "False" and parsed[0]["max_pos_err"] == "inf"
-
-
 def test_atomic_write_leaves_no_temporary_files(tmp_path: Path) -> None:
     target = tmp_path / "sub" / "x.json"
     atomic.atomic_write_json(target, {"a": 1})
@@ -124,40 +105,52 @@ def test_hyperfine_warnings_are_kept_and_flag_outliers() -> None:
     warnings = mhyperfine.hyperfine_warnings(OUTLIER_STDERR)
     assert len(warnings) == 1 and warnings[0].startswith("Warning: Statistical outliers")
     assert mhyperfine.hyperfine_warnings("") == []
-    assert csvfile.provenance({"hyperfine_warnings": warnings})["outliers"] is True
-    assert csvfile.provenance({"hyperfine_warnings": []})["outliers"] is False
-    assert csvfile.provenance({})["outliers"] is None  # an older record cannot tell
+    assert results.provenance({"hyperfine_warnings": warnings})["outliers"] is True
+    assert results.provenance({"hyperfine_warnings": []})["outliers"] is False
+    assert results.provenance({})["outliers"] is None  # an older record cannot tell
 
 
-def test_provenance_from_a_record_and_from_its_hyperfine_json() -> None:
-    low, high, q25 = csvfile.uncertainty([1.0, 1.2, 1.1])
+def test_provenance_from_a_record_and_from_its_hyperfine_json(tmp_path: Path) -> None:
+    low, high, q25 = stats.time_interval([1.0, 1.2, 1.1])
     measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
                 "wall_times_s": [1.0, 1.2, 1.1], "wall_median_ci_low_s": low,
                 "wall_median_ci_high_s": high, columns.LOW_QUANTILE_COLUMN: q25, "loaded": False,
                 "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
-    values = csvfile.provenance(measured)
+    values = results.provenance(measured)
     assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == [1.0, 1.2, 1.1]
     assert values["wall_median_ci_low_s"] <= 1.1 <= values["wall_median_ci_high_s"]
     assert values["git_commit"].endswith("-dirty") and values["loaded"] is False
-    older = csvfile.provenance({}, FIXTURES / "hyperfine_seq.json")
+    # a record from before wall_times_s, its runs in its hyperfine JSON: `store upgrade`
+    # writes them into it, with their interval and low quantile
     times = hf.load_hyperfine(FIXTURES / "hyperfine_seq.json").times
+    exp = write_experiment(tmp_path, "e", [{"variant": "seq", "status": "ok", "cell_id": "old",
+                                            "wall_median_s": sorted(times)[1]}],
+                           hyperfine={"old": times})
+    upgrade_experiment(exp)
+    [older] = results.load_experiment(exp).rows
     assert older["wall_times_s"] == list(times)
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
     # the low quantile, kept beside the median: between the fastest run and the median
     assert min(times) <= older[columns.LOW_QUANTILE_COLUMN] <= sorted(times)[len(times) // 2]
     assert measured[columns.LOW_QUANTILE_COLUMN] == pytest.approx(1.05)
-    assert tuple(csvfile.render_csv([older]).splitlines()[0].split(",")[
+    assert tuple(export.render_csv([older]).splitlines()[0].split(",")[
         -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
 
 
-def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs() -> None:
+def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs(tmp_path: Path) -> None:
     # two rounds give no interval over rounds; the runs' bootstrap would be far narrower than
-    # what a rerun shows, so the row keeps none (a record from before rounds still gets one)
-    two_rounds = {"wall_times_s": [0.1464, 0.1466, 0.1465], "wall_times_round": [1, 1, 2]}
-    values = csvfile.provenance(two_rounds)
-    assert values["wall_median_ci_low_s"] is None and values["wall_median_ci_high_s"] is None
-    assert values[columns.LOW_QUANTILE_COLUMN] is not None
-    before_rounds = csvfile.provenance({"wall_times_s": two_rounds["wall_times_s"]})
+    # what a rerun shows, so `store upgrade` gives its record none (a record from before
+    # rounds still gets one)
+    times = [0.1464, 0.1466, 0.1465]
+    exp = write_experiment(tmp_path, "e", [
+        {"variant": "p1", "status": "ok", "wall_median_s": 0.1465, "wall_times_s": times,
+         "wall_times_round": [1, 1, 2]},
+        {"variant": "seq", "status": "ok", "wall_median_s": 0.1465, "wall_times_s": times}])
+    upgrade_experiment(exp)
+    two_rounds, before_rounds = results.load_experiment(exp).rows
+    assert two_rounds["wall_median_ci_low_s"] is None
+    assert two_rounds["wall_median_ci_high_s"] is None
+    assert two_rounds[columns.LOW_QUANTILE_COLUMN] is not None
     assert before_rounds["wall_median_ci_low_s"] is not None
 
 
@@ -185,19 +178,6 @@ def test_thread_work_of_an_older_binary_is_empty() -> None:
 ])
 def test_imbalance(busy: list[float], expected: float | None) -> None:
     assert timing.imbalance(busy) == (None if expected is None else pytest.approx(expected))
-
-
-def test_thread_columns_are_in_results_csv() -> None:
-    record = {"variant": "p1", "schedule": "static,1", "imbalance": 1.25,
-              "threads_busy_s": [0.5, 0.3], "threads_pairs": [3, 1], "threads_chunks": [1, 1]}
-    text = csvfile.render_csv([csvfile.csv_row(record, "e", "t")])
-    row = next(csv.DictReader(io.StringIO(text)))
-    assert row["schedule"] == "static,1" and row["imbalance"] == "1.25"
-    assert row["threads_busy_s"] == "0.5 0.3" and row["threads_chunks"] == "1 1"
-    assert columns.parse_list(row["threads_pairs"], "threads_pairs") == (3, 1)
-    assert columns.parse_list("", "threads_busy_s") == ()
-    with pytest.raises(ValueError):
-        columns.parse_list("a b", "threads_busy_s")
 
 
 def test_outside_broad_ns() -> None:

@@ -1,4 +1,4 @@
-"""The result store: groups, superseded records, history, results.csv rows, prune."""
+"""The result store: groups, superseded records, history, the results.csv exported, prune."""
 
 from __future__ import annotations
 
@@ -9,10 +9,13 @@ import os
 from pathlib import Path
 
 import pytest
+from harness.analysis import export, results
+from harness.analysis.upgrade import upgrade_experiment
 from harness.cli import main as cli_main
 from harness.store import atomic, index, records
 from harness.store import history as store_history
 from harness.store.columns import match_values
+from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 
 KEY = {"variant": "p1", "build": "f64", "binary_sha256": "a" * 64, "input_sha256": "c" * 64,
@@ -88,7 +91,12 @@ def test_prune_moves_older_binaries_of_the_same_machine_only(tmp_path: Path) -> 
     assert left == {new, other_machine, other_cell}
     assert (tmp_path / "history" / f"{old}.hyperfine.json").is_file()
     assert not (tmp_path / "cells" / f"{old}.hyperfine.json").exists()
-    history = store_history.load_history(tmp_path)
+    # the moved records keep their exports: `store upgrade` writes their runs and interval
+    # into them from there
+    moved = ExperimentDir(tmp_path).history
+    upgrade_experiment(ExperimentDir(tmp_path))
+    history = [results.row(s.result.columns, "", "")
+               for s in sorted(store_history.load_records(moved), key=lambda s: s.age)]
     assert [r["cell_id"] for r in history] == [legacy, old]  # oldest first
     assert history[0]["wall_times_s"] == [1.0, 1.1, 1.2]
     assert history[0]["wall_median_ci_low_s"] <= 1.1 <= history[0]["wall_median_ci_high_s"]
@@ -148,7 +156,8 @@ def test_another_machines_row_is_its_newest_timing_whatever_the_measure_settings
 
 def test_rebuilt_csv_has_provenance_columns(tmp_path: Path) -> None:
     cid = put(tmp_path, "2026-01-01T00:00:00+00:00", times=[2.0, 1.0, 3.0])
-    index.rebuild_csv(tmp_path, [planned()], "m1", "exp", "Exp")
+    upgrade_experiment(ExperimentDir(tmp_path))  # its runs from its export, as `store upgrade`
+    export.rebuild(tmp_path, [planned()], "m1", "exp", "Exp")
     rows = list(csv.DictReader(io.StringIO((tmp_path / "results.csv").read_text())))
     assert len(rows) == 1 and rows[0]["cell_id"] == cid
     row = rows[0]

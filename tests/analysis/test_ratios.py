@@ -1,4 +1,5 @@
-"""ratios.csv: each cell's speedup over one thread and over seq, paired by round."""
+"""Each cell's ratios (its speedup over one thread and over seq) paired by round, and ratios.csv,
+their export."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ from pathlib import Path
 
 import pytest
 from harness import stats
-from harness.store import columns, ratios
+from harness.analysis import export, ratios, results
+from harness.store import columns
+
+from tests.records import write_experiment
 
 # The machine's speed in each of six rounds: 30% apart from round to round, shared by every
 # cell measured in that round.
@@ -28,16 +32,12 @@ def cell(variant: str, threads: int, seconds: float, seed: int = 7,
             "wall_times_s": times, "wall_times_round": [k for k in range(1, 7) for _ in "ab"]}
 
 
-def rows_of(path: Path) -> list[dict[str, str]]:
-    return list(csv.DictReader(io.StringIO(path.read_text())))
-
-
-def test_ratios_paired_by_round_cancel_the_drift_both_sides_share(tmp_path: Path) -> None:
+def test_ratios_paired_by_round_cancel_the_drift_both_sides_share() -> None:
     rows = [cell("seq", 1, 1.0), cell("p1", 1, 1.0), cell("p1", 2, 0.5)]
-    path = tmp_path / "ratios.csv"
-    ratios.write_ratios_csv(path, rows, "seq", lambda machine, noise: 0.0)
-    written = rows_of(path)
-    assert tuple(csv.reader(io.StringIO(path.read_text())).__next__()) == columns.RATIO_COLUMNS
+    text = export.csv_text(columns.RATIO_COLUMNS,
+                           ratios.ratio_rows(rows, "seq", lambda machine, noise: 0.0))
+    written = list(csv.DictReader(io.StringIO(text)))
+    assert tuple(next(csv.reader(io.StringIO(text)))) == columns.RATIO_COLUMNS
     found = {(r["variant"], r["threads"], r["kind"]): r for r in written}
     assert set(found) == {("p1", "1", "over_seq"), ("p1", "2", "over_one_thread"),
                           ("p1", "2", "over_seq")}
@@ -54,7 +54,7 @@ def test_ratios_paired_by_round_cancel_the_drift_both_sides_share(tmp_path: Path
     assert over_seq["reference_variant"] == "seq" and over_seq["reference_threads"] == "1"
 
 
-def test_the_session_spread_widens_the_ratios_interval(tmp_path: Path) -> None:
+def test_the_session_spread_widens_the_ratios_interval() -> None:
     rows = [cell("p1", 1, 1.0), cell("p1", 2, 0.5)]
     got = ratios.ratio_rows(rows, "seq", lambda machine, noise: 0.05)
     assert [r["kind"] for r in got] == ["over_one_thread"]
@@ -70,10 +70,10 @@ def test_cells_of_different_runs_are_not_paired(tmp_path: Path) -> None:
     assert got[0]["rounds"] == 0 and got[0]["ratio"] == 2.0 and got[0]["ratio_ci_low"] is None
     failed = {**cell("p1", 2, 0.5), "status": "failed"}
     assert ratios.ratio_rows([cell("p1", 1, 1.0), failed], "seq", lambda m, noise: 0.0) == []
-    path = tmp_path / "ratios.csv"
-    path.write_text("old")
-    ratios.write_ratios_csv(path, [cell("seq", 1, 1.0)], "seq", lambda m, noise: 0.0)
-    assert not path.exists()  # nothing to compare: no stale file left
+    exp = write_experiment(tmp_path, "e", [cell("seq", 1, 1.0)])
+    exp.ratios_csv.write_text("old")
+    export.write(exp, export.Derivation("e", "E", "seq"), results.listed(exp))
+    assert not exp.ratios_csv.exists()  # nothing to compare: no stale file left
 
 
 def test_each_ratio_asks_for_the_spread_at_the_noise_of_its_two_cells() -> None:
