@@ -52,7 +52,7 @@ import pandas as pd
 import yaml
 from harness import stats
 from harness.analysis import compare
-from harness.analysis.calibration import side
+from harness.comparison.calibration import side
 from harness.analysis.frame import read_results
 from harness.analysis.resultsets import Cell, Side, noise_profile
 from harness.plan.binaries import needed_binaries

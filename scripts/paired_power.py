@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 import scipy.stats as sps
 from harness import stats
-from harness.analysis.calibration import side
-from harness.analysis.compare import FDR_Q, paired_rounds
+from harness.comparison.calibration import side
+from harness.comparison.verdicts import FDR_Q, paired_rounds
 from harness.stats.paired import sign_p
 
 CLIP_MADS = 3.0

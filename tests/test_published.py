@@ -16,7 +16,7 @@ from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.columns import match_values
-from harness.store.history import UNKNOWN_MACHINE, load_records, superseded
+from harness.store.superseded import UNKNOWN_MACHINE, load_records, superseded
 from harness.store.layout import ExperimentDir
 
 PUBLISHED = repo.PUBLISHED_RESULTS_DIR

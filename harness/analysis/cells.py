@@ -1,5 +1,5 @@
 """Which columns name a cell, and the selections every table starts from: pure functions of
-one experiment's results frame (harness.analysis.frame reads it)."""
+one experiment's results frame (harness.analysis.results reads it)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from harness.spec.builds import BUILDS
 from harness.spec.facts import VariantFacts, current
 from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
-MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.frame)
+MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.results)
 # The columns that identify a measured cell, in the order tables show them. A results
 # directory may hold several machines' cells side by side: the machine is then a dimension
 # like any other (a table column, one plotted series each).

@@ -20,7 +20,6 @@ from pathlib import Path
 from harness.analysis import results
 from harness.store import atomic, locks
 from harness.store.columns import DIVERGENCE_COLUMNS, RATIO_COLUMNS
-from harness.store.history import load_records, prune_locked
 from harness.store.index import (
     Listed,
     PlannedCell,
@@ -30,6 +29,7 @@ from harness.store.index import (
     write_index,
 )
 from harness.store.layout import ExperimentDir
+from harness.store.superseded import load_records, prune_locked
 from harness.store.trust import DamagedFile
 
 

@@ -43,11 +43,11 @@ from harness.store.columns import (
     TIMED_STATUSES,
     format_list,
 )
-from harness.store.history import load_records, superseded
 from harness.store.index import Listed, index_rows, index_title, listed_records
 from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import QUICK_SUFFIX, ExperimentDir
 from harness.store.records import MACHINE_KEY, read_json
+from harness.store.superseded import load_records, superseded
 from harness.store.trust import DamagedFile
 
 if TYPE_CHECKING:  # pandas and scipy (harness.stats) only where rows are typed or computed:

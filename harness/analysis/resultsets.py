@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import statistics
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +20,7 @@ from harness.analysis.cells import key_text
 from harness.analysis.flags import _is_true, short_commit
 from harness.analysis.results import items
 from harness.errors import HarnessError
+from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.labels import machine_labels, read_machines
@@ -294,3 +295,48 @@ def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: 
             side.notes[key] = (f"{name}: {len(group)} rows for this cell, the latest used "
                                f"({group[-1].directory.name}/{group[-1].cell_id})")
     return side
+
+
+def spread_width(cell: Cell) -> float:
+    """How far the cell's counts spread (0 for one exact count)."""
+    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
+    return most - cell.instructions
+
+
+def time_value(cell: Cell) -> stats.Interval | None:
+    """The cell's time as the harness estimates it, with its interval."""
+    if not math.isfinite(cell.median):
+        return None
+    if not cell.times:
+        return stats.Interval(cell.median, math.nan, math.nan)
+    ci = stats.median_ci(cell.times)
+    return stats.Interval(cell.median, ci.low, ci.high)
+
+
+def instructions_value(cell: Cell) -> stats.Interval | None:
+    """The instructions the cell executed: the fewest and the most of its counted runs (the
+    same for a deterministic binary)."""
+    if not math.isfinite(cell.instructions):
+        return None
+    return stats.Interval(cell.instructions, cell.instructions,
+                          cell.instructions + spread_width(cell))
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """What a cell is measured by (compared by, a history tracked by): its name (`--metric`'s
+    value), unit, whether it is counted exactly (any change is real: no statistics needed),
+    and a cell's estimate of it with its interval."""
+
+    name: str
+    unit: str
+    exact: bool
+    value: Callable[[Cell], stats.Interval | None]
+
+    def fields(self) -> tuple[object, ...]:
+        return self.name, self.unit, self.exact, self.value
+
+
+TIME_QUANTITY = Quantity(METRIC_TIME, "s", False, time_value)
+INSTRUCTIONS_QUANTITY = Quantity(METRIC_INSTRUCTIONS, "", True, instructions_value)
+QUANTITIES: dict[str, Quantity] = {q.name: q for q in (TIME_QUANTITY, INSTRUCTIONS_QUANTITY)}

@@ -1,7 +1,8 @@
 """The command line: `collide-bench COMMAND ARGS...` (also `python -m harness COMMAND`, and the
 scripts harness/run.py and harness/compare.py for run and compare).
 
-Each command is a module here with `parser(prog)` and `execute(args) -> exit status`; main()
+Each command is a module (the core's here, a feature's in its package: COMMAND_MODULES) with
+`parser(prog)` and `execute(args) -> exit status`; main()
 parses, runs it, and prints any HarnessError, and any OS error a user can cause (a full disk, a
 read-only or forbidden place, a file where a directory should be: harness.errors.USER_ERRNOS),
 as one `error: ...` line with exit status 2 (real bugs keep their traceback). A measuring
@@ -18,18 +19,23 @@ import textwrap
 from collections.abc import Sequence
 from types import ModuleType
 
-from harness.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, PROG
 from harness.errors import HarnessError, is_user_os_error, os_error_text
+from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG
 
 USAGE_WIDTH = 100
-COMMANDS: tuple[str, ...] = ("run", "compare", "reruns", "history", "report", "store",
-                             "worker")
+# Each command's module: the core's here, a feature's in its own package.
+COMMAND_MODULES: dict[str, str] = {
+    "run": "harness.cli.run", "compare": "harness.comparison.command",
+    "reruns": "harness.reruns.command", "history": "harness.history.command",
+    "report": "harness.cli.report", "store": "harness.cli.store", "worker": "harness.cli.worker",
+}
+COMMANDS: tuple[str, ...] = tuple(COMMAND_MODULES)
 
 
 def command(name: str) -> ModuleType:
     """A command's module, imported when asked for: each pulls in what it needs (run needs
     neither pandas nor matplotlib)."""
-    return importlib.import_module(f"harness.cli.{name}")
+    return importlib.import_module(COMMAND_MODULES[name])
 
 
 def summary(doc: str | None) -> str:

@@ -6,9 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from harness.cli.common import Parser, check_derived, directory_option
 from harness.errors import HarnessError, os_error_text
 from harness.repo import DEFAULT_RESULTS_DIR, default_report_dir
+from harness.runner.command import Parser, check_derived, directory_option
 from harness.store.layout import QUICK_SUFFIX
 
 

@@ -7,7 +7,12 @@ import os
 import sys
 from pathlib import Path
 
-from harness.cli.common import (
+from harness.errors import HarnessError
+from harness.executors import EXECUTORS
+from harness.executors.base import Options
+from harness.plan.cellstore import now_iso
+from harness.repo import REPO_ROOT
+from harness.runner.command import (
     QUICK_REPORT,
     Parser,
     add_flags,
@@ -15,14 +20,10 @@ from harness.cli.common import (
     directory_option,
     load_configs,
     measuring_lock,
+    report_dir,
     seconds,
     whole_number,
 )
-from harness.errors import HarnessError
-from harness.executors import EXECUTORS
-from harness.executors.base import Options
-from harness.plan.cellstore import now_iso
-from harness.repo import REPO_ROOT, default_report_dir
 from harness.runner.experiment import run_experiment
 from harness.spec.config import DEFAULT_MAX_CELLS
 
@@ -101,14 +102,6 @@ def execute(args: argparse.Namespace) -> int:
     except BrokenPipeError:  # e.g. `--dry-run | head`
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
     return 0
-
-
-def report_dir(args: argparse.Namespace) -> Path:
-    """The report of the repository's results root (a user's, or the published one) is the
-    repository's beside it; another results root gets its own, inside it."""
-    if args.report_dir is not None:
-        return directory_option(args.report_dir, "--report-dir")
-    return default_report_dir(args.results_dir)
 
 
 def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:

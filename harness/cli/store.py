@@ -9,12 +9,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from harness.cli.common import Parser
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
+from harness.runner.command import Parser
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
-from harness.store.history import prune
+from harness.store.superseded import prune
 from harness.store.trust import DamagedFile
 
 

@@ -16,13 +16,13 @@ import sys
 from pathlib import Path
 from typing import cast
 
-from harness.cli.common import FLAGS, Parser
 from harness.errors import HarnessError
 from harness.executors.base import Experiment, Options, Progress
 from harness.executors.rounds import LocalExecutor
 from harness.measure import environment
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT
+from harness.runner.command import FLAGS, Parser
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import index

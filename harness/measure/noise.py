@@ -4,7 +4,7 @@ process may use; from getrusage of the reaped children (hyperfine and the runs i
 their own CPU time and involuntary context switches; from the kernel's pressure stall
 information (/proc/pressure/cpu), how long some task waited for a CPU; the load average. A
 round whose cores were taken by others (or stolen) beyond NOISE_LIMIT of their time is
-flagged, and a paired comparison leaves it out on both sides (harness.analysis.compare).
+flagged, and a paired comparison leaves it out on both sides (harness.comparison.verdicts).
 
 Migrations of the timed process are not counted: the kernel gives them only while the process
 lives (/proc/<pid>/sched), and the runs are hyperfine's children."""

@@ -20,16 +20,16 @@ from pathlib import Path
 
 from harness.store import atomic, records
 from harness.store.columns import UNPLANNED, match_values
-from harness.store.history import (
+from harness.store.layout import ExperimentDir
+from harness.store.model import CellKey
+from harness.store.result import CellResult
+from harness.store.superseded import (
     UNKNOWN_MACHINE,
     Stored,
     by_group,
     current_by_machine,
     superseded,
 )
-from harness.store.layout import ExperimentDir
-from harness.store.model import CellKey
-from harness.store.result import CellResult
 from harness.store.trust import DamagedFile
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness.analysis import calibration
+from harness.comparison import calibration
 
 from tests.records import write_experiment
 

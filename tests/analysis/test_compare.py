@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo, stats
-from harness.analysis import compare, results, resultsets
+from harness.analysis import results, resultsets
+from harness.comparison import verdicts as compare
 from harness.analysis.upgrade import upgrade_experiment
-from harness.cli.common import EXIT_ERROR
-from harness.report.figures import compare as figcompare
+from harness.runner.command import EXIT_ERROR
+from harness.comparison import figure as figcompare
 from harness.store import atomic, sessions
 from harness.store.layout import ExperimentDir
 
@@ -531,7 +532,7 @@ def test_different_inputs_are_noted(tmp_path: Path) -> None:
 
 
 def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:
-    from harness.report.figures import compare as figure
+    from harness.comparison import figure
 
     times, rounds = (1.0, 1.1, 0.9, 1.0), (1, 2, 3, 4)
     paired = compare.compare_cells(synthetic(times, rounds=rounds, seed="9"),

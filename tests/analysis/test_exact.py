@@ -1,4 +1,4 @@
-"""The instruction lane's verdicts (harness.analysis.compare's INSTRUCTIONS metric): one exact
+"""The instruction lane's verdicts (harness.comparison.verdicts's INSTRUCTIONS metric): one exact
 count a side is more or fewer by any difference, at NEW/OLD to six decimals; counts that vary
 between runs call a change only beyond their spread; counts of different counters, missing
 counts and one-sided cells are listed, not judged; the exit status; the report's page; the cell
@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from harness.analysis import compare
+from harness.comparison import verdicts as compare
 from harness.analysis.resultsets import Cell, MatchKey, Side
 from harness.analysis.speedup import cell_table
-from harness.report.compare import ratio_text, render_markdown
+from harness.comparison.page import ratio_text, render_markdown
 
 KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "")
 

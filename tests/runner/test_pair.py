@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 from harness import stats
-from harness.analysis import compare, resultsets
+from harness.analysis import resultsets
+from harness.comparison import verdicts as compare
 from harness.errors import HarnessError
 from harness.measure import noise
 from harness.plan import lane

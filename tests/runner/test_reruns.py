@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from harness import stats
-from harness.analysis import compare
+from harness.comparison import verdicts as compare
 from harness.cli import main
 from harness.store import records, sessions
 

@@ -13,7 +13,7 @@ from harness.analysis import export, results
 from harness.analysis.upgrade import upgrade_experiment
 from harness.cli import main as cli_main
 from harness.store import atomic, index, records
-from harness.store import history as store_history
+from harness.store import superseded as store_history
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey

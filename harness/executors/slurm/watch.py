@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.errors import HarnessError
-from harness.store import atomic, history, layout, records
+from harness.store import atomic, layout, records, superseded
 from harness.store.result import CellResult
 
 JOBS_FILE = "jobs.json"
@@ -60,7 +60,7 @@ class RecordWatch:
         """portable id -> every record in cells/ now (for cells finished while no submitter
         watched)."""
         found: dict[str, list[CellResult]] = {}
-        for stored in history.load_records(self.cells_dir):
+        for stored in superseded.load_records(self.cells_dir):
             if not stored.result.retry:
                 found.setdefault(stored.key.portable_id, []).append(stored.result)
         return found

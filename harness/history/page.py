@@ -12,7 +12,7 @@ from pathlib import Path
 
 from matplotlib.ticker import EngFormatter
 
-from harness.analysis.history import Series, step_text
+from harness.history.series import Series, step_text
 from harness.report.figures.base import new_figure, save_figure
 from harness.store import atomic
 from harness.store.columns import MEASURED_BISECT, MEASURED_SERIES, OK

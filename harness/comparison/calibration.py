@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness import stats
-from harness.analysis.compare import (
+from harness.analysis.resultsets import Side, experiment_dirs, load_side, noise_profile
+from harness.comparison.verdicts import (
     FASTER,
     FDR_Q,
     MEASURED_TOGETHER,
@@ -23,7 +24,6 @@ from harness.analysis.compare import (
     compare,
     paired_rounds,
 )
-from harness.analysis.resultsets import Side, experiment_dirs, load_side, noise_profile
 from harness.store.columns import OK
 
 POWER = 0.9  # the smallest detectable slow-down is found with this probability

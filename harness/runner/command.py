@@ -1,6 +1,7 @@
-"""What every command shares: its argument parser's way with errors and the checks of its
-numeric arguments, the flags of the measuring commands (each defined once, here), the program's
-name, how the measuring commands read their configs and take the measuring lock."""
+"""What every command shares (the core's in harness.cli, a feature's in its package): its
+argument parser's way with errors and the checks of its numeric arguments, the flags of the
+measuring commands (each defined once, here), the program's name, how the measuring commands
+read their configs, take the measuring lock and find their report's directory."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from typing import Any, NoReturn, TextIO, TypeVar
 
 from harness.analysis import export
 from harness.errors import HarnessError
-from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT, default_report_dir
 from harness.spec.config import (
     DEFAULT_MAX_CELLS,
     METRIC_INSTRUCTIONS,
@@ -133,3 +134,11 @@ def check_derived(path: Path, log: TextIO) -> None:
         done = export.repair(exp)
         if done is not None:
             log.write(f"warning: {done}\n")
+
+
+def report_dir(args: argparse.Namespace) -> Path:
+    """The report of the repository's results root (a user's, or the published one) is the
+    repository's beside it; another results root gets its own, inside it."""
+    if args.report_dir is not None:
+        return directory_option(args.report_dir, "--report-dir")
+    return default_report_dir(args.results_dir)

@@ -1,6 +1,6 @@
 """A config's history across commits, read from what `history` stored: each cell's value at
 every commit of the range (oldest first), the commits without one and why, and the change
-points of each cell's series (harness.analysis.changepoints); history.csv's rows.
+points of each cell's series (harness.history.changepoints); history.csv's rows.
 
 A commit's measurements are an ordinary results root (<experiment>/history/<commit>/), so a
 cell's value there is what the rest of the harness reads from results.csv; a cell is matched
@@ -14,14 +14,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 from harness.analysis import export
-from harness.analysis.changepoints import (
+from harness.analysis.resultsets import Cell, MatchKey, Quantity, read_cells
+from harness.history.changepoints import (
     DEFAULT_MAX_P,
     ChangePoint,
     change_points,
     exact_change_points,
 )
-from harness.analysis.compare import Metric
-from harness.analysis.resultsets import Cell, MatchKey, read_cells
 from harness.stats import Interval
 from harness.store import atomic
 from harness.store.columns import (
@@ -59,7 +58,7 @@ class Series:
     """One cell's values across the commits, and its change points (by position)."""
 
     label: str
-    metric: Metric
+    metric: Quantity
     points: list[Point]
     changes: dict[int, ChangePoint] = field(default_factory=dict)
     bisections: list[Bisection] = field(default_factory=list)
@@ -79,7 +78,7 @@ def commit_cells(exp: ExperimentDir, commit: str, machine_id: str | None
     return {c.key: c for c in cells if machine_id is None or c.machine_id == machine_id}
 
 
-def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Metric,
+def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Quantity,
                 machine_id: str | None) -> list[Series]:
     """Every cell measured at some commit, its value at each commit."""
     by_commit = [commit_cells(exp, c.sha, machine_id) for c in commits]
@@ -98,7 +97,7 @@ def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Metri
     return out
 
 
-def cell_point(commit: CommitInfo, cell: Cell, metric: Metric,
+def cell_point(commit: CommitInfo, cell: Cell, metric: Quantity,
                measured: str = MEASURED_SERIES) -> Point:
     """A commit's point of a measured cell: its value, or its status where it has none."""
     value = metric.value(cell) if cell.status == OK else None

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from harness.analysis.changepoints import DEFAULT_MAX_P, ChangePoint
-from harness.analysis.compare import INSTRUCTIONS, TIME
-from harness.analysis.history import (
-    Bisection,
+from harness.analysis.resultsets import INSTRUCTIONS_QUANTITY, TIME_QUANTITY
+from harness.errors import HarnessError
+from harness.executors.base import machine_id
+from harness.history.bisect import bisect_all
+from harness.history.changepoints import DEFAULT_MAX_P
+from harness.history.commits import commits_in, every_kth, measure_history
+from harness.history.page import page
+from harness.history.series import (
     Series,
-    cell_point,
     detect,
     history_rows,
     named_commits,
@@ -22,29 +24,18 @@ from harness.analysis.history import (
     with_bisections,
     write_history_csv,
 )
-from harness.analysis.resultsets import Cell, read_cells
-from harness.cli.common import (
+from harness.repo import REPO_ROOT
+from harness.runner.command import (
     Parser,
     add_flags,
     load_configs,
     measuring_lock,
     probability,
+    report_dir,
     whole_number,
 )
-from harness.cli.run import report_dir
-from harness.errors import HarnessError
-from harness.executors.base import machine_id
-from harness.repo import REPO_ROOT
-from harness.report.history import page
-from harness.runner.history import commits_in, every_kth, measure_history
-from harness.runner.pair import MeasuredSides, measure_sides
-from harness.runner.sides import resolve
 from harness.spec.config import Config
-from harness.spec.variants import VariantRegistry
-from harness.store.columns import MEASURED_BISECT
-from harness.store.commits import CommitInfo
 from harness.store.layout import ExperimentDir, ResultsRoot
-from harness.store.locks import RunLock
 
 CONFIG_SUFFIXES = (".yaml", ".yml")
 INTERRUPTED = "measured commits are saved; run again to resume"
@@ -99,7 +90,8 @@ def execute(args: argparse.Namespace) -> int:
         here = machine_id()
         for config in configs:
             exp = ResultsRoot(results_root).experiment(config.name)
-            metrics = (TIME, INSTRUCTIONS) if config.counts_instructions else (TIME,)
+            metrics = ((TIME_QUANTITY, INSTRUCTIONS_QUANTITY) if config.counts_instructions
+                       else (TIME_QUANTITY,))
             series = [detect(s, args.max_p) for metric in metrics
                       for s in read_series(exp, commits, metric, here)]
             if not series:
@@ -138,72 +130,3 @@ def summarise(config: Config, exp: ExperimentDir, series: Sequence[Series],
     cells = len({s.label for s in written})
     sys.stdout.write(f"{config.name}: {cells} cells over {commits} commits, {found} change "
                      f"point(s); {exp.history_csv}; {path}\n")
-
-
-def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
-               order: Mapping[str, int], results_root: Path, repo: Path, lock: RunLock,
-               hyperfine: str, registry: VariantRegistry) -> None:
-    """Name the commit of each change point that falls between measured commits with
-    unmeasured ones between them (each series' bisections)."""
-    pairs: dict[tuple[int, int], MeasuredSides] = {}  # what a metric's bisection measured
-    for s in series:
-        measured = [k for k, p in enumerate(s.points) if p.value is not None]
-        for k, change in sorted(s.changes.items()):
-            before = max(m for m in measured if m < k)
-            low, high = order[s.points[before].commit.sha], order[s.points[k].commit.sha]
-            if high - low <= 1:
-                continue
-            found = bisect(config, s, k, change, full, low, high, results_root, repo, lock,
-                           hyperfine, pairs, registry)
-            s.bisections.append(found)
-            sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
-                             f"{found.named.short} {found.named.subject!r}\n")
-
-
-def bisect(config: Config, s: Series, k: int, change: ChangePoint,
-           full: Sequence[CommitInfo], low: int, high: int, results_root: Path, repo: Path,
-           lock: RunLock, hyperfine: str, pairs: dict[tuple[int, int], MeasuredSides],
-           registry: VariantRegistry) -> Bisection:
-    """Halve [low, high] (low before the step, high after it) by measuring the middle commit
-    against `low`'s, together in interleaved rounds: a ratio nearer the step than 1 puts the
-    step at or before the middle. `pairs`: the commits measured together so far (another
-    metric's bisection of the same cells reuses them); `registry`: this repository's variants,
-    as the configs were loaded with."""
-    label = s.label
-    points = []
-    while high - low > 1:
-        middle = (low + high) // 2
-        sides = pairs.get((low, middle))
-        if sides is None:
-            old = resolve("OLD", full[low].sha, results_root, repo)
-            new = resolve("NEW", full[middle].sha, results_root, repo)
-            sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
-                             f"measuring {full[middle].short} against {full[low].short}\n")
-            out = ResultsRoot(results_root).experiment(config.name).bisect(
-                full[low].short, full[middle].short)
-            # Which side of a step already found is all a look needs: the first look's rounds
-            # place it, so no rounds are added to decide the cells' verdicts (budget 0).
-            sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr,
-                                  hyperfine, budget_s=0.0)
-            pairs[(low, middle)] = sides
-        before = side_cell(sides.old / config.name, label)
-        after = side_cell(sides.new / config.name, label)
-        point = cell_point(full[middle], after, s.metric, MEASURED_BISECT)
-        points.append(point)
-        was = cell_point(full[low], before, s.metric).value
-        if point.value is None or was is None:
-            raise HarnessError(f"bisect: {label} has no {s.metric.name} at both "
-                               f"{full[low].short} and {full[middle].short}")
-        ratio = point.value.point / was.point
-        if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
-            high = middle
-        else:
-            low = middle
-    return Bisection(k, tuple(points), full[high])
-
-
-def side_cell(side: Path, label: str) -> Cell:
-    cells = {c.key.label(): c for c in read_cells(side, False)}
-    if label not in cells:
-        raise HarnessError(f"bisect: {side} has no cell {label}")
-    return cells[label]

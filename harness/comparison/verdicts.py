@@ -1,5 +1,5 @@
 """Compare two result sets cell by cell (NEW against OLD) by a metric: the verdicts of
-`collide-bench compare` (harness.cli.compare). How to read them: docs/compare.md; methods()
+`collide-bench compare` (harness.comparison.command). How to read them: docs/compare.md; methods()
 says in the output's words how each was reached.
 
 OLD and NEW are result directories: one experiment's `results/<name>` or a whole results root.
@@ -23,17 +23,21 @@ from pathlib import Path
 
 from harness import stats
 from harness.analysis.resultsets import (
+    INSTRUCTIONS_QUANTITY,
     NEW_ONLY,
     NOT_OK,
     OLD_ONLY,
+    TIME_QUANTITY,
     Cell,
     MatchKey,
+    Quantity,
     Side,
     matched,
     noise_profile,
     not_comparable,
+    spread_width,
 )
-from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
+from harness.spec.config import METRIC_INSTRUCTIONS
 from harness.store import layout, records, sessions
 from harness.store.columns import STOPPED_UNDECIDED
 
@@ -227,16 +231,10 @@ def decide_times(rows: list[Row]) -> list[Row]:
     return rows
 
 
-def _width(cell: Cell) -> float:
-    """How far the cell's counts spread (0 for one exact count)."""
-    most = cell.instructions_max if math.isfinite(cell.instructions_max) else cell.instructions
-    return most - cell.instructions
-
-
 def _count_verdict(old: Cell, new: Cell, notes: list[str]) -> str:
     """MORE, FEWER, SAME or WITHIN for two counted cells of one counter."""
     difference = new.instructions - old.instructions
-    old_width, new_width = _width(old), _width(new)
+    old_width, new_width = spread_width(old), spread_width(new)
     if old_width == 0 and new_width == 0:
         return MORE if difference > 0 else FEWER if difference < 0 else SAME
     slack = max(old_width, new_width, VARYING_SHARE * old.instructions)
@@ -271,32 +269,10 @@ def judge_counts(old: Cell, new: Cell, threshold: float = 0.0,
                difference=new.instructions - old.instructions)
 
 
-def time_value(cell: Cell) -> stats.Interval | None:
-    """The cell's time as the harness estimates it (results.csv), with its interval."""
-    if not math.isfinite(cell.median):
-        return None
-    if not cell.times:
-        return stats.Interval(cell.median, math.nan, math.nan)
-    ci = stats.median_ci(cell.times)
-    return stats.Interval(cell.median, ci.low, ci.high)
-
-
-def instructions_value(cell: Cell) -> stats.Interval | None:
-    """The instructions the cell executed: the fewest and the most of its counted runs (the
-    same for a deterministic binary)."""
-    if not math.isfinite(cell.instructions):
-        return None
-    return stats.Interval(cell.instructions, cell.instructions, cell.instructions + _width(cell))
-
-
 @dataclass(frozen=True)
-class Metric:
-    """What cells are compared (and a history tracked) by."""
+class Metric(Quantity):
+    """What cells are compared by: the quantity, and how a pair of cells is judged by it."""
 
-    name: str  # --metric's value, history.csv's `metric`
-    unit: str
-    exact: bool  # counted, not sampled: any change is real, no statistics needed
-    value: Callable[[Cell], stats.Interval | None]  # a cell's estimate with its interval
     judge: Callable[[Cell, Cell, float, Drift, str], Row]  # one matched pair of ok cells
     decide: Callable[[list[Row]], list[Row]]  # the verdicts, across the judged cells
     verdicts: tuple[tuple[str, str], ...]  # (verdict, as the summary counts it)
@@ -308,11 +284,11 @@ class Metric:
 
 _NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
                  (NEW_ONLY, "new only"))
-TIME = Metric(METRIC_TIME, "s", False, time_value, compare_cells, decide_times,
+TIME = Metric(*TIME_QUANTITY.fields(), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
 INSTRUCTIONS = Metric(
-    METRIC_INSTRUCTIONS, "", True, instructions_value, judge_counts, list,
+    *INSTRUCTIONS_QUANTITY.fields(), judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
      (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")

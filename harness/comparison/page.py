@@ -8,7 +8,9 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from harness.analysis.compare import (
+from harness.analysis.resultsets import FLAG_COLUMNS, Cell, Side, noise_profile
+from harness.comparison.figure import write_figure
+from harness.comparison.verdicts import (
     INCONCLUSIVE,
     INSTRUCTIONS,
     METRICS,
@@ -23,9 +25,7 @@ from harness.analysis.compare import (
     methods,
     summary,
 )
-from harness.analysis.resultsets import FLAG_COLUMNS, Cell, Side, noise_profile
 from harness.report.document import Table
-from harness.report.figures.compare import write_figure
 from harness.report.markdown import markdown_table
 from harness.store import atomic
 

@@ -11,8 +11,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from harness import stats
-from harness.analysis import calibration
-from harness.analysis.compare import (
+from harness.analysis.resultsets import Side, experiment_dirs, load_side
+from harness.comparison import calibration
+from harness.comparison.page import write_outputs
+from harness.comparison.verdicts import (
     CALIBRATION_KEY,
     DEFAULT_THRESHOLD,
     FAIL_ON,
@@ -27,8 +29,11 @@ from harness.analysis.compare import (
     exit_status,
     find_drift,
 )
-from harness.analysis.resultsets import Side, experiment_dirs, load_side
-from harness.cli.common import (
+from harness.errors import HarnessError
+from harness.executors.base import machine_id
+from harness.measure import environment
+from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
+from harness.runner.command import (
     Parser,
     add_flags,
     check_derived,
@@ -37,11 +42,6 @@ from harness.cli.common import (
     measuring_lock,
     seconds,
 )
-from harness.errors import HarnessError
-from harness.executors.base import machine_id
-from harness.measure import environment
-from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
-from harness.report.compare import write_outputs
 from harness.runner.pair import BLOCKS, DEFAULT_BUDGET_S, calibrate, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME

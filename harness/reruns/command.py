@@ -7,8 +7,12 @@ import sys
 from pathlib import Path
 
 from harness import stats
-from harness.analysis import reruns as analysis
-from harness.cli.common import (
+from harness.errors import HarnessError
+from harness.executors.base import machine_id
+from harness.measure import environment
+from harness.repo import REPO_ROOT
+from harness.reruns import coverage as analysis
+from harness.runner.command import (
     Parser,
     add_flags,
     load_configs,
@@ -16,10 +20,6 @@ from harness.cli.common import (
     seconds,
     whole_number,
 )
-from harness.errors import HarnessError
-from harness.executors.base import machine_id
-from harness.measure import environment
-from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_apart
 from harness.store import layout, sessions
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from harness.analysis.compare import (
+from harness.comparison.verdicts import (
     APART,
     FASTER,
     INCONCLUSIVE,
