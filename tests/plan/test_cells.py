@@ -71,21 +71,22 @@ def test_needed_binaries_add_seq_for_validation_and_the_checks_references(write_
         "variants: [p1]\nbuilds: [f32]\nscene: {n: 10, L: 100, r: 1, steps: 1}\n"
         "validate: {baseline: same}\nchecks: [invariants]\n"))
     names = [p.name for p in needed_binaries(plan_cells(config), REPO_ROOT / "build")]
-    assert names == ["p1-f32", "seq-f32", "grid-f128", "seq"]
+    assert names == ["p1-f32", "seq-f32", "grid-f128", "seq", "peakrss"]
 
 
 def test_openmp_costs_need_this_checkouts_ompcost_for_parallel_cells(write_config,
                                                                      tmp_path) -> None:
-    """build/ompcost prices the machine's runtime: it comes from this checkout, also where an
-    older revision's variants are measured (it may have no such tool), and only parallel
-    variants' cells run it."""
+    """build/ompcost prices the machine's runtime, build/peakrss measures every cell's memory:
+    both come from this checkout, also where an older revision's variants are measured (it
+    may have no such tool), and only parallel variants' cells run ompcost."""
     config = load_config(write_config(
         "variants: [seq, p2]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nopenmp_costs: true\n"))
     revision = tmp_path / "revision" / "build"
     needed = needed_binaries(plan_cells(config), revision)
-    assert needed == [revision / "seq", revision / "p2", REPO_ROOT / "build" / "ompcost"]
-    assert checkout_tools(needed) == [REPO_ROOT / "build" / "ompcost"]
+    tools = [REPO_ROOT / "build" / "ompcost", REPO_ROOT / "build" / "peakrss"]
+    assert needed == [revision / "seq", revision / "p2", *tools]
+    assert checkout_tools(needed) == tools
     serial = load_config(write_config(
         "variants: [seq]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nopenmp_costs: true\n",
         "serial"))
-    assert checkout_tools(needed_binaries(plan_cells(serial), revision)) == []
+    assert checkout_tools(needed_binaries(plan_cells(serial), revision)) == tools[1:]
