@@ -72,6 +72,23 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
     assert (report / "report.md").is_file()
 
 
+
+def test_a_bigger_scene_takes_more_memory(build_binaries, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """Each cell's peak resident memory (its --precise run's, under build/peakrss) is a column
+    of results.csv, in MiB: 200 discs take a small program's few MiB, 200000 many times that."""
+    build_binaries("grid", "peakrss")
+    config = tmp_path / "memory.yaml"
+    config.write_text("name: memory\nvariants: [grid]\nscene: {n: [200, 200000], "
+                      "L: [2828.4, 89442.7], r: 1, steps: 1, mode: perf, seed: 1}\n"
+                      "combine: zip\nthreads: 1\nmeasure: {warmup: 0, runs: 1}\n")
+    root = tmp_path / "results"
+    assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0, \
+        capsys.readouterr().err
+    rows = read_csv(root / "memory" / "results.csv")
+    peak = {int(r["n"]): float(r["peak_rss_mib"]) for r in rows}
+    assert 1 < peak[200] < 8 and peak[200000] > 8 * peak[200], peak
+
 def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path) -> None:
     fakes = tmp_path / "fakes"
     fakes.mkdir()

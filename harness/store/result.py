@@ -25,6 +25,7 @@ from harness.store.measured import (
     Checks,
     Counts,
     Instructions,
+    Memory,
     Noise,
     OmpCosts,
     Phases,
@@ -69,6 +70,7 @@ class CellResult:
     phases: Phases | None = None
     counts: Counts | None = None
     thread_work: ThreadWork | None = None
+    memory: Memory | None = None
     validation: Validation | None = None
     checks: Checks | None = None
     program_check: ProgramVerdict | None = None

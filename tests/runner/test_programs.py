@@ -131,3 +131,26 @@ measure: {{warmup: 0, runs: 1, timeout_s: 60}}
     assert ("the reference in that step: collided with particle 0 at t = 0.5, then stopped at "
             "x = L - r") in slippy["note"]
     assert "rule: a disc meeting a wall after its collision stops there" in slippy["note"]
+
+
+def test_a_program_s_peak_memory_counts_what_its_command_runs(real_binaries: Path,
+                                                             workdir: Path) -> None:
+    """A program runs as a shell command: its peak memory is that of the largest process the
+    shell waited for, here a child that holds 64 MiB before the student's simulation runs."""
+    hog = f"{PY} -c 'import os; data = os.urandom(64 << 20)'"
+    config = workdir / "memory.yaml"
+    config.write_text(f"""\
+name: memory
+variants: [student, hungry]
+programs:
+  student: "{PY} student.py {{threads}} < {{input}}"
+  hungry:
+    command: "{hog}; {PY} student.py {{threads}} < {{input}}"
+    check: "{PY} student.py {{threads}} < {{input}}"
+scene: {{n: 40, L: 120, r: 1, steps: 2, seed: 9}}
+measure: {{warmup: 0, runs: 1, timeout_s: 60}}
+""")
+    root = workdir / "results"
+    run(config, root)
+    peak = {r["variant"]: float(r["peak_rss_mib"]) for r in rows_of(root, "memory")}
+    assert 1 < peak["student"] < 64 < peak["hungry"] < 4 * 64, peak
