@@ -23,7 +23,7 @@ from harness.analysis.cells import (
 from harness.analysis.flags import validation_text
 from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.facts import BASELINE
-from harness.store.columns import OK, TIMED_STATUSES
+from harness.store.columns import MEMORY_COLUMNS, OK, TIMED_STATUSES
 
 BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
@@ -155,6 +155,9 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool =
         # validation column, far right, says it too)
         table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED, over)
     table = table.join(rows[list(TIMING)].rename(columns=TIMING))
+    for column in MEMORY_COLUMNS:  # where measured: the peak resident memory, MiB
+        if column in rows.columns and rows[column].notna().any():
+            table[column] = rows[column]
     metrics = ("speedup", "efficiency", *(("serial_fraction",) if "threads" in keys else ()))
     table = table.join(rows[[f"{m}{suffix}" for m in metrics
                              for suffix in ("", *INTERVAL_SUFFIXES)]])
