@@ -1,6 +1,7 @@
 """Move superseded cell records from cells/ to history/ (`store prune PATH...`); store the
 variants' facts of this repository's build with results measured before runs stored them
-(`store facts PATH...`)."""
+(`store facts PATH...`); give records their cell's current key once, where a variant was
+measured along an axis it ignores (`store migrate PATH...`: harness.plan.migrate)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,13 @@ from pathlib import Path
 
 from harness.cli.common import Parser
 from harness.errors import HarnessError
+from harness.plan.migrate import migrate
 from harness.repo import REPO_ROOT
+from harness.spec.facts import read_variants
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
 from harness.store.history import prune
+from harness.store.layout import ExperimentDir
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -28,6 +32,11 @@ def parser(prog: str) -> argparse.ArgumentParser:
         "repository's build, made where stale) into experiment directories or results roots "
         "that were measured with this build")
     facts_parser.add_argument("paths", nargs="+", type=Path)
+    migrate_parser = sub.add_parser(
+        "migrate", help="give records measured along an axis their variant ignores (a serial "
+        "variant at threads > 1) their cell's key, once: the newest where the cell has no "
+        "record at the axis's one value, the others to history/")
+    migrate_parser.add_argument("paths", nargs="+", type=Path)
     return parser
 
 
@@ -53,8 +62,23 @@ def execute(args: argparse.Namespace) -> int:
             index.write_variants(directory, facts)
             sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
         return 0
+    if args.action == "migrate":
+        for directory in directories:
+            sys.stdout.write(migrated(directory) + "\n")
+        return 0
     for directory in directories:
         done = prune(directory)
         sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "
                          f"{layout.HISTORY}/, {done.remaining} remain in {layout.CELLS}/\n")
     return 0
+
+
+def migrated(directory: Path) -> str:
+    """What `store migrate` did to one experiment directory, in one line."""
+    facts = read_variants(ExperimentDir(directory).variants_json)
+    if not facts.members:
+        return (f"{directory}: no {layout.VARIANTS_JSON}, so no variant is known to ignore an "
+                f"axis: nothing migrated (`store facts {directory}` writes them)")
+    done = migrate(directory, facts)
+    return (f"{directory}: {done.rekeyed} record(s) given their cell's key, {done.moved} "
+            f"superseded by an equivalent record moved to {layout.HISTORY}/")
