@@ -21,6 +21,7 @@ from harness.analysis.cells import (
     variant_fact,
 )
 from harness.analysis.flags import validation_text
+from harness.analysis.serving import ONE_THREAD_RUN
 from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.facts import BASELINE
 from harness.store.columns import MEMORY_COLUMNS, OK, TIMED_STATUSES
@@ -154,6 +155,10 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool =
         # beside the thread count, where a sweep past the cores shows it at a glance (the
         # validation column, far right, says it too)
         table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED, over)
+    one = flag(rows, ONE_THREAD_RUN)
+    if (rows.loc[one, "threads"] != 1).any():  # a serial cell shown where it serves
+        at = table.columns.get_loc("threads") + 1 if "threads" in keys else len(keys)
+        table.insert(at, ONE_THREAD_RUN, one)
     table = table.join(rows[list(TIMING)].rename(columns=TIMING))
     for column in MEMORY_COLUMNS:  # where measured: the peak resident memory, MiB
         if column in rows.columns and rows[column].notna().any():

@@ -12,8 +12,10 @@ import pandas as pd
 from harness.analysis.cells import MACHINE
 from harness.analysis.frame import read_divergence, read_results
 from harness.analysis.paired import read_ratios
+from harness.analysis.serving import serving
 from harness.errors import HarnessError
 from harness.report.machines import UNKNOWN_ID
+from harness.spec.facts import read_variants, reading
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
@@ -51,7 +53,8 @@ def read_trajectory(path: Path) -> pd.DataFrame:
 def load_experiment(found: ExperimentDir, machine: str | None = None, label: str = ""
                     ) -> Experiment:
     """One experiment directory read and checked (HarnessError naming the file otherwise);
-    with `machine` (an id), only that machine's cells, which go by `label` where given."""
+    with `machine` (an id), only that machine's cells, which go by `label` where given; a
+    serial variant's cell at each thread count it serves (harness.analysis.serving)."""
     frame = read_results(found.results_csv)
     titles = [t for t in frame["title"] if t]
     title = titles[0] if titles else found.name
@@ -60,6 +63,8 @@ def load_experiment(found: ExperimentDir, machine: str | None = None, label: str
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
         if label and frame is not None:
             frame[MACHINE] = label
+    with reading(read_variants(found.variants_json)):  # a serial variant's cell at each count
+        frame = serving(frame)
     return Experiment(found.name, found, title, frame,
                       read_divergence(found.divergence_csv), ratios)
 
