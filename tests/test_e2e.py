@@ -116,12 +116,16 @@ def test_a_bigger_scene_takes_more_memory(build_binaries, tmp_path: Path,
     config.write_text("name: memory\nvariants: [grid]\nscene: {n: [200, 200000], "
                       "L: [2828.4, 89442.7], r: 1, steps: 1, mode: perf, seed: 1}\n"
                       "combine: zip\nthreads: 1\nmeasure: {warmup: 0, runs: 1}\n")
-    root = tmp_path / "results"
-    assert main([str(config), "--results-dir", str(root), "--no-report"]) == 0, \
+    root, report = tmp_path / "results", tmp_path / "report"
+    assert main([str(config), "--results-dir", str(root), "--report-dir", str(report)]) == 0, \
         capsys.readouterr().err
     rows = read_csv(root / "memory" / "results.csv")
     peak = {int(r["n"]): float(r["peak_rss_mib"]) for r in rows}
     assert 1 < peak[200] < 8 and peak[200000] > 8 * peak[200], peak
+    # the report: a column of the cell table, and a figure against N
+    text = (report / "report.md").read_text()
+    assert "| peak memory [MiB] |" in text and "Peak resident memory against N" in text
+    assert (report / "figures" / "memory-memory-vs-n.png").is_file()
 
 def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path) -> None:
     fakes = tmp_path / "fakes"

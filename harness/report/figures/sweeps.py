@@ -97,8 +97,8 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
 def fig_memory_vs(df: pd.DataFrame, out: Path, *, x: str = "n", title: str | None = None
                   ) -> list[Path]:
     """Each cell's peak resident memory (`peak_rss_mib`, MiB: the largest resident set of its
-    untimed run of its own program and input) against the swept parameter `x`, log-log, one
-    line per series (variant, threads, ... as they vary)."""
+    untimed run of its own program and input) against the swept parameter `x` (log), one line
+    per series (variant, threads, ... as they vary)."""
     axis = SWEEPS[x]
     rows = df[df[PEAK_RSS].notna()] if PEAK_RSS in df.columns else df.iloc[:0]
     keys = series_keys(rows, x)
@@ -108,7 +108,9 @@ def fig_memory_vs(df: pd.DataFrame, out: Path, *, x: str = "n", title: str | Non
     for (values, group), color in zip(groups, series_colors(groups, keys), strict=True):
         plot_series(ax, group, x, PEAK_RSS, color, series_label(values, keys), marks)
     set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
-    return _finish(fig, ax, out, (rows[PEAK_RSS], MEMORY_LABEL), True,
+    # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
+    # range on a log axis gets one labelled tick
+    return _finish(fig, ax, out, (rows[PEAK_RSS], MEMORY_LABEL), False,
                    title or f"Peak memory against {axis.label}", marker_handles(marks))
 
 
