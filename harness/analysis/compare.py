@@ -122,10 +122,9 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
                 learnt.append((str(entry.get("date", "")), Drift(
                     float(entry["drift"]), f"calibrated on machine {machine_id} "
                     f"({entry.get('date', '?')}, {entry.get('config', '?')})")))
-            levels = sessions.kept_levels([root], machine_id)
+            levels = sessions.kept_levels([root], machine_id, stats.supersedes)
             if levels:  # the spread between two sessions
-                spread = stats.spread_at([sessions.spread_of(e, machine_id) for e in levels],
-                                         noise)
+                spread = stats.spread_at(stats.spreads_of(levels, machine_id), noise)
                 learnt.append((str(levels[0].get("date", "")), Drift(spread.apart(),
                                                                      spread.source)))
         if learnt:

@@ -13,6 +13,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
+from harness.analysis import export
 from harness.analysis.changepoints import (
     DEFAULT_MAX_P,
     ChangePoint,
@@ -22,7 +23,7 @@ from harness.analysis.changepoints import (
 from harness.analysis.compare import Metric
 from harness.analysis.resultsets import Cell, MatchKey, read_cells
 from harness.stats import Interval
-from harness.store import atomic, csvfile
+from harness.store import atomic
 from harness.store.columns import (
     BUILD_FAILED_STATUS,
     HISTORY_COLUMNS,
@@ -184,4 +185,4 @@ def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
 
 
 def write_history_csv(exp: ExperimentDir, rows: Sequence[dict[str, str]]) -> None:
-    atomic.atomic_write_text(exp.history_csv, csvfile.csv_text(HISTORY_COLUMNS, rows))
+    atomic.atomic_write_text(exp.history_csv, export.csv_text(HISTORY_COLUMNS, rows))

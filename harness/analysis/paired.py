@@ -1,19 +1,17 @@
-"""ratios.csv (harness.store.ratios) read back for the tables and figures: a cell's speedup
-over one thread or over seq, with its efficiency and Karp-Flatt serial fraction, taken from the
-ratio paired by round where ratios.csv has one for the cell and its reference. Cells without
-one keep the ratio of medians and its bootstrap over the runs (harness.analysis.speedup)."""
+"""The ratios of each cell to its references (analysis.ratios) in the tables and figures: a
+cell's speedup over one thread or over seq, with its efficiency and Karp-Flatt serial fraction,
+taken from the ratio paired by round where there is one for the cell and its reference. Cells
+without one keep the ratio of medians and its bootstrap over the runs (analysis.speedup)."""
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from harness import stats
 from harness.analysis.cells import key_text
-from harness.analysis.frame import parse_numeric, read_csv_checked
 from harness.spec.facts import BASELINE
 from harness.store.columns import (
     MATCH_COLUMNS,
@@ -25,26 +23,17 @@ from harness.store.records import MACHINE_KEY
 
 # What ties a ratio to a cell: the cell's experiment, what it measured and its machine.
 KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
-_NEEDED = (*KEY_COLUMNS, "kind", "reference_variant", "ratio", "ratio_ci_low",
-           "ratio_ci_high", "rounds")
-_OPTIONAL = ("schedule", MACHINE_KEY)
 METRICS = ("speedup", "efficiency", "serial_fraction")  # what a speedup gives a cell
 ONE_THREAD = "1 thread"  # a cell's `baseline` where its speedup is over its own one thread
-_NUMBERS = ("ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
-            "session_spread")
 
 
-def read_ratios(path: Path, paired_only: bool = True) -> pd.DataFrame | None:
-    """ratios.csv's rows paired by round (rounds > 0 and a ratio; every row where not
-    `paired_only`), keyed as cells are; None where there is no file. A file without the
-    columns it needs is a HarnessError."""
-    if not path.is_file():
+def paired(ratios: pd.DataFrame | None, paired_only: bool = True) -> pd.DataFrame | None:
+    """An experiment's ratios (analysis.results.Experiment.ratios) keyed as its cells are:
+    those paired by round (rounds > 0 and a ratio; every one where not `paired_only`); None
+    where there are none."""
+    if ratios is None or ratios.empty:
         return None
-    frame = read_csv_checked(path, "ratios", [c for c in _NEEDED if c not in _OPTIONAL],
-                             dtype=str, keep_default_na=False)
-    for column in (c for c in _NUMBERS if c in frame.columns):
-        frame[column] = parse_numeric(frame[column].str.strip(), path, column)
-    frame["_key"] = cell_keys(frame)
+    frame = ratios.assign(_key=cell_keys(ratios))
     if paired_only:
         frame = frame[(frame["rounds"] > 0) & (frame["ratio"] > 0)]
     return frame.reset_index(drop=True)

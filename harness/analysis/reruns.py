@@ -18,9 +18,9 @@ from pathlib import Path
 import pandas as pd
 
 from harness import stats
-from harness.analysis.frame import read_results
-from harness.analysis.paired import cell_keys, read_ratios
-from harness.store import layout
+from harness.analysis import results
+from harness.analysis.paired import cell_keys, paired
+from harness.spec.facts import BASELINE
 from harness.store.columns import OK
 
 CellKey = tuple[str, ...]
@@ -77,16 +77,15 @@ def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine, NoiseByMachine]
     ratios: ByMachine = {}
     noise: NoiseByMachine = {}
     for k, root in enumerate(roots):
-        found, _ = layout.experiments_under(root, layout.has_results)
-        for exp in found:
-            frame = read_results(exp.results_csv)
+        for exp in results.load(root, include_quick=True):
+            frame = exp.frame
             for key, (_, row) in zip(cell_keys(frame), frame.iterrows(), strict=True):
                 _put(cells, row, (exp.name, key), cell_value(row), k, len(roots))
                 shares = row.get("round_noise")
                 if row["status"] == OK and isinstance(shares, list | tuple):
                     noise.setdefault(row.get("machine_id") or "", {}).setdefault(
                         k, []).extend(shares)
-            frame = read_ratios(exp.ratios_csv, paired_only=False)
+            frame = paired(exp.ratios(BASELINE), paired_only=False)
             for _, row in (frame if frame is not None else pd.DataFrame()).iterrows():
                 key = (exp.name, row["_key"], *(str(row.get(c, "")) for c in _RATIO_REFERENCE))
                 _put(ratios, row, key, ratio_value(row), k, len(roots))

@@ -15,9 +15,10 @@ from pathlib import Path
 import pandas as pd
 
 from harness import stats
+from harness.analysis import results
 from harness.analysis.cells import key_text
 from harness.analysis.flags import _is_true, short_commit
-from harness.analysis.frame import items, read_results, run_times
+from harness.analysis.results import items
 from harness.errors import HarnessError
 from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
@@ -137,10 +138,10 @@ def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
     """The experiment directories under `path` and whether `path` is a results root."""
     if not path.is_dir():
         raise HarnessError(f"{side} directory not found: {path}")
-    found, root = layout.experiments_under(path, layout.has_results)
+    found, root = layout.experiments_under(path, layout.has_cells)
+    found = [exp for exp in found if results.has_rows(exp)]
     if not found:
-        raise HarnessError(f"{side}: no {layout.RESULTS_CSV} in {path} or in any directory "
-                           "under it")
+        raise HarnessError(f"{side}: no measured cell in {path} or in any directory under it")
     return [exp.path for exp in found], root
 
 
@@ -178,17 +179,14 @@ def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
 
 
 def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
-    """The rows of one experiment's results.csv as cells.
-
-    Per-run times come from the `wall_times_s` column, or, in results written before it, from
-    the cell's hyperfine JSON (cells/<cell_id>.hyperfine.json)."""
-    frame = read_results(ExperimentDir(directory).results_csv)
+    """The rows of one experiment (analysis.results) as cells."""
+    frame = results.load_experiment(ExperimentDir(directory)).frame
     env_machine = None
     cells = []
     for _, row in frame.iterrows():
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
         key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
-        times = tuple(run_times(row, directory))
+        times = items(row, "wall_times_s")
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)

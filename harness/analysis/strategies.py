@@ -10,14 +10,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import pandas as pd
 
 from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
-from harness.analysis.frame import items, run_times
 from harness.analysis.paired import paired_points
+from harness.analysis.results import items
 from harness.spec.facts import current
 from harness.store.columns import RATIO_OVER_BASELINE
 
@@ -51,6 +50,8 @@ WORK_VARIANTS: tuple[str, ...] = ("p1", "p1_cyclic", "p1d")
 NS_PER_S = 1e9
 # Differences between schedules smaller than this share of the median are called "little".
 LITTLE_DIFFERENCE = 0.05
+# A cell's per-run wall times (results.csv's wall_times_s)
+TIMES = "wall_times_s"
 
 
 def repaired_by(variant: str) -> str | None:
@@ -200,7 +201,7 @@ class ChunkCost:
         return self.extra.map(lambda s: s / self.chunks * NS_PER_S)
 
 
-def chunk_costs(df: pd.DataFrame, exp_path: Path | None = None) -> list[ChunkCost]:
+def chunk_costs(df: pd.DataFrame) -> list[ChunkCost]:
     """Per dynamic loop measured with a reference: its extra time over the reference divided
     by the chunks it dealt (from --timing's threads_chunks)."""
     cells = _one_per_variant(df)
@@ -212,8 +213,8 @@ def chunk_costs(df: pd.DataFrame, exp_path: Path | None = None) -> list[ChunkCos
         chunks = sum(items(cells.loc[variant], "threads_chunks"))
         if chunks <= 0:
             continue
-        a, b = run_times(cells.loc[variant], exp_path), run_times(cells.loc[reference], exp_path)
-        extra = stats.difference_ci(a, b) if a and b else stats.Interval(
+        a, b = items(cells.loc[variant], TIMES), items(cells.loc[reference], TIMES)
+        extra = stats.difference_ci(list(a), list(b)) if a and b else stats.Interval(
             cells.at[variant, "wall_median_s"] - cells.at[reference, "wall_median_s"],
             math.nan, math.nan)
         found.append(ChunkCost(variant, reference, chunks, extra))
@@ -270,12 +271,12 @@ def has_schedules(df: pd.DataFrame) -> bool:
     return "schedule" in df.columns and bool((df["schedule"].fillna("") != "").any())
 
 
-def schedule_rows(df: pd.DataFrame, exp_path: Path | None = None) -> pd.DataFrame:
+def schedule_rows(df: pd.DataFrame) -> pd.DataFrame:
     """Per (variant, threads, schedule) cell: its median with a 95% bootstrap interval, the
     imbalance and the chunks dealt, fastest first."""
     rows = []
     for _, cell in timed_rows(df[df["schedule"].fillna("") != ""]).iterrows():
-        times = run_times(cell, exp_path)
+        times = list(items(cell, TIMES))
         ci = stats.median_ci(times) if times else stats.Interval(
             float(cell["wall_median_s"]), math.nan, math.nan)
         rows.append({"variant": cell["variant"], "threads": cell["threads"],

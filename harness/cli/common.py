@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO, TypeVar
 
+from harness.analysis import export
 from harness.errors import HarnessError
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.spec.config import (
@@ -23,7 +24,7 @@ from harness.spec.config import (
 )
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
-from harness.store import derived, layout
+from harness.store import layout
 from harness.store.locks import RunLock
 
 T = TypeVar("T", int, float)
@@ -124,11 +125,11 @@ def directory_option(path: Path, flag: str = "--results-dir") -> Path:
 def check_derived(path: Path, log: TextIO) -> None:
     """results.csv and the files derived with it, under `path` (a results root or one
     experiment), checked against what was written before they are read: a damaged one is
-    named in one line and derived again from its records (harness.store.derived)."""
+    named in one line and written again from its records (harness.analysis.export)."""
     if not path.is_dir():
         return
     found, _ = layout.experiments_under(path, lambda exp: exp.results_index.is_file())
     for exp in found:
-        done = derived.repair(exp)
+        done = export.repair(exp)
         if done is not None:
             log.write(f"warning: {done}\n")

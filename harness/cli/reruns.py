@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from harness import stats
 from harness.analysis import reruns as analysis
 from harness.cli.common import (
     Parser,
@@ -84,6 +85,6 @@ def execute(args: argparse.Namespace) -> int:
         description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine) \
             if result.machine_id == here else {}
         path = sessions.keep_session(args.results_dir, result.machine_id, description,
-                                     result.entry(config))
+                                     result.entry(config), stats.supersedes)
         sys.stdout.write(f"  kept in {path}\n")
     return 0

@@ -1,7 +1,8 @@
 """Move superseded cell records from cells/ to history/ (`store prune PATH...`); store the
 variants' facts of this repository's build with results measured before runs stored them
-(`store facts PATH...`); give records their cell's current key once, where a variant was
-measured along an axis it ignores (`store migrate PATH...`: harness.plan.migrate)."""
+(`store facts PATH...`); rewrite records of earlier versions in the current one (`store upgrade
+PATH...`); give records their cell's current key once, where a variant was measured along an
+axis it ignores (`store migrate PATH...`: harness.analysis.migrate)."""
 
 from __future__ import annotations
 
@@ -11,13 +12,12 @@ from pathlib import Path
 
 from harness.cli.common import Parser
 from harness.errors import HarnessError
-from harness.plan.migrate import migrate
 from harness.repo import REPO_ROOT
 from harness.spec.facts import read_variants
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
 from harness.store.history import prune
-from harness.store.layout import ExperimentDir
+from harness.store.trust import DamagedFile
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
@@ -32,6 +32,10 @@ def parser(prog: str) -> argparse.ArgumentParser:
         "repository's build, made where stale) into experiment directories or results roots "
         "that were measured with this build")
     facts_parser.add_argument("paths", nargs="+", type=Path)
+    upgrade_parser = sub.add_parser(
+        "upgrade", help="rewrite the records of earlier versions of the harness under "
+        "experiment directories or results roots as the current version keeps them")
+    upgrade_parser.add_argument("paths", nargs="+", type=Path)
     migrate_parser = sub.add_parser(
         "migrate", help="give records measured along an axis their variant ignores (a serial "
         "variant at threads > 1) their cell's key, once: the newest where the cell has no "
@@ -62,6 +66,17 @@ def execute(args: argparse.Namespace) -> int:
             index.write_variants(directory, facts)
             sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
         return 0
+    if args.action == "upgrade":
+        from harness.analysis.upgrade import upgrade_experiment
+
+        for directory in directories:
+            try:
+                done = upgrade_experiment(layout.ExperimentDir(directory))
+            except DamagedFile as exc:
+                raise HarnessError(str(exc)) from None
+            sys.stdout.write(f"{directory}: {done.rewritten} of {done.records} record(s) "
+                             "rewritten in the current version\n")
+        return 0
     if args.action == "migrate":
         for directory in directories:
             sys.stdout.write(migrated(directory) + "\n")
@@ -75,7 +90,9 @@ def execute(args: argparse.Namespace) -> int:
 
 def migrated(directory: Path) -> str:
     """What `store migrate` did to one experiment directory, in one line."""
-    facts = read_variants(ExperimentDir(directory).variants_json)
+    from harness.analysis.migrate import migrate
+
+    facts = read_variants(layout.ExperimentDir(directory).variants_json)
     if not facts.members:
         return (f"{directory}: no {layout.VARIANTS_JSON}, so no variant is known to ignore an "
                 f"axis: nothing migrated (`store facts {directory}` writes them)")

@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from harness import stats
+from harness.analysis.ratios import references
 from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
 from harness.measure.noise import QuietWait
@@ -26,7 +27,6 @@ from harness.measure.rounds import CellRun, limit_reason, runs_left
 from harness.plan.cells import Cell
 from harness.spec.facts import BASELINE
 from harness.store.columns import STOPPED_CI
-from harness.store.ratios import references
 from harness.store.result import CellResult
 
 # A paired cell's round times a few runs a side, about PAIRED_ROUND_S of them (at most
@@ -45,7 +45,7 @@ class Unit:
     seconds: float = 0.0  # spent measuring it
     partner: Unit | None = None
     # The cells a ratio joins this one to (ratios.csv: its references, the cells it is a
-    # reference of): a ratio is taken in the rounds both sides have (harness.store.ratios)
+    # reference of): a ratio is taken in the rounds both sides have (harness.analysis.ratios)
     ratio_sides: list[Unit] = field(default_factory=list)
 
     @property
@@ -81,7 +81,7 @@ def pair_up(units: Sequence[Unit]) -> None:
 
 
 def join_ratios(units: Sequence[Unit]) -> None:
-    """Join each cell to the cells of its ratios (store.ratios.references: its variant at one
+    """Join each cell to the cells of its ratios (analysis.ratios.references: its variant at one
     thread, the baseline), among the cells of its scene, build and schedule that one measurer
     times (the two sides of a comparison are apart)."""
     groups: dict[tuple[object, ...], dict[tuple[str, int], Unit]] = {}

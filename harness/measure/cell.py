@@ -90,8 +90,9 @@ class Measurer:
     def levels(self) -> list[stats.SessionSpread]:
         """This machine's session spreads (`reruns`, under this results root or the
         repository's), one per noise level."""
-        return sessions.spreads(sessions.session_roots(self.store.root.path),
-                                self.store.machine_id)
+        machine = self.store.machine_id
+        return stats.spreads_of(sessions.kept_levels(
+            sessions.session_roots(self.store.root.path), machine, stats.supersedes), machine)
 
     def session(self) -> stats.SessionSpread:
         """The session spread at the noise of this session's rounds so far; the default until

@@ -25,7 +25,7 @@ from pathlib import Path
 from harness import stats
 from harness.measure.hyperfine import Timed
 from harness.spec.config import Measure
-from harness.store import atomic, csvfile
+from harness.store import atomic
 from harness.store.columns import (
     STOPPED_CI,
     STOPPED_MAX_RUNS,
@@ -289,7 +289,7 @@ def timed_result(run: CellRun, session: stats.SessionSpread | None = None) -> Ce
         return result.replace(runs=0)
     mean = statistics.fmean(times)
     stddev = statistics.stdev(times) if len(times) > 1 else None
-    low, high, q25 = csvfile.uncertainty(times, run.rounds, session.absolute)
+    low, high, q25 = stats.time_interval(times, run.rounds, session.absolute)
     return result.replace(
         runs=len(times), wall_mean_s=mean, wall_stddev_s=stddev,
         wall_median_s=statistics.median(times), wall_min_s=min(times), wall_max_s=max(times),

@@ -1,14 +1,14 @@
 """Plan a config's cells: the grid of variant x build x scene point x thread count, minus
 repeats (--quick can map several points onto one) and excluded cells. A cell leaves out what
-its variant ignores (IGNORED_AXES): a serial variant's cells at every thread count are one
-cell, run with one thread. Where a program takes part, every scene lists all its particles.
-Nothing here runs a measurement or reads a result."""
+its variant ignores (harness.spec.facts.IGNORED_AXES): a serial variant's cells at every
+thread count are one cell, run with one thread. Where a program takes part, every scene lists
+all its particles. Nothing here runs a measurement or reads a result."""
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -17,7 +17,7 @@ from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
-from harness.spec.facts import VariantFacts
+from harness.spec.facts import ignored_axes
 from harness.spec.points import expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
@@ -40,8 +40,8 @@ class Cell:
     # A program (`programs:`): run through its command template and checked step by step
     # against seq (harness.measure.program) instead of validated and checked.
     program: bool = False
-    # The axes its variant ignores (IGNORED_AXES), at their one value: it stands for the
-    # config's cells at every other value of each.
+    # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
+    # for the config's cells at every other value of each.
     ignored: tuple[str, ...] = ()
 
     @property
@@ -60,27 +60,6 @@ class Cell:
         return {"variant": self.variant, "build": self.build, "scene": s.label,
                 "threads": self.threads, "n": s.n, "L": s.L, "r": s.r, "steps": s.steps,
                 "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
-
-
-@dataclass(frozen=True)
-class IgnoredAxis:
-    """An axis of the grid that a variant's facts can say it ignores: its cells along the
-    axis are then one cell, run at `value`, whose key has that value (so the records of the
-    variant at `value` keep their ids)."""
-
-    field: str  # the Cell's field
-    value: object
-    uses: Callable[[VariantFacts], bool]  # whether a variant of these facts uses the axis
-
-
-# What a variant may ignore: threads where its --describe says "parallel": false. (An MPI
-# variant's ranks would be one more line: IgnoredAxis("ranks", 1, lambda f: f.mpi).)
-IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),)
-
-
-def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:
-    """The axes a variant of these facts ignores."""
-    return [axis for axis in IGNORED_AXES if not axis.uses(facts)]
 
 
 def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:

@@ -29,7 +29,6 @@ from harness.plan.cells import Cell, Plan
 from harness.repo import BUILD_DIR
 from harness.spec import scenes
 from harness.spec.config import Config
-from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
 from harness.store import atomic, index, records, trust
 from harness.store.columns import match_values
@@ -79,7 +78,8 @@ class CellStore:
     # A binary not built yet hashes to UNBUILT instead of holding its cell's key back: the
     # plan's groups (which leave binaries out) without building anything.
     assume_built: bool = False
-    # What write_csv lists, after every record: computed once, as the hashes it rests on are.
+    # What an experiment's rows list, after every record: computed once, as the hashes it
+    # rests on are.
     planned: list[index.PlannedCell] | None = field(default=None, init=False, repr=False)
 
     @property
@@ -236,18 +236,14 @@ class CellStore:
     def save(self, result: CellResult) -> None:
         records.write_record(self.layout.record(result.cell_id), result)
 
-    def write_csv(self, prune: bool = False) -> None:
-        """results.csv (and divergence.csv with checks) rebuilt from the records on disk under
-        the directory's lock (harness.store.index): per planned cell, this machine's record
-        (or its newest, marked stale) and every other machine's newest. With `prune`, the
-        superseded records move to history/ first."""
+    def planned_cells(self) -> list[index.PlannedCell]:
+        """The plan's cells as the listing of an experiment's rows needs them (store.index):
+        their keys on this machine and what names them."""
         if self.planned is None:
             keyed = ((self.cell_key(cell), cell) for cell in self.plan.cells)
             self.planned = [index.PlannedCell(key, subject(cell)) for key, cell in keyed
                             if key is not None]
-        index.rebuild_csv(self.directory, self.planned, self.machine_id, self.config.name,
-                          self.config.title, prune_first=prune, baseline=BASELINE,
-                          divergence=bool(self.config.checks.names))
+        return self.planned
 
     # --- files ---
 

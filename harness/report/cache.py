@@ -8,10 +8,11 @@ by a hash of their input files, both remembered in one manifest beside the figur
   rebuilt only when one of its input files or the report's code changed; a hit needs neither
   pandas nor matplotlib.
 
-"The code" is found, not listed: every module of the harness that the figures (or the whole
-report) import, directly or through others, read from their import statements (code_closure).
-A figure's key also holds the facts of the variants its results were measured with
-(harness.spec.facts.current), which decide the order and colours of what is drawn.
+"The code" is every module of the harness that a render can load: the layers the report stands
+on (pyproject.toml's import-linter contracts keep the report and analysis from importing what
+measures, plans, runs or builds), hashed by their bytes; for the figures, those layers without
+the report's other modules. A figure's key also holds the facts of the variants its results
+were measured with, which decide the order and colours of what is drawn.
 
 Both are keyed by content, never by time, so the rendered report is the same whether a figure
 was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
@@ -19,11 +20,9 @@ was drawn or reused. Standard library only (pandas is imported when a frame is h
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import json
 from collections.abc import Callable, Iterable
-from importlib.util import resolve_name
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -35,63 +34,21 @@ MANIFEST_NAME = ".manifest.json"
 MANIFEST_VERSION = 2
 PACKAGE = "harness"
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
-# The modules whose code a figure's pixels depend on (with all they import); any other change
-# keeps the figures.
-FIGURE_MODULES: tuple[str, ...] = ("harness.report.figures",)
-# The modules an experiment's part depends on: the report's, and all they import.
-REPORT_MODULES: tuple[str, ...] = ("harness.report",)
+# The code a render can load, as paths under the package (a folder: every module in it): the
+# layers the report stands on; the figures need the same but the report's own other modules.
+LAYERS_BELOW: tuple[str, ...] = ("analysis", "spec", "store", "stats", "errors.py", "repo.py",
+                                 "__init__.py")
+FIGURE_CODE: tuple[str, ...] = ("report/figures", "report/__init__.py", *LAYERS_BELOW)
+REPORT_CODE: tuple[str, ...] = ("report", *LAYERS_BELOW)
 
 
-def module_files(name: str, whole: bool = False) -> list[Path]:
-    """The file of a harness module: a package's __init__.py (what importing it loads), or
-    with `whole` every module under the package."""
-    base = PACKAGE_DIR.joinpath(*name.split(".")[1:])
-    if base.is_dir():
-        init = [base / "__init__.py"] if (base / "__init__.py").is_file() else []
-        return sorted(base.rglob("*.py")) if whole else init
-    path = base.with_suffix(".py")
-    return [path] if path.is_file() else []
-
-
-def _module_name(path: Path) -> str:
-    relative = path.relative_to(PACKAGE_DIR).with_suffix("")
-    parts = [PACKAGE, *relative.parts]
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
-def imported(path: Path) -> set[str]:
-    """The harness modules a file imports (absolute or relative; `from a import b` names both
-    a and a.b, since b may be a module)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    package = _module_name(path) if path.name == "__init__.py" else \
-        _module_name(path).rpartition(".")[0]
-    found: set[str] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = resolve_name("." * node.level + (node.module or ""), package)
-            found.add(base)
-            found.update(f"{base}.{alias.name}" for alias in node.names)
-    return {name for name in found if name == PACKAGE or name.startswith(PACKAGE + ".")}
-
-
-def code_closure(modules: Iterable[str]) -> list[Path]:
-    """Every file of the harness the modules (packages: all their modules) are made of or
-    import, directly or not; a module's packages count too (they are loaded before it)."""
-    todo = [f for name in modules for f in module_files(name, whole=True)]
-    seen: set[Path] = set()
-    while todo:
-        path = todo.pop()
-        if path in seen:
-            continue
-        seen.add(path)
-        names = imported(path)
-        module = _module_name(path)
-        names.update(module.rsplit(".", k)[0] for k in range(1, module.count(".") + 1))
-        for name in names:
-            todo += [f for f in module_files(name) if f not in seen]
-    return sorted(seen)
+def code_files(parts: Iterable[str]) -> list[Path]:
+    """The modules of the parts (a folder: all of them, at any depth), sorted."""
+    found: set[Path] = set()
+    for part in parts:
+        path = PACKAGE_DIR / part
+        found.update(path.rglob("*.py") if path.is_dir() else [path] if path.is_file() else [])
+    return sorted(found)
 
 
 def code_version(files: Iterable[Path]) -> str:
@@ -111,8 +68,8 @@ class CodeVersions(NamedTuple):
 
 def code_versions() -> CodeVersions:
     """Reading every module is not free: a render computes this once for all its pages."""
-    return CodeVersions(code_version(code_closure(FIGURE_MODULES)),
-                        code_version(code_closure(REPORT_MODULES)))
+    return CodeVersions(code_version(code_files(FIGURE_CODE)),
+                        code_version(code_files(REPORT_CODE)))
 
 
 def _digest_value(value: object, digest: Any) -> None:

@@ -1,5 +1,5 @@
 """Which experiments a results directory holds, and a digest of everything a section reads
-from one. Standard library only: a render whose inputs did not change needs no pandas."""
+from one: a render whose inputs did not change builds nothing again."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import json
 from collections.abc import Collection
 from pathlib import Path
 
+from harness.analysis.results import experiments
 from harness.errors import HarnessError
 from harness.store import layout
-from harness.store.layout import QUICK_SUFFIX, ExperimentDir
+from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.records import sha256_file
 
 # Outputs up to this size are hashed by content; larger ones (never plotted) by size and time.
@@ -23,27 +24,12 @@ PREFERRED_ORDER: tuple[str, ...] = (
 )
 
 
-def _has_rows(csv: Path) -> bool:
-    """Whether the file has a line after its header (an empty results.csv shows nothing)."""
-    try:
-        with csv.open("rb") as handle:
-            handle.readline()
-            return any(line.strip() for line in handle)
-    except OSError as e:
-        raise HarnessError(f"{csv}: cannot read results: {e}") from e
-
-
 def find_experiments(
     results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
 ) -> list[ExperimentDir]:
-    """Every results/<name>/results.csv with at least one row, in the course report's order
-    (an experiment still running its first cell has none)."""
-    if not results_dir.is_dir():
-        raise HarnessError(f"{results_dir}: results directory not found")
-    candidates, _ = layout.experiments_under(results_dir, layout.has_results)
-    found = [exp for exp in candidates
-             if (include_quick or not exp.name.endswith(QUICK_SUFFIX))
-             and (only is None or exp.name in only) and _has_rows(exp.results_csv)]
+    """Every experiment under the results directory with a measured cell, in the course
+    report's order (an experiment still running its first cell has none)."""
+    found = experiments(results_dir, include_quick, only)
     rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
     return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
 
@@ -53,17 +39,22 @@ def file_digest(path: Path) -> str:
 
 
 def input_digest(exp: ExperimentDir) -> str:
-    """A hash of every file the experiment's section reads (the kept outputs: the trajectory
-    figure's)."""
+    """A hash of every file the experiment's section reads: the index of its rows (which
+    holds the sha256 of every export written from them) or, without one, its records; what it
+    was measured with and on; the machines' calibrations its ratios' intervals take their
+    session spread from; the kept outputs (the trajectory figure's)."""
     parts: dict[str, object] = {
         "name": exp.name,
-        layout.RESULTS_CSV: file_digest(exp.results_csv),
         layout.ENV_JSON: file_digest(exp.env_json),
-        layout.DIVERGENCE_CSV: file_digest(exp.divergence_csv),
         layout.VARIANTS_JSON: file_digest(exp.variants_json),
     }
-    if exp.ratios_csv.is_file():  # absent, the digest of results from before ratios stands
-        parts[layout.RATIOS_CSV] = file_digest(exp.ratios_csv)
+    listing = [exp.results_index] if exp.results_index.is_file() else \
+        layout.record_paths(exp.cells)
+    for path in listing:
+        parts[path.name] = file_digest(path)
+    calibrations = ResultsRoot(exp.path.parent).calibrations
+    for path in sorted(calibrations.iterdir()) if calibrations.is_dir() else []:
+        parts[f"{layout.CALIBRATION_DIR}/{path.name}"] = file_digest(path)
     outputs = exp.outputs
     if outputs.is_dir():
         for path in sorted(outputs.iterdir()):

@@ -1,21 +1,21 @@
-"""Reading results/<experiment>/ for the report: results.csv (harness.analysis.frame),
-ratios.csv (harness.analysis.paired), divergence.csv and print-mode outputs (env.json is read
-by harness.report.pipeline)."""
+"""An experiment as the report reads it: one machine's rows of the read model
+(harness.analysis.results) with their ratios paired by round and divergence curves, and the
+print-mode outputs it kept (env.json is read by harness.report.pipeline)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
 
+from harness.analysis import results
 from harness.analysis.cells import MACHINE
-from harness.analysis.frame import read_divergence, read_results
-from harness.analysis.paired import read_ratios
+from harness.analysis.paired import paired
 from harness.analysis.serving import serving
 from harness.errors import HarnessError
 from harness.report.machines import UNKNOWN_ID
-from harness.spec.facts import read_variants, reading
+from harness.spec.facts import BASELINE, Variants, reading
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
@@ -29,8 +29,9 @@ class Experiment:
     directory: ExperimentDir
     title: str
     frame: pd.DataFrame
-    divergence: pd.DataFrame | None = None  # divergence.csv, when the checks wrote one
-    ratios: pd.DataFrame | None = None  # ratios.csv's ratios paired by round, where written
+    divergence: pd.DataFrame | None = None  # the checks' divergence curves, where some cell has
+    ratios: pd.DataFrame | None = None  # its cells' ratios paired by round, where there are
+    variants: Variants = field(default_factory=Variants)  # facts of the variants it measured
 
 
 def read_trajectory(path: Path) -> pd.DataFrame:
@@ -50,23 +51,22 @@ def read_trajectory(path: Path) -> pd.DataFrame:
     return traj
 
 
-def load_experiment(found: ExperimentDir, machine: str | None = None, label: str = ""
-                    ) -> Experiment:
-    """One experiment directory read and checked (HarnessError naming the file otherwise);
-    with `machine` (an id), only that machine's cells, which go by `label` where given; a
-    serial variant's cell at each thread count it serves (harness.analysis.serving)."""
-    frame = read_results(found.results_csv)
-    titles = [t for t in frame["title"] if t]
-    title = titles[0] if titles else found.name
-    ratios = read_ratios(found.ratios_csv)
+def load_experiment(found: ExperimentDir | results.Experiment, machine: str | None = None,
+                    label: str = "") -> Experiment:
+    """One experiment read and checked (HarnessError naming what is wrong); with `machine`
+    (an id), only that machine's cells, which go by `label` where given; a serial variant's
+    cell at each thread count it serves (harness.analysis.serving)."""
+    loaded = found if isinstance(found, results.Experiment) else results.load_experiment(found)
+    frame = loaded.frame
+    ratios = paired(loaded.ratios(BASELINE))
     if machine is not None:
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
         if label and frame is not None:
             frame[MACHINE] = label
-    with reading(read_variants(found.variants_json)):  # a serial variant's cell at each count
+    with reading(loaded.variants):  # which variants are serial
         frame = serving(frame)
-    return Experiment(found.name, found, title, frame,
-                      read_divergence(found.divergence_csv), ratios)
+    return Experiment(loaded.name, loaded.directory, loaded.title, frame, loaded.divergence,
+                      ratios, loaded.variants)
 
 
 def _of_machine(frame: pd.DataFrame | None, machine: str) -> pd.DataFrame | None:

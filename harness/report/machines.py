@@ -1,14 +1,13 @@
 """The machines a results directory holds, and the short section that sets them side by side.
 
 A report page shows one machine (harness.report.pipeline renders one page per machine); this
-module finds the machines from the experiments' results.csv with the standard library alone
-(a render whose experiments are cached needs no pandas), says which measured last, and
-compares each other machine's medians with the shown one's on the cells both measured.
+module finds the machines from the experiments' rows (analysis.results: plain values, so a
+render whose experiments are cached needs no pandas), says which measured last, and compares
+each other machine's medians with the shown one's on the cells both measured.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 from collections.abc import Collection, Mapping, Sequence
@@ -16,8 +15,7 @@ from dataclasses import dataclass
 
 from harness.errors import HarnessError
 from harness.report.document import Paragraph, Section, Table
-from harness.store.columns import MATCH_COLUMNS, OK
-from harness.store.layout import ExperimentDir
+from harness.store.columns import MATCH_COLUMNS, OK, match_values
 from harness.store.records import MACHINE_KEY
 
 LABEL_KEY = "machine"
@@ -37,18 +35,7 @@ class Machine:
     name: str = ""  # how pages call it: its label, with the start of its id where shared
 
 
-Rows = dict[str, list[dict[str, str]]]  # experiment name -> its results.csv rows
-
-
-def read_rows(found: Sequence[ExperimentDir]) -> Rows:
-    rows: Rows = {}
-    for exp in found:
-        try:
-            with exp.results_csv.open(newline="", encoding="utf-8") as handle:
-                rows[exp.name] = list(csv.DictReader(handle))
-        except (OSError, UnicodeDecodeError, csv.Error) as e:
-            raise HarnessError(f"{exp.results_csv}: cannot read results: {e}") from e
-    return rows
+Rows = dict[str, Sequence[Mapping[str, object]]]  # experiment name -> its rows
 
 
 def _name(machine: Machine, found: Sequence[Machine]) -> str:
@@ -61,8 +48,8 @@ def _name(machine: Machine, found: Sequence[Machine]) -> str:
     return f"{machine.label or 'machine'} ({machine.id[:SHORT_ID]})"
 
 
-def machine_of(row: dict[str, str]) -> str:
-    return (row.get(MACHINE_KEY) or "").strip() or UNKNOWN_ID
+def machine_of(row: Mapping[str, object]) -> str:
+    return str(row.get(MACHINE_KEY) or "").strip() or UNKNOWN_ID
 
 
 def machines(rows: Rows, preferred: Collection[str] = (),
@@ -71,17 +58,17 @@ def machines(rows: Rows, preferred: Collection[str] = (),
     times (rows without `measured_at`) a `preferred` one (the machine an env.json names: it
     measured the latest run), then by id. Empty when no row records its machine. Each goes by
     its name in `labels` (store.labels) where it has one."""
-    if not any((row.get(MACHINE_KEY) or "").strip() for table in rows.values()
+    if not any(str(row.get(MACHINE_KEY) or "").strip() for table in rows.values()
                for row in table):
         return []
-    seen: dict[str, list[dict[str, str]]] = {}
+    seen: dict[str, list[Mapping[str, object]]] = {}
     for table in rows.values():
         for row in table:
             seen.setdefault(machine_of(row), []).append(row)
     found = []
     for machine_id, own in seen.items():
-        own_labels = sorted({(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
-        last = max((r.get(MEASURED_AT) or "" for r in own), default="")
+        own_labels = sorted({str(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
+        last = max((str(r.get(MEASURED_AT) or "") for r in own), default="")
         found.append(Machine(machine_id, own_labels[0] if own_labels else "", last))
     names = labels or {}
     found = [dataclasses.replace(m, name=names.get(m.id) or _name(m, found)) for m in found]
@@ -104,17 +91,15 @@ def pick(found: Sequence[Machine], wanted: str | None) -> Machine:
     return matches[0]
 
 
-def _medians(table: list[dict[str, str]], machine_id: str) -> dict[tuple[str, ...], float]:
+def _medians(table: Sequence[Mapping[str, object]], machine_id: str
+             ) -> dict[tuple[str, ...], float]:
     medians = {}
     for row in table:
         if machine_of(row) != machine_id or row.get("status") != OK:
             continue
-        try:
-            median = float(row.get(MEDIAN) or "nan")
-        except ValueError:
-            continue
-        if math.isfinite(median) and median > 0:
-            medians[tuple(row.get(k) or "" for k in MATCH_COLUMNS)] = median
+        median = row.get(MEDIAN)
+        if isinstance(median, int | float) and math.isfinite(median) and median > 0:
+            medians[match_values(row)] = float(median)
     return medians
 
 

@@ -16,6 +16,7 @@ from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
 
+from harness.analysis import results
 from harness.repo import REPO_ROOT
 from harness.report import machines
 from harness.report.cache import CodeVersions, Manifest, code_versions
@@ -39,10 +40,9 @@ from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
 from harness.report.spread import cached_session_words
-from harness.spec.facts import read_variants, reading
+from harness.spec.facts import reading
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
-from harness.store.layout import ExperimentDir
 from harness.store.locks import directory_lock
 from harness.store.records import MACHINE_KEY, RUN_STARTED
 
@@ -110,7 +110,7 @@ def build_document(
                     tuple(_with_warnings(p) for p in parts), tuple(appendix))
 
 
-def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
+def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Path,
                     machine: str | None = None, label: str = "") -> ExperimentPart:
     """The experiment's part (of one machine's cells, with `machine`, which goes by `label`)
     from the manifest when its inputs are unchanged, else built."""
@@ -120,11 +120,12 @@ def experiment_part(found: ExperimentDir, manifest: Manifest, out_dir: Path,
         from harness.report.sections import experiment_section
         from harness.report.summary import experiment_part as build_part
 
-        exp = load_experiment(found, machine, label)
+        exp = load_experiment(loaded, machine, label)
         # the facts of the variants the results were measured with: their order, colours, kinds
-        with reading(read_variants(found.variants_json)):
+        with reading(exp.variants):
             return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
 
+    found = loaded.directory
     digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
     return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
 
@@ -155,18 +156,18 @@ def _write_page(doc: Document, page_dir: Path) -> None:
     atomic_write_text(page_dir / f"{PAGE_STEM}.html", render_html(doc, page_dir))
 
 
-def _render_page(found: Sequence[ExperimentDir], results_dir: Path, page_dir: Path,
-                 code: CodeVersions, rows: machines.Rows, machine: machines.Machine | None,
+def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_dir: Path,
+                 code: CodeVersions, machine: machines.Machine | None,
                  others: Sequence[Link] = (), side_by_side: Section | None = None) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, code)
     machine_id = machine.id if machine is not None else None
     if machine_id is not None:
-        found = [f for f in found
-                 if any(machines.machine_of(r) == machine_id for r in rows[f.name])]
+        loaded = [e for e in loaded if any(machines.machine_of(r) == machine_id for r in e.rows)]
     label = machine.name if machine is not None else ""
-    parts = [experiment_part(f, manifest, page_dir, machine_id, label) for f in found]
+    parts = [experiment_part(e, manifest, page_dir, machine_id, label) for e in loaded]
+    found = [e.directory for e in loaded]
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
@@ -200,10 +201,11 @@ def render(
     """
     results_dir, out_dir = Path(results_dir), Path(out_dir)
     found = find_experiments(results_dir, include_quick=include_quick, only=experiments)
-    rows = machines.read_rows(found)
+    labels = machine_labels(read_machines(f.path for f in found))
+    loaded = [results.load_experiment(f, labels) for f in found]
+    rows: machines.Rows = {e.name: e.rows for e in loaded}
     named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
-    listed = machines.machines(rows, named - {""},
-                               machine_labels(read_machines(f.path for f in found)))
+    listed = machines.machines(rows, named - {""}, labels)
     code = code_versions()
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would
@@ -213,7 +215,7 @@ def render(
         if len(listed) < 2:
             # One machine (or none recorded): one page, its figures beside it.
             shown = machines.pick(listed, machine) if listed or machine else None
-            _render_page(found, results_dir, out_dir, code, rows, shown)
+            _render_page(loaded, results_dir, out_dir, code, shown)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
@@ -224,7 +226,7 @@ def render(
                          .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:
-            doc = _render_page(found, results_dir, pages[page.id], code, rows, page,
+            doc = _render_page(loaded, results_dir, pages[page.id], code, page,
                                links(pages[page.id], page.id),
                                machines.side_by_side(rows, page, listed))
             if page.id == top.id:

@@ -1,5 +1,6 @@
 """What "How to read the numbers" says of the session level: the session spread the page's
-machine has (learnt by `reruns`, harness.store.sessions, or the stated default) and, where
+machine has under the results root (learnt by `reruns`, harness.store.sessions, or the stated
+default) and, where
 `reruns` measured it, how often its intervals held another rerun's estimate.
 
 The spread's home (harness.stats.levels) imports scipy, which an unchanged page never
@@ -16,7 +17,7 @@ from harness.report.cache import Manifest
 from harness.report.discover import file_digest
 from harness.report.machines import UNKNOWN_ID
 from harness.store.layout import ResultsRoot
-from harness.store.sessions import kept_levels, noise_of, session_roots, spread_of
+from harness.store.sessions import kept_levels
 
 REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
 SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
@@ -30,8 +31,7 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
     """session_words, from the manifest where the machine's calibration files and the
     report's code are unchanged."""
     machine = _known(machine_id)
-    paths = [ResultsRoot(root).calibration(machine) for root in session_roots(results_dir)] \
-        if machine is not None else []
+    paths = [ResultsRoot(results_dir).calibration(machine)] if machine is not None else []
     digest = "\0".join([str(machine), *(file_digest(p) for p in paths)])
     part = manifest.part(SESSION_PART, digest,
                          lambda: {"text": session_words(results_dir, machine)},
@@ -43,10 +43,10 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     """The session spreads the page's intervals add (one per noise level the machine's
     reruns were measured under) and where they come from, with the coverage `reruns`
     measured for each; or the default and that no reruns were measured."""
-    from harness.stats.levels import DEFAULT_SESSION_SPREAD
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD, supersedes
 
     machine = _known(machine_id)
-    levels = [] if machine is None else kept_levels(session_roots(results_dir), machine)
+    levels = [] if machine is None else kept_levels([results_dir], machine, supersedes)
     text = ("Intervals that say where another session's estimate lands (a cell's time "
             "measured in rounds, a ratio paired by round) add the machine's session spread")
     if not levels:
@@ -59,6 +59,8 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     if len(levels) > 1:
         text += (" at the noise of their session (the median share of the cores' time others "
                  "took over its rounds; between two levels, interpolated)")
+    from harness.stats.levels import noise_of
+
     levels = sorted(levels, key=lambda e: (not math.isfinite(noise_of(e)), noise_of(e)))
     # A record's interval holds the spread of its own run: one measured before the reruns
     # kept the default.
@@ -68,7 +70,9 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
 
 
 def _level_text(entry: Mapping[str, object], machine: str) -> str:
-    spread = spread_of(entry, machine)
+    from harness.stats.levels import SessionSpread
+
+    spread = SessionSpread.of_entry(entry, machine)
     noise = f", under noise {spread.noise:.1%}" if math.isfinite(spread.noise) else ""
     text = (f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
             f"{spread.source}{noise}")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from harness.analysis import export
 from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
@@ -25,6 +26,7 @@ from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
+from harness.spec.facts import BASELINE
 from harness.spec.make import make_binaries
 from harness.spec.variants import VariantRegistry
 from harness.store import atomic, index
@@ -101,7 +103,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     warn_oversubscribed(plan, experiment.cores, log)
     pending, env = lock_and_describe(experiment, pending, here=executor.name == "local")
     measured: set[str] = set()
-    rebuilds = CsvRebuilds(experiment.store.write_csv)
+    rebuilds = CsvRebuilds(lambda: write_exports(experiment.store))
 
     def on_record(cell: Cell, cid: str, record: CellResult) -> None:
         experiment.records[cid] = record
@@ -120,7 +122,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                 rebuilds.flush()
         raise
     progress.close()
-    experiment.store.write_csv(prune=True)
+    write_exports(experiment.store, prune=True)
     if env is not None:
         write_env_after(experiment.directory, env)
     missing = [cid for _, cid in pending if cid not in measured]
@@ -130,6 +132,17 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
     return summarise(experiment, order, len(measured), len(missing))
+
+
+def write_exports(store: CellStore, prune: bool = False) -> None:
+    """The experiment's rows listed from the records on disk and exported (analysis.export):
+    per planned cell, this machine's record (or its newest, marked stale) and every other
+    machine's newest, then each machine's records of an earlier config. With `prune`, the
+    superseded records move to history/ first."""
+    config = store.config
+    export.rebuild(store.directory, store.planned_cells(), store.machine_id, config.name,
+                   config.title, prune_first=prune, baseline=BASELINE,
+                   divergence=bool(config.checks.names))
 
 
 def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,

@@ -30,6 +30,7 @@ from harness.runner.experiment import (
     require_hyperfine,
     run_apart,
     write_env_after,
+    write_exports,
 )
 from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
@@ -193,7 +194,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     until = UntilDecided(pairs, threshold, q, budget_s)
     seed = measure_in_rounds(units, lambda unit, record: None, progress, None, until)
     for side, store in stores:
-        store.write_csv(prune=True)
+        write_exports(store, prune=True)
         write_env_after(store.directory, env[side.name])
     for name in SIDE_DIRS.values():
         shutil.rmtree(out / name, ignore_errors=True)

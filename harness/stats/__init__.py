@@ -30,9 +30,11 @@ from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, 
                                      difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
                                      speedup_ci)
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
-                                  Coverage, RoundEstimate, SessionSpread, cell_estimate,
-                                  coverage, from_round_values, paired_ratio, round_half_width,
-                                  session_noise, session_spread, spread_at, t95)
+                                  NOISE_MARGIN, Coverage, RoundEstimate, SessionSpread,
+                                  cell_estimate, coverage, from_round_values, noise_of,
+                                  paired_ratio, round_half_width, session_noise, session_spread,
+                                  spread_at, spreads_of, supersedes, t95,
+                                  time_interval)
 from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
                                   paired_change, smallest_detectable, without_interference)
 from harness.stats.rounds import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,

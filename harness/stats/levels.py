@@ -29,13 +29,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats as sps
 
-from harness.stats.intervals import CONFIDENCE, Z95, Interval, clean
+from harness.stats.intervals import (
+    CONFIDENCE,
+    LOW_QUANTILE_ESTIMATOR,
+    Z95,
+    Interval,
+    clean,
+    estimate,
+    median_ci,
+)
 from harness.stats.rounds import round_medians
 
 # A cell gets its runs in at least this many rounds before its interval may stop it: with
@@ -67,6 +76,35 @@ class SessionSpread:
         """The spread of the log ratio of one cell's estimates in two sessions (compare's
         drift between sides measured apart): sqrt(2) times a session's."""
         return math.sqrt(2.0) * self.absolute
+
+    @classmethod
+    def of_entry(cls, entry: Mapping[str, object], machine_id: str) -> SessionSpread:
+        """The spread a `reruns` entry holds (harness.store.sessions), naming where it was
+        learnt."""
+        return cls(float(entry["absolute"]), float(entry["ratio"]),  # type: ignore[arg-type]
+                   f"learnt by reruns of {entry.get('config', '?')} on machine {machine_id} "
+                   f"({entry.get('date', '?')})", noise_of(entry))
+
+
+def noise_of(entry: Mapping[str, object]) -> float:
+    """The noise a `reruns` entry was learnt under; NaN where unknown (kept before levels, or
+    reruns that measured none)."""
+    noise = entry.get("noise")
+    return float(noise) if isinstance(noise, int | float) else math.nan
+
+
+def supersedes(newer: Mapping[str, object], older: Mapping[str, object]) -> bool:
+    """Whether a newer entry makes an older one of no use: the older's noise is unknown, or
+    the newer's is known and within NOISE_MARGIN of it (an entry of unknown noise leaves
+    every level of known noise as it is)."""
+    old, new = noise_of(older), noise_of(newer)
+    return math.isnan(old) or (math.isfinite(new) and abs(new - old) <= NOISE_MARGIN)
+
+
+def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str
+               ) -> list[SessionSpread]:
+    """The spreads of a machine's kept entries, in their order (spread_at picks among them)."""
+    return [SessionSpread.of_entry(e, machine_id) for e in entries]
 
 
 # Until a machine's reruns are measured: 0.11 for a cell's time, whose sqrt(2) (0.156) is the
@@ -257,3 +295,23 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
     low, mid, high = np.percentile(widths, [25, 50, 75]) if widths else [math.nan] * 3
     return Coverage(held, pairs, float(np.median(moves)) if moves else math.nan,
                     max(moves, default=math.nan), float(mid), float(low), float(high))
+
+
+def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
+                  session: float | None = None) -> tuple[float | None, float | None, float]:
+    """What a cell's per-run times give: the 95% interval of their median (None where there is
+    none) and their low quantile. With the round of each run, the interval is where another
+    session's estimate lies (over the rounds, and the machine's `session` spread), widened to
+    hold the median of the runs; without (a record from before rounds), the bootstrap over
+    the runs."""
+    if rounds is None:
+        interval = median_ci(times)
+    else:
+        spread = DEFAULT_SESSION_SPREAD.absolute if session is None else session
+        interval = cell_estimate(times, rounds).rerun_interval(spread)
+        if math.isfinite(interval.low) and times:
+            median = statistics.median(times)
+            interval = Interval(median, min(interval.low, median), max(interval.high, median))
+    return (interval.low if math.isfinite(interval.low) else None,
+            interval.high if math.isfinite(interval.high) else None,
+            estimate(times, LOW_QUANTILE_ESTIMATOR))

@@ -177,6 +177,11 @@ RATIO_COLUMNS: tuple[str, ...] = (
     "session_spread",
 )
 
+# ratios.csv's columns that are numbers (beside the cells' own numeric columns).
+RATIO_NUMBERS: frozenset[str] = frozenset({
+    "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
+    "efficiency", "karp_flatt", "session_spread"})
+
 # --- how each column reads back -----------------------------------------------------------
 
 # Each record field's type, None aside (a list's: tuple[item, ...]).

@@ -5,9 +5,9 @@ machine, so a new build or another machine gives new ids and the old records sta
 Two records are of the same *group* (CellKey.group) when they ran the same thing the same way,
 whatever binaries and machine; within a group, one record per machine is current: the newest.
 The others are *superseded*: prune() moves them, with their hyperfine JSON and kept output, to
-<experiment>/history/, so the committed cells/ holds what the report shows; load_history()
-reads them back ("earlier measurements"). A *timed group* (CellKey.timed_group) also leaves out
-how the runs were taken: the records of every machine that timed the same cell.
+<experiment>/history/, so the committed cells/ holds what the report shows. A *timed group*
+(CellKey.timed_group) also leaves out how the runs were taken: the records of every machine
+that timed the same cell.
 
 A record from before machine ids (no `machine_id` in its key) belongs to no known machine: any
 newer record of its group supersedes it.
@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import atomic, csvfile, layout, locks, records
+from harness.store import atomic, layout, locks, records
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import CellResult
@@ -84,16 +84,6 @@ def load_records(directory: Path) -> list[Stored]:
             _READ[path] = (stamp, item)
             stored.append(item)
     return stored
-
-
-def load_history(experiment_dir: Path) -> list[dict[str, object]]:
-    """The superseded records of an experiment, oldest first (the report's "earlier
-    measurements"), as results.csv's rows: `wall_times_s` and its interval filled in where
-    hyperfine's JSON is kept."""
-    history = ExperimentDir(experiment_dir).history
-    return [csvfile.csv_row(item.result.columns, "", "",
-                            history / f"{item.cell_id}{layout.HYPERFINE_SUFFIX}")
-            for item in sorted(load_records(history), key=lambda s: s.age)]
 
 
 def by_group(stored: Iterable[Stored], timed: bool = False) -> dict[str, list[Stored]]:

@@ -67,16 +67,3 @@ def load_hyperfine(path: Path) -> HyperfineStats:
         return parse_hyperfine(json.loads(path.read_text()))
     except (OSError, json.JSONDecodeError) as exc:
         raise ResultFormatError(f"{path}: {exc}") from None
-
-
-def run_times(listed: object, export: Path | None) -> list[float]:
-    """A cell's per-run wall times: its `wall_times_s` (a record's or a results.csv row's),
-    else those of its hyperfine export when there is one."""
-    if isinstance(listed, list | tuple) and listed:
-        return [float(t) for t in listed]
-    if export is None or not export.is_file():
-        return []
-    try:
-        return list(load_hyperfine(export).times)
-    except ResultFormatError:
-        return []

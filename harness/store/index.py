@@ -1,37 +1,36 @@
-"""results.csv rebuilt from the records on disk, and env.json.
+"""Which records an experiment's rows are, and the index that lists them (results.index.json,
+written with the exports: analysis.export); env.json and variants.json.
 
-results.csv lists, for each planned cell: on this machine the record of the current build, or
+The rows are, for each planned cell: on this machine the record of the current build, or
 else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
 and on every other machine present the newest record that timed the cell, whatever its
 measure settings and whether or not it counted instructions (CellKey.timed_group). Then each
 machine's newest record of every other cell it measured, marked `earlier_config`: measured
 under an earlier version of the config, which a machine that has not measured it since keeps
-showing. It is
-rebuilt from the records on disk under the directory's lock, so two writers never drop each
-other's rows.
+showing. The listing is made from the records on disk under the directory's lock, so two
+writers never drop each other's rows.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import atomic, derived, locks, records
+from harness.store import atomic, records
 from harness.store.columns import UNPLANNED, match_values
-from harness.store.derived import Listed
 from harness.store.history import (
     UNKNOWN_MACHINE,
     Stored,
     by_group,
     current_by_machine,
-    load_records,
-    prune_locked,
     superseded,
 )
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import CellResult
+from harness.store.trust import DamagedFile
 
 
 @dataclass(frozen=True)
@@ -47,7 +46,20 @@ class PlannedCell:
         return self.key.id
 
 
+@dataclass(frozen=True)
+class Listed:
+    """A record as an experiment's rows list it: stale (its binary changed since; None:
+    another machine's, whose build this run cannot see), and where it was measured under an
+    earlier version of its config, the key fields that differ (UNPLANNED: the config no
+    longer plans it)."""
+
+    result: CellResult
+    stale: bool | None
+    config_changed: str = ""
+
+
 Row = Listed
+INDEX_VERSION = 1
 
 
 def _subject(item: Stored) -> tuple[str, ...]:
@@ -121,23 +133,73 @@ def replaced(stored: Sequence[Stored], planned: Sequence[PlannedCell]) -> list[S
             and (s.machine_id, _subject(s)) in renewed]
 
 
-def rebuild_csv(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
-                experiment: str, title: str, prune_first: bool = False,
-                baseline: str | None = None, divergence: bool = False) -> list[CellResult]:
-    """Rewrite results.csv from the records on disk, under the directory lock (with
-    `prune_first`, after moving the superseded records to history/, as a run ends); with the
-    `baseline` variant named, ratios.csv from its rows, and with `divergence`, divergence.csv
-    (harness.store.derived, with the index that vouches for them); the records listed are
-    returned."""
-    exp = ExperimentDir(experiment_dir)
-    with locks.directory_lock(experiment_dir):
-        stored = load_records(exp.cells)
-        if prune_first:
-            stored = prune_locked(experiment_dir, stored, replaced(stored, planned))
-        rows = current_rows(stored, planned, machine_id)
-        derived.write_derived(exp, derived.Derivation(experiment, title, baseline, divergence),
-                              rows)
-    return [r.result for r in rows]
+def write_index(exp: ExperimentDir, experiment: str, title: str, baseline: str | None,
+                divergence: bool, listed: Sequence[Listed],
+                digests: Mapping[str, str | None]) -> None:
+    """results.index.json: how the exports were written, the records they list, in order,
+    with their marks, and each export's sha256 (None: not written)."""
+    atomic.atomic_write_json(exp.results_index, {
+        "version": INDEX_VERSION, "experiment": experiment, "title": title,
+        "baseline": baseline, "divergence": divergence,
+        "rows": [[item.result.cell_id, item.stale, item.config_changed] for item in listed],
+        "sha256": dict(digests)})
+
+
+def _index(exp: ExperimentDir) -> dict[str, object]:
+    """The index as written; DamagedFile where it cannot be read as one."""
+    try:
+        raw = json.loads(exp.results_index.read_text(encoding="utf-8"))
+        if not isinstance(raw, dict) or raw.get("version") != INDEX_VERSION:
+            raise ValueError(f"not an index of version {INDEX_VERSION}")
+        missing = [k for k in ("experiment", "title", "baseline", "divergence", "rows",
+                               "sha256") if k not in raw]
+        if missing:
+            raise ValueError(f"no {', '.join(missing)}")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DamagedFile(exp.results_index, f"damaged ({exc})") from None
+    return raw
+
+
+def index_files(exp: ExperimentDir) -> tuple[tuple[str, str, str | None, bool],
+                                              dict[str, str | None]]:
+    """(experiment, title, baseline, divergence) and each export's sha256 as the index has
+    them; DamagedFile where it cannot be read."""
+    raw = _index(exp)
+    how = (str(raw["experiment"]), str(raw["title"]), raw["baseline"], bool(raw["divergence"]))
+    return how, {str(k): v for k, v in dict(raw["sha256"]).items()}  # type: ignore[arg-type,return-value]
+
+
+def index_rows(exp: ExperimentDir) -> list[tuple[str, bool | None, str]] | None:
+    """The (cell_id, stale, config_changed) the index lists, in order; None without an
+    index; DamagedFile where it cannot be read."""
+    if not exp.results_index.is_file():
+        return None
+    rows = _index(exp)["rows"]
+    if not isinstance(rows, list):
+        raise DamagedFile(exp.results_index, "damaged (its rows are not a list)")
+    return [(str(row[0]), row[1], str(row[2]) if len(row) > 2 else "") for row in rows]
+
+
+def index_title(exp: ExperimentDir) -> str | None:
+    """The experiment's title as the index has it (None without one)."""
+    return str(_index(exp)["title"]) if exp.results_index.is_file() else None
+
+
+def listed_records(exp: ExperimentDir, rows: Sequence[tuple[str, bool | None, str]]
+                   ) -> tuple[list[Listed], list[str]]:
+    """The listed records that read back, and why each other one does not."""
+    found, damaged = [], []
+    for cid, stale, changed in rows:
+        try:
+            result = records.check_record(exp.record(cid), cid)
+        except DamagedFile as exc:
+            damaged.append(str(exc))
+            continue
+        if result is None:
+            damaged.append(f"{exp.record(cid)}: missing")
+        else:
+            found.append(Listed(result, stale, changed))
+    return found, damaged
 
 
 def write_env(experiment_dir: Path, env: Mapping[str, object]) -> None:

@@ -15,6 +15,7 @@ value is left out of the JSON. Reading a record refuses a field it does not know
 from __future__ import annotations
 
 import functools
+import statistics
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
@@ -41,7 +42,7 @@ from harness.store.measured import (
 from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
 # The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
-# Version 1, their items space-separated, is read as well.
+# Version 1, their items space-separated, is upgraded where it is read (upgrade).
 RECORD_VERSION = 2
 READ_VERSIONS = (1, RECORD_VERSION)
 # The record's names of the timed runs: their seconds and, in the same order, their rounds.
@@ -96,21 +97,16 @@ class CellResult:
     def round_times(self) -> dict[int, tuple[float, ...]]:
         """The seconds of its runs by round, in round order; empty where the runs' rounds
         are not recorded."""
-        from harness.stats.rounds import runs_by_round  # scipy only where rounds are paired
-
-        grouped = runs_by_round([run.time_s for run in self.times], self._rounds())
+        if any(run.round is None for run in self.times):
+            return {}
+        grouped: dict[int, list[float]] = {}
+        for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
+            grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
         return {k: tuple(v) for k, v in grouped.items()}
-
-    def _rounds(self) -> list[int]:
-        """The round of each run; empty where any is not recorded."""
-        rounds = [run.round for run in self.times]
-        return [] if None in rounds else typing.cast(list[int], rounds)
 
     def by_round(self) -> dict[int, float]:
         """The median of its runs in each round (stats.MeasuredInRounds)."""
-        from harness.stats.rounds import round_medians
-
-        return round_medians([run.time_s for run in self.times], self._rounds())
+        return {k: statistics.median(v) for k, v in self.round_times().items()}
 
     def noise_by_round(self) -> dict[int, float]:
         return self._per_round(self.noise.round_noise if self.noise else None)
@@ -119,10 +115,11 @@ class CellResult:
         return self._per_round(self.noise.round_pressure if self.noise else None)
 
     def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
-        from harness.stats.rounds import by_round
-
-        rounds = self._rounds()
-        return by_round(rounds, values) if values is not None and rounds else {}
+        """A value recorded once per round, by round; empty unless every round has one."""
+        rounds = list(self.round_times())
+        if values is None or len(rounds) != len(values):
+            return {}
+        return dict(zip(rounds, values, strict=True))
 
     def value(self, name: str) -> object:
         """A results.csv column's value; None where the record has none."""
@@ -160,12 +157,10 @@ class CellResult:
         if raw.get("version") not in READ_VERSIONS:
             raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
                                     f"{', '.join(map(str, READ_VERSIONS))}")
-        values = {k: v for k, v in raw.items() if k != "version" and v is not None}
+        values = {k: v for k, v in upgrade(raw).items() if k != "version" and v is not None}
         unknown = sorted(set(values) - set(_leaves()) - _TOP_NAMES)
         if unknown:
             raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
-        if raw["version"] == 1:
-            values = _with_lists(values)
         return _parse(values)
 
 
@@ -213,6 +208,16 @@ def _flatten(result: CellResult) -> dict[str, object]:
             item = getattr(value, leaf.name)
             if item is not None:
                 out[leaf.name] = list(item) if isinstance(item, tuple) else item
+    return out
+
+
+def upgrade(raw: Mapping[str, object]) -> dict[str, object]:
+    """A stored record as the current version has it: the one place that knows the formats
+    of earlier versions (1 kept the list columns as space-separated text)."""
+    out = dict(raw)
+    if out.get("version") == 1:
+        out = _with_lists(out)
+    out["version"] = RECORD_VERSION
     return out
 
 

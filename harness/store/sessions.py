@@ -1,6 +1,8 @@
-"""A machine's session spread (harness.stats.levels.SessionSpread), kept beside its description
-in <root>/calibration/machines/<machine_id>.json: written by `reruns`, read where a cell's
-interval is computed and where compare allows for the drift between sets measured apart.
+"""A machine's session spread (harness.stats.levels.SessionSpread: what each entry holds), kept
+beside its description in <root>/calibration/machines/<machine_id>.json: written by `reruns`,
+read where a cell's interval is computed and where compare allows for the drift between sets
+measured apart. Which entry makes which of no use is the caller's rule (stats.supersedes): the
+store only keeps them.
 
 SESSION_KEY holds the newest entry; LEVELS_KEY one entry per noise level it was learnt at
 (a newer one supersedes one of about the same noise), from which a session takes the spread
@@ -8,17 +10,12 @@ at its own noise (stats.spread_at: interpolated between the two levels around it
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from harness.repo import DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR
 from harness.store import atomic, records
 from harness.store.layout import ResultsRoot
-
-if TYPE_CHECKING:  # stats.levels imports scipy, which an unchanged report page never loads
-    from harness.stats.levels import SessionSpread
 
 SESSION_KEY = "session"  # the newest entry `reruns` kept beside a machine's description
 LEVELS_KEY = "session_levels"  # its entries by the noise they were learnt at
@@ -60,58 +57,31 @@ def level_entries(root: Path, machine_id: str) -> list[Mapping[str, object]]:
     return found
 
 
-def noise_of(entry: Mapping[str, object]) -> float:
-    """The noise an entry was learnt under; NaN where unknown (kept before levels, or reruns
-    that measured none)."""
-    noise = entry.get("noise")
-    return float(noise) if isinstance(noise, int | float) else math.nan
+Supersedes = Callable[[Mapping[str, object], Mapping[str, object]], bool]
 
 
-def _supersedes(newer: Mapping[str, object], older: Mapping[str, object]) -> bool:
-    """Whether a newer entry makes an older one of no use: the older's noise is unknown, or
-    the newer's is known and within NOISE_MARGIN of it (an entry of unknown noise leaves
-    every level of known noise as it is)."""
-    from harness.stats.levels import NOISE_MARGIN
-
-    old, new = noise_of(older), noise_of(newer)
-    return math.isnan(old) or (math.isfinite(new) and abs(new - old) <= NOISE_MARGIN)
-
-
-def kept_levels(roots: Iterable[Path], machine_id: str) -> list[Mapping[str, object]]:
+def kept_levels(roots: Iterable[Path], machine_id: str, supersedes: Supersedes
+                ) -> list[Mapping[str, object]]:
     """The machine's levels kept under the roots, newest first, without those a newer one
     supersedes (where two roots keep one of the same noise, the newer)."""
     found = sorted((e for root in dict.fromkeys(roots) for e in level_entries(root, machine_id)),
                    key=_date, reverse=True)
     levels: list[Mapping[str, object]] = []
     for entry in found:
-        if not any(_supersedes(kept, entry) for kept in levels):
+        if not any(supersedes(kept, entry) for kept in levels):
             levels.append(entry)
     return levels
 
 
-def spreads(roots: Iterable[Path], machine_id: str) -> list[SessionSpread]:
-    """kept_levels' spreads, newest first (stats.spread_at picks among them)."""
-    return [spread_of(e, machine_id) for e in kept_levels(roots, machine_id)]
-
-
-def spread_of(entry: Mapping[str, object], machine_id: str) -> SessionSpread:
-    """The spread a `reruns` entry (session_entry) holds, naming where it was learnt."""
-    from harness.stats.levels import SessionSpread
-
-    return SessionSpread(float(entry["absolute"]), float(entry["ratio"]),  # type: ignore[arg-type]
-                         f"learnt by reruns of {entry.get('config', '?')} on machine "
-                         f"{machine_id} ({entry.get('date', '?')})", noise_of(entry))
-
-
 def keep_session(root: Path, machine_id: str, description: Mapping[str, object],
-                 entry: Mapping[str, object]) -> Path:
+                 entry: Mapping[str, object], supersedes: Supersedes) -> Path:
     """Keep the machine's session spread (with its description) in its calibration file,
     beside what else is kept there, as the newest entry and as its noise level's (in place of
     those it supersedes); the file."""
     path = ResultsRoot(root).calibration(machine_id)
     existing = records.read_json(path)
     existing = existing if isinstance(existing, dict) else {}
-    levels = [e for e in level_entries(root, machine_id) if not _supersedes(entry, e)]
+    levels = [e for e in level_entries(root, machine_id) if not supersedes(entry, e)]
     atomic.atomic_write_json(path, {**existing, **description, SESSION_KEY: dict(entry),
                                     LEVELS_KEY: [*levels, dict(entry)]})
     return path

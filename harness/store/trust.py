@@ -4,7 +4,7 @@ and what rests on it is rebuilt or measured again. Here, hyperfine's exports of 
 (each one it names is there, reads, and holds the record's runs of its round) and the
 reference outputs kept under results/.cache/ (written with the sha256 of their bytes beside
 them). A record is checked where it is read (records.check_record), results.csv and the files
-derived with it in harness.store.derived. Standard library only."""
+derived with it in harness.analysis.export. Standard library only."""
 
 from __future__ import annotations
 

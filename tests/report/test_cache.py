@@ -169,83 +169,55 @@ def test_manifest_lists_each_figure_with_file_hashes(tmp_path: Path, name: str) 
 # --- the code a figure depends on, found from the imports --------------------------------
 
 
-def package(tmp_path: Path, files: dict[str, str]) -> Path:
-    for name, text in files.items():
-        path = tmp_path / "harness" / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
-    return tmp_path / "harness"
-
-
-def test_the_code_closure_follows_imports_through_other_modules(
+def test_a_change_in_the_code_a_render_loads_changes_its_version_and_no_other(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    root = package(tmp_path, {
-        "__init__.py": "", "report/__init__.py": "", "report/figures/__init__.py": "",
-        "report/figures/one.py": "from harness.analysis import tables\n",
-        "analysis/__init__.py": "", "analysis/tables.py": "from .. import stats\n",
-        "stats.py": "import numpy\n", "measure/__init__.py": "", "measure/cell.py": "",
-    })
-    monkeypatch.setattr(cache, "PACKAGE_DIR", root)
-    found = {p.relative_to(root).as_posix()
-             for p in cache.code_closure(("harness.report.figures",))}
-    assert found == {"__init__.py", "report/__init__.py", "report/figures/__init__.py",
-                     "report/figures/one.py", "analysis/__init__.py", "analysis/tables.py",
-                     "stats.py"}  # measure/ is imported by nothing here
+    for name in ("report/figures/one.py", "report/sections/two.py", "analysis/tables.py",
+                 "measure/cell.py", "__init__.py"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x = 1\n")
+    monkeypatch.setattr(cache, "PACKAGE_DIR", tmp_path)
+
+    def versions() -> tuple[str, str]:
+        return cache.code_version(cache.code_files(cache.FIGURE_CODE)), \
+            cache.code_version(cache.code_files(cache.REPORT_CODE))
+
+    before = versions()
+    (tmp_path / "measure" / "cell.py").write_text("x = 2\n")  # measuring: no render loads it
+    assert versions() == before
+    (tmp_path / "report" / "sections" / "two.py").write_text("x = 2\n")
+    after = versions()
+    assert after[0] == before[0] and after[1] != before[1]  # the figures do not draw with it
+    (tmp_path / "analysis" / "tables.py").write_text("x = 2\n")
+    assert versions()[0] != after[0] and versions()[1] != after[1]
 
 
-def test_a_change_in_an_imported_module_changes_the_figures_code_version(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    root = package(tmp_path, {
-        "__init__.py": "", "report/__init__.py": "", "report/figures/__init__.py": "",
-        "report/figures/one.py": "from harness.analysis.tables import x\n",
-        "analysis/__init__.py": "", "analysis/tables.py": "x = 1\n", "unrelated.py": "",
-    })
-    monkeypatch.setattr(cache, "PACKAGE_DIR", root)
-
-    def version() -> str:
-        return cache.code_version(cache.code_closure(cache.FIGURE_MODULES))
-
-    before = version()
-    (root / "unrelated.py").write_text("y = 2\n")
-    assert version() == before
-    (root / "analysis" / "tables.py").write_text("x = 2\n")
-    assert version() != before
-
-
-def test_the_code_is_read_once_per_render_however_many_pages(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Hashing the code walks every module it imports: one render of several machines' pages
-    does it once for the figures and once for the parts, not again per page."""
-    root = results_with(tmp_path, "threads")
-    csv_path = root / "threads" / "results.csv"
-    with csv_path.open(newline="", encoding="utf-8") as handle:
-        rows = list(csv.DictReader(handle))
-    with csv_path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=[*rows[0], "machine_id"])
-        writer.writeheader()
-        writer.writerows({**row, "machine_id": ("aa" if k % 2 else "bb") * 8}
-                         for k, row in enumerate(rows))
-    calls: list[tuple[str, ...]] = []
-    closure = cache.code_closure
-
-    def counted(modules: tuple[str, ...]) -> list[Path]:
-        calls.append(tuple(modules))
-        return closure(modules)
-
-    monkeypatch.setattr(cache, "code_closure", counted)
-    out = tmp_path / "report"
-    pipeline.render(root, out)
-    assert len(list((out / "machines").glob("*/report.md"))) == 2
-    assert sorted(calls) == sorted([cache.FIGURE_MODULES, cache.REPORT_MODULES])
-
-
-def test_the_real_figures_depend_on_the_analysis_they_draw() -> None:
-    names = {p.relative_to(cache.PACKAGE_DIR).as_posix()
-             for p in cache.code_closure(cache.FIGURE_MODULES)}
+def test_every_module_a_render_loads_is_in_the_code_it_is_keyed_by(tmp_path: Path) -> None:
+    """The modules a render of the fixtures loads (asked of the interpreter, not read from
+    the source) are all among those its parts are keyed by, and the figures' among theirs."""
+    root = results_with(tmp_path, "threads", "trajectory", "accuracy", "strategies")
+    script = (
+        "import sys, pathlib\n"
+        "from harness.report import pipeline, cache\n"
+        "import harness.report.figures as figures, pkgutil, importlib\n"
+        "for m in pkgutil.iter_modules(figures.__path__):\n"
+        "    importlib.import_module(f'harness.report.figures.{m.name}')\n"
+        f"pipeline.render(pathlib.Path({str(root)!r}), pathlib.Path({str(tmp_path / 'out')!r}))\n"
+        "loaded = {pathlib.Path(m.__file__).resolve() for n, m in sys.modules.items()\n"
+        "          if n.startswith('harness') and getattr(m, '__file__', None)}\n"
+        "report = set(cache.code_files(cache.REPORT_CODE))\n"
+        "print('\\n'.join(sorted(str(p) for p in loaded - report)))\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=REPO_ROOT, env={**os.environ, "PYTHONPATH": str(REPO_ROOT)},
+                          check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    outside = [line for line in done.stdout.splitlines() if line.strip()]
+    assert not outside, f"modules a render loads but its cache key leaves out: {outside}"
+    figures = {p.relative_to(cache.PACKAGE_DIR).as_posix()
+               for p in cache.code_files(cache.FIGURE_CODE)}
     assert {"report/figures/base.py", "analysis/speedup.py", "stats/intervals.py",
-            "spec/facts.py"} <= names
-    assert "spec/variants.py" not in names and "spec/make.py" not in names
-    assert not any(n.startswith(("measure/", "executors/", "runner/")) for n in names)
+            "spec/facts.py"} <= figures
+    assert not any(n.startswith(("measure/", "executors/", "runner/", "report/sections/"))
+                   for n in figures)
 
 
 def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.MonkeyPatch

@@ -9,7 +9,6 @@ import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
-from harness.analysis.frame import DIVERGENCE_REQUIRED
 from harness.analysis.trust import (
     FAIL_MARK,
     PASS_MARK,
@@ -26,6 +25,7 @@ from harness.report.figures.accuracy import fig_divergence, fig_error_time
 from harness.report.load import Experiment
 from harness.report.sections.context import Context, table_block
 from harness.spec.builds import DESCRIPTIONS
+from harness.store.columns import DIVERGENCE_COLUMNS
 
 MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)
 MIN_TIMED_RUNS = 2  # below this many runs a cell's time is incidental, not a measurement
@@ -70,7 +70,7 @@ def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
         first = cells.iloc[0]
         div = exp.divergence
         if div is None:
-            div = pd.DataFrame(columns=list(DIVERGENCE_REQUIRED))
+            div = pd.DataFrame(columns=list(DIVERGENCE_COLUMNS))
         else:
             div = div[(div[list(DIVERGENCE_MATCH)] == first[list(DIVERGENCE_MATCH)]).all(axis=1)]
         shadow = "shadow_pos_err" in cells and bool((cells["shadow_pos_err"].fillna(0) > 0).any())

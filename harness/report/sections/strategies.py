@@ -80,14 +80,14 @@ def build(ctx: Context) -> list[Section]:
         parts.append(ctx.section("Work per thread", "work", (
             ctx.figure(work_figure, work, "work-per-thread", WORK_CAPTION),)))
     parts += _overhead(ctx)
-    costs = study.chunk_costs(df, ctx.exp.directory.path)
+    costs = study.chunk_costs(df)
     if costs:
         parts.append(ctx.section("Cost per dispatched chunk", "chunks", (
             Paragraph(CHUNK_INTRO),
             table_block(study.chunk_table(costs), "Extra time over the reference, per chunk."),
             Paragraph(study.chunk_sentence(costs)),
         )))
-    rows = study.schedule_rows(df, ctx.exp.directory.path) if study.has_schedules(df) else []
+    rows = study.schedule_rows(df) if study.has_schedules(df) else []
     if len(rows):
         parts.append(ctx.section("Schedules", "schedules", (
             Paragraph(SCHEDULE_INTRO),
