@@ -1,8 +1,9 @@
 # collide-bench: build every variant into build/, test, benchmark, set up the environment.
 #
 #   make all              every variant, double precision: build/seq build/p1 ... build/grid,
-#                         and build/ompcost (the OpenMP runtime's cost of a region, a barrier,
-#                         a dynamic chunk at a thread count: tools/ompcost.c)
+#                         build/ompcost (the OpenMP runtime's cost of a region, a barrier,
+#                         a dynamic chunk at a thread count: tools/ompcost.c) and build/peakrss
+#                         (a command's peak resident memory: tools/peakrss.c)
 #   make build/seq-f32    any variant in float; -f128 in __float128; -textbook / -report with
 #                         the other pair-time formulas (the accuracy study's builds)
 #   make portable         every variant for baseline x86-64 (no AVX) into build/portable/
@@ -101,12 +102,17 @@ $(foreach b,$(BUILDS),$(eval $(call build_rules,lane-$(b),build/lane/%-$(b),$(LA
 
 .PHONY: all asan portable lane fuzz test test-c test-c-unit test-c-scenes test-c-scenes-asan test-c-portable test-python lint bench setup setup-test quickstart publish publish-report clean print-flags print-variants print-builds
 
-all: $(addprefix build/,$(VARIANTS)) build/ompcost
+all: $(addprefix build/,$(VARIANTS)) build/ompcost build/peakrss
 
 # The measuring tools beside the variants (no variant: no core, no --describe).
 build/ompcost: tools/ompcost.c
 	@mkdir -p $(@D)
 	$(CC) $(BASE_CFLAGS) $(CFLAGS) $< -o $@ $(BASE_LDLIBS) $(LDLIBS)
+
+# No OpenMP and no libm: the commands it runs are forked from its few pages (tools/peakrss.c).
+build/peakrss: tools/peakrss.c
+	@mkdir -p $(@D)
+	$(CC) -std=c11 -O2 $(WARN) -D_DEFAULT_SOURCE $(CFLAGS) $< -o $@
 
 asan: $(addprefix build/asan/,$(VARIANTS))
 

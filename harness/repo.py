@@ -12,6 +12,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 BUILD_DIR = "build"  # make's binaries: build/NAME, build/NAME-BUILD
 VARIANTS_DIR = "variants"  # variants/NAME.c, one file a variant
 OMPCOST = "ompcost"  # build/ompcost (tools/ompcost.c): the OpenMP runtime's cost per operation
+PEAKRSS = "peakrss"  # build/peakrss (tools/peakrss.c): a command's peak resident memory
 # A user's measurements and their report: git ignores both, so measuring changes no tracked file.
 DEFAULT_RESULTS_DIR = REPO_ROOT / "results"
 DEFAULT_REPORT_DIR = REPO_ROOT / "report"

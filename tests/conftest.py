@@ -14,7 +14,7 @@ from harness import repo
 REPO_ROOT = repo.REPO_ROOT
 TESTS = Path(__file__).resolve().parent
 FIXTURES = TESTS / "fixtures"
-E2E_BINARIES = ("seq", "p1", "p1d")
+E2E_BINARIES = ("seq", "p1", "p1d", "peakrss")
 # The modules that take longest, the longest first: collected first, so that pytest-xdist
 # (`make test`: a module a unit of work) starts them first and no worker is left with one of
 # them once the others are done. The rest keep their order.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 import shutil
 import subprocess
@@ -32,13 +33,15 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
     root = tmp_path / "results"
     assert main([str(SMOKE), "--results-dir", str(root), "--no-report"]) == 0
     first = capsys.readouterr().err
-    assert "smoke: 8 cells (8 measured, 0 cached): 8 ok" in first
+    assert "smoke: 7 cells (7 measured, 0 cached): 7 ok" in first
     table = root / "smoke" / "results.csv"
     header = table.read_text().splitlines()[0].split(",")
     assert tuple(header[:len(columns.CSV_COLUMNS)]) == columns.CSV_COLUMNS
     rows = read_csv(table)
+    # seq, serial, is one cell: run with one thread
     assert [(r["variant"], r["threads"]) for r in rows] == [
-        (v, t) for t in ("1", "2") for v in ("seq", "p1", "p1d", "relative")]
+        (v, t) for t in ("1", "2") for v in ("seq", "p1", "p1d", "relative")
+        if (v, t) != ("seq", "2")]
     for row in rows:
         assert row["status"] == "ok", row
         assert (row["experiment"], row["scene"], row["n"], row["runs"]) == (
@@ -65,12 +68,64 @@ def test_smoke_grid_then_nothing_remeasured(real_binaries: Path, build_binaries,
     report = tmp_path / "report"
     assert main([str(SMOKE), "--results-dir", str(root), "--report-dir", str(report)]) == 0
     second = capsys.readouterr().err
-    assert "smoke: 8 cells (0 measured, 8 cached): 8 ok" in second
+    assert "smoke: 7 cells (0 measured, 7 cached): 7 ok" in second
     assert "elapsed" not in second
     assert stamps == {p.name: p.stat().st_mtime_ns for p in cells.iterdir()}
     assert read_csv(table) == rows
     assert (report / "report.md").is_file()
 
+
+
+def test_a_serial_variant_is_measured_once_and_shown_at_each_count(
+        real_binaries: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """seq and p1d at 1, 2 and 3 threads: 4 cells, seq's run with one thread; the report shows
+    that one measurement at 1, 2 and 3 threads, marked."""
+    config = tmp_path / "serial.yaml"
+    config.write_text("name: serial\nvariants: [seq, p1d]\nscene: {n: 200, L: 2000, r: 1, "
+                      "steps: 2, mode: perf, seed: 1}\nthreads: [1, 2, 3]\n"
+                      "measure: {warmup: 0, runs: 1}\n")
+    root, report = tmp_path / "results", tmp_path / "report"
+    assert main([str(config), "--dry-run", "--results-dir", str(root)]) == 0
+    planned = capsys.readouterr().out
+    assert planned.startswith("serial: 4 cells (0 cached, 4 to run, 0 excluded)")
+    assert "seq n=200 L=2000 r=1 S=2 seed=1 threads=1 (ignores threads)" in planned
+    assert main([str(config), "--results-dir", str(root), "--report-dir", str(report)]) == 0
+    assert "serial: 4 cells (4 measured, 0 cached): 4 ok" in capsys.readouterr().err
+    rows = read_csv(root / "serial" / "results.csv")
+    assert sorted((r["variant"], r["threads"]) for r in rows) == [
+        ("p1d", "1"), ("p1d", "2"), ("p1d", "3"), ("seq", "1")]
+    seq = next(r for r in rows if r["variant"] == "seq")
+    assert json.loads((root / "serial" / "cells" / f"{seq['cell_id']}.json").read_text())[
+        "omp_env"]["OMP_NUM_THREADS"] == "1"
+    text = (report / "report.md").read_text()
+    table = text[text.index("| variant | threads | 1-thread run |"):].split("\n\n")[0]
+    shown = [line.split(" | ") for line in table.splitlines() if line.startswith("| seq |")]
+    assert [line[1] for line in shown] == ["1", "2", "3"] and {line[2] for line in shown} == {
+        "✓"}
+    median = table.splitlines()[0].split(" | ").index("median [s]")
+    assert len({line[median] for line in shown}) == 1  # one measurement
+    assert "Experiment `serial`: 4 cell(s)." in text
+
+
+def test_a_bigger_scene_takes_more_memory(build_binaries, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """Each cell's peak resident memory (its --precise run's, under build/peakrss) is a column
+    of results.csv, in MiB: 200 discs take a small program's few MiB, 200000 many times that."""
+    build_binaries("grid", "peakrss")
+    config = tmp_path / "memory.yaml"
+    config.write_text("name: memory\nvariants: [grid]\nscene: {n: [200, 200000], "
+                      "L: [2828.4, 89442.7], r: 1, steps: 1, mode: perf, seed: 1}\n"
+                      "combine: zip\nthreads: 1\nmeasure: {warmup: 0, runs: 1}\n")
+    root, report = tmp_path / "results", tmp_path / "report"
+    assert main([str(config), "--results-dir", str(root), "--report-dir", str(report)]) == 0, \
+        capsys.readouterr().err
+    rows = read_csv(root / "memory" / "results.csv")
+    peak = {int(r["n"]): float(r["peak_rss_mib"]) for r in rows}
+    assert 1 < peak[200] < 8 and peak[200000] > 8 * peak[200], peak
+    # the report: a column of the cell table, and a figure against N
+    text = (report / "report.md").read_text()
+    assert "| peak memory [MiB] |" in text and "Peak resident memory against N" in text
+    assert (report / "figures" / "memory-memory-vs-n.png").is_file()
 
 def test_crash_and_disagreement_are_recorded(real_binaries: Path, tmp_path: Path) -> None:
     fakes = tmp_path / "fakes"
@@ -113,7 +168,7 @@ def test_entry_points(real_binaries: Path, tmp_path: Path,
     plain = shutil.which("python3") or sys.executable
     as_script = run_script(plain, str(SMOKE), "--dry-run", "--results-dir", root)
     assert as_script.returncode == 0, as_script.stderr
-    assert as_script.stdout.startswith("smoke: 8 cells (0 cached, 8 to run, 0 excluded)")
+    assert as_script.stdout.startswith("smoke: 7 cells (0 cached, 7 to run, 0 excluded)")
     capsys.readouterr()
     assert main([str(SMOKE), "--dry-run", "--quick", "--results-dir", root]) == 0
     assert f"-> {root}/smoke-quick" in capsys.readouterr().out
@@ -179,7 +234,7 @@ def test_openmp_costs_are_measured_with_each_parallel_cell(
     plain.write_text(COSTS_CONFIG)
     costed.write_text(COSTS_CONFIG + "openmp_costs: true\n")
     assert main([str(costed), "--results-dir", str(root), "--no-report"]) == 0
-    assert "costs: 6 cells (6 measured, 0 cached): 6 ok" in capsys.readouterr().err
+    assert "costs: 5 cells (5 measured, 0 cached): 5 ok" in capsys.readouterr().err
     rows = read_csv(root / "costs" / "results.csv")
     for row in rows:
         values = [row[c] for c in columns.OMP_COST_COLUMNS]
@@ -189,4 +244,4 @@ def test_openmp_costs_are_measured_with_each_parallel_cell(
             assert all(float(v) > 0 for v in values), row
             assert row[columns.OMP_COST_NOTE] == ""
     assert main([str(plain), "--results-dir", str(root), "--no-report"]) == 0
-    assert "costs: 6 cells (4 measured, 2 cached)" in capsys.readouterr().err
+    assert "costs: 5 cells (4 measured, 1 cached)" in capsys.readouterr().err  # seq

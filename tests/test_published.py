@@ -16,8 +16,8 @@ from harness.plan.cellstore import CellStore
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.columns import match_values
-from harness.store.superseded import UNKNOWN_MACHINE, load_records, superseded
 from harness.store.layout import ExperimentDir
+from harness.store.superseded import UNKNOWN_MACHINE, load_records, superseded
 
 PUBLISHED = repo.PUBLISHED_RESULTS_DIR
 EXPERIMENTS = sorted(p.name for p in PUBLISHED.iterdir() if (p / "cells").is_dir()) \

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.cells import INTERVAL_SUFFIXES, MACHINE, SE_SUFFIX, SHARE_SUFFIX, companions
+from harness.analysis.serving import ONE_THREAD_RUN
 from harness.store.columns import PHASE_COLUMNS
 
 # Where a --timing run's time goes (harness.analysis.phases), in drawing order: results.csv's
@@ -32,6 +33,7 @@ DISPLAY_NAMES: dict[str, str] = {
     "n": "N",
     "steps": "S",
     "oversubscribed": "threads > cores",
+    ONE_THREAD_RUN: "1-thread run",
     "schedule": "OMP_SCHEDULE",
     "imbalance": "imbalance (max/mean busy)",
     "median_s": "median [s]",
@@ -39,6 +41,7 @@ DISPLAY_NAMES: dict[str, str] = {
     "per_chunk_ns": "per chunk [ns]",
     "min_s": "min [s]",
     "stddev_s": "stddev [s]",
+    "peak_rss_mib": "peak memory [MiB]",
     "serial_fraction": "serial fraction e",
     "baseline": "speedup vs",
     "exponent": "exponent k",
@@ -145,9 +148,11 @@ FORMATTERS: dict[str, Callable[[object], str]] = {
     **dict.fromkeys(("div_steps_to_r", "checked", "passed", "failed", "scenes", "trusted",
                      "runs", "points", "count_mismatches", "n", "steps", "seed", "threads",
                      "cores", "cells"), lambda v: f"{int(v)}"),
-    **dict.fromkeys(("pareto", "oversubscribed"), lambda v: "✓" if bool(v) else ""),
+    **dict.fromkeys(("pareto", "oversubscribed", ONE_THREAD_RUN),
+                    lambda v: "✓" if bool(v) else ""),
     **dict.fromkeys(("rest_ns", "region_ns", "barrier_ns", "grab_ns", "nested_region_ns",
-                     "instructions_per_particle_step"), lambda v: format_sig3(float(v))),
+                     "instructions_per_particle_step", "peak_rss_mib"),
+                    lambda v: format_sig3(float(v))),
     **dict.fromkeys(("regions_per_step", "nested_per_step", "barriers_per_step",
                      "grabs_per_step", "instructions"), _fmt(",.0f")),
     "per_chunk_ns": _fmt(".3g"),

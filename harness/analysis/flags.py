@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness.analysis.cells import flag, sort_cells
 from harness.analysis.programs import agreement_text
+from harness.analysis.serving import measured_once
 from harness.store.columns import (
     AGREEMENT_FAILED,
     AGREEMENTS,
@@ -124,6 +125,7 @@ def _config_change(changed: object) -> str:
 
 def _flagged(df: pd.DataFrame) -> pd.DataFrame:
     """The flagged rows of an experiment's cells, in the warnings table's order."""
+    df = measured_once(df)
     mask = df["status"] != OK
     if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
         mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
@@ -159,6 +161,7 @@ def short_commit(commit: str, shown: int = COMMIT_SHOWN) -> str:
 def provenance(df: pd.DataFrame) -> str:
     """Which commit(s) measured these cells, and how many are stale (their binary changed
     since), as a sentence for a table's caption; empty for results without the columns."""
+    df = measured_once(df)
     sentences = []
     if "git_commit" in df.columns:
         commits = df["git_commit"].fillna("").astype(str).str.strip()
@@ -181,6 +184,7 @@ def provenance(df: pd.DataFrame) -> str:
 def disturbed_text(df: pd.DataFrame) -> str:
     """The cells' disturbance in a sentence, for the first line of what shows them (empty
     where no cell was disturbed): how much of the CPU others took, on how many cells."""
+    df = measured_once(df)
     disturbed = flag(df, "disturbed")
     if not disturbed.any():
         return ""
@@ -194,6 +198,7 @@ def disturbed_text(df: pd.DataFrame) -> str:
 def earlier_config_text(df: pd.DataFrame) -> str:
     """How many cells an earlier version of the config measured, and in what it differed
     (empty where none did)."""
+    df = measured_once(df)
     earlier = flag(df, "earlier_config")
     if not earlier.any():
         return ""

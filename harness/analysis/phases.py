@@ -22,6 +22,7 @@ from harness.analysis.cells import (
     MACHINE,
     SCENE_KEYS,
     SHARE_SUFFIX,
+    flag,
     sort_cells,
     timed_rows,
     varying_keys,
@@ -35,6 +36,7 @@ from harness.analysis.display import (
     series_label,
     threads_text,
 )
+from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.spec.facts import GRID
 from harness.store.columns import PHASE_COLUMNS
 
@@ -127,10 +129,20 @@ def select(df: pd.DataFrame) -> Selection | None:
         threads=threads,
         scene_keys=scene_keys,
         row_keys=row_keys,
-        other_threads=len(rows) - len(chosen),
-        without_phases=len(timed_rows(df)) - len(rows),
+        other_threads=len(_not_shown(rows, chosen)),
+        without_phases=len(measured_once(timed_rows(df))) - len(measured_once(rows)),
         scenes_left_out=len(scenes) - len(shown),
     )
+
+
+def _not_shown(rows: pd.DataFrame, chosen: pd.DataFrame) -> pd.DataFrame:
+    """The cells of `rows` that `chosen` does not show: a serial cell shown at the chosen
+    thread count is shown, wherever else it serves."""
+    others = rows[~rows.index.isin(chosen.index)]
+    if ONE_THREAD_RUN in rows.columns:
+        shown = set(chosen["cell_id"])
+        others = others[~(flag(others, ONE_THREAD_RUN) & others["cell_id"].isin(shown))]
+    return measured_once(others)
 
 
 def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:

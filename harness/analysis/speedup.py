@@ -21,9 +21,10 @@ from harness.analysis.cells import (
     variant_fact,
 )
 from harness.analysis.flags import validation_text
+from harness.analysis.serving import ONE_THREAD_RUN
 from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.facts import BASELINE
-from harness.store.columns import OK, TIMED_STATUSES
+from harness.store.columns import MEMORY_COLUMNS, OK, TIMED_STATUSES
 
 BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
@@ -154,7 +155,14 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool =
         # beside the thread count, where a sweep past the cores shows it at a glance (the
         # validation column, far right, says it too)
         table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED, over)
+    one = flag(rows, ONE_THREAD_RUN)
+    if (rows.loc[one, "threads"] != 1).any():  # a serial cell shown where it serves
+        at = table.columns.get_loc("threads") + 1 if "threads" in keys else len(keys)
+        table.insert(at, ONE_THREAD_RUN, one)
     table = table.join(rows[list(TIMING)].rename(columns=TIMING))
+    for column in MEMORY_COLUMNS:  # where measured: the peak resident memory, MiB
+        if column in rows.columns and rows[column].notna().any():
+            table[column] = rows[column]
     metrics = ("speedup", "efficiency", *(("serial_fraction",) if "threads" in keys else ()))
     table = table.join(rows[[f"{m}{suffix}" for m in metrics
                              for suffix in ("", *INTERVAL_SUFFIXES)]])

@@ -1,7 +1,8 @@
 """Move superseded cell records from cells/ to history/ (`store prune PATH...`); store the
 variants' facts of this repository's build with results measured before runs stored them
 (`store facts PATH...`); rewrite records of earlier versions in the current one (`store upgrade
-PATH...`)."""
+PATH...`); give records their cell's current key once, where a variant was measured along an
+axis it ignores (`store migrate PATH...`: harness.analysis.migrate)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
 from harness.runner.command import Parser
+from harness.spec.facts import read_variants
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
 from harness.store.superseded import prune
@@ -34,6 +36,11 @@ def parser(prog: str) -> argparse.ArgumentParser:
         "upgrade", help="rewrite the records of earlier versions of the harness under "
         "experiment directories or results roots as the current version keeps them")
     upgrade_parser.add_argument("paths", nargs="+", type=Path)
+    migrate_parser = sub.add_parser(
+        "migrate", help="give records measured along an axis their variant ignores (a serial "
+        "variant at threads > 1) their cell's key, once: the newest where the cell has no "
+        "record at the axis's one value, the others to history/")
+    migrate_parser.add_argument("paths", nargs="+", type=Path)
     return parser
 
 
@@ -70,8 +77,25 @@ def execute(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{directory}: {done.rewritten} of {done.records} record(s) "
                              "rewritten in the current version\n")
         return 0
+    if args.action == "migrate":
+        for directory in directories:
+            sys.stdout.write(migrated(directory) + "\n")
+        return 0
     for directory in directories:
         done = prune(directory)
         sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "
                          f"{layout.HISTORY}/, {done.remaining} remain in {layout.CELLS}/\n")
     return 0
+
+
+def migrated(directory: Path) -> str:
+    """What `store migrate` did to one experiment directory, in one line."""
+    from harness.analysis.migrate import migrate
+
+    facts = read_variants(layout.ExperimentDir(directory).variants_json)
+    if not facts.members:
+        return (f"{directory}: no {layout.VARIANTS_JSON}, so no variant is known to ignore an "
+                f"axis: nothing migrated (`store facts {directory}` writes them)")
+    done = migrate(directory, facts)
+    return (f"{directory}: {done.rekeyed} record(s) given their cell's key, {done.moved} "
+            f"superseded by an equivalent record moved to {layout.HISTORY}/")

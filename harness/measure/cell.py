@@ -1,9 +1,9 @@
 """Measure ONE planned cell, in three steps:
   start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
-         output); with `openmp_costs: true`, build/ompcost at the cell's thread count
-         (measure.ompcost); when validating, that output against `build/seq --precise` on the same
-         input (measure.references); with `checks:`, the accuracy and stability checks on a
-         print-mode run (measure.checks);
+         output, its peak resident memory); with `openmp_costs: true`, build/ompcost at the
+         cell's thread count (measure.ompcost); when validating, that output against
+         `build/seq --precise` on the same input (measure.references); with `checks:`, the
+         accuracy and stability checks on a print-mode run (measure.checks);
          for a program, its run and its check against seq (measure.program); with the
          instruction lane (`metric: instructions`), its counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
@@ -28,7 +28,14 @@ from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
 from harness.measure.ompcost import measure_costs
-from harness.measure.proc import exit_status, failure, run_captured, run_process, tail
+from harness.measure.proc import (
+    exit_status,
+    failure,
+    peak_mib,
+    run_captured,
+    run_process,
+    tail,
+)
 from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
@@ -134,13 +141,14 @@ class Measurer:
         keep = self.store.layout.output(cell_id) if config.keep_output else None
         if keep is not None or cell.validate:
             precise, output = run_captured(argv, env, measure.timeout_s,
-                                           keep or self.store.layout.run_output(cell_id), keep)
+                                           keep or self.store.layout.run_output(cell_id), keep,
+                                           memory=True)
         else:
-            precise, output = run_process(argv, env, measure.timeout_s), ""
+            precise, output = run_process(argv, env, measure.timeout_s, memory=True), ""
         status, exit_code = exit_status(precise.returncode)
         phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
         record = record.replace(phases=phases, counts=counts, thread_work=work,
-                                stderr_tail=tail(precise.stderr))
+                                stderr_tail=tail(precise.stderr), peak_rss_mib=peak_mib(precise))
         if status != OK:
             record = record.replace(note=failure("--precise run", precise, measure.timeout_s))
         elif cell.validate:

@@ -1,5 +1,12 @@
 """Child processes of a measurement: run one in its own process group under a timeout (the
-whole group is killed past it or on Ctrl-C), its exit status, the tail of its stderr."""
+whole group is killed past it or on Ctrl-C), its exit status, the tail of its stderr, and
+where asked its peak resident memory.
+
+The memory is build/peakrss's report (tools/peakrss.c): it forks the command and reaps it
+with wait4. The harness cannot reap it itself: the kernel starts a child's ru_maxrss at the
+high-water mark of the memory it was forked with, so a command this Python process started
+would report at least this process's resident set (15 MiB and more), where a small variant
+takes 2-3 MiB."""
 
 from __future__ import annotations
 
@@ -12,7 +19,9 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
+from harness.plan.binaries import peakrss_path
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 
@@ -21,6 +30,7 @@ COMMAND_NOT_FOUND = 127  # the shell's exit status for a command it cannot find
 SHELL_SIGNAL_BASE = 128  # a shell reports a child killed by signal N as 128 + N
 SHELL_SIGNALS = 64  # the signals that can be N (Linux's real-time ones included)
 LAST_LINES = 3  # the lines of stderr a one-line failure quotes
+KIB_PER_MIB = 1024  # ru_maxrss is in KiB on Linux
 
 
 @dataclass(frozen=True)
@@ -28,21 +38,31 @@ class ProcessResult:
     returncode: int | None  # None: killed at the timeout
     stderr: str
     seconds: float
+    # The largest resident set of the run, in KiB: the command's own or that of any
+    # descendant it waited for (a shell's commands; the largest, not their sum). None where
+    # not asked for, where build/peakrss is not built, or where the run did not end.
+    max_rss_kib: int | None = None
 
 
 def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
-                stdout: Path | None = None) -> ProcessResult:
+                stdout: Path | None = None, memory: bool = False) -> ProcessResult:
     """Run argv in its own process group with stdout to a file (or /dev/null); past the
-    timeout, or on any exception (Ctrl-C), the whole group is killed."""
+    timeout, or on any exception (Ctrl-C), the whole group is killed. With `memory`, under
+    build/peakrss (where built), which reports its peak resident memory."""
     started = time.monotonic()
     target = stdout if stdout is not None else Path(os.devnull)
     with atomic.writing(target):
         out = target.open("wb")
-    with out, tempfile.TemporaryFile() as err:
+    helper = peakrss_path() if memory else None
+    if helper is not None and not os.access(helper, os.X_OK):
+        helper = None
+    with out, tempfile.TemporaryFile() as err, tempfile.TemporaryFile() as report:
+        command = list(argv) if helper is None else [str(helper), str(report.fileno()), *argv]
         try:
-            proc = subprocess.Popen(list(argv), stdout=out, stderr=err,
+            proc = subprocess.Popen(command, stdout=out, stderr=err,
                                     stdin=subprocess.DEVNULL, env=dict(env),
-                                    start_new_session=True)
+                                    start_new_session=True,
+                                    pass_fds=() if helper is None else (report.fileno(),))
         except OSError as exc:
             return ProcessResult(COMMAND_NOT_FOUND, f"cannot run {argv[0]}: {exc.strerror}\n", 0.0)
         returncode: int | None = None
@@ -54,21 +74,38 @@ def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
             _kill_group(proc)
         err.seek(0)
         stderr = err.read().decode(errors="replace")
-    return ProcessResult(returncode, stderr, time.monotonic() - started)
+        max_rss = _reported(report) if helper is not None and returncode is not None else None
+    return ProcessResult(returncode, stderr, time.monotonic() - started, max_rss)
+
+
+def _reported(report: IO[bytes]) -> int | None:
+    """build/peakrss's report: the run's ru_maxrss in KiB (None where it wrote none)."""
+    report.seek(0)
+    text = report.read().decode(errors="replace").strip()
+    return int(text) if text.isdigit() else None
+
+
+def peak_mib(*runs: ProcessResult) -> float | None:
+    """A cell's peak memory in MiB: the largest resident set among the runs of its program on
+    its input that the harness waited for (a variant's --precise run, a program's run); None
+    where none reports one. An MPI cell would pass every process the harness waits for (a
+    launcher's ru_maxrss is already the largest of the ranks it waits for on its node)."""
+    found = [run.max_rss_kib for run in runs if run.max_rss_kib is not None]
+    return max(found) / KIB_PER_MIB if found else None
 
 
 def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
-                 scratch: Path | None = None, keep: Path | None = None
+                 scratch: Path | None = None, keep: Path | None = None, memory: bool = False
                  ) -> tuple[ProcessResult, str]:
     """run_process with stdout to a fresh file beside `scratch` (the system's temporary
     directory by default): the run and, where it exited 0, its stdout (moved to `keep`);
     "" otherwise, unread. Bytes that are not UTF-8 are read as U+FFFD: such output fails its
     validation, not the harness. A run that did not finish where that file can take no more
     (a full disk, a file-size limit) failed for want of room, not of its own: a StorageError
-    naming the place (atomic.check_room), and no result."""
+    naming the place (atomic.check_room), and no result. `memory` as for run_process."""
     text = ""
     with atomic.temporary(scratch or Path(tempfile.gettempdir()) / "collide-stdout") as out:
-        done = run_process(argv, env, timeout_s, out)
+        done = run_process(argv, env, timeout_s, out, memory)
         if done.returncode not in (0, None):
             atomic.check_room(out, f"the output of {Path(argv[0]).name}")
         if done.returncode == 0:

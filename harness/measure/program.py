@@ -1,7 +1,8 @@
 """The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs).
 
   1. its command, once, on the cell's input (every particle listed), under the cell timeout:
-     does it run at all (a command not found, a crash, a hang: the cell's status says so);
+     does it run at all (a command not found, a crash, a hang: the cell's status says so), and
+     its peak resident memory (the command's processes the shell waited for included);
   2. its check: the check command on the cell's scene in print mode (its first steps for a big
      scene), its stdout judged against seq's `--precise` print-mode output on the same input,
      and step by step by the reference's `--replay` (harness.measure.agreement);
@@ -32,6 +33,7 @@ from harness.measure.proc import (
     ProcessResult,
     exit_status,
     failure,
+    peak_mib,
     run_captured,
     run_process,
     signal_of,
@@ -64,9 +66,9 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     program = store.config.program(cell.variant)
     assert program is not None, "a program cell names a program"
     command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads)
-    done = run_process(command, env, timeout_s)
+    done = run_process(command, env, timeout_s, memory=True)
     record = record.replace(command=shlex.join(command), program=_described(program),
-                            stderr_tail=tail(done.stderr))
+                            stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
     status, code = _status(done)
     if status != OK:
         return _not_run(record, cell_id, key, command, status, code,

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from harness.plan import lane
 from harness.plan.cells import Cell, Plan
-from harness.repo import BUILD_DIR, OMPCOST, REPO_ROOT
+from harness.repo import BUILD_DIR, OMPCOST, PEAKRSS, REPO_ROOT
 from harness.spec import programs
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
@@ -64,11 +64,13 @@ def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
 
 
 def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
-    """The make-built binaries the plan runs: every cell's but the config's own binaries."""
+    """The make-built binaries the plan runs: every cell's but the config's own binaries, and
+    build/peakrss, under which every cell's untimed run is measured."""
     custom = {path for _, path in plan.config.binaries}
     needed = dict.fromkeys(path for cell in plan.cells
                            for path in cell_binaries(plan.config, build_dir, cell))
-    return [path for path in needed if path not in custom]
+    tools = [peakrss_path()] if plan.cells else []
+    return [*(path for path in needed if path not in custom), *tools]
 
 
 def ompcost_path() -> Path:
@@ -77,9 +79,15 @@ def ompcost_path() -> Path:
     return REPO_ROOT / BUILD_DIR / OMPCOST
 
 
+def peakrss_path() -> Path:
+    """build/peakrss of this checkout (tools/peakrss.c): every cell's untimed run of its own
+    program runs under it, which reports its peak resident memory (harness.measure.proc)."""
+    return REPO_ROOT / BUILD_DIR / PEAKRSS
+
+
 def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
     """The binaries of a plan that this checkout builds, whatever revision is measured."""
-    return [b for b in binaries if b == ompcost_path()]
+    return [b for b in binaries if b in (ompcost_path(), peakrss_path())]
 
 
 def measures_openmp_costs(config: Config, cell: Cell) -> bool:

@@ -1,10 +1,12 @@
 """Plan a config's cells: the grid of variant x build x scene point x thread count, minus
-repeats (--quick can map several points onto one) and excluded cells. Where a program takes
-part, every scene lists all its particles. Nothing here runs a measurement or reads a
-result."""
+repeats (--quick can map several points onto one) and excluded cells. A cell leaves out what
+its variant ignores (harness.spec.facts.IGNORED_AXES): a serial variant's cells at every
+thread count are one cell, run with one thread. Where a program takes part, every scene lists
+all its particles. Nothing here runs a measurement or reads a result."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -15,6 +17,7 @@ from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
+from harness.spec.facts import ignored_axes
 from harness.spec.points import expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
@@ -37,6 +40,9 @@ class Cell:
     # A program (`programs:`): run through its command template and checked step by step
     # against seq (harness.measure.program) instead of validated and checked.
     program: bool = False
+    # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
+    # for the config's cells at every other value of each.
+    ignored: tuple[str, ...] = ()
 
     @property
     def variant_label(self) -> str:
@@ -45,7 +51,8 @@ class Cell:
     @property
     def label(self) -> str:
         text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
-        return f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
+        text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
+        return f"{text} (ignores {', '.join(self.ignored)})" if self.ignored else text
 
     def fields(self) -> dict[str, object]:
         """The values exclude rules test."""
@@ -53,6 +60,19 @@ class Cell:
         return {"variant": self.variant, "build": self.build, "scene": s.label,
                 "threads": self.threads, "n": s.n, "L": s.L, "r": s.r, "steps": s.steps,
                 "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
+
+
+def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
+    """The cell as it is measured: at the one value of each axis its variant ignores. A
+    program, a config's own binary and a variant the registry does not know use every axis."""
+    facts = registry.get(cell.variant) if config.is_built(cell.variant) else None
+    if cell.program or facts is None:
+        return cell
+    ignored = ignored_axes(facts)
+    if not ignored:
+        return cell
+    return dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
+                               **{a.field: a.value for a in ignored})
 
 
 @dataclass(frozen=True)
@@ -104,10 +124,22 @@ def is_exact(config: Config, registry: VariantRegistry, variant: str, build: str
     return baseline is None or build == baseline
 
 
+def _cell(config: Config, registry: VariantRegistry, variant: str, build: str,
+          scene: scenes.ScenePoint, threads: int, schedule: str) -> Cell:
+    """The cell of one point of the grid, as the config names it."""
+    if config.program(variant) is not None:
+        return Cell(variant, build, scene, threads, validate=False, exact=False,
+                    schedule=schedule, program=True)
+    return Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
+                is_exact(config, registry, variant, build), config.checks.applies_to(scene.n),
+                schedule, variant in registry and registry[variant].exact)
+
+
 def plan_cells(config: Config, quick: bool = False,
                registry: VariantRegistry | None = None) -> Plan:
     """Every cell of the grid, in order (scene point, then variant, build, schedule), minus
-    repeats (--quick can map several points onto one) and excluded cells."""
+    repeats (--quick can map several points onto one; a variant's cells along an axis it
+    ignores are one) and excluded cells (as the config's points name them)."""
     registry = registry or default_registry()
     cells: list[Cell] = []
     excluded: list[Cell] = []
@@ -124,23 +156,17 @@ def plan_cells(config: Config, quick: bool = False,
         threads = cast(int, point["threads"])
         for variant, build, schedule in itertools.product(config.variants, config.builds,
                                                           config.schedules or ("",)):
-            key = (variant, build, scene.input_sha256, scene.seed, threads, schedule)
-            if key in seen:
-                continue
-            seen.add(key)
-            if config.program(variant) is not None:
-                cell = Cell(variant, build, scene, threads, validate=False, exact=False,
-                            schedule=schedule, program=True)
-            else:
-                cell = Cell(variant, build, scene, threads,
-                            config.validate.applies_to(scene.n),
-                            is_exact(config, registry, variant, build),
-                            config.checks.applies_to(scene.n), schedule,
-                            variant in registry and registry[variant].exact)
-            fields = cell.fields()
+            cell = _cell(config, registry, variant, build, scene, threads, schedule)
+            fields = cell.fields()  # the config's point: a rule may name a thread count
             matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
             used |= matching
-            (excluded if matching else cells).append(cell)
+            if not matching:
+                cell = measured_as(config, registry, cell)
+            key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
+                   cell.threads, schedule)
+            if key not in seen:
+                seen.add(key)
+                (excluded if matching else cells).append(cell)
     # A rule that excludes nothing is a mistake (a value the config does not have); --quick
     # lowers n and steps, so there a rule may match nothing by design.
     unused = [k for k in range(len(config.exclude)) if k not in used]

@@ -12,9 +12,10 @@ import pandas as pd
 from harness.analysis import results
 from harness.analysis.cells import MACHINE
 from harness.analysis.paired import paired
+from harness.analysis.serving import serving
 from harness.errors import HarnessError
 from harness.report.machines import UNKNOWN_ID
-from harness.spec.facts import BASELINE, Variants
+from harness.spec.facts import BASELINE, Variants, reading
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
@@ -53,7 +54,8 @@ def read_trajectory(path: Path) -> pd.DataFrame:
 def load_experiment(found: ExperimentDir | results.Experiment, machine: str | None = None,
                     label: str = "") -> Experiment:
     """One experiment read and checked (HarnessError naming what is wrong); with `machine`
-    (an id), only that machine's cells, which go by `label` where given."""
+    (an id), only that machine's cells, which go by `label` where given; a serial variant's
+    cell at each thread count it serves (harness.analysis.serving)."""
     loaded = found if isinstance(found, results.Experiment) else results.load_experiment(found)
     frame = loaded.frame
     ratios = paired(loaded.ratios(BASELINE))
@@ -61,6 +63,8 @@ def load_experiment(found: ExperimentDir | results.Experiment, machine: str | No
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
         if label and frame is not None:
             frame[MACHINE] = label
+    with reading(loaded.variants):  # which variants are serial
+        frame = serving(frame)
     return Experiment(loaded.name, loaded.directory, loaded.title, frame, loaded.divergence,
                       ratios, loaded.variants)
 

@@ -17,6 +17,7 @@ from harness.analysis.flags import (
     flagged_kinds,
 )
 from harness.analysis.programs import is_program
+from harness.analysis.serving import measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
 from harness.report.load import Experiment
@@ -104,12 +105,13 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
 
 def fidelity(exp: Experiment) -> Fidelity:
     # A program's verdict is its agreement with seq, not byte identity: counted on its own.
-    program = is_program(exp.frame)
-    df = exp.frame[~program]
+    cells = measured_once(exp.frame)
+    program = is_program(cells)
+    df = cells[~program]
     validated = df["identical"].notna() | (df["status"] == INVALID)
     checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
                else pd.Series(False, index=df.index))
-    agreement = exp.frame.loc[program, "agreement"] if program.any() else pd.Series(dtype=str)
+    agreement = cells.loc[program, "agreement"] if program.any() else pd.Series(dtype=str)
     return Fidelity(
         validated=int(validated.sum()),
         identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),

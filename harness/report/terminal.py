@@ -14,6 +14,7 @@ import pandas as pd
 from harness.analysis.cells import INTERVAL_SUFFIXES, flag, varying_keys
 from harness.analysis.display import display_name, format_value
 from harness.analysis.flags import FLAG_WORDS, disturbed_text
+from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.load import Experiment, load_experiment
 from harness.report.summary import fidelity, strategy_cells
@@ -64,6 +65,8 @@ def _speedup(row: pd.Series) -> str:
 def _notes(row: pd.Series) -> str:
     notes = [] if row["status"] == OK else [str(row["status"])]
     notes += [FLAG_WORDS[f] for f in SHOWN_FLAGS if bool(row.get(f)) and pd.notna(row.get(f))]
+    if bool(row.get(ONE_THREAD_RUN)) and row["threads"] != 1:  # shown where it serves
+        notes.append("run with 1 thread")
     return ", ".join(notes)
 
 
@@ -134,7 +137,8 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
     machine = env.get(MACHINE_KEY) if isinstance(env, dict) else None
     with reading(read_variants(found.variants_json)):
         exp = load_experiment(found, str(machine) if machine else None)
-        df = exp.frame[~flag(exp.frame, "earlier_config")].reset_index(drop=True)
+        # one line a cell: a serial variant's once
+        df = measured_once(exp.frame[~flag(exp.frame, "earlier_config")]).reset_index(drop=True)
         if df.empty:
             return [f"{found.name}: no cells"]
         df = with_speedup(df, thread_baseline="threads" in varying_keys(df), ratios=exp.ratios)

@@ -21,7 +21,7 @@ from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine
-from harness.plan.binaries import needed_binaries
+from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
@@ -92,7 +92,9 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
-    make_binaries(options.repo_root, binaries, options.make)
+    tools = checkout_tools(binaries)  # this checkout's, whichever repository is measured
+    make_binaries(options.repo_root, [b for b in binaries if b not in tools], options.make)
+    make_binaries(REPO_ROOT, tools, options.make)
     sweep_temporaries(experiment.store, log)
     # what the cells' variants are, stored with them: reading results never asks a binary
     index.write_variants(experiment.directory, registry.known.to_json())
@@ -295,7 +297,8 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
               f"{len(plan.cells) - cached} to run, {len(plan.excluded)} excluded) -> "
               f"{experiment.directory}\n")
     if missing:
-        names = " ".join(str(b.relative_to(experiment.options.repo_root)) for b in missing)
+        names = " ".join(str(b.relative_to(REPO_ROOT if b in checkout_tools(missing)
+                                           else experiment.options.repo_root)) for b in missing)
         out.write(f"  would build: {names}\n")
     out.writelines(lines)
     return Summary(experiment.directory, len(plan.cells), 0, cached, {})

@@ -23,7 +23,7 @@ import contextvars
 import functools
 import json
 from collections import Counter
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -178,6 +178,27 @@ def ordered(facts: Mapping[str, VariantFacts]) -> tuple[str, ...]:
         order.append(root)
         order += sorted(n for n in facts if n != root and family_of(facts, n) == root)
     return tuple(order)
+
+
+@dataclass(frozen=True)
+class IgnoredAxis:
+    """An axis of a config's grid that a variant's facts can say it ignores: its cells along
+    the axis are then one cell, run at `value`, whose key (and record) has that value, so the
+    records of the variant at `value` keep their ids (harness.plan.cells)."""
+
+    field: str  # the name of the axis in a cell, its key and its record
+    value: object
+    uses: Callable[[VariantFacts], bool]  # whether a variant of these facts uses the axis
+
+
+# What a variant may ignore: threads where its --describe says "parallel": false. (An MPI
+# variant's ranks would be one more line: IgnoredAxis("ranks", 1, lambda f: f.mpi).)
+IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),)
+
+
+def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:
+    """The axes a variant of these facts ignores."""
+    return [axis for axis in IGNORED_AXES if not axis.uses(facts)]
 
 
 @dataclass(frozen=True)

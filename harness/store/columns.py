@@ -139,12 +139,16 @@ TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.C
 OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
 OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
 INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
+# The cell's peak resident memory, MiB (measured.Memory). Only where some cell has it.
+MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
+PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
                                                  ROUND_COLUMNS, PROGRAM_COLUMNS, NOISE_COLUMNS,
                                                  INSTRUCTION_COLUMNS,
-                                                 (*OMP_COST_COLUMNS, OMP_COST_NOTE))
+                                                 (*OMP_COST_COLUMNS, OMP_COST_NOTE),
+                                                 MEMORY_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (

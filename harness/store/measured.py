@@ -135,6 +135,17 @@ class ThreadWork:
 
 
 @dataclass(frozen=True)
+class Memory:
+    """The cell's peak resident memory in MiB (results.csv's MEMORY_COLUMNS, where some cell
+    has it): the largest ru_maxrss of its untimed runs of its own program on its own input,
+    which the harness reaps itself (harness.measure.proc.peak_mib): a variant's --precise run,
+    a program's run. Not the timed runs: hyperfine's own resident set (about 3 MiB) would hide
+    a small variant's."""
+
+    peak_rss_mib: float | None = None
+
+
+@dataclass(frozen=True)
 class Validation:
     """The output against the sequential baseline's."""
 
@@ -251,9 +262,12 @@ class Provenance:
     slurm_task: str | None = None
     slurm_state: str | None = None  # set on a record the Slurm submitter wrote for a fault
     retry: bool | None = None  # measured again by the next run (a fault of no cell's)
+    # A record given its cell's current key by `store migrate` (harness.plan.migrate): the id
+    # it had and the values of its key it was measured with, e.g. a serial variant's threads
+    migrated_from: JsonObject | None = None
 
 
 # Every group, in CellResult's order.
 GROUPS: tuple[type, ...] = (Subject, Timing, Rounds, Noise, Phases, Counts, ThreadWork,
-                            Validation, Checks, ProgramVerdict, Instructions, OmpCosts,
+                            Memory, Validation, Checks, ProgramVerdict, Instructions, OmpCosts,
                             Provenance)

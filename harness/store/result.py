@@ -26,6 +26,7 @@ from harness.store.measured import (
     Checks,
     Counts,
     Instructions,
+    Memory,
     Noise,
     OmpCosts,
     Phases,
@@ -70,6 +71,7 @@ class CellResult:
     phases: Phases | None = None
     counts: Counts | None = None
     thread_work: ThreadWork | None = None
+    memory: Memory | None = None
     validation: Validation | None = None
     checks: Checks | None = None
     program_check: ProgramVerdict | None = None

@@ -15,8 +15,8 @@ from harness.history.changepoints import (
     exact_change_points,
     step_test,
 )
-from harness.history.series import step_text
 from harness.history.commits import HISTORY_MIN_RUNS
+from harness.history.series import step_text
 from harness.stats import Interval
 
 from tests.conftest import REPO_ROOT

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from harness import repo, stats
 from harness.analysis import results, resultsets
-from harness.comparison import verdicts as compare
 from harness.analysis.upgrade import upgrade_experiment
-from harness.runner.command import EXIT_ERROR
 from harness.comparison import figure as figcompare
+from harness.comparison import verdicts as compare
+from harness.runner.command import EXIT_ERROR
 from harness.store import atomic, sessions
 from harness.store.layout import ExperimentDir
 

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from harness.comparison import verdicts as compare
 from harness.analysis.resultsets import Cell, MatchKey, Side
 from harness.analysis.speedup import cell_table
+from harness.comparison import verdicts as compare
 from harness.comparison.page import ratio_text, render_markdown
 
 KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "")

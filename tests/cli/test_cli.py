@@ -60,7 +60,7 @@ def test_the_installed_command_runs_from_any_directory(tmp_path: Path) -> None:
                            "--dry-run", "--results-dir", str(tmp_path)],
                           capture_output=True, text=True, check=False, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.startswith("smoke: 8 cells (0 cached, 8 to run, 0 excluded)")
+    assert done.stdout.startswith("smoke: 7 cells (0 cached, 7 to run, 0 excluded)")
 
 
 # harness/run.py: tests/test_e2e.py's test_entry_points runs it, under a plain python3.
@@ -71,7 +71,7 @@ def test_the_documented_entry_points_run_the_same_command(entry: list[str],
                            "--results-dir", str(tmp_path)],
                           capture_output=True, text=True, check=False, cwd=REPO_ROOT)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.startswith("smoke: 8 cells")
+    assert done.stdout.startswith("smoke: 7 cells")
 
 
 def test_no_module_of_the_harness_edits_sys_path() -> None:

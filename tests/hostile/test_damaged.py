@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 from harness.cli import main
-from harness.runner.command import EXIT_ERROR
 from harness.executors.base import Options
+from harness.runner.command import EXIT_ERROR
 from harness.runner.experiment import run_experiment
 from harness.spec.parse import load_config
 from harness.store import layout

@@ -61,6 +61,19 @@ def test_time_figures_are_written(axis: str, experiment: str, tmp_path: Path) ->
     assert_figure_files(figsweeps.fig_time_vs(load(experiment), stem, x=axis), stem)
 
 
+def test_the_memory_figure_draws_a_series_each_in_mib(tmp_path: Path) -> None:
+    import matplotlib as mpl
+
+    rows = load("particles")
+    rows["peak_rss_mib"] = 2.0 + rows["n"] * 1e-3  # MiB, growing with N
+    with mpl.rc_context({"svg.fonttype": "none"}):
+        paths = figsweeps.fig_memory_vs(rows, tmp_path / "memory", x="n")
+    assert_figure_files(paths, tmp_path / "memory")
+    svg = svg_text(paths[1])
+    assert "peak resident memory [MiB]" in svg and "particles N" in svg
+    assert all(f">{name} · " in svg for name in set(rows["variant"]))  # one series each
+
+
 @pytest.mark.parametrize(
     "figure", [figsweeps.fig_speedup, figsweeps.fig_efficiency, figsweeps.fig_karp_flatt]
 )

@@ -72,7 +72,7 @@ validate: true
     root = workdir / "results"
     log, _ = run(config, root)
     got = {(r["variant"], r["threads"]): r for r in rows_of(root, "class")}
-    assert len(got) == 14
+    assert len(got) == 13  # seq, serial: one cell
     for threads in ("1", "2"):
         student = got[("student", threads)]
         assert (student["status"], student["agreement"]) in {(OK, "identical"), (OK, "rounding")}
@@ -81,7 +81,7 @@ validate: true
         assert (slippy["status"], slippy["agreement"]) == (INVALID, "wrong")
         assert int(slippy["first_diff_step"]) >= 1 and float(slippy["wall_median_s"]) > 0
         assert "stopped at" in slippy["note"]  # seq's event: the rule the slip broke
-        assert got[("seq", threads)]["status"] == OK
+    assert got[("seq", "1")]["status"] == OK and ("seq", "2") not in got
     expected = {
         "missing": (FAILED, "command not found"),
         "crasher": (CRASHED, "killed by SIGSEGV"),
@@ -96,13 +96,13 @@ validate: true
         assert note in row["note"] and row["agreement"] == "failed", (name, row["note"])
     assert "slippy" in log and "wrong at step" in log
     _, second = run(config, root)
-    assert (second.measured, second.cached) == (0, 14)  # type: ignore[attr-defined]
+    assert (second.measured, second.cached) == (0, 13)  # type: ignore[attr-defined]
     report = pipeline.render(root, workdir / "report").read_text()
     assert "### Programs" in report
     assert "| slippy |" in report and "wrong from step" in report
     # The summary judges programs by their agreement, apart from the variants' byte identity
     fidelity = report.split("- Fidelity: ", 1)[1].split("\n", 1)[0]
-    assert fidelity.startswith("no invalid cell among 4 validated"), fidelity
+    assert fidelity.startswith("no invalid cell among 3 validated"), fidelity
     assert "2 of 10 program cells agree with seq" in fidelity
     assert "(#class-programs)" in fidelity
 
@@ -131,3 +131,26 @@ measure: {{warmup: 0, runs: 1, timeout_s: 60}}
     assert ("the reference in that step: collided with particle 0 at t = 0.5, then stopped at "
             "x = L - r") in slippy["note"]
     assert "rule: a disc meeting a wall after its collision stops there" in slippy["note"]
+
+
+def test_a_program_s_peak_memory_counts_what_its_command_runs(real_binaries: Path,
+                                                             workdir: Path) -> None:
+    """A program runs as a shell command: its peak memory is that of the largest process the
+    shell waited for, here a child that holds 64 MiB before the student's simulation runs."""
+    hog = f"{PY} -c 'import os; data = os.urandom(64 << 20)'"
+    config = workdir / "memory.yaml"
+    config.write_text(f"""\
+name: memory
+variants: [student, hungry]
+programs:
+  student: "{PY} student.py {{threads}} < {{input}}"
+  hungry:
+    command: "{hog}; {PY} student.py {{threads}} < {{input}}"
+    check: "{PY} student.py {{threads}} < {{input}}"
+scene: {{n: 40, L: 120, r: 1, steps: 2, seed: 9}}
+measure: {{warmup: 0, runs: 1, timeout_s: 60}}
+""")
+    root = workdir / "results"
+    run(config, root)
+    peak = {r["variant"]: float(r["peak_rss_mib"]) for r in rows_of(root, "memory")}
+    assert 1 < peak["student"] < 64 < peak["hungry"] < 4 * 64, peak

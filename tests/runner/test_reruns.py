@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 from harness import stats
-from harness.comparison import verdicts as compare
 from harness.cli import main
+from harness.comparison import verdicts as compare
 from harness.store import records, sessions
 
 from tests.records import kept_spreads

@@ -1,5 +1,5 @@
-"""Time against a swept parameter (the course report's Figures 3-6), and speedup, efficiency
-and the Karp-Flatt serial fraction against threads."""
+"""Time against a swept parameter (the course report's Figures 3-6), peak memory against N,
+and speedup, efficiency and the Karp-Flatt serial fraction against threads."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from harness.analysis.cells import series_keys
@@ -34,9 +35,11 @@ from harness.report.figures.base import (
     shade_oversubscribed,
     wants_log,
 )
-from harness.store.columns import OK, TIMED_STATUSES
+from harness.store.columns import OK, PEAK_RSS, TIMED_STATUSES
 
 # --- time against a swept parameter (the course report's Figures 3-6) ---------------------
+
+MEMORY_LABEL = "peak resident memory [MiB]"
 
 
 @dataclass(frozen=True)
@@ -87,14 +90,44 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
     if x == "threads":
         shade_oversubscribed(ax, df)
     timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
-    if axis.force_log and len(positive_values(timed)) > 1:
-        log_axis(ax, "y", timed)
-        ax.set_ylabel(TIME_LABEL)
+    return _finish(fig, ax, out, (timed, TIME_LABEL), axis.force_log, title or axis.title,
+                   [*extra, *marker_handles(marks)])
+
+
+def fig_memory_vs(df: pd.DataFrame, out: Path, *, x: str = "n", title: str | None = None
+                  ) -> list[Path]:
+    """Each cell's peak resident memory (`peak_rss_mib`, MiB: the largest resident set of its
+    untimed run of its own program and input) against the swept parameter `x` (log), one line
+    per series (variant, threads, ... as they vary)."""
+    axis = SWEEPS[x]
+    rows = df[df[PEAK_RSS].notna()] if PEAK_RSS in df.columns else df.iloc[:0]
+    keys = series_keys(rows, x)
+    groups = series_groups(rows, keys)
+    fig, ax = new_figure()
+    marks = Marks()
+    for (values, group), color in zip(groups, series_colors(groups, keys), strict=True):
+        plot_series(ax, group, x, PEAK_RSS, color, series_label(values, keys), marks)
+    set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
+    # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
+    # range on a log axis gets one labelled tick
+    return _finish(fig, ax, out, (rows[PEAK_RSS], MEMORY_LABEL), False,
+                   title or f"Peak memory against {axis.label}", marker_handles(marks))
+
+
+def _finish(fig: Figure, ax: Axes, out: Path, y: tuple[pd.Series, str], force_log: bool,
+            title: str, handles: Sequence[Line2D]) -> list[Path]:
+    """The y axis (log where `force_log` and the values differ, else as set_y_axis decides),
+    the title, the grid and the legend; the figure saved under `out`. `y`: the values on the
+    y axis and its label."""
+    values, ylabel = y
+    if force_log and len(positive_values(values)) > 1:
+        log_axis(ax, "y", values)
+        ax.set_ylabel(ylabel)
     else:
-        set_y_axis(ax, timed, TIME_LABEL)
-    set_title(ax, title or axis.title)
+        set_y_axis(ax, values, ylabel)
+    set_title(ax, title)
     ax.grid(True, which="major", alpha=0.3)
-    legend(ax, [*extra, *marker_handles(marks)])
+    legend(ax, handles)
     return save_figure(fig, out)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import pandas as pd
 
 from harness.analysis.flags import disturbed_text, earlier_config_text
+from harness.analysis.serving import measured_once
 from harness.report.cache import Manifest
 from harness.report.document import Paragraph, Section, slug
 from harness.report.load import Experiment
@@ -38,8 +39,8 @@ def experiment_section(exp: Experiment, figs: Manifest) -> Section:
     main = [s for build in MAIN for s in build(ctx)]
     parts = [s for s in (*cells.build(ctx, alone=not main), *beside, *main) if s.blocks]
     words = [disturbed_text(exp.frame), measured_text(exp.frame),
-             f"Experiment `{exp.name}`: {len(exp.frame)} cell(s).", cells.fixed_text(exp.frame),
-             earlier_config_text(exp.frame)]
+             f"Experiment `{exp.name}`: {len(measured_once(exp.frame))} cell(s).",
+             cells.fixed_text(exp.frame), earlier_config_text(exp.frame)]
     intro = Paragraph(" ".join(w for w in words if w))
     return Section(exp.title, slug(exp.name), (intro,), tuple(parts))
 

@@ -11,6 +11,7 @@ import pandas as pd
 from harness.analysis.cells import MACHINE, drop_columns, fixed_params, varying_keys
 from harness.analysis.display import display_name, format_value
 from harness.analysis.paired import paired_words
+from harness.analysis.serving import ONE_THREAD_RUN
 from harness.analysis.speedup import BASELINE_SEQ, all_pairs, cell_table
 from harness.report.document import Block, Paragraph, Section
 from harness.report.sections.context import Context, table_block
@@ -68,10 +69,22 @@ def build(ctx: Context, alone: bool) -> list[Section]:
             "Efficiency and serial fraction are left blank where the speedup also counts a "
             "different algorithm or build (relative, grid, another build than seq's)."
         ))
-    blocks.extend(Paragraph(text) for text in (paired_words(exp.ratios), _instructions_text(df))
-                  if text)
+    blocks.extend(Paragraph(text) for text in (paired_words(exp.ratios), _instructions_text(df),
+                                               _one_thread_text(table)) if text)
     caption = f"Per-cell statistics{_course_table(axes, df)}."
     return [ctx.section("Measurements", "cells", (table_block(table, caption, source=df), *blocks))]
+
+
+def _one_thread_text(table: pd.DataFrame) -> str:
+    """What a ✓ in the 1-thread run column means, where the table has it."""
+    if ONE_THREAD_RUN not in table.columns:
+        return ""
+    names = ", ".join(f"`{v}`" for v in dict.fromkeys(table.loc[table[ONE_THREAD_RUN],
+                                                                 "variant"]))
+    return (f"✓ {display_name(ONE_THREAD_RUN)}: {names} runs one thread whatever it is told "
+            "(its --describe says it is not parallel), so each of its cells is measured once, "
+            "with one thread, and shown at every thread count the other cells of its scene "
+            "ran at: the same measurement, and the same reference for their speedups.")
 
 
 def _instructions_text(df: pd.DataFrame) -> str:

@@ -1,0 +1,168 @@
+"""An experiment directory's records brought, once, to the identity its cells have now
+(`collide-bench store migrate PATH`): a record of a variant along an axis its facts say it
+ignores (harness.spec.facts.IGNORED_AXES: a serial variant's at threads > 1) measured the cell
+at the axis's one value (seq told to use 2 threads runs one), under another key.
+
+Per machine and cell (the group of the key at that value, harness.store.model):
+  - where a record of the cell at that value is there already, those measured along the
+    axis are superseded by an equivalent record: they move to history/ (as `store prune`
+    moves a superseded record);
+  - else the newest of them is the cell's measurement: given the cell's key (a new id, its
+    hyperfine exports and kept output renamed with it; `migrated_from` keeps the id it had
+    and what it ran with, its command and OMP_NUM_THREADS stay as they ran), and the others
+    move to history/.
+Then results.index.json lists the new ids where it listed the old ones and leaves the moved
+records out, and the exports are written again from it (harness.analysis.export); results from
+before the index keep results.csv's other rows as they were, and their other exports are
+written again where they are there."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from harness.analysis import export
+from harness.spec.facts import BASELINE, Variants, ignored_axes
+from harness.store import atomic, locks, records
+from harness.store.superseded import Stored, load_records, move_to_history
+from harness.store.index import Listed, index_files, index_rows, listed_records
+from harness.store.layout import ExperimentDir
+from harness.store.model import CellKey
+from harness.store.result import CellResult
+
+# results.csv's columns that say how a record is listed, kept as they were for its new id.
+LISTING_COLUMNS = ("stale", "earlier_config", "config_changed")
+
+
+@dataclass(frozen=True)
+class Migration:
+    directory: Path
+    rekeyed: int  # records given their cell's current key
+    moved: int  # records superseded by an equivalent one, moved to history/
+
+
+def changes(result: CellResult, facts: Variants) -> dict[str, object]:
+    """The key's values along the axes the record's variant ignores, where they are not the
+    axis's one value; empty for a program's record and a variant the facts do not know."""
+    known = facts.get(result.key.variant)
+    if known is None or result.key.program_check is not None:
+        return {}
+    return {axis.field: axis.value for axis in ignored_axes(known)
+            if getattr(result.key, axis.field) != axis.value}
+
+
+def sort_out(stored: Sequence[Stored], facts: Variants
+             ) -> tuple[list[tuple[Stored, dict[str, object]]], list[Stored]]:
+    """The records to give their cell's key (with the changes), and those superseded by an
+    equivalent record (to history/); per machine and cell, as the module's docstring says."""
+    held = {(s.machine_id, s.key.group) for s in stored if not changes(s.result, facts)}
+    buckets: dict[tuple[str, str], list[tuple[Stored, dict[str, object]]]] = {}
+    for item in stored:
+        changed = changes(item.result, facts)
+        if changed:
+            group = dataclasses.replace(item.key, **changed).group  # type: ignore[arg-type]
+            buckets.setdefault((item.machine_id, group), []).append((item, changed))
+    rekeyed, moved = [], []
+    for place, members in buckets.items():
+        members.sort(key=lambda pair: pair[0].age)
+        if place in held:
+            moved += [item for item, _ in members]
+        else:
+            rekeyed.append(members[-1])
+            moved += [item for item, _ in members[:-1]]
+    return rekeyed, moved
+
+
+def migrate(experiment_dir: Path, facts: Variants) -> Migration:
+    """Bring the directory's records to their cells' current keys, under its lock."""
+    exp = ExperimentDir(experiment_dir)
+    with locks.directory_lock(experiment_dir):
+        rekeyed, moved = sort_out(load_records(exp.cells), facts)
+        if rekeyed or moved:
+            move_to_history(experiment_dir, moved)
+            new_ids = {item.cell_id: rekey(exp, item, changed) for item, changed in rekeyed}
+            relist(exp, new_ids, {item.cell_id for item in moved})
+    return Migration(experiment_dir, len(rekeyed), len(moved))
+
+
+def rekey(exp: ExperimentDir, item: Stored, changed: Mapping[str, object]) -> str:
+    """Give the record its cell's key (its files renamed with its id, the record written
+    last); the new id."""
+    old = item.cell_id
+    key: CellKey = dataclasses.replace(item.key, **changed)  # type: ignore[arg-type]
+    new = key.id
+    timing = item.result.timing
+    exports = timing.hyperfine_exports if timing else None
+    result = item.result.replace(
+        cell_id=new, key=key, **changed,
+        hyperfine_exports=None if exports is None else tuple(_renamed(n, old, new)
+                                                             for n in exports),
+        migrated_from={"cell_id": old, **{f: getattr(item.key, f) for f in changed}})
+    moves = [(path, path.with_name(_renamed(path.name, old, new)))
+             for path in exp.hyperfine_files(old)]
+    moves.append((exp.output(old), exp.output(new)))
+    with atomic.writing(exp.cells, "rename the records' files in"):
+        for source, target in moves:
+            if source.is_file():
+                os.replace(source, target)
+    records.write_record(exp.record(new), result)
+    with atomic.writing(exp.cells, "remove a record from"):
+        item.path.unlink()
+    return new
+
+
+def _renamed(name: str, old: str, new: str) -> str:
+    return new + name[len(old):] if name.startswith(old) else name
+
+
+def relist(exp: ExperimentDir, new_ids: Mapping[str, str], dropped: Iterable[str]) -> None:
+    """The index's rows with each re-keyed record under its new id and the dropped ones left
+    out, and the exports written again from them; results from before the index (which lists
+    every record no newer one supersedes): results.csv's rows as they were but for those, and
+    its other exports written again."""
+    gone = set(dropped)
+    listing = index_rows(exp)
+    if listing is not None:
+        kept = [(new_ids.get(cid, cid), stale, changed) for cid, stale, changed in listing
+                if cid not in gone]
+        export.write(exp, export.Derivation(*index_files(exp)[0]), listed_records(exp, kept)[0])
+        return
+    if not exp.results_csv.is_file():
+        return
+    header, rows = _rows(exp.results_csv.read_text(encoding="utf-8"))
+    rows = [row for row in rows if row.get("cell_id") not in gone]
+    listed = [Listed(result, _flag(row.get("stale", "")), row.get("config_changed", ""))
+              for row in rows
+              if (result := _record(exp, new_ids.get(row["cell_id"], row["cell_id"])))]
+    files = export.render(exp, export.Derivation(
+        exp.name, rows[0]["title"] if rows else "",
+        BASELINE if exp.ratios_csv.is_file() else None, exp.divergence_csv.is_file()), listed)
+    rendered = dict(zip((item.result.cell_id for item in listed),
+                        _rows(files[exp.results_csv] or "")[1], strict=True))
+    lines = [{**row, **{c: v for c, v in rendered[new_ids[row["cell_id"]]].items()
+                        if c not in LISTING_COLUMNS}} if row["cell_id"] in new_ids else row
+             for row in rows]
+    atomic.atomic_write_text(exp.results_csv, export.csv_text(header, lines))
+    for path, text in files.items():
+        if path != exp.results_csv and path.is_file() and text is not None:
+            atomic.atomic_write_text(path, text)
+
+
+def _rows(text: str) -> tuple[list[str], list[dict[str, str]]]:
+    """A CSV file's header and rows, as text."""
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, [])
+    return header, [dict(zip(header, row, strict=False)) for row in reader]
+
+
+def _record(exp: ExperimentDir, cell_id: str) -> CellResult | None:
+    return records.read_record(exp.record(cell_id), cell_id)
+
+
+def _flag(text: str) -> bool | None:
+    return {"True": True, "False": False}.get(text)

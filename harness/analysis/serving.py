@@ -1,0 +1,54 @@
+"""A serial variant's one cell, shown at every thread count it serves.
+
+A variant whose --describe says `"parallel": false` (seq) runs one thread whatever it is told,
+so a config's cells of it at several thread counts are one cell, measured once with one thread
+(harness.plan.cells). Where the other cells of its scene ran at some thread counts, the tables
+and figures show that one measurement at each of them (serving): so seq's line against threads
+is flat, and every cell's speedup over seq, at any thread count, is over the same measurement.
+Counts of cells take each measurement once (measured_once)."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from harness.analysis.cells import SCENE_KEYS, flag, present, variant_fact
+
+# A row of a serial variant's cell: its one measurement, run with one thread, shown at the
+# thread count in `threads` (one it serves).
+ONE_THREAD_RUN = "one_thread_run"
+
+
+def serving(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows with each serial variant's cell at every thread count that the other cells of
+    its scene (machine, scene and schedule) ran at, instead of at the one it ran with: each
+    copy the same measurement (cell id and all), `threads` the count it serves, flagged
+    ONE_THREAD_RUN. A serial cell whose scene has no other cells stays as it is, and so do a
+    serial variant's rows at other counts (records from before it was measured once); the
+    cell is not copied where such a row is. Frames without a serial variant are returned as
+    they are."""
+    serial = variant_fact(df["variant"], lambda facts: not facts.parallel) if len(df) else None
+    if serial is None or not serial.any():
+        return df
+    df = df.assign(**{ONE_THREAD_RUN: serial})
+    scene = present(df, [*SCENE_KEYS, "schedule"])
+    cell = [*scene, "variant", "build"]
+    ordered = df[serial].sort_values("threads", kind="stable")
+    first = ~ordered.duplicated(cell)
+    measured, others = ordered[first], ordered[~first]
+    counts = df.loc[~serial, [*scene, "threads"]].drop_duplicates()
+    copies = measured.drop(columns="threads").reset_index().merge(counts, on=scene)
+    taken = others[[*cell, "threads"]].assign(_taken=True)
+    copies = copies.merge(taken, on=[*cell, "threads"], how="left")
+    copies = copies[copies["_taken"].isna()].drop(columns="_taken").set_index("index")
+    copies.index.name = None
+    alone = measured[~measured.index.isin(copies.index)]
+    served = pd.concat([df[~serial], others, alone, copies.sort_values("threads", kind="stable")])
+    return served.sort_index(kind="stable").reset_index(drop=True)[df.columns]
+
+
+def measured_once(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows with each serial cell's copies (serving) left out but the first: one row a
+    measurement, for counting cells."""
+    if ONE_THREAD_RUN not in df.columns:
+        return df
+    return df[~(flag(df, ONE_THREAD_RUN) & df.duplicated("cell_id"))]
