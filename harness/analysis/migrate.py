@@ -29,11 +29,11 @@ from pathlib import Path
 from harness.analysis import export
 from harness.spec.facts import BASELINE, Variants, ignored_axes
 from harness.store import atomic, locks, records
-from harness.store.superseded import Stored, load_records, move_to_history
 from harness.store.index import Listed, index_files, index_rows, listed_records
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import CellResult
+from harness.store.superseded import Stored, load_records, move_to_history
 
 # results.csv's columns that say how a record is listed, kept as they were for its new id.
 LISTING_COLUMNS = ("stale", "earlier_config", "config_changed")

@@ -22,9 +22,11 @@ from harness.store.columns import (
 
 Row = Mapping[str, object]
 T = TypeVar("T")
-# What a ratio's two cells share: the machine and what they measured, but for the variant and
-# its threads.
-_SHARED = ("machine_id", *(c for c in MATCH_COLUMNS if c not in ("variant", "threads")))
+# What a ratio's two cells share: the machine and what they measured, but for the variant, its
+# threads and its ranks.
+_SHARED = ("machine_id", *(c for c in MATCH_COLUMNS if c not in ("variant", "threads", "ranks")))
+# A cell among the cells of its group: its variant, threads and ranks (0: not run as ranks).
+Place = tuple[str, int, int]
 
 
 def _times(row: Row, column: str) -> list:
@@ -53,22 +55,29 @@ def ratio_of(reference: Row, cell: Row, session: float) -> dict[str, object]:
     return {"ratio": ratio if math.isfinite(ratio) and ratio > 0 else None, "rounds": 0}
 
 
-def references(cells: Mapping[tuple[str, int], T], variant: str, threads: int,
-               baseline: str) -> list[tuple[str, T]]:
-    """The cell's references among the cells of its group (by variant and threads; rows, or
-    cells being measured: harness.executors.rounds): its variant at one thread, and the
-    baseline (at one thread, else at the cell's threads, else its fewest); none for the
-    baseline itself."""
+def references(cells: Mapping[Place, T], variant: str, threads: int, baseline: str,
+               ranks: int = 0) -> list[tuple[str, T]]:
+    """The cell's references among the cells of its group (by variant, threads and ranks;
+    rows, or cells being measured: harness.executors.rounds): its variant at one thread (at
+    its ranks), and the baseline (at one thread, else at the cell's threads, else its fewest);
+    none for the baseline itself."""
     if variant == baseline:  # one thread whatever the cell asks: its own ratios say nothing
         return []
     found = []
-    if threads > 1 and (variant, 1) in cells:
-        found.append((RATIO_OVER_ONE_THREAD, cells[(variant, 1)]))
-    counts = sorted(t for v, t in cells if v == baseline)
-    pick = 1 if 1 in counts else threads if threads in counts else counts[0] if counts else None
+    if threads > 1 and (variant, 1, ranks) in cells:
+        found.append((RATIO_OVER_ONE_THREAD, cells[(variant, 1, ranks)]))
+    counts = sorted((t, r) for v, t, r in cells if v == baseline)
+    pick = next((c for c in counts if c[0] == 1), None) or next(
+        (c for c in counts if c[0] == threads), None) or (counts[0] if counts else None)
     if pick is not None:
-        found.append((RATIO_OVER_BASELINE, cells[(baseline, pick)]))
+        found.append((RATIO_OVER_BASELINE, cells[(baseline, *pick)]))
     return found
+
+
+def place(variant: object, threads: object, ranks: object) -> Place:
+    """A cell's place in its group (ranks 0 where it does not run as ranks)."""
+    count = int(ranks) if isinstance(ranks, int | float) else 0
+    return str(variant), int(threads), count  # type: ignore[call-overload]
 
 
 def ratio_rows(rows: Iterable[Row], baseline: str,
@@ -76,16 +85,16 @@ def ratio_rows(rows: Iterable[Row], baseline: str,
     """ratios.csv's rows of results.csv's (ok cells only), in results.csv's order;
     session_of(machine_id, noise): the machine's session spread for ratios at the noise of
     the two cells' rounds (stats.session_noise)."""
-    groups: dict[tuple, dict[tuple[str, int], Row]] = {}
+    groups: dict[tuple, dict[Place, Row]] = {}
     for row in rows:
         if row.get("status") == OK and isinstance(row.get("threads"), int):
             cells = groups.setdefault(tuple(row.get(c) for c in _SHARED), {})
-            cells.setdefault((str(row["variant"]), int(row["threads"])), row)  # type: ignore[call-overload]
+            cells.setdefault(place(row["variant"], row["threads"], row.get("ranks")), row)
     found = []
     for cells in groups.values():
-        for (variant, threads), cell in cells.items():
+        for (variant, threads, ranks), cell in cells.items():
             machine = str(cell.get("machine_id") or "")
-            for kind, reference in references(cells, variant, threads, baseline):
+            for kind, reference in references(cells, variant, threads, baseline, ranks):
                 session = session_of(machine, stats.session_noise(
                     [*_times(cell, "round_noise"), *_times(reference, "round_noise")]))
                 ratio = ratio_of(reference, cell, session)

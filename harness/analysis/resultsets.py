@@ -49,6 +49,7 @@ class MatchKey:
     mode: str
     seed: str
     threads: str
+    ranks: str
     schedule: str
 
     def order(self) -> tuple[tuple[int, float, str], ...]:
@@ -65,6 +66,7 @@ class MatchKey:
                  self.mode if self.mode != "perf" else "",
                  f"seed={seed}" if seed not in ("", "1") else "",
                  f"T={_short(self.threads)}",
+                 f"R={_short(self.ranks)}" if self.ranks else "",
                  f"schedule={self.schedule}" if self.schedule else "")
         text = " ".join(part for part in parts if part)
         return f"{self.experiment}: {text}" if self.experiment else text

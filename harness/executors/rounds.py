@@ -19,7 +19,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from harness import stats
-from harness.analysis.ratios import references
+from harness.analysis.ratios import Place, place, references
 from harness.executors.base import Experiment, OnRecord, Progress
 from harness.measure.cell import Measurer
 from harness.measure.noise import QuietWait
@@ -84,16 +84,17 @@ def join_ratios(units: Sequence[Unit]) -> None:
     """Join each cell to the cells of its ratios (analysis.ratios.references: its variant at one
     thread, the baseline), among the cells of its scene, build and schedule that one measurer
     times (the two sides of a comparison are apart)."""
-    groups: dict[tuple[object, ...], dict[tuple[str, int], Unit]] = {}
+    groups: dict[tuple[object, ...], dict[Place, Unit]] = {}
     for unit in units:
         if unit.partner is not None:  # a comparison's cell stops with its partner
             continue
         cell = unit.cell
         key = (id(unit.measurer), cell.build, cell.scene, cell.schedule, cell.program)
-        groups.setdefault(key, {}).setdefault((cell.variant, cell.threads), unit)
+        at = place(cell.variant, cell.threads, cell.ranks if cell.uses_ranks else None)
+        groups.setdefault(key, {}).setdefault(at, unit)
     for group in groups.values():
-        for (variant, threads), unit in group.items():
-            for _, reference in references(group, variant, threads, BASELINE):
+        for (variant, threads, ranks), unit in group.items():
+            for _, reference in references(group, variant, threads, BASELINE, ranks):
                 if reference is not unit:
                     unit.ratio_sides.append(reference)
                     reference.ratio_sides.append(unit)

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import TextIO
 
 from harness import stats
-from harness.measure import environment, machine, noise, validate
+from harness.measure import environment, machine, mpi, noise, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
@@ -104,10 +104,14 @@ class Measurer:
         log.write(f"warning: {text}\n")
         log.flush()
 
-    def environment(self, threads: int, schedule: str = "") -> Mapping[str, str]:
+    def environment(self, threads: int, schedule: str = "", ranks: bool = False
+                    ) -> Mapping[str, str]:
+        """A run's environment: its threads and schedule, and with `ranks`, mpirun's."""
         env = {**os.environ, **self.config.executor.omp_env(), OMP_THREADS_VAR: str(threads)}
         if schedule:
             env[OMP_SCHEDULE_VAR] = schedule
+        if ranks:
+            env.update(mpi.environment())
         return env
 
     def key(self, cell: Cell) -> dict[str, object]:
@@ -128,14 +132,16 @@ class Measurer:
             return resumed
         key = self.key(cell)
         config, measure = self.config, self.config.measure_for(cell.variant)
-        env = self.environment(cell.threads, cell.schedule)
+        env = self.environment(cell.threads, cell.schedule, cell.uses_ranks)
         record = self.new_record(cell, cell_id, env)
         if cell.program:
             return self.count(cell, start_program(self.store, self.references, cell, cell_id,
                                                   key, record, env, measure.timeout_s))
         binary = self.store.binary(cell)
-        command = [str(binary), "--threads", str(cell.threads), "--seed", str(cell.scene.seed),
-                   str(self.store.input_file(cell.scene))]
+        place = mpi.placement(cell.ranks, cell.threads, self.cores,
+                              config.executor.oversubscribe) if cell.uses_ranks else None
+        command = [*(place.argv if place else ()), str(binary), "--threads", str(cell.threads),
+                   "--seed", str(cell.scene.seed), str(self.store.input_file(cell.scene))]
         record = record.replace(command=shlex.join(command))
         argv = [*command[:-1], "--precise", "--timing", command[-1]]
         keep = self.store.layout.output(cell_id) if config.keep_output else None
@@ -146,9 +152,12 @@ class Measurer:
         else:
             precise, output = run_process(argv, env, measure.timeout_s, memory=True), ""
         status, exit_code = exit_status(precise.returncode)
-        phases, counts, work = precise_timing(parse_timing(precise.stderr) or {})
+        timing = parse_timing(precise.stderr) or {}
+        phases, counts, work = precise_timing(timing)
         record = record.replace(phases=phases, counts=counts, thread_work=work,
                                 stderr_tail=tail(precise.stderr), peak_rss_mib=peak_mib(precise))
+        if place is not None:
+            record = record.replace(mpi=mpi.timing_fields(timing, place))
         if status != OK:
             record = record.replace(note=failure("--precise run", precise, measure.timeout_s))
         elif cell.validate:
@@ -165,7 +174,8 @@ class Measurer:
         hyperfine files removed."""
         repo = self.store.repo_root
         record = self.store.new_record(cell, cell_id).replace(
-            cores=self.cores, oversubscribed=cell.threads > self.cores,
+            cores=self.cores,
+            oversubscribed=cell.threads * (cell.ranks if cell.uses_ranks else 1) > self.cores,
             omp_env={k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
             machine_id=self.store.machine_id, machine=machine.machine(repo),
             git_commit=environment.git_commit(repo), schedule=cell.schedule)
@@ -175,7 +185,8 @@ class Measurer:
 
     def count(self, cell: Cell, run: CellRun) -> CellRun:
         """With the instruction lane, the instructions of a cell that ran to the end."""
-        if not self.config.counts_instructions or not run.timed:
+        if not self.config.counts_instructions or not run.timed or (
+                cell.uses_ranks and not cell.program):  # the lane counts one process
             return run
         tool = lane.machine_tool()
         counted = self.store.counted_binary(cell)
@@ -194,7 +205,8 @@ class Measurer:
         measure = run.measure(self.config.measure_for(str(subject.variant)))
         runs = next_runs(measure, run.times, run.per_round)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
-        env = self.environment(subject.threads, subject.schedule or "")
+        env = self.environment(subject.threads, subject.schedule or "",
+                               subject.ranks is not None)
         warmup = measure.warmup if not run.exports else 0
         timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
                           measure.timeout_s, self.cores)

@@ -65,7 +65,8 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     """The program's run and its check; the CellRun its timed rounds continue."""
     program = store.config.program(cell.variant)
     assert program is not None, "a program cell names a program"
-    command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads)
+    command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads,
+                                    cell.ranks)
     done = run_process(command, env, timeout_s, memory=True)
     record = record.replace(command=shlex.join(command), program=_described(program),
                             stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
@@ -75,7 +76,8 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                         failure("its run", done, timeout_s), done.seconds)
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
-    check = program.shell_command(program.check, store.input_file(scene), cell.threads)
+    check = program.shell_command(program.check, store.input_file(scene), cell.threads,
+                                  cell.ranks)
     record = record.replace(check_command=shlex.join(check), check_steps=steps)
     checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
                                  store.layout.output(cell_id) if store.config.keep_output

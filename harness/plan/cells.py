@@ -18,7 +18,7 @@ from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
 from harness.spec.facts import ignored_axes
-from harness.spec.points import expand_points, scene_key
+from harness.spec.points import PARALLEL_AXES, expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
 QUICK_MAX_N = 400
@@ -43,6 +43,13 @@ class Cell:
     # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
     # for the config's cells at every other value of each.
     ignored: tuple[str, ...] = ()
+    ranks: int = 1  # MPI ranks (`ranks:`): a variant that is not MPI ignores them
+
+    @property
+    def uses_ranks(self) -> bool:
+        """Whether it runs as ranks (an MPI variant, or a program whose command names
+        {ranks}): its key, record and label then name them."""
+        return "ranks" not in self.ignored
 
     @property
     def variant_label(self) -> str:
@@ -51,6 +58,7 @@ class Cell:
     @property
     def label(self) -> str:
         text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        text = f"{text} ranks={self.ranks}" if self.uses_ranks else text
         text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
         return f"{text} (ignores {', '.join(self.ignored)})" if self.ignored else text
 
@@ -58,16 +66,21 @@ class Cell:
         """The values exclude rules test."""
         s = self.scene
         return {"variant": self.variant, "build": self.build, "scene": s.label,
-                "threads": self.threads, "n": s.n, "L": s.L, "r": s.r, "steps": s.steps,
+                "threads": self.threads, "ranks": self.ranks, "n": s.n, "L": s.L, "r": s.r,
+                "steps": s.steps,
                 "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
 
 
 def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
     """The cell as it is measured: at the one value of each axis its variant ignores. A
     program, a config's own binary and a variant the registry does not know use every axis."""
+    program = config.program(cell.variant)
+    if program is not None:  # a command that does not name its ranks runs as one process
+        return cell if program.uses_ranks else dataclasses.replace(cell, ranks=1,
+                                                                   ignored=("ranks",))
     facts = registry.get(cell.variant) if config.is_built(cell.variant) else None
-    if cell.program or facts is None:
-        return cell
+    if facts is None:
+        return dataclasses.replace(cell, ranks=1, ignored=("ranks",))
     ignored = ignored_axes(facts)
     if not ignored:
         return cell
@@ -85,7 +98,7 @@ class Plan:
 
 def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> scenes.ScenePoint:
     """The concrete scene of one grid point (its `threads` is ignored)."""
-    params = {k: v for k, v in point.items() if k != "threads"}
+    params = {k: v for k, v in point.items() if k not in PARALLEL_AXES}
     seed = cast(int, params.pop("seed"))
     kind = config.scene.kind
     name = str(params.pop("generator", config.scene.generator))
@@ -125,14 +138,15 @@ def is_exact(config: Config, registry: VariantRegistry, variant: str, build: str
 
 
 def _cell(config: Config, registry: VariantRegistry, variant: str, build: str,
-          scene: scenes.ScenePoint, threads: int, schedule: str) -> Cell:
+          scene: scenes.ScenePoint, point: Mapping[str, object], schedule: str) -> Cell:
     """The cell of one point of the grid, as the config names it."""
+    threads, ranks = cast(int, point["threads"]), cast(int, point["ranks"])
     if config.program(variant) is not None:
         return Cell(variant, build, scene, threads, validate=False, exact=False,
-                    schedule=schedule, program=True)
+                    schedule=schedule, program=True, ranks=ranks)
     return Cell(variant, build, scene, threads, config.validate.applies_to(scene.n),
                 is_exact(config, registry, variant, build), config.checks.applies_to(scene.n),
-                schedule, variant in registry and registry[variant].exact)
+                schedule, variant in registry and registry[variant].exact, ranks=ranks)
 
 
 def plan_cells(config: Config, quick: bool = False,
@@ -153,17 +167,16 @@ def plan_cells(config: Config, quick: bool = False,
             if config.lists_particles:
                 points[at] = scenes.with_every_particle(points[at])
         scene = points[at]
-        threads = cast(int, point["threads"])
         for variant, build, schedule in itertools.product(config.variants, config.builds,
                                                           config.schedules or ("",)):
-            cell = _cell(config, registry, variant, build, scene, threads, schedule)
+            cell = _cell(config, registry, variant, build, scene, point, schedule)
             fields = cell.fields()  # the config's point: a rule may name a thread count
             matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
             used |= matching
             if not matching:
                 cell = measured_as(config, registry, cell)
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
-                   cell.threads, schedule)
+                   cell.threads, cell.ranks, schedule)
             if key not in seen:
                 seen.add(key)
                 (excluded if matching else cells).append(cell)

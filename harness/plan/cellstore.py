@@ -54,6 +54,7 @@ def subject(cell: Cell) -> tuple[str, ...]:
     return match_values({"variant": cell.variant, "build": cell.build, "scene": scene.label,
                          "n": scene.n, "L": scene.L, "r": scene.r, "steps": scene.steps,
                          "mode": scene.mode, "seed": scene.seed, "threads": cell.threads,
+                         "ranks": cell.ranks if cell.uses_ranks else None,
                          "schedule": cell.schedule or ""})
 
 
@@ -179,7 +180,8 @@ class CellStore:
             seed=cell.scene.seed, threads=cell.threads, validate=cell.validate,
             exact=cell.exact, keep_output=self.config.keep_output, binary_sha256=binary_sha,
             baseline_sha256=self.baseline_sha(cell), machine_id=self.machine_id,
-            schedule=cell.schedule or None, **self.config.measure_for(cell.variant).key(),
+            schedule=cell.schedule or None, ranks=cell.ranks if cell.uses_ranks else None,
+            **self.config.measure_for(cell.variant).key(),
             **parts)
 
     def _hashes(self, paths: Mapping[str, Path]) -> TextMap:
@@ -207,6 +209,7 @@ class CellStore:
             cell_id, key, note="",
             subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
                             scene.steps, scene.mode, scene.seed, cell.threads,
+                            ranks=cell.ranks if cell.uses_ranks else None,
                             params=dict(scene.params)),
             timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,

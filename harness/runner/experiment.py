@@ -20,7 +20,7 @@ from harness.analysis import export
 from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
-from harness.measure import environment, machine
+from harness.measure import environment, machine, mpi
 from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
@@ -206,6 +206,19 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
                          f"{summary.cached} cached): {counts or 'none'}; results in "
                          f"{experiment.store.layout.results_csv}\n")
     return summary
+
+
+def require_mpi(plan: Plan, cores: int, here: bool) -> None:
+    """Where cells run as MPI ranks: mpirun, and (measured here) no more ranks than cores
+    unless the config asks for oversubscription."""
+    ranked = [cell for cell in plan.cells if cell.uses_ranks and not cell.program]
+    if not ranked:
+        return
+    mpi.mpirun()
+    if here:
+        for cell in ranked:
+            mpi.check_ranks(cell.ranks, cores, plan.config.executor.oversubscribe,
+                            str(plan.config.source))
 
 
 def require_hyperfine(hyperfine: str) -> None:

@@ -21,7 +21,7 @@ from harness.spec.programs import Program
 BASELINE_CHOICES = ("f64", "same", "f128")
 
 TOP_KEYS = (
-    "name", "title", "variants", "builds", "scene", "threads", "combine", "measure",
+    "name", "title", "variants", "builds", "scene", "threads", "ranks", "combine", "measure",
     "validate", "keep_output", "exclude", "binaries", "checks", "accuracy", "executor",
     "schedule", "measure_by_variant", "programs", "metric", "openmp_costs",
 )
@@ -40,10 +40,10 @@ AUTO_RUNS = "auto"
 CHECK_NAMES = ("invariants", "shadow", "divergence")
 DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
-EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "n", "L", "r", "steps", "mode", "seed",
-                  "schedule")
+EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "ranks", "n", "L", "r", "steps", "mode",
+                  "seed", "schedule")
 # The fields a comparison (_gt, _ge, _lt, _le) may test.
-EXCLUDE_NUMERIC_FIELDS = ("threads", "n", "L", "r", "steps", "seed")
+EXCLUDE_NUMERIC_FIELDS = ("threads", "ranks", "n", "L", "r", "steps", "seed")
 EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": operator.le}
 # An experiment's, a custom binary's or a program's name: a folder and a file name under
 # results/, so characters every file system takes, and short enough beside its suffixes.
@@ -200,6 +200,9 @@ class ExecutorSpec:
     proc_bind: str | None = None
     places: str | None = None
     poll_s: float = 2.0  # seconds between two looks at the Slurm queue
+    # More MPI ranks than the machine has cores (`ranks:`): refused unless asked for here,
+    # each rank then sharing a core (mpirun --oversubscribe)
+    oversubscribe: bool = False
 
     def omp_env(self) -> dict[str, str]:
         """OMP_PROC_BIND / OMP_PLACES as asked (each cell runs with them, either executor)."""
@@ -263,6 +266,8 @@ class Config:
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()
+    # MPI ranks (`ranks:`): an axis like threads, which a variant that is not MPI ignores
+    ranks: tuple[int, ...] = (1,)
     # OMP_SCHEDULE values to sweep (`schedule:`); empty: not set, and cells keep their old ids
     schedules: tuple[str, ...] = ()
     # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that

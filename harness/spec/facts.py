@@ -39,6 +39,8 @@ FACT_TYPES: dict[str, tuple[type, ...]] = {
 # `sync`: the finder's OpenMP operations per step (variants/core/sim.h's sim_sync), or null.
 # Optional: binaries of older commits (history, compare) print no such key.
 SYNC_KEY = "sync"
+# `mpi`: the variant runs as MPI ranks. Optional: binaries from before MPI print no such key.
+MPI_KEY = "mpi"
 SYNC_OPERATIONS = ("regions", "nested_regions", "barriers", "grabs")
 COUNT_UNITS = ("step", "row", "pair", "tile")
 VARIANTS_KEY = "variants"  # variants.json: {"variants": [one --describe object a variant]}
@@ -129,6 +131,7 @@ class VariantFacts:
     all_pairs: bool
     repairs: str | None = None
     sync: SyncFacts | None = None  # None: not declared (depends on the data or OMP_SCHEDULE)
+    mpi: bool = False  # runs as MPI ranks (under mpirun); older binaries do not say: False
 
     @classmethod
     def parse(cls, text: str, where: str) -> VariantFacts:
@@ -151,12 +154,16 @@ class VariantFacts:
             if not isinstance(data[key], types):
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{key}' is "
                                    f"{data[key]!r}, not of the expected type")
+        mpi = data.get(MPI_KEY, False)
+        if not isinstance(mpi, bool):
+            raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{MPI_KEY}' is {mpi!r}, not of the "
+                               "expected type")
         return cls(**{key: data[key] for key in FACT_TYPES},
-                   sync=SyncFacts.parse(data.get(SYNC_KEY), where))
+                   sync=SyncFacts.parse(data.get(SYNC_KEY), where), mpi=mpi)
 
     def to_json(self) -> dict[str, object]:
         """The facts as `--describe` prints them."""
-        return {**{key: getattr(self, key) for key in FACT_TYPES},
+        return {**{key: getattr(self, key) for key in FACT_TYPES}, MPI_KEY: self.mpi,
                 SYNC_KEY: None if self.sync is None else self.sync.to_json()}
 
 
@@ -191,9 +198,10 @@ class IgnoredAxis:
     uses: Callable[[VariantFacts], bool]  # whether a variant of these facts uses the axis
 
 
-# What a variant may ignore: threads where its --describe says "parallel": false. (An MPI
-# variant's ranks would be one more line: IgnoredAxis("ranks", 1, lambda f: f.mpi).)
-IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),)
+# What a variant may ignore: threads where its --describe says "parallel": false, ranks where
+# it does not say "mpi": true.
+IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),
+                                         IgnoredAxis("ranks", 1, lambda f: f.mpi))
 
 
 def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:

@@ -86,6 +86,8 @@ BOOLEAN = Kind("true or false", accepting(lambda v: isinstance(v, bool)))
 
 # The bounds of what the binaries accept (harness.spec.scenes, MAX_THREADS).
 THREADS = Kind(f"a positive integer (at most {MAX_THREADS})", int_in(1, MAX_THREADS))
+MAX_RANKS = 65536
+RANKS = Kind(f"a positive integer (at most {MAX_RANKS})", int_in(1, MAX_RANKS))
 RANDOM_KINDS: dict[str, Kind] = {
     "n": Kind(f"a positive integer (at most {MAX_N})", int_in(1, MAX_N)),
     "L": POSITIVE_REAL,

@@ -41,7 +41,8 @@ INPUT = "input"
 THREADS = "threads"
 PATH = "path"  # a class's programs (GLOB): the file the glob matched, quoted for the shell
 DIR = "dir"  # a class's programs: the directory of the file matched (quoted in templates)
-PLACEHOLDERS = (INPUT, THREADS)
+RANKS = "ranks"  # the MPI ranks of the cell (`ranks:`): a program that names them runs as ranks
+PLACEHOLDERS = (INPUT, THREADS, RANKS)
 GLOB = "glob"
 SOURCE = "source"
 BUILD = "build"
@@ -115,11 +116,18 @@ class Program:
     build: str = ""  # its build template ({cc}, {cflags}, {out}, {source}); "" without
     binary: str = ""  # a class's program: its {path} as the templates hold it
 
-    def shell_command(self, template: str, input_file: Path, threads: int) -> list[str]:
-        """The argv that runs a template for one input and thread count: `sh -c 'cd DIR &&
-        COMMAND'`, so that hyperfine (which runs it without a shell of its own) and a rerun by
-        hand both find the program's files."""
-        rendered = template.format(input=shlex.quote(str(input_file)), threads=threads)
+    @property
+    def uses_ranks(self) -> bool:
+        """Whether its command names {ranks}: it then runs as MPI ranks, one cell per count."""
+        return any(field == RANKS for _, field, _, _ in string.Formatter().parse(self.command))
+
+    def shell_command(self, template: str, input_file: Path, threads: int,
+                      ranks: int = 1) -> list[str]:
+        """The argv that runs a template for one input, thread and rank count: `sh -c 'cd DIR
+        && COMMAND'`, so that hyperfine (which runs it without a shell of its own) and a rerun
+        by hand both find the program's files."""
+        rendered = template.format(input=shlex.quote(str(input_file)), threads=threads,
+                                   ranks=ranks)
         return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
 
     def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:

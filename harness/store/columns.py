@@ -48,7 +48,8 @@ AGREEING: frozenset[str] = frozenset({IDENTICAL, ROUNDING, CORRECT, IMPRECISE, D
 # ran on it with how many threads. Cells that agree on MATCH_COLUMNS measured the same thing,
 # on whichever machines, with whichever binaries.
 SCENE_COLUMNS: tuple[str, ...] = ("scene", "n", "L", "r", "steps", "mode", "seed")
-MATCH_COLUMNS: tuple[str, ...] = ("variant", "build", *SCENE_COLUMNS, "threads", "schedule")
+MATCH_COLUMNS: tuple[str, ...] = ("variant", "build", *SCENE_COLUMNS, "threads", "ranks",
+                                  "schedule")
 # These columns, in this order, start every results.csv.
 CSV_COLUMNS: tuple[str, ...] = (
     "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed",
@@ -142,13 +143,17 @@ INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
 # The cell's peak resident memory, MiB (measured.Memory). Only where some cell has it.
 MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
 PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib
+# A cell run as MPI ranks: its rank count, how mpirun placed them, and its --timing's time in
+# MPI calls, bytes moved per step and the ranks' memory (measured.Ranks). Only where some cell
+# has them.
+RANK_COLUMNS: tuple[str, ...] = ("ranks", *_columns(measured.Ranks))
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
                                                  ROUND_COLUMNS, PROGRAM_COLUMNS, NOISE_COLUMNS,
                                                  INSTRUCTION_COLUMNS,
                                                  (*OMP_COST_COLUMNS, OMP_COST_NOTE),
-                                                 MEMORY_COLUMNS)
+                                                 MEMORY_COLUMNS, RANK_COLUMNS)
 
 # divergence.csv beside results.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
@@ -171,7 +176,7 @@ RATIO_OVER_ONE_THREAD = "over_one_thread"
 RATIO_OVER_BASELINE = "over_seq"
 RATIO_KINDS: tuple[str, ...] = (RATIO_OVER_ONE_THREAD, RATIO_OVER_BASELINE)
 RATIO_COLUMNS: tuple[str, ...] = (
-    "experiment", "kind", "variant", "threads", "reference_variant", "reference_threads",
+    "experiment", "kind", "variant", "threads", "ranks", "reference_variant", "reference_threads",
     "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
     "efficiency", "karp_flatt", "build", *SCENE_COLUMNS, "schedule", "machine_id",
     "session_spread",

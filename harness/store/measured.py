@@ -33,6 +33,7 @@ class Subject:
     mode: str | None = None
     seed: int | None = None
     threads: int | None = None
+    ranks: int | None = None  # MPI ranks, where the cell runs as ranks
     schedule: str | None = None  # OMP_SCHEDULE's value; "" for none
     params: JsonObject | None = None
 
@@ -143,6 +144,24 @@ class Memory:
     a small variant's."""
 
     peak_rss_mib: float | None = None
+
+
+@dataclass(frozen=True)
+class Ranks:
+    """A cell run as MPI ranks (results.csv's RANK_COLUMNS, where some cell has them): how
+    mpirun placed them (whether more ranks and threads than cores shared them, and its
+    --bind-to), and from the --precise run's --timing: the seconds a rank spent in MPI calls
+    (the most over the ranks and their mean), the bytes a rank moved in a step's exchange (the
+    most and the mean) and the ranks' peak resident memory (the most and the sum, MiB)."""
+
+    ranks_oversubscribed: bool | None = None
+    ranks_binding: str | None = None
+    mpi_s: float | None = None
+    mpi_s_mean: float | None = None
+    mpi_bytes_step: float | None = None
+    mpi_bytes_step_mean: float | None = None
+    rss_mib_max: float | None = None
+    rss_mib_sum: float | None = None
 
 
 @dataclass(frozen=True)
@@ -269,5 +288,5 @@ class Provenance:
 
 # Every group, in CellResult's order.
 GROUPS: tuple[type, ...] = (Subject, Timing, Rounds, Noise, Phases, Counts, ThreadWork,
-                            Memory, Validation, Checks, ProgramVerdict, Instructions, OmpCosts,
-                            Provenance)
+                            Memory, Ranks, Validation, Checks, ProgramVerdict, Instructions,
+                            OmpCosts, Provenance)

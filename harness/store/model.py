@@ -154,6 +154,8 @@ class CellKey:
     checks: ChecksKey | None = field(default=None, metadata=_optional(Role.WHAT))
     program_check: ProgramCheckKey | None = field(default=None, metadata=_optional(Role.WHAT))
     omp: TextMap | None = field(default=None, metadata=_optional(Role.WHAT))
+    # MPI ranks: only a cell that runs as ranks has them (the others keep the ids they had)
+    ranks: int | None = field(default=None, metadata=_optional(Role.WHAT))
     instructions: CountedKey | None = field(default=None, metadata=_optional(Role.COUNTED))
     openmp_costs: BinaryKey | None = field(default=None, metadata=_optional(Role.BESIDE))
 

@@ -32,6 +32,7 @@ from harness.store.measured import (
     Phases,
     ProgramVerdict,
     Provenance,
+    Ranks,
     Rounds,
     Subject,
     ThreadWork,
@@ -72,6 +73,7 @@ class CellResult:
     counts: Counts | None = None
     thread_work: ThreadWork | None = None
     memory: Memory | None = None
+    mpi: Ranks | None = None
     validation: Validation | None = None
     checks: Checks | None = None
     program_check: ProgramVerdict | None = None

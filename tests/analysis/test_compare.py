@@ -52,7 +52,7 @@ def noisy(rng: np.random.Generator, runs: int, sigma: float, scale: float = 1.0)
 
 def synthetic(times: Sequence[float], variant: str = "seq", rounds: Sequence[int] = (),
               seed: str = "") -> resultsets.Cell:
-    key = resultsets.MatchKey("", variant, "f64", *SCENE.values(), "1", "")
+    key = resultsets.MatchKey("", variant, "f64", *SCENE.values(), "1", "", "")
     return resultsets.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
                         "", "", "", "", "", rounds=tuple(rounds), round_seed=seed)
 

@@ -17,7 +17,7 @@ from harness.analysis.speedup import cell_table
 from harness.comparison import verdicts as compare
 from harness.comparison.page import ratio_text, render_markdown
 
-KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "")
+KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "", "")
 
 
 def instructions(old: Side, new: Side) -> list[compare.Row]:

@@ -110,7 +110,7 @@ def test_the_worst_interfered_rounds_are_dropped_at_most_a_quarter() -> None:
 def _cell(times: list[float], shares: list[float],
           pressures: list[float] | tuple[float, ...] = ()) -> resultsets.Cell:
     key = resultsets.MatchKey("", "seq", "f64", "random", "200", "2000", "1", "5", "perf", "1",
-                              "1", "")
+                              "1", "", "")
     return resultsets.Cell(key, Path("."), "c", "ok", float(np.median(times)), tuple(times),
                            "", "", "", "", "", rounds=tuple(range(1, len(times) + 1)),
                            round_seed="7", round_noise=tuple(shares),

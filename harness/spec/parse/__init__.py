@@ -58,6 +58,7 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
         raise config_error(source, "name", NAME_RULE, name)
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
     threads = raw.get("threads", 1)
+    ranks = raw.get("ranks", 1)
     scene = parse_scene(raw.get("scene", MISSING), source)
     measure = raw.get("measure", {})
     scalars = {key: kinds.check(raw[key], key, kind, source)
@@ -70,8 +71,10 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
         builds=builds,
         scene=scene,
         threads=kinds.check(threads, "threads", kinds.many(kinds.THREADS), source),
-        zip_keys=parse_combine(raw.get("combine", "product"), scene, isinstance(threads, list),
-                               source),
+        ranks=kinds.check(ranks, "ranks", kinds.many(kinds.RANKS), source),
+        zip_keys=parse_combine(raw.get("combine", "product"), scene,
+                               [k for k, v in (("threads", threads), ("ranks", ranks))
+                                if isinstance(v, list)], source),
         measure=parse_measure(measure, source),
         validate=parse_validate(raw.get("validate", False), source),
         exclude=parse_exclude(raw.get("exclude", []), source),

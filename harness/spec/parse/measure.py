@@ -60,6 +60,7 @@ EXECUTOR = {
     "proc_bind": kinds.STRING,
     "places": kinds.STRING,
     "poll_s": kinds.POSITIVE_REAL,
+    "oversubscribe": kinds.BOOLEAN,
 }
 
 

@@ -124,7 +124,7 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
             except programs.TemplateError as exc:
                 raise config_error(source, where, f"{BUILD_FORM}: {exc}" if key == programs.BUILD
                                    else f"a command template with {{input}} and optionally "
-                                   f"{{threads}}: {exc}", template) from None
+                                   f"{{threads}} and {{ranks}}: {exc}", template) from None
         for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
             if one in fields and other not in fields:
                 raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "

@@ -79,12 +79,11 @@ def _resolve_file(path: str, source: Path) -> Path:
     return resolved
 
 
-def parse_combine(value: object, scene: SceneSpec, threads_listed: bool,
+def parse_combine(value: object, scene: SceneSpec, parallel_listed: list[str],
                    source: Path) -> tuple[str, ...]:
-    """The axes `combine:` zips together (none for `product`)."""
-    listed = [k for k, _ in scene.axes if k in scene.listed]
-    if threads_listed:
-        listed.append("threads")
+    """The axes `combine:` zips together (none for `product`); `parallel_listed`: those of
+    threads and ranks given as lists."""
+    listed = [*(k for k, _ in scene.axes if k in scene.listed), *parallel_listed]
     if value == "product":
         return ()
     if value == "zip":
@@ -167,7 +166,7 @@ def check_exclude(config: Config) -> None:
     the plan is made (harness.plan.cells: a rule that matches no cell)."""
     known: dict[str, tuple[object, ...]] = {
         **dict(config.scene.axes), "variant": config.variants, "build": config.builds,
-        "threads": config.threads, "schedule": config.schedules or ("",),
+        "threads": config.threads, "ranks": config.ranks, "schedule": config.schedules or ("",),
     }
     for index, rule in enumerate(config.exclude):
         for condition in rule.conditions:

@@ -1,0 +1,72 @@
+"""A cell that runs as MPI ranks: started by Open MPI's mpirun (`mpirun -np R`), placed as the
+machine allows, its --timing's MPI figures read. A rank count beyond the machine's cores is
+refused unless the config asks for oversubscription (`executor: {oversubscribe: true}`); a
+machine without mpirun is told how to get it."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+
+from harness.errors import HarnessError
+from harness.store.measured import Ranks
+
+MPIRUN = "mpirun"
+INSTALL = "sudo apt-get install openmpi-bin libopenmpi-dev"
+# Open MPI refuses to start as root unless told twice; a measurement under root is asked to.
+ROOT_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+
+
+def mpirun() -> str:
+    """The mpirun on PATH; a HarnessError saying how to install it where there is none."""
+    found = shutil.which(MPIRUN)
+    if found is None:
+        raise HarnessError(f"{MPIRUN} not found: the config runs MPI ranks (`ranks:`, or a "
+                           f"variant whose --describe says mpi); install Open MPI: {INSTALL}")
+    return found
+
+
+@dataclass(frozen=True)
+class Placement:
+    """How mpirun starts a cell's ranks: the words before the binary, its binding, and
+    whether ranks and threads together are more than the cores."""
+
+    argv: tuple[str, ...]
+    binding: str
+    oversubscribed: bool
+
+
+def check_ranks(ranks: int, cores: int, oversubscribe: bool, where: str) -> None:
+    """A HarnessError where more ranks than cores are asked for without oversubscription."""
+    if ranks > cores and not oversubscribe:
+        raise HarnessError(f"{where}: key 'ranks': {ranks} ranks exceed the {cores} cores of "
+                           "this machine; set executor: {oversubscribe: true} to run them "
+                           "anyway (ranks then share cores)")
+
+
+def placement(ranks: int, threads: int, cores: int, oversubscribe: bool) -> Placement:
+    """mpirun's words for `ranks` ranks of `threads` threads each. A rank of one thread is
+    bound to a core (Open MPI's own choice for a few ranks); a rank of several is left unbound,
+    so that its threads spread over the cores instead of sharing one."""
+    binding = "core" if threads == 1 and ranks <= cores else "none"
+    argv = [mpirun(), "-np", str(ranks), "--bind-to", binding]
+    if ranks > cores and oversubscribe:
+        argv.append("--oversubscribe")
+    return Placement(tuple(argv), binding, ranks * threads > cores)
+
+
+def environment() -> dict[str, str]:
+    """What a rank's environment adds: mpirun's consent to run as root, where it is."""
+    return dict(ROOT_ENV) if os.geteuid() == 0 else {}
+
+
+def timing_fields(timing: Mapping[str, object], place: Placement) -> Ranks:
+    """The record's MPI group: the placement, and the --timing figures (None for what the
+    run did not report)."""
+    numbers = {f.name: timing.get(f.name) for f in fields(Ranks)
+               if f.name not in ("ranks_oversubscribed", "ranks_binding")}
+    return Ranks(ranks_oversubscribed=place.oversubscribed, ranks_binding=place.binding,
+                 **{k: float(v) if isinstance(v, int | float) and not isinstance(v, bool)
+                    else None for k, v in numbers.items()})
