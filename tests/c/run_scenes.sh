@@ -20,7 +20,10 @@
 #
 # The variants are those the Makefile builds (make print-variants), and what each is comes from
 # its own `--describe` line: the exact ones are compared with seq, the all-pairs ones must test
-# every pair, the serial ones run one thread. A variant whose binary is missing fails.
+# every pair, the serial ones run one thread. A variant whose binary is missing fails. An MPI
+# variant ("mpi": true) is compared with seq by tests/c/mpi_scenes.sh instead (parts 1 and 8
+# leave it out), under mpirun at 1-4 ranks and alone, on these hand scenes and on random ones:
+# here it would only repeat the runs alone, each of which pays MPI's start (0.04-0.1 s).
 #
 # Prints one FAIL line per failed check, a time per part, and last `N passed, M failed`;
 # exits 1 when anything failed. EXACT_VARIANTS overrides the variants compared with seq.
@@ -93,6 +96,7 @@ fi
 read -r -a ALL <<<"$ALL_VARIANTS"
 declare -A DESCRIBE=()
 exact_found=()
+mpi_found=()
 for v in "${ALL[@]}"; do
     if [ ! -x "$B/$v" ]; then
         bad "$B/$v is missing (make all asan portable)"
@@ -113,7 +117,9 @@ sys.exit(not (isinstance(described, dict) and described.get("name") == sys.argv[
         continue
     fi
     DESCRIBE[$v]=$line
-    [ "$(json_field exact - <<<"$line")" = true ] && exact_found+=("$v")
+    if [ "$(json_field exact - <<<"$line")" = true ]; then
+        if [ "$(json_field mpi - <<<"$line")" = true ]; then mpi_found+=("$v"); else exact_found+=("$v"); fi
+    fi
     ok
 done
 # A repair names a variant that is built here.
@@ -137,6 +143,7 @@ if [ "$fail" != 0 ] || [ -z "${DESCRIBE[seq]:-}" ]; then
     finish || exit 1
 fi
 echo "# exact variants, compared with seq: ${VARIANTS[*]}"
+[ "${#mpi_found[@]}" = 0 ] || echo "# exact MPI variants, compared with seq by mpi_scenes.sh: ${mpi_found[*]}"
 
 # ---------------------------------------------------------------------------------------------
 part "hand scenes"
