@@ -1,12 +1,12 @@
 /*
  * mpi: grid's finder on MPI ranks (hybrid MPI + OpenMP). Every rank holds the whole world and
- * runs the same steps. In each step, each rank runs grid's space-time grid (variants/grid/,
- * linked as it is) on its block of the step's time slices, with its T OpenMP threads; a
- * candidate is pushed from exactly one slice, so the ranks' candidates together are grid's,
- * each once. The candidates are then exchanged (MPI_Allgatherv), and every rank's core sorts
- * them by the total SPEC key and resolves them alike: the same state everywhere, and seq's
- * output, which rank 0 writes. Before the exchange each rank leaves out the pairs a wall comes
- * first for (the sort would drop them): most of them, fewer bytes to move.
+ * runs the same steps. In each step, each of the R ranks runs grid's space-time grid
+ * (variants/grid/, linked as it is) on every R-th time slice of the step, with its T OpenMP
+ * threads; a candidate is pushed from exactly one slice, so the ranks' candidates together are
+ * grid's, each once. The candidates are then exchanged (MPI_Allgatherv), and every rank's core
+ * sorts them by the total SPEC key and resolves them alike: the same state everywhere, and
+ * seq's output, which rank 0 writes. Before the exchange each rank leaves out the pairs a wall
+ * comes first for (the sort would drop them): most of them, fewer bytes to move.
  *
  * Why slices, replicated state and an all-gather, and what it costs: docs/mpi.md. The ranks'
  * start, input, statuses and --timing figures: mpi/mpi_ranks.c.
@@ -146,13 +146,13 @@ static void find_pairs(const sim_world *w, sim_pair_sink *sink)
     mpi_scratch *m = sink->scratch;
     sim_pair_sink part = *sink;
     part.scratch = m->grid;
-    grid_find_pairs(w, &part); /* this rank's block of the slices */
+    grid_find_pairs(w, &part); /* this rank's share of the slices */
     exchange(m, sink);
 }
 
 const sim_variant sim_variant_def = {
     .name = "mpi",
-    .summary = "grid's space-time grid on MPI ranks, each on a block of the step's time slices "
+    .summary = "grid's space-time grid on MPI ranks, each on every R-th time slice of a step "
                "with its threads; the candidates all-gathered and resolved alike on every rank",
     .exact = true,
     .parallel = true,

@@ -62,7 +62,7 @@ static int slice_count(double factor, double vref, int32_t n, double L, double r
     return sane && kf >= 1 ? (int)(kf + 0.5) : 1;
 }
 
-/* K shared out to `parts` finders (grid_scratch's slice_parts) in equal blocks: the multiple of
+/* K shared out to `parts` finders (grid_scratch's slice_parts) in equal shares: the multiple of
  * parts nearest to K (the larger one on a tie) that slice_count's bounds allow (at most
  * v_ref / 2r, GRID_K_MAX and N / GRID_K_PER_N), else K itself (fewer slices than parts: some
  * parts have none). Every K finds the same candidates; a multiple evens the parts' work out. */
@@ -214,8 +214,8 @@ void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *co
         g->K = slice_count(GRID_K_FACTOR, vref, n, L, r, sane);
     const int parts = s->slice_parts > 1 ? s->slice_parts : 1, part = parts > 1 ? s->slice_part : 0;
     g->K = share_slices(g->K, parts, vref, n, r, sane);
-    g->k0 = (int)((int64_t)g->K * part / parts);
-    g->k1 = (int)((int64_t)g->K * (part + 1) / parts);
+    g->k0 = part;
+    g->kstep = parts;
 
     g->reach2 = (2 * r + delta) * (2 * r + delta);
     /* rpad, above, is rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an

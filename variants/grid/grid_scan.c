@@ -50,7 +50,7 @@ static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t 
  * grid_scratch's slice_parts); then thread 0 keeps the particles' order for the next step. */
 static bool no_slices(grid_scratch *s, const grid_plan *g, int me)
 {
-    if (g->k0 < g->k1)
+    if (g->k0 < g->K)
         return false;
     if (me == 0)
         memcpy(s->ord_next, s->ord, (size_t)s->n * sizeof *s->ord);
@@ -70,7 +70,7 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
                     .wide = NULL, .nwide = 0};
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     int out = 0;
-    for (int k = g->k0; k < g->k1; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
         grid_bins b;
         if (run_slice(&cx, th, 0, g->gy, 0, 1, &src, out, &b)) {
@@ -78,7 +78,7 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
             return;
         }
         const grid_set *z = &th->set[out];
-        if (k == g->k1 - 1) {
+        if (k + g->kstep >= g->K) {
             /* Every particle once, in this slice's cell order: the next step's start. */
             memcpy(s->ord_next, z->id, (size_t)b.nbase * sizeof(int32_t));
             memcpy(s->ord_next + (s->n - b.nw), th->wide[out], (size_t)b.nw * sizeof(int32_t));
@@ -305,7 +305,7 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
     /* Memory short: this thread stops working but keeps meeting the team's barriers. */
     bool failed = grid_thread_reserve_part(th, p1 - p0) != 0;
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
-    for (int k = g->k0; k < g->k1; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         const float kf = (float)k;
         double t0 = sim_busy_start();
         band_bounds(s, g, kf, bands, th);
@@ -353,7 +353,7 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
                                    &b) != 0;
             if (!failed)
                 write_back(w, s, g, &th->set[0], b.nbase, base_at, me, nwide,
-                           k == g->k1 - 1 ? s->ord_next : s->ord);
+                           k + g->kstep >= g->K ? s->ord_next : s->ord);
         }
         sim_busy_stop(buf, t0);
 #pragma omp barrier
@@ -380,7 +380,7 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     const int32_t p0 = (int32_t)((int64_t)s->n * me / team);
     const int32_t p1 = (int32_t)((int64_t)s->n * (me + 1) / team);
-    for (int k = g->k0; k < g->k1; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         double t0 = sim_busy_start();
         if (whole) {
             src.whole_key = s->team.whole_key[k & 1], src.whole_flag = s->team.whole_flag[k & 1];
@@ -403,7 +403,7 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
                                              bands, &src, 0, &b)) {
             buf->failed = true;
         }
-        if (!buf->failed && k == g->k1 - 1) {
+        if (!buf->failed && k + g->kstep >= g->K) {
             /* The bands' base entries in band order, then the wide particles: every particle
              * once, in this slice's cell order, the next step's start. */
             memcpy(s->ord_next + b.below, th->set[0].id, (size_t)b.nbase * sizeof(int32_t));
