@@ -70,16 +70,6 @@ export OMP_WAIT_POLICY=passive
 ASAN=0
 [[ "$B" == *asan* ]] && ASAN=1
 
-part_start=0
-part() {
-    local now
-    now=$(date +%s%N)
-    if [ "$part_start" != 0 ]; then
-        printf '# %-28s %6.2f s\n' "$part_name" "$(((now - part_start) / 1000000))e-3"
-    fi
-    part_name=${1:-}
-    part_start=$now
-}
 
 # run OUT ERR CMD...: never fails the script; sets $rc.
 run() {
@@ -110,14 +100,6 @@ check() {
     fi
 }
 
-# The %.17g text of a %.8f expectation exact in binary (as run_scenes.sh).
-strip_zeros() {
-    awk '{ for (k = 3; k <= 6 && k <= NF; k++) { if ($k ~ /\./) { sub(/0+$/, "", $k); sub(/\.$/, "", $k) } } print }' "$1"
-}
-
-json_field() {
-    sed -n 's/.*"'"$1"'": *"\{0,1\}\([^,"}]*\)"\{0,1\}[,}].*/\1/p' "$2"
-}
 
 # ---------------------------------------------------------------------------------------------
 part "--describe, --help"
@@ -146,10 +128,7 @@ s=0
 for input in "$SCENES"/*.in; do
     name=$(basename "$input" .in)
     exp=$SCENES/$name.out
-    args=()
-    if [ -f "$SCENES/$name.args" ]; then
-        read -r -a args <"$SCENES/$name.args" || true
-    fi
+    scene_args "$input"
     # --precise reference: seq's own (the derivations' values are exact in binary but the
     # generated ones are not).
     if ! "$B/seq" --precise "${args[@]}" "$input" >"$TMP/precise.exp" 2>"$TMP/err"; then
@@ -173,29 +152,6 @@ done
 
 # ---------------------------------------------------------------------------------------------
 part "random scenes"
-# slow_scene N L r S MODE SEED VMAX [EVERY] and lattice_scene K SPACING S MODE SEED: as in
-# run_scenes.sh (awk's own Lehmer generator, so every awk draws the same scene).
-slow_scene() {
-    awk -v n="$1" -v L="$2" -v r="$3" -v S="$4" -v mode="$5" -v s="$6" -v vmax="$7" -v every="${8:-1}" '
-        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
-        function coord(  q) { q = r + rnd() * (L - 2 * r); return q > L - r ? L - r : q }
-        BEGIN {
-            print n, L, r, S; print mode
-            for (i = 0; i < n; i++) {
-                x = coord(); y = coord(); vx = vmax * (2 * rnd() - 1); vy = vmax * (2 * rnd() - 1)
-                if (i % every == 0) printf "%d %.17g %.17g %.17g %.17g\n", i, x, y, vx, vy
-            }
-        }'
-}
-lattice_scene() {
-    awk -v k="$1" -v d="$2" -v S="$3" -v mode="$4" -v s="$5" '
-        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
-        BEGIN {
-            L = 2 + d * (k - 1) + 2; print k * k, L, 1, S; print mode
-            for (i = 0; i < k * k; i++)
-                printf "%d %.17g %.17g %.17g %.17g\n", i, 2 + d * (i % k), 2 + d * int(i / k), int(9 * rnd() - 4.5) / 4, int(9 * rnd() - 4.5) / 4
-        }'
-}
 # x$i.pairs: the (ranks, threads) pairs scene i runs at: all eight, or four.
 ALL_PAIRS="1,1 1,2 2,1 2,2 3,1 3,2 4,1 4,2"
 SOME_PAIRS="1,1 2,2 3,1 4,2"
