@@ -24,9 +24,12 @@
 /* The finder's per-run memory: grid's own, and the exchange's. */
 typedef struct mpi_scratch {
     grid_scratch *grid;
-    sim_cand *all;       /* the step's candidates of every rank, gathered */
-    size_t cap;          /* candidates `all` holds */
-    int *counts, *displs; /* per rank: its candidates and where they go in `all` */
+    /* The buffers grid's finder writes this rank's candidates into, one a writer as the core's
+     * (`count` of them): the core's own buffer 0 is where every rank's are gathered, so that a
+     * rank holds the step's candidates once, and its own share once more. */
+    sim_cand_buf *local;
+    int count;
+    int *counts, *displs; /* per rank: its candidates and where they go in the gathered list */
     uint64_t *shared;    /* per rank: candidates kept and left out */
     MPI_Datatype cand;   /* one sim_cand, as bytes (every rank runs this binary) */
 } mpi_scratch;
@@ -37,7 +40,9 @@ static void scratch_destroy(void *p)
     if (!m)
         return;
     grid_scratch_destroy(m->grid);
-    free(m->all), free(m->counts), free(m->displs), free(m->shared);
+    for (int k = 0; k < m->count && m->local; k++)
+        free(m->local[k].items);
+    free(m->local), free(m->counts), free(m->displs), free(m->shared);
     if (m->cand != MPI_DATATYPE_NULL)
         MPI_Type_free(&m->cand);
     free(m);
@@ -89,15 +94,20 @@ static void fail(const char *what)
     mpi_ranks.abort(1);
 }
 
-/* Every rank's candidates into the sink's buffer 0 on every rank (the others emptied): the
- * counts all-gathered, then the candidates, each rank's block straight into its place. */
+/* Every rank's candidates (m->local on each) into the sink's buffer 0 on every rank: the
+ * counts all-gathered, then the candidates, each rank's block into its place in buffer 0
+ * first. The writers' figures (--timing) go to the sink's buffers, as grid's would. */
 static void exchange(mpi_scratch *m, sim_pair_sink *sink)
 {
     const int rank = mpi_rank(), size = mpi_size();
     uint64_t mine[2] = {0, 0}; /* kept, left out */
-    for (int k = 0; k < sink->count; k++) {
-        mine[1] += drop_walled(&sink->bufs[k], sink->wall_t);
-        mine[0] += sink->bufs[k].len;
+    for (int k = 0; k < m->count; k++) {
+        sim_cand_buf *from = &m->local[k], *to = &sink->bufs[k];
+        to->pair_tests += from->pair_tests, to->busy_s += from->busy_s;
+        to->chunks += from->chunks, to->failed |= from->failed;
+        from->pair_tests = 0, from->busy_s = 0, from->chunks = 0;
+        mine[1] += drop_walled(from, sink->wall_t);
+        mine[0] += from->len;
     }
     double t0 = MPI_Wtime();
     MPI_Allgather(mine, 2, MPI_UINT64_T, m->shared, 2, MPI_UINT64_T, MPI_COMM_WORLD);
@@ -112,40 +122,45 @@ static void exchange(mpi_scratch *m, sim_pair_sink *sink)
         total += m->shared[2 * r];
         dropped += m->shared[2 * r + 1];
     }
-    if (total > m->cap) {
-        free(m->all);
-        m->cap = total + total / 4;
-        m->all = malloc(m->cap * sizeof *m->all);
-        if (!m->all)
+    sim_cand_buf *all = &sink->bufs[0]; /* empty: the core has sorted the last step's */
+    if (total > all->cap) {
+        const size_t cap = total + total / 4;
+        sim_cand *items = realloc(all->items, cap * sizeof *items);
+        if (!items)
             fail("out of memory for the step's candidates");
+        all->items = items, all->cap = cap;
     }
-    sim_cand *at = m->all + m->displs[rank];
-    for (int k = 0; k < sink->count; k++) {
-        if (sink->bufs[k].len)
-            memcpy(at, sink->bufs[k].items, sink->bufs[k].len * sizeof *at);
-        at += sink->bufs[k].len;
-        sink->bufs[k].len = 0;
+    sim_cand *at = all->items + m->displs[rank];
+    for (int k = 0; k < m->count; k++) {
+        if (m->local[k].len)
+            memcpy(at, m->local[k].items, m->local[k].len * sizeof *at);
+        at += m->local[k].len;
+        m->local[k].len = 0;
     }
     t0 = MPI_Wtime();
-    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, m->all, m->counts, m->displs, m->cand,
-                   MPI_COMM_WORLD);
+    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, all->items, m->counts, m->displs,
+                   m->cand, MPI_COMM_WORLD);
     mpi_meter_call(t0, mine[0] * sizeof(sim_cand) * (uint64_t)(size - 1),
                    (total - mine[0]) * sizeof(sim_cand), 1);
     mpi_meter_step();
-    /* The gathered list becomes buffer 0, whose storage the next exchange gathers into. */
-    sim_cand_buf *b = &sink->bufs[0];
-    sim_cand *items = b->items;
-    const size_t cap = b->cap;
-    b->items = m->all, b->cap = m->cap, b->len = total;
-    b->dropped += dropped;
-    m->all = items, m->cap = cap;
+    all->len = total;
+    all->dropped += dropped;
 }
 
 static void find_pairs(const sim_world *w, sim_pair_sink *sink)
 {
     mpi_scratch *m = sink->scratch;
+    if (!m->local) {
+        /* sizeof(sim_cand_buf) is a multiple of its 64-byte alignment, as aligned_alloc needs. */
+        m->local = aligned_alloc(_Alignof(sim_cand_buf), (size_t)sink->count * sizeof *m->local);
+        if (!m->local)
+            fail("out of memory for the finder's buffers");
+        memset(m->local, 0, (size_t)sink->count * sizeof *m->local);
+        m->count = sink->count;
+    }
     sim_pair_sink part = *sink;
     part.scratch = m->grid;
+    part.bufs = m->local;
     grid_find_pairs(w, &part); /* this rank's share of the slices */
     exchange(m, sink);
 }

@@ -62,12 +62,19 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
     grid_thread *th = &s->th[0];
     if (no_slices(s, g, 0))
         return;
-    if (grid_thread_reserve(th, s->n, 2)) {
+    /* On every slice of the step, each slice is binned from the one before (its entries are
+     * almost in the next one's order), the two in sets used in turn. A share of the slices
+     * (kstep > 1) bins each from the step's start, S, into one set: its slices are kstep apart,
+     * where the slice before helps less, and the second set would be N items (28 bytes each)
+     * more on every mpi rank. */
+    const bool chain = g->kstep == 1;
+    if (grid_thread_reserve(th, s->n, chain ? 2 : 1)) {
         buf->failed = true;
         return;
     }
-    grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
-                    .wide = NULL, .nwide = 0};
+    const grid_src start = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord,
+                            .m = s->n, .wide = NULL, .nwide = 0};
+    grid_src src = start;
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     int out = 0;
     for (int k = g->k0; k < g->K; k += g->kstep) {
@@ -83,9 +90,11 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
             memcpy(s->ord_next, z->id, (size_t)b.nbase * sizeof(int32_t));
             memcpy(s->ord_next + (s->n - b.nw), th->wide[out], (size_t)b.nw * sizeof(int32_t));
         }
-        src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id,
-                         .m = b.ne, .wide = th->wide[out], .nwide = b.nw};
-        out ^= 1;
+        if (chain) {
+            src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id,
+                             .m = b.ne, .wide = th->wide[out], .nwide = b.nw};
+            out ^= 1;
+        }
     }
 }
 
