@@ -29,19 +29,40 @@
 #
 # A variant is a file variants/NAME.c, with, if it is split into pieces, the files
 # variants/NAME/*.c and its own headers variants/NAME/*.h; adding one needs no change here.
+# Two things a variant's source says for itself:
+#   - a variant that includes another variant's header (#include "OTHER/....h") links OTHER's
+#     pieces too (every variants/OTHER/*.c, compiled as for OTHER): mpi uses grid's finder so;
+#   - a variant that includes <mpi.h> is an MPI variant: its own files are compiled and it is
+#     linked with MPICC (default mpicc; the core and the pieces it borrows stay $(CC) objects),
+#     and it is built, listed by print-variants and tested only where MPICC is found (without
+#     it, `make all` leaves it out and succeeds).
 
 .DEFAULT_GOAL := all
 SHELL := /bin/bash
 
-VARIANTS := $(sort $(basename $(notdir $(wildcard variants/*.c))))
+MPICC ?= mpicc
+# The MPI variants (their file includes <mpi.h>), and whether MPICC is here to build them.
+MPI_VARIANTS := $(sort $(basename $(notdir $(shell grep -l '^\#include <mpi\.h>' variants/*.c))))
+HAVE_MPICC := $(shell command -v $(MPICC) 2>/dev/null)
+VARIANTS := $(filter-out $(if $(HAVE_MPICC),,$(MPI_VARIANTS)), \
+                         $(sort $(basename $(notdir $(wildcard variants/*.c)))))
 CORE_SRC := $(wildcard variants/core/*.c)
 HEADERS := $(wildcard variants/core/*.h)
-# A variant NAME is built from variants/NAME.c and every variants/NAME/*.c; its headers in
-# variants/NAME/ are prerequisites of all of those objects. $(1) is NAME or NAME/PIECE.
-VARIANT_DIR = variants/$(firstword $(subst /, ,$(1)))
-VARIANT_HEADERS = $(wildcard $(call VARIANT_DIR,$(1))/*.h)
-# The objects of variant $(2)'s pieces (variants/$(2)/*.c) in the object directory $(1).
-VARIANT_PIECES = $(patsubst variants/%.c,build/obj/$(1)/%.o,$(wildcard variants/$(2)/*.c))
+# A variant NAME is built from variants/NAME.c and every variants/NAME/*.c, and the pieces of
+# the variants whose headers it includes (BORROWED); its headers in variants/NAME/ and theirs
+# are prerequisites of all of its objects. $(1) is NAME or NAME/PIECE.
+VARIANT_NAME = $(firstword $(subst /, ,$(1)))
+VARIANT_DIR = variants/$(call VARIANT_NAME,$(1))
+BORROWED = $(filter-out core $(1),$(if $(wildcard variants/$(1).c),$(shell sed -n \
+           's|^\#include "\([A-Za-z0-9_]*\)/[^"]*".*|\1|p' variants/$(1).c)))
+VARIANT_HEADERS = $(wildcard $(call VARIANT_DIR,$(1))/*.h \
+                  $(patsubst %,variants/%/*.h,$(call BORROWED,$(call VARIANT_NAME,$(1)))))
+# The objects of variant $(2)'s pieces (variants/$(2)/*.c, and those it borrows) in the object
+# directory $(1).
+VARIANT_PIECES = $(patsubst variants/%.c,build/obj/$(1)/%.o,$(wildcard variants/$(2)/*.c \
+                 $(patsubst %,variants/%/*.c,$(call BORROWED,$(2)))))
+# The compiler of variant $(1)'s own objects and of its binary: MPICC for an MPI variant.
+CC_OF = $(if $(filter $(call VARIANT_NAME,$(1)),$(MPI_VARIANTS)),$(MPICC),$(CC))
 PYTHON := .venv/bin/python
 # Written by `scripts/setup.sh --test` once the tests' tools are installed.
 TEST_READY := .venv/.test-ready
@@ -75,11 +96,11 @@ build/obj/$(1)/core/%.o: variants/core/%.c $$(HEADERS)
 	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
 build/obj/$(1)/%.o: variants/%.c $$(HEADERS) $$$$(call VARIANT_HEADERS,$$$$*)
 	@mkdir -p $$(@D)
-	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
+	$$(call CC_OF,$$*) $$(BASE_CFLAGS) $(3) $$(CFLAGS) -c $$< -o $$@
 $(2): build/obj/$(1)/%.o $$$$(call VARIANT_PIECES,$(1),$$$$*) \
       $$(patsubst variants/core/%.c,build/obj/$(1)/core/%.o,$$(CORE_SRC))
 	@mkdir -p $$(@D)
-	$$(CC) $$(BASE_CFLAGS) $(3) $$(CFLAGS) $$^ -o $$@ $$(BASE_LDLIBS) $(4) $$(LDLIBS)
+	$$(call CC_OF,$$*) $$(BASE_CFLAGS) $(3) $$(CFLAGS) $$^ -o $$@ $$(BASE_LDLIBS) $(4) $$(LDLIBS)
 endef
 
 $(eval $(call build_rules,f64,build/%,,))
@@ -215,8 +236,10 @@ lint: $(TEST_READY)
 
 # Everything, three jobs at a time whatever -j make was given: pytest (whose Slurm half mostly
 # waits) starts first, once build/ has the variants, and the C tests' builds and groups fill
-# the other two; each job's output is printed whole when it ends.
-test:
+# the other two; each job's output is printed whole when it ends. The tests' tools are set up
+# first, so that the make that runs them reads this file with them installed (Open MPI's mpicc
+# decides whether the mpi variant is built, and the scene scripts list what was built).
+test: $(TEST_READY)
 	@$(MAKE) --no-print-directory -j3 -Otarget test-python lint test-c
 
 # ---- environment ----

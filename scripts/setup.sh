@@ -6,9 +6,10 @@
 # With --test, also what only the tests need: the pinned requirements-test.txt (pytest, ruff,
 # import-linter, selenium) and, as root, Debian's Slurm (slurmctld, slurmd, slurm-client, munge)
 # for the Slurm executor's tests, Debian's chromium and chromium-driver for the report's
-# browser test, and clang with its ThreadSanitizer runtime and LLVM's OpenMP with Archer
-# (clang, libclang-rt-dev, libomp-dev) for the data-race check of programs. Used by `make test`
-# (through `make setup-test`) and CI.
+# browser test, clang with its ThreadSanitizer runtime and LLVM's OpenMP with Archer
+# (clang, libclang-rt-dev, libomp-dev) for the data-race check of programs, and Open MPI
+# (openmpi-bin, libopenmpi-dev: mpicc and mpirun), with which `make all` builds the mpi variant
+# and tests/c/mpi_scenes.sh runs it. Used by `make test` (through `make setup-test`) and CI.
 #
 # With configs (scripts/setup.sh [--test] CONFIG...): also what they ask for; a config with
 # `metric: instructions` needs an instruction counter, and where the kernel gives no hardware
@@ -126,6 +127,8 @@ optional_packages() {  # WHAT, a command each package set provides..., --, packa
 optional_packages Slurm slurmctld slurmd sbatch munged -- slurmctld slurmd slurm-client munge
 # A browser, for tests/report/test_browser.py (selenium drives Debian's chromium headless).
 optional_packages chromium chromium chromedriver -- chromium chromium-driver
+# Open MPI, for the mpi variant (make all builds it where mpicc is) and tests/c/mpi_scenes.sh.
+optional_packages "Open MPI" mpicc mpirun -- openmpi-bin libopenmpi-dev
 # clang's ThreadSanitizer with LLVM's OpenMP runtime and Archer, for tests/measure/test_races.py
 # and the data-race check of programs with a build (harness/measure/races.py): packages, not
 # commands, since clang alone links no TSan runtime.

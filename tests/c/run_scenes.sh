@@ -20,7 +20,10 @@
 #
 # The variants are those the Makefile builds (make print-variants), and what each is comes from
 # its own `--describe` line: the exact ones are compared with seq, the all-pairs ones must test
-# every pair, the serial ones run one thread. A variant whose binary is missing fails.
+# every pair, the serial ones run one thread. A variant whose binary is missing fails. An MPI
+# variant ("mpi": true) is compared with seq by tests/c/mpi_scenes.sh instead (parts 1 and 8
+# leave it out), under mpirun at 1-4 ranks and alone, on these hand scenes and on random ones:
+# here it would only repeat the runs alone, each of which pays MPI's start (0.04-0.1 s).
 #
 # Prints one FAIL line per failed check, a time per part, and last `N passed, M failed`;
 # exits 1 when anything failed. EXACT_VARIANTS overrides the variants compared with seq.
@@ -28,16 +31,6 @@ set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 SCENES=$HERE/scenes
 
-part_start=0
-part() {
-    local now
-    now=$(date +%s%N)
-    if [ "$part_start" != 0 ]; then
-        printf '# %-28s %6.2f s\n' "$part_name" "$(((now - part_start) / 1000000))e-3"
-    fi
-    part_name=${1:-}
-    part_start=$now
-}
 
 # run OUT ERR BIN ARGS...: runs a binary, never failing the script; sets $rc.
 run() {
@@ -69,16 +62,6 @@ same_file() {
     fi
 }
 
-# The %.17g text of a %.8f expectation whose values are exact in binary with at most 8
-# decimals: %.8f with the trailing zeros (and a bare point) removed.
-strip_zeros() {
-    awk '{ for (k = 3; k <= 6 && k <= NF; k++) { if ($k ~ /\./) { sub(/0+$/, "", $k); sub(/\.$/, "", $k) } } print }' "$1"
-}
-
-# json_field NAME FILE: the value of "NAME": in a one-line JSON object (FILE - for stdin).
-json_field() {
-    sed -n 's/.*"'"$1"'": *"\{0,1\}\([^,"}]*\)"\{0,1\}[,}].*/\1/p' "$2"
-}
 
 # ---------------------------------------------------------------------------------------------
 part "--describe"
@@ -93,6 +76,7 @@ fi
 read -r -a ALL <<<"$ALL_VARIANTS"
 declare -A DESCRIBE=()
 exact_found=()
+mpi_found=()
 for v in "${ALL[@]}"; do
     if [ ! -x "$B/$v" ]; then
         bad "$B/$v is missing (make all asan portable)"
@@ -113,7 +97,9 @@ sys.exit(not (isinstance(described, dict) and described.get("name") == sys.argv[
         continue
     fi
     DESCRIBE[$v]=$line
-    [ "$(json_field exact - <<<"$line")" = true ] && exact_found+=("$v")
+    if [ "$(json_field exact - <<<"$line")" = true ]; then
+        if [ "$(json_field mpi - <<<"$line")" = true ]; then mpi_found+=("$v"); else exact_found+=("$v"); fi
+    fi
     ok
 done
 # A repair names a variant that is built here.
@@ -137,6 +123,7 @@ if [ "$fail" != 0 ] || [ -z "${DESCRIBE[seq]:-}" ]; then
     finish || exit 1
 fi
 echo "# exact variants, compared with seq: ${VARIANTS[*]}"
+[ "${#mpi_found[@]}" = 0 ] || echo "# exact MPI variants, compared with seq by mpi_scenes.sh: ${mpi_found[*]}"
 
 # ---------------------------------------------------------------------------------------------
 part "hand scenes"
@@ -145,10 +132,7 @@ part "hand scenes"
 for input in "$SCENES"/*.in; do
     name=$(basename "$input" .in)
     exp=$SCENES/$name.out
-    args=()
-    if [ -f "$SCENES/$name.args" ]; then
-        read -r -a args <"$SCENES/$name.args" || true
-    fi
+    scene_args "$input"
     if run_ok "seq $name" "$B/seq" "${args[@]}" "$input"; then
         same_file "seq $name" "$TMP/out" "$exp"
     fi
@@ -510,37 +494,7 @@ done
 fi
 
 # ---------------------------------------------------------------------------------------------
-# Random scenes. Generated ones ("N L r S" and a mode, particles from --seed) move fast: speeds
-# between L/(8r) and L/4 per step. Slow ones list their particles, drawn by this awk script
-# with its own Lehmer generator (exact in doubles, so every awk draws the same scene):
-#   slow_scene N L r S MODE SEED VMAX [EVERY]: speeds up to VMAX per step on each axis;
-#   with EVERY > 1 only every EVERY-th particle is listed and the rest are generated.
-slow_scene() {
-    awk -v n="$1" -v L="$2" -v r="$3" -v S="$4" -v mode="$5" -v s="$6" -v vmax="$7" -v every="${8:-1}" '
-        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
-        function coord(  q) { q = r + rnd() * (L - 2 * r); return q > L - r ? L - r : q }
-        BEGIN {
-            print n, L, r, S; print mode
-            for (i = 0; i < n; i++) {
-                x = coord(); y = coord(); vx = vmax * (2 * rnd() - 1); vy = vmax * (2 * rnd() - 1)
-                if (i % every == 0) printf "%d %.17g %.17g %.17g %.17g\n", i, x, y, vx, vy
-            }
-        }'
-}
-# lattice_scene K SPACING S MODE SEED: K*K discs (r = 1) on a square lattice, velocities in
-# multiples of 1/4 up to 1: with SPACING 2 every neighbour touches (c == 0), so many contact
-# times are exactly equal and the tie-break decides.
-lattice_scene() {
-    awk -v k="$1" -v d="$2" -v S="$3" -v mode="$4" -v s="$5" '
-        function rnd() { s = (s * 16807) % 2147483647; return s / 2147483647 }
-        BEGIN {
-            L = 2 + d * (k - 1) + 2; print k * k, L, 1, S; print mode
-            for (i = 0; i < k * k; i++)
-                printf "%d %.17g %.17g %.17g %.17g\n", i, 2 + d * (i % k), 2 + d * int(i / k), int(9 * rnd() - 4.5) / 4, int(9 * rnd() - 4.5) / 4
-        }'
-}
-
-# ---------------------------------------------------------------------------------------------
+# Random scenes (lib.sh: slow_scene, lattice_scene).
 part "invariants"
 # SPEC §7 on every step of print --precise runs of seq:
 #  * every line well-formed, in order; every coordinate finite and in [r, L-r];

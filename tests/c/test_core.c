@@ -1047,7 +1047,8 @@ static void test_describe_json(void)
                              .parallel = true, .repairs = "p1"};
     const sim_sync sync = {.regions = {.per_step = 1, .per_row = 2},
                            .grabs = {.per_pair = 3, .per_tile = 4}, .tile = 64};
-    const sim_variant counted = {.name = "c", .summary = "", .parallel = true, .sync = &sync};
+    const sim_variant counted = {.name = "c", .summary = "", .parallel = true, .sync = &sync,
+                                 .mpi = true};
     char *text = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&text, &len);
@@ -1059,12 +1060,13 @@ static void test_describe_json(void)
     CHECK_INT(sim_describe(f, &counted), 0);
     fclose(f);
     CHECK_STR(text, "{\"name\":\"seq\",\"summary\":\"every pair\",\"exact\":true,"
-                    "\"parallel\":false,\"all_pairs\":true,\"repairs\":null,\"sync\":null}\n"
+                    "\"parallel\":false,\"all_pairs\":true,\"repairs\":null,\"mpi\":false,"
+                    "\"sync\":null}\n"
                     "{\"name\":\"x\\\"y\",\"summary\":\"a \\\"quoted\\\" \\\\ tab\\t line\\n "
                     "bell\\u0007 end\",\"exact\":false,\"parallel\":true,\"all_pairs\":false,"
-                    "\"repairs\":\"p1\",\"sync\":null}\n"
+                    "\"repairs\":\"p1\",\"mpi\":false,\"sync\":null}\n"
                     "{\"name\":\"c\",\"summary\":\"\",\"exact\":false,\"parallel\":true,"
-                    "\"all_pairs\":false,\"repairs\":null,\"sync\":{\"regions\":{\"step\":1,"
+                    "\"all_pairs\":false,\"repairs\":null,\"mpi\":true,\"sync\":{\"regions\":{\"step\":1,"
                     "\"row\":2},\"nested_regions\":{},\"barriers\":{},\"grabs\":{\"pair\":3,"
                     "\"tile\":4},\"tile\":64}}\n");
     free(text);

@@ -10,7 +10,9 @@
  * The main test builds thousands of small random worlds (slow and fast, sparse and dense,
  * overlapping, on integer lattices so that contact times tie and fall on slice boundaries,
  * huge L, outlier speeds), runs the grid's finder at 1 to 4 threads and checks that it finds
- * exactly the candidates of the all-pairs kernel, with the same t, each once.
+ * exactly the candidates of the all-pairs kernel, with the same t, each once; and the step's
+ * slices shared out to several finders (the mpi variant's ranks), which together must find the
+ * same.
  */
 #include <inttypes.h>
 #include <math.h>
@@ -72,6 +74,9 @@ static int test_sub_force;
 /* Whether a team splits every slice into bands whatever N (else small scenes bin every
  * particle in every band). */
 static int test_banded;
+/* The share of the step's slices grid_candidates looks at: part test_part of test_parts
+ * (grid_scratch's slice_part, slice_parts; 1 part: every slice). */
+static int test_part, test_parts = 1;
 
 static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scratch,
                                       size_t *count)
@@ -87,6 +92,8 @@ static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scr
     }
     memset(sink.bufs, 0, (size_t)threads * sizeof *sink.bufs);
     ((grid_scratch *)sink.scratch)->sub_force = test_sub_force;
+    ((grid_scratch *)sink.scratch)->slice_part = test_part;
+    ((grid_scratch *)sink.scratch)->slice_parts = test_parts;
     if (test_banded)
         ((grid_scratch *)sink.scratch)->direct_n = 0;
     sim_variant_def.find_pairs(w, &sink);
@@ -114,6 +121,32 @@ static sim_cand *grid_candidates_with(const sim_world *w, int threads, void *scr
 static sim_cand *grid_candidates(const sim_world *w, int threads, size_t *count)
 {
     return grid_candidates_with(w, threads, NULL, count);
+}
+
+/* The candidates of every part of the step's slices shared out to `parts` finders (the mpi
+ * variant's ranks), together, sorted; one scratch a part (NULL: fresh ones). */
+static sim_cand *shared_candidates(const sim_world *w, int threads, int parts, void **scratch,
+                                   size_t *count)
+{
+    sim_cand *all = NULL;
+    size_t total = 0;
+    test_parts = parts;
+    for (test_part = 0; test_part < parts; test_part++) {
+        size_t n;
+        sim_cand *got = grid_candidates_with(w, threads, scratch ? scratch[test_part] : NULL, &n);
+        all = realloc(all, (total + n + 1) * sizeof *all);
+        if (!all) {
+            fprintf(stderr, "out of memory\n");
+            exit(2);
+        }
+        memcpy(all + total, got, n * sizeof *all);
+        total += n;
+        free(got);
+    }
+    test_part = 0, test_parts = 1;
+    qsort(all, total, sizeof *all, cand_cmp_t);
+    *count = total;
+    return all;
 }
 
 /* Exactly the same list, t bit for bit? */
@@ -170,6 +203,20 @@ static size_t check_world(const sim_world *w, const char *what)
                 }
                 free(got);
             }
+    /* The slices shared out (K rounded to a multiple of the parts where it can be, some parts
+     * with none where it cannot): the parts together find the same candidates, each once. */
+    static const int shares[][3] = {{2, 1, 0}, {3, 2, 1}, {4, 2, 0}}; /* parts, threads, banded */
+    for (size_t c = 0; c < sizeof shares / sizeof shares[0]; c++) {
+        size_t ngot;
+        test_banded = shares[c][2];
+        sim_cand *got = shared_candidates(w, shares[c][1], shares[c][0], NULL, &ngot);
+        test_banded = 0;
+        if (!same_candidates(got, ngot, ref, nref))
+            fail_at(__FILE__, __LINE__, "%s (n=%d L=%g r=%g): %d parts of the slices on %d "
+                    "threads found %zu candidates, expected %zu", what, w->n, (double)w->L,
+                    (double)w->r, shares[c][0], shares[c][1], ngot, nref);
+        free(got);
+    }
     free(ref);
     return nref;
 }
@@ -531,6 +578,43 @@ static void test_repeated_steps_on_one_scratch(void)
     }
 }
 
+/* The slices shared out to 3 parts, each with a scratch of its own through many steps (each
+ * keeps its own order from step to step), fast (K a multiple of 3) and slow (K = 1: two parts
+ * have no slice and keep the order as it is): together, the all-pairs candidates. */
+static void test_shared_slices_through_steps(void)
+{
+    enum { PARTS = 3 };
+    for (int slow = 0; slow <= 1; slow++) {
+        sim_world w;
+        world_make(&w, 3000, 500, 1);
+        for (int32_t i = 0; i < w.n; i++) {
+            w.x[i] = 1 + uniform() * 498, w.y[i] = 1 + uniform() * 498;
+            const double a = 2 * PI * uniform(), sp = slow ? 0.5 + uniform() : 20 + 40 * uniform();
+            w.vx[i] = sp * cos(a), w.vy[i] = sp * sin(a);
+        }
+        void *scratch[PARTS];
+        for (int p = 0; p < PARTS; p++)
+            scratch[p] = sim_variant_def.scratch_create(&w, 2);
+        sim_stepper *st = sim_stepper_create(&w, &sim_variant_def, 1);
+        sim_stats stats = {0};
+        for (int step = 0; step < 5; step++) {
+            size_t nref, ngot;
+            sim_cand *ref = reference_candidates(&w, &nref);
+            sim_cand *got = shared_candidates(&w, 2, PARTS, scratch, &ngot);
+            if (!same_candidates(got, ngot, ref, nref))
+                fail_at(__FILE__, __LINE__, "%s, step %d: %zu candidates, expected %zu",
+                        slow ? "slow" : "fast", step, ngot, nref);
+            free(ref);
+            free(got);
+            CHECK(sim_step(st, &w, &stats) == 0);
+        }
+        sim_stepper_destroy(st);
+        for (int p = 0; p < PARTS; p++)
+            sim_variant_def.scratch_destroy(scratch[p]);
+        sim_world_free(&w);
+    }
+}
+
 static const test_case tests[] = {
     {"near_is_symmetric", test_near_is_symmetric},
     {"prefilter_passes_near_and_rejects_far_segments",
@@ -543,6 +627,7 @@ static const test_case tests[] = {
     {"finds_exactly_the_all_pairs_candidates", test_finds_exactly_the_all_pairs_candidates},
     {"ties_on_boundaries", test_ties_on_boundaries},
     {"repeated_steps_on_one_scratch", test_repeated_steps_on_one_scratch},
+    {"shared_slices_through_steps", test_shared_slices_through_steps},
 };
 
 int main(int argc, char **argv)

@@ -10,6 +10,11 @@
  * candidate buffers it was given. The core merges the buffers and sorts them by the total
  * SPEC key (t, pair before wall, i, j) before resolving, so the result is the same for every
  * thread count and schedule. A finder must report each pair at most once, with i < j.
+ *
+ * A variant may run as several processes (MPI ranks: sim_variant's `ranks`), each holding the
+ * whole world and running the same steps; its finder then exchanges the candidates, so that
+ * every rank sorts and resolves the same list. The core itself never calls MPI: only such a
+ * variant's own files are compiled with mpicc.
  */
 #ifndef SIM_H
 #define SIM_H
@@ -17,6 +22,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include <omp.h>
 
@@ -60,6 +66,10 @@ typedef struct sim_cand_buf {
     size_t len, cap;
     uint64_t pair_tests; /* pairs examined this step, for --timing */
     bool failed;         /* an allocation failed: the core ends the run with status 1 */
+    /* Pairs the finder found and left out because a wall of one of their particles comes
+     * first (sim_pair_sink's wall_t): the core counts them among the candidates (--timing), as
+     * if they had been pushed and dropped by its sort. Reset by the core every step. */
+    uint64_t dropped;
     /* For --timing's per-thread figures, summed over the run (never reset by the core): the
      * seconds this buffer's writer spent in the finder's loops (sim_busy_start/stop, once per
      * thread per region, so the timers cost nothing per pair) and the chunks of iterations the
@@ -74,6 +84,12 @@ typedef struct sim_pair_sink {
     int count;
     int threads;   /* the thread count of this run (--threads / OMP_NUM_THREADS) */
     void *scratch; /* the variant's own per-run memory (see scratch_create) */
+    /* Every particle's wall time in the world's current state (SPEC §2's tw; above 1, or
+     * infinite, where no wall is met within the step), valid while find_pairs runs. The core
+     * drops a pair (i, j, t) with wall_t[i] < t or wall_t[j] < t before it sorts (the walk would
+     * refuse it and it changes nothing else); a finder may leave such pairs out itself, counting
+     * them in its buffer's `dropped`. */
+    const sim_real *wall_t;
 } sim_pair_sink;
 
 /* How many times a finder asks the OpenMP runtime for one operation in a step, as a function
@@ -95,6 +111,38 @@ typedef struct sim_sync {
     int32_t tile;             /* j per tile, for per_tile */
 } sim_sync;
 
+/* What the core asks of a variant that runs as several processes (MPI ranks), each holding the
+ * whole world (sim_variant's `ranks`; NULL for a variant of one process). Every rank runs the
+ * same steps on the same state; rank 0 reads the input and writes the output and every message
+ * about the input or the command line. Except rank, size and abort, each function is called by
+ * every rank at the same point of the run (a collective call), so that none waits for ever. */
+typedef struct sim_ranks {
+    /* First thing in main, with main's arguments. Returns 0, or nonzero after printing why
+     * (the run then ends with status 1). */
+    int (*start)(int *argc, char ***argv);
+    /* Last thing on every way out of main after a successful start. */
+    void (*stop)(void);
+    /* This process's rank, in [0, size()), and the number of ranks. */
+    int (*rank)(void);
+    int (*size)(void);
+    /* Rank 0's input to every rank: on rank 0 `text` is what it read (len bytes, malloc'd, a
+     * NUL after them), or NULL where it could not read (it said why); elsewhere NULL. Returns
+     * this rank's copy (rank 0's is `text` itself), with its length in *len; NULL on every rank
+     * where rank 0 had none. */
+    char *(*share_input)(char *text, size_t *len);
+    /* The largest of the ranks' values (exit statuses, counts). */
+    int (*largest)(int value);
+    /* Ends every rank at once with `status`: what a rank does on a failure of its own in the
+     * middle of the steps, where the others would wait for it. Does not return. */
+    void (*abort)(int status);
+    /* Rank 0 receives every rank's `bytes` bytes at `mine` into `all`, in rank order (size() *
+     * bytes; `all` is not written on the other ranks). */
+    void (*gather)(const void *mine, size_t bytes, void *all);
+    /* --timing: writes the variant's own fields, each as `, "key": value`, to out on rank 0
+     * (out is NULL on the others). */
+    void (*timing)(FILE *out);
+} sim_ranks;
+
 /* A variant: what it says about itself (`--describe` prints these facts as one JSON line, so
  * that the harness and the test scripts read them from the binary instead of keeping lists of
  * their own), then how it finds candidates. */
@@ -107,6 +155,8 @@ typedef struct sim_variant {
      * seq is parallelism alone; false for finders that skip pairs or test them their own way. */
     bool all_pairs;
     const char *repairs; /* the seed strategy whose pathology this variant repairs, or NULL */
+    /* Runs as MPI ranks (under mpirun, or alone as one): `ranks` below is set. */
+    bool mpi;
     /* Its runtime operations per step; NULL where they depend on more than N (the data, as
      * grid's barriers; OMP_SCHEDULE, as p1_runtime's chunks). */
     const sim_sync *sync;
@@ -117,6 +167,8 @@ typedef struct sim_variant {
     void (*scratch_destroy)(void *scratch);
     /* Append every pair candidate of the current state (SPEC §2) to the sink's buffers. */
     void (*find_pairs)(const sim_world *w, sim_pair_sink *sink);
+    /* How the processes of an MPI variant work together; NULL for every other variant. */
+    const sim_ranks *ranks;
 } sim_variant;
 
 /* Defined by exactly one variant file per binary. */

@@ -146,8 +146,8 @@ int sim_write_state(FILE *out, const sim_world *w, int64_t step, bool precise);
 int sim_write_final(FILE *out, const sim_world *w, int64_t step, bool precise);
 
 /* --describe: the variant's facts (sim_variant) as one line of JSON, keys in the order name,
- * summary, exact, parallel, all_pairs, repairs (null when it repairs none). Returns 0, or -1 on
- * a write error. */
+ * summary, exact, parallel, all_pairs, repairs (null when it repairs none), mpi, sync. Returns
+ * 0, or -1 on a write error. */
 int sim_describe(FILE *out, const sim_variant *v);
 
 /* --replay (sim_replay.c): the successor of each state in `text` (len bytes), with the rules

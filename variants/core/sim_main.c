@@ -1,8 +1,15 @@
 /*
  * sim_main.c: SPEC §5, the command line every variant shares. Links against one variant's
  * `sim_variant_def`; a variant file has no main() of its own.
+ *
+ * A variant that runs as several processes (sim_variant's `ranks`, an MPI variant) is started
+ * and stopped here, through its hooks: every rank parses the command line and the input (rank 0
+ * reads the input and shares it), runs the same steps on the same world, and rank 0 alone
+ * writes the output and every message about the input or the command line, so that a run of
+ * any number of ranks reads and writes what a run of one does.
  */
 #include <errno.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,12 +61,30 @@ static const char *const usage_text =
     "  --describe   print what this variant is, as one line of JSON, and exit: name, summary\n"
     "               (how it finds candidate pairs), exact (output byte-identical to seq),\n"
     "               parallel (uses threads), all_pairs (tests every pair i < j with seq's\n"
-    "               test), repairs (the seed strategy it repairs, or null)\n"
+    "               test), repairs (the seed strategy it repairs, or null), mpi (runs as MPI\n"
+    "               ranks: `mpirun -np R VARIANT ...`, or alone as one; rank 0 reads and\n"
+    "               writes), sync (its OpenMP operations per step, or null)\n"
     "  --replay     read states (`N L r`, then lines `k i x y vx vy [p]`, N per state) and\n"
     "               print each one's successor by this variant's rules, %%.17g, as lines\n"
     "               `k+1 i x y vx vy EVENT PARTNER T`; a binary input, binary output\n"
     "               (both binary forms: sim_replay.c)\n"
     "  --help       print this text\n";
+
+/* Whether this process stays silent about the input and the command line: the ranks of an MPI
+ * variant other than rank 0, which meet the same errors as rank 0 does (each parses the same
+ * text), so that a run says each once. Failures of a rank's own (memory) it reports itself. */
+static bool quiet;
+
+/* A message about the input or the command line: one line on stderr, unless quiet. */
+static void tell(const char *format, ...)
+{
+    if (quiet)
+        return;
+    va_list args;
+    va_start(args, format);
+    vfprintf(stderr, format, args);
+    va_end(args);
+}
 
 /* An argument or a path as a message may show it: escaped (sim_escape), at most
  * SIM_ARG_QUOTE_MAX bytes of it, then "...". */
@@ -79,7 +104,7 @@ static sim_shown shown(const char *s)
 
 static int usage_error(const char *name, const char *what, const char *arg)
 {
-    fprintf(stderr, "%s: usage: %s '%s' (try --help)\n", name, what, shown(arg).text);
+    tell("%s: usage: %s '%s' (try --help)\n", name, what, shown(arg).text);
     return SIM_EXIT_USAGE;
 }
 
@@ -144,7 +169,7 @@ static char *read_all(const char *name, const char *path, size_t *len)
 {
     FILE *f = path ? fopen(path, "rb") : stdin;
     if (!f) {
-        fprintf(stderr, "%s: cannot read '%s': %s\n", name, shown(path).text, strerror(errno));
+        tell("%s: cannot read '%s': %s\n", name, shown(path).text, strerror(errno));
         return NULL;
     }
     size_t cap = SIM_READ_CHUNK, n = 0;
@@ -166,8 +191,8 @@ static char *read_all(const char *name, const char *path, size_t *len)
     if (path)
         fclose(f);
     if (!buf || bad) {
-        fprintf(stderr, "%s: cannot read '%s': %s\n", name, shown(path ? path : "stdin").text,
-                buf ? "read error" : "out of memory");
+        tell("%s: cannot read '%s': %s\n", name, shown(path ? path : "stdin").text,
+             buf ? "read error" : "out of memory");
         free(buf);
         return NULL;
     }
@@ -183,11 +208,22 @@ static double physical_bytes(void)
     return pages > 0 && size > 0 ? (double)pages * (double)size : 0;
 }
 
+/* The whole input: read here, or by rank 0 and shared with every rank (an MPI variant, whose
+ * stdin is rank 0's). NULL, on every rank, where it could not be read (rank 0 said why). */
+static char *read_input(const char *name, const char *path, size_t *len)
+{
+    const sim_ranks *ranks = sim_variant_def.ranks;
+    if (!ranks)
+        return read_all(name, path, len);
+    char *text = ranks->rank() == 0 ? read_all(name, path, len) : NULL;
+    return ranks->share_input(text, len);
+}
+
 /* Read (or generate) the scene into w. Returns an exit status. */
 static int load_scene(const char *name, const sim_options *o, sim_header *h, sim_world *w)
 {
     size_t len;
-    char *text = read_all(name, o->input, &len);
+    char *text = read_input(name, o->input, &len);
     if (!text)
         return SIM_EXIT_USAGE;
     sim_lexer lx;
@@ -195,14 +231,14 @@ static int load_scene(const char *name, const sim_options *o, sim_header *h, sim
     sim_lexer_init(&lx, text, len);
     if (sim_parse_header(&lx, h, &err)) {
         free(text);
-        fprintf(stderr, "%s: input: line %ld: %s\n", name, err.line, err.what);
+        tell("%s: input: line %ld: %s\n", name, err.line, err.what);
         return SIM_EXIT_USAGE;
     }
     const double need = (double)h->n * (double)sim_bytes_per_particle(), have = physical_bytes();
     if (have > 0 && need > have) {
         free(text);
-        fprintf(stderr, "%s: input: line 1: N=%ld needs about %.1f GiB, more than this machine's "
-                        "%.1f GiB\n", name, (long)h->n, need / (1 << 30), have / (1 << 30));
+        tell("%s: input: line 1: N=%ld needs about %.1f GiB, more than this machine's %.1f GiB\n",
+             name, (long)h->n, need / (1 << 30), have / (1 << 30));
         return SIM_EXIT_USAGE;
     }
     /* Print mode writes N lines for each of the S + 1 states: past 2^63 bytes (the largest
@@ -210,9 +246,9 @@ static int load_scene(const char *name, const sim_options *o, sim_header *h, sim
     const double lines = (double)h->n * ((double)h->steps + 1);
     if (h->mode == SIM_MODE_PRINT && lines * SIM_PRINT_LINE_MIN > (double)INT64_MAX) {
         free(text);
-        fprintf(stderr, "%s: input: line 1: print mode with N=%ld and S=%lld writes at least "
-                        "%.3g bytes, more than a file can hold (2^63)\n", name, (long)h->n,
-                (long long)h->steps, lines * SIM_PRINT_LINE_MIN);
+        tell("%s: input: line 1: print mode with N=%ld and S=%lld writes at least %.3g bytes, "
+             "more than a file can hold (2^63)\n", name, (long)h->n, (long long)h->steps,
+             lines * SIM_PRINT_LINE_MIN);
         return SIM_EXIT_USAGE;
     }
     unsigned char *listed = calloc((size_t)h->n + 1, 1);
@@ -227,7 +263,7 @@ static int load_scene(const char *name, const sim_options *o, sim_header *h, sim
     if (rc) {
         free(listed);
         sim_world_free(w);
-        fprintf(stderr, "%s: input: line %ld: %s\n", name, err.line, err.what);
+        tell("%s: input: line %ld: %s\n", name, err.line, err.what);
         return SIM_EXIT_USAGE;
     }
     sim_generate(w, h, listed, o->seed);
@@ -235,26 +271,41 @@ static int load_scene(const char *name, const sim_options *o, sim_header *h, sim
     return SIM_EXIT_OK;
 }
 
-/* Run the steps, writing states in print mode, then the final block. Returns an exit status. */
+/* A failure of this process alone in the middle of the steps, its message printed: with
+ * several ranks the others would wait for it in the next exchange, so every rank ends now
+ * (the run's status is then the launcher's, nonzero). Alone, returns the status. */
+static int failed_alone(int status)
+{
+    const sim_ranks *ranks = sim_variant_def.ranks;
+    if (ranks && ranks->size() > 1) {
+        fflush(stderr);
+        ranks->abort(status);
+    }
+    return status;
+}
+
+/* Run the steps, writing states in print mode, then the final block (rank 0 of an MPI
+ * variant writes; the others step alike and write nothing). Returns an exit status. */
 static int simulate(const char *name, const sim_options *o, const sim_header *h, sim_world *w,
                     int threads, sim_report *rep)
 {
+    const bool writes = !quiet;
     sim_stepper *s = sim_stepper_create(w, &sim_variant_def, threads);
     if (!s) {
         fprintf(stderr, "%s: out of memory for N=%ld particles\n", name, (long)h->n);
-        return SIM_EXIT_RUNTIME;
+        return failed_alone(SIM_EXIT_RUNTIME);
     }
     int rc = SIM_EXIT_OK;
     if (o->timing) {
         rep->writers = sim_stepper_writers(s);
         rep->work = calloc((size_t)rep->writers, sizeof *rep->work);
         if (!rep->work)
-            rep->writers = 0;
+            rep->writers = 0; /* the line lists no writer */
     }
     /* Without particles nothing moves and nothing is printed: any S ends at once. */
     const int64_t steps = h->n > 0 ? h->steps : 0;
     for (int64_t step = 0; step < steps && rc == SIM_EXIT_OK; step++) {
-        if (h->mode == SIM_MODE_PRINT) {
+        if (h->mode == SIM_MODE_PRINT && writes) {
             const double t0 = omp_get_wtime();
             if (sim_write_state(stdout, w, step, o->precise))
                 rc = SIM_EXIT_RUNTIME;
@@ -268,19 +319,25 @@ static int simulate(const char *name, const sim_options *o, const sim_header *h,
         }
         rep->sim_s += omp_get_wtime() - t0;
     }
+    const bool stopped = rc != SIM_EXIT_OK; /* a write or a step failed */
+    if (stopped && ferror(stdout))
+        fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
+    if (stopped)
+        failed_alone(rc);
     for (int k = 0; k < rep->writers; k++)
         rep->work[k] = sim_stepper_work(s, k);
     sim_stepper_destroy(s);
-    if (rc == SIM_EXIT_OK) {
+    if (!stopped && writes) {
         const double t0 = omp_get_wtime();
         if (sim_write_final(stdout, w, h->steps, o->precise) || fflush(stdout))
             rc = SIM_EXIT_RUNTIME;
         rep->output_s += omp_get_wtime() - t0;
     }
-    if (ferror(stdout)) {
+    if (!stopped && ferror(stdout)) {
         fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
         rc = SIM_EXIT_RUNTIME;
     }
+    /* The next call every rank makes together is the agreement on the status (main). */
     return rc;
 }
 
@@ -309,8 +366,49 @@ static void print_work(const sim_report *r, const char *key, int field)
     fputc(']', stderr);
 }
 
+/* With several ranks (an MPI variant), every rank's figures on rank 0: the pair tests added up,
+ * and the writers' work listed rank after rank (each rank's padded to the largest count with
+ * zeros); the rest stays rank 0's (every rank resolves the same candidates). Every rank calls
+ * it: the gathers are collective. */
+static void gather_report(const char *name, const sim_ranks *ranks, sim_report *r)
+{
+    const int size = ranks->size();
+    const bool root = ranks->rank() == 0;
+    const int writers = ranks->largest(r->writers);
+    sim_thread_work *mine = calloc((size_t)writers + 1, sizeof *mine);
+    sim_thread_work *work = root ? calloc((size_t)size * (size_t)writers + 1, sizeof *work) : NULL;
+    sim_stats *stats = root ? calloc((size_t)size, sizeof *stats) : NULL;
+    if (!mine || (root && (!work || !stats))) {
+        fprintf(stderr, "%s: out of memory for --timing\n", name);
+        failed_alone(SIM_EXIT_RUNTIME);
+        free(mine), free(work), free(stats);
+        return;
+    }
+    if (r->writers)
+        memcpy(mine, r->work, (size_t)r->writers * sizeof *mine);
+    ranks->gather(mine, (size_t)writers * sizeof *mine, work);
+    ranks->gather(&r->stats, sizeof r->stats, stats);
+    free(mine);
+    if (!root)
+        return;
+    r->stats.pair_tests = 0;
+    for (int k = 0; k < size; k++)
+        r->stats.pair_tests += stats[k].pair_tests;
+    free(stats);
+    free(r->work);
+    r->work = work;
+    r->writers = size * writers;
+}
+
+/* --timing's line on stderr (rank 0 of an MPI variant writes it, after gather_report; the
+ * variant adds its own fields last). */
 static void print_timing(const sim_header *h, int threads, const sim_report *r)
 {
+    const sim_ranks *ranks = sim_variant_def.ranks;
+    if (quiet) {
+        ranks->timing(NULL);
+        return;
+    }
     char build[32];
     build_name(build, sizeof build);
     fprintf(stderr,
@@ -330,10 +428,13 @@ static void print_timing(const sim_header *h, int threads, const sim_report *r)
     print_work(r, "threads_busy_s", 0);
     print_work(r, "threads_pairs", 1);
     print_work(r, "threads_chunks", 2);
+    if (ranks)
+        ranks->timing(stderr);
     fputs("}\n", stderr);
 }
 
-int main(int argc, char **argv)
+/* The run: main's work between the start and the stop of an MPI variant's ranks. */
+static int run(int argc, char **argv)
 {
     const char *name = sim_variant_def.name;
     sim_options o;
@@ -341,11 +442,12 @@ int main(int argc, char **argv)
     if (rc != SIM_EXIT_OK)
         return rc;
     if (o.help) {
-        printf(usage_text, argv[0], argv[0], argv[0]);
+        if (!quiet)
+            printf(usage_text, argv[0], argv[0], argv[0]);
         return SIM_EXIT_OK;
     }
     if (o.describe) {
-        if (sim_describe(stdout, &sim_variant_def) || fflush(stdout)) {
+        if (!quiet && (sim_describe(stdout, &sim_variant_def) || fflush(stdout))) {
             fprintf(stderr, "%s: cannot write the output: %s\n", name, strerror(errno));
             return SIM_EXIT_RUNTIME;
         }
@@ -358,6 +460,12 @@ int main(int argc, char **argv)
                                                                       : omp_get_max_threads();
     omp_set_num_threads(threads);
 
+    const sim_ranks *ranks = sim_variant_def.ranks;
+    if (o.replay && ranks && ranks->size() > 1) {
+        tell("%s: usage: --replay runs as one process, not %d MPI ranks (try --help)\n", name,
+             ranks->size());
+        return SIM_EXIT_USAGE;
+    }
     if (o.replay) {
         size_t len;
         char *text = read_all(name, o.input, &len);
@@ -377,13 +485,41 @@ int main(int argc, char **argv)
     sim_world w;
     const double t0 = omp_get_wtime();
     rc = load_scene(name, &o, &h, &w);
+    if (ranks) {
+        /* Every rank parsed the same text; only memory, or a machine with less of it, can
+         * make one fail where rank 0 did not. */
+        const int all = ranks->largest(rc);
+        if (all != SIM_EXIT_OK && rc == SIM_EXIT_OK) {
+            tell("%s: another rank could not load the scene (status %d)\n", name, all);
+            sim_world_free(&w);
+        }
+        rc = all;
+    }
     if (rc != SIM_EXIT_OK)
         return rc;
     rep.input_s = omp_get_wtime() - t0;
     rc = simulate(name, &o, &h, &w, threads, &rep);
     sim_world_free(&w);
-    if (rc == SIM_EXIT_OK && o.timing)
+    if (ranks)
+        rc = ranks->largest(rc);
+    if (rc == SIM_EXIT_OK && o.timing) {
+        if (ranks)
+            gather_report(name, ranks, &rep);
         print_timing(&h, threads, &rep);
+    }
     free(rep.work);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    const sim_ranks *ranks = sim_variant_def.ranks;
+    if (!ranks)
+        return run(argc, argv);
+    if (ranks->start(&argc, &argv))
+        return SIM_EXIT_RUNTIME;
+    quiet = ranks->rank() != 0;
+    const int rc = run(argc, argv);
+    ranks->stop();
     return rc;
 }

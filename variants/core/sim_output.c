@@ -290,7 +290,7 @@ int sim_describe(FILE *out, const sim_variant *v)
         put_json_string(out, v->repairs);
     else
         fputs("null", out);
-    fputs(",\"sync\":", out);
+    fprintf(out, ",\"mpi\":%s,\"sync\":", v->mpi ? "true" : "false");
     put_sync(out, v->sync);
     fputs("}\n", out);
     return ferror(out) ? -1 : 0;

@@ -304,10 +304,13 @@ int sim_sort_candidates(sim_cand *a, sim_cand *tmp, size_t n)
 size_t sim_merge_candidates(sim_stepper *s, sim_stats *stats)
 {
     size_t pairs = 0, walls = 0;
+    uint64_t dropped = 0;
     bool failed = false;
     for (int k = 0; k < s->sink.count; k++) {
         sim_cand_buf *b = &s->sink.bufs[k];
         pairs += b->len;
+        dropped += b->dropped;
+        b->dropped = 0;
         failed |= b->failed;
         stats->pair_tests += b->pair_tests;
         s->writer_pairs[k] += b->pair_tests;
@@ -341,6 +344,6 @@ size_t sim_merge_candidates(sim_stepper *s, sim_stats *stats)
         return kept;
     for (int k = 0; k < s->sink.count; k++)
         s->sink.bufs[k].len = 0;
-    stats->candidates += pairs + walls;
+    stats->candidates += pairs + walls + dropped;
     return kept;
 }

@@ -60,6 +60,7 @@ sim_stepper *sim_stepper_create(const sim_world *w, const sim_variant *v, int th
         return NULL;
     }
     memset(s->sink.bufs, 0, (size_t)count * sizeof(sim_cand_buf));
+    s->sink.wall_t = s->wall_t;
     memset(s->walls, 0, (size_t)s->threads * sizeof(sim_cand_buf));
     if (s->parallel)
         sim_team_spread(s->threads);

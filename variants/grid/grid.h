@@ -3,7 +3,8 @@
  * its unit tests) includes: the finder's constants and types, each piece's functions, and the
  * small helpers every piece's hot loops inline (the last section says why they are here).
  *
- *   variants/grid.c   the finder: the plan of a step, then its work items on the threads
+ *   variants/grid.c   the variant's definition
+ *   grid_finder.c     the finder: the plan of a step, then its work items on the threads
  *   grid_state.c      the per-run and per-thread state and its memory
  *   grid_plan.c       the plan of a step: v_ref, K, cell size, padding and float margin, items
  *   grid_binning.c    a slice's entries in cell order: counting sort (dense) or radix (sparse)
@@ -11,7 +12,8 @@
  *   grid_runs.c       which runs each entry is looked at against (the lo-corner rule)
  *   grid_scan.c       a work item: slices binned and scanned in turn, the next step's order
  *
- * docs/grid_design.md explains the design.
+ * docs/grid_design.md explains the design. The mpi variant (variants/mpi.c) links these pieces
+ * and shares each step's slices out to its ranks (grid_scratch's slice_part, slice_parts).
  */
 #ifndef GRID_H
 #define GRID_H
@@ -179,11 +181,22 @@ typedef struct grid_scratch {
                     * GRID_SUB_MAX */
     int32_t direct_n; /* a team bins every particle in every band up to this N (GRID_DIRECT_N;
                        * the tests set 0 to run the split into bands on small scenes too) */
+    /* The step's slices shared out to slice_parts finders (the mpi variant's ranks, each with
+     * a scratch of its own): this one looks at slices slice_part, slice_part + slice_parts, ...
+     * (grid_plan's k0, kstep), and K is a multiple of slice_parts where the plan's bounds allow.
+     * Dealt in turn rather than in blocks: a slice late in the step costs less (the discs'
+     * paths run out of the box, where the binned region thins out), and blocks left the first
+     * of two ranks 603 M pair tests to the second's 486 M at N = 2 10^5 (in turn: 558 M and
+     * 532 M). Each candidate is pushed from one slice, so the parts' candidates together are the
+     * whole finder's. slice_parts 1 (grid_scratch_create): every slice. */
+    int slice_part, slice_parts;
 } grid_scratch;
 
 /* What one step's binning uses. */
 typedef struct grid_plan {
     int K;
+    int k0, kstep;    /* the slices this finder looks at, k0, k0 + kstep, ... < K: all (0, 1), or
+                       * its share (grid_scratch's slice_parts) */
     int bands;        /* > 1: every slice is cut into this many bands of rows, one a thread */
     int32_t gx, gy;   /* cells per axis */
     double x0, y0;    /* the grid's lower-left corner: the origin of the binning's floats */
@@ -273,6 +286,12 @@ typedef struct grid_probe {
     int32_t id;
 } grid_probe;
 
+/* ---- grid_finder.c ---- */
+
+/* The finder (sim_variant's find_pairs): the step's plan, then its slices (all, or the share
+ * slice_part of slice_parts) alone or on the team, pairs into the sink's buffers. */
+void grid_find_pairs(const sim_world *w, sim_pair_sink *sink);
+
 /* ---- grid_state.c ---- */
 
 /* The finder's per-run memory for a world of w->n particles and `threads` threads: O(N) shared,
@@ -292,7 +311,8 @@ int grid_thread_reserve_keys(grid_thread *th, uint64_t keys);
 /* Bits needed to hold values < v (v >= 1). */
 int grid_bits_for(uint64_t v);
 /* The plan of this step for the world's state (and s's bx, by, ux, uy, tk filled in the plan's
- * terms), for `threads` threads: the pieces below, one after the other. */
+ * terms), for `threads` threads and s's cells (sub_force) and share of the slices: the pieces
+ * below, one after the other. */
 void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threads);
 /* The pieces, so that a team shares the loops over particles out: the extent of particles
  * [i0, i1) and its merge with another's (min and max: any order gives the same); whether the
@@ -309,7 +329,7 @@ void grid_extent_merge(grid_extent *a, const grid_extent *b);
 int grid_speeds_needed(const sim_world *w, const grid_extent *e);
 void grid_speed_count(const sim_world *w, int32_t i0, int32_t i1, double vmax, uint32_t *count);
 void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *count,
-                    int sub_force, grid_plan *g, int threads);
+                    const grid_scratch *s, grid_plan *g, int threads);
 void grid_plan_floats(const sim_world *w, grid_scratch *s, const grid_plan *g, int32_t e0,
                       int32_t e1);
 void grid_plan_times(grid_scratch *s, const grid_plan *g);
@@ -357,7 +377,11 @@ uint64_t grid_wide_pairs(const grid_ctx *cx, const int32_t *wide, int32_t nw, in
 
 /* ---- grid_scan.c ---- */
 
-/* One thread alone: every slice of the step, each binned from the one before; pairs into buf. */
+/* Each of these works through the plan's slices k0, k0 + kstep, ... < K (every slice of the
+ * step, or this finder's share) and leaves the particles in the cell order of the last one in
+ * s->ord_next
+ * (where the share is empty, in s->ord's order).
+ * One thread alone: every slice, each binned from the one before; pairs into buf. */
 void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim_cand_buf *buf);
 /* Thread `me` of a team of `team` (inside a parallel region, every thread calls it): every
  * slice of the step cut into g->bands bands of rows, a band a thread. Returns 0, or -1 when

@@ -62,6 +62,25 @@ static int slice_count(double factor, double vref, int32_t n, double L, double r
     return sane && kf >= 1 ? (int)(kf + 0.5) : 1;
 }
 
+/* K shared out to `parts` finders (grid_scratch's slice_parts) in equal shares: the multiple of
+ * parts nearest to K (the larger one on a tie) that slice_count's bounds allow (at most
+ * v_ref / 2r, GRID_K_MAX and N / GRID_K_PER_N), else K itself (fewer slices than parts: some
+ * parts have none). Every K finds the same candidates; a multiple evens the parts' work out. */
+static int share_slices(int K, int parts, double vref, int32_t n, double r, int sane)
+{
+    if (parts <= 1 || !sane || K % parts == 0)
+        return K;
+    double cap = vref / (2 * r);
+    if (cap > GRID_K_MAX)
+        cap = GRID_K_MAX;
+    if (cap > (double)n / GRID_K_PER_N)
+        cap = (double)n / GRID_K_PER_N;
+    const int down = K / parts * parts, up = down + parts;
+    if (up <= cap && (down == 0 || up - K <= K - down))
+        return up;
+    return down > 0 ? down : K;
+}
+
 void grid_extent_of(const sim_world *w, int32_t i0, int32_t i1, grid_extent *e)
 {
     double minx = HUGE_VAL, maxx = -HUGE_VAL, miny = HUGE_VAL, maxy = -HUGE_VAL, vmax = 0;
@@ -133,7 +152,7 @@ void grid_plan_step(const sim_world *w, grid_scratch *s, grid_plan *g, int threa
     uint32_t count[GRID_SPEED_BINS] = {0};
     if (grid_speeds_needed(w, &e))
         grid_speed_count(w, 0, w->n, e.vmax, count);
-    grid_plan_make(w, &e, count, s->sub_force, g, threads);
+    grid_plan_make(w, &e, count, s, g, threads);
     grid_plan_floats(w, s, g, 0, w->n);
     grid_plan_times(s, g);
 }
@@ -145,7 +164,7 @@ void grid_plan_times(grid_scratch *s, const grid_plan *g)
 }
 
 void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *count,
-                    int sub_force, grid_plan *g, int threads)
+                    const grid_scratch *s, grid_plan *g, int threads)
 {
     const int32_t n = w->n;
     const double minx = e->minx, maxx = e->maxx, miny = e->miny, maxy = e->maxy;
@@ -188,11 +207,15 @@ void grid_plan_make(const sim_world *w, const grid_extent *e, const uint32_t *co
     int sub = 1;
     while (sane && sub < GRID_SUB_MAX && per_cell >= GRID_SUB_OCCUPANCY * (sub + 1) * (sub + 1))
         sub++;
-    if (sub_force)
-        sub = sub_force;
+    if (s->sub_force)
+        sub = s->sub_force;
     g->sub = sub;
     if (sub == 1)
         g->K = slice_count(GRID_K_FACTOR, vref, n, L, r, sane);
+    const int parts = s->slice_parts > 1 ? s->slice_parts : 1, part = parts > 1 ? s->slice_part : 0;
+    g->K = share_slices(g->K, parts, vref, n, r, sane);
+    g->k0 = part;
+    g->kstep = parts;
 
     g->reach2 = (2 * r + delta) * (2 * r + delta);
     /* rpad, above, is rounded up to float: (1 + 8 FLT_EPSILON) covers the conversion's half an

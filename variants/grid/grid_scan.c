@@ -46,18 +46,38 @@ static int run_slice(const grid_ctx *cx, grid_thread *th, int32_t row0, int32_t 
     return 0;
 }
 
+/* Whether this finder's share of the step's slices is empty (fewer slices than parts: see
+ * grid_scratch's slice_parts); then thread 0 keeps the particles' order for the next step. */
+static bool no_slices(grid_scratch *s, const grid_plan *g, int me)
+{
+    if (g->k0 < g->K)
+        return false;
+    if (me == 0)
+        memcpy(s->ord_next, s->ord, (size_t)s->n * sizeof *s->ord);
+    return true;
+}
+
 void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim_cand_buf *buf)
 {
     grid_thread *th = &s->th[0];
-    if (grid_thread_reserve(th, s->n, 2)) {
+    if (no_slices(s, g, 0))
+        return;
+    /* On every slice of the step, each slice is binned from the one before (its entries are
+     * almost in the next one's order), the two in sets used in turn. A share of the slices
+     * (kstep > 1) bins each from the step's start, S, into one set: its slices are kstep apart,
+     * where the slice before helps less, and the second set would be N items (28 bytes each)
+     * more on every mpi rank. */
+    const bool chain = g->kstep == 1;
+    if (grid_thread_reserve(th, s->n, chain ? 2 : 1)) {
         buf->failed = true;
         return;
     }
-    grid_src src = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord, .m = s->n,
-                    .wide = NULL, .nwide = 0};
+    const grid_src start = {.bx = s->bx, .by = s->by, .ux = s->ux, .uy = s->uy, .id = s->ord,
+                            .m = s->n, .wide = NULL, .nwide = 0};
+    grid_src src = start;
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     int out = 0;
-    for (int k = 0; k < g->K; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         const grid_ctx cx = {.w = w, .s = s, .g = g, .k = k, .buf = buf, .queue = &queue};
         grid_bins b;
         if (run_slice(&cx, th, 0, g->gy, 0, 1, &src, out, &b)) {
@@ -65,14 +85,16 @@ void grid_run_alone(const sim_world *w, grid_scratch *s, const grid_plan *g, sim
             return;
         }
         const grid_set *z = &th->set[out];
-        if (k == g->K - 1) {
+        if (k + g->kstep >= g->K) {
             /* Every particle once, in this slice's cell order: the next step's start. */
             memcpy(s->ord_next, z->id, (size_t)b.nbase * sizeof(int32_t));
             memcpy(s->ord_next + (s->n - b.nw), th->wide[out], (size_t)b.nw * sizeof(int32_t));
         }
-        src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id,
-                         .m = b.ne, .wide = th->wide[out], .nwide = b.nw};
-        out ^= 1;
+        if (chain) {
+            src = (grid_src){.bx = z->bx, .by = z->by, .ux = z->ux, .uy = z->uy, .id = z->id,
+                             .m = b.ne, .wide = th->wide[out], .nwide = b.nw};
+            out ^= 1;
+        }
     }
 }
 
@@ -279,6 +301,8 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
                    sim_cand_buf *buf)
 {
     grid_thread *th = &s->th[me];
+    if (no_slices(s, g, me))
+        return;
     /* The runtime may give fewer threads than asked. */
     const int bands = g->bands < team ? g->bands : team;
     /* Where every thread has a band, each band is lent to the team once binned, so that a
@@ -290,7 +314,7 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
     /* Memory short: this thread stops working but keeps meeting the team's barriers. */
     bool failed = grid_thread_reserve_part(th, p1 - p0) != 0;
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
-    for (int k = 0; k < g->K; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         const float kf = (float)k;
         double t0 = sim_busy_start();
         band_bounds(s, g, kf, bands, th);
@@ -338,7 +362,7 @@ void grid_run_team(const sim_world *w, grid_scratch *s, const grid_plan *g, int 
                                    &b) != 0;
             if (!failed)
                 write_back(w, s, g, &th->set[0], b.nbase, base_at, me, nwide,
-                           k == g->K - 1 ? s->ord_next : s->ord);
+                           k + g->kstep >= g->K ? s->ord_next : s->ord);
         }
         sim_busy_stop(buf, t0);
 #pragma omp barrier
@@ -355,7 +379,7 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
     /* The team shares each slice's keys out where it is big enough to have their arrays, and
      * every thread has a band (all meet the barrier). */
     const bool whole = s->team.whole_key[0] && bands == team && grid_whole_keys_fit(g);
-    if (me >= bands)
+    if (no_slices(s, g, me) || me >= bands)
         return;
     if (grid_thread_reserve(th, s->n, 1))
         buf->failed = true; /* keeps meeting the team's barriers, doing nothing */
@@ -365,7 +389,7 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
     grid_queue queue = {.at = 0, .len = 0, .on = s->n > GRID_SMALL_N};
     const int32_t p0 = (int32_t)((int64_t)s->n * me / team);
     const int32_t p1 = (int32_t)((int64_t)s->n * (me + 1) / team);
-    for (int k = 0; k < g->K; k++) {
+    for (int k = g->k0; k < g->K; k += g->kstep) {
         double t0 = sim_busy_start();
         if (whole) {
             src.whole_key = s->team.whole_key[k & 1], src.whole_flag = s->team.whole_flag[k & 1];
@@ -388,7 +412,7 @@ void grid_run_direct(const sim_world *w, grid_scratch *s, const grid_plan *g, in
                                              bands, &src, 0, &b)) {
             buf->failed = true;
         }
-        if (!buf->failed && k == g->K - 1) {
+        if (!buf->failed && k + g->kstep >= g->K) {
             /* The bands' base entries in band order, then the wide particles: every particle
              * once, in this slice's cell order, the next step's start. */
             memcpy(s->ord_next + b.below, th->set[0].id, (size_t)b.nbase * sizeof(int32_t));

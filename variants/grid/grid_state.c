@@ -125,6 +125,7 @@ void *grid_scratch_create(const sim_world *w, int threads)
     const size_t n = (size_t)w->n + 1;
     s->n = w->n;
     s->direct_n = GRID_DIRECT_N;
+    s->slice_parts = 1;
     s->threads = threads;
     s->bx = malloc(n * sizeof(float)), s->by = malloc(n * sizeof(float));
     s->ux = malloc(n * sizeof(float)), s->uy = malloc(n * sizeof(float));
