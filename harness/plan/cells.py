@@ -17,7 +17,7 @@ from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
-from harness.spec.facts import ignored_axes
+from harness.spec.facts import RANKS_AXIS, ignored_axes
 from harness.spec.points import PARALLEL_AXES, expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
@@ -44,6 +44,9 @@ class Cell:
     # for the config's cells at every other value of each.
     ignored: tuple[str, ...] = ()
     ranks: int = 1  # MPI ranks (`ranks:`): a variant that is not MPI ignores them
+    # Of `ignored`, the axes along which the config has other values than the cell's: what its
+    # label says it ignores
+    collapsed: tuple[str, ...] = ()
 
     @property
     def uses_ranks(self) -> bool:
@@ -60,7 +63,7 @@ class Cell:
         text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
         text = f"{text} ranks={self.ranks}" if self.uses_ranks else text
         text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
-        return f"{text} (ignores {', '.join(self.ignored)})" if self.ignored else text
+        return f"{text} (ignores {', '.join(self.collapsed)})" if self.collapsed else text
 
     def fields(self) -> dict[str, object]:
         """The values exclude rules test."""
@@ -75,17 +78,17 @@ def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
     """The cell as it is measured: at the one value of each axis its variant ignores. A
     program, a config's own binary and a variant the registry does not know use every axis."""
     program = config.program(cell.variant)
-    if program is not None:  # a command that does not name its ranks runs as one process
-        return cell if program.uses_ranks else dataclasses.replace(cell, ranks=1,
-                                                                   ignored=("ranks",))
     facts = registry.get(cell.variant) if config.is_built(cell.variant) else None
-    if facts is None:
-        return dataclasses.replace(cell, ranks=1, ignored=("ranks",))
-    ignored = ignored_axes(facts)
+    if program is not None:  # a command that does not name its ranks runs as one process
+        ignored = [] if program.uses_ranks else [RANKS_AXIS]
+    else:  # a custom binary or an unknown variant runs as one process, at every thread count
+        ignored = ignored_axes(facts) if facts is not None else [RANKS_AXIS]
     if not ignored:
         return cell
+    collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
+                      or getattr(cell, a.field) != a.value)
     return dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
-                               **{a.field: a.value for a in ignored})
+                               collapsed=collapsed, **{a.field: a.value for a in ignored})
 
 
 @dataclass(frozen=True)

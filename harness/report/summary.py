@@ -60,9 +60,11 @@ def _where(row: pd.Series) -> str:
 
 
 def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
-    """The cells that can be the best strategy: neither the baseline nor grid, nor a program's
-    (a student's, or a command timed as a whole such as two copies at once)."""
-    return fair[~fair["variant"].isin(NOT_STRATEGIES) & ~is_program(fair)]
+    """The cells that can be the best strategy (a way of one node's threads through the pairs):
+    neither the baseline nor grid, nor a program's (a student's, or a command timed as a whole
+    such as two copies at once), nor one run as MPI ranks."""
+    ranked = fair["ranks"].notna() if "ranks" in fair.columns else False
+    return fair[~fair["variant"].isin(NOT_STRATEGIES) & ~is_program(fair) & ~ranked]
 
 
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:

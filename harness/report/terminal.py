@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.analysis.cells import INTERVAL_SUFFIXES, flag, varying_keys
-from harness.analysis.display import display_name, format_value
+from harness.analysis.display import display_name, format_value, threads_text
 from harness.analysis.flags import FLAG_WORDS, disturbed_text
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -50,8 +50,9 @@ def _median(row: pd.Series) -> str:
     if not isinstance(median, float) or not math.isfinite(median):
         return "-"
     scale, unit = (1e3, " ms") if median < 1 else (1.0, " s")
-    return interval_text(f"{median * scale:.3g}", row.get("wall_median_ci_low_s"),
+    text = interval_text(f"{median * scale:.3g}", row.get("wall_median_ci_low_s"),
                          row.get("wall_median_ci_high_s"), scale, unit)
+    return text if text.endswith(unit) else text + unit
 
 
 def _speedup(row: pd.Series) -> str:
@@ -95,8 +96,8 @@ def fastest_text(df: pd.DataFrame) -> str:
     if strategies.empty:
         return ""
     best = strategies.loc[strategies["speedup"].idxmax()]
-    text = (f"fastest strategy: {best['variant']}, {_speedup(best)} faster than seq "
-            f"(N = {int(best['n'])}, {int(best['threads'])} threads)")
+    text = (f"fastest strategy: {best['variant']}, speedup {_speedup(best)} over seq "
+            f"(N = {int(best['n'])}, {threads_text(int(best['threads']))})")
     if bool(best.get("disturbed")) and pd.notna(best.get("disturbed")):
         text += ", measured while others disturbed it"
     return text

@@ -200,8 +200,9 @@ class IgnoredAxis:
 
 # What a variant may ignore: threads where its --describe says "parallel": false, ranks where
 # it does not say "mpi": true.
+RANKS_AXIS = IgnoredAxis("ranks", 1, lambda f: f.mpi)
 IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),
-                                         IgnoredAxis("ranks", 1, lambda f: f.mpi))
+                                         RANKS_AXIS)
 
 
 def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:

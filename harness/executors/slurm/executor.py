@@ -201,10 +201,11 @@ class SlurmExecutor:
                     ended[pid] = (task, slurm_state)
         return in_flight, ended
 
-    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path) -> list[str]:
+    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path,
+                    ntasks: int = 1) -> list[str]:
         spec = self.spec
         args = [f"--job-name=collide-{experiment.config.name}",
-                f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", "--ntasks=1",
+                f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", f"--ntasks={ntasks}",
                 f"--time={time_limit_minutes(spec, experiment)}",
                 f"--chdir={experiment.options.repo_root}"]
         if spec.partition:
@@ -234,32 +235,35 @@ class SlurmExecutor:
 
     def submit(self, experiment: Experiment, state: JobState,
                cells: Mapping[str, tuple[Cell, str]], todo: Sequence[str]) -> dict[str, Task]:
-        """One array job per distinct --cpus-per-task (each cell gets at least its thread
-        count, up to the largest node of the partition); the tasks by portable id."""
+        """One array job per distinct --cpus-per-task and --ntasks (each cell gets at least its
+        thread count a task, up to the largest node of the partition, and a task per MPI rank:
+        its mpirun starts its ranks in the task's allocation); the tasks by portable id."""
         slurm_dir = state.path.parent
         logs = slurm_dir / LOGS_DIR
         logs.mkdir(parents=True, exist_ok=True)
         largest = partition_cpus(self.spec.partition)
-        groups: dict[int, list[str]] = {}
+        groups: dict[tuple[int, int], list[str]] = {}
         for pid in todo:
-            threads = cells[pid][0].threads
-            cpus = threads if largest is None else min(threads, largest)
-            groups.setdefault(cpus, []).append(pid)
-        chunks = [(cpus, ids[k:k + MAX_ARRAY_TASKS]) for cpus, ids in sorted(groups.items())
+            cell = cells[pid][0]
+            cpus = cell.threads if largest is None else min(cell.threads, largest)
+            groups.setdefault((cpus, cell.ranks if cell.uses_ranks else 1), []).append(pid)
+        chunks = [(shape, ids[k:k + MAX_ARRAY_TASKS]) for shape, ids in sorted(groups.items())
                   for k in range(0, len(ids), MAX_ARRAY_TASKS)]
         tasks: dict[str, Task] = {}
-        for cpus, ids in chunks:
+        for (cpus, ntasks), ids in chunks:
             stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%S.%f")
-            script = slurm_dir / f"job-{stamp}-c{cpus}.sh"
+            script = slurm_dir / f"job-{stamp}-c{cpus}-n{ntasks}.sh"
             atomic.atomic_write_text(script, self.job_script(experiment, ids))
             submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
-            job_id = submit_array(script, len(ids), self.sbatch_args(experiment, cpus, logs))
+            job_id = submit_array(script, len(ids),
+                                  self.sbatch_args(experiment, cpus, logs, ntasks))
             state.jobs.append(Job(job_id, list(ids), submitted_at,
                                   f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
             tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
             experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
-                                 f"--cpus-per-task={cpus}; task logs in {logs}\n")
+                                 f"--cpus-per-task={cpus} --ntasks={ntasks}; task logs in "
+                                 f"{logs}\n")
         return tasks
 
     @staticmethod

@@ -18,6 +18,7 @@ from harness.report.sections import (
     error,
     phases,
     programs,
+    ranks,
     speedup,
     strategies,
     sweeps,
@@ -29,7 +30,7 @@ from harness.report.sections.context import Context
 # showing the experiment, so a lone cell still gets its table beside them.
 BESIDE = (programs.build, strategies.build, phases.build)
 # The parts that show the experiment; the cell table, built last, knows whether any did.
-MAIN = (sweeps.build, speedup.build, error.build, trajectory.build, checks.build)
+MAIN = (sweeps.build, speedup.build, ranks.build, error.build, trajectory.build, checks.build)
 
 
 def experiment_section(exp: Experiment, figs: Manifest) -> Section:
