@@ -38,8 +38,8 @@ FLAG_WORDS: dict[str, str] = {
 INVALID_OUTPUT = "invalid output"
 NOT_CHECKED = "not checked"  # a program left unjudged: seq's own print-mode run failed
 # The columns of the warnings table (one experiment's), and its order.
-WARNING_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "threads")
-WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads")
+WARNING_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "threads", "ranks")
+WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads", "ranks")
 
 
 def _is_true(value: object) -> bool:
@@ -98,7 +98,9 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
         if name == "oversubscribed":
             cores = row.get("cores")
             cores_text = f" > {int(cores)} cores" if pd.notna(cores) else ""
-            text += f" ({int(row['threads'])} threads{cores_text})"
+            ranks = row.get("ranks")
+            processes = f"{int(ranks)} ranks x " if pd.notna(ranks) else ""
+            text += f" ({processes}{int(row['threads'])} threads{cores_text})"
         elif name == "disturbed":
             text += disturbed_words(row.get("others_share"))
         elif name == "earlier_config":
@@ -138,7 +140,9 @@ def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     """The cells of one experiment a reader must know about (not ok, a program that leaves
     seq, or flagged), one row each with why."""
     flagged = _flagged(df)
-    table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS})
+    # ranks only where some cell runs as ranks
+    table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS if k in flagged.columns and (
+        k != "ranks" or flagged[k].notna().any())})
     table["issue"] = ["; ".join(text for _, text in issues(row))
                       for _, row in flagged.iterrows()]
     return table

@@ -52,8 +52,9 @@ def changes(result: CellResult, facts: Variants) -> dict[str, object]:
     known = facts.get(result.key.variant)
     if known is None or result.key.program_check is not None:
         return {}
+    # a key without the field (None: ranks of a cell that is not MPI) is not along the axis
     return {axis.field: axis.value for axis in ignored_axes(known)
-            if getattr(result.key, axis.field) != axis.value}
+            if getattr(result.key, axis.field) not in (axis.value, None)}
 
 
 def sort_out(stored: Sequence[Stored], facts: Variants

@@ -7,6 +7,7 @@ from __future__ import annotations
 import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS, present, timed_rows
+from harness.analysis.serving import measured_once
 
 RANKS = "ranks"
 # What a table row of ranked cells is named by: its variant, build and scene, at its threads.
@@ -54,16 +55,23 @@ def ranks_table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def cores_table(df: pd.DataFrame) -> pd.DataFrame:
-    """Per core count (ranks x threads) of more than one split: each split's median, the
-    fastest marked, so that ranks and threads are compared on the same cores."""
-    cells = ranked(df)
-    table = cells[[*_GROUP, RANKS, "threads"]].copy()
-    table["cores"] = cells[RANKS] * cells["threads"]
+    """Per scene, build and core count (ranks x threads, a cell that is not MPI being one
+    process): every cell on that many cores, the fastest marked, so that ranks, threads and the
+    variants without ranks are compared on the same cores. Only where ranks are measured, and
+    only core counts of more than one cell."""
+    if ranked(df).empty:
+        return df.iloc[0:0]
+    cells = timed_rows(measured_once(df))
+    processes = cells[RANKS].fillna(1).astype(int)
+    keys = [*present(cells, SCENE_KEYS), "build", "cores"]
+    table = cells[[*present(cells, SCENE_KEYS), *_GROUP, RANKS, "threads"]].copy()
+    table["cores"] = processes * cells["threads"]
     table["median_s"] = cells["wall_median_s"]
-    splits = table.groupby([*_GROUP, "cores"])[RANKS].transform("nunique")
-    table = table[splits > 1].copy()
+    table = table[table.groupby(keys)["median_s"].transform("size") > 1].copy()
     if table.empty:
         return table
-    fastest = table.groupby([*_GROUP, "cores"])["median_s"].transform("min")
-    table["fastest"] = table["median_s"] == fastest
-    return table.sort_values([*_GROUP, "cores", RANKS], kind="stable").reset_index(drop=True)
+    table["fastest"] = table["median_s"] == table.groupby(keys)["median_s"].transform("min")
+    table = table.sort_values([*keys, "median_s"], kind="stable").reset_index(drop=True)
+    # the scene's keys name the table's groups only where they vary
+    fixed = [k for k in present(table, SCENE_KEYS) if table[k].nunique() == 1]
+    return table.drop(columns=fixed)

@@ -29,11 +29,18 @@ from harness.store.records import MACHINE_KEY, read_json
 SHOWN_FLAGS: tuple[str, ...] = ("oversubscribed", "unstable", "loaded", "disturbed")
 
 
+def figures(value: float) -> str:
+    """Three significant figures, without an exponent for a number of up to six digits
+    (`1060`, not `1.06e+03`)."""
+    text = f"{value:.3g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
 def seconds_text(value: object) -> str:
     """A time as a terminal shows it: `53.2 ms`, `1.27 s`."""
     if not isinstance(value, float) or not math.isfinite(value):
         return "-"
-    return f"{value * 1e3:.3g} ms" if value < 1 else f"{value:.3g} s"
+    return f"{figures(value * 1e3)} ms" if value < 1 else f"{figures(value)} s"
 
 
 def interval_text(point: str, low: object, high: object, scale: float = 1.0, unit: str = ""
@@ -41,7 +48,7 @@ def interval_text(point: str, low: object, high: object, scale: float = 1.0, uni
     """`point [low, high]` where the interval is known, else the point alone."""
     if isinstance(low, float) and isinstance(high, float) and math.isfinite(low) and (
             math.isfinite(high)):
-        return f"{point} [{low * scale:.3g}, {high * scale:.3g}]{unit}"
+        return f"{point} [{figures(low * scale)}, {figures(high * scale)}]{unit}"
     return point
 
 
@@ -50,7 +57,7 @@ def _median(row: pd.Series) -> str:
     if not isinstance(median, float) or not math.isfinite(median):
         return "-"
     scale, unit = (1e3, " ms") if median < 1 else (1.0, " s")
-    text = interval_text(f"{median * scale:.3g}", row.get("wall_median_ci_low_s"),
+    text = interval_text(figures(median * scale), row.get("wall_median_ci_low_s"),
                          row.get("wall_median_ci_high_s"), scale, unit)
     return text if text.endswith(unit) else text + unit
 
@@ -108,7 +115,8 @@ def validation_text(exp: Experiment) -> str:
     if not found.validated:
         return ""
     invalid = (f"{found.invalid} INVALID" if found.invalid else "no invalid cell")
-    return (f"validation: {found.validated} cells checked against seq, {invalid}; "
+    cells = "cell" if found.validated == 1 else "cells"
+    return (f"validation: {found.validated} {cells} checked against seq, {invalid}; "
             f"{found.identical} byte-identical")
 
 
@@ -146,7 +154,8 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
         shown = exp if len(df) == len(exp.frame) else Experiment(
             exp.name, exp.directory, exp.title, df, exp.divergence, exp.ratios)
         label = machine_labels(read_machines([found.path])).get(str(machine))
-        head = f"{found.name}: {exp.title}: {len(df)} cells" + (f" on {label}" if label else "")
+        named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
+        head = f"{named}: {len(df)} cells" + (f" on {label}" if label else "")
         lines = [head]
         extra = [disturbed_text(df), fastest_text(df), validation_text(shown), intervals_text(df)]
         lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]

@@ -92,6 +92,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
+    require_mpi(plan, experiment.cores, here=executor.name == "local")
     tools = checkout_tools(binaries)  # this checkout's, whichever repository is measured
     make_binaries(options.repo_root, [b for b in binaries if b not in tools], options.make)
     make_binaries(REPO_ROOT, tools, options.make)

@@ -12,6 +12,7 @@ import csv
 import io
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -141,6 +142,37 @@ def test_six_cells_give_the_rows_of_a_local_run(cluster, real_binaries: Path, tm
                  "--executor", "slurm"]) == 0
     assert "six: 6 cells (0 measured, 6 cached): 6 ok" in capsys.readouterr().err
     assert jobs(remote, "six") == submitted
+
+
+def test_mpi_cells_run_as_tasks_of_their_ranks(cluster, build_binaries, tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    if shutil.which("mpirun") is None:
+        if os.environ.get("CI"):
+            pytest.fail("mpirun is not installed (scripts/setup.sh --test installs Open MPI)")
+        pytest.skip("mpirun is not installed")
+    build_binaries("seq", "mpi")
+    monkeypatch.setenv("OMPI_MCA_pml", "ob1")
+    monkeypatch.setenv("OMPI_MCA_btl", "self,vader")
+    config = tmp_path / "ranked.yaml"
+    config.write_text("name: ranked\nvariants: [seq, mpi]\n"
+                      "scene: {n: 200, L: 2000, r: 1, steps: 5, seed: 3}\nthreads: [1]\n"
+                      "ranks: [1, 2]\nmeasure: {warmup: 0, runs: 2, timeout_s: 60}\n"
+                      "validate: true\n")
+    root = tmp_path / "remote"
+    assert main([str(config), "--results-dir", str(root), "--no-report",
+                 "--executor", "slurm"]) == 0
+    assert "ranked: 3 cells (3 measured, 0 cached): 3 ok" in capsys.readouterr().err
+    rows = read_csv(root / "ranked" / "results.csv")
+    assert sorted((r["variant"], r["ranks"]) for r in rows) == [
+        ("mpi", "1"), ("mpi", "2"), ("seq", "")]
+    assert all(r["status"] == "ok" and r["identical"] == "True" for r in rows)
+    # an array per --ntasks: a cell's ranks are the tasks of its allocation
+    scripts = sorted(p.name.split("-")[-1] for p in (root / "ranked" / layout.SLURM).glob(
+        "job-*.sh"))
+    assert scripts == ["n1.sh", "n2.sh"]
+    two = next(r for r in rows if r["ranks"] == "2")
+    assert float(two["mpi_bytes_step"]) > 0
 
 
 def test_a_task_over_its_time_limit_is_timeout_the_others_ok(

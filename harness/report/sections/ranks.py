@@ -25,6 +25,7 @@ def build(ctx: Context) -> list[Section]:
     cores = cores_table(df)
     if not cores.empty:
         blocks.append(table_block(
-            cores, "Ranks × threads on the same number of cores: the fastest split of each "
-            "core count marked (is hybrid worth it here?).", source=df))
+            cores, "Every cell on the same number of cores (ranks × threads; a variant "
+            "without ranks is one process): the fastest of each core count marked (is hybrid "
+            "worth it here?).", source=df))
     return [ctx.section("MPI ranks", "ranks", blocks)]
