@@ -111,7 +111,7 @@ class Measurer:
         if schedule:
             env[OMP_SCHEDULE_VAR] = schedule
         if ranks:
-            env.update(mpi.environment())
+            env.update(mpi.environment(env))
         return env
 
     def key(self, cell: Cell) -> dict[str, object]:
@@ -176,7 +176,8 @@ class Measurer:
         record = self.store.new_record(cell, cell_id).replace(
             cores=self.cores,
             oversubscribed=cell.threads * (cell.ranks if cell.uses_ranks else 1) > self.cores,
-            omp_env={k: v for k, v in sorted(env.items()) if k.startswith("OMP_")},
+            omp_env={k: v for k, v in sorted(env.items())
+                     if k.startswith(("OMP_", mpi.RECORDED_PREFIX))},
             machine_id=self.store.machine_id, machine=machine.machine(repo),
             git_commit=environment.git_commit(repo), schedule=cell.schedule)
         for old in self.store.layout.hyperfine_files(cell_id):
