@@ -111,7 +111,7 @@ class Measurer:
         if schedule:
             env[OMP_SCHEDULE_VAR] = schedule
         if ranks:
-            env.update(mpi.environment(env))
+            env.update(mpi.environment(env, self.config.executor.oversubscribe))
         return env
 
     def key(self, cell: Cell) -> dict[str, object]:

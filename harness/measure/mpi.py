@@ -61,16 +61,21 @@ def placement(ranks: int, threads: int, cores: int, oversubscribe: bool) -> Plac
 # that serves: its default first probes every fabric it was built for (PSM, OFI, UCX), which
 # cost about 0.2 s of a run's start on a machine that has none (docs/mpi.md, "Start-up").
 ONE_NODE_ENV = {"OMPI_MCA_pml": "ob1"}
+OVERSUBSCRIBE_VAR = "OMPI_MCA_rmaps_base_oversubscribe"
 RECORDED_PREFIX = "OMPI_MCA_"  # what a record keeps of how Open MPI was set
 
 
-def environment(given: Mapping[str, str]) -> dict[str, str]:
+def environment(given: Mapping[str, str], oversubscribe: bool) -> dict[str, str]:
     """What a rank's environment adds to `given`: mpirun's consent to run as root, where it
-    is, and where the ranks share one node (run here, or a Slurm allocation of one node) the
-    one-node messaging layer, unless `given` chooses one."""
+    is; where the ranks share one node (run here, or a Slurm allocation of one node) the
+    one-node messaging layer, unless `given` chooses one; and where the config allows more
+    ranks than cores, mpirun's consent to that too (a program's own mpirun has no flag of
+    ours)."""
     env = dict(ROOT_ENV) if os.geteuid() == 0 else {}
     if given.get("SLURM_JOB_NUM_NODES", "1") == "1":
         env.update({k: v for k, v in ONE_NODE_ENV.items() if k not in given})
+    if oversubscribe:
+        env.setdefault(OVERSUBSCRIBE_VAR, "1")
     return env
 
 
