@@ -11,10 +11,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 from harness.errors import HarnessError
+from harness.spec.facts import MPI_INSTALL
 from harness.store.measured import Ranks
 
 MPIRUN = "mpirun"
-INSTALL = "sudo apt-get install openmpi-bin libopenmpi-dev"
 # Open MPI refuses to start as root unless told twice; a measurement under root is asked to.
 ROOT_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
 
@@ -24,7 +24,7 @@ def mpirun() -> str:
     found = shutil.which(MPIRUN)
     if found is None:
         raise HarnessError(f"{MPIRUN} not found: the config runs MPI ranks (`ranks:`, or a "
-                           f"variant whose --describe says mpi); install Open MPI: {INSTALL}")
+                           f"variant whose --describe says mpi); install Open MPI: {MPI_INSTALL}")
     return found
 
 

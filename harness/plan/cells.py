@@ -17,7 +17,7 @@ from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
 from harness.spec.config import Config
-from harness.spec.facts import RANKS_AXIS, ignored_axes
+from harness.spec.facts import RANKS_AXIS, IgnoredAxis, ignored_axes
 from harness.spec.points import PARALLEL_AXES, expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
@@ -74,15 +74,20 @@ class Cell:
                 "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
 
 
-def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
-    """The cell as it is measured: at the one value of each axis its variant ignores. A
-    program, a config's own binary and a variant the registry does not know use every axis."""
+def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[IgnoredAxis]:
+    """The axes the cell's variant ignores. A program, a config's own binary and a variant the
+    registry does not know use every axis but ranks, unless a program names {ranks}."""
     program = config.program(cell.variant)
     facts = registry.get(cell.variant) if config.is_built(cell.variant) else None
     if program is not None:  # a command that does not name its ranks runs as one process
-        ignored = [] if program.uses_ranks else [RANKS_AXIS]
-    else:  # a custom binary or an unknown variant runs as one process, at every thread count
-        ignored = ignored_axes(facts) if facts is not None else [RANKS_AXIS]
+        return [] if program.uses_ranks else [RANKS_AXIS]
+    # a custom binary or an unknown variant runs as one process, at every thread count
+    return ignored_axes(facts) if facts is not None else [RANKS_AXIS]
+
+
+def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
+    """The cell as it is measured: at the one value of each axis its variant ignores."""
+    ignored = ignored_by(config, registry, cell)
     if not ignored:
         return cell
     collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
@@ -178,6 +183,9 @@ def plan_cells(config: Config, quick: bool = False,
             used |= matching
             if not matching:
                 cell = measured_as(config, registry, cell)
+            else:  # as the config names it, less what its variant ignores
+                cell = dataclasses.replace(cell, ignored=tuple(
+                    a.field for a in ignored_by(config, registry, cell)))
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
                    cell.threads, cell.ranks, schedule)
             if key not in seen:

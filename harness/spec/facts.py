@@ -200,6 +200,8 @@ class IgnoredAxis:
 
 # What a variant may ignore: threads where its --describe says "parallel": false, ranks where
 # it does not say "mpi": true.
+# How a machine gets Open MPI (mpicc for an MPI variant's build, mpirun for its cells): Debian's.
+MPI_INSTALL = "sudo apt-get install openmpi-bin libopenmpi-dev"
 RANKS_AXIS = IgnoredAxis("ranks", 1, lambda f: f.mpi)
 IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),
                                          RANKS_AXIS)

@@ -1,6 +1,7 @@
 """The variant registry: which variants exist and what each is, from the binaries themselves.
 
-A variant is one file, variants/NAME.c; the Makefile builds every such file into build/NAME.
+A variant is one file, variants/NAME.c; the Makefile builds every such file into build/NAME
+where it can (an MPI variant only where mpicc is found: `make print-variants` lists those).
 What a variant is comes from its own definition in C (`sim_variant_def`), which its binary
 prints as one JSON line with `--describe` (harness.spec.facts says what the facts are, orders
 them and stores them with a run's results, where the analysis and the report read them). The
@@ -40,13 +41,34 @@ class VariantRegistry:
         return cls(facts=facts)
 
     @functools.cached_property
-    def names(self) -> tuple[str, ...]:
-        """The variants, baseline first, then by name; no binary is needed for them."""
+    def sources(self) -> frozenset[str]:
+        """Every variant with a source, variants/NAME.c, whether or not it builds here."""
         if self._given is not None:
-            found = set(self._given)
-        else:
-            found = {p.stem for p in (self.repo_root / VARIANTS_DIR).glob("*.c")}
+            return frozenset(self._given)
+        return frozenset(p.stem for p in (self.repo_root / VARIANTS_DIR).glob("*.c"))
+
+    @functools.cached_property
+    def names(self) -> tuple[str, ...]:
+        """The variants this machine builds (the Makefile's list; every source in a repository
+        whose Makefile has none), baseline first, then by name; no binary is needed."""
+        found = set(self.sources) if self._given is not None else self._buildable()
         return tuple(sorted(found, key=lambda n: (n != BASELINE, n)))
+
+    @property
+    def unbuilt(self) -> frozenset[str]:
+        """The variants with a source that the Makefile leaves out here (an MPI variant on a
+        machine without mpicc)."""
+        return self.sources - set(self.names)
+
+    def _buildable(self) -> set[str]:
+        try:
+            listed = subprocess.run([self.make, "-s", "--no-print-directory", "print-variants"],
+                                    cwd=self.repo_root, capture_output=True, text=True,
+                                    check=False, timeout=60)
+        except (OSError, subprocess.TimeoutExpired):
+            return set(self.sources)
+        names = set(listed.stdout.split())
+        return names & self.sources if listed.returncode == 0 and names else set(self.sources)
 
     def __contains__(self, name: object) -> bool:
         return name in self.names

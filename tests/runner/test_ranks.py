@@ -13,11 +13,13 @@ import shutil
 from pathlib import Path
 
 import pytest
+from harness import repo
 from harness.analysis import results
 from harness.analysis.ranks import cores_table
 from harness.errors import HarnessError
 from harness.plan.cells import plan_cells
 from harness.spec.parse import load_config
+from harness.spec.variants import VariantRegistry
 from harness.store.layout import ExperimentDir
 
 from commands import run_main
@@ -193,3 +195,21 @@ def test_more_ranks_than_cores_needs_oversubscribe(
     assert record.provenance is not None and record.provenance.command is not None
     assert "--oversubscribe" in record.provenance.command.split()
     assert record.subject is not None and record.subject.ranks == cores + 1
+
+
+def test_without_mpicc_the_mpi_variant_is_left_out_and_named(
+        write_config, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setenv("MPICC", "no-such-mpicc")  # the Makefile's compiler of MPI variants
+    registry = VariantRegistry()
+    assert "mpi" in registry.unbuilt and "mpi" not in registry.names and "seq" in registry.names
+    path = write_config(f"name: r\nvariants: [seq, mpi]\n{SCENE}ranks: [2]\n")
+    with pytest.raises(HarnessError) as caught:
+        load_config(path, registry)
+    assert str(caught.value) == (
+        f"{path}: key 'variants': 'mpi' is an MPI variant, which make leaves out where mpicc "
+        "is not found; install Open MPI: sudo apt-get install openmpi-bin libopenmpi-dev")
+    # every other config plans and runs as before
+    quickstart = repo.REPO_ROOT / "configs" / "quickstart.yaml"
+    assert run_main([str(quickstart), "--dry-run"]) == 0
+    assert "quickstart:" in capsys.readouterr().out

@@ -51,12 +51,14 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
     raw = read_mapping(source)
-    known_variants = (registry or default_registry()).names
+    registry = registry or default_registry()
+    known_variants = registry.names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
     name = kinds.check(raw.get("name", source.stem), "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
-    variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants)
+    variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants,
+                                                           registry.unbuilt)
     threads = raw.get("threads", 1)
     ranks = raw.get("ranks", 1)
     scene = parse_scene(raw.get("scene", MISSING), source)

@@ -3,16 +3,18 @@ templates, built from a source, or a class of them matched by a glob)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
-from harness.errors import MISSING, config_error
+from harness.errors import MISSING, HarnessError, config_error
 from harness.spec import kinds, programs
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import NAME_RULE, is_valid_name
+from harness.spec.facts import MPI_INSTALL
 
 
-def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequence[str]
+def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequence[str],
+                   unbuilt: Collection[str] = ()
                    ) -> tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, Path], ...],
                               tuple[programs.Program, ...]]:
     """The config's variants and builds, its binaries and its programs: a custom binary or a
@@ -22,6 +24,12 @@ def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequ
     taken = (*known_variants, *(b[0] for b in binaries))
     programs_, classes = parse_programs(raw.get("programs", {}), source, taken)
     known = (*taken, *(p.name for p in programs_), *classes)
+    asked = raw.get("variants")
+    for name in asked if isinstance(asked, list) else ():
+        if name in unbuilt and name not in known:
+            raise HarnessError(f"{source}: key 'variants': {name!r} is an MPI variant, which "
+                               "make leaves out where mpicc is not found; install Open MPI: "
+                               f"{MPI_INSTALL}")
     listed = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
     # A class in `variants` stands for every program its glob matched.
     variants = tuple(dict.fromkeys(m for v in listed for m in classes.get(v, (v,))))
