@@ -41,7 +41,8 @@ def test_a_serial_variant_is_one_cell_a_scene_run_with_one_thread(write_config, 
     with one thread and keyed as a cell at one thread always was; a parallel one's are not."""
     plan = plan_cells(load_config(write_config(SERIAL + "threads: [1, 2, 3]\n")))
     assert [(c.variant, c.threads, c.ignored) for c in plan.cells] == [
-        ("seq", 1, ("threads",)), ("p1d", 1, ()), ("p1d", 2, ()), ("p1d", 3, ())]
+        ("seq", 1, ("threads", "ranks")), ("p1d", 1, ("ranks",)), ("p1d", 2, ("ranks",)),
+        ("p1d", 3, ("ranks",))]
     assert plan.cells[0].label.endswith("threads=1 (ignores threads)")
     alone = plan_cells(load_config(write_config(SERIAL + "threads: 2\n", "two")))
     assert [(c.variant, c.threads) for c in alone.cells] == [("seq", 1), ("p1d", 2)]
