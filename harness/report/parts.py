@@ -39,8 +39,9 @@ class Fidelity:
         return Fidelity(*(a + b for a, b in zip(astuple(self), astuple(other), strict=True)))
 
 
-# In the summary's order; "phases": where grid's time goes.
-HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "phases", "largest")
+# In the summary's order; "phases": where grid's time goes; "ranks": the fastest split of the
+# cores into MPI ranks and threads.
+HIGHLIGHT_KINDS: tuple[str, ...] = ("best", "grid", "phases", "ranks", "largest")
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from harness.analysis.flags import (
     flagged_kinds,
 )
 from harness.analysis.programs import is_program
+from harness.analysis.ranks import cores_table
 from harness.analysis.serving import measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
@@ -94,7 +95,13 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
-    timed = rows[(rows["status"] == OK) & rows["wall_median_s"].notna()]
+    split = _fastest_split(exp.frame)
+    if split is not None:
+        cores, text = split
+        found["ranks"] = Highlight(float(cores), f"{text} ([{exp.name}](#"
+                                   f"{_anchor(section, 'ranks')}))", _anchor(section, "ranks"))
+    timed = measured_once(rows)
+    timed = timed[(timed["status"] == OK) & timed["wall_median_s"].notna()]
     if not timed.empty:
         top = timed.sort_values(["n", "wall_median_s"], kind="stable").iloc[-1]
         found["largest"] = Highlight(
@@ -103,6 +110,26 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
             f"{format_value('median_s', top['wall_median_s'])} s "
             f"({_where(top).split(', ', 1)[1]}; {link})", section.anchor)
     return found
+
+
+def _fastest_split(df: pd.DataFrame) -> tuple[int, str] | None:
+    """On the most cores that more than one cell ran on, where MPI ranks were measured: the
+    fastest cell and the others, as the summary says it."""
+    table = cores_table(df)
+    if table.empty:
+        return None
+    cores = int(table["cores"].max())
+    at = table[table["cores"] == cores].sort_values("median_s", kind="stable")
+
+    def named(row: pd.Series) -> str:
+        count = int(row["ranks"]) if pd.notna(row["ranks"]) else 0
+        ranks = f"{count} {'rank' if count == 1 else 'ranks'} × " if count else ""
+        return (f"`{row['variant']}` on {ranks}{threads_text(int(row['threads']))} in "
+                f"{format_value('median_s', row['median_s'])} s")
+
+    rest = "; ".join(named(row) for _, row in at.iloc[1:].iterrows())
+    return cores, (f"ranks against threads on {cores} cores: {named(at.iloc[0])} is the "
+                   f"fastest; {rest}")
 
 
 def fidelity(exp: Experiment) -> Fidelity:
