@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
-from harness.spec.facts import BASELINE
+from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import (
     AGREEMENT_FAILED,
     AGREEMENTS,
@@ -44,9 +44,9 @@ def agreement_text(row: pd.Series) -> str:
     return agreement
 
 
-def program_table(df: pd.DataFrame) -> pd.DataFrame:
+def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """One row per program cell: where it is, its status, its agreement, what its check cost
-    and the detail."""
+    and the detail (in the order of `variants`, the programs after them)."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
     table = rows[[*keys, "status"]].copy()
@@ -55,7 +55,7 @@ def program_table(df: pd.DataFrame) -> pd.DataFrame:
         if column in rows.columns and rows[column].notna().any():
             table[column] = rows[column]
     table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
-    return sort_cells(table, keys)
+    return sort_cells(table, keys, variants)
 
 
 # A program's verdict over its cells, the worst first: what a class table shows for it.

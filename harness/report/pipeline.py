@@ -40,7 +40,6 @@ from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
 from harness.report.spread import cached_session_words
-from harness.spec.facts import reading
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
 from harness.store.locks import directory_lock
@@ -120,10 +119,10 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
         from harness.report.sections import experiment_section
         from harness.report.summary import experiment_part as build_part
 
+        # the experiment carries the facts of the variants its results were measured with:
+        # their order, colours and kinds
         exp = load_experiment(loaded, machine, label)
-        # the facts of the variants the results were measured with: their order, colours, kinds
-        with reading(exp.variants):
-            return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
+        return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
 
     found = loaded.directory
     digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")

@@ -70,7 +70,7 @@ def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
-    rows = with_speedup(exp.frame, ratios=exp.ratios)
+    rows = with_speedup(exp.frame, exp.variants, ratios=exp.ratios)
     cells = _anchor(section, "cells")
     link = f"[{exp.name}](#{cells})"
     found: dict[str, Highlight] = {}
@@ -88,7 +88,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         largest = grid.sort_values(["n", "speedup"], kind="stable").iloc[-1]
         found["grid"] = Highlight(float(largest["n"]), f"grid against seq: {ratio_text(largest)} "
                                   f"faster ({_where(largest)}; {link})", cells)
-    selection = phases.select(exp.frame)
+    selection = phases.select(exp.frame, exp.variants)
     if selection is not None:
         anchor = _anchor(section, phases_part.ANCHOR)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
@@ -129,14 +129,15 @@ def fidelity(exp: Experiment) -> Fidelity:
 
 def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
     """The section with the experiment's warnings table and headline candidates."""
-    flagged = flagged_cells(exp.frame)
+    flagged = flagged_cells(exp.frame, exp.variants)
     warnings = table_block(flagged, "") if len(flagged) else None
     anchor = _anchor(section, "stability")
     if anchor == section.anchor:
         anchor = _anchor(section, "cells")
     measured = exp.frame["measured_at"].dropna().astype(str) if (
         "measured_at" in exp.frame.columns) else pd.Series(dtype=str)
-    return ExperimentPart(exp.name, section, warnings, tuple(flagged_kinds(exp.frame)),
+    kinds = tuple(flagged_kinds(exp.frame, exp.variants))
+    return ExperimentPart(exp.name, section, warnings, kinds,
                           highlights(exp, section), fidelity(exp), anchor,
                           _anchor(section, programs_part.ANCHOR),
                           max(measured, default=""), disturbed_text(exp.frame))

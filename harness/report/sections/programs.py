@@ -56,7 +56,7 @@ def build(ctx: Context) -> list[Section]:
         Paragraph(INTRO),
         table_block(grades, "The class: one row per program (also as a CSV, for a gradebook).",
                     programs, files=[csv]),
-        table_block(program_table(frame), "Each program cell's verdict.", programs),
+        table_block(program_table(frame, ctx.variants), "Each program cell's verdict.", programs),
     ]
     return [ctx.section("Programs", ANCHOR, blocks + _wrong_steps(ctx, programs))]
 
