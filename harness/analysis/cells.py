@@ -10,7 +10,7 @@ import pandas as pd
 
 from harness.spec.builds import BUILDS
 from harness.spec.facts import VariantFacts, Variants
-from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
+from harness.store.columns import AGREEMENTS, MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.results)
 # The columns that identify a measured cell, in the order tables show them. A results
@@ -71,6 +71,14 @@ def variant_fact(names: pd.Series, fact: Callable[[VariantFacts], bool],
     """Per row, `fact` of the variant's facts among `variants` (its --describe); False for an
     unknown variant."""
     return names.map(lambda v: (f := variants.get(v)) is not None and bool(fact(f)))
+
+
+def is_program(df: pd.DataFrame) -> pd.Series:
+    """Which rows are a program's (`programs:` in a config): those with an agreement, their
+    verdict against seq instead of a validation."""
+    if "agreement" not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df["agreement"].isin(AGREEMENTS)
 
 
 def timed_rows(df: pd.DataFrame) -> pd.DataFrame:

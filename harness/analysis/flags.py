@@ -9,7 +9,6 @@ import math
 import pandas as pd
 
 from harness.analysis.cells import flag, sort_cells
-from harness.analysis.programs import agreement_text
 from harness.analysis.serving import measured_once
 from harness.spec.facts import Variants
 from harness.store.columns import (
@@ -50,6 +49,15 @@ def _is_true(value: object) -> bool:
 
 def _flags(row: pd.Series) -> list[str]:
     return [name for name in FLAG_WORDS if _is_true(row.get(name))]
+
+
+def agreement_text(row: pd.Series) -> str:
+    """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
+    agreement = str(row.get("agreement"))
+    first = row.get("first_diff_step")
+    if pd.notna(first):
+        return f"{agreement} from step {int(first)}"
+    return agreement
 
 
 def status_text(row: pd.Series) -> str:

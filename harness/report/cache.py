@@ -10,8 +10,9 @@ by a hash of their input files, both remembered in one manifest beside the figur
 
 "The code" is every module of the harness that a render can load: the layers the report stands
 on (pyproject.toml's import-linter contracts keep the report and analysis from importing what
-measures, plans, runs or builds), hashed by their bytes; for the figures, those layers without
-the report's other modules. A figure drawn with the facts of the variants its results were
+measures, plans, runs or builds), and the packages of the features whose parts it renders
+(harness.report.features), hashed by their bytes; for the figures, those without the report's
+other modules. A figure drawn with the facts of the variants its results were
 measured with (they decide the order and colours of what is drawn) is passed them as an
 argument: its key holds them as their canonical JSON.
 
@@ -32,7 +33,7 @@ from harness.store.atomic import atomic_write_text
 from harness.store.records import sha256_file
 
 MANIFEST_NAME = ".manifest.json"
-MANIFEST_VERSION = 2
+MANIFEST_VERSION = 3
 PACKAGE = "harness"
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 # The code a render can load, as paths under the package (a folder: every module in it): the
@@ -67,10 +68,12 @@ class CodeVersions(NamedTuple):
     report: str
 
 
-def code_versions() -> CodeVersions:
-    """Reading every module is not free: a render computes this once for all its pages."""
-    return CodeVersions(code_version(code_files(FIGURE_CODE)),
-                        code_version(code_files(REPORT_CODE)))
+def code_versions(features: Iterable[str] = ()) -> CodeVersions:
+    """Reading every module is not free: a render computes this once for all its pages.
+    `features`: the packages of the features it renders the parts of (ReportFeature.code)."""
+    features = tuple(features)
+    return CodeVersions(code_version(code_files((*FIGURE_CODE, *features))),
+                        code_version(code_files((*REPORT_CODE, *features))))
 
 
 def _digest_value(value: object, digest: Any) -> None:
