@@ -129,7 +129,7 @@ optional_packages Slurm slurmctld slurmd sbatch munged -- slurmctld slurmd slurm
 optional_packages chromium chromium chromedriver -- chromium chromium-driver
 # Open MPI, for the mpi variant (make all builds it where mpicc is) and tests/c/mpi_scenes.sh.
 optional_packages "Open MPI" mpicc mpirun -- openmpi-bin libopenmpi-dev
-# clang's ThreadSanitizer with LLVM's OpenMP runtime and Archer, for tests/measure/test_races.py
+# clang's ThreadSanitizer with LLVM's OpenMP runtime and Archer, for tests/programs/test_races.py
 # and the data-race check of programs with a build (harness/measure/races.py): packages, not
 # commands, since clang alone links no TSan runtime.
 tsan_packages=(clang libclang-rt-dev libomp-dev)

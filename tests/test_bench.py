@@ -12,11 +12,13 @@ from pathlib import Path
 
 import pytest
 from harness import repo
-from harness.analysis.programs import program_table
 from harness.plan.cells import plan_cells
+from harness.programs.tables import program_table
 from harness.spec import scenes
+from harness.spec.facts import read_variants
 from harness.spec.parse import load_config
 from harness.store.columns import IDENTICAL, IMPRECISE, PHASE_COLUMNS
+from harness.store.layout import ExperimentDir
 
 from commands import run_main
 from tests.records import frame_of
@@ -95,11 +97,12 @@ def test_the_grading_group_times_each_check_through_the_runner(
     assert (exact["agreement"], single["agreement"]) == (IDENTICAL, IMPRECISE)
     assert exact["replay_s"] == 0 < exact["check_s"]  # read and compared, nothing replayed
     assert 0 < single["replay_s"] < single["check_s"]  # every step replayed
-    table = program_table(frame)
+    stored = read_variants(ExperimentDir(root / "bench-grading-quick").variants_json)
+    table = program_table(frame, stored)
     assert {"check_s", "replay_s"} <= set(table.columns)
     # results measured before grading was timed show no empty columns for it
     older = frame.assign(check_s=float("nan"), replay_s=float("nan"))
-    assert not {"check_s", "replay_s"} & set(program_table(older).columns)
+    assert not {"check_s", "replay_s"} & set(program_table(older, stored).columns)
 
 
 @pytest.mark.parametrize("name", ["bench-core", "bench-grid", "bench-grading"])

@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS, present, sort_cells, timed_rows
 from harness.analysis.flags import validation_text
+from harness.spec.facts import Variants
 from harness.store.columns import OK
 
 
@@ -47,12 +48,13 @@ def has_error_data(df: pd.DataFrame) -> bool:
     return ok["build"].nunique() > 1 or bool((ok["max_pos_err"] > 0).any())
 
 
-def error_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
-    """Per timed cell with a measured error: time, errors and whether it is on the Pareto front."""
+def error_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants) -> pd.DataFrame:
+    """Per timed cell with a measured error: time, errors and whether it is on the Pareto front
+    (variants in the order of `variants`)."""
     rows = timed_rows(df)
     rows = rows[rows["max_pos_err"].notna()]
     table = rows[[*keys, "wall_median_s", "max_pos_err", "max_vel_err", "count_mismatches"]
                  ].rename(columns={"wall_median_s": "median_s"})
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     table["pareto"] = pareto_by_scene(rows, "max_pos_err")
-    return sort_cells(table, keys)
+    return sort_cells(table, keys, variants)

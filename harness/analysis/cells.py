@@ -9,8 +9,8 @@ from collections.abc import Callable, Iterable, Sequence
 import pandas as pd
 
 from harness.spec.builds import BUILDS
-from harness.spec.facts import VariantFacts, current
-from harness.store.columns import MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
+from harness.spec.facts import VariantFacts, Variants
+from harness.store.columns import AGREEMENTS, MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
 MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.results)
 # The columns that identify a measured cell, in the order tables show them. A results
@@ -66,10 +66,19 @@ def flag(df: pd.DataFrame, column: str) -> pd.Series:
     return df[column].fillna(False).astype(bool)
 
 
-def variant_fact(variants: pd.Series, fact: Callable[[VariantFacts], bool]) -> pd.Series:
-    """Per row, `fact` of the variant's facts (its --describe); False for an unknown variant."""
-    registry = current()
-    return variants.map(lambda v: (f := registry.get(v)) is not None and bool(fact(f)))
+def variant_fact(names: pd.Series, fact: Callable[[VariantFacts], bool],
+                 variants: Variants) -> pd.Series:
+    """Per row, `fact` of the variant's facts among `variants` (its --describe); False for an
+    unknown variant."""
+    return names.map(lambda v: (f := variants.get(v)) is not None and bool(fact(f)))
+
+
+def is_program(df: pd.DataFrame) -> pd.Series:
+    """Which rows are a program's (`programs:` in a config): those with an agreement, their
+    verdict against seq instead of a validation."""
+    if "agreement" not in df.columns:
+        return pd.Series(False, index=df.index)
+    return df["agreement"].isin(AGREEMENTS)
 
 
 def timed_rows(df: pd.DataFrame) -> pd.DataFrame:
@@ -113,19 +122,22 @@ def sweep_axes(df: pd.DataFrame) -> list[str]:
     return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
 
 
-def _canonical(col: pd.Series) -> pd.Series:
-    """A sort key: variants in the order of the facts stored with the results, builds in
-    harness.spec.builds' order, unknown names after them; any other column as it is."""
-    order = current().order if col.name == "variant" else BUILDS if col.name == "build" else None
+def _canonical(col: pd.Series, variants: Variants) -> pd.Series:
+    """A sort key: variants in the order of `variants` (the facts stored with the results),
+    builds in harness.spec.builds' order, unknown names after them; any other column as it
+    is."""
+    order = variants.order if col.name == "variant" else BUILDS if col.name == "build" else None
     if order is None:
         return col
     ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
     return col.map(lambda v: ranks.get(v, f"999{v}"))
 
 
-def sort_cells(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
-    """Rows sorted by `keys`: variants and builds in their canonical order, numbers by value."""
+def sort_cells(df: pd.DataFrame, keys: Sequence[str], variants: Variants) -> pd.DataFrame:
+    """Rows sorted by `keys`: variants in the order of `variants` (the facts stored with the
+    results) and builds in theirs, numbers by value."""
     keys = [k for k in keys if k in df.columns]
     if not keys:
         return df.reset_index(drop=True)
-    return df.sort_values(keys, key=_canonical, kind="stable").reset_index(drop=True)
+    return df.sort_values(keys, key=lambda col: _canonical(col, variants),
+                          kind="stable").reset_index(drop=True)

@@ -9,8 +9,8 @@ import math
 import pandas as pd
 
 from harness.analysis.cells import flag, sort_cells
-from harness.analysis.programs import agreement_text
 from harness.analysis.serving import measured_once
+from harness.spec.facts import Variants
 from harness.store.columns import (
     AGREEMENT_FAILED,
     AGREEMENTS,
@@ -49,6 +49,15 @@ def _is_true(value: object) -> bool:
 
 def _flags(row: pd.Series) -> list[str]:
     return [name for name in FLAG_WORDS if _is_true(row.get(name))]
+
+
+def agreement_text(row: pd.Series) -> str:
+    """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
+    agreement = str(row.get("agreement"))
+    first = row.get("first_diff_step")
+    if pd.notna(first):
+        return f"{agreement} from step {int(first)}"
+    return agreement
 
 
 def status_text(row: pd.Series) -> str:
@@ -125,21 +134,22 @@ def _config_change(changed: object) -> str:
     return f" (it differed in: {', '.join(changed.split())})"
 
 
-def _flagged(df: pd.DataFrame) -> pd.DataFrame:
-    """The flagged rows of an experiment's cells, in the warnings table's order."""
+def _flagged(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
+    """The flagged rows of an experiment's cells, in the warnings table's order (variants in
+    the order of `variants`)."""
     df = measured_once(df)
     mask = df["status"] != OK
     if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
         mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
     for column in FLAG_WORDS:
         mask |= flag(df, column)
-    return sort_cells(df[mask], WARNING_ORDER)
+    return sort_cells(df[mask], WARNING_ORDER, variants)
 
 
-def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
+def flagged_cells(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """The cells of one experiment a reader must know about (not ok, a program that leaves
     seq, or flagged), one row each with why."""
-    flagged = _flagged(df)
+    flagged = _flagged(df, variants)
     # ranks only where some cell runs as ranks
     table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS if k in flagged.columns and (
         k != "ranks" or flagged[k].notna().any())})
@@ -148,9 +158,10 @@ def flagged_cells(df: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def flagged_kinds(df: pd.DataFrame) -> list[tuple[str, ...]]:
-    """The kinds of issue of each row of flagged_cells(df), in its order."""
-    return [tuple(kind for kind, _ in issues(row)) for _, row in _flagged(df).iterrows()]
+def flagged_kinds(df: pd.DataFrame, variants: Variants) -> list[tuple[str, ...]]:
+    """The kinds of issue of each row of flagged_cells(df, variants), in its order."""
+    return [tuple(kind for kind, _ in issues(row))
+            for _, row in _flagged(df, variants).iterrows()]
 
 
 COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)

@@ -18,7 +18,7 @@ import pandas as pd
 from harness.analysis.cells import flag, timed_rows
 from harness.analysis.display import threads_text
 from harness.analysis.strategies import SEED_TIMES_S, repaired_by
-from harness.spec.facts import SyncFacts, current
+from harness.spec.facts import SyncFacts, Variants
 from harness.store.columns import OMP_COST_COLUMNS
 
 NS_PER_S = 1e9
@@ -78,25 +78,25 @@ def _median(cells: pd.DataFrame, variant: str) -> float:
     return float(found.iloc[0]) if len(found) else math.nan
 
 
-def overhead_table(df: pd.DataFrame) -> pd.DataFrame | None:
+def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
     """Per seed strategy with sync facts and per thread count it ran at: its operations per
     step; the predicted seconds of its operations over those of its repair (both priced at the
     thread count's measured costs); its median, the repair's, and their difference (the
-    measured overhead). None where no seed strategy ran or no cost was measured."""
+    measured overhead), from the facts of `variants`. None where no seed strategy ran or no
+    cost was measured."""
     if not has_costs(df):
         return None
-    registry = current()
     costs = cost_table(df)
     assert costs is not None
     by_threads = costs.set_index("threads")
     timed = timed_rows(df)
     rows = []
     for variant in SEED_TIMES_S:
-        facts = registry.get(variant)
+        facts = variants.get(variant)
         if facts is None or facts.sync is None:
             continue
-        repair = repaired_by(variant)
-        repair_sync = getattr(registry.get(repair) if repair else None, "sync", None)
+        repair = repaired_by(variant, variants)
+        repair_sync = getattr(variants.get(repair) if repair else None, "sync", None)
         for threads, cells in df[df["variant"] == variant].groupby("threads", sort=True):
             first = cells.iloc[0]
             n, steps, t = int(first["n"]), int(first["steps"]), int(threads)
@@ -131,7 +131,8 @@ def _seconds(value: float) -> str:
     return f"{value:.3g} s" if math.isfinite(value) else "not measured"
 
 
-def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
+def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
+                       variants: Variants) -> list[str]:
     """One sentence per strategy: what it asks of the runtime per step, and at each thread
     count the cost of one such operation here, the predicted seconds and the measured ones."""
     costs = cost_table(df)
@@ -140,7 +141,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame) -> list[str]:
     n, steps = int(first["n"]), int(first["steps"])
     sentences = []
     for variant, group in table.groupby("variant", sort=False):
-        sync = current()[str(variant)].sync
+        sync = variants[str(variant)].sync
         assert sync is not None
         asks = _operations(sync.per_step(n))
         parts = []

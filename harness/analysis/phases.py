@@ -37,7 +37,7 @@ from harness.analysis.display import (
     threads_text,
 )
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
-from harness.spec.facts import GRID
+from harness.spec.facts import GRID, Variants
 from harness.store.columns import PHASE_COLUMNS
 
 NS_PER_S = 1e9
@@ -100,9 +100,9 @@ class Selection:
     scenes_left_out: int  # the cheapest scenes, beyond MAX_BARS
 
 
-def select(df: pd.DataFrame) -> Selection | None:
-    """The cells at the experiment's most common thread count (the fewest on a tie), or None
-    when no cell has phases."""
+def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
+    """The cells at the experiment's most common thread count (the fewest on a tie), in the
+    order of `variants`, or None when no cell has phases."""
     rows = phase_rows(df)
     if rows.empty:
         return None
@@ -113,7 +113,7 @@ def select(df: pd.DataFrame) -> Selection | None:
     scene_keys = tuple(k for k in SCENE_KEYS
                        if k != MACHINE and k in varying_keys(chosen))
     row_keys = tuple(k for k in ROW_KEYS if k in varying_keys(chosen)) or ("variant",)
-    ordered = sort_cells(chosen, [*scene_keys, *row_keys])
+    ordered = sort_cells(chosen, [*scene_keys, *row_keys], variants)
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
         if scene_keys else [ordered]
     # The costliest scenes are where the time matters: those are kept, shown in table order.

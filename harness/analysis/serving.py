@@ -12,21 +12,23 @@ from __future__ import annotations
 import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS, flag, present, variant_fact
+from harness.spec.facts import Variants
 
 # A row of a serial variant's cell: its one measurement, run with one thread, shown at the
 # thread count in `threads` (one it serves).
 ONE_THREAD_RUN = "one_thread_run"
 
 
-def serving(df: pd.DataFrame) -> pd.DataFrame:
+def serving(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """The rows with each serial variant's cell at every thread count that the other cells of
     its scene (machine, scene and schedule) ran at, instead of at the one it ran with: each
     copy the same measurement (cell id and all), `threads` the count it serves, flagged
     ONE_THREAD_RUN. A serial cell whose scene has no other cells stays as it is, and so do a
     serial variant's rows at other counts (records from before it was measured once); the
     cell is not copied where such a row is. Frames without a serial variant are returned as
-    they are."""
-    serial = variant_fact(df["variant"], lambda facts: not facts.parallel) if len(df) else None
+    they are. Which variants are serial, `variants` (their facts) says."""
+    serial = (variant_fact(df["variant"], lambda facts: not facts.parallel, variants)
+              if len(df) else None)
     if serial is None or not serial.any():
         return df
     df = df.assign(**{ONE_THREAD_RUN: serial})

@@ -23,7 +23,7 @@ from harness.analysis.cells import (
 from harness.analysis.flags import validation_text
 from harness.analysis.serving import ONE_THREAD_RUN
 from harness.spec.builds import DEFAULT_BUILD
-from harness.spec.facts import BASELINE
+from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import MEMORY_COLUMNS, OK, TIMED_STATUSES
 
 BASELINE_BUILD = DEFAULT_BUILD
@@ -36,16 +36,16 @@ TIMING = {"runs": "runs", "wall_median_s": "median_s", "wall_min_s": "min_s",
           "wall_stddev_s": "stddev_s"}
 
 
-def all_pairs(variants: pd.Series) -> pd.Series:
-    """Per row, whether the variant tests every pair with seq's kernel (its --describe): its
-    speedup over seq is then parallelism alone."""
-    return variant_fact(variants, lambda f: f.all_pairs)
+def all_pairs(names: pd.Series, variants: Variants) -> pd.Series:
+    """Per row, whether the variant tests every pair with seq's kernel (its --describe among
+    `variants`): its speedup over seq is then parallelism alone."""
+    return variant_fact(names, lambda f: f.all_pairs, variants)
 
 
-def single_threaded(variants: pd.Series) -> pd.Series:
-    """Per row, whether the variant runs one thread whatever `--threads` says: a thread count
-    is nominal for it."""
-    return variant_fact(variants, lambda f: not f.parallel)
+def single_threaded(names: pd.Series, variants: Variants) -> pd.Series:
+    """Per row, whether the variant runs one thread whatever `--threads` says (its --describe
+    among `variants`): a thread count is nominal for it."""
+    return variant_fact(names, lambda f: not f.parallel, variants)
 
 
 def _lookup(df: pd.DataFrame, found: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -103,7 +103,7 @@ def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
     return e.where(p > 1)
 
 
-def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
+def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool = False,
                  ratios: pd.DataFrame | None = None) -> pd.DataFrame:
     """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
 
@@ -111,7 +111,8 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
     1 thread instead (the thread-scaling convention). Efficiency is speedup / threads. Where
     `ratios` (ratios.csv, analysis.paired) pairs a row with its baseline by round, the three
-    and their intervals are that ratio's (`speedup_paired`).
+    and their intervals are that ratio's (`speedup_paired`). Which variants do seq's work
+    and which are serial, `variants` (their facts) says.
     """
     out = df.copy()
     if TIMES not in df.columns:  # results written before the column
@@ -123,9 +124,9 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     # Parallel efficiency and the serial fraction read a speedup as the work of one thread
     # spread over p: true against seq for the all-pairs family in seq's build, or against
     # the variant's own single thread; a grid's or an f32 build's gain is another algorithm.
-    same_work = all_pairs(df["variant"]) & (df["build"] == seq["base_build"])
+    same_work = all_pairs(df["variant"], variants) & (df["build"] == seq["base_build"])
     # seq told to use p threads still uses one: S/p would charge it for threads it never ran.
-    same_work &= ~(single_threaded(df["variant"]) & (df["threads"] > 1))
+    same_work &= ~(single_threaded(df["variant"], variants) & (df["threads"] > 1))
     if thread_baseline:
         own = _lookup(df, df[df["threads"] == 1], [*present(df, SCENE_KEYS), "variant", "build"])
         use_own = base.isna() & own["base_s"].notna()
@@ -144,11 +145,11 @@ def with_speedup(df: pd.DataFrame, *, thread_baseline: bool = False,
     return out
 
 
-def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool = False,
-               ratios: pd.DataFrame | None = None) -> pd.DataFrame:
+def cell_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants, *,
+               thread_baseline: bool = False, ratios: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per cell: the shape of the course report's Tables 2-6 with our statistics in
     place of its "first/second/third time, shortest"."""
-    rows = with_speedup(df, thread_baseline=thread_baseline, ratios=ratios)
+    rows = with_speedup(df, variants, thread_baseline=thread_baseline, ratios=ratios)
     table = rows[list(keys)].copy()
     over = flag(rows, OVERSUBSCRIBED)
     if "threads" in keys and over.any():
@@ -172,7 +173,7 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], *, thread_baseline: bool =
         table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads
     table = with_instructions(table, rows)
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
-    return sort_cells(table, keys)
+    return sort_cells(table, keys, variants)
 
 
 def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
@@ -190,7 +191,7 @@ def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
+def growth_exponents(df: pd.DataFrame, variants: Variants, x: str = "n") -> pd.DataFrame:
     """Per series, the least-squares fit of log t = k log x + log a over its ok cells.
 
     An all-pairs variant does Θ(N²) pair tests per step, so its time grows like a power law
@@ -212,4 +213,4 @@ def growth_exponents(df: pd.DataFrame, x: str = "n") -> pd.DataFrame:
                      "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
                      "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
-    return sort_cells(pd.DataFrame(rows, columns=columns), keys)
+    return sort_cells(pd.DataFrame(rows, columns=columns), keys, variants)

@@ -17,7 +17,7 @@ from harness import stats
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
 from harness.analysis.paired import paired_points
 from harness.analysis.results import items
-from harness.spec.facts import current
+from harness.spec.facts import Variants
 from harness.store.columns import RATIO_OVER_BASELINE
 
 # The seed report's Table 2: its strategies on the benchmark (N=10000, L=20000, r=1, S=50) on
@@ -54,10 +54,9 @@ LITTLE_DIFFERENCE = 0.05
 TIMES = "wall_times_s"
 
 
-def repaired_by(variant: str) -> str | None:
-    """The variant that repairs `variant` (its --describe names it), if any."""
-    registry = current()
-    fixes = registry.repaired_by(variant) if variant in registry else ()
+def repaired_by(variant: str, variants: Variants) -> str | None:
+    """The variant of `variants` that repairs `variant` (its --describe names it), if any."""
+    fixes = variants.repaired_by(variant) if variant in variants else ()
     return fixes[0] if fixes else None
 
 
@@ -78,9 +77,11 @@ def one_scene(df: pd.DataFrame) -> bool:
 # --- the seed's Table 2 beside ours -------------------------------------------------------
 
 
-def seed_table(df: pd.DataFrame, ratios: pd.DataFrame | None = None) -> pd.DataFrame | None:
+def seed_table(df: pd.DataFrame, variants: Variants,
+               ratios: pd.DataFrame | None = None) -> pd.DataFrame | None:
     """Per seed strategy measured here, ours beside the seed's: each speedup is over its own
-    sequential code (ours paired by round where `ratios` has it)."""
+    sequential code (ours paired by round where `ratios` has it), and its repair among
+    `variants`."""
     # only where every row simulates the seed's benchmark scene: its times compare with ours
     if not len(df) or not all((df[key] == value).all()
                               for key, value in SEED_SCENE.items() if key in df.columns):
@@ -103,7 +104,7 @@ def seed_table(df: pd.DataFrame, ratios: pd.DataFrame | None = None) -> pd.DataF
         "seed_speedup": SEED_SEQ_S / seed_s,
         "imbalance": ours.get("imbalance", math.nan),
         "repair": [f"{r}: {cells.at[r, 'wall_median_s']:.3g} s" if r in cells.index else ""
-                   for r in ours["variant"].map(repaired_by)],
+                   for r in ours["variant"].map(lambda v: repaired_by(v, variants))],
     }).reset_index(drop=True)
 
 
@@ -111,9 +112,9 @@ def _order(table: pd.DataFrame, column: str) -> list[str]:
     return list(table.sort_values([column, "variant"], kind="stable")["variant"])
 
 
-def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
+def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame, variants: Variants) -> str:
     """Whether our ranking of the seed's strategies agrees with the seed's, which pairs swap
-    places, and the measured figures that say why."""
+    places, and the measured figures that say why (against their repairs among `variants`)."""
     ours, seed = _order(table, "median_s"), _order(table, "seed_s")
     threads = int(table["threads"].max())
     text = (f"Fastest first, ours on {threads} thread(s): {' < '.join(ours)}; the seed's, on "
@@ -124,8 +125,8 @@ def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame) -> str:
              if seed.index(a) > seed.index(b)]
     cells = _one_per_variant(df)
     # a is faster here, b was faster there: b's pathology weighs more here, or a's less.
-    reasons = [f"{a} now beats {b} ({_evidence(a, cells, threads)}; "
-               f"{_evidence(b, cells, threads)})" for a, b in swaps]
+    reasons = [f"{a} now beats {b} ({_evidence(a, cells, threads, variants)}; "
+               f"{_evidence(b, cells, threads, variants)})" for a, b in swaps]
     return (text + f"The ranking differs in {len(swaps)} pair(s): " + "; ".join(reasons) + ".")
 
 
@@ -136,7 +137,7 @@ def static_block_imbalance(threads: int) -> float:
     return first * threads
 
 
-def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
+def _evidence(variant: str, cells: pd.DataFrame, threads: int, variants: Variants) -> str:
     """One variant's pathology with what was measured of it here."""
     words = PATHOLOGY.get(variant, "")
     if variant not in cells.index:
@@ -150,7 +151,7 @@ def _evidence(variant: str, cells: pd.DataFrame, threads: int) -> str:
                      f"{SEED_THREADS}")
     if isinstance(imbalance, float) and math.isfinite(imbalance):
         parts.append(f"busy imbalance {imbalance:.2f} measured")
-    repair = repaired_by(variant)
+    repair = repaired_by(variant, variants)
     if repair in cells.index:
         extra = cell["wall_median_s"] - cells.at[repair, "wall_median_s"]
         parts.append(f"{extra:+.3g} s over {repair}")

@@ -12,6 +12,7 @@ import pandas as pd
 from harness.analysis.accuracy import pareto_by_scene
 from harness.analysis.cells import MACHINE, SCENE_KEYS, sort_cells, timed_rows, variant_fact
 from harness.analysis.display import display_name, format_value
+from harness.spec.facts import Variants
 
 # Each check's column and what it tests, in the order the tables show them.
 CHECKS: tuple[tuple[str, str, str], ...] = (
@@ -49,12 +50,12 @@ def scene_names(df: pd.DataFrame) -> pd.Series:
         f"{display_name(k)}={format_value(k, row[k])}" for k in keys]), axis=1)
 
 
-def _checked(df: pd.DataFrame) -> pd.DataFrame:
+def _checked(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     rows = df[df["checks_passed"].notna()] if "checks_passed" in df.columns else df.iloc[0:0]
     names = scene_names(rows) if len(rows) else pd.Series([], dtype=object)
     rank = {name: i for i, name in enumerate(dict.fromkeys(names))}
     rows = rows.assign(scene_name=names, scene_rank=names.map(rank))
-    return sort_cells(rows, ["variant", "build"])
+    return sort_cells(rows, ["variant", "build"], variants)
 
 
 def _failures(row: pd.Series) -> list[str]:
@@ -66,9 +67,9 @@ def _failures(row: pd.Series) -> list[str]:
     return failed
 
 
-def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
+def stability_matrix(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
-    rows = _checked(df)
+    rows = _checked(df, variants)
     rows = rows.assign(label=rows["variant"] + "/" + rows["build"])
     # the scenes in the order the experiment ran them
     scenes = list(dict.fromkeys(rows.sort_values("scene_rank", kind="stable")["scene_name"]))
@@ -80,9 +81,9 @@ def stability_matrix(df: pd.DataFrame) -> pd.DataFrame:
                                              for label in dict.fromkeys(rows["label"])}})
 
 
-def check_summary(df: pd.DataFrame) -> pd.DataFrame:
+def check_summary(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """Per check: what it tests, cells checked, passed, failed and the failing cells."""
-    rows = _checked(df)
+    rows = _checked(df, variants)
     out = []
     for name, column, what in CHECKS:
         if column not in rows.columns or rows[column].isna().all():
@@ -98,19 +99,18 @@ def check_summary(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out, columns=["check", "what", "checked", "passed", "failed", "where"])
 
 
-def accuracy_table(df: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+def accuracy_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants) -> pd.DataFrame:
     """Per checked, timed cell: time, whole-run error against the baseline, the shadow-step
     error, collision-set differences, energy drift and steps until r apart from the truth;
     ✓ marks each scene's Pareto front of time against the mean shadow error."""
-    rows = _checked(df)
-    rows = timed_rows(rows)
+    rows = timed_rows(_checked(df, variants))
     table = rows.reindex(columns=[
         *keys, "wall_median_s", "max_pos_err", "shadow_pos_err", "shadow_err_r",
         "shadow_set_diff", "energy_drift_max", "div_steps_to_r"]).rename(
         columns={"wall_median_s": "median_s"})
     table["pareto"] = pareto_by_scene(rows, "shadow_pos_err") \
         if "shadow_pos_err" in rows.columns else False
-    return sort_cells(table, keys)
+    return sort_cells(table, keys, variants)
 
 
 def _known(row: pd.Series, column: str) -> float | None:
@@ -145,11 +145,11 @@ def _reason(row: pd.Series) -> str:
     return f"{row['scene_name']} ({'; '.join(parts)})"
 
 
-def trust_table(df: pd.DataFrame) -> pd.DataFrame:
+def trust_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """Per variant/build over the checked scenes: how many it is trusted on (every check
     passed, a one-step error below TRUST_ERR_R radii, and never a radius from the truth), its
     median and worst one-step error, and the scenes it is not trusted for, with why."""
-    rows = _checked(df)
+    rows = _checked(df, variants)
     out = []
     for (variant, build), group in rows.groupby(["variant", "build"], sort=False):
         errors = group.get("shadow_err_r", pd.Series(dtype=float)).dropna()
@@ -180,12 +180,13 @@ def _short_reason(cells: pd.DataFrame) -> str:
     return ", ".join(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
 
 
-def build_trust(df: pd.DataFrame) -> pd.DataFrame:
-    """Per build (precision or formula), over its variants that share the core's arithmetic:
-    how many scenes all of them are trusted on, and the others with why."""
-    rows = _checked(df)
+def build_trust(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
+    """Per build (precision or formula), over its variants that share the core's arithmetic
+    (their facts among `variants`): how many scenes all of them are trusted on, and the others
+    with why."""
+    rows = _checked(df, variants)
     # a variant that is not exact computes contact times with arithmetic of its own
-    rows = rows[~variant_fact(rows["variant"], lambda f: not f.exact)]
+    rows = rows[~variant_fact(rows["variant"], lambda f: not f.exact, variants)]
     out = []
     for build, group in rows.groupby("build", sort=False):
         scenes = list(dict.fromkeys(group["scene_name"]))

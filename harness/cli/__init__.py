@@ -2,7 +2,8 @@
 scripts harness/run.py and harness/compare.py for run and compare).
 
 Each command is a module (the core's here, a feature's in its package: COMMAND_MODULES) with
-`parser(prog)` and `execute(args) -> exit status`; main()
+`parser(prog)` and `execute(args, hooks) -> exit status`, `hooks` being what the features lend
+the core's measuring (harness.cli.features); main()
 parses, runs it, and prints any HarnessError, and any OS error a user can cause (a full disk, a
 read-only or forbidden place, a file where a directory should be: harness.errors.USER_ERRNOS),
 as one `error: ...` line with exit status 2 (real bugs keep their traceback). A measuring
@@ -19,6 +20,7 @@ import textwrap
 from collections.abc import Sequence
 from types import ModuleType
 
+from harness.cli.features import hooks
 from harness.errors import HarnessError, is_user_os_error, os_error_text
 from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG
 
@@ -71,7 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # which the running cell's processes are killed and the finished cells are kept.
         signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        return int(module.execute(parsed))
+        return int(module.execute(parsed, hooks()))
     except HarnessError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_ERROR

@@ -6,9 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from harness.cli.features import REPORT_FEATURES
 from harness.errors import HarnessError, os_error_text
 from harness.repo import DEFAULT_RESULTS_DIR, default_report_dir
-from harness.runner.command import Parser, check_derived, directory_option
+from harness.runner.command import Hooks, Parser, check_derived, directory_option
 from harness.store.layout import QUICK_SUFFIX
 
 
@@ -30,7 +31,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     from harness.report.pipeline import render
 
     check_derived(directory_option(args.results_dir), sys.stderr)
@@ -38,7 +39,7 @@ def execute(args: argparse.Namespace) -> int:
         out = args.out if args.out is not None else default_report_dir(args.results_dir)
         path = render(args.results_dir, directory_option(out, "--out"),
                       include_quick=args.include_quick, experiments=args.experiment,
-                      machine=args.machine)
+                      machine=args.machine, features=REPORT_FEATURES)
     except OSError as exc:
         raise HarnessError(os_error_text(exc)) from None
     print(f"wrote {path} and {path.with_name('report.html')}")

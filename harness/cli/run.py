@@ -7,6 +7,7 @@ import os
 import sys
 from pathlib import Path
 
+from harness.cli.features import REPORT_FEATURES
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
@@ -14,6 +15,7 @@ from harness.plan.cellstore import now_iso
 from harness.repo import REPO_ROOT
 from harness.runner.command import (
     QUICK_REPORT,
+    Hooks,
     Parser,
     add_flags,
     check_derived,
@@ -75,13 +77,14 @@ def default_quiet_wait() -> float:
         raise SystemExit(f"error: ${QUIET_WAIT_VAR}: expected seconds, got {text!r}") from None
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     run_lock = measuring_lock(args, args.configs)
     options = Options(repo_root=REPO_ROOT, results_root=directory_option(args.results_dir),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
                       partition=args.partition, run_lock=run_lock,
-                      quiet_wait_s=args.quiet_wait, started=now_iso())
+                      quiet_wait_s=args.quiet_wait, started=now_iso(),
+                      program_runner=hooks.program_runner)
     report = None if args.dry_run or args.no_report else report_dir(args)  # checked first
     try:
         registry, configs = load_configs(args.configs, args.metric, args.max_cells)
@@ -113,7 +116,7 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     check_derived(options.results_root, sys.stderr)
     if options.quick:
         path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
-                      experiments=names)
+                      experiments=names, features=REPORT_FEATURES)
     else:
-        path = render(options.results_root, report_dir)
+        path = render(options.results_root, report_dir, features=REPORT_FEATURES)
     return path.with_suffix(".html")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
-from harness.runner.command import Parser
+from harness.runner.command import Hooks, Parser
 from harness.spec.facts import read_variants
 from harness.spec.variants import VariantRegistry
 from harness.store import index, layout
@@ -57,7 +57,7 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     return [exp.path for exp in found]
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     with_results = args.action == "facts"
     directories = [d for path in args.paths for d in experiment_dirs(path, with_results)]
     if args.action == "facts":

@@ -22,7 +22,7 @@ from harness.executors.rounds import LocalExecutor
 from harness.measure import environment
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT
-from harness.runner.command import FLAGS, Parser
+from harness.runner.command import FLAGS, Hooks, Parser
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import index
@@ -46,12 +46,13 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     repo_root = args.repo_root.resolve()
     registry = VariantRegistry(repo_root)
     config = load_config(args.config, registry, max_cells=None)  # the run accepted it
     options = Options(repo_root, args.results_dir.resolve(), args.quick,
-                      hyperfine=args.hyperfine, round_seed=args.round_seed)
+                      hyperfine=args.hyperfine, round_seed=args.round_seed,
+                      program_runner=hooks.program_runner)
     experiment = Experiment(plan_cells(config, args.quick, registry), options, sys.stderr)
     store = experiment.store
     cells = store.cells_by_id()

@@ -34,6 +34,7 @@ from harness.executors.base import machine_id
 from harness.measure import environment
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
 from harness.runner.command import (
+    Hooks,
     Parser,
     add_flags,
     check_derived,
@@ -99,17 +100,17 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     paths = [str(p) for p in args.paths]
     out = args.out if args.out is not None else DEFAULT_OUT
     if args.calibrate:
         if not paths:
             raise HarnessError(f"--calibrate needs configs ({USAGE})")
-        return _calibrate(args, paths)
+        return _calibrate(args, paths, hooks)
     if args.measure:
         if len(paths) < 3:
             raise HarnessError(f"--measure needs OLD, NEW and at least one config ({USAGE})")
-        return _measure(args, paths, out)
+        return _measure(args, paths, out, hooks)
     if len(paths) != 2:
         raise HarnessError(f"expected OLD and NEW result directories ({USAGE})")
     old_path, new_path = (Path(p) for p in paths)
@@ -155,7 +156,7 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
     return exit_status(rows, args.fail_on, metric)
 
 
-def _measure(args: argparse.Namespace, paths: list[str], out: Path) -> int:
+def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: Hooks) -> int:
     registry, configs = load_configs(paths[2:], args.metric)
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
@@ -167,7 +168,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path) -> int:
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
                                  args.hyperfine, threshold=args.threshold, q=FDR_Q,
-                                 budget_s=budget_s)
+                                 budget_s=budget_s, program_runner=hooks.program_runner)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
@@ -179,13 +180,13 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path) -> int:
     return report(old, new, args, out, MEASURED_TOGETHER, head)
 
 
-def _calibrate(args: argparse.Namespace, paths: list[str]) -> int:
+def _calibrate(args: argparse.Namespace, paths: list[str], hooks: Hooks) -> int:
     registry, configs = load_configs(paths, None)
     lock = measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
         together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
-                                     args.hyperfine)
+                                     args.hyperfine, hooks.program_runner)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
     here = machine_id()
     result = calibration.calibrate(here, " ".join(paths), (together.old, together.new),

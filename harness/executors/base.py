@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol, TextIO
+from typing import TYPE_CHECKING, Protocol, TextIO
 
 from harness.measure import machine
 from harness.plan.cells import Cell, Plan
@@ -23,6 +23,9 @@ from harness.repo import REPO_ROOT
 from harness.spec.config import Config
 from harness.store import locks, records
 from harness.store.result import CellResult
+
+if TYPE_CHECKING:
+    from harness.measure.cell import ProgramRunner
 
 OnRecord = Callable[[Cell, str, CellResult], None]
 
@@ -47,6 +50,9 @@ class Options:
     # The machine-wide measuring lock of this run (harness.store.locks), taken before the first
     # cell is measured; None: measure without it (tests that fake hyperfine).
     run_lock: locks.RunLock | None = None
+    # How a program's cell is run and checked (the programs feature's, lent by the command
+    # line: harness.runner.command.Hooks); None: a program's cell is refused.
+    program_runner: ProgramRunner | None = None
 
 
 @dataclass

@@ -262,7 +262,8 @@ class LocalExecutor:
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores,
-                            log=experiment.log)
+                            log=experiment.log,
+                            program_runner=experiment.options.program_runner)
         if experiment.options.quiet_wait_s > 0:
             measurer.quiet = QuietWait(experiment.options.quiet_wait_s, experiment.log,
                                        experiment.config.name)

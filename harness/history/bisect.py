@@ -13,6 +13,7 @@ from harness.analysis.resultsets import Cell, read_cells
 from harness.errors import HarnessError
 from harness.history.changepoints import ChangePoint
 from harness.history.series import Bisection, Series, cell_point
+from harness.measure.cell import ProgramRunner
 from harness.runner.pair import MeasuredSides, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import Config
@@ -25,9 +26,11 @@ from harness.store.locks import RunLock
 
 def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
                order: Mapping[str, int], results_root: Path, repo: Path, lock: RunLock,
-               hyperfine: str, registry: VariantRegistry) -> None:
+               hyperfine: str, registry: VariantRegistry,
+               program_runner: ProgramRunner | None = None) -> None:
     """Name the commit of each change point that falls between measured commits with
-    unmeasured ones between them (each series' bisections)."""
+    unmeasured ones between them (each series' bisections); a program's cells measured by
+    `program_runner`."""
     pairs: dict[tuple[int, int], MeasuredSides] = {}  # what a metric's bisection measured
     for s in series:
         measured = [k for k, p in enumerate(s.points) if p.value is not None]
@@ -37,7 +40,7 @@ def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitIn
             if high - low <= 1:
                 continue
             found = bisect(config, s, k, change, full, low, high, results_root, repo, lock,
-                           hyperfine, pairs, registry)
+                           hyperfine, pairs, registry, program_runner)
             s.bisections.append(found)
             sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
                              f"{found.named.short} {found.named.subject!r}\n")
@@ -46,7 +49,8 @@ def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitIn
 def bisect(config: Config, s: Series, k: int, change: ChangePoint,
            full: Sequence[CommitInfo], low: int, high: int, results_root: Path, repo: Path,
            lock: RunLock, hyperfine: str, pairs: dict[tuple[int, int], MeasuredSides],
-           registry: VariantRegistry) -> Bisection:
+           registry: VariantRegistry, program_runner: ProgramRunner | None = None
+           ) -> Bisection:
     """Halve [low, high] (low before the step, high after it) by measuring the middle commit
     against `low`'s, together in interleaved rounds: a ratio nearer the step than 1 puts the
     step at or before the middle. `pairs`: the commits measured together so far (another
@@ -67,7 +71,7 @@ def bisect(config: Config, s: Series, k: int, change: ChangePoint,
             # Which side of a step already found is all a look needs: the first look's rounds
             # place it, so no rounds are added to decide the cells' verdicts (budget 0).
             sides = measure_sides(old, new, [config], out, registry, lock, sys.stderr,
-                                  hyperfine, budget_s=0.0)
+                                  hyperfine, budget_s=0.0, program_runner=program_runner)
             pairs[(low, middle)] = sides
         before = side_cell(sides.old / config.name, label)
         after = side_cell(sides.new / config.name, label)

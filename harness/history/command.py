@@ -26,6 +26,7 @@ from harness.history.series import (
 )
 from harness.repo import REPO_ROOT
 from harness.runner.command import (
+    Hooks,
     Parser,
     add_flags,
     load_configs,
@@ -75,7 +76,7 @@ def split_items(items: Sequence[str]) -> tuple[list[str], list[Path]]:
     return revisions, configs
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     revisions, paths = split_items(args.items)
     registry, configs = load_configs(paths, args.metric)
     repo = args.repo.resolve()
@@ -86,7 +87,8 @@ def execute(args: argparse.Namespace) -> int:
     lock = measuring_lock(args, args.items)
     with lock:
         measure_history(commits, configs, results_root, sys.stderr, repo,
-                        hyperfine=args.hyperfine, run_lock=lock)
+                        hyperfine=args.hyperfine, run_lock=lock,
+                        program_runner=hooks.program_runner)
         here = machine_id()
         for config in configs:
             exp = ResultsRoot(results_root).experiment(config.name)
@@ -99,7 +101,7 @@ def execute(args: argparse.Namespace) -> int:
             if args.bisect:  # what the series found is kept should bisection stop
                 publish(config, exp, series, order, args)
                 bisect_all(config, series, full, order, results_root, repo, lock, args.hyperfine,
-                           registry)
+                           registry, hooks.program_runner)
             summarise(config, exp, series, order, len(commits), args)
     return 0
 

@@ -16,6 +16,7 @@ from typing import TextIO
 
 from harness.errors import HarnessError, StorageError
 from harness.executors.base import Options
+from harness.measure.cell import ProgramRunner
 from harness.plan.cells import plan_cells
 from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_experiment
@@ -74,7 +75,8 @@ def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
 
 
 def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
-                   hyperfine: str, run_lock: RunLock | None) -> None:
+                   hyperfine: str, run_lock: RunLock | None,
+                   program_runner: ProgramRunner | None = None) -> None:
     """Build and measure one commit's cells of a config (the ordinary run: its summary goes to
     the log, not stdout)."""
     exp = ResultsRoot(results_root).experiment(config.name)
@@ -100,14 +102,17 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
         log.write(f"{side.commit[:10]}: does not build: recorded, skipped ({exc})\n")
         return
     options = Options(repo_root=side.repo_root, results_root=exp.commit_root(side.commit),
-                      hyperfine=hyperfine, executor="local", run_lock=run_lock)
+                      hyperfine=hyperfine, executor="local", run_lock=run_lock,
+                      program_runner=program_runner)
     run_experiment(config, options, log, io.StringIO(), registry)
 
 
 def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
                     results_root: Path, log: TextIO, repo: Path = REPO_ROOT,
-                    hyperfine: str = "hyperfine", run_lock: RunLock | None = None) -> None:
-    """Every commit's cells of every config, oldest first, each commit built once."""
+                    hyperfine: str = "hyperfine", run_lock: RunLock | None = None,
+                    program_runner: ProgramRunner | None = None) -> None:
+    """Every commit's cells of every config, oldest first, each commit built once (a
+    program's cells measured by `program_runner`)."""
     root = ResultsRoot(results_root)
     for config in configs:
         save_commits(root.experiment(config.name), commits)
@@ -115,4 +120,4 @@ def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
         log.write(f"history: [{k}/{len(commits)}] {commit.short} {commit.subject}\n")
         side = resolve(commit.short, commit.sha, results_root, repo)
         for config in configs:
-            measure_commit(side, config, results_root, log, hyperfine, run_lock)
+            measure_commit(side, config, results_root, log, hyperfine, run_lock, program_runner)

@@ -4,8 +4,9 @@
          cell's thread count (measure.ompcost); when validating, that output against
          `build/seq --precise` on the same input (measure.references); with `checks:`, the
          accuracy and stability checks on a print-mode run (measure.checks);
-         for a program, its run and its check against seq (measure.program); with the
-         instruction lane (`metric: instructions`), its counted runs (measure.instructions);
+         for a program, its run and its check against seq (the measurer's program_runner,
+         which the programs feature lends: harness.programs.cell); with the instruction
+         lane (`metric: instructions`), its counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
@@ -20,9 +21,10 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 from harness import stats
+from harness.errors import HarnessError
 from harness.measure import environment, machine, mpi, noise, validate
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
@@ -36,7 +38,6 @@ from harness.measure.proc import (
     run_process,
     tail,
 )
-from harness.measure.program import start_program
 from harness.measure.references import References
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
 from harness.measure.timing import parse_timing
@@ -60,9 +61,21 @@ MAX_RETAKES = 3
 OMP_SCHEDULE_VAR = "OMP_SCHEDULE"
 
 
+class ProgramRunner(Protocol):
+    """How a program's cell (`programs:` in a config) is run and checked: its untimed runs and
+    its verdict against seq in the record, and the CellRun its timed rounds continue. The
+    programs feature gives one (harness.programs.hooks.start_program); the core imports no
+    feature."""
+
+    def __call__(self, store: CellStore, references: References, cell: Cell, cell_id: str,
+                 key: dict[str, object], record: CellResult, env: Mapping[str, str],
+                 timeout_s: float) -> CellRun: ...
+
+
 @dataclass
 class Measurer:
-    """Measures cells of one planned experiment; keeps the reference outputs it has read."""
+    """Measures cells of one planned experiment; keeps the reference outputs it has read. A
+    program's cell is measured by `program_runner` (None: refused)."""
 
     store: CellStore
     hyperfine: str = "hyperfine"
@@ -76,6 +89,7 @@ class Measurer:
     # The run's patience with a busy machine: a disturbed round is taken again once it is
     # quiet (None: never; a comparison's rounds are paired, and its test drops the worst)
     quiet: noise.QuietWait | None = None
+    program_runner: ProgramRunner | None = None
 
     def __post_init__(self) -> None:
         self.references = References(self.store, self.environment,
@@ -135,8 +149,12 @@ class Measurer:
         env = self.environment(cell.threads, cell.schedule, cell.uses_ranks)
         record = self.new_record(cell, cell_id, env)
         if cell.program:
-            return self.count(cell, start_program(self.store, self.references, cell, cell_id,
-                                                  key, record, env, measure.timeout_s))
+            if self.program_runner is None:
+                raise HarnessError(f"{cell.variant}: a program's cell, but this command was "
+                                   "given no way to run and check programs")
+            return self.count(cell, self.program_runner(self.store, self.references, cell,
+                                                        cell_id, key, record, env,
+                                                        measure.timeout_s))
         binary = self.store.binary(cell)
         place = mpi.placement(cell.ranks, cell.threads, self.cores,
                               config.executor.oversubscribe) if cell.uses_ranks else None

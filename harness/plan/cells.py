@@ -38,7 +38,7 @@ class Cell:
     # The variant promises seq's output (its --describe says exact); a custom binary does not.
     promises_exact: bool = False
     # A program (`programs:`): run through its command template and checked step by step
-    # against seq (harness.measure.program) instead of validated and checked.
+    # against seq (harness.programs.cell) instead of validated and checked.
     program: bool = False
     # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
     # for the config's cells at every other value of each.

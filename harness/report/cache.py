@@ -10,9 +10,11 @@ by a hash of their input files, both remembered in one manifest beside the figur
 
 "The code" is every module of the harness that a render can load: the layers the report stands
 on (pyproject.toml's import-linter contracts keep the report and analysis from importing what
-measures, plans, runs or builds), hashed by their bytes; for the figures, those layers without
-the report's other modules. A figure's key also holds the facts of the variants its results
-were measured with, which decide the order and colours of what is drawn.
+measures, plans, runs or builds), and the packages of the features whose parts it renders
+(harness.report.features), hashed by their bytes; for the figures, those without the report's
+other modules. A figure drawn with the facts of the variants its results were
+measured with (they decide the order and colours of what is drawn) is passed them as an
+argument: its key holds them as their canonical JSON.
 
 Both are keyed by content, never by time, so the rendered report is the same whether a figure
 was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
@@ -26,12 +28,12 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from harness.spec.facts import current
+from harness.spec.facts import Variants
 from harness.store.atomic import atomic_write_text
 from harness.store.records import sha256_file
 
 MANIFEST_NAME = ".manifest.json"
-MANIFEST_VERSION = 2
+MANIFEST_VERSION = 3
 PACKAGE = "harness"
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 # The code a render can load, as paths under the package (a folder: every module in it): the
@@ -66,15 +68,21 @@ class CodeVersions(NamedTuple):
     report: str
 
 
-def code_versions() -> CodeVersions:
-    """Reading every module is not free: a render computes this once for all its pages."""
-    return CodeVersions(code_version(code_files(FIGURE_CODE)),
-                        code_version(code_files(REPORT_CODE)))
+def code_versions(features: Iterable[str] = ()) -> CodeVersions:
+    """Reading every module is not free: a render computes this once for all its pages.
+    `features`: the packages of the features it renders the parts of (ReportFeature.code)."""
+    features = tuple(features)
+    return CodeVersions(code_version(code_files((*FIGURE_CODE, *features))),
+                        code_version(code_files((*REPORT_CODE, *features))))
 
 
 def _digest_value(value: object, digest: Any) -> None:
-    """Feed a figure argument into the hash: frames by their CSV text (exact float repr)."""
-    if hasattr(value, "to_csv") and hasattr(value, "columns"):
+    """Feed a figure argument into the hash: frames by their CSV text (exact float repr), the
+    variants' facts by their canonical JSON."""
+    if isinstance(value, Variants):
+        digest.update(b"variants:")
+        digest.update(value.digest().encode())
+    elif hasattr(value, "to_csv") and hasattr(value, "columns"):
         digest.update(b"frame:")
         digest.update(value.to_csv(index=True).encode())  # type: ignore[attr-defined]
     elif isinstance(value, Path):
@@ -111,7 +119,6 @@ class Manifest:
     def figure_key(self, function: Callable[..., object], args: tuple, kwargs: dict) -> str:
         digest = hashlib.sha256()
         digest.update(f"{function.__module__}.{function.__qualname__}\0{self.code.plot}\0".encode())
-        digest.update(f"{current().digest()}\0".encode())
         for value in args:
             _digest_value(value, digest)
         for name in sorted(kwargs):

@@ -10,7 +10,8 @@ from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 
 from harness.report.document import Bullets, Details, Paragraph, Section, Table
-from harness.report.parts import HIGHLIGHT_KINDS, ExperimentPart, Fidelity
+from harness.report.features import ReportFeature
+from harness.report.parts import HIGHLIGHT_KINDS, Count, ExperimentPart, Fidelity
 
 MAX_WARNING_ROWS = 60  # beyond this a section's warnings table is cut, with a count of the rest
 WARNINGS_ANCHOR = "warnings"
@@ -153,10 +154,15 @@ def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
     return max(candidates, key=lambda h: h.value).text
 
 
-def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
-    """The verdict on correctness: invalid cells, byte identity, the checks."""
+def fidelity_text(parts: Sequence[ExperimentPart],
+                  features: Sequence[ReportFeature] = ()) -> str | None:
+    """The verdict on correctness: invalid cells, byte identity, the checks; then each
+    feature's words on its counts summed over the parts."""
     total = sum((p.fidelity for p in parts), Fidelity())
-    if not (total.validated or total.unvalidated or total.checked or total.programs):
+    counts = {f.name: sum((p.counts[f.name] for p in parts if f.name in p.counts), Count())
+              for f in features}
+    if not (total.validated or total.unvalidated or total.checked
+            or any(c.cells for c in counts.values())):
         return None
     sentences = []
     if total.unvalidated:
@@ -179,10 +185,7 @@ def fidelity_text(parts: Sequence[ExperimentPart]) -> str | None:
         anchor = next((p.fidelity_anchor for p in parts if p.fidelity.checked), "")
         sentences.append(f"{total.checks_passed} of {total.checked} checked cells pass every "
                          f"accuracy and stability check ([checks](#{anchor}))")
-    if total.programs:
-        anchor = next(p.programs_anchor for p in parts if p.fidelity.programs)
-        sentences.append(f"{total.programs_agree} of {total.programs} program cells agree with "
-                         f"seq (identical, rounding or diverges) ([programs](#{anchor}))")
+    sentences += [f.sentence(counts[f.name]) for f in features if counts[f.name].cells]
     return "fidelity: " + "; ".join(sentences)
 
 
@@ -206,17 +209,20 @@ def by_run(parts: Sequence[ExperimentPart], runs: Mapping[str, str]
 
 
 def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
-                    runs: Mapping[str, str] | None = None) -> Section | None:
+                    runs: Mapping[str, str] | None = None,
+                    features: Sequence[ReportFeature] = ()) -> Section | None:
     """The headline of the newest run (`runs` as by_run's; without, of every part): what a
     reader came for, each point linking to where it is shown, and whether others disturbed
-    it; then the earlier runs under their dates. `more` adds lines (what spans machines)."""
+    it; then the earlier runs under their dates. `more` adds lines (what spans machines);
+    `features` their words on their counts."""
     grouped = by_run(parts, runs or {}) if runs is not None else [("", list(parts))]
     if not grouped:
         return None
     when, latest = grouped[0]
     items = [text for text in (*(p.disturbed for p in latest),
                                *(_best(latest, k) for k in HIGHLIGHT_KINDS),
-                               fidelity_text(latest), warnings_text(latest), *more) if text]
+                               fidelity_text(latest, features), warnings_text(latest),
+                               *more) if text]
     if not items:
         return None
     items = [f"{text[0].upper()}{text[1:].rstrip('.')}." for text in items]

@@ -15,7 +15,7 @@ from harness.analysis.paired import paired
 from harness.analysis.serving import serving
 from harness.errors import HarnessError
 from harness.report.machines import UNKNOWN_ID
-from harness.spec.facts import BASELINE, Variants, reading
+from harness.spec.facts import BASELINE, Variants
 from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY
@@ -63,8 +63,7 @@ def load_experiment(found: ExperimentDir | results.Experiment, machine: str | No
         frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
         if label and frame is not None:
             frame[MACHINE] = label
-    with reading(loaded.variants):  # which variants are serial
-        frame = serving(frame)
+    frame = serving(frame, loaded.variants)  # which variants are serial, their facts say
     return Experiment(loaded.name, loaded.directory, loaded.title, frame, loaded.divergence,
                       ratios, loaded.variants)
 

@@ -1,7 +1,8 @@
 """What each experiment contributes to the report, as plain data: its section, its rows of
-the warnings table and its candidates for the headline. The parts that span experiments
-(summary, warnings) are assembled from these, so an experiment whose inputs did not change
-is read back from the manifest instead of rebuilt. Standard library only."""
+the warnings table, its candidates for the headline and each feature's count of its cells
+(harness.report.features). The parts that span experiments (summary, warnings) are assembled
+from these, so an experiment whose inputs did not change is read back from the manifest
+instead of rebuilt. Standard library only."""
 
 from __future__ import annotations
 
@@ -31,12 +32,25 @@ class Fidelity:
     invalid: int = 0  # an exact variant that differs
     checked: int = 0  # cells with the accuracy and stability checks
     checks_passed: int = 0
-    programs: int = 0  # program cells (their verdict is their agreement with seq)
-    programs_agree: int = 0  # identical, rounding or diverges
     unvalidated: int = 0  # to be validated, but their baseline could not be run or read
 
     def __add__(self, other: Fidelity) -> Fidelity:
         return Fidelity(*(a + b for a, b in zip(astuple(self), astuple(other), strict=True)))
+
+
+@dataclass(frozen=True)
+class Count:
+    """A feature's count over an experiment's cells, for the summary's fidelity line: of
+    `cells`, how many `passed`; `anchor`: where the experiment's section shows them."""
+
+    cells: int = 0
+    passed: int = 0
+    anchor: str = ""
+
+    def __add__(self, other: Count) -> Count:
+        """Counts summed over experiments, shown at the anchor of the first with cells."""
+        return Count(self.cells + other.cells, self.passed + other.passed,
+                     self.anchor if self.cells else other.anchor)
 
 
 # In the summary's order; "phases": where grid's time goes; "ranks": the fastest split of the
@@ -53,7 +67,7 @@ class ExperimentPart:
     highlights: dict[str, Highlight] = field(default_factory=dict)  # by HIGHLIGHT_KINDS
     fidelity: Fidelity = Fidelity()
     fidelity_anchor: str = ""  # where the checks or validation of this experiment are shown
-    programs_anchor: str = ""  # where its programs' agreement is shown
+    counts: dict[str, Count] = field(default_factory=dict)  # by feature (ReportFeature.name)
     measured: str = ""  # when its newest cell on the page was measured (ISO 8601)
     disturbed: str = ""  # its cells' disturbance in a sentence (analysis.flags.disturbed_text)
 
@@ -64,7 +78,8 @@ class ExperimentPart:
             "warning_kinds": [list(r) for r in self.warning_kinds],
             "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
             "fidelity": list(astuple(self.fidelity)), "fidelity_anchor": self.fidelity_anchor,
-            "programs_anchor": self.programs_anchor, "measured": self.measured,
+            "counts": {k: list(astuple(c)) for k, c in self.counts.items()},
+            "measured": self.measured,
             "disturbed": self.disturbed,
         }
 
@@ -75,6 +90,7 @@ class ExperimentPart:
             None if data["warnings"] is None else from_json(data["warnings"], base),
             tuple(tuple(r) for r in data["warning_kinds"]),
             {k: Highlight(*v) for k, v in data["highlights"].items()},
-            Fidelity(*data["fidelity"]), data["fidelity_anchor"], data["programs_anchor"],
+            Fidelity(*data["fidelity"]), data["fidelity_anchor"],
+            {k: Count(*v) for k, v in data["counts"].items()},
             data.get("measured", ""), data.get("disturbed", ""),
         )

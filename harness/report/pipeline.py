@@ -5,7 +5,10 @@ scipy or matplotlib; only the others are loaded and built.
 
 One page shows one machine. Where the results hold several, each has its page
 machines/<machine_id>/report.{md,html} with its own figures/, each linking the others, and
-report.{md,html} at the top is the machine that measured last (or the one asked for)."""
+report.{md,html} at the top is the machine that measured last (or the one asked for).
+
+A feature adds its part to every page through the ReportFeature its package gives
+(harness.report.features), passed in by whoever renders; the report imports no feature."""
 
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ from harness.report.document import (
     Section,
     document_files,
 )
+from harness.report.features import ReportFeature
 from harness.report.header import (
     HOW_TO_READ,
     by_run,
@@ -40,7 +44,6 @@ from harness.report.html import render_html
 from harness.report.markdown import render_markdown
 from harness.report.parts import ExperimentPart
 from harness.report.spread import cached_session_words
-from harness.spec.facts import reading
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
 from harness.store.locks import directory_lock
@@ -81,10 +84,12 @@ def build_document(
     others: Sequence[Link] = (),
     side_by_side: Section | None = None,
     session: str = "",
+    features: Sequence[ReportFeature] = (),
 ) -> Document:
-    """The whole page: what it shows, the summary, one section per experiment with data (its
-    warnings folded in it), then the machines side by side and how to read the numbers (with
-    `session`, what it says of the session spread: harness.report.spread)."""
+    """The whole page: what it shows, the summary (with the words of `features` on their
+    counts), one section per experiment with data (its warnings folded in it), then the
+    machines side by side and how to read the numbers (with `session`, what it says of the
+    session spread: harness.report.spread)."""
     results_dir = _shown_path(results_dir)
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
@@ -106,27 +111,32 @@ def build_document(
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
     appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
                             (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
-    return Document(TITLE, lead, tuple(others), summary_section(parts, more, runs),
+    return Document(TITLE, lead, tuple(others), summary_section(parts, more, runs, features),
                     tuple(_with_warnings(p) for p in parts), tuple(appendix))
 
 
 def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Path,
-                    machine: str | None = None, label: str = "") -> ExperimentPart:
-    """The experiment's part (of one machine's cells, with `machine`, which goes by `label`)
-    from the manifest when its inputs are unchanged, else built."""
+                    machine: str | None = None, label: str = "",
+                    features: Sequence[ReportFeature] = ()) -> ExperimentPart:
+    """The experiment's part (of one machine's cells, with `machine`, which goes by `label`;
+    with the parts of `features`) from the manifest when its inputs are unchanged, else
+    built."""
     def build() -> dict[str, Any]:
         # Building needs pandas (and matplotlib for a figure that changed): imported only here.
         from harness.report.load import load_experiment
         from harness.report.sections import experiment_section
         from harness.report.summary import experiment_part as build_part
 
+        # the experiment carries the facts of the variants its results were measured with:
+        # their order, colours and kinds
         exp = load_experiment(loaded, machine, label)
-        # the facts of the variants the results were measured with: their order, colours, kinds
-        with reading(exp.variants):
-            return build_part(exp, experiment_section(exp, manifest)).to_json(out_dir)
+        section = experiment_section(exp, manifest, [f.sections for f in features])
+        return build_part(exp, section, features).to_json(out_dir)
 
     found = loaded.directory
     digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
+    if features:  # a part built with other features' parts is another part
+        digest += "\0" + "\0".join(f.name for f in features)
     return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
 
 
@@ -158,7 +168,8 @@ def _write_page(doc: Document, page_dir: Path) -> None:
 
 def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_dir: Path,
                  code: CodeVersions, machine: machines.Machine | None,
-                 others: Sequence[Link] = (), side_by_side: Section | None = None) -> Document:
+                 others: Sequence[Link] = (), side_by_side: Section | None = None,
+                 features: Sequence[ReportFeature] = ()) -> Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, code)
@@ -166,14 +177,15 @@ def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_d
     if machine_id is not None:
         loaded = [e for e in loaded if any(machines.machine_of(r) == machine_id for r in e.rows)]
     label = machine.name if machine is not None else ""
-    parts = [experiment_part(e, manifest, page_dir, machine_id, label) for e in loaded]
+    parts = [experiment_part(e, manifest, page_dir, machine_id, label, features)
+             for e in loaded]
     found = [e.directory for e in loaded]
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
     session = cached_session_words(results_dir, machine_id, manifest)
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
-                         side_by_side=side_by_side, session=session)
+                         side_by_side=side_by_side, session=session, features=features)
     _write_page(doc, page_dir)
     _remove_stale_figures(fig_dir, document_files(doc))
     manifest.save()
@@ -187,8 +199,10 @@ def render(
     include_quick: bool = False,
     experiments: Collection[str] | None = None,
     machine: str | None = None,
+    features: Sequence[ReportFeature] = (),
 ) -> Path:
-    """Render report.md and report.html under `out_dir` from `results_dir`.
+    """Render report.md and report.html under `out_dir` from `results_dir`, with the parts of
+    `features` (harness.report.features) on every page.
 
     Where the results hold several machines, each machine's page goes to
     machines/<machine_id>/ with its figures, and report.{md,html} is the page of the machine
@@ -206,7 +220,7 @@ def render(
     rows: machines.Rows = {e.name: e.rows for e in loaded}
     named = {str(read_env(f.env_json).get(MACHINE_KEY, "")) for f in found}
     listed = machines.machines(rows, named - {""}, labels)
-    code = code_versions()
+    code = code_versions([f.code for f in features])
     out_dir.mkdir(parents=True, exist_ok=True)
     # Two renders into one directory (a run finishing while someone renders by hand) would
     # delete each other's figures as stale; the second waits for the first instead.
@@ -215,7 +229,7 @@ def render(
         if len(listed) < 2:
             # One machine (or none recorded): one page, its figures beside it.
             shown = machines.pick(listed, machine) if listed or machine else None
-            _render_page(loaded, results_dir, out_dir, code, shown)
+            _render_page(loaded, results_dir, out_dir, code, shown, features=features)
             _remove_stale_pages(out_dir, ())
             return out_dir / f"{PAGE_STEM}.md"
         top = machines.pick(listed, machine)
@@ -228,7 +242,7 @@ def render(
         for page in listed:
             doc = _render_page(loaded, results_dir, pages[page.id], code, page,
                                links(pages[page.id], page.id),
-                               machines.side_by_side(rows, page, listed))
+                               machines.side_by_side(rows, page, listed), features)
             if page.id == top.id:
                 _write_page(dataclasses.replace(doc, others=tuple(links(out_dir, top.id))),
                             out_dir)

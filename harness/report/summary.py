@@ -1,14 +1,16 @@
-"""An experiment's contribution to the report's headline and warnings, computed from its rows
-when its section is built (harness.report.parts holds the result as plain data)."""
+"""An experiment's contribution to the report's headline and warnings, and each feature's
+count of its cells, computed from its rows when its section is built (harness.report.parts
+holds the result as plain data)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import pandas as pd
 
 from harness.analysis import phases
-from harness.analysis.cells import INTERVAL_SUFFIXES
+from harness.analysis.cells import INTERVAL_SUFFIXES, is_program
 from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import (
     disturbed_text,
@@ -16,25 +18,24 @@ from harness.analysis.flags import (
     flagged_cells,
     flagged_kinds,
 )
-from harness.analysis.programs import is_program
 from harness.analysis.ranks import cores_table
 from harness.analysis.serving import measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
+from harness.report.features import ReportFeature
 from harness.report.load import Experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight
 from harness.report.sections import phases as phases_part
-from harness.report.sections import programs as programs_part
 from harness.report.sections.context import table_block
 from harness.spec.facts import BASELINE, GRID
-from harness.store.columns import AGREEING, INVALID, OK, UNVALIDATED
+from harness.store.columns import INVALID, OK, UNVALIDATED
 
 # A headline speedup compares strategies, so it is taken from cells measured fairly: ok, not
 # oversubscribed, against seq on the same scene and machine.
 NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
 
 
-def _anchor(section: Section, suffix: str) -> str:
+def subsection_anchor(section: Section, suffix: str) -> str:
     """The anchor of the subsection ending in `-suffix`, else the section's own."""
     for sub in section.subsections:
         if sub.anchor.endswith(f"-{suffix}"):
@@ -71,8 +72,8 @@ def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
 def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     """The best strategy, grid against seq and the largest N, where this experiment has them
     (its rows are one machine's: the page's)."""
-    rows = with_speedup(exp.frame, ratios=exp.ratios)
-    cells = _anchor(section, "cells")
+    rows = with_speedup(exp.frame, exp.variants, ratios=exp.ratios)
+    cells = subsection_anchor(section, "cells")
     link = f"[{exp.name}](#{cells})"
     found: dict[str, Highlight] = {}
     fair = rows[(rows["status"] == OK) & ~rows["oversubscribed"]
@@ -89,9 +90,9 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         largest = grid.sort_values(["n", "speedup"], kind="stable").iloc[-1]
         found["grid"] = Highlight(float(largest["n"]), f"grid against seq: {ratio_text(largest)} "
                                   f"faster ({_where(largest)}; {link})", cells)
-    selection = phases.select(exp.frame)
+    selection = phases.select(exp.frame, exp.variants)
     if selection is not None:
-        anchor = _anchor(section, phases_part.ANCHOR)
+        anchor = subsection_anchor(section, phases_part.ANCHOR)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
@@ -133,14 +134,13 @@ def _fastest_split(df: pd.DataFrame) -> tuple[int, str] | None:
 
 
 def fidelity(exp: Experiment) -> Fidelity:
-    # A program's verdict is its agreement with seq, not byte identity: counted on its own.
+    # A program's verdict is its agreement with seq, not byte identity: the programs feature
+    # counts it (harness.programs.section).
     cells = measured_once(exp.frame)
-    program = is_program(cells)
-    df = cells[~program]
+    df = cells[~is_program(cells)]
     validated = df["identical"].notna() | (df["status"] == INVALID)
     checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
                else pd.Series(False, index=df.index))
-    agreement = cells.loc[program, "agreement"] if program.any() else pd.Series(dtype=str)
     return Fidelity(
         validated=int(validated.sum()),
         identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),
@@ -148,22 +148,24 @@ def fidelity(exp: Experiment) -> Fidelity:
         checked=int(checked.sum()),
         checks_passed=int(df.loc[checked, "checks_passed"].astype(bool).sum()) if checked.any()
         else 0,
-        programs=int(program.sum()),
-        programs_agree=int(agreement.isin(AGREEING).sum()),
         unvalidated=int((df["status"] == UNVALIDATED).sum()),
     )
 
 
-def experiment_part(exp: Experiment, section: Section) -> ExperimentPart:
-    """The section with the experiment's warnings table and headline candidates."""
-    flagged = flagged_cells(exp.frame)
+def experiment_part(exp: Experiment, section: Section,
+                    features: Sequence[ReportFeature] = ()) -> ExperimentPart:
+    """The section with the experiment's warnings table, headline candidates and the counts
+    of `features`."""
+    flagged = flagged_cells(exp.frame, exp.variants)
     warnings = table_block(flagged, "") if len(flagged) else None
-    anchor = _anchor(section, "stability")
+    anchor = subsection_anchor(section, "stability")
     if anchor == section.anchor:
-        anchor = _anchor(section, "cells")
+        anchor = subsection_anchor(section, "cells")
     measured = exp.frame["measured_at"].dropna().astype(str) if (
         "measured_at" in exp.frame.columns) else pd.Series(dtype=str)
-    return ExperimentPart(exp.name, section, warnings, tuple(flagged_kinds(exp.frame)),
-                          highlights(exp, section), fidelity(exp), anchor,
-                          _anchor(section, programs_part.ANCHOR),
+    kinds = tuple(flagged_kinds(exp.frame, exp.variants))
+    counts = {f.name: count for f in features
+              if (count := f.count(exp, section)) is not None}
+    return ExperimentPart(exp.name, section, warnings, kinds,
+                          highlights(exp, section), fidelity(exp), anchor, counts,
                           max(measured, default=""), disturbed_text(exp.frame))

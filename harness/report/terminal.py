@@ -18,7 +18,6 @@ from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.load import Experiment, load_experiment
 from harness.report.summary import fidelity, strategy_cells
-from harness.spec.facts import read_variants, reading
 from harness.store.columns import OK, STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME
 from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
@@ -144,23 +143,24 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
     """The lines of one experiment this machine just measured."""
     env = read_json(found.env_json)
     machine = env.get(MACHINE_KEY) if isinstance(env, dict) else None
-    with reading(read_variants(found.variants_json)):
-        exp = load_experiment(found, str(machine) if machine else None)
-        # one line a cell: a serial variant's once
-        df = measured_once(exp.frame[~flag(exp.frame, "earlier_config")]).reset_index(drop=True)
-        if df.empty:
-            return [f"{found.name}: no cells"]
-        df = with_speedup(df, thread_baseline="threads" in varying_keys(df), ratios=exp.ratios)
-        shown = exp if len(df) == len(exp.frame) else Experiment(
-            exp.name, exp.directory, exp.title, df, exp.divergence, exp.ratios)
-        label = machine_labels(read_machines([found.path])).get(str(machine))
-        named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
-        head = f"{named}: {len(df)} cells" + (f" on {label}" if label else "")
-        lines = [head]
-        extra = [disturbed_text(df), fastest_text(df), validation_text(shown), intervals_text(df)]
-        lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]
-        lines += cell_lines(df)
-        lines += [f"  {text[0].upper()}{text[1:]}." for text in extra[1:] if text]
+    # the experiment carries the facts of the variants stored with its results
+    exp = load_experiment(found, str(machine) if machine else None)
+    # one line a cell: a serial variant's once
+    df = measured_once(exp.frame[~flag(exp.frame, "earlier_config")]).reset_index(drop=True)
+    if df.empty:
+        return [f"{found.name}: no cells"]
+    df = with_speedup(df, exp.variants, thread_baseline="threads" in varying_keys(df),
+                      ratios=exp.ratios)
+    shown = exp if len(df) == len(exp.frame) else Experiment(
+        exp.name, exp.directory, exp.title, df, exp.divergence, exp.ratios, exp.variants)
+    label = machine_labels(read_machines([found.path])).get(str(machine))
+    named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
+    head = f"{named}: {len(df)} cells" + (f" on {label}" if label else "")
+    lines = [head]
+    extra = [disturbed_text(df), fastest_text(df), validation_text(shown), intervals_text(df)]
+    lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]
+    lines += cell_lines(df)
+    lines += [f"  {text[0].upper()}{text[1:]}." for text in extra[1:] if text]
     return lines
 
 

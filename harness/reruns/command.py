@@ -13,6 +13,7 @@ from harness.measure import environment
 from harness.repo import REPO_ROOT
 from harness.reruns import coverage as analysis
 from harness.runner.command import (
+    Hooks,
     Parser,
     add_flags,
     load_configs,
@@ -57,7 +58,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace) -> int:
+def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     if args.times < 2:
         raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
     args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
@@ -72,7 +73,8 @@ def execute(args: argparse.Namespace) -> int:
         lock = measuring_lock(args, ["reruns", *args.configs])
         with lock:  # with --results-dir's session spreads: intervals out of sample
             run_apart(configs, roots, registry, lock, sys.stderr, "reruns",
-                      args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir)
+                      args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir,
+                      program_runner=hooks.program_runner)
     found = analysis.analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")

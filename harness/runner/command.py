@@ -1,7 +1,8 @@
 """What every command shares (the core's in harness.cli, a feature's in its package): its
 argument parser's way with errors and the checks of its numeric arguments, the flags of the
 measuring commands (each defined once, here), the program's name, how the measuring commands
-read their configs, take the measuring lock and find their report's directory."""
+read their configs, take the measuring lock and find their report's directory, and the hooks
+the command line lends every command (Hooks: what a feature lends the core's measuring)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,9 @@ import argparse
 import math
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn, TextIO, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO, TypeVar
 
 from harness.analysis import export
 from harness.errors import HarnessError
@@ -28,12 +30,25 @@ from harness.spec.variants import VariantRegistry
 from harness.store import layout
 from harness.store.locks import RunLock
 
+if TYPE_CHECKING:
+    from harness.measure.cell import ProgramRunner
+
 T = TypeVar("T", int, float)
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130  # what a shell reports for a process Ctrl-C ended
 PROG = "collide-bench"
 QUICK_REPORT = "report-quick"  # where a --quick run's report goes, under the report's
+
+
+@dataclass(frozen=True)
+class Hooks:
+    """What the features lend the core's measuring, given to every command by the command line
+    (harness.cli, the one place that knows the features): how a program's cell is run and
+    checked (harness.programs). A command passes it on to what measures cells; None: a
+    program's cell is refused."""
+
+    program_runner: ProgramRunner | None = None
 
 
 class Parser(argparse.ArgumentParser):

@@ -21,6 +21,7 @@ from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine, mpi
+from harness.measure.cell import ProgramRunner
 from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore
@@ -149,12 +150,13 @@ def write_exports(store: CellStore, prune: bool = False) -> None:
 def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,
               run_lock: RunLock | None, log: TextIO, command: str,
               hyperfine: str = "hyperfine", quick: bool = False, pause_s: float = 0.0,
-              spreads_of: Path | None = None) -> None:
+              spreads_of: Path | None = None,
+              program_runner: ProgramRunner | None = None) -> None:
     """Every config measured afresh into each results root in turn, `pause_s` apart so that
     the runs meet the machine at different moments, each root emptied first (as `run --force
     --results-dir ROOT`); with the machines' calibrations of the root `spreads_of` copied in
     first, its intervals are those that root's session spreads give. `command` begins the
-    progress lines."""
+    progress lines; a program's cells are measured by `program_runner` (Options')."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
     for k, root in enumerate(roots, start=1):
         if k > 1 and pause_s > 0:
@@ -165,7 +167,7 @@ def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: Varian
         if kept is not None and kept.is_dir():
             shutil.copytree(kept, ResultsRoot(root).calibrations)
         options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
-                          hyperfine=hyperfine, run_lock=run_lock)
+                          hyperfine=hyperfine, run_lock=run_lock, program_runner=program_runner)
         for config in configs:
             run_experiment(config, options, log, log, registry)
 

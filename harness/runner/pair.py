@@ -21,7 +21,7 @@ from harness.errors import HarnessError
 from harness.executors.base import Progress, format_seconds, machine_id
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment
-from harness.measure.cell import Measurer
+from harness.measure.cell import Measurer, ProgramRunner
 from harness.plan.cells import Plan, plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
@@ -159,10 +159,12 @@ def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
                   hyperfine: str = "hyperfine", threshold: float = 0.01, q: float = 0.05,
-                  budget_s: float = DEFAULT_BUDGET_S) -> MeasuredSides:
+                  budget_s: float = DEFAULT_BUDGET_S,
+                  program_runner: ProgramRunner | None = None) -> MeasuredSides:
     """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
-    of measuring is spent; the two results roots, complete, under OUT."""
+    of measuring is spent; the two results roots, complete, under OUT. A program's cells are
+    measured by `program_runner` (harness.measure.cell.Measurer)."""
     plans = plans_of(configs, registry)
     for side in (old, new):  # every binary built (or found) before anything runs
         build_plans(side, plans)
@@ -177,7 +179,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], here,
                               force=True, build_dir=side.build_dir)
             stores.append((side, store))
-            measurers.append(Measurer(store, hyperfine))
+            measurers.append(Measurer(store, hyperfine, program_runner=program_runner))
         for cell in plan.cells:
             a, b = (Unit(m, cell, built_cell_id(m.store, cell)) for m in measurers)
             a.partner, b.partner = b, a
@@ -206,8 +208,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
 
 
 def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
-              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine"
-              ) -> tuple[MeasuredSides, list[Path]]:
+              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
+              program_runner: ProgramRunner | None = None) -> tuple[MeasuredSides, list[Path]]:
     """A calibration's measurements (`compare --calibrate`; what they say is
     harness.comparison.calibration's): this checkout's binaries as two sides measured together
     (OUT/together), then the configs BLOCKS times, one whole run after another, as separate
@@ -217,7 +219,8 @@ def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
     # The same binaries on both sides: the spread of a fixed number of rounds is what is
     # learnt, so no rounds are added to decide verdicts (budget 0).
     together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
-                             hyperfine, budget_s=0.0)
+                             hyperfine, budget_s=0.0, program_runner=program_runner)
     blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
-    run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine)
+    run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine,
+              program_runner=program_runner)
     return together, blocks

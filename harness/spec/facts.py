@@ -12,18 +12,17 @@ The order tables and figures show variants in follows from the facts: seq (the b
 first, then the all-pairs variants, then the others; within each, families by name, a
 family being a variant followed by the variants that repair it.
 
-Where results are read, `reading(variants)` says whose facts apply and `current()` answers
-with them; outside any such block there are none, and every variant is unknown.
+Whoever reads results passes the facts stored with them (harness.analysis.results'
+`Experiment.variants`) to what orders, colours or judges variants by them; where there are
+none (results from before they were stored) every variant is unknown.
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import functools
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -297,20 +296,3 @@ def read_variants(path: Path) -> Variants:
 
 
 NO_FACTS = Variants()
-_READING: contextvars.ContextVar[Variants | None] = contextvars.ContextVar("variants_read",
-                                                                            default=None)
-
-
-def current() -> Variants:
-    """The facts of the variants whose results are being read (`reading`); none outside."""
-    return _READING.get() or NO_FACTS
-
-
-@contextlib.contextmanager
-def reading(variants: Variants) -> Iterator[Variants]:
-    """current() answers with `variants` inside the block."""
-    token = _READING.set(variants)
-    try:
-        yield variants
-    finally:
-        _READING.reset(token)

@@ -23,7 +23,7 @@ STATUSES: tuple[str, ...] = (OK, INVALID, UNVALIDATED, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID, UNVALIDATED})
 
-# A program's verdict (harness.measure.agreement): the same numbers as seq at the precision it
+# A program's verdict (harness.programs.agreement): the same numbers as seq at the precision it
 # prints; within that rounding at every step; every step locally right from its own state
 # (judged by the reference's replay) at its printed precision, or only at a coarser one; a step
 # no correct rule explains; outputs that differ between identical runs; not comparable.

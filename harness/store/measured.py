@@ -218,7 +218,7 @@ class Checks:
 
 @dataclass(frozen=True)
 class ProgramVerdict:
-    """A program's check against seq (harness.measure.program) and what it cost."""
+    """A program's check against seq (harness.programs.cell) and what it cost."""
 
     program: JsonObject | None = None
     check_command: str | None = None

@@ -1,17 +1,15 @@
 """The variants' facts these tests read results with: those stored with the fixture results,
-as the report reads each experiment's (harness.spec.facts.reading)."""
+passed explicitly wherever results are ordered, coloured or judged by them, as the report
+passes each experiment's."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
-from harness.spec import facts
+from harness.spec.facts import Variants
 
 from fixture_results import fixture_facts
 
 
-@pytest.fixture(autouse=True)
-def stored_facts() -> Iterator[facts.Variants]:
-    with facts.reading(fixture_facts()) as variants:
-        yield variants
+@pytest.fixture
+def facts() -> Variants:
+    return fixture_facts()

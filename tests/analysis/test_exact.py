@@ -16,6 +16,7 @@ from harness.analysis.resultsets import Cell, MatchKey, Side
 from harness.analysis.speedup import cell_table
 from harness.comparison import verdicts as compare
 from harness.comparison.page import ratio_text, render_markdown
+from harness.spec.facts import Variants
 
 KEY = MatchKey("", "seq", "f64", "random", "2000", "4000", "1", "20", "perf", "1", "1", "", "")
 
@@ -109,7 +110,7 @@ def test_more_instructions_anywhere_fails_the_gate_and_the_output_says_so() -> N
         render(new, old, fewer)
 
 
-def test_the_cell_table_shows_instructions_beside_times() -> None:
+def test_the_cell_table_shows_instructions_beside_times(facts: Variants) -> None:
     rows = pd.DataFrame({
         "variant": ["seq", "p1"], "build": ["f64", "f64"], "scene": ["random"] * 2,
         "n": [2000, 2000], "L": [4000.0] * 2, "r": [1.0] * 2, "steps": [20, 20],
@@ -119,13 +120,13 @@ def test_the_cell_table_shows_instructions_beside_times() -> None:
         "instructions": [80_000.0, math.nan], "exact": [True, True],
         "identical": [True, True], "validated": [True, True],
     })
-    table = cell_table(rows, ["variant"])
+    table = cell_table(rows, ["variant"], facts)
     seq = table[table["variant"] == "seq"].iloc[0]
     assert seq["instructions"] == 80_000
     assert seq["instructions_per_pair_test"] == 40.0
     assert seq["instructions_per_particle_step"] == 2.0
     assert math.isnan(table[table["variant"] == "p1"].iloc[0]["instructions"])
-    assert "instructions" not in cell_table(rows.drop(columns="instructions"), ["variant"])
+    assert "instructions" not in cell_table(rows.drop(columns="instructions"), ["variant"], facts)
 
 
 def test_the_report_says_what_counted_the_instructions() -> None:

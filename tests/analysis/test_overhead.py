@@ -9,6 +9,7 @@ import math
 import pandas as pd
 import pytest
 from harness.analysis import overhead
+from harness.spec.facts import Variants
 
 N, STEPS = 100, 10
 PAIRS = N * (N - 1) // 2
@@ -49,8 +50,8 @@ def test_the_cost_per_thread_count_is_the_median_of_its_cells() -> None:
     assert t.at[4, "cells"] == 3
 
 
-def test_predicted_and_measured_overhead() -> None:
-    table = overhead.overhead_table(measured())
+def test_predicted_and_measured_overhead(facts: Variants) -> None:
+    table = overhead.overhead_table(measured(), facts)
     assert table is not None
     t = table.set_index(["variant", "threads"])
     region, _, grab, nested = COSTS_2
@@ -81,11 +82,11 @@ def test_predicted_and_measured_overhead() -> None:
     assert ("seq", 2) not in t.index and ("p2_blocks", 2) not in t.index
 
 
-def test_one_sentence_per_strategy_in_numbers() -> None:
+def test_one_sentence_per_strategy_in_numbers(facts: Variants) -> None:
     df = measured()
-    table = overhead.overhead_table(df)
+    table = overhead.overhead_table(df, facts)
     assert table is not None
-    sentences = overhead.overhead_sentences(table, df)
+    sentences = overhead.overhead_sentences(table, df, facts)
     assert len(sentences) == table["variant"].nunique() == 4
     p2 = next(s for s in sentences if s.startswith("p2 "))
     assert "100 regions (a team fork and its closing barrier) per step (10 steps, N = 100)" in p2
@@ -96,19 +97,19 @@ def test_one_sentence_per_strategy_in_numbers() -> None:
     assert "(it has no repair to measure its overhead against); at 2 threads" in p3
 
 
-def test_a_thread_count_without_costs_says_so() -> None:
+def test_a_thread_count_without_costs_says_so(facts: Variants) -> None:
     df = pd.concat([measured(), pd.DataFrame([row("p2", 0.9, 8), row("p2_blocks", 0.3, 8)])])
-    table = overhead.overhead_table(df)
+    table = overhead.overhead_table(df, facts)
     assert table is not None
     assert math.isnan(table.set_index(["variant", "threads"]).loc[("p2", 8)]["predicted_s"])
-    p2 = next(s for s in overhead.overhead_sentences(table, df) if s.startswith("p2 "))
+    p2 = next(s for s in overhead.overhead_sentences(table, df, facts) if s.startswith("p2 "))
     assert "at 8 threads no cost per operation was measured" in p2
 
 
-def test_cells_past_the_cores_are_flagged_in_both_tables() -> None:
+def test_cells_past_the_cores_are_flagged_in_both_tables(facts: Variants) -> None:
     df = measured().assign(oversubscribed=lambda d: d["threads"] > 2)
     costs = overhead.cost_table(df)
-    table = overhead.overhead_table(df)
+    table = overhead.overhead_table(df, facts)
     assert costs is not None and table is not None
     assert costs.set_index("threads")["oversubscribed"].to_dict() == {2: False, 4: True}
     flags = table.set_index(["variant", "threads"])["oversubscribed"]
@@ -116,8 +117,8 @@ def test_cells_past_the_cores_are_flagged_in_both_tables() -> None:
     assert "oversubscribed" not in overhead.cost_table(measured()).columns  # type: ignore
 
 
-def test_without_any_cost_there_is_no_table() -> None:
+def test_without_any_cost_there_is_no_table(facts: Variants) -> None:
     df = pd.DataFrame([row("p2", 0.5, 2), row("p2_blocks", 0.1, 2)])
     assert not overhead.has_costs(df)
-    assert overhead.cost_table(df) is None and overhead.overhead_table(df) is None
+    assert overhead.cost_table(df) is None and overhead.overhead_table(df, facts) is None
     assert overhead.has_costs(measured())

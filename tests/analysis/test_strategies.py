@@ -10,6 +10,7 @@ import pytest
 from harness.analysis import strategies as study
 from harness.analysis.upgrade import upgrade_experiment
 from harness.report.figures import strategies as figstrategies
+from harness.spec.facts import Variants
 from harness.store.columns import parse_list
 
 from tests.records import frame_of, write_experiment
@@ -33,10 +34,10 @@ def frame(*rows: dict[str, object]) -> pd.DataFrame:
     return pd.DataFrame(list(rows))
 
 
-def test_seed_table_ranks_ours_and_the_seeds() -> None:
+def test_seed_table_ranks_ours_and_the_seeds(facts: Variants) -> None:
     df = frame(row("seq", 4.4), row("p1", 3.0, imbalance=1.5), row("p1_cyclic", 2.2),
                row("p2", 20.0), row("p1d", 2.3), row("p2d", 300.0))
-    table = study.seed_table(df)
+    table = study.seed_table(df, facts)
     assert table is not None
     t = table.set_index("variant")
     assert list(t.index) == ["p1", "p2", "p1d", "p2d"]  # the seed's strategies measured here
@@ -48,11 +49,11 @@ def test_seed_table_ranks_ours_and_the_seeds() -> None:
     assert t.at["p1", "repair"] == "p1_cyclic: 2.2 s" and t.at["p1d", "repair"] == ""
 
 
-def test_ranking_sentence_names_the_swapped_pairs() -> None:
+def test_ranking_sentence_names_the_swapped_pairs(facts: Variants) -> None:
     df = frame(row("seq", 4.4), row("p1", 3.0, imbalance=1.45), row("p2", 20.0),
                row("p1d", 2.3), row("p1_cyclic", 2.2), row("p2_blocks", 2.5))
-    table = study.seed_table(df)
-    text = study.ranking_sentence(table, df)
+    table = study.seed_table(df, facts)
+    text = study.ranking_sentence(table, df, facts)
     assert "ours on 2 thread(s): p1d < p1 < p2" in text
     assert "the seed's, on its 20-thread Xeon: p1d < p2 < p1" in text
     assert "differs in 1 pair(s): p1 now beats p2" in text
@@ -61,14 +62,15 @@ def test_ranking_sentence_names_the_swapped_pairs() -> None:
     assert "+17.5 s over p2_blocks, 35 µs per row's region" in text  # 17.5 s / (10000 * 50)
 
 
-def test_ranking_sentence_when_it_agrees() -> None:
+def test_ranking_sentence_when_it_agrees(facts: Variants) -> None:
     df = frame(row("p1", 10.0), row("p2", 8.0), row("p1d", 6.0))
-    assert study.ranking_sentence(study.seed_table(df), df).endswith("The ranking agrees.")
+    assert study.ranking_sentence(study.seed_table(df, facts), df,
+                                  facts).endswith("The ranking agrees.")
 
 
-def test_no_seed_table_off_the_benchmark() -> None:
+def test_no_seed_table_off_the_benchmark(facts: Variants) -> None:
     df = frame(row("p1", 3.0), row("p2", 2.0)).assign(n=2000)
-    assert study.seed_table(df) is None
+    assert study.seed_table(df, facts) is None
 
 
 def test_static_block_imbalance() -> None:
@@ -125,10 +127,10 @@ def test_work_table_needs_p1_and_its_repair() -> None:
     assert study.work_table(frame(p1)) is None
 
 
-def test_work_figure_writes_png_and_svg(tmp_path: Path) -> None:
+def test_work_figure_writes_png_and_svg(tmp_path: Path, facts: Variants) -> None:
     work = study.work_table(frame(row("p1", 3.0, busy="2.0 0.7", pairs="75 25"),
                                   row("p1_cyclic", 2.0, busy="1.4 1.4", pairs="50 50")))
-    paths = figstrategies.work_figure(work, tmp_path / "work")
+    paths = figstrategies.work_figure(work, tmp_path / "work", variants=facts)
     assert sorted(p.suffix for p in paths) == [".png", ".svg"]
     assert all(p.stat().st_size > 1000 for p in paths)
 

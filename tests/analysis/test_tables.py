@@ -13,6 +13,7 @@ from harness.analysis import accuracy as accuracy_tables
 from harness.analysis import cells as acells
 from harness.analysis import display, flags
 from harness.analysis import speedup as speedups
+from harness.spec.facts import Variants
 
 from fixture_results import FIXTURE_RESULTS, fixture_frame
 
@@ -30,8 +31,8 @@ def raw_medians(name: str) -> dict[tuple[str, int], float]:
             for row in stored if row.get("wall_median_s") is not None}
 
 
-def test_strategies_table_has_one_row_per_variant_in_the_registry_order() -> None:
-    table = speedups.cell_table(load("strategies"), ["variant", "threads"])
+def test_strategies_table_has_one_row_per_variant_in_the_registry_order(facts: Variants) -> None:
+    table = speedups.cell_table(load("strategies"), ["variant", "threads"], facts)
     # seq first, then the all-pairs variants by family (the facts of their --describe)
     assert list(table["variant"]) == ["seq", "p1", "p1d", "p2", "p2d", "p3"]
     assert list(table.columns[:3]) == ["variant", "threads", "runs"]
@@ -40,10 +41,11 @@ def test_strategies_table_has_one_row_per_variant_in_the_registry_order() -> Non
     )
 
 
-def test_strategies_speedup_and_efficiency_are_against_seq() -> None:
+def test_strategies_speedup_and_efficiency_are_against_seq(facts: Variants) -> None:
     medians = raw_medians("strategies")
     seq = medians[("seq", 1)]
-    table = speedups.cell_table(load("strategies"), ["variant", "threads"]).set_index("variant")
+    table = speedups.cell_table(load("strategies"), ["variant", "threads"],
+                                facts).set_index("variant")
     for variant in ("p1", "p2", "p3", "p1d", "p2d"):
         expected = seq / medians[(variant, 8)]
         assert table.loc[variant, "speedup"] == pytest.approx(expected)
@@ -58,29 +60,33 @@ def test_strategies_speedup_and_efficiency_are_against_seq() -> None:
     assert table.loc["p1d", "runs"] == 10
 
 
-def test_validation_column_carries_status_and_flags() -> None:
-    table = speedups.cell_table(load("strategies"), ["variant", "threads"]).set_index("variant")
+def test_validation_column_carries_status_and_flags(facts: Variants) -> None:
+    table = speedups.cell_table(load("strategies"), ["variant", "threads"],
+                                facts).set_index("variant")
     assert table.loc["p3", "validation"] == "invalid"
     assert table.loc["p1", "validation"] == "ok"
-    threads = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    threads = speedups.cell_table(load("threads"), ["variant", "threads"], facts,
+                                  thread_baseline=True)
     by_cell = threads.set_index(["variant", "threads"])["validation"]
     assert by_cell[("p1d", 64)] == "ok · oversubscribed · unstable timing"
     assert by_cell[("p1", 128)] == "timeout · oversubscribed"
 
 
-def test_a_sweep_past_the_cores_flags_them_beside_the_thread_count() -> None:
-    table = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+def test_a_sweep_past_the_cores_flags_them_beside_the_thread_count(facts: Variants) -> None:
+    table = speedups.cell_table(load("threads"), ["variant", "threads"], facts,
+                                thread_baseline=True)
     assert list(table.columns[:3]) == ["variant", "threads", "oversubscribed"]
     flagged = table.set_index(["variant", "threads"])["oversubscribed"]
     assert not flagged[("p1d", 16)] and flagged[("p1d", 32)] and flagged[("p1", 128)]
     assert display.format_table(table)["threads > cores"].tolist()[3:6] == ["", "", "✓"]
-    within = speedups.cell_table(load("strategies"), ["variant", "threads"])
+    within = speedups.cell_table(load("strategies"), ["variant", "threads"], facts)
     assert "oversubscribed" not in within.columns  # no column of blanks
 
 
-def test_thread_table_without_seq_uses_the_variant_at_one_thread() -> None:
+def test_thread_table_without_seq_uses_the_variant_at_one_thread(facts: Variants) -> None:
     medians = raw_medians("threads")
-    table = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+    table = speedups.cell_table(load("threads"), ["variant", "threads"], facts,
+                                thread_baseline=True)
     assert len(table) == 16
     assert list(table["threads"][:8]) == [1, 2, 4, 8, 16, 32, 64, 128]
     rows = table.set_index(["variant", "threads"])
@@ -98,10 +104,11 @@ def test_thread_table_without_seq_uses_the_variant_at_one_thread() -> None:
     assert math.isnan(rows.loc[("p1", 128), "speedup"])
 
 
-def test_seq_told_to_use_threads_gets_no_efficiency() -> None:
+def test_seq_told_to_use_threads_gets_no_efficiency(facts: Variants) -> None:
     df = load("threads")
     seq = df[(df["variant"] == "p1") & (df["threads"].isin([1, 4]))].assign(variant="seq")
-    rows = speedups.with_speedup(pd.concat([df, seq], ignore_index=True), thread_baseline=True)
+    rows = speedups.with_speedup(pd.concat([df, seq], ignore_index=True), facts,
+                                 thread_baseline=True)
     seq_rows = rows[rows["variant"] == "seq"].set_index("threads")
     assert seq_rows.loc[1, "efficiency"] == pytest.approx(1.0)
     assert math.isnan(seq_rows.loc[4, "efficiency"])  # seq ran one thread, not four
@@ -112,8 +119,8 @@ def test_seq_told_to_use_threads_gets_no_efficiency() -> None:
     assert p1.loc[8, "speedup"] == pytest.approx(2.6 / 0.42)
 
 
-def test_speedup_matches_seq_on_the_same_scene_only() -> None:
-    table = speedups.cell_table(load("grid"), ["variant", "n"]).set_index(["variant", "n"])
+def test_speedup_matches_seq_on_the_same_scene_only(facts: Variants) -> None:
+    table = speedups.cell_table(load("grid"), ["variant", "n"], facts).set_index(["variant", "n"])
     assert table.loc[("p1d", 50000), "speedup"] == pytest.approx(62.5 / 10.1)
     # seq timed out at N = 100000: no baseline there.
     assert math.isnan(table.loc[("p1d", 100000), "speedup"])
@@ -122,8 +129,8 @@ def test_speedup_matches_seq_on_the_same_scene_only() -> None:
     assert math.isnan(table.loc[("grid", 10000), "efficiency"])
 
 
-def test_other_builds_are_measured_against_seq_f64() -> None:
-    table = speedups.cell_table(load("accuracy"), ["variant", "build"]).set_index(
+def test_other_builds_are_measured_against_seq_f64(facts: Variants) -> None:
+    table = speedups.cell_table(load("accuracy"), ["variant", "build"], facts).set_index(
         ["variant", "build"]
     )
     assert table.loc[("seq", "f32"), "speedup"] == pytest.approx(2.5 / 1.6)
@@ -137,15 +144,15 @@ def test_karp_flatt_is_undefined_at_one_thread() -> None:
     assert e[2] == pytest.approx((1 / 3 - 1 / 4) / (1 - 1 / 4))
 
 
-def test_growth_exponents_match_a_log_log_fit() -> None:
+def test_growth_exponents_match_a_log_log_fit(facts: Variants) -> None:
     df = load("particles")
-    exponents = speedups.growth_exponents(df, "n").set_index("variant")
+    exponents = speedups.growth_exponents(df, facts, "n").set_index("variant")
     seq = df[df["variant"] == "seq"]
     k, _ = np.polyfit(np.log(seq["n"]), np.log(seq["wall_median_s"]), 1)
     assert exponents.loc["seq", "exponent"] == pytest.approx(k)
     assert exponents.loc["seq", "exponent"] == pytest.approx(2.0, abs=0.05)
     assert exponents.loc["seq", "points"] == 4
-    grid = speedups.growth_exponents(load("grid"), "n").set_index("variant")
+    grid = speedups.growth_exponents(load("grid"), facts, "n").set_index("variant")
     assert grid.loc["grid", "exponent"] == pytest.approx(1.0, abs=0.05)
     assert grid.loc["seq", "points"] == 2  # the timed-out cell is not fitted
 
@@ -172,13 +179,13 @@ def test_pareto_mask_keeps_the_non_dominated_cells() -> None:
     assert list(accuracy_tables.pareto_mask(times, errors)) == [True, True, False, True, False]
 
 
-def test_error_table_marks_the_front_per_scene() -> None:
-    table = accuracy_tables.error_table(load("accuracy"), ["variant", "build"])
+def test_error_table_marks_the_front_per_scene(facts: Variants) -> None:
+    table = accuracy_tables.error_table(load("accuracy"), ["variant", "build"], facts)
     front = table[table["pareto"]]
     assert sorted(zip(front["variant"], front["build"], strict=True)) == [
         ("grid", "f32"), ("grid", "f64"),
     ]
-    relative = accuracy_tables.error_table(load("relative"), ["variant", "n"])
+    relative = accuracy_tables.error_table(load("relative"), ["variant", "n"], facts)
     assert relative["pareto"].all()  # per N, seq is exact and relative is faster
 
 
@@ -189,8 +196,8 @@ def test_error_data_needs_an_ok_cell_with_a_deviation() -> None:
     assert not accuracy_tables.has_error_data(load("particles"))
 
 
-def test_flagged_cells_list_every_problem() -> None:
-    tables = {n: flags.flagged_cells(load(n)) for n in ("strategies", "threads", "grid")}
+def test_flagged_cells_list_every_problem(facts: Variants) -> None:
+    tables = {n: flags.flagged_cells(load(n), facts) for n in ("strategies", "threads", "grid")}
     issues = {(name, variant, threads, n): issue for name, flagged in tables.items()
               for variant, threads, n, issue in zip(flagged["variant"], flagged["threads"],
                                                     flagged["n"], flagged["issue"], strict=True)}
@@ -201,12 +208,12 @@ def test_flagged_cells_list_every_problem() -> None:
     )
     assert sum(len(flagged) for flagged in tables.values()) == 9
     # What the summary counts them by: the status and the flag, apart from the detail.
-    kinds = flags.flagged_kinds(load("threads"))
+    kinds = flags.flagged_kinds(load("threads"), facts)
     timed_out = list(tables["threads"]["issue"]).index(issues[("threads", "p1", 128, 10000)])
     assert kinds[timed_out] == ("timeout", "oversubscribed")
 
 
-def test_a_programs_note_is_its_issue_and_its_agreement_the_kind() -> None:
+def test_a_programs_note_is_its_issue_and_its_agreement_the_kind(facts: Variants) -> None:
     """A program's note says where it leaves seq and what seq did there, in text of its own
     (semicolons, parentheses): the warnings show it whole, the summary counts the agreement."""
     note = ("leaves rounding at step 3 by up to 0.25, more than seq's f32 build drifts by then "
@@ -223,17 +230,18 @@ def test_a_programs_note_is_its_issue_and_its_agreement_the_kind() -> None:
         {"variant": "unchecked", "threads": 1.0, "wall_median_s": 1.0, "agreement": "failed",
          "note": "not checked: seq's print-mode run failed"},
     ])
-    flagged = flags.flagged_cells(df)
+    flagged = flags.flagged_cells(df, facts)
     issues = dict(zip(flagged["variant"], flagged["issue"], strict=True))
-    kinds = dict(zip(flagged["variant"], flags.flagged_kinds(df), strict=True))
+    kinds = dict(zip(flagged["variant"], flags.flagged_kinds(df, facts), strict=True))
     assert issues["student"] == f"{note}; unstable timing"
     assert kinds == {"student": ("differs", "unstable timing"), "late": ("rounding",),
                      "broken": ("crashed",), "unchecked": ("not checked",)}
     assert flags.validation_text(df.iloc[1]) == "invalid: differs from step 3 · unstable timing"
 
 
-def test_format_table_writes_units_and_dashes() -> None:
-    table = speedups.cell_table(load("threads"), ["variant", "threads"], thread_baseline=True)
+def test_format_table_writes_units_and_dashes(facts: Variants) -> None:
+    table = speedups.cell_table(load("threads"), ["variant", "threads"], facts,
+                                thread_baseline=True)
     shown = display.format_table(table)
     assert "median [s]" in shown.columns
     assert "serial fraction e" in shown.columns
@@ -271,13 +279,13 @@ def times_text(times: list[float]) -> tuple[float, ...]:
     return tuple(times)
 
 
-def test_speedup_efficiency_and_karp_flatt_carry_bootstrap_intervals() -> None:
+def test_speedup_efficiency_and_karp_flatt_carry_bootstrap_intervals(facts: Variants) -> None:
 
     df = contract_frame([
         {"variant": "seq", "threads": 1.0, "wall_times_s": times_text(SEQ_TIMES)},
         {"variant": "p1", "threads": 2.0, "wall_times_s": times_text(P1_TIMES)},
     ])
-    table = speedups.cell_table(df, ["variant", "threads"])
+    table = speedups.cell_table(df, ["variant", "threads"], facts)
     p1 = table[table["variant"] == "p1"].iloc[0]
     expected = stats.speedup_ci(SEQ_TIMES, P1_TIMES)
     assert p1["speedup"] == pytest.approx(4.1 / 2.05)
@@ -295,33 +303,33 @@ def test_speedup_efficiency_and_karp_flatt_carry_bootstrap_intervals() -> None:
     assert "speedup_low" not in shown.columns
 
 
-def test_without_run_times_the_point_value_stands_alone() -> None:
+def test_without_run_times_the_point_value_stands_alone(facts: Variants) -> None:
     df = contract_frame([
         {"variant": "seq", "threads": 1.0, "wall_median_s": 4.1},
         {"variant": "p1", "threads": 2.0, "wall_median_s": 2.05},
     ])
-    table = speedups.cell_table(df, ["variant", "threads"])
+    table = speedups.cell_table(df, ["variant", "threads"], facts)
     assert table["speedup_low"].isna().all()
     shown = display.format_table(table)
     assert list(shown["speedup"]) == ["1.00", "2.00"]
 
 
-def test_growth_exponent_has_the_standard_error_of_the_fit() -> None:
+def test_growth_exponent_has_the_standard_error_of_the_fit(facts: Variants) -> None:
     from scipy import stats as sps
 
     n = np.array([1000.0, 2000.0, 4000.0, 8000.0])
     times = 1e-8 * n**2 * np.array([1.0, 1.05, 0.97, 1.02])
     df = contract_frame([{"variant": "seq", "threads": 1.0, "n": float(k), "wall_median_s": t}
                          for k, t in zip(n, times, strict=True)])
-    fit = speedups.growth_exponents(df, "n").iloc[0]
+    fit = speedups.growth_exponents(df, facts, "n").iloc[0]
     reference = sps.linregress(np.log(n), np.log(times))
     assert fit["exponent"] == pytest.approx(reference.slope)
     assert fit["exponent_se"] == pytest.approx(reference.stderr)
-    text = display.format_table(speedups.growth_exponents(df, "n"))["exponent k"].iloc[0]
+    text = display.format_table(speedups.growth_exponents(df, facts, "n"))["exponent k"].iloc[0]
     assert text == f"{reference.slope:.2f} ± {reference.stderr:.2g}"
 
 
-def test_speedup_is_measured_against_seq_on_the_same_machine() -> None:
+def test_speedup_is_measured_against_seq_on_the_same_machine(facts: Variants) -> None:
     df = contract_frame([
         {"machine": "fast", "variant": "seq", "threads": 1.0, "wall_median_s": 2.0},
         {"machine": "fast", "variant": "p1", "threads": 2.0, "wall_median_s": 1.0},
@@ -330,7 +338,7 @@ def test_speedup_is_measured_against_seq_on_the_same_machine() -> None:
     ])
     keys = acells.varying_keys(df)
     assert keys[0] == "machine"
-    table = speedups.cell_table(df, keys)
+    table = speedups.cell_table(df, keys, facts)
     p1 = table[table["variant"] == "p1"].set_index("machine")
     assert p1.loc["fast", "speedup"] == pytest.approx(2.0)
     assert p1.loc["slow", "speedup"] == pytest.approx(1.6)
@@ -354,7 +362,7 @@ def test_provenance_names_commits_and_counts_stale_cells() -> None:
     assert flags.provenance(df.drop(columns=["git_commit", "stale"])) == ""
 
 
-def test_outliers_loaded_and_stale_cells_are_flagged_like_unstable_ones() -> None:
+def test_outliers_loaded_and_stale_cells_are_flagged_like_unstable_ones(facts: Variants) -> None:
     df = contract_frame([
         {"variant": "seq", "threads": 1.0, "wall_median_s": 1.0, "outliers": False,
          "loaded": False, "stale": False},
@@ -365,7 +373,7 @@ def test_outliers_loaded_and_stale_cells_are_flagged_like_unstable_ones() -> Non
     ]).assign(experiment="x")
     texts = [flags.validation_text(row) for _, row in df.iterrows()]
     assert texts == ["ok", "ok · outliers", "ok · loaded machine · stale binary"]
-    flagged = flags.flagged_cells(df)
+    flagged = flags.flagged_cells(df, facts)
     assert list(flagged["variant"]) == ["p1", "p2"]
     assert list(flagged["issue"]) == ["outliers", "loaded machine; stale binary"]
 

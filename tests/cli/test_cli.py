@@ -97,7 +97,7 @@ def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) 
 @pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS, errno.EACCES, errno.ENOTDIR])
 def test_an_os_error_a_user_can_cause_is_one_line_wherever_it_is_met(
         code: int, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    def fails(args: object) -> int:
+    def fails(args: object, hooks: object) -> int:
         raise OSError(code, os.strerror(code), "/some/place")
 
     monkeypatch.setattr("harness.cli.store.execute", fails)
@@ -107,7 +107,7 @@ def test_an_os_error_a_user_can_cause_is_one_line_wherever_it_is_met(
 
 def test_an_os_error_of_the_harness_own_keeps_its_traceback(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    def fails(args: object) -> int:
+    def fails(args: object, hooks: object) -> int:
         raise OSError(errno.EBADF, os.strerror(errno.EBADF))
 
     monkeypatch.setattr("harness.cli.store.execute", fails)

@@ -65,7 +65,8 @@ def test_the_local_executor_measures_in_rounds_and_hands_each_record_on(
                             io.StringIO())
     runs: list[str] = []
     monkeypatch.setattr("harness.executors.rounds.Measurer",
-                        lambda store, hyperfine, cores, log: FakeMeasurer(config.measure, runs))
+                        lambda store, hyperfine, cores, log, program_runner: FakeMeasurer(
+                            config.measure, runs))
     got: list[tuple[str, int]] = []
     progress = Progress("exp", order, frozenset(cid for _, cid in order), io.StringIO())
     LocalExecutor().run(experiment, order, lambda c, cid, r: got.append((cid, r["runs"])),

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.programs import hooks as programs
 from harness.repo import PUBLISHED_REPORT_DIR, PUBLISHED_RESULTS_DIR
 from harness.report import cache, pipeline
 from harness.report.cache import MANIFEST_NAME
@@ -214,6 +215,33 @@ def test_every_module_a_render_loads_is_in_the_code_it_is_keyed_by(tmp_path: Pat
             "spec/facts.py"} <= figures
     assert not any(n.startswith(("measure/", "executors/", "runner/", "report/sections/"))
                    for n in figures)
+
+
+def test_a_feature_s_package_is_in_the_code_a_render_with_it_is_keyed_by(tmp_path: Path
+                                                                          ) -> None:
+    """A render given the programs' part (as the command line gives it) loads the modules of
+    their package: its parts and figures are keyed by them too."""
+    root = results_with(tmp_path, "strategies")
+    script = (
+        "import sys, pathlib\n"
+        "from harness.report import pipeline, cache\n"
+        "from harness.programs import hooks\n"
+        f"pipeline.render(pathlib.Path({str(root)!r}), pathlib.Path({str(tmp_path / 'out')!r}),"
+        " features=[hooks.REPORT])\n"
+        "loaded = {pathlib.Path(m.__file__).resolve() for n, m in sys.modules.items()\n"
+        "          if n.startswith('harness') and getattr(m, '__file__', None)}\n"
+        "report = set(cache.code_files((*cache.REPORT_CODE, hooks.REPORT.code)))\n"
+        "print('harness.programs.section' in sys.modules)\n"
+        "print('\\n'.join(sorted(str(p) for p in loaded - report)))\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=REPO_ROOT, env={**os.environ, "PYTHONPATH": str(REPO_ROOT)},
+                          check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    section_loaded, *outside = [line for line in done.stdout.splitlines() if line.strip()]
+    assert section_loaded == "True"
+    assert not outside, f"modules a render loads but its cache key leaves out: {outside}"
+    versions = cache.code_versions(), cache.code_versions([programs.REPORT.code])
+    assert versions[0].plot != versions[1].plot and versions[0].report != versions[1].report
 
 
 def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.MonkeyPatch

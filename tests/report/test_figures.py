@@ -15,6 +15,7 @@ from harness.report.figures import accuracy as figaccuracy
 from harness.report.figures import base as figbase
 from harness.report.figures import sweeps as figsweeps
 from harness.report.figures import trajectory as figtrajectory
+from harness.spec.facts import Variants
 from harness.store import atomic
 from PIL import Image
 
@@ -56,18 +57,20 @@ SWEEP_FIGURES: list[tuple[str, str]] = [  # the swept axis, the experiment sweep
 
 
 @pytest.mark.parametrize(("axis", "experiment"), SWEEP_FIGURES)
-def test_time_figures_are_written(axis: str, experiment: str, tmp_path: Path) -> None:
+def test_time_figures_are_written(axis: str, experiment: str, tmp_path: Path,
+                                  facts: Variants) -> None:
     stem = tmp_path / "figures" / f"{experiment}-time"
-    assert_figure_files(figsweeps.fig_time_vs(load(experiment), stem, x=axis), stem)
+    assert_figure_files(figsweeps.fig_time_vs(load(experiment), stem, x=axis, variants=facts),
+                        stem)
 
 
-def test_the_memory_figure_draws_a_series_each_in_mib(tmp_path: Path) -> None:
+def test_the_memory_figure_draws_a_series_each_in_mib(tmp_path: Path, facts: Variants) -> None:
     import matplotlib as mpl
 
     rows = load("particles")
     rows["peak_rss_mib"] = 2.0 + rows["n"] * 1e-3  # MiB, growing with N
     with mpl.rc_context({"svg.fonttype": "none"}):
-        paths = figsweeps.fig_memory_vs(rows, tmp_path / "memory", x="n")
+        paths = figsweeps.fig_memory_vs(rows, tmp_path / "memory", x="n", variants=facts)
     assert_figure_files(paths, tmp_path / "memory")
     svg = svg_text(paths[1])
     assert "peak resident memory [MiB]" in svg and "particles N" in svg
@@ -78,19 +81,19 @@ def test_the_memory_figure_draws_a_series_each_in_mib(tmp_path: Path) -> None:
     "figure", [figsweeps.fig_speedup, figsweeps.fig_efficiency, figsweeps.fig_karp_flatt]
 )
 def test_thread_metric_figures_are_written(
-    figure: Callable[..., list[Path]], tmp_path: Path
+    figure: Callable[..., list[Path]], tmp_path: Path, facts: Variants
 ) -> None:
-    rows = speedup.with_speedup(load("threads"), thread_baseline=True)
+    rows = speedup.with_speedup(load("threads"), facts, thread_baseline=True)
     stem = tmp_path / "metric"
-    assert_figure_files(figure(rows, stem, title="Thread scaling"), stem)
+    assert_figure_files(figure(rows, stem, variants=facts, title="Thread scaling"), stem)
 
 
 @pytest.mark.parametrize("experiment", ["accuracy", "relative"])
-def test_error_figure_is_written(experiment: str, tmp_path: Path) -> None:
+def test_error_figure_is_written(experiment: str, tmp_path: Path, facts: Variants) -> None:
     stem = tmp_path / f"{experiment}-error"
     df = load(experiment)
     df = df[df["n"] == df["n"].max()]
-    assert_figure_files(figaccuracy.fig_error_time(df, stem), stem)
+    assert_figure_files(figaccuracy.fig_error_time(df, stem, variants=facts), stem)
 
 
 def test_error_floor_is_a_decade_below_the_smallest_error() -> None:
@@ -192,16 +195,19 @@ def with_two_machines(frame: pd.DataFrame) -> pd.DataFrame:
     return both
 
 
-def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: Path) -> None:
+def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: Path,
+                                                                   facts: Variants) -> None:
     import matplotlib as mpl
 
     frame = with_two_machines(load("threads"))
     assert acells.series_keys(frame, "threads")[0] == "machine"
     with mpl.rc_context({"svg.fonttype": "none"}):  # text as <text>, so it can be read back
-        time_paths = figsweeps.fig_time_vs(frame, tmp_path / "time", x="threads")
-        speed_paths = figsweeps.fig_speedup(speedup.with_speedup(frame, thread_baseline=True),
-                                        tmp_path / "speedup")
-        single = figsweeps.fig_time_vs(load("threads"), tmp_path / "single", x="threads")
+        time_paths = figsweeps.fig_time_vs(frame, tmp_path / "time", x="threads", variants=facts)
+        speed_paths = figsweeps.fig_speedup(speedup.with_speedup(frame, facts,
+                                                                 thread_baseline=True),
+                                        tmp_path / "speedup", variants=facts)
+        single = figsweeps.fig_time_vs(load("threads"), tmp_path / "single", x="threads",
+                                       variants=facts)
     for paths in (time_paths, speed_paths):
         svg = svg_text(paths[1])
         assert "fast box" in svg and "slow box" in svg
@@ -220,15 +226,15 @@ def test_long_legend_labels_wrap_and_lead_with_the_variant() -> None:
     assert wrapped.replace("\n", " ") == label
 
 
-def test_thread_counts_past_the_cores_are_shaded_and_named(tmp_path: Path) -> None:
+def test_thread_counts_past_the_cores_are_shaded_and_named(tmp_path: Path, facts: Variants) -> None:
     import matplotlib as mpl
 
     frame = load("threads")  # 16 cores, 1-128 threads
     within = frame[frame["threads"] <= 16]
     with mpl.rc_context({"svg.fonttype": "none"}):
-        past = figsweeps.fig_efficiency(speedup.with_speedup(frame, thread_baseline=True),
-                                        tmp_path / "past")
-        inside = figsweeps.fig_time_vs(within, tmp_path / "inside", x="threads")
+        past = figsweeps.fig_efficiency(speedup.with_speedup(frame, facts, thread_baseline=True),
+                                        tmp_path / "past", variants=facts)
+        inside = figsweeps.fig_time_vs(within, tmp_path / "inside", x="threads", variants=facts)
     assert "threads &gt; cores (16)" in svg_text(past[1])
     assert "threads &gt; cores" not in svg_text(inside[1])
 

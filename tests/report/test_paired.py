@@ -15,7 +15,7 @@ from harness.analysis import speedup as speedups
 from harness.report import pipeline
 from harness.report.discover import find_experiments
 from harness.report.load import load_experiment
-from harness.spec.facts import BASELINE
+from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import RATIO_OVER_BASELINE
 from harness.store.layout import ExperimentDir, ResultsRoot
 
@@ -101,11 +101,12 @@ def test_the_cell_table_shows_the_paired_interval_where_a_cell_has_one(
         in markdown
 
 
-def test_the_figures_and_headline_take_the_same_paired_numbers(tmp_path: Path) -> None:
+def test_the_figures_and_headline_take_the_same_paired_numbers(tmp_path: Path,
+                                                               facts: Variants) -> None:
     root = strategies_with_p1_paired(tmp_path)
     found = find_experiments(root, only=["strategies"])[0]
     exp = load_experiment(found)
-    rows = speedups.with_speedup(exp.frame, ratios=exp.ratios)
+    rows = speedups.with_speedup(exp.frame, facts, ratios=exp.ratios)
     p1 = rows[rows["variant"] == "p1"].iloc[0]
     assert exp.ratios is not None
     [ratio] = exp.ratios[exp.ratios["variant"] == "p1"].itertuples()
@@ -115,17 +116,17 @@ def test_the_figures_and_headline_take_the_same_paired_numbers(tmp_path: Path) -
     assert (ratio.ratio, ratio.ratio_ci_low, ratio.ratio_ci_high) == pytest.approx(
         (expected.point, expected.low, expected.high))
     assert bool(p1["speedup_paired"])
-    unpaired = speedups.with_speedup(exp.frame)
+    unpaired = speedups.with_speedup(exp.frame, facts)
     assert unpaired[unpaired["variant"] == "p1"]["speedup"].iloc[0] == pytest.approx(4.0)
 
 
 def test_a_thread_sweep_takes_efficiency_and_karp_flatt_from_the_paired_ratio(
-        tmp_path: Path) -> None:
+        tmp_path: Path, facts: Variants) -> None:
     root = results_with(tmp_path, "threads")
     with_runs(root / "threads", {("p1", 1): 1.0, ("p1", 4): 3.0})
     exp = results.load_experiment(ExperimentDir(root / "threads"))
     ratios = paired.paired(exp.ratios(BASELINE))
-    out = speedups.with_speedup(exp.frame, thread_baseline=True, ratios=ratios)
+    out = speedups.with_speedup(exp.frame, facts, thread_baseline=True, ratios=ratios)
     cell = out[(out["variant"] == "p1") & (out["threads"] == 4)].iloc[0]
     speedup = paired_interval(3.0)
     low, high = speedup.low, speedup.high
@@ -189,7 +190,7 @@ def test_the_reading_section_names_the_spread_and_quotes_the_coverage_reruns_mea
 
 
 
-def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
+def test_the_store_s_own_files_pair_up(tmp_path: Path, facts: Variants) -> None:
     """Records as a run writes them, read back (analysis.results): every ratio finds its cell,
     whatever the cells' rows and their ratios make of numbers and empty schedules."""
     scene = {"experiment": "e", "title": "t", "build": "f64", "scene": "random", "n": 100,
@@ -206,7 +207,7 @@ def test_the_store_s_own_files_pair_up(tmp_path: Path) -> None:
     exp = results.load_experiment(write_experiment(tmp_path, "e", rows))
     ratios = paired.paired(exp.ratios(BASELINE))
     assert ratios is not None and len(ratios) == 5
-    out = speedups.with_speedup(exp.frame, ratios=ratios)
+    out = speedups.with_speedup(exp.frame, facts, ratios=ratios)
     p1 = out[out["variant"] == "p1"]
     assert p1["speedup_paired"].all()
     over_seq = ratios[ratios["kind"] == RATIO_OVER_BASELINE].set_index("threads")

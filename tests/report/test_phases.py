@@ -13,6 +13,7 @@ from harness.analysis import cells as acells
 from harness.analysis import display, export, phases, results
 from harness.measure import timing as timing_line
 from harness.report.pipeline import render
+from harness.spec.facts import Variants
 from harness.store import columns
 
 from fixture_results import write_measured
@@ -137,8 +138,8 @@ def test_table_shows_the_columns_numbers(rendered: Path) -> None:
         assert row[-1] == display.format_value("output_s", output)  # no share: not in sim_s
 
 
-def test_shares_sum_to_100_percent(results_root: Path) -> None:
-    sel = phases.select(frame_of(results_root / "bench"))
+def test_shares_sum_to_100_percent(results_root: Path, facts: Variants) -> None:
+    sel = phases.select(frame_of(results_root / "bench"), facts)
     assert sel is not None
     table = phases.phase_table(sel)
     shares = table[[f"{p}{acells.SHARE_SUFFIX}" for p in phases.SIM_PHASES]].sum(axis=1)
@@ -171,7 +172,7 @@ def test_the_summary_says_where_grids_time_goes(rendered: Path) -> None:
     assert "(#bench-phases)" in line
 
 
-def test_one_thread_count_per_experiment_and_notes(tmp_path: Path) -> None:
+def test_one_thread_count_per_experiment_and_notes(tmp_path: Path, facts: Variants) -> None:
     root = tmp_path / "results"
     sim, output, phase = CELLS["p1d"]
     records = [record("p1d", sim, output, phase, threads=t) for t in (1, 2, 4)]
@@ -179,7 +180,7 @@ def test_one_thread_count_per_experiment_and_notes(tmp_path: Path) -> None:
     records.append(record("seq", *CELLS["seq"][:2], None, threads=1))  # an older binary
     write_experiment(root, "sweep", records)
     frame = frame_of(root / "sweep")
-    sel = phases.select(frame)
+    sel = phases.select(frame, facts)
     assert sel is not None
     # 1 and 2 threads have two cells with phases each: the fewest wins the tie.
     assert sel.threads == 1 and list(sel.cells["variant"]) == ["p1d", "grid"]
@@ -193,7 +194,7 @@ def test_one_thread_count_per_experiment_and_notes(tmp_path: Path) -> None:
 
 
 def test_scenes_get_their_own_rows_and_the_largest_grid_leads_the_summary(
-        tmp_path: Path) -> None:
+        tmp_path: Path, facts: Variants) -> None:
     root = tmp_path / "results"
     records = []
     for n, scale in ((1000, 0.01), (10000, 1.0), (100000, 100.0)):
@@ -202,7 +203,7 @@ def test_scenes_get_their_own_rows_and_the_largest_grid_leads_the_summary(
                                   {k: v * scale for k, v in phase.items()}, n=n))
     write_experiment(root, "sizes", records)
     frame = frame_of(root / "sizes")
-    sel = phases.select(frame)
+    sel = phases.select(frame, facts)
     assert sel is not None and sel.scene_keys == ("n",)
     plotted = phases.plot_frame(sel)
     assert list(dict.fromkeys(plotted[phases.GROUP])) == ["N=1000", "N=10000", "N=100000"]
@@ -213,7 +214,7 @@ def test_scenes_get_their_own_rows_and_the_largest_grid_leads_the_summary(
     assert "each scene has its own scale" in markdown
 
 
-def test_too_many_bars_leave_the_cheapest_scenes_out(tmp_path: Path) -> None:
+def test_too_many_bars_leave_the_cheapest_scenes_out(tmp_path: Path, facts: Variants) -> None:
     sizes = [1000 + 100 * k for k in range(20)]
     sizes = sizes[::2] + sizes[1::2]  # not in order of cost: the rule sorts
     records = []
@@ -223,7 +224,7 @@ def test_too_many_bars_leave_the_cheapest_scenes_out(tmp_path: Path) -> None:
             records.append(record(variant, sim * scale, output,
                                   {k: v * scale for k, v in phase.items()}, n=n))
     path = write_experiment(tmp_path, "many", records)
-    sel = phases.select(frame_of(path))
+    sel = phases.select(frame_of(path), facts)
     assert sel is not None
     shown = sorted(set(sel.cells["n"]))
     assert len(sel.cells) <= phases.MAX_BARS < len(sel.cells) + len(CELLS)
@@ -232,12 +233,12 @@ def test_too_many_bars_leave_the_cheapest_scenes_out(tmp_path: Path) -> None:
     assert sel.scenes_left_out == len(sizes) - len(shown)
 
 
-def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
+def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path, facts: Variants) -> None:
     """Another cell's numbers give another table: nothing in it is fixed."""
     sim, output, phase = 3.0, 0.5, {"broad_s": 1.5, "walls_s": 0.25, "sort_s": 0.25,
                                     "resolve_s": 0.25, "motion_s": 0.25}
     path = write_experiment(tmp_path, "e", [record("grid", sim, output, phase)])
-    sel = phases.select(frame_of(path))
+    sel = phases.select(frame_of(path), facts)
     assert sel is not None
     table = phases.phase_table(sel)
     assert table["sim_s"].iloc[0] == 3.0 and table["output_s"].iloc[0] == 0.5
@@ -250,11 +251,11 @@ def test_the_table_numbers_follow_the_data_not_the_code(tmp_path: Path) -> None:
     assert shown.iloc[0]["output (--precise) [s]"] == "0.5"
 
 
-def test_machines_are_bars_beside_each_other_not_scenes(tmp_path: Path) -> None:
+def test_machines_are_bars_beside_each_other_not_scenes(tmp_path: Path, facts: Variants) -> None:
     records = [{**record(v, *CELLS[v]), "machine_id": machine * 8, "cell_id": f"{v}{machine}",
                 "machine": f"box {machine}"}
                for v in ("seq", "grid") for machine in ("aa", "bb")]
-    sel = phases.select(frame_of(write_experiment(tmp_path, "two", records)))
+    sel = phases.select(frame_of(write_experiment(tmp_path, "two", records)), facts)
     assert sel is not None
     assert sel.scene_keys == () and sel.row_keys == (acells.MACHINE, "variant")
     assert list(phases.plot_frame(sel)[phases.BAR]) == [

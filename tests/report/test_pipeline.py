@@ -14,6 +14,7 @@ import pytest
 from harness import repo
 from harness.cli import main as cli_main
 from harness.errors import HarnessError
+from harness.programs import hooks as programs
 from harness.report import pipeline
 from harness.store.layout import ExperimentDir
 
@@ -422,6 +423,25 @@ def test_a_programs_note_is_counted_by_its_agreement(tmp_path: Path) -> None:
     block = folded(markdown)["strategies-warnings"]
     assert "<summary>2 flagged cells: differs (1), invalid output (1)</summary>" in block
     assert f"| {note} |" in block
+
+
+def test_a_feature_s_part_is_in_the_render_it_is_given_to(tmp_path: Path) -> None:
+    """The report imports no feature: the programs' section and summary words appear where the
+    render is given their ReportFeature (as the command line gives it), and an experiment's part
+    built without it is not taken for one built with it."""
+    root = results_with(tmp_path, "strategies")
+    change_rows(root / "strategies", lambda row: {
+        "agreement": "differs", "first_diff_step": "3", "note": "drifts", "status": "invalid",
+    } if row["variant"] == "p2" else {"agreement": "", "first_diff_step": "", "note": ""})
+    out = tmp_path / "report"
+    without = pipeline.render(root, out).read_text(encoding="utf-8")
+    assert "### Programs" not in without and "program cells agree" not in without
+    with_it = pipeline.render(root, out, features=[programs.REPORT]).read_text(encoding="utf-8")
+    assert "### Programs" in with_it
+    fidelity = with_it.split("- Fidelity: ", 1)[1].split("\n", 1)[0]
+    assert "0 of 1 program cells agree with seq (identical, rounding or diverges) " \
+           "([programs](#strategies-programs))" in fidelity
+    assert pipeline.render(root, out).read_text(encoding="utf-8") == without
 
 
 def test_each_machine_gets_its_own_page_and_a_comparison(tmp_path: Path) -> None:

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import agreement, events, printed
-from harness.measure.agreement import Agreement
-from harness.measure.printed import read_rows
+from harness.programs import agreement, events, printed
+from harness.programs.agreement import Agreement
+from harness.programs.printed import read_rows
 from harness.spec import scenes
 from harness.store.columns import CORRECT, IDENTICAL, IMPRECISE, ROUNDING, WRONG
 
@@ -206,6 +206,7 @@ def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: 
     import shutil
 
     from harness.executors.base import Options
+    from harness.programs import hooks as program_hooks
     from harness.report import pipeline
     from harness.runner.experiment import run_experiment
     from harness.spec.parse import load_config
@@ -233,8 +234,9 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     root = tmp_path / "results"
     loaded = load_config(config)
     assert [p.name for p in loaded.programs] == ["plain", "race", "slip"]
-    run_experiment(loaded, Options(repo_root=repo.REPO_ROOT, results_root=root), io.StringIO(),
-                   io.StringIO())
+    run_experiment(loaded, Options(repo_root=repo.REPO_ROOT, results_root=root,
+                                   program_runner=program_hooks.start_program),
+                   io.StringIO(), io.StringIO())
     with (root / "class" / "results.csv").open() as handle:
         got = {(r["variant"], r["threads"]): r for r in csv.DictReader(handle)}
     assert got[("plain", "2")]["agreement"] in {IDENTICAL, ROUNDING}
@@ -252,7 +254,7 @@ measure: {{warmup: 0, runs: 1, timeout_s: 120}}
     assert race["races"].startswith(f"{where} and {where}") and "ThreadSanitizer" in race["note"]
     assert (got[("plain", "2")]["races"], got[("slip", "2")]["races"]) == ("none", "none")
     assert got[("race", "1")]["races"] == ""
-    report = pipeline.render(root, tmp_path / "report").read_text()
+    report = pipeline.render(root, tmp_path / "report", features=[program_hooks.REPORT]).read_text()
     assert "### Programs" in report and "`slip`'s first wrong step (2" in report
     with (tmp_path / "report" / "figures" / "class-programs.csv").open() as handle:
         table = list(csv.DictReader(handle))

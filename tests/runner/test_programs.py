@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.errors import HarnessError
 from harness.executors.base import Options
+from harness.programs import hooks as programs
 from harness.report import pipeline
 from harness.runner.experiment import run_experiment
 from harness.spec.parse import load_config
@@ -34,8 +36,9 @@ def rows_of(root: Path, name: str) -> list[dict[str, str]]:
 def run(config_path: Path, root: Path) -> tuple[str, object]:
     log = io.StringIO()
     config = load_config(config_path)
-    summary = run_experiment(config, Options(repo_root=repo.REPO_ROOT, results_root=root), log,
-                             io.StringIO())
+    options = Options(repo_root=repo.REPO_ROOT, results_root=root,
+                      program_runner=programs.start_program)
+    summary = run_experiment(config, options, log, io.StringIO())
     return log.getvalue(), summary
 
 
@@ -97,7 +100,7 @@ validate: true
     assert "slippy" in log and "wrong at step" in log
     _, second = run(config, root)
     assert (second.measured, second.cached) == (0, 13)  # type: ignore[attr-defined]
-    report = pipeline.render(root, workdir / "report").read_text()
+    report = pipeline.render(root, workdir / "report", features=[programs.REPORT]).read_text()
     assert "### Programs" in report
     assert "| slippy |" in report and "wrong from step" in report
     # The summary judges programs by their agreement, apart from the variants' byte identity
@@ -154,3 +157,22 @@ measure: {{warmup: 0, runs: 1, timeout_s: 60}}
     run(config, root)
     peak = {r["variant"]: float(r["peak_rss_mib"]) for r in rows_of(root, "memory")}
     assert 1 < peak["student"] < 64 < peak["hungry"] < 4 * 64, peak
+
+
+def test_a_program_is_measured_only_with_the_runner_the_command_line_lends(
+        real_binaries: Path, workdir: Path) -> None:
+    """The core imports no feature: without the programs feature's runner (harness.cli lends it
+    to every command) a program's cell is refused, naming the program, and nothing is judged."""
+    config = workdir / "alone.yaml"
+    config.write_text(f"""\
+name: alone
+variants: [student]
+programs:
+  student: "{PY} student.py {{threads}} < {{input}}"
+scene: {{n: 40, L: 120, r: 1, steps: 2, seed: 9}}
+measure: {{warmup: 0, runs: 1, timeout_s: 60}}
+""")
+    options = Options(repo_root=repo.REPO_ROOT, results_root=workdir / "results")
+    with pytest.raises(HarnessError, match="student: a program's cell, but this command was "
+                                           "given no way to run and check programs"):
+        run_experiment(load_config(config), options, io.StringIO(), io.StringIO())

@@ -1,7 +1,7 @@
 /*
  * sim_replay.c: `--replay`, one step of SPEC §2 from each of a sequence of given states: what
  * the reference rules make of a state another program printed. The harness judges a program
- * step by step with it (harness/measure/steps.py): a program's step k+1 is compared with the
+ * step by step with it (harness/programs/steps.py): a program's step k+1 is compared with the
  * successor of its own step k, so the chaos of the whole trajectory never enters the verdict.
  * One process replays every state; the stepper is made once.
  *
@@ -28,7 +28,7 @@
  * as text cost the harness more than the replay itself): per printed particle one record of
  * SIM_REPLAY_RECORD bytes, int64 k+1, int32 i, double x, y, vx, vy, T, int32 PARTNER, uint8
  * EVENT (0 free, 1 pair, 2 wall), in the text form's order; native byte order, no padding.
- * harness/measure/steps.py reads it.
+ * harness/programs/steps.py reads it.
  */
 #include <errno.h>
 #include <math.h>

@@ -30,6 +30,7 @@ from harness.report.figures.base import (
     variant_color,
     wants_log,
 )
+from harness.spec.facts import Variants
 from harness.store.columns import INVALID, TIMED_STATUSES
 
 # --- error against run time ---------------------------------------------------------------
@@ -47,11 +48,12 @@ def error_floor(errors: pd.Series) -> float:
     return 10.0 ** (math.floor(math.log10(nonzero.min())) - 1)
 
 
-def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
+def fig_error_time(df: pd.DataFrame, out: Path, *, variants: Variants, title: str | None = None,
                    error: str = "max_pos_err", ylabel: str | None = None) -> list[Path]:
     """Time against deviation from the baseline per variant and build, Pareto front marked.
 
-    Colors tell variants apart and hollow marker shapes builds; the cells on the Pareto front
+    Colors tell variants apart (`variants`, their facts, give each its own) and hollow marker
+    shapes builds; the cells on the Pareto front
     are ringed, joined and named. Exact cells (zero error) sit on a dotted floor line a decade
     below the smallest nonzero error. Pass the cells of one scene: fronts across scenes mean
     nothing. `error` names the error column (e.g. the shadow-step error `shadow_pos_err`).
@@ -61,7 +63,7 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
         & df["wall_median_s"].notna()
         & np.isfinite(df[error])  # an infinite error (diverged) has no place on it
     ]
-    rows = sort_cells(rows, ["variant", "build", "threads"])
+    rows = sort_cells(rows, ["variant", "build", "threads"], variants)
     floor = error_floor(rows[error])
     shown = rows[error].where(rows[error] > 0, floor)
     times = rows["wall_median_s"]
@@ -71,7 +73,7 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
     for i in range(len(rows)):
         row = rows.iloc[i]
         ax.plot(times.iloc[i], shown.iloc[i], markers[row["build"]], ls="none", ms=8,
-                color=variant_color(str(row["variant"])), mec="black", mew=0.6)
+                color=variant_color(str(row["variant"]), variants), mec="black", mew=0.6)
         if row["status"] == INVALID:
             ax.plot(times.iloc[i], shown.iloc[i], "x", color="black", ms=9, mew=2)
     _draw_front(ax, rows, times, shown, pareto_mask(times, rows[error]).to_numpy(dtype=bool))
@@ -88,7 +90,7 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, title: str | None = None,
     ax.set_ylabel(ylabel or "max position error vs baseline [÷ L]")
     set_title(ax, title or "Error against run time")
     ax.grid(True, which="major", alpha=0.3)
-    handles = _error_time_handles(rows, markers, floor if has_zero else None)
+    handles = _error_time_handles(rows, markers, floor if has_zero else None, variants)
     ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
               borderaxespad=0)
     return save_figure(fig, out)
@@ -114,12 +116,12 @@ def _draw_front(ax: Axes, rows: pd.DataFrame, times: pd.Series, shown: pd.Series
 
 
 def _error_time_handles(rows: pd.DataFrame, markers: dict[str, str],
-                        zero_floor: float | None) -> list[Line2D]:
+                        zero_floor: float | None, variants: Variants) -> list[Line2D]:
     """The legend of fig_error_time: variants by color, builds by marker, the front, and the
     floor zero errors are drawn at (`zero_floor`, where some are) and invalid cells."""
     handles = [
-        Line2D([], [], ls="none", marker="o", ms=8, color=variant_color(v), mec="black",
-               mew=0.6, label=v)
+        Line2D([], [], ls="none", marker="o", ms=8, color=variant_color(v, variants),
+               mec="black", mew=0.6, label=v)
         for v in dict.fromkeys(rows["variant"])
     ]
     handles += [
@@ -149,10 +151,10 @@ DIVERGENCE_MARGINS: dict[str, float] = {**MARGINS, "left": 0.08, "right": 0.74,
 BUILD_LINESTYLES: tuple[str, ...] = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
 
-def _identical_curves(div: pd.DataFrame) -> list[tuple[str, str, str]]:
+def _identical_curves(div: pd.DataFrame, variants: Variants) -> list[tuple[str, str, str]]:
     """(variant, build, label) per group of variant/builds whose curves are identical against
     every reference: one line stands for the group, named after its first member."""
-    ordered = sort_cells(div, ["variant", "build", "reference", "step"])
+    ordered = sort_cells(div, ["variant", "build", "reference", "step"], variants)
     groups: dict[tuple[float, ...], list[tuple[str, str]]] = {}
     for (variant, build), rows in ordered.groupby(["variant", "build"], sort=False):
         key = tuple(np.nan_to_num(rows["max_pos_dev"].to_numpy(dtype=float), nan=-1.0))
@@ -170,7 +172,7 @@ def _identical_curves(div: pd.DataFrame) -> list[tuple[str, str, str]]:
 
 
 def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
-                   title: str | None = None) -> list[Path]:
+                   variants: Variants, title: str | None = None) -> list[Path]:
     """The largest position deviation (÷ L) at each printed step, one line per variant/build
     (identical curves drawn once), one panel per reference (seq in double; the __float128
     truth). Pass one scene's rows of divergence.csv. Zero deviations sit on a dotted floor a
@@ -183,9 +185,9 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
     finite = values[np.isfinite(values)]
     floor = error_floor(pd.Series(finite))
     top = max(float(finite.max()) if len(finite) else 1.0, radius / box) * 3
-    builds = list(dict.fromkeys(sort_cells(div, ["build"])["build"]))
+    builds = list(dict.fromkeys(sort_cells(div, ["build"], variants)["build"]))
     styles = {b: BUILD_LINESTYLES[i % len(BUILD_LINESTYLES)] for i, b in enumerate(builds)}
-    curves = _identical_curves(div)
+    curves = _identical_curves(div, variants)
     for ax, reference in zip(axes, references, strict=False):
         rows = div[div["reference"] == reference]
         for variant, build, label in curves:
@@ -194,7 +196,7 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
             y = curve["max_pos_dev"].to_numpy(dtype=float)
             y = np.where(np.isfinite(y), np.maximum(y, floor), top)
             ax.plot(curve["step"], y, ls=styles[build], marker="o", ms=3, lw=1.5, alpha=0.8,
-                    color=variant_color(variant), label=label)
+                    color=variant_color(variant, variants), label=label)
         ax.axhline(radius / box, ls="--", color="gray", lw=1)
         ax.axhline(floor, ls=":", color="gray", lw=1)
         ax.set_yscale("log")

@@ -28,7 +28,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
 
 from harness.analysis.cells import INTERVAL_SUFFIXES, sort_cells
-from harness.spec.facts import current
+from harness.spec.facts import Variants
 from harness.store import atomic
 from harness.store.columns import INVALID, TIMED_STATUSES
 
@@ -131,12 +131,12 @@ def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
     return np.where(known, np.clip(np.vstack([values - lows, highs - values]), 0, None), 0.0)
 
 
-def variant_color(variant: str) -> str:
-    """A fixed color per variant, the same in every figure: each family (a variant and those
-    that repair it, harness.spec.facts) its own hue, a repair the light shade of it."""
-    registry = current()
-    families = registry.families
-    family = registry.family(variant)
+def variant_color(variant: str, variants: Variants) -> str:
+    """A fixed color per variant of `variants`, the same in every figure: each family (a
+    variant and those that repair it, harness.spec.facts) its own hue, a repair the light
+    shade of it."""
+    families = variants.families
+    family = variants.family(variant)
     if family in families:
         shades = LIGHT_PALETTE if family != variant else PALETTE
         return shades[families.index(family) % len(shades)]
@@ -145,16 +145,19 @@ def variant_color(variant: str) -> str:
     return PALETTE[(len(families) + zlib.crc32(variant.encode()) % spare) % len(PALETTE)]
 
 
-def series_colors(groups: Sequence[tuple[tuple, pd.DataFrame]], keys: Sequence[str]) -> list:
+def series_colors(groups: Sequence[tuple[tuple, pd.DataFrame]], keys: Sequence[str],
+                  variants: Variants) -> list:
     """Series colors: by variant when series differ only by variant, else by position."""
     if list(keys) == ["variant"]:
-        return [variant_color(str(values[0])) for values, _ in groups]
+        return [variant_color(str(values[0]), variants) for values, _ in groups]
     return [PALETTE[i % len(PALETTE)] for i in range(len(groups))]
 
 
-def series_groups(df: pd.DataFrame, keys: Sequence[str]) -> list[tuple[tuple, pd.DataFrame]]:
-    """The rows split by `keys` in the tables' canonical order, each with its key tuple."""
-    ordered = sort_cells(df, keys)
+def series_groups(df: pd.DataFrame, keys: Sequence[str],
+                  variants: Variants) -> list[tuple[tuple, pd.DataFrame]]:
+    """The rows split by `keys` in the tables' canonical order (variants in that of
+    `variants`), each with its key tuple."""
+    ordered = sort_cells(df, keys, variants)
     if not keys:
         return [((), ordered)] if len(ordered) else []
     return [(values if isinstance(values, tuple) else (values,), group)

@@ -35,6 +35,7 @@ from harness.report.figures.base import (
     shade_oversubscribed,
     wants_log,
 )
+from harness.spec.facts import Variants
 from harness.store.columns import OK, PEAK_RSS, TIMED_STATUSES
 
 # --- time against a swept parameter (the course report's Figures 3-6) ---------------------
@@ -60,20 +61,20 @@ SWEEPS: dict[str, SweepAxis] = {
 }
 
 
-def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
-                ) -> list[Path]:
+def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
+                title: str | None = None) -> list[Path]:
     """Median wall time against the swept parameter `x` (a key of SWEEPS), one line per
     series: the course report's Figures 3-6 (N, L, r, threads).
 
     Against N (log-log) each series' label carries its fitted growth exponent and a dashed
     guide shows N² (all pairs); against threads each series gets its ideal-scaling line
-    T(p0)·p0/p.
+    T(p0)·p0/p. `variants` (their facts) order and colour the series.
     """
     axis = SWEEPS[x]
     keys = series_keys(df, x)
-    groups = series_groups(df, keys)
-    colors = series_colors(groups, keys)
-    exponents = growth_exponents(df, x) if x == "n" else pd.DataFrame()
+    groups = series_groups(df, keys, variants)
+    colors = series_colors(groups, keys, variants)
+    exponents = growth_exponents(df, variants, x) if x == "n" else pd.DataFrame()
     fig, ax = new_figure()
     marks = Marks()
     extra: list[Line2D] = []
@@ -82,7 +83,7 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
         if x == "n":
             label += _exponent_suffix(exponents, keys, values)
         plot_series(ax, rows, x, "wall_median_s", color, label, marks)
-        if x == "threads" and _draw_ideal_threads(ax, rows, color):  # not for seq
+        if x == "threads" and _draw_ideal_threads(ax, rows, color, variants):  # not for seq
             extra = [Line2D([], [], ls="--", color="gray", label="ideal T(p₀)·p₀/p")]
     if x == "n" and _draw_square_guide(ax, df):
         extra.append(Line2D([], [], ls="--", color="gray", lw=2, alpha=0.5, label="∝ N² guide"))
@@ -94,18 +95,19 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, title: str | None = None
                    [*extra, *marker_handles(marks)])
 
 
-def fig_memory_vs(df: pd.DataFrame, out: Path, *, x: str = "n", title: str | None = None
-                  ) -> list[Path]:
+def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "n",
+                  title: str | None = None) -> list[Path]:
     """Each cell's peak resident memory (`peak_rss_mib`, MiB: the largest resident set of its
     untimed run of its own program and input) against the swept parameter `x` (log), one line
     per series (variant, threads, ... as they vary)."""
     axis = SWEEPS[x]
     rows = df[df[PEAK_RSS].notna()] if PEAK_RSS in df.columns else df.iloc[:0]
     keys = series_keys(rows, x)
-    groups = series_groups(rows, keys)
+    groups = series_groups(rows, keys, variants)
     fig, ax = new_figure()
     marks = Marks()
-    for (values, group), color in zip(groups, series_colors(groups, keys), strict=True):
+    for (values, group), color in zip(groups, series_colors(groups, keys, variants),
+                                      strict=True):
         plot_series(ax, group, x, PEAK_RSS, color, series_label(values, keys), marks)
     set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
     # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
@@ -147,10 +149,10 @@ def _exponent_suffix(exponents: pd.DataFrame, keys: Sequence[str], values: tuple
     return rf" (t$\propto$N$^{{{k:.2f}}}${error})"
 
 
-def _draw_ideal_threads(ax: Axes, rows: pd.DataFrame, color: str) -> bool:
+def _draw_ideal_threads(ax: Axes, rows: pd.DataFrame, color: str, variants: Variants) -> bool:
     """Perfect scaling from the series' fewest-thread ok cell: T(p0)·p0/p. False if no line."""
     ok = rows[(rows["status"] == OK) & rows["wall_median_s"].notna()]
-    if ok["threads"].nunique() < 2 or single_threaded(ok["variant"]).all():
+    if ok["threads"].nunique() < 2 or single_threaded(ok["variant"], variants).all():
         return False  # seq runs one thread whatever it is told: it has nothing to scale
     first = ok.sort_values("threads").iloc[0]
     p = np.unique(rows["threads"].to_numpy(dtype=float))
@@ -175,14 +177,15 @@ def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
 
 
 def _thread_metric_figure(
-    df: pd.DataFrame, y: str, ylabel: str, title: str, out: Path, ideal: Callable[[Axes], str]
+    df: pd.DataFrame, y: str, ylabel: str, title: str, out: Path, ideal: Callable[[Axes], str],
+    variants: Variants,
 ) -> list[Path]:
     """A per-series plot of a speedup-derived metric against threads, with its ideal line:
     the rows that have it, and those that produced no time (drawn on the axis)."""
     df = df[df[y].notna() | ~df["status"].isin(TIMED_STATUSES)]
     keys = series_keys(df, "threads")
-    groups = series_groups(df, keys)
-    colors = series_colors(groups, keys)
+    groups = series_groups(df, keys, variants)
+    colors = series_colors(groups, keys, variants)
     fig, ax = new_figure()
     marks = Marks()
     for (values, rows), color in zip(groups, colors, strict=True):
@@ -198,7 +201,8 @@ def _thread_metric_figure(
     return save_figure(fig, out)
 
 
-def fig_speedup(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+def fig_speedup(df: pd.DataFrame, out: Path, *, variants: Variants,
+                title: str | None = None) -> list[Path]:
     """Speedup against threads (rows from analysis.speedup.with_speedup), ideal S = p, log-log
     base 2."""
     def ideal(ax: Axes) -> str:
@@ -209,10 +213,11 @@ def fig_speedup(df: pd.DataFrame, out: Path, *, title: str | None = None) -> lis
         return "ideal S = p"
 
     return _thread_metric_figure(df, "speedup", "speedup S = T(baseline) / T(p)",
-                                 title or "Speedup against threads", out, ideal)
+                                 title or "Speedup against threads", out, ideal, variants)
 
 
-def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+def fig_efficiency(df: pd.DataFrame, out: Path, *, variants: Variants,
+                   title: str | None = None) -> list[Path]:
     """Parallel efficiency S/p against threads, ideal 1."""
     def ideal(ax: Axes) -> str:
         ax.axhline(1.0, ls="--", color="black", lw=1)
@@ -222,10 +227,11 @@ def fig_efficiency(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
         return "ideal E = 1"
 
     return _thread_metric_figure(df, "efficiency", "parallel efficiency E = S / p",
-                                 title or "Efficiency against threads", out, ideal)
+                                 title or "Efficiency against threads", out, ideal, variants)
 
 
-def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> list[Path]:
+def fig_karp_flatt(df: pd.DataFrame, out: Path, *, variants: Variants,
+                   title: str | None = None) -> list[Path]:
     """The Karp-Flatt serial fraction e against threads p > 1; ideal 0, rising e = overhead."""
     def ideal(ax: Axes) -> str:
         ax.axhline(0.0, ls="--", color="black", lw=1)
@@ -233,4 +239,5 @@ def fig_karp_flatt(df: pd.DataFrame, out: Path, *, title: str | None = None) -> 
 
     return _thread_metric_figure(df[df["threads"] > 1], "serial_fraction",
                                  "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
-                                 title or "Karp–Flatt serial fraction against threads", out, ideal)
+                                 title or "Karp–Flatt serial fraction against threads", out,
+                                 ideal, variants)

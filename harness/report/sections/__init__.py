@@ -1,9 +1,12 @@
 """One experiment's section: what its rows vary decides the parts it gets. Each part is one
 module here with a `build(ctx) -> list[Section]` that returns nothing where the rows do not
 support it; BESIDE and MAIN register them, in the order the report shows them after the cell
-table. A new part is a new module and one line below."""
+table. A new part is a new module and one line below. A feature's sections (the builders of
+the harness.report.features given to the render) come first beside the cell table."""
 
 from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 
 import pandas as pd
 
@@ -17,7 +20,6 @@ from harness.report.sections import (
     checks,
     error,
     phases,
-    programs,
     ranks,
     speedup,
     strategies,
@@ -28,15 +30,17 @@ from harness.report.sections.context import Context
 
 # Parts beside the cell table (the strategy study, where the time goes): they do not count as
 # showing the experiment, so a lone cell still gets its table beside them.
-BESIDE = (programs.build, strategies.build, phases.build)
+BESIDE = (strategies.build, phases.build)
 # The parts that show the experiment; the cell table, built last, knows whether any did.
 MAIN = (sweeps.build, speedup.build, ranks.build, error.build, trajectory.build, checks.build)
 
 
-def experiment_section(exp: Experiment, figs: Manifest) -> Section:
-    """Everything the experiment's data supports, each part driven by what the rows vary."""
+def experiment_section(exp: Experiment, figs: Manifest,
+                       features: Sequence[Callable[[Context], list[Section]]] = ()) -> Section:
+    """Everything the experiment's data supports, each part driven by what the rows vary; the
+    features' sections (their builders) first beside the cell table."""
     ctx = Context(exp, figs)
-    beside = [s for build in BESIDE for s in build(ctx)]
+    beside = [s for build in (*features, *BESIDE) for s in build(ctx)]
     main = [s for build in MAIN for s in build(ctx)]
     parts = [s for s in (*cells.build(ctx, alone=not main), *beside, *main) if s.blocks]
     words = [disturbed_text(exp.frame), measured_text(exp.frame),

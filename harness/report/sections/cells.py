@@ -47,8 +47,8 @@ def build(ctx: Context, alone: bool) -> list[Section]:
         return []
     exp, axes = ctx.exp, ctx.swept
     df = exp.frame
-    table = cell_table(df, ctx.varying or ["variant"], thread_baseline="threads" in axes,
-                       ratios=exp.ratios)
+    table = cell_table(df, ctx.varying or ["variant"], ctx.variants,
+                       thread_baseline="threads" in axes, ratios=exp.ratios)
     blocks: list[Block] = []
     if "baseline" in table.columns:
         baselines = [b for b in table["baseline"].unique() if b]
@@ -64,7 +64,7 @@ def build(ctx: Context, alone: bool) -> list[Section]:
         blocks.append(Paragraph("No ok seq cell on the same scene: no speedups."))
     elif (df["threads"] == 1).all():
         table = drop_columns(table, ["efficiency"])  # at one thread: the speedup again
-    elif not all_pairs(df["variant"]).all() or df["build"].nunique() > 1:
+    elif not all_pairs(df["variant"], ctx.variants).all() or df["build"].nunique() > 1:
         blocks.append(Paragraph(
             "Efficiency and serial fraction are left blank where the speedup also counts a "
             "different algorithm or build (relative, grid, another build than seq's)."

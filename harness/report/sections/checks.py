@@ -25,6 +25,7 @@ from harness.report.figures.accuracy import fig_divergence, fig_error_time
 from harness.report.load import Experiment
 from harness.report.sections.context import Context, table_block
 from harness.spec.builds import DESCRIPTIONS
+from harness.spec.facts import Variants
 from harness.store.columns import DIVERGENCE_COLUMNS
 
 MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)
@@ -84,7 +85,8 @@ def _checked_scenes(exp: Experiment) -> list[CheckedScene]:
 def build(ctx: Context) -> list[Section]:
     if not has_check_data(ctx.exp.frame):
         return []
-    sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame))]
+    sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame,
+                                                                             ctx.variants))]
     accuracy_blocks = _accuracy_blocks(ctx)
     if accuracy_blocks:
         sections.append(ctx.section("Accuracy: shadow steps and divergence", "accuracy",
@@ -92,14 +94,14 @@ def build(ctx: Context) -> list[Section]:
     return sections
 
 
-def _stability_blocks(df: pd.DataFrame) -> list[Block]:
-    trust = trust_table(df)
+def _stability_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
+    trust = trust_table(df, variants)
     return [
         Paragraph(CHECKS_INTRO),
-        table_block(stability_matrix(df), f"Scene × variant/build: {PASS_MARK} every check "
-                    f"passed, {FAIL_MARK} the checks that failed.", source=df),
-        table_block(check_summary(df), "Each check over all checked cells."),
-        Paragraph(build_words(build_trust(df))),
+        table_block(stability_matrix(df, variants), f"Scene × variant/build: {PASS_MARK} every "
+                    f"check passed, {FAIL_MARK} the checks that failed.", source=df),
+        table_block(check_summary(df, variants), "Each check over all checked cells."),
+        Paragraph(build_words(build_trust(df, variants))),
         Paragraph(trust_words(trust)),
         table_block(
             trust,
@@ -120,7 +122,7 @@ def _accuracy_blocks(ctx: Context) -> list[Block]:
     blocks: list[Block] = []
     if timed.any():
         blocks.append(table_block(
-            accuracy_table(df[timed], ctx.cell_keys),
+            accuracy_table(df[timed], ctx.cell_keys, ctx.variants),
             "Error against run time: the whole-run deviation from the baseline (÷ L), the mean "
             "shadow-step error (one step against __float128, ÷ L) and its worst in radii, the "
             "share of steps whose accepted collisions differ, the energy drift and the steps "
@@ -136,8 +138,8 @@ def _accuracy_blocks(ctx: Context) -> list[Block]:
                 fig_error_time, cells[cells["shadow_pos_err"].notna()], f"shadow-vs-time{suffix}",
                 f"Median time against the mean one-step error against __float128 at {scene.label}; "
                 "the ringed cells joined by the line form the Pareto front.",
-                title=f"Shadow-step error against time ({scene.label})", error="shadow_pos_err",
-                ylabel="shadow-step error, mean [÷ L]"))
+                variants=ctx.variants, title=f"Shadow-step error against time ({scene.label})",
+                error="shadow_pos_err", ylabel="shadow-step error, mean [÷ L]"))
         if not scene.divergence.empty:
             first = scene.cells.iloc[0]
             blocks.append(ctx.figure(
@@ -145,7 +147,7 @@ def _accuracy_blocks(ctx: Context) -> list[Block]:
                 f"Step-by-step growth of the largest position deviation (÷ L) at {scene.label}, "
                 "against seq in double (left) and the __float128 truth (right); identical "
                 "curves are drawn once; dashed: one radius.",
-                box=float(first["L"]), radius=float(first["r"]),
+                box=float(first["L"]), radius=float(first["r"]), variants=ctx.variants,
                 title=f"Divergence ({scene.label})"))
     return blocks
 

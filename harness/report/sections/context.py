@@ -19,6 +19,7 @@ from harness.analysis.trust import has_check_data
 from harness.report.cache import Manifest
 from harness.report.document import Block, Figure, Section, Table, slug
 from harness.report.load import Experiment
+from harness.spec.facts import Variants
 from harness.store.columns import TIMED_STATUSES
 
 
@@ -38,6 +39,11 @@ def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None =
 class Context:
     exp: Experiment
     figs: Manifest
+
+    @property
+    def variants(self) -> Variants:
+        """The facts of the variants the experiment measured: their order, colours and kinds."""
+        return self.exp.variants
 
     @property
     def name(self) -> str:

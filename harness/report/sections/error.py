@@ -36,7 +36,7 @@ def build(ctx: Context) -> list[Section]:
         return []
     df = ctx.exp.frame
     blocks: list[Block] = [table_block(
-        error_table(df, ctx.cell_keys),
+        error_table(df, ctx.cell_keys, ctx.variants),
         "Deviation from the baseline output (maximum over particles; positions relative to L) "
         "and median time; ✓ marks the Pareto front of each scene.", source=df,
     )]
@@ -54,6 +54,7 @@ def build(ctx: Context) -> list[Section]:
             fig_error_time, group, "error-vs-time" + (f"-{index + 1}" if len(scenes) > 1 else ""),
             f"Median time against maximum position error per variant and build{at}; the ringed "
             f"cells joined by the line form the Pareto front.{notes}",
+            variants=ctx.variants,
             title=f"{ctx.exp.title}: error against time" + (f" ({label})" if varying else "")))
     if len(scenes) > MAX_ERROR_FIGURES:
         blocks.append(Paragraph(f"Figures for {len(scenes) - MAX_ERROR_FIGURES} more scenes "

@@ -41,7 +41,7 @@ def _left_out(sel: phases.Selection) -> str:
 
 
 def build(ctx: Context) -> list[Section]:
-    sel = phases.select(ctx.exp.frame)
+    sel = phases.select(ctx.exp.frame, ctx.variants)
     if sel is None:
         return []
     frame = phases.plot_frame(sel)

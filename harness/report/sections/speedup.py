@@ -26,9 +26,10 @@ def build(ctx: Context) -> list[Section]:
     if "threads" not in ctx.axes:
         return []
     exp = ctx.exp
-    rows = with_speedup(exp.frame, thread_baseline=True, ratios=exp.ratios)
+    rows = with_speedup(exp.frame, ctx.variants, thread_baseline=True, ratios=exp.ratios)
     blocks: list[Block] = [
-        ctx.figure(draw, rows, suffix, caption, title=f"{exp.title}: {what}")
+        ctx.figure(draw, rows, suffix, caption, variants=ctx.variants,
+                   title=f"{exp.title}: {what}")
         for column, draw, suffix, what, caption in FIGURES if rows[column].notna().any()]
     if blocks:
         paired = paired_words(exp.ratios)

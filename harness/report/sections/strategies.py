@@ -67,18 +67,19 @@ def build(ctx: Context) -> list[Section]:
     if not study.one_scene(df):
         return []
     parts: list[Section] = []
-    seed = study.seed_table(df, ctx.exp.ratios)
+    seed = study.seed_table(df, ctx.variants, ctx.exp.ratios)
     if seed is not None:
         parts.append(ctx.section("Against the seed's Table 2", "seed", (
             Paragraph(SEED_INTRO),
             table_block(study.seed_display(seed),
                         f"Ours against the seed's published times (on {study.SEED_MACHINE})."),
-            Paragraph(study.ranking_sentence(seed, df)),
+            Paragraph(study.ranking_sentence(seed, df, ctx.variants)),
         )))
     work = study.work_table(df)
     if work is not None:
         parts.append(ctx.section("Work per thread", "work", (
-            ctx.figure(work_figure, work, "work-per-thread", WORK_CAPTION),)))
+            ctx.figure(work_figure, work, "work-per-thread", WORK_CAPTION,
+                       variants=ctx.variants),)))
     parts += _overhead(ctx)
     costs = study.chunk_costs(df)
     if costs:
@@ -106,7 +107,7 @@ def _overhead(ctx: Context) -> list[Section]:
     if not any(v in study.SEED_TIMES_S for v in df["variant"].unique()):
         return []
     title = "What the runtime's operations cost"
-    table = overhead.overhead_table(df)
+    table = overhead.overhead_table(df, ctx.variants)
     if table is None:
         return [ctx.section(title, "overhead", (Paragraph(overhead.MISSING_COSTS),))]
     costs = overhead.cost_table(df)
@@ -117,5 +118,5 @@ def _overhead(ctx: Context) -> list[Section]:
         table_block(table, "Per seed strategy and thread count: its operations per step, "
                     "the predicted seconds they cost over its repair's, and the measured ones "
                     "(medians).", source=df),
-        *(Paragraph(s) for s in overhead.overhead_sentences(table, df)),
+        *(Paragraph(s) for s in overhead.overhead_sentences(table, df, ctx.variants)),
     ))]

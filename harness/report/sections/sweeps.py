@@ -27,8 +27,9 @@ def _sweep(ctx: Context, axis: str) -> Section:
     caption = (f"Median wall time against {label} (cf. the course report's Figure "
                f"{COURSE_NUMBER[axis]}).")
     blocks: list[Block] = [ctx.figure(fig_time_vs, exp.frame, f"time-vs-{axis.lower()}",
-                                      caption, x=axis, title=f"{exp.title}: time against {label}")]
-    exponents = growth_exponents(exp.frame, "n") if axis == "n" else None
+                                      caption, x=axis, variants=ctx.variants,
+                                      title=f"{exp.title}: time against {label}")]
+    exponents = growth_exponents(exp.frame, ctx.variants, "n") if axis == "n" else None
     if exponents is not None and not exponents.empty:
         blocks += [Paragraph(GROWTH_TEXT), table_block(
             exponents, "Fitted growth t ≈ a·N^k over N = from … to, per series; k with its "
@@ -37,6 +38,6 @@ def _sweep(ctx: Context, axis: str) -> Section:
         blocks.append(ctx.figure(
             fig_memory_vs, exp.frame, "memory-vs-n", "Peak resident memory against N: the "
             "largest resident set of each cell's untimed run of its own program on its input "
-            "(a variant's --precise run, a program's run), in MiB.", x=axis,
+            "(a variant's --precise run, a program's run), in MiB.", x=axis, variants=ctx.variants,
             title=f"{exp.title}: peak memory against {label}"))
     return ctx.section(f"Time against {label}", axis.lower(), blocks)

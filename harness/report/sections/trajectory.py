@@ -21,7 +21,7 @@ def trajectory_cell(exp: Experiment) -> pd.Series | None:
     """The print-mode cell whose kept output to draw: ok, at least one step, seq first."""
     df = exp.frame
     rows = df[(df["mode"] == PRINT_MODE) & (df["status"] == OK) & (df["steps"] >= 1)]
-    for _, row in sort_cells(rows, ["variant", "build", "threads"]).iterrows():
+    for _, row in sort_cells(rows, ["variant", "build", "threads"], exp.variants).iterrows():
         if exp.directory.output(str(row["cell_id"])).is_file():
             return row
     return None

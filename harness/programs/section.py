@@ -1,6 +1,8 @@
-"""Programs: the class table (one row per program, also written as `<experiment>-programs.csv`
-for a gradebook), one line per program cell with its verdict and what it and the reference
-did at the step named, and for each wrong program a figure of its first wrong step."""
+"""Programs in the report: the section (the class table, one row per program, also written
+as `<experiment>-programs.csv` for a gradebook; one line per program cell with its verdict and
+what it and the reference did at the step named; for each wrong program a figure of its first
+wrong step) and the experiment's count of program cells that agree with seq, for the summary's
+fidelity line (harness.programs.REPORT gives both to the report)."""
 
 from __future__ import annotations
 
@@ -9,12 +11,17 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.analysis.programs import class_table, is_program, program_table
+from harness.analysis.cells import is_program
+from harness.analysis.serving import measured_once
+from harness.programs.figure import fig_wrong_step
+from harness.programs.tables import class_table, program_table
 from harness.report.document import Block, Paragraph, Section
-from harness.report.figures.programs import fig_wrong_step
+from harness.report.load import Experiment
+from harness.report.parts import Count
 from harness.report.sections.context import Context, table_block
+from harness.report.summary import subsection_anchor
 from harness.store import atomic
-from harness.store.columns import WRONG
+from harness.store.columns import AGREEING, WRONG
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
@@ -56,7 +63,7 @@ def build(ctx: Context) -> list[Section]:
         Paragraph(INTRO),
         table_block(grades, "The class: one row per program (also as a CSV, for a gradebook).",
                     programs, files=[csv]),
-        table_block(program_table(frame), "Each program cell's verdict.", programs),
+        table_block(program_table(frame, ctx.variants), "Each program cell's verdict.", programs),
     ]
     return [ctx.section("Programs", ANCHOR, blocks + _wrong_steps(ctx, programs))]
 
@@ -93,3 +100,14 @@ def _neighbourhood(record: Path) -> tuple[pd.DataFrame, float] | None:
         values = pd.DataFrame(detail[where])
         data[f"x_{where}"], data[f"y_{where}"] = values[0], values[1]
     return data, float(detail["r"])
+
+
+def count(exp: Experiment, section: Section) -> Count | None:
+    """The experiment's program cells and those that agree with seq (identical, rounding or
+    diverges), shown at its programs section; None without a program cell."""
+    cells = measured_once(exp.frame)
+    programs = cells[is_program(cells)]
+    if programs.empty:
+        return None
+    return Count(len(programs), int(programs["agreement"].isin(AGREEING).sum()),
+                 subsection_anchor(section, ANCHOR))

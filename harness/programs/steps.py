@@ -17,7 +17,7 @@ an exact input.
 A program that is locally right only with a coarser uncertainty (a float build, another contact-
 time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
 step no level explains is `wrong`, and the rule it breaks is named where the program's own states
-show it (harness.measure.events).
+show it (harness.programs.events).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.measure.events import pair_times, seq_event, wall_time
+from harness.programs.events import pair_times, seq_event, wall_time
 from harness.spec.builds import DOUBLE_EPS
 
 ARITH_ULPS = 64.0  # double roundings of L a correct program may differ by (another order)
@@ -326,7 +326,7 @@ class _Explainer:
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the
         reference's at exactly the reference's time, both from the program's state at step k
-        by the reference's arithmetic (harness.measure.events): a tie that the tie order
+        by the reference's arithmetic (harness.programs.events): a tie that the tie order
         decides, not a near-tie."""
         before, after = self.states[k], self.states[k + 1]
         out = np.zeros(len(rows), dtype=bool)

@@ -1,6 +1,6 @@
 """A program's output against seq's (pure: texts and a replay in, a verdict out).
 
-Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` (harness.measure.printed)
+Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` (harness.programs.printed)
 and matched on (step, index); rows only one side prints are ignored (a program that prints its
 initial state, or lines of its own). A program must print every particle of each step it
 prints, and the state after the last step. A value is *within rounding* of seq's when the two
@@ -11,12 +11,12 @@ roundings of L (a correct program that orders its arithmetic differently). The v
 * identical: every value is what seq's prints as at the program's precision, and the
   collision counts agree;
 * rounding: every value within rounding, at every step;
-* otherwise the program is judged step by step (harness.measure.steps): each printed step from
+* otherwise the program is judged step by step (harness.programs.steps): each printed step from
   the program's own state before it, by the reference's `--replay`. correct: every step locally
   right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
   right only at a coarser precision, named; wrong: a step no precision explains, with its
   particle, both states, the reference's event and the rule broken where the program's states
-  show it (harness.measure.events). A state at step 0 other than the input is wrong at step 0;
+  show it (harness.programs.events). A state at step 0 other than the input is wrong at step 0;
 * failed: nothing to compare (no output, no readable line, too few particles, no final state,
   no two consecutive steps printed to judge).
 """
@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from harness.measure.events import broken_rule, pair_times, reference_event
-from harness.measure.printed import Rows, printed_like_all, read_rows
-from harness.measure.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
+from harness.programs.events import broken_rule, pair_times, reference_event
+from harness.programs.printed import Rows, printed_like_all, read_rows
+from harness.programs.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
 from harness.store.columns import (
     AGREEMENT_FAILED,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from harness import repo
-from harness.measure import races
+from harness.programs import races
 from harness.spec import scenes
 from harness.spec.programs import Program
 
@@ -141,8 +141,8 @@ def test_reports_are_read_as_the_two_lines_of_the_program_deduplicated(tmp_path:
 def test_a_race_makes_any_judged_verdict_nondeterministic() -> None:
     """Outputs that agreed by the luck of the schedule do not make a racy program right; a
     check that could not run leaves the verdict and says why in the note."""
-    from harness.measure.agreement import Agreement
-    from harness.measure.program import with_races
+    from harness.programs.agreement import Agreement
+    from harness.programs.cell import with_races
     from harness.store.columns import AGREEMENT_FAILED, IDENTICAL, NONDETERMINISTIC, WRONG
 
     race = races.RaceCheck((races.Race("sim.c:12", "sim.c:40", ("total",)),),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from harness.measure.events import Event, seq_event
+from harness.programs.events import Event, seq_event
 
 L, R = 100.0, 1.0
 

@@ -1,18 +1,18 @@
 """Programs (implementations written elsewhere, `programs:` in a config) as the report shows
-them: the rows that are a program's (they carry a verdict), one line per program cell with
-its verdict, step and what it and the reference did there (the cell's note), and the class
-table: one row per program, for a gradebook."""
+them: one line per program cell (the rows that carry a verdict, harness.analysis.cells'
+is_program) with its verdict, step and what it and the reference did there (the cell's note),
+and the class table: one row per program, for a gradebook."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from harness.analysis.cells import sort_cells
-from harness.spec.facts import BASELINE
+from harness.analysis.cells import is_program, sort_cells
+from harness.analysis.flags import agreement_text
+from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import (
     AGREEMENT_FAILED,
-    AGREEMENTS,
     CORRECT,
     DIFFERS,
     DIVERGES,
@@ -24,29 +24,13 @@ from harness.store.columns import (
 )
 
 PROGRAM_KEYS = ("variant", "scene", "n", "L", "r", "steps", "threads")
-# What grading a program cost beyond its run (harness.measure.program).
+# What grading a program cost beyond its run (harness.programs.cell).
 GRADING_COLUMNS = ("check_s", "replay_s")
 
 
-def is_program(df: pd.DataFrame) -> pd.Series:
-    """Which rows are a program's: those with an agreement."""
-    if "agreement" not in df.columns:
-        return pd.Series(False, index=df.index)
-    return df["agreement"].isin(AGREEMENTS)
-
-
-def agreement_text(row: pd.Series) -> str:
-    """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
-    agreement = str(row.get("agreement"))
-    first = row.get("first_diff_step")
-    if pd.notna(first):
-        return f"{agreement} from step {int(first)}"
-    return agreement
-
-
-def program_table(df: pd.DataFrame) -> pd.DataFrame:
+def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """One row per program cell: where it is, its status, its agreement, what its check cost
-    and the detail."""
+    and the detail (in the order of `variants`, the programs after them)."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
     table = rows[[*keys, "status"]].copy()
@@ -55,7 +39,7 @@ def program_table(df: pd.DataFrame) -> pd.DataFrame:
         if column in rows.columns and rows[column].notna().any():
             table[column] = rows[column]
     table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
-    return sort_cells(table, keys)
+    return sort_cells(table, keys, variants)
 
 
 # A program's verdict over its cells, the worst first: what a class table shows for it.

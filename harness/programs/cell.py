@@ -5,11 +5,11 @@
      its peak resident memory (the command's processes the shell waited for included);
   2. its check: the check command on the cell's scene in print mode (its first steps for a big
      scene), its stdout judged against seq's `--precise` print-mode output on the same input,
-     and step by step by the reference's `--replay` (harness.measure.agreement);
+     and step by step by the reference's `--replay` (harness.programs.agreement);
   3. at the config's highest thread count, the check run twice more, once at that count and
      once at 1 thread: outputs that differ make the program nondeterministic; and for a
      program with `source:` and `build:`, a copy built with ThreadSanitizer run on a small
-     scene (harness.measure.races): a data race makes it nondeterministic too, whatever its
+     scene (harness.programs.races): a data race makes it nondeterministic too, whatever its
      outputs were.
 
 The cell is ok when the program agrees (identical, rounding, correct, imprecise), invalid when
@@ -27,8 +27,6 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from harness.measure.agreement import Agreement, judge
-from harness.measure.printed import first_difference
 from harness.measure.proc import (
     ProcessResult,
     exit_status,
@@ -39,12 +37,14 @@ from harness.measure.proc import (
     signal_of,
     tail,
 )
-from harness.measure.races import RaceCheck, find_races, small_scene
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
-from harness.measure.steps import Replay
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
+from harness.programs.agreement import Agreement, judge
+from harness.programs.printed import first_difference
+from harness.programs.races import RaceCheck, find_races, small_scene
+from harness.programs.steps import Replay
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps

@@ -9,7 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import agreement, printed
+from harness.programs import agreement, printed
 from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, ROUNDING, WRONG
 
 L, R = 100.0, 1.0

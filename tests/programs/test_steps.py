@@ -1,4 +1,4 @@
-"""The step-local check's pieces (harness.measure.steps) on seq's own trajectory of a dense
+"""The step-local check's pieces (harness.programs.steps) on seq's own trajectory of a dense
 scene, through the real seq's `--replay`: the binary successors read back what the text form
 prints, and the levels of precision give the same answers in any order, tried on any chunk
 of steps, which is what lets the check stop early."""
@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import repo
-from harness.measure import steps
-from harness.measure.steps import PRECISION_LADDER, _Explainer
+from harness.programs import steps
+from harness.programs.steps import PRECISION_LADDER, _Explainer
 
 SEQ_BINARY = repo.REPO_ROOT / "build" / "seq"
 N, L, R, STEPS = 150, 60.0, 1.0, 6
