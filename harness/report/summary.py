@@ -99,8 +99,8 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     split = _fastest_split(exp.frame)
     if split is not None:
         cores, text = split
-        found["ranks"] = Highlight(float(cores), f"{text} ([{exp.name}](#"
-                                   f"{_anchor(section, 'ranks')}))", _anchor(section, "ranks"))
+        anchor = subsection_anchor(section, "ranks")
+        found["ranks"] = Highlight(float(cores), f"{text} ([{exp.name}](#{anchor}))", anchor)
     timed = measured_once(rows)
     timed = timed[(timed["status"] == OK) & timed["wall_median_s"].notna()]
     if not timed.empty:
