@@ -79,6 +79,8 @@ class Cell:
     scene = "s"
     schedule = ""
     program = False
+    ranks = 1
+    uses_ranks = False
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import stats
-from harness.analysis import compare, resultsets
+from harness.analysis import resultsets
+from harness.comparison import verdicts as compare
 from harness.measure import machine, noise
 from harness.repo import REPO_ROOT
 
