@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from harness import repo
+from harness.cli.features import REPORT_FEATURES
 from harness.programs import hooks as programs
 from harness.repo import PUBLISHED_REPORT_DIR, PUBLISHED_RESULTS_DIR
 from harness.report import cache, pipeline
@@ -266,4 +267,4 @@ def test_the_committed_report_is_current(tmp_path: Path, monkeypatch: pytest.Mon
         return draw(self, stale, data, stem, *more, **kwargs)
 
     monkeypatch.setattr(cache.Manifest, "draw", refuse)
-    pipeline.render(PUBLISHED_RESULTS_DIR, out)
+    pipeline.render(PUBLISHED_RESULTS_DIR, out, features=REPORT_FEATURES)  # as `make publish`

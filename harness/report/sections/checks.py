@@ -30,6 +30,9 @@ from harness.store.columns import DIVERGENCE_COLUMNS
 
 MAX_CHECK_FIGURES = 4  # divergence and shadow-error figures per experiment (one per scene)
 MIN_TIMED_RUNS = 2  # below this many runs a cell's time is incidental, not a measurement
+# variant/build columns per table of the scene matrix: a 1400-pixel page holds 8 of the
+# widest names whole ("p1_runtime/f64"), beside the scene's
+MATRIX_COLUMNS = 8
 
 CHECKS_INTRO = (
     "Each cell's print-mode run is checked (harness.measure.invariants and .shadow): "
@@ -94,12 +97,28 @@ def build(ctx: Context) -> list[Section]:
     return sections
 
 
+def _matrix_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
+    """The scene matrix, its columns split evenly over as few tables as hold them whole."""
+    matrix = stability_matrix(df, variants)
+    labels = list(matrix.columns[1:])
+    parts = max(1, -(-len(labels) // MATRIX_COLUMNS))
+    size = -(-len(labels) // parts) if labels else 0
+    caption = (f"Scene × variant/build: {PASS_MARK} every check passed, {FAIL_MARK} the checks "
+               "that failed")
+    blocks: list[Block] = []
+    for part in range(parts):
+        columns = labels[part * size:(part + 1) * size]
+        words = f"{caption} ({part + 1} of {parts})." if parts > 1 else f"{caption}."
+        blocks.append(table_block(matrix[["scene", *columns]], words,
+                                  source=df if part == 0 else None))
+    return blocks
+
+
 def _stability_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
     trust = trust_table(df, variants)
     return [
         Paragraph(CHECKS_INTRO),
-        table_block(stability_matrix(df, variants), f"Scene × variant/build: {PASS_MARK} every "
-                    f"check passed, {FAIL_MARK} the checks that failed.", source=df),
+        *_matrix_blocks(df, variants),
         table_block(check_summary(df, variants), "Each check over all checked cells."),
         Paragraph(build_words(build_trust(df, variants))),
         Paragraph(trust_words(trust)),
