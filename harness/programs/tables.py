@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness.analysis.cells import is_program, sort_cells
 from harness.analysis.flags import agreement_text
+from harness.analysis.ranks import RANKS
 from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import (
     AGREEMENT_FAILED,
@@ -33,6 +34,8 @@ def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     and the detail (in the order of `variants`, the programs after them)."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
+    if RANKS in rows.columns and rows[RANKS].notna().any():
+        keys.append(RANKS)
     table = rows[[*keys, "status"]].copy()
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
     for column in GRADING_COLUMNS:  # absent from results measured before they were kept
@@ -59,13 +62,18 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
     data races ThreadSanitizer found in it (`none`; empty where it was not checked)."""
     rows = df[is_program(df)]
     keys = [k for k in CLASS_KEYS if k in df.columns]
+    # an MPI program's rank counts are rows of their own: its times are by thread count
+    ranks = [RANKS] if RANKS in rows.columns and rows[RANKS].notna().any() else []
     out = []
-    for (variant, *scene), cells in rows.groupby(["variant", *keys], sort=True, dropna=False):
+    for (variant, *group), cells in rows.groupby(["variant", *keys, *ranks], sort=True,
+                                                 dropna=False):
+        scene = group[:len(keys)]
         verdicts = [v for v in VERDICT_ORDER if v in set(cells["agreement"])]
         verdict = verdicts[0] if verdicts else str(cells["agreement"].iloc[0])
         worst = cells[cells["agreement"] == verdict].sort_values("threads").iloc[0]
         step = worst.get("first_diff_step")
-        row: dict[str, object] = {"program": variant, **dict(zip(keys, scene, strict=True)),
+        row: dict[str, object] = {"program": variant,
+                                  **dict(zip([*keys, *ranks], group, strict=True)),
                                   "verdict": verdict,
                                   "first_wrong_step": (int(step) if verdict == WRONG
                                                        and pd.notna(step) else None),
@@ -94,7 +102,10 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
     table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
     time_columns = sorted((c for c in table.columns if c.startswith("time_")),
                           key=lambda c: int(c[5:-3]))
-    order = ["program", *keys, "verdict", "first_wrong_step", "rule", "repeatable", "races",
+    ranks = [RANKS] if RANKS in table.columns else []
+    if ranks:
+        table[RANKS] = table[RANKS].astype("Int64")
+    order = ["program", *keys, *ranks, "verdict", "first_wrong_step", "rule", "repeatable", "races",
              *time_columns, "threads_max", "speedup_vs_seq", "speedup_vs_1t", "efficiency",
              "rank"]
     return table[order].sort_values(["rank", "program"], na_position="last").reset_index(

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from harness.analysis import phases
-from harness.analysis.cells import INTERVAL_SUFFIXES, is_program
+from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, is_program
 from harness.analysis.display import format_value, threads_text
 from harness.analysis.flags import (
     disturbed_text,
@@ -96,7 +96,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
-    split = _fastest_split(exp.frame)
+    split = ranks_sentence(exp.frame)
     if split is not None:
         cores, text = split
         anchor = subsection_anchor(section, "ranks")
@@ -113,14 +113,22 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
     return found
 
 
-def _fastest_split(df: pd.DataFrame) -> tuple[int, str] | None:
+def ranks_sentence(df: pd.DataFrame) -> tuple[int, str] | None:
     """On the most cores that more than one cell ran on, where MPI ranks were measured: the
-    fastest cell and the others, as the summary says it."""
+    fastest cell and the others, as the summary says it; of one scene and build, the largest
+    where they vary (the table keeps their columns only then)."""
     table = cores_table(df)
     if table.empty:
         return None
     cores = int(table["cores"].max())
-    at = table[table["cores"] == cores].sort_values("median_s", kind="stable")
+    at = table[table["cores"] == cores]
+    varied = sorted((k for k in (*SCENE_KEYS, "build") if k in at.columns),
+                    key=lambda k: k != "n")  # N first: the largest scene is the largest N
+    if varied:
+        last = at.sort_values(varied, kind="stable").iloc[-1]
+        at = at[(at[varied] == last[varied]).all(axis=1)]
+    at = at.sort_values("median_s", kind="stable")
+    scene = f" (N = {int(last['n']):,})" if "n" in varied else ""
 
     def named(row: pd.Series) -> str:
         count = int(row["ranks"]) if pd.notna(row["ranks"]) else 0
@@ -129,7 +137,7 @@ def _fastest_split(df: pd.DataFrame) -> tuple[int, str] | None:
                 f"{format_value('median_s', row['median_s'])} s")
 
     rest = "; ".join(named(row) for _, row in at.iloc[1:].iterrows())
-    return cores, (f"ranks against threads on {cores} cores: {named(at.iloc[0])} is the "
+    return cores, (f"ranks against threads on {cores} cores{scene}: {named(at.iloc[0])} is the "
                    f"fastest; {rest}")
 
 

@@ -126,9 +126,10 @@ def test_five_cells_give_the_rows_of_a_local_run(cluster, real_binaries: Path, t
     local_rows, remote_rows = read_csv(local / "six" / "results.csv"), read_csv(
         remote / "six" / "results.csv")
     assert len(remote_rows) == len(local_rows)
-    differ = {(r["variant"], r["threads"], k): (v, l.get(k))
-              for r, l in zip(map(stable, remote_rows), map(stable, local_rows))
-              for k, v in r.items() if v != l.get(k)}
+    differ = {(there["variant"], there["threads"], k): (v, here.get(k))
+              for there, here in zip(map(stable, remote_rows), map(stable, local_rows),
+                                     strict=True)
+              for k, v in there.items() if v != here.get(k)}
     assert not differ, f"(remote, local) columns that differ: {differ}"
     assert all(r["status"] == "ok" and r["identical"] == "True" for r in remote_rows)
     assert all(float(r["wall_median_s"]) > 0 and float(r[columns.PEAK_RSS]) > 0

@@ -16,8 +16,10 @@ import pytest
 from harness import repo
 from harness.analysis import results
 from harness.analysis.ranks import cores_table
+from harness.cli import main
 from harness.errors import HarnessError
 from harness.plan.cells import plan_cells
+from harness.programs.tables import class_table
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.layout import ExperimentDir
@@ -145,6 +147,11 @@ exclude: [{{variant: dying, ranks: 1}}]
     # mpirun ends the job with the status of the rank killed by signal 9, and says why
     assert "(exit 137)" in died["note"] and "---" in died["note"]
     assert "progs: 4 cells (4 measured, 0 cached): 1 crashed, 3 ok" in log
+    # graded per rank count: a row of the class table for each
+    grades = class_table(results.load_experiment(ExperimentDir(root / "progs")).frame)
+    theirs = grades[grades["program"] == "theirs"]
+    assert sorted(theirs["ranks"]) == [1, 2] and set(theirs["verdict"]) == {"identical"}
+    assert main(["report", "--results-dir", str(root), "--out", str(tmp_path / "page")]) == 0
 
 
 def test_no_mpirun_is_one_line_with_how_to_install(
