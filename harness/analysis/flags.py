@@ -206,8 +206,10 @@ def disturbed_text(df: pd.DataFrame) -> str:
     shares = pd.to_numeric(df.loc[disturbed, "others_share"], errors="coerce").dropna()
     words = f"{shares.mean():.0%} of the CPU went to other processes" if len(shares) else (
         "other processes took the CPU")
-    return (f"Disturbed: {words} while {int(disturbed.sum())} of these {len(df)} cells were "
-            "measured; their times and speedups are not what this machine gives when quiet.")
+    count = int(disturbed.sum())
+    return (f"Disturbed: {words} while {count} of these {len(df)} cells "
+            f"{'was' if count == 1 else 'were'} measured; their times and speedups are not what "
+            "this machine gives when quiet.")
 
 
 def earlier_config_text(df: pd.DataFrame) -> str:
@@ -220,5 +222,7 @@ def earlier_config_text(df: pd.DataFrame) -> str:
     changed = sorted({f for text in df.loc[earlier, "config_changed"].dropna().astype(str)
                       for f in text.split()} - {UNPLANNED})
     what = f" (it differed in: {', '.join(changed)})" if changed else ""
-    return (f"{int(earlier.sum())} of these {len(df)} cells were measured under an earlier "
-            f"version of the config{what}, by a machine that has not measured it since.")
+    count = int(earlier.sum())
+    return (f"{count} of these {len(df)} cells {'was' if count == 1 else 'were'} measured under "
+            f"an earlier version of the config{what}, by a machine that has not measured it "
+            "since.")
