@@ -116,7 +116,9 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
     if before.ticks is not None and after.ticks is not None:
         busy = (after.ticks[0] - before.ticks[0]) / tick
         steal = max(0.0, (after.ticks[1] - before.ticks[1]) / tick)
-        other = max(0.0, busy - own)
+        # /proc/stat counts whole ticks: a core's busy time between two readings may be up to
+        # one tick more than it was, which a round of a few milliseconds would read as others'
+        other = max(0.0, busy - own - cores / tick)
     waited = None
     if before.pressure_s is not None and after.pressure_s is not None:
         waited = max(0.0, after.pressure_s - before.pressure_s)
