@@ -155,7 +155,8 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
         exp.name, exp.directory, exp.title, df, exp.divergence, exp.ratios, exp.variants)
     label = machine_labels(read_machines([found.path])).get(str(machine))
     named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
-    head = f"{named}: {len(df)} cells" + (f" on {label}" if label else "")
+    head = f"{named}: {len(df)} {'cell' if len(df) == 1 else 'cells'}" + (
+        f" on {label}" if label else "")
     lines = [head]
     extra = [disturbed_text(df), fastest_text(df), validation_text(shown), intervals_text(df)]
     lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]

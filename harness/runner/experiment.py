@@ -205,7 +205,8 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
     summary = Summary(experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
-    experiment.log.write(f"{name}: {summary.cells} cells ({summary.measured} measured, "
+    cells = "cell" if summary.cells == 1 else "cells"
+    experiment.log.write(f"{name}: {summary.cells} {cells} ({summary.measured} measured, "
                          f"{summary.cached} cached): {counts or 'none'}; results in "
                          f"{experiment.store.layout.results_csv}\n")
     return summary

@@ -76,10 +76,10 @@ def waits_and_refuses(real_binaries: Path, tmp_path: Path,
     _, first_err = first.communicate(timeout=TIMEOUT_S)
     _, second_err = second.communicate(timeout=TIMEOUT_S)
     assert first.returncode == 0 and second.returncode == 0, (first_err, second_err)
-    assert "slowlock: 1 cells (1 measured, 0 cached): 1 ok" in first_err
+    assert "slowlock: 1 cell (1 measured, 0 cached): 1 ok" in first_err
     assert f"waiting: another run is measuring on this machine (pid {first.pid}, " in second_err
     # it waited, then found the cell the first run had just measured
-    assert "slowlock: 1 cells (0 measured, 1 cached): 1 ok" in second_err
+    assert "slowlock: 1 cell (0 measured, 1 cached): 1 ok" in second_err
     rows = list(csv.DictReader(io.StringIO((root / "slowlock" / "results.csv").read_text())))
     assert len(rows) == 1 and rows[0]["loaded"] in ("True", "False")
     assert rows[0]["machine_id"] and rows[0]["git_commit"] and rows[0]["wall_times_s"]
