@@ -427,3 +427,13 @@ def test_sides_measured_apart_under_different_cpu_pressure_are_not_told_apart() 
     # a real 3x slow-down stays slower under the same allowance
     slow = stats.drift_change(new, [3 * t for t in new], 0.01, 0.05, contention)
     assert stats.decide([slow], 0.05) == [stats.SLOWER]
+
+
+def test_one_serial_fraction_for_intervals_and_columns() -> None:
+    """The Karp-Flatt fraction of an interval's ends is the one of a column's values."""
+    speedup = stats.Interval(1.6, 1.5, 1.8)
+    interval = stats.karp_flatt(speedup, 2)
+    column = stats.serial_fraction([1.6, 1.5, 1.8], [2, 2, 2])
+    assert interval.point == pytest.approx(column[0])
+    assert sorted((interval.low, interval.high)) == pytest.approx(sorted(column[1:]))
+    assert np.isnan(stats.serial_fraction([2.0, 0.0, np.inf], [1, 2, 2])).all()

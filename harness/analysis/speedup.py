@@ -92,17 +92,6 @@ def _speedup_intervals(out: pd.DataFrame, own_times: pd.Series, base_times: pd.S
             paired.put_metrics(out, position, stats.speedup_ci(base, own), point=False)
 
 
-def karp_flatt(speedup: pd.Series, threads: pd.Series) -> pd.Series:
-    """The Karp-Flatt experimentally determined serial fraction e = (1/S - 1/p) / (1 - 1/p).
-
-    Defined for p > 1 only (at p = 1 it is 0/0); NaN elsewhere and where S is unknown.
-    """
-    p = threads.astype("float64")
-    inv_p = 1.0 / p
-    e = (1.0 / speedup - inv_p) / (1.0 - inv_p)
-    return e.where(p > 1)
-
-
 def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool = False,
                  ratios: pd.DataFrame | None = None) -> pd.DataFrame:
     """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
@@ -139,7 +128,8 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     out["baseline_s"] = base
     out["speedup"] = (base / out["wall_median_s"]).where(timed)
     out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
-    out["serial_fraction"] = karp_flatt(out["speedup"], out["threads"]).where(same_work)
+    out["serial_fraction"] = pd.Series(stats.serial_fraction(out["speedup"], out["threads"]),
+                                       index=out.index).where(same_work)
     _speedup_intervals(out, df[TIMES], base_times)
     paired.use_paired(out, ratios, df["build"] == seq["base_build"])
     return out

@@ -40,7 +40,7 @@ from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slo
 from harness.stats.rounds import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,
                                   NoiseProfile, PairedRounds, by_round, noise_profile,
                                   paired_series, paired_sides, round_medians, rounds_to_drop)
-from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit
+from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit, serial_fraction
 from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
                                     LOOK_GROWTH, NO_CHANGE_KNOWN, SLOWER, UNCHANGED, VERDICTS,
                                     Change, decide, discoveries, further_rounds,

@@ -18,19 +18,21 @@ def efficiency(speedup: Interval, threads: int) -> Interval:
     return speedup.map(lambda s: s / threads)
 
 
+def serial_fraction(speedup: object, threads: object) -> np.ndarray:
+    """The Karp-Flatt experimentally determined serial fraction e = (1/S - 1/p) / (1 - 1/p),
+    element by element (numbers or arrays): NaN at p <= 1 (0/0 on one thread) and where S is
+    not a positive finite number."""
+    s = np.asarray(speedup, dtype=np.float64)
+    p = np.asarray(threads, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = (1.0 / s - 1.0 / p) / (1.0 - 1.0 / p)
+    return np.where((p > 1) & np.isfinite(s) & (s > 0), e, np.nan)
+
+
 def karp_flatt(speedup: Interval, threads: int) -> Interval:
-    """The Karp-Flatt experimentally determined serial fraction (1/S - 1/p) / (1 - 1/p).
-
-    Undefined (NaN) on one thread. Decreasing in S, so the interval's ends swap."""
-    if threads <= 1:
-        return Interval(math.nan, math.nan, math.nan)
-
-    def fraction(s: float) -> float:
-        if not math.isfinite(s) or s <= 0:
-            return math.nan
-        return (1.0 / s - 1.0 / threads) / (1.0 - 1.0 / threads)
-
-    return speedup.map(fraction)
+    """The serial fraction of a speedup with its interval. Decreasing in S, so the interval's
+    ends swap."""
+    return speedup.map(lambda s: float(serial_fraction(s, threads)))
 
 
 @dataclass(frozen=True)
