@@ -123,8 +123,13 @@ def series_label(values: Sequence[object], keys: Sequence[str]) -> str:
     return " · ".join(parts)
 
 
+def counted(n: int, noun: str) -> str:
+    """`n` with its noun, in the plural but for one: "1 cell", "5 flagged cells"."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def threads_text(threads: int) -> str:
-    return f"{threads} thread{'' if threads == 1 else 's'}"
+    return counted(threads, "thread")
 
 
 MISSING_TEXT = "—"

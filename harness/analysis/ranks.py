@@ -21,6 +21,11 @@ def ranked(df: pd.DataFrame) -> pd.DataFrame:
     return timed_rows(df[df[RANKS].notna()])
 
 
+def any_ranked(df: pd.DataFrame) -> bool:
+    """Whether any row (timed or not) is of a cell run as ranks."""
+    return RANKS in df.columns and bool(df[RANKS].notna().any())
+
+
 def has_ranks(df: pd.DataFrame) -> bool:
     """Whether the experiment has cells run as ranks, at more than one rank count."""
     cells = ranked(df)

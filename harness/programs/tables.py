@@ -10,7 +10,7 @@ import pandas as pd
 
 from harness.analysis.cells import is_program, sort_cells
 from harness.analysis.flags import agreement_text
-from harness.analysis.ranks import RANKS
+from harness.analysis.ranks import RANKS, any_ranked
 from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import (
     AGREEMENT_FAILED,
@@ -34,7 +34,7 @@ def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     and the detail (in the order of `variants`, the programs after them)."""
     rows = df[is_program(df)]
     keys = [k for k in PROGRAM_KEYS if k in rows.columns]
-    if RANKS in rows.columns and rows[RANKS].notna().any():
+    if any_ranked(rows):
         keys.append(RANKS)
     table = rows[[*keys, "status"]].copy()
     table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
@@ -63,7 +63,7 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
     rows = df[is_program(df)]
     keys = [k for k in CLASS_KEYS if k in df.columns]
     # an MPI program's rank counts are rows of their own: its times are by thread count
-    ranks = [RANKS] if RANKS in rows.columns and rows[RANKS].notna().any() else []
+    ranks = [RANKS] if any_ranked(rows) else []
     out = []
     for (variant, *group), cells in rows.groupby(["variant", *keys, *ranks], sort=True,
                                                  dropna=False):

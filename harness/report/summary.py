@@ -11,7 +11,7 @@ import pandas as pd
 
 from harness.analysis import phases
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, is_program
-from harness.analysis.display import format_value, threads_text
+from harness.analysis.display import counted, format_value, threads_text
 from harness.analysis.flags import (
     disturbed_text,
     disturbed_words,
@@ -132,7 +132,7 @@ def ranks_sentence(df: pd.DataFrame) -> tuple[int, str] | None:
 
     def named(row: pd.Series) -> str:
         count = int(row["ranks"]) if pd.notna(row["ranks"]) else 0
-        ranks = f"{count} {'rank' if count == 1 else 'ranks'} × " if count else ""
+        ranks = f"{counted(count, 'rank')} × " if count else ""
         return (f"`{row['variant']}` on {ranks}{threads_text(int(row['threads']))} in "
                 f"{format_value('median_s', row['median_s'])} s")
 

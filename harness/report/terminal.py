@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.analysis.cells import INTERVAL_SUFFIXES, flag, varying_keys
-from harness.analysis.display import display_name, format_value, threads_text
+from harness.analysis.display import counted, display_name, format_value, threads_text
 from harness.analysis.flags import FLAG_WORDS, disturbed_text
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -114,8 +114,7 @@ def validation_text(exp: Experiment) -> str:
     if not found.validated:
         return ""
     invalid = (f"{found.invalid} INVALID" if found.invalid else "no invalid cell")
-    cells = "cell" if found.validated == 1 else "cells"
-    return (f"validation: {found.validated} {cells} checked against seq, {invalid}; "
+    return (f"validation: {counted(found.validated, 'cell')} checked against seq, {invalid}; "
             f"{found.identical} byte-identical")
 
 
@@ -155,8 +154,7 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
         exp.name, exp.directory, exp.title, df, exp.divergence, exp.ratios, exp.variants)
     label = machine_labels(read_machines([found.path])).get(str(machine))
     named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
-    head = f"{named}: {len(df)} {'cell' if len(df) == 1 else 'cells'}" + (
-        f" on {label}" if label else "")
+    head = f"{named}: {counted(len(df), 'cell')}" + (f" on {label}" if label else "")
     lines = [head]
     extra = [disturbed_text(df), fastest_text(df), validation_text(shown), intervals_text(df)]
     lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]

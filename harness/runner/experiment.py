@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TextIO
 
 from harness.analysis import export
+from harness.analysis.display import counted
 from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
@@ -205,8 +206,7 @@ def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measure
     summary = Summary(experiment.directory, len(order), measured,
                       len(order) - measured - missing, statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
-    cells = "cell" if summary.cells == 1 else "cells"
-    experiment.log.write(f"{name}: {summary.cells} {cells} ({summary.measured} measured, "
+    experiment.log.write(f"{name}: {counted(summary.cells, 'cell')} ({summary.measured} measured, "
                          f"{summary.cached} cached): {counts or 'none'}; results in "
                          f"{experiment.store.layout.results_csv}\n")
     return summary

@@ -117,6 +117,9 @@ typedef struct sim_sync {
  * about the input or the command line. Except rank, size and abort, each function is called by
  * every rank at the same point of the run (a collective call), so that none waits for ever. */
 typedef struct sim_ranks {
+    /* Whether a launcher started this process as one of its ranks. Alone, a run that asks only
+     * what the binary is (--describe, --help) starts no ranks. */
+    bool (*launched)(void);
     /* First thing in main, with main's arguments. Returns 0, or nonzero after printing why
      * (the run then ends with status 1). */
     int (*start)(int *argc, char ***argv);

@@ -511,10 +511,23 @@ static int run(int argc, char **argv)
     return rc;
 }
 
+/* Whether the command line asks only what the binary is (--describe, --help): answered without
+ * starting ranks, which it does not need (and an MPI start can fail beside another process's).
+ * A command line that does not parse is run() as any other, which says why. */
+static bool about_itself(int argc, char **argv)
+{
+    sim_options o;
+    quiet = true;
+    const bool self = parse_options(sim_variant_def.name, argc, argv, &o) == SIM_EXIT_OK &&
+                      (o.help || o.describe);
+    quiet = false;
+    return self;
+}
+
 int main(int argc, char **argv)
 {
     const sim_ranks *ranks = sim_variant_def.ranks;
-    if (!ranks)
+    if (!ranks || (!ranks->launched() && about_itself(argc, argv)))
         return run(argc, argv);
     if (ranks->start(&argc, &argv))
         return SIM_EXIT_RUNTIME;

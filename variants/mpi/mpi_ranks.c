@@ -48,7 +48,7 @@ void mpi_meter_step(void)
 
 /* Whether a launcher (mpirun, mpiexec, srun) started this process: each sets its rank in the
  * environment. */
-static int launched(void)
+static bool launched(void)
 {
     static const char *const marks[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_FD",
                                         "SLURM_PROCID"};
@@ -58,23 +58,8 @@ static int launched(void)
     return 0;
 }
 
-/* Whether the command line asks only what the binary is (--describe, --help): answered alone
- * without MPI, whose start a singleton can fail where others start at the same moment (they
- * share its session's name), and which this answer does not need. */
-static bool about_itself(int argc, char **argv)
-{
-    for (int k = 1; k < argc; k++)
-        if (!strcmp(argv[k], "--describe") || !strcmp(argv[k], "--help") || !strcmp(argv[k], "-h"))
-            return true;
-    return false;
-}
-
-static bool started;
-
 static int start(int *argc, char ***argv)
 {
-    if (!launched() && about_itself(*argc, *argv))
-        return 0; /* a world of one, without MPI */
     /* Started without a launcher, the process is a world of one (MPI's singleton): there is no
      * peer to reach. Unless the environment says otherwise, Open MPI is asked not to fork its
      * runtime daemon for it and to load only the transport to itself, not to probe the network
@@ -89,7 +74,6 @@ static int start(int *argc, char ***argv)
         fprintf(stderr, "mpi: MPI_Init_thread failed\n");
         return -1;
     }
-    started = true;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank_of);
     MPI_Comm_size(MPI_COMM_WORLD, &size_of);
     if (provided < MPI_THREAD_FUNNELED) {
@@ -104,8 +88,7 @@ static int start(int *argc, char ***argv)
 
 static void stop(void)
 {
-    if (started)
-        MPI_Finalize();
+    MPI_Finalize();
 }
 
 static void end_all(int status)
@@ -195,6 +178,7 @@ static void timing(FILE *out)
 }
 
 const sim_ranks mpi_ranks = {
+    .launched = launched,
     .start = start,
     .stop = stop,
     .rank = mpi_rank,
