@@ -1,17 +1,32 @@
-"""Rerun configs K times apart: learn this machine's session spread and measure coverage."""
+"""Rerun configs K times apart: learn this machine's session spread and measure coverage.
+
+What the reruns say about a machine: the session level of its variation (harness.stats.levels),
+for a cell's time and for a ratio paired by round, and how often an interval held another
+rerun's estimate, as stored and with the spread just learnt. Each rerun is a results root; a
+cell is the same across reruns where it measured the same thing (store.columns.MATCH_COLUMNS)
+on the same machine in the same experiment, a ratio where its two cells and its kind are.
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import datetime
+import math
 import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
+
 from harness import stats
+from harness.analysis import results
+from harness.analysis.paired import cell_keys, paired
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
 from harness.measure import environment
 from harness.repo import REPO_ROOT
-from harness.reruns import coverage as analysis
 from harness.runner.command import (
     Hooks,
     Parser,
@@ -22,7 +37,9 @@ from harness.runner.command import (
     whole_number,
 )
 from harness.runner.experiment import run_apart
+from harness.spec.facts import BASELINE
 from harness.store import layout, sessions
+from harness.store.columns import OK
 
 DEFAULT_TIMES = 5
 DEFAULT_PAUSE_S = 60.0
@@ -75,7 +92,7 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
             run_apart(configs, roots, registry, lock, sys.stderr, "reruns",
                       args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir,
                       program_runner=hooks.program_runner)
-    found = analysis.analyse(roots)
+    found = analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")
     here = machine_id()
@@ -90,3 +107,162 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
                                      result.entry(config), stats.supersedes)
         sys.stdout.write(f"  kept in {path}\n")
     return 0
+
+
+CellKey = tuple[str, ...]
+# One rerun's value of a cell or ratio: its estimate from its rounds, and its interval as
+# stored (None: none stored).
+Found = tuple[stats.RoundEstimate, stats.Interval | None]
+# Per machine, per cell or ratio: the reruns' values (None where a rerun lacks it).
+ByMachine = dict[str, dict[CellKey, list[Found | None]]]
+# Per machine, per rerun: the noise of every round of its cells (stats.session_noise).
+NoiseByMachine = dict[str, dict[int, list[float]]]
+
+_RATIO_REFERENCE = ("kind", "reference_variant", "reference_threads")
+
+
+def _interval(point: float, low: float, high: float) -> stats.Interval | None:
+    return stats.Interval(point, low, high) if math.isfinite(low) and math.isfinite(high) \
+        else None
+
+
+def cell_value(row: pd.Series) -> Found | None:
+    """A results.csv row's estimate from its runs and their rounds, with its stored interval;
+    None for a cell not ok or without runs."""
+    if row["status"] != OK or not row["wall_times_s"]:
+        return None
+    estimate = stats.cell_estimate(list(row["wall_times_s"]),
+                                   [int(r) for r in row.get("wall_times_round", ())])
+    median = row["wall_median_s"]
+    point = median if math.isfinite(median) else estimate.point
+    stored = _interval(point, row.get("wall_median_ci_low_s", math.nan),
+                       row.get("wall_median_ci_high_s", math.nan))
+    return stats.RoundEstimate(point, estimate.log_mean, estimate.log_se, estimate.rounds), stored
+
+
+def ratio_value(row: pd.Series) -> Found | None:
+    """A ratios.csv row's ratio with the standard error its rounds' interval implies, and its
+    stored interval; None without a ratio."""
+    ratio = row["ratio"]
+    rounds = int(row["rounds"]) if math.isfinite(row["rounds"]) else 0
+    if not (math.isfinite(ratio) and ratio > 0):
+        return None
+    inner = _interval(ratio, row.get("round_ci_low", math.nan), row.get("round_ci_high", math.nan))
+    se = math.nan
+    if inner is not None and rounds >= stats.INTERVAL_MIN_ROUNDS and inner.low > 0:
+        se = math.log(inner.high / inner.low) / (2 * stats.t95(rounds))
+    estimate = stats.RoundEstimate(ratio, math.log(ratio), se, rounds)
+    return estimate, _interval(ratio, row["ratio_ci_low"], row["ratio_ci_high"])
+
+
+def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine, NoiseByMachine]:
+    """Every rerun's cells and ratios, by machine and key: a cell keyed as ratios.csv keys it
+    (analysis.paired.cell_keys), a ratio by its cell, its kind and its reference; and each
+    rerun's rounds' noise."""
+    cells: ByMachine = {}
+    ratios: ByMachine = {}
+    noise: NoiseByMachine = {}
+    for k, root in enumerate(roots):
+        for exp in results.load(root, include_quick=True):
+            frame = exp.frame
+            for key, (_, row) in zip(cell_keys(frame), frame.iterrows(), strict=True):
+                _put(cells, row, (exp.name, key), cell_value(row), k, len(roots))
+                shares = row.get("round_noise")
+                if row["status"] == OK and isinstance(shares, list | tuple):
+                    noise.setdefault(row.get("machine_id") or "", {}).setdefault(
+                        k, []).extend(shares)
+            frame = paired(exp.ratios(BASELINE), paired_only=False)
+            for _, row in (frame if frame is not None else pd.DataFrame()).iterrows():
+                key = (exp.name, row["_key"], *(str(row.get(c, "")) for c in _RATIO_REFERENCE))
+                _put(ratios, row, key, ratio_value(row), k, len(roots))
+    return cells, ratios, noise
+
+
+def _put(table: ByMachine, row: pd.Series, key: CellKey, value: Found | None,
+         rerun: int, reruns: int) -> None:
+    if value is not None:
+        by_key = table.setdefault(row.get("machine_id") or "", {})
+        by_key.setdefault(key, [None] * reruns)[rerun] = value
+
+
+def spread_of(values: Mapping[CellKey, Sequence[Found | None]]) -> float:
+    """The session spread of these cells' (or ratios') reruns (stats.session_spread)."""
+    return stats.session_spread([[(math.log(f[0].point), f[0].log_se) for f in reruns
+                                  if f is not None] for reruns in values.values()])
+
+
+def coverage(values: Mapping[CellKey, Sequence[Found | None]],
+             session: float | None = None) -> stats.Coverage:
+    """How the reruns' intervals held the other reruns' estimates: as stored (session None),
+    or with each rerun's interval computed again from its rounds and this session spread."""
+    def interval(found: Found | None) -> stats.Interval | None:
+        if found is None:
+            return None
+        estimate, stored = found
+        if session is None:
+            return stored or stats.Interval(estimate.point, math.nan, math.nan)
+        return estimate.rerun_interval(session)
+    return stats.coverage({key: [interval(f) for f in reruns] for key, reruns in values.items()})
+
+
+@dataclass(frozen=True)
+class MachineReruns:
+    """One machine's reruns: the session spread learnt (NaN where no cell or ratio was in two
+    reruns), and the coverage as stored and with that spread."""
+
+    machine_id: str
+    reruns: int
+    spread: stats.SessionSpread  # its noise: the median of the reruns' (stats.session_noise)
+    cells: stats.Coverage
+    ratios: stats.Coverage
+    cells_learnt: stats.Coverage
+    ratios_learnt: stats.Coverage
+
+    def lines(self) -> list[str]:
+        return [
+            f"machine {self.machine_id or 'unknown'}, {self.reruns} reruns:",
+            f"  session spread learnt: {self.spread.absolute:.1%} for a cell's time, "
+            f"{self.spread.ratio:.1%} for a ratio paired by round (log-scale standard "
+            f"deviations beyond the rounds' spread){self._under()}",
+            "  " + self.cells.line("absolute intervals as stored"),
+            "  " + self.ratios.line("ratio intervals as stored"),
+            "  " + self.cells_learnt.line("absolute intervals with the spread learnt (in "
+                                          "sample)"),
+            "  " + self.ratios_learnt.line("ratio intervals with the spread learnt (in sample)"),
+        ]
+
+    def _under(self) -> str:
+        if not math.isfinite(self.spread.noise):
+            return ""
+        return (f", under noise {self.spread.noise:.1%} (the median share of the cores' time "
+                "others took over a rerun's rounds)")
+
+    def entry(self, config: str) -> dict[str, object]:
+        """What is kept beside the machine's description (store.sessions)."""
+        return {"absolute": self.spread.absolute, "ratio": self.spread.ratio,
+                **({"noise": self.spread.noise} if math.isfinite(self.spread.noise) else {}),
+                "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "config": config, "reruns": self.reruns,
+                "coverage": {"absolute": dataclasses.asdict(self.cells),
+                             "ratio": dataclasses.asdict(self.ratios)}}
+
+
+def analyse(roots: Sequence[Path]) -> list[MachineReruns]:
+    """Each machine's reruns, from the reruns' results roots; a machine whose ratios were in
+    fewer than two reruns keeps the default spread for ratios."""
+    cells, ratios, noise = gather(roots)
+    found = []
+    for machine in sorted(cells.keys() | ratios.keys()):
+        its_cells, its_ratios = cells.get(machine, {}), ratios.get(machine, {})
+        absolute, ratio = spread_of(its_cells), spread_of(its_ratios)
+        if not math.isfinite(absolute):
+            continue
+        if not math.isfinite(ratio):
+            ratio = stats.DEFAULT_SESSION_SPREAD.ratio
+        by_rerun = [stats.session_noise(shares) for shares in noise.get(machine, {}).values()]
+        spread = stats.SessionSpread(absolute, ratio, f"{len(roots)} reruns",
+                                     stats.session_noise(by_rerun))
+        found.append(MachineReruns(machine, len(roots), spread, coverage(its_cells),
+                                   coverage(its_ratios), coverage(its_cells, absolute),
+                                   coverage(its_ratios, ratio)))
+    return found

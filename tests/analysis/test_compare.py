@@ -17,7 +17,7 @@ import pytest
 from harness import repo, stats
 from harness.analysis import results, resultsets
 from harness.analysis.upgrade import upgrade_experiment
-from harness.comparison import figure as figcompare
+from harness.comparison import page as figcompare
 from harness.comparison import verdicts as compare
 from harness.runner.command import EXIT_ERROR
 from harness.store import atomic, sessions
@@ -532,7 +532,7 @@ def test_different_inputs_are_noted(tmp_path: Path) -> None:
 
 
 def test_the_figure_says_what_its_ratio_is(tmp_path: Path) -> None:
-    from harness.comparison import figure
+    from harness.comparison import page as figure
 
     times, rounds = (1.0, 1.1, 0.9, 1.0), (1, 2, 3, 4)
     paired = compare.compare_cells(synthetic(times, rounds=rounds, seed="9"),

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from harness import stats
-from harness.reruns import coverage as reruns
+from harness.reruns import command as reruns
 from harness.store import sessions
 
 from tests.records import write_experiment
