@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import scipy.stats as sps
 from harness import stats
-from harness.comparison.calibration import side
+from harness.comparison.command import side
 from harness.comparison.verdicts import FDR_Q, paired_rounds
 from harness.stats.paired import sign_p
 

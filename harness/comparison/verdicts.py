@@ -1,15 +1,10 @@
 """Compare two result sets cell by cell (NEW against OLD) by a metric: the verdicts of
-`collide-bench compare` (harness.comparison.command). How to read them: docs/compare.md; methods()
-says in the output's words how each was reached.
+`collide-bench compare`. How to read them: docs/compare.md; methods() says in the output's
+words how each was reached.
 
-OLD and NEW are result directories: one experiment's `results/<name>` or a whole results root.
 Cells are matched on what was measured (resultsets.MatchKey), never on the machine or the
 binary, because comparing two machines or two commits is the point. A Metric says as data what
-a matched cell is compared by: TIME (sides measured together: the sign test on per-round
-ratios, which the machine's drift cannot move; apart: the ratio of medians, its interval
-widened by the machine's drift; the false-discovery rate held at FDR_Q across the cells) or
-INSTRUCTIONS (counted, not sampled: a change of an exact count is real; counts that vary
-between runs compare as ranges; counts of two different counters do not compare).
+a matched cell is compared by: TIME or INSTRUCTIONS.
 """
 
 from __future__ import annotations
@@ -53,18 +48,13 @@ DEFAULT_THRESHOLD = 0.01  # a change within 1% is never called slower or faster
 FDR_Q = 0.05  # the false-discovery rate held across a comparison's cells
 # The drift assumed between runs measured apart on a machine without a calibration or reruns
 # (the standard deviation of the log ratio of identical binaries measured apart): the default
-# session spread's, for two sessions (stats.levels). On a 2-vCPU VM with nothing else running,
-# a cell's median moved by 12% between runs minutes apart (the median over cells) and up to
-# 33-45%, on cells of a few short runs that met no pressure; a 5% allowance called 2 of 45
-# such pairs faster, 15% none of 255 quiet and under the injector (docs/compare.md). A
-# calibrated machine uses its own, near 0 where it is quiet.
+# session spread's, for two sessions (stats.levels); why it is that wide: docs/compare.md.
 ASSUMED_DRIFT = stats.DEFAULT_SESSION_SPREAD.apart()
 CALIBRATION_KEY = "calibration"  # a calibration's entry in layout.ResultsRoot.calibration
 PAIRED = "measured together"  # the method of a cell's verdict
 APART = "measured apart"
 
-# Verdicts of a compared cell (harness.stats), and the kinds of row that are listed but not
-# compared.
+# Verdicts of a compared cell (harness.stats).
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
 VERDICTS = stats.VERDICTS
@@ -190,11 +180,10 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
                   note: str = "") -> Row:
     """One matched cell's times, tested; its verdict waits for the false-discovery control
     (decide_times)."""
+    sides = (("OLD", old), ("NEW", new))
     notes = [note] if note else []
-    notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in (("OLD", old), ("NEW", new))
-              if cell.flags]
-    notes += [f"{side}: stale (its binary changed since)" for side, cell
-              in (("OLD", old), ("NEW", new)) if cell.stale]
+    notes += [f"{side}: {', '.join(cell.flags)}" for side, cell in sides if cell.flags]
+    notes += [f"{side}: stale (its binary changed since)" for side, cell in sides if cell.stale]
     notes += _inputs(old, new)
     paired = paired_rounds(old, new)
     if paired is not None:

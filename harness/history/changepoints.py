@@ -2,17 +2,12 @@
 much (with an interval) and how surely (a p-value).
 
 E-Divisive Means with Student's t-test, as Hunter / Apache Otava do it: the energy statistic
-of Matteson and James (E-Divisive, alpha = 1) places the likeliest split of a segment, Student's
-t-test of the segment's two parts decides whether it is real; the series is split recursively
-while candidates pass a looser limit (SPLIT_P_FACTOR x max_p), then each change point is
-tested again against its neighbours' segments and the weakest is dropped while any is above
-max_p (Hunter's merge step). Values are tested in logs, so a step is a ratio whichever way it
-goes. Deterministic: no permutations, no seeds.
-
-Neither maintained implementation fits the pinned environment: apache-otava pins numpy 2.2 and
-scipy < 1.17, and MongoDB's signal-processing-algorithms numpy < 2 and Python 3.11 only; the
-algorithm is a page of numpy, and scipy.stats does the test. docs/history.md has its detection
-and false-positive rates on synthetic series.
+(E-Divisive, alpha = 1) places the likeliest split of a segment, Student's t-test of its two
+parts decides whether it is real; the series is split recursively while candidates pass a
+looser limit (SPLIT_P_FACTOR x max_p), then the weakest change point is dropped while any fails
+max_p between its neighbours (Hunter's merge step). Values are tested in logs, so a step is a
+ratio whichever way it goes. Why not apache-otava itself, and its detection and false-positive
+rates: docs/history.md.
 
 An exact lane (instruction counts: no neighbour changes them) needs no statistics: every commit
 whose counts differ from its predecessor's (beyond their own spread, where they vary at all)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from matplotlib.ticker import EngFormatter
 
+from harness.analysis import export
 from harness.analysis.resultsets import INSTRUCTIONS_QUANTITY, TIME_QUANTITY
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
@@ -23,11 +24,9 @@ from harness.history.series import (
     Series,
     detect,
     history_rows,
-    named_commits,
     read_series,
     step_text,
     with_bisections,
-    write_history_csv,
 )
 from harness.repo import REPO_ROOT
 from harness.report.figures.base import new_figure, save_figure
@@ -43,7 +42,7 @@ from harness.runner.command import (
 )
 from harness.spec.config import Config
 from harness.store import atomic
-from harness.store.columns import MEASURED_BISECT, MEASURED_SERIES, OK
+from harness.store.columns import HISTORY_COLUMNS, MEASURED_BISECT, MEASURED_SERIES, OK
 from harness.store.layout import ExperimentDir, ResultsRoot
 
 CONFIG_SUFFIXES = (".yaml", ".yml")
@@ -119,7 +118,8 @@ def publish(config: Config, exp: ExperimentDir, series: Sequence[Series],
     """history.csv and the history page of the series, with what bisection measured in its
     place; the page's path and the series as written."""
     written = [with_bisections(s, order) for s in series]
-    write_history_csv(exp, history_rows(config.name, written, order))
+    atomic.atomic_write_text(exp.history_csv, export.csv_text(
+        HISTORY_COLUMNS, history_rows(config.name, written, order)))
     command = "collide-bench history " + " ".join(args.items) + (
         f" --every {args.every}" if args.every > 1 else "") + (
         f" --metric {args.metric}" if args.metric else "") + (
@@ -132,7 +132,8 @@ def summarise(config: Config, exp: ExperimentDir, series: Sequence[Series],
     """Publish the series and print their change points and where they went."""
     path, written = publish(config, exp, series, order, args)
     for s in written:
-        for commit, change in named_commits(s):
+        for k, change in sorted(s.changes.items()):
+            commit = s.points[k].commit
             sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): change at "
                              f"{commit.short} {commit.subject!r}: {step_text(change.ratio)}, "
                              f"p {change.p:.3g}\n")

@@ -13,7 +13,6 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
-from harness.analysis import export
 from harness.analysis.resultsets import Cell, MatchKey, Quantity, read_cells
 from harness.history.changepoints import (
     DEFAULT_MAX_P,
@@ -22,10 +21,8 @@ from harness.history.changepoints import (
     exact_change_points,
 )
 from harness.stats import Interval
-from harness.store import atomic
 from harness.store.columns import (
     BUILD_FAILED_STATUS,
-    HISTORY_COLUMNS,
     MEASURED_SERIES,
     MISSING_STATUS,
     OK,
@@ -117,10 +114,6 @@ def detect(series: Series, max_p: float = DEFAULT_MAX_P) -> Series:
     return series
 
 
-def named_commits(series: Series) -> list[tuple[CommitInfo, ChangePoint]]:
-    return [(series.points[k].commit, c) for k, c in sorted(series.changes.items())]
-
-
 def with_bisections(series: Series, order: Mapping[str, int]) -> Series:
     """The series with the commits its bisections measured in their places (`order`: each
     commit's place in the range, by sha), and each bisected change point moved to the commit
@@ -182,6 +175,3 @@ def history_rows(config: str, series: Sequence[Series], order: Mapping[str, int]
                 "p": f"{change.p:.3g}" if change else ""})
     return rows
 
-
-def write_history_csv(exp: ExperimentDir, rows: Sequence[dict[str, str]]) -> None:
-    atomic.atomic_write_text(exp.history_csv, export.csv_text(HISTORY_COLUMNS, rows))

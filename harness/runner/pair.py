@@ -211,7 +211,7 @@ def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
               run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
               program_runner: ProgramRunner | None = None) -> tuple[MeasuredSides, list[Path]]:
     """A calibration's measurements (`compare --calibrate`; what they say is
-    harness.comparison.calibration's): this checkout's binaries as two sides measured together
+    harness.comparison.command's): this checkout's binaries as two sides measured together
     (OUT/together), then the configs BLOCKS times, one whole run after another, as separate
     results roots measured apart (OUT/apart/block-K); the sides and those roots."""
     build_dir = REPO_ROOT / BUILD_DIR

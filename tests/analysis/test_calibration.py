@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness.comparison import calibration
+from harness.comparison import command as calibration
 
 from tests.records import write_experiment
 
@@ -49,7 +49,7 @@ def test_a_calibration_finds_the_drift_it_was_given(tmp_path: Path) -> None:
         blocks.append(write_set(tmp_path / f"block-{b}", {
             f"v{k}": list(shift * rng.lognormal(0.0, 0.005, 5) * (1 + 0.02 * rng.normal()))
             for k in range(CELLS)}))
-    found = calibration.calibrate("m1", "cal.yaml", together, blocks, 0.01)
+    found = calibration.calibration_from("m1", "cal.yaml", together, blocks, 0.01)
     assert found.cells == CELLS and found.rounds == rounds
     assert found.measured_compared == CELLS and found.measured_false == 0
     assert 0.01 < found.drift < 0.1  # the shifts and the per-cell spread between blocks
@@ -62,7 +62,7 @@ def test_without_blocks_the_drift_is_unknown_and_said_so(tmp_path: Path) -> None
     times = {"v0": [1.0, 1.01, 0.99]}
     together = (write_set(tmp_path / "old", times, "5", True),
                 write_set(tmp_path / "new", times, "5", True))
-    found = calibration.calibrate("m1", "cal.yaml", together, [], 0.01)
+    found = calibration.calibration_from("m1", "cal.yaml", together, [], 0.01)
     assert found.drift == 0.0 and found.apart_compared == 0
     assert found.measured_false == 0
     assert math.isfinite(found.smallest_one)
@@ -73,5 +73,5 @@ def test_too_few_runs_leave_the_smallest_slowdown_unknown(tmp_path: Path, runs: 
     times = {"v0": [1.0] * runs}
     together = (write_set(tmp_path / "old", times, "5", True),
                 write_set(tmp_path / "new", times, "5", True))
-    found = calibration.calibrate("m1", "cal.yaml", together, [], 0.01)
+    found = calibration.calibration_from("m1", "cal.yaml", together, [], 0.01)
     assert math.isnan(found.smallest_one)
