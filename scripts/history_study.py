@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from harness.history.changepoints import DEFAULT_MAX_P, change_points
+from harness.history.series import DEFAULT_MAX_P, change_points
 
 COMMITS = 30
 NOISES = (0.01, 0.05, 0.10)

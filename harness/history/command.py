@@ -18,9 +18,9 @@ from harness.analysis import export
 from harness.analysis.resultsets import INSTRUCTIONS_QUANTITY, TIME_QUANTITY
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
-from harness.history.changepoints import DEFAULT_MAX_P
 from harness.history.commits import bisect_all, commits_in, every_kth, measure_history
 from harness.history.series import (
+    DEFAULT_MAX_P,
     Series,
     detect,
     history_rows,

@@ -9,14 +9,14 @@ import sys
 
 import numpy as np
 import pytest
-from harness.history.changepoints import (
+from harness.history.commits import HISTORY_MIN_RUNS
+from harness.history.series import (
     change_points,
     energy_split,
     exact_change_points,
     step_test,
+    step_text,
 )
-from harness.history.commits import HISTORY_MIN_RUNS
-from harness.history.series import step_text
 from harness.stats import Interval
 
 from tests.conftest import REPO_ROOT
