@@ -85,6 +85,8 @@ def _verdict(row: Row) -> str:
 
 
 Column = tuple[str, bool, Callable[[Row], str]]  # header, right-aligned, its text
+CELL: Column = ("cell", False, lambda r: r.key.label())
+NOTE: Column = ("note", False, lambda r: r.note)
 # Each metric's value of a cell (as its column names it), then the columns after NEW/OLD.
 VALUES: dict[str, tuple[str, Callable[[Cell | None], str]]] = {
     TIME.name: ("median (s)", _seconds), INSTRUCTIONS.name: ("instructions", _count)}
@@ -153,29 +155,22 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     listed = [r for r in rows if r.kind not in (NOT_OK, OLD_ONLY, NEW_ONLY)]
     if listed:
         interval = "" if metric.exact else " [95% CI]"
-        lines += [*_table((("cell", False, lambda r: r.key.label()),
-                           (f"OLD {header}", True, lambda r: value(r.old)),
+        lines += [*_table((CELL, (f"OLD {header}", True, lambda r: value(r.old)),
                            (f"NEW {header}", True, lambda r: value(r.new)),
                            (f"NEW/OLD{interval}", True, lambda r: ratio_text(r, metric)),
-                           *COLUMNS[metric.name], ("note", False, lambda r: r.note)), listed),
-                  ""]
+                           *COLUMNS[metric.name], NOTE), listed), ""]
     if figure:
         lines += [f"![NEW/OLD per cell with 95% intervals]({figure})", ""]
     not_ok = [r for r in rows if r.kind == NOT_OK]
     if not_ok:
-        lines += ["## Not compared: a side is not ok", ""]
-        lines += _table((("cell", False, lambda r: r.key.label()),
-                         ("OLD status", False, lambda r: r.old.status),  # type: ignore[union-attr]
-                         ("NEW status", False, lambda r: r.new.status),  # type: ignore[union-attr]
-                         ("note", False, lambda r: r.note)), not_ok)
-        lines.append("")
+        lines += ["## Not compared: a side is not ok", "", *_table((
+            CELL, ("OLD status", False, lambda r: r.old.status),  # type: ignore[union-attr]
+            ("NEW status", False, lambda r: r.new.status), NOTE), not_ok), ""]  # type: ignore[union-attr]
     for kind, title in ((OLD_ONLY, "Only in OLD"), (NEW_ONLY, "Only in NEW")):
         if only := [r for r in rows if r.kind == kind]:
-            lines += [f"## {title} (not matched)", ""]
-            lines += _table((("cell", False, lambda r: r.key.label()),
-                             ("status", False, lambda r: (r.old or r.new).status),  # type: ignore[union-attr]
-                             (header, True, lambda r: value(r.old or r.new))), only)
-            lines.append("")
+            lines += [f"## {title} (not matched)", "", *_table((
+                CELL, ("status", False, lambda r: (r.old or r.new).status),  # type: ignore[union-attr]
+                (header, True, lambda r: value(r.old or r.new))), only), ""]
     return "\n".join(lines)
 
 

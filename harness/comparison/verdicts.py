@@ -57,7 +57,6 @@ APART = "measured apart"
 # Verdicts of a compared cell (harness.stats).
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
-VERDICTS = stats.VERDICTS
 
 # The instruction lane's verdicts and the kinds of its rows that are listed but not judged.
 MORE = "more instructions"
@@ -151,7 +150,7 @@ class Row:
 
     @property
     def compared(self) -> bool:
-        return self.kind in VERDICTS or self.kind in COUNT_VERDICTS
+        return self.kind in stats.VERDICTS or self.kind in COUNT_VERDICTS
 
     @property
     def beyond_more_runs(self) -> bool:

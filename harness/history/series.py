@@ -74,12 +74,11 @@ def energy_split(x: np.ndarray) -> tuple[int, float] | None:
 def step_test(before: np.ndarray, after: np.ndarray) -> tuple[float, Interval]:
     """Student's t-test of two segments of log values (pooled variance: a cell's noise is the
     same before and after a step): the p-value and the ratio of their geometric means with its
-    interval. Two constant segments: p 0 when they differ, 1 when
-    not (the test is undefined, the answer is not)."""
+    interval. Two constant segments: p 0 when they differ, 1 when not (the test is undefined,
+    the answer is not)."""
     diff = float(after.mean() - before.mean())
     if np.ptp(before) == 0 and np.ptp(after) == 0:
-        p = 0.0 if diff != 0 else 1.0
-        return p, Interval(math.exp(diff), math.exp(diff), math.exp(diff))
+        return (0.0 if diff != 0 else 1.0), Interval(*[math.exp(diff)] * 3)
     result = sps.ttest_ind(after, before)
     ci = result.confidence_interval(CONFIDENCE)
     return float(result.pvalue), Interval(math.exp(diff), math.exp(float(ci.low)),

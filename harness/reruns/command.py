@@ -111,19 +111,14 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
 
 CellKey = tuple[str, ...]
 # One rerun's value of a cell or ratio: its estimate from its rounds, and its interval as
-# stored (None: none stored).
-Found = tuple[stats.RoundEstimate, stats.Interval | None]
+# stored (NaN ends: none stored).
+Found = tuple[stats.RoundEstimate, stats.Interval]
 # Per machine, per cell or ratio: the reruns' values (None where a rerun lacks it).
 ByMachine = dict[str, dict[CellKey, list[Found | None]]]
 # Per machine, per rerun: the noise of every round of its cells (stats.session_noise).
 NoiseByMachine = dict[str, dict[int, list[float]]]
 
 _RATIO_REFERENCE = ("kind", "reference_variant", "reference_threads")
-
-
-def _interval(point: float, low: float, high: float) -> stats.Interval | None:
-    return stats.Interval(point, low, high) if math.isfinite(low) and math.isfinite(high) \
-        else None
 
 
 def cell_value(row: pd.Series) -> Found | None:
@@ -135,8 +130,8 @@ def cell_value(row: pd.Series) -> Found | None:
                                    [int(r) for r in row.get("wall_times_round", ())])
     median = row["wall_median_s"]
     point = median if math.isfinite(median) else estimate.point
-    stored = _interval(point, row.get("wall_median_ci_low_s", math.nan),
-                       row.get("wall_median_ci_high_s", math.nan))
+    stored = stats.Interval(point, row.get("wall_median_ci_low_s", math.nan),
+                            row.get("wall_median_ci_high_s", math.nan))
     return stats.RoundEstimate(point, estimate.log_mean, estimate.log_se, estimate.rounds), stored
 
 
@@ -147,12 +142,13 @@ def ratio_value(row: pd.Series) -> Found | None:
     rounds = int(row["rounds"]) if math.isfinite(row["rounds"]) else 0
     if not (math.isfinite(ratio) and ratio > 0):
         return None
-    inner = _interval(ratio, row.get("round_ci_low", math.nan), row.get("round_ci_high", math.nan))
+    inner = stats.Interval(ratio, row.get("round_ci_low", math.nan),
+                           row.get("round_ci_high", math.nan))
     se = math.nan
-    if inner is not None and rounds >= stats.INTERVAL_MIN_ROUNDS and inner.low > 0:
+    if inner.bounded and rounds >= stats.INTERVAL_MIN_ROUNDS and inner.low > 0:
         se = math.log(inner.high / inner.low) / (2 * stats.t95(rounds))
     estimate = stats.RoundEstimate(ratio, math.log(ratio), se, rounds)
-    return estimate, _interval(ratio, row["ratio_ci_low"], row["ratio_ci_high"])
+    return estimate, stats.Interval(ratio, row["ratio_ci_low"], row["ratio_ci_high"])
 
 
 def gather(roots: Sequence[Path]) -> tuple[ByMachine, ByMachine, NoiseByMachine]:
@@ -199,9 +195,7 @@ def coverage(values: Mapping[CellKey, Sequence[Found | None]],
         if found is None:
             return None
         estimate, stored = found
-        if session is None:
-            return stored or stats.Interval(estimate.point, math.nan, math.nan)
-        return estimate.rerun_interval(session)
+        return stored if session is None else estimate.rerun_interval(session)
     return stats.coverage({key: [interval(f) for f in reruns] for key, reruns in values.items()})
 
 
