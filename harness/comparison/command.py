@@ -1,10 +1,9 @@
 """Compare two result sets cell by cell (NEW against OLD); exit 1 when a cell is slower, 3
 when none is but some are inconclusive (--fail-on).
 
-What `compare --calibrate` learns about a machine from measuring the same binaries again and
-again: how often a verdict is wrong where nothing changed, the drift between runs measured
-apart (which comparisons of stored result sets then allow for), and the smallest slow-down a
-measured comparison finds at the config's settings.
+`--calibrate` measures the same binaries again and again and learns (Calibration) how often a
+verdict is wrong where nothing changed, the drift between runs measured apart (which stored
+result sets' comparisons then allow for) and the smallest slow-down a measured one finds.
 """
 
 from __future__ import annotations

@@ -66,8 +66,7 @@ def ratio_text(row: Row, metric: Metric = TIME) -> str:
 
 
 def _further_text(row: Row) -> str:
-    """The rounds (measured together) or runs a side (apart) that would likely decide an
-    inconclusive cell."""
+    """The rounds (together) or runs a side (apart) likely to decide an inconclusive cell."""
     if row.kind != INCONCLUSIVE:
         return ""
     unit = "rounds" if row.method == PAIRED else "runs a side"

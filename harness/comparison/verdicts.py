@@ -162,8 +162,7 @@ class Row:
 
 def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     """The two sides' round medians, round by round, where they were measured together, with
-    each round's interference shift; the rounds flagged as interfered with on either side left
-    out."""
+    each round's interference shift; rounds flagged as interfered with on either side left out."""
     if not old.round_seed or old.round_seed != new.round_seed:
         return None
     pair = stats.paired_sides(old, new)
@@ -175,8 +174,7 @@ def _inputs(old: Cell, new: Cell) -> list[str]:
     return ["the input files differ"] if differ else []
 
 
-def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
-                  note: str = "") -> Row:
+def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift, note: str = "") -> Row:
     """One matched cell's times, tested; its verdict waits for the false-discovery control
     (decide_times)."""
     sides = (("OLD", old), ("NEW", new))
@@ -185,20 +183,18 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift,
     notes += [f"{side}: stale (its binary changed since)" for side, cell in sides if cell.stale]
     notes += _inputs(old, new)
     paired = paired_rounds(old, new)
+    method = APART if paired is None else PAIRED
     if paired is not None:
         final = old.stopped in STOPPED_UNDECIDED and new.stopped in STOPPED_UNDECIDED
         change = stats.paired_change(paired.old, paired.new, threshold,
                                      stats.paired_look(paired.measured, final), paired.shift)
-        method = PAIRED
     elif min(len(old.times), len(new.times)) >= 2:
         change = stats.drift_change(old.times, new.times, threshold, drift.sigma,
                                     stats.contention_spread(old.round_pressure,
                                                             new.round_pressure))
-        method = APART
     else:
         ratio = new.median / old.median if old.median > 0 else math.nan
-        change, method = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan,
-                                      math.nan), APART
+        change = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan, math.nan)
         notes.append("fewer than two runs a side: no interval, no verdict")
     interval = change.ratio
     return Row(old.key, INCONCLUSIVE, old, new, interval.point, interval.low, interval.high,
@@ -334,8 +330,6 @@ def methods(rows: Sequence[Row], threshold: float, drift: Drift,
 
 def exit_status(rows: Iterable[Row], fail_on: str = FAIL_ON_INCONCLUSIVE,
                 metric: Metric = TIME) -> int:
-    """EXIT_SLOWER when a cell is worse (slower, more instructions); else EXIT_INCONCLUSIVE
-    when one is undecided and that fails the gate; else EXIT_OK."""
     kinds = {r.kind for r in rows}
     if metric.worse in kinds:
         return EXIT_SLOWER

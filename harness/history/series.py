@@ -1,19 +1,13 @@
 """A config's history across commits, read from what `history` stored: each cell's value at
 every commit of the range (oldest first), the commits without one and why, each cell's change
-points (where its value stepped, at which commit, by how much and how surely), and
-history.csv's rows. A commit's measurements are an ordinary results root
-(<experiment>/history/<commit>/); a cell is matched across commits on what it measured
+points, and history.csv's rows. A cell is matched across commits on what it measured
 (resultsets.MatchKey), never on its binary.
 
-Change points: E-Divisive Means with Student's t-test, as Hunter / Apache Otava do it: the
-energy statistic (E-Divisive, alpha = 1) places the likeliest split of a segment, Student's
-t-test of its two parts decides whether it is real; the series is split recursively while
-candidates pass a looser limit (SPLIT_P_FACTOR x max_p), then the weakest change point is
-dropped while any fails max_p between its neighbours (Hunter's merge step). Values are tested
-in logs, so a step is a ratio whichever way it goes. Why not apache-otava itself, and its
-detection and false-positive rates: docs/history.md. An exact lane (instruction counts: no
-neighbour changes them) needs no statistics: every commit whose counts differ from its
-predecessor's (beyond their own spread, where they vary at all) is a change point, with p = 0.
+Change points: E-Divisive Means with Student's t-test, as Hunter / Apache Otava do it, on the
+values' logs, so a step is a ratio whichever way it goes (docs/history.md: the algorithm, why
+not apache-otava itself, its detection and false-positive rates). An exact lane (instruction
+counts: no neighbour changes them) needs no statistics: every commit whose counts differ from
+its predecessor's beyond their own spread is a change point, with p = 0.
 """
 
 from __future__ import annotations
@@ -150,9 +144,9 @@ class Point:
 
 @dataclass(frozen=True)
 class Bisection:
-    """Where `--bisect` put a change point that the series found after unmeasured commits: the
-    commits it measured (each its value from its rounds against a neighbour) and the one it
-    named, the first at the new level."""
+    """Where `--bisect` put a change point the series found after unmeasured commits: the
+    commits it measured (each against a neighbour) and the one it named, the first at the new
+    level."""
 
     change: int  # the series' change point (a position in its points)
     points: tuple[Point, ...]

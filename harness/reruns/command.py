@@ -1,10 +1,9 @@
 """Rerun configs K times apart: learn this machine's session spread and measure coverage.
 
-What the reruns say about a machine: the session level of its variation (harness.stats.levels),
-for a cell's time and for a ratio paired by round, and how often an interval held another
-rerun's estimate, as stored and with the spread just learnt. Each rerun is a results root; a
-cell is the same across reruns where it measured the same thing (store.columns.MATCH_COLUMNS)
-on the same machine in the same experiment, a ratio where its two cells and its kind are.
+The session level of a machine's variation (harness.stats.levels), for a cell's time and for a
+ratio paired by round, and how often an interval held another rerun's estimate, as stored and
+with the spread just learnt. A cell is the same across reruns (results roots) where it measured
+the same thing on the same machine in the same experiment, a ratio where its cells and kind are.
 """
 
 from __future__ import annotations
