@@ -18,7 +18,7 @@ from harness.analysis import export
 from harness.analysis.resultsets import INSTRUCTIONS_QUANTITY, TIME_QUANTITY
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
-from harness.history.commits import bisect_all, commits_in, every_kth, measure_history
+from harness.history.commits import bisect_all, commits_in, measure_history
 from harness.history.series import (
     DEFAULT_MAX_P,
     Series,
@@ -89,7 +89,8 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
-    commits = every_kth(full, args.every)
+    # every K-th commit, the first and the last always kept
+    commits = [c for k, c in enumerate(full) if k % args.every == 0 or k == len(full) - 1]
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = measuring_lock(args, args.items)
     with lock:

@@ -66,12 +66,6 @@ def commits_in(revisions: Sequence[str], repo: Path = REPO_ROOT) -> list[CommitI
     return [describe(sha, repo) for sha in shas]
 
 
-def every_kth(commits: Sequence[CommitInfo], every: int) -> list[CommitInfo]:
-    """Every K-th commit, the first and the last always kept."""
-    kept = list(commits[::every])
-    return kept if kept[-1] == commits[-1] else [*kept, commits[-1]]
-
-
 def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
     subject = git(["log", "-1", "--format=%s", sha], repo).stdout.strip()
     parent = rev_parse(f"{sha}^", repo)  # None: a root commit, which made all its files

@@ -79,13 +79,6 @@ def step_test(before: np.ndarray, after: np.ndarray) -> tuple[float, Interval]:
                                           math.exp(float(ci.high)))
 
 
-def _test_at(logs: np.ndarray, points: Sequence[int], k: int) -> tuple[float, Interval]:
-    """The test of change point points[k] between its neighbours."""
-    start = points[k - 1] if k > 0 else 0
-    end = points[k + 1] if k + 1 < len(points) else len(logs)
-    return step_test(logs[start:points[k]], logs[points[k]:end])
-
-
 def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P) -> list[ChangePoint]:
     """The change points of a series of positive values, oldest first."""
     logs = np.log(np.asarray(values, dtype=float))
@@ -108,7 +101,9 @@ def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P) -> list
             open_segments += [(start, tau), (tau, end)]
     points.sort()
     while points:  # merge: drop the weakest while any fails max_p between its neighbours
-        tested = [_test_at(logs, points, k) for k in range(len(points))]
+        ends = [0, *points, len(logs)]  # each change point's test between its neighbours
+        tested = [step_test(logs[ends[k]:ends[k + 1]], logs[ends[k + 1]:ends[k + 2]])
+                  for k in range(len(points))]
         worst = max(range(len(points)), key=lambda k: tested[k][0])
         if tested[worst][0] <= max_p:
             return [ChangePoint(points[k], tested[k][1], tested[k][0])
