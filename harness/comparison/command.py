@@ -320,8 +320,7 @@ def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
     noise = noise_profile([*old.cells.values(), *new.cells.values()])
     return Calibration(
         stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
-        rounds_noise=noise.rounds, waited=noise.waited,
-        machine_id=machine,
+        rounds_noise=noise.rounds, waited=noise.waited, machine_id=machine,
         date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         config=config, cells=cells, threshold=threshold, measured_false=measured_false,
         measured_compared=measured_compared, drift=apart.sigma,

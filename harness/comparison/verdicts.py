@@ -66,10 +66,9 @@ WITHIN = "within its variation"
 COUNT_VERDICTS = (MORE, FEWER, SAME, WITHIN)
 NOT_COUNTED = "not counted"
 OTHER_TOOL = "not compared (counters differ)"
-# A cell whose counts vary between runs varies by more than its two runs show: p3's nested
-# teams moved by most of this share between sessions whose own runs agreed closely
-# (docs/instructions.md). Such a cell's change is called only beyond this share of its count,
-# or its runs' spread where that is wider.
+# A cell whose counts vary between runs varies by more than its two runs show
+# (docs/instructions.md): its change is called only beyond this share of its count, or its
+# runs' spread where that is wider.
 VARYING_SHARE = 0.01
 
 
@@ -120,11 +119,9 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
                 spread = stats.spread_at(stats.spreads_of(levels, machine_id), noise)
                 learnt.append((str(levels[0].get("date", "")), Drift(spread.apart(),
                                                                      spread.source)))
-        if learnt:
-            found.append(max(learnt, key=lambda dated: dated[0])[1])
-        else:
-            found.append(Drift(ASSUMED_DRIFT, f"assumed: no calibration of machine "
-                               f"{machine_id or 'unknown'} (run reruns or compare --calibrate)"))
+        found.append(max(learnt, key=lambda dated: dated[0])[1] if learnt else Drift(
+            ASSUMED_DRIFT, f"assumed: no calibration of machine {machine_id or 'unknown'} "
+            "(run reruns or compare --calibrate)"))
     if not found:
         return Drift(ASSUMED_DRIFT, "assumed: the machine is not recorded")
     return max(found, key=lambda d: d.sigma)

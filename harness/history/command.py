@@ -94,9 +94,8 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = measuring_lock(args, args.items)
     with lock:
-        measure_history(commits, configs, results_root, sys.stderr, repo,
-                        hyperfine=args.hyperfine, run_lock=lock,
-                        program_runner=hooks.program_runner)
+        measure_history(commits, configs, results_root, sys.stderr, repo, args.hyperfine, lock,
+                        hooks.program_runner)
         here = machine_id()
         for config in configs:
             exp = ResultsRoot(results_root).experiment(config.name)

@@ -23,7 +23,6 @@ from harness.executors.base import Options
 from harness.history.series import Bisection, Series, cell_point
 from harness.measure.cell import ProgramRunner
 from harness.plan.cells import plan_cells
-from harness.repo import REPO_ROOT
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import MeasuredSides, measure_sides, with_min_rounds
 from harness.runner.sides import CODE_PATHS, BuildSide, build_plans, git, resolve, rev_parse
@@ -40,7 +39,7 @@ from harness.store.locks import RunLock
 HISTORY_MIN_RUNS = 10
 
 
-def commits_in(revisions: Sequence[str], repo: Path = REPO_ROOT) -> list[CommitInfo]:
+def commits_in(revisions: Sequence[str], repo: Path) -> list[CommitInfo]:
     """The commits named: one `A..B` (its commits oldest first, first parents only, with A
     itself) or a list of revisions."""
     if len(revisions) == 1 and ".." in revisions[0]:
@@ -66,7 +65,7 @@ def commits_in(revisions: Sequence[str], repo: Path = REPO_ROOT) -> list[CommitI
     return [describe(sha, repo) for sha in shas]
 
 
-def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
+def describe(sha: str, repo: Path) -> CommitInfo:
     subject = git(["log", "-1", "--format=%s", sha], repo).stdout.strip()
     parent = rev_parse(f"{sha}^", repo)  # None: a root commit, which made all its files
     touches = parent is None or git(["diff", "--quiet", parent, sha, "--", *CODE_PATHS],
@@ -75,8 +74,8 @@ def describe(sha: str, repo: Path = REPO_ROOT) -> CommitInfo:
 
 
 def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
-                   hyperfine: str, run_lock: RunLock | None,
-                   program_runner: ProgramRunner | None = None) -> None:
+                   hyperfine: str, run_lock: RunLock,
+                   program_runner: ProgramRunner | None) -> None:
     """Build and measure one commit's cells of a config (the ordinary run: its summary goes to
     the log, not stdout)."""
     exp = ResultsRoot(results_root).experiment(config.name)
@@ -108,9 +107,8 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
 
 
 def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
-                    results_root: Path, log: TextIO, repo: Path = REPO_ROOT,
-                    hyperfine: str = "hyperfine", run_lock: RunLock | None = None,
-                    program_runner: ProgramRunner | None = None) -> None:
+                    results_root: Path, log: TextIO, repo: Path, hyperfine: str,
+                    run_lock: RunLock, program_runner: ProgramRunner | None) -> None:
     """Every commit's cells of every config, oldest first, each commit built once (a
     program's cells measured by `program_runner`)."""
     root = ResultsRoot(results_root)

@@ -77,8 +77,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
 def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     if args.times < 2:
         raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
-    args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
-    out = args.out
+    out = args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
     roots = [out / f"{RERUN_PREFIX}{k}" for k in range(1, args.times + 1)]
     if args.reuse:
         missing = [r for r in roots if not r.is_dir()]
