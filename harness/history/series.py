@@ -160,34 +160,28 @@ class Series:
     bisected: frozenset[int] = frozenset()  # the changes a bisection named (with_bisections)
 
 
-def commit_cells(exp: ExperimentDir, commit: str, machine_id: str | None
-                 ) -> dict[MatchKey, Cell] | None:
-    """The cells measured at a commit (on `machine_id`, where given); None when it was not
-    built."""
+def commit_cells(exp: ExperimentDir, commit: str, machine_id: str) -> dict[MatchKey, Cell] | None:
+    """The cells measured at a commit on `machine_id`; None when it was not built."""
     if exp.build_failed(commit).is_file():
         return None
     directory = ExperimentDir(exp.commit_root(commit) / exp.name)
     if not directory.results_csv.is_file():
         return {}
     cells = read_cells(directory.path, False)
-    return {c.key: c for c in cells if machine_id is None or c.machine_id == machine_id}
+    return {c.key: c for c in cells if c.machine_id == machine_id}
 
 
 def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Quantity,
-                machine_id: str | None) -> list[Series]:
+                machine_id: str) -> list[Series]:
     """Every cell measured at some commit, its value at each commit."""
     by_commit = [commit_cells(exp, c.sha, machine_id) for c in commits]
     keys = sorted({k for cells in by_commit if cells for k in cells}, key=MatchKey.order)
     out = []
     for key in keys:
-        points = []
-        for commit, cells in zip(commits, by_commit, strict=True):
-            if cells is None:
-                points.append(Point(commit, BUILD_FAILED_STATUS, None))
-            elif key not in cells:
-                points.append(Point(commit, MISSING_STATUS, None))
-            else:
-                points.append(cell_point(commit, cells[key], metric))
+        points = [Point(commit, BUILD_FAILED_STATUS, None) if cells is None
+                  else Point(commit, MISSING_STATUS, None) if key not in cells
+                  else cell_point(commit, cells[key], metric)
+                  for commit, cells in zip(commits, by_commit, strict=True)]
         out.append(Series(key.label(), metric, points))
     return out
 
@@ -219,14 +213,10 @@ def with_bisections(series: Series, order: Mapping[str, int]) -> Series:
     the series measures it."""
     if not series.bisections:
         return series
-    seen = {p.commit.sha for p in series.points}
-    points = list(series.points)
-    for bisection in series.bisections:
-        for point in bisection.points:
-            if point.commit.sha not in seen:  # measured already: the series' value stays
-                seen.add(point.commit.sha)
-                points.append(point)
-    points.sort(key=lambda p: order[p.commit.sha])
+    by_sha = {p.commit.sha: p for p in series.points}
+    for point in (p for bisection in series.bisections for p in bisection.points):
+        by_sha.setdefault(point.commit.sha, point)  # measured already: the series' value stays
+    points = sorted(by_sha.values(), key=lambda p: order[p.commit.sha])
     at = {p.commit.sha: k for k, p in enumerate(points)}
     named = {b.change: b.named.sha for b in series.bisections}
     changes = {at[named.get(k, series.points[k].commit.sha)]: c
