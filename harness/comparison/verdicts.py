@@ -122,9 +122,8 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
         found.append(max(learnt, key=lambda dated: dated[0])[1] if learnt else Drift(
             ASSUMED_DRIFT, f"assumed: no calibration of machine {machine_id or 'unknown'} "
             "(run reruns or compare --calibrate)"))
-    if not found:
-        return Drift(ASSUMED_DRIFT, "assumed: the machine is not recorded")
-    return max(found, key=lambda d: d.sigma)
+    return max(found, key=lambda d: d.sigma,
+               default=Drift(ASSUMED_DRIFT, "assumed: the machine is not recorded"))
 
 
 @dataclass(frozen=True)
