@@ -72,7 +72,8 @@ def step_test(before: np.ndarray, after: np.ndarray) -> tuple[float, Interval]:
     the answer is not)."""
     diff = float(after.mean() - before.mean())
     if np.ptp(before) == 0 and np.ptp(after) == 0:
-        return (0.0 if diff != 0 else 1.0), Interval(*[math.exp(diff)] * 3)
+        ratio = math.exp(diff)
+        return (0.0 if diff != 0 else 1.0), Interval(ratio, ratio, ratio)
     result = sps.ttest_ind(after, before)
     ci = result.confidence_interval(CONFIDENCE)
     return float(result.pvalue), Interval(math.exp(diff), math.exp(float(ci.low)),
@@ -101,7 +102,7 @@ def change_points(values: Sequence[float], max_p: float = DEFAULT_MAX_P) -> list
             open_segments += [(start, tau), (tau, end)]
     points.sort()
     while points:  # merge: drop the weakest while any fails max_p between its neighbours
-        ends = [0, *points, len(logs)]  # each change point's test between its neighbours
+        ends = [0, *points, len(logs)]  # each change point tested between its neighbours
         tested = [step_test(logs[ends[k]:ends[k + 1]], logs[ends[k + 1]:ends[k + 2]])
                   for k in range(len(points))]
         worst = max(range(len(points)), key=lambda k: tested[k][0])
