@@ -45,7 +45,7 @@ from harness.stats.intervals import (
     estimate,
     median_ci,
 )
-from harness.stats.rounds import round_medians
+from harness.stats.paired import round_medians
 
 # A cell gets its runs in at least this many rounds before its interval may stop it: with
 # fewer the t-quantile (12.7 at two rounds, 4.3 at three) makes any interval wide, and rounds
