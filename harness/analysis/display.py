@@ -94,7 +94,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "mpi_bytes_step": "bytes per step",
     "rss_mib_max": "memory per rank, most [MiB]",
     "rss_mib_sum": "memory, all ranks [MiB]",
-    "fastest": "fastest",
     # the instruction lane
     "instructions_per_pair_test": "instructions per pair test",
     "instructions_per_particle_step": "instructions per particle-step",

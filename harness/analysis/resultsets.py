@@ -341,4 +341,3 @@ class Quantity:
 
 TIME_QUANTITY = Quantity(METRIC_TIME, "s", False, time_value)
 INSTRUCTIONS_QUANTITY = Quantity(METRIC_INSTRUCTIONS, "", True, instructions_value)
-QUANTITIES: dict[str, Quantity] = {q.name: q for q in (TIME_QUANTITY, INSTRUCTIONS_QUANTITY)}

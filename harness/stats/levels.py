@@ -1,28 +1,13 @@
 """Three levels of variation: runs within a round, rounds within a session (one `run` of a
-config), sessions on a machine.
+config), sessions on a machine (docs/compare.md, "Three levels", says how they are modelled).
 
-A cell's estimate comes from its rounds: each round's value is the median of the runs it
-timed, and the cell's is the median of those. The runs of one round share the machine's state
-of that moment, so they are not independent of each other: a bootstrap over runs reads their
-agreement as certainty even where the rounds disagree. The interval here is over the rounds
-(a t-interval on the logs of the round values, with as many degrees of freedom as rounds less
-one, honest for five), and an absolute one adds the session level: how far a whole session's
-estimate moves on this machine (a log-scale standard deviation, SessionSpread; learnt by the
-`reruns` command, else DEFAULT_SESSION_SPREAD).
-
-The absolute interval is one that another session's estimate of the cell lies in with 95%:
-both estimates carry a session's and their rounds' error, so the spread of their difference is
-sqrt(2) times that of one (a prediction interval, not one for the machine's long-run value).
-A ratio of two cells measured in the same rounds (speedup over one thread, over seq) is taken
-round by round: the machine's speed at that moment moves both sides alike and cancels, and
-what is left between sessions (where threads were placed, a neighbour's cache) is the ratio's
-own session spread.
-
-The session level depends on how busy the machine is: a noisy neighbour makes a cell's runs
-fall into two modes (its team waits, or it does not), and a session's median then lands in
-either. A spread is learnt under the noise its reruns measured (the median share of the
-cores' time others took over their rounds), a machine may keep one per noise level, and a
-session takes the spread at its own noise (spread_at).
+A round's value is the median of its runs, a cell's the median of its rounds'. The runs of one
+round share the machine's moment and are not independent, so a bootstrap over them reads their
+agreement as certainty: the interval here is a t-interval on the logs of the round values. An
+absolute one adds the session level (SessionSpread, learnt by `reruns` per noise level, else
+DEFAULT_SESSION_SPREAD) for both of two sessions (sqrt 2): a prediction of another session's
+estimate. A ratio of two cells measured in the same rounds is taken round by round, so that the
+machine's speed at that moment cancels.
 """
 
 from __future__ import annotations

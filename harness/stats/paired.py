@@ -17,20 +17,15 @@ from harness.stats.intervals import CONFIDENCE, Interval
 from harness.stats.verdicts import NO_CHANGE_KNOWN, Change, exact_change, look_index, look_weight
 
 
-def runs_by_round(times: Sequence[float], rounds: Sequence[int]) -> dict[int, list[float]]:
-    """The runs' seconds by round, in round order; empty where the runs' rounds are not
-    recorded."""
+def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, float]:
+    """The median of the runs of each round (a round times a few runs of a fast cell), in round
+    order; empty where the runs' rounds are not recorded."""
     if len(rounds) != len(times):
         return {}
     grouped: dict[int, list[float]] = {}
     for round_index, seconds in sorted(zip(rounds, times, strict=True), key=lambda p: p[0]):
         grouped.setdefault(int(round_index), []).append(float(seconds))
-    return grouped
-
-
-def round_medians(times: Sequence[float], rounds: Sequence[int]) -> dict[int, float]:
-    """The median of the runs of each round (a round times a few runs of a fast cell)."""
-    return {k: float(np.median(v)) for k, v in runs_by_round(times, rounds).items()}
+    return {k: float(np.median(v)) for k, v in grouped.items()}
 
 
 def by_round(rounds: Sequence[int], values: Sequence[float]) -> dict[int, float]:
