@@ -51,13 +51,12 @@ MAX_DROPPED_SHARE = 0.25
 DISTURBED_LIMIT = 0.10
 
 
-def rounds_to_drop(old: dict[int, float], new: dict[int, float],
-                   limit: float = NOISE_LIMIT) -> frozenset[int]:
-    """The rounds of a pair to leave out: those interfered with beyond `limit` on either side
-    (shares by round), the worst first, at most MAX_DROPPED_SHARE of the rounds both have."""
+def rounds_to_drop(old: dict[int, float], new: dict[int, float]) -> frozenset[int]:
+    """The rounds of a pair to leave out: those interfered with beyond NOISE_LIMIT on either
+    side (shares by round), the worst first, at most MAX_DROPPED_SHARE of the rounds both have."""
     common = old.keys() & new.keys()
     worst = sorted(((max(old[k], new[k]), k) for k in common), reverse=True)
-    beyond = [k for share, k in worst if share > limit]
+    beyond = [k for share, k in worst if share > NOISE_LIMIT]
     return frozenset(beyond[:math.floor(MAX_DROPPED_SHARE * len(common))])
 
 
@@ -173,15 +172,11 @@ def interference_slope(log_ratios: np.ndarray, shift: np.ndarray) -> float:
 
 
 def without_interference(log_ratios: np.ndarray, shift: Sequence[float] | None) -> np.ndarray:
-    """The rounds' log ratios with the part their interference shift explains taken out.
-
-    Why: a round where others took the cores during one side only moves its ratio by about
-    the share they took, times how much this cell suffers from a share (a cell with a thread
-    on every core much more than a lone thread, which the kernel moves to a free core); the
-    ratios left cluster around the change itself. Under identical sides a shift is as likely
-    either way, so taking it out moves no ratio either way on average. It assumes the binaries
-    do not change the share others get: a NEW that leaves a core idle where OLD did not gives a
-    waiting neighbour more, and part of its slow-down would read as noise (docs/compare.md)."""
+    """The rounds' log ratios with the part their interference shift explains taken out: a
+    round where others took the cores during one side only moves its ratio by about the share
+    they took times how much this cell suffers from it, and the ratios left cluster around the
+    change itself (docs/compare.md, "The interference taken out of each round's ratio", says
+    why this is fair under identical sides and what it assumes)."""
     if shift is None:
         return log_ratios
     s = np.asarray(shift, dtype=float)
@@ -194,26 +189,16 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     one right after the other, so that the machine's drift is in both. The ratio is the median
     of the per-round ratios, its interval and p-values from the sign test on their logs
     (scipy.stats.quantile_test: the interval is the order statistics that hold the median, the
-    p-values are binomial; against +-log(1 + threshold) for the p-values).
+    p-values binomial, against +-log(1 + threshold)). Why the median and the sign test: a
+    round whose sides met different states of a shared machine costs the sign test one vote,
+    where it widens a t-test's every interval (docs/compare.md, "Measured together").
 
-    Why the median and the sign test: on a shared machine a round's two sides often run in
-    different states of the machine (a neighbour busy for one of them, the host's speed
-    changed between them), which moves its ratio by 10-40% either way, while the rounds whose
-    sides ran alike cluster tightly around the true ratio. The sign test reads only on which
-    side of a value each ratio lies, so those rounds cost it one vote each instead of widening
-    every interval as they widen a t-test's (docs/compare.md has the power of both on this
-    machine's rounds). Under identical sides, a round's ratio is as likely above 1 as below
-    (the order of its two sides is shuffled), which is all the test assumes.
-
-    Rounds may have been added until the cell was decided (look_index): the p-values are
-    those of the look the rounds count as (divided by its share of the error rate) and the
-    interval is at that look's level, so that an interval shown inside the threshold is one
-    the sequential design allows. `sd` is the per-round spread the interval implies (its
-    half-width in logs over the normal quantile of its level, times the square root of the
-    rounds), what further_rounds and smallest_detectable read.
-
-    `shift` (per round, NEW's interference share less OLD's): the part of each ratio it
-    explains is taken out first (without_interference)."""
+    Rounds may have been added until the cell was decided: the p-values are those of the look
+    the rounds count as (look_index, divided by its share of the error rate) and the interval
+    is at that look's level, so that an interval shown inside the threshold is one the
+    sequential design allows. `sd` is the per-round spread the interval implies (what
+    further_rounds and smallest_detectable read). `shift` (per round, NEW's interference less
+    OLD's) is taken out of the ratios first (without_interference)."""
     d = np.log(np.asarray(new, dtype=float)) - np.log(np.asarray(old, dtype=float))
     finite = np.isfinite(d)
     d = without_interference(d[finite], None if shift is None

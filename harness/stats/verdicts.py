@@ -121,7 +121,7 @@ def decide(changes: Sequence[Change], q: float) -> list[str]:
     return [c.claim if hit else INCONCLUSIVE for c, hit in zip(changes, found, strict=True)]
 
 
-def further_rounds(change: Change, threshold: float, look: int | None = None) -> float:
+def further_rounds(change: Change, threshold: float) -> float:
     """Roughly how many more rounds (paired) or runs a side (apart) would likely decide the
     cell at its observed spread and ratio: until its interval (at the next look's level)
     clears the threshold on the side its point lies. 0 when the interval is already clear of
@@ -133,7 +133,7 @@ def further_rounds(change: Change, threshold: float, look: int | None = None) ->
     distance = abs(abs(math.log(change.ratio.point)) - margin)
     if distance == 0.0:
         return math.inf
-    next_look = min((look if look is not None else change.look) + 1, LAST_LOOK)
+    next_look = min(change.look + 1, LAST_LOOK)
     z = float(sps.norm.ppf(1 - (1 - CONFIDENCE) * look_weight(next_look) / 2))
     allowed = (distance / z) ** 2 - change.floor ** 2
     if allowed <= 0.0:
@@ -171,20 +171,11 @@ def log_spread(ratio: Interval) -> tuple[float, float] | None:
     return math.log(ratio.point), (math.log(ratio.high) - math.log(ratio.low)) / (2 * Z95)
 
 
-# How far a run's log time moves per unit of CPU pressure (the share of its time some task
-# waited for a CPU, harness.measure.noise), taken as a standard deviation: under scripts/noise
-# at 30% duty on 2 vCPUs the Theil-Sen slopes of compare16's cells were 0.2-1.1 at one thread
-# and 1.4-2.7 at two, all within 1.96 times this (docs/compare.md).
+# Standard deviations to allow on the log ratio of two sides measured apart, per unit of the
+# difference in CPU pressure they met and per unit of the share of the cores' time others took
+# while a side ran (docs/compare.md, "Measured apart", says why these values: under
+# scripts/noise at 30% duty on 2 vCPUs, 1 for the share left no false verdict and 0.5 one).
 PRESSURE_SLOPE = 2.0
-
-
-# How much drift to allow between sides measured apart, per unit of the share of the cores'
-# time stolen or taken by others while a side ran, taken as a standard deviation. A CPU-bound
-# run on cores others take a share s of is slowed by up to about log(1/(1 - s)), nearly s for
-# small s, and whether a run was is luck that its own spread need not show: on 2 vCPUs under
-# scripts/noise at 30% duty, sets whose cells met no pressure of their own still differed by
-# 24-37% between runs minutes apart. 1 (the share itself) left no false verdict there and 0.5
-# left one (docs/compare.md).
 NOISE_DRIFT_SLOPE = 1.0
 
 
@@ -197,10 +188,9 @@ def noise_drift(shares: Sequence[float]) -> float:
 def contention_spread(old_pressure: Sequence[float], new_pressure: Sequence[float]) -> float:
     """What to allow on the log ratio of two sides measured apart for the CPU pressure they
     met differently (a standard deviation): PRESSURE_SLOPE times the difference of their
-    rounds' mean pressures; 0 where either side's was not measured.
-
-    Why: a burst of others' work can cover every run of one side of a fast cell and none of
-    the other's, which neither side's own spread shows; the pressure each met says so."""
+    rounds' mean pressures; 0 where either side's was not measured. Why: a burst of others'
+    work can cover one side of a fast cell and not the other, which neither side's spread
+    shows."""
     if not len(old_pressure) or not len(new_pressure):
         return 0.0
     return PRESSURE_SLOPE * abs(float(np.mean(new_pressure)) - float(np.mean(old_pressure)))
