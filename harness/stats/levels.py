@@ -92,10 +92,8 @@ def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str
     return [SessionSpread.of_entry(e, machine_id) for e in entries]
 
 
-# Until a machine's reruns are measured: 0.11 for a cell's time, whose sqrt(2) (0.156) is the
-# drift compare allowed between sets measured apart before (on a 2-vCPU VM, a cell's median
-# moved 12-15% between reruns minutes apart, the median over cells, and up to 54%); 0.05 for a
-# ratio paired by round, whose sides share their rounds' machine (docs/compare.md).
+# Until a machine's reruns are measured (docs/compare.md, "The default session spread"): a
+# ratio paired by round moves less, its sides sharing their rounds' machine.
 DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
 # Noise levels this close are one: a newer spread learnt within it replaces an older one, and
 # a session's noise may lie this far above the noisiest level learnt before its spread says
