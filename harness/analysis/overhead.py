@@ -84,10 +84,9 @@ def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
     thread count's measured costs); its median, the repair's, and their difference (the
     measured overhead), from the facts of `variants`. None where no seed strategy ran or no
     cost was measured."""
-    if not has_costs(df):
-        return None
     costs = cost_table(df)
-    assert costs is not None
+    if costs is None:
+        return None
     by_threads = costs.set_index("threads")
     timed = timed_rows(df)
     rows = []
@@ -98,8 +97,7 @@ def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
         repair = repaired_by(variant, variants)
         repair_sync = getattr(variants.get(repair) if repair else None, "sync", None)
         for threads, cells in df[df["variant"] == variant].groupby("threads", sort=True):
-            first = cells.iloc[0]
-            n, steps, t = int(first["n"]), int(first["steps"]), int(threads)
+            n, steps, t = int(cells["n"].iloc[0]), int(cells["steps"].iloc[0]), int(threads)
             at = by_threads.loc[t] if t in by_threads.index else pd.Series(dtype=float)
             same = timed[timed["threads"] == t]
             predicted = predicted_s(facts.sync, n, steps, t, at)
@@ -137,8 +135,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
     count the cost of one such operation here, the predicted seconds and the measured ones."""
     costs = cost_table(df)
     by_threads = costs.set_index("threads") if costs is not None else pd.DataFrame()
-    first = df.iloc[0]
-    n, steps = int(first["n"]), int(first["steps"])
+    n, steps = int(df["n"].iloc[0]), int(df["steps"].iloc[0])
     sentences = []
     for variant, group in table.groupby("variant", sort=False):
         sync = variants[str(variant)].sync
@@ -162,8 +159,8 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
                 measured = f"of a median of {_seconds(row['median_s'])}"
             parts.append(f"at {threads_text(t)} {priced or 'nothing to price'}: predicted "
                          f"{_seconds(row['predicted_s'])}, {measured}")
-        unrepaired = "" if group["reference"].any() else \
-            " (it has no repair to measure its overhead against)"
+        unrepaired = "" if group["reference"].any() else (
+            " (it has no repair to measure its overhead against)")
         sentences.append(f"{variant} asks the runtime for {asks} per step ({steps} steps, "
                          f"N = {n}){unrepaired}; " + "; ".join(parts) + ".")
     return sentences
