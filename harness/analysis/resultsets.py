@@ -209,13 +209,6 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
     return cells
 
 
-def machine_matches(cell: Cell, selector: str) -> bool:
-    """`--old-machine`/`--new-machine`: a machine_id prefix or a label substring."""
-    wanted = selector.strip().lower()
-    return bool(wanted) and (cell.machine_id.lower().startswith(wanted)
-                             or wanted in cell.machine.lower())
-
-
 @dataclass
 class Side:
     """One result set, cells by key, after the machine filter and de-duplication."""
@@ -269,8 +262,10 @@ def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: 
     cells = [dataclasses.replace(c, machine=labels.get(c.machine_id, c.machine))
              for d in directories for c in read_cells(d, keyed_on_experiment)]
     option = f"--{name.lower()}-machine"
-    if selector is not None:
-        chosen = [c for c in cells if machine_matches(c, selector)]
+    if selector is not None:  # a machine_id prefix or a label substring
+        wanted = selector.strip().lower()
+        chosen = [c for c in cells if wanted and (c.machine_id.lower().startswith(wanted)
+                                                  or wanted in c.machine.lower())]
         if not chosen:
             known = ", ".join(sorted({c.machine_text for c in cells})) or "none"
             raise HarnessError(f"{name}: no cell was measured on a machine matching {option} "

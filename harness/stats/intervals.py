@@ -111,11 +111,9 @@ median_ci = estimate_ci
 @functools.lru_cache(maxsize=4096)
 def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
                ) -> tuple[float, float]:
-    """The percentile bootstrap interval of `statistic` (one of this module's, vectorized) over
-    the samples, each resampled on its own. Remembered: a render asks for the same interval
-    from several places (a cell's speedup in its table, its figure and the summary), a
-    calibration for a ratio its comparison asks for again, and the answer is deterministic
-    (seeded by the samples)."""
+    """The percentile bootstrap interval of `statistic` (vectorized) over the samples, each
+    resampled on its own. Remembered, being deterministic: a render asks for the same interval
+    from its table, figure and summary, a calibration for what its comparison asks again."""
     result = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
                            vectorized=True, paired=False, confidence_level=CONFIDENCE,
                            n_resamples=N_RESAMPLES, method="percentile",
@@ -126,9 +124,9 @@ def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
 
 def _interval(point: float, samples: tuple[np.ndarray, ...],
               statistic: Callable[..., np.ndarray]) -> Interval:
-    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, each
-    resampled on its own (independent runs), widened to hold the point: no interval with
-    fewer than two runs in a sample, the point itself where every sample is constant."""
+    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, widened
+    to hold the point: none with fewer than two runs in a sample, the point itself where every
+    sample is constant."""
     if any(s.size < 2 for s in samples):
         return Interval(point, math.nan, math.nan)
     if all(np.all(s == s[0]) for s in samples):

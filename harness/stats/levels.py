@@ -26,7 +26,6 @@ from harness.stats.intervals import (
     LOW_QUANTILE_ESTIMATOR,
     Z95,
     Interval,
-    clean,
     estimate,
     median_ci,
 )
@@ -136,8 +135,7 @@ def spread_at(levels: Sequence[SessionSpread], noise: float) -> SessionSpread:
 
 
 def t95(rounds: int) -> float:
-    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of
-    freedom)."""
+    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of freedom)."""
     return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
 
 
@@ -152,17 +150,16 @@ class RoundEstimate:
     rounds: int
 
     def interval(self) -> Interval:
-        """The 95% interval of the value over its rounds alone (t with rounds - 1 degrees of
-        freedom), around the point; NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
+        """The 95% interval of the value over its rounds alone, around the point."""
         return self._widened(0.0, 1.0)
 
     def rerun_interval(self, session: float) -> Interval:
         """Where another session's estimate lies with 95%: the rounds' and the session's
-        spread, each counted for both sessions (sqrt 2); NaN ends with fewer than
-        INTERVAL_MIN_ROUNDS rounds."""
+        spread, each counted for both sessions (sqrt 2)."""
         return self._widened(session, math.sqrt(2.0))
 
     def _widened(self, session: float, factor: float) -> Interval:
+        """NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
         half = factor * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
@@ -183,11 +180,7 @@ def from_round_values(values: Sequence[float]) -> RoundEstimate:
 def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimate:
     """A cell's estimate from its runs and the round of each (round_medians); where the
     rounds are not recorded, all its runs count as one round."""
-    by_round = round_medians(times, rounds)
-    if not by_round:
-        runs = clean(times)
-        return from_round_values([float(np.median(runs))] if runs.size else [])
-    return from_round_values(list(by_round.values()))  # in round order
+    return from_round_values(list(round_medians(times, rounds).values()) or [estimate(times)])
 
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
@@ -209,12 +202,10 @@ def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> R
 def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
     """The session level from reruns: per cell, each session's (log estimate, log standard
     error of its rounds). The variance between a cell's sessions beyond what their standard
-    errors explain, pooled over the cells with at least two sessions as DerSimonian and Laird
-    pool a random effect over studies (each cell its own mean, each session weighted by the
-    inverse square of its standard error, floored at MIN_LOG_SE): a cell whose rounds are
-    noisy (three rounds of a per-row pathology, a 5 ms cell) says little about the session
-    level and counts for little, and a session without a standard error (one round, a ratio
-    of two rounds) is left out. Floored at 0; NaN without any cell in two sessions."""
+    errors explain, pooled over the cells in two sessions or more as DerSimonian and Laird pool
+    a random effect (each session weighted by the inverse square of its standard error,
+    floored at MIN_LOG_SE), so that a cell whose rounds are noisy counts for little; a session
+    without a standard error is left out. Floored at 0; NaN without any cell in two sessions."""
     excess = dof = scale = 0.0
     for cell in sessions:
         found = [(m, max(s, MIN_LOG_SE)) for m, s in cell if math.isfinite(m) and math.isfinite(s)]
@@ -283,10 +274,9 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
 def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
                   session: float | None = None) -> tuple[float | None, float | None, float]:
     """What a cell's per-run times give: the 95% interval of their median (None where there is
-    none) and their low quantile. With the round of each run, the interval is where another
-    session's estimate lies (over the rounds, and the machine's `session` spread), widened to
-    hold the median of the runs; without (a record from before rounds), the bootstrap over
-    the runs."""
+    none) and their low quantile. With the round of each run, where another session's estimate
+    lies (rerun_interval with the machine's `session` spread), widened to hold the median of
+    the runs; without (a record from before rounds), the bootstrap over the runs."""
     if rounds is None:
         interval = median_ci(times)
     else:

@@ -45,10 +45,7 @@ def look_index(rounds: int) -> int:
     """The look a test of `rounds` rounds counts as: 1 up to the first look's rounds, then one
     more for each look passed (a comparison stopped between looks, by its budget, spends the
     next look's share), LAST_LOOK at most."""
-    look = 1
-    while look < LAST_LOOK and look_rounds(look) < rounds:
-        look += 1
-    return look
+    return next((look for look in range(1, LAST_LOOK) if look_rounds(look) >= rounds), LAST_LOOK)
 
 
 def paired_look(rounds: int, final: bool) -> int:
