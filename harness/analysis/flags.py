@@ -42,8 +42,7 @@ WARNING_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "th
 WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads", "ranks")
 
 
-def _is_true(value: object) -> bool:
-    """Whether a nullable boolean is a known True."""
+def _is_true(value: object) -> bool:  # a nullable boolean
     return bool(pd.notna(value) and value)
 
 
@@ -53,17 +52,13 @@ def _flags(row: pd.Series) -> list[str]:
 
 def agreement_text(row: pd.Series) -> str:
     """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
-    agreement = str(row.get("agreement"))
     first = row.get("first_diff_step")
-    if pd.notna(first):
-        return f"{agreement} from step {int(first)}"
-    return agreement
+    return f"{row.get('agreement')}" + (f" from step {int(first)}" if pd.notna(first) else "")
 
 
 def status_text(row: pd.Series) -> str:
     """A cell's status in a few words: `ok`, `failed (exit 3)`, `invalid: differs from step 3`."""
-    status = str(row["status"])
-    text = status
+    text = status = str(row["status"])
     exit_code = row.get("exit_code")
     if status in (FAILED, CRASHED) and pd.notna(exit_code):
         text = f"{status} (exit {int(exit_code)})"
