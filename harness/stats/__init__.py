@@ -1,12 +1,9 @@
-"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
-
-Everything here is scipy.stats: a percentile bootstrap for medians and for ratios and
-differences of medians (speedup, NEW/OLD), the sign test on the per-round log ratios of two
-sides measured together, a normal test for two measured apart (allowing for the machine's
-drift), Benjamini-Hochberg across a comparison's cells, and a least-squares fit with its
-standard error. The bootstrap's generator is seeded from the data itself, so the same times
-always give the same interval: results.csv and the report do not change when nothing was
-re-measured (and an interval asked for again is remembered, not resampled).
+"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times, with
+scipy.stats: bootstrap intervals of medians and their ratios and differences (intervals),
+intervals over rounds and sessions (levels), the sign test of two sides measured together
+(paired), and the verdicts with the change of two measured apart (verdicts). The bootstrap is
+seeded from the data, so that the same times always give the same interval: results.csv and the
+report do not change when nothing was re-measured.
 
 Why the percentile bootstrap and not BCa: with the 3-5 runs most configs take, BCa's jackknife
 acceleration is degenerate (and scipy warns); the percentile interval of a median of n runs

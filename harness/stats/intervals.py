@@ -29,8 +29,7 @@ class Interval:
     high: float
 
     @property
-    def bounded(self) -> bool:
-        """Whether both ends are finite (an interval was computed)."""
+    def bounded(self) -> bool:  # both ends finite: an interval was computed
         return math.isfinite(self.low) and math.isfinite(self.high)
 
     def half_width(self) -> float:
@@ -52,11 +51,10 @@ class Interval:
 
     def format(self, digits: int = 3) -> str:
         """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
-        def fmt(value: float) -> str:
-            return f"{value:.{digits}g}"
+        point = f"{self.point:.{digits}g}"
         if not self.bounded:
-            return fmt(self.point)
-        return f"{fmt(self.point)} [{fmt(self.low)}, {fmt(self.high)}]"
+            return point
+        return f"{point} [{self.low:.{digits}g}, {self.high:.{digits}g}]"
 
 
 def _seed(*samples: Sequence[float]) -> int:

@@ -25,12 +25,9 @@ INCONCLUSIVE = "inconclusive"
 VERDICTS = (SLOWER, FASTER, UNCHANGED, INCONCLUSIVE)
 
 # Sequential looks of a paired comparison that adds rounds until its cells are decided: the
-# first look at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many rounds, the
-# last at LAST_LOOK. The error rate is spent over the looks (look j spends look_weight(j) of it,
-# the weights summing to 1), so that looking again and stopping when a look decides cannot
-# inflate the rate of false verdicts: a union bound over the looks (an alpha-spending
-# group-sequential design). Half of the rate is kept for the last look, where a cell that the
-# machine's noise left undecided is judged on the most rounds.
+# first at FIRST_LOOK_ROUNDS rounds, each next one LOOK_GROWTH times as many, the last at
+# LAST_LOOK. The looks spend the error rate (look_weight), so that looking again cannot inflate
+# the rate of false verdicts (docs/compare.md, "Looking again does not inflate false verdicts").
 FIRST_LOOK_ROUNDS = 12
 LOOK_GROWTH = 1.5
 LAST_LOOK = 7  # at look_rounds(LAST_LOOK) = 138 rounds; no rounds are added beyond it
@@ -56,7 +53,7 @@ def paired_look(rounds: int, final: bool) -> int:
 
 def look_weight(look: int) -> float:
     """The share of the error rate look `look` spends: 1 / (2 j (j + 1)) before the last, and
-    the rest (just over half) at the last, so that the shares sum to 1."""
+    the rest (just over half, for a cell the noise left undecided) at the last: they sum to 1."""
     if look < LAST_LOOK:
         return 1.0 / (2 * look * (look + 1))
     return 1.0 - (1.0 - 1.0 / LAST_LOOK) / 2
@@ -69,9 +66,8 @@ class Change:
     one-sided tests that the change lies within it, the larger p-value), each doubled so that
     a claim at level q means the interval at 1 - q lies beyond (inside) the threshold; NaN
     where the runs cannot tell. `sd`, `n` and `floor` say how the interval would narrow with
-    more rounds (paired: the per-round spread on the log scale and the rounds) or runs (apart:
-    the standard error of the runs' own spread, from `n` runs a side, and the drift and the
-    contention that more runs cannot reduce)."""
+    more rounds (paired: the per-round log spread, `n` rounds) or runs (apart: the runs' own
+    spread from `n` runs a side, and the drift and contention more runs cannot reduce)."""
 
     ratio: Interval
     p_slower: float
