@@ -74,15 +74,12 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
 
 def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool = False,
                  ratios: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
-
-    Speedup is the ok seq median on the same scene over the cell's median. With
+    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`:
+    speedup is the ok seq median on the same scene over the cell's median; with
     `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
-    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads. Where
-    `ratios` (ratios.csv, analysis.paired) pairs a row with its baseline by round, the three
-    and their intervals are that ratio's (`speedup_paired`). Which variants do seq's work
-    and which are serial, `variants` (their facts) says.
-    """
+    1 thread instead (the thread-scaling convention). Where `ratios` (analysis.paired) pairs a
+    row with its baseline by round, the three and their intervals are that ratio's
+    (`speedup_paired`). Which variants do seq's work and which are serial, `variants` says."""
     out = df.copy()
     if TIMES not in df.columns:  # results written before the column
         df = df.assign(**{TIMES: [()] * len(df)})
@@ -171,19 +168,14 @@ def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def growth_exponents(df: pd.DataFrame, variants: Variants, x: str = "n") -> pd.DataFrame:
-    """Per series, the least-squares fit of log t = k log x + log a over its ok cells.
-
-    An all-pairs variant does Θ(N²) pair tests per step, so its time grows like a power law
-    with k ≈ 2: a straight line on log-log axes, where an exponential would curve upward.
-    Series with fewer than two distinct x are left out.
-    """
+    """Per series of two distinct x or more, the least-squares fit of log t = k log x + log a
+    over its ok cells: an all-pairs variant does Θ(N²) pair tests per step, so its time is a
+    straight line with k ≈ 2 on log-log axes, where an exponential would curve upward."""
     keys = series_keys(df, x)
     ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df[x] > 0)]
     rows: list[dict[str, object]] = []
     groups = ok.groupby(keys, sort=False, dropna=False) if keys else [((), ok)]
-    for values, group in groups:
-        if group[x].nunique() < 2:
-            continue
+    for values, group in groups:  # power_fit: None with fewer than two distinct x
         fit = stats.power_fit(group[x].astype(float).tolist(),
                               group["wall_median_s"].astype(float).tolist())
         if fit is None:
