@@ -151,8 +151,7 @@ def check_summary(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
         listed = ", ".join(where[:MAX_LISTED]) + (f", … {len(where) - MAX_LISTED} more"
                                                   if len(where) > MAX_LISTED else "")
         out.append({"check": name, "what": what, "checked": len(known),
-                    "passed": len(known) - len(failed), "failed": len(failed),
-                    "where": listed})
+                    "passed": len(known) - len(failed), "failed": len(failed), "where": listed})
     return pd.DataFrame(out, columns=["check", "what", "checked", "passed", "failed", "where"])
 
 

@@ -55,8 +55,7 @@ def render_csv(rows: Sequence[Mapping[str, object]]) -> str:
     return csv_text(results.columns_of(rows), rows)
 
 
-def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]
-           ) -> dict[Path, str | None]:
+def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> dict[Path, str | None]:
     """Each export's text (None: the file is not to be there)."""
     rows = [results.row_of(item, exp, how.title) for item in listed]
     files: dict[Path, str | None] = {exp.results_csv: render_csv(rows)}
@@ -121,8 +120,7 @@ def repair(exp: ExperimentDir) -> str | None:
             f"{len(listed) + len(damaged)} records its index lists{lost}")
 
 
-def _mismatches(exp: ExperimentDir, digests: Mapping[str, str | None]
-                ) -> list[tuple[str, str]]:
+def _mismatches(exp: ExperimentDir, digests: Mapping[str, str | None]) -> list[tuple[str, str]]:
     found = []
     for name, digest in digests.items():
         try:

@@ -148,15 +148,13 @@ def flagged_cells(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     # ranks only where some cell runs as ranks
     table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS if k in flagged.columns and (
         k != "ranks" or flagged[k].notna().any())})
-    table["issue"] = ["; ".join(text for _, text in issues(row))
-                      for _, row in flagged.iterrows()]
+    table["issue"] = ["; ".join(text for _, text in issues(row)) for _, row in flagged.iterrows()]
     return table
 
 
 def flagged_kinds(df: pd.DataFrame, variants: Variants) -> list[tuple[str, ...]]:
     """The kinds of issue of each row of flagged_cells(df, variants), in its order."""
-    return [tuple(kind for kind, _ in issues(row))
-            for _, row in _flagged(df, variants).iterrows()]
+    return [tuple(kind for kind, _ in issues(row)) for _, row in _flagged(df, variants).iterrows()]
 
 
 COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)

@@ -17,11 +17,10 @@ import pandas as pd
 
 from harness.analysis.cells import flag, timed_rows
 from harness.analysis.display import threads_text
-from harness.analysis.strategies import SEED_TIMES_S, repaired_by
+from harness.analysis.strategies import NS_PER_S, SEED_TIMES_S, repaired_by
 from harness.spec.facts import SyncFacts, Variants
 from harness.store.columns import OMP_COST_COLUMNS
 
-NS_PER_S = 1e9
 REGION, BARRIER, GRAB, NESTED = OMP_COST_COLUMNS  # ns per operation, as results.csv has them
 # Each operation of the sync facts, with the cost column that prices it.
 PRICED: tuple[tuple[str, str], ...] = (("regions", REGION), ("nested_regions", NESTED),
@@ -54,8 +53,7 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
     return table
 
 
-def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int,
-                costs: pd.Series) -> float:
+def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int, costs: pd.Series) -> float:
     """The seconds a run of `steps` steps of N particles spends in the runtime's operations at
     `threads`: each count per step times the cost of one. Nested regions are forked by the T
     threads of the outer team at once, so a step waits for 1/T of them. NaN where a count
@@ -129,8 +127,7 @@ def _seconds(value: float) -> str:
     return f"{value:.3g} s" if math.isfinite(value) else "not measured"
 
 
-def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
-                       variants: Variants) -> list[str]:
+def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame, variants: Variants) -> list[str]:
     """One sentence per strategy: what it asks of the runtime per step, and at each thread
     count the cost of one such operation here, the predicted seconds and the measured ones."""
     costs = cost_table(df)
@@ -147,9 +144,8 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
             if t not in by_threads.index:
                 parts.append(f"at {threads_text(t)} no cost per operation was measured")
                 continue
-            priced = ", ".join(
-                f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
-                for op, column in PRICED if sync.per_step(n)[op])
+            priced = ", ".join(f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
+                               for op, column in PRICED if sync.per_step(n)[op])
             if math.isfinite(row["measured_s"]):
                 measured = f"measured {_seconds(row['measured_s'])} over {row['reference']}"
             elif row["reference"]:

@@ -107,8 +107,7 @@ def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
     threads = int(min(counts[counts == counts.max()].index))
     chosen = rows[rows["threads"] == threads]
     # A machine is a bar of its own (ROW_KEYS), not a scene.
-    scene_keys = tuple(k for k in SCENE_KEYS
-                       if k != MACHINE and k in varying_keys(chosen))
+    scene_keys = tuple(k for k in SCENE_KEYS if k != MACHINE and k in varying_keys(chosen))
     row_keys = tuple(k for k in ROW_KEYS if k in varying_keys(chosen)) or ("variant",)
     ordered = sort_cells(chosen, [*scene_keys, *row_keys], variants)
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
@@ -150,8 +149,7 @@ def phase_table(sel: Selection) -> pd.DataFrame:
     """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
     and the output."""
     shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
-    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]
-                     ].copy()
+    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]].copy()
 
 
 def plot_frame(sel: Selection) -> pd.DataFrame:

@@ -258,8 +258,7 @@ def load_experiment(exp: ExperimentDir, labels: Mapping[str, str] | None = None)
     rows = tuple(row_of(item, exp, title) for item in items)
     if labels is None:
         labels = machine_labels(read_machines([exp.path]))
-    return Experiment(exp.name, exp, title, items, rows, read_variants(exp.variants_json),
-                      labels)
+    return Experiment(exp.name, exp, title, items, rows, read_variants(exp.variants_json), labels)
 
 
 def has_rows(exp: ExperimentDir) -> bool:

@@ -26,8 +26,7 @@ from harness.store.columns import RATIO_OVER_BASELINE
 SEED_MACHINE = "its 20-thread Xeon"
 SEED_THREADS = 20
 SEED_SEQ_S = 41.94
-SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24,
-                                  "p2d": 94.24}
+SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24, "p2d": 94.24}
 SEED_SCENE: dict[str, float] = {"n": 10000, "L": 20000, "r": 1, "steps": 50}
 
 # Why each seed strategy loses time (variants/NAME.c says more): the words of the ranking
@@ -280,8 +279,7 @@ def schedule_rows(df: pd.DataFrame) -> pd.DataFrame:
     if out.empty:
         return out
     out["median_s"] = [c.point for c in out["median"]]
-    return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(
-        drop=True)
+    return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(drop=True)
 
 
 def schedule_table(rows: pd.DataFrame) -> pd.DataFrame:

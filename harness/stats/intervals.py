@@ -133,8 +133,7 @@ def _interval(point: float, samples: tuple[np.ndarray, ...],
     return Interval(point, min(low, point), max(high, point))
 
 
-def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
-                 ) -> Interval:
+def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]) -> Interval:
     """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples: NaN
     without runs on a side."""
     if a.size == 0 or b.size == 0:

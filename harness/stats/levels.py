@@ -85,8 +85,7 @@ def supersedes(newer: Mapping[str, object], older: Mapping[str, object]) -> bool
     return math.isnan(old) or (math.isfinite(new) and abs(new - old) <= NOISE_MARGIN)
 
 
-def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str
-               ) -> list[SessionSpread]:
+def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str) -> list[SessionSpread]:
     """The spreads of a machine's kept entries, in their order (spread_at picks among them)."""
     return [SessionSpread.of_entry(e, machine_id) for e in entries]
 
@@ -194,9 +193,6 @@ def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> R
     both alike and cancels."""
     common = sorted(reference.keys() & cell.keys())
     return from_round_values([reference[k] / cell[k] for k in common if cell[k] > 0])
-
-
-# --- sessions ---------------------------------------------------------------------------
 
 
 def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:

@@ -205,8 +205,7 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     if se == 0.0:
         return exact_change(base.point, threshold)
     margin = math.log1p(threshold)
-    interval = Interval(base.point, math.exp(log_ratio - Z95 * se),
-                        math.exp(log_ratio + Z95 * se))
+    interval = Interval(base.point, math.exp(log_ratio - Z95 * se), math.exp(log_ratio + Z95 * se))
     unchanged = max(float(sps.norm.sf((log_ratio + margin) / se)),
                     float(sps.norm.cdf((log_ratio - margin) / se)))
     runs = min(len(clean(old)), len(clean(new)))
