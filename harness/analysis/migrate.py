@@ -1,18 +1,11 @@
-"""Records rewritten once, in place: as the current version keeps them (`collide-bench store
-upgrade PATH...`), and with the identity their cells have now (`collide-bench store migrate
-PATH`).
-
-Upgrade: the format (store.result.upgrade), and what a record from before rounds did not keep
-itself: its runs' times, from the one hyperfine export it has, the interval of their median
-(stats.time_interval, the bootstrap over the runs) and their low quantile. Afterwards no reader
-needs to know an earlier format.
-
-Migrate (docs/results.md, "A serial variant's cell"): a record of a variant along an axis its
-facts say it ignores (harness.spec.facts.IGNORED_AXES) measured the cell at the axis's one
-value, under another key. Per machine and cell, where a record at that value is there already,
-those along the axis move to history/; else the newest is re-keyed (`migrated_from` keeps the
-id it had) and the others move. Then the index lists the new ids and the exports are written
-again from it; results from before the index keep results.csv's other rows as they were."""
+"""Records rewritten once, in place (docs/results.md): as the current version keeps them, so
+that no reader needs to know an earlier one (`collide-bench store upgrade PATH...`: the format,
+and a record from before rounds given its runs' times from its hyperfine export, their
+median's interval and low quantile), and
+with the identity their cells have now (`collide-bench store migrate PATH`: a record of a
+variant along an axis its facts say it ignores, harness.spec.facts.IGNORED_AXES, is re-keyed to
+the axis's one value, or moves to history/ where the cell has a record there already; then the
+index lists the new ids and the exports are written again)."""
 
 from __future__ import annotations
 
@@ -61,8 +54,9 @@ def changes(result: CellResult, facts: Variants) -> dict[str, object]:
 
 def sort_out(stored: Sequence[Stored], facts: Variants
              ) -> tuple[list[tuple[Stored, dict[str, object]]], list[Stored]]:
-    """The records to give their cell's key (with the changes), and those superseded by an
-    equivalent record (to history/); per machine and cell, as the module's docstring says."""
+    """The records to give their cell's key (with the changes), and those to move to history/:
+    per machine and cell, all of them where the cell has a record at the axis's value already,
+    else all but the newest, which is re-keyed."""
     held = {(s.machine_id, s.key.group) for s in stored if not changes(s.result, facts)}
     buckets: dict[tuple[str, str], list[tuple[Stored, dict[str, object]]]] = {}
     for item in stored:

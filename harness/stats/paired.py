@@ -100,8 +100,7 @@ def noise_profile(shares: Sequence[float], steal_s: float, other_cpu_s: float,
 class PairedRounds:
     """The rounds both sides of a pair measured, in round order: each side's value and, where
     the noise of both was measured, how much more interference NEW's side met than OLD's
-    (harness.measure.noise: the CPU pressure where the kernel gave it, else the share of the
-    cores others took); `measured`: the rounds both measured, the left-out ones included (the
+    (paired_series); `measured`: the rounds both measured, the left-out ones included (the
     look the pair has reached)."""
 
     old: list[float]
@@ -118,11 +117,8 @@ def paired_series(old: dict[int, float], new: dict[int, float],
     """The two sides' values of the rounds both have, in round order, without those
     interfered with on either side (rounds_to_drop, from each side's interference share by
     round); with the interference shift of each round: NEW's CPU pressure less OLD's where
-    both cover every one of the rounds, else NEW's share less OLD's where those do.
-
-    Why the pressure first: it counts the time a task waited for a core, which is what slows
-    a run whichever core the kernel moved it to; a share over all the cores misses that a
-    lone thread moved to an idle one is not slowed (docs/compare.md)."""
+    both cover every one of the rounds, else NEW's share less OLD's where those do (the
+    pressure first: docs/compare.md, "The pressure, not the share")."""
     both = old.keys() & new.keys()
     common = sorted(both - rounds_to_drop(old_noise or {}, new_noise or {}))
     shift = None
