@@ -1,5 +1,5 @@
 """Which columns name a cell, and the selections every table starts from: pure functions of
-one experiment's results frame (harness.analysis.results reads it)."""
+one experiment's results frame."""
 
 from __future__ import annotations
 
@@ -12,10 +12,9 @@ from harness.spec.builds import BUILDS
 from harness.spec.facts import VariantFacts, Variants
 from harness.store.columns import AGREEMENTS, MATCH_COLUMNS, SCENE_COLUMNS, TIMED_STATUSES
 
-MACHINE = "machine"  # the machine's label; one label per machine_id (harness.analysis.results)
-# The columns that identify a measured cell, in the order tables show them. A results
-# directory may hold several machines' cells side by side: the machine is then a dimension
-# like any other (a table column, one plotted series each).
+MACHINE = "machine"  # the machine's label; one label per machine_id
+# The columns that identify a measured cell, in the order tables show them: the machine is a
+# dimension like any other (a table column, one plotted series each).
 CELL_KEYS: tuple[str, ...] = (MACHINE, *MATCH_COLUMNS)
 # The columns that identify a simulated input: cells sharing them simulate the same thing,
 # so one may serve as the other's speedup baseline (never across machines).
@@ -49,7 +48,7 @@ def key_text(value: object, numeric: bool = True) -> str:
 
 
 def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
-    """The table without `columns` and their intervals and standard errors."""
+    """The table without `columns` and their companions."""
     gone = {c for col in columns for c in (col, *companions(col))}
     return df.drop(columns=[c for c in df.columns if c in gone])
 
@@ -98,46 +97,35 @@ def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str,
             and df[key].nunique(dropna=False) == 1 and df[key].iloc[0] != ""}
 
 
-def _follows(df: pd.DataFrame, key: str, x: str) -> bool:
-    """Whether `key` and `x` determine each other (e.g. a scene file per N, or S chosen per N):
-    such a key names the point, not the series."""
-    return bool(
-        df.groupby(key, dropna=False)[x].nunique(dropna=False).max() == 1
-        and df.groupby(x, dropna=False)[key].nunique(dropna=False).max() == 1
-    )
-
-
 def series_keys(df: pd.DataFrame, x: str) -> list[str]:
-    """The keys that split the rows into one plotted series each, for a plot against `x`."""
-    return [k for k in varying_keys(df) if k != x and not _follows(df, k, x)]
+    """The keys that split the rows into one plotted series each, for a plot against `x`: not
+    a key that `x` and it determine each other (a scene file per N, S chosen per N), which
+    names the point, not the series."""
+    def follows(key: str) -> bool:
+        return bool(df.groupby(key, dropna=False)[x].nunique(dropna=False).max() == 1
+                    and df.groupby(x, dropna=False)[key].nunique(dropna=False).max() == 1)
+    return [k for k in varying_keys(df) if k != x and not follows(k)]
 
 
 def sweep_axes(df: pd.DataFrame) -> list[str]:
-    """The parameters some variant and build was measured at several values of.
-
-    Judged within each variant, build and named scene so that seq at 1 thread beside p1 at 8
-    is not mistaken for a thread sweep, nor a catalog of different scenes for a sweep of N.
-    """
+    """The parameters some variant and build was measured at several values of, judged within
+    each variant, build and named scene: seq at 1 thread beside p1 at 8 is no thread sweep, nor
+    a catalog of different scenes a sweep of N."""
     groups = df.groupby(["variant", "build", "scene"], dropna=False)
     return [x for x in SWEEP_AXES if (groups[x].nunique() > 1).any()]
 
 
-def _canonical(col: pd.Series, variants: Variants) -> pd.Series:
-    """A sort key: variants in the order of `variants` (the facts stored with the results),
-    builds in harness.spec.builds' order, unknown names after them; any other column as it
-    is."""
-    order = variants.order if col.name == "variant" else BUILDS if col.name == "build" else None
-    if order is None:
-        return col
-    ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
-    return col.map(lambda v: ranks.get(v, f"999{v}"))
-
-
 def sort_cells(df: pd.DataFrame, keys: Sequence[str], variants: Variants) -> pd.DataFrame:
     """Rows sorted by `keys`: variants in the order of `variants` (the facts stored with the
-    results) and builds in theirs, numbers by value."""
-    keys = [k for k in keys if k in df.columns]
+    results), builds in harness.spec.builds' order, unknown names after them; numbers by
+    value."""
+    def canonical(col: pd.Series) -> pd.Series:
+        order = variants.order if col.name == "variant" else BUILDS if col.name == "build" else None
+        if order is None:
+            return col
+        ranks = {name: f"{i:03d}" for i, name in enumerate(order)}
+        return col.map(lambda v: ranks.get(v, f"999{v}"))
+    keys = present(df, keys)
     if not keys:
         return df.reset_index(drop=True)
-    return df.sort_values(keys, key=lambda col: _canonical(col, variants),
-                          kind="stable").reset_index(drop=True)
+    return df.sort_values(keys, key=canonical, kind="stable").reset_index(drop=True)

@@ -15,9 +15,8 @@ from harness.analysis.serving import ONE_THREAD_RUN
 from harness.store.columns import PHASE_COLUMNS
 
 # Where a --timing run's time goes (harness.analysis.phases), in drawing order: results.csv's
-# phase columns and what sim_s holds beyond them (parallel regions' start-ups and closing
-# barriers, the step's bookkeeping), which make up sim_s; then the output, which that run
-# writes with --precise (every digit), far slower than the timed runs' output.
+# phase columns and what sim_s holds beyond them (regions' start-ups and closing barriers, the
+# step's bookkeeping), which make up sim_s; then the output, written with --precise.
 OTHER_PHASE = "other_s"
 OUTPUT_PHASE = "output_s"
 PHASE_NAMES: dict[str, str] = dict(zip(
@@ -27,8 +26,7 @@ PHASE_NAMES: dict[str, str] = dict(zip(
     strict=True))
 
 
-# Display headers of the columns a builder can produce, where they differ from the column's
-# name (display_name).
+# Display headers of the columns a builder can produce, where they differ from their names.
 DISPLAY_NAMES: dict[str, str] = {
     "n": "N",
     "steps": "S",
@@ -94,7 +92,6 @@ DISPLAY_NAMES: dict[str, str] = {
     "mpi_bytes_step": "bytes per step",
     "rss_mib_max": "memory per rank, most [MiB]",
     "rss_mib_sum": "memory, all ranks [MiB]",
-    "fastest": "fastest",
     # the instruction lane
     "instructions_per_pair_test": "instructions per pair test",
     "instructions_per_particle_step": "instructions per particle-step",

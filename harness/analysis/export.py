@@ -1,12 +1,8 @@
-"""The exports of an experiment's results, for pandas users and spreadsheets: results.csv (its
-rows, analysis.results), ratios.csv (each cell's speedups by round, analysis.ratios) and
-divergence.csv (the checks' curves), written beside its records with results.index.json: the
-records they list, in order (with stale and earlier-config marks), and the sha256 of each file
-as written. No harness code reads the CSV files back; the index is what the read model lists
-(store.index).
-
-An export found missing, cut short or altered is named in one line and written again from the
-records the index lists (repair); results from before the index are left as they are."""
+"""The exports of an experiment's results, for pandas users and spreadsheets: results.csv,
+ratios.csv (analysis.ratios) and divergence.csv (the checks' curves), written beside its
+records with results.index.json: the records they list, in order, and the sha256 of each file
+as written. An export found missing, cut short or altered is named in one line and written
+again from the records the index lists (repair; docs/results.md, "Checked before trusted")."""
 
 from __future__ import annotations
 
@@ -59,8 +55,7 @@ def render_csv(rows: Sequence[Mapping[str, object]]) -> str:
     return csv_text(results.columns_of(rows), rows)
 
 
-def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]
-           ) -> dict[Path, str | None]:
+def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> dict[Path, str | None]:
     """Each export's text (None: the file is not to be there)."""
     rows = [results.row_of(item, exp, how.title) for item in listed]
     files: dict[Path, str | None] = {exp.results_csv: render_csv(rows)}
@@ -125,8 +120,7 @@ def repair(exp: ExperimentDir) -> str | None:
             f"{len(listed) + len(damaged)} records its index lists{lost}")
 
 
-def _mismatches(exp: ExperimentDir, digests: Mapping[str, str | None]
-                ) -> list[tuple[str, str]]:
+def _mismatches(exp: ExperimentDir, digests: Mapping[str, str | None]) -> list[tuple[str, str]]:
     found = []
     for name, digest in digests.items():
         try:

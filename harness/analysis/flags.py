@@ -42,8 +42,7 @@ WARNING_KEYS: tuple[str, ...] = ("variant", "build", "scene", "n", "L", "r", "th
 WARNING_ORDER: tuple[str, ...] = ("variant", "build", "n", "L", "r", "threads", "ranks")
 
 
-def _is_true(value: object) -> bool:
-    """Whether a nullable boolean is a known True."""
+def _is_true(value: object) -> bool:  # a nullable boolean
     return bool(pd.notna(value) and value)
 
 
@@ -53,17 +52,13 @@ def _flags(row: pd.Series) -> list[str]:
 
 def agreement_text(row: pd.Series) -> str:
     """`differs from step 3`, `rounding`, ...: a program's agreement in a few words."""
-    agreement = str(row.get("agreement"))
     first = row.get("first_diff_step")
-    if pd.notna(first):
-        return f"{agreement} from step {int(first)}"
-    return agreement
+    return f"{row.get('agreement')}" + (f" from step {int(first)}" if pd.notna(first) else "")
 
 
 def status_text(row: pd.Series) -> str:
     """A cell's status in a few words: `ok`, `failed (exit 3)`, `invalid: differs from step 3`."""
-    status = str(row["status"])
-    text = status
+    text = status = str(row["status"])
     exit_code = row.get("exit_code")
     if status in (FAILED, CRASHED) and pd.notna(exit_code):
         text = f"{status} (exit {int(exit_code)})"
@@ -153,15 +148,13 @@ def flagged_cells(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     # ranks only where some cell runs as ranks
     table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS if k in flagged.columns and (
         k != "ranks" or flagged[k].notna().any())})
-    table["issue"] = ["; ".join(text for _, text in issues(row))
-                      for _, row in flagged.iterrows()]
+    table["issue"] = ["; ".join(text for _, text in issues(row)) for _, row in flagged.iterrows()]
     return table
 
 
 def flagged_kinds(df: pd.DataFrame, variants: Variants) -> list[tuple[str, ...]]:
     """The kinds of issue of each row of flagged_cells(df, variants), in its order."""
-    return [tuple(kind for kind, _ in issues(row))
-            for _, row in _flagged(df, variants).iterrows()]
+    return [tuple(kind for kind, _ in issues(row)) for _, row in _flagged(df, variants).iterrows()]
 
 
 COMMIT_SHOWN = 10  # characters of a commit hash a caption shows (a dirty mark is kept)

@@ -1,39 +1,34 @@
-"""An experiment directory's records brought, once, to the identity its cells have now
-(`collide-bench store migrate PATH`): a record of a variant along an axis its facts say it
-ignores (harness.spec.facts.IGNORED_AXES: a serial variant's at threads > 1) measured the cell
-at the axis's one value (seq told to use 2 threads runs one), under another key.
-
-Per machine and cell (the group of the key at that value, harness.store.model):
-  - where a record of the cell at that value is there already, those measured along the
-    axis are superseded by an equivalent record: they move to history/ (as `store prune`
-    moves a superseded record);
-  - else the newest of them is the cell's measurement: given the cell's key (a new id, its
-    hyperfine exports and kept output renamed with it; `migrated_from` keeps the id it had
-    and what it ran with, its command and OMP_NUM_THREADS stay as they ran), and the others
-    move to history/.
-Then results.index.json lists the new ids where it listed the old ones and leaves the moved
-records out, and the exports are written again from it (harness.analysis.export); results from
-before the index keep results.csv's other rows as they were, and their other exports are
-written again where they are there."""
+"""Records rewritten once, in place (docs/results.md): as the current version keeps them, so
+that no reader needs to know an earlier one (`collide-bench store upgrade PATH...`: the format,
+and a record from before rounds given its runs' times from its hyperfine export, their
+median's interval and low quantile), and
+with the identity their cells have now (`collide-bench store migrate PATH`: a record of a
+variant along an axis its facts say it ignores, harness.spec.facts.IGNORED_AXES, is re-keyed to
+the axis's one value, or moves to history/ where the cell has a record there already; then the
+index lists the new ids and the exports are written again)."""
 
 from __future__ import annotations
 
 import csv
 import dataclasses
 import io
+import json
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness import stats
 from harness.analysis import export
 from harness.spec.facts import BASELINE, Variants, ignored_axes
-from harness.store import atomic, locks, records
+from harness.store import atomic, layout, locks, records
+from harness.store.hyperfine import ResultFormatError, load_hyperfine
 from harness.store.index import Listed, index_files, index_rows, listed_records
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
-from harness.store.result import CellResult
+from harness.store.result import RECORD_VERSION, CellResult, TimedRun, upgrade
 from harness.store.superseded import Stored, load_records, move_to_history
+from harness.store.trust import DamagedFile
 
 # results.csv's columns that say how a record is listed, kept as they were for its new id.
 LISTING_COLUMNS = ("stale", "earlier_config", "config_changed")
@@ -59,8 +54,9 @@ def changes(result: CellResult, facts: Variants) -> dict[str, object]:
 
 def sort_out(stored: Sequence[Stored], facts: Variants
              ) -> tuple[list[tuple[Stored, dict[str, object]]], list[Stored]]:
-    """The records to give their cell's key (with the changes), and those superseded by an
-    equivalent record (to history/); per machine and cell, as the module's docstring says."""
+    """The records to give their cell's key (with the changes), and those to move to history/:
+    per machine and cell, all of them where the cell has a record at the axis's value already,
+    else all but the newest, which is re-keyed."""
     held = {(s.machine_id, s.key.group) for s in stored if not changes(s.result, facts)}
     buckets: dict[tuple[str, str], list[tuple[Stored, dict[str, object]]]] = {}
     for item in stored:
@@ -137,9 +133,11 @@ def relist(exp: ExperimentDir, new_ids: Mapping[str, str], dropped: Iterable[str
         return
     header, rows = _rows(exp.results_csv.read_text(encoding="utf-8"))
     rows = [row for row in rows if row.get("cell_id") not in gone]
-    listed = [Listed(result, _flag(row.get("stale", "")), row.get("config_changed", ""))
-              for row in rows
-              if (result := _record(exp, new_ids.get(row["cell_id"], row["cell_id"])))]
+    stale = {"True": True, "False": False}
+    ids = [new_ids.get(row["cell_id"], row["cell_id"]) for row in rows]
+    listed = [Listed(result, stale.get(row.get("stale", "")), row.get("config_changed", ""))
+              for row, cell_id in zip(rows, ids, strict=True)
+              if (result := records.read_record(exp.record(cell_id), cell_id))]
     files = export.render(exp, export.Derivation(
         exp.name, rows[0]["title"] if rows else "",
         BASELINE if exp.ratios_csv.is_file() else None, exp.divergence_csv.is_file()), listed)
@@ -161,9 +159,55 @@ def _rows(text: str) -> tuple[list[str], list[dict[str, str]]]:
     return header, [dict(zip(header, row, strict=False)) for row in reader]
 
 
-def _record(exp: ExperimentDir, cell_id: str) -> CellResult | None:
-    return records.read_record(exp.record(cell_id), cell_id)
+@dataclass(frozen=True)
+class Upgraded:
+    directory: Path
+    records: int  # records read
+    rewritten: int  # of them, rewritten in the current version
 
 
-def _flag(text: str) -> bool | None:
-    return {"True": True, "False": False}.get(text)
+def _times_from_export(result: CellResult, export: Path) -> CellResult:
+    """A record from before rounds with the times of its one export."""
+    try:
+        times = load_hyperfine(export).times
+    except ResultFormatError as exc:
+        raise DamagedFile(export, f"hyperfine's export cannot be read ({exc})") from None
+    return result.replace(times=tuple(TimedRun(t) for t in times))
+
+
+def _statistics(result: CellResult) -> CellResult:
+    """A record older than its statistics with them: the interval of a median measured
+    before rounds (where it has none), and the low quantile of its runs."""
+    times = [run.time_s for run in result.times]
+    timing = result.timing
+    if not times or timing is None:
+        return result
+    before_rounds = any(run.round is None for run in result.times)
+    low, high, q25 = stats.time_interval(times)
+    changes: dict[str, object] = {}
+    if timing.wall_q25_s is None:
+        changes["wall_q25_s"] = q25
+    if before_rounds and timing.wall_median_ci_low_s is None and low is not None:
+        changes.update(wall_median_ci_low_s=low, wall_median_ci_high_s=high)
+    return result.replace(**changes) if changes else result
+
+
+def upgrade_experiment(exp: ExperimentDir) -> Upgraded:
+    """Every record of the experiment (cells/ and history/) in the current version."""
+    read = rewritten = 0
+    for directory in (exp.cells, exp.history):
+        for path in layout.record_paths(directory):
+            raw = records.read_json(path)
+            if not isinstance(raw, dict):
+                raise DamagedFile(path, "record is not a JSON object")
+            read += 1
+            result = CellResult.from_json(upgrade(raw))
+            export = directory / f"{result.cell_id}{layout.HYPERFINE_SUFFIX}"
+            if not result.times and export.is_file():
+                result = _times_from_export(result, export)
+            result = _statistics(result)
+            if result.to_json() != json.loads(json.dumps(raw)) or raw.get("version") != \
+                    RECORD_VERSION:
+                records.write_record(path, result)
+                rewritten += 1
+    return Upgraded(exp.path, read, rewritten)

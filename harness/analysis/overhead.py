@@ -17,11 +17,10 @@ import pandas as pd
 
 from harness.analysis.cells import flag, timed_rows
 from harness.analysis.display import threads_text
-from harness.analysis.strategies import SEED_TIMES_S, repaired_by
+from harness.analysis.strategies import NS_PER_S, SEED_TIMES_S, repaired_by
 from harness.spec.facts import SyncFacts, Variants
 from harness.store.columns import OMP_COST_COLUMNS
 
-NS_PER_S = 1e9
 REGION, BARRIER, GRAB, NESTED = OMP_COST_COLUMNS  # ns per operation, as results.csv has them
 # Each operation of the sync facts, with the cost column that prices it.
 PRICED: tuple[tuple[str, str], ...] = (("regions", REGION), ("nested_regions", NESTED),
@@ -54,8 +53,7 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame | None:
     return table
 
 
-def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int,
-                costs: pd.Series) -> float:
+def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int, costs: pd.Series) -> float:
     """The seconds a run of `steps` steps of N particles spends in the runtime's operations at
     `threads`: each count per step times the cost of one. Nested regions are forked by the T
     threads of the outer team at once, so a step waits for 1/T of them. NaN where a count
@@ -84,10 +82,9 @@ def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
     thread count's measured costs); its median, the repair's, and their difference (the
     measured overhead), from the facts of `variants`. None where no seed strategy ran or no
     cost was measured."""
-    if not has_costs(df):
-        return None
     costs = cost_table(df)
-    assert costs is not None
+    if costs is None:
+        return None
     by_threads = costs.set_index("threads")
     timed = timed_rows(df)
     rows = []
@@ -98,8 +95,7 @@ def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
         repair = repaired_by(variant, variants)
         repair_sync = getattr(variants.get(repair) if repair else None, "sync", None)
         for threads, cells in df[df["variant"] == variant].groupby("threads", sort=True):
-            first = cells.iloc[0]
-            n, steps, t = int(first["n"]), int(first["steps"]), int(threads)
+            n, steps, t = int(cells["n"].iloc[0]), int(cells["steps"].iloc[0]), int(threads)
             at = by_threads.loc[t] if t in by_threads.index else pd.Series(dtype=float)
             same = timed[timed["threads"] == t]
             predicted = predicted_s(facts.sync, n, steps, t, at)
@@ -131,14 +127,12 @@ def _seconds(value: float) -> str:
     return f"{value:.3g} s" if math.isfinite(value) else "not measured"
 
 
-def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
-                       variants: Variants) -> list[str]:
+def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame, variants: Variants) -> list[str]:
     """One sentence per strategy: what it asks of the runtime per step, and at each thread
     count the cost of one such operation here, the predicted seconds and the measured ones."""
     costs = cost_table(df)
     by_threads = costs.set_index("threads") if costs is not None else pd.DataFrame()
-    first = df.iloc[0]
-    n, steps = int(first["n"]), int(first["steps"])
+    n, steps = int(df["n"].iloc[0]), int(df["steps"].iloc[0])
     sentences = []
     for variant, group in table.groupby("variant", sort=False):
         sync = variants[str(variant)].sync
@@ -150,9 +144,8 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
             if t not in by_threads.index:
                 parts.append(f"at {threads_text(t)} no cost per operation was measured")
                 continue
-            priced = ", ".join(
-                f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
-                for op, column in PRICED if sync.per_step(n)[op])
+            priced = ", ".join(f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
+                               for op, column in PRICED if sync.per_step(n)[op])
             if math.isfinite(row["measured_s"]):
                 measured = f"measured {_seconds(row['measured_s'])} over {row['reference']}"
             elif row["reference"]:
@@ -162,8 +155,8 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame,
                 measured = f"of a median of {_seconds(row['median_s'])}"
             parts.append(f"at {threads_text(t)} {priced or 'nothing to price'}: predicted "
                          f"{_seconds(row['predicted_s'])}, {measured}")
-        unrepaired = "" if group["reference"].any() else \
-            " (it has no repair to measure its overhead against)"
+        unrepaired = "" if group["reference"].any() else (
+            " (it has no repair to measure its overhead against)")
         sentences.append(f"{variant} asks the runtime for {asks} per step ({steps} steps, "
                          f"N = {n}){unrepaired}; " + "; ".join(parts) + ".")
     return sentences

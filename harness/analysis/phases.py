@@ -1,11 +1,9 @@
 """Where the time goes: each cell's `--timing` run split into its phases (the columns
 store.columns.PHASE_COLUMNS and what sim_s holds beyond them), in seconds and as shares of the
-simulation time, and its output in seconds, as a table, a figure's frame and a headline.
-
-The output gets no share: the --timing run writes it with --precise (every digit, for the
-validation), which costs some 20x the timed runs' output (`build/grid --threads 1 --timing`,
-N = 2000, 20 steps, two runs each: 0.0120 and 0.0143 s with --precise, 0.00046 and 0.00061 s
-without), so as a share it would shrink every other phase.
+simulation time, and its output in seconds, as a table, a figure's frame and a headline. The
+output gets no share: the --timing run writes it with --precise (every digit, for the
+validation), some 20x slower than the timed runs' output, so as a share it would shrink every
+other phase.
 
 Which cells: the timed ones with phases, at one thread count per experiment, the count most
 of those cells ran at (the fewest on a tie): a thread sweep shows its single-thread cells, a
@@ -58,9 +56,8 @@ BAR = "bar"  # a plotted frame's bar label
 
 
 def outside_broad_ns(sim_s, broad_s, particle_steps):
-    """Nanoseconds per particle-step spent outside the broad phase, input and output left out
-    (the --timing run writes its output with --precise, some 20x slower than a timed run's).
-    Floats or pandas Series alike; the caller guards particle_steps > 0."""
+    """Nanoseconds per particle-step spent outside the broad phase, input and output left out;
+    floats or pandas Series alike (the caller guards particle_steps > 0)."""
     return (sim_s - broad_s) / particle_steps * NS_PER_S
 
 
@@ -110,8 +107,7 @@ def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
     threads = int(min(counts[counts == counts.max()].index))
     chosen = rows[rows["threads"] == threads]
     # A machine is a bar of its own (ROW_KEYS), not a scene.
-    scene_keys = tuple(k for k in SCENE_KEYS
-                       if k != MACHINE and k in varying_keys(chosen))
+    scene_keys = tuple(k for k in SCENE_KEYS if k != MACHINE and k in varying_keys(chosen))
     row_keys = tuple(k for k in ROW_KEYS if k in varying_keys(chosen)) or ("variant",)
     ordered = sort_cells(chosen, [*scene_keys, *row_keys], variants)
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
@@ -146,22 +142,14 @@ def _not_shown(rows: pd.DataFrame, chosen: pd.DataFrame) -> pd.DataFrame:
 
 
 def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
-    return [series_label(tuple(row[k] for k in keys), keys)
-            for _, row in cells.iterrows()]
-
-
-# --- the table ----------------------------------------------------------------------------
+    return [series_label(tuple(row[k] for k in keys), keys) for _, row in cells.iterrows()]
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
     """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
     and the output."""
     shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
-    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]
-                     ].copy()
-
-
-# --- what the figure draws ----------------------------------------------------------------
+    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]].copy()
 
 
 def plot_frame(sel: Selection) -> pd.DataFrame:
@@ -172,9 +160,6 @@ def plot_frame(sel: Selection) -> pd.DataFrame:
         BAR: _labels(cells, sel.row_keys),
         **{phase: cells[phase].to_numpy(dtype=float) for phase in PHASES},
     })
-
-
-# --- the headline -------------------------------------------------------------------------
 
 
 def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:

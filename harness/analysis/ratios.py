@@ -1,8 +1,7 @@
-"""Each cell's ratios to its references (store.columns.RATIO_COLUMNS): its speedup over its
-variant at one thread and over the baseline variant, taken round by round from the cells' runs
-in the rounds both were measured in (harness.stats.levels), with the parallel efficiency and
-the Karp-Flatt serial fraction of a speedup over one thread. Computed from an experiment's rows
-(analysis.results); ratios.csv is their export."""
+"""Each cell's ratios to its references (store.columns.RATIO_COLUMNS; docs/results.md says
+what ratios.csv holds): its speedup over its variant at one thread and over the baseline
+variant, taken round by round in the rounds both were measured in, computed from an
+experiment's rows (analysis.results)."""
 
 from __future__ import annotations
 

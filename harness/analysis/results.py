@@ -1,17 +1,8 @@
-"""The read model: stored results read from their records, the one reader of them.
-
-An experiment's rows are the records its index lists (results.index.json, written by the run
-that measured it last with the plan it measured: this machine's current record of each planned
-cell or its stale one, every other machine's newest timing of it, each machine's records of an
-earlier config marked); without an index (results from before it), every record no newer one
-of its group and machine supersedes. Each row is its record's fields by their column names
-(store.columns), with what the record itself does not hold derived here once: the machine's
-label, whether hyperfine warned of outliers (records of earlier versions are rewritten once as
-the current version keeps them: analysis.upgrade). The rows, typed once by the columns'
-contract, are the frame every reader uses (the report, compare, history, reruns, the class
-table); the ratios of each cell to its references are computed from them (analysis.ratios).
-results.csv and ratios.csv are exports of these (analysis.export), which no harness code reads
-back."""
+"""The read model: stored results read from their records, the one reader of them
+(docs/results.md, "Records are the truth"). An experiment's rows are the records its index
+lists (without an index, every record no newer one supersedes), each its record's fields by
+their column names with what the record does not hold derived here once (the machine's label,
+whether hyperfine warned of outliers), typed once into the frame every reader uses."""
 
 from __future__ import annotations
 
@@ -55,10 +46,6 @@ if TYPE_CHECKING:  # pandas and scipy (harness.stats) only where rows are typed 
 
 Row = dict[str, object]
 DIVERGENCE_NUMBERS = ("step", "max_pos_dev")
-
-
-def finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None
 
 
 def provenance(record: Mapping[str, object]) -> Row:
@@ -271,8 +258,7 @@ def load_experiment(exp: ExperimentDir, labels: Mapping[str, str] | None = None)
     rows = tuple(row_of(item, exp, title) for item in items)
     if labels is None:
         labels = machine_labels(read_machines([exp.path]))
-    return Experiment(exp.name, exp, title, items, rows, read_variants(exp.variants_json),
-                      labels)
+    return Experiment(exp.name, exp, title, items, rows, read_variants(exp.variants_json), labels)
 
 
 def has_rows(exp: ExperimentDir) -> bool:

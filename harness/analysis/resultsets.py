@@ -176,11 +176,6 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
                                [p for c in cells for p in c.round_pressure])
 
 
-def _rounds(row: pd.Series, runs: int) -> tuple[int, ...]:
-    rounds = tuple(int(r) for r in items(row, "wall_times_round"))
-    return rounds if len(rounds) == runs else ()
-
-
 def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
     """The rows of one experiment (analysis.results) as cells."""
     frame = results.load_experiment(ExperimentDir(directory)).frame
@@ -190,6 +185,7 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
         key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
         times = items(row, "wall_times_s")
+        rounds = tuple(int(r) for r in items(row, "wall_times_round"))
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -204,20 +200,13 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
             key=key, directory=directory, status=_text(row, "status") or "unknown",
             median=median, times=times, machine_id=machine_id, machine=machine,
             flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
-            stale=_is_true(row.get("stale")), rounds=_rounds(row, len(times)),
+            stale=_is_true(row.get("stale")), rounds=rounds if len(rounds) == len(times) else (),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
             **{k: _text(row, k) for k in CELL_TEXTS},
             **{k: _number(row, k) for k in ("instructions", "instructions_max")},
             **{k: items(row, k) for k in ("round_noise", "round_pressure")},
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
-
-
-def machine_matches(cell: Cell, selector: str) -> bool:
-    """`--old-machine`/`--new-machine`: a machine_id prefix or a label substring."""
-    wanted = selector.strip().lower()
-    return bool(wanted) and (cell.machine_id.lower().startswith(wanted)
-                             or wanted in cell.machine.lower())
 
 
 @dataclass
@@ -273,8 +262,10 @@ def load_side(name: str, path: Path, selector: str | None, keyed_on_experiment: 
     cells = [dataclasses.replace(c, machine=labels.get(c.machine_id, c.machine))
              for d in directories for c in read_cells(d, keyed_on_experiment)]
     option = f"--{name.lower()}-machine"
-    if selector is not None:
-        chosen = [c for c in cells if machine_matches(c, selector)]
+    if selector is not None:  # a machine_id prefix or a label substring
+        wanted = selector.strip().lower()
+        chosen = [c for c in cells if wanted and (c.machine_id.lower().startswith(wanted)
+                                                  or wanted in c.machine.lower())]
         if not chosen:
             known = ", ".join(sorted({c.machine_text for c in cells})) or "none"
             raise HarnessError(f"{name}: no cell was measured on a machine matching {option} "
@@ -309,9 +300,7 @@ def time_value(cell: Cell) -> stats.Interval | None:
     """The cell's time as the harness estimates it, with its interval."""
     if not math.isfinite(cell.median):
         return None
-    if not cell.times:
-        return stats.Interval(cell.median, math.nan, math.nan)
-    ci = stats.median_ci(cell.times)
+    ci = stats.median_ci(cell.times)  # NaN ends without two runs
     return stats.Interval(cell.median, ci.low, ci.high)
 
 
@@ -341,4 +330,3 @@ class Quantity:
 
 TIME_QUANTITY = Quantity(METRIC_TIME, "s", False, time_value)
 INSTRUCTIONS_QUANTITY = Quantity(METRIC_INSTRUCTIONS, "", True, instructions_value)
-QUANTITIES: dict[str, Quantity] = {q.name: q for q in (TIME_QUANTITY, INSTRUCTIONS_QUANTITY)}

@@ -1,11 +1,8 @@
-"""A serial variant's one cell, shown at every thread count it serves.
-
-A variant whose --describe says `"parallel": false` (seq) runs one thread whatever it is told,
-so a config's cells of it at several thread counts are one cell, measured once with one thread
-(harness.plan.cells). Where the other cells of its scene ran at some thread counts, the tables
-and figures show that one measurement at each of them (serving): so seq's line against threads
-is flat, and every cell's speedup over seq, at any thread count, is over the same measurement.
-Counts of cells take each measurement once (measured_once)."""
+"""A serial variant's one cell, shown at every thread count it serves (docs/results.md,
+"A serial variant's cell"): seq runs one thread whatever it is told, so its cells at several
+thread counts are one measurement, which the tables and figures show at each count the other
+cells of its scene ran at (serving), so that every speedup over seq is over the same
+measurement. Counts of cells take each measurement once (measured_once)."""
 
 from __future__ import annotations
 

@@ -26,11 +26,9 @@ from harness.spec.builds import DEFAULT_BUILD
 from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import MEMORY_COLUMNS, OK, TIMED_STATUSES
 
-BASELINE_BUILD = DEFAULT_BUILD
 BASELINE_SEQ = BASELINE  # a speedup against seq on the same scene
 BASELINE_ONE_THREAD = paired.ONE_THREAD  # ... against the same variant at one thread
 TIMES = "wall_times_s"  # hyperfine's per-run times of a cell, seconds
-OVERSUBSCRIBED = "oversubscribed"  # results.csv's flag: more threads than the machine's cores
 # A cell table's timing columns, from results.csv's.
 TIMING = {"runs": "runs", "wall_median_s": "median_s", "wall_min_s": "min_s",
           "wall_stddev_s": "stddev_s"}
@@ -67,42 +65,21 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     seq = df[df["variant"] == BASELINE].sort_values("threads", kind="stable")
     keys = present(df, SCENE_KEYS)
     base = _lookup(df, seq, [*keys, "build"])
-    reference = _lookup(df, seq[seq["build"] == BASELINE_BUILD], keys)
+    reference = _lookup(df, seq[seq["build"] == DEFAULT_BUILD], keys)
     has_ref = reference["base_s"].notna()
     base[has_ref] = reference[has_ref]
-    base["base_build"] = df["build"].where(~has_ref, BASELINE_BUILD)
+    base["base_build"] = df["build"].where(~has_ref, DEFAULT_BUILD)
     return base
-
-
-def _times(value: object) -> list[float]:
-    """A cell's run times from its column (NaN where a merge found no reference)."""
-    return list(value) if isinstance(value, tuple | list) else []  # type: ignore[arg-type]
-
-
-def _speedup_intervals(out: pd.DataFrame, own_times: pd.Series, base_times: pd.Series) -> None:
-    """Add `<metric>_low`/`_high` for speedup, efficiency and serial fraction: bootstrap
-    intervals of the ratio of medians from both cells' run times (harness.stats); NaN where
-    either cell has fewer than two times, so tables fall back to the point value."""
-    for metric in paired.METRICS:
-        for suffix in INTERVAL_SUFFIXES:
-            out[f"{metric}{suffix}"] = np.nan
-    for position, base, own in zip(out.index, base_times, own_times, strict=True):
-        base, own = _times(base), _times(own)
-        if len(base) >= 2 and len(own) >= 2 and pd.notna(out.at[position, "speedup"]):
-            paired.put_metrics(out, position, stats.speedup_ci(base, own), point=False)
 
 
 def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool = False,
                  ratios: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`.
-
-    Speedup is the ok seq median on the same scene over the cell's median. With
+    """The rows with `baseline`, `baseline_s`, `speedup`, `efficiency` and `serial_fraction`:
+    speedup is the ok seq median on the same scene over the cell's median; with
     `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
-    1 thread instead (the thread-scaling convention). Efficiency is speedup / threads. Where
-    `ratios` (ratios.csv, analysis.paired) pairs a row with its baseline by round, the three
-    and their intervals are that ratio's (`speedup_paired`). Which variants do seq's work
-    and which are serial, `variants` (their facts) says.
-    """
+    1 thread instead (the thread-scaling convention). Where `ratios` (analysis.paired) pairs a
+    row with its baseline by round, the three and their intervals are that ratio's
+    (`speedup_paired`). Which variants do seq's work and which are serial, `variants` says."""
     out = df.copy()
     if TIMES not in df.columns:  # results written before the column
         df = df.assign(**{TIMES: [()] * len(df)})
@@ -130,7 +107,16 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     out["efficiency"] = (out["speedup"] / out["threads"]).where(same_work)
     out["serial_fraction"] = pd.Series(stats.serial_fraction(out["speedup"], out["threads"]),
                                        index=out.index).where(same_work)
-    _speedup_intervals(out, df[TIMES], base_times)
+    # The intervals: the bootstrap of the ratio of medians over both cells' run times; NaN
+    # where either has fewer than two (a merge that found no reference leaves NaN), so that
+    # tables fall back to the point value.
+    for metric in paired.METRICS:
+        for suffix in INTERVAL_SUFFIXES:
+            out[f"{metric}{suffix}"] = np.nan
+    for position, *runs in zip(out.index, base_times, df[TIMES], strict=True):
+        base_runs, own_runs = (list(v) if isinstance(v, tuple | list) else [] for v in runs)
+        if len(base_runs) >= 2 and len(own_runs) >= 2 and pd.notna(out.at[position, "speedup"]):
+            paired.put_metrics(out, position, stats.speedup_ci(base_runs, own_runs), point=False)
     paired.use_paired(out, ratios, df["build"] == seq["base_build"])
     return out
 
@@ -141,11 +127,11 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants, *,
     place of its "first/second/third time, shortest"."""
     rows = with_speedup(df, variants, thread_baseline=thread_baseline, ratios=ratios)
     table = rows[list(keys)].copy()
-    over = flag(rows, OVERSUBSCRIBED)
+    over = flag(rows, "oversubscribed")
     if "threads" in keys and over.any():
         # beside the thread count, where a sweep past the cores shows it at a glance (the
         # validation column, far right, says it too)
-        table.insert(table.columns.get_loc("threads") + 1, OVERSUBSCRIBED, over)
+        table.insert(table.columns.get_loc("threads") + 1, "oversubscribed", over)
     one = flag(rows, ONE_THREAD_RUN)
     if (rows.loc[one, "threads"] != 1).any():  # a serial cell shown where it serves
         at = table.columns.get_loc("threads") + 1 if "threads" in keys else len(keys)
@@ -182,19 +168,14 @@ def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def growth_exponents(df: pd.DataFrame, variants: Variants, x: str = "n") -> pd.DataFrame:
-    """Per series, the least-squares fit of log t = k log x + log a over its ok cells.
-
-    An all-pairs variant does Θ(N²) pair tests per step, so its time grows like a power law
-    with k ≈ 2: a straight line on log-log axes, where an exponential would curve upward.
-    Series with fewer than two distinct x are left out.
-    """
+    """Per series of two distinct x or more, the least-squares fit of log t = k log x + log a
+    over its ok cells: an all-pairs variant does Θ(N²) pair tests per step, so its time is a
+    straight line with k ≈ 2 on log-log axes, where an exponential would curve upward."""
     keys = series_keys(df, x)
     ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df[x] > 0)]
     rows: list[dict[str, object]] = []
     groups = ok.groupby(keys, sort=False, dropna=False) if keys else [((), ok)]
-    for values, group in groups:
-        if group[x].nunique() < 2:
-            continue
+    for values, group in groups:  # power_fit: None with fewer than two distinct x
         fit = stats.power_fit(group[x].astype(float).tolist(),
                               group["wall_median_s"].astype(float).tolist())
         if fit is None:

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import pandas as pd
 
 from harness import stats
-from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, timed_rows
+from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, present, timed_rows
 from harness.analysis.paired import paired_points
 from harness.analysis.results import items
+from harness.analysis.speedup import TIMES
 from harness.spec.facts import Variants
 from harness.store.columns import RATIO_OVER_BASELINE
 
@@ -25,8 +26,7 @@ from harness.store.columns import RATIO_OVER_BASELINE
 SEED_MACHINE = "its 20-thread Xeon"
 SEED_THREADS = 20
 SEED_SEQ_S = 41.94
-SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24,
-                                  "p2d": 94.24}
+SEED_TIMES_S: dict[str, float] = {"p1": 10.65, "p2": 8.51, "p3": 464.6, "p1d": 6.24, "p2d": 94.24}
 SEED_SCENE: dict[str, float] = {"n": 10000, "L": 20000, "r": 1, "steps": 50}
 
 # Why each seed strategy loses time (variants/NAME.c says more): the words of the ranking
@@ -50,8 +50,6 @@ WORK_VARIANTS: tuple[str, ...] = ("p1", "p1_cyclic", "p1d")
 NS_PER_S = 1e9
 # Differences between schedules smaller than this share of the median are called "little".
 LITTLE_DIFFERENCE = 0.05
-# A cell's per-run wall times (results.csv's wall_times_s)
-TIMES = "wall_times_s"
 
 
 def repaired_by(variant: str, variants: Variants) -> str | None:
@@ -69,9 +67,8 @@ def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
 def one_scene(df: pd.DataFrame) -> bool:
     """Whether the timed cells simulate one input in one build: cells of different scenes
     (a stability catalog, an N sweep) are not each other's references."""
-    keys = [k for k in (*SCENE_KEYS, "build") if k in df.columns]
     timed = timed_rows(df)
-    return len(timed) > 0 and len(timed.drop_duplicates(keys)) == 1
+    return len(timed) > 0 and len(timed.drop_duplicates(present(df, (*SCENE_KEYS, "build")))) == 1
 
 
 # --- the seed's Table 2 beside ours -------------------------------------------------------
@@ -133,8 +130,7 @@ def ranking_sentence(table: pd.DataFrame, df: pd.DataFrame, variants: Variants) 
 def static_block_imbalance(threads: int) -> float:
     """Max over mean pairs of a plain static schedule over the rows of the triangle: the first
     of T contiguous blocks holds 1 - (1 - 1/T)^2 of the pairs, against 1/T on average."""
-    first = 1.0 - (1.0 - 1.0 / threads) ** 2
-    return first * threads
+    return (1.0 - (1.0 - 1.0 / threads) ** 2) * threads
 
 
 def _evidence(variant: str, cells: pd.DataFrame, threads: int, variants: Variants) -> str:
@@ -171,17 +167,12 @@ def work_table(df: pd.DataFrame) -> pd.DataFrame | None:
     """Busy seconds and pair tests per thread of WORK_VARIANTS, one row per (variant, thread)."""
     cells = _one_per_variant(df)
     rows = []
-    for v in WORK_VARIANTS:
-        if v not in cells.index:
-            continue
-        busy = items(cells.loc[v], "threads_busy_s")
-        pairs = items(cells.loc[v], "threads_pairs")
-        if not busy or len(busy) != len(pairs):
-            continue
-        total = sum(pairs) or 1.0
-        for t, (b, p) in enumerate(zip(busy, pairs, strict=True)):
-            rows.append({"variant": v, "thread": t, "busy_s": b, "pairs": p,
-                         "pair_share": p / total})
+    for v in (v for v in WORK_VARIANTS if v in cells.index):
+        busy, pairs = items(cells.loc[v], "threads_busy_s"), items(cells.loc[v], "threads_pairs")
+        if busy and len(busy) == len(pairs):
+            rows += [{"variant": v, "thread": t, "busy_s": b, "pairs": p,
+                      "pair_share": p / (sum(pairs) or 1.0)}
+                     for t, (b, p) in enumerate(zip(busy, pairs, strict=True))]
     if not {r["variant"] for r in rows} >= {"p1", "p1_cyclic"}:
         return None
     return pd.DataFrame(rows)
@@ -288,8 +279,7 @@ def schedule_rows(df: pd.DataFrame) -> pd.DataFrame:
     if out.empty:
         return out
     out["median_s"] = [c.point for c in out["median"]]
-    return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(
-        drop=True)
+    return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(drop=True)
 
 
 def schedule_table(rows: pd.DataFrame) -> pd.DataFrame:

@@ -67,7 +67,7 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
             sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
         return 0
     if args.action == "upgrade":
-        from harness.analysis.upgrade import upgrade_experiment
+        from harness.analysis.migrate import upgrade_experiment
 
         for directory in directories:
             try:

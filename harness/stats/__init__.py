@@ -1,12 +1,9 @@
-"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times.
-
-Everything here is scipy.stats: a percentile bootstrap for medians and for ratios and
-differences of medians (speedup, NEW/OLD), the sign test on the per-round log ratios of two
-sides measured together, a normal test for two measured apart (allowing for the machine's
-drift), Benjamini-Hochberg across a comparison's cells, and a least-squares fit with its
-standard error. The bootstrap's generator is seeded from the data itself, so the same times
-always give the same interval: results.csv and the report do not change when nothing was
-re-measured (and an interval asked for again is remembered, not resampled).
+"""Uncertainty of the numbers the harness compares, from hyperfine's per-run times, with
+scipy.stats: bootstrap intervals of medians and their ratios and differences (intervals),
+intervals over rounds and sessions (levels), the sign test of two sides measured together
+(paired), and the verdicts with the change of two measured apart (verdicts). The bootstrap is
+seeded from the data, so that the same times always give the same interval: results.csv and the
+report do not change when nothing was re-measured.
 
 Why the percentile bootstrap and not BCa: with the 3-5 runs most configs take, BCa's jackknife
 acceleration is degenerate (and scipy warns); the percentile interval of a median of n runs
@@ -23,25 +20,23 @@ tests against a threshold, and widens the interval of runs measured apart by the
 Every public name of the modules is re-exported here: callers use `stats.NAME`.
 """
 
-from harness.stats.apart import (NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, contention_spread,
-                                 drift_change, log_ratio_drift, log_spread, noise_drift)
 from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, LOW_QUANTILE,
-                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Z95, Interval,
-                                     difference_ci, estimate, estimate_ci, median_ci, ratio_ci,
-                                     speedup_ci)
+                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Z95, Interval, PowerFit,
+                                     difference_ci, efficiency, estimate, estimate_ci, karp_flatt,
+                                     median_ci, power_fit, ratio_ci, serial_fraction, speedup_ci)
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
                                   NOISE_MARGIN, Coverage, RoundEstimate, SessionSpread,
                                   cell_estimate, coverage, from_round_values, noise_of,
                                   paired_ratio, round_half_width, session_noise, session_spread,
-                                  spread_at, spreads_of, supersedes, t95,
-                                  time_interval)
-from harness.stats.paired import (SAME_RATIO, SHIFT_MIN_ROUNDS, interference_slope,
-                                  paired_change, smallest_detectable, without_interference)
-from harness.stats.rounds import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, MeasuredInRounds,
-                                  NoiseProfile, PairedRounds, by_round, noise_profile,
-                                  paired_series, paired_sides, round_medians, rounds_to_drop)
-from harness.stats.scaling import PowerFit, efficiency, karp_flatt, power_fit, serial_fraction
+                                  spread_at, spreads_of, supersedes, t95, time_interval)
+from harness.stats.paired import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, SAME_RATIO,
+                                  SHIFT_MIN_ROUNDS, MeasuredInRounds, NoiseProfile, PairedRounds,
+                                  by_round, interference_slope, noise_profile, paired_change,
+                                  paired_series, paired_sides, round_medians, rounds_to_drop,
+                                  smallest_detectable, without_interference)
 from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
-                                    LOOK_GROWTH, NO_CHANGE_KNOWN, SLOWER, UNCHANGED, VERDICTS,
-                                    Change, decide, discoveries, further_rounds,
-                                    look_index, look_rounds, look_weight, paired_look)
+                                    LOOK_GROWTH, NO_CHANGE_KNOWN, NOISE_DRIFT_SLOPE,
+                                    PRESSURE_SLOPE, SLOWER, UNCHANGED, VERDICTS, Change,
+                                    contention_spread, decide, discoveries, drift_change,
+                                    further_rounds, log_ratio_drift, log_spread, look_index,
+                                    look_rounds, look_weight, noise_drift, paired_look)

@@ -1,7 +1,7 @@
 """Point estimates of run times and their percentile-bootstrap intervals: the median (or
 another estimator) of one side's runs, and the ratio or difference of two sides' medians, each
-resampled on its own. The generator is seeded from the data, and an interval asked for again is
-remembered."""
+resampled on its own, seeded from the data and remembered. And how a parallel run scales:
+efficiency, the Karp-Flatt serial fraction of a speedup, and a power law of time against size."""
 
 from __future__ import annotations
 
@@ -29,8 +29,7 @@ class Interval:
     high: float
 
     @property
-    def bounded(self) -> bool:
-        """Whether both ends are finite (an interval was computed)."""
+    def bounded(self) -> bool:  # both ends finite: an interval was computed
         return math.isfinite(self.low) and math.isfinite(self.high)
 
     def half_width(self) -> float:
@@ -52,11 +51,10 @@ class Interval:
 
     def format(self, digits: int = 3) -> str:
         """`1.98 [1.95, 2.01]`; just the point where no interval could be computed."""
-        def fmt(value: float) -> str:
-            return f"{value:.{digits}g}"
+        point = f"{self.point:.{digits}g}"
         if not self.bounded:
-            return fmt(self.point)
-        return f"{fmt(self.point)} [{fmt(self.low)}, {fmt(self.high)}]"
+            return point
+        return f"{point} [{self.low:.{digits}g}, {self.high:.{digits}g}]"
 
 
 def _seed(*samples: Sequence[float]) -> int:
@@ -111,11 +109,9 @@ median_ci = estimate_ci
 @functools.lru_cache(maxsize=4096)
 def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
                ) -> tuple[float, float]:
-    """The percentile bootstrap interval of `statistic` (one of this module's, vectorized) over
-    the samples, each resampled on its own. Remembered: a render asks for the same interval
-    from several places (a cell's speedup in its table, its figure and the summary), a
-    calibration for a ratio its comparison asks for again, and the answer is deterministic
-    (seeded by the samples)."""
+    """The percentile bootstrap interval of `statistic` (vectorized) over the samples, each
+    resampled on its own. Remembered, being deterministic: a render asks for the same interval
+    from its table, figure and summary, a calibration for what its comparison asks again."""
     result = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
                            vectorized=True, paired=False, confidence_level=CONFIDENCE,
                            n_resamples=N_RESAMPLES, method="percentile",
@@ -126,9 +122,9 @@ def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
 
 def _interval(point: float, samples: tuple[np.ndarray, ...],
               statistic: Callable[..., np.ndarray]) -> Interval:
-    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, each
-    resampled on its own (independent runs), widened to hold the point: no interval with
-    fewer than two runs in a sample, the point itself where every sample is constant."""
+    """`point` with the bootstrap interval of `statistic` over the (cleaned) samples, widened
+    to hold the point: none with fewer than two runs in a sample, the point itself where every
+    sample is constant."""
     if any(s.size < 2 for s in samples):
         return Interval(point, math.nan, math.nan)
     if all(np.all(s == s[0]) for s in samples):
@@ -137,8 +133,7 @@ def _interval(point: float, samples: tuple[np.ndarray, ...],
     return Interval(point, min(low, point), max(high, point))
 
 
-def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]
-                 ) -> Interval:
+def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarray]) -> Interval:
     """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples: NaN
     without runs on a side."""
     if a.size == 0 or b.size == 0:
@@ -165,3 +160,45 @@ def difference_ci(minuend: Sequence[float], subtrahend: Sequence[float]) -> Inte
     """median(minuend) - median(subtrahend), each resampled on its own (independent runs):
     e.g. the time a strategy adds over its repair."""
     return _two_medians(clean(minuend), clean(subtrahend), _difference)
+
+
+def efficiency(speedup: Interval, threads: int) -> Interval:
+    """Parallel efficiency S/p with its interval."""
+    return speedup.map(lambda s: s / threads)
+
+
+def serial_fraction(speedup: object, threads: object) -> np.ndarray:
+    """The Karp-Flatt experimentally determined serial fraction e = (1/S - 1/p) / (1 - 1/p),
+    element by element (numbers or arrays): NaN at p <= 1 (0/0 on one thread) and where S is
+    not a positive finite number."""
+    s = np.asarray(speedup, dtype=np.float64)
+    p = np.asarray(threads, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = (1.0 / s - 1.0 / p) / (1.0 - 1.0 / p)
+    return np.where((p > 1) & np.isfinite(s) & (s > 0), e, np.nan)
+
+
+def karp_flatt(speedup: Interval, threads: int) -> Interval:
+    """The serial fraction of a speedup with its interval (decreasing in S: the ends swap)."""
+    return speedup.map(lambda s: float(serial_fraction(s, threads)))
+
+
+@dataclass(frozen=True)
+class PowerFit:
+    """time ~ c * x^exponent, fitted on log-log axes."""
+
+    exponent: float
+    stderr: float  # standard error of the exponent; NaN with two points
+    coefficient: float
+    points: int
+
+
+def power_fit(x: Sequence[float], y: Sequence[float]) -> PowerFit | None:
+    """Least squares on log x, log y (scipy.stats.linregress); None with fewer than 2 points."""
+    pairs = [(a, b) for a, b in zip(x, y, strict=True)
+             if a is not None and b is not None and a > 0 and b > 0]
+    if len({a for a, _ in pairs}) < 2:
+        return None
+    fit = sps.linregress(*np.log(np.array(pairs)).T)
+    stderr = float(fit.stderr) if len(pairs) > 2 else math.nan
+    return PowerFit(float(fit.slope), stderr, float(math.exp(fit.intercept)), len(pairs))

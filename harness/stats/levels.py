@@ -1,28 +1,13 @@
 """Three levels of variation: runs within a round, rounds within a session (one `run` of a
-config), sessions on a machine.
+config), sessions on a machine (docs/compare.md, "Three levels", says how they are modelled).
 
-A cell's estimate comes from its rounds: each round's value is the median of the runs it
-timed, and the cell's is the median of those. The runs of one round share the machine's state
-of that moment, so they are not independent of each other: a bootstrap over runs reads their
-agreement as certainty even where the rounds disagree. The interval here is over the rounds
-(a t-interval on the logs of the round values, with as many degrees of freedom as rounds less
-one, honest for five), and an absolute one adds the session level: how far a whole session's
-estimate moves on this machine (a log-scale standard deviation, SessionSpread; learnt by the
-`reruns` command, else DEFAULT_SESSION_SPREAD).
-
-The absolute interval is one that another session's estimate of the cell lies in with 95%:
-both estimates carry a session's and their rounds' error, so the spread of their difference is
-sqrt(2) times that of one (a prediction interval, not one for the machine's long-run value).
-A ratio of two cells measured in the same rounds (speedup over one thread, over seq) is taken
-round by round: the machine's speed at that moment moves both sides alike and cancels, and
-what is left between sessions (where threads were placed, a neighbour's cache) is the ratio's
-own session spread.
-
-The session level depends on how busy the machine is: a noisy neighbour makes a cell's runs
-fall into two modes (its team waits, or it does not), and a session's median then lands in
-either. A spread is learnt under the noise its reruns measured (the median share of the
-cores' time others took over their rounds), a machine may keep one per noise level, and a
-session takes the spread at its own noise (spread_at).
+A round's value is the median of its runs, a cell's the median of its rounds'. The runs of one
+round share the machine's moment and are not independent, so a bootstrap over them reads their
+agreement as certainty: the interval here is a t-interval on the logs of the round values. An
+absolute one adds the session level (SessionSpread, learnt by `reruns` per noise level, else
+DEFAULT_SESSION_SPREAD) for both of two sessions (sqrt 2): a prediction of another session's
+estimate. A ratio of two cells measured in the same rounds is taken round by round, so that the
+machine's speed at that moment cancels.
 """
 
 from __future__ import annotations
@@ -41,11 +26,10 @@ from harness.stats.intervals import (
     LOW_QUANTILE_ESTIMATOR,
     Z95,
     Interval,
-    clean,
     estimate,
     median_ci,
 )
-from harness.stats.rounds import round_medians
+from harness.stats.paired import round_medians
 
 # A cell gets its runs in at least this many rounds before its interval may stop it: with
 # fewer the t-quantile (12.7 at two rounds, 4.3 at three) makes any interval wide, and rounds
@@ -101,16 +85,13 @@ def supersedes(newer: Mapping[str, object], older: Mapping[str, object]) -> bool
     return math.isnan(old) or (math.isfinite(new) and abs(new - old) <= NOISE_MARGIN)
 
 
-def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str
-               ) -> list[SessionSpread]:
+def spreads_of(entries: Iterable[Mapping[str, object]], machine_id: str) -> list[SessionSpread]:
     """The spreads of a machine's kept entries, in their order (spread_at picks among them)."""
     return [SessionSpread.of_entry(e, machine_id) for e in entries]
 
 
-# Until a machine's reruns are measured: 0.11 for a cell's time, whose sqrt(2) (0.156) is the
-# drift compare allowed between sets measured apart before (on a 2-vCPU VM, a cell's median
-# moved 12-15% between reruns minutes apart, the median over cells, and up to 54%); 0.05 for a
-# ratio paired by round, whose sides share their rounds' machine (docs/compare.md).
+# Until a machine's reruns are measured (docs/compare.md, "The default session spread"): a
+# ratio paired by round moves less, its sides sharing their rounds' machine.
 DEFAULT_SESSION_SPREAD = SessionSpread(0.11, 0.05, "default (no reruns of this machine)")
 # Noise levels this close are one: a newer spread learnt within it replaces an older one, and
 # a session's noise may lie this far above the noisiest level learnt before its spread says
@@ -153,8 +134,7 @@ def spread_at(levels: Sequence[SessionSpread], noise: float) -> SessionSpread:
 
 
 def t95(rounds: int) -> float:
-    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of
-    freedom)."""
+    """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of freedom)."""
     return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
 
 
@@ -169,17 +149,16 @@ class RoundEstimate:
     rounds: int
 
     def interval(self) -> Interval:
-        """The 95% interval of the value over its rounds alone (t with rounds - 1 degrees of
-        freedom), around the point; NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
+        """The 95% interval of the value over its rounds alone, around the point."""
         return self._widened(0.0, 1.0)
 
     def rerun_interval(self, session: float) -> Interval:
         """Where another session's estimate lies with 95%: the rounds' and the session's
-        spread, each counted for both sessions (sqrt 2); NaN ends with fewer than
-        INTERVAL_MIN_ROUNDS rounds."""
+        spread, each counted for both sessions (sqrt 2)."""
         return self._widened(session, math.sqrt(2.0))
 
     def _widened(self, session: float, factor: float) -> Interval:
+        """NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return Interval(self.point, math.nan, math.nan)
         half = factor * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
@@ -200,11 +179,7 @@ def from_round_values(values: Sequence[float]) -> RoundEstimate:
 def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimate:
     """A cell's estimate from its runs and the round of each (round_medians); where the
     rounds are not recorded, all its runs count as one round."""
-    by_round = round_medians(times, rounds)
-    if not by_round:
-        runs = clean(times)
-        return from_round_values([float(np.median(runs))] if runs.size else [])
-    return from_round_values(list(by_round.values()))  # in round order
+    return from_round_values(list(round_medians(times, rounds).values()) or [estimate(times)])
 
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
@@ -220,18 +195,13 @@ def paired_ratio(reference: Mapping[int, float], cell: Mapping[int, float]) -> R
     return from_round_values([reference[k] / cell[k] for k in common if cell[k] > 0])
 
 
-# --- sessions ---------------------------------------------------------------------------
-
-
 def session_spread(sessions: Sequence[Sequence[tuple[float, float]]]) -> float:
     """The session level from reruns: per cell, each session's (log estimate, log standard
     error of its rounds). The variance between a cell's sessions beyond what their standard
-    errors explain, pooled over the cells with at least two sessions as DerSimonian and Laird
-    pool a random effect over studies (each cell its own mean, each session weighted by the
-    inverse square of its standard error, floored at MIN_LOG_SE): a cell whose rounds are
-    noisy (three rounds of a per-row pathology, a 5 ms cell) says little about the session
-    level and counts for little, and a session without a standard error (one round, a ratio
-    of two rounds) is left out. Floored at 0; NaN without any cell in two sessions."""
+    errors explain, pooled over the cells in two sessions or more as DerSimonian and Laird pool
+    a random effect (each session weighted by the inverse square of its standard error,
+    floored at MIN_LOG_SE), so that a cell whose rounds are noisy counts for little; a session
+    without a standard error is left out. Floored at 0; NaN without any cell in two sessions."""
     excess = dof = scale = 0.0
     for cell in sessions:
         found = [(m, max(s, MIN_LOG_SE)) for m, s in cell if math.isfinite(m) and math.isfinite(s)]
@@ -300,10 +270,9 @@ def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
 def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
                   session: float | None = None) -> tuple[float | None, float | None, float]:
     """What a cell's per-run times give: the 95% interval of their median (None where there is
-    none) and their low quantile. With the round of each run, the interval is where another
-    session's estimate lies (over the rounds, and the machine's `session` spread), widened to
-    hold the median of the runs; without (a record from before rounds), the bootstrap over
-    the runs."""
+    none) and their low quantile. With the round of each run, where another session's estimate
+    lies (rerun_interval with the machine's `session` spread), widened to hold the median of
+    the runs; without (a record from before rounds), the bootstrap over the runs."""
     if rounds is None:
         interval = median_ci(times)
     else:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from harness import repo, stats
 from harness.analysis import results, resultsets
-from harness.analysis.upgrade import upgrade_experiment
+from harness.analysis.migrate import upgrade_experiment
 from harness.comparison import page as figcompare
 from harness.comparison import verdicts as compare
 from harness.runner.command import EXIT_ERROR

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from harness.analysis import strategies as study
-from harness.analysis.upgrade import upgrade_experiment
+from harness.analysis.migrate import upgrade_experiment
 from harness.report.figures import strategies as figstrategies
 from harness.spec.facts import Variants
 from harness.store.columns import parse_list

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness.analysis import export, trust
+from harness.analysis import export
+from harness.analysis.accuracy import has_check_data
 from harness.errors import HarnessError
 from harness.measure import invariants
 from harness.measure import shadow as accuracy
@@ -226,4 +227,4 @@ def test_checked_experiment_end_to_end(study_binaries: Path, tmp_path: Path) -> 
     assert any(f.startswith("study-divergence") and f.endswith(".png") for f in figures)
     assert any(f.startswith("study-shadow-vs-time") and f.endswith(".png") for f in figures)
     frame = frame_of(root / "study")
-    assert trust.has_check_data(frame) and frame["chk_energy"].all()
+    assert has_check_data(frame) and frame["chk_energy"].all()

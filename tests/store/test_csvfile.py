@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from harness import stats
 from harness.analysis import export, phases, results
-from harness.analysis.upgrade import upgrade_experiment
+from harness.analysis.migrate import upgrade_experiment
 from harness.measure import hyperfine as mhyperfine
 from harness.measure import timing
 from harness.store import atomic, columns, records

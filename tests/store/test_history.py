@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from harness.analysis import export, results
-from harness.analysis.upgrade import upgrade_experiment
+from harness.analysis.migrate import upgrade_experiment
 from harness.cli import main as cli_main
 from harness.store import atomic, index, records
 from harness.store import superseded as store_history

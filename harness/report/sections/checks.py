@@ -7,9 +7,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from harness.analysis.cells import SCENE_KEYS
-from harness.analysis.display import series_label
-from harness.analysis.trust import (
+from harness.analysis.accuracy import (
     FAIL_MARK,
     PASS_MARK,
     TRUST_ERR_R,
@@ -20,6 +18,8 @@ from harness.analysis.trust import (
     stability_matrix,
     trust_table,
 )
+from harness.analysis.cells import SCENE_KEYS
+from harness.analysis.display import series_label
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import fig_divergence, fig_error_time
 from harness.report.load import Experiment

@@ -12,10 +12,10 @@ from typing import Any
 
 import pandas as pd
 
+from harness.analysis.accuracy import has_check_data
 from harness.analysis.cells import CELL_KEYS, sweep_axes, varying_keys
 from harness.analysis.display import display_columns, format_table, is_numeric_column
 from harness.analysis.flags import provenance
-from harness.analysis.trust import has_check_data
 from harness.report.cache import Manifest
 from harness.report.document import Block, Figure, Section, Table, slug
 from harness.report.load import Experiment
