@@ -1,7 +1,7 @@
 """Measure ONE planned cell, in three steps:
   start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
          output, its peak resident memory); with `openmp_costs: true`, build/ompcost at the
-         cell's thread count (measure.ompcost); when validating, that output against
+         cell's thread count (measure.timing); when validating, that output against
          `build/seq --precise` on the same input (measure.references); with `checks:`, the
          accuracy and stability checks on a print-mode run (measure.checks);
          for a program, its run and its check against seq (the measurer's program_runner,
@@ -25,22 +25,14 @@ from typing import Protocol, TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.measure import environment, machine, mpi, noise, validate
+from harness.measure import environment, machine, mpi, noise
 from harness.measure.checks import Checker
 from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
-from harness.measure.ompcost import measure_costs
-from harness.measure.proc import (
-    exit_status,
-    failure,
-    peak_mib,
-    run_captured,
-    run_process,
-    tail,
-)
-from harness.measure.references import References
+from harness.measure.proc import exit_status, failure, peak_mib, run_captured, run_process, tail
+from harness.measure.references import References, compare
 from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
-from harness.measure.timing import parse_timing
+from harness.measure.timing import measure_costs, parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
 from harness.plan.binaries import measures_openmp_costs, ompcost_path
@@ -263,7 +255,7 @@ class Measurer:
         if reference is None:
             return UNVALIDATED, record.replace(validated=False, note=problem)
         try:
-            comparison = validate.compare(reference, output, cell.scene.L)
+            comparison = compare(reference, output, cell.scene.L)
         except OutputFormatError as exc:
             return UNVALIDATED, record.replace(validated=False,
                                                note=f"baseline output unreadable: {exc}")

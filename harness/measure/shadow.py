@@ -29,10 +29,10 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.measure.proc import run_captured
-from harness.measure.validate import max_distance
+from harness.measure.references import compare, max_distance
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_SHADOW_ULPS
-from harness.spec.output import Output, OutputFormatError, parse_output, split_states
+from harness.spec.output import Output, OutputFormatError, split_states
 from harness.spec.scenes import particle_row
 
 MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
@@ -132,23 +132,16 @@ def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
 
 def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
     """One shadow step: the cell's and the truth's one-step outputs from the same state."""
-    failed = ShadowStep(state, math.nan, math.nan, False, False)
-    if cell is None or truth is None:
-        return failed
     try:
-        a, b = parse_output(cell).final, parse_output(truth).final
+        found = compare(truth, cell, L) if cell is not None and truth is not None else None
     except OutputFormatError:
-        return failed
-    if a.n != b.n or not np.array_equal(a.index, b.index):
-        return failed
-    if a.n == 0:
-        return ShadowStep(state, 0.0, 0.0, False, True)
-    pos = np.hypot(*(a.position - b.position).T).max() / L
-    vel = np.hypot(*(a.velocity - b.velocity).T).max() / L
-    differs = bool(np.any((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
+        found = None
+    if found is None or not found.comparable:
+        return ShadowStep(state, math.nan, math.nan, False, False)
+    pos, vel = found.max_pos_err, found.max_vel_err
     if not (math.isfinite(pos) and math.isfinite(vel)):
         pos, vel = math.inf, math.inf
-    return ShadowStep(state, float(pos), float(vel), differs, True)
+    return ShadowStep(state, pos, vel, found.count_mismatches > 0, True)
 
 
 def shadow_states(total: int, limit: int) -> list[int]:

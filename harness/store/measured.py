@@ -67,8 +67,10 @@ class Timing:
 
 @dataclass(frozen=True)
 class Rounds:
-    """In how many rounds the cell was timed, why its timing stopped (columns.STOPPED_*) and
-    the seed that shuffled each round's order."""
+    """In how many rounds the cell was timed (the rounds of the cells of a run alternate, so
+    that the machine's drift is shared), why its timing stopped (columns.STOPPED_*) and the
+    seed that shuffled each round's order (cells with one seed were measured in the same
+    rounds)."""
 
     rounds: int | None = None
     stopped: str | None = None
@@ -101,7 +103,9 @@ class Noise:
 
 @dataclass(frozen=True)
 class Phases:
-    """Where the --precise run's time went (--timing), in seconds."""
+    """Where the --precise run's time went (--timing), in seconds summed over the run; of the
+    simulation: the variant's pair finder (broad phase and pair tests), wall candidates,
+    merging and sorting the candidates, the greedy resolution walk, moving the discs."""
 
     input_s: float | None = None
     sim_s: float | None = None
@@ -218,7 +222,13 @@ class Checks:
 
 @dataclass(frozen=True)
 class ProgramVerdict:
-    """A program's check against seq (harness.programs.cell) and what it cost."""
+    """A program's check against seq (harness.programs.cell): its verdict, its first wrong
+    step (or, not wrong, the first step it leaves seq's rounding; None: never), the rule that
+    step breaks, the data races ThreadSanitizer found in it (`FILE:LINE and FILE:LINE
+    (variables)`, `;`-separated; `none`; None where it was not checked: a program without
+    `build:`, or another cell than its highest thread count's), and what grading cost beyond
+    its run (seconds: its print-mode check run and the verdict, and of that the reference's
+    replays)."""
 
     program: JsonObject | None = None
     check_command: str | None = None
@@ -251,7 +261,10 @@ class Instructions:
 
 @dataclass(frozen=True)
 class OmpCosts:
-    """The OpenMP runtime's costs at the cell's threads (columns.OMP_COST_COLUMNS), in ns."""
+    """The OpenMP runtime's cost of one operation at the cell's thread count on its machine
+    (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
+    closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
+    forked by every thread of an outer team at once (None where T*T threads were too many)."""
 
     region_ns: float | None = None
     barrier_ns: float | None = None
