@@ -1,12 +1,8 @@
 """Measure ONE planned cell, in three steps:
-  start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
-         output, its peak resident memory); with `openmp_costs: true`, build/ompcost at the
-         cell's thread count (measure.timing); when validating, that output against
-         `build/seq --precise` on the same input (measure.references); with `checks:`, the
-         accuracy and stability checks on a print-mode run (measure.checks);
-         for a program, its run and its check against seq (the measurer's program_runner,
-         which the programs feature lends: harness.programs.cell); with the instruction
-         lane (`metric: instructions`), its counted runs (measure.instructions);
+  start: its untimed runs: one `--timing --precise` run under the cell timeout, build/ompcost
+         (measure.timing), validation (measure.references), the checks (measure.checks), a
+         program's run and check (the program_runner the programs feature lends), the
+         instruction lane's counted runs (measure.instructions);
   time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
@@ -131,11 +127,7 @@ class Measurer:
         return CellRun.load(self.store.layout.partial(cell_id), self.key(cell))
 
     def start(self, cell: Cell, cell_id: str) -> CellRun:
-        """The cell's runs that are not timed: its --precise run, validation and checks; or,
-        when an interrupted run left the cell part-timed, where it stopped."""
-        resumed = self.resume(cell, cell_id)
-        if resumed is not None:
-            return resumed
+        """The cell's runs that are not timed: its --precise run, validation and checks."""
         key = self.key(cell)
         config, measure = self.config, self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule, cell.uses_ranks)

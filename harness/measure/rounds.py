@@ -1,17 +1,12 @@
-"""A cell timed in rounds. Each round gives a cell one hyperfine call of a few runs, and the
-rounds of all pending cells alternate (harness.executors), so that the machine's slow drift
-spreads over every cell instead of biasing the ones measured last. A cell takes one run a
-round (a paired cell a few): a fixed count (`runs: N`) N rounds, `runs: auto` at least
-stats.MIN_ROUNDS and then rounds until the 95% interval of its value over its rounds
-(harness.stats.levels) is within +-ci of it, or a limit is reached (harness.spec.config).
+"""A cell timed in rounds (docs/configs.md): one hyperfine call of a few runs a round, the
+rounds of all pending cells alternating (harness.executors), so that the machine's slow drift
+spreads over every cell instead of biasing the ones measured last.
 
 CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl once its
 untimed runs are done and after each of its hyperfine calls, so that an interrupted run
-resumes a cell where it stopped instead of starting it again. The file is a log: its first
-line the whole state, then a line a save with what was added to the lists that only grow
-(times, rounds, ...) and the other fields that changed; a save writes what changed, not every
-run of the cell again (a cell of many rounds would rewrite its runs quadratically often).
-"""
+resumes a cell where it stopped. The file is a log: its first line the whole state, then a
+line a save with what was added to the lists that only grow (GROWING) and the other fields
+that changed, so that a cell of many rounds does not rewrite its runs quadratically often."""
 
 from __future__ import annotations
 
@@ -83,12 +78,9 @@ class CellRun:
     # and the JSON text of every other field
     saved: tuple[Path, dict[str, int], dict[str, str]] | None = field(
         default=None, init=False, repr=False, compare=False)
-    # Read back from its partial file: an interrupted run's cell, resumed where it stopped
-    resumed: bool = field(default=False, init=False, repr=False, compare=False)
 
     @property
     def timed(self) -> bool:
-        """Whether its runs are timed: it ran to the end (ok, or invalid output)."""
         return self.status in TIMED_STATUSES
 
     @property
@@ -195,7 +187,6 @@ class CellRun:
             return None
         if run.key != key:
             return None
-        run.resumed = True
         if whole:
             run.saved = (path, {name: len(getattr(run, name)) for name in GROWING},
                          _texts(first))

@@ -1,15 +1,8 @@
-"""Which records an experiment's rows are, and the index that lists them (results.index.json,
-written with the exports: analysis.export); env.json and variants.json.
-
-The rows are, for each planned cell: on this machine the record of the current build, or
-else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
-and on every other machine present the newest record that timed the cell, whatever its
-measure settings and whether or not it counted instructions (CellKey.timed_group). Then each
-machine's newest record of every other cell it measured, marked `earlier_config`: measured
-under an earlier version of the config, which a machine that has not measured it since keeps
-showing. The listing is made from the records on disk under the directory's lock, so two
-writers never drop each other's rows.
-"""
+"""Which records an experiment's rows are (docs/results.md: for each planned cell, this
+machine's record or the newest of its group marked `stale`, and every other machine's newest
+timing of it; then each machine's newest record of every other cell it measured, marked
+`earlier_config`), and the index that lists them (results.index.json, written with the
+exports: analysis.export); env.json and variants.json."""
 
 from __future__ import annotations
 
@@ -58,7 +51,6 @@ class Listed:
     config_changed: str = ""
 
 
-Row = Listed
 INDEX_VERSION = 1
 
 
@@ -77,13 +69,11 @@ def changed_fields(key: CellKey, planned: CellKey | None) -> str:
 
 
 def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str
-                 ) -> list[Row]:
+                 ) -> list[Listed]:
     """results.csv's records, in plan order (the module's docstring says which); one of no
-    known machine unless a newer timing of the cell exists. Then, for each machine, its newest
-    record of every cell it has no row of yet: measured under an earlier version of the config
-    (marked, never dropped)."""
+    known machine unless a newer timing of the cell exists."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
-    rows: list[Row] = []
+    rows: list[Listed] = []
     done: set[str] = set()
     for cell in planned:
         group = cell.key.group
@@ -94,7 +84,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         current = next((m for m in members if m.cell_id == cell.cell_id), None)
         own = current or current_by_machine(members).get(machine_id)
         if own is not None:
-            rows.append(Row(own.result, current is None))
+            rows.append(Listed(own.result, current is None))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
@@ -103,12 +93,12 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
-            rows.append(Row(item.result, stale))
+            rows.append(Listed(item.result, stale))
     return rows + earlier_rows(stored, planned, rows)
 
 
-def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Row]
-                 ) -> list[Row]:
+def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Listed]
+                 ) -> list[Listed]:
     """Each machine's newest record of each cell it has no row of among `rows`: measured
     under an earlier version of the config, by subject and machine."""
     listed = {(r.result.key.machine_id or UNKNOWN_MACHINE, match_values(r.result.columns))
@@ -120,7 +110,7 @@ def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows:
         place = (item.machine_id, _subject(item))
         if place not in listed:
             newest[place] = item
-    return [Row(item.result, None, changed_fields(item.key, plan_of.get(place[1])))
+    return [Listed(item.result, None, changed_fields(item.key, plan_of.get(place[1])))
             for place, item in sorted(newest.items())]
 
 

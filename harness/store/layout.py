@@ -58,14 +58,10 @@ SLURM = "slurm"
 ENV_JSON = "env.json"
 VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
-RESULTS_INDEX = "results.index.json"
-DIVERGENCE_CSV = "divergence.csv"
-RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
 OUTPUT_SUFFIX = ".txt"
-DIGEST_SUFFIX = ".sha256"
 INPUTS = "inputs"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 CACHE_DIR = ".cache"
@@ -73,7 +69,6 @@ COMPARE_DIR = "compare"
 RERUNS_DIR = "reruns"
 CALIBRATION_DIR = "calibration"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
-INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
 
 class _Under:
@@ -94,11 +89,11 @@ class ExperimentDir:
     cells = _Under(CELLS)
     history = _Under(HISTORY)
     results_csv = _Under(RESULTS_CSV)
-    results_index = _Under(RESULTS_INDEX)
+    results_index = _Under("results.index.json")
     history_csv = _Under("history.csv")
     history_commits = _Under("history.json")
-    ratios_csv = _Under(RATIOS_CSV)
-    divergence_csv = _Under(DIVERGENCE_CSV)
+    ratios_csv = _Under("ratios.csv")
+    divergence_csv = _Under("divergence.csv")
     env_json = _Under(ENV_JSON)
     variants_json = _Under(VARIANTS_JSON)
     slurm = _Under(SLURM)
@@ -163,7 +158,7 @@ class ExperimentDir:
         return self.cells / f"{cell_id}.check.out"
 
     def input(self, sha256: str) -> Path:
-        return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}.in"
+        return self.path / INPUTS / f"{sha256[:16]}.in"  # 16 hex digits name an input
 
     def machine(self, machine_id: str) -> Path:
         return self.path / MACHINES / f"{machine_id}{RECORD_SUFFIX}"
@@ -200,19 +195,15 @@ class ResultsRoot:
         return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
 
 
-def is_record_name(name: str) -> bool:
-    """A cell record's file name: `<cell_id>.json` (not hyperfine's exports, not a partial
-    cell, not a temporary file)."""
-    return name.endswith(RECORD_SUFFIX) and name.count(".") == 1 and not name.startswith(".")
-
-
 def record_paths(directory: Path) -> list[Path]:
-    """The record files directly in `directory` (cells/ or history/), by name."""
+    """The record files directly in `directory` (cells/ or history/), by name: `<cell_id>.json`
+    (not hyperfine's exports, not a partial cell, not a temporary file)."""
     try:
         names = sorted(os.listdir(directory))
     except FileNotFoundError:
         return []
-    return [directory / n for n in names if is_record_name(n)]
+    return [directory / n for n in names
+            if n.endswith(RECORD_SUFFIX) and n.count(".") == 1 and not n.startswith(".")]
 
 
 def export_round(cell_id: str, name: str) -> int | None:
@@ -224,7 +215,7 @@ def export_round(cell_id: str, name: str) -> int | None:
 
 def digest_of(path: Path) -> Path:
     """Where the sha256 of a kept reference output is written, beside it."""
-    return path.with_name(path.name + DIGEST_SUFFIX)
+    return path.with_name(path.name + ".sha256")
 
 
 def cell_id_of(path: Path) -> str:

@@ -4,11 +4,9 @@ Each field declares its role, and every name a record is known by is a projectio
 declarations (pyperf's explicit list of the metadata that must agree before runs are grouped):
 
 - `id`, the content address a record is stored under: every field;
-- `portable_id`: every field but the machine (what a Slurm submitter names a cell by before
-  it knows which node measures it);
-- `group`: what ran and how its runs were taken, whatever binaries' hashes and machine (one
-  current record per machine and group; the others are history); whether instructions were
-  counted, not with which counter; not what was measured beside the runs;
+- `portable_id`: every field but the machine (what a Slurm submitter names a cell by);
+- `group`: what ran and how its runs were taken (one current record per machine and group);
+  whether instructions were counted, not with which counter;
 - `timed_group`: what ran only: every record, of any machine, that timed the same cell.
 
 A key reads back the JSON object it was written as, field for field, so the ids of stored
@@ -71,8 +69,7 @@ def _role(role: Role, optional: bool = False) -> dict[str, object]:
     return {"role": role, "optional": optional}
 
 
-def _optional(role: Role) -> dict[str, object]:
-    return _role(role, optional=True)
+_optional = functools.partial(_role, optional=True)
 
 
 @dataclass(frozen=True)

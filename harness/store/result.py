@@ -1,16 +1,11 @@
 """A measured cell, typed: what its measurement gave, beside its key (harness.store.model).
 
 CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
-values (each run's seconds with the round it was taken in), and what the measurement found
-beside them sits in small groups (harness.store.measured). A group no measurement filled is
-None.
-
-On disk a record is CellResult.to_json(): one flat JSON object whose names are the columns of
-results.csv (harness.store.columns) and a few more that only the record keeps. A group's
-fields are named as their columns, so that a column is read from one place, and an empty
-value is left out of the JSON. Reading a record refuses a field it does not know, naming it
-(RecordFormatError), as a key refuses one (KeyFormatError). Standard library only.
-"""
+values, and what the measurement found beside them sits in small groups
+(harness.store.measured; None where no measurement filled one). On disk a record is
+CellResult.to_json(): one flat JSON object named by the columns of results.csv and a few more
+that only the record keeps, so that a column is read from one place (docs/results.md).
+Standard library only."""
 
 from __future__ import annotations
 
@@ -160,7 +155,7 @@ class CellResult:
             raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
                                     f"{', '.join(map(str, READ_VERSIONS))}")
         values = {k: v for k, v in upgrade(raw).items() if k != "version" and v is not None}
-        unknown = sorted(set(values) - set(_leaves()) - _TOP_NAMES)
+        unknown = sorted(set(values) - record_fields())
         if unknown:
             raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
         return _parse(values)
@@ -217,16 +212,8 @@ def upgrade(raw: Mapping[str, object]) -> dict[str, object]:
     """A stored record as the current version has it: the one place that knows the formats
     of earlier versions (1 kept the list columns as space-separated text)."""
     out = dict(raw)
-    if out.get("version") == 1:
-        out = _with_lists(out)
-    out["version"] = RECORD_VERSION
-    return out
-
-
-def _with_lists(values: dict[str, object]) -> dict[str, object]:
-    """A version 1 record's list columns, space-separated text, as lists."""
-    out = dict(values)
-    for column in LIST_COLUMNS.keys() & out.keys():
+    text_lists = LIST_COLUMNS.keys() & out.keys() if out.get("version") == 1 else set()
+    for column in text_lists:
         value = out[column]
         if isinstance(value, str):
             try:
@@ -234,6 +221,7 @@ def _with_lists(values: dict[str, object]) -> dict[str, object]:
             except ValueError as exc:
                 raise RecordFormatError(f"record.{column}: {value!r} is not a list of "
                                         f"{LIST_COLUMNS[column].__name__}") from exc
+    out["version"] = RECORD_VERSION
     return out
 
 
