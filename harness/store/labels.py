@@ -95,7 +95,6 @@ def machine_labels(machines: Mapping[str, Described]) -> dict[str, str]:
             seen = [tuple(extra[m]) for m in members]
             if len(set(seen)) == len(seen):
                 break
-        seen = [tuple(extra[m]) for m in members]
         for mid in members:
             if seen.count(tuple(extra[mid])) > 1:
                 extra[mid].append(mid[:SHORT_ID])
