@@ -19,7 +19,7 @@ from harness.runner.sides import resolve
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.columns import MEASURED_BISECT
-from harness.store.commits import CommitInfo
+from harness.store.index import CommitInfo
 from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 

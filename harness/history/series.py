@@ -30,7 +30,7 @@ from harness.store.columns import (
     MISSING_STATUS,
     OK,
 )
-from harness.store.commits import CommitInfo
+from harness.store.index import CommitInfo
 from harness.store.layout import ExperimentDir
 
 

@@ -1,8 +1,5 @@
-"""Timing runs of a cell with hyperfine: `hyperfine -N --warmup W --runs R --export-json`,
-killed as a process group if it runs past (warmup + runs) timeouts; the export is kept as
-hyperfine wrote it. A cell is timed in rounds (harness.measure.rounds), one call a round. The
-command's exit or signal is the cell's result; hyperfine unable to write its export, or leaving
-one that does not read, is a StorageError: the harness's fault, no result."""
+"""Timing runs of a cell with hyperfine, one call a round (harness.measure.rounds), killed as a
+process group if it runs past (warmup + runs) timeouts; the export is kept as written."""
 
 from __future__ import annotations
 
@@ -86,9 +83,9 @@ def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], ta
 def outcome(done: ProcessResult, export: Path, target: Path
             ) -> tuple[str, int | None, HyperfineStats | None]:
     """How a hyperfine call ended: the status and exit code of the command it timed, with its
-    statistics (its export moved to `target`) where it ended well. hyperfine failing for want
-    of room for its export, or leaving one that cannot be read, is a StorageError: the
-    harness's fault, not the command's."""
+    statistics (its export moved to `target`) where it ended well. hyperfine unable to write
+    its export, or leaving one that does not read, is a StorageError: the harness's fault, no
+    result."""
     if done.returncode is None:
         return TIMEOUT, None, None
     if done.returncode != 0:
@@ -107,8 +104,8 @@ def outcome(done: ProcessResult, export: Path, target: Path
 
 
 def export_fault(stderr: str, export: Path) -> None:
-    """Raise a StorageError where hyperfine could not write its export: the place takes no
-    more (atomic.check_room), or hyperfine says so (`... (os error 28)`)."""
+    """Raise a StorageError where the place takes no more (atomic.check_room), or hyperfine
+    says so (`... (os error 28)`)."""
     atomic.check_room(export, "hyperfine's export")
     found = HYPERFINE_OS_ERROR.search(stderr)
     if found is not None and int(found[1]) in EXPORT_ERRNOS:

@@ -31,9 +31,8 @@ Environment = Callable[[int], Mapping[str, str]]
 
 @dataclass
 class References:
-    """The reference outputs of one experiment's cells, read or run once per process. A kept
-    output is read back only where its bytes are those written (harness.store.trust); a
-    damaged one is named (`warn`) and run again."""
+    """The reference outputs of one experiment's cells, read or run once per process; a kept
+    one that is damaged (harness.store.trust) is named (`warn`) and run again."""
 
     store: CellStore
     environment: Environment
@@ -77,8 +76,7 @@ class References:
 
     def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
               scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
-        """The output kept in memory or at `path`, else run now and kept in both; with the run
-        when it ran now."""
+        """The output kept in memory or at `path`, else run now (with the run) and kept."""
         if key not in kept:
             text = self._read(path)
             if text is not None:
@@ -100,8 +98,8 @@ class References:
 
     def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path
              ) -> tuple[ProcessResult, str | None]:
-        """`binary --precise` on the scene's input, its output written beside `path` while it
-        runs; its output (None where it failed)."""
+        """`binary --precise` on the scene's input, written beside `path`; None where it
+        failed."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
         done, text = run_captured(argv, self.environment(threads), self.timeout_s, path)

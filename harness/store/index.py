@@ -2,7 +2,7 @@
 machine's record or the newest of its group marked `stale`, and every other machine's newest
 timing of it; then each machine's newest record of every other cell it measured, marked
 `earlier_config`), and the index that lists them (results.index.json, written with the
-exports: analysis.export); env.json and variants.json."""
+exports: analysis.export); env.json, variants.json and history.json."""
 
 from __future__ import annotations
 
@@ -205,3 +205,24 @@ def write_variants(experiment_dir: Path, facts: Mapping[str, object]) -> None:
     """variants.json: the facts of the variants of the build that measured last (analysis and
     the report read them there, so that reading results never builds)."""
     atomic.atomic_write_json(ExperimentDir(experiment_dir).variants_json, facts)
+
+
+@dataclass(frozen=True)
+class CommitInfo:
+    """A commit of a history (`history`), with its subject and whether it changed what the
+    binaries are made of."""
+
+    sha: str
+    subject: str
+    touches_code: bool  # changed variants/ or the Makefile
+
+    @property
+    def short(self) -> str:
+        return self.sha[:10]
+
+
+def save_commits(exp: ExperimentDir, commits: Sequence[CommitInfo]) -> None:
+    """history.json: the latest range `history` measured, oldest first."""
+    atomic.atomic_write_json(exp.history_commits, [
+        {"commit": c.sha, "subject": c.subject, "touches_code": c.touches_code}
+        for c in commits])

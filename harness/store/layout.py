@@ -1,38 +1,31 @@
-"""The results layout, named once: what lives where under a results root.
+"""The results layout, named once: what lives where under a results root (docs/results.md).
 
     results/                         a results root
       .cache/baselines/<key>.txt     seq's --precise output per input (validation)
       .cache/prints/<key>.txt        reference print-mode outputs (the checks)
-      .cache/*/<key>.txt.sha256      the sha256 of each, written with it: read back only
-                                     where the bytes still have it
+      .cache/*/<key>.txt.sha256      the sha256 of each, written with it
       <name>/  (<name>-quick/)       one experiment (a --quick smoke run)
         cells/<cell_id>.json             the harness's record of one cell
-        cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
-                                         written (<cell_id>.hyperfine.json: one for all runs,
-                                         in records from before rounds)
-        cells/<cell_id>.hyperfine.<k>.disturbed<a>.json   a round others disturbed, taken
-                                         again (the a-th retake of the cell)
+        cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round
+                                         (<cell_id>.hyperfine.json: before rounds, all runs)
+        cells/<cell_id>.hyperfine.<k>.disturbed<a>.json   a round others disturbed, retaken
         cells/<cell_id>.partial.jsonl    a cell whose rounds an interruption cut short
-        cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
-        cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
+        cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while compared
+        cells/.<cell_id>.check.out.*.tmp a program's check run's output while judged
         .../.<name>.<pid>@<host>.*.tmp   any file while it is written (harness.store.atomic)
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
-        variants.json                    the variants' facts (--describe) of the latest run's
-                                         build: what analysis and the report read of them
+        variants.json                    the variants' facts of the latest run's build
         machines/<machine_id>.json       the same, the latest of each machine
         history/                         superseded records with their hyperfine JSON
         history/<commit>/                `history`: a results root of the commit's measurements
         history/<commit>/build.json      `history`: why the commit has none (no build)
         history/bisect/<old>-<new>/      `history --bisect`: two commits measured together
-        history.csv                      `history`: one row per cell, commit and metric
-        history.json                     `history`: the commits of the latest range, oldest first
+        history.csv, history.json        `history`: its rows, the commits of its latest range
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
-        results.index.json               what results.csv, ratios.csv and divergence.csv were
-                                         derived from (the records, in order) and their
-                                         sha256: checked before they are read
+        results.index.json               the records the exports list, and their sha256
         ratios.csv                       one row per ratio of two cells (speedups), by round
         divergence.csv                   the checks' divergence curves, where some cell has them
       calibration/machines/<machine_id>.json   a machine's description and its calibration
@@ -104,14 +97,12 @@ class ExperimentDir:
         return self.path.name
 
     def commit_root(self, commit: str) -> Path:
-        """The results root of one commit's measurements (`history`)."""
         return self.history / commit
 
     def build_failed(self, commit: str) -> Path:
         return self.commit_root(commit) / "build.json"
 
     def bisect(self, old: str, new: str) -> Path:
-        """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
         return self.history / "bisect" / f"{old}-{new}"
 
     def record(self, cell_id: str) -> Path:
@@ -124,8 +115,7 @@ class ExperimentDir:
         return self.cells / f"{cell_id}{HYPERFINE_INFIX}{round_index}{RECORD_SUFFIX}"
 
     def disturbed(self, cell_id: str, round_index: int, attempt: int) -> Path:
-        """A round's export that others disturbed, kept as hyperfine wrote it when the round
-        was taken again (`attempt`: the cell's retakes before it)."""
+        """`attempt`: the cell's retakes before this one."""
         return self.cells / (f"{cell_id}{HYPERFINE_INFIX}{round_index}.disturbed{attempt}"
                              f"{RECORD_SUFFIX}")
 
@@ -136,8 +126,7 @@ class ExperimentDir:
                       key=lambda p: export_round(cell_id, p.name) or 0)
 
     def hyperfine_files(self, cell_id: str) -> list[Path]:
-        """Where the cell's hyperfine exports may be: the one for all its runs, then those of
-        its rounds that exist."""
+        """The one export for all its runs, then those of its rounds that exist."""
         return [self.hyperfine(cell_id), *self.hyperfine_exports(cell_id)]
 
     def partial(self, cell_id: str) -> Path:
@@ -149,12 +138,9 @@ class ExperimentDir:
     # The outputs a cell's measurement compares and then deletes (written under a temporary
     # name beside these: harness.store.atomic.temp_path).
     def run_output(self, cell_id: str) -> Path:
-        """Where a validated cell's --precise output goes while it is compared (unless kept:
-        output())."""
         return self.cells / f"{cell_id}.out"
 
     def check_output(self, cell_id: str) -> Path:
-        """Where a program's check run's output goes while it is judged."""
         return self.cells / f"{cell_id}.check.out"
 
     def input(self, sha256: str) -> Path:
@@ -187,11 +173,10 @@ class ResultsRoot:
         return self.path / CACHE_DIR / "prints" / f"{key}{OUTPUT_SUFFIX}"
 
     def caches(self) -> list[Path]:
-        """The directories of the reference outputs (written through temporary files)."""
+        """The directories of the reference outputs."""
         return [self.path / CACHE_DIR / "baselines", self.path / CACHE_DIR / "prints"]
 
     def calibration(self, machine_id: str) -> Path:
-        """The machine's description with its calibration (`compare --calibrate`)."""
         return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
 
 
