@@ -32,8 +32,7 @@ from harness.store.hyperfine import is_unstable
 from harness.store.measured import Noise, TimedRun
 from harness.store.result import CellResult
 
-# 3: a line after the first holds only the fields that changed, the record's too
-PARTIAL_VERSION = 3
+PARTIAL_VERSION = 3  # a line after the first holds only the fields that changed
 RECORD_FIELD = "record."  # how a record's field is named among the fields a save compares
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
 GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
@@ -60,14 +59,11 @@ class CellRun:
     # Runs a round for each run the measure counts: a paired cell's rounds each time a few
     # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
     per_round: int = 1
-    # Rounds a comparison asks of the cell beyond its measure's runs (rounds until decided,
-    # harness.runner.pair): its measure then counts at least this many runs
+    # Rounds a comparison asks of the cell beyond its measure's runs (harness.runner.pair)
     min_rounds: int = 0
-    # Per successful call (round), the share of its cores' time others took or was stolen
-    # (harness.measure.noise), and the totals of what the noise cost over its rounds
+    # Per round, RoundNoise.share and (where the kernel gives it) .pressure; then the totals of
+    # what the noise cost over its rounds
     round_noise: list[float] = field(default_factory=list)
-    # Per successful call where the kernel gives it, the share of its time some task waited
-    # for a CPU (RoundNoise.pressure): a paired comparison's interference shift
     round_pressure: list[float] = field(default_factory=list)
     steal_s: float = 0.0
     other_cpu_s: float = 0.0

@@ -78,13 +78,12 @@ def _columns(group: type) -> tuple[str, ...]:
 
 # Where the simulation time goes (measured.Phases, after input_s, sim_s and output_s); their
 # sum is at most sim_s (the rest: the parallel regions' start-ups and closing barriers, and
-# the step's bookkeeping). After the provenance columns, and only where some cell has them.
+# the step's bookkeeping).
 PHASE_COLUMNS: tuple[str, ...] = _columns(measured.Phases)[3:]
 CHECK_COLUMNS: tuple[str, ...] = _columns(measured.Checks)
 # The OMP_SCHEDULE a cell ran with (empty when none), then its per-thread work.
 THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
-# How a cell was timed (measured.Rounds), with the round of each of its runs. Only where some
-# cell has them (results from before rounds have none).
+# How a cell was timed (measured.Rounds), with the round of each of its runs.
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
 NOISE_COLUMNS: tuple[str, ...] = _columns(measured.Noise)
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
@@ -103,22 +102,20 @@ STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, 
 # A pair that stopped undecided (its budget spent, or at the last look) is judged at the last
 # look, whose share of the error rate no earlier look spent.
 STOPPED_UNDECIDED: tuple[str, ...] = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
-# A program's verdict and what grading it cost (measured.ProgramVerdict), only where some cell
-# is a program's.
+# A program's verdict and what grading it cost (measured.ProgramVerdict).
 PROGRAM_COLUMNS: tuple[str, ...] = _columns(measured.ProgramVerdict)[2:]
 NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
 TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.Counts))
-# The OpenMP runtime's costs (measured.OmpCosts), then why a cell that should have them has
-# none. Only where some cell has them.
+# The OpenMP runtime's costs (measured.OmpCosts), then why a cell has none.
 OMP_COST_COLUMNS: tuple[str, ...] = _columns(measured.OmpCosts)[:-1]
 OMP_COST_NOTE = _columns(measured.OmpCosts)[-1]
 INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
 MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
 PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib
-# A cell run as MPI ranks: its rank count, then measured.Ranks. Only where some cell has them.
+# A cell run as MPI ranks: its rank count, then measured.Ranks.
 RANK_COLUMNS: tuple[str, ...] = ("ranks", *_columns(measured.Ranks))
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
@@ -127,7 +124,7 @@ OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, TH
                                                  INSTRUCTION_COLUMNS, _columns(measured.OmpCosts),
                                                  MEMORY_COLUMNS, RANK_COLUMNS)
 
-# divergence.csv beside results.csv: one row per checked cell, reference and printed step.
+# divergence.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
     "cell_id", "variant", "build", "scene", "n", "L", "r", "steps", "seed", "threads",
     "reference", "step", "max_pos_dev",
@@ -135,12 +132,10 @@ DIVERGENCE_COLUMNS: tuple[str, ...] = (
 # The cell-describing columns a divergence row copies from its record.
 DIVERGENCE_CELL_COLUMNS: tuple[str, ...] = DIVERGENCE_COLUMNS[:10]
 
-# ratios.csv beside results.csv: one row per ratio of two cells' times on one machine (the
-# reference's time over this cell's), of cells that measured the same scene with the same
-# build and schedule: `kind` says which reference. docs/results.md says what each column is.
+# ratios.csv beside results.csv: one row per ratio of two cells' times on one machine, `kind`
+# saying which reference (docs/results.md says what each column is).
 RATIO_OVER_ONE_THREAD = "over_one_thread"
 RATIO_OVER_BASELINE = "over_seq"
-RATIO_KINDS: tuple[str, ...] = (RATIO_OVER_ONE_THREAD, RATIO_OVER_BASELINE)
 RATIO_COLUMNS: tuple[str, ...] = (
     "experiment", "kind", "variant", "threads", "ranks", "reference_variant", "reference_threads",
     "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",

@@ -42,17 +42,13 @@ class KeyFormatError(ValueError):
     """A stored key that is not a cell key of this harness."""
 
 
-class _Keep(enum.Enum):
-    FIELD = "field"
-    FLAG = "flag"  # only that the field is there
-
-
-# Per projection, what each role keeps; a role not named is left out.
-_PROJECTIONS: dict[str, dict[Role, _Keep]] = {
-    "id": {role: _Keep.FIELD for role in Role},
-    "portable": {role: _Keep.FIELD for role in Role if role is not Role.MACHINE},
-    "group": {Role.WHAT: _Keep.FIELD, Role.HOW: _Keep.FIELD, Role.COUNTED: _Keep.FLAG},
-    "timed": {Role.WHAT: _Keep.FIELD},
+# Per projection, the roles it keeps, each with whether it keeps only that the field is there;
+# a role not named is left out.
+_PROJECTIONS: dict[str, dict[Role, bool]] = {
+    "id": dict.fromkeys(Role, False),
+    "portable": {role: False for role in Role if role is not Role.MACHINE},
+    "group": {Role.WHAT: False, Role.HOW: False, Role.COUNTED: True},
+    "timed": {Role.WHAT: False},
 }
 
 
@@ -196,10 +192,10 @@ def _project(obj: object, projection: str) -> dict[str, object]:
     out: dict[str, object] = {}
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
-        keep = keeps.get(f.metadata["role"])
-        if keep is None or (f.metadata["optional"] and value is None):
+        flag = keeps.get(f.metadata["role"])
+        if flag is None or (f.metadata["optional"] and value is None):
             continue
-        out[f.name] = True if keep is _Keep.FLAG else _json_value(value, projection)
+        out[f.name] = True if flag else _json_value(value, projection)
     return out
 
 
