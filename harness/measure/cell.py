@@ -3,7 +3,7 @@
          (measure.timing), validation (measure.references), the checks (measure.checks), a
          program's run and check (the program_runner the programs feature lends), the
          instruction lane's counted runs (measure.instructions);
-  time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
+  time_round: one round of timed runs with hyperfine (measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
 """
@@ -23,11 +23,10 @@ from harness import stats
 from harness.errors import HarnessError
 from harness.measure import environment, machine, mpi, noise
 from harness.measure.checks import Checker
-from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
 from harness.measure.proc import exit_status, failure, peak_mib, run_captured, run_process, tail
 from harness.measure.references import References, compare
-from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
+from harness.measure.rounds import CellRun, next_runs, stop_reason, time_runs, timed_result
 from harness.measure.timing import measure_costs, parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
