@@ -19,8 +19,6 @@ from harness.measure.proc import failure, run_captured
 from harness.store.columns import OMP_COST_COLUMNS, THREAD_TIMING_KEYS
 from harness.store.measured import Counts, OmpCosts, Phases, ThreadWork
 
-BUSY_KEY = "threads_busy_s"
-
 
 def parse_timing(stderr: str) -> dict[str, object] | None:
     """The --timing JSON object: the last stderr line that parses as one."""
@@ -49,14 +47,12 @@ def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
     """The per-thread columns a --timing object gives (None for what it lacks, e.g. an older
     binary): its per-thread lists, and their imbalance."""
     fields: dict[str, object] = {}
-    busy: list[float] | None = None
     for key in THREAD_TIMING_KEYS:
         value = timing.get(key)
         ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
         fields[key] = list(value) if ok and value else None
-        if key == BUSY_KEY and ok:
-            busy = [float(v) for v in value]
-    fields["imbalance"] = imbalance(busy) if busy else None
+    busy = fields["threads_busy_s"]
+    fields["imbalance"] = imbalance(busy) if isinstance(busy, list) else None
     return fields
 
 

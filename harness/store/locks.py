@@ -119,28 +119,18 @@ def _flocked(fd: int) -> Iterator[None]:
         os.close(fd)
 
 
-class RunLock:
+class RunLock(contextlib.ExitStack):
     """The measuring lock of one run.py process: taken when its first experiment has cells to
     measure (a run of cached cells or --dry-run takes none), held until the run ends, so the
     configs of one run are not interleaved with another run's."""
 
     def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
                  path: Path | None = None) -> None:
+        super().__init__()
         self._lock = functools.partial(measuring_lock, configs, wait, log, path)
-        self._stack = contextlib.ExitStack()
         self.held = False
 
     def acquire(self) -> None:
         if not self.held:
-            self._stack.enter_context(self._lock())
+            self.enter_context(self._lock())
             self.held = True
-
-    def release(self) -> None:
-        self._stack.close()
-        self.held = False
-
-    def __enter__(self) -> RunLock:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()

@@ -15,26 +15,9 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
+from harness.store import measured
 from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
-from harness.store.measured import (
-    GROUPS,
-    Checks,
-    Counts,
-    Instructions,
-    Memory,
-    Noise,
-    OmpCosts,
-    Phases,
-    ProgramVerdict,
-    Provenance,
-    Ranks,
-    Rounds,
-    Subject,
-    ThreadWork,
-    TimedRun,
-    Timing,
-    Validation,
-)
+from harness.store.measured import GROUPS, TimedRun
 from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
 # The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
@@ -60,21 +43,21 @@ class CellResult:
     exit_code: int | None = None
     note: str | None = None
     times: tuple[TimedRun, ...] = ()
-    subject: Subject | None = None
-    timing: Timing | None = None
-    timed_rounds: Rounds | None = None
-    noise: Noise | None = None
-    phases: Phases | None = None
-    counts: Counts | None = None
-    thread_work: ThreadWork | None = None
-    memory: Memory | None = None
-    mpi: Ranks | None = None
-    validation: Validation | None = None
-    checks: Checks | None = None
-    program_check: ProgramVerdict | None = None
-    counted: Instructions | None = None
-    openmp_costs: OmpCosts | None = None
-    provenance: Provenance | None = None
+    subject: measured.Subject | None = None
+    timing: measured.Timing | None = None
+    timed_rounds: measured.Rounds | None = None
+    noise: measured.Noise | None = None
+    phases: measured.Phases | None = None
+    counts: measured.Counts | None = None
+    thread_work: measured.ThreadWork | None = None
+    memory: measured.Memory | None = None
+    mpi: measured.Ranks | None = None
+    validation: measured.Validation | None = None
+    checks: measured.Checks | None = None
+    program_check: measured.ProgramVerdict | None = None
+    counted: measured.Instructions | None = None
+    openmp_costs: measured.OmpCosts | None = None
+    provenance: measured.Provenance | None = None
 
     @property
     def timed(self) -> bool:
