@@ -89,15 +89,13 @@ class Measurer:
 
     @functools.cached_property
     def levels(self) -> list[stats.SessionSpread]:
-        """This machine's session spreads (`reruns`, under this results root or the
-        repository's), one per noise level."""
+        """This machine's session spreads (`reruns`), one per noise level."""
         machine = self.store.machine_id
         return stats.spreads_of(sessions.kept_levels(
             sessions.session_roots(self.store.root.path), machine, stats.supersedes), machine)
 
     def session(self) -> stats.SessionSpread:
-        """The session spread at the noise of this session's rounds so far; the default until
-        one is kept."""
+        """The session spread at the noise of this session's rounds so far."""
         return stats.spread_at(self.levels, stats.session_noise(self.round_noise))
 
     def warn(self, text: str) -> None:
@@ -121,8 +119,7 @@ class Measurer:
         return cell_key.to_json()
 
     def resume(self, cell: Cell, cell_id: str) -> CellRun | None:
-        """Where an interrupted run left the cell (its untimed runs done, some rounds timed),
-        if it did."""
+        """Where an interrupted run left the cell (some rounds timed), if it did."""
         return CellRun.load(self.store.layout.partial(cell_id), self.key(cell))
 
     def start(self, cell: Cell, cell_id: str) -> CellRun:
@@ -171,8 +168,7 @@ class Measurer:
                                         run_s=precise.seconds))
 
     def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> CellResult:
-        """A fresh record of the cell, with where and how it runs; an earlier measurement's
-        hyperfine files removed."""
+        """A fresh record of the cell; an earlier measurement's hyperfine files removed."""
         repo = self.store.repo_root
         record = self.store.new_record(cell, cell_id).replace(
             cores=self.cores,
@@ -227,8 +223,7 @@ class Measurer:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
-        """Keep on disk the state of a cell until its record is written (finish): a rerun
-        resumes it there."""
+        """Keep the cell's state on disk until its record is written: a rerun resumes it."""
         run.save(self.store.layout.partial(run.cell_id))
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:

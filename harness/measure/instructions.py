@@ -62,8 +62,7 @@ def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
 
 def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                input_file: Path | None = None) -> tuple[int | None, str]:
-    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and
-    why."""
+    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and why."""
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
         logs = Path(tmp) / "logs"
         logs.mkdir()

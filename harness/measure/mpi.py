@@ -78,8 +78,7 @@ def environment(given: Mapping[str, str], oversubscribe: bool) -> dict[str, str]
 
 
 def timing_fields(timing: Mapping[str, object], place: Placement) -> Ranks:
-    """The record's MPI group: the placement, and the --timing figures (None where not
-    reported)."""
+    """The record's MPI group: the placement and the --timing figures."""
     numbers = {f.name: timing.get(f.name) for f in fields(Ranks)
                if f.name not in ("ranks_oversubscribed", "ranks_binding")}
     return Ranks(ranks_oversubscribed=place.oversubscribed, ranks_binding=place.binding,

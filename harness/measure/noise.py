@@ -124,8 +124,7 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
 
 
 def others_share(cores: Sequence[int], seconds: float = 0.5) -> float | None:
-    """The share of the cores' time others took (or was stolen) over the next `seconds`, this
-    process idle meanwhile; None where /proc/stat cannot be read."""
+    """Others' share of the cores' time over the next `seconds`; None without /proc/stat."""
     before = sample(cores)
     time.sleep(seconds)
     return between(before, sample(cores), len(cores)).share if before.ticks else None

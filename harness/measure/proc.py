@@ -127,8 +127,7 @@ def tail(text: str) -> str:
 
 
 def signal_of(code: int | None) -> int | None:
-    """The signal that killed a run with this return code: a negative code's, or a shell's
-    128 + N; None for an exit (or a timeout)."""
+    """The signal that killed a run: a negative code's, or a shell's 128 + N; else None."""
     if code is None:
         return None
     if code < 0:

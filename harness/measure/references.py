@@ -98,8 +98,7 @@ class References:
 
     def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path
              ) -> tuple[ProcessResult, str | None]:
-        """`binary --precise` on the scene's input, written beside `path`; None where it
-        failed."""
+        """`binary --precise` on the scene's input, written beside `path`; None on failure."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
         done, text = run_captured(argv, self.environment(threads), self.timeout_s, path)

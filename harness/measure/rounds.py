@@ -353,8 +353,7 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
 
 
 def limit_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
-    """The limit an adaptive cell with these runs reached, whatever its interval says (""
-    while none)."""
+    """The limit an adaptive cell with these runs reached ("" while none)."""
     if len(times) >= measure.max_runs * per_round:
         return STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:

@@ -44,8 +44,7 @@ def imbalance(busy_s: Iterable[float]) -> float | None:
 
 
 def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
-    """The per-thread columns a --timing object gives (None for what it lacks, e.g. an older
-    binary): its per-thread lists, and their imbalance."""
+    """The per-thread lists a --timing object gives (None where it lacks one), and imbalance."""
     fields: dict[str, object] = {}
     for key in THREAD_TIMING_KEYS:
         value = timing.get(key)
@@ -100,8 +99,7 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
 
 
 def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:
-    """The record's costs from one ompcost run; where it fails, none and a note saying why
-    (the cell itself is measured all the same)."""
+    """The costs from one ompcost run; where it fails, a note why (the cell is measured anyway)."""
     done, text = run_captured([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S)
     if done.returncode != 0:
         return OmpCosts(openmp_costs_note=failure(binary.name, done, OMPCOST_TIMEOUT_S))

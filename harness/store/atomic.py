@@ -68,8 +68,7 @@ def writing(path: Path, doing: str = "write") -> Iterator[None]:
 
 
 def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
-    """Call `write(handle)` on a temporary sibling of `path`, then rename it into place; a
-    failure leaves `path` as it was and no temporary file behind."""
+    """`write(handle)` to a temporary sibling of `path`, renamed into place; all or nothing."""
     with temporary(path) as tmp, writing(path):
         with tmp.open("wb") as handle:
             write(handle)

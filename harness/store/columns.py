@@ -172,8 +172,7 @@ def format_list(values: tuple[object, ...] | list[object]) -> str:
 
 
 def parse_list(text: str, column: str) -> tuple[float | int, ...]:
-    """A list column's items from its results.csv text (or an older record's); ValueError
-    when an item is not of the column's type."""
+    """A list column's items from its text; ValueError where one is not of its type."""
     kind = LIST_COLUMNS[column]
     return tuple(kind(float(v)) if kind is int else kind(v) for v in text.split())
 

@@ -28,8 +28,7 @@ from harness.store.trust import DamagedFile
 
 @dataclass(frozen=True)
 class PlannedCell:
-    """What results.csv needs of a planned cell: its key on this machine, and what names it
-    to a reader (store.columns.match_values)."""
+    """What results.csv needs of a planned cell: its key here, and what names it to a reader."""
 
     key: CellKey
     subject: tuple[str, ...] = ()
@@ -59,8 +58,7 @@ def _subject(item: Stored) -> tuple[str, ...]:
 
 
 def changed_fields(key: CellKey, planned: CellKey | None) -> str:
-    """The fields of `key` (what ran and how) that differ from the `planned` key's, or
-    UNPLANNED where the config plans no such cell."""
+    """The fields of `key` that differ from the `planned` key's, or UNPLANNED."""
     if planned is None:
         return UNPLANNED
     mine, theirs = key.group_fields(), planned.group_fields()
@@ -99,8 +97,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
 
 def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Listed]
                  ) -> list[Listed]:
-    """Each machine's newest record of each cell it has no row of among `rows`: measured
-    under an earlier version of the config, by subject and machine."""
+    """Each machine's newest record of each cell it has no row of among `rows`."""
     listed = {(r.result.key.machine_id or UNKNOWN_MACHINE, match_values(r.result.columns))
               for r in rows}
     plan_of = {cell.subject: cell.key for cell in planned}
@@ -152,16 +149,14 @@ def _index(exp: ExperimentDir) -> dict[str, object]:
 
 def index_files(exp: ExperimentDir) -> tuple[tuple[str, str, str | None, bool],
                                               dict[str, str | None]]:
-    """(experiment, title, baseline, divergence) and each export's sha256 as the index has
-    them; DamagedFile where it cannot be read."""
+    """(experiment, title, baseline, divergence) and each export's sha256, as indexed."""
     raw = _index(exp)
     how = (str(raw["experiment"]), str(raw["title"]), raw["baseline"], bool(raw["divergence"]))
     return how, {str(k): v for k, v in dict(raw["sha256"]).items()}  # type: ignore[arg-type,return-value]
 
 
 def index_rows(exp: ExperimentDir) -> list[tuple[str, bool | None, str]] | None:
-    """The (cell_id, stale, config_changed) the index lists, in order; None without an
-    index; DamagedFile where it cannot be read."""
+    """The (cell_id, stale, config_changed) the index lists, in order; None without one."""
     if not exp.results_index.is_file():
         return None
     rows = _index(exp)["rows"]
@@ -209,8 +204,7 @@ def write_variants(experiment_dir: Path, facts: Mapping[str, object]) -> None:
 
 @dataclass(frozen=True)
 class CommitInfo:
-    """A commit of a history (`history`), with its subject and whether it changed what the
-    binaries are made of."""
+    """A commit of a history, and whether it changed what the binaries are made of."""
 
     sha: str
     subject: str

@@ -192,8 +192,7 @@ def record_paths(directory: Path) -> list[Path]:
 
 
 def export_round(cell_id: str, name: str) -> int | None:
-    """The round of a hyperfine export's file name (`<cell_id>.hyperfine.<k>.json`); None for
-    the one export of all runs (`<cell_id>.hyperfine.json`) or another name."""
+    """The round of a hyperfine export's file name; None for the one export of all runs."""
     middle = name[len(cell_id) + len(HYPERFINE_INFIX):-len(RECORD_SUFFIX)]
     return int(middle) if name.startswith(cell_id) and middle.isdigit() else None
 

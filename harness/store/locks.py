@@ -86,8 +86,7 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
 
 @contextlib.contextmanager
 def file_lock(path: Path) -> Iterator[None]:
-    """An exclusive flock on `path` (created if missing) for the body, e.g. the Slurm
-    executor's job-state lock, so that two submitters take turns."""
+    """An exclusive flock on `path` (created), e.g. the Slurm executor's job-state lock."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)):
         yield

@@ -11,8 +11,7 @@ JsonObject = dict[str, object]  # kept as it was measured: the harness reads no 
 
 @dataclass(frozen=True)
 class TimedRun:
-    """One timed run: its wall seconds, and the round it was taken in (None in records from
-    before rounds)."""
+    """One timed run: its wall seconds, and its round (None in records from before rounds)."""
 
     time_s: float
     round: int | None = None

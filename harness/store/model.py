@@ -122,8 +122,7 @@ class CountedKey:
 
 @dataclass(frozen=True)
 class CellKey:
-    """Everything a cell's measurement depends on (see the module's docstring for the
-    projections its fields' roles define)."""
+    """Everything a cell's measurement depends on (the module's docstring: its projections)."""
 
     variant: str = field(metadata=_role(Role.WHAT))
     build: str = field(metadata=_role(Role.WHAT))

@@ -33,8 +33,7 @@ def read_json(path: Path) -> object | None:
 
 
 def read_record(path: Path, expected_id: str) -> CellResult | None:
-    """A stored cell record, or None when absent or damaged (check_record): a cell without one
-    is measured again."""
+    """A stored cell record, or None when absent or damaged: its cell is measured again."""
     try:
         return check_record(path, expected_id)
     except DamagedFile:

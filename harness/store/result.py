@@ -75,8 +75,7 @@ class CellResult:
         return (self.provenance.measured_at or "") if self.provenance else ""
 
     def round_times(self) -> dict[int, tuple[float, ...]]:
-        """The seconds of its runs by round, in round order; empty where the runs' rounds
-        are not recorded."""
+        """The seconds of its runs by round, in round order; empty where rounds are not kept."""
         if any(run.round is None for run in self.times):
             return {}
         grouped: dict[int, list[float]] = {}
@@ -107,8 +106,7 @@ class CellResult:
 
     @functools.cached_property
     def columns(self) -> dict[str, object]:
-        """Every field the record has a value for, by its name in the record, lists as lists;
-        its key as JSON."""
+        """Every field the record has a value for, by its name in the record; the key as JSON."""
         return _flatten(self)
 
     def replace(self, **changes: object) -> CellResult:
@@ -130,8 +128,7 @@ class CellResult:
 
     @classmethod
     def from_json(cls, raw: object) -> CellResult:
-        """A stored record (version 1 or 2); RecordFormatError naming the field when it is
-        not one."""
+        """A stored record (version 1 or 2); RecordFormatError naming the field that is not."""
         if not isinstance(raw, Mapping):
             raise RecordFormatError(f"record: expected an object, got {type(raw).__name__}")
         if raw.get("version") not in READ_VERSIONS:

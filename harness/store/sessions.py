@@ -23,8 +23,7 @@ Supersedes = Callable[[Mapping[str, object], Mapping[str, object]], bool]
 
 
 def session_roots(results_dir: Path) -> tuple[Path, ...]:
-    """Where a run under this results root looks for its machine's spread: the root, then the
-    repository's (the user's, then the published one)."""
+    """The results root, then the repository's (the user's, then the published one)."""
     return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR)))
 
 

@@ -142,8 +142,7 @@ def prune(experiment_dir: Path) -> PruneResult:
 
 def prune_locked(experiment_dir: Path, stored: Sequence[Stored],
                  also: Sequence[Stored] = ()) -> list[Stored]:
-    """Move the superseded among `stored`, and `also`, to history/ (the caller holds the
-    directory lock); the records that stay in cells/."""
+    """Move the superseded among `stored`, and `also`, to history/; the records that stay."""
     old = list({id(s): s for s in (*superseded(stored), *also)}.values())
     move_to_history(experiment_dir, old)
     gone = {id(s) for s in old}
