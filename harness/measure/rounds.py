@@ -129,8 +129,7 @@ def outcome(done: ProcessResult, export: Path, target: Path
 
 
 def export_fault(stderr: str, export: Path) -> None:
-    """Raise a StorageError where the place takes no more (atomic.check_room), or hyperfine
-    says so (`... (os error 28)`)."""
+    """A StorageError where the place takes no more (atomic.check_room) or hyperfine says so."""
     atomic.check_room(export, "hyperfine's export")
     found = HYPERFINE_OS_ERROR.search(stderr)
     if found is not None and int(found[1]) in EXPORT_ERRNOS:

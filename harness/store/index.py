@@ -123,8 +123,7 @@ def replaced(stored: Sequence[Stored], planned: Sequence[PlannedCell]) -> list[S
 def write_index(exp: ExperimentDir, experiment: str, title: str, baseline: str | None,
                 divergence: bool, listed: Sequence[Listed],
                 digests: Mapping[str, str | None]) -> None:
-    """results.index.json: how the exports were written, the records they list, in order,
-    with their marks, and each export's sha256 (None: not written)."""
+    """results.index.json: the records the exports list, with their marks, and each sha256."""
     atomic.atomic_write_json(exp.results_index, {
         "version": INDEX_VERSION, "experiment": experiment, "title": title,
         "baseline": baseline, "divergence": divergence,

@@ -181,8 +181,7 @@ class ResultsRoot:
 
 
 def record_paths(directory: Path) -> list[Path]:
-    """The record files directly in `directory` (cells/ or history/), by name: `<cell_id>.json`
-    (not hyperfine's exports, not a partial cell, not a temporary file)."""
+    """The `<cell_id>.json` record files directly in `directory` (cells/ or history/), by name."""
     try:
         names = sorted(os.listdir(directory))
     except FileNotFoundError:

@@ -23,8 +23,7 @@ class DamagedFile(ValueError):
 
 
 def check_exports(result: CellResult, cells: Path) -> None:
-    """DamagedFile where a hyperfine export the record rests on is missing, unreadable or
-    does not hold the record's runs of its round (all its runs, before rounds)."""
+    """DamagedFile where an export the record rests on is missing, unreadable or lacks its runs."""
     names = result.timing.hyperfine_exports if result.timing else None
     if names:
         by_round = result.round_times()
