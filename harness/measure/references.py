@@ -27,6 +27,7 @@ from harness.store.model import content_id
 
 # The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
 Environment = Callable[[int], Mapping[str, str]]
+INCOMPARABLE = math.inf  # the deviation of outputs that do not match up
 
 
 @dataclass
@@ -104,8 +105,6 @@ class References:
         done, text = run_captured(argv, self.environment(threads), self.timeout_s, path)
         return done, text if done.returncode == 0 else None
 
-
-INCOMPARABLE = math.inf
 
 
 @dataclass(frozen=True)
