@@ -30,7 +30,7 @@ from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
 from harness.store.columns import MEASURED_BISECT
-from harness.store.commits import CommitInfo, save_commits
+from harness.store.index import CommitInfo, save_commits
 from harness.store.layout import ResultsRoot
 from harness.store.locks import RunLock
 

@@ -22,7 +22,7 @@ from scipy import stats as sps
 from harness.analysis.resultsets import Cell, MatchKey, Quantity, read_cells
 from harness.stats import CONFIDENCE, Interval
 from harness.store.columns import BUILD_FAILED_STATUS, MEASURED_SERIES, MISSING_STATUS, OK
-from harness.store.commits import CommitInfo
+from harness.store.index import CommitInfo
 from harness.store.layout import ExperimentDir
 
 # The significance a change point needs (Hunter: 0.001; twice that keeps the false-positive

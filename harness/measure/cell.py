@@ -1,13 +1,9 @@
 """Measure ONE planned cell, in three steps:
-  start: one `--timing --precise` run under the cell timeout (sim_s, pair_tests, ..., the
-         output, its peak resident memory); with `openmp_costs: true`, build/ompcost at the
-         cell's thread count (measure.ompcost); when validating, that output against
-         `build/seq --precise` on the same input (measure.references); with `checks:`, the
-         accuracy and stability checks on a print-mode run (measure.checks);
-         for a program, its run and its check against seq (the measurer's program_runner,
-         which the programs feature lends: harness.programs.cell); with the instruction
-         lane (`metric: instructions`), its counted runs (measure.instructions);
-  time_round: one round of timed runs with hyperfine (measure.hyperfine, measure.rounds);
+  start: its untimed runs: one `--timing --precise` run under the cell timeout, build/ompcost
+         (measure.timing), validation (measure.references), the checks (measure.checks), a
+         program's run and check (the program_runner the programs feature lends), the
+         instruction lane's counted runs (measure.instructions);
+  time_round: one round of timed runs with hyperfine (measure.rounds);
   finish: the record, written to cells/<cell_id>.json.
 An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
 """
@@ -25,22 +21,13 @@ from typing import Protocol, TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.measure import environment, machine, mpi, noise, validate
+from harness.measure import environment, machine, mpi, noise
 from harness.measure.checks import Checker
-from harness.measure.hyperfine import time_runs
 from harness.measure.instructions import count_runs
-from harness.measure.ompcost import measure_costs
-from harness.measure.proc import (
-    exit_status,
-    failure,
-    peak_mib,
-    run_captured,
-    run_process,
-    tail,
-)
-from harness.measure.references import References
-from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
-from harness.measure.timing import parse_timing
+from harness.measure.proc import exit_status, failure, peak_mib, run_captured, run_process, tail
+from harness.measure.references import References, compare
+from harness.measure.rounds import CellRun, next_runs, stop_reason, time_runs, timed_result
+from harness.measure.timing import measure_costs, parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
 from harness.plan.binaries import measures_openmp_costs, ompcost_path
@@ -102,15 +89,13 @@ class Measurer:
 
     @functools.cached_property
     def levels(self) -> list[stats.SessionSpread]:
-        """This machine's session spreads (`reruns`, under this results root or the
-        repository's), one per noise level."""
+        """This machine's session spreads (`reruns`), one per noise level."""
         machine = self.store.machine_id
         return stats.spreads_of(sessions.kept_levels(
             sessions.session_roots(self.store.root.path), machine, stats.supersedes), machine)
 
     def session(self) -> stats.SessionSpread:
-        """The session spread at the noise of this session's rounds so far; the default until
-        one is kept."""
+        """The session spread at the noise of this session's rounds so far."""
         return stats.spread_at(self.levels, stats.session_noise(self.round_noise))
 
     def warn(self, text: str) -> None:
@@ -134,16 +119,11 @@ class Measurer:
         return cell_key.to_json()
 
     def resume(self, cell: Cell, cell_id: str) -> CellRun | None:
-        """Where an interrupted run left the cell (its untimed runs done, some rounds timed),
-        if it did."""
+        """Where an interrupted run left the cell (some rounds timed), if it did."""
         return CellRun.load(self.store.layout.partial(cell_id), self.key(cell))
 
     def start(self, cell: Cell, cell_id: str) -> CellRun:
-        """The cell's runs that are not timed: its --precise run, validation and checks; or,
-        when an interrupted run left the cell part-timed, where it stopped."""
-        resumed = self.resume(cell, cell_id)
-        if resumed is not None:
-            return resumed
+        """The cell's runs that are not timed: its --precise run, validation and checks."""
         key = self.key(cell)
         config, measure = self.config, self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule, cell.uses_ranks)
@@ -188,8 +168,7 @@ class Measurer:
                                         run_s=precise.seconds))
 
     def new_record(self, cell: Cell, cell_id: str, env: Mapping[str, str]) -> CellResult:
-        """A fresh record of the cell, with where and how it runs; an earlier measurement's
-        hyperfine files removed."""
+        """A fresh record of the cell; an earlier measurement's hyperfine files removed."""
         repo = self.store.repo_root
         record = self.store.new_record(cell, cell_id).replace(
             cores=self.cores,
@@ -244,8 +223,7 @@ class Measurer:
             run.stopped = stop_reason(measure, run.times, run.per_round, run.rounds)
 
     def keep(self, run: CellRun) -> None:
-        """Keep on disk the state of a cell until its record is written (finish): a rerun
-        resumes it there."""
+        """Keep the cell's state on disk until its record is written: a rerun resumes it."""
         run.save(self.store.layout.partial(run.cell_id))
 
     def finish(self, run: CellRun, seconds: float) -> CellResult:
@@ -263,7 +241,7 @@ class Measurer:
         if reference is None:
             return UNVALIDATED, record.replace(validated=False, note=problem)
         try:
-            comparison = validate.compare(reference, output, cell.scene.L)
+            comparison = compare(reference, output, cell.scene.L)
         except OutputFormatError as exc:
             return UNVALIDATED, record.replace(validated=False,
                                                note=f"baseline output unreadable: {exc}")

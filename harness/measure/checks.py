@@ -1,8 +1,7 @@
 """The accuracy and stability checks of one cell (`checks:` in its config), on a print-mode run
 of its scene: the invariants (harness.measure.invariants), the same output at other thread
 counts and as seq of its build, divergence curves against seq and the truth, and shadow steps
-(harness.measure.shadow). Their values go into the cell's record (store.columns.CHECK_COLUMNS).
-"""
+(harness.measure.shadow), for the cell's record (store.measured.Checks)."""
 
 from __future__ import annotations
 
@@ -25,8 +24,7 @@ from harness.store.measured import Checks
 
 @dataclass
 class _Run:
-    """A cell's print-mode run the checks read, and what they found: their values (Checks'
-    fields, a failed check's chk_ False) and notes."""
+    """A cell's print-mode run the checks read, and what they found (Checks' fields)."""
 
     cell: Cell
     printed: scenes.ScenePoint
@@ -70,8 +68,7 @@ class Checker:
                       checks_note="; ".join(run.notes), checks_s=time.monotonic() - started)
 
     def _invariants(self, run: _Run) -> None:
-        """The invariants, the same output at the other thread counts, and (for a cell that
-        promises it) seq's output."""
+        """The invariants, the same output at the other thread counts and as seq's."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
         inv = invariants.check(run.output, scene.L, scene.r, cell.build, checks.energy_ulps)
         run.values.update({
@@ -109,7 +106,7 @@ class Checker:
         return curves
 
     def _shadow(self, run: _Run) -> tuple[dict[str, object], ...]:
-        """The shadow steps against the truth; each step's comparison."""
+        """Each shadow step's comparison against the truth."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
         runner = functools.partial(shadow.run_binary,
                                    timeout_s=self.store.config.measure.timeout_s)

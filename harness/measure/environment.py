@@ -16,18 +16,15 @@ from pathlib import Path
 
 import psutil
 
-from harness.measure.machine import (
-    CPU_SYS,
-    available_cores,
-    command_output,
-    container,
-    load,
-    machine,
-    make_compiler,
-    print_flags,
-    read_text,
-)
+from harness.measure import machine
+from harness.measure.machine import CPU_SYS, command_output, read_text
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, PUBLISHED_DIR
+
+# What measuring writes: a run's own output must not make the sources it measured look
+# modified.
+GENERATED_PATHS = (DEFAULT_RESULTS_DIR.name, DEFAULT_REPORT_DIR.name, PUBLISHED_DIR.name)
+PY_CPUINFO_KEYS = ("brand_raw", "hz_advertised_friendly", "l2_cache_size", "l3_cache_size",
+                   "arch")
 
 
 def clock() -> dict[str, object]:
@@ -46,38 +43,12 @@ def clock() -> dict[str, object]:
     }
 
 
-def libc() -> dict[str, object]:
-    name, version = platform.libc_ver()
-    ldd = command_output(["ldd", "--version"])
-    return {"name": name or None, "version": version or None,
-            "ldd": ldd.splitlines()[0] if ldd else None}
-
-
-def libgomp(compiler: str) -> dict[str, str | None]:
-    """The libgomp the compiler links (its path) and, on Debian, the package's version."""
-    path = command_output([compiler, "-print-file-name=libgomp.so"])
-    package = command_output(["dpkg-query", "-W", "-f=${Version}", "libgomp1"])
-    return {"path": os.path.realpath(path) if path and os.sep in path else path,
-            "package_version": package}
-
-
-def compiler_info(repo_root: Path, make: str) -> dict[str, str | None]:
-    """`make -s print-flags` (the compiler make uses and its flags) and that compiler's version."""
-    flags = print_flags(repo_root, make)
-    version = command_output([make_compiler(repo_root, make), "--version"])
-    return {
-        "print_flags": flags,
-        "cc_version": version.splitlines()[0] if version else None,
-    }
-
-
-GENERATED_PATHS = (DEFAULT_RESULTS_DIR.name, DEFAULT_REPORT_DIR.name, PUBLISHED_DIR.name)
+def _first_line(text: str | None) -> str | None:
+    return text.splitlines()[0] if text else None
 
 
 def git_info(repo_root: Path) -> dict[str, object]:
     commit = command_output(["git", "rev-parse", "HEAD"], cwd=repo_root)
-    # results/, report/ and published/ are what measuring writes: a run's own output must not
-    # make the sources it measured look modified.
     status = command_output(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
                              *(f":!{path}" for path in GENERATED_PATHS)], cwd=repo_root)
     return {"commit": commit, "dirty": bool(status) if status is not None else None}
@@ -92,27 +63,25 @@ def git_commit(repo_root: Path) -> str | None:
     return f"{info['commit']}{'-dirty' if info['dirty'] else ''}"
 
 
-def py_cpuinfo() -> dict[str, object]:
-    """What py-cpuinfo adds to /proc/cpuinfo: advertised clock, cache sizes (slow; see above)."""
-    return dict(_py_cpuinfo())
-
-
 @functools.cache
 def _py_cpuinfo() -> tuple[tuple[str, object], ...]:
-    # Once per process: the probe starts an interpreter of its own (about a CPU second), and
-    # the CPU it describes does not change while a process measures one config after another.
+    """What py-cpuinfo adds to /proc/cpuinfo: advertised clock, cache sizes. Once per process:
+    the probe starts an interpreter of its own (about a CPU second), and the CPU it describes
+    does not change while a process measures one config after another."""
     try:
         import cpuinfo
         info = cpuinfo.get_cpu_info()
     except Exception:
         return ()
-    keys = ("brand_raw", "hz_advertised_friendly", "l2_cache_size", "l3_cache_size", "arch")
-    return tuple((k, info.get(k)) for k in keys)
+    return tuple((k, info.get(k)) for k in PY_CPUINFO_KEYS)
 
 
 def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -> dict[str, object]:
-    described = machine(repo_root, make)
-    compiler = make_compiler(repo_root, make)
+    described = machine.machine(repo_root, make)
+    compiler = machine.make_compiler(repo_root, make)
+    libc_name, libc_version = platform.libc_ver()
+    # the libgomp the compiler links (its path) and, on Debian, the package's version
+    libgomp = command_output([compiler, "-print-file-name=libgomp.so"])
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "hostname": socket.gethostname(),
@@ -121,17 +90,22 @@ def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -
         "machine_id": described["machine_id"],
         "machine": described,
         "cpu_model": described["model_name"],
-        "cpuinfo": py_cpuinfo(),
+        "cpuinfo": dict(_py_cpuinfo()),
         "clock": clock(),
-        "cores": available_cores(),
+        "cores": machine.available_cores(),
         "cpu_count": os.cpu_count(),
-        "container": container(),
-        "libc": libc(),
-        "compiler": compiler_info(repo_root, make),
-        "libgomp": libgomp(compiler),
+        "container": machine.container(),
+        "libc": {"name": libc_name or None, "version": libc_version or None,
+                 "ldd": _first_line(command_output(["ldd", "--version"]))},
+        "compiler": {"print_flags": machine.print_flags(repo_root, make),
+                     "cc_version": _first_line(command_output([compiler, "--version"]))},
+        "libgomp": {
+            "path": os.path.realpath(libgomp) if libgomp and os.sep in libgomp else libgomp,
+            "package_version": command_output(["dpkg-query", "-W", "-f=${Version}",
+                                               "libgomp1"])},
         "hyperfine": command_output([hyperfine, "--version"]),
         "git": git_info(repo_root),
         "omp_env": {k: v for k, v in sorted(os.environ.items()) if k.startswith(("OMP_", "GOMP_"))},
         "python": sys.version.split()[0],
-        "load_before": load(),
+        "load_before": machine.load(),
     }

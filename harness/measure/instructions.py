@@ -23,7 +23,7 @@ COUNTS = 2
 # How much longer than the cell's timeout a counted run may take: cachegrind simulates every
 # instruction (tens of times slower), perf costs next to nothing.
 SLOWDOWN = {CACHEGRIND: 100.0, PERF: 2.0}
-# What a built binary's count sees of the environment (fixed_env).
+# What a built binary's count sees of the environment (count_runs).
 KEPT_ENV = ("PATH",)
 OMP_PREFIXES = ("OMP_", "GOMP_")
 # cachegrind's summary line, one per process: "==123== I   refs:      718,102,891"
@@ -60,27 +60,16 @@ def count_runs(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
     return Counted(tuple(counts))
 
 
-def fixed_env(env: Mapping[str, str]) -> dict[str, str]:
-    return {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
-
-
-def pinned() -> list[str]:
-    """taskset onto one of this process's CPUs: cachegrind runs the threads one at a time
-    anyway, and on one CPU the order in which they take turns at a barrier varies less (a
-    thread that arrives last runs the runtime's wake-up path, one that waits its sleep)."""
-    cpu = min(os.sched_getaffinity(0))
-    return ["taskset", "-c", str(cpu)]
-
-
 def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
                input_file: Path | None = None) -> tuple[int | None, str]:
-    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and
-    why."""
+    """The instructions of one run of argv (OpenMP's waiting threads asleep), or None and why."""
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
         logs = Path(tmp) / "logs"
         logs.mkdir()
-        run_env = {**(env if input_file is None else fixed_env(env)), **PASSIVE_ENV}
+        run_env = {**env, **PASSIVE_ENV}
         if input_file is not None:
+            run_env = {k: v for k, v in env.items()
+                       if k in KEPT_ENV or k.startswith(OMP_PREFIXES)} | PASSIVE_ENV
             link = Path(tmp) / "input"
             link.symlink_to(input_file.resolve())
             argv = [*argv[:-1], str(link)]
@@ -88,7 +77,12 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
             wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
                        "--"]
         else:
-            wrapper = [*pinned(), "valgrind", "--tool=cachegrind", "--cache-sim=no",
+            # pinned to one of this process's CPUs: cachegrind runs the threads one at a time
+            # anyway, and on one CPU the order in which they take turns at a barrier varies
+            # less (a thread that arrives last runs the runtime's wake-up path, one that waits
+            # its sleep)
+            pinned = ["taskset", "-c", str(min(os.sched_getaffinity(0)))]
+            wrapper = [*pinned, "valgrind", "--tool=cachegrind", "--cache-sim=no",
                        "--cachegrind-out-file=/dev/null", "--trace-children=yes",
                        f"--log-file={logs}/cachegrind.%p"]
         done = run_process([*wrapper, *argv], run_env, timeout_s)

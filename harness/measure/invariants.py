@@ -1,6 +1,4 @@
-"""The invariants a correct run keeps (SPEC section 7), checked on one print-mode output.
-
-Pure: a parsed `Output` in, an `Invariants` record of pass/fail and values out. The checks:
+"""The invariants a correct run keeps (SPEC section 7), checked on one print-mode output (pure):
 
 * finite: every printed coordinate and velocity is a finite number;
 * in_box: every finite coordinate lies in [r, L - r] (a float build computes the box in float,

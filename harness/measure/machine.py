@@ -2,10 +2,8 @@
 
 machine() is what tells machines apart (CPU, ISA, `-march=native`, topology, memory, VM) with
 `machine_id`, a hash of it: part of every cell key, so it is on the cached path and must stay
-fast: /proc/cpuinfo, psutil and one compiler call, once per process (py-cpuinfo's probe runs in
-a subprocess and takes over a second: harness.measure.environment calls it only when a run
-measures). sample_load() and is_loaded() say whether other processes compete for the CPUs.
-"""
+fast: /proc/cpuinfo, psutil and one compiler call, once per process. sample_load() and
+is_loaded() say whether other processes compete for the CPUs."""
 
 from __future__ import annotations
 
@@ -133,10 +131,8 @@ def native_march(compiler: str) -> str | None:
 
 
 def virtualization(hypervisor_flag: bool) -> str | None:
-    """The hypervisor (e.g. kvm), or None on bare metal.
-
-    `systemd-detect-virt --vm` where it exists (a container is not a VM: `--container` is
-    recorded apart, in collect()); else the DMI vendor, else the cpuinfo 'hypervisor' flag."""
+    """The hypervisor (e.g. kvm), or None on bare metal: `systemd-detect-virt --vm` where it
+    exists (a container is recorded apart), else the DMI vendor, else the cpuinfo flag."""
     detected = command_output(["systemd-detect-virt", "--vm"])
     if detected:
         return detected
@@ -216,8 +212,7 @@ def sample_load() -> dict[str, object]:
     for _ in range(LOAD_SAMPLES - 1):
         time.sleep(LOAD_SAMPLE_INTERVAL_S)
         loads.append(load())
-    samples = [int(x["runnable"]) for x in loads  # type: ignore[call-overload]
-               if x["runnable"] is not None]
+    samples = [x["runnable"] for x in loads if x["runnable"] is not None]
     return {**loads[-1], "runnable": statistics.median_low(samples) if samples else None}
 
 

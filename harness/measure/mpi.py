@@ -30,12 +30,11 @@ def mpirun() -> str:
 
 @dataclass(frozen=True)
 class Placement:
-    """How mpirun starts a cell's ranks: the words before the binary, its binding, and
-    whether ranks and threads together are more than the cores."""
+    """How mpirun starts a cell's ranks."""
 
-    argv: tuple[str, ...]
+    argv: tuple[str, ...]  # the words before the binary
     binding: str
-    oversubscribed: bool
+    oversubscribed: bool  # ranks and threads together are more than the cores
 
 
 def check_ranks(ranks: int, cores: int, oversubscribe: bool, where: str) -> None:
@@ -67,10 +66,9 @@ RECORDED_PREFIX = "OMPI_MCA_"  # what a record keeps of how Open MPI was set
 
 def environment(given: Mapping[str, str], oversubscribe: bool) -> dict[str, str]:
     """What a rank's environment adds to `given`: mpirun's consent to run as root, where it
-    is; where the ranks share one node (run here, or a Slurm allocation of one node) the
-    one-node messaging layer, unless `given` chooses one; and where the config allows more
-    ranks than cores, mpirun's consent to that too (a program's own mpirun has no flag of
-    ours)."""
+    is; where the ranks share one node the one-node messaging layer, unless `given` chooses
+    one; and where the config allows more ranks than cores, mpirun's consent to that too (a
+    program's own mpirun has no flag of ours)."""
     env = dict(ROOT_ENV) if os.geteuid() == 0 else {}
     if given.get("SLURM_JOB_NUM_NODES", "1") == "1":
         env.update({k: v for k, v in ONE_NODE_ENV.items() if k not in given})
@@ -80,8 +78,7 @@ def environment(given: Mapping[str, str], oversubscribe: bool) -> dict[str, str]
 
 
 def timing_fields(timing: Mapping[str, object], place: Placement) -> Ranks:
-    """The record's MPI group: the placement, and the --timing figures (None for what the
-    run did not report)."""
+    """The record's MPI group: the placement and the --timing figures."""
     numbers = {f.name: timing.get(f.name) for f in fields(Ranks)
                if f.name not in ("ranks_oversubscribed", "ranks_binding")}
     return Ranks(ranks_oversubscribed=place.oversubscribed, ranks_binding=place.binding,

@@ -1,13 +1,11 @@
 """What the machine did to a timed round, measured rather than guessed: from /proc/stat, the
-CPU time stolen by the hypervisor and the CPU time other processes took on the cores this
-process may use; from getrusage of the reaped children (hyperfine and the runs it timed),
-their own CPU time and involuntary context switches; from the kernel's pressure stall
-information (/proc/pressure/cpu), how long some task waited for a CPU; the load average. A
-round whose cores were taken by others (or stolen) beyond NOISE_LIMIT of their time is
-flagged, and a paired comparison leaves it out on both sides (harness.comparison.verdicts).
-
-Migrations of the timed process are not counted: the kernel gives them only while the process
-lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
+CPU time stolen and the CPU time other processes took on the cores this process may use; from
+getrusage of the reaped children (hyperfine and its runs), their own CPU time and involuntary
+context switches; from /proc/pressure/cpu, how long some task waited for a CPU. A round whose
+cores others took beyond NOISE_LIMIT of their time is left out of a paired comparison
+on both sides (harness.comparison.verdicts). Migrations are not counted: the kernel gives
+them only while the process lives (/proc/<pid>/sched), and the runs are hyperfine's
+children."""
 
 from __future__ import annotations
 
@@ -94,8 +92,7 @@ class RoundNoise:
     @property
     def pressure(self) -> float | None:
         """The share of the round's time during which some task waited for a CPU: what slows
-        a run that has to share a core, whichever core the kernel moved it to (None where the
-        kernel does not say)."""
+        a run that has to share a core, whichever core it runs on (None: not given)."""
         if self.waited_s is None or self.wall_s <= 0:
             return None
         return min(1.0, self.waited_s / self.wall_s)
@@ -126,13 +123,8 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
                       after.own_nivcsw - before.own_nivcsw, after.load1, cores, waited)
 
 
-# How long a probe of the machine watches it, and how often a wait looks again.
-PROBE_S = 0.5
-
-
-def others_share(cores: Sequence[int], seconds: float = PROBE_S) -> float | None:
-    """The share of the cores' time others took (or was stolen) over the next `seconds`, this
-    process idle meanwhile; None where /proc/stat cannot be read."""
+def others_share(cores: Sequence[int], seconds: float = 0.5) -> float | None:
+    """Others' share of the cores' time over the next `seconds`; None without /proc/stat."""
     before = sample(cores)
     time.sleep(seconds)
     return between(before, sample(cores), len(cores)).share if before.ticks else None

@@ -19,7 +19,6 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
 
 from harness.plan.binaries import peakrss_path
 from harness.store import atomic
@@ -69,27 +68,24 @@ def run_process(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
         try:
             returncode = proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            returncode = None
-        finally:
-            _kill_group(proc)
+            pass
+        finally:  # the whole group, past the timeout or on any exception (Ctrl-C)
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
         err.seek(0)
         stderr = err.read().decode(errors="replace")
-        max_rss = _reported(report) if helper is not None and returncode is not None else None
-    return ProcessResult(returncode, stderr, time.monotonic() - started, max_rss)
-
-
-def _reported(report: IO[bytes]) -> int | None:
-    """build/peakrss's report: the run's ru_maxrss in KiB (None where it wrote none)."""
-    report.seek(0)
-    text = report.read().decode(errors="replace").strip()
-    return int(text) if text.isdigit() else None
+        report.seek(0)  # build/peakrss's report: the run's ru_maxrss in KiB
+        reported = report.read().decode(errors="replace").strip()
+    reports = helper is not None and returncode is not None and reported.isdigit()
+    return ProcessResult(returncode, stderr, time.monotonic() - started,
+                         int(reported) if reports else None)
 
 
 def peak_mib(*runs: ProcessResult) -> float | None:
     """A cell's peak memory in MiB: the largest resident set among the runs of its program on
-    its input that the harness waited for (a variant's --precise run, a program's run); None
-    where none reports one. An MPI cell would pass every process the harness waits for (a
-    launcher's ru_maxrss is already the largest of the ranks it waits for on its node)."""
+    its input that the harness waited for (a launcher's ru_maxrss is already the largest of the
+    ranks it waits for on its node); None where none reports one."""
     found = [run.max_rss_kib for run in runs if run.max_rss_kib is not None]
     return max(found) / KIB_PER_MIB if found else None
 
@@ -117,12 +113,6 @@ def run_captured(argv: Sequence[str], env: Mapping[str, str], timeout_s: float,
     return done, text
 
 
-def _kill_group(proc: subprocess.Popen[bytes]) -> None:
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
-
-
 def exit_status(returncode: int | None) -> tuple[str, int | None]:
     """(status, exit_code) of one run: ok, failed (exit != 0), crashed (signal), timeout."""
     if returncode is None:
@@ -137,8 +127,7 @@ def tail(text: str) -> str:
 
 
 def signal_of(code: int | None) -> int | None:
-    """The signal that killed a run with this return code: a negative code's, or a shell's
-    128 + N; None for an exit (or a timeout)."""
+    """The signal that killed a run: a negative code's, or a shell's 128 + N; else None."""
     if code is None:
         return None
     if code < 0:

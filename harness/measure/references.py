@@ -1,29 +1,39 @@
 """The reference outputs a cell is compared with, run once and kept: seq's `--precise` output
 of an input (validation; results/.cache/baselines/) and print-mode outputs of the checks'
-references (results/.cache/prints/), keyed by binary and input."""
+references (results/.cache/prints/), keyed by binary and input; and how an output compares
+with seq's (pure: text in, metrics out; the output format is harness.spec.output's).
+
+Deviations are relative to the box side L: `max_pos_err` is the largest distance between a
+particle's position in the two outputs divided by L, `max_vel_err` the same for velocities
+(both over the final block and, when both outputs have the same print-mode rows, over every
+printed step). `count_mismatches` counts the particles whose pcoll or wcoll differ."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from harness.measure.proc import ProcessResult, exit_status, run_captured, tail
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.spec import scenes
+from harness.spec.output import OutputFormatError, parse_output
 from harness.store import trust
 from harness.store.model import content_id
 
 # The environment of a run at a thread count (the Measurer's: OMP_* of the cell).
 Environment = Callable[[int], Mapping[str, str]]
+INCOMPARABLE = math.inf  # the deviation of outputs that do not match up
 
 
 @dataclass
 class References:
-    """The reference outputs of one experiment's cells, read or run once per process. A kept
-    output is read back only where its bytes are those written (harness.store.trust); a
-    damaged one is named (`warn`) and run again."""
+    """The reference outputs of one experiment's cells, read or run once per process; a kept
+    one that is damaged (harness.store.trust) is named (`warn`) and run again."""
 
     store: CellStore
     environment: Environment
@@ -67,8 +77,7 @@ class References:
 
     def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
               scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
-        """The output kept in memory or at `path`, else run now and kept in both; with the run
-        when it ran now."""
+        """The output kept in memory or at `path`, else run now (with the run) and kept."""
         if key not in kept:
             text = self._read(path)
             if text is not None:
@@ -90,9 +99,56 @@ class References:
 
     def _run(self, binary: Path, scene: scenes.ScenePoint, threads: int, path: Path
              ) -> tuple[ProcessResult, str | None]:
-        """`binary --precise` on the scene's input, its output written beside `path` while it
-        runs; its output (None where it failed)."""
+        """`binary --precise` on the scene's input, written beside `path`; None on failure."""
         argv = [str(binary), "--threads", str(threads), "--seed", str(scene.seed), "--precise",
                 str(self.store.input_file(scene))]
         done, text = run_captured(argv, self.environment(threads), self.timeout_s, path)
         return done, text if done.returncode == 0 else None
+
+
+
+@dataclass(frozen=True)
+class Comparison:
+    identical: bool  # byte for byte
+    comparable: bool  # same particles (and steps) in both outputs
+    n_reference: int
+    n_candidate: int
+    max_pos_err: float
+    max_vel_err: float
+    count_mismatches: int
+
+
+def compare(reference: str, candidate: str, L: float) -> Comparison:
+    ref = parse_output(reference)
+    identical = reference == candidate
+    try:
+        cand = parse_output(candidate)
+    except OutputFormatError:
+        return _incomparable(ref.final.n, 0)
+    a, b = ref.final, cand.final
+    if a.step != b.step or not np.array_equal(a.index, b.index):
+        return _incomparable(a.n, b.n, identical)
+    pos = max_distance(a.position, b.position)
+    vel = max_distance(a.velocity, b.velocity)
+    same_rows = ref.history.shape == cand.history.shape and np.array_equal(
+        ref.history[:, :2], cand.history[:, :2])
+    if not same_rows:
+        return _incomparable(a.n, b.n, identical)
+    if len(ref.history):
+        pos = max(pos, max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
+        vel = max(vel, max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
+    mismatches = int(np.count_nonzero((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
+    return Comparison(identical, True, a.n, b.n, pos / L, vel / L, mismatches)
+
+
+def max_distance(p: np.ndarray, q: np.ndarray) -> float:
+    if len(p) == 0:
+        return 0.0
+    distance = np.hypot(p[:, 0] - q[:, 0], p[:, 1] - q[:, 1])
+    if not np.all(np.isfinite(distance)):
+        return INCOMPARABLE
+    return float(distance.max())
+
+
+def _incomparable(n_ref: int, n_cand: int, identical: bool = False) -> Comparison:
+    return Comparison(identical, False, n_ref, n_cand, INCOMPARABLE, INCOMPARABLE, n_ref)

@@ -1,44 +1,143 @@
-"""A cell timed in rounds. Each round gives a cell one hyperfine call of a few runs, and the
-rounds of all pending cells alternate (harness.executors), so that the machine's slow drift
-spreads over every cell instead of biasing the ones measured last. A cell takes one run a
-round (a paired cell a few): a fixed count (`runs: N`) N rounds, `runs: auto` at least
-stats.MIN_ROUNDS and then rounds until the 95% interval of its value over its rounds
-(harness.stats.levels) is within +-ci of it, or a limit is reached (harness.spec.config).
+"""A cell timed in rounds (docs/configs.md): one hyperfine call of a few runs a round, the
+rounds of all pending cells alternating (harness.executors), so that the machine's slow drift
+spreads over every cell instead of biasing the ones measured last. hyperfine is killed as a
+process group if it runs past (warmup + runs) timeouts; its export is kept as written.
 
 CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl once its
 untimed runs are done and after each of its hyperfine calls, so that an interrupted run
-resumes a cell where it stopped instead of starting it again. The file is a log: its first
-line the whole state, then a line a save with what was added to the lists that only grow
-(times, rounds, ...) and the other fields that changed; a save writes what changed, not every
-run of the cell again (a cell of many rounds would rewrite its runs quadratically often).
-"""
+resumes a cell where it stopped. The file is a log: its first line the whole state, then a
+line a save with what was added to the lists that only grow (GROWING) and the other fields
+that changed, so that a cell of many rounds does not rewrite its runs quadratically often."""
 
 from __future__ import annotations
 
+import errno
 import json
 import math
+import os
+import re
+import shlex
 import statistics
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from harness import stats
-from harness.measure.hyperfine import Timed
+from harness.errors import StorageError
+from harness.measure import machine, noise
+from harness.measure.proc import ProcessResult, failure, run_process, tail
 from harness.spec.config import Measure
 from harness.store import atomic
 from harness.store.columns import (
+    CRASHED,
+    FAILED,
+    OK,
     STOPPED_CI,
     STOPPED_MAX_RUNS,
     STOPPED_MAX_TIME,
     STOPPED_RUNS,
     TIMED_STATUSES,
+    TIMEOUT,
 )
-from harness.store.hyperfine import is_unstable
+from harness.store.hyperfine import HyperfineStats, ResultFormatError, is_unstable, load_hyperfine
 from harness.store.measured import Noise, TimedRun
 from harness.store.result import CellResult
 
-# 3: a line after the first holds only the fields that changed, the record's too
-PARTIAL_VERSION = 3
+HYPERFINE_SLACK_S = 30.0
+HYPERFINE_EXIT = re.compile(r"non-zero exit code: (-?\d+)")
+HYPERFINE_SIGNAL = "terminated by a signal"
+HYPERFINE_OS_ERROR = re.compile(r"\(os error (\d+)\)")  # how hyperfine (Rust) names an errno
+# The errnos of a write that failed for want of room or of a writable place.
+EXPORT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+
+
+def hyperfine_failure(stderr: str) -> tuple[str, int | None]:
+    """Status and exit code of the benchmarked command from hyperfine's error message."""
+    match = HYPERFINE_EXIT.search(stderr)
+    if match:
+        return FAILED, int(match.group(1))
+    if HYPERFINE_SIGNAL in stderr:
+        return CRASHED, None
+    return FAILED, None
+
+
+def hyperfine_warnings(stderr: str) -> list[str]:
+    """hyperfine's `Warning: ...` lines (with --style none it prints them to stderr)."""
+    return [line.strip() for line in stderr.splitlines() if line.strip().startswith("Warning:")]
+
+
+@dataclass(frozen=True)
+class Timed:
+    """What one hyperfine call gave: its statistics, or the status it failed with."""
+
+    status: str
+    exit_code: int | None = None
+    note: str = ""
+    stats: HyperfineStats | None = None
+    warnings: list[str] = field(default_factory=list)
+    load_before: dict[str, object] = field(default_factory=dict)
+    load_after: dict[str, object] = field(default_factory=dict)
+    loaded: bool = False
+    noise: noise.RoundNoise | None = None  # what other work did to the call
+
+
+def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
+              runs: int, warmup: int, timeout_s: float, cores: int) -> Timed:
+    """Time `runs` runs of `command` after `warmup`, sampling the load around the call."""
+    timeout = timeout_s * (warmup + runs) + HYPERFINE_SLACK_S
+    load_before = machine.sample_load()
+    loaded = machine.is_loaded(load_before, cores)
+    used = machine.round_cores()
+    with atomic.temporary(target) as tmp:
+        argv = [hyperfine, "-N", "--style", "none", "--warmup", str(warmup), "--runs",
+                str(runs), "--export-json", str(tmp), shlex.join(command)]
+        before = noise.sample(used)
+        done = run_process(argv, env, timeout)
+        interference = noise.between(before, noise.sample(used), len(used))
+        load_after = machine.load()
+        status, code, stats = outcome(done, tmp, target)
+    note = ""
+    if status == TIMEOUT:
+        note = failure("hyperfine", done, timeout)
+    elif status != OK:  # hyperfine's stderr names the cell's exit code; its own is always 1
+        note = f"hyperfine: {tail(done.stderr).strip()}"
+    return Timed(status, code, note, stats, hyperfine_warnings(done.stderr), load_before,
+                 load_after, loaded, interference if status == OK else None)
+
+
+def outcome(done: ProcessResult, export: Path, target: Path
+            ) -> tuple[str, int | None, HyperfineStats | None]:
+    """How a hyperfine call ended: the status and exit code of the command it timed, with its
+    statistics (its export moved to `target`) where it ended well. hyperfine unable to write
+    its export, or leaving one that does not read, is a StorageError: the harness's fault, no
+    result."""
+    if done.returncode is None:
+        return TIMEOUT, None, None
+    if done.returncode != 0:
+        status, code = hyperfine_failure(done.stderr)
+        if status == FAILED and code is None:  # hyperfine's own failure, not the command's
+            export_fault(done.stderr, export)
+        return status, code, None
+    try:
+        stats = load_hyperfine(export)
+    except ResultFormatError as exc:
+        raise StorageError(f"{target}: hyperfine's export cannot be read: "
+                           f"{str(exc).removeprefix(f'{export}: ')}") from None
+    with atomic.writing(target):
+        os.replace(export, target)
+    return OK, 0, stats
+
+
+def export_fault(stderr: str, export: Path) -> None:
+    """A StorageError where the place takes no more (atomic.check_room) or hyperfine says so."""
+    atomic.check_room(export, "hyperfine's export")
+    found = HYPERFINE_OS_ERROR.search(stderr)
+    if found is not None and int(found[1]) in EXPORT_ERRNOS:
+        raise StorageError(f"{export.parent}: cannot write hyperfine's export: "
+                           f"{os.strerror(int(found[1]))}")
+
+
+PARTIAL_VERSION = 3  # a line after the first holds only the fields that changed
 RECORD_FIELD = "record."  # how a record's field is named among the fields a save compares
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
 GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
@@ -65,14 +164,11 @@ class CellRun:
     # Runs a round for each run the measure counts: a paired cell's rounds each time a few
     # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
     per_round: int = 1
-    # Rounds a comparison asks of the cell beyond its measure's runs (rounds until decided,
-    # harness.runner.pair): its measure then counts at least this many runs
+    # Rounds a comparison asks of the cell beyond its measure's runs (harness.runner.pair)
     min_rounds: int = 0
-    # Per successful call (round), the share of its cores' time others took or was stolen
-    # (harness.measure.noise), and the totals of what the noise cost over its rounds
+    # Per round, RoundNoise.share and (where the kernel gives it) .pressure; then the totals of
+    # what the noise cost over its rounds
     round_noise: list[float] = field(default_factory=list)
-    # Per successful call where the kernel gives it, the share of its time some task waited
-    # for a CPU (RoundNoise.pressure): a paired comparison's interference shift
     round_pressure: list[float] = field(default_factory=list)
     steal_s: float = 0.0
     other_cpu_s: float = 0.0
@@ -83,12 +179,9 @@ class CellRun:
     # and the JSON text of every other field
     saved: tuple[Path, dict[str, int], dict[str, str]] | None = field(
         default=None, init=False, repr=False, compare=False)
-    # Read back from its partial file: an interrupted run's cell, resumed where it stopped
-    resumed: bool = field(default=False, init=False, repr=False, compare=False)
 
     @property
     def timed(self) -> bool:
-        """Whether its runs are timed: it ran to the end (ok, or invalid output)."""
         return self.status in TIMED_STATUSES
 
     @property
@@ -195,7 +288,6 @@ class CellRun:
             return None
         if run.key != key:
             return None
-        run.resumed = True
         if whole:
             run.saved = (path, {name: len(getattr(run, name)) for name in GROWING},
                          _texts(first))
@@ -260,8 +352,7 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
 
 
 def limit_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
-    """The limit an adaptive cell with these runs reached, whatever its interval says (""
-    while none)."""
+    """The limit an adaptive cell with these runs reached ("" while none)."""
     if len(times) >= measure.max_runs * per_round:
         return STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:

@@ -4,15 +4,12 @@ A double run and a __float128 run of the same dense scene are apart within a few
 distance between whole trajectories says little about a build. Two measures do:
 
 * **Shadow steps.** From each printed state of the cell's own print-mode run, take one step
-  with the cell's binary and one with the truth (a `-f128` build) and compare: the largest
-  position and velocity difference (÷ L) and whether the accepted collisions differ (some
-  particle's one-step pcoll or wcoll differs; a swapped partner shows as a position error).
-  Averaged, and maximised, over the shadowed states: the error one step of the build makes.
+  with the cell's binary and one with the truth (a `-f128` build) and compare (÷ L; a swapped
+  partner shows as a position error): the error one step of the build makes.
 * **Divergence curves.** The largest position deviation (÷ L) at every printed step between the
   cell's run and a reference run (seq f64, or the truth): how fast the error grows.
 
-The energy drift lives in harness.measure.invariants. The functions that compare outputs are pure;
-`shadow` runs binaries (through a `Runner`, so tests can substitute one).
+`shadow` runs binaries through a `Runner`, so tests can substitute one.
 """
 
 from __future__ import annotations
@@ -29,10 +26,10 @@ import numpy as np
 
 from harness.errors import HarnessError
 from harness.measure.proc import run_captured
-from harness.measure.validate import max_distance
+from harness.measure.references import compare, max_distance
 from harness.spec.builds import DOUBLE_EPS, unit_roundoff
 from harness.spec.config import DEFAULT_SHADOW_ULPS
-from harness.spec.output import Output, OutputFormatError, parse_output, split_states
+from harness.spec.output import Output, OutputFormatError, split_states
 from harness.spec.scenes import particle_row
 
 MAX_WORKERS = 2  # concurrent shadow steps; the machines this runs on are small and shared
@@ -43,11 +40,9 @@ Runner = Callable[[Path, str, int], str | None]
 
 def state_input(L_text: str, r_text: str, L: float, r: float, positions: np.ndarray,
                 velocities: np.ndarray) -> str:
-    """A one-step perf input listing every particle of a state.
-
-    A coordinate a float build left a hair outside the double box (it computes L - r in float)
-    is clamped back, as the core's own final clamp would have done in double.
-    """
+    """A one-step perf input listing every particle of a state. A coordinate a float build
+    left a hair outside the double box (it computes L - r in float) is clamped back, as the
+    core's own final clamp would have done in double."""
     lines = [f"{len(positions)} {L_text} {r_text} 1\nperf\n"]
     clamped = np.clip(positions, r, L - r)
     for i, ((x, y), (vx, vy)) in enumerate(zip(clamped, velocities, strict=True)):
@@ -132,31 +127,22 @@ def shadow_bound(build: str, speed_over_L: float, speed_over_r: float,
 
 def compare_step(state: int, cell: str | None, truth: str | None, L: float) -> ShadowStep:
     """One shadow step: the cell's and the truth's one-step outputs from the same state."""
-    failed = ShadowStep(state, math.nan, math.nan, False, False)
-    if cell is None or truth is None:
-        return failed
     try:
-        a, b = parse_output(cell).final, parse_output(truth).final
+        found = compare(truth, cell, L) if cell is not None and truth is not None else None
     except OutputFormatError:
-        return failed
-    if a.n != b.n or not np.array_equal(a.index, b.index):
-        return failed
-    if a.n == 0:
-        return ShadowStep(state, 0.0, 0.0, False, True)
-    pos = np.hypot(*(a.position - b.position).T).max() / L
-    vel = np.hypot(*(a.velocity - b.velocity).T).max() / L
-    differs = bool(np.any((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
+        found = None
+    if found is None or not found.comparable:
+        return ShadowStep(state, math.nan, math.nan, False, False)
+    pos, vel = found.max_pos_err, found.max_vel_err
     if not (math.isfinite(pos) and math.isfinite(vel)):
         pos, vel = math.inf, math.inf
-    return ShadowStep(state, float(pos), float(vel), differs, True)
+    return ShadowStep(state, pos, vel, found.count_mismatches > 0, True)
 
 
 def shadow_states(total: int, limit: int) -> list[int]:
     """Which of the states 0..total-1 to shadow: all, or `limit` spread evenly."""
     if limit <= 0 or total <= 0:
         return []
-    if total <= limit:
-        return list(range(total))
     return sorted({round(float(k)) for k in np.linspace(0, total - 1, limit)})
 
 
@@ -164,14 +150,11 @@ def shadow(out: Output, input_text: str, L: float, r: float, build: str,
            binary: Path, truth: Path, threads: int, limit: int,
            ulps: float = DEFAULT_SHADOW_ULPS, runner: Runner = run_binary,
            initial: Output | None = None) -> Shadow:
-    """Shadow up to `limit` states of the print-mode output `out` of the cell's run.
-
-    `input_text` is the scene's input (for N, L and r as written). The states 0..S-1 are
-    stepped; the final block has no successor to compare with and is left out. State 0 is
-    taken from `initial` (a print-mode output of the truth, whose state 0 is the input exactly)
-    when given: a float build prints its state 0 already rounded to float, and the step from
-    the input as written is the one whose rounding matters.
-    """
+    """Shadow up to `limit` states of the print-mode output `out` of the cell's run, whose
+    input is `input_text`; the final block has no successor and is left out. State 0 is taken
+    from `initial` (a print-mode output of the truth, whose state 0 is the input exactly) when
+    given: a float build prints its state 0 already rounded to float, and the step from the
+    input as written is the one whose rounding matters."""
     header = input_text.split(maxsplit=3)  # L and r as written: a state input keeps them
     if len(header) < 3:
         raise HarnessError("input header must start with 'N L r'")

@@ -1,6 +1,10 @@
-"""What a variant's `--timing` run reports (SPEC section 5: one JSON object on one line of
-stderr after the run): the seconds of input, simulation and output, counts, the phases of the
-simulation and the per-thread work."""
+"""What a cell's untimed runs report in a JSON line: a variant's `--timing` run (SPEC section
+5: one JSON object on one line of stderr after the run), the seconds of input, simulation and
+output, counts, the phases of the simulation and the per-thread work; and the OpenMP
+runtime's cost of one operation at the cell's thread count: build/ompcost (tools/ompcost.c)
+run once in the cell's start step, with the cell's environment, when the config says
+`openmp_costs: true`. The record keeps its costs, so the report's cost model multiplies them
+by a strategy's operations at the same thread count, measured on the same machine."""
 
 from __future__ import annotations
 
@@ -9,11 +13,11 @@ import math
 import typing
 from collections.abc import Iterable, Mapping
 from dataclasses import fields
+from pathlib import Path
 
-from harness.store.columns import THREAD_TIMING_KEYS
-from harness.store.measured import Counts, Phases, ThreadWork
-
-BUSY_KEY = "threads_busy_s"
+from harness.measure.proc import failure, run_captured
+from harness.store.columns import OMP_COST_COLUMNS, THREAD_TIMING_KEYS
+from harness.store.measured import Counts, OmpCosts, Phases, ThreadWork
 
 
 def parse_timing(stderr: str) -> dict[str, object] | None:
@@ -40,17 +44,14 @@ def imbalance(busy_s: Iterable[float]) -> float | None:
 
 
 def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
-    """The per-thread columns a --timing object gives (None for what it lacks, e.g. an older
-    binary): its per-thread lists, and their imbalance."""
+    """The per-thread lists a --timing object gives (None where it lacks one), and imbalance."""
     fields: dict[str, object] = {}
-    busy: list[float] | None = None
     for key in THREAD_TIMING_KEYS:
         value = timing.get(key)
         ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
         fields[key] = list(value) if ok and value else None
-        if key == BUSY_KEY and ok:
-            busy = [float(v) for v in value]
-    fields["imbalance"] = imbalance(busy) if busy else None
+    busy = fields["threads_busy_s"]
+    fields["imbalance"] = imbalance(busy) if isinstance(busy, list) else None
     return fields
 
 
@@ -64,3 +65,45 @@ def precise(timing: Mapping[str, object]) -> tuple[Phases, Counts, ThreadWork]:
     return (Phases(**{f.name: number(f.name, (int, float)) for f in fields(Phases)}),
             Counts(**{f.name: number(f.name, int) for f in fields(Counts)}),
             ThreadWork(**work))
+
+
+# Seconds ompcost may take: four operations at its default 100 ms each, calibration, and the
+# slow batches of a team many times the cores.
+OMPCOST_TIMEOUT_S = 120.0
+
+
+def parse_costs(text: str, threads: int) -> dict[str, float | None]:
+    """ompcost's JSON line: each column's ns (None for a null: not measured at this thread
+    count); ValueError when the line is no such object, or is for another thread count."""
+    try:
+        data = json.loads(text.strip().splitlines()[-1]) if text.strip() else None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"no JSON line: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError("no JSON object")
+    if data.get("threads") != threads:
+        raise ValueError(f"measured {data.get('threads')!r} threads, not {threads}")
+    costs: dict[str, float | None] = {}
+    for column in OMP_COST_COLUMNS:
+        if column not in data:
+            raise ValueError(f"lacks {column}")
+        value = data[column]
+        if value is None:
+            costs[column] = None
+        elif isinstance(value, int | float) and not isinstance(value, bool) and \
+                math.isfinite(value) and value > 0:
+            costs[column] = float(value)
+        else:
+            raise ValueError(f"{column} is {value!r}, not a positive number of ns")
+    return costs
+
+
+def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:
+    """The costs from one ompcost run; where it fails, a note why (the cell is measured anyway)."""
+    done, text = run_captured([str(binary), "--threads", str(threads)], env, OMPCOST_TIMEOUT_S)
+    if done.returncode != 0:
+        return OmpCosts(openmp_costs_note=failure(binary.name, done, OMPCOST_TIMEOUT_S))
+    try:
+        return OmpCosts(**parse_costs(text, threads))
+    except ValueError as exc:
+        return OmpCosts(openmp_costs_note=f"{binary.name}: {exc}")

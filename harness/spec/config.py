@@ -279,7 +279,7 @@ class Config:
     # `metric:` (METRICS): time only, or the instruction lane beside it
     metric: str = METRIC_TIME
     # `openmp_costs: true`: each parallel cell's start also runs build/ompcost at the cell's
-    # thread count (harness.measure.ompcost), for the strategies' cost model in the report
+    # thread count (harness.measure.timing), for the strategies' cost model in the report
     openmp_costs: bool = False
 
     @property

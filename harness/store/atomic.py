@@ -1,10 +1,7 @@
 """Writing files so that no reader ever sees half of one: every file goes to a temporary
-sibling and is renamed into place (os.replace is atomic within a directory). Nothing the
-harness writes is ever overwritten in place.
-
-A temporary file is named by the process that made it (`.<name>.<pid>@<host>.<random>.tmp`):
-its writer removes it when it fails or is interrupted, and the next run removes those of a
-writer that was killed outright (sweep). An OS error met while writing is a StorageError that
+sibling, named by the process that made it (`.<name>.<pid>@<host>.<random>.tmp`), and is
+renamed into place. Its writer removes it when it fails or is interrupted, the next run those
+of a writer killed outright (sweep). An OS error met while writing is a StorageError that
 names the file: a fault of the place, never a result. Standard library only."""
 
 from __future__ import annotations
@@ -38,8 +35,7 @@ PROBE_BYTES = 1 << 20
 
 
 def temp_path(path: Path) -> Path:
-    """A fresh empty file beside `path` (a subprocess's output, or atomic_write's), named by
-    this process, to be os.replace'd onto it."""
+    """A fresh empty file beside `path`, named by this process, to be os.replace'd onto it."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=TEMP_SUFFIX,
@@ -72,8 +68,7 @@ def writing(path: Path, doing: str = "write") -> Iterator[None]:
 
 
 def atomic_write(path: Path, write: Callable[[IO[bytes]], None]) -> Path:
-    """Call `write(handle)` on a temporary sibling of `path`, then rename it into place; a
-    failure leaves `path` as it was and no temporary file behind."""
+    """`write(handle)` to a temporary sibling of `path`, renamed into place; all or nothing."""
     with temporary(path) as tmp, writing(path):
         with tmp.open("wb") as handle:
             write(handle)
@@ -93,9 +88,8 @@ def atomic_write_json(path: Path, value: object) -> Path:
 
 def check_room(path: Path, what: str) -> None:
     """Raise a StorageError when the file `path`, which a child process was given to write and
-    did not finish, can take no more: PROBE_BYTES appended to it are refused (a full disk or
-    quota, a file-size limit). It is then the place that failed, not the child. The file is
-    cut back to its size (it is scratch); one that is gone tells nothing."""
+    did not finish, can take no more (PROBE_BYTES appended to it are refused): then the place
+    failed, not the child. The file is cut back to its size; one that is gone tells nothing."""
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND)
     except FileNotFoundError:
@@ -122,9 +116,8 @@ def check_room(path: Path, what: str) -> None:
 
 def sweep(directories: Iterable[Path]) -> list[Path]:
     """Remove the temporary files in `directories` whose writer is gone (this machine's, of a
-    process that no longer runs; one that names no writer, past UNNAMED_TEMP_AGE_S); the
-    paths removed. Another machine's (a Slurm node's) are left to it. Housekeeping: a place
-    that cannot be read or written is skipped (what writes there next says why)."""
+    process that no longer runs; one that names no writer, past UNNAMED_TEMP_AGE_S); the paths
+    removed. Another machine's are left to it; a place that cannot be read is skipped."""
     removed = []
     for directory in directories:
         try:
@@ -156,5 +149,5 @@ def _running(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # another user's process
-        return True
+        pass
     return True

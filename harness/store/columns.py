@@ -23,10 +23,7 @@ STATUSES: tuple[str, ...] = (OK, INVALID, UNVALIDATED, FAILED, CRASHED, TIMEOUT)
 # Statuses whose timings exist and mean something.
 TIMED_STATUSES: frozenset[str] = frozenset({OK, INVALID, UNVALIDATED})
 
-# A program's verdict (harness.programs.agreement): the same numbers as seq at the precision it
-# prints; within that rounding at every step; every step locally right from its own state
-# (judged by the reference's replay) at its printed precision, or only at a coarser one; a step
-# no correct rule explains; outputs that differ between identical runs; not comparable.
+# A program's verdict (harness.programs.agreement, docs/programs.md).
 IDENTICAL = "identical"
 ROUNDING = "rounding"
 CORRECT = "correct"
@@ -62,29 +59,15 @@ EXTRA_COLUMNS: tuple[str, ...] = (
     "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",
     "validated", "exact", "baseline_sha256", "input_sha256", "note",
 )
-# Where, on what and how surely a cell was measured. Computed from the record (and its
-# hyperfine JSON) when results.csv is written, so older records gain them without being
-# measured again; empty where an older record cannot tell (outliers, loaded, machine).
-# stale: True when the cell's binary changed since it was measured on this machine (empty for
-# another machine's record, whose build this run cannot see).
-# earlier_config: True when the cell was measured under an earlier version of its config (its
-# key differs from what the config plans now in more than binaries and machine: a machine that
-# has not measured the config since it changed); config_changed names the key's fields that
-# differ (`unplanned`: the config plans no such cell any more).
-# wall_q25_s: the runs' 25% quantile, the low-end estimator kept beside the median, minimum and
-# mean (harness.stats.ESTIMATORS; docs/compare.md measures how each reproduces).
+# Where, on what and how surely a cell was measured (docs/results.md says what each means).
+# Computed from the record when results.csv is written, so older records gain them without
+# being measured again; empty where an older record cannot tell (outliers, loaded, machine).
 LOW_QUANTILE_COLUMN = "wall_q25_s"
 PROVENANCE_COLUMNS: tuple[str, ...] = (
     "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", LOW_QUANTILE_COLUMN,
     "wall_times_s", "outliers", "loaded", "stale", "earlier_config", "config_changed",
     "git_commit", "measured_at",
 )
-# Where the simulation time goes, from --timing, seconds summed over the run: the variant's
-# pair finder (broad phase and pair tests), wall candidates, merging and sorting the
-# candidates, the greedy resolution walk, moving the discs. Their sum is at most sim_s (the
-# rest: the parallel regions' start-ups and closing barriers, and the step's bookkeeping).
-# After the provenance columns, and only where some cell has them.
-PHASE_COLUMNS: tuple[str, ...] = ("broad_s", "walls_s", "sort_s", "resolve_s", "motion_s")
 
 
 # A group's fields in results.csv: all but JSON objects, which only the record keeps. So a
@@ -93,14 +76,14 @@ def _columns(group: type) -> tuple[str, ...]:
     return tuple(f.name for f in fields(group) if "JsonObject" not in str(f.type))
 
 
+# Where the simulation time goes (measured.Phases, after input_s, sim_s and output_s); their
+# sum is at most sim_s (the rest: the parallel regions' start-ups and closing barriers, and
+# the step's bookkeeping).
+PHASE_COLUMNS: tuple[str, ...] = _columns(measured.Phases)[3:]
 CHECK_COLUMNS: tuple[str, ...] = _columns(measured.Checks)
 # The OMP_SCHEDULE a cell ran with (empty when none), then its per-thread work.
 THREAD_COLUMNS: tuple[str, ...] = ("schedule", *_columns(measured.ThreadWork))
-# How a cell was timed: in how many rounds (the rounds of the cells of a run alternate, so
-# that the machine's drift is shared), the round of each of its runs (space-separated, as
-# wall_times_s), why its timing stopped (STOPPED_REASONS), and the seed that shuffled each
-# round's order (cells with one seed were measured in the same rounds). Only where some cell
-# has them (results from before rounds have none).
+# How a cell was timed (measured.Rounds), with the round of each of its runs.
 ROUND_COLUMNS: tuple[str, ...] = ("rounds", "wall_times_round", "stopped", "round_seed")
 NOISE_COLUMNS: tuple[str, ...] = _columns(measured.Noise)
 # Why a cell's timing stopped: its fixed runs are done, or (runs: auto) its interval is narrow
@@ -119,43 +102,29 @@ STOPPED_REASONS: tuple[str, ...] = (STOPPED_RUNS, STOPPED_CI, STOPPED_MAX_RUNS, 
 # A pair that stopped undecided (its budget spent, or at the last look) is judged at the last
 # look, whose share of the error rate no earlier look spent.
 STOPPED_UNDECIDED: tuple[str, ...] = (STOPPED_BUDGET, STOPPED_LAST_LOOK)
-# A program's verdict, its first wrong step (or, not wrong, the first step it leaves seq's
-# rounding; empty: never), the rule that step breaks, and the data races ThreadSanitizer found
-# in it (`FILE:LINE and FILE:LINE (variables)`, `;`-separated; `none`; empty where it was not
-# checked: a program without `build:`, or another cell than its highest thread count's), and
-# what grading it cost beyond its run (seconds: its print-mode check run and the verdict, and
-# of that the reference's replays), only where some cell is a program's.
-PROGRAM_COLUMNS: tuple[str, ...] = ("agreement", "first_diff_step", "rule", "races", "check_s",
-                                    "replay_s")
+# A program's verdict and what grading it cost (measured.ProgramVerdict).
+PROGRAM_COLUMNS: tuple[str, ...] = _columns(measured.ProgramVerdict)[2:]
 NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
 # What a --timing JSON line gives that the record keeps under the same names.
 TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.Counts))
-# The OpenMP runtime's cost of one operation at the cell's thread count on its machine
-# (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
-# closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
-# forked by every thread of an outer team at once (empty where T*T threads were too many).
-# Only where some cell has them.
-OMP_COST_COLUMNS: tuple[str, ...] = ("region_ns", "barrier_ns", "grab_ns", "nested_region_ns")
-OMP_COST_NOTE = "openmp_costs_note"  # why a cell that should have them has none
+# The OpenMP runtime's costs (measured.OmpCosts), then why a cell has none.
+OMP_COST_COLUMNS: tuple[str, ...] = _columns(measured.OmpCosts)[:-1]
+OMP_COST_NOTE = _columns(measured.OmpCosts)[-1]
 INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
-# The cell's peak resident memory, MiB (measured.Memory). Only where some cell has it.
 MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
 PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib
-# A cell run as MPI ranks: its rank count, how mpirun placed them, and its --timing's time in
-# MPI calls, bytes moved per step and the ranks' memory (measured.Ranks). Only where some cell
-# has them.
+# A cell run as MPI ranks: its rank count, then measured.Ranks.
 RANK_COLUMNS: tuple[str, ...] = ("ranks", *_columns(measured.Ranks))
 # Every column a record can fill, in results.csv's order (the groups after the provenance
 # columns appear only where some row has a value).
 OPTIONAL_GROUPS: tuple[tuple[str, ...], ...] = (PHASE_COLUMNS, CHECK_COLUMNS, THREAD_COLUMNS,
                                                  ROUND_COLUMNS, PROGRAM_COLUMNS, NOISE_COLUMNS,
-                                                 INSTRUCTION_COLUMNS,
-                                                 (*OMP_COST_COLUMNS, OMP_COST_NOTE),
+                                                 INSTRUCTION_COLUMNS, _columns(measured.OmpCosts),
                                                  MEMORY_COLUMNS, RANK_COLUMNS)
 
-# divergence.csv beside results.csv: one row per checked cell, reference and printed step.
+# divergence.csv: one row per checked cell, reference and printed step.
 DIVERGENCE_COLUMNS: tuple[str, ...] = (
     "cell_id", "variant", "build", "scene", "n", "L", "r", "steps", "seed", "threads",
     "reference", "step", "max_pos_dev",
@@ -163,18 +132,10 @@ DIVERGENCE_COLUMNS: tuple[str, ...] = (
 # The cell-describing columns a divergence row copies from its record.
 DIVERGENCE_CELL_COLUMNS: tuple[str, ...] = DIVERGENCE_COLUMNS[:10]
 
-# ratios.csv beside results.csv: one row per ratio of two cells' times on one machine (the
-# reference's time over this cell's, > 1 where this cell is faster), of cells that measured
-# the same scene with the same build and schedule: `kind` says which reference (RATIO_KINDS).
-# The ratio is taken round by round over the rounds both cells were measured in (the same
-# round_seed and round), its interval where another session's ratio lies (ratio_ci_*: the
-# rounds' spread and the machine's session spread for ratios, harness.stats.levels) and over
-# the rounds alone (round_ci_*); rounds: how many it rests on (0: the cells were measured in
-# different runs, the ratio of their medians, no interval). Over one thread, the parallel
-# efficiency (ratio / threads) and the Karp-Flatt serial fraction of the ratio.
+# ratios.csv beside results.csv: one row per ratio of two cells' times on one machine, `kind`
+# saying which reference (docs/results.md says what each column is).
 RATIO_OVER_ONE_THREAD = "over_one_thread"
 RATIO_OVER_BASELINE = "over_seq"
-RATIO_KINDS: tuple[str, ...] = (RATIO_OVER_ONE_THREAD, RATIO_OVER_BASELINE)
 RATIO_COLUMNS: tuple[str, ...] = (
     "experiment", "kind", "variant", "threads", "ranks", "reference_variant", "reference_threads",
     "ratio", "ratio_ci_low", "ratio_ci_high", "rounds", "round_ci_low", "round_ci_high",
@@ -211,8 +172,7 @@ def format_list(values: tuple[object, ...] | list[object]) -> str:
 
 
 def parse_list(text: str, column: str) -> tuple[float | int, ...]:
-    """A list column's items from its results.csv text (or an older record's); ValueError
-    when an item is not of the column's type."""
+    """A list column's items from its text; ValueError where one is not of its type."""
     kind = LIST_COLUMNS[column]
     return tuple(kind(float(v)) if kind is int else kind(v) for v in text.split())
 
@@ -237,13 +197,8 @@ def match_values(values: typing.Mapping[str, object]) -> tuple[str, ...]:
 # Columns every row must fill in: without them a cell cannot be placed in any table.
 REQUIRED_VALUES: tuple[str, ...] = ("variant", "status", "n", "L", "r", "steps", "threads")
 
-# history.csv (`history`): one row per cell, commit and metric, in the range's order (`position`:
-# the commit's place in the range, from 0). `value` with its interval [low, high]; `status` ok,
-# or why the commit has no value (build_failed, a cell's own status, missing); `measured`: how
-# the value was measured, in the series (each commit on its own) or by `--bisect` (the commit
-# against a neighbour, in interleaved rounds). A change point's row, the first commit at the new
-# level (the commit bisection named, where it ran), has change_point true, the step as a ratio
-# (after / before) with its interval, and p.
+# history.csv (`history`): one row per cell, commit and metric, in the range's order
+# (docs/history.md says what each column is).
 HISTORY_COLUMNS: tuple[str, ...] = (
     "config", "cell", "metric", "position", "commit", "subject", "touches_code", "measured",
     "status", "value", "low", "high", "unit", "change_point", "ratio", "ratio_low",

@@ -1,5 +1,5 @@
-"""hyperfine's JSON export (`--export-json`), read back: a cell's statistics and per-run times.
-The export is kept as hyperfine wrote it, beside the cell's record. Standard library only."""
+"""hyperfine's JSON export (`--export-json`, kept as written beside the cell's record), read
+back. Standard library only."""
 
 from __future__ import annotations
 
@@ -35,8 +35,7 @@ class HyperfineStats:
 
 
 def is_unstable(mean: float, stddev: float | None) -> bool:
-    """Whether runs spread this much are unstable: stddev >= UNSTABLE_RELATIVE_STDDEV of the
-    mean (never with a single run, which has no stddev)."""
+    """stddev >= UNSTABLE_RELATIVE_STDDEV of the mean (never with a single run)."""
     return stddev is not None and mean > 0 and stddev >= UNSTABLE_RELATIVE_STDDEV * mean
 
 

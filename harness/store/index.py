@@ -1,15 +1,8 @@
-"""Which records an experiment's rows are, and the index that lists them (results.index.json,
-written with the exports: analysis.export); env.json and variants.json.
-
-The rows are, for each planned cell: on this machine the record of the current build, or
-else the newest of its group marked `stale` (its binary changed since: listed, not dropped);
-and on every other machine present the newest record that timed the cell, whatever its
-measure settings and whether or not it counted instructions (CellKey.timed_group). Then each
-machine's newest record of every other cell it measured, marked `earlier_config`: measured
-under an earlier version of the config, which a machine that has not measured it since keeps
-showing. The listing is made from the records on disk under the directory's lock, so two
-writers never drop each other's rows.
-"""
+"""Which records an experiment's rows are (docs/results.md: for each planned cell, this
+machine's record or the newest of its group marked `stale`, and every other machine's newest
+timing of it; then each machine's newest record of every other cell it measured, marked
+`earlier_config`), and the index that lists them (results.index.json, written with the
+exports: analysis.export); env.json, variants.json and history.json."""
 
 from __future__ import annotations
 
@@ -35,8 +28,7 @@ from harness.store.trust import DamagedFile
 
 @dataclass(frozen=True)
 class PlannedCell:
-    """What results.csv needs of a planned cell: its key on this machine, and what names it
-    to a reader (store.columns.match_values)."""
+    """What results.csv needs of a planned cell: its key here, and what names it to a reader."""
 
     key: CellKey
     subject: tuple[str, ...] = ()
@@ -58,7 +50,6 @@ class Listed:
     config_changed: str = ""
 
 
-Row = Listed
 INDEX_VERSION = 1
 
 
@@ -67,8 +58,7 @@ def _subject(item: Stored) -> tuple[str, ...]:
 
 
 def changed_fields(key: CellKey, planned: CellKey | None) -> str:
-    """The fields of `key` (what ran and how) that differ from the `planned` key's, or
-    UNPLANNED where the config plans no such cell."""
+    """The fields of `key` that differ from the `planned` key's, or UNPLANNED."""
     if planned is None:
         return UNPLANNED
     mine, theirs = key.group_fields(), planned.group_fields()
@@ -77,13 +67,11 @@ def changed_fields(key: CellKey, planned: CellKey | None) -> str:
 
 
 def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str
-                 ) -> list[Row]:
+                 ) -> list[Listed]:
     """results.csv's records, in plan order (the module's docstring says which); one of no
-    known machine unless a newer timing of the cell exists. Then, for each machine, its newest
-    record of every cell it has no row of yet: measured under an earlier version of the config
-    (marked, never dropped)."""
+    known machine unless a newer timing of the cell exists."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
-    rows: list[Row] = []
+    rows: list[Listed] = []
     done: set[str] = set()
     for cell in planned:
         group = cell.key.group
@@ -94,7 +82,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
         current = next((m for m in members if m.cell_id == cell.cell_id), None)
         own = current or current_by_machine(members).get(machine_id)
         if own is not None:
-            rows.append(Row(own.result, current is None))
+            rows.append(Listed(own.result, current is None))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
@@ -103,14 +91,13 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
                      if machine == UNKNOWN_MACHINE else None)
-            rows.append(Row(item.result, stale))
+            rows.append(Listed(item.result, stale))
     return rows + earlier_rows(stored, planned, rows)
 
 
-def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Row]
-                 ) -> list[Row]:
-    """Each machine's newest record of each cell it has no row of among `rows`: measured
-    under an earlier version of the config, by subject and machine."""
+def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows: Sequence[Listed]
+                 ) -> list[Listed]:
+    """Each machine's newest record of each cell it has no row of among `rows`."""
     listed = {(r.result.key.machine_id or UNKNOWN_MACHINE, match_values(r.result.columns))
               for r in rows}
     plan_of = {cell.subject: cell.key for cell in planned}
@@ -120,7 +107,7 @@ def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows:
         place = (item.machine_id, _subject(item))
         if place not in listed:
             newest[place] = item
-    return [Row(item.result, None, changed_fields(item.key, plan_of.get(place[1])))
+    return [Listed(item.result, None, changed_fields(item.key, plan_of.get(place[1])))
             for place, item in sorted(newest.items())]
 
 
@@ -136,8 +123,7 @@ def replaced(stored: Sequence[Stored], planned: Sequence[PlannedCell]) -> list[S
 def write_index(exp: ExperimentDir, experiment: str, title: str, baseline: str | None,
                 divergence: bool, listed: Sequence[Listed],
                 digests: Mapping[str, str | None]) -> None:
-    """results.index.json: how the exports were written, the records they list, in order,
-    with their marks, and each export's sha256 (None: not written)."""
+    """results.index.json: the records the exports list, with their marks, and each sha256."""
     atomic.atomic_write_json(exp.results_index, {
         "version": INDEX_VERSION, "experiment": experiment, "title": title,
         "baseline": baseline, "divergence": divergence,
@@ -162,16 +148,14 @@ def _index(exp: ExperimentDir) -> dict[str, object]:
 
 def index_files(exp: ExperimentDir) -> tuple[tuple[str, str, str | None, bool],
                                               dict[str, str | None]]:
-    """(experiment, title, baseline, divergence) and each export's sha256 as the index has
-    them; DamagedFile where it cannot be read."""
+    """(experiment, title, baseline, divergence) and each export's sha256, as indexed."""
     raw = _index(exp)
     how = (str(raw["experiment"]), str(raw["title"]), raw["baseline"], bool(raw["divergence"]))
     return how, {str(k): v for k, v in dict(raw["sha256"]).items()}  # type: ignore[arg-type,return-value]
 
 
 def index_rows(exp: ExperimentDir) -> list[tuple[str, bool | None, str]] | None:
-    """The (cell_id, stale, config_changed) the index lists, in order; None without an
-    index; DamagedFile where it cannot be read."""
+    """The (cell_id, stale, config_changed) the index lists, in order; None without one."""
     if not exp.results_index.is_file():
         return None
     rows = _index(exp)["rows"]
@@ -215,3 +199,23 @@ def write_variants(experiment_dir: Path, facts: Mapping[str, object]) -> None:
     """variants.json: the facts of the variants of the build that measured last (analysis and
     the report read them there, so that reading results never builds)."""
     atomic.atomic_write_json(ExperimentDir(experiment_dir).variants_json, facts)
+
+
+@dataclass(frozen=True)
+class CommitInfo:
+    """A commit of a history, and whether it changed what the binaries are made of."""
+
+    sha: str
+    subject: str
+    touches_code: bool  # changed variants/ or the Makefile
+
+    @property
+    def short(self) -> str:
+        return self.sha[:10]
+
+
+def save_commits(exp: ExperimentDir, commits: Sequence[CommitInfo]) -> None:
+    """history.json: the latest range `history` measured, oldest first."""
+    atomic.atomic_write_json(exp.history_commits, [
+        {"commit": c.sha, "subject": c.subject, "touches_code": c.touches_code}
+        for c in commits])

@@ -77,8 +77,7 @@ def base_label(described: Described) -> str:
 
 
 def machine_labels(machines: Mapping[str, Described]) -> dict[str, str]:
-    """Each machine id's name among `machines` (id -> its description): its label, with the
-    traits in which it differs from the others of that label."""
+    """Each machine's label, with the traits that tell it from others of that label."""
     names = {mid: base_label(d) for mid, d in machines.items()}
     groups: dict[str, list[str]] = {}
     for mid, name in names.items():
@@ -95,7 +94,6 @@ def machine_labels(machines: Mapping[str, Described]) -> dict[str, str]:
             seen = [tuple(extra[m]) for m in members]
             if len(set(seen)) == len(seen):
                 break
-        seen = [tuple(extra[m]) for m in members]
         for mid in members:
             if seen.count(tuple(extra[mid])) > 1:
                 extra[mid].append(mid[:SHORT_ID])

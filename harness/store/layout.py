@@ -1,38 +1,31 @@
-"""The results layout, named once: what lives where under a results root.
+"""The results layout, named once: what lives where under a results root (docs/results.md).
 
     results/                         a results root
       .cache/baselines/<key>.txt     seq's --precise output per input (validation)
       .cache/prints/<key>.txt        reference print-mode outputs (the checks)
-      .cache/*/<key>.txt.sha256      the sha256 of each, written with it: read back only
-                                     where the bytes still have it
+      .cache/*/<key>.txt.sha256      the sha256 of each, written with it
       <name>/  (<name>-quick/)       one experiment (a --quick smoke run)
         cells/<cell_id>.json             the harness's record of one cell
-        cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round, as
-                                         written (<cell_id>.hyperfine.json: one for all runs,
-                                         in records from before rounds)
-        cells/<cell_id>.hyperfine.<k>.disturbed<a>.json   a round others disturbed, taken
-                                         again (the a-th retake of the cell)
+        cells/<cell_id>.hyperfine.<k>.json   hyperfine's export of the cell's k-th round
+                                         (<cell_id>.hyperfine.json: before rounds, all runs)
+        cells/<cell_id>.hyperfine.<k>.disturbed<a>.json   a round others disturbed, retaken
         cells/<cell_id>.partial.jsonl    a cell whose rounds an interruption cut short
-        cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while it is compared
-        cells/.<cell_id>.check.out.*.tmp a program's check run's output while it is judged
+        cells/.<cell_id>.out.*.tmp       a validated cell's --precise output while compared
+        cells/.<cell_id>.check.out.*.tmp a program's check run's output while judged
         .../.<name>.<pid>@<host>.*.tmp   any file while it is written (harness.store.atomic)
         inputs/<sha>.in                  the input files the cells read
         outputs/<cell_id>.txt            the --precise stdout, with `keep_output: true`
         env.json                         the machine, tools and flags of the latest run
-        variants.json                    the variants' facts (--describe) of the latest run's
-                                         build: what analysis and the report read of them
+        variants.json                    the variants' facts of the latest run's build
         machines/<machine_id>.json       the same, the latest of each machine
         history/                         superseded records with their hyperfine JSON
         history/<commit>/                `history`: a results root of the commit's measurements
         history/<commit>/build.json      `history`: why the commit has none (no build)
         history/bisect/<old>-<new>/      `history --bisect`: two commits measured together
-        history.csv                      `history`: one row per cell, commit and metric
-        history.json                     `history`: the commits of the latest range, oldest first
+        history.csv, history.json        `history`: its rows, the commits of its latest range
         slurm/                           the Slurm executor's job state, scripts and logs
         results.csv                      one row per cell and machine
-        results.index.json               what results.csv, ratios.csv and divergence.csv were
-                                         derived from (the records, in order) and their
-                                         sha256: checked before they are read
+        results.index.json               the records the exports list, and their sha256
         ratios.csv                       one row per ratio of two cells (speedups), by round
         divergence.csv                   the checks' divergence curves, where some cell has them
       calibration/machines/<machine_id>.json   a machine's description and its calibration
@@ -58,14 +51,10 @@ SLURM = "slurm"
 ENV_JSON = "env.json"
 VARIANTS_JSON = "variants.json"
 RESULTS_CSV = "results.csv"
-RESULTS_INDEX = "results.index.json"
-DIVERGENCE_CSV = "divergence.csv"
-RATIOS_CSV = "ratios.csv"
 RECORD_SUFFIX = ".json"
 HYPERFINE_SUFFIX = ".hyperfine.json"
 HYPERFINE_INFIX = ".hyperfine."
 OUTPUT_SUFFIX = ".txt"
-DIGEST_SUFFIX = ".sha256"
 INPUTS = "inputs"
 HISTORY_OUTPUT_SUFFIX = ".output.txt"  # a superseded cell's kept output, in history/
 CACHE_DIR = ".cache"
@@ -73,7 +62,6 @@ COMPARE_DIR = "compare"
 RERUNS_DIR = "reruns"
 CALIBRATION_DIR = "calibration"
 QUICK_SUFFIX = "-quick"  # a --quick smoke run's experiment directory
-INPUT_NAME_CHARS = 16  # hex digits of an input's sha256 in its file name
 
 
 class _Under:
@@ -94,11 +82,11 @@ class ExperimentDir:
     cells = _Under(CELLS)
     history = _Under(HISTORY)
     results_csv = _Under(RESULTS_CSV)
-    results_index = _Under(RESULTS_INDEX)
+    results_index = _Under("results.index.json")
     history_csv = _Under("history.csv")
     history_commits = _Under("history.json")
-    ratios_csv = _Under(RATIOS_CSV)
-    divergence_csv = _Under(DIVERGENCE_CSV)
+    ratios_csv = _Under("ratios.csv")
+    divergence_csv = _Under("divergence.csv")
     env_json = _Under(ENV_JSON)
     variants_json = _Under(VARIANTS_JSON)
     slurm = _Under(SLURM)
@@ -109,14 +97,12 @@ class ExperimentDir:
         return self.path.name
 
     def commit_root(self, commit: str) -> Path:
-        """The results root of one commit's measurements (`history`)."""
         return self.history / commit
 
     def build_failed(self, commit: str) -> Path:
         return self.commit_root(commit) / "build.json"
 
     def bisect(self, old: str, new: str) -> Path:
-        """Where `history --bisect` measures two commits together (compare --measure's OUT)."""
         return self.history / "bisect" / f"{old}-{new}"
 
     def record(self, cell_id: str) -> Path:
@@ -129,8 +115,7 @@ class ExperimentDir:
         return self.cells / f"{cell_id}{HYPERFINE_INFIX}{round_index}{RECORD_SUFFIX}"
 
     def disturbed(self, cell_id: str, round_index: int, attempt: int) -> Path:
-        """A round's export that others disturbed, kept as hyperfine wrote it when the round
-        was taken again (`attempt`: the cell's retakes before it)."""
+        """`attempt`: the cell's retakes before this one."""
         return self.cells / (f"{cell_id}{HYPERFINE_INFIX}{round_index}.disturbed{attempt}"
                              f"{RECORD_SUFFIX}")
 
@@ -141,8 +126,7 @@ class ExperimentDir:
                       key=lambda p: export_round(cell_id, p.name) or 0)
 
     def hyperfine_files(self, cell_id: str) -> list[Path]:
-        """Where the cell's hyperfine exports may be: the one for all its runs, then those of
-        its rounds that exist."""
+        """The one export for all its runs, then those of its rounds that exist."""
         return [self.hyperfine(cell_id), *self.hyperfine_exports(cell_id)]
 
     def partial(self, cell_id: str) -> Path:
@@ -154,16 +138,13 @@ class ExperimentDir:
     # The outputs a cell's measurement compares and then deletes (written under a temporary
     # name beside these: harness.store.atomic.temp_path).
     def run_output(self, cell_id: str) -> Path:
-        """Where a validated cell's --precise output goes while it is compared (unless kept:
-        output())."""
         return self.cells / f"{cell_id}.out"
 
     def check_output(self, cell_id: str) -> Path:
-        """Where a program's check run's output goes while it is judged."""
         return self.cells / f"{cell_id}.check.out"
 
     def input(self, sha256: str) -> Path:
-        return self.path / INPUTS / f"{sha256[:INPUT_NAME_CHARS]}.in"
+        return self.path / INPUTS / f"{sha256[:16]}.in"  # 16 hex digits name an input
 
     def machine(self, machine_id: str) -> Path:
         return self.path / MACHINES / f"{machine_id}{RECORD_SUFFIX}"
@@ -192,39 +173,32 @@ class ResultsRoot:
         return self.path / CACHE_DIR / "prints" / f"{key}{OUTPUT_SUFFIX}"
 
     def caches(self) -> list[Path]:
-        """The directories of the reference outputs (written through temporary files)."""
+        """The directories of the reference outputs."""
         return [self.path / CACHE_DIR / "baselines", self.path / CACHE_DIR / "prints"]
 
     def calibration(self, machine_id: str) -> Path:
-        """The machine's description with its calibration (`compare --calibrate`)."""
         return self.calibrations / f"{machine_id}{RECORD_SUFFIX}"
 
 
-def is_record_name(name: str) -> bool:
-    """A cell record's file name: `<cell_id>.json` (not hyperfine's exports, not a partial
-    cell, not a temporary file)."""
-    return name.endswith(RECORD_SUFFIX) and name.count(".") == 1 and not name.startswith(".")
-
-
 def record_paths(directory: Path) -> list[Path]:
-    """The record files directly in `directory` (cells/ or history/), by name."""
+    """The `<cell_id>.json` record files directly in `directory` (cells/ or history/), by name."""
     try:
         names = sorted(os.listdir(directory))
     except FileNotFoundError:
         return []
-    return [directory / n for n in names if is_record_name(n)]
+    return [directory / n for n in names
+            if n.endswith(RECORD_SUFFIX) and n.count(".") == 1 and not n.startswith(".")]
 
 
 def export_round(cell_id: str, name: str) -> int | None:
-    """The round of a hyperfine export's file name (`<cell_id>.hyperfine.<k>.json`); None for
-    the one export of all runs (`<cell_id>.hyperfine.json`) or another name."""
+    """The round of a hyperfine export's file name; None for the one export of all runs."""
     middle = name[len(cell_id) + len(HYPERFINE_INFIX):-len(RECORD_SUFFIX)]
     return int(middle) if name.startswith(cell_id) and middle.isdigit() else None
 
 
 def digest_of(path: Path) -> Path:
     """Where the sha256 of a kept reference output is written, beside it."""
-    return path.with_name(path.name + DIGEST_SUFFIX)
+    return path.with_name(path.name + ".sha256")
 
 
 def cell_id_of(path: Path) -> str:

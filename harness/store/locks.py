@@ -1,18 +1,6 @@
-"""One benchmark at a time on a machine, and one writer at a time per results directory.
-
-measuring_lock(): an exclusive flock on a file in a machine-wide place (not the repository, so
-two checkouts see the same lock), held while a run measures. The holder writes its pid, config
-and start time into the file; a second run prints one line naming them and waits, or with
-`wait=False` refuses (LockBusy, a HarnessError: exit 2). flock is released by the kernel when
-the holder dies, so a crashed run never leaves a stale lock behind.
-
-directory_lock(): an exclusive flock on the results directory itself (Linux flocks directory
-file descriptors), held while results.csv is rebuilt from the records on disk and while
-superseded records are moved to history/, so two writers never drop each other's rows.
-
-file_lock(): an exclusive flock on a file (created), e.g. the Slurm executor's job-state lock,
-so that two submitters take turns.
-"""
+"""One benchmark at a time on a machine, and one writer at a time per results directory:
+exclusive flocks, which the kernel releases when the holder dies, so a crashed run never
+leaves a stale lock behind."""
 
 from __future__ import annotations
 
@@ -56,7 +44,10 @@ def describe_holder(path: Path) -> str:
 @contextlib.contextmanager
 def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
                    path: Path | None = None) -> Iterator[Path]:
-    """Hold the machine-wide measuring lock for the body; see the module docstring."""
+    """Hold the machine-wide measuring lock for the body: a file in a machine-wide place (not
+    the repository, so two checkouts see the same lock), into which the holder writes its pid,
+    config and start time; a second run prints one line naming them and waits, or with
+    `wait=False` refuses (LockBusy, a HarnessError: exit 2)."""
     if path is None:
         path = Path(os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()) / LOCK_NAME
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -95,7 +86,7 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
 
 @contextlib.contextmanager
 def file_lock(path: Path) -> Iterator[None]:
-    """An exclusive flock on `path` (created if missing) for the body."""
+    """An exclusive flock on `path` (created), e.g. the Slurm executor's job-state lock."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with _flocked(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)):
         yield
@@ -103,7 +94,10 @@ def file_lock(path: Path) -> Iterator[None]:
 
 @contextlib.contextmanager
 def directory_lock(directory: Path) -> Iterator[None]:
-    """Exclusive lock on a results directory (created if missing) for the body."""
+    """Exclusive lock on a results directory (created if missing; Linux flocks directory file
+    descriptors) for the body, held while results.csv is rebuilt from the records on disk and
+    while superseded records are moved to history/, so two writers never drop each other's
+    rows."""
     with writing(directory, "create the directory"):
         directory.mkdir(parents=True, exist_ok=True)
         fd = os.open(directory, os.O_RDONLY)
@@ -124,28 +118,18 @@ def _flocked(fd: int) -> Iterator[None]:
         os.close(fd)
 
 
-class RunLock:
+class RunLock(contextlib.ExitStack):
     """The measuring lock of one run.py process: taken when its first experiment has cells to
     measure (a run of cached cells or --dry-run takes none), held until the run ends, so the
     configs of one run are not interleaved with another run's."""
 
     def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
                  path: Path | None = None) -> None:
+        super().__init__()
         self._lock = functools.partial(measuring_lock, configs, wait, log, path)
-        self._stack = contextlib.ExitStack()
         self.held = False
 
     def acquire(self) -> None:
         if not self.held:
-            self._stack.enter_context(self._lock())
+            self.enter_context(self._lock())
             self.held = True
-
-    def release(self) -> None:
-        self._stack.close()
-        self.held = False
-
-    def __enter__(self) -> RunLock:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()

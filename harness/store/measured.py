@@ -1,7 +1,6 @@
-"""The groups of a measured cell's fields (harness.store.result.CellResult): its timed runs,
-and what its measurement found beside them, each group in the names of its record's fields
-(results.csv's columns, harness.store.columns). A field no measurement filled is None.
-Standard library only."""
+"""The groups of a measured cell's fields (harness.store.result.CellResult), named as its
+record's fields and results.csv's columns (harness.store.columns); None where no measurement
+filled one. Standard library only."""
 
 from __future__ import annotations
 
@@ -12,8 +11,7 @@ JsonObject = dict[str, object]  # kept as it was measured: the harness reads no 
 
 @dataclass(frozen=True)
 class TimedRun:
-    """One timed run: its wall seconds, and the round it was taken in (None in records from
-    before rounds)."""
+    """One timed run: its wall seconds, and its round (None in records from before rounds)."""
 
     time_s: float
     round: int | None = None
@@ -67,8 +65,10 @@ class Timing:
 
 @dataclass(frozen=True)
 class Rounds:
-    """In how many rounds the cell was timed, why its timing stopped (columns.STOPPED_*) and
-    the seed that shuffled each round's order."""
+    """In how many rounds the cell was timed (the rounds of the cells of a run alternate, so
+    that the machine's drift is shared), why its timing stopped (columns.STOPPED_*) and the
+    seed that shuffled each round's order (cells with one seed were measured in the same
+    rounds)."""
 
     rounds: int | None = None
     stopped: str | None = None
@@ -77,31 +77,26 @@ class Rounds:
 
 @dataclass(frozen=True)
 class Noise:
-    """What other work did to the cell's rounds (harness.measure.noise), results.csv's
-    NOISE_COLUMNS where some cell has them: CPU seconds stolen and taken by other processes on
-    its cores over its rounds, the timed runs' involuntary context switches per run, each
-    round's interference (the share of the cores' time others took or was stolen), each
-    round's CPU pressure (the share of its time some task waited for a CPU, where the kernel
-    gives it), the rounds beyond the limit (left out of a paired test on both sides), the
-    cores' seconds the rounds span, the rounds taken again because others disturbed them, and
-    others' share of the cores' time over the rounds kept, with whether it passed the limit
-    of a disturbed cell (stats.DISTURBED_LIMIT). Per-round values in round order."""
+    """What other work did to the cell's rounds (harness.measure.noise); per-round values in
+    round order."""
 
-    steal_s: float | None = None
-    other_cpu_s: float | None = None
-    nivcsw_per_run: float | None = None
-    round_noise: tuple[float, ...] | None = None
-    round_pressure: tuple[float, ...] | None = None
-    rounds_dropped: tuple[int, ...] | None = None
-    noise_capacity_s: float | None = None
-    rounds_retaken: int | None = None
-    others_share: float | None = None
-    disturbed: bool | None = None
+    steal_s: float | None = None  # CPU seconds stolen on its cores over its rounds
+    other_cpu_s: float | None = None  # taken by other processes
+    nivcsw_per_run: float | None = None  # the timed runs' involuntary context switches
+    round_noise: tuple[float, ...] | None = None  # the share of the cores' time others took
+    round_pressure: tuple[float, ...] | None = None  # the share some task waited for a CPU
+    rounds_dropped: tuple[int, ...] | None = None  # beyond the limit: out of a paired test
+    noise_capacity_s: float | None = None  # the cores' seconds the rounds span
+    rounds_retaken: int | None = None  # taken again because others disturbed them
+    others_share: float | None = None  # others' share of the cores' time over the rounds
+    disturbed: bool | None = None  # others_share > stats.DISTURBED_LIMIT
 
 
 @dataclass(frozen=True)
 class Phases:
-    """Where the --precise run's time went (--timing), in seconds."""
+    """Where the --precise run's time went (--timing), in seconds summed over the run; of the
+    simulation: the variant's pair finder (broad phase and pair tests), wall candidates,
+    merging and sorting the candidates, the greedy resolution walk, moving the discs."""
 
     input_s: float | None = None
     sim_s: float | None = None
@@ -125,9 +120,8 @@ class Counts:
 
 @dataclass(frozen=True)
 class ThreadWork:
-    """The per-thread work of the --timing run (results.csv's THREAD_COLUMNS, after the
-    schedule, where some cell has them): one entry per candidate writer (the threads, T*T for
-    p3); `imbalance` is max over mean busy seconds (1 = perfectly even)."""
+    """The per-thread work of the --timing run: one entry per candidate writer (the threads,
+    T*T for p3); `imbalance` is max over mean busy seconds (1 = perfectly even)."""
 
     imbalance: float | None = None
     threads_busy_s: tuple[float, ...] | None = None
@@ -137,22 +131,19 @@ class ThreadWork:
 
 @dataclass(frozen=True)
 class Memory:
-    """The cell's peak resident memory in MiB (results.csv's MEMORY_COLUMNS, where some cell
-    has it): the largest ru_maxrss of its untimed runs of its own program on its own input,
-    which the harness reaps itself (harness.measure.proc.peak_mib): a variant's --precise run,
-    a program's run. Not the timed runs: hyperfine's own resident set (about 3 MiB) would hide
-    a small variant's."""
+    """The cell's peak resident memory in MiB: the largest ru_maxrss of its untimed runs of its
+    own program on its own input (harness.measure.proc.peak_mib). Not the timed runs:
+    hyperfine's own resident set (about 3 MiB) would hide a small variant's."""
 
     peak_rss_mib: float | None = None
 
 
 @dataclass(frozen=True)
 class Ranks:
-    """A cell run as MPI ranks (results.csv's RANK_COLUMNS, where some cell has them): how
-    mpirun placed them (whether more ranks and threads than cores shared them, and its
-    --bind-to), and from the --precise run's --timing: the seconds a rank spent in MPI calls
-    (the most over the ranks and their mean), the bytes a rank moved in a step's exchange (the
-    most and the mean) and the ranks' peak resident memory (the most and the sum, MiB)."""
+    """A cell run as MPI ranks: how mpirun placed them (whether more ranks and threads than
+    cores shared them, and its --bind-to), and from the --precise run's --timing: the seconds
+    a rank spent in MPI calls, the bytes a rank moved in a step's exchange (the most over the
+    ranks and their mean) and the ranks' peak resident memory (the most and the sum, MiB)."""
 
     ranks_oversubscribed: bool | None = None
     ranks_binding: str | None = None
@@ -179,10 +170,9 @@ class Validation:
 
 @dataclass(frozen=True)
 class Checks:
-    """The accuracy and stability checks (`checks:` in a config; results.csv's CHECK_COLUMNS,
-    where some cell was checked), with the divergence curves and the shadow steps they were
-    read from (JSON objects: the record's only). chk_* are True/False, or None where a check
-    does not apply (chk_exact for relative, chk_shadow without `shadow`)."""
+    """The accuracy and stability checks (`checks:` in a config), with the divergence curves
+    and the shadow steps they were read from. chk_* are True/False, or None where a check does
+    not apply (chk_exact for relative, chk_shadow without `shadow`)."""
 
     checks_passed: bool | None = None
     chk_finite: bool | None = None
@@ -218,7 +208,13 @@ class Checks:
 
 @dataclass(frozen=True)
 class ProgramVerdict:
-    """A program's check against seq (harness.programs.cell) and what it cost."""
+    """A program's check against seq (harness.programs.cell): its verdict, its first wrong
+    step (or, not wrong, the first step it leaves seq's rounding; None: never), the rule that
+    step breaks, the data races ThreadSanitizer found in it (`FILE:LINE and FILE:LINE
+    (variables)`, `;`-separated; `none`; None where it was not checked: a program without
+    `build:`, or another cell than its highest thread count's), and what grading cost beyond
+    its run (seconds: its print-mode check run and the verdict, and of that the reference's
+    replays)."""
 
     program: JsonObject | None = None
     check_command: str | None = None
@@ -235,11 +231,10 @@ class ProgramVerdict:
 
 @dataclass(frozen=True)
 class Instructions:
-    """The instruction lane (`metric: instructions`, harness.plan.lane; results.csv's
-    INSTRUCTION_COLUMNS where some cell was counted): the fewest and the most instructions of
-    the cell's counted runs (user space, every thread), each count, the counter (perf or
-    cachegrind), the binary it ran (under cachegrind a build without AVX-512), and why a count
-    is missing."""
+    """The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the
+    most instructions of the cell's counted runs (user space, every thread), each count, the
+    counter, the binary it ran (under cachegrind a build without AVX-512), and why a count is
+    missing."""
 
     instructions: int | None = None
     instructions_max: int | None = None
@@ -251,7 +246,10 @@ class Instructions:
 
 @dataclass(frozen=True)
 class OmpCosts:
-    """The OpenMP runtime's costs at the cell's threads (columns.OMP_COST_COLUMNS), in ns."""
+    """The OpenMP runtime's cost of one operation at the cell's thread count on its machine
+    (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
+    closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
+    forked by every thread of an outer team at once (None where T*T threads were too many)."""
 
     region_ns: float | None = None
     barrier_ns: float | None = None

@@ -4,11 +4,9 @@ Each field declares its role, and every name a record is known by is a projectio
 declarations (pyperf's explicit list of the metadata that must agree before runs are grouped):
 
 - `id`, the content address a record is stored under: every field;
-- `portable_id`: every field but the machine (what a Slurm submitter names a cell by before
-  it knows which node measures it);
-- `group`: what ran and how its runs were taken, whatever binaries' hashes and machine (one
-  current record per machine and group; the others are history); whether instructions were
-  counted, not with which counter; not what was measured beside the runs;
+- `portable_id`: every field but the machine (what a Slurm submitter names a cell by);
+- `group`: what ran and how its runs were taken (one current record per machine and group);
+  whether instructions were counted, not with which counter;
 - `timed_group`: what ran only: every record, of any machine, that timed the same cell.
 
 A key reads back the JSON object it was written as, field for field, so the ids of stored
@@ -44,17 +42,13 @@ class KeyFormatError(ValueError):
     """A stored key that is not a cell key of this harness."""
 
 
-class _Keep(enum.Enum):
-    FIELD = "field"
-    FLAG = "flag"  # only that the field is there
-
-
-# Per projection, what each role keeps; a role not named is left out.
-_PROJECTIONS: dict[str, dict[Role, _Keep]] = {
-    "id": {role: _Keep.FIELD for role in Role},
-    "portable": {role: _Keep.FIELD for role in Role if role is not Role.MACHINE},
-    "group": {Role.WHAT: _Keep.FIELD, Role.HOW: _Keep.FIELD, Role.COUNTED: _Keep.FLAG},
-    "timed": {Role.WHAT: _Keep.FIELD},
+# Per projection, the roles it keeps, each with whether it keeps only that the field is there;
+# a role not named is left out.
+_PROJECTIONS: dict[str, dict[Role, bool]] = {
+    "id": dict.fromkeys(Role, False),
+    "portable": {role: False for role in Role if role is not Role.MACHINE},
+    "group": {Role.WHAT: False, Role.HOW: False, Role.COUNTED: True},
+    "timed": {Role.WHAT: False},
 }
 
 
@@ -71,8 +65,7 @@ def _role(role: Role, optional: bool = False) -> dict[str, object]:
     return {"role": role, "optional": optional}
 
 
-def _optional(role: Role) -> dict[str, object]:
-    return _role(role, optional=True)
+_optional = functools.partial(_role, optional=True)
 
 
 @dataclass(frozen=True)
@@ -129,8 +122,7 @@ class CountedKey:
 
 @dataclass(frozen=True)
 class CellKey:
-    """Everything a cell's measurement depends on (see the module's docstring for the
-    projections its fields' roles define)."""
+    """Everything a cell's measurement depends on (the module's docstring: its projections)."""
 
     variant: str = field(metadata=_role(Role.WHAT))
     build: str = field(metadata=_role(Role.WHAT))
@@ -199,10 +191,10 @@ def _project(obj: object, projection: str) -> dict[str, object]:
     out: dict[str, object] = {}
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
-        keep = keeps.get(f.metadata["role"])
-        if keep is None or (f.metadata["optional"] and value is None):
+        flag = keeps.get(f.metadata["role"])
+        if flag is None or (f.metadata["optional"] and value is None):
             continue
-        out[f.name] = True if keep is _Keep.FLAG else _json_value(value, projection)
+        out[f.name] = True if flag else _json_value(value, projection)
     return out
 
 

@@ -1,6 +1,5 @@
-"""Cell records: the JSON file the harness keeps per measured cell (harness.store.result.
-CellResult's), named by the id of its key (harness.store.model.CellKey: what the measurement
-depended on). Standard library only."""
+"""Cell records: the JSON file of a measured cell (harness.store.result.CellResult), named by
+the id of its key (harness.store.model.CellKey). Standard library only."""
 
 from __future__ import annotations
 
@@ -21,11 +20,8 @@ RUN_STARTED = "run_started"
 
 
 def sha256_file(path: Path) -> str:
-    digest = hashlib.sha256()
     with path.open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+        return hashlib.file_digest(handle, "sha256").hexdigest()
 
 
 def read_json(path: Path) -> object | None:
@@ -37,8 +33,7 @@ def read_json(path: Path) -> object | None:
 
 
 def read_record(path: Path, expected_id: str) -> CellResult | None:
-    """A stored cell record, or None when absent or damaged (check_record): a cell without one
-    is measured again."""
+    """A stored cell record, or None when absent or damaged: its cell is measured again."""
     try:
         return check_record(path, expected_id)
     except DamagedFile:
@@ -47,8 +42,7 @@ def read_record(path: Path, expected_id: str) -> CellResult | None:
 
 def check_record(path: Path, expected_id: str) -> CellResult | None:
     """A stored cell record; None when there is none; DamagedFile, naming it and why, when
-    the file there is not a readable record of this harness (RecordFormatError) stored under
-    its key's id."""
+    the file there is not a readable record of this harness stored under its key's id."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

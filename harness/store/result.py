@@ -1,16 +1,11 @@
 """A measured cell, typed: what its measurement gave, beside its key (harness.store.model).
 
 CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
-values (each run's seconds with the round it was taken in), and what the measurement found
-beside them sits in small groups (harness.store.measured). A group no measurement filled is
-None.
-
-On disk a record is CellResult.to_json(): one flat JSON object whose names are the columns of
-results.csv (harness.store.columns) and a few more that only the record keeps. A group's
-fields are named as their columns, so that a column is read from one place, and an empty
-value is left out of the JSON. Reading a record refuses a field it does not know, naming it
-(RecordFormatError), as a key refuses one (KeyFormatError). Standard library only.
-"""
+values, and what the measurement found beside them sits in small groups
+(harness.store.measured; None where no measurement filled one). On disk a record is
+CellResult.to_json(): one flat JSON object named by the columns of results.csv and a few more
+that only the record keeps, so that a column is read from one place (docs/results.md).
+Standard library only."""
 
 from __future__ import annotations
 
@@ -20,26 +15,9 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
+from harness.store import measured
 from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
-from harness.store.measured import (
-    GROUPS,
-    Checks,
-    Counts,
-    Instructions,
-    Memory,
-    Noise,
-    OmpCosts,
-    Phases,
-    ProgramVerdict,
-    Provenance,
-    Ranks,
-    Rounds,
-    Subject,
-    ThreadWork,
-    TimedRun,
-    Timing,
-    Validation,
-)
+from harness.store.measured import GROUPS, TimedRun
 from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
 # The record format written: 2 keeps list columns (store.columns.LIST_COLUMNS) as JSON lists.
@@ -65,21 +43,21 @@ class CellResult:
     exit_code: int | None = None
     note: str | None = None
     times: tuple[TimedRun, ...] = ()
-    subject: Subject | None = None
-    timing: Timing | None = None
-    timed_rounds: Rounds | None = None
-    noise: Noise | None = None
-    phases: Phases | None = None
-    counts: Counts | None = None
-    thread_work: ThreadWork | None = None
-    memory: Memory | None = None
-    mpi: Ranks | None = None
-    validation: Validation | None = None
-    checks: Checks | None = None
-    program_check: ProgramVerdict | None = None
-    counted: Instructions | None = None
-    openmp_costs: OmpCosts | None = None
-    provenance: Provenance | None = None
+    subject: measured.Subject | None = None
+    timing: measured.Timing | None = None
+    timed_rounds: measured.Rounds | None = None
+    noise: measured.Noise | None = None
+    phases: measured.Phases | None = None
+    counts: measured.Counts | None = None
+    thread_work: measured.ThreadWork | None = None
+    memory: measured.Memory | None = None
+    mpi: measured.Ranks | None = None
+    validation: measured.Validation | None = None
+    checks: measured.Checks | None = None
+    program_check: measured.ProgramVerdict | None = None
+    counted: measured.Instructions | None = None
+    openmp_costs: measured.OmpCosts | None = None
+    provenance: measured.Provenance | None = None
 
     @property
     def timed(self) -> bool:
@@ -97,8 +75,7 @@ class CellResult:
         return (self.provenance.measured_at or "") if self.provenance else ""
 
     def round_times(self) -> dict[int, tuple[float, ...]]:
-        """The seconds of its runs by round, in round order; empty where the runs' rounds
-        are not recorded."""
+        """The seconds of its runs by round, in round order; empty where rounds are not kept."""
         if any(run.round is None for run in self.times):
             return {}
         grouped: dict[int, list[float]] = {}
@@ -129,8 +106,7 @@ class CellResult:
 
     @functools.cached_property
     def columns(self) -> dict[str, object]:
-        """Every field the record has a value for, by its name in the record, lists as lists;
-        its key as JSON."""
+        """Every field the record has a value for, by its name in the record; the key as JSON."""
         return _flatten(self)
 
     def replace(self, **changes: object) -> CellResult:
@@ -152,15 +128,14 @@ class CellResult:
 
     @classmethod
     def from_json(cls, raw: object) -> CellResult:
-        """A stored record (version 1 or 2); RecordFormatError naming the field when it is
-        not one."""
+        """A stored record (version 1 or 2); RecordFormatError naming the field that is not."""
         if not isinstance(raw, Mapping):
             raise RecordFormatError(f"record: expected an object, got {type(raw).__name__}")
         if raw.get("version") not in READ_VERSIONS:
             raise RecordFormatError(f"record.version: {raw.get('version')!r} is not one of "
                                     f"{', '.join(map(str, READ_VERSIONS))}")
         values = {k: v for k, v in upgrade(raw).items() if k != "version" and v is not None}
-        unknown = sorted(set(values) - set(_leaves()) - _TOP_NAMES)
+        unknown = sorted(set(values) - record_fields())
         if unknown:
             raise RecordFormatError(f"record: unknown field(s) {', '.join(unknown)}")
         return _parse(values)
@@ -217,16 +192,8 @@ def upgrade(raw: Mapping[str, object]) -> dict[str, object]:
     """A stored record as the current version has it: the one place that knows the formats
     of earlier versions (1 kept the list columns as space-separated text)."""
     out = dict(raw)
-    if out.get("version") == 1:
-        out = _with_lists(out)
-    out["version"] = RECORD_VERSION
-    return out
-
-
-def _with_lists(values: dict[str, object]) -> dict[str, object]:
-    """A version 1 record's list columns, space-separated text, as lists."""
-    out = dict(values)
-    for column in LIST_COLUMNS.keys() & out.keys():
+    text_lists = LIST_COLUMNS.keys() & out.keys() if out.get("version") == 1 else set()
+    for column in text_lists:
         value = out[column]
         if isinstance(value, str):
             try:
@@ -234,6 +201,7 @@ def _with_lists(values: dict[str, object]) -> dict[str, object]:
             except ValueError as exc:
                 raise RecordFormatError(f"record.{column}: {value!r} is not a list of "
                                         f"{LIST_COLUMNS[column].__name__}") from exc
+    out["version"] = RECORD_VERSION
     return out
 
 

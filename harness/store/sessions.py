@@ -17,13 +17,13 @@ from harness.repo import DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR
 from harness.store import atomic, records
 from harness.store.layout import ResultsRoot
 
-SESSION_KEY = "session"  # the newest entry `reruns` kept beside a machine's description
-LEVELS_KEY = "session_levels"  # its entries by the noise they were learnt at
+SESSION_KEY = "session"
+LEVELS_KEY = "session_levels"
+Supersedes = Callable[[Mapping[str, object], Mapping[str, object]], bool]
 
 
 def session_roots(results_dir: Path) -> tuple[Path, ...]:
-    """Where a run under this results root looks for its machine's spread: the root, then the
-    repository's (the user's, then the published one)."""
+    """The results root, then the repository's (the user's, then the published one)."""
     return tuple(dict.fromkeys((Path(results_dir), DEFAULT_RESULTS_DIR, PUBLISHED_RESULTS_DIR)))
 
 
@@ -32,40 +32,28 @@ def _valid(entry: object) -> bool:
         isinstance(entry.get(k), int | float) for k in ("absolute", "ratio"))
 
 
-def session_entry(root: Path, machine_id: str) -> Mapping[str, object] | None:
-    """What `reruns` kept last for the machine under this results root; None where nothing
-    is."""
-    data = records.read_json(ResultsRoot(root).calibration(machine_id))
-    entry = data.get(SESSION_KEY) if isinstance(data, dict) else None
-    return entry if _valid(entry) else None
-
-
 def _date(entry: Mapping[str, object]) -> str:
     return str(entry.get("date", ""))
 
 
-def level_entries(root: Path, machine_id: str) -> list[Mapping[str, object]]:
-    """Every noise level's entry kept for the machine under this results root, and the
-    newest entry where it is newer than all of them (a file kept before levels, or one a
-    harness without levels wrote last)."""
-    data = records.read_json(ResultsRoot(root).calibration(machine_id))
-    levels = data.get(LEVELS_KEY) if isinstance(data, dict) else None
+def _levels(data: object) -> list[Mapping[str, object]]:
+    """Every noise level's entry of a calibration file, and the newest entry where it is newer
+    than all of them (a file kept before levels, or one a harness without levels wrote last)."""
+    data = data if isinstance(data, dict) else {}
+    levels = data.get(LEVELS_KEY)
     found = [e for e in levels if _valid(e)] if isinstance(levels, list) else []
-    newest = session_entry(root, machine_id)
-    if newest is not None and all(_date(newest) > _date(e) for e in found):
+    newest = data.get(SESSION_KEY)
+    if _valid(newest) and all(_date(newest) > _date(e) for e in found):
         found.append(newest)
     return found
-
-
-Supersedes = Callable[[Mapping[str, object], Mapping[str, object]], bool]
 
 
 def kept_levels(roots: Iterable[Path], machine_id: str, supersedes: Supersedes
                 ) -> list[Mapping[str, object]]:
     """The machine's levels kept under the roots, newest first, without those a newer one
     supersedes (where two roots keep one of the same noise, the newer)."""
-    found = sorted((e for root in dict.fromkeys(roots) for e in level_entries(root, machine_id)),
-                   key=_date, reverse=True)
+    found = sorted((e for root in dict.fromkeys(roots) for e in _levels(
+        records.read_json(ResultsRoot(root).calibration(machine_id)))), key=_date, reverse=True)
     levels: list[Mapping[str, object]] = []
     for entry in found:
         if not any(supersedes(kept, entry) for kept in levels):
@@ -81,7 +69,7 @@ def keep_session(root: Path, machine_id: str, description: Mapping[str, object],
     path = ResultsRoot(root).calibration(machine_id)
     existing = records.read_json(path)
     existing = existing if isinstance(existing, dict) else {}
-    levels = [e for e in level_entries(root, machine_id) if not supersedes(entry, e)]
+    levels = [e for e in _levels(existing) if not supersedes(entry, e)]
     atomic.atomic_write_json(path, {**existing, **description, SESSION_KEY: dict(entry),
                                     LEVELS_KEY: [*levels, dict(entry)]})
     return path

@@ -1,17 +1,11 @@
 """Which records are current, and history: superseded records move to history/.
 
-A cell record's key (harness.store.model.CellKey) holds the hashes of its binaries and the
-machine, so a new build or another machine gives new ids and the old records stay in cells/.
-Two records are of the same *group* (CellKey.group) when they ran the same thing the same way,
-whatever binaries and machine; within a group, one record per machine is current: the newest.
-The others are *superseded*: prune() moves them, with their hyperfine JSON and kept output, to
-<experiment>/history/, so the committed cells/ holds what the report shows. A *timed group*
-(CellKey.timed_group) also leaves out how the runs were taken: the records of every machine
-that timed the same cell.
-
-A record from before machine ids (no `machine_id` in its key) belongs to no known machine: any
-newer record of its group supersedes it.
-"""
+Within a group (CellKey.group: the same thing run the same way, whatever binaries and
+machine), one record per machine is current: the newest. The others are *superseded*: prune()
+moves them, with their hyperfine JSON and kept output, to <experiment>/history/, so the
+committed cells/ holds what the report shows. A record from before machine ids (no
+`machine_id` in its key) belongs to no known machine: any newer record of its group, or that
+timed the same cell (CellKey.timed_group), supersedes it."""
 
 from __future__ import annotations
 
@@ -31,8 +25,6 @@ UNKNOWN_MACHINE = ""
 
 @dataclass(frozen=True)
 class Stored:
-    """A record on disk with the facts the store sorts by."""
-
     result: CellResult
     path: Path
 
@@ -136,7 +128,6 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> None:
 
 @dataclass(frozen=True)
 class PruneResult:
-    directory: Path
     moved: int
     remaining: int
 
@@ -146,16 +137,13 @@ def prune(experiment_dir: Path) -> PruneResult:
     with locks.directory_lock(experiment_dir):
         stored = load_records(ExperimentDir(experiment_dir).cells)
         kept = prune_locked(experiment_dir, stored)
-    return PruneResult(experiment_dir, len(stored) - len(kept), len(kept))
+    return PruneResult(len(stored) - len(kept), len(kept))
 
 
 def prune_locked(experiment_dir: Path, stored: Sequence[Stored],
                  also: Sequence[Stored] = ()) -> list[Stored]:
-    """Move the superseded among `stored`, and `also`, to history/ (the caller holds the
-    directory lock); the records that stay in cells/."""
+    """Move the superseded among `stored`, and `also`, to history/; the records that stay."""
     old = list({id(s): s for s in (*superseded(stored), *also)}.values())
     move_to_history(experiment_dir, old)
     gone = {id(s) for s in old}
     return [s for s in stored if id(s) not in gone]
-
-

@@ -1,10 +1,8 @@
-"""Every stored file is checked before it is trusted: a file that is there but cannot be read,
-was cut short, was altered or is not what its name says is a DamagedFile, named in one line,
-and what rests on it is rebuilt or measured again. Here, hyperfine's exports of a record
-(each one it names is there, reads, and holds the record's runs of its round) and the
-reference outputs kept under results/.cache/ (written with the sha256 of their bytes beside
-them). A record is checked where it is read (records.check_record), results.csv and the files
-derived with it in harness.analysis.export. Standard library only."""
+"""Every stored file is checked before it is trusted (docs/results.md): one that cannot be
+read, was cut short, was altered or is not what its name says is a DamagedFile, named in one
+line, and what rests on it is rebuilt or measured again. Here, hyperfine's exports of a
+record and the reference outputs kept under results/.cache/; a record is checked where it is
+read (records.check_record), results.csv in harness.analysis.export. Standard library only."""
 
 from __future__ import annotations
 
@@ -25,9 +23,7 @@ class DamagedFile(ValueError):
 
 
 def check_exports(result: CellResult, cells: Path) -> None:
-    """DamagedFile where a hyperfine export the record rests on is missing, unreadable or
-    does not hold the record's runs (those of its round; of all its runs for the one export
-    of a record from before rounds)."""
+    """DamagedFile where an export the record rests on is missing, unreadable or lacks its runs."""
     names = result.timing.hyperfine_exports if result.timing else None
     if names:
         by_round = result.round_times()
@@ -62,8 +58,8 @@ def write_kept(path: Path, text: str) -> None:
 
 def read_kept(path: Path) -> str | None:
     """The reference output kept at `path`; None where there is none, or none that can be
-    vouched for (no sha256 beside it: written by a harness before them, or cut short between
-    the two files): it is to be run again. DamagedFile where its bytes are not those written."""
+    vouched for (no sha256 beside it): it is to be run again. DamagedFile where its bytes are
+    not those written."""
     try:
         data = path.read_bytes()
     except FileNotFoundError:

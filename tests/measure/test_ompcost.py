@@ -13,7 +13,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from harness.measure.ompcost import measure_costs, parse_costs
+from harness.measure.timing import measure_costs, parse_costs
 from harness.store.columns import OMP_COST_COLUMNS, OMP_COST_NOTE
 
 from conftest import build_or_skip

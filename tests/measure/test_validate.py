@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from harness.measure.validate import compare
+from harness.measure.references import compare
 from harness.spec.output import OutputFormatError, parse_output, split_states
 
 L = 100.0

@@ -9,7 +9,7 @@ import pytest
 from harness import stats
 from harness.analysis import export, phases, results
 from harness.analysis.migrate import upgrade_experiment
-from harness.measure import hyperfine as mhyperfine
+from harness.measure import rounds as mhyperfine
 from harness.measure import timing
 from harness.store import atomic, columns, records
 from harness.store import hyperfine as hf
