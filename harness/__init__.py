@@ -18,6 +18,6 @@ Features stand on the core and not on each other, each one package with its comm
 analysis and its report part: comparison (`compare`), history (`history`), reruns (`reruns`)
 and programs (`programs:` in a config: a foreign implementation's cells run, judged step by
 step against seq and graded in the report). The core imports no feature: where it calls one,
-the feature lends a hook that the command line passes in (cli.features: the Measurer's
+the feature lends a hook that the command line passes in (harness.cli: the Measurer's
 program_runner, the report's ReportFeature).
 """

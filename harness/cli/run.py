@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from harness.cli.features import REPORT_FEATURES
+from harness.cli import REPORT_FEATURES
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options

@@ -1,24 +1,11 @@
 """A program's output against seq's (pure: texts and a replay in, a verdict out).
 
-Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` (harness.programs.printed)
-and matched on (step, index); rows only one side prints are ignored (a program that prints its
-initial state, or lines of its own). A program must print every particle of each step it
-prints, and the state after the last step. A value is *within rounding* of seq's when the two
-differ by at most half a unit in the last digit the program printed, plus ARITH_ULPS double
-roundings of L (a correct program that orders its arithmetic differently). The verdict
-(store.columns.AGREEMENTS):
-
-* identical: every value is what seq's prints as at the program's precision, and the
-  collision counts agree;
-* rounding: every value within rounding, at every step;
-* otherwise the program is judged step by step (harness.programs.steps): each printed step from
-  the program's own state before it, by the reference's `--replay`. correct: every step locally
-  right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
-  right only at a coarser precision, named; wrong: a step no precision explains, with its
-  particle, both states, the reference's event and the rule broken where the program's states
-  show it (harness.programs.events). A state at step 0 other than the input is wrong at step 0;
-* failed: nothing to compare (no output, no readable line, too few particles, no final state,
-  no two consecutive steps printed to judge).
+Both outputs are read as rows (harness.programs.printed) matched on (step, index); a value is
+within rounding of seq's when the two differ by at most half a unit in the last digit the
+program printed, plus ARITH_ULPS double roundings of L (a correct program that orders its
+arithmetic differently). A program within rounding at every step is identical or rounding;
+any other is judged step by step (harness.programs.steps). The verdicts and what each needs:
+docs/programs.md, "The check".
 """
 
 from __future__ import annotations

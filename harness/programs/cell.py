@@ -1,20 +1,10 @@
-"""The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs).
-
-  1. its command, once, on the cell's input (every particle listed), under the cell timeout:
-     does it run at all (a command not found, a crash, a hang: the cell's status says so), and
-     its peak resident memory (the command's processes the shell waited for included);
-  2. its check: the check command on the cell's scene in print mode (its first steps for a big
-     scene), its stdout judged against seq's `--precise` print-mode output on the same input,
-     and step by step by the reference's `--replay` (harness.programs.agreement);
-  3. at the config's highest thread count, the check run twice more, once at that count and
-     once at 1 thread: outputs that differ make the program nondeterministic; and for a
-     program with `source:` and `build:`, a copy built with ThreadSanitizer run on a small
-     scene (harness.programs.races): a data race makes it nondeterministic too, whatever its
-     outputs were.
-
-The cell is ok when the program agrees (identical, rounding, correct, imprecise), invalid when
-it is wrong, nondeterministic or its output cannot be compared; either way it is then timed
-like any variant.
+"""The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs): its
+command once on the cell's input (does it run at all; its peak memory); its check command in
+print mode, judged against seq's `--precise` output and step by step (harness.programs.agreement);
+at the config's highest thread count the check twice more, at that count and at 1 thread
+(outputs that differ: nondeterministic), and for a program with `source:` and `build:` a race
+check (harness.programs.races). The cell is ok when the program agrees, else invalid; either way
+it is then timed like any variant.
 """
 
 from __future__ import annotations
@@ -68,12 +58,16 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads,
                                     cell.ranks)
     done = run_process(command, env, timeout_s, memory=True)
+
+    def ran(record: CellResult, status: str = OK, code: int | None = 0) -> CellRun:
+        return CellRun(cell_id, key, record, status, code, command, run_s=done.seconds)
+
     record = record.replace(command=shlex.join(command), program=_described(program),
                             stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
     status, code = _status(done)
     if status != OK:
-        return _not_run(record, cell_id, key, command, status, code,
-                        failure("its run", done, timeout_s), done.seconds)
+        return ran(record.replace(agreement=AGREEMENT_FAILED,
+                                  note=failure("its run", done, timeout_s)), status, code)
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads,
@@ -82,16 +76,16 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
                                  store.layout.output(cell_id) if store.config.keep_output
                                  else None)
-    check_status, check_code = _status(checked)
-    if check_status != OK:
-        return _not_run(record, cell_id, key, command, check_status, check_code,
-                        failure("its check run (print mode)", checked, timeout_s), done.seconds)
+    status, code = _status(checked)
+    if status != OK:
+        return ran(record.replace(agreement=AGREEMENT_FAILED, note=failure(
+            "its check run (print mode)", checked, timeout_s)), status, code)
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
         record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: "
                                 f"{refs[REFERENCE].name}'s print-mode run failed")
-        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+        return ran(record)
     replays: list[float] = []
     replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
     judged = time.monotonic()
@@ -105,14 +99,13 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     record = record.replace(check_s=checked.seconds + time.monotonic() - judged,
                             replay_s=math.fsum(replays))
     if verdict is None:
-        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+        return ran(record)
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
         verdict, record = _repeated_and_raced(program, store, cell, store.input_file(scene),
                                               env, timeout_s, text, verdict, record)
     record = record.replace(**verdict.fields(), note=_note(
         verdict.note, steps, cell.scene.steps, refs[REFERENCE].name))
-    status = OK if verdict.verdict in AGREEING else INVALID
-    return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+    return ran(record, OK if verdict.verdict in AGREEING else INVALID)
 
 
 def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
@@ -212,10 +205,4 @@ def _described(program: Program) -> dict[str, str]:
 def _status(done: ProcessResult) -> tuple[str, int | None]:
     status, code = exit_status(done.returncode)
     return (CRASHED if signal_of(code) is not None else status), code
-
-
-def _not_run(record: CellResult, cell_id: str, key: dict[str, object], command: list[str],
-             status: str, code: int | None, note: str, seconds: float) -> CellRun:
-    record = record.replace(agreement=AGREEMENT_FAILED, note=note)
-    return CellRun(cell_id, key, record, status, code, command, run_s=seconds)
 

@@ -1,12 +1,10 @@
-"""The data races of a program that says how it is built (`source:` and `build:`,
-harness.spec.programs): a copy built with ThreadSanitizer, run on a small scene, and each race
-TSan reports read as the file:line of its two accesses.
+"""The data races of a program that says how it is built (`source:` and `build:`): a copy
+built with ThreadSanitizer, run on a small scene, each race read as its two accesses' file:line.
 
-The copy is built by clang with LLVM's OpenMP runtime and run with Archer (LLVM's OpenMP tool,
-loaded by OMP_TOOL_LIBRARIES), which tells TSan about the runtime's barriers, locks and tasks:
-OpenMP code then has no false positives. gcc's TSan does not see libgomp's barriers, so every
-parallel loop followed by serial code would be reported. TSan's checks are of happens-before,
-not of timing: a race in code that runs is found on any scene that runs it, with two threads.
+clang with LLVM's OpenMP runtime and Archer (loaded by OMP_TOOL_LIBRARIES), which tells TSan of
+the runtime's barriers, locks and tasks: no false positives, where gcc's TSan, blind to
+libgomp's barriers, would report every parallel loop followed by serial code. TSan checks
+happens-before, not timing: two threads on any scene that runs the racy code find the race.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
-"""Programs in the report: the section (the class table, one row per program, also written
-as `<experiment>-programs.csv` for a gradebook; one line per program cell with its verdict and
-what it and the reference did at the step named; for each wrong program a figure of its first
-wrong step) and the experiment's count of program cells that agree with seq, for the summary's
-fidelity line (harness.programs.REPORT gives both to the report)."""
+"""Programs in the report: the section (the class table, also written as
+`<experiment>-programs.csv` for a gradebook; each program cell's verdict; a figure of each
+wrong program's first wrong step: the particle and its partners before the step, where the
+program put them after it and where the rules do) and the count of program cells that agree
+with seq, for the summary's fidelity line."""
 
 from __future__ import annotations
 
@@ -10,12 +10,13 @@ import json
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.patches import Circle
 
 from harness.analysis.cells import is_program
 from harness.analysis.serving import measured_once
-from harness.programs.figure import fig_wrong_step
 from harness.programs.tables import class_table, program_table
 from harness.report.document import Block, Paragraph, Section
+from harness.report.figures.base import new_figure, save_figure, set_title
 from harness.report.load import Experiment
 from harness.report.parts import Count
 from harness.report.sections.context import Context, table_block
@@ -44,6 +45,8 @@ INTRO = (
 )
 
 ANCHOR = "programs"
+BEFORE, PROGRAM, REFERENCE = "#888888", "#d62728", "#1f77b4"
+PAD_RADII = 3.0  # room around the discs, in radii
 
 
 def write_csv(table: pd.DataFrame, stem: Path) -> Path:
@@ -100,6 +103,36 @@ def _neighbourhood(record: Path) -> tuple[pd.DataFrame, float] | None:
         values = pd.DataFrame(detail[where])
         data[f"x_{where}"], data[f"y_{where}"] = values[0], values[1]
     return data, float(detail["r"])
+
+
+def fig_wrong_step(data: pd.DataFrame, stem: Path, r: float, title: str) -> list[Path]:
+    """`data`: one row per particle shown (the wrong one first), columns particle and x, y of
+    `before`, `program`, `reference` (x_before, y_before, ...)."""
+    fig, ax = new_figure()
+    for _, row in data.iterrows():
+        start = (row["x_before"], row["y_before"])
+        for where, color in (("program", PROGRAM), ("reference", REFERENCE)):
+            end = (row[f"x_{where}"], row[f"y_{where}"])
+            ax.annotate("", xy=end, xytext=start,
+                        arrowprops={"arrowstyle": "->", "color": color, "lw": 1.2})
+            ax.add_patch(Circle(end, r, fill=False, color=color, lw=1.2))
+        ax.add_patch(Circle(start, r, fill=False, color=BEFORE, lw=1.0, ls="--"))
+        ax.annotate(str(int(row["particle"])), start, textcoords="offset points",
+                    xytext=(4, 4), fontsize=8, color=BEFORE)
+    xs = pd.concat([data[f"x_{w}"] for w in ("before", "program", "reference")])
+    ys = pd.concat([data[f"y_{w}"] for w in ("before", "program", "reference")])
+    pad = PAD_RADII * r
+    ax.set_xlim(xs.min() - pad, xs.max() + pad)
+    ax.set_ylim(ys.min() - pad, ys.max() + pad)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x (length units)")
+    ax.set_ylabel("y (length units)")
+    ax.plot([], [], color=BEFORE, ls="--", label="before the step")
+    ax.plot([], [], color=PROGRAM, label="the program after it")
+    ax.plot([], [], color=REFERENCE, label="the rules after it")
+    ax.legend(loc="best", fontsize=8)
+    set_title(ax, title)
+    return save_figure(fig, stem)
 
 
 def count(exp: Experiment, section: Section) -> Count | None:

@@ -1,23 +1,12 @@
 """A program judged step by step: each state it prints is advanced one step by the reference
-rules (`--replay` of the reference binary, a process per chunk of steps), and its next state is
-compared with that successor. Every step is judged from where the program actually was, so the
-chaos of a whole trajectory (any change of precision or operation order grows by the free path
-over r at every collision) never enters the verdict.
+rules (`--replay` of the reference binary, a process per chunk of steps) and its next state is
+compared with that successor, so the chaos of a whole trajectory never enters the verdict.
 
-A printed state is known only to half a unit of its last digit. How far that uncertainty moves
-the successor is measured, not guessed: the state is replayed again perturbed within it (random
-signs, and their opposites), and a value is locally right when it lies within the program's own
-printing, a few roundings of L, and REPLAY_SAFETY times the spread of the perturbed successors
-that made the same decision, of any replayed successor. A replay that made another decision
-(another partner, a wall instead of a pair) is a near-tie: the program may follow it. Unless
-the two events are a real tie: the program's event and the reference's at the same time by the
-reference's arithmetic from the state the program printed. The tie order decides those, as at
-an exact input.
-
-A program that is locally right only with a coarser uncertainty (a float build, another contact-
-time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
-step no level explains is `wrong`, and the rule it breaks is named where the program's own states
-show it (harness.programs.events).
+A printed state is known only to half a unit of its last digit: how far that moves the
+successor is measured by replaying the state perturbed within it, and a replay that decides
+otherwise is a near-tie, unless the two events are a real tie (the tie order decides those).
+A coarser uncertainty (PRECISION_LADDER) that explains every step makes a program imprecise; a
+step none explains is wrong. The method at length: docs/programs.md, "Step by step".
 """
 
 from __future__ import annotations
