@@ -1,22 +1,12 @@
 """Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
-(`collide-bench worker`) measures on its compute node exactly as a local run does and
-writes the cell's record into the shared results directory. Validation therefore runs on the
-node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
-first task that needs it computes it (two tasks racing for it both compute it; os.replace
-keeps one). The submitter only waits, reads the records back, and rebuilds results.csv and
-the report. A task's state comes from, in order: its record on disk (the truth for every task
-that ran to the end), then what the client (harness.executors.slurm.client) learns from Slurm.
-
-Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
-kept like a local timeout (not measured again unless --force or the record is removed); a
-task cancelled (scancel), lost with its node, or ended without a record gets a `failed` record
-with the reason in `note`, marked `retry` (CellResult.retry): results.csv lists it, and the
-next run submits the cell again (its new record replaces the fault record). Both are written
-by the submitter, under the cell id it planned with.
-
-What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.watch):
-`--collect` (or running the same command again) adopts the jobs still in flight and submits
-nothing new (`--collect`) or only the cells neither recorded nor in flight.
+(`collide-bench worker`) measures on its compute node as a local run does, writing the cell's
+record into the shared results directory; the submitter waits and reads the records back. A
+task's state comes from its record on disk (the truth for every task that ran to the end), then
+from what Slurm says (harness.executors.slurm.client). A task that ends without a record gets
+one from the submitter, under the cell id it planned with: `timeout` past its time limit (kept,
+like a local timeout), else `failed` and `retry` (the next run submits the cell again). The jobs
+in flight are on file (harness.executors.slurm.watch), so that a second submitter, or `--collect`,
+adopts them. What a user sees of all this: docs/slurm.md.
 """
 
 from __future__ import annotations
@@ -33,27 +23,12 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO, cast
+from typing import cast
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
-from harness.executors.slurm.client import (
-    ACTIVE_STATES,
-    NEEDS_CLIENT,
-    RUNNING_STATES,
-    TIMEOUT_STATES,
-    SlurmError,
-    completed_states,
-    partition_cpus,
-    queue_states,
-    submit_array,
-)
-from harness.executors.slurm.watch import (
-    JOBS_FILE,
-    LOCK_FILE,
-    Job,
-    JobState,
-    RecordWatch,
-)
+from harness.executors.slurm import client
+from harness.executors.slurm.client import ACTIVE_STATES, RUNNING_STATES, TIMEOUT_STATES
+from harness.executors.slurm.watch import JOBS_FILE, LOCK_FILE, Job, JobState, RecordWatch
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
@@ -109,13 +84,9 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
 
 @dataclass
 class SlurmExecutor:
-    """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
-    are the config's `executor:` section with run.py's --partition over it.
-
-    Cells are named by their portable id (CellKey.portable_id: the key without the machine) in
-    the job scripts and jobs.json, and matched to the records the nodes write by the same id;
-    on_record still gets the cell id the runner planned with.
-    """
+    """Its settings are the config's `executor:` with --partition over it. Cells are named by
+    their portable id (the key without the machine) in the job scripts and jobs.json, and
+    matched by it to the records the nodes write; on_record gets the planned cell id."""
 
     spec: ExecutorSpec = field(default_factory=ExecutorSpec)
     name: str = "slurm"
@@ -123,7 +94,7 @@ class SlurmExecutor:
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         if shutil.which("sbatch") is None:
-            raise SlurmError(f"sbatch not found: {NEEDS_CLIENT}")
+            raise client.SlurmError(f"sbatch not found: {client.NEEDS_CLIENT}")
         options = experiment.options
         self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
             options.partition or experiment.config.executor.partition))
@@ -154,8 +125,7 @@ class SlurmExecutor:
             elif todo:
                 log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
                           "flight; run without --collect to submit them\n")
-        self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
-                  progress)
+        self.wait(experiment, cells, tasks, watch, on_record, progress)
 
     def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
                        cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
@@ -186,8 +156,8 @@ class SlurmExecutor:
         for job in state.jobs:
             if not set(job.cells) & set(cells):
                 continue
-            queued = queue_states(job.job_id)
-            final = completed_states(job.job_id) if queued is None else {}
+            queued = client.queue_states(job.job_id)
+            final = client.completed_states(job.job_id) if queued is None else {}
             for index, pid in enumerate(job.cells):
                 if pid not in cells:
                     continue
@@ -201,8 +171,8 @@ class SlurmExecutor:
                     ended[pid] = (task, slurm_state)
         return in_flight, ended
 
-    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path,
-                    ntasks: int = 1) -> list[str]:
+    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path, ntasks: int
+                    ) -> list[str]:
         spec = self.spec
         args = [f"--job-name=collide-{experiment.config.name}",
                 f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", f"--ntasks={ntasks}",
@@ -241,7 +211,7 @@ class SlurmExecutor:
         slurm_dir = state.path.parent
         logs = slurm_dir / LOGS_DIR
         logs.mkdir(parents=True, exist_ok=True)
-        largest = partition_cpus(self.spec.partition)
+        largest = client.partition_cpus(self.spec.partition)
         groups: dict[tuple[int, int], list[str]] = {}
         for pid in todo:
             cell = cells[pid][0]
@@ -255,8 +225,8 @@ class SlurmExecutor:
             script = slurm_dir / f"job-{stamp}-c{cpus}-n{ntasks}.sh"
             atomic.atomic_write_text(script, self.job_script(experiment, ids))
             submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
-            job_id = submit_array(script, len(ids),
-                                  self.sbatch_args(experiment, cpus, logs, ntasks))
+            job_id = client.submit_array(script, len(ids),
+                                         self.sbatch_args(experiment, cpus, logs, ntasks))
             state.jobs.append(Job(job_id, list(ids), submitted_at,
                                   f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
@@ -302,7 +272,8 @@ class SlurmExecutor:
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
              tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
              progress: Progress) -> None:
-        status = _Status(experiment.log, experiment.config.name, time.monotonic())
+        log, started = experiment.log, time.monotonic()
+        last_line, last_at = "", 0.0  # the status line, written when it changes or is old
         open_tasks = dict(tasks)
         announced: set[str] = set()
 
@@ -313,9 +284,9 @@ class SlurmExecutor:
 
         ended_at: dict[str, float] = {}
         arrived: dict[str, CellResult] = {}
-        last_done_at = status.started
+        last_done_at = started
         while open_tasks:
-            states = {job_id: queue_states(job_id)
+            states = {job_id: client.queue_states(job_id)
                       for job_id in sorted({t.job_id for t in open_tasks.values()})}
             # after squeue: a task it shows ended has written its record by now
             arrived.update(watch.new_records())
@@ -347,7 +318,17 @@ class SlurmExecutor:
                     announce(pid, cid)
                     del open_tasks[pid]
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
-            status.show(len(tasks) - len(open_tasks), len(tasks), running, waiting)
+            done, left = len(tasks) - len(open_tasks), len(open_tasks)
+            line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
+                    f"running, {waiting} pending")
+            if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:
+                elapsed = time.monotonic() - started
+                # from the throughput so far: queueing and start-up on the nodes included
+                eta = format_seconds(elapsed / done * left) if done and left else "?"
+                log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
+                          f"{eta if left else '0.0s'}\n")
+                log.flush()
+                last_line, last_at = line, time.monotonic()
             if open_tasks:
                 time.sleep(self.spec.poll_s)
 
@@ -360,30 +341,7 @@ def _slurm_state(task: Task, states: Mapping[str, dict[int, tuple[str, str]] | N
     seen = queued.get(task.index) if queued is not None else None
     if seen is None and not arrived:
         if task.job_id not in finals:
-            finals[task.job_id] = completed_states(task.job_id)
+            finals[task.job_id] = client.completed_states(task.job_id)
         return finals[task.job_id].get(task.index, "")
     return seen[0] if seen is not None else ""
 
-
-@dataclass
-class _Status:
-    """The sweep's status line in the log: written when it changes, else every
-    STATUS_EVERY_S."""
-
-    log: TextIO
-    name: str
-    started: float
-    last_line: str = ""
-    last_at: float = 0.0
-
-    def show(self, done: int, total: int, running: int, waiting: int) -> None:
-        elapsed = time.monotonic() - self.started
-        left = total - done
-        # from the throughput so far: queueing and start-up on the nodes included
-        eta = format_seconds(elapsed / done * left) if done and left else "?"
-        line = f"slurm: {self.name}: {done}/{total} done, {running} running, {waiting} pending"
-        if line != self.last_line or time.monotonic() - self.last_at >= STATUS_EVERY_S:
-            self.log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
-                           f"{eta if left else '0.0s'}\n")
-            self.log.flush()
-            self.last_line, self.last_at = line, time.monotonic()
