@@ -1,11 +1,7 @@
-"""The executor seam: who measures the pending cells of an experiment, and where.
-
-run_experiment (harness.runner) plans the cells, resolves the cached ones and hands the rest
-to an executor. The executor measures each pending cell somewhere, makes sure its record is on
-disk (CellStore.layout.record: the measuring side writes it, Measurer.finish), and
-calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
-the record and rebuilds results.csv from all records. Nothing on the recording side assumes
-the measurement ran in this process.
+"""The executor seam: run_experiment (harness.runner) hands an executor the cells not cached;
+it measures each somewhere, makes sure its record is on disk (the measuring side writes it,
+Measurer.finish) and calls on_record(cell, cell_id, record) once per cell as the record
+appears. Nothing on the recording side assumes the measurement ran in this process.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ task's state comes from its record on disk (the truth for every task that ran to
 from what Slurm says (harness.executors.slurm.client). A task that ends without a record gets
 one from the submitter, under the cell id it planned with: `timeout` past its time limit (kept,
 like a local timeout), else `failed` and `retry` (the next run submits the cell again). The jobs
-in flight are on file (harness.executors.slurm.watch), so that a second submitter, or `--collect`,
-adopts them. What a user sees of all this: docs/slurm.md.
+in flight are on file (client.JobState), so that a second submitter, or `--collect`, adopts
+them. What a user sees of all this: docs/slurm.md.
 """
 
 from __future__ import annotations
@@ -27,8 +27,6 @@ from typing import cast
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
 from harness.executors.slurm import client
-from harness.executors.slurm.client import ACTIVE_STATES, RUNNING_STATES, TIMEOUT_STATES
-from harness.executors.slurm.watch import JOBS_FILE, LOCK_FILE, Job, JobState, RecordWatch
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
@@ -103,16 +101,16 @@ class SlurmExecutor:
         cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
                  for cell, cid in pending}
         log = experiment.log
-        watch = RecordWatch(experiment.store.layout.cells)
+        watch = client.RecordWatch(experiment.store.layout.cells)
         watch.snapshot()
-        with locks.file_lock(slurm_dir / LOCK_FILE):
-            state = JobState.load(slurm_dir / JOBS_FILE)
+        with locks.file_lock(slurm_dir / client.LOCK_FILE):
+            state = client.JobState.load(slurm_dir / client.JOBS_FILE)
             if not options.force:
                 self.adopt_finished(experiment, state, watch, cells, on_record, progress)
             tasks, ended = self.adopt(state, cells)
             # a timeout while nobody watched is recorded now; other faults are submitted again
             for pid, (task, final) in list(ended.items()):
-                if final in TIMEOUT_STATES or options.collect:
+                if final in client.TIMEOUT_STATES or options.collect:
                     cell, cid = cells.pop(pid)
                     self.record_fault(experiment, cell, cid, task, final, on_record)
             todo = [pid for pid in cells if pid not in tasks]
@@ -127,9 +125,9 @@ class SlurmExecutor:
                           "flight; run without --collect to submit them\n")
         self.wait(experiment, cells, tasks, watch, on_record, progress)
 
-    def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
-                       cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
-                       progress: Progress) -> None:
+    def adopt_finished(self, experiment: Experiment, state: client.JobState,
+                       watch: client.RecordWatch, cells: dict[str, tuple[Cell, str]],
+                       on_record: OnRecord, progress: Progress) -> None:
         """Cells a task of ours measured after its submission (e.g. while the submitter was
         dead), whose record carries the node's machine and so escaped the runner's cache:
         recorded now, not submitted again."""
@@ -147,7 +145,7 @@ class SlurmExecutor:
                 progress.starting(cid)
                 self.accept(experiment, cell, cid, record, on_record)
 
-    def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
+    def adopt(self, state: client.JobState, cells: Mapping[str, tuple[Cell, str]]
               ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
         """The pending cells with a task still in flight, and those whose latest task ended
         (with its final state), from the jobs in the state file; by portable id."""
@@ -164,7 +162,7 @@ class SlurmExecutor:
                 task = Task(job.job_id, index)
                 seen = queued.get(index) if queued is not None else None
                 slurm_state = seen[0] if seen is not None else final.get(index, "")
-                if slurm_state in ACTIVE_STATES:
+                if slurm_state in client.ACTIVE_STATES:
                     in_flight[pid] = task
                     ended.pop(pid, None)
                 elif pid not in in_flight:
@@ -203,7 +201,7 @@ class SlurmExecutor:
             "",
         ])
 
-    def submit(self, experiment: Experiment, state: JobState,
+    def submit(self, experiment: Experiment, state: client.JobState,
                cells: Mapping[str, tuple[Cell, str]], todo: Sequence[str]) -> dict[str, Task]:
         """One array job per distinct --cpus-per-task and --ntasks (each cell gets at least its
         thread count a task, up to the largest node of the partition, and a task per MPI rank:
@@ -227,7 +225,7 @@ class SlurmExecutor:
             submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
             job_id = client.submit_array(script, len(ids),
                                          self.sbatch_args(experiment, cpus, logs, ntasks))
-            state.jobs.append(Job(job_id, list(ids), submitted_at,
+            state.jobs.append(client.Job(job_id, list(ids), submitted_at,
                                   f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
             tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
@@ -251,7 +249,7 @@ class SlurmExecutor:
         """The record of a cell whose task ended without one: the cell's identity, the status
         and the reason (the columns a measurement would fill stay empty); a retry record's
         cell the next run measures again."""
-        if slurm_state in TIMEOUT_STATES:
+        if slurm_state in client.TIMEOUT_STATES:
             limit = self.spec.time_limit_min
             note = (f"slurm task {task.name} passed its time limit"
                     + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
@@ -270,7 +268,7 @@ class SlurmExecutor:
         on_record(cell, cid, record)
 
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
-             tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
+             tasks: Mapping[str, Task], watch: client.RecordWatch, on_record: OnRecord,
              progress: Progress) -> None:
         log, started = experiment.log, time.monotonic()
         last_line, last_at = "", 0.0  # the status line, written when it changes or is old
@@ -296,7 +294,7 @@ class SlurmExecutor:
                 cell, cid = cells[pid]
                 record = arrived.get(pid)
                 slurm_state = _slurm_state(task, states, finals, record is not None)
-                if record is not None or slurm_state in RUNNING_STATES:
+                if record is not None or slurm_state in client.RUNNING_STATES:
                     announce(pid, cid)
                 if record is not None:
                     del open_tasks[pid]
@@ -305,9 +303,9 @@ class SlurmExecutor:
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
                     self.accept(experiment, cell, cid, record, on_record)
-                elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
+                elif slurm_state in client.RUNNING_STATES:  # a subset of client.ACTIVE_STATES
                     running += 1
-                elif slurm_state in ACTIVE_STATES:
+                elif slurm_state in client.ACTIVE_STATES:
                     waiting += 1
                 else:
                     # ended without a record; COMPLETED may still be in flight on the file system
