@@ -20,14 +20,7 @@ from harness.programs.events import broken_rule, pair_times, reference_event
 from harness.programs.printed import Rows, printed_like_all, read_rows
 from harness.programs.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
-from harness.store.columns import (
-    AGREEMENT_FAILED,
-    CORRECT,
-    IDENTICAL,
-    IMPRECISE,
-    ROUNDING,
-    WRONG,
-)
+from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, IMPRECISE, ROUNDING, WRONG
 
 
 @dataclass(frozen=True)
