@@ -87,8 +87,7 @@ def wait_until(what: str, ready, timeout: float = WAIT_S) -> None:
 
 
 def task_state(job_id: str, index: int) -> str:
-    states = slurm_client.queue_states(job_id) or {}
-    return states.get(index, ("", ""))[0]
+    return (slurm_client.queue_states(job_id) or {}).get(index, "")
 
 
 def submitter(config: Path, root: Path, log: Path) -> subprocess.Popen[bytes]:

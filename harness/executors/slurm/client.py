@@ -86,24 +86,28 @@ def cancel(job_id: str, task: int | None = None) -> None:
     slurm_command(["scancel", job_id if task is None else f"{job_id}_{task}"])
 
 
-def queue_states(job_id: str) -> dict[int, tuple[str, str]] | None:
-    """task -> (state, reason) of an array job's tasks as squeue shows them (finished ones
-    too, for MinJobAge); None when squeue no longer knows the job."""
-    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T|%r"],
+def task_states(text: str, job_id: str) -> dict[int, str]:
+    """task -> state, from lines `JOBID_TASK|STATE` (squeue's, sacct's) of the array job."""
+    states: dict[int, str] = {}
+    for line in text.splitlines():
+        ident, _, state = line.strip().partition("|")
+        job, _, task = ident.partition("_")
+        if job == job_id and task.isdigit():
+            states[int(task)] = state.split()[0] if state else ""
+    return states
+
+
+def queue_states(job_id: str) -> dict[int, str] | None:
+    """task -> state of an array job's tasks as squeue shows them (finished ones too, for
+    MinJobAge); None when squeue no longer knows the job."""
+    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T"],
                          check=False)
     if done.returncode != 0:
         if "Invalid job id" in done.stderr:
             return None
         raise SlurmError(f"squeue -j {job_id} failed (exit {done.returncode}): "
                          f"{' '.join(done.stderr.split())[-500:]}")
-    states: dict[int, tuple[str, str]] = {}
-    for line in done.stdout.splitlines():
-        ident, _, rest = line.strip().partition("|")
-        state, _, reason = rest.partition("|")
-        job, _, task = ident.partition("_")
-        if job == job_id and task.isdigit():
-            states[int(task)] = (state.split()[0] if state else "", reason)
-    return states if states else None
+    return task_states(done.stdout, job_id) or None
 
 
 def jobcomp_file() -> Path | None:
@@ -131,13 +135,7 @@ def completed_states(job_id: str) -> dict[int, str]:
         return states
     done = slurm_command(["sacct", "-n", "-P", "-X", "-j", job_id, "-o", "JobID,State"],
                          check=False)
-    if done.returncode == 0:
-        for line in done.stdout.splitlines():
-            ident, _, state = line.partition("|")
-            job, _, task = ident.partition("_")
-            if job == job_id and task.isdigit():
-                states[int(task)] = state.split()[0] if state else ""
-    return states
+    return task_states(done.stdout, job_id) if done.returncode == 0 else states
 
 
 JOBS_FILE = "jobs.json"

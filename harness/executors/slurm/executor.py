@@ -154,14 +154,12 @@ class SlurmExecutor:
         for job in state.jobs:
             if not set(job.cells) & set(cells):
                 continue
-            queued = client.queue_states(job.job_id)
-            final = client.completed_states(job.job_id) if queued is None else {}
+            states = client.queue_states(job.job_id) or client.completed_states(job.job_id)
             for index, pid in enumerate(job.cells):
                 if pid not in cells:
                     continue
                 task = Task(job.job_id, index)
-                seen = queued.get(index) if queued is not None else None
-                slurm_state = seen[0] if seen is not None else final.get(index, "")
+                slurm_state = states.get(index, "")
                 if slurm_state in client.ACTIVE_STATES:
                     in_flight[pid] = task
                     ended.pop(pid, None)
@@ -331,15 +329,14 @@ class SlurmExecutor:
                 time.sleep(self.spec.poll_s)
 
 
-def _slurm_state(task: Task, states: Mapping[str, dict[int, tuple[str, str]] | None],
+def _slurm_state(task: Task, states: Mapping[str, dict[int, str] | None],
                  finals: dict[str, dict[int, str]], arrived: bool) -> str:
     """A task's Slurm state: squeue's while it lists the task, else sacct's for one whose
     record has not arrived (asked once a job in `finals`), else none."""
-    queued = states[task.job_id]
-    seen = queued.get(task.index) if queued is not None else None
+    seen = (states[task.job_id] or {}).get(task.index)
     if seen is None and not arrived:
         if task.job_id not in finals:
             finals[task.job_id] = client.completed_states(task.job_id)
         return finals[task.job_id].get(task.index, "")
-    return seen[0] if seen is not None else ""
+    return seen or ""
 
