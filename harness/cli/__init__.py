@@ -34,10 +34,7 @@ COMMANDS: tuple[str, ...] = tuple(COMMAND_MODULES)
 # The features the command line lends the core, which imports none of them (light to import:
 # what they run is imported when used).
 REPORT_FEATURES: tuple[ReportFeature, ...] = (programs.REPORT,)
-
-
-def hooks() -> Hooks:
-    return Hooks(program_runner=programs.start_program)
+HOOKS = Hooks(program_runner=programs.start_program)
 
 
 def command(name: str) -> ModuleType:
@@ -79,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # which the running cell's processes are killed and the finished cells are kept.
         signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        return int(module.execute(parsed, hooks()))
+        return int(module.execute(parsed, HOOKS))
     except HarnessError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_ERROR

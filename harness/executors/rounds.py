@@ -222,13 +222,10 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
 
 
 def _finish_done(active: list[Unit], on_done: OnDone) -> list[Unit]:
-    still = []
     for unit in active:
         if unit.state.done:
             on_done(unit, unit.measurer.finish(unit.state, unit.seconds))
-        else:
-            still.append(unit)
-    return still
+    return [unit for unit in active if not unit.state.done]
 
 
 def _eta(to_start: Sequence[Unit], started: Sequence[Unit],

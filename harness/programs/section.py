@@ -62,9 +62,6 @@ INTRO = (
 ANCHOR = "programs"
 BEFORE, PROGRAM, REFERENCE = "#888888", "#d62728", "#1f77b4"
 PAD_RADII = 3.0  # room around the discs, in radii
-
-
-
 PROGRAM_KEYS = ("variant", "scene", "n", "L", "r", "steps", "threads")
 # What grading a program cost beyond its run (harness.programs.cell).
 GRADING_COLUMNS = ("check_s", "replay_s")
@@ -96,11 +93,8 @@ CLASS_KEYS = ("scene", "n", "L", "r", "steps")
 
 def class_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per program and scene, for grading a class: its verdict (the worst of its
-    cells), first wrong step, particle-free rule, whether its runs were repeatable, its median
-    time at each thread count, its speedup against seq (seq's fastest median on the scene)
-    and against its own 1-thread time at its highest thread count, that speedup's efficiency,
-    and its rank by time at its highest thread count among the programs that are right; the
-    data races ThreadSanitizer found in it (`none`; empty where it was not checked)."""
+    cells) and what explains it, its times, speedups and efficiency at its highest thread
+    count, and its rank there among the programs that are right (what each means: INTRO)."""
     rows = df[is_program(df)]
     keys = [k for k in CLASS_KEYS if k in df.columns]
     # an MPI program's rank counts are rows of their own: its times are by thread count
@@ -143,7 +137,6 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
     table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
     time_columns = sorted((c for c in table.columns if c.startswith("time_")),
                           key=lambda c: int(c[5:-3]))
-    ranks = [RANKS] if RANKS in table.columns else []
     if ranks:
         table[RANKS] = table[RANKS].astype("Int64")
     order = ["program", *keys, *ranks, "verdict", "first_wrong_step", "rule", "repeatable", "races",

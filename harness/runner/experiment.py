@@ -242,9 +242,8 @@ def write_env_after(directory: Path, env: Mapping[str, object]) -> None:
 
 def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]], warn: bool = True
                ) -> list[tuple[Cell, str]]:
-    """The (cell, cell_id)s without a cached record; the cached records go into
-    experiment.records. A damaged record (or hyperfine export) is named, and its cell is
-    measured again."""
+    """The (cell, cell_id)s without a cached record, the cached ones kept in experiment.records;
+    a damaged record (or hyperfine export) is named, and its cell measured again."""
     pending = []
     for cell, cid in cells:
         try:

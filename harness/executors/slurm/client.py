@@ -145,9 +145,8 @@ JOBS_VERSION = 1
 
 @dataclass
 class RecordWatch:
-    """The records that appear in cells/ while we wait, by the portable id of their key (the
-    key without the machine). Files present when the run started count only once rewritten
-    (--force)."""
+    """The records that appear in cells/ while we wait, by portable id; files there when the
+    run started count only once rewritten (--force)."""
 
     cells_dir: Path
     seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
