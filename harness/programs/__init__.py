@@ -1,7 +1,7 @@
 """Programs, implementations of the model written elsewhere (`programs:` in a config, parsed by
-harness.spec.programs): a program's cell run and its printed states judged against seq step by
-step (cell; agreement, printed, steps, events; races: ThreadSanitizer on a copy built from its
-source), the report's section and the tables a class is graded by (section).
+harness.spec.programs): a program's cell run, its races found (cell) and its printed states
+judged against seq step by step (agreement, printed, steps, events), the report's section and
+the tables a class is graded by (section).
 
 The core imports none of it: the command line gives `start_program` to whatever measures cells
 (harness.measure.cell.Measurer's program_runner, through harness.runner.command.Hooks) and
