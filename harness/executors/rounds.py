@@ -98,12 +98,9 @@ def join_ratios(units: Sequence[Unit]) -> None:
 
 
 def hold_for_ratios(units: Sequence[Unit]) -> None:
-    """A cell that its interval stopped goes on, within its limits, while a cell of its
-    ratios still takes rounds, or while one of its ratios is wider than `ci` (its other side
-    stopped by its interval too). A ratio's interval is over the rounds both sides have, so a
-    reference that stops at five rounds would leave its ratios five whatever their cells
-    took; and a round's ratio carries the run noise of both sides, so two sides that stop at
-    +-ci each leave their ratio wider."""
+    """A cell that its interval stopped goes on, within its limits, while a cell of its ratios
+    still takes rounds, or while one of its ratios is wider than `ci`: a ratio's interval is
+    over the rounds both sides have, and carries the run noise of both sides."""
     going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
     held = [unit for unit in units if unit.run is not None and unit.run.stopped == STOPPED_CI
             and not _at_limit(unit) and any(id(side) in going or not _ratio_narrow(unit, side)

@@ -1,17 +1,14 @@
-"""The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs): its
+"""The untimed runs of a program's cell (`programs:` in a config; docs/programs.md): its
 command once on the cell's input (does it run at all; its peak memory); its check command in
-print mode, judged against seq's `--precise` output and step by step (harness.programs.agreement);
-at the config's highest thread count the check twice more, at that count and at 1 thread
-(outputs that differ: nondeterministic), and for a program with `source:` and `build:` a race
-check: a copy built with ThreadSanitizer, run on a small scene, each race read as its two
-accesses' file:line. The cell is ok when the program agrees, else invalid; either way it is then
-timed like any variant.
+print mode, judged against seq's output (harness.programs.agreement); at the config's highest
+thread count the check twice more, at that count and at 1 thread (outputs that differ:
+nondeterministic), and for a program with `source:` and `build:`, a copy built with
+ThreadSanitizer run on a small scene, each race read as its two accesses' file:line.
 
-The race check uses clang with LLVM's OpenMP runtime and Archer (loaded by OMP_TOOL_LIBRARIES),
-which tells TSan of the runtime's barriers, locks and tasks: no false positives, where gcc's
+The race check uses clang and Archer (LLVM's OpenMP tool, loaded by OMP_TOOL_LIBRARIES), which
+tells TSan of the OpenMP runtime's barriers, locks and tasks: no false positives, where gcc's
 TSan, blind to libgomp's barriers, would report every parallel loop followed by serial code.
-TSan checks happens-before, not timing: two threads on any scene that runs the racy code find
-the race.
+TSan checks happens-before, not timing: two threads on a small scene find a race.
 """
 
 from __future__ import annotations
@@ -218,12 +215,10 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
                           timeout_s)
         reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
         races = parse_reports(reports, program.directory)
-        note = ""
         if ran.returncode != 0 and not races:
             return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
-        if races:
-            note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
-                    f"{description}: " + "; ".join(r.describe() for r in races))
+        note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
+                f"{description}: " + "; ".join(r.describe() for r in races)) if races else ""
         return RaceCheck(races, note, scene=description)
 
 

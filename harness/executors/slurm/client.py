@@ -1,7 +1,7 @@
-"""What the Slurm executor learns from outside: Slurm's client commands (plain `sbatch --array` /
-`squeue` / `scontrol` / `sacct` through subprocess) and Slurm's job states; the records the nodes
-write (RecordWatch); and <experiment>/slurm/jobs.json (JobState), every array job submitted for
-an experiment: its job id, the cell of each array task, when and by whom it was submitted.
+"""What the Slurm executor learns from outside: Slurm's client commands (`sbatch --array`,
+`squeue`, `scontrol`, `sacct` through subprocess) and job states; the records the nodes write
+(RecordWatch); and <experiment>/slurm/jobs.json (JobState), every array job submitted for an
+experiment.
 
 Not submitit: submitit learns that a job ended from sacct; without Slurm's accounting database
 (slurmdbd + MariaDB, which many small clusters and our test cluster do not run) it never sees
@@ -10,10 +10,9 @@ finished task with its final state (TIMEOUT, CANCELLED, NODE_FAIL, ...) for MinJ
 default) after it ended; then the jobcomp/filetxt completion file when the cluster keeps one
 (it needs no database); then sacct where accounting exists.
 
-A node writes its record under the cell id of its own machine, which the submitter cannot know
-beforehand, so records are matched on their portable id. Submitters take <experiment>/slurm/lock
-while they read Slurm's view of their jobs and submit, so two submitters never submit the same
-cell; a submitter killed mid-sweep loses nothing, since the tasks write their records themselves.
+A node writes its record under its own machine's cell id, which the submitter cannot know, so
+records are matched on their portable id. Submitters take <experiment>/slurm/lock while they
+read Slurm's view of their jobs and submit, so two never submit the same cell.
 """
 
 from __future__ import annotations

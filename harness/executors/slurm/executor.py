@@ -1,12 +1,9 @@
-"""Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
-(`collide-bench worker`) measures on its compute node as a local run does, writing the cell's
-record into the shared results directory; the submitter waits and reads the records back. A
-task's state comes from its record on disk (the truth for every task that ran to the end), then
-from what Slurm says (harness.executors.slurm.client). A task that ends without a record gets
-one from the submitter, under the cell id it planned with: `timeout` past its time limit (kept,
-like a local timeout), else `failed` and `retry` (the next run submits the cell again). The jobs
-in flight are on file (client.JobState), so that a second submitter, or `--collect`, adopts
-them. What a user sees of all this: docs/slurm.md.
+"""Slurm as an executor (docs/slurm.md): each pending cell is one task of a job array, which
+`collide-bench worker` measures on its node, writing the cell's record into the shared results
+directory. A task's state comes from its record on disk (the truth for every task that ran to
+the end), then from Slurm (client). A task that ends without a record gets one from the
+submitter, under the cell id it planned with: `timeout` past its time limit, else `failed` and
+`retry` (the next run submits the cell again).
 """
 
 from __future__ import annotations
