@@ -3,10 +3,9 @@ harness.spec.programs): a program's cell run, its races found (cell) and its pri
 judged against seq step by step (agreement, printed, steps, events), the report's section and
 the tables a class is graded by (section).
 
-The core imports none of it: the command line gives `start_program` to whatever measures cells
-(harness.measure.cell.Measurer's program_runner, through harness.runner.command.Hooks) and
-REPORT to the report. Standard library only here: what measures or draws is imported when a
-program's cell is measured or an experiment's section is built.
+The core imports none of it: the command line lends it `start_program` (Hooks.program_runner)
+and REPORT. Standard library only here: what measures or draws is imported when a program's
+cell is measured or an experiment's section is built.
 """
 
 from __future__ import annotations
