@@ -187,14 +187,10 @@ def _reached(explain: _Explainer, before: list[int], open_: dict[int, np.ndarray
 
 
 def _chunks(steps: list[int]) -> list[list[int]]:
-    """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop
-    early (at a wrong step, a level that fails) replays little, and one that cannot, few
-    processes."""
-    out, at, size = [], 0, 1
-    while at < len(steps):
-        out.append(steps[at:at + size])
-        at, size = at + size, 2 * size
-    return out
+    """The steps in chunks of 1, 2, 4, ... (chunk k from 2**k - 1): a replay per chunk, so that
+    a check that can stop early (at a wrong step, a level that fails) replays little, and one
+    that cannot, few processes."""
+    return [steps[2**k - 1:2 ** (k + 1) - 1] for k in range(len(steps).bit_length())]
 
 
 class _Explainer:

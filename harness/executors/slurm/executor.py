@@ -167,15 +167,12 @@ class SlurmExecutor:
     def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path, ntasks: int
                     ) -> list[str]:
         spec = self.spec
-        args = [f"--job-name=collide-{experiment.config.name}",
+        return [f"--job-name=collide-{experiment.config.name}",
                 f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", f"--ntasks={ntasks}",
                 f"--time={time_limit_minutes(spec, experiment)}",
-                f"--chdir={experiment.options.repo_root}"]
-        if spec.partition:
-            args.append(f"--partition={spec.partition}")
-        if spec.exclusive:
-            args.append("--exclusive")
-        return [*args, *spec.extra]
+                f"--chdir={experiment.options.repo_root}",
+                *([f"--partition={spec.partition}"] if spec.partition else []),
+                *(["--exclusive"] if spec.exclusive else []), *spec.extra]
 
     def job_script(self, experiment: Experiment, ids: Sequence[str]) -> str:
         options = experiment.options
