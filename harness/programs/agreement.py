@@ -153,10 +153,9 @@ def _within_rounding(ours: Rows, theirs: Rows, mine: np.ndarray, match: np.ndarr
 def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, replay: Replay,
                 compared: int, extra: dict[str, object], departure: str,
                 level0: float | None, initial: np.ndarray | None) -> Agreement:
-    """The verdict of the step-local check on a program that leaves seq's rounding; its
-    state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
-    the input's exact state, which a program that prints it within rounding holds: its first
-    step is judged from there, with no uncertainty (an exact tie in the input is one)."""
+    """The verdict of the step-local check on a program that leaves seq's rounding, its state at
+    step 0 the input at the precision level0 (None: the printed one). `initial`: the input's
+    exact state, from which its first step is judged (an exact tie in the input is one)."""
     states, halves = _states(ours, inside, n)
     exact: frozenset[int] = frozenset()
     if initial is not None and 0 in states:

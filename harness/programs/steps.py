@@ -310,9 +310,8 @@ class _Explainer:
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the
-        reference's at exactly the reference's time, both from the program's state at step k
-        by the reference's arithmetic (harness.programs.events): a tie that the tie order
-        decides, not a near-tie."""
+        reference's at exactly its time, both from the program's state at step k by the
+        reference's arithmetic: a tie that the tie order decides, not a near-tie."""
         before, after = self.states[k], self.states[k + 1]
         out = np.zeros(len(rows), dtype=bool)
         for m, i in enumerate(rows):
