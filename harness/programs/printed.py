@@ -49,8 +49,6 @@ class _Tokens(Sequence[tuple[str, ...]]):
         return len(self.start)
 
     def __getitem__(self, k):  # type: ignore[no-untyped-def, override]
-        if isinstance(k, slice):
-            return [self[j] for j in range(*k.indices(len(self)))]
         return tuple(self.data[a:b].decode() for a, b in zip(self.start[k], self.end[k],
                                                              strict=True))
 
