@@ -1,9 +1,11 @@
 """Slurm as an executor (docs/slurm.md): each pending cell is one task of a job array, which
 `collide-bench worker` measures on its node, writing the cell's record into the shared results
-directory. A task's state comes from its record on disk (the truth for every task that ran to
-the end), then from Slurm (client). A task that ends without a record gets one from the
-submitter, under the cell id it planned with: `timeout` past its time limit, else `failed` and
-`retry` (the next run submits the cell again).
+directory. Validation runs on the node: seq's output is cached on the shared file system by the
+first task that needs it (two racing both compute it; os.replace keeps one). A task's state
+comes from its record on disk (the truth for every task that ran to the end), then from Slurm
+(client). A task that ends without a record gets one from the submitter, under the cell id it
+planned with: `timeout` past its time limit, else `failed` and `retry` (the next run submits
+the cell again).
 """
 
 from __future__ import annotations
@@ -218,7 +220,7 @@ class SlurmExecutor:
             job_id = client.submit_array(script, len(ids),
                                          self.sbatch_args(experiment, cpus, logs, ntasks))
             state.jobs.append(client.Job(job_id, list(ids), submitted_at,
-                                  f"{socket.gethostname()}:{os.getpid()}"))
+                                         f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
             tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
             experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
