@@ -15,9 +15,7 @@ contracts keep them so):
     stats        statistics, standard library and scipy
 
 Features stand on the core and not on each other, each one package with its command, its
-analysis and its report part: comparison (`compare`), history (`history`), reruns (`reruns`)
-and programs (`programs:` in a config: a foreign implementation's cells run, judged step by
-step against seq and graded in the report). The core imports no feature: where it calls one,
-the feature lends a hook that the command line passes in (cli.features: the Measurer's
-program_runner, the report's ReportFeature).
+analysis and its report part: comparison, history, reruns and programs. The core imports no
+feature: where it calls one, the feature lends a hook that the command line passes in
+(docs/extending.md).
 """

@@ -12,15 +12,12 @@ class HarnessError(Exception):
 
 
 class StorageError(HarnessError):
-    """The harness cannot keep what it measures: the place it writes to is full, read-only, not
-    its to write, or not a directory. A fault of the machine or of the place it was pointed
-    at, never a cell's result: no record is written and the run stops."""
+    """The harness cannot keep what it measures (the place it writes to is full, read-only, not
+    its to write): a fault of the machine or the place, never a cell's result; the run stops."""
 
 
-# The OS errors a user causes by where the harness is pointed or what it is left: a full disk
-# or quota, a file-size limit, a read-only place, a missing permission, a file where a
-# directory should be (or the reverse), a path too long or looping. Each ends a command with
-# one `error:` line (exit 2), never a traceback.
+# The OS errors a user causes by where the harness is pointed or what it is left: each ends a
+# command with one `error:` line (exit 2), never a traceback.
 USER_ERRNOS: frozenset[int] = frozenset({
     errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM,
     errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG, errno.ELOOP})

@@ -1,10 +1,9 @@
 """Start a harness command under the repository's .venv when this Python lacks what it needs.
 
-`python harness/run.py` and `python harness/compare.py` run this file by path (the harness
-package may not be importable yet under a plain `python`), and `python -m harness` imports
-it. When the harness package and its third-party packages import, the command runs here;
-else it is re-executed with .venv/bin/python (where `make setup` installed the project), or,
-without one, one error line says what is missing. Standard library only.
+`python harness/run.py` and `harness/compare.py` run this file by path (the harness package
+may not be importable yet under a plain `python`); `python -m harness` imports it. Where a
+package is missing, the command is re-executed with .venv/bin/python, or, without one, one
+error line says what is missing. Standard library only.
 """
 
 from __future__ import annotations
@@ -37,13 +36,8 @@ def ensure_packages(entry: Sequence[str]) -> None:
     sys.exit(EXIT_MISSING)
 
 
-def start(command: str, script: str) -> None:
-    """Run `collide-bench COMMAND ARGS...` for the script `script` (harness/run.py, ...)."""
-    ensure_packages([script])
+if __name__ == "__main__":  # run by path from a script (harness/run.py, ...): COMMAND, SCRIPT
+    ensure_packages([globals()["SCRIPT"]])
     from harness.cli import main
 
-    sys.exit(main([command, *sys.argv[1:]]))
-
-
-if __name__ == "__main__":  # run by path from a script, with COMMAND and SCRIPT given
-    start(globals()["COMMAND"], globals()["SCRIPT"])
+    sys.exit(main([globals()["COMMAND"], *sys.argv[1:]]))

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from harness import repo
 from harness.plan.cells import plan_cells
-from harness.programs.tables import program_table
+from harness.programs.section import program_table
 from harness.spec import scenes
 from harness.spec.facts import read_variants
 from harness.spec.parse import load_config

@@ -3,12 +3,10 @@ scripts harness/run.py and harness/compare.py for run and compare).
 
 Each command is a module (the core's here, a feature's in its package: COMMAND_MODULES) with
 `parser(prog)` and `execute(args, hooks) -> exit status`, `hooks` being what the features lend
-the core's measuring (harness.cli.features); main()
-parses, runs it, and prints any HarnessError, and any OS error a user can cause (a full disk, a
-read-only or forbidden place, a file where a directory should be: harness.errors.USER_ERRNOS),
-as one `error: ...` line with exit status 2 (real bugs keep their traceback). A measuring
-command also says, in INTERRUPTED (formatted with its arguments), what a Ctrl-C or SIGTERM
-keeps: it then ends with that line and status 130.
+the core's measuring. main() parses, runs it, and prints any HarnessError, and any OS error a
+user can cause (harness.errors.USER_ERRNOS), as one `error: ...` line with exit status 2 (real
+bugs keep their traceback). A measuring command also says, in INTERRUPTED (formatted with its
+arguments), what a Ctrl-C or SIGTERM keeps: it then ends with that line and status 130.
 """
 
 from __future__ import annotations
@@ -20,9 +18,10 @@ import textwrap
 from collections.abc import Sequence
 from types import ModuleType
 
-from harness.cli.features import hooks
+from harness import programs
 from harness.errors import HarnessError, is_user_os_error, os_error_text
-from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG
+from harness.report.features import ReportFeature
+from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG, Hooks
 
 USAGE_WIDTH = 100
 # Each command's module: the core's here, a feature's in its own package.
@@ -32,6 +31,10 @@ COMMAND_MODULES: dict[str, str] = {
     "report": "harness.cli.report", "store": "harness.cli.store", "worker": "harness.cli.worker",
 }
 COMMANDS: tuple[str, ...] = tuple(COMMAND_MODULES)
+# The features the command line lends the core, which imports none of them (light to import:
+# what they run is imported when used).
+REPORT_FEATURES: tuple[ReportFeature, ...] = (programs.REPORT,)
+HOOKS = Hooks(program_runner=programs.start_program)
 
 
 def command(name: str) -> ModuleType:
@@ -73,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # which the running cell's processes are killed and the finished cells are kept.
         signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        return int(module.execute(parsed, hooks()))
+        return int(module.execute(parsed, HOOKS))
     except HarnessError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_ERROR

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from harness.cli.features import REPORT_FEATURES
+from harness.cli import REPORT_FEATURES
 from harness.errors import HarnessError, os_error_text
 from harness.repo import DEFAULT_RESULTS_DIR, default_report_dir
 from harness.runner.command import Hooks, Parser, check_derived, directory_option

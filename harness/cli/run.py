@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from harness.cli.features import REPORT_FEATURES
+from harness.cli import REPORT_FEATURES
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
@@ -108,9 +108,8 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
 
 
 def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
-    """A full run renders every experiment under the results root into `report_dir`; a
-    --quick run renders only the quick experiments it just ran, into
-    `report_dir/report-quick`. The page to open (report.html)."""
+    """The page to open (report.html): of every experiment under the results root, or of a
+    --quick run's own experiments, in `report_dir/report-quick`."""
     from harness.report.pipeline import render
 
     check_derived(options.results_root, sys.stderr)

@@ -19,28 +19,26 @@ from harness.store import index, layout
 from harness.store.superseded import prune
 from harness.store.trust import DamagedFile
 
+ACTIONS = {  # each action's help
+    "prune": "prune experiment directories or results roots",
+    "facts": f"write {layout.VARIANTS_JSON} (the variants' --describe, from this repository's "
+             "build, made where stale) into experiment directories or results roots that were "
+             "measured with this build",
+    "upgrade": "rewrite the records of earlier versions of the harness under experiment "
+               "directories or results roots as the current version keeps them",
+    "migrate": "give records measured along an axis their variant ignores (a serial variant at "
+               "threads > 1) their cell's key, once: the newest where the cell has no record at "
+               "the axis's one value, the others to history/",
+}
+
 
 def parser(prog: str) -> argparse.ArgumentParser:
     parser = Parser(prog=prog, description="Move superseded cell records (an older binary's, "
                     "same machine, cell and settings as a newer record) from cells/ to "
                     "history/.")
     sub = parser.add_subparsers(dest="action", required=True)
-    prune_parser = sub.add_parser("prune", help="prune experiment directories or results roots")
-    prune_parser.add_argument("paths", nargs="+", type=Path)
-    facts_parser = sub.add_parser(
-        "facts", help=f"write {layout.VARIANTS_JSON} (the variants' --describe, from this "
-        "repository's build, made where stale) into experiment directories or results roots "
-        "that were measured with this build")
-    facts_parser.add_argument("paths", nargs="+", type=Path)
-    upgrade_parser = sub.add_parser(
-        "upgrade", help="rewrite the records of earlier versions of the harness under "
-        "experiment directories or results roots as the current version keeps them")
-    upgrade_parser.add_argument("paths", nargs="+", type=Path)
-    migrate_parser = sub.add_parser(
-        "migrate", help="give records measured along an axis their variant ignores (a serial "
-        "variant at threads > 1) their cell's key, once: the newest where the cell has no "
-        "record at the axis's one value, the others to history/")
-    migrate_parser.add_argument("paths", nargs="+", type=Path)
+    for action, what in ACTIONS.items():
+        sub.add_parser(action, help=what).add_argument("paths", nargs="+", type=Path)
     return parser
 
 

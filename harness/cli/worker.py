@@ -1,12 +1,9 @@
 """Measure planned cells of a config by id in this process (a Slurm task runs it).
 
-It plans the config again (as the run did, with the same --quick), finds each cell by its id or
-portable id, and measures them with the local executor (in rounds, with the given round seed or
-a fresh one), which writes each record atomically to <results-dir>/<name>/cells/<id>.json.
-Progress goes to stderr (a Slurm task's log). It builds nothing and consults no cached record:
-the caller sends only pending cells, with the binaries already built on a shared file system.
-An id that is not a cell of the plan (or whose binaries are missing) is one error and nothing
-is measured.
+The config planned again as the run did, each cell found by its id or portable id and measured
+by the local executor, which writes its record; progress on stderr (the task's log). Nothing is
+built and no cached record consulted: the caller sends only pending cells, with the binaries
+built on a shared file system. An id not of the plan is one error, and nothing is measured.
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
-"""Who measures the pending cells, and where: the executor interface (base), the local
-executor (rounds) and Slurm (slurm, whose tasks run `collide-bench worker`). A new executor is
-one module with a class that has `name` and `run` (base.Executor), registered in EXECUTORS
-below."""
+"""Who measures the pending cells, and where: the interface (base), here in rounds (rounds) or
+as Slurm tasks (slurm). A new executor is a class with `name` and `run` (base.Executor),
+registered in EXECUTORS."""
 
 from __future__ import annotations
 

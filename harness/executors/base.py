@@ -1,11 +1,7 @@
-"""The executor seam: who measures the pending cells of an experiment, and where.
-
-run_experiment (harness.runner) plans the cells, resolves the cached ones and hands the rest
-to an executor. The executor measures each pending cell somewhere, makes sure its record is on
-disk (CellStore.layout.record: the measuring side writes it, Measurer.finish), and
-calls on_record(cell, cell_id, record) once per cell as its record appears; on_record keeps
-the record and rebuilds results.csv from all records. Nothing on the recording side assumes
-the measurement ran in this process.
+"""The executor seam: run_experiment (harness.runner) hands an executor the cells not cached;
+it measures each somewhere, makes sure its record is on disk (the measuring side writes it,
+Measurer.finish) and calls on_record(cell, cell_id, record) once per cell as the record
+appears. Nothing on the recording side assumes the measurement ran in this process.
 """
 
 from __future__ import annotations
@@ -43,16 +39,10 @@ class Options:
     collect: bool = False  # slurm: adopt the jobs in flight, submit nothing
     partition: str | None = None  # slurm: overrides the config's executor.partition
     round_seed: int | None = None  # the order of the cells in each round; None: a fresh one
-    # How long an experiment's run may wait, in all, for others to leave the cores before it
-    # takes a disturbed round again (harness.measure.noise.QuietWait); 0: it never waits
-    quiet_wait_s: float = 0.0
+    quiet_wait_s: float = 0.0  # how long it may wait for quiet cores, in all (noise.QuietWait)
     started: str = ""  # when the run began (ISO 8601): env.json's run_started
-    # The machine-wide measuring lock of this run (harness.store.locks), taken before the first
-    # cell is measured; None: measure without it (tests that fake hyperfine).
-    run_lock: locks.RunLock | None = None
-    # How a program's cell is run and checked (the programs feature's, lent by the command
-    # line: harness.runner.command.Hooks); None: a program's cell is refused.
-    program_runner: ProgramRunner | None = None
+    run_lock: locks.RunLock | None = None  # the machine's measuring lock; None: measure without
+    program_runner: ProgramRunner | None = None  # None: a program's cell is refused (Hooks)
 
 
 @dataclass
@@ -93,11 +83,10 @@ def format_seconds(seconds: float) -> str:
 
 @dataclass
 class Progress:
-    """The progress lines of a run, in plan order: `[k/n] name: cell  cached` for each cached
-    cell, `[k/n] name: cell  elapsed T  eta E` as each pending cell starts; then, where cells
-    are timed in rounds, a line a round. The ETA is the executor's estimate where it gives one
-    (a range for adaptive repetition), else the mean duration of the cells finished so far
-    times the number still to measure."""
+    """The progress lines of a run, in plan order: `[k/n] name: cell  cached` or `... elapsed T
+    eta E` as each pending cell starts; then, where cells are timed in rounds, a line a round.
+    The ETA is the executor's estimate where it gives one, else the mean duration of the cells
+    finished so far times the number still to measure."""
 
     name: str
     order: Sequence[tuple[Cell, str]]  # every planned cell with its id
@@ -123,8 +112,7 @@ class Progress:
         self._next = max(self._next, stop)
 
     def resumed(self, count: int) -> None:
-        """Say how many cells an interrupted run left part-measured, which go on where it
-        stopped."""
+        """How many cells an interrupted run left part-measured, which go on where it stopped."""
         if count:
             self.log.write(f"{self.name}: {count} cell{'s' if count > 1 else ''} resumed from "
                            "an interrupted run (their untimed runs and rounds so far kept)\n")
@@ -143,9 +131,8 @@ class Progress:
 
     def round_done(self, round_index: int, timed: int, done: int, low_s: float,
                    high_s: float, status: str = "") -> None:
-        """A round of timed runs: how many cells it timed, how many of them are done, and what
-        the rest may still take (a range where adaptive repetition decides); `status`: what
-        the executor adds (a comparison's cells decided and its budget left)."""
+        """A round: the cells it timed, those done, what the rest may still take (a range where
+        adaptive repetition decides), and what the executor adds (`status`)."""
         elapsed = format_seconds(time.monotonic() - self.started)
         left = timed - done
         eta = (format_seconds(low_s) if high_s - low_s < max(1.0, 0.1 * low_s)

@@ -1,12 +1,10 @@
 """Measuring many cells in alternating rounds, in this process (the local executor).
 
-First every cell's untimed runs (its --precise run, validation, checks: Measurer.start), then
-rounds: in each, every cell that still needs runs gets one hyperfine call, in an order shuffled
-from the run's seed (recorded in each record), until every cell has its runs. The machine's
-slow drift thus falls on all cells alike. Two cells can be partners (the two sides of a
-comparison, harness.runner.pair): they then take the same runs a round (a few, for a fast
-cell: share_rounds), one right after the other in a shuffled order (round_order), and stop
-together, so that each round holds runs of both and their rounds can be compared pair by pair.
+First every cell's untimed runs (Measurer.start), then rounds: in each, every cell that still
+needs runs gets one hyperfine call, in an order shuffled from the run's seed, so that the
+machine's slow drift falls on all cells alike. Partners (the two sides of a comparison,
+harness.runner.pair) take the same runs a round, one right after the other, and stop together,
+so that their rounds can be compared pair by pair.
 """
 
 from __future__ import annotations
@@ -81,9 +79,8 @@ def pair_up(units: Sequence[Unit]) -> None:
 
 
 def join_ratios(units: Sequence[Unit]) -> None:
-    """Join each cell to the cells of its ratios (analysis.ratios.references: its variant at one
-    thread, the baseline), among the cells of its scene, build and schedule that one measurer
-    times (the two sides of a comparison are apart)."""
+    """Join each cell to the cells of its ratios (its variant at one thread, the baseline)
+    among those of its scene, build and schedule that one measurer times."""
     groups: dict[tuple[object, ...], dict[Place, Unit]] = {}
     for unit in units:
         if unit.partner is not None:  # a comparison's cell stops with its partner
@@ -101,12 +98,9 @@ def join_ratios(units: Sequence[Unit]) -> None:
 
 
 def hold_for_ratios(units: Sequence[Unit]) -> None:
-    """A cell that its interval stopped goes on, within its limits, while a cell of its
-    ratios still takes rounds, or while one of its ratios is wider than `ci` (its other side
-    stopped by its interval too). A ratio's interval is over the rounds both sides have, so a
-    reference that stops at five rounds would leave its ratios five whatever their cells
-    took; and a round's ratio carries the run noise of both sides, so two sides that stop at
-    +-ci each leave their ratio wider."""
+    """A cell that its interval stopped goes on, within its limits, while a cell of its ratios
+    still takes rounds, or while one of its ratios is wider than `ci`: a ratio's interval is
+    over the rounds both sides have, and carries the run noise of both sides."""
     going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
     held = [unit for unit in units if unit.run is not None and unit.run.stopped == STOPPED_CI
             and not _at_limit(unit) and any(id(side) in going or not _ratio_narrow(unit, side)
@@ -176,9 +170,8 @@ def round_order(units: Sequence[Unit], rng: random.Random) -> list[Unit]:
 
 def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress,
                       seed: int | None, extend: Extend | None = None) -> int:
-    """Start every unit, then time them in rounds; on_done(unit, record) as each is done;
-    extend(units timed) after each round. The rounds' order follows the seed (a fresh one
-    where None); the seed."""
+    """Start every unit, then time them in rounds, in an order that follows the seed (a fresh
+    one where None); on_done(unit, record) as each is done. The seed."""
     if seed is None:
         seed = random.SystemRandom().randrange(2**32)
     for unit in units:
@@ -226,20 +219,16 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
 
 
 def _finish_done(active: list[Unit], on_done: OnDone) -> list[Unit]:
-    still = []
     for unit in active:
         if unit.state.done:
             on_done(unit, unit.measurer.finish(unit.state, unit.seconds))
-        else:
-            still.append(unit)
-    return still
+    return [unit for unit in active if not unit.state.done]
 
 
 def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
          overhead: float = 0.0) -> tuple[float, float]:
-    """The fewest and most seconds the units still take: their runs left at their run time,
-    a round's call `overhead` a run (the cells not started yet at the started ones' mean, or
-    unknown)."""
+    """The fewest and most seconds the units still take: their runs left at their run time
+    plus a round's `overhead` (the cells not started yet at the started ones' mean)."""
     low = high = 0.0
     per_run: list[float] = []
     for unit in started:

@@ -51,7 +51,7 @@ OMP_SCHEDULE_VAR = "OMP_SCHEDULE"
 class ProgramRunner(Protocol):
     """How a program's cell (`programs:` in a config) is run and checked: its untimed runs and
     its verdict against seq in the record, and the CellRun its timed rounds continue. The
-    programs feature gives one (harness.programs.hooks.start_program); the core imports no
+    programs feature gives one (harness.programs.start_program); the core imports no
     feature."""
 
     def __call__(self, store: CellStore, references: References, cell: Cell, cell_id: str,

@@ -1,24 +1,11 @@
 """A program's output against seq's (pure: texts and a replay in, a verdict out).
 
-Both outputs are read as rows `step index x y vx vy [pcoll wcoll]` (harness.programs.printed)
-and matched on (step, index); rows only one side prints are ignored (a program that prints its
-initial state, or lines of its own). A program must print every particle of each step it
-prints, and the state after the last step. A value is *within rounding* of seq's when the two
-differ by at most half a unit in the last digit the program printed, plus ARITH_ULPS double
-roundings of L (a correct program that orders its arithmetic differently). The verdict
-(store.columns.AGREEMENTS):
-
-* identical: every value is what seq's prints as at the program's precision, and the
-  collision counts agree;
-* rounding: every value within rounding, at every step;
-* otherwise the program is judged step by step (harness.programs.steps): each printed step from
-  the program's own state before it, by the reference's `--replay`. correct: every step locally
-  right at the printed precision (leaving seq's trajectory is then chaos); imprecise: locally
-  right only at a coarser precision, named; wrong: a step no precision explains, with its
-  particle, both states, the reference's event and the rule broken where the program's states
-  show it (harness.programs.events). A state at step 0 other than the input is wrong at step 0;
-* failed: nothing to compare (no output, no readable line, too few particles, no final state,
-  no two consecutive steps printed to judge).
+Both outputs are read as rows (harness.programs.printed) matched on (step, index); a value is
+within rounding of seq's when the two differ by at most half a unit in the last digit the
+program printed, plus ARITH_ULPS double roundings of L (a correct program that orders its
+arithmetic differently). A program within rounding at every step is identical or rounding;
+any other is judged step by step (harness.programs.steps). The verdicts and what each needs:
+docs/programs.md, "The check".
 """
 
 from __future__ import annotations
@@ -33,14 +20,7 @@ from harness.programs.events import broken_rule, pair_times, reference_event
 from harness.programs.printed import Rows, printed_like_all, read_rows
 from harness.programs.steps import ARITH_ULPS, PRECISION_LADDER, Replay, judge_steps
 from harness.spec.builds import DOUBLE_EPS
-from harness.store.columns import (
-    AGREEMENT_FAILED,
-    CORRECT,
-    IDENTICAL,
-    IMPRECISE,
-    ROUNDING,
-    WRONG,
-)
+from harness.store.columns import AGREEMENT_FAILED, CORRECT, IDENTICAL, IMPRECISE, ROUNDING, WRONG
 
 
 @dataclass(frozen=True)
@@ -173,10 +153,9 @@ def _within_rounding(ours: Rows, theirs: Rows, mine: np.ndarray, match: np.ndarr
 def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, replay: Replay,
                 compared: int, extra: dict[str, object], departure: str,
                 level0: float | None, initial: np.ndarray | None) -> Agreement:
-    """The verdict of the step-local check on a program that leaves seq's rounding; its
-    state at step 0 is the input at the precision level0 (None: the printed one). `initial`:
-    the input's exact state, which a program that prints it within rounding holds: its first
-    step is judged from there, with no uncertainty (an exact tie in the input is one)."""
+    """The verdict of the step-local check on a program that leaves seq's rounding, its state at
+    step 0 the input at the precision level0 (None: the printed one). `initial`: the input's
+    exact state, from which its first step is judged (an exact tie in the input is one)."""
     states, halves = _states(ours, inside, n)
     exact: frozenset[int] = frozenset()
     if initial is not None and 0 in states:

@@ -1,30 +1,28 @@
-"""The untimed runs of a program's cell (`programs:` in a config, harness.spec.programs).
+"""The untimed runs of a program's cell (`programs:` in a config; docs/programs.md): its
+command once on the cell's input (does it run at all; its peak memory); its check command in
+print mode, judged against seq's output (harness.programs.agreement); at the config's highest
+thread count the check twice more, at that count and at 1 thread (outputs that differ:
+nondeterministic), and for a program with `source:` and `build:`, a copy built with
+ThreadSanitizer run on a small scene, each race read as its two accesses' file:line.
 
-  1. its command, once, on the cell's input (every particle listed), under the cell timeout:
-     does it run at all (a command not found, a crash, a hang: the cell's status says so), and
-     its peak resident memory (the command's processes the shell waited for included);
-  2. its check: the check command on the cell's scene in print mode (its first steps for a big
-     scene), its stdout judged against seq's `--precise` print-mode output on the same input,
-     and step by step by the reference's `--replay` (harness.programs.agreement);
-  3. at the config's highest thread count, the check run twice more, once at that count and
-     once at 1 thread: outputs that differ make the program nondeterministic; and for a
-     program with `source:` and `build:`, a copy built with ThreadSanitizer run on a small
-     scene (harness.programs.races): a data race makes it nondeterministic too, whatever its
-     outputs were.
-
-The cell is ok when the program agrees (identical, rounding, correct, imprecise), invalid when
-it is wrong, nondeterministic or its output cannot be compared; either way it is then timed
-like any variant.
+The race check uses clang and Archer (LLVM's OpenMP tool, loaded by OMP_TOOL_LIBRARIES), which
+tells TSan of the OpenMP runtime's barriers, locks and tasks: no false positives, where gcc's
+TSan, blind to libgomp's barriers, would report every parallel loop followed by serial code.
+TSan checks happens-before, not timing: two threads on a small scene find a race.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import re
 import shlex
+import shutil
 import tempfile
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from harness.measure.proc import (
@@ -43,7 +41,6 @@ from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore
 from harness.programs.agreement import Agreement, judge
 from harness.programs.printed import first_difference
-from harness.programs.races import RaceCheck, find_races, small_scene
 from harness.programs.steps import Replay
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
@@ -53,10 +50,176 @@ from harness.store.columns import (
     AGREEMENT_FAILED,
     CRASHED,
     INVALID,
+    NO_RACES,
     NONDETERMINISTIC,
     OK,
 )
 from harness.store.result import CellResult
+
+TSAN_CC = "clang"
+TSAN_CFLAGS = "-fsanitize=thread -fopenmp -g -O1 -fno-omit-frame-pointer"
+# Archer lies beside LLVM's libomp, in the lib directory of clang's own installation.
+ARCHER = "libarcher.so"
+# The runtime's own frames are not instrumented; exit code 0 so that a report does not count
+# as the program's failure; the reports go to files (log_path.PID), not into its stderr.
+TSAN_OPTIONS = "ignore_noninstrumented_modules=1 exitcode=0 log_path={log}"
+# The small scene: at most TSAN_N particles at the cell's density, TSAN_STEPS steps, and
+# TSAN_THREADS threads (two are enough to show an unsynchronised pair of accesses).
+TSAN_N = 200
+TSAN_STEPS = 5
+TSAN_THREADS = 2
+PACKAGES = "clang libclang-rt-dev libomp-dev"  # Debian's: clang, its TSan runtime, Archer
+
+
+@dataclass(frozen=True)
+class Race:
+    """One data race: the file:line of its two accesses (in sorted order) and the global
+    variables it was reported on."""
+
+    first: str
+    second: str
+    variables: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        where = f" ({', '.join(self.variables)})" if self.variables else ""
+        return f"{self.first} and {self.second}{where}"
+
+
+@dataclass(frozen=True)
+class RaceCheck:
+    """What the ThreadSanitizer run found: its races (None: it did not run) and a note."""
+
+    races: tuple[Race, ...] | None
+    note: str = ""
+    threads: int = TSAN_THREADS
+    scene: str = ""
+
+    def column(self) -> str:
+        """The races column: each race's file:lines, `none`, or empty when not checked."""
+        if self.races is None:
+            return ""
+        return "; ".join(r.describe() for r in self.races) if self.races else NO_RACES
+
+
+# A report: the lines after its WARNING line, up to its separator (or the next report).
+REPORT = re.compile(r"^WARNING: ThreadSanitizer: data race[^\n]*\n(.*?)"
+                    r"(?=^={10,}$|^WARNING: ThreadSanitizer: data race|\Z)", re.M | re.S)
+ACCESS = re.compile(r"^\s+(Previous )?(atomic )?(read|write) of size \d+ at ", re.IGNORECASE)
+# `#0 function /path/file.c:116:16 (binary+0x...)`; a C++ function's name has spaces.
+FRAME = re.compile(r"^\s+#\d+ .* (?P<file>\S+?):(?P<line>\d+)(?::\d+)? \(")
+ANY_FRAME = re.compile(r"^\s+#\d+ ")
+LOCATION = re.compile(r"^\s+Location is global '(?P<name>[^']+)'")
+
+
+def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
+    """The data races of TSan's report text, deduplicated by their two file:lines, in the
+    order of their files and lines. An access is placed at its first stack frame in a file under
+    `directory` (the program's own code; shown relative to it), else its first frame with a
+    file."""
+    found: dict[tuple[str, str], list[str]] = {}
+    for block in map(str.splitlines, REPORT.findall(text)):
+        accesses: list[list[str]] = []
+        variable = ""
+        stack = False  # in the frames of an access's stack (they follow its line at once)
+        for line in block:
+            if ACCESS.match(line):
+                accesses.append([])
+                stack = True
+            elif stack and ANY_FRAME.match(line):
+                frame = FRAME.match(line)
+                if frame is not None:
+                    accesses[-1].append(f"{_shown(frame['file'], directory)}:{frame['line']}")
+            else:
+                stack = False
+                if location := LOCATION.match(line):
+                    variable = location["name"]
+        places = [_own(frames) for frames in accesses[:2]]
+        if len(places) != 2 or not all(places):
+            continue
+        key = (min(places, key=_place_key), max(places, key=_place_key))
+        names = found.setdefault(key, [])
+        if variable and variable not in names:
+            names.append(variable)
+    return tuple(Race(a, b, tuple(names)) for (a, b), names in sorted(
+        found.items(), key=lambda item: (_place_key(item[0][0]), _place_key(item[0][1]))))
+
+
+def _place_key(place: str) -> tuple[str, int]:
+    file, _, line = place.rpartition(":")
+    return file, int(line)
+
+
+def _shown(file: str, directory: Path) -> str:
+    path = Path(file)
+    try:
+        return str(path.resolve().relative_to(directory.resolve())) if path.is_absolute() \
+            else file
+    except ValueError:
+        return file
+
+
+def _own(frames: list[str]) -> str:
+    """The first frame in the program's own files (a relative path), else the first one."""
+    own = [f for f in frames if not f.startswith("/")]
+    return own[0] if own else (frames[0] if frames else "")
+
+
+def small_scene(scene: scenes.ScenePoint) -> scenes.ScenePoint:
+    """The scene the TSan copy runs: at most TSAN_N particles drawn from the cell's seed, in
+    a box shrunk to keep the cell's density (its collisions), at most TSAN_STEPS steps."""
+    n = min(scene.n, TSAN_N)
+    L = scene.L * math.sqrt(n / scene.n) if scene.n else scene.L
+    if scenes.scene_problem(n, L, scene.r, scene.steps, scene.mode) is not None:
+        L = scene.L
+    steps = min(scene.steps, TSAN_STEPS)
+    return scenes.with_every_particle(scenes.random_point(n, L, scene.r, steps, scene.mode,
+                                                          scene.seed))
+
+
+def archer_library(clang: str) -> Path | None:
+    path = Path(os.path.realpath(clang)).parent.parent / "lib" / ARCHER
+    return path if path.is_file() else None
+
+
+def find_races(program: Program, input_file: Path, description: str, env: Mapping[str, str],
+               timeout_s: float) -> RaceCheck:
+    """Build the program with ThreadSanitizer and run its command with Archer at TSAN_THREADS
+    threads."""
+    def skipped(why: str) -> RaceCheck:
+        return RaceCheck(None, f"not checked for races: {why}", scene=description)
+
+    clang = shutil.which(TSAN_CC)
+    if clang is None:
+        return skipped(f"{TSAN_CC} not found (Debian: apt-get install {PACKAGES})")
+    archer = archer_library(clang)
+    if archer is None:
+        return skipped(f"{ARCHER} not found beside {TSAN_CC} (Debian: apt-get install "
+                       f"{PACKAGES})")
+    missing = [str(p) for p in program.source if not p.exists()]
+    if missing:
+        return skipped(f"its source is missing: {', '.join(missing)}")
+    with tempfile.TemporaryDirectory(prefix="tsan-") as tmp:
+        binary = Path(tmp) / f"{program.name}-tsan"
+        built = run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
+        if built.returncode != 0 or not binary.is_file():
+            return skipped(failure(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS})",
+                                   built, timeout_s))
+        template = program.with_binary(program.command, binary)
+        if template is None:
+            return skipped("its command names no file its build replaces (the program's "
+                           "binary must be a word of its command)")
+        log = Path(tmp) / "tsan"
+        run_env = {**env, "OMP_NUM_THREADS": str(TSAN_THREADS), "OMP_TOOL_LIBRARIES": str(archer),
+                   "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
+        ran = run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
+                          timeout_s)
+        reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
+        races = parse_reports(reports, program.directory)
+        if ran.returncode != 0 and not races:
+            return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
+        note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
+                f"{description}: " + "; ".join(r.describe() for r in races)) if races else ""
+        return RaceCheck(races, note, scene=description)
 
 
 def start_program(store: CellStore, references: References, cell: Cell, cell_id: str,
@@ -68,12 +231,16 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads,
                                     cell.ranks)
     done = run_process(command, env, timeout_s, memory=True)
+
+    def ran(record: CellResult, status: str = OK, code: int | None = 0) -> CellRun:
+        return CellRun(cell_id, key, record, status, code, command, run_s=done.seconds)
+
     record = record.replace(command=shlex.join(command), program=_described(program),
                             stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
     status, code = _status(done)
     if status != OK:
-        return _not_run(record, cell_id, key, command, status, code,
-                        failure("its run", done, timeout_s), done.seconds)
+        return ran(record.replace(agreement=AGREEMENT_FAILED,
+                                  note=failure("its run", done, timeout_s)), status, code)
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads,
@@ -82,16 +249,16 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
                                  store.layout.output(cell_id) if store.config.keep_output
                                  else None)
-    check_status, check_code = _status(checked)
-    if check_status != OK:
-        return _not_run(record, cell_id, key, command, check_status, check_code,
-                        failure("its check run (print mode)", checked, timeout_s), done.seconds)
+    status, code = _status(checked)
+    if status != OK:
+        return ran(record.replace(agreement=AGREEMENT_FAILED, note=failure(
+            "its check run (print mode)", checked, timeout_s)), status, code)
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
         record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: "
                                 f"{refs[REFERENCE].name}'s print-mode run failed")
-        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+        return ran(record)
     replays: list[float] = []
     replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
     judged = time.monotonic()
@@ -105,14 +272,13 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     record = record.replace(check_s=checked.seconds + time.monotonic() - judged,
                             replay_s=math.fsum(replays))
     if verdict is None:
-        return CellRun(cell_id, key, record, OK, 0, command, run_s=done.seconds)
+        return ran(record)
     if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
         verdict, record = _repeated_and_raced(program, store, cell, store.input_file(scene),
                                               env, timeout_s, text, verdict, record)
     record = record.replace(**verdict.fields(), note=_note(
         verdict.note, steps, cell.scene.steps, refs[REFERENCE].name))
-    status = OK if verdict.verdict in AGREEING else INVALID
-    return CellRun(cell_id, key, record, status, 0, command, run_s=done.seconds)
+    return ran(record, OK if verdict.verdict in AGREEING else INVALID)
 
 
 def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
@@ -212,10 +378,4 @@ def _described(program: Program) -> dict[str, str]:
 def _status(done: ProcessResult) -> tuple[str, int | None]:
     status, code = exit_status(done.returncode)
     return (CRASHED if signal_of(code) is not None else status), code
-
-
-def _not_run(record: CellResult, cell_id: str, key: dict[str, object], command: list[str],
-             status: str, code: int | None, note: str, seconds: float) -> CellRun:
-    record = record.replace(agreement=AGREEMENT_FAILED, note=note)
-    return CellRun(cell_id, key, record, status, code, command, run_s=seconds)
 

@@ -1,11 +1,7 @@
-"""What seq did with one particle in one step, from the states before and after it: the
-candidate of SPEC section 2 that reproduces its move (a pair collision and its partner, a wall
-and which, and whether it then stopped at a wall), or free motion; and which rule of SPEC
-section 2 a program's wrong step breaks (harness.programs.steps finds the step), read from the
-program's own states before and after it: the first check that holds names the rule, None
-when none does (the values then speak for themselves). Pure numpy, the SPEC's expressions in
-its order; used to tell a student where to look when a program first leaves seq's trajectory
-(harness.programs.agreement)."""
+"""What seq did with one particle in one step (the candidate of SPEC section 2 that reproduces
+its move, or free motion), and which rule of SPEC section 2 a program's wrong step breaks, read
+from the program's own states before and after it: the first check that holds names the rule.
+Pure numpy, the SPEC's expressions in its order: it tells a student where to look."""
 
 from __future__ import annotations
 

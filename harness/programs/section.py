@@ -1,27 +1,43 @@
-"""Programs in the report: the section (the class table, one row per program, also written
-as `<experiment>-programs.csv` for a gradebook; one line per program cell with its verdict and
-what it and the reference did at the step named; for each wrong program a figure of its first
-wrong step) and the experiment's count of program cells that agree with seq, for the summary's
-fidelity line (harness.programs.REPORT gives both to the report)."""
+"""Programs in the report: the section (the class table, one row per program, also written as
+`<experiment>-programs.csv` for a gradebook; one line per program cell, the rows that carry a
+verdict, with its verdict and what it and the reference did at the step named (its note); a
+figure of each wrong program's first wrong step: the particle and its partners before the step,
+where the program put them after it and where the rules do) and the count of program cells that
+agree with seq, for the summary's fidelity line."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+from matplotlib.patches import Circle
 
-from harness.analysis.cells import is_program
+from harness.analysis.cells import is_program, sort_cells
+from harness.analysis.flags import agreement_text
+from harness.analysis.ranks import RANKS, any_ranked
 from harness.analysis.serving import measured_once
-from harness.programs.figure import fig_wrong_step
-from harness.programs.tables import class_table, program_table
 from harness.report.document import Block, Paragraph, Section
+from harness.report.figures.base import new_figure, save_figure, set_title
 from harness.report.load import Experiment
 from harness.report.parts import Count
 from harness.report.sections.context import Context, table_block
 from harness.report.summary import subsection_anchor
+from harness.spec.facts import BASELINE, Variants
 from harness.store import atomic
-from harness.store.columns import AGREEING, WRONG
+from harness.store.columns import (
+    AGREEING,
+    AGREEMENT_FAILED,
+    CORRECT,
+    DIFFERS,
+    DIVERGES,
+    IDENTICAL,
+    IMPRECISE,
+    NONDETERMINISTIC,
+    ROUNDING,
+    WRONG,
+)
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
@@ -44,6 +60,98 @@ INTRO = (
 )
 
 ANCHOR = "programs"
+BEFORE, PROGRAM, REFERENCE = "#888888", "#d62728", "#1f77b4"
+PAD_RADII = 3.0  # room around the discs, in radii
+PROGRAM_KEYS = ("variant", "scene", "n", "L", "r", "steps", "threads")
+# What grading a program cost beyond its run (harness.programs.cell).
+GRADING_COLUMNS = ("check_s", "replay_s")
+
+
+def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
+    """One row per program cell: where it is, its status, its agreement, what its check cost
+    and the detail (in the order of `variants`, the programs after them)."""
+    rows = df[is_program(df)]
+    keys = [k for k in PROGRAM_KEYS if k in rows.columns]
+    if any_ranked(rows):
+        keys.append(RANKS)
+    table = rows[[*keys, "status"]].copy()
+    table["agreement"] = rows.apply(agreement_text, axis=1) if len(rows) else []
+    for column in GRADING_COLUMNS:  # absent from results measured before they were kept
+        if column in rows.columns and rows[column].notna().any():
+            table[column] = rows[column]
+    table["detail"] = rows["note"].fillna("") if "note" in rows.columns else ""
+    return sort_cells(table, keys, variants)
+
+
+# A program's verdict over its cells, the worst first: what a class table shows for it.
+VERDICT_ORDER: tuple[str, ...] = (NONDETERMINISTIC, WRONG, DIFFERS, AGREEMENT_FAILED, IMPRECISE,
+                                  DIVERGES, CORRECT, ROUNDING, IDENTICAL)
+# Verdicts whose times rank: a program that is right (at some precision).
+RANKED: frozenset[str] = frozenset({IMPRECISE, DIVERGES, CORRECT, ROUNDING, IDENTICAL})
+CLASS_KEYS = ("scene", "n", "L", "r", "steps")
+
+
+def class_table(df: pd.DataFrame) -> pd.DataFrame:
+    """One row per program and scene, for grading a class: its verdict (the worst of its
+    cells) and what explains it, its times, speedups and efficiency at its highest thread
+    count, and its rank there among the programs that are right (what each means: INTRO)."""
+    rows = df[is_program(df)]
+    keys = [k for k in CLASS_KEYS if k in df.columns]
+    # an MPI program's rank counts are rows of their own: its times are by thread count
+    ranks = [RANKS] if any_ranked(rows) else []
+    out = []
+    for (variant, *group), cells in rows.groupby(["variant", *keys, *ranks], sort=True,
+                                                 dropna=False):
+        scene = group[:len(keys)]
+        verdicts = [v for v in VERDICT_ORDER if v in set(cells["agreement"])]
+        verdict = verdicts[0] if verdicts else str(cells["agreement"].iloc[0])
+        worst = cells[cells["agreement"] == verdict].sort_values("threads").iloc[0]
+        step = worst.get("first_diff_step")
+        row: dict[str, object] = {"program": variant,
+                                  **dict(zip([*keys, *ranks], group, strict=True)),
+                                  "verdict": verdict,
+                                  "first_wrong_step": (int(step) if verdict == WRONG
+                                                       and pd.notna(step) else None),
+                                  "rule": (str(worst.get("rule")) if verdict == WRONG
+                                           and pd.notna(worst.get("rule")) else ""),
+                                  "repeatable": ("no" if verdict == NONDETERMINISTIC else "yes"),
+                                  "races": _races(cells)}
+        times = cells.set_index("threads")["wall_median_s"].dropna()
+        for threads, seconds in times.sort_index().items():
+            row[f"time_{int(threads)}t_s"] = float(seconds)
+        seq = df[(df["variant"] == BASELINE) & (df[keys] == scene).all(axis=1)]
+        seq_s = seq["wall_median_s"].min()
+        top = int(times.index.max()) if len(times) else None
+        fastest = float(times[top]) if top is not None else np.nan
+        row["fastest"] = fastest
+        row["threads_max"] = top
+        row["speedup_vs_seq"] = seq_s / fastest if seq_s > 0 else np.nan
+        row["speedup_vs_1t"] = float(times.get(1, np.nan)) / fastest
+        row["efficiency"] = row["speedup_vs_1t"] / top if top else np.nan
+        out.append(row)
+    table = pd.DataFrame(out)
+    if not len(table):
+        return table
+    right = table["verdict"].isin(RANKED)
+    table["rank"] = table["fastest"].where(right).rank(method="min").astype("Int64")
+    table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
+    time_columns = sorted((c for c in table.columns if c.startswith("time_")),
+                          key=lambda c: int(c[5:-3]))
+    if ranks:
+        table[RANKS] = table[RANKS].astype("Int64")
+    order = ["program", *keys, *ranks, "verdict", "first_wrong_step", "rule", "repeatable", "races",
+             *time_columns, "threads_max", "speedup_vs_seq", "speedup_vs_1t", "efficiency",
+             "rank"]
+    return table[order].sort_values(["rank", "program"], na_position="last").reset_index(
+        drop=True)
+
+
+def _races(cells: pd.DataFrame) -> str:
+    """The races column of a program's cells (the one checked: its highest thread count's)."""
+    if "races" not in cells.columns:
+        return ""
+    found = [str(v) for v in cells["races"].dropna() if str(v)]
+    return found[0] if found else ""
 
 
 def write_csv(table: pd.DataFrame, stem: Path) -> Path:
@@ -100,6 +208,36 @@ def _neighbourhood(record: Path) -> tuple[pd.DataFrame, float] | None:
         values = pd.DataFrame(detail[where])
         data[f"x_{where}"], data[f"y_{where}"] = values[0], values[1]
     return data, float(detail["r"])
+
+
+def fig_wrong_step(data: pd.DataFrame, stem: Path, r: float, title: str) -> list[Path]:
+    """`data`: one row per particle shown (the wrong one first), columns particle and x, y of
+    `before`, `program`, `reference` (x_before, y_before, ...)."""
+    fig, ax = new_figure()
+    for _, row in data.iterrows():
+        start = (row["x_before"], row["y_before"])
+        for where, color in (("program", PROGRAM), ("reference", REFERENCE)):
+            end = (row[f"x_{where}"], row[f"y_{where}"])
+            ax.annotate("", xy=end, xytext=start,
+                        arrowprops={"arrowstyle": "->", "color": color, "lw": 1.2})
+            ax.add_patch(Circle(end, r, fill=False, color=color, lw=1.2))
+        ax.add_patch(Circle(start, r, fill=False, color=BEFORE, lw=1.0, ls="--"))
+        ax.annotate(str(int(row["particle"])), start, textcoords="offset points",
+                    xytext=(4, 4), fontsize=8, color=BEFORE)
+    xs = pd.concat([data[f"x_{w}"] for w in ("before", "program", "reference")])
+    ys = pd.concat([data[f"y_{w}"] for w in ("before", "program", "reference")])
+    pad = PAD_RADII * r
+    ax.set_xlim(xs.min() - pad, xs.max() + pad)
+    ax.set_ylim(ys.min() - pad, ys.max() + pad)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x (length units)")
+    ax.set_ylabel("y (length units)")
+    ax.plot([], [], color=BEFORE, ls="--", label="before the step")
+    ax.plot([], [], color=PROGRAM, label="the program after it")
+    ax.plot([], [], color=REFERENCE, label="the rules after it")
+    ax.legend(loc="best", fontsize=8)
+    set_title(ax, title)
+    return save_figure(fig, stem)
 
 
 def count(exp: Experiment, section: Section) -> Count | None:

@@ -1,23 +1,12 @@
 """A program judged step by step: each state it prints is advanced one step by the reference
-rules (`--replay` of the reference binary, a process per chunk of steps), and its next state is
-compared with that successor. Every step is judged from where the program actually was, so the
-chaos of a whole trajectory (any change of precision or operation order grows by the free path
-over r at every collision) never enters the verdict.
+rules (`--replay` of the reference binary, a process per chunk of steps) and its next state is
+compared with that successor, so the chaos of a whole trajectory never enters the verdict.
 
-A printed state is known only to half a unit of its last digit. How far that uncertainty moves
-the successor is measured, not guessed: the state is replayed again perturbed within it (random
-signs, and their opposites), and a value is locally right when it lies within the program's own
-printing, a few roundings of L, and REPLAY_SAFETY times the spread of the perturbed successors
-that made the same decision, of any replayed successor. A replay that made another decision
-(another partner, a wall instead of a pair) is a near-tie: the program may follow it. Unless
-the two events are a real tie: the program's event and the reference's at the same time by the
-reference's arithmetic from the state the program printed. The tie order decides those, as at
-an exact input.
-
-A program that is locally right only with a coarser uncertainty (a float build, another contact-
-time formula) is `imprecise` at the first level of PRECISION_LADDER that explains every step; a
-step no level explains is `wrong`, and the rule it breaks is named where the program's own states
-show it (harness.programs.events).
+A printed state is known only to half a unit of its last digit: how far that moves the
+successor is measured by replaying the state perturbed within it, and a replay that decides
+otherwise is a near-tie, unless the two events are a real tie (the tie order decides those).
+A coarser uncertainty (PRECISION_LADDER) that explains every step makes a program imprecise; a
+step none explains is wrong. The method at length: docs/programs.md, "Step by step".
 """
 
 from __future__ import annotations
@@ -198,14 +187,10 @@ def _reached(explain: _Explainer, before: list[int], open_: dict[int, np.ndarray
 
 
 def _chunks(steps: list[int]) -> list[list[int]]:
-    """The steps in chunks of 1, 2, 4, ...: a replay per chunk, so that a check that can stop
-    early (at a wrong step, a level that fails) replays little, and one that cannot, few
-    processes."""
-    out, at, size = [], 0, 1
-    while at < len(steps):
-        out.append(steps[at:at + size])
-        at, size = at + size, 2 * size
-    return out
+    """The steps in chunks of 1, 2, 4, ... (chunk k from 2**k - 1): a replay per chunk, so that
+    a check that can stop early (at a wrong step, a level that fails) replays little, and one
+    that cannot, few processes."""
+    return [steps[2**k - 1:2 ** (k + 1) - 1] for k in range(len(steps).bit_length())]
 
 
 class _Explainer:
@@ -325,9 +310,8 @@ class _Explainer:
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the
-        reference's at exactly the reference's time, both from the program's state at step k
-        by the reference's arithmetic (harness.programs.events): a tie that the tie order
-        decides, not a near-tie."""
+        reference's at exactly its time, both from the program's state at step k by the
+        reference's arithmetic: a tie that the tie order decides, not a near-tie."""
         before, after = self.states[k], self.states[k + 1]
         out = np.zeros(len(rows), dtype=bool)
         for m, i in enumerate(rows):

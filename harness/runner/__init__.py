@@ -1,2 +1,2 @@
 """Running measurements: one config's experiment (experiment), two sides measured together
-(pair, with the sides' builds in sides), and every commit of a range (history)."""
+(pair, with the sides' builds in sides), and what every command shares (command)."""

@@ -1,8 +1,7 @@
-"""What every command shares (the core's in harness.cli, a feature's in its package): its
-argument parser's way with errors and the checks of its numeric arguments, the flags of the
-measuring commands (each defined once, here), the program's name, how the measuring commands
-read their configs, take the measuring lock and find their report's directory, and the hooks
-the command line lends every command (Hooks: what a feature lends the core's measuring)."""
+"""What every command shares (the core's in harness.cli, a feature's in its package): the
+argument parser and its numeric types, the measuring commands' flags (each defined once, here),
+how those commands read their configs, take the measuring lock and find their report's
+directory, and the hooks the command line lends every command."""
 
 from __future__ import annotations
 
@@ -44,9 +43,8 @@ QUICK_REPORT = "report-quick"  # where a --quick run's report goes, under the re
 @dataclass(frozen=True)
 class Hooks:
     """What the features lend the core's measuring, given to every command by the command line
-    (harness.cli, the one place that knows the features): how a program's cell is run and
-    checked (harness.programs). A command passes it on to what measures cells; None: a
-    program's cell is refused."""
+    (the one place that knows the features): how a program's cell is run and checked
+    (harness.programs); None: a program's cell is refused."""
 
     program_runner: ProgramRunner | None = None
 
@@ -139,9 +137,8 @@ def directory_option(path: Path, flag: str = "--results-dir") -> Path:
 
 
 def check_derived(path: Path, log: TextIO) -> None:
-    """results.csv and the files derived with it, under `path` (a results root or one
-    experiment), checked against what was written before they are read: a damaged one is
-    named in one line and written again from its records (harness.analysis.export)."""
+    """results.csv and the files derived with it under `path` (a results root or an experiment)
+    checked before they are read: a damaged one is named and written again from its records."""
     if not path.is_dir():
         return
     found, _ = layout.experiments_under(path, lambda exp: exp.results_index.is_file())

@@ -98,12 +98,18 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     tools = checkout_tools(binaries)  # this checkout's, whichever repository is measured
     make_binaries(options.repo_root, [b for b in binaries if b not in tools], options.make)
     make_binaries(REPO_ROOT, tools, options.make)
-    sweep_temporaries(experiment.store, log)
+    removed = atomic.sweep([*experiment.store.layout.written(), *experiment.store.root.caches()])
+    if removed:  # the temporary files a killed run left where this one writes
+        log.write(f"{config.name}: removed {len(removed)} temporary file(s) a killed run left\n")
     # what the cells' variants are, stored with them: reading results never asks a binary
     index.write_variants(experiment.directory, registry.known.to_json())
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
-    warn_oversubscribed(plan, experiment.cores, log)
+    over = sorted({c.threads for c in plan.cells if c.threads > experiment.cores})
+    if over:
+        log.write(f"warning: {config.name}: threads {', '.join(map(str, over))} exceed the "
+                  f"{experiment.cores} cores of this machine (oversubscribed; column "
+                  "'oversubscribed')\n")
     pending, env = lock_and_describe(experiment, pending, here=executor.name == "local")
     measured: set[str] = set()
     rebuilds = CsvRebuilds(lambda: write_exports(experiment.store))
@@ -134,14 +140,20 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     elif missing:
         raise HarnessError(f"{config.name}: the {executor.name} executor returned no record "
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
-    return summarise(experiment, order, len(measured), len(missing))
+    statuses = Counter(str(experiment.records[cid].status) for _, cid in order
+                       if cid in experiment.records)  # all of them, but after --collect
+    summary = Summary(experiment.directory, len(order), len(measured),
+                      len(order) - len(measured) - len(missing), statuses)
+    counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
+    log.write(f"{config.name}: {counted(summary.cells, 'cell')} ({summary.measured} measured, "
+              f"{summary.cached} cached): {counts or 'none'}; results in "
+              f"{experiment.store.layout.results_csv}\n")
+    return summary
 
 
 def write_exports(store: CellStore, prune: bool = False) -> None:
-    """The experiment's rows listed from the records on disk and exported (analysis.export):
-    per planned cell, this machine's record (or its newest, marked stale) and every other
-    machine's newest, then each machine's records of an earlier config. With `prune`, the
-    superseded records move to history/ first."""
+    """results.csv and the files derived with it, from the records on disk (analysis.export);
+    with `prune`, the superseded records move to history/ first."""
     config = store.config
     export.rebuild(store.directory, store.planned_cells(), store.machine_id, config.name,
                    config.title, prune_first=prune, baseline=BASELINE,
@@ -153,11 +165,10 @@ def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: Varian
               hyperfine: str = "hyperfine", quick: bool = False, pause_s: float = 0.0,
               spreads_of: Path | None = None,
               program_runner: ProgramRunner | None = None) -> None:
-    """Every config measured afresh into each results root in turn, `pause_s` apart so that
-    the runs meet the machine at different moments, each root emptied first (as `run --force
-    --results-dir ROOT`); with the machines' calibrations of the root `spreads_of` copied in
-    first, its intervals are those that root's session spreads give. `command` begins the
-    progress lines; a program's cells are measured by `program_runner` (Options')."""
+    """Every config measured afresh (as `run --force --results-dir ROOT`) into each results root
+    in turn, `pause_s` apart so that the runs meet the machine at different moments; with the
+    calibrations of the root `spreads_of` copied in first, so that its session spreads give the
+    intervals. `command` begins the progress lines."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
     for k, root in enumerate(roots, start=1):
         if k > 1 and pause_s > 0:
@@ -197,21 +208,6 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
     return pending, env
 
 
-def summarise(experiment: Experiment, order: Sequence[tuple[Cell, str]], measured: int,
-              missing: int) -> Summary:
-    """The run's cells by status, and its one line in the log."""
-    name = experiment.config.name
-    statuses = Counter(str(experiment.records[cid].status) for _, cid in order
-                       if cid in experiment.records)  # all of them, but after --collect
-    summary = Summary(experiment.directory, len(order), measured,
-                      len(order) - measured - missing, statuses)
-    counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
-    experiment.log.write(f"{name}: {counted(summary.cells, 'cell')} ({summary.measured} measured, "
-                         f"{summary.cached} cached): {counts or 'none'}; results in "
-                         f"{experiment.store.layout.results_csv}\n")
-    return summary
-
-
 def require_mpi(plan: Plan, cores: int, here: bool) -> None:
     """Where cells run as MPI ranks: mpirun, and (measured here) no more ranks than cores
     unless the config asks for oversubscription."""
@@ -246,9 +242,8 @@ def write_env_after(directory: Path, env: Mapping[str, object]) -> None:
 
 def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]], warn: bool = True
                ) -> list[tuple[Cell, str]]:
-    """The (cell, cell_id)s without a cached record; the cached records go into
-    experiment.records. A damaged record (or hyperfine export) is named, and its cell is
-    measured again."""
+    """The (cell, cell_id)s without a cached record, the cached ones kept in experiment.records;
+    a damaged record (or hyperfine export) is named, and its cell measured again."""
     pending = []
     for cell, cid in cells:
         try:
@@ -262,22 +257,6 @@ def not_cached(experiment: Experiment, cells: Sequence[tuple[Cell, str]], warn: 
         else:
             experiment.records[cid] = record
     return pending
-
-
-def sweep_temporaries(store: CellStore, log: TextIO) -> None:
-    """Remove the temporary files a killed run left where this one writes."""
-    removed = atomic.sweep([*store.layout.written(), *store.root.caches()])
-    if removed:
-        log.write(f"{store.config.name}: removed {len(removed)} temporary file(s) a killed run "
-                  "left\n")
-
-
-def warn_oversubscribed(plan: Plan, cores: int, log: TextIO) -> None:
-    over = sorted({c.threads for c in plan.cells if c.threads > cores})
-    if over:
-        listed = ", ".join(str(t) for t in over)
-        log.write(f"warning: {plan.config.name}: threads {listed} exceed the {cores} cores of "
-                  "this machine (oversubscribed; column 'oversubscribed')\n")
 
 
 def report_cell(cell: Cell, result: CellResult, log: TextIO) -> None:
@@ -308,8 +287,7 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
             what, cached = f"cached {cid}", cached + 1
         check = (" +validate" if cell.validate else "") + (" +checks" if cell.checked else "")
         lines.append(f"  [{k}/{len(plan.cells)}] {cell.label}{check}  {what}\n")
-    for cell in plan.excluded:
-        lines.append(f"  excluded: {cell.label}\n")
+    lines += [f"  excluded: {cell.label}\n" for cell in plan.excluded]
     out.write(f"{plan.config.name}: {len(plan.cells)} cells ({cached} cached, "
               f"{len(plan.cells) - cached} to run, {len(plan.excluded)} excluded) -> "
               f"{experiment.directory}\n")

@@ -163,8 +163,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
                   program_runner: ProgramRunner | None = None) -> MeasuredSides:
     """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
-    of measuring is spent; the two results roots, complete, under OUT. A program's cells are
-    measured by `program_runner` (harness.measure.cell.Measurer)."""
+    of measuring is spent; the two results roots, complete, under OUT."""
     plans = plans_of(configs, registry)
     for side in (old, new):  # every binary built (or found) before anything runs
         build_plans(side, plans)

@@ -145,9 +145,8 @@ def build_plans(side: BuildSide, plans: Sequence[Plan]) -> None:
 
 
 def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:
-    """What a directory side lacks, each binary once, and how to make it: a directory is
-    measured as it is, so its checkout's Makefile (`make all`, and `make lane` for the
-    instruction lane's builds under cachegrind) makes them, or a revision is given instead."""
+    """What a directory side lacks, each binary once, and how to make it (a directory is
+    measured as it is): its checkout's `make all` / `make lane`, or a revision instead."""
     shown = ", ".join(str(Path(side.given) / b.relative_to(side.build_dir)) for b in missing)
     lane_dir = side.build_dir / lane.LANE_DIR
     goals = [goal for goal, wanted in (("all", any(b.parent != lane_dir for b in missing)),
@@ -162,12 +161,10 @@ def missing_binaries(side: BuildSide, missing: Sequence[Path]) -> str:
 
 
 def build_lanes(side: BuildSide, lanes: Sequence[Path], compiler: str) -> None:
-    """The instruction lane's binaries of a revision older than the Makefile's lane rule (its
-    Makefile has none for build/lane/NAME): its own Makefile builds them as build/NAME, with its
-    own flags, in a copy of its sources (so that build/ keeps the native ones), with a compiler
-    command that puts the lane's flags last: whatever -march the revision's flags give, the
-    last one wins, and the binaries are those the lane's rule makes (test_history compares
-    them byte for byte)."""
+    """The instruction lane's binaries of a revision whose Makefile has no rule for them: its
+    Makefile builds them as build/NAME in a copy of its sources (build/ keeps the native ones),
+    with a compiler command that puts the lane's flags last: whatever -march the revision gives,
+    the last one wins, and the binaries are those the lane's rule makes, byte for byte."""
     copy = side.build_dir / LANE_SOURCES
     if not copy.is_dir():  # made whole, then renamed: an interrupted copy is made again
         staging = side.build_dir / f".{LANE_SOURCES}.tmp"

@@ -2,7 +2,7 @@
 course's code), benchmarked and checked beside the variants. docs/programs.md is the guide: the
 forms of `programs:`, the placeholders of its templates, `check:`, a class of programs matched
 by a glob, and `source:` with `build:`, from which the harness builds a copy of its own
-(harness.programs.races: with ThreadSanitizer).
+(harness.programs.cell: with ThreadSanitizer).
 
 A command runs through `sh -c` in the config file's directory, given an input that lists every
 particle (so no program's own generator decides the scene). A program's cells are identified by

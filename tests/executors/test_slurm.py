@@ -24,8 +24,6 @@ import pytest
 from harness import repo
 from harness.errors import HarnessError
 from harness.executors.slurm import client as slurm_client
-from harness.executors.slurm import executor as slurm
-from harness.executors.slurm import watch as slurm_watch
 from harness.measure import machine as machine_info
 from harness.plan.cells import plan_cells
 from harness.report import pipeline
@@ -67,7 +65,7 @@ def stable(row: dict[str, str]) -> dict[str, str]:
 
 
 def jobs(root: Path, name: str) -> list[dict[str, object]]:
-    path = root / name / layout.SLURM / slurm_watch.JOBS_FILE
+    path = root / name / layout.SLURM / slurm_client.JOBS_FILE
     return json.loads(path.read_text())["jobs"] if path.is_file() else []
 
 
@@ -89,8 +87,7 @@ def wait_until(what: str, ready, timeout: float = WAIT_S) -> None:
 
 
 def task_state(job_id: str, index: int) -> str:
-    states = slurm_client.queue_states(job_id) or {}
-    return states.get(index, ("", ""))[0]
+    return (slurm_client.queue_states(job_id) or {}).get(index, "")
 
 
 def submitter(config: Path, root: Path, log: Path) -> subprocess.Popen[bytes]:
@@ -394,7 +391,7 @@ def test_records_are_matched_without_their_machine(tmp_path: Path) -> None:
         return cid
 
     old = write("0" * 16, "2026-01-01T00:00:00+00:00")
-    watch = slurm.RecordWatch(cells)
+    watch = slurm_client.RecordWatch(cells)
     watch.snapshot()
     assert watch.new_records() == {}  # there before: not this run's
     node = write("1" * 16, "2026-01-02T00:00:00+00:00")

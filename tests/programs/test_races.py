@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from harness import repo
-from harness.programs import races
+from harness.programs import cell as races
 from harness.spec import scenes
 from harness.spec.programs import Program
 

@@ -13,9 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from harness import repo
-from harness.cli.features import REPORT_FEATURES
-from harness.programs import hooks as programs
+from harness import programs, repo
+from harness.cli import REPORT_FEATURES
 from harness.repo import PUBLISHED_REPORT_DIR, PUBLISHED_RESULTS_DIR
 from harness.report import cache, pipeline
 from harness.report.cache import MANIFEST_NAME
@@ -226,7 +225,7 @@ def test_a_feature_s_package_is_in_the_code_a_render_with_it_is_keyed_by(tmp_pat
     script = (
         "import sys, pathlib\n"
         "from harness.report import pipeline, cache\n"
-        "from harness.programs import hooks\n"
+        "from harness import programs as hooks\n"
         f"pipeline.render(pathlib.Path({str(root)!r}), pathlib.Path({str(tmp_path / 'out')!r}),"
         " features=[hooks.REPORT])\n"
         "loaded = {pathlib.Path(m.__file__).resolve() for n, m in sys.modules.items()\n"

@@ -11,10 +11,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
-from harness import repo
+from harness import programs, repo
 from harness.cli import main as cli_main
 from harness.errors import HarnessError
-from harness.programs import hooks as programs
 from harness.report import pipeline
 from harness.store.layout import ExperimentDir
 

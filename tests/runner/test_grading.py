@@ -205,8 +205,8 @@ def test_a_class_is_one_glob_graded_in_one_table(real_binaries: Path, programs: 
     import io
     import shutil
 
+    from harness import programs as program_hooks
     from harness.executors.base import Options
-    from harness.programs import hooks as program_hooks
     from harness.report import pipeline
     from harness.runner.experiment import run_experiment
     from harness.spec.parse import load_config

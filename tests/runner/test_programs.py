@@ -12,10 +12,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from harness import repo
+from harness import programs, repo
 from harness.errors import HarnessError
 from harness.executors.base import Options
-from harness.programs import hooks as programs
 from harness.report import pipeline
 from harness.runner.experiment import run_experiment
 from harness.spec.parse import load_config

@@ -19,7 +19,7 @@ from harness.analysis.ranks import cores_table
 from harness.cli import main
 from harness.errors import HarnessError
 from harness.plan.cells import plan_cells
-from harness.programs.tables import class_table
+from harness.programs.section import class_table
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store.layout import ExperimentDir

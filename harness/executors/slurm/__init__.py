@@ -1,2 +1,2 @@
 """Slurm as an executor: each pending cell one task of a Slurm job array (executor), through
-Slurm's client commands (client), with the jobs in flight on file (watch)."""
+Slurm's client commands and with the jobs in flight on file (client)."""

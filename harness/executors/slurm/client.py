@@ -1,5 +1,7 @@
-"""The Slurm client: plain `sbatch --array` / `squeue` / `scontrol` / `sacct` through
-subprocess, and Slurm's job states.
+"""What the Slurm executor learns from outside: Slurm's client commands (`sbatch --array`,
+`squeue`, `scontrol`, `sacct` through subprocess) and job states; the records the nodes write
+(RecordWatch); and <experiment>/slurm/jobs.json (JobState), every array job submitted for an
+experiment.
 
 Not submitit: submitit learns that a job ended from sacct; without Slurm's accounting database
 (slurmdbd + MariaDB, which many small clusters and our test cluster do not run) it never sees
@@ -7,18 +9,26 @@ a cancelled job finish and waits forever. A task's state comes from squeue, whic
 finished task with its final state (TIMEOUT, CANCELLED, NODE_FAIL, ...) for MinJobAge (300 s by
 default) after it ended; then the jobcomp/filetxt completion file when the cluster keeps one
 (it needs no database); then sacct where accounting exists.
+
+A node writes its record under its own machine's cell id, which the submitter cannot know, so
+records are matched on their portable id. Submitters take <experiment>/slurm/lock while they
+read Slurm's view of their jobs and submit, so two never submit the same cell.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import re
 import shlex
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.store import atomic, layout, records, superseded
+from harness.store.result import CellResult
 
 COMMAND_TIMEOUT_S = 60.0  # one sbatch/squeue/scontrol call; a hung controller is an error
 NEEDS_CLIENT = ("the Slurm executor needs Slurm's client commands (sbatch, squeue, scontrol) on "
@@ -75,24 +85,28 @@ def cancel(job_id: str, task: int | None = None) -> None:
     slurm_command(["scancel", job_id if task is None else f"{job_id}_{task}"])
 
 
-def queue_states(job_id: str) -> dict[int, tuple[str, str]] | None:
-    """task -> (state, reason) of an array job's tasks as squeue shows them (finished ones
-    too, for MinJobAge); None when squeue no longer knows the job."""
-    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T|%r"],
+def task_states(text: str, job_id: str) -> dict[int, str]:
+    """task -> state, from lines `JOBID_TASK|STATE` (squeue's, sacct's) of the array job."""
+    states: dict[int, str] = {}
+    for line in text.splitlines():
+        ident, _, state = line.strip().partition("|")
+        job, _, task = ident.partition("_")
+        if job == job_id and task.isdigit():
+            states[int(task)] = state.split()[0] if state else ""
+    return states
+
+
+def queue_states(job_id: str) -> dict[int, str] | None:
+    """task -> state of an array job's tasks as squeue shows them (finished ones too, for
+    MinJobAge); None when squeue no longer knows the job."""
+    done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T"],
                          check=False)
     if done.returncode != 0:
         if "Invalid job id" in done.stderr:
             return None
         raise SlurmError(f"squeue -j {job_id} failed (exit {done.returncode}): "
                          f"{' '.join(done.stderr.split())[-500:]}")
-    states: dict[int, tuple[str, str]] = {}
-    for line in done.stdout.splitlines():
-        ident, _, rest = line.strip().partition("|")
-        state, _, reason = rest.partition("|")
-        job, _, task = ident.partition("_")
-        if job == job_id and task.isdigit():
-            states[int(task)] = (state.split()[0] if state else "", reason)
-    return states if states else None
+    return task_states(done.stdout, job_id) or None
 
 
 def jobcomp_file() -> Path | None:
@@ -120,10 +134,82 @@ def completed_states(job_id: str) -> dict[int, str]:
         return states
     done = slurm_command(["sacct", "-n", "-P", "-X", "-j", job_id, "-o", "JobID,State"],
                          check=False)
-    if done.returncode == 0:
-        for line in done.stdout.splitlines():
-            ident, _, state = line.partition("|")
-            job, _, task = ident.partition("_")
-            if job == job_id and task.isdigit():
-                states[int(task)] = state.split()[0] if state else ""
-    return states
+    return task_states(done.stdout, job_id) if done.returncode == 0 else states
+
+
+JOBS_FILE = "jobs.json"
+LOCK_FILE = "lock"
+JOBS_VERSION = 1
+
+
+@dataclass
+class RecordWatch:
+    """The records that appear in cells/ while we wait, by portable id; files there when the
+    run started count only once rewritten (--force)."""
+
+    cells_dir: Path
+    seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
+
+    def snapshot(self) -> None:
+        self.seen = dict(self._stamps())
+
+    def _stamps(self) -> Iterator[tuple[str, tuple[int, int]]]:
+        for path in layout.record_paths(self.cells_dir):
+            with contextlib.suppress(FileNotFoundError):
+                stat = path.stat()
+                yield path.name, (stat.st_mtime_ns, stat.st_ino)
+
+    def new_records(self) -> dict[str, CellResult]:
+        """portable id -> record, for each record file new or rewritten since the last call."""
+        found: dict[str, CellResult] = {}
+        for name, stamp in self._stamps():
+            if self.seen.get(name) == stamp:
+                continue
+            self.seen[name] = stamp
+            path = self.cells_dir / name
+            result = records.read_record(path, layout.cell_id_of(path))
+            # not a record the submitter wrote for a task that ended without one (record_fault)
+            if result is not None and (result.provenance is None
+                                       or result.provenance.slurm_state is None):
+                found[result.key.portable_id] = result
+        return found
+
+    def existing(self) -> dict[str, list[CellResult]]:
+        """portable id -> every record in cells/ now (for cells finished while no submitter
+        watched)."""
+        found: dict[str, list[CellResult]] = {}
+        for stored in superseded.load_records(self.cells_dir):
+            if not stored.result.retry:
+                found.setdefault(stored.key.portable_id, []).append(stored.result)
+        return found
+
+
+@dataclass
+class Job:
+    job_id: str
+    cells: list[str]  # array task index -> cell id
+    submitted_at: str
+    submitter: str  # host:pid
+
+
+@dataclass
+class JobState:
+    path: Path
+    jobs: list[Job] = field(default_factory=list)
+
+    @classmethod
+    def load(cls, path: Path) -> JobState:
+        try:
+            data = json.loads(path.read_text())
+        except FileNotFoundError:
+            return cls(path)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise HarnessError(f"{path}: unreadable Slurm job state ({exc}); remove it once "
+                               "no job of this experiment runs") from None
+        jobs = [Job(str(j["job_id"]), [str(c) for c in j["cells"]], str(j["submitted_at"]),
+                    str(j["submitter"])) for j in data.get("jobs", [])]
+        return cls(path, jobs)
+
+    def save(self) -> None:
+        atomic.atomic_write_json(self.path, {"version": JOBS_VERSION,
+                                              "jobs": [asdict(j) for j in self.jobs]})

@@ -1,22 +1,11 @@
-"""Slurm as an executor: each pending cell is one task of a Slurm job array, which the worker
-(`collide-bench worker`) measures on its compute node exactly as a local run does and
-writes the cell's record into the shared results directory. Validation therefore runs on the
-node: seq's baseline output is cached under results/.cache/ on the shared file system, so the
-first task that needs it computes it (two tasks racing for it both compute it; os.replace
-keeps one). The submitter only waits, reads the records back, and rebuilds results.csv and
-the report. A task's state comes from, in order: its record on disk (the truth for every task
-that ran to the end), then what the client (harness.executors.slurm.client) learns from Slurm.
-
-Faults are recorded and the sweep goes on: a task past its time limit gets a `timeout` record,
-kept like a local timeout (not measured again unless --force or the record is removed); a
-task cancelled (scancel), lost with its node, or ended without a record gets a `failed` record
-with the reason in `note`, marked `retry` (CellResult.retry): results.csv lists it, and the
-next run submits the cell again (its new record replaces the fault record). Both are written
-by the submitter, under the cell id it planned with.
-
-What is running lives in <experiment>/slurm/jobs.json (harness.executors.slurm.watch):
-`--collect` (or running the same command again) adopts the jobs still in flight and submits
-nothing new (`--collect`) or only the cells neither recorded nor in flight.
+"""Slurm as an executor (docs/slurm.md): each pending cell is one task of a job array, which
+`collide-bench worker` measures on its node, writing the cell's record into the shared results
+directory. Validation runs on the node: seq's output is cached on the shared file system by the
+first task that needs it (two racing both compute it; os.replace keeps one). A task's state
+comes from its record on disk (the truth for every task that ran to the end), then from Slurm
+(client). A task that ends without a record gets one from the submitter, under the cell id it
+planned with: `timeout` past its time limit, else `failed` and `retry` (the next run submits
+the cell again).
 """
 
 from __future__ import annotations
@@ -33,27 +22,10 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO, cast
+from typing import cast
 
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
-from harness.executors.slurm.client import (
-    ACTIVE_STATES,
-    NEEDS_CLIENT,
-    RUNNING_STATES,
-    TIMEOUT_STATES,
-    SlurmError,
-    completed_states,
-    partition_cpus,
-    queue_states,
-    submit_array,
-)
-from harness.executors.slurm.watch import (
-    JOBS_FILE,
-    LOCK_FILE,
-    Job,
-    JobState,
-    RecordWatch,
-)
+from harness.executors.slurm import client
 from harness.plan.cells import Cell
 from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
@@ -109,13 +81,9 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
 
 @dataclass
 class SlurmExecutor:
-    """Runs the pending cells as Slurm array tasks and waits for their records. Its settings
-    are the config's `executor:` section with run.py's --partition over it.
-
-    Cells are named by their portable id (CellKey.portable_id: the key without the machine) in
-    the job scripts and jobs.json, and matched to the records the nodes write by the same id;
-    on_record still gets the cell id the runner planned with.
-    """
+    """Its settings are the config's `executor:` with --partition over it. Cells are named by
+    their portable id (the key without the machine) in the job scripts and jobs.json, and
+    matched by it to the records the nodes write; on_record gets the planned cell id."""
 
     spec: ExecutorSpec = field(default_factory=ExecutorSpec)
     name: str = "slurm"
@@ -123,7 +91,7 @@ class SlurmExecutor:
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         if shutil.which("sbatch") is None:
-            raise SlurmError(f"sbatch not found: {NEEDS_CLIENT}")
+            raise client.SlurmError(f"sbatch not found: {client.NEEDS_CLIENT}")
         options = experiment.options
         self.spec = dataclasses.replace(experiment.config.executor, kind="slurm", partition=(
             options.partition or experiment.config.executor.partition))
@@ -132,16 +100,16 @@ class SlurmExecutor:
         cells = {cast(CellKey, experiment.store.cell_key(cell)).portable_id: (cell, cid)
                  for cell, cid in pending}
         log = experiment.log
-        watch = RecordWatch(experiment.store.layout.cells)
+        watch = client.RecordWatch(experiment.store.layout.cells)
         watch.snapshot()
-        with locks.file_lock(slurm_dir / LOCK_FILE):
-            state = JobState.load(slurm_dir / JOBS_FILE)
+        with locks.file_lock(slurm_dir / client.LOCK_FILE):
+            state = client.JobState.load(slurm_dir / client.JOBS_FILE)
             if not options.force:
                 self.adopt_finished(experiment, state, watch, cells, on_record, progress)
             tasks, ended = self.adopt(state, cells)
             # a timeout while nobody watched is recorded now; other faults are submitted again
             for pid, (task, final) in list(ended.items()):
-                if final in TIMEOUT_STATES or options.collect:
+                if final in client.TIMEOUT_STATES or options.collect:
                     cell, cid = cells.pop(pid)
                     self.record_fault(experiment, cell, cid, task, final, on_record)
             todo = [pid for pid in cells if pid not in tasks]
@@ -154,12 +122,11 @@ class SlurmExecutor:
             elif todo:
                 log.write(f"slurm: --collect: {len(todo)} cell(s) neither recorded nor in "
                           "flight; run without --collect to submit them\n")
-        self.wait(experiment, {pid: cells[pid] for pid in tasks}, tasks, watch, on_record,
-                  progress)
+        self.wait(experiment, cells, tasks, watch, on_record, progress)
 
-    def adopt_finished(self, experiment: Experiment, state: JobState, watch: RecordWatch,
-                       cells: dict[str, tuple[Cell, str]], on_record: OnRecord,
-                       progress: Progress) -> None:
+    def adopt_finished(self, experiment: Experiment, state: client.JobState,
+                       watch: client.RecordWatch, cells: dict[str, tuple[Cell, str]],
+                       on_record: OnRecord, progress: Progress) -> None:
         """Cells a task of ours measured after its submission (e.g. while the submitter was
         dead), whose record carries the node's machine and so escaped the runner's cache:
         recorded now, not submitted again."""
@@ -177,7 +144,7 @@ class SlurmExecutor:
                 progress.starting(cid)
                 self.accept(experiment, cell, cid, record, on_record)
 
-    def adopt(self, state: JobState, cells: Mapping[str, tuple[Cell, str]]
+    def adopt(self, state: client.JobState, cells: Mapping[str, tuple[Cell, str]]
               ) -> tuple[dict[str, Task], dict[str, tuple[Task, str]]]:
         """The pending cells with a task still in flight, and those whose latest task ended
         (with its final state), from the jobs in the state file; by portable id."""
@@ -186,33 +153,28 @@ class SlurmExecutor:
         for job in state.jobs:
             if not set(job.cells) & set(cells):
                 continue
-            queued = queue_states(job.job_id)
-            final = completed_states(job.job_id) if queued is None else {}
+            states = client.queue_states(job.job_id) or client.completed_states(job.job_id)
             for index, pid in enumerate(job.cells):
                 if pid not in cells:
                     continue
                 task = Task(job.job_id, index)
-                seen = queued.get(index) if queued is not None else None
-                slurm_state = seen[0] if seen is not None else final.get(index, "")
-                if slurm_state in ACTIVE_STATES:
+                slurm_state = states.get(index, "")
+                if slurm_state in client.ACTIVE_STATES:
                     in_flight[pid] = task
                     ended.pop(pid, None)
                 elif pid not in in_flight:
                     ended[pid] = (task, slurm_state)
         return in_flight, ended
 
-    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path,
-                    ntasks: int = 1) -> list[str]:
+    def sbatch_args(self, experiment: Experiment, cpus: int, logs: Path, ntasks: int
+                    ) -> list[str]:
         spec = self.spec
-        args = [f"--job-name=collide-{experiment.config.name}",
+        return [f"--job-name=collide-{experiment.config.name}",
                 f"--output={logs}/%A_%a.out", f"--cpus-per-task={cpus}", f"--ntasks={ntasks}",
                 f"--time={time_limit_minutes(spec, experiment)}",
-                f"--chdir={experiment.options.repo_root}"]
-        if spec.partition:
-            args.append(f"--partition={spec.partition}")
-        if spec.exclusive:
-            args.append("--exclusive")
-        return [*args, *spec.extra]
+                f"--chdir={experiment.options.repo_root}",
+                *([f"--partition={spec.partition}"] if spec.partition else []),
+                *(["--exclusive"] if spec.exclusive else []), *spec.extra]
 
     def job_script(self, experiment: Experiment, ids: Sequence[str]) -> str:
         options = experiment.options
@@ -233,7 +195,7 @@ class SlurmExecutor:
             "",
         ])
 
-    def submit(self, experiment: Experiment, state: JobState,
+    def submit(self, experiment: Experiment, state: client.JobState,
                cells: Mapping[str, tuple[Cell, str]], todo: Sequence[str]) -> dict[str, Task]:
         """One array job per distinct --cpus-per-task and --ntasks (each cell gets at least its
         thread count a task, up to the largest node of the partition, and a task per MPI rank:
@@ -241,7 +203,7 @@ class SlurmExecutor:
         slurm_dir = state.path.parent
         logs = slurm_dir / LOGS_DIR
         logs.mkdir(parents=True, exist_ok=True)
-        largest = partition_cpus(self.spec.partition)
+        largest = client.partition_cpus(self.spec.partition)
         groups: dict[tuple[int, int], list[str]] = {}
         for pid in todo:
             cell = cells[pid][0]
@@ -255,10 +217,10 @@ class SlurmExecutor:
             script = slurm_dir / f"job-{stamp}-c{cpus}-n{ntasks}.sh"
             atomic.atomic_write_text(script, self.job_script(experiment, ids))
             submitted_at = now_iso()  # before sbatch: no task of the job starts earlier
-            job_id = submit_array(script, len(ids),
-                                  self.sbatch_args(experiment, cpus, logs, ntasks))
-            state.jobs.append(Job(job_id, list(ids), submitted_at,
-                                  f"{socket.gethostname()}:{os.getpid()}"))
+            job_id = client.submit_array(script, len(ids),
+                                         self.sbatch_args(experiment, cpus, logs, ntasks))
+            state.jobs.append(client.Job(job_id, list(ids), submitted_at,
+                                         f"{socket.gethostname()}:{os.getpid()}"))
             state.save()  # at once: a submitter killed now has its job on file
             tasks.update({pid: Task(job_id, k) for k, pid in enumerate(ids)})
             experiment.log.write(f"slurm: submitted job {job_id}: {len(ids)} cell(s), "
@@ -281,7 +243,7 @@ class SlurmExecutor:
         """The record of a cell whose task ended without one: the cell's identity, the status
         and the reason (the columns a measurement would fill stay empty); a retry record's
         cell the next run measures again."""
-        if slurm_state in TIMEOUT_STATES:
+        if slurm_state in client.TIMEOUT_STATES:
             limit = self.spec.time_limit_min
             note = (f"slurm task {task.name} passed its time limit"
                     + (f" ({limit} min)" if limit is not None else "") + f" ({slurm_state})")
@@ -300,9 +262,10 @@ class SlurmExecutor:
         on_record(cell, cid, record)
 
     def wait(self, experiment: Experiment, cells: Mapping[str, tuple[Cell, str]],
-             tasks: Mapping[str, Task], watch: RecordWatch, on_record: OnRecord,
+             tasks: Mapping[str, Task], watch: client.RecordWatch, on_record: OnRecord,
              progress: Progress) -> None:
-        status = _Status(experiment.log, experiment.config.name, time.monotonic())
+        log, started = experiment.log, time.monotonic()
+        last_line, last_at = "", 0.0  # the status line, written when it changes or is old
         open_tasks = dict(tasks)
         announced: set[str] = set()
 
@@ -313,9 +276,9 @@ class SlurmExecutor:
 
         ended_at: dict[str, float] = {}
         arrived: dict[str, CellResult] = {}
-        last_done_at = status.started
+        last_done_at = started
         while open_tasks:
-            states = {job_id: queue_states(job_id)
+            states = {job_id: client.queue_states(job_id)
                       for job_id in sorted({t.job_id for t in open_tasks.values()})}
             # after squeue: a task it shows ended has written its record by now
             arrived.update(watch.new_records())
@@ -325,7 +288,7 @@ class SlurmExecutor:
                 cell, cid = cells[pid]
                 record = arrived.get(pid)
                 slurm_state = _slurm_state(task, states, finals, record is not None)
-                if record is not None or slurm_state in RUNNING_STATES:
+                if record is not None or slurm_state in client.RUNNING_STATES:
                     announce(pid, cid)
                 if record is not None:
                     del open_tasks[pid]
@@ -334,9 +297,9 @@ class SlurmExecutor:
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
                     self.accept(experiment, cell, cid, record, on_record)
-                elif slurm_state in RUNNING_STATES:  # a subset of ACTIVE_STATES
+                elif slurm_state in client.RUNNING_STATES:  # a subset of client.ACTIVE_STATES
                     running += 1
-                elif slurm_state in ACTIVE_STATES:
+                elif slurm_state in client.ACTIVE_STATES:
                     waiting += 1
                 else:
                     # ended without a record; COMPLETED may still be in flight on the file system
@@ -347,43 +310,29 @@ class SlurmExecutor:
                     announce(pid, cid)
                     del open_tasks[pid]
                     self.record_fault(experiment, cell, cid, task, slurm_state, on_record)
-            status.show(len(tasks) - len(open_tasks), len(tasks), running, waiting)
+            done, left = len(tasks) - len(open_tasks), len(open_tasks)
+            line = (f"slurm: {experiment.config.name}: {done}/{len(tasks)} done, {running} "
+                    f"running, {waiting} pending")
+            if line != last_line or time.monotonic() - last_at >= STATUS_EVERY_S:
+                elapsed = time.monotonic() - started
+                # from the throughput so far: queueing and start-up on the nodes included
+                eta = format_seconds(elapsed / done * left) if done and left else "?"
+                log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
+                          f"{eta if left else '0.0s'}\n")
+                log.flush()
+                last_line, last_at = line, time.monotonic()
             if open_tasks:
                 time.sleep(self.spec.poll_s)
 
 
-def _slurm_state(task: Task, states: Mapping[str, dict[int, tuple[str, str]] | None],
+def _slurm_state(task: Task, states: Mapping[str, dict[int, str] | None],
                  finals: dict[str, dict[int, str]], arrived: bool) -> str:
     """A task's Slurm state: squeue's while it lists the task, else sacct's for one whose
     record has not arrived (asked once a job in `finals`), else none."""
-    queued = states[task.job_id]
-    seen = queued.get(task.index) if queued is not None else None
+    seen = (states[task.job_id] or {}).get(task.index)
     if seen is None and not arrived:
         if task.job_id not in finals:
-            finals[task.job_id] = completed_states(task.job_id)
+            finals[task.job_id] = client.completed_states(task.job_id)
         return finals[task.job_id].get(task.index, "")
-    return seen[0] if seen is not None else ""
+    return seen or ""
 
-
-@dataclass
-class _Status:
-    """The sweep's status line in the log: written when it changes, else every
-    STATUS_EVERY_S."""
-
-    log: TextIO
-    name: str
-    started: float
-    last_line: str = ""
-    last_at: float = 0.0
-
-    def show(self, done: int, total: int, running: int, waiting: int) -> None:
-        elapsed = time.monotonic() - self.started
-        left = total - done
-        # from the throughput so far: queueing and start-up on the nodes included
-        eta = format_seconds(elapsed / done * left) if done and left else "?"
-        line = f"slurm: {self.name}: {done}/{total} done, {running} running, {waiting} pending"
-        if line != self.last_line or time.monotonic() - self.last_at >= STATUS_EVERY_S:
-            self.log.write(f"{line}  elapsed {format_seconds(elapsed)}  eta "
-                           f"{eta if left else '0.0s'}\n")
-            self.log.flush()
-            self.last_line, self.last_at = line, time.monotonic()
