@@ -1,15 +1,12 @@
 """An experiment's identity and storage: what a cell's measurement depends on (its key, hashed
-into its cell id), its record files under <experiment>/cells/, the input files, the reference
-outputs cached under <results>/.cache/, the fields every record starts with, and results.csv
-and divergence.csv rebuilt from the records.
-
-Nothing here measures. Records reach the store from whichever executor measured them (this
-process, or a worker on another node writing the same files), so everything derived from them
-is rebuilt from records, never kept from a measurement in this process.
+into its cell id), its record files under <experiment>/cells/, its input files and the fields
+every record starts with. Nothing here measures: records reach the store from whichever
+executor measured them (this process, or a worker on another node writing the same files).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -48,14 +45,17 @@ from harness.store.result import CellResult
 UNBUILT = "unbuilt"  # the hash of a binary an assume_built store has not seen built
 
 
+def named(cell: Cell) -> Subject:
+    """What names the cell in its record."""
+    scene = cell.scene
+    return Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r, scene.steps,
+                   scene.mode, scene.seed, cell.threads,
+                   ranks=cell.ranks if cell.uses_ranks else None, params=dict(scene.params))
+
+
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
-    scene = cell.scene
-    return match_values({"variant": cell.variant, "build": cell.build, "scene": scene.label,
-                         "n": scene.n, "L": scene.L, "r": scene.r, "steps": scene.steps,
-                         "mode": scene.mode, "seed": scene.seed, "threads": cell.threads,
-                         "ranks": cell.ranks if cell.uses_ranks else None,
-                         "schedule": cell.schedule or ""})
+    return match_values({**dataclasses.asdict(named(cell)), "schedule": cell.schedule or ""})
 
 
 def now_iso() -> str:
@@ -143,9 +143,7 @@ class CellStore:
         return self.hashes[path]
 
     def baseline_sha(self, cell: Cell) -> str | None:
-        if not cell.validate:
-            return None
-        return self.sha(self.baseline_binary(cell))
+        return self.sha(self.baseline_binary(cell)) if cell.validate else None
 
     def check_references(self, cell: Cell) -> dict[str, Path]:
         return check_references(self.config, self.binaries, cell.build)
@@ -172,8 +170,7 @@ class CellStore:
                 binary_sha256=binary_sha if counted is None else self.sha(counted))
         if measures_openmp_costs(self.config, cell):
             parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(ompcost_path()))
-        omp = self.config.executor.omp_env()
-        if omp:
+        if omp := self.config.executor.omp_env():
             parts["omp"] = TextMap(tuple(omp.items()))
         return CellKey(
             variant=cell.variant, build=cell.build, input_sha256=cell.scene.input_sha256,
@@ -201,21 +198,15 @@ class CellStore:
         when; the measurement (or a fault) adds the rest."""
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
-        scene = cell.scene
         program = self.config.program(cell.variant)
         # what the cell runs itself: a program's command, else the variant's binary
         runs_what = str(self.binary(cell)) if program is None else program.command
         return CellResult(
-            cell_id, key, note="",
-            subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
-                            scene.steps, scene.mode, scene.seed, cell.threads,
-                            ranks=cell.ranks if cell.uses_ranks else None,
-                            params=dict(scene.params)),
-            timing=Timing(runs=0, unstable=False),
+            cell_id, key, note="", subject=named(cell), timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
             provenance=Provenance(binary=runs_what, binary_sha256=key.binary_sha256,
-                                  input_sha256=scene.input_sha256, measured_at=now_iso()))
+                                  input_sha256=cell.scene.input_sha256, measured_at=now_iso()))
 
     # --- records ---
 
