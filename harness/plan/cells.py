@@ -16,9 +16,8 @@ from typing import cast
 from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
-from harness.spec.config import Config
+from harness.spec.config import PARALLEL_AXES, Config, expand_points, scene_key
 from harness.spec.facts import RANKS_AXIS, IgnoredAxis, ignored_axes
-from harness.spec.points import PARALLEL_AXES, expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
 
 QUICK_MAX_N = 400

@@ -11,8 +11,7 @@ import psutil
 
 from harness.errors import HarnessError
 from harness.spec import scenes
-from harness.spec.config import Config
-from harness.spec.points import count_points, expand_points, scene_key
+from harness.spec.config import Config, count_points, expand_points, scene_key
 
 # Peak memory of building one listed particle (a generator's tuple and its text row, or
 # with_every_particle's drawn particle): measured 460 to 620 bytes at 10^5 particles

@@ -1,20 +1,10 @@
 """What each variant is (its binary's `--describe`), as the harness reads it: typed, checked,
-and stored with the results it measured (harness.store.layout's variants.json), so that
-whoever reads results (analysis, the report) needs no binary, no build and no make.
-
-A variant's facts say whether its output is byte-identical to seq (`exact`), whether it uses
-threads (`parallel`), whether it tests every pair i < j with seq's kernel (`all_pairs`: its
-speedup over seq is parallelism alone), which of the seed's strategies it repairs (`repairs`)
-and what it asks of the OpenMP runtime per step (`sync`). harness.spec.variants asks the
-binaries; this module only parses, orders and serialises (standard library only).
-
-The order tables and figures show variants in follows from the facts: seq (the baseline)
-first, then the all-pairs variants, then the others; within each, families by name, a
-family being a variant followed by the variants that repair it.
-
-Whoever reads results passes the facts stored with them (harness.analysis.results'
-`Experiment.variants`) to what orders, colours or judges variants by them; where there are
-none (results from before they were stored) every variant is unknown.
+and stored with the results it measured (variants.json), so that whoever reads results needs
+no binary, no build and no make. A variant's facts say whether its output is byte-identical to
+seq (`exact`), whether it uses threads (`parallel`), whether it tests every pair i < j with
+seq's kernel (`all_pairs`: its speedup over seq is parallelism alone), which of the seed's
+strategies it repairs (`repairs`) and what it asks of the OpenMP runtime per step (`sync`).
+harness.spec.variants asks the binaries; this module only parses, orders and serialises.
 """
 
 from __future__ import annotations
@@ -22,7 +12,7 @@ from __future__ import annotations
 import functools
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -147,43 +137,19 @@ class VariantFacts:
         """One `--describe` object; a HarnessError naming `where` when it is not one."""
         if not isinstance(data, dict):
             raise HarnessError(f"{where}: {DESCRIBE_OPTION} printed no JSON object")
-        for key, types in FACT_TYPES.items():
-            if key not in data:
+        for key, types in {**FACT_TYPES, MPI_KEY: (bool,)}.items():
+            if key not in data and key != MPI_KEY:
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION} lacks '{key}'")
-            if not isinstance(data[key], types):
+            if not isinstance(data.get(key, False), types):
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{key}' is "
                                    f"{data[key]!r}, not of the expected type")
-        mpi = data.get(MPI_KEY, False)
-        if not isinstance(mpi, bool):
-            raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{MPI_KEY}' is {mpi!r}, not of the "
-                               "expected type")
         return cls(**{key: data[key] for key in FACT_TYPES},
-                   sync=SyncFacts.parse(data.get(SYNC_KEY), where), mpi=mpi)
+                   sync=SyncFacts.parse(data.get(SYNC_KEY), where), mpi=data.get(MPI_KEY, False))
 
     def to_json(self) -> dict[str, object]:
         """The facts as `--describe` prints them."""
         return {**{key: getattr(self, key) for key in FACT_TYPES}, MPI_KEY: self.mpi,
                 SYNC_KEY: None if self.sync is None else self.sync.to_json()}
-
-
-def family_of(facts: Mapping[str, VariantFacts], name: str) -> str:
-    """The variant a family is named after: the one `name` repairs, where it exists."""
-    repairs = facts[name].repairs
-    return repairs if repairs is not None and repairs in facts else name
-
-
-def ordered(facts: Mapping[str, VariantFacts]) -> tuple[str, ...]:
-    """The variants in the order tables show them (the module docstring says which)."""
-    def family_key(root: str) -> tuple[int, str]:
-        group = 0 if root == BASELINE else 1 if facts[root].all_pairs else 2
-        return group, root
-
-    roots = sorted({family_of(facts, n) for n in facts}, key=family_key)
-    order: list[str] = []
-    for root in roots:
-        order.append(root)
-        order += sorted(n for n in facts if n != root and family_of(facts, n) == root)
-    return tuple(order)
 
 
 @dataclass(frozen=True)
@@ -197,10 +163,10 @@ class IgnoredAxis:
     uses: Callable[[VariantFacts], bool]  # whether a variant of these facts uses the axis
 
 
-# What a variant may ignore: threads where its --describe says "parallel": false, ranks where
-# it does not say "mpi": true.
 # How a machine gets Open MPI (mpicc for an MPI variant's build, mpirun for its cells): Debian's.
 MPI_INSTALL = "sudo apt-get install openmpi-bin libopenmpi-dev"
+# A variant ignores threads where its --describe says "parallel": false, ranks where it does
+# not say "mpi": true.
 RANKS_AXIS = IgnoredAxis("ranks", 1, lambda f: f.mpi)
 IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),
                                          RANKS_AXIS)
@@ -241,18 +207,26 @@ class Variants:
         results of a variant since removed)."""
         return self.by_name.get(name)
 
+    def family(self, name: str) -> str:
+        """The variant a family is named after: the one `name` repairs, where it is a member."""
+        repairs = getattr(self.by_name.get(name), "repairs", None)
+        return repairs if repairs in self.by_name else name
+
     @functools.cached_property
     def order(self) -> tuple[str, ...]:
-        return ordered(self.by_name)
+        """The order tables and figures show variants in: seq (the baseline) first, then the
+        all-pairs variants, then the others; within each, families by name, a family being a
+        variant followed by the variants that repair it."""
+        roots = sorted({self.family(n) for n in self.by_name},
+                       key=lambda root: (root != BASELINE, not self[root].all_pairs, root))
+        return tuple(n for root in roots for n in (
+            root, *sorted(n for n in self.by_name if n != root and self.family(n) == root)))
 
     @functools.cached_property
     def families(self) -> tuple[str, ...]:
         """The variants that name a family (those repaired, and those that repair nothing),
         in order: a figure gives each its own colour, and a repair its family's."""
-        return tuple(n for n in self.order if family_of(self.by_name, n) == n)
-
-    def family(self, name: str) -> str:
-        return family_of(self.by_name, name) if name in self.by_name else name
+        return tuple(n for n in self.order if self.family(n) == n)
 
     def repaired_by(self, name: str) -> tuple[str, ...]:
         """The variants that repair `name`, in order."""

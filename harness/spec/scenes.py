@@ -39,9 +39,8 @@ REAL_FORMAT = "%.17g"
 
 Particle = tuple[float, float, float, float]
 
-# What the binaries accept (SPEC section 1; variants/core: SIM_N_MAX, the int64 S, print mode's
-# output size): an input past these is refused by every variant, so the harness refuses it
-# first, at load time.
+# What the binaries accept (SPEC section 1; variants/core): the harness refuses an input past
+# these first, at load time.
 MAX_N = 2**31 - 1
 MAX_STEPS = 2**63 - 1
 PRINT_LINE_MIN_BYTES = 48  # the shortest line print mode writes
@@ -81,9 +80,8 @@ class ScenePoint:
     text: str
     params: tuple[tuple[str, object], ...] = ()
 
-    # Asked for by every cell of the scene (its key, its input file, its baseline), and a
-    # program's scene lists every particle: hashed once. A frozen dataclass without slots
-    # keeps it in the instance's __dict__, beside the fields, out of eq and hash.
+    # Asked for by every cell of the scene, and a program's scene lists every particle: hashed
+    # once (a frozen dataclass without slots keeps it in __dict__, out of eq and hash).
     @functools.cached_property
     def input_sha256(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()
@@ -217,7 +215,7 @@ GeneratorFn = Callable[..., GeneratedScene]
 class GeneratorInfo:
     name: str
     fn: GeneratorFn
-    defaults: Mapping[str, object]  # parameter -> default value (its type is the param type)
+    defaults: Mapping[str, object]  # parameter -> default value (its type is the param's)
     doc: str
 
 
@@ -260,16 +258,14 @@ generator = REGISTRY.register
 
 def generated_point(name: str, params: Mapping[str, object], seed: int) -> ScenePoint:
     """Run generator `name` with `params` (already type-checked by the config loader)."""
-    info = REGISTRY.get(name)
-    scene = info.fn(**params)
+    scene = REGISTRY.get(name).fn(**params)
     check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
     return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
                       seed, scene.text, tuple(sorted(params.items())))
 
 
 def file_point(path: Path, seed: int) -> ScenePoint:
-    """A scene read from an input file; the header gives n, L, r, steps and mode, checked as
-    the binaries check them."""
+    """A scene read from an input file, its header checked as the binaries check it."""
     text = read_text(path, "scene file")
     n, L, r, steps, mode = parse_header(text, str(path))
     check_scene(n, L, r, steps, mode, str(path))
@@ -284,8 +280,7 @@ def parse_int(token: str) -> int:
 
 
 def parse_real(token: str) -> float:
-    """A real token as the binaries read it (a finite one is checked by the caller);
-    ValueError otherwise."""
+    """A real token as the binaries read it (not necessarily finite); ValueError otherwise."""
     if not REAL_TOKEN.fullmatch(token):
         raise ValueError(token)
     return float(token)
@@ -332,7 +327,6 @@ def scene_problem(n: int, L: float, r: float, steps: int, mode: str) -> str | No
 
 
 def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -> None:
-    """A HarnessError where the binaries would refuse the header (scene_problem)."""
     problem = scene_problem(n, L, r, steps, mode)
     if problem is not None:
         raise HarnessError(f"{where}: invalid scene: {problem}")

@@ -10,9 +10,8 @@ import pytest
 from harness import repo
 from harness.errors import HarnessError
 from harness.plan.cells import QUICK_MAX_N, QUICK_MAX_STEPS, plan_cells
-from harness.spec.config import DEFAULT_RUNS, DEFAULT_TIMEOUT_S, DEFAULT_WARMUP
+from harness.spec.config import DEFAULT_RUNS, DEFAULT_TIMEOUT_S, DEFAULT_WARMUP, expand_points
 from harness.spec.parse import load_config
-from harness.spec.points import expand_points
 
 from commands import run_main as main
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from harness.errors import HarnessError
 from harness.spec import variants
-from harness.spec.facts import BASELINE, Count, SyncFacts, VariantFacts, ordered
+from harness.spec.facts import BASELINE, Count, SyncFacts, VariantFacts, Variants
 from harness.spec.variants import VariantRegistry, default_registry
 
 from conftest import build_or_skip
@@ -40,7 +40,8 @@ def test_order_puts_the_baseline_first_and_repairs_after_what_they_repair() -> N
         facts("zz_broad", all_pairs=False), facts("b"), facts("a_fix", repairs="b"),
         facts("a"), facts(BASELINE, parallel=False), facts("odd", repairs="gone"),
         facts("fast", all_pairs=False, exact=False))}
-    assert ordered(table) == (BASELINE, "a", "b", "a_fix", "odd", "fast", "zz_broad")
+    assert Variants.of(table.values()).order == (BASELINE, "a", "b", "a_fix", "odd", "fast",
+                                                 "zz_broad")
     registry = VariantRegistry.of(table.values())
     assert registry.known.families == (BASELINE, "a", "b", "odd", "fast", "zz_broad")
     assert registry.known.family("a_fix") == "b"
