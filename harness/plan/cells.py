@@ -54,12 +54,9 @@ class Cell:
         return "ranks" not in self.ignored
 
     @property
-    def variant_label(self) -> str:
-        return binary_name(self.variant, self.build)
-
-    @property
     def label(self) -> str:
-        text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        text = f"{binary_name(self.variant, self.build)} {self.scene.describe()} " \
+            f"threads={self.threads}"
         text = f"{text} ranks={self.ranks}" if self.uses_ranks else text
         text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
         return f"{text} (ignores {', '.join(self.collapsed)})" if self.collapsed else text
@@ -69,8 +66,7 @@ class Cell:
         s = self.scene
         return {"variant": self.variant, "build": self.build, "scene": s.label,
                 "threads": self.threads, "ranks": self.ranks, "n": s.n, "L": s.L, "r": s.r,
-                "steps": s.steps,
-                "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
+                "steps": s.steps, "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
 
 
 def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[IgnoredAxis]:
