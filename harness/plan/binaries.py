@@ -1,6 +1,5 @@
 """The binaries a plan runs and where they are: in a build directory (the repository's build/,
-or a revision's when two are compared), unless the config names a binary of its own.
-harness.spec.make.make_binaries builds them."""
+or a revision's when two are compared), unless the config names a binary of its own."""
 
 from __future__ import annotations
 
@@ -27,8 +26,8 @@ def baseline_path(config: Config, build_dir: Path, build: str) -> Path:
 
 
 def check_references(config: Config, build_dir: Path, build: str) -> dict[str, Path]:
-    """The binaries the checks of a cell of `build` compare with: the truth (build/<truth>-f128),
-    seq f64 (divergence) and seq of the cell's build (the exact-variant check)."""
+    """The binaries the checks of a cell of `build` compare with: the truth, seq f64
+    (divergence) and seq of the cell's build (the exact-variant check)."""
     return {
         "truth": binary_path(config, build_dir, config.checks.truth, TRUTH_BUILD),
         "f64": binary_path(config, build_dir, BASELINE, DEFAULT_BUILD),
@@ -45,9 +44,8 @@ def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str,
 
 
 def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
-    """Every binary the cell's measurement runs: its own (a program runs commands instead), seq
-    for a validated cell, the checks' references, the references of a program's check, what
-    the instruction lane counts, and build/ompcost where it prices the runtime."""
+    """Every binary the cell's measurement runs: its own (a program runs commands instead),
+    its references, what the instruction lane counts, and build/ompcost where it runs."""
     paths = [] if cell.program else [binary_path(config, build_dir, cell.variant, cell.build)]
     if cell.validate:
         paths.append(baseline_path(config, build_dir, cell.build))
@@ -73,15 +71,13 @@ def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
     return [*(path for path in needed if path not in custom), *tools]
 
 
+# build/ompcost and build/peakrss are this checkout's, whichever revision's variants are
+# measured: they measure the machine and the run, and older revisions have no such tools.
 def ompcost_path() -> Path:
-    """build/ompcost of this checkout, whichever revision's variants are measured: it prices
-    the machine's OpenMP runtime, and older revisions have no such tool to build."""
     return REPO_ROOT / BUILD_DIR / OMPCOST
 
 
 def peakrss_path() -> Path:
-    """build/peakrss of this checkout (tools/peakrss.c): every cell's untimed run of its own
-    program runs under it, which reports its peak resident memory (harness.measure.proc)."""
     return REPO_ROOT / BUILD_DIR / PEAKRSS
 
 

@@ -29,8 +29,7 @@ from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
-from harness.spec.make import make_binaries
-from harness.spec.variants import VariantRegistry
+from harness.spec.variants import VariantRegistry, make_binaries
 from harness.store import atomic, index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV

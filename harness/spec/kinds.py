@@ -61,7 +61,7 @@ def one_of(options: Sequence[str]) -> Kind:
 
 
 def optional(kind: Kind) -> Kind:
-    """`kind`, or null for the default (None)."""
+    """`kind`, or null for None."""
     return Kind(kind.expected, lambda v: None if v is None else kind.parse(v))
 
 

@@ -22,15 +22,13 @@ MAX_INT_CHARS = 40  # an integer's text: 2**64 has 20 digits
 
 
 class DuplicateKeyError(yaml.YAMLError):
-    """A mapping that names one key twice (PyYAML keeps the last one without a word)."""
-
     def __init__(self, key: object, first_line: int, line: int) -> None:
         super().__init__(f"key '{key}' appears twice: on line {first_line} and on line {line}")
 
 
 class StrictLoader(yaml.SafeLoader):
-    """yaml.SafeLoader that refuses a duplicate key in any mapping, at any depth, and an
-    integer too long to be a count (Python refuses to convert one past 4300 digits)."""
+    """yaml.SafeLoader that refuses a duplicate key in any mapping, and an integer too long to
+    be a count (Python refuses to convert one past 4300 digits)."""
 
     def construct_mapping(self, node: yaml.MappingNode,  # type: ignore[override]
                           deep: bool = False) -> dict[object, object]:
@@ -69,8 +67,8 @@ class ShapeError(yaml.YAMLError):
 
 
 def check_shape(text: str) -> None:
-    """Raise ShapeError where the YAML nests deeper than MAX_YAML_DEPTH or expands to more
-    than MAX_YAML_VALUES values (each alias counted as the values of its anchor)."""
+    """Raise ShapeError where the YAML nests too deep or expands to too many values (each alias
+    counted as the values of its anchor)."""
     anchored: dict[str, int] = {}  # anchor -> the values it stands for
     open_at: list[tuple[int, str | None]] = []  # each open collection: values before it, anchor
     values = 0
@@ -97,8 +95,6 @@ def check_shape(text: str) -> None:
 
 
 def load_yaml(text: str) -> object:
-    """YAML text to Python values; a duplicate key is a DuplicateKeyError, a document too deep
-    or too large a ShapeError."""
     check_shape(text)
     return yaml.load(text, Loader=StrictLoader)
 
@@ -128,7 +124,7 @@ MAX_DETAIL_CHARS = 300
 
 
 def read_mapping(source: Path) -> dict[str, object]:
-    """The top-level mapping of a YAML file; a HarnessError naming the file otherwise."""
+    """The top-level mapping of a YAML config file; a HarnessError naming the file otherwise."""
     text = read_text(source, "config file", MAX_YAML_BYTES)
     try:
         raw = load_yaml(text)
