@@ -43,9 +43,8 @@ from harness.measure.rounds import CellRun, next_runs, stop_reason, timed_result
 from harness.measure.timing import parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
-from harness.plan.binaries import measures_openmp_costs, ompcost_path
 from harness.plan.cells import Cell
-from harness.plan.cellstore import CellStore
+from harness.plan.cellstore import CellStore, measures_openmp_costs, ompcost_path
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError

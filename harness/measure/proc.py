@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from harness.plan.binaries import peakrss_path
+from harness.plan.cellstore import peakrss_path
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 

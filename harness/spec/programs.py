@@ -25,7 +25,7 @@ from harness.spec.facts import BASELINE, GRID
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 1_999
 FAST_REFERENCE = GRID
-# The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
+# The keys of a program cell's reference binaries (harness.plan.cellstore.program_references).
 REFERENCE = "reference"
 REPLAY = "replay"
 

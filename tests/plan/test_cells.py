@@ -3,9 +3,8 @@ facts, and the binaries a plan runs."""
 
 from __future__ import annotations
 
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import is_exact, plan_cells
-from harness.plan.cellstore import CellStore
+from harness.plan.cellstore import CellStore, checkout_tools, needed_binaries
 from harness.repo import REPO_ROOT
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantFacts, VariantRegistry, default_registry
