@@ -1,8 +1,7 @@
 """Plan a config's cells: the grid of variant x build x scene point x thread count, minus
-repeats (--quick can map several points onto one) and excluded cells. A cell leaves out what
-its variant ignores (harness.spec.facts.IGNORED_AXES): a serial variant's cells at every
-thread count are one cell, run with one thread. Where a program takes part, every scene lists
-all its particles. Nothing here runs a measurement or reads a result."""
+repeats and excluded cells. A cell leaves out what its variant ignores (harness.spec.facts):
+a serial variant's cells at every thread count are one cell, run with one thread. Where a
+program takes part, every scene lists all its particles."""
 
 from __future__ import annotations
 
@@ -34,17 +33,15 @@ class Cell:
     exact: bool  # must match it byte for byte
     checked: bool = False  # the accuracy and stability checks run on it
     schedule: str = ""  # OMP_SCHEDULE of the cell (the config's schedule axis); "": not set
-    # The variant promises seq's output (its --describe says exact); a custom binary does not.
-    promises_exact: bool = False
-    # A program (`programs:`): run through its command template and checked step by step
-    # against seq (harness.programs.cell) instead of validated and checked.
+    promises_exact: bool = False  # its --describe says exact (a custom binary's says nothing)
+    # A program: run through its command template and checked step by step against seq
+    # (harness.programs.cell) instead of validated and checked.
     program: bool = False
-    # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
-    # for the config's cells at every other value of each.
+    # The axes its variant ignores, at their one value: it stands for the config's cells at
+    # every other value of each; `collapsed`: those of them along which the config has other
+    # values than the cell's, which its label names.
     ignored: tuple[str, ...] = ()
-    ranks: int = 1  # MPI ranks (`ranks:`): a variant that is not MPI ignores them
-    # Of `ignored`, the axes along which the config has other values than the cell's: what its
-    # label says it ignores
+    ranks: int = 1
     collapsed: tuple[str, ...] = ()
 
     @property
@@ -80,17 +77,6 @@ def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[Ig
     return ignored_axes(facts) if facts is not None else [RANKS_AXIS]
 
 
-def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
-    """The cell as it is measured: at the one value of each axis its variant ignores."""
-    ignored = ignored_by(config, registry, cell)
-    if not ignored:
-        return cell
-    collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
-                      or getattr(cell, a.field) != a.value)
-    return dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
-                               collapsed=collapsed, **{a.field: a.value for a in ignored})
-
-
 @dataclass(frozen=True)
 class Plan:
     config: Config
@@ -112,16 +98,14 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
             value = params.get(key, defaults.get(key))
             if isinstance(value, int) and not isinstance(value, bool):
                 params[key] = min(value, limit)
-    if kind == "file":
-        try:
+    try:
+        if kind == "file":
             return scenes.file_point(Path(str(params["file"])), seed)
-        except HarnessError as exc:
-            raise HarnessError(f"{config.source}: key 'scene.file': {exc}") from None
-    if kind == "generator":
-        try:
+        if kind == "generator":
             return scenes.generated_point(name, params, seed)
-        except HarnessError as exc:
-            raise HarnessError(f"{config.source}: key 'scene': {exc}") from None
+    except HarnessError as exc:
+        key = "scene.file" if kind == "file" else "scene"
+        raise HarnessError(f"{config.source}: key '{key}': {exc}") from None
     n, L, r = cast(int, params["n"]), cast(float, params["L"]), cast(float, params["r"])
     steps, mode = cast(int, params["steps"]), str(params["mode"])
     problem = scenes.scene_problem(n, L, r, steps, mode)
@@ -176,11 +160,15 @@ def plan_cells(config: Config, quick: bool = False,
             fields = cell.fields()  # the config's point: a rule may name a thread count
             matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
             used |= matching
-            if not matching:
-                cell = measured_as(config, registry, cell)
-            else:  # as the config names it, less what its variant ignores
-                cell = dataclasses.replace(cell, ignored=tuple(
-                    a.field for a in ignored_by(config, registry, cell)))
+            ignored = ignored_by(config, registry, cell)
+            if matching:  # as the config names it, less what its variant ignores
+                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
+            else:  # as it is measured: at the one value of each axis its variant ignores
+                collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
+                                  or getattr(cell, a.field) != a.value)
+                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
+                                           collapsed=collapsed,
+                                           **{a.field: a.value for a in ignored})
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
                    cell.threads, cell.ranks, schedule)
             if key not in seen:
