@@ -49,8 +49,7 @@ def perf_counts() -> bool:
                               timeout=PERF_PROBE_TIMEOUT_S)
     except (OSError, subprocess.TimeoutExpired):
         return False
-    return done.returncode == 0 and any(PERF_COUNT.match(line)
-                                        for line in done.stderr.splitlines())
+    return done.returncode == 0 and any(PERF_COUNT.match(line) for line in done.stderr.splitlines())
 
 
 @functools.cache

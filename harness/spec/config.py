@@ -305,8 +305,7 @@ def count_points(config: Config) -> int:
     lengths, a zipped group counting once."""
     listed = axes(config)
     zipped = [len(v) for k, v in listed if k in config.zip_keys]
-    return max(zipped, default=1) * math.prod(len(v) for k, v in listed
-                                              if k not in config.zip_keys)
+    return max(zipped, default=1) * math.prod(len(v) for k, v in listed if k not in config.zip_keys)
 
 
 def expand_points(config: Config) -> list[dict[str, object]]:

@@ -47,13 +47,10 @@ class Count:
 
     def per_step(self, n: int, tile: int) -> float:
         """The count in a step of N particles (rows i < N, pairs i < j, tiles of `tile` j)."""
-        rows = n - 1  # row i has N-1-i pairs; the tiles of all rows: sum of ceil(m/tile), m < N
-        tiles = 0.0
-        if self.tile:
-            q, r = divmod(rows, tile)
-            tiles = tile * q * (q + 1) / 2 + r * (q + 1)
-        return (self.step + self.row * n + self.pair * n * (n - 1) / 2
-                + self.tile * tiles)
+        # row i has N-1-i pairs; the tiles of all rows: sum of ceil(m/tile), m < N
+        q, r = divmod(n - 1, tile) if self.tile else (0, 0)
+        tiles = tile * q * (q + 1) / 2 + r * (q + 1)
+        return self.step + self.row * n + self.pair * n * (n - 1) / 2 + self.tile * tiles
 
     def to_json(self) -> dict[str, int]:
         """The terms as `--describe` prints them: only those that are not zero."""
@@ -77,8 +74,7 @@ class SyncFacts:
         return {op: getattr(self, op).per_step(n, self.tile) for op in SYNC_OPERATIONS}
 
     def to_json(self) -> dict[str, object]:
-        return {**{op: getattr(self, op).to_json() for op in SYNC_OPERATIONS},
-                "tile": self.tile}
+        return {**{op: getattr(self, op).to_json() for op in SYNC_OPERATIONS}, "tile": self.tile}
 
     @classmethod
     def parse(cls, data: object, where: str) -> SyncFacts | None:
@@ -155,8 +151,7 @@ class VariantFacts:
 @dataclass(frozen=True)
 class IgnoredAxis:
     """An axis of a config's grid that a variant's facts can say it ignores: its cells along
-    the axis are then one cell, run at `value`, whose key (and record) has that value, so the
-    records of the variant at `value` keep their ids (harness.plan.cells)."""
+    the axis are then one cell, run at `value`, so its records at `value` keep their ids."""
 
     field: str  # the name of the axis in a cell, its key and its record
     value: object
@@ -173,7 +168,6 @@ IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.p
 
 
 def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:
-    """The axes a variant of these facts ignores."""
     return [axis for axis in IGNORED_AXES if not axis.uses(facts)]
 
 
@@ -203,8 +197,7 @@ class Variants:
                                f"{', '.join(self.order)}") from None
 
     def get(self, name: str) -> VariantFacts | None:
-        """A variant's facts; None for a name that is no variant of the set (a custom binary,
-        results of a variant since removed)."""
+        """A variant's facts; None for a custom binary, or a variant since removed."""
         return self.by_name.get(name)
 
     def family(self, name: str) -> str:

@@ -53,8 +53,7 @@ def check_steps(n: int, steps: int) -> int:
 
 
 def reference_variant(n: int) -> str:
-    """The variant a program's output is compared with at n particles, and whose `--replay`
-    judges its steps."""
+    """The variant a program's output is compared with, and whose `--replay` judges its steps."""
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
 
 
@@ -120,8 +119,7 @@ class Program:
                                                   threads=threads, ranks=ranks))
 
     def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:
-        """The argv that builds the program with a compiler and flags of the harness's choice
-        into `out`."""
+        """The argv that builds the program into `out` with the harness's compiler and flags."""
         sources = [str(p.relative_to(self.directory) if p.is_relative_to(self.directory) else p)
                    for p in self.source]
         return self._in_directory(self.build.format(
@@ -133,8 +131,7 @@ class Program:
         the first word naming a file in its directory; None when it names none."""
         word = self.binary
         if not word:
-            word = next((w for w in _words(template) if w and (self.directory / w).is_file()),
-                        "")
+            word = next((w for w in _words(template) if w and (self.directory / w).is_file()), "")
         if not word:
             return None
         replacement = shlex.quote(str(binary)).replace("{", "{{").replace("}", "}}")
@@ -194,10 +191,9 @@ def _words(template: str) -> list[str]:
 
 def from_mapping(name: str, value: Mapping[str, object], directory: Path,
                  path: Path | None = None) -> Program:
-    """A Program from `command` and optional `check`, `source` and `build` (already checked
-    to be strings, `source` a string or a list of them). A class's program (`path`, the file
-    its glob matched) has {path} and {dir} filled in: quoted in its templates, plain in
-    `source:`."""
+    """A Program from `command` and optional `check`, `source` and `build` (already checked).
+    A class's program (`path`, the file its glob matched) has {path} and {dir} filled in:
+    quoted in its templates, plain in `source:`."""
     def filled(template: object, quote: bool = True) -> str:
         text = str(template)
         for key, part in ((PATH, path), (DIR, None if path is None else path.parent)):

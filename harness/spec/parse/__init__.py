@@ -70,8 +70,7 @@ MEASURE = {
     "max_runs": kinds.POSITIVE_INT,
     "max_time_s": kinds.POSITIVE_REAL,
 }
-VALIDATE = {"max_n": kinds.optional(kinds.POSITIVE_INT),
-            "baseline": kinds.one_of(BASELINE_CHOICES)}
+VALIDATE = {"max_n": kinds.optional(kinds.POSITIVE_INT), "baseline": kinds.one_of(BASELINE_CHOICES)}
 # `truth:` is one of the known variants: parse_checks adds it first.
 ACCURACY = {
     "shadow_steps": kinds.NON_NEGATIVE_INT,

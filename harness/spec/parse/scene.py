@@ -42,8 +42,7 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
         names = value if isinstance(value, list) else [value]
         expected = "one of " + ", ".join(scenes.REGISTRY.names())
         if not names:
-            raise config_error(source, "scene.generator", f"{expected}, or a non-empty list",
-                               value)
+            raise config_error(source, "scene.generator", f"{expected}, or a non-empty list", value)
         for name in names:
             if not isinstance(name, str) or name not in scenes.REGISTRY:
                 raise config_error(source, "scene.generator", expected, name)
