@@ -8,7 +8,6 @@ import dataclasses
 import itertools
 import math
 import operator
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,9 +15,6 @@ from pathlib import Path
 from harness.errors import config_error
 from harness.spec.facts import GRID
 from harness.spec.programs import Program
-
-# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
-BASELINE_CHOICES = ("f64", "same", "f128")
 
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "ranks", "combine", "measure",
@@ -30,33 +26,12 @@ TOP_KEYS = (
 METRIC_TIME = "time"
 METRIC_INSTRUCTIONS = "instructions"
 METRICS = (METRIC_TIME, METRIC_INSTRUCTIONS)
-REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-# Adaptive repetition (`runs: auto`): its own keys, only beside it.
-ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 AUTO_RUNS = "auto"
-CHECK_NAMES = ("invariants", "shadow", "divergence")
 DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "ranks", "n", "L", "r", "steps", "mode",
                   "seed", "schedule")
-EXCLUDE_NUMERIC_FIELDS = ("threads", "ranks", "n", "L", "r", "steps", "seed")
 EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": operator.le}
-# An experiment's, a custom binary's or a program's name: a folder and a file name under
-# results/, so characters every file system takes, and short enough beside its suffixes.
-NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
-MAX_NAME_CHARS = 64
-NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
-             "or digit)")
-
-
-def is_valid_name(name: object) -> bool:
-    return (isinstance(name, str) and len(name) <= MAX_NAME_CHARS
-            and NAME_PATTERN.fullmatch(name) is not None)
-
-
-# `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers p1_runtime's loop).
-SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
-SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
 # At most this many cells a config plans (`run --max-cells` changes it): counted before any
 # scene is built, so a config whose lists multiply to millions is refused at once.
 DEFAULT_MAX_CELLS = 10_000

@@ -9,6 +9,7 @@ checks (`measure:` and its overrides by variant, `validate:`, `checks:` with `ac
 
 from __future__ import annotations
 
+import re
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
@@ -16,15 +17,11 @@ from harness.errors import MISSING, HarnessError, config_error
 from harness.spec import kinds, programs
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import (
-    ADAPTIVE_KEYS,
     AUTO_RUNS,
-    BASELINE_CHOICES,
-    CHECK_NAMES,
     DEFAULT_MAX_CELLS,
     DEFAULT_RUNS,
     EXECUTOR_KINDS,
     METRICS,
-    NAME_RULE,
     TOP_KEYS,
     Checks,
     Config,
@@ -32,7 +29,6 @@ from harness.spec.config import (
     Measure,
     Validation,
     expand_points,
-    is_valid_name,
 )
 from harness.spec.facts import MPI_INSTALL
 from harness.spec.parse.scene import (
@@ -47,9 +43,25 @@ from harness.spec.parse.scene import (
 from harness.spec.variants import VariantRegistry, default_registry
 from harness.spec.yamlfile import read_mapping
 
+# An experiment's, a custom binary's or a program's name: a folder and a file name under
+# results/, so characters every file system takes, and short enough beside its suffixes.
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+MAX_NAME_CHARS = 64
+NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
+             "or digit)")
+# Adaptive repetition (`runs: auto`): its own keys, only beside it.
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
+# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
+BASELINE_CHOICES = ("f64", "same", "f128")
+CHECK_NAMES = ("invariants", "shadow", "divergence")
 # The top-level keys of one value each, checked as they are (title's default: the name).
 SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
            "openmp_costs": kinds.BOOLEAN}
+
+
+def is_valid_name(name: object) -> bool:
+    return (isinstance(name, str) and len(name) <= MAX_NAME_CHARS
+            and NAME_PATTERN.fullmatch(name) is not None)
 
 
 def _runs(value: object) -> object:

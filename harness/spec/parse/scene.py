@@ -7,6 +7,7 @@ limits is refused at load time with the numbers, not after minutes of building."
 from __future__ import annotations
 
 import contextlib
+import re
 from pathlib import Path
 from typing import cast
 
@@ -16,11 +17,7 @@ from harness.errors import MISSING, HarnessError, config_error
 from harness.spec import kinds, scenes
 from harness.spec.config import (
     EXCLUDE_FIELDS,
-    EXCLUDE_NUMERIC_FIELDS,
     EXCLUDE_OPS,
-    REQUIRED_RANDOM_KEYS,
-    SCHEDULE_KINDS,
-    SCHEDULE_PATTERN,
     Condition,
     Config,
     ExcludeRule,
@@ -29,6 +26,13 @@ from harness.spec.config import (
     expand_points,
     scene_key,
 )
+
+REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
+# `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers p1_runtime's loop).
+SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
+SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
+# The fields an exclude rule's comparison (_gt, _ge, _lt, _le) may test.
+EXCLUDE_NUMERIC_FIELDS = ("threads", "ranks", "n", "L", "r", "steps", "seed")
 
 
 def parse_scene(value: object, source: Path) -> SceneSpec:
