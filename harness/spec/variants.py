@@ -25,18 +25,13 @@ DESCRIBE_TIMEOUT_S = 10.0
 
 class VariantRegistry:
     """The variants of a repository: names from variants/*.c, facts from build/NAME
-    --describe (built with make when missing or out of date)."""
+    --describe (built with make when missing or out of date), or the `facts` given."""
 
     def __init__(self, repo_root: Path = REPO_ROOT, make: str = "make",
                  facts: Iterable[VariantFacts] | None = None) -> None:
         self.repo_root = repo_root
         self.make = make
         self._given = None if facts is None else {f.name: f for f in facts}
-
-    @classmethod
-    def of(cls, facts: Iterable[VariantFacts]) -> VariantRegistry:
-        """A registry of the given facts, reading no binary (tests, other repositories)."""
-        return cls(facts=facts)
 
     @functools.cached_property
     def sources(self) -> frozenset[str]:

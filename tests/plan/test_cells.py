@@ -53,8 +53,8 @@ def test_a_serial_variant_is_one_cell_a_scene_run_with_one_thread(write_config, 
 
     assert key(alone) == key(one) and key(alone).threads == 1
     # the rule follows the facts: a seq that said it was parallel would use its threads
-    registry = VariantRegistry.of([VariantFacts("seq", "s", True, True, True),
-                                   VariantFacts("p1d", "p", True, True, True)])
+    registry = VariantRegistry(facts=[VariantFacts("seq", "s", True, True, True),
+                                      VariantFacts("p1d", "p", True, True, True)])
     config = load_config(write_config(SERIAL + "threads: [1, 2]\n", "facts"), registry)
     assert len(plan_cells(config, registry=registry).cells) == 4
 
@@ -106,7 +106,7 @@ def test_a_variant_promises_exactness_and_a_custom_binary_does_not(write_config,
 
 
 def test_exactness_follows_the_registry_given(write_config) -> None:
-    registry = VariantRegistry.of([
+    registry = VariantRegistry(facts=[
         VariantFacts("seq", "s", True, False, True), VariantFacts("p1", "p", False, True, True),
         VariantFacts("grid", "g", True, True, False)])
     config = load_config(write_config(BASE), registry)
