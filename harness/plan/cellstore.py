@@ -1,9 +1,7 @@
-"""An experiment's identity and storage: the binaries its cells run (in a build directory, the
-repository's build/ or a revision's when two are compared, unless the config names a binary
-of its own), what a cell's measurement depends on (its key, hashed into its cell id), its
-record files under <experiment>/cells/, its input files and the fields every record starts
-with. Nothing here measures: records reach the store from whichever executor measured them
-(this process, or a worker on another node writing the same files).
+"""An experiment's identity and storage: the binaries its cells run (in a build directory,
+unless the config names a binary of its own), what a cell's measurement depends on (its key,
+hashed into its cell id), its record files, its input files and the fields every record starts
+with. Nothing here measures: records reach the store from whichever executor measured them.
 """
 
 from __future__ import annotations

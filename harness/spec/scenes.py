@@ -213,7 +213,6 @@ GeneratorFn = Callable[..., GeneratedScene]
 
 @dataclass(frozen=True)
 class GeneratorInfo:
-    name: str
     fn: GeneratorFn
     defaults: Mapping[str, object]  # parameter -> default value (its type is the param's)
     doc: str
@@ -234,7 +233,7 @@ class GeneratorRegistry:
                 if param.default is inspect.Parameter.empty:
                     raise ValueError(f"generator {name!r}: {param.name!r} needs a default")
                 defaults[param.name] = param.default
-            self.entries[name] = GeneratorInfo(name, fn, defaults, inspect.getdoc(fn) or "")
+            self.entries[name] = GeneratorInfo(fn, defaults, inspect.getdoc(fn) or "")
             return fn
 
         return decorate

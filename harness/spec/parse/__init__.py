@@ -1,11 +1,7 @@
-"""Reading a config: YAML -> validation and defaults -> a frozen `Config` (harness.spec.config).
-
-Every mistake is a `HarnessError` naming the file, the key and what was expected. The known
-variants come from a variant registry (harness.spec.variants). Here: the top-level keys, what
-a config runs (its variants and builds, its own binaries and programs) and how it measures and
-checks (`measure:` and its overrides by variant, `validate:`, `checks:` with `accuracy:`,
-`executor:`); harness.spec.parse.scene reads its axes.
-"""
+"""Reading a config: YAML -> validation and defaults -> a frozen `Config`, every mistake a
+`HarnessError` naming the file, the key and what was expected. Here: the top-level keys, what a
+config runs (its variants, builds, binaries and programs) and how it measures and checks;
+harness.spec.parse.scene reads its axes."""
 
 from __future__ import annotations
 
