@@ -184,8 +184,7 @@ class CellStore:
         return binary_path(self.config, self.binaries, cell.variant, cell.build)
 
     def binary_sha(self, cell: Cell) -> str | None:
-        """The hash of what the cell runs: its binary, or a program's fingerprint (its
-        commands and the files they name)."""
+        """The hash of what the cell runs: its binary, or a program's fingerprint."""
         program = self.config.program(cell.variant)
         if program is None:
             return self.sha(self.binary(cell))
@@ -197,8 +196,6 @@ class CellStore:
         return program_references(self.config, self.binaries, cell)
 
     def counted_binary(self, cell: Cell) -> Path | None:
-        """What the instruction lane counts for the cell (None without the lane, or for a
-        program, whose command is counted)."""
         return lane.counted_binary(self.config, self.binaries, cell)
 
     def missing_binary(self, cell: Cell) -> Path | None:
@@ -285,9 +282,8 @@ class CellStore:
 
     def cached(self, cell_id: str) -> CellResult | None:
         """The record that spares measuring the cell again: one that reads, with the hyperfine
-        exports it rests on; a DamagedFile naming the file where one of them is damaged (the
-        cell is then measured again). A record marked retry is listed in results.csv but
-        measured again by the next run."""
+        exports it rests on (a DamagedFile names one that is damaged), and is not marked retry
+        (listed in results.csv, but measured again by the next run)."""
         if self.force:
             return None
         result = records.check_record(self.layout.record(cell_id), cell_id)

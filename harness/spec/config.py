@@ -37,9 +37,8 @@ EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": op
 DEFAULT_MAX_CELLS = 10_000
 
 DEFAULT_WARMUP = 1
-# By default a cell takes rounds until its interval is within +-DEFAULT_CI: a strategy 10%
-# faster than another then shows as such (two intervals of +-5% do not overlap), and on a
-# 2-vCPU VM a session moves a cell by about 5% anyway, which no number of rounds narrows.
+# By default a cell takes rounds until its interval is within +-DEFAULT_CI (docs/configs.md
+# says why 5%).
 DEFAULT_RUNS: int | None = None  # auto
 DEFAULT_CI = 0.05
 DEFAULT_TIMEOUT_S = 600.0

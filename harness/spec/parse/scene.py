@@ -145,18 +145,17 @@ def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
         if not raw:
             raise config_error(source, label, "at least one condition", item)
         conditions = []
-        for key, condition_value in raw.items():
+        for key, wanted in raw.items():
             field, _, op = str(key).rpartition("_")
             if field in EXCLUDE_FIELDS and op in EXCLUDE_OPS:
                 if field not in EXCLUDE_NUMERIC_FIELDS:
                     raise config_error(source, f"{label}.{key}", "a comparison (_gt, _ge, _lt, "
                                        "_le) of one of " + ", ".join(EXCLUDE_NUMERIC_FIELDS),
-                                       condition_value)
-                bound = kinds.check(condition_value, f"{label}.{key}", NUMBER, source)
+                                       wanted)
+                bound = kinds.check(wanted, f"{label}.{key}", NUMBER, source)
                 conditions.append(Condition(field, op, bound))
             elif key in EXCLUDE_FIELDS:
-                accepted = condition_value if isinstance(condition_value, list) else [
-                    condition_value]
+                accepted = wanted if isinstance(wanted, list) else [wanted]
                 conditions.append(Condition(str(key), "eq", tuple(accepted)))
             else:
                 allowed = ", ".join(EXCLUDE_FIELDS)
