@@ -73,14 +73,10 @@ def parse_output(text: str) -> Output:
 
 def split_states(out: Output) -> list[tuple[np.ndarray, np.ndarray]]:
     """(positions, velocities) of every printed state: steps 0..S-1, then the final block."""
-    states = []
     history = out.history
-    if len(history):
-        for step in np.unique(history[:, 0]):
-            rows = history[history[:, 0] == step]
-            states.append((rows[:, 2:4], rows[:, 4:6]))
-    states.append((out.final.position, out.final.velocity))
-    return states
+    steps = [history[history[:, 0] == step] for step in np.unique(history[:, 0])]
+    return [*((rows[:, 2:4], rows[:, 4:6]) for rows in steps),
+            (out.final.position, out.final.velocity)]
 
 
 def states_by_step(out: Output) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError, describe_value
-from harness.spec.yamlfile import read_text
 
 MODES = ("print", "perf")
 DEFAULT_MODE = "perf"
@@ -261,6 +260,26 @@ def generated_point(name: str, params: Mapping[str, object], seed: int) -> Scene
     check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
     return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
                       seed, scene.text, tuple(sorted(params.items())))
+
+
+def read_text(source: Path, what: str, max_bytes: int | None = None) -> str:
+    """A file's UTF-8 text; a HarnessError naming the file (`what` says what it is) when it is
+    missing, unreadable, larger than max_bytes or not UTF-8."""
+    try:
+        if max_bytes is not None and source.stat().st_size > max_bytes:
+            raise HarnessError(f"{source}: {what} of {source.stat().st_size} bytes is larger "
+                               f"than {max_bytes}")
+        data = source.read_bytes()
+    except FileNotFoundError:
+        raise HarnessError(f"{source}: no such {what}") from None
+    except OSError as exc:
+        raise HarnessError(f"{source}: cannot read {what}: {exc.strerror}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise HarnessError(f"{source}: {what} is not UTF-8 text: byte 0x{data[exc.start]:02x} "
+                           f"on line {line} (offset {exc.start})") from None
 
 
 def file_point(path: Path, seed: int) -> ScenePoint:

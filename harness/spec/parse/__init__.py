@@ -37,7 +37,6 @@ from harness.spec.parse.scene import (
     parse_schedules,
 )
 from harness.spec.variants import VariantRegistry, default_registry
-from harness.spec.yamlfile import read_mapping
 
 # An experiment's, a custom binary's or a program's name: a folder and a file name under
 # results/, so characters every file system takes, and short enough beside its suffixes.
@@ -303,7 +302,7 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     (this repository's, by default) or its own `binaries:`. A config of more than max_cells
     cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
-    raw = read_mapping(source)
+    raw = kinds.read_mapping(source)
     registry = registry or default_registry()
     known_variants = registry.names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
