@@ -233,6 +233,7 @@ def parse_binaries(value: object, source: Path,
 PROGRAM_FORMS = ('a command template such as "./sim {threads} < {input}", or '
                  '{command: TEMPLATE, check: TEMPLATE, source: PATH, build: TEMPLATE}, or a '
                  'class: {glob: PATTERN, command: TEMPLATE with {path}}')
+COMMAND_FORM = "a command template with {input} and optionally {threads} and {ranks}"
 BUILD_FORM = ('a build command template with {cc}, {cflags} and {out} (and optionally '
               '{source}), such as "{cc} {cflags} {source} -o {out} -lm"')
 
@@ -261,21 +262,18 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
             if key == programs.SOURCE:
                 _check_source(template, where, source, extra)
                 continue
+            is_build = key == programs.BUILD
             if not isinstance(template, str) or not template.strip():
-                raise config_error(source, where, BUILD_FORM if key == programs.BUILD
-                                   else PROGRAM_FORMS, template)
+                raise config_error(source, where, BUILD_FORM if is_build else PROGRAM_FORMS,
+                                   template)
             if key == programs.GLOB:
                 continue
+            known = (programs.BUILD_PLACEHOLDERS, programs.BUILD_REQUIRED) if is_build else ()
             try:
-                if key == programs.BUILD:
-                    programs.check_placeholders(template, extra, programs.BUILD_PLACEHOLDERS,
-                                                programs.BUILD_REQUIRED)
-                else:
-                    programs.check_placeholders(template, extra)
+                programs.check_placeholders(template, extra, *known)
             except programs.TemplateError as exc:
-                raise config_error(source, where, f"{BUILD_FORM}: {exc}" if key == programs.BUILD
-                                   else f"a command template with {{input}} and optionally "
-                                   f"{{threads}} and {{ranks}}: {exc}", template) from None
+                raise config_error(source, where, f"{BUILD_FORM if is_build else COMMAND_FORM}: "
+                                   f"{exc}", template) from None
         for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
             if one in fields and other not in fields:
                 raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "
