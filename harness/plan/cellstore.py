@@ -112,10 +112,8 @@ def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
 def measures_openmp_costs(config: Config, cell: Cell) -> bool:
     """Whether the cell's start runs build/ompcost: with `openmp_costs: true`, for a built
     variant that uses threads (a serial one's thread count is nominal)."""
-    if not config.openmp_costs or cell.program or not config.is_built(cell.variant):
-        return False
-    facts = default_registry().get(cell.variant)
-    return facts is not None and facts.parallel
+    return (config.openmp_costs and not cell.program and config.is_built(cell.variant)
+            and getattr(default_registry().get(cell.variant), "parallel", False))
 
 
 def named(cell: Cell) -> Subject:

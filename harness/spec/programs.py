@@ -129,9 +129,8 @@ class Program:
     def with_binary(self, template: str, binary: Path) -> str | None:
         """The template with the program's binary replaced by another: a class's {path}, or
         the first word naming a file in its directory; None when it names none."""
-        word = self.binary
-        if not word:
-            word = next((w for w in _words(template) if w and (self.directory / w).is_file()), "")
+        word = self.binary or next(
+            (w for w in _words(template) if w and (self.directory / w).is_file()), "")
         if not word:
             return None
         replacement = shlex.quote(str(binary)).replace("{", "{{").replace("}", "}}")
