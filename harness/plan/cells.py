@@ -158,7 +158,8 @@ def plan_cells(config: Config, quick: bool = False,
                                                           config.schedules or ("",)):
             cell = _cell(config, registry, variant, build, scene, point, schedule)
             fields = cell.fields()  # the config's point: a rule may name a thread count
-            matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
+            matching = {k for k, rule in enumerate(config.exclude)
+                        if all(c.holds(fields) for c in rule)}
             used |= matching
             ignored = ignored_by(config, registry, cell)
             if matching:  # as the config names it, less what its variant ignores
@@ -180,7 +181,7 @@ def plan_cells(config: Config, quick: bool = False,
     if unused and not quick:
         rule = config.exclude[unused[0]]
         raise config_error(config.source, f"exclude[{unused[0]}]", "a rule that matches at "
-                           "least one cell", ", ".join(c.describe() for c in rule.conditions))
+                           "least one cell", ", ".join(c.describe() for c in rule))
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 

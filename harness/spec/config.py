@@ -188,16 +188,6 @@ class Condition:
 
 
 @dataclass(frozen=True)
-class ExcludeRule:
-    """A cell is excluded when every condition of one rule holds."""
-
-    conditions: tuple[Condition, ...]
-
-    def matches(self, fields: Mapping[str, object]) -> bool:
-        return all(c.holds(fields) for c in self.conditions)
-
-
-@dataclass(frozen=True)
 class SceneSpec:
     kind: str  # "random", "generator" or "file"
     generator: str | None
@@ -218,7 +208,7 @@ class Config:
     measure: Measure
     validate: Validation
     keep_output: bool
-    exclude: tuple[ExcludeRule, ...]
+    exclude: tuple[tuple[Condition, ...], ...]  # rules: a cell is excluded where all of one hold
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()

@@ -20,7 +20,6 @@ from harness.spec.config import (
     EXCLUDE_OPS,
     Condition,
     Config,
-    ExcludeRule,
     SceneSpec,
     count_points,
     expand_points,
@@ -135,7 +134,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
 NUMBER = kinds.Kind("a number", kinds.real)
 
 
-def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
+def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
     if not isinstance(value, list):
         raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
     rules = []
@@ -161,7 +160,7 @@ def parse_exclude(value: object, source: Path) -> tuple[ExcludeRule, ...]:
                 allowed = ", ".join(EXCLUDE_FIELDS)
                 raise config_error(source, f"{label}.{key}", f"one of {allowed}, optionally "
                                    "with _gt, _ge, _lt or _le", "an unknown key")
-        rules.append(ExcludeRule(tuple(conditions)))
+        rules.append(tuple(conditions))
     return tuple(rules)
 
 
@@ -179,7 +178,7 @@ def check_exclude(config: Config) -> None:
         "threads": config.threads, "ranks": config.ranks, "schedule": config.schedules or ("",),
     }
     for index, rule in enumerate(config.exclude):
-        for condition in rule.conditions:
+        for condition in rule:
             values = known.get(condition.field)
             if condition.op != "eq" or values is None:
                 continue
