@@ -208,7 +208,8 @@ class Config:
     measure: Measure
     validate: Validation
     keep_output: bool
-    exclude: tuple[tuple[Condition, ...], ...]  # rules: a cell is excluded where all of one hold
+    # Rules: a cell is excluded where every condition of one rule holds.
+    exclude: tuple[tuple[Condition, ...], ...]
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()
