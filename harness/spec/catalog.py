@@ -1,9 +1,6 @@
 """The stiff and extreme scene catalog: named scenes that stress one rule or one rounding each.
-
-Every entry is a generator (a config names it as `scene: {generator: NAME}`), and `catalog()`
-maps each name to the sentence saying what it stresses. Every catalog generator takes `steps`
-and `mode`, so a config can set those for all of them; each has its own default step count
-(enough for its event, and the runs after it).
+Every entry is a generator taking `steps` (its default: enough for its event, and the runs
+after it) and `mode`; `catalog()` maps each name to the sentence saying what it stresses.
 
 Geometry is chosen so that the critical quantities are exact in binary (contact at exactly
 t = 1, a discriminant of exactly 0, bit-identical tie times), unless the point of the scene is

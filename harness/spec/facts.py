@@ -1,11 +1,9 @@
-"""What each variant is (its binary's `--describe`), as the harness reads it: typed, checked,
-and stored with the results it measured (variants.json), so that whoever reads results needs
-no binary, no build and no make. A variant's facts say whether its output is byte-identical to
-seq (`exact`), whether it uses threads (`parallel`), whether it tests every pair i < j with
-seq's kernel (`all_pairs`: its speedup over seq is parallelism alone), which of the seed's
-strategies it repairs (`repairs`) and what it asks of the OpenMP runtime per step (`sync`).
-harness.spec.variants asks the binaries; this module only parses, orders and serialises.
-"""
+"""What each variant is (its binary's `--describe`, docs/variants.md): typed, checked, and
+stored with the results it measured (variants.json), so that whoever reads results needs no
+binary, no build and no make. `exact`: byte-identical to seq; `parallel`: uses threads;
+`all_pairs`: tests every pair i < j with seq's kernel, so its speedup over seq is parallelism
+alone; `repairs`: the seed's strategy it repairs. harness.spec.variants asks the binaries; this
+module only parses, orders and serialises."""
 
 from __future__ import annotations
 

@@ -1,13 +1,9 @@
-"""Reading a config file: its YAML read strictly, and what each key accepts, with the checks
-every parser of a config uses: each mistake is a `HarnessError` naming the file, the key and
-what was expected.
-
-YAML read strictly: a key named twice in one mapping is an error (PyYAML would keep the last
-one without a word), and a file that cannot be read or parsed is one error line. Nothing in a
-file can make the reading unbounded: the file's size, its nesting depth, the values it expands
-to (an alias counts each time it is used, so a small "billion laughs" file is refused before
-anything is built) and the digits of an integer are limited, and checked on the parser's
-events, which need no recursion, before a Python value is made."""
+"""Reading a config file: what each key accepts, with the checks every parser of a config uses
+(each mistake a `HarnessError` naming the file, the key and what was expected), and its YAML
+read strictly: a key named twice in one mapping is an error (PyYAML would keep the last one),
+and nothing in a file can make the reading unbounded: its size, its nesting depth, the values
+it expands to (an alias counts each time it is used: no "billion laughs") and the digits of an
+integer are limited, checked on the parser's events before a Python value is made."""
 
 from __future__ import annotations
 
