@@ -92,8 +92,7 @@ class SyncFacts:
                                    f"{', '.join(COUNT_UNITS)}")
             counts[op] = Count(**terms)
         tile = data["tile"]
-        per_tile = any(c.tile for c in counts.values())
-        if not _natural(tile) or (per_tile and tile < 1):
+        if not _natural(tile) or (tile < 1 and any(c.tile for c in counts.values())):
             raise HarnessError(f"{wrong}: 'tile' must be a count, at least 1 where a count is "
                                "per tile")
         return cls(**counts, tile=tile)

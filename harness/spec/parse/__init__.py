@@ -124,10 +124,9 @@ def parse_variant_measures(value: object, base: object, variants: Sequence[str],
                                + ", ".join(variants) + ")", variant)
         # `measure`'s keys are checked already: an unknown key here is the variant's own
         own = kinds.mapping(settings, label, source)
-        inherited = dict(kinds.mapping(base, "measure", source))
+        inherited = kinds.mapping(base, "measure", source)
         if own.get("runs", AUTO_RUNS) != AUTO_RUNS:  # a fixed count: no adaptive settings
-            for key in ADAPTIVE_KEYS:
-                inherited.pop(key, None)
+            inherited = {k: v for k, v in inherited.items() if k not in ADAPTIVE_KEYS}
         result.append((str(variant), parse_measure({**inherited, **own}, source, label)))
     return tuple(result)
 
