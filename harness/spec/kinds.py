@@ -212,12 +212,8 @@ StrictLoader.add_constructor("tag:yaml.org,2002:int", StrictLoader.construct_yam
 SHAPE_LOADER = getattr(yaml, "CSafeLoader", StrictLoader)
 
 
-class ShapeError(yaml.YAMLError):
-    """A document nested too deep or expanding to too many values."""
-
-
 def check_shape(text: str) -> None:
-    """Raise ShapeError where the YAML nests too deep or expands to too many values (each alias
+    """A YAMLError where the YAML nests too deep or expands to too many values (each alias
     counted as the values of its anchor)."""
     anchored: dict[str, int] = {}  # anchor -> the values it stands for
     open_at: list[tuple[int, str | None]] = []  # each open collection: values before it, anchor
@@ -234,14 +230,14 @@ def check_shape(text: str) -> None:
             open_at.append((values, event.anchor))
             values += 1
             if len(open_at) > MAX_YAML_DEPTH:
-                raise ShapeError(f"nested deeper than {MAX_YAML_DEPTH} levels (line {line})")
+                raise yaml.YAMLError(f"nested deeper than {MAX_YAML_DEPTH} levels (line {line})")
         elif isinstance(event, yaml.CollectionEndEvent):
             before, anchor = open_at.pop()
             if anchor is not None:
                 anchored[anchor] = values - before
         if values > MAX_YAML_VALUES:
-            raise ShapeError(f"more than {MAX_YAML_VALUES} values, each alias counted where it "
-                             f"is used (line {line})")
+            raise yaml.YAMLError(f"more than {MAX_YAML_VALUES} values, each alias counted where "
+                                 f"it is used (line {line})")
 
 
 def load_yaml(text: str) -> object:
