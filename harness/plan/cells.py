@@ -93,7 +93,7 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
     name = str(params.pop("generator", config.scene.generator))
     if quick:
         # A generator's own default counts as given.
-        defaults = scenes.REGISTRY.get(name).defaults if kind == "generator" else {}
+        defaults = scenes.REGISTRY[name].defaults if kind == "generator" else {}
         for key, limit in (("n", QUICK_MAX_N), ("steps", QUICK_MAX_STEPS)):
             value = params.get(key, defaults.get(key))
             if isinstance(value, int) and not isinstance(value, bool):

@@ -176,4 +176,4 @@ CATALOG_NAMES: tuple[str, ...] = (
 
 def catalog() -> dict[str, str]:
     """Each catalog scene's name and what it stresses (its generator's docstring)."""
-    return {name: " ".join(REGISTRY.get(name).doc.split()) for name in CATALOG_NAMES}
+    return {name: " ".join(REGISTRY[name].doc.split()) for name in CATALOG_NAMES}

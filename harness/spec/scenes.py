@@ -23,7 +23,7 @@ import math
 import random
 import re
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -217,37 +217,28 @@ class GeneratorInfo:
     doc: str
 
 
-@dataclass
-class GeneratorRegistry:
+class GeneratorRegistry(dict[str, GeneratorInfo]):
     """Named scene generators; filled once, at import, by the @generator decorator."""
-
-    entries: dict[str, GeneratorInfo] = field(default_factory=dict)
 
     def register(self, name: str) -> Callable[[GeneratorFn], GeneratorFn]:
         def decorate(fn: GeneratorFn) -> GeneratorFn:
-            if name in self.entries:
+            if name in self:
                 raise ValueError(f"scene generator {name!r} registered twice")
             defaults: dict[str, object] = {}
             for param in inspect.signature(fn).parameters.values():
                 if param.default is inspect.Parameter.empty:
                     raise ValueError(f"generator {name!r}: {param.name!r} needs a default")
                 defaults[param.name] = param.default
-            self.entries[name] = GeneratorInfo(fn, defaults, inspect.getdoc(fn) or "")
+            self[name] = GeneratorInfo(fn, defaults, inspect.getdoc(fn) or "")
             return fn
 
         return decorate
 
     def names(self) -> tuple[str, ...]:
-        return tuple(sorted(self.entries))
+        return tuple(sorted(self))
 
-    def get(self, name: str) -> GeneratorInfo:
-        try:
-            return self.entries[name]
-        except KeyError:
-            raise HarnessError(f"unknown scene generator {name!r}") from None
-
-    def __contains__(self, name: object) -> bool:
-        return name in self.entries
+    def __missing__(self, name: str) -> GeneratorInfo:
+        raise HarnessError(f"unknown scene generator {name!r}")
 
 
 REGISTRY = GeneratorRegistry()
@@ -256,7 +247,7 @@ generator = REGISTRY.register
 
 def generated_point(name: str, params: Mapping[str, object], seed: int) -> ScenePoint:
     """Run generator `name` with `params` (already type-checked by the config loader)."""
-    scene = REGISTRY.get(name).fn(**params)
+    scene = REGISTRY[name].fn(**params)
     check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
     return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
                       seed, scene.text, tuple(sorted(params.items())))

@@ -51,7 +51,7 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
                 raise config_error(source, "scene.generator", expected, name)
         if len(set(names)) != len(names):
             raise config_error(source, "scene.generator", "names without repeats", value)
-        infos = [scenes.REGISTRY.get(str(name)) for name in names]
+        infos = [scenes.REGISTRY[str(name)] for name in names]
         # With several generators, a key must be one every one of them takes.
         keys = {k: kinds.generator_kind(k, d) for k, d in infos[0].defaults.items()
                  if all(k in info.defaults for info in infos[1:])}
@@ -236,7 +236,7 @@ def scene_bytes(config: Config) -> tuple[int, int, int]:
         n = 0
         if config.scene.kind == "generator":
             name = str(point.get("generator", config.scene.generator))
-            n = int(str(point.get("n", scenes.REGISTRY.get(name).defaults.get("n", 0))))
+            n = int(str(point.get("n", scenes.REGISTRY[name].defaults.get("n", 0))))
         elif config.scene.kind == "file":
             path = Path(str(point["file"]))
             with contextlib.suppress(OSError):  # the load says why it cannot be read
