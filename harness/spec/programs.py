@@ -47,9 +47,7 @@ BUILD_PLACEHOLDERS = (*BUILD_REQUIRED, SOURCE)
 def check_steps(n: int, steps: int) -> int:
     """The steps of a program's check run: all of them, or as many as CHECK_MAX_STATES
     particle states allow (the states after 0..S steps), at least one."""
-    if n == 0:
-        return steps
-    return max(1, min(steps, CHECK_MAX_STATES // n - 1))
+    return steps if n == 0 else max(1, min(steps, CHECK_MAX_STATES // n - 1))
 
 
 def reference_variant(n: int) -> str:
