@@ -205,9 +205,7 @@ def _check_source(value: object, where: str, config: Path, extra: tuple[str, ...
     if not isinstance(listed, list) or not listed or not all(
             isinstance(p, str) and p.strip() for p in listed):
         raise config_error(config, where, expected, value)
-    if extra:
-        return
-    for path in listed:
+    for path in () if extra else listed:
         if not (config.resolve().parent / path).exists():
             raise config_error(config, where, f"{expected} (not found: "
                                f"{config.resolve().parent / path})", value)
