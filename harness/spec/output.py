@@ -60,14 +60,9 @@ def parse_output(text: str) -> Output:
     integral = final[:, [0, 1, 6, 7]]
     if not np.array_equal(integral, np.round(integral)):
         raise OutputFormatError("step, index and collision counts must be integers")
-    state = FinalState(
-        step=int(steps[0]) if len(steps) else 0,
-        index=final[:, 1].astype(np.int64),
-        position=final[:, 2:4],
-        velocity=final[:, 4:6],
-        pcoll=final[:, 6].astype(np.int64),
-        wcoll=final[:, 7].astype(np.int64),
-    )
+    index, pcoll, wcoll = (final[:, k].astype(np.int64) for k in (1, 6, 7))
+    state = FinalState(int(steps[0]) if len(steps) else 0, index, final[:, 2:4], final[:, 4:6],
+                       pcoll, wcoll)
     return Output(state, history)
 
 
