@@ -168,8 +168,7 @@ def generate(count: int, L: float, r: float, seed: int) -> list[Particle]:
 
 def with_every_particle(point: ScenePoint) -> ScenePoint:
     """The scene with every particle listed in its input: the ones it lists as written, the
-    others drawn as the binaries would draw them from its seed (so a variant sees the same
-    particles, and a program's own generator decides nothing)."""
+    others drawn as the binaries would draw them from its seed."""
     n, _, _, _, _ = parse_header(point.text, point.label)
     tokens = point.text.split()
     body = tokens[5:]
@@ -197,8 +196,7 @@ def with_every_particle(point: ScenePoint) -> ScenePoint:
 
 
 def with_run(point: ScenePoint, steps: int, mode: str) -> ScenePoint:
-    """The scene with another step count and mode (its header rewritten, L and r kept as
-    written)."""
+    """The scene with another step count and mode (L and r kept as written)."""
     tokens = point.text.split(maxsplit=5)
     rest = tokens[5] if len(tokens) > 5 else ""
     text = f"{tokens[0]} {tokens[1]} {tokens[2]} {steps}\n{mode}\n{rest}"

@@ -1,11 +1,8 @@
 """The variant registry: which variants exist and what each is, from the binaries themselves,
 and the one place the spec runs make (whoever only reads results never imports this module).
-
-A variant is one file, variants/NAME.c; the Makefile builds it into build/NAME where it can
-(an MPI variant only where mpicc is found: `make print-variants` lists those). What a variant
-is comes from its own definition in C, which its binary prints as one JSON line with
-`--describe` (harness.spec.facts): the harness keeps no list of its own, so a new variant needs
-no change anywhere else.
+A variant is one file, variants/NAME.c, built into build/NAME where the Makefile can (`make
+print-variants`); its binary's `--describe` says what it is, so the harness keeps no list of
+its own, and a new variant needs no change anywhere else.
 """
 
 from __future__ import annotations
