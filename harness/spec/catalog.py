@@ -13,7 +13,7 @@ import math
 import random
 from collections.abc import Sequence
 
-from harness.spec.scenes import REGISTRY, GeneratedScene, Particle, generator, make_scene
+from harness.spec.scenes import REGISTRY, Particle, ScenePoint, generator, make_scene
 
 SMALL_L = 100.0  # the box of the few-disc scenes
 MID = SMALL_L / 2
@@ -44,7 +44,7 @@ def scene(name: str, default_steps: int, doc: str, particles: Sequence[Particle]
     docstring `doc` is the catalog's sentence."""
     listed = list(particles)
 
-    def generate(steps: int = default_steps, mode: str = "perf") -> GeneratedScene:
+    def generate(steps: int = default_steps, mode: str = "perf") -> ScenePoint:
         return make_scene(L, R, steps, mode, listed, n=n)
 
     generate.__doc__ = doc

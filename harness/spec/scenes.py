@@ -6,7 +6,7 @@ Adding a generator is one decorated function:
 
     @generator("name")
     def name(n: int = 10, L: float = 100.0, r: float = 1.0, steps: int = 10,
-             mode: str = "perf") -> GeneratedScene:
+             mode: str = "perf") -> ScenePoint:
         return make_scene(L, r, steps, mode, [(x, y, vx, vy), ...])
 
 Its keyword parameters (with defaults; their types are those of the defaults) are the keys
@@ -54,22 +54,10 @@ MAX_INT_TOKEN_CHARS = 21
 
 
 @dataclass(frozen=True)
-class GeneratedScene:
-    """What a generator returns: the input text and the scene parameters it encodes."""
-
-    text: str
-    n: int
-    L: float
-    r: float
-    steps: int
-    mode: str
-
-
-@dataclass(frozen=True)
 class ScenePoint:
     """One concrete input of a cell, with the parameters the results table reports."""
 
-    label: str  # "random", the generator name, or the input file's name
+    label: str  # "random", the generator name ("" until named), or the input file's name
     n: int
     L: float
     r: float
@@ -117,12 +105,13 @@ def particle_row(index: int, particle: Particle) -> str:
 
 
 def make_scene(L: float, r: float, steps: int, mode: str, particles: Iterable[Particle],
-               n: int | None = None) -> GeneratedScene:
-    """Write an input with the given particles as indices 0.. (n > len lets the rest be random)."""
+               n: int | None = None) -> ScenePoint:
+    """What a generator returns: an input with the given particles as indices 0.. (n > len
+    lets the rest be random), its label and seed given by the registry."""
     rows = [particle_row(i, particle) for i, particle in enumerate(particles)]
     total = len(rows) if n is None else n
-    return GeneratedScene(header_text(total, L, r, steps, mode) + "".join(rows), total, L, r,
-                          steps, mode)
+    return ScenePoint("", total, float(L), float(r), steps, mode, DEFAULT_SEED,
+                      header_text(total, L, r, steps, mode) + "".join(rows))
 
 
 def random_point(n: int, L: float, r: float, steps: int, mode: str, seed: int) -> ScenePoint:
@@ -205,7 +194,7 @@ def with_run(point: ScenePoint, steps: int, mode: str) -> ScenePoint:
 
 # --- the generator registry -------------------------------------------------------------
 
-GeneratorFn = Callable[..., GeneratedScene]
+GeneratorFn = Callable[..., ScenePoint]
 
 
 @dataclass(frozen=True)
@@ -247,8 +236,7 @@ def generated_point(name: str, params: Mapping[str, object], seed: int) -> Scene
     """Run generator `name` with `params` (already type-checked by the config loader)."""
     scene = REGISTRY[name].fn(**params)
     check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
-    return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
-                      seed, scene.text, tuple(sorted(params.items())))
+    return dataclasses.replace(scene, label=name, seed=seed, params=tuple(sorted(params.items())))
 
 
 def read_text(source: Path, what: str, max_bytes: int | None = None) -> str:
@@ -344,7 +332,7 @@ def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -
 
 @generator("lattice")
 def lattice(n: int = 100, L: float = 1000.0, r: float = 1.0, steps: int = 10,
-            mode: str = "perf", speed: float = 10.0) -> GeneratedScene:
+            mode: str = "perf", speed: float = 10.0) -> ScenePoint:
     """n discs on a square lattice; rows move alternately right/left and up/down at `speed`."""
     side = max(1, math.ceil(math.sqrt(n)))
     spacing = (L - 2 * r) / side
@@ -371,7 +359,7 @@ DENSE_SLOW_SEED = 1
 
 @generator("dense_slow")
 def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
-               mode: str = "perf") -> GeneratedScene:
+               mode: str = "perf") -> ScenePoint:
     """n discs placed uniformly in the box (overlaps at the start allowed: overlapping pairs
     pass through, SPEC section 1), each moving 0.5-1.5 radii a step in a uniform direction."""
     rng = random.Random(DENSE_SLOW_SEED)
@@ -386,7 +374,7 @@ def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
 
 @generator("head_on")
 def head_on(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
-            gap: float = 10.0, speed: float = 2.0) -> GeneratedScene:
+            gap: float = 10.0, speed: float = 2.0) -> ScenePoint:
     """Two discs on the horizontal midline, `gap` apart (surface to surface), moving at each
     other at `speed`: one head-on pair collision, then wall bounces."""
     mid = L / 2
@@ -399,7 +387,7 @@ def head_on(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf
 
 @generator("corner")
 def corner(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
-           speed: float = 7.0) -> GeneratedScene:
+           speed: float = 7.0) -> ScenePoint:
     """One disc on the diagonal flying into the top-right corner: both axes hit at once."""
     start = L / 2
     diagonal = speed / math.sqrt(2.0)
