@@ -24,10 +24,9 @@ class VariantRegistry:
     """The variants of a repository: names from variants/*.c, facts from build/NAME
     --describe (built with make when missing or out of date), or the `facts` given."""
 
-    def __init__(self, repo_root: Path = REPO_ROOT, make: str = "make",
+    def __init__(self, repo_root: Path = REPO_ROOT,
                  facts: Iterable[VariantFacts] | None = None) -> None:
         self.repo_root = repo_root
-        self.make = make
         self._given = None if facts is None else {f.name: f for f in facts}
 
     @functools.cached_property
@@ -52,7 +51,7 @@ class VariantRegistry:
 
     def _buildable(self) -> set[str]:
         try:
-            listed = subprocess.run([self.make, "-s", "--no-print-directory", "print-variants"],
+            listed = subprocess.run(["make", "-s", "--no-print-directory", "print-variants"],
                                     cwd=self.repo_root, capture_output=True, text=True,
                                     check=False, timeout=60)
         except (OSError, subprocess.TimeoutExpired):
@@ -69,7 +68,7 @@ class VariantRegistry:
         if self._given is not None:
             return Variants.of(self._given.values())
         binaries = [self.repo_root / BUILD_DIR / name for name in self.names]
-        make_binaries(self.repo_root, binaries, self.make, capture=True)
+        make_binaries(self.repo_root, binaries, capture=True)
         return Variants.of(describe(binary) for binary in binaries)
 
     def __getitem__(self, name: str) -> VariantFacts:
@@ -133,11 +132,11 @@ def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
                            f"{done.returncode}{detail}")
 
 
-def has_rules(repo_root: Path, binaries: Iterable[Path], make: str = "make") -> bool:
+def has_rules(repo_root: Path, binaries: Iterable[Path]) -> bool:
     """Whether the Makefile in `repo_root` can make every one of `binaries`: `make -n` (a dry
     run, nothing built) finds a rule for each and for what each is made of."""
     targets = [str(b.relative_to(repo_root)) for b in binaries]
-    return _make(repo_root, make, ["-n", "-s", *targets], capture=True).returncode == 0
+    return _make(repo_root, "make", ["-n", "-s", *targets], capture=True).returncode == 0
 
 
 def _make(repo_root: Path, make: str, args: Sequence[str],
