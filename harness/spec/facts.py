@@ -116,16 +116,6 @@ class VariantFacts:
     mpi: bool = False  # runs as MPI ranks (under mpirun); older binaries do not say: False
 
     @classmethod
-    def parse(cls, text: str, where: str) -> VariantFacts:
-        """One `--describe` line; a HarnessError naming `where` when it is not one."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise HarnessError(f"{where}: {DESCRIBE_OPTION} printed no JSON object: "
-                               f"{exc}") from None
-        return cls.from_json(data, where)
-
-    @classmethod
     def from_json(cls, data: object, where: str) -> VariantFacts:
         """One `--describe` object; a HarnessError naming `where` when it is not one."""
         if not isinstance(data, dict):

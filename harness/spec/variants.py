@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import json
 import subprocess
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -90,7 +91,10 @@ def describe(binary: Path) -> VariantFacts:
         detail = done.stderr.strip()[-300:]
         raise HarnessError(f"{binary} {DESCRIBE_OPTION} failed (exit {done.returncode})"
                            + (f": {detail}" if detail else ""))
-    facts = VariantFacts.parse(done.stdout.strip(), f"{binary}")
+    try:
+        facts = VariantFacts.from_json(json.loads(done.stdout.strip()), f"{binary}")
+    except json.JSONDecodeError as exc:
+        raise HarnessError(f"{binary}: {DESCRIBE_OPTION} printed no JSON object: {exc}") from None
     if facts.name != binary.name:
         raise HarnessError(f"{binary}: {DESCRIBE_OPTION} names the variant {facts.name!r}")
     return facts
