@@ -1,4 +1,4 @@
-"""What an experiment is, before anything runs: configs (config, kinds, parse),
+"""What an experiment is, before anything runs: configs (config, kinds, parse, programs),
 scenes (scenes and the stiff-scene catalog), the variants and their builds (facts, variants,
 builds) and the output format every variant writes (output).
 
