@@ -18,6 +18,7 @@ from harness.spec.builds import binary_name
 from harness.spec.config import PARALLEL_AXES, Config, expand_points, scene_key
 from harness.spec.facts import RANKS_AXIS, IgnoredAxis, ignored_axes
 from harness.spec.variants import VariantRegistry, default_registry
+from harness.store.measured import Subject
 
 QUICK_MAX_N = 400
 QUICK_MAX_STEPS = 5
@@ -58,12 +59,16 @@ class Cell:
         text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
         return f"{text} (ignores {', '.join(self.collapsed)})" if self.collapsed else text
 
-    def fields(self) -> dict[str, object]:
-        """The values exclude rules test."""
+    def named(self) -> Subject:
+        """What names the cell in its record."""
         s = self.scene
-        return {"variant": self.variant, "build": self.build, "scene": s.label,
-                "threads": self.threads, "ranks": self.ranks, "n": s.n, "L": s.L, "r": s.r,
-                "steps": s.steps, "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
+        return Subject(self.variant, self.build, s.label, s.n, s.L, s.r, s.steps, s.mode, s.seed,
+                       self.threads, ranks=self.ranks if self.uses_ranks else None,
+                       params=dict(s.params))
+
+    def fields(self) -> dict[str, object]:
+        """The values exclude rules test: what names it, at its ranks and schedule."""
+        return {**dataclasses.asdict(self.named()), "ranks": self.ranks, "schedule": self.schedule}
 
 
 def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[IgnoredAxis]:

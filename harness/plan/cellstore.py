@@ -24,7 +24,7 @@ from harness.spec.variants import default_registry
 from harness.store import atomic, index, records, trust
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
-from harness.store.measured import Provenance, Subject, Timing, Validation
+from harness.store.measured import Provenance, Timing, Validation
 from harness.store.model import (
     BinaryKey,
     CellKey,
@@ -116,17 +116,9 @@ def measures_openmp_costs(config: Config, cell: Cell) -> bool:
             and getattr(default_registry().get(cell.variant), "parallel", False))
 
 
-def named(cell: Cell) -> Subject:
-    """What names the cell in its record."""
-    scene = cell.scene
-    return Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r, scene.steps,
-                   scene.mode, scene.seed, cell.threads,
-                   ranks=cell.ranks if cell.uses_ranks else None, params=dict(scene.params))
-
-
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
-    return match_values({**dataclasses.asdict(named(cell)), "schedule": cell.schedule or ""})
+    return match_values({**dataclasses.asdict(cell.named()), "schedule": cell.schedule or ""})
 
 
 def now_iso() -> str:
@@ -270,7 +262,7 @@ class CellStore:
         # what the cell runs itself: a program's command, else the variant's binary
         runs_what = str(self.binary(cell)) if program is None else program.command
         return CellResult(
-            cell_id, key, note="", subject=named(cell), timing=Timing(runs=0, unstable=False),
+            cell_id, key, note="", subject=cell.named(), timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
             provenance=Provenance(binary=runs_what, binary_sha256=key.binary_sha256,
