@@ -30,9 +30,8 @@ from harness.measure.rounds import CellRun, next_runs, stop_reason, time_runs, t
 from harness.measure.timing import measure_costs, parse_timing
 from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
-from harness.plan.binaries import measures_openmp_costs, ompcost_path
 from harness.plan.cells import Cell
-from harness.plan.cellstore import CellStore
+from harness.plan.cellstore import CellStore, measures_openmp_costs, ompcost_path
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.output import OutputFormatError

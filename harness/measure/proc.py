@@ -20,7 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.plan.binaries import peakrss_path
+from harness.plan.cellstore import peakrss_path
 from harness.store import atomic
 from harness.store.columns import CRASHED, FAILED, OK, TIMEOUT
 

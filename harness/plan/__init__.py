@@ -1,2 +1,2 @@
-"""Planning: a config's cells (cells), the binaries they run (binaries), and their identity and
-storage (cellstore: keys, ids, records, inputs). Nothing here measures."""
+"""Planning: a config's cells (cells), the binaries they run and their identity and storage
+(cellstore: binaries, keys, ids, records, inputs), and the instruction lane (lane)."""

@@ -1,8 +1,7 @@
 """Plan a config's cells: the grid of variant x build x scene point x thread count, minus
-repeats (--quick can map several points onto one) and excluded cells. A cell leaves out what
-its variant ignores (harness.spec.facts.IGNORED_AXES): a serial variant's cells at every
-thread count are one cell, run with one thread. Where a program takes part, every scene lists
-all its particles. Nothing here runs a measurement or reads a result."""
+repeats and excluded cells. A cell leaves out what its variant ignores (harness.spec.facts):
+a serial variant's cells at every thread count are one cell, run with one thread. Where a
+program takes part, every scene lists all its particles."""
 
 from __future__ import annotations
 
@@ -16,10 +15,10 @@ from typing import cast
 from harness.errors import HarnessError, config_error
 from harness.spec import scenes
 from harness.spec.builds import binary_name
-from harness.spec.config import Config
+from harness.spec.config import PARALLEL_AXES, Config, expand_points, scene_key
 from harness.spec.facts import RANKS_AXIS, IgnoredAxis, ignored_axes
-from harness.spec.points import PARALLEL_AXES, expand_points, scene_key
 from harness.spec.variants import VariantRegistry, default_registry
+from harness.store.measured import Subject
 
 QUICK_MAX_N = 400
 QUICK_MAX_STEPS = 5
@@ -35,17 +34,15 @@ class Cell:
     exact: bool  # must match it byte for byte
     checked: bool = False  # the accuracy and stability checks run on it
     schedule: str = ""  # OMP_SCHEDULE of the cell (the config's schedule axis); "": not set
-    # The variant promises seq's output (its --describe says exact); a custom binary does not.
-    promises_exact: bool = False
-    # A program (`programs:`): run through its command template and checked step by step
-    # against seq (harness.programs.cell) instead of validated and checked.
+    promises_exact: bool = False  # its --describe says exact (a custom binary's says nothing)
+    # A program: run through its command template and checked step by step against seq
+    # (harness.programs.cell) instead of validated and checked.
     program: bool = False
-    # The axes its variant ignores (spec.facts.IGNORED_AXES), at their one value: it stands
-    # for the config's cells at every other value of each.
+    # The axes its variant ignores, at their one value: it stands for the config's cells at
+    # every other value of each; `collapsed`: those of them along which the config has other
+    # values than the cell's, which its label names.
     ignored: tuple[str, ...] = ()
-    ranks: int = 1  # MPI ranks (`ranks:`): a variant that is not MPI ignores them
-    # Of `ignored`, the axes along which the config has other values than the cell's: what its
-    # label says it ignores
+    ranks: int = 1
     collapsed: tuple[str, ...] = ()
 
     @property
@@ -55,23 +52,23 @@ class Cell:
         return "ranks" not in self.ignored
 
     @property
-    def variant_label(self) -> str:
-        return binary_name(self.variant, self.build)
-
-    @property
     def label(self) -> str:
-        text = f"{self.variant_label} {self.scene.describe()} threads={self.threads}"
+        text = f"{binary_name(self.variant, self.build)} {self.scene.describe()} " \
+            f"threads={self.threads}"
         text = f"{text} ranks={self.ranks}" if self.uses_ranks else text
         text = f"{text} OMP_SCHEDULE={self.schedule}" if self.schedule else text
         return f"{text} (ignores {', '.join(self.collapsed)})" if self.collapsed else text
 
-    def fields(self) -> dict[str, object]:
-        """The values exclude rules test."""
+    def named(self) -> Subject:
+        """What names the cell in its record."""
         s = self.scene
-        return {"variant": self.variant, "build": self.build, "scene": s.label,
-                "threads": self.threads, "ranks": self.ranks, "n": s.n, "L": s.L, "r": s.r,
-                "steps": s.steps,
-                "mode": s.mode, "seed": s.seed, "schedule": self.schedule}
+        return Subject(self.variant, self.build, s.label, s.n, s.L, s.r, s.steps, s.mode, s.seed,
+                       self.threads, ranks=self.ranks if self.uses_ranks else None,
+                       params=dict(s.params))
+
+    def fields(self) -> dict[str, object]:
+        """The values exclude rules test: what names it, at its ranks and schedule."""
+        return {**dataclasses.asdict(self.named()), "ranks": self.ranks, "schedule": self.schedule}
 
 
 def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[IgnoredAxis]:
@@ -83,17 +80,6 @@ def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[Ig
         return [] if program.uses_ranks else [RANKS_AXIS]
     # a custom binary or an unknown variant runs as one process, at every thread count
     return ignored_axes(facts) if facts is not None else [RANKS_AXIS]
-
-
-def measured_as(config: Config, registry: VariantRegistry, cell: Cell) -> Cell:
-    """The cell as it is measured: at the one value of each axis its variant ignores."""
-    ignored = ignored_by(config, registry, cell)
-    if not ignored:
-        return cell
-    collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
-                      or getattr(cell, a.field) != a.value)
-    return dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
-                               collapsed=collapsed, **{a.field: a.value for a in ignored})
 
 
 @dataclass(frozen=True)
@@ -112,21 +98,19 @@ def scene_point(config: Config, point: Mapping[str, object], quick: bool) -> sce
     name = str(params.pop("generator", config.scene.generator))
     if quick:
         # A generator's own default counts as given.
-        defaults = scenes.REGISTRY.get(name).defaults if kind == "generator" else {}
+        defaults = scenes.REGISTRY[name].defaults if kind == "generator" else {}
         for key, limit in (("n", QUICK_MAX_N), ("steps", QUICK_MAX_STEPS)):
             value = params.get(key, defaults.get(key))
             if isinstance(value, int) and not isinstance(value, bool):
                 params[key] = min(value, limit)
-    if kind == "file":
-        try:
+    try:
+        if kind == "file":
             return scenes.file_point(Path(str(params["file"])), seed)
-        except HarnessError as exc:
-            raise HarnessError(f"{config.source}: key 'scene.file': {exc}") from None
-    if kind == "generator":
-        try:
+        if kind == "generator":
             return scenes.generated_point(name, params, seed)
-        except HarnessError as exc:
-            raise HarnessError(f"{config.source}: key 'scene': {exc}") from None
+    except HarnessError as exc:
+        key = "scene.file" if kind == "file" else "scene"
+        raise HarnessError(f"{config.source}: key '{key}': {exc}") from None
     n, L, r = cast(int, params["n"]), cast(float, params["L"]), cast(float, params["r"])
     steps, mode = cast(int, params["steps"]), str(params["mode"])
     problem = scenes.scene_problem(n, L, r, steps, mode)
@@ -179,13 +163,18 @@ def plan_cells(config: Config, quick: bool = False,
                                                           config.schedules or ("",)):
             cell = _cell(config, registry, variant, build, scene, point, schedule)
             fields = cell.fields()  # the config's point: a rule may name a thread count
-            matching = {k for k, rule in enumerate(config.exclude) if rule.matches(fields)}
+            matching = {k for k, rule in enumerate(config.exclude)
+                        if all(c.holds(fields) for c in rule)}
             used |= matching
-            if not matching:
-                cell = measured_as(config, registry, cell)
-            else:  # as the config names it, less what its variant ignores
-                cell = dataclasses.replace(cell, ignored=tuple(
-                    a.field for a in ignored_by(config, registry, cell)))
+            ignored = ignored_by(config, registry, cell)
+            if matching:  # as the config names it, less what its variant ignores
+                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
+            else:  # as it is measured: at the one value of each axis its variant ignores
+                collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
+                                  or getattr(cell, a.field) != a.value)
+                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
+                                           collapsed=collapsed,
+                                           **{a.field: a.value for a in ignored})
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
                    cell.threads, cell.ranks, schedule)
             if key not in seen:
@@ -197,7 +186,7 @@ def plan_cells(config: Config, quick: bool = False,
     if unused and not quick:
         rule = config.exclude[unused[0]]
         raise config_error(config.source, f"exclude[{unused[0]}]", "a rule that matches at "
-                           "least one cell", ", ".join(c.describe() for c in rule.conditions))
+                           "least one cell", ", ".join(c.describe() for c in rule))
     return Plan(config, quick, tuple(cells), tuple(excluded))
 
 

@@ -1,39 +1,30 @@
-"""An experiment's identity and storage: what a cell's measurement depends on (its key, hashed
-into its cell id), its record files under <experiment>/cells/, the input files, the reference
-outputs cached under <results>/.cache/, the fields every record starts with, and results.csv
-and divergence.csv rebuilt from the records.
-
-Nothing here measures. Records reach the store from whichever executor measured them (this
-process, or a worker on another node writing the same files), so everything derived from them
-is rebuilt from records, never kept from a measurement in this process.
+"""An experiment's identity and storage: the binaries its cells run (in a build directory,
+unless the config names a binary of its own), what a cell's measurement depends on (its key,
+hashed into its cell id), its record files, its input files and the fields every record starts
+with. Nothing here measures: records reach the store from whichever executor measured them.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.plan import lane
-from harness.plan.binaries import (
-    baseline_path,
-    binary_path,
-    cell_binaries,
-    check_references,
-    measures_openmp_costs,
-    ompcost_path,
-    program_references,
-)
 from harness.plan.cells import Cell, Plan
-from harness.repo import BUILD_DIR
-from harness.spec import scenes
+from harness.repo import BUILD_DIR, OMPCOST, PEAKRSS, REPO_ROOT
+from harness.spec import programs, scenes
+from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
+from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
+from harness.spec.variants import default_registry
 from harness.store import atomic, index, records, trust
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
-from harness.store.measured import Provenance, Subject, Timing, Validation
+from harness.store.measured import Provenance, Timing, Validation
 from harness.store.model import (
     BinaryKey,
     CellKey,
@@ -48,14 +39,86 @@ from harness.store.result import CellResult
 UNBUILT = "unbuilt"  # the hash of a binary an assume_built store has not seen built
 
 
+def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Path:
+    return config.custom_binary(variant) or build_dir / binary_name(variant, build)
+
+
+def baseline_path(config: Config, build_dir: Path, build: str) -> Path:
+    baseline_build = config.validate.baseline_build or build
+    return binary_path(config, build_dir, BASELINE, baseline_build)
+
+
+def check_references(config: Config, build_dir: Path, build: str) -> dict[str, Path]:
+    """The binaries the checks of a cell of `build` compare with: the truth, seq f64
+    (divergence) and seq of the cell's build (the exact-variant check)."""
+    return {
+        "truth": binary_path(config, build_dir, config.checks.truth, TRUTH_BUILD),
+        "f64": binary_path(config, build_dir, BASELINE, DEFAULT_BUILD),
+        "seq": binary_path(config, build_dir, BASELINE, build),
+    }
+
+
+def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str, Path]:
+    """The binaries a program's check uses: the one whose output it is compared with (seq,
+    grid for a big scene) and the one whose `--replay` judges its steps."""
+    reference = binary_path(config, build_dir, programs.reference_variant(cell.scene.n),
+                            DEFAULT_BUILD)
+    return {programs.REFERENCE: reference, programs.REPLAY: reference}
+
+
+def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
+    """Every binary the cell's measurement runs: its own (a program runs commands instead),
+    its references, what the instruction lane counts, and build/ompcost where it runs."""
+    paths = [] if cell.program else [binary_path(config, build_dir, cell.variant, cell.build)]
+    if cell.validate:
+        paths.append(baseline_path(config, build_dir, cell.build))
+    if cell.checked:
+        paths.extend(check_references(config, build_dir, cell.build).values())
+    if cell.program:
+        paths.extend(program_references(config, build_dir, cell).values())
+    counted = lane.counted_binary(config, build_dir, cell)
+    if counted is not None and counted not in paths:
+        paths.append(counted)
+    if measures_openmp_costs(config, cell):
+        paths.append(ompcost_path())
+    return paths
+
+
+def needed_binaries(plan: Plan, build_dir: Path) -> list[Path]:
+    """The make-built binaries the plan runs: every cell's but the config's own binaries, and
+    build/peakrss, under which every cell's untimed run is measured."""
+    custom = {path for _, path in plan.config.binaries}
+    needed = dict.fromkeys(path for cell in plan.cells
+                           for path in cell_binaries(plan.config, build_dir, cell))
+    tools = [peakrss_path()] if plan.cells else []
+    return [*(path for path in needed if path not in custom), *tools]
+
+
+# build/ompcost and build/peakrss are this checkout's, whichever revision's variants are
+# measured: they measure the machine and the run, and older revisions have no such tools.
+def ompcost_path() -> Path:
+    return REPO_ROOT / BUILD_DIR / OMPCOST
+
+
+def peakrss_path() -> Path:
+    return REPO_ROOT / BUILD_DIR / PEAKRSS
+
+
+def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
+    """The binaries of a plan that this checkout builds, whatever revision is measured."""
+    return [b for b in binaries if b in (ompcost_path(), peakrss_path())]
+
+
+def measures_openmp_costs(config: Config, cell: Cell) -> bool:
+    """Whether the cell's start runs build/ompcost: with `openmp_costs: true`, for a built
+    variant that uses threads (a serial one's thread count is nominal)."""
+    return (config.openmp_costs and not cell.program and config.is_built(cell.variant)
+            and getattr(default_registry().get(cell.variant), "parallel", False))
+
+
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
-    scene = cell.scene
-    return match_values({"variant": cell.variant, "build": cell.build, "scene": scene.label,
-                         "n": scene.n, "L": scene.L, "r": scene.r, "steps": scene.steps,
-                         "mode": scene.mode, "seed": scene.seed, "threads": cell.threads,
-                         "ranks": cell.ranks if cell.uses_ranks else None,
-                         "schedule": cell.schedule or ""})
+    return match_values({**dataclasses.asdict(cell.named()), "schedule": cell.schedule or ""})
 
 
 def now_iso() -> str:
@@ -111,8 +174,7 @@ class CellStore:
         return binary_path(self.config, self.binaries, cell.variant, cell.build)
 
     def binary_sha(self, cell: Cell) -> str | None:
-        """The hash of what the cell runs: its binary, or a program's fingerprint (its
-        commands and the files they name)."""
+        """The hash of what the cell runs: its binary, or a program's fingerprint."""
         program = self.config.program(cell.variant)
         if program is None:
             return self.sha(self.binary(cell))
@@ -124,8 +186,6 @@ class CellStore:
         return program_references(self.config, self.binaries, cell)
 
     def counted_binary(self, cell: Cell) -> Path | None:
-        """What the instruction lane counts for the cell (None without the lane, or for a
-        program, whose command is counted)."""
         return lane.counted_binary(self.config, self.binaries, cell)
 
     def missing_binary(self, cell: Cell) -> Path | None:
@@ -143,9 +203,7 @@ class CellStore:
         return self.hashes[path]
 
     def baseline_sha(self, cell: Cell) -> str | None:
-        if not cell.validate:
-            return None
-        return self.sha(self.baseline_binary(cell))
+        return self.sha(self.baseline_binary(cell)) if cell.validate else None
 
     def check_references(self, cell: Cell) -> dict[str, Path]:
         return check_references(self.config, self.binaries, cell.build)
@@ -172,8 +230,7 @@ class CellStore:
                 binary_sha256=binary_sha if counted is None else self.sha(counted))
         if measures_openmp_costs(self.config, cell):
             parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(ompcost_path()))
-        omp = self.config.executor.omp_env()
-        if omp:
+        if omp := self.config.executor.omp_env():
             parts["omp"] = TextMap(tuple(omp.items()))
         return CellKey(
             variant=cell.variant, build=cell.build, input_sha256=cell.scene.input_sha256,
@@ -201,29 +258,22 @@ class CellStore:
         when; the measurement (or a fault) adds the rest."""
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
-        scene = cell.scene
         program = self.config.program(cell.variant)
         # what the cell runs itself: a program's command, else the variant's binary
         runs_what = str(self.binary(cell)) if program is None else program.command
         return CellResult(
-            cell_id, key, note="",
-            subject=Subject(cell.variant, cell.build, scene.label, scene.n, scene.L, scene.r,
-                            scene.steps, scene.mode, scene.seed, cell.threads,
-                            ranks=cell.ranks if cell.uses_ranks else None,
-                            params=dict(scene.params)),
-            timing=Timing(runs=0, unstable=False),
+            cell_id, key, note="", subject=cell.named(), timing=Timing(runs=0, unstable=False),
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
             provenance=Provenance(binary=runs_what, binary_sha256=key.binary_sha256,
-                                  input_sha256=scene.input_sha256, measured_at=now_iso()))
+                                  input_sha256=cell.scene.input_sha256, measured_at=now_iso()))
 
     # --- records ---
 
     def cached(self, cell_id: str) -> CellResult | None:
         """The record that spares measuring the cell again: one that reads, with the hyperfine
-        exports it rests on; a DamagedFile naming the file where one of them is damaged (the
-        cell is then measured again). A record marked retry is listed in results.csv but
-        measured again by the next run."""
+        exports it rests on (a DamagedFile names one that is damaged), and is not marked retry
+        (listed in results.csv, but measured again by the next run)."""
         if self.force:
             return None
         result = records.check_record(self.layout.record(cell_id), cell_id)

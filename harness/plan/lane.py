@@ -49,8 +49,7 @@ def perf_counts() -> bool:
                               timeout=PERF_PROBE_TIMEOUT_S)
     except (OSError, subprocess.TimeoutExpired):
         return False
-    return done.returncode == 0 and any(PERF_COUNT.match(line)
-                                        for line in done.stderr.splitlines())
+    return done.returncode == 0 and any(PERF_COUNT.match(line) for line in done.stderr.splitlines())
 
 
 @functools.cache
@@ -88,10 +87,8 @@ def described(tool: str, binary: Path | None, build_dir: Path) -> str:
     """The lane's binary in words, for the record: which build the count ran."""
     if binary is None:
         return "the program's command"
-    try:
-        shown = str(binary.relative_to(build_dir.parent))
-    except ValueError:
-        shown = str(binary)
+    top = build_dir.parent
+    shown = str(binary.relative_to(top) if binary.is_relative_to(top) else binary)
     if tool == CACHEGRIND and binary.parent.name == LANE_DIR:
         return f"{shown} ({LANE_ISA}: cachegrind cannot run AVX-512)"
     return shown

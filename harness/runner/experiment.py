@@ -23,14 +23,12 @@ from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine, mpi
 from harness.measure.cell import ProgramRunner
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Cell, Plan, plan_cells
-from harness.plan.cellstore import CellStore
+from harness.plan.cellstore import CellStore, checkout_tools, needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
-from harness.spec.make import make_binaries
-from harness.spec.variants import VariantRegistry
+from harness.spec.variants import VariantRegistry, make_binaries
 from harness.store import atomic, index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV

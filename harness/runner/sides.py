@@ -17,11 +17,10 @@ from pathlib import Path
 from harness.errors import HarnessError
 from harness.measure.machine import make_compiler
 from harness.plan import lane
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import Plan
+from harness.plan.cellstore import checkout_tools, needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
-from harness.spec.make import has_rules, make_binaries
-from harness.spec.variants import VariantRegistry
+from harness.spec.variants import VariantRegistry, has_rules, make_binaries
 from harness.store.layout import CACHE_DIR
 from harness.store.locks import directory_lock
 

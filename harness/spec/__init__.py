@@ -1,6 +1,6 @@
-"""What an experiment is, before anything runs: configs (config, kinds, yamlfile, parse,
-points), scenes (scenes and the stiff-scene catalog), the variants and their builds
-(variants, builds) and the output format every variant writes (output).
+"""What an experiment is, before anything runs: configs (config, kinds, parse, programs),
+scenes (scenes and the stiff-scene catalog), the variants and their builds (facts, variants,
+builds) and the output format every variant writes (output).
 
 Importing the package registers every scene generator (the catalog's too), so a config can
 name any of them.

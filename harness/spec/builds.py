@@ -1,6 +1,6 @@
 """The builds of a variant, named once: the double-precision default and the accuracy study's
 others (the Makefile's BUILDS builds them: `make build/NAME-f32`, ...), with the unit
-roundoff of the arithmetic each computes in. Names only: harness.spec.make builds them."""
+roundoff of the arithmetic each computes in. Names only: harness.spec.variants builds them."""
 
 from __future__ import annotations
 

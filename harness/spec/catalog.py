@@ -1,10 +1,6 @@
 """The stiff and extreme scene catalog: named scenes that stress one rule or one rounding each.
-
-Every entry is a generator registered with `generator` (so a config names it as
-`scene: {generator: NAME}`, or sweeps several with `scene: {generator: [A, B, ...]}`), and
-`catalog()` maps each name to the sentence saying what it stresses, in catalog order.
-Every catalog generator takes `steps` and `mode`, so a config can set those for all of them;
-each has its own default step count (enough for its event, and the runs after it).
+Every entry is a generator taking `steps` (its default: enough for its event, and the runs
+after it) and `mode`; `catalog()` maps each name to the sentence saying what it stresses.
 
 Geometry is chosen so that the critical quantities are exact in binary (contact at exactly
 t = 1, a discriminant of exactly 0, bit-identical tie times), unless the point of the scene is
@@ -17,7 +13,7 @@ import math
 import random
 from collections.abc import Sequence
 
-from harness.spec.scenes import REGISTRY, GeneratedScene, Particle, generator, make_scene
+from harness.spec.scenes import REGISTRY, Particle, ScenePoint, generator, make_scene
 
 SMALL_L = 100.0  # the box of the few-disc scenes
 MID = SMALL_L / 2
@@ -48,7 +44,7 @@ def scene(name: str, default_steps: int, doc: str, particles: Sequence[Particle]
     docstring `doc` is the catalog's sentence."""
     listed = list(particles)
 
-    def generate(steps: int = default_steps, mode: str = "perf") -> GeneratedScene:
+    def generate(steps: int = default_steps, mode: str = "perf") -> ScenePoint:
         return make_scene(L, R, steps, mode, listed, n=n)
 
     generate.__doc__ = doc
@@ -180,4 +176,4 @@ CATALOG_NAMES: tuple[str, ...] = (
 
 def catalog() -> dict[str, str]:
     """Each catalog scene's name and what it stresses (its generator's docstring)."""
-    return {name: " ".join(REGISTRY.get(name).doc.split()) for name in CATALOG_NAMES}
+    return {name: " ".join(REGISTRY[name].doc.split()) for name in CATALOG_NAMES}

@@ -1,24 +1,20 @@
 """Experiment configs: the typed config (frozen dataclasses) and the names of its keys and
-defaults. harness.spec.parse reads YAML into it (every mistake a `HarnessError` naming the file,
-the key and what was expected) and harness.spec.points expands its grid of points: the base
-scene's keys and `threads`, each a value or a list to sweep, combined as `combine:` says.
-docs/configs.md is the reference of the keys; programs (`programs:`) are docs/programs.md's.
-"""
+defaults, which harness.spec.parse reads YAML into, and its grid of points. docs/configs.md is
+the reference of the keys."""
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import math
 import operator
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.errors import config_error
 from harness.spec.facts import GRID
 from harness.spec.programs import Program
-
-# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
-BASELINE_CHOICES = ("f64", "same", "f128")
 
 TOP_KEYS = (
     "name", "title", "variants", "builds", "scene", "threads", "ranks", "combine", "measure",
@@ -26,51 +22,23 @@ TOP_KEYS = (
     "schedule", "measure_by_variant", "programs", "metric", "openmp_costs",
 )
 # What a cell is measured by (`metric:`, `run --metric`): its wall time, always; with
-# `instructions`, also the instructions it executes (harness.plan.lane), which no other process
-# on the machine can change.
+# `instructions`, also the instructions it executes, which no other process can change.
 METRIC_TIME = "time"
 METRIC_INSTRUCTIONS = "instructions"
 METRICS = (METRIC_TIME, METRIC_INSTRUCTIONS)
-REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
-# Adaptive repetition (`runs: auto`): its own keys, only beside it.
-ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 AUTO_RUNS = "auto"
-# The accuracy and stability checks a config may turn on (harness.measure.invariants and
-# harness.measure.shadow); `accuracy:` holds their settings.
-CHECK_NAMES = ("invariants", "shadow", "divergence")
 DEFAULT_ENERGY_ULPS = 32.0
 DEFAULT_SHADOW_ULPS = 64.0
 EXCLUDE_FIELDS = ("variant", "build", "scene", "threads", "ranks", "n", "L", "r", "steps", "mode",
                   "seed", "schedule")
-# The fields a comparison (_gt, _ge, _lt, _le) may test.
-EXCLUDE_NUMERIC_FIELDS = ("threads", "ranks", "n", "L", "r", "steps", "seed")
 EXCLUDE_OPS = {"gt": operator.gt, "ge": operator.ge, "lt": operator.lt, "le": operator.le}
-# An experiment's, a custom binary's or a program's name: a folder and a file name under
-# results/, so characters every file system takes, and short enough beside its suffixes.
-NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
-MAX_NAME_CHARS = 64
-NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
-             "or digit)")
-
-
-def is_valid_name(name: object) -> bool:
-    """Whether `name` is a name NAME_RULE allows, whole."""
-    return (isinstance(name, str) and len(name) <= MAX_NAME_CHARS
-            and NAME_PATTERN.fullmatch(name) is not None)
-
-
-# `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers `schedule(runtime)` loops,
-# i.e. p1_runtime): a kind, and for all but auto an optional positive chunk, as OpenMP spells it.
-SCHEDULE_KINDS = ("static", "dynamic", "guided", "auto")
-SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$")
 # At most this many cells a config plans (`run --max-cells` changes it): counted before any
 # scene is built, so a config whose lists multiply to millions is refused at once.
 DEFAULT_MAX_CELLS = 10_000
 
 DEFAULT_WARMUP = 1
-# By default a cell takes rounds until its interval is within +-DEFAULT_CI: a strategy 10%
-# faster than another then shows as such (two intervals of +-5% do not overlap), and on a
-# 2-vCPU VM a session moves a cell by about 5% anyway, which no number of rounds narrows.
+# By default a cell takes rounds until its interval is within +-DEFAULT_CI (docs/configs.md
+# says why 5%).
 DEFAULT_RUNS: int | None = None  # auto
 DEFAULT_CI = 0.05
 DEFAULT_TIMEOUT_S = 600.0
@@ -81,10 +49,9 @@ AUTO_FIRST_RUNS = 3
 
 @dataclass(frozen=True)
 class Measure:
-    """How a cell is timed: `runs` runs after `warmup` (each run at most `timeout_s`), one run
-    a round, so that the cells of a run share the machine's drift; or, with runs None
-    (`runs: auto`), rounds until the 95% interval of the median lies within +-ci of it (a
-    relative half-width), or the cell has max_runs runs, or max_time_s of timed runs."""
+    """How a cell is timed: `runs` runs after `warmup`, one run a round, so that the cells of a
+    run share the machine's drift; or, with runs None (`runs: auto`), rounds until the 95%
+    interval of the median lies within +-ci of it, or max_runs, or max_time_s of timed runs."""
 
     warmup: int = DEFAULT_WARMUP
     runs: int | None = DEFAULT_RUNS  # None: auto
@@ -114,7 +81,6 @@ class Measure:
 
     @property
     def most_runs(self) -> int:
-        """The most runs a cell gets."""
         return self.max_runs if self.runs is None else self.runs
 
     def worst_case_s(self) -> float:
@@ -154,20 +120,17 @@ class Validation:
 
 @dataclass(frozen=True)
 class Checks:
-    """The accuracy and stability checks run on each cell (`checks:` and `accuracy:`).
-
-    The truth is build/<truth>-f128. `shadow_steps` states of the cell's print-mode run are
-    each stepped once by the cell's binary and by the truth; `energy_ulps` and `shadow_ulps`
-    are the k of the bounds in harness.measure.invariants and harness.measure.shadow; the cell's
-    print-mode output must equal its runs at each of `thread_counts`.
-    """
+    """The accuracy and stability checks run on each cell (`checks:` and `accuracy:`): the
+    truth is build/<truth>-f128; `shadow_steps` states of the cell's print-mode run are each
+    stepped once by the cell's binary and by the truth; `energy_ulps` and `shadow_ulps` are the
+    k of the bounds in harness.measure.invariants and .shadow."""
 
     names: tuple[str, ...] = ()
     truth: str = GRID  # build/grid-f128: byte-identical to seq-f128, and far faster
     shadow_steps: int = 20
     energy_ulps: float = DEFAULT_ENERGY_ULPS
     shadow_ulps: float = DEFAULT_SHADOW_ULPS
-    thread_counts: tuple[int, ...] = (1,)
+    thread_counts: tuple[int, ...] = (1,)  # the print-mode output must equal the runs' at each
     max_n: int | None = None
 
     def applies_to(self, n: int) -> bool:
@@ -183,20 +146,15 @@ EXECUTOR_KINDS = ("local", "slurm")
 
 @dataclass(frozen=True)
 class ExecutorSpec:
-    """Where cells are measured (`executor:`); `run --executor` overrides `kind`.
-
-    For Slurm (harness.executors.slurm): the partition (None: the cluster's default), a whole
-    node per cell (`exclusive`, the default, so no two measurements share a node), the task time
-    limit in minutes (None: derived from `measure:`), sbatch options added as given (`extra`).
-    Under either executor, OMP_PROC_BIND / OMP_PLACES are set for every cell when given
-    (`proc_bind`, `places`); they are then part of the cell's id and its record.
-    """
+    """Where cells are measured (`executor:`; docs/slurm.md); `run --executor` overrides
+    `kind`. OMP_PROC_BIND / OMP_PLACES, where given, are set for every cell under either
+    executor, and are then part of the cell's id and its record."""
 
     kind: str = "local"
-    partition: str | None = None
-    exclusive: bool = True
-    time_limit_min: int | None = None
-    extra: tuple[str, ...] = ()
+    partition: str | None = None  # None: the cluster's default
+    exclusive: bool = True  # a whole node per cell: no two measurements share one
+    time_limit_min: int | None = None  # None: derived from `measure:`
+    extra: tuple[str, ...] = ()  # sbatch options, added as given
     proc_bind: str | None = None
     places: str | None = None
     poll_s: float = 2.0  # seconds between two looks at the Slurm queue
@@ -205,7 +163,6 @@ class ExecutorSpec:
     oversubscribe: bool = False
 
     def omp_env(self) -> dict[str, str]:
-        """OMP_PROC_BIND / OMP_PLACES as asked (each cell runs with them, either executor)."""
         pairs = (("OMP_PROC_BIND", self.proc_bind), ("OMP_PLACES", self.places))
         return {name: value for name, value in pairs if value is not None}
 
@@ -231,16 +188,6 @@ class Condition:
 
 
 @dataclass(frozen=True)
-class ExcludeRule:
-    """A cell is excluded when every condition of one rule holds."""
-
-    conditions: tuple[Condition, ...]
-
-    def matches(self, fields: Mapping[str, object]) -> bool:
-        return all(c.holds(fields) for c in self.conditions)
-
-
-@dataclass(frozen=True)
 class SceneSpec:
     kind: str  # "random", "generator" or "file"
     generator: str | None
@@ -257,29 +204,21 @@ class Config:
     builds: tuple[str, ...]
     scene: SceneSpec
     threads: tuple[int, ...]
-    # axes zipped together (`combine:`; all listed axes for plain `zip`, none for `product`)
-    zip_keys: tuple[str, ...]
+    zip_keys: tuple[str, ...]  # the axes `combine:` zips together
     measure: Measure
     validate: Validation
     keep_output: bool
-    exclude: tuple[ExcludeRule, ...]
+    # Rules: a cell is excluded where every condition of one rule holds.
+    exclude: tuple[tuple[Condition, ...], ...]
     binaries: tuple[tuple[str, Path], ...]  # custom variant -> executable
     checks: Checks = Checks()
     executor: ExecutorSpec = ExecutorSpec()
-    # MPI ranks (`ranks:`): an axis like threads, which a variant that is not MPI ignores
     ranks: tuple[int, ...] = (1,)
     # OMP_SCHEDULE values to sweep (`schedule:`); empty: not set, and cells keep their old ids
     schedules: tuple[str, ...] = ()
-    # `measure_by_variant:` a variant's own measure settings (e.g. one run of a strategy that
-    # takes minutes), each unset key taken from `measure`
     variant_measures: tuple[tuple[str, Measure], ...] = ()
-    # `programs:` implementations written elsewhere, run through a command template
-    # (harness.spec.programs); each is listed in `variants` too
-    programs: tuple[Program, ...] = ()
-    # `metric:` (METRICS): time only, or the instruction lane beside it
+    programs: tuple[Program, ...] = ()  # each is listed in `variants` too
     metric: str = METRIC_TIME
-    # `openmp_costs: true`: each parallel cell's start also runs build/ompcost at the cell's
-    # thread count (harness.measure.timing), for the strategies' cost model in the report
     openmp_costs: bool = False
 
     @property
@@ -287,12 +226,7 @@ class Config:
         return self.metric == METRIC_INSTRUCTIONS
 
     def measure_for(self, variant: str) -> Measure:
-        """The measure settings of a variant's cells."""
         return dict(self.variant_measures).get(variant, self.measure)
-
-    @property
-    def directory(self) -> Path:
-        return self.source.resolve().parent
 
     def custom_binary(self, variant: str) -> Path | None:
         return dict(self.binaries).get(variant)
@@ -314,3 +248,51 @@ class Config:
 def with_metric(config: Config, metric: str | None) -> Config:
     """The config measured by `metric` (`--metric`), or as it says where None."""
     return config if metric is None else dataclasses.replace(config, metric=metric)
+
+
+# --- the grid of points: every combination of the axes (scene keys, threads, ranks) ---
+
+PARALLEL_AXES = ("threads", "ranks")  # the axes that say how a scene is run, not what it is
+
+
+def scene_key(point: Mapping[str, object]) -> tuple[tuple[str, str], ...]:
+    """What makes a point's scene: every axis but threads and ranks."""
+    return tuple(sorted((k, str(v)) for k, v in point.items() if k not in PARALLEL_AXES))
+
+
+def axes(config: Config) -> list[tuple[str, tuple[object, ...]]]:
+    """The config's axes, in order: its scene's keys, threads, ranks."""
+    return [*config.scene.axes, ("threads", config.threads), ("ranks", config.ranks)]
+
+
+def count_points(config: Config) -> int:
+    """How many points expand_points gives, without expanding them: the product of the axes'
+    lengths, a zipped group counting once."""
+    listed = axes(config)
+    zipped = [len(v) for k, v in listed if k in config.zip_keys]
+    return max(zipped, default=1) * math.prod(len(v) for k, v in listed if k not in config.zip_keys)
+
+
+def expand_points(config: Config) -> list[dict[str, object]]:
+    """Every combination of the axes (scene keys, threads, ranks), in config order.
+
+    Axes in `config.zip_keys` advance together (they must have equal lengths); that group
+    and every other axis combine as a cross product.
+    """
+    listed = axes(config)
+    zipped = [(k, v) for k, v in listed if k in config.zip_keys]
+    lengths = {len(v) for _, v in zipped}
+    if len(lengths) > 1:
+        got = ", ".join(f"{k}: {len(v)}" for k, v in zipped)
+        raise config_error(config.source, "combine", "lists of equal length to zip",
+                           f"lengths {got}")
+    groups: list[tuple[tuple[str, ...], list[tuple[object, ...]]]] = []
+    for key, values in listed:
+        if key not in config.zip_keys:
+            groups.append(((key,), [(v,) for v in values]))
+        elif key == zipped[0][0]:  # the zipped group, where its first axis is
+            groups.append((tuple(k for k, _ in zipped),
+                           list(zip(*(v for _, v in zipped), strict=True))))
+    names = [key for keys, _ in groups for key in keys]
+    return [dict(zip(names, itertools.chain.from_iterable(combo), strict=True))
+            for combo in itertools.product(*(rows for _, rows in groups))]

@@ -1,28 +1,16 @@
-"""What each variant is (its binary's `--describe`), as the harness reads it: typed, checked,
-and stored with the results it measured (harness.store.layout's variants.json), so that
-whoever reads results (analysis, the report) needs no binary, no build and no make.
-
-A variant's facts say whether its output is byte-identical to seq (`exact`), whether it uses
-threads (`parallel`), whether it tests every pair i < j with seq's kernel (`all_pairs`: its
-speedup over seq is parallelism alone), which of the seed's strategies it repairs (`repairs`)
-and what it asks of the OpenMP runtime per step (`sync`). harness.spec.variants asks the
-binaries; this module only parses, orders and serialises (standard library only).
-
-The order tables and figures show variants in follows from the facts: seq (the baseline)
-first, then the all-pairs variants, then the others; within each, families by name, a
-family being a variant followed by the variants that repair it.
-
-Whoever reads results passes the facts stored with them (harness.analysis.results'
-`Experiment.variants`) to what orders, colours or judges variants by them; where there are
-none (results from before they were stored) every variant is unknown.
-"""
+"""What each variant is (its binary's `--describe`, docs/variants.md): typed, checked, and
+stored with the results it measured (variants.json), so that whoever reads results needs no
+binary, no build and no make. `exact`: byte-identical to seq; `parallel`: uses threads;
+`all_pairs`: tests every pair i < j with seq's kernel, so its speedup over seq is parallelism
+alone; `repairs`: the seed's strategy it repairs. harness.spec.variants asks the binaries; this
+module only parses, orders and serialises."""
 
 from __future__ import annotations
 
 import functools
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,13 +45,10 @@ class Count:
 
     def per_step(self, n: int, tile: int) -> float:
         """The count in a step of N particles (rows i < N, pairs i < j, tiles of `tile` j)."""
-        rows = n - 1  # row i has N-1-i pairs; the tiles of all rows: sum of ceil(m/tile), m < N
-        tiles = 0.0
-        if self.tile:
-            q, r = divmod(rows, tile)
-            tiles = tile * q * (q + 1) / 2 + r * (q + 1)
-        return (self.step + self.row * n + self.pair * n * (n - 1) / 2
-                + self.tile * tiles)
+        # row i has N-1-i pairs; the tiles of all rows: sum of ceil(m/tile), m < N
+        q, r = divmod(n - 1, tile) if self.tile else (0, 0)
+        tiles = tile * q * (q + 1) / 2 + r * (q + 1)
+        return self.step + self.row * n + self.pair * n * (n - 1) / 2 + self.tile * tiles
 
     def to_json(self) -> dict[str, int]:
         """The terms as `--describe` prints them: only those that are not zero."""
@@ -87,8 +72,7 @@ class SyncFacts:
         return {op: getattr(self, op).per_step(n, self.tile) for op in SYNC_OPERATIONS}
 
     def to_json(self) -> dict[str, object]:
-        return {**{op: getattr(self, op).to_json() for op in SYNC_OPERATIONS},
-                "tile": self.tile}
+        return {**{op: getattr(self, op).to_json() for op in SYNC_OPERATIONS}, "tile": self.tile}
 
     @classmethod
     def parse(cls, data: object, where: str) -> SyncFacts | None:
@@ -108,8 +92,7 @@ class SyncFacts:
                                    f"{', '.join(COUNT_UNITS)}")
             counts[op] = Count(**terms)
         tile = data["tile"]
-        per_tile = any(c.tile for c in counts.values())
-        if not _natural(tile) or (per_tile and tile < 1):
+        if not _natural(tile) or (tile < 1 and any(c.tile for c in counts.values())):
             raise HarnessError(f"{wrong}: 'tile' must be a count, at least 1 where a count is "
                                "per tile")
         return cls(**counts, tile=tile)
@@ -133,32 +116,18 @@ class VariantFacts:
     mpi: bool = False  # runs as MPI ranks (under mpirun); older binaries do not say: False
 
     @classmethod
-    def parse(cls, text: str, where: str) -> VariantFacts:
-        """One `--describe` line; a HarnessError naming `where` when it is not one."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise HarnessError(f"{where}: {DESCRIBE_OPTION} printed no JSON object: "
-                               f"{exc}") from None
-        return cls.from_json(data, where)
-
-    @classmethod
     def from_json(cls, data: object, where: str) -> VariantFacts:
         """One `--describe` object; a HarnessError naming `where` when it is not one."""
         if not isinstance(data, dict):
             raise HarnessError(f"{where}: {DESCRIBE_OPTION} printed no JSON object")
-        for key, types in FACT_TYPES.items():
-            if key not in data:
+        for key, types in {**FACT_TYPES, MPI_KEY: (bool,)}.items():
+            if key not in data and key != MPI_KEY:
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION} lacks '{key}'")
-            if not isinstance(data[key], types):
+            if not isinstance(data.get(key, False), types):
                 raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{key}' is "
                                    f"{data[key]!r}, not of the expected type")
-        mpi = data.get(MPI_KEY, False)
-        if not isinstance(mpi, bool):
-            raise HarnessError(f"{where}: {DESCRIBE_OPTION}'s '{MPI_KEY}' is {mpi!r}, not of the "
-                               "expected type")
         return cls(**{key: data[key] for key in FACT_TYPES},
-                   sync=SyncFacts.parse(data.get(SYNC_KEY), where), mpi=mpi)
+                   sync=SyncFacts.parse(data.get(SYNC_KEY), where), mpi=data.get(MPI_KEY, False))
 
     def to_json(self) -> dict[str, object]:
         """The facts as `--describe` prints them."""
@@ -166,48 +135,26 @@ class VariantFacts:
                 SYNC_KEY: None if self.sync is None else self.sync.to_json()}
 
 
-def family_of(facts: Mapping[str, VariantFacts], name: str) -> str:
-    """The variant a family is named after: the one `name` repairs, where it exists."""
-    repairs = facts[name].repairs
-    return repairs if repairs is not None and repairs in facts else name
-
-
-def ordered(facts: Mapping[str, VariantFacts]) -> tuple[str, ...]:
-    """The variants in the order tables show them (the module docstring says which)."""
-    def family_key(root: str) -> tuple[int, str]:
-        group = 0 if root == BASELINE else 1 if facts[root].all_pairs else 2
-        return group, root
-
-    roots = sorted({family_of(facts, n) for n in facts}, key=family_key)
-    order: list[str] = []
-    for root in roots:
-        order.append(root)
-        order += sorted(n for n in facts if n != root and family_of(facts, n) == root)
-    return tuple(order)
-
-
 @dataclass(frozen=True)
 class IgnoredAxis:
     """An axis of a config's grid that a variant's facts can say it ignores: its cells along
-    the axis are then one cell, run at `value`, whose key (and record) has that value, so the
-    records of the variant at `value` keep their ids (harness.plan.cells)."""
+    the axis are then one cell, run at `value`, so its records at `value` keep their ids."""
 
     field: str  # the name of the axis in a cell, its key and its record
     value: object
     uses: Callable[[VariantFacts], bool]  # whether a variant of these facts uses the axis
 
 
-# What a variant may ignore: threads where its --describe says "parallel": false, ranks where
-# it does not say "mpi": true.
 # How a machine gets Open MPI (mpicc for an MPI variant's build, mpirun for its cells): Debian's.
 MPI_INSTALL = "sudo apt-get install openmpi-bin libopenmpi-dev"
+# A variant ignores threads where its --describe says "parallel": false, ranks where it does
+# not say "mpi": true.
 RANKS_AXIS = IgnoredAxis("ranks", 1, lambda f: f.mpi)
 IGNORED_AXES: tuple[IgnoredAxis, ...] = (IgnoredAxis("threads", 1, lambda f: f.parallel),
                                          RANKS_AXIS)
 
 
 def ignored_axes(facts: VariantFacts) -> list[IgnoredAxis]:
-    """The axes a variant of these facts ignores."""
     return [axis for axis in IGNORED_AXES if not axis.uses(facts)]
 
 
@@ -237,22 +184,29 @@ class Variants:
                                f"{', '.join(self.order)}") from None
 
     def get(self, name: str) -> VariantFacts | None:
-        """A variant's facts; None for a name that is no variant of the set (a custom binary,
-        results of a variant since removed)."""
+        """A variant's facts; None for a custom binary, or a variant since removed."""
         return self.by_name.get(name)
+
+    def family(self, name: str) -> str:
+        """The variant a family is named after: the one `name` repairs, where it is a member."""
+        repairs = getattr(self.by_name.get(name), "repairs", None)
+        return repairs if repairs in self.by_name else name
 
     @functools.cached_property
     def order(self) -> tuple[str, ...]:
-        return ordered(self.by_name)
+        """The order tables and figures show variants in: seq (the baseline) first, then the
+        all-pairs variants, then the others; within each, families by name, a family being a
+        variant followed by the variants that repair it."""
+        roots = sorted({self.family(n) for n in self.by_name},
+                       key=lambda root: (root != BASELINE, not self[root].all_pairs, root))
+        return tuple(n for root in roots for n in (
+            root, *sorted(n for n in self.by_name if n != root and self.family(n) == root)))
 
     @functools.cached_property
     def families(self) -> tuple[str, ...]:
         """The variants that name a family (those repaired, and those that repair nothing),
         in order: a figure gives each its own colour, and a repair its family's."""
-        return tuple(n for n in self.order if family_of(self.by_name, n) == n)
-
-    def family(self, name: str) -> str:
-        return family_of(self.by_name, name) if name in self.by_name else name
+        return tuple(n for n in self.order if self.family(n) == n)
 
     def repaired_by(self, name: str) -> tuple[str, ...]:
         """The variants that repair `name`, in order."""

@@ -1,5 +1,9 @@
-"""What a config key accepts, and the checks every parser of a config uses: each mistake is a
-`HarnessError` naming the file, the key and what was expected (harness.errors.config_error)."""
+"""Reading a config file: what each key accepts, with the checks every parser of a config uses
+(each mistake a `HarnessError` naming the file, the key and what was expected), and its YAML
+read strictly: a key named twice in one mapping is an error (PyYAML would keep the last one),
+and nothing in a file can make the reading unbounded: its size, its nesting depth, the values
+it expands to (an alias counts each time it is used: no "billion laughs") and the digits of an
+integer are limited, checked on the parser's events before a Python value is made."""
 
 from __future__ import annotations
 
@@ -9,8 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from harness.errors import config_error
-from harness.spec.scenes import MAX_N, MAX_STEPS, MODES
+import yaml
+
+from harness.errors import HarnessError, config_error
+from harness.spec.scenes import MAX_N, MAX_STEPS, MODES, read_text
 
 MAX_SEED = 2**64 - 1
 # The binaries' --threads bound (variants/core/sim_main.c).
@@ -61,7 +67,7 @@ def one_of(options: Sequence[str]) -> Kind:
 
 
 def optional(kind: Kind) -> Kind:
-    """`kind`, or null for the default (None)."""
+    """`kind`, or null for None."""
     return Kind(kind.expected, lambda v: None if v is None else kind.parse(v))
 
 
@@ -154,3 +160,107 @@ def mapping(value: object, label: str, source: Path) -> Mapping[str, object]:
     if not isinstance(value, dict):
         raise config_error(source, label, "a mapping", value)
     return value
+
+
+# --- YAML read strictly ---
+
+# Far beyond any real config, far below what would take memory or time to read.
+MAX_YAML_BYTES = 4 * 1024 * 1024
+MAX_YAML_DEPTH = 64
+MAX_YAML_VALUES = 100_000  # scalars and collections, every alias expanded
+MAX_INT_CHARS = 40  # an integer's text: 2**64 has 20 digits
+
+
+class DuplicateKeyError(yaml.YAMLError):
+    def __init__(self, key: object, first_line: int, line: int) -> None:
+        super().__init__(f"key '{key}' appears twice: on line {first_line} and on line {line}")
+
+
+class StrictLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses a duplicate key in any mapping, and an integer too long to
+    be a count (Python refuses to convert one past 4300 digits)."""
+
+    def construct_mapping(self, node: yaml.MappingNode,  # type: ignore[override]
+                          deep: bool = False) -> dict[object, object]:
+        seen: dict[object, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=True)  # type: ignore[no-untyped-call]
+            line = key_node.start_mark.line + 1
+            try:
+                if key in seen:
+                    raise DuplicateKeyError(key, seen[key], line)
+                seen[key] = line
+            except TypeError:  # an unhashable key: SafeLoader's own error follows
+                continue
+        return super().construct_mapping(node, deep=deep)
+
+    def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
+        if len(str(node.value)) > MAX_INT_CHARS:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"an integer of {len(str(node.value))} characters (at most "
+                f"{MAX_INT_CHARS})", node.start_mark)
+        return super().construct_yaml_int(node)  # type: ignore[no-untyped-call,no-any-return]
+
+
+StrictLoader.add_constructor("tag:yaml.org,2002:int", StrictLoader.construct_yaml_int)
+
+
+# The shape is read with libyaml's parser where PyYAML has it: PyYAML's own scanner takes about a
+# second to open a thousand nested flow collections, libyaml a millisecond.
+SHAPE_LOADER = getattr(yaml, "CSafeLoader", StrictLoader)
+
+
+def check_shape(text: str) -> None:
+    """A YAMLError where the YAML nests too deep or expands to too many values (each alias
+    counted as the values of its anchor)."""
+    anchored: dict[str, int] = {}  # anchor -> the values it stands for
+    open_at: list[tuple[int, str | None]] = []  # each open collection: values before it, anchor
+    values = 0
+    for event in yaml.parse(text, Loader=SHAPE_LOADER):
+        line = event.start_mark.line + 1 if event.start_mark else 0
+        if isinstance(event, yaml.AliasEvent):
+            values += anchored.get(str(event.anchor), 1)
+        elif isinstance(event, yaml.ScalarEvent):
+            values += 1
+            if event.anchor is not None:
+                anchored[event.anchor] = 1
+        elif isinstance(event, yaml.CollectionStartEvent):
+            open_at.append((values, event.anchor))
+            values += 1
+            if len(open_at) > MAX_YAML_DEPTH:
+                raise yaml.YAMLError(f"nested deeper than {MAX_YAML_DEPTH} levels (line {line})")
+        elif isinstance(event, yaml.CollectionEndEvent):
+            before, anchor = open_at.pop()
+            if anchor is not None:
+                anchored[anchor] = values - before
+        if values > MAX_YAML_VALUES:
+            raise yaml.YAMLError(f"more than {MAX_YAML_VALUES} values, each alias counted where "
+                                 f"it is used (line {line})")
+
+
+def load_yaml(text: str) -> object:
+    check_shape(text)
+    return yaml.load(text, Loader=StrictLoader)
+
+
+# How much of PyYAML's message (it quotes the offending line) an error line keeps.
+MAX_DETAIL_CHARS = 300
+
+
+def read_mapping(source: Path) -> dict[str, object]:
+    """The top-level mapping of a YAML config file; a HarnessError naming the file otherwise."""
+    text = read_text(source, "config file", MAX_YAML_BYTES)
+    try:
+        raw = load_yaml(text)
+    except DuplicateKeyError as exc:
+        raise HarnessError(f"{source}: {exc}") from None
+    except yaml.YAMLError as exc:
+        detail = " ".join(str(exc).split())
+        if len(detail) > MAX_DETAIL_CHARS:
+            detail = detail[:MAX_DETAIL_CHARS - 3] + "..."
+        raise HarnessError(f"{source}: invalid YAML: {detail}") from None
+    if not isinstance(raw, dict):
+        raise HarnessError(f"{source}: expected a mapping of config keys, got {type(raw).__name__}")
+    return raw

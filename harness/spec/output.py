@@ -60,27 +60,18 @@ def parse_output(text: str) -> Output:
     integral = final[:, [0, 1, 6, 7]]
     if not np.array_equal(integral, np.round(integral)):
         raise OutputFormatError("step, index and collision counts must be integers")
-    state = FinalState(
-        step=int(steps[0]) if len(steps) else 0,
-        index=final[:, 1].astype(np.int64),
-        position=final[:, 2:4],
-        velocity=final[:, 4:6],
-        pcoll=final[:, 6].astype(np.int64),
-        wcoll=final[:, 7].astype(np.int64),
-    )
+    index, pcoll, wcoll = (final[:, k].astype(np.int64) for k in (1, 6, 7))
+    state = FinalState(int(steps[0]) if len(steps) else 0, index, final[:, 2:4], final[:, 4:6],
+                       pcoll, wcoll)
     return Output(state, history)
 
 
 def split_states(out: Output) -> list[tuple[np.ndarray, np.ndarray]]:
     """(positions, velocities) of every printed state: steps 0..S-1, then the final block."""
-    states = []
     history = out.history
-    if len(history):
-        for step in np.unique(history[:, 0]):
-            rows = history[history[:, 0] == step]
-            states.append((rows[:, 2:4], rows[:, 4:6]))
-    states.append((out.final.position, out.final.velocity))
-    return states
+    steps = [history[history[:, 0] == step] for step in np.unique(history[:, 0])]
+    return [*((rows[:, 2:4], rows[:, 4:6]) for rows in steps),
+            (out.final.position, out.final.velocity)]
 
 
 def states_by_step(out: Output) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,14 +1,8 @@
-"""Programs: implementations of the model written elsewhere (a student's submission, another
-course's code), benchmarked and checked beside the variants. docs/programs.md is the guide: the
-forms of `programs:`, the placeholders of its templates, `check:`, a class of programs matched
-by a glob, and `source:` with `build:`, from which the harness builds a copy of its own
-(harness.programs.cell: with ThreadSanitizer).
-
-A command runs through `sh -c` in the config file's directory, given an input that lists every
-particle (so no program's own generator decides the scene). A program's cells are identified by
-its commands, the content of every file they name and of its source, and its build: a rebuilt
-program is measured again; nothing else about it is known to the harness.
-"""
+"""Programs: implementations of the model written elsewhere, benchmarked and checked beside
+the variants (docs/programs.md). A command runs through `sh -c` in the config file's directory,
+given an input that lists every particle. A program's cells are identified by its commands, the
+content of every file they name and of its source, and its build: a rebuilt program is measured
+again."""
 
 from __future__ import annotations
 
@@ -24,50 +18,40 @@ from pathlib import Path
 
 from harness.spec.facts import BASELINE, GRID
 
-# The check run: the cell's scene in print mode, with at most CHECK_MAX_STATES particle
-# states printed (its first steps, for a big scene: at least one), compared with seq's; for
-# more than CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, SPEC section 6; seq's
-# all pairs cost ~50 ms a step at 10,000 particles, a 50-step reference 13 s where grid takes
-# 2 s). Its steps are judged from the program's own states by `--replay` of the same
-# reference (the same successors; a check replays each step up to 25 times).
+# The check run: the cell's scene in print mode, at most CHECK_MAX_STATES particle states,
+# compared with seq's; past CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, and
+# a 50-step reference at 10,000 particles takes it 2 s where seq takes 13 s). `--replay` of the
+# same reference judges each step from the program's own states.
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 1_999
 FAST_REFERENCE = GRID
-# The keys of a program cell's reference binaries (harness.plan.binaries.program_references).
+# The keys of a program cell's reference binaries (harness.plan.cellstore.program_references).
 REFERENCE = "reference"
 REPLAY = "replay"
 
 INPUT = "input"
-THREADS = "threads"
+RANKS = "ranks"  # the MPI ranks of the cell: a program that names them runs as ranks
+PLACEHOLDERS = (INPUT, "threads", RANKS)
 PATH = "path"  # a class's programs (GLOB): the file the glob matched, quoted for the shell
 DIR = "dir"  # a class's programs: the directory of the file matched (quoted in templates)
-RANKS = "ranks"  # the MPI ranks of the cell (`ranks:`): a program that names them runs as ranks
-PLACEHOLDERS = (INPUT, THREADS, RANKS)
 GLOB = "glob"
 SOURCE = "source"
 BUILD = "build"
 PROGRAM_KEYS = ("command", "check", GLOB, SOURCE, BUILD)
-# The placeholders of `build:`: the compiler, its flags and the binary to write, which a
-# build must use (the harness builds its own copies with them), and the source paths.
-CC = "cc"
-CFLAGS = "cflags"
-OUT = "out"
-BUILD_REQUIRED = {CC: "the compiler", CFLAGS: "the compiler's flags", OUT: "the binary to write"}
-BUILD_PLACEHOLDERS = (CC, CFLAGS, OUT, SOURCE)
-SHELL = "sh"
+# The placeholders a `build:` must use (the harness builds its own copies with them).
+BUILD_REQUIRED = {"cc": "the compiler", "cflags": "the compiler's flags",
+                  "out": "the binary to write"}
+BUILD_PLACEHOLDERS = (*BUILD_REQUIRED, SOURCE)
 
 
 def check_steps(n: int, steps: int) -> int:
     """The steps of a program's check run: all of them, or as many as CHECK_MAX_STATES
     particle states allow (the states after 0..S steps), at least one."""
-    if n == 0:
-        return steps
-    return max(1, min(steps, CHECK_MAX_STATES // n - 1))
+    return steps if n == 0 else max(1, min(steps, CHECK_MAX_STATES // n - 1))
 
 
 def reference_variant(n: int) -> str:
-    """The variant a program's output is compared with at n particles, and whose `--replay`
-    judges its steps."""
+    """The variant a program's output is compared with, and whose `--replay` judges its steps."""
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
 
 
@@ -121,31 +105,30 @@ class Program:
         """Whether its command names {ranks}: it then runs as MPI ranks, one cell per count."""
         return any(field == RANKS for _, field, _, _ in string.Formatter().parse(self.command))
 
+    def _in_directory(self, command: str) -> list[str]:
+        """`sh -c 'cd DIR && COMMAND'`, so that hyperfine (which runs it without a shell of its
+        own) and a rerun by hand both find the program's files."""
+        return ["sh", "-c", f"cd {shlex.quote(str(self.directory))} && {command}"]
+
     def shell_command(self, template: str, input_file: Path, threads: int,
                       ranks: int = 1) -> list[str]:
-        """The argv that runs a template for one input, thread and rank count: `sh -c 'cd DIR
-        && COMMAND'`, so that hyperfine (which runs it without a shell of its own) and a rerun
-        by hand both find the program's files."""
-        rendered = template.format(input=shlex.quote(str(input_file)), threads=threads,
-                                   ranks=ranks)
-        return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
+        """The argv that runs a template for one input, thread and rank count."""
+        return self._in_directory(template.format(input=shlex.quote(str(input_file)),
+                                                  threads=threads, ranks=ranks))
 
     def build_command(self, cc: str, cflags: str, out: Path) -> list[str]:
-        """The argv that builds the program with a compiler and flags of the harness's choice
-        into `out`."""
+        """The argv that builds the program into `out` with the harness's compiler and flags."""
         sources = [str(p.relative_to(self.directory) if p.is_relative_to(self.directory) else p)
                    for p in self.source]
-        rendered = self.build.format(cc=shlex.quote(cc), cflags=cflags, out=shlex.quote(str(out)),
-                                     source=shlex.join(sources))
-        return [SHELL, "-c", f"cd {shlex.quote(str(self.directory))} && {rendered}"]
+        return self._in_directory(self.build.format(
+            cc=shlex.quote(cc), cflags=cflags, out=shlex.quote(str(out)),
+            source=shlex.join(sources)))
 
     def with_binary(self, template: str, binary: Path) -> str | None:
         """The template with the program's binary replaced by another: a class's {path}, or
         the first word naming a file in its directory; None when it names none."""
-        word = self.binary
-        if not word:
-            word = next((w for w in _words(template) if w and (self.directory / w).is_file()),
-                        "")
+        word = self.binary or next(
+            (w for w in _words(template) if w and (self.directory / w).is_file()), "")
         if not word:
             return None
         replacement = shlex.quote(str(binary)).replace("{", "{{").replace("}", "}}")
@@ -156,28 +139,22 @@ class Program:
 
     def source_files(self) -> list[Path]:
         """Every file of its source (a directory's, recursively), sorted."""
-        found: dict[Path, None] = {}
+        found = {path for path in self.source if path.is_file()}
         for path in self.source:
             if path.is_dir():
-                found.update(dict.fromkeys(p for p in sorted(path.rglob("*")) if p.is_file()))
-            elif path.is_file():
-                found[path] = None
+                found.update(p for p in path.rglob("*") if p.is_file())
         return sorted(found)
 
     def named_files(self) -> list[Path]:
         """The files the commands name: each word that is a file relative to the directory,
         and the first word found on PATH (an interpreter)."""
-        found: dict[Path, None] = {}
-        for template in dict.fromkeys((self.command, self.check)):
-            words = _words(template)
-            for k, word in enumerate(words):
-                path = (self.directory / word) if word else None
-                if path is not None and path.is_file():
-                    found[path.resolve()] = None
-                elif k == 0 and word and "/" not in word:
-                    located = shutil.which(word)
-                    if located is not None:
-                        found[Path(located).resolve()] = None
+        found = set()
+        for template in (self.command, self.check):
+            for k, word in enumerate(_words(template)):
+                if word and (self.directory / word).is_file():
+                    found.add((self.directory / word).resolve())
+                elif k == 0 and word and "/" not in word and (located := shutil.which(word)):
+                    found.add(Path(located).resolve())
         return sorted(found)
 
     def fingerprint(self) -> str:
@@ -211,10 +188,9 @@ def _words(template: str) -> list[str]:
 
 def from_mapping(name: str, value: Mapping[str, object], directory: Path,
                  path: Path | None = None) -> Program:
-    """A Program from `command` and optional `check`, `source` and `build` (already checked
-    to be strings, `source` a string or a list of them). A class's program (`path`, the file
-    its glob matched) has {path} and {dir} filled in: quoted in its templates, plain in
-    `source:`."""
+    """A Program from `command` and optional `check`, `source` and `build` (already checked).
+    A class's program (`path`, the file its glob matched) has {path} and {dir} filled in:
+    quoted in its templates, plain in `source:`."""
     def filled(template: object, quote: bool = True) -> str:
         text = str(template)
         for key, part in ((PATH, path), (DIR, None if path is None else path.parent)):

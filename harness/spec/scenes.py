@@ -6,7 +6,7 @@ Adding a generator is one decorated function:
 
     @generator("name")
     def name(n: int = 10, L: float = 100.0, r: float = 1.0, steps: int = 10,
-             mode: str = "perf") -> GeneratedScene:
+             mode: str = "perf") -> ScenePoint:
         return make_scene(L, r, steps, mode, [(x, y, vx, vy), ...])
 
 Its keyword parameters (with defaults; their types are those of the defaults) are the keys
@@ -23,13 +23,12 @@ import math
 import random
 import re
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from harness.errors import HarnessError, describe_value
-from harness.spec.yamlfile import read_text
 
 MODES = ("print", "perf")
 DEFAULT_MODE = "perf"
@@ -39,9 +38,8 @@ REAL_FORMAT = "%.17g"
 
 Particle = tuple[float, float, float, float]
 
-# What the binaries accept (SPEC section 1; variants/core: SIM_N_MAX, the int64 S, print mode's
-# output size): an input past these is refused by every variant, so the harness refuses it
-# first, at load time.
+# What the binaries accept (SPEC section 1; variants/core): the harness refuses an input past
+# these first, at load time.
 MAX_N = 2**31 - 1
 MAX_STEPS = 2**63 - 1
 PRINT_LINE_MIN_BYTES = 48  # the shortest line print mode writes
@@ -56,22 +54,10 @@ MAX_INT_TOKEN_CHARS = 21
 
 
 @dataclass(frozen=True)
-class GeneratedScene:
-    """What a generator returns: the input text and the scene parameters it encodes."""
-
-    text: str
-    n: int
-    L: float
-    r: float
-    steps: int
-    mode: str
-
-
-@dataclass(frozen=True)
 class ScenePoint:
     """One concrete input of a cell, with the parameters the results table reports."""
 
-    label: str  # "random", the generator name, or the input file's name
+    label: str  # "random", the generator name ("" until named), or the input file's name
     n: int
     L: float
     r: float
@@ -81,9 +67,8 @@ class ScenePoint:
     text: str
     params: tuple[tuple[str, object], ...] = ()
 
-    # Asked for by every cell of the scene (its key, its input file, its baseline), and a
-    # program's scene lists every particle: hashed once. A frozen dataclass without slots
-    # keeps it in the instance's __dict__, beside the fields, out of eq and hash.
+    # Asked for by every cell of the scene, and a program's scene lists every particle: hashed
+    # once (a frozen dataclass without slots keeps it in __dict__, out of eq and hash).
     @functools.cached_property
     def input_sha256(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()
@@ -120,12 +105,13 @@ def particle_row(index: int, particle: Particle) -> str:
 
 
 def make_scene(L: float, r: float, steps: int, mode: str, particles: Iterable[Particle],
-               n: int | None = None) -> GeneratedScene:
-    """Write an input with the given particles as indices 0.. (n > len lets the rest be random)."""
+               n: int | None = None) -> ScenePoint:
+    """What a generator returns: an input with the given particles as indices 0.. (n > len
+    lets the rest be random), its label and seed given by the registry."""
     rows = [particle_row(i, particle) for i, particle in enumerate(particles)]
     total = len(rows) if n is None else n
-    return GeneratedScene(header_text(total, L, r, steps, mode) + "".join(rows), total, L, r,
-                          steps, mode)
+    return ScenePoint("", total, float(L), float(r), steps, mode, DEFAULT_SEED,
+                      header_text(total, L, r, steps, mode) + "".join(rows))
 
 
 def random_point(n: int, L: float, r: float, steps: int, mode: str, seed: int) -> ScenePoint:
@@ -171,8 +157,7 @@ def generate(count: int, L: float, r: float, seed: int) -> list[Particle]:
 
 def with_every_particle(point: ScenePoint) -> ScenePoint:
     """The scene with every particle listed in its input: the ones it lists as written, the
-    others drawn as the binaries would draw them from its seed (so a variant sees the same
-    particles, and a program's own generator decides nothing)."""
+    others drawn as the binaries would draw them from its seed."""
     n, _, _, _, _ = parse_header(point.text, point.label)
     tokens = point.text.split()
     body = tokens[5:]
@@ -200,8 +185,7 @@ def with_every_particle(point: ScenePoint) -> ScenePoint:
 
 
 def with_run(point: ScenePoint, steps: int, mode: str) -> ScenePoint:
-    """The scene with another step count and mode (its header rewritten, L and r kept as
-    written)."""
+    """The scene with another step count and mode (L and r kept as written)."""
     tokens = point.text.split(maxsplit=5)
     rest = tokens[5] if len(tokens) > 5 else ""
     text = f"{tokens[0]} {tokens[1]} {tokens[2]} {steps}\n{mode}\n{rest}"
@@ -210,48 +194,38 @@ def with_run(point: ScenePoint, steps: int, mode: str) -> ScenePoint:
 
 # --- the generator registry -------------------------------------------------------------
 
-GeneratorFn = Callable[..., GeneratedScene]
+GeneratorFn = Callable[..., ScenePoint]
 
 
 @dataclass(frozen=True)
 class GeneratorInfo:
-    name: str
     fn: GeneratorFn
-    defaults: Mapping[str, object]  # parameter -> default value (its type is the param type)
+    defaults: Mapping[str, object]  # parameter -> default value (its type is the param's)
     doc: str
 
 
-@dataclass
-class GeneratorRegistry:
+class GeneratorRegistry(dict[str, GeneratorInfo]):
     """Named scene generators; filled once, at import, by the @generator decorator."""
-
-    entries: dict[str, GeneratorInfo] = field(default_factory=dict)
 
     def register(self, name: str) -> Callable[[GeneratorFn], GeneratorFn]:
         def decorate(fn: GeneratorFn) -> GeneratorFn:
-            if name in self.entries:
+            if name in self:
                 raise ValueError(f"scene generator {name!r} registered twice")
             defaults: dict[str, object] = {}
             for param in inspect.signature(fn).parameters.values():
                 if param.default is inspect.Parameter.empty:
                     raise ValueError(f"generator {name!r}: {param.name!r} needs a default")
                 defaults[param.name] = param.default
-            self.entries[name] = GeneratorInfo(name, fn, defaults, inspect.getdoc(fn) or "")
+            self[name] = GeneratorInfo(fn, defaults, inspect.getdoc(fn) or "")
             return fn
 
         return decorate
 
     def names(self) -> tuple[str, ...]:
-        return tuple(sorted(self.entries))
+        return tuple(sorted(self))
 
-    def get(self, name: str) -> GeneratorInfo:
-        try:
-            return self.entries[name]
-        except KeyError:
-            raise HarnessError(f"unknown scene generator {name!r}") from None
-
-    def __contains__(self, name: object) -> bool:
-        return name in self.entries
+    def __missing__(self, name: str) -> GeneratorInfo:
+        raise HarnessError(f"unknown scene generator {name!r}")
 
 
 REGISTRY = GeneratorRegistry()
@@ -260,16 +234,33 @@ generator = REGISTRY.register
 
 def generated_point(name: str, params: Mapping[str, object], seed: int) -> ScenePoint:
     """Run generator `name` with `params` (already type-checked by the config loader)."""
-    info = REGISTRY.get(name)
-    scene = info.fn(**params)
+    scene = REGISTRY[name].fn(**params)
     check_scene(scene.n, scene.L, scene.r, scene.steps, scene.mode, f"generator {name!r}")
-    return ScenePoint(name, scene.n, float(scene.L), float(scene.r), scene.steps, scene.mode,
-                      seed, scene.text, tuple(sorted(params.items())))
+    return dataclasses.replace(scene, label=name, seed=seed, params=tuple(sorted(params.items())))
+
+
+def read_text(source: Path, what: str, max_bytes: int | None = None) -> str:
+    """A file's UTF-8 text; a HarnessError naming the file (`what` says what it is) when it is
+    missing, unreadable, larger than max_bytes or not UTF-8."""
+    try:
+        if max_bytes is not None and source.stat().st_size > max_bytes:
+            raise HarnessError(f"{source}: {what} of {source.stat().st_size} bytes is larger "
+                               f"than {max_bytes}")
+        data = source.read_bytes()
+    except FileNotFoundError:
+        raise HarnessError(f"{source}: no such {what}") from None
+    except OSError as exc:
+        raise HarnessError(f"{source}: cannot read {what}: {exc.strerror}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise HarnessError(f"{source}: {what} is not UTF-8 text: byte 0x{data[exc.start]:02x} "
+                           f"on line {line} (offset {exc.start})") from None
 
 
 def file_point(path: Path, seed: int) -> ScenePoint:
-    """A scene read from an input file; the header gives n, L, r, steps and mode, checked as
-    the binaries check them."""
+    """A scene read from an input file, its header checked as the binaries check it."""
     text = read_text(path, "scene file")
     n, L, r, steps, mode = parse_header(text, str(path))
     check_scene(n, L, r, steps, mode, str(path))
@@ -284,8 +275,7 @@ def parse_int(token: str) -> int:
 
 
 def parse_real(token: str) -> float:
-    """A real token as the binaries read it (a finite one is checked by the caller);
-    ValueError otherwise."""
+    """A real token as the binaries read it (not necessarily finite); ValueError otherwise."""
     if not REAL_TOKEN.fullmatch(token):
         raise ValueError(token)
     return float(token)
@@ -332,7 +322,6 @@ def scene_problem(n: int, L: float, r: float, steps: int, mode: str) -> str | No
 
 
 def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -> None:
-    """A HarnessError where the binaries would refuse the header (scene_problem)."""
     problem = scene_problem(n, L, r, steps, mode)
     if problem is not None:
         raise HarnessError(f"{where}: invalid scene: {problem}")
@@ -343,7 +332,7 @@ def check_scene(n: int, L: float, r: float, steps: int, mode: str, where: str) -
 
 @generator("lattice")
 def lattice(n: int = 100, L: float = 1000.0, r: float = 1.0, steps: int = 10,
-            mode: str = "perf", speed: float = 10.0) -> GeneratedScene:
+            mode: str = "perf", speed: float = 10.0) -> ScenePoint:
     """n discs on a square lattice; rows move alternately right/left and up/down at `speed`."""
     side = max(1, math.ceil(math.sqrt(n)))
     spacing = (L - 2 * r) / side
@@ -370,7 +359,7 @@ DENSE_SLOW_SEED = 1
 
 @generator("dense_slow")
 def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
-               mode: str = "perf") -> GeneratedScene:
+               mode: str = "perf") -> ScenePoint:
     """n discs placed uniformly in the box (overlaps at the start allowed: overlapping pairs
     pass through, SPEC section 1), each moving 0.5-1.5 radii a step in a uniform direction."""
     rng = random.Random(DENSE_SLOW_SEED)
@@ -385,7 +374,7 @@ def dense_slow(n: int = 1000, L: float = 200.0, r: float = 1.0, steps: int = 10,
 
 @generator("head_on")
 def head_on(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
-            gap: float = 10.0, speed: float = 2.0) -> GeneratedScene:
+            gap: float = 10.0, speed: float = 2.0) -> ScenePoint:
     """Two discs on the horizontal midline, `gap` apart (surface to surface), moving at each
     other at `speed`: one head-on pair collision, then wall bounces."""
     mid = L / 2
@@ -398,7 +387,7 @@ def head_on(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf
 
 @generator("corner")
 def corner(L: float = 100.0, r: float = 1.0, steps: int = 10, mode: str = "perf",
-           speed: float = 7.0) -> GeneratedScene:
+           speed: float = 7.0) -> ScenePoint:
     """One disc on the diagonal flying into the top-right corner: both axes hit at once."""
     start = L / 2
     diagonal = speed / math.sqrt(2.0)

@@ -1,44 +1,34 @@
-"""The variant registry: which variants exist and what each is, from the binaries themselves.
-
-A variant is one file, variants/NAME.c; the Makefile builds every such file into build/NAME
-where it can (an MPI variant only where mpicc is found: `make print-variants` lists those).
-What a variant is comes from its own definition in C (`sim_variant_def`), which its binary
-prints as one JSON line with `--describe` (harness.spec.facts says what the facts are, orders
-them and stores them with a run's results, where the analysis and the report read them). The
-harness, the C scene scripts and the report keep no list of their own, so a new variant needs
-no change anywhere else.
+"""The variant registry: which variants exist and what each is, from the binaries themselves,
+and the one place the spec runs make (whoever only reads results never imports this module).
+A variant is one file, variants/NAME.c, built into build/NAME where the Makefile can (`make
+print-variants`); its binary's `--describe` says what it is, so the harness keeps no list of
+its own, and a new variant needs no change anywhere else.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
+import json
 import subprocess
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 from harness.errors import HarnessError
 from harness.repo import BUILD_DIR, REPO_ROOT, VARIANTS_DIR
 from harness.spec.facts import BASELINE, DESCRIBE_OPTION, VariantFacts, Variants
-from harness.spec.make import make_binaries
 
 DESCRIBE_TIMEOUT_S = 10.0
 
 
 class VariantRegistry:
     """The variants of a repository: names from variants/*.c, facts from build/NAME
-    --describe (built with make when missing or out of date)."""
+    --describe (built with make when missing or out of date), or the `facts` given."""
 
-    def __init__(self, repo_root: Path = REPO_ROOT, make: str = "make",
+    def __init__(self, repo_root: Path = REPO_ROOT,
                  facts: Iterable[VariantFacts] | None = None) -> None:
         self.repo_root = repo_root
-        self.make = make
         self._given = None if facts is None else {f.name: f for f in facts}
-
-    @classmethod
-    def of(cls, facts: Iterable[VariantFacts]) -> VariantRegistry:
-        """A registry of the given facts, reading no binary (tests, other repositories)."""
-        return cls(facts=facts)
 
     @functools.cached_property
     def sources(self) -> frozenset[str]:
@@ -62,7 +52,7 @@ class VariantRegistry:
 
     def _buildable(self) -> set[str]:
         try:
-            listed = subprocess.run([self.make, "-s", "--no-print-directory", "print-variants"],
+            listed = subprocess.run(["make", "-s", "--no-print-directory", "print-variants"],
                                     cwd=self.repo_root, capture_output=True, text=True,
                                     check=False, timeout=60)
         except (OSError, subprocess.TimeoutExpired):
@@ -73,17 +63,14 @@ class VariantRegistry:
     def __contains__(self, name: object) -> bool:
         return name in self.names
 
-    def binary(self, name: str) -> Path:
-        return self.repo_root / BUILD_DIR / name
-
     @functools.cached_property
     def known(self) -> Variants:
         """Every variant's facts, ordered (builds the binaries that make says are stale)."""
         if self._given is not None:
             return Variants.of(self._given.values())
-        binaries = [self.binary(n) for n in self.names]
-        make_binaries(self.repo_root, binaries, self.make, capture=True)
-        return Variants.of(describe(self.binary(name)) for name in self.names)
+        binaries = [self.repo_root / BUILD_DIR / name for name in self.names]
+        make_binaries(self.repo_root, binaries, capture=True)
+        return Variants.of(describe(binary) for binary in binaries)
 
     def __getitem__(self, name: str) -> VariantFacts:
         return self.known[name]
@@ -104,7 +91,10 @@ def describe(binary: Path) -> VariantFacts:
         detail = done.stderr.strip()[-300:]
         raise HarnessError(f"{binary} {DESCRIBE_OPTION} failed (exit {done.returncode})"
                            + (f": {detail}" if detail else ""))
-    facts = VariantFacts.parse(done.stdout.strip(), f"{binary}")
+    try:
+        facts = VariantFacts.from_json(json.loads(done.stdout.strip()), f"{binary}")
+    except json.JSONDecodeError as exc:
+        raise HarnessError(f"{binary}: {DESCRIBE_OPTION} printed no JSON object: {exc}") from None
     if facts.name != binary.name:
         raise HarnessError(f"{binary}: {DESCRIBE_OPTION} names the variant {facts.name!r}")
     return facts
@@ -130,3 +120,34 @@ def using(registry: VariantRegistry) -> Iterator[VariantRegistry]:
         yield registry
     finally:
         _default.remove(registry)
+
+
+def make_binaries(repo_root: Path, binaries: Iterable[Path], make: str = "make",
+                  capture: bool = False, extra: Sequence[str] = ()) -> None:
+    """One `make -s [EXTRA] build/a build/b ...` call (nothing when the list is empty); a
+    failure is a HarnessError. With `capture`, make's output goes into the error only."""
+    targets = [str(b.relative_to(repo_root)) for b in binaries]
+    if not targets:
+        return
+    done = _make(repo_root, make, ["-s", *extra, *targets], capture)
+    if done.returncode != 0:
+        detail = f": {' '.join(done.stderr.split())[-500:]}" if capture and done.stderr else ""
+        raise HarnessError(f"make -s {' '.join([*extra, *targets])} failed with exit status "
+                           f"{done.returncode}{detail}")
+
+
+def has_rules(repo_root: Path, binaries: Iterable[Path]) -> bool:
+    """Whether the Makefile in `repo_root` can make every one of `binaries`: `make -n` (a dry
+    run, nothing built) finds a rule for each and for what each is made of."""
+    targets = [str(b.relative_to(repo_root)) for b in binaries]
+    return _make(repo_root, "make", ["-n", "-s", *targets], capture=True).returncode == 0
+
+
+def _make(repo_root: Path, make: str, args: Sequence[str],
+          capture: bool) -> subprocess.CompletedProcess[str]:
+    try:
+        return subprocess.run([make, *args], cwd=repo_root, check=False, text=True,
+                              errors="replace", stdin=subprocess.DEVNULL,
+                              capture_output=capture)
+    except OSError as exc:
+        raise HarnessError(f"cannot run {make}: {exc.strerror}") from None

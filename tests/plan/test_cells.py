@@ -3,9 +3,8 @@ facts, and the binaries a plan runs."""
 
 from __future__ import annotations
 
-from harness.plan.binaries import checkout_tools, needed_binaries
 from harness.plan.cells import is_exact, plan_cells
-from harness.plan.cellstore import CellStore
+from harness.plan.cellstore import CellStore, checkout_tools, needed_binaries
 from harness.repo import REPO_ROOT
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantFacts, VariantRegistry, default_registry
@@ -54,8 +53,8 @@ def test_a_serial_variant_is_one_cell_a_scene_run_with_one_thread(write_config, 
 
     assert key(alone) == key(one) and key(alone).threads == 1
     # the rule follows the facts: a seq that said it was parallel would use its threads
-    registry = VariantRegistry.of([VariantFacts("seq", "s", True, True, True),
-                                   VariantFacts("p1d", "p", True, True, True)])
+    registry = VariantRegistry(facts=[VariantFacts("seq", "s", True, True, True),
+                                      VariantFacts("p1d", "p", True, True, True)])
     config = load_config(write_config(SERIAL + "threads: [1, 2]\n", "facts"), registry)
     assert len(plan_cells(config, registry=registry).cells) == 4
 
@@ -107,7 +106,7 @@ def test_a_variant_promises_exactness_and_a_custom_binary_does_not(write_config,
 
 
 def test_exactness_follows_the_registry_given(write_config) -> None:
-    registry = VariantRegistry.of([
+    registry = VariantRegistry(facts=[
         VariantFacts("seq", "s", True, False, True), VariantFacts("p1", "p", False, True, True),
         VariantFacts("grid", "g", True, True, False)])
     config = load_config(write_config(BASE), registry)

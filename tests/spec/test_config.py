@@ -10,9 +10,8 @@ import pytest
 from harness import repo
 from harness.errors import HarnessError
 from harness.plan.cells import QUICK_MAX_N, QUICK_MAX_STEPS, plan_cells
-from harness.spec.config import DEFAULT_RUNS, DEFAULT_TIMEOUT_S, DEFAULT_WARMUP
+from harness.spec.config import DEFAULT_RUNS, DEFAULT_TIMEOUT_S, DEFAULT_WARMUP, expand_points
 from harness.spec.parse import load_config
-from harness.spec.points import expand_points
 
 from commands import run_main as main
 
@@ -225,7 +224,7 @@ def test_a_duplicate_key_names_file_key_and_lines(
 
 
 def test_the_same_key_in_different_mappings_is_not_a_duplicate() -> None:
-    from harness.spec.yamlfile import load_yaml
+    from harness.spec.kinds import load_yaml
     assert load_yaml("a: {x: 1}\nb: {x: 2}\nc: [{x: 1}, {x: 2}]\n") == {
         "a": {"x": 1}, "b": {"x": 2}, "c": [{"x": 1}, {"x": 2}]}
 

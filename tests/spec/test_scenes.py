@@ -58,7 +58,7 @@ def test_adding_a_generator_is_one_decorated_function() -> None:
 
     @registry.register("pair_at_rest")
     def pair_at_rest(L: float = 50.0, r: float = 1.0, steps: int = 3,
-                     mode: str = "print") -> scenes.GeneratedScene:
+                     mode: str = "print") -> scenes.ScenePoint:
         return scenes.make_scene(L, r, steps, mode, [(10.0, 10.0, 0.0, 0.0),
                                                      (20.0, 10.0, 0.0, 0.0)])
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from harness.errors import HarnessError
 from harness.spec import variants
-from harness.spec.facts import BASELINE, Count, SyncFacts, VariantFacts, ordered
+from harness.spec.facts import BASELINE, Count, SyncFacts, VariantFacts, Variants
 from harness.spec.variants import VariantRegistry, default_registry
 
 from conftest import build_or_skip
@@ -40,14 +40,15 @@ def test_order_puts_the_baseline_first_and_repairs_after_what_they_repair() -> N
         facts("zz_broad", all_pairs=False), facts("b"), facts("a_fix", repairs="b"),
         facts("a"), facts(BASELINE, parallel=False), facts("odd", repairs="gone"),
         facts("fast", all_pairs=False, exact=False))}
-    assert ordered(table) == (BASELINE, "a", "b", "a_fix", "odd", "fast", "zz_broad")
-    registry = VariantRegistry.of(table.values())
+    assert Variants.of(table.values()).order == (BASELINE, "a", "b", "a_fix", "odd", "fast",
+                                                 "zz_broad")
+    registry = VariantRegistry(facts=table.values())
     assert registry.known.families == (BASELINE, "a", "b", "odd", "fast", "zz_broad")
     assert registry.known.family("a_fix") == "b"
 
 
 def test_the_default_registry_can_be_replaced_for_a_while() -> None:
-    mine = VariantRegistry.of([facts(BASELINE, parallel=False), facts("only")])
+    mine = VariantRegistry(facts=[facts(BASELINE, parallel=False), facts("only")])
     with variants.using(mine):
         assert default_registry() is mine and default_registry().known.order == (BASELINE, "only")
     assert default_registry() is not mine
@@ -80,7 +81,7 @@ def test_a_good_description_parses(tmp_path: Path) -> None:
 
 
 def test_an_unknown_variant_is_named_with_the_known_ones() -> None:
-    registry = VariantRegistry.of([facts(BASELINE), facts("p1")])
+    registry = VariantRegistry(facts=[facts(BASELINE), facts("p1")])
     with pytest.raises(HarnessError, match="unknown variant 'p9'; expected one of: seq, p1"):
         registry["p9"]
 

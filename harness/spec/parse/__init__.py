@@ -1,47 +1,294 @@
-"""Reading a config: YAML -> validation and defaults -> a frozen `Config` (harness.spec.config).
-
-Every mistake is a `HarnessError` naming the file, the key and what was expected. The known
-variants come from a variant registry (harness.spec.variants): the repository's variants/*.c.
-Each part of the config has its module: programs (variants, builds, binaries, programs), scene
-(the scene, combine, schedule, exclude) and measure (measure, validate, checks, executor).
-"""
+"""Reading a config: YAML -> validation and defaults -> a frozen `Config`, every mistake a
+`HarnessError` naming the file, the key and what was expected. Here: the top-level keys, what a
+config runs (its variants, builds, binaries and programs) and how it measures and checks;
+harness.spec.parse.scene reads its axes."""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
-from harness.errors import MISSING, config_error
-from harness.spec import bounds, kinds
+from harness.errors import MISSING, HarnessError, config_error
+from harness.spec import kinds, programs
+from harness.spec.builds import BUILDS, DEFAULT_BUILD
 from harness.spec.config import (
+    AUTO_RUNS,
     DEFAULT_MAX_CELLS,
+    DEFAULT_RUNS,
+    EXECUTOR_KINDS,
     METRICS,
-    NAME_RULE,
     TOP_KEYS,
+    Checks,
     Config,
-    is_valid_name,
+    ExecutorSpec,
+    Measure,
+    Validation,
+    expand_points,
 )
-from harness.spec.parse.measure import (
-    parse_checks,
-    parse_executor,
-    parse_measure,
-    parse_validate,
-    parse_variant_measures,
-)
-from harness.spec.parse.programs import parse_variants
+from harness.spec.facts import MPI_INSTALL
 from harness.spec.parse.scene import (
+    check_cells,
     check_exclude,
+    check_memory,
     parse_combine,
     parse_exclude,
     parse_scene,
     parse_schedules,
 )
-from harness.spec.points import expand_points
 from harness.spec.variants import VariantRegistry, default_registry
-from harness.spec.yamlfile import read_mapping
 
+# An experiment's, a custom binary's or a program's name: a folder and a file name under
+# results/, so characters every file system takes, and short enough beside its suffixes.
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+MAX_NAME_CHARS = 64
+NAME_RULE = (f"letters, digits, '_', '.', '-' (at most {MAX_NAME_CHARS}, the first a letter "
+             "or digit)")
+# Adaptive repetition (`runs: auto`): its own keys, only beside it.
+ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
+# compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
+BASELINE_CHOICES = ("f64", "same", "f128")
+CHECK_NAMES = ("invariants", "shadow", "divergence")
 # The top-level keys of one value each, checked as they are (title's default: the name).
 SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
            "openmp_costs": kinds.BOOLEAN}
+
+
+def is_valid_name(name: object) -> bool:
+    return (isinstance(name, str) and len(name) <= MAX_NAME_CHARS
+            and NAME_PATTERN.fullmatch(name) is not None)
+
+
+def _runs(value: object) -> object:
+    return None if value == AUTO_RUNS else kinds.int_in(1)(value)
+
+
+def _options(value: object) -> object:
+    if not isinstance(value, list):
+        raise ValueError
+    return tuple(kinds.STRING.parse(option) for option in value)
+
+
+MEASURE = {
+    "warmup": kinds.NON_NEGATIVE_INT,
+    "runs": kinds.Kind(f"a positive integer or {AUTO_RUNS}", _runs),  # None: auto
+    "timeout_s": kinds.POSITIVE_REAL,
+    "ci": kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.real_in(0.0, 1.0)),
+    "max_runs": kinds.POSITIVE_INT,
+    "max_time_s": kinds.POSITIVE_REAL,
+}
+VALIDATE = {"max_n": kinds.optional(kinds.POSITIVE_INT), "baseline": kinds.one_of(BASELINE_CHOICES)}
+# `truth:` is one of the known variants: parse_checks adds it first.
+ACCURACY = {
+    "shadow_steps": kinds.NON_NEGATIVE_INT,
+    "energy_ulps": kinds.POSITIVE_REAL,
+    "shadow_ulps": kinds.POSITIVE_REAL,
+    "thread_counts": kinds.many(kinds.THREADS),
+    "max_n": kinds.optional(kinds.POSITIVE_INT),
+}
+EXECUTOR = {
+    "kind": kinds.one_of(EXECUTOR_KINDS),
+    "partition": kinds.STRING,
+    "exclusive": kinds.BOOLEAN,
+    "time_limit_min": kinds.POSITIVE_INT,
+    "extra": kinds.Kind("a list of sbatch options (strings)", _options),
+    "proc_bind": kinds.STRING,
+    "places": kinds.STRING,
+    "poll_s": kinds.POSITIVE_REAL,
+    "oversubscribe": kinds.BOOLEAN,
+}
+
+
+def parse_measure(value: object, source: Path, label: str = "measure") -> Measure:
+    raw = kinds.mapping(value, label, source)
+    kinds.reject_unknown(raw, tuple(MEASURE), f"{label}.", source)
+    if raw.get("runs", DEFAULT_RUNS or AUTO_RUNS) != AUTO_RUNS:  # a misplaced key before its value
+        for key in ADAPTIVE_KEYS:
+            if key in raw:
+                raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
+                                   "adaptive repetition)", raw[key])
+    return Measure(**kinds.settings(raw, MEASURE, label, source))
+
+
+def parse_variant_measures(value: object, base: object, variants: Sequence[str],
+                            source: Path) -> tuple[tuple[str, Measure], ...]:
+    """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s, ...}}`, over `measure`'s keys
+    (a variant's fixed `runs` drops the adaptive settings of a `runs: auto` it would
+    inherit)."""
+    raw = kinds.mapping(value, "measure_by_variant", source)
+    result = []
+    for variant, settings in raw.items():
+        label = f"measure_by_variant.{variant}"
+        if variant not in variants:
+            raise config_error(source, label, "one of the config's variants ("
+                               + ", ".join(variants) + ")", variant)
+        # `measure`'s keys are checked already: an unknown key here is the variant's own
+        own = kinds.mapping(settings, label, source)
+        inherited = kinds.mapping(base, "measure", source)
+        if own.get("runs", AUTO_RUNS) != AUTO_RUNS:  # a fixed count: no adaptive settings
+            inherited = {k: v for k, v in inherited.items() if k not in ADAPTIVE_KEYS}
+        result.append((str(variant), parse_measure({**inherited, **own}, source, label)))
+    return tuple(result)
+
+
+def parse_validate(value: object, source: Path) -> Validation:
+    if isinstance(value, bool):
+        return Validation(enabled=value)
+    if not isinstance(value, dict):
+        raise config_error(source, "validate",
+                           "true, false or {max_n: N, baseline: f64|same|f128}", value)
+    return Validation(True, **kinds.settings(value, VALIDATE, "validate", source))
+
+
+def parse_checks(names: object, options: object, source: Path,
+                  variants: Sequence[str]) -> Checks:
+    items = kinds.name_list(names, "checks", CHECK_NAMES, source, allow_empty=True)
+    table = {"truth": kinds.one_of(variants), **ACCURACY}
+    raw = kinds.mapping(options, "accuracy", source)
+    kinds.reject_unknown(raw, tuple(table), "accuracy.", source)
+    if raw and not items:
+        raise config_error(source, "checks", "a non-empty list of " + ", ".join(CHECK_NAMES)
+                           + " where 'accuracy' is set", names)
+    fields = kinds.settings(raw, table, "accuracy", source)
+    if items and "truth" not in fields:  # the default too must be a variant checks can build
+        kinds.check(Checks.truth, "accuracy.truth", table["truth"], source)
+    return Checks(items, **fields)
+
+
+def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequence[str],
+                   unbuilt: Collection[str] = ()
+                   ) -> tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, Path], ...],
+                              tuple[programs.Program, ...]]:
+    """The config's variants and builds, its binaries and its programs: a custom binary or a
+    program is a new variant name, listed under `variants` (a class: every program its glob
+    matched), and built f64 only."""
+    binaries = parse_binaries(raw.get("binaries", {}), source, known_variants)
+    taken = (*known_variants, *(b[0] for b in binaries))
+    programs_, classes = parse_programs(raw.get("programs", {}), source, taken)
+    known = (*taken, *(p.name for p in programs_), *classes)
+    asked = raw.get("variants")
+    for name in asked if isinstance(asked, list) else ():
+        if name in unbuilt and name not in known:
+            raise HarnessError(f"{source}: key 'variants': {name!r} is an MPI variant, which "
+                               "make leaves out where mpicc is not found; install Open MPI: "
+                               f"{MPI_INSTALL}")
+    listed = kinds.name_list(raw.get("variants", MISSING), "variants", known, source)
+    # A class in `variants` stands for every program its glob matched.
+    variants = tuple(dict.fromkeys(m for v in listed for m in classes.get(v, (v,))))
+    builds = kinds.name_list(raw.get("builds", [DEFAULT_BUILD]), "builds", BUILDS, source)
+    for variant, _ in binaries:
+        if variant in variants and builds != (DEFAULT_BUILD,):
+            raise config_error(source, f"binaries.{variant}", "builds: [f64] with a custom "
+                               "binary", list(builds))
+    for program in programs_:
+        if program.name not in variants:
+            raise config_error(source, f"programs.{program.name}", "a program also listed "
+                               "under variants", "not listed")
+        if builds != (DEFAULT_BUILD,):
+            raise config_error(source, f"programs.{program.name}", "builds: [f64] with a "
+                               "program", list(builds))
+    return variants, builds, binaries, programs_
+
+
+def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path) -> None:
+    """A name for a custom binary or a program: a valid name no variant has."""
+    if name in taken or not is_valid_name(name):
+        raise config_error(source, label, f"a new variant name ({NAME_RULE}; not one of "
+                           + ", ".join(taken) + ")", name)
+
+
+def _check_source(value: object, where: str, config: Path, extra: tuple[str, ...]) -> None:
+    """`source:`: a path or a non-empty list of paths relative to the config, each existing
+    (a class's, with {path} or {dir}, is checked per program when it is built)."""
+    listed = [value] if isinstance(value, str) else value
+    expected = "a source file or directory relative to the config, or a list of them"
+    if not isinstance(listed, list) or not listed or not all(
+            isinstance(p, str) and p.strip() for p in listed):
+        raise config_error(config, where, expected, value)
+    for path in () if extra else listed:
+        if not (config.resolve().parent / path).exists():
+            raise config_error(config, where, f"{expected} (not found: "
+                               f"{config.resolve().parent / path})", value)
+
+
+def parse_binaries(value: object, source: Path,
+                    variants: Sequence[str]) -> tuple[tuple[str, Path], ...]:
+    raw = kinds.mapping(value, "binaries", source)
+    result = []
+    for name, path in raw.items():
+        label = f"binaries.{name}"
+        _check_new_name(name, label, variants, source)
+        if not isinstance(path, str) or not path:
+            raise config_error(source, label, "a path to an executable", path)
+        resolved = (source.resolve().parent / path).resolve()
+        if not resolved.is_file():
+            raise config_error(source, label, "an executable file relative to the config", path)
+        result.append((name, resolved))
+    return tuple(result)
+
+
+PROGRAM_FORMS = ('a command template such as "./sim {threads} < {input}", or '
+                 '{command: TEMPLATE, check: TEMPLATE, source: PATH, build: TEMPLATE}, or a '
+                 'class: {glob: PATTERN, command: TEMPLATE with {path}}')
+COMMAND_FORM = "a command template with {input} and optionally {threads} and {ranks}"
+BUILD_FORM = ('a build command template with {cc}, {cflags} and {out} (and optionally '
+              '{source}), such as "{cc} {cflags} {source} -o {out} -lm"')
+
+
+def parse_programs(value: object, source: Path, taken: Sequence[str]
+                    ) -> tuple[tuple[programs.Program, ...], dict[str, tuple[str, ...]]]:
+    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE, source:
+    PATH, build: TEMPLATE}}` or a class `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one
+    program per file matched, {path} and {dir} in the templates); the programs, and each
+    class's program names."""
+    raw = kinds.mapping(value, "programs", source)
+    result = []
+    classes: dict[str, tuple[str, ...]] = {}
+    for name, entry in raw.items():
+        label = f"programs.{name}"
+        _check_new_name(name, label, taken, source)
+        fields = {"command": entry} if isinstance(entry, str) else entry
+        if not isinstance(fields, dict):
+            raise config_error(source, label, PROGRAM_FORMS, entry)
+        kinds.reject_unknown(fields, programs.PROGRAM_KEYS, f"{label}.", source)
+        if "command" not in fields:
+            raise config_error(source, f"{label}.command", "a command template", MISSING)
+        extra = (programs.PATH, programs.DIR) if programs.GLOB in fields else ()
+        for key, template in fields.items():
+            where = label if isinstance(entry, str) else f"{label}.{key}"
+            if key == programs.SOURCE:
+                _check_source(template, where, source, extra)
+                continue
+            is_build = key == programs.BUILD
+            if not isinstance(template, str) or not template.strip():
+                raise config_error(source, where, BUILD_FORM if is_build else PROGRAM_FORMS,
+                                   template)
+            if key == programs.GLOB:
+                continue
+            known = (programs.BUILD_PLACEHOLDERS, programs.BUILD_REQUIRED) if is_build else ()
+            try:
+                programs.check_placeholders(template, extra, *known)
+            except programs.TemplateError as exc:
+                raise config_error(source, where, f"{BUILD_FORM if is_build else COMMAND_FORM}: "
+                                   f"{exc}", template) from None
+        for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
+            if one in fields and other not in fields:
+                raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "
+                                   "(the harness builds the program from its source)", MISSING)
+        directory = source.resolve().parent
+        if not extra:
+            result.append(programs.from_mapping(name, fields, directory))
+            continue
+        members = programs.class_members(str(fields[programs.GLOB]), directory)
+        if not members:
+            raise config_error(source, f"{label}.glob", f"a pattern that matches files under "
+                               f"{directory}", fields[programs.GLOB])
+        for member, path in members:
+            _check_new_name(member, f"{label}.glob ({path})",
+                            (*taken, name, *(p.name for p in result)), source)
+            result.append(programs.from_mapping(member, fields, directory, path))
+        classes[name] = tuple(member for member, _ in members)
+    return tuple(result), classes
 
 
 def load_config(path: Path | str, registry: VariantRegistry | None = None,
@@ -50,7 +297,7 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     (this repository's, by default) or its own `binaries:`. A config of more than max_cells
     cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
-    raw = read_mapping(source)
+    raw = kinds.read_mapping(source)
     registry = registry or default_registry()
     known_variants = registry.names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
@@ -83,7 +330,8 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
         binaries=binaries,
         checks=parse_checks(raw.get("checks", []), raw.get("accuracy", {}), source,
                             known_variants),
-        executor=parse_executor(raw.get("executor", {}), source),
+        executor=ExecutorSpec(**kinds.settings(raw.get("executor", {}), EXECUTOR, "executor",
+                                               source)),
         schedules=parse_schedules(raw.get("schedule"), source),
         variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}), measure,
                                                  variants, source),
@@ -91,7 +339,7 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     )
     check_exclude(config)
     if max_cells is not None:
-        bounds.check_cells(config, max_cells)
+        check_cells(config, max_cells)
     expand_points(config)  # zip lengths are checked here, so errors surface at load time
-    bounds.check_memory(config)
+    check_memory(config)
     return config
