@@ -27,16 +27,12 @@ from harness.store.columns import OK
 
 def pareto_mask(times: pd.Series, errors: pd.Series) -> pd.Series:
     """True for the cells no other cell beats on both time and error (lower is better)."""
-    order = sorted(range(len(times)), key=lambda i: (times.iloc[i], errors.iloc[i]))
-    mask = pd.Series(False, index=times.index)
-    best = math.inf
-    for i in order:
-        # Walking by increasing time, a cell is on the front when it is more accurate than
-        # every faster one (ties in time go to the more accurate cell, seen first).
-        if errors.iloc[i] < best:
-            best = errors.iloc[i]
-            mask.iloc[i] = True
-    return mask
+    # By increasing time, a cell is on the front when it is more accurate than every faster
+    # one (ties in time go to the more accurate cell, seen first).
+    cells = pd.DataFrame({"time": times, "error": errors}).sort_values(["time", "error"],
+                                                                       kind="stable")
+    faster = cells["error"].cummin().shift(fill_value=math.inf)
+    return (cells["error"] < faster).reindex(times.index)
 
 
 def pareto_by_scene(rows: pd.DataFrame, error: str) -> pd.Series:

@@ -22,9 +22,11 @@ from harness.spec.facts import SyncFacts, Variants
 from harness.store.columns import OMP_COST_COLUMNS
 
 REGION, BARRIER, GRAB, NESTED = OMP_COST_COLUMNS  # ns per operation, as results.csv has them
-# Each operation of the sync facts, with the cost column that prices it.
-PRICED: tuple[tuple[str, str], ...] = (("regions", REGION), ("nested_regions", NESTED),
-                                       ("barriers", BARRIER), ("grabs", GRAB))
+# Each operation of the sync facts, with the cost column that prices it and the table's column
+# of its count per step.
+PRICED: tuple[tuple[str, str, str], ...] = (
+    ("regions", REGION, "regions_per_step"), ("nested_regions", NESTED, "nested_per_step"),
+    ("barriers", BARRIER, "barriers_per_step"), ("grabs", GRAB, "grabs_per_step"))
 MISSING_COSTS = (
     "No cost per OpenMP operation was measured with these cells (the config lacks "
     "`openmp_costs: true`, or the results predate it), so the strategies' runtime overhead is "
@@ -60,7 +62,7 @@ def predicted_s(sync: SyncFacts, n: int, steps: int, threads: int, costs: pd.Ser
     that is not zero has no measured cost."""
     counts = sync.per_step(n)
     total = 0.0
-    for op, column in PRICED:
+    for op, column, _ in PRICED:
         count = counts[op] / (threads if op == "nested_regions" else 1)
         if count == 0:
             continue
@@ -107,13 +109,9 @@ def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
             rows.append({
                 "variant": variant, "threads": t,
                 "oversubscribed": bool(flag(cells, "oversubscribed").any()),
-                "regions_per_step": counts["regions"],
-                "nested_per_step": counts["nested_regions"],
-                "barriers_per_step": counts["barriers"],
-                "grabs_per_step": counts["grabs"],
+                **{per_step: counts[op] for op, _, per_step in PRICED},
                 "predicted_s": predicted, "median_s": median,
-                "reference": repair or "",
-                "reference_s": reference,
+                "reference": repair or "", "reference_s": reference,
                 "measured_s": median - reference,
                 "ratio": (median - reference) / predicted if predicted > 0 else math.nan,
             })
@@ -137,7 +135,9 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame, variants: Variants
     for variant, group in table.groupby("variant", sort=False):
         sync = variants[str(variant)].sync
         assert sync is not None
-        asks = _operations(sync.per_step(n))
+        counts = sync.per_step(n)
+        asks = " and ".join(f"{count:,.0f} {_NAMES[op][0] if count == 1 else _NAMES[op][1]}"
+                            for op, count in counts.items() if count) or "nothing"
         parts = []
         for _, row in group.iterrows():
             t = int(row["threads"])
@@ -145,7 +145,7 @@ def overhead_sentences(table: pd.DataFrame, df: pd.DataFrame, variants: Variants
                 parts.append(f"at {threads_text(t)} no cost per operation was measured")
                 continue
             priced = ", ".join(f"one {_NAMES[op][0]} {_ns(by_threads.at[t, column])}"
-                               for op, column in PRICED if sync.per_step(n)[op])
+                               for op, column, _ in PRICED if counts[op])
             if math.isfinite(row["measured_s"]):
                 measured = f"measured {_seconds(row['measured_s'])} over {row['reference']}"
             elif row["reference"]:
@@ -170,12 +170,6 @@ _NAMES: dict[str, tuple[str, str]] = {
     "barriers": ("barrier", "barriers"),
     "grabs": ("grab", "dynamic grabs"),
 }
-
-
-def _operations(counts: dict[str, float]) -> str:
-    named = [f"{count:,.0f} {_NAMES[op][0] if count == 1 else _NAMES[op][1]}"
-             for op, count in counts.items() if count]
-    return " and ".join(named) if named else "nothing"
 
 
 def _ns(value: float) -> str:

@@ -67,10 +67,9 @@ def cores_table(df: pd.DataFrame) -> pd.DataFrame:
     if ranked(df).empty:
         return df.iloc[0:0]
     cells = timed_rows(measured_once(df))
-    processes = cells[RANKS].fillna(1).astype(int)
     keys = [*present(cells, SCENE_KEYS), "build", "cores"]
     table = cells[[*present(cells, SCENE_KEYS), *_GROUP, RANKS, "threads"]].copy()
-    table["cores"] = processes * cells["threads"]
+    table["cores"] = cells[RANKS].fillna(1).astype(int) * cells["threads"]  # one process if not MPI
     table["median_s"] = cells["wall_median_s"]
     table = table[table.groupby(keys)["median_s"].transform("size") > 1].copy()
     if table.empty:

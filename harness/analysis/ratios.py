@@ -112,6 +112,6 @@ def finite(value: float) -> float | None:
 def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
     if kind != RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
         return {}
-    speedup = stats.Interval(ratio, math.nan, math.nan)
+    speedup = stats.Interval(ratio)
     return {"efficiency": stats.efficiency(speedup, threads).point,
             "karp_flatt": finite(stats.karp_flatt(speedup, threads).point)}

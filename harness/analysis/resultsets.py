@@ -324,9 +324,6 @@ class Quantity:
     exact: bool
     value: Callable[[Cell], stats.Interval | None]
 
-    def fields(self) -> tuple[object, ...]:
-        return self.name, self.unit, self.exact, self.value
-
 
 TIME_QUANTITY = Quantity(METRIC_TIME, "s", False, time_value)
 INSTRUCTIONS_QUANTITY = Quantity(METRIC_INSTRUCTIONS, "", True, instructions_value)

@@ -207,8 +207,7 @@ def chunk_costs(df: pd.DataFrame) -> list[ChunkCost]:
             continue
         a, b = items(cells.loc[variant], TIMES), items(cells.loc[reference], TIMES)
         extra = stats.difference_ci(list(a), list(b)) if a and b else stats.Interval(
-            cells.at[variant, "wall_median_s"] - cells.at[reference, "wall_median_s"],
-            math.nan, math.nan)
+            cells.at[variant, "wall_median_s"] - cells.at[reference, "wall_median_s"])
         found.append(ChunkCost(variant, reference, chunks, extra))
     return found
 
@@ -269,8 +268,7 @@ def schedule_rows(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for _, cell in timed_rows(df[df["schedule"].fillna("") != ""]).iterrows():
         times = list(items(cell, TIMES))
-        ci = stats.median_ci(times) if times else stats.Interval(
-            float(cell["wall_median_s"]), math.nan, math.nan)
+        ci = stats.median_ci(times) if times else stats.Interval(float(cell["wall_median_s"]))
         rows.append({"variant": cell["variant"], "threads": cell["threads"],
                      "schedule": cell["schedule"], "median": ci, "times": times,
                      "imbalance": cell.get("imbalance", math.nan),
@@ -302,9 +300,8 @@ def schedule_sentence(rows: pd.DataFrame) -> str:
         best = group.iloc[0]
         slower, tied = [], []
         for _, other in group.iloc[1:].iterrows():
-            ratio = (stats.ratio_ci(other["times"], best["times"])
-                     if best["times"] and other["times"] else
-                     stats.Interval(other["median_s"] / best["median_s"], math.nan, math.nan))
+            ratio = (stats.ratio_ci(other["times"], best["times"]) if best["times"]
+                     and other["times"] else stats.Interval(other["median_s"] / best["median_s"]))
             # Slower only where the ratio's interval lies above 1: with 3-5 runs on a shared
             # machine the extremes of many schedules differ by chance alone.
             if math.isfinite(ratio.low) and ratio.low > 1:

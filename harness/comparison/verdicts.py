@@ -190,7 +190,7 @@ def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift, note: st
                                                             new.round_pressure))
     else:
         ratio = new.median / old.median if old.median > 0 else math.nan
-        change = stats.Change(stats.Interval(ratio, math.nan, math.nan), math.nan, math.nan)
+        change = stats.Change(stats.Interval(ratio))
         notes.append("fewer than two runs a side: no interval, no verdict")
     interval = change.ratio
     return Row(old.key, INCONCLUSIVE, old, new, interval.point, interval.low, interval.high,
@@ -264,11 +264,11 @@ class Metric(Quantity):
 
 _NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
                  (NEW_ONLY, "new only"))
-TIME = Metric(*TIME_QUANTITY.fields(), compare_cells, decide_times,
+TIME = Metric(*dataclasses.astuple(TIME_QUANTITY), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
 INSTRUCTIONS = Metric(
-    *INSTRUCTIONS_QUANTITY.fields(), judge_counts, list,
+    *dataclasses.astuple(INSTRUCTIONS_QUANTITY), judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
      (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")

@@ -211,23 +211,20 @@ class MachineReruns:
     ratios_learnt: stats.Coverage
 
     def lines(self) -> list[str]:
+        noise = self.spread.noise
+        under = (f", under noise {noise:.1%} (the median share of the cores' time others took "
+                 "over a rerun's rounds)") if math.isfinite(noise) else ""
         return [
             f"machine {self.machine_id or 'unknown'}, {self.reruns} reruns:",
             f"  session spread learnt: {self.spread.absolute:.1%} for a cell's time, "
             f"{self.spread.ratio:.1%} for a ratio paired by round (log-scale standard "
-            f"deviations beyond the rounds' spread){self._under()}",
+            f"deviations beyond the rounds' spread){under}",
             "  " + self.cells.line("absolute intervals as stored"),
             "  " + self.ratios.line("ratio intervals as stored"),
             "  " + self.cells_learnt.line("absolute intervals with the spread learnt (in "
                                           "sample)"),
             "  " + self.ratios_learnt.line("ratio intervals with the spread learnt (in sample)"),
         ]
-
-    def _under(self) -> str:
-        if not math.isfinite(self.spread.noise):
-            return ""
-        return (f", under noise {self.spread.noise:.1%} (the median share of the cores' time "
-                "others took over a rerun's rounds)")
 
     def entry(self, config: str) -> dict[str, object]:
         """What is kept beside the machine's description (store.sessions)."""

@@ -22,11 +22,11 @@ N_RESAMPLES = 4000
 
 @dataclass(frozen=True)
 class Interval:
-    """A point estimate with its confidence interval (low <= point <= high, or NaN)."""
+    """A point estimate with its confidence interval (low <= point <= high, or NaN: none)."""
 
     point: float
-    low: float
-    high: float
+    low: float = math.nan
+    high: float = math.nan
 
     @property
     def bounded(self) -> bool:  # both ends finite: an interval was computed
@@ -126,7 +126,7 @@ def _interval(point: float, samples: tuple[np.ndarray, ...],
     to hold the point: none with fewer than two runs in a sample, the point itself where every
     sample is constant."""
     if any(s.size < 2 for s in samples):
-        return Interval(point, math.nan, math.nan)
+        return Interval(point)
     if all(np.all(s == s[0]) for s in samples):
         return Interval(point, point, point)
     low, high = _bootstrap(statistic, *(tuple(s.tolist()) for s in samples))
@@ -137,7 +137,7 @@ def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarr
     """statistic(a, b) (_ratio or _difference of the medians) of two cleaned samples: NaN
     without runs on a side."""
     if a.size == 0 or b.size == 0:
-        return Interval(math.nan, math.nan, math.nan)
+        return Interval(math.nan)
     return _interval(float(statistic(a, b)), (a, b), statistic)
 
 
@@ -148,7 +148,7 @@ def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interv
     ratio_ci(baseline, cell)."""
     a, b = clean(numerator), clean(denominator)
     if b.size and float(np.median(b)) == 0.0:
-        return Interval(math.nan, math.nan, math.nan)
+        return Interval(math.nan)
     return _two_medians(a, b, _ratio)
 
 

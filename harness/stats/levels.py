@@ -160,7 +160,7 @@ class RoundEstimate:
     def _widened(self, session: float, factor: float) -> Interval:
         """NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
-            return Interval(self.point, math.nan, math.nan)
+            return Interval(self.point)
         half = factor * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
         return Interval(self.point, self.point * math.exp(-half), self.point * math.exp(half))
 

@@ -70,8 +70,8 @@ class Change:
     spread from `n` runs a side, and the drift and contention more runs cannot reduce)."""
 
     ratio: Interval
-    p_slower: float
-    p_faster: float
+    p_slower: float = math.nan
+    p_faster: float = math.nan
     p_unchanged: float = math.nan
     sd: float = math.nan
     n: int = 0
@@ -103,7 +103,7 @@ class Change:
         return self.p_value
 
 
-NO_CHANGE_KNOWN = Change(Interval(math.nan, math.nan, math.nan), math.nan, math.nan)
+NO_CHANGE_KNOWN = Change(Interval(math.nan))
 
 
 def decide(changes: Sequence[Change], q: float) -> list[str]:
@@ -199,7 +199,7 @@ def drift_change(old: Sequence[float], new: Sequence[float], threshold: float,
     base = ratio_ci(new, old)
     spread = log_spread(base)
     if spread is None:
-        return Change(base, math.nan, math.nan)
+        return Change(base)
     log_ratio, within = spread
     se = math.hypot(within, drift, contention)
     if se == 0.0:
