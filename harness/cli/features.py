@@ -5,7 +5,7 @@ every render), both harness.programs'. Light to import: what they run is importe
 from __future__ import annotations
 
 from harness.programs import hooks as programs
-from harness.report.features import ReportFeature
+from harness.report.parts import ReportFeature
 from harness.runner.command import Hooks
 
 REPORT_FEATURES: tuple[ReportFeature, ...] = (programs.REPORT,)

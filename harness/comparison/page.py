@@ -25,8 +25,7 @@ from harness.comparison.verdicts import (
     methods,
     summary,
 )
-from harness.report.document import Table
-from harness.report.markdown import markdown_table
+from harness.report.document import Table, markdown_table
 from harness.store import atomic
 
 OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg

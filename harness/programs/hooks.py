@@ -12,8 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from harness.report.features import ReportFeature
-from harness.report.parts import Count
+from harness.report.parts import Count, ReportFeature
 
 if TYPE_CHECKING:
     from harness.measure.references import References

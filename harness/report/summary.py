@@ -22,9 +22,8 @@ from harness.analysis.ranks import cores_table
 from harness.analysis.serving import measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
-from harness.report.features import ReportFeature
 from harness.report.load import Experiment
-from harness.report.parts import ExperimentPart, Fidelity, Highlight
+from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeature
 from harness.report.sections import phases as phases_part
 from harness.report.sections.context import table_block
 from harness.spec.facts import BASELINE, GRID

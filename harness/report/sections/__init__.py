@@ -2,7 +2,7 @@
 module here with a `build(ctx) -> list[Section]` that returns nothing where the rows do not
 support it; BESIDE and MAIN register them, in the order the report shows them after the cell
 table. A new part is a new module and one line below. A feature's sections (the builders of
-the harness.report.features given to the render) come first beside the cell table."""
+the harness.report.parts.ReportFeature given to the render) come first beside the cell table."""
 
 from __future__ import annotations
 
