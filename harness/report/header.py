@@ -214,16 +214,12 @@ def by_run(parts: Sequence[ExperimentPart], runs: Mapping[str, str]
     return list(grouped.items())
 
 
-def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
-                    runs: Mapping[str, str] | None = None,
-                    features: Sequence[ReportFeature] = ()) -> Section | None:
-    """The headline of the newest run (`runs` as by_run's; without, of every part): what a
-    reader came for, each point linking to where it is shown, and whether others disturbed
-    it; then the earlier runs under their dates. `more` adds lines (what spans machines);
-    `features` their words on their counts."""
-    grouped = by_run(parts, runs or {}) if runs is not None else [("", list(parts))]
-    if not grouped:
-        return None
+def summary_section(grouped: Sequence[tuple[str, list[ExperimentPart]]], more: Sequence[str],
+                    features: Sequence[ReportFeature]) -> Section | None:
+    """The headline of the newest run (the parts `grouped` by by_run): what a reader came for,
+    each point linking to where it is shown, and whether others disturbed it; then the
+    earlier runs under their dates. `more` adds lines (what spans machines); `features` their
+    words on their counts."""
     when, latest = grouped[0]
     items = [text for text in (*(p.disturbed for p in latest),
                                *(_best(latest, k) for k in HIGHLIGHT_KINDS),
@@ -232,11 +228,8 @@ def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
     if not items:
         return None
     items = [f"{text[0].upper()}{text[1:].rstrip('.')}." for text in items]
-    blocks: list[Paragraph | Bullets] = []
-    if runs is not None:
-        names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
-        blocks.append(Paragraph(f"The latest run, {when_text(when)}: {names}."))
-    blocks.append(Bullets(tuple(items)))
+    names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
+    blocks = [Paragraph(f"The latest run, {when_text(when)}: {names}."), Bullets(tuple(items))]
     if len(grouped) > 1:
         blocks.append(Paragraph("Earlier runs, newest first (their sections follow the "
                                 "latest run's):"))
@@ -258,14 +251,10 @@ REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own 
 SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
 
 
-def _known(machine_id: str | None) -> str | None:
-    return machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
-
-
 def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
     """session_words, from the manifest where the machine's calibration files and the
     report's code are unchanged."""
-    machine = _known(machine_id)
+    machine = machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
     paths = [ResultsRoot(results_dir).calibration(machine)] if machine is not None else []
     digest = "\0".join([str(machine), *(file_digest(p) for p in paths)])
     part = manifest.part(SESSION_PART, digest,
@@ -274,13 +263,12 @@ def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Ma
     return part["text"]
 
 
-def session_words(results_dir: Path, machine_id: str | None) -> str:
+def session_words(results_dir: Path, machine: str | None) -> str:
     """The session spreads the page's intervals add (one per noise level the machine's
     reruns were measured under) and where they come from, with the coverage `reruns`
     measured for each; or the default and that no reruns were measured."""
-    from harness.stats.levels import DEFAULT_SESSION_SPREAD, supersedes
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD, noise_of, supersedes
 
-    machine = _known(machine_id)
     levels = [] if machine is None else kept_levels([results_dir], machine, supersedes)
     text = ("Intervals that say where another session's estimate lands (a cell's time "
             "measured in rounds, a ratio paired by round) add the machine's session spread")
@@ -294,8 +282,6 @@ def session_words(results_dir: Path, machine_id: str | None) -> str:
     if len(levels) > 1:
         text += (" at the noise of their session (the median share of the cores' time others "
                  "took over its rounds; between two levels, interpolated)")
-    from harness.stats.levels import noise_of
-
     levels = sorted(levels, key=lambda e: (not math.isfinite(noise_of(e)), noise_of(e)))
     # A record's interval holds the spread of its own run: one measured before the reruns
     # kept the default.

@@ -147,7 +147,8 @@ def build_document(
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))
     runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
-    parts = [part for _, group in by_run(parts, runs) for part in group]
+    grouped = by_run(parts, runs)
+    parts = [part for _, group in grouped for part in group]
     names = ", ".join(f"`{p.name}`" for p in parts)
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
     if shown is not None:
@@ -163,7 +164,7 @@ def build_document(
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
     appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
                             (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
-    return Document(TITLE, lead, tuple(others), summary_section(parts, more, runs, features),
+    return Document(TITLE, lead, tuple(others), summary_section(grouped, more, features),
                     tuple(with_warnings(p) for p in parts), tuple(appendix))
 
 
