@@ -30,8 +30,8 @@ from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
 from harness.report.load import Experiment, load_experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeature
-from harness.report.sections import phases as phases_part
 from harness.report.sections.context import table_block
+from harness.report.sections.strategies import PHASES_ANCHOR
 from harness.spec.facts import BASELINE, GRID
 from harness.store.columns import (
     INVALID,
@@ -118,7 +118,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
                                   f"faster ({_where(largest)}; {link})", cells)
     selection = phases.select(exp.frame, exp.variants)
     if selection is not None:
-        anchor = subsection_anchor(section, phases_part.ANCHOR)
+        anchor = subsection_anchor(section, PHASES_ANCHOR)
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)

@@ -27,7 +27,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
 
-from harness.analysis.cells import INTERVAL_SUFFIXES, sort_cells
+from harness.analysis.cells import INTERVAL_SUFFIXES, series_keys, sort_cells
+from harness.analysis.display import series_label
 from harness.spec.facts import Variants
 from harness.store import atomic
 from harness.store.columns import INVALID, TIMED_STATUSES
@@ -145,23 +146,23 @@ def variant_color(variant: str, variants: Variants) -> str:
     return PALETTE[(len(families) + zlib.crc32(variant.encode()) % spare) % len(PALETTE)]
 
 
-def series_colors(groups: Sequence[tuple[tuple, pd.DataFrame]], keys: Sequence[str],
-                  variants: Variants) -> list:
-    """Series colors: by variant when series differ only by variant, else by position."""
-    if list(keys) == ["variant"]:
-        return [variant_color(str(values[0]), variants) for values, _ in groups]
-    return [PALETTE[i % len(PALETTE)] for i in range(len(groups))]
-
-
-def series_groups(df: pd.DataFrame, keys: Sequence[str],
-                  variants: Variants) -> list[tuple[tuple, pd.DataFrame]]:
-    """The rows split by `keys` in the tables' canonical order (variants in that of
-    `variants`), each with its key tuple."""
+def series_groups(df: pd.DataFrame, x: str, variants: Variants
+                  ) -> tuple[list[str], list[tuple[tuple, pd.DataFrame, str, str]]]:
+    """What tells the rows' series against `x` apart (analysis.cells.series_keys), and each
+    series' key values, rows, colour and label, in the tables' canonical order (variants in
+    that of `variants`): coloured by variant when series differ only by variant, else by
+    position."""
+    keys = series_keys(df, x)
     ordered = sort_cells(df, keys, variants)
-    if not keys:
-        return [((), ordered)] if len(ordered) else []
-    return [(values if isinstance(values, tuple) else (values,), group)
-            for values, group in ordered.groupby(list(keys), sort=False, dropna=False)]
+    if keys:
+        groups = [(values if isinstance(values, tuple) else (values,), group)
+                  for values, group in ordered.groupby(list(keys), sort=False, dropna=False)]
+    else:
+        groups = [((), ordered)] if len(ordered) else []
+    by_variant = list(keys) == ["variant"]
+    return keys, [(values, rows, variant_color(str(values[0]), variants) if by_variant
+                   else PALETTE[i % len(PALETTE)], series_label(values, keys))
+                  for i, (values, rows) in enumerate(groups)]
 
 
 def plot_series(

@@ -1,5 +1,7 @@
-"""Where the time goes: stacked bars of each shown cell's --timing phases, in seconds and as
-shares of the simulation time (the frame harness.analysis.phases.plot_frame draws)."""
+"""The bars of the cells' --timing runs: where the time goes, stacked bars of each shown
+cell's phases in seconds and as shares of the simulation time (the frame
+harness.analysis.phases.plot_frame draws); and the work per thread, busy seconds and pair tests
+of each thread per variant (the frame harness.analysis.strategies.work_table builds)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,15 @@ from matplotlib.patches import Patch
 
 from harness.analysis.display import OUTPUT_PHASE, PHASE_NAMES, format_share
 from harness.analysis.phases import BAR, GROUP, PERCENT, PHASES, SIM_PHASES
-from harness.report.figures.base import FIGSIZE, TITLE_CHARS, new_figure, save_figure
+from harness.report.figures.base import (
+    FIGSIZE,
+    TITLE_CHARS,
+    compact_number,
+    new_figure,
+    save_figure,
+    variant_color,
+)
+from harness.spec.facts import Variants
 
 PHASE_COLORS: dict[str, str] = dict(zip(PHASES, (
     "#1f77b4",  # broad phase: the blue the eye reads first
@@ -114,4 +124,28 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
                fontsize="small", bbox_to_anchor=(0.5, 1 - title_in / height),
                handlelength=1.2, columnspacing=1.0)
     fig.suptitle(heading, y=1 - TITLE_PAD_IN / height, va="top")
+    return save_figure(fig, stem)
+
+
+def work_figure(work: pd.DataFrame, stem: Path, *, variants: Variants) -> list[Path]:
+    """Two panels of grouped bars: busy seconds and pair tests per thread, per variant (its
+    colour from `variants`, their facts)."""
+    fig, panels = new_figure(margins={"left": 0.1, "right": 0.98, "bottom": 0.12, "top": 0.8,
+                                      "wspace": 0.4}, ncols=2)
+    shown = list(dict.fromkeys(work["variant"]))
+    width = 0.8 / len(shown)
+    for panel, column, label in ((panels[0], "busy_s", "busy seconds in the pair finder"),
+                                 (panels[1], "pairs", "pair tests")):
+        for k, v in enumerate(shown):
+            rows = work[work["variant"] == v]
+            x = rows["thread"].to_numpy() + (k - (len(shown) - 1) / 2) * width
+            panel.bar(x, rows[column], width, color=variant_color(v, variants), label=v)
+        panel.set_xlabel("thread")
+        panel.set_ylabel(label)
+        panel.set_xticks(sorted(work["thread"].unique()))
+        panel.yaxis.set_major_formatter(lambda value, _pos: compact_number(value))
+    handles, labels = panels[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(shown), frameon=False,
+               bbox_to_anchor=(0.5, 0.92))
+    fig.suptitle("Work per thread: the seed's p1 (static blocks of rows) against its repairs")
     return save_figure(fig, stem)

@@ -15,12 +15,12 @@ from harness.analysis.serving import measured_once
 from harness.report.cache import Manifest
 from harness.report.document import Paragraph, Section, slug
 from harness.report.load import Experiment
-from harness.report.sections import cells, checks, phases, strategies, sweeps, trajectory
+from harness.report.sections import cells, checks, strategies, sweeps, trajectory
 from harness.report.sections.context import Context
 
 # Parts beside the cell table (the strategy study, where the time goes): they do not count as
 # showing the experiment, so a lone cell still gets its table beside them.
-BESIDE = (strategies.build, phases.build)
+BESIDE = (strategies.build, strategies.build_phases)
 # The parts that show the experiment; the cell table, built last, knows whether any did.
 MAIN = (sweeps.build, sweeps.build_speedup, sweeps.build_ranks, checks.build_error,
         trajectory.build, checks.build)
