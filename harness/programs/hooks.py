@@ -20,8 +20,7 @@ if TYPE_CHECKING:
     from harness.plan.cells import Cell
     from harness.plan.cellstore import CellStore
     from harness.report.document import Section
-    from harness.report.load import Experiment
-    from harness.report.sections.context import Context
+    from harness.report.sections.context import Context, Experiment
     from harness.store.result import CellResult
 
 NAME = "programs"

@@ -16,9 +16,8 @@ from harness.analysis.serving import measured_once
 from harness.programs.figure import fig_wrong_step
 from harness.programs.tables import class_table, program_table
 from harness.report.document import Block, Paragraph, Section
-from harness.report.load import Experiment
 from harness.report.parts import Count
-from harness.report.sections.context import Context, table_block
+from harness.report.sections.context import Context, Experiment, table_block
 from harness.report.summary import subsection_anchor
 from harness.store import atomic
 from harness.store.columns import AGREEING, WRONG

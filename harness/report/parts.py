@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING, Any
 from harness.report.document import Section, Table, from_json, to_json
 
 if TYPE_CHECKING:
-    from harness.report.load import Experiment
-    from harness.report.sections.context import Context
+    from harness.report.sections.context import Context, Experiment
 
 
 @dataclass(frozen=True)

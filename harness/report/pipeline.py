@@ -176,8 +176,8 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
     built."""
     def build() -> dict[str, Any]:
         # Building needs pandas (and matplotlib for a figure that changed): imported only here.
-        from harness.report.load import load_experiment
         from harness.report.sections import experiment_section
+        from harness.report.sections.context import load_experiment
         from harness.report.summary import experiment_part as build_part
 
         exp = load_experiment(loaded, machine, label)

@@ -28,9 +28,8 @@ from harness.analysis.ranks import cores_table
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
-from harness.report.load import Experiment, load_experiment
 from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeature
-from harness.report.sections.context import table_block
+from harness.report.sections.context import Experiment, load_experiment, table_block
 from harness.report.sections.strategies import PHASES_ANCHOR
 from harness.spec.facts import BASELINE, GRID
 from harness.store.columns import (

@@ -14,9 +14,8 @@ from harness.analysis.flags import disturbed_text, earlier_config_text
 from harness.analysis.serving import measured_once
 from harness.report.cache import Manifest
 from harness.report.document import Paragraph, Section, slug
-from harness.report.load import Experiment
 from harness.report.sections import cells, checks, strategies, sweeps, trajectory
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, Experiment
 
 # Parts beside the cell table (the strategy study, where the time goes): they do not count as
 # showing the experiment, so a lone cell still gets its table beside them.

@@ -23,8 +23,7 @@ from harness.analysis.trust import (
 )
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import error_floor, fig_divergence, fig_error_time
-from harness.report.load import Experiment
-from harness.report.sections.context import Context, table_block
+from harness.report.sections.context import Context, Experiment, table_block
 from harness.spec.builds import DESCRIPTIONS
 from harness.spec.facts import Variants
 from harness.store.columns import DIVERGENCE_COLUMNS
