@@ -24,7 +24,7 @@ from typing import Any
 from harness.analysis import results
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
-from harness.report import machines
+from harness.report import header, machines
 from harness.report.cache import CodeVersions, Manifest, code_versions, file_digest
 from harness.report.document import (
     Bullets,
@@ -35,14 +35,6 @@ from harness.report.document import (
     document_files,
     render_html,
     render_markdown,
-)
-from harness.report.header import (
-    HOW_TO_READ,
-    by_run,
-    cached_session_words,
-    environment_bullets,
-    summary_section,
-    with_warnings,
 )
 from harness.report.parts import ExperimentPart, ReportFeature
 from harness.store import layout
@@ -147,7 +139,7 @@ def build_document(
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))
     runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
-    grouped = by_run(parts, runs)
+    grouped = header.by_run(parts, runs)
     parts = [part for _, group in grouped for part in group]
     names = ", ".join(f"`{p.name}`" for p in parts)
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
@@ -159,13 +151,13 @@ def build_document(
                     f"the title); [side by side](#{side_by_side.anchor}) on the cells they "
                     "share with this one")
         appendix.append(side_by_side)
-    environment = environment_bullets(environments)
+    environment = header.environment_bullets(environments)
     if environment:
         appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
-    appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
-                            (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
-    return Document(TITLE, lead, tuple(others), summary_section(grouped, more, features),
-                    tuple(with_warnings(p) for p in parts), tuple(appendix))
+    how = (Paragraph(header.HOW_TO_READ), *([Paragraph(session)] if session else []))
+    appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR, how))
+    return Document(TITLE, lead, tuple(others), header.summary_section(grouped, more, features),
+                    tuple(header.with_warnings(p) for p in parts), tuple(appendix))
 
 
 def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Path,
@@ -225,7 +217,7 @@ def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_d
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
-    session = cached_session_words(results_dir, machine_id, manifest)
+    session = header.cached_session_words(results_dir, machine_id, manifest)
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
                          side_by_side=side_by_side, session=session, features=features)
     _write_page(doc, page_dir)
