@@ -111,14 +111,6 @@ def read_env(path: Path) -> dict[str, object]:
     return env
 
 
-def _shown_path(results_dir: Path) -> Path:
-    # Inside the repository the path is shown relative to it, so a committed report does not
-    # carry the path of the machine that rendered it.
-    if results_dir.resolve().is_relative_to(REPO_ROOT):
-        return results_dir.resolve().relative_to(REPO_ROOT)
-    return results_dir
-
-
 def build_document(
     parts: Sequence[ExperimentPart],
     results_dir: Path,
@@ -134,7 +126,10 @@ def build_document(
     counts), one section per experiment with data (its warnings folded in it), then the
     machines side by side and how to read the numbers (with `session`, the session spread's
     words)."""
-    results_dir = _shown_path(results_dir)
+    # Inside the repository the path is shown relative to it, so a committed report does not
+    # carry the path of the machine that rendered it.
+    if results_dir.resolve().is_relative_to(REPO_ROOT):
+        results_dir = results_dir.resolve().relative_to(REPO_ROOT)
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))

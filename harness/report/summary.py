@@ -58,10 +58,10 @@ def subsection_anchor(section: Section, suffix: str) -> str:
     return section.anchor
 
 
-def ratio_text(row: pd.Series, column: str = "speedup") -> str:
+def ratio_text(row: pd.Series) -> str:
     """`2.02×`, or `2.02× [1.98, 2.05]` with the 95% interval where the runs give one."""
-    point = f"{float(row[column]):.2f}×"
-    low, high = (row.get(f"{column}{suffix}") for suffix in INTERVAL_SUFFIXES)
+    point = f"{float(row['speedup']):.2f}×"
+    low, high = (row.get(f"speedup{suffix}") for suffix in INTERVAL_SUFFIXES)
     if low is not None and high is not None and pd.notna(low) and pd.notna(high) and (
             math.isfinite(low) and math.isfinite(high)):
         return f"{point} [{float(low):.2f}, {float(high):.2f}]"

@@ -8,7 +8,6 @@ from typing import IO
 import matplotlib as mpl
 import numpy as np
 import pandas as pd
-from matplotlib.axes import Axes
 from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
@@ -54,16 +53,6 @@ def _segments(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
 
 
-def _draw_box(ax: Axes, box: float) -> None:
-    ax.add_patch(Rectangle((0, 0), box, box, fill=False, lw=1.5, color="black"))
-    pad = box * 0.02
-    ax.set_xlim(-pad, box + pad)
-    ax.set_ylim(-pad, box + pad)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [length units]")
-    ax.set_ylabel("y [length units]")
-
-
 def fig_trajectory(
     traj: pd.DataFrame, out: Path, *, box: float, title: str | None = None
 ) -> list[Path]:
@@ -85,18 +74,21 @@ def fig_trajectory(
     ax.add_collection(segments)
     ax.scatter(x[:, 0], y[:, 0], s=10, facecolors="none", edgecolors=colors, lw=0.8)
     ax.scatter(x[:, -1], y[:, -1], s=18, c=colors, edgecolors="black", lw=0.4)
-    _draw_box(ax, box)
+    ax.add_patch(Rectangle((0, 0), box, box, fill=False, lw=1.5, color="black"))
+    pad = box * 0.02
+    ax.set_xlim(-pad, box + pad)
+    ax.set_ylim(-pad, box + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [length units]")
+    ax.set_ylabel("y [length units]")
     fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="particle index i")
     set_title(ax, title or f"Trajectories over {states - 1} steps ({len(ids)} particles)")
-    fig.legend(
-        handles=[
-            Line2D([], [], ls="none", marker="o", mfc="none", mec="gray", label="start (s = 0)"),
-            Line2D([], [], ls="none", marker="o", mfc="gray", mec="black",
-                   label=f"end (s = {states - 1})"),
-            Line2D([], [], color="gray", label="one step"),
-        ],
-        fontsize="small", loc="upper left", bbox_to_anchor=(0.01, MARGINS["top"]),
-    )
+    handles = [Line2D([], [], ls="none", marker="o", mfc="none", mec="gray", label="start (s = 0)"),
+               Line2D([], [], ls="none", marker="o", mfc="gray", mec="black",
+                      label=f"end (s = {states - 1})"),
+               Line2D([], [], color="gray", label="one step")]
+    fig.legend(handles=handles, fontsize="small", loc="upper left",
+               bbox_to_anchor=(0.01, MARGINS["top"]))
     return save_figure(fig, out)
 
 
