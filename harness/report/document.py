@@ -191,13 +191,11 @@ def file_links(paths: Iterable[Path], out_dir: Path) -> str:
 
 
 def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
-    header = [_md_cell(c) for c in table.columns]
-    rule = ["---:" if right else "---" for right in table.align_right]
     links = file_links(table.files, out_dir) if out_dir is not None else ""
     caption = f"*{table.caption}* {links}".rstrip() if table.caption else links
     lines = [caption, ""] if caption else []
-    lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(rule) + " |"]
-    for row in table.rows:
+    rule = ["---:" if right else "---" for right in table.align_right]
+    for row in (table.columns, rule, *table.rows):
         lines.append("| " + " | ".join(_md_cell(v) for v in row) + " |")
     return lines
 
@@ -244,9 +242,7 @@ def render_markdown(doc: Document, out_dir: Path) -> str:
     if doc.others:
         links = ", ".join(f"[{link.text}]({link.stem}.md)" for link in doc.others)
         lines += [f"Other machines: {links}.", ""]
-    if doc.summary is not None:
-        lines += _section(doc.summary, 2, out_dir)
-    for section in (*doc.sections, *doc.appendix):
+    for section in (*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix):
         lines += _section(section, 2, out_dir)
     return "\n".join(lines).rstrip() + "\n"
 

@@ -61,14 +61,12 @@ def _checked_scenes(exp: Experiment) -> list[tuple[str, pd.DataFrame, pd.DataFra
     groups = list(df.groupby(list(SCENE_KEYS), dropna=False, sort=False))
     groups.sort(key=lambda g: -float((g[1]["n"] * g[1]["steps"]).max()))
     varying = [k for k in ("n", "L", "r", "steps") if df.groupby("scene")[k].nunique().max() > 1]
+    curves = exp.divergence if exp.divergence is not None else pd.DataFrame(
+        columns=list(DIVERGENCE_COLUMNS))
     chosen = []
     for _, cells in groups:
         first = cells.iloc[0]
-        div = exp.divergence
-        if div is None:
-            div = pd.DataFrame(columns=list(DIVERGENCE_COLUMNS))
-        else:
-            div = div[(div[list(DIVERGENCE_MATCH)] == first[list(DIVERGENCE_MATCH)]).all(axis=1)]
+        div = curves[(curves[list(DIVERGENCE_MATCH)] == first[list(DIVERGENCE_MATCH)]).all(axis=1)]
         shadow = "shadow_pos_err" in cells and bool((cells["shadow_pos_err"].fillna(0) > 0).any())
         if shadow or bool((div["max_pos_dev"] > 0).any()):
             label = series_label(tuple(first[k] for k in ("scene", *varying)),
