@@ -36,14 +36,10 @@ def error_floor(errors: pd.Series) -> float:
 
 def fig_error_time(df: pd.DataFrame, out: Path, *, variants: Variants, title: str | None = None,
                    error: str = "max_pos_err", ylabel: str | None = None) -> list[Path]:
-    """Time against deviation from the baseline per variant and build, Pareto front marked.
-
-    Colors tell variants apart (`variants`, their facts, give each its own) and hollow marker
-    shapes builds; the cells on the Pareto front
-    are ringed, joined and named. Exact cells (zero error) sit on a dotted floor line a decade
-    below the smallest nonzero error. Pass the cells of one scene: fronts across scenes mean
-    nothing. `error` names the error column (e.g. the shadow-step error `shadow_pos_err`).
-    """
+    """Time against the deviation from the baseline (the column `error`) per variant (its
+    colour from `variants`) and build (a hollow marker shape), the Pareto front's cells ringed,
+    joined and named, exact cells on a dotted floor a decade below the smallest nonzero error.
+    Pass the cells of one scene: fronts across scenes mean nothing."""
     rows = df[
         df["status"].isin(TIMED_STATUSES)
         & df["wall_median_s"].notna()

@@ -14,7 +14,6 @@ import math
 import textwrap
 import zlib
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -101,16 +100,6 @@ def save_figure(fig: Figure, stem: Path) -> list[Path]:
 # --- shared drawing helpers ---------------------------------------------------------------
 
 
-@dataclass
-class Marks:
-    """Which special markers a figure drew, so its legend explains exactly those."""
-
-    oversubscribed: bool = False
-    invalid: bool = False
-    failed: bool = False
-    intervals: bool = False  # error bars were drawn
-
-
 # Where a plotted column's 95% interval lives: a cell's median has the bootstrap interval of
 # results.csv; a speedup-derived metric has the INTERVAL_SUFFIXES columns of
 # analysis.speedup.with_speedup.
@@ -166,7 +155,7 @@ def series_groups(df: pd.DataFrame, x: str, variants: Variants
 
 
 def plot_series(
-    ax: Axes, rows: pd.DataFrame, x: str, y: str, color: str, label: str, marks: Marks
+    ax: Axes, rows: pd.DataFrame, x: str, y: str, color: str, label: str, marks: set[str]
 ) -> None:
     """One series as a line with markers: hollow where oversubscribed, crossed where invalid,
     and a triangle on the x axis where the cell produced no time (failed, crashed, timeout)."""
@@ -179,23 +168,24 @@ def plot_series(
     ax.plot(xs, ys, "-o", color=color, label=label, markevery=list(np.flatnonzero(~over)))
     bars = interval_errors(timed, y)
     if bars is not None:
-        marks.intervals = True
+        marks.add("intervals")
         ax.errorbar(xs, ys, yerr=bars, fmt="none", ecolor=color, elinewidth=1, capsize=3)
     if over.any():
-        marks.oversubscribed = True
+        marks.add("oversubscribed")
         ax.plot(xs[over], ys[over], "o", ls="none", mfc="white", mec=color, mew=1.5)
     if invalid.any():
-        marks.invalid = True
+        marks.add("invalid")
         ax.plot(xs[invalid], ys[invalid], "x", ls="none", color="black", ms=9, mew=2, zorder=5)
     failed = rows[~rows["status"].isin(TIMED_STATUSES)]
     if len(failed):
-        marks.failed = True
+        marks.add("failed")
         ax.plot(failed[x].to_numpy(dtype=float), np.full(len(failed), 0.03), "v", ls="none",
                 mfc=color, mec="red", mew=1.5, ms=8, transform=ax.get_xaxis_transform(),
                 clip_on=False)
 
 
-# What each special marker of Marks looks like in the legend, in the legend's order.
+# What each special marker looks like in the legend, in the legend's order: a figure's legend
+# explains those its series drew (the `marks` plot_series adds their names to).
 MARK_STYLES: dict[str, dict[str, object]] = {
     "oversubscribed": dict(marker="o", mfc="white", mec="gray", mew=1.5,
                            label="oversubscribed\n(threads > cores)"),
@@ -206,9 +196,9 @@ MARK_STYLES: dict[str, dict[str, object]] = {
 }
 
 
-def marker_handles(marks: Marks) -> list[Line2D]:
+def marker_handles(marks: set[str]) -> list[Line2D]:
     return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
-            for name, style in MARK_STYLES.items() if getattr(marks, name)]
+            for name, style in MARK_STYLES.items() if name in marks]
 
 
 def legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:

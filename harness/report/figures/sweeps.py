@@ -45,17 +45,14 @@ SWEEPS: dict[str, SweepAxis] = {
 def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
                 title: str | None = None) -> list[Path]:
     """Median wall time against the swept parameter `x` (a key of SWEEPS), one line per
-    series: the course report's Figures 3-6 (N, L, r, threads).
-
-    Against N (log-log) each series' label carries its fitted growth exponent and a dashed
-    guide shows N² (all pairs); against threads each series gets its ideal-scaling line
-    T(p0)·p0/p. `variants` (their facts) order and colour the series.
-    """
+    series ordered and coloured by `variants`. Against N (log-log) each label carries its
+    fitted growth exponent and a dashed guide shows N² (all pairs); against threads each
+    series gets its ideal-scaling line T(p0)·p0/p."""
     axis = SWEEPS[x]
     keys, groups = base.series_groups(df, x, variants)
     exponents = growth_exponents(df, variants, x) if x == "n" else pd.DataFrame()
     fig, ax = base.new_figure()
-    marks = base.Marks()
+    marks: set[str] = set()
     extra: list[Line2D] = []
     for values, rows, color, label in groups:
         if x == "n":
@@ -81,7 +78,7 @@ def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "
     axis = SWEEPS[x]
     rows = df[df[PEAK_RSS].notna()] if PEAK_RSS in df.columns else df.iloc[:0]
     fig, ax = base.new_figure()
-    marks = base.Marks()
+    marks: set[str] = set()
     for _, group, color, label in base.series_groups(rows, x, variants)[1]:
         base.plot_series(ax, group, x, PEAK_RSS, color, label, marks)
     base.set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
@@ -159,7 +156,7 @@ def _thread_metric_figure(
     the rows that have it, and those that produced no time (drawn on the axis)."""
     df = df[df[y].notna() | ~df["status"].isin(TIMED_STATUSES)]
     fig, ax = base.new_figure()
-    marks = base.Marks()
+    marks: set[str] = set()
     for _, rows, color, label in base.series_groups(df, "threads", variants)[1]:
         base.plot_series(ax, rows, "threads", y, color, label, marks)
     ideal_label = ideal(ax)

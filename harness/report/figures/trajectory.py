@@ -67,11 +67,8 @@ def fig_trajectory(
     cmap = mpl.colormaps[TRAJECTORY_CMAP]
     fig, ax = new_figure(margins=TRAJECTORY_MARGINS)
     colors = cmap(norm(ids))
-    segments = LineCollection(
-        _segments(x, y), colors=np.repeat(colors, states - 1, axis=0), lw=1.0,
-        alpha=0.75,
-    )
-    ax.add_collection(segments)
+    ax.add_collection(LineCollection(_segments(x, y), colors=np.repeat(colors, states - 1, axis=0),
+                                     lw=1.0, alpha=0.75))
     ax.scatter(x[:, 0], y[:, 0], s=10, facecolors="none", edgecolors=colors, lw=0.8)
     ax.scatter(x[:, -1], y[:, -1], s=18, c=colors, edgecolors="black", lw=0.4)
     ax.add_patch(Rectangle((0, 0), box, box, fill=False, lw=1.5, color="black"))
