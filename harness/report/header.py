@@ -19,8 +19,6 @@ from harness.store.layout import ResultsRoot
 from harness.store.sessions import kept_levels
 
 MAX_WARNING_ROWS = 60  # beyond this a section's warnings table is cut, with a count of the rest
-WARNINGS_ANCHOR = "warnings"
-SUMMARY_ANCHOR = "summary"
 
 
 # Each header line and where env.json keeps it: the contract's flat key first, then the
@@ -119,7 +117,7 @@ def _flagged_count(part: ExperimentPart) -> int:
 
 
 def warnings_anchor(part: ExperimentPart) -> str:
-    return f"{part.section.anchor}-{WARNINGS_ANCHOR}"
+    return f"{part.section.anchor}-warnings"
 
 
 def with_warnings(part: ExperimentPart) -> Section:
@@ -237,7 +235,7 @@ def summary_section(grouped: Sequence[tuple[str, list[ExperimentPart]]], more: S
             f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
                                                 for p in group)
             for stamp, group in grouped[1:])))
-    return Section("Summary", SUMMARY_ANCHOR, tuple(blocks))
+    return Section("Summary", "summary", tuple(blocks))
 
 
 # "How to read the numbers" on the session level: the session spread the page's machine has

@@ -48,8 +48,6 @@ FIGURES_DIR = "figures"
 MACHINES_DIR = "machines"  # other machines' pages: <report>/machines/<machine_id>/
 PAGE_STEM = "report"
 FIGURE_SUFFIXES: frozenset[str] = frozenset({".png", ".svg", ".gif"})
-ENVIRONMENT_ANCHOR = "environment"
-HOW_TO_READ_ANCHOR = "how-to-read"
 TITLE = "collide-bench report"
 
 
@@ -148,9 +146,9 @@ def build_document(
         appendix.append(side_by_side)
     environment = header.environment_bullets(environments)
     if environment:
-        appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
+        appendix.append(Section("Machine and tools", "environment", (Bullets(environment),)))
     how = (Paragraph(header.HOW_TO_READ), *([Paragraph(session)] if session else []))
-    appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR, how))
+    appendix.append(Section("How to read the numbers", "how-to-read", how))
     return Document(TITLE, lead, tuple(others), header.summary_section(grouped, more, features),
                     tuple(header.with_warnings(p) for p in parts), tuple(appendix))
 
