@@ -1,12 +1,8 @@
 """What every figure of the report shares: the figure and its files, colours, markers,
-legends, titles and axes.
-
-A figure function (in the modules beside this one) takes the rows it plots and an output
-*stem* (a path without suffix) and writes `<stem>.png` and `<stem>.svg`, atomically,
-returning both paths. Figures are built on `matplotlib.figure.Figure` with an Agg canvas,
-never through pyplot's global figure list, so rendering keeps no state between calls and
-needs no display.
-"""
+legends, titles and axes. A figure function (in the modules beside this one) takes the rows it
+plots and an output *stem* (a path without suffix) and writes `<stem>.png` and `<stem>.svg`,
+atomically, returning both paths. Figures are built on an Agg canvas, never through pyplot's
+global figure list, so rendering keeps no state between calls and needs no display."""
 
 from __future__ import annotations
 
