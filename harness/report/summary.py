@@ -14,16 +14,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.analysis import phases
+from harness.analysis import flags, phases
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, flag, is_program, varying_keys
 from harness.analysis.display import counted, display_name, format_value, threads_text
-from harness.analysis.flags import (
-    FLAG_WORDS,
-    disturbed_text,
-    disturbed_words,
-    flagged_cells,
-    flagged_kinds,
-)
 from harness.analysis.ranks import cores_table
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.analysis.speedup import BASELINE_SEQ, with_speedup
@@ -72,7 +65,7 @@ def _where(row: pd.Series) -> str:
     # The machine is the page's (harness.report.pipeline renders one page per machine).
     where = f"N = {int(row['n'])}, {threads_text(int(row['threads']))}"
     if bool(row.get("disturbed")) and pd.notna(row.get("disturbed")):
-        where += f"; disturbed{disturbed_words(row.get('others_share'))}"
+        where += f"; disturbed{flags.disturbed_words(row.get('others_share'))}"
     return where
 
 
@@ -189,19 +182,19 @@ def experiment_part(exp: Experiment, section: Section,
                     features: Sequence[ReportFeature] = ()) -> ExperimentPart:
     """The section with the experiment's warnings table, headline candidates and the counts
     of `features`."""
-    flagged = flagged_cells(exp.frame, exp.variants)
+    flagged = flags.flagged_cells(exp.frame, exp.variants)
     warnings = table_block(flagged, "") if len(flagged) else None
     anchor = subsection_anchor(section, "stability")
     if anchor == section.anchor:
         anchor = subsection_anchor(section, "cells")
     measured = exp.frame["measured_at"].dropna().astype(str) if (
         "measured_at" in exp.frame.columns) else pd.Series(dtype=str)
-    kinds = tuple(flagged_kinds(exp.frame, exp.variants))
+    kinds = tuple(flags.flagged_kinds(exp.frame, exp.variants))
     counts = {f.name: count for f in features
               if (count := f.count(exp, section)) is not None}
     return ExperimentPart(exp.name, section, warnings, kinds,
                           highlights(exp, section), fidelity(exp.frame), anchor, counts,
-                          max(measured, default=""), disturbed_text(exp.frame))
+                          max(measured, default=""), flags.disturbed_text(exp.frame))
 
 
 # --- what a run prints when it ends ----------------------------------------------------------
@@ -243,7 +236,7 @@ def _speedup(row: pd.Series) -> str:
 
 def _notes(row: pd.Series) -> str:
     notes = [] if row["status"] == OK else [str(row["status"])]
-    notes += [FLAG_WORDS[f] for f in SHOWN_FLAGS if bool(row.get(f)) and pd.notna(row.get(f))]
+    notes += [flags.FLAG_WORDS[f] for f in SHOWN_FLAGS if bool(row.get(f)) and pd.notna(row.get(f))]
     if bool(row.get(ONE_THREAD_RUN)) and row["threads"] != 1:  # shown where it serves
         notes.append("run with 1 thread")
     return ", ".join(notes)
@@ -317,7 +310,7 @@ def experiment_summary(found: ExperimentDir) -> list[str]:
     label = machine_labels(read_machines([found.path])).get(str(machine))
     named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
     lines = [f"{named}: {counted(len(df), 'cell')}" + (f" on {label}" if label else "")]
-    extra = [disturbed_text(df), fastest_text(df), validation_text(df), intervals_text(df)]
+    extra = [flags.disturbed_text(df), fastest_text(df), validation_text(df), intervals_text(df)]
     lines += [f"  {text[0].upper()}{text[1:]}" for text in extra[:1] if text]
     lines += cell_lines(df)
     lines += [f"  {text[0].upper()}{text[1:]}." for text in extra[1:] if text]

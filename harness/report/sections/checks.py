@@ -7,20 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from harness.analysis import trust
 from harness.analysis.accuracy import error_table, has_error_data
 from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
-from harness.analysis.trust import (
-    FAIL_MARK,
-    PASS_MARK,
-    TRUST_ERR_R,
-    accuracy_table,
-    build_trust,
-    check_summary,
-    has_check_data,
-    stability_matrix,
-    trust_table,
-)
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.accuracy import error_floor, fig_divergence, fig_error_time
 from harness.report.sections.context import Context, Experiment, table_block
@@ -123,7 +113,7 @@ def build_error(ctx: Context) -> list[Section]:
 
 
 def build(ctx: Context) -> list[Section]:
-    if not has_check_data(ctx.exp.frame):
+    if not trust.has_check_data(ctx.exp.frame):
         return []
     sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame,
                                                                              ctx.variants))]
@@ -136,12 +126,12 @@ def build(ctx: Context) -> list[Section]:
 
 def _matrix_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
     """The scene matrix, its columns split evenly over as few tables as hold them whole."""
-    matrix = stability_matrix(df, variants)
+    matrix = trust.stability_matrix(df, variants)
     labels = list(matrix.columns[1:])
     parts = max(1, -(-len(labels) // MATRIX_COLUMNS))
     size = -(-len(labels) // parts) if labels else 0
-    caption = (f"Scene × variant/build: {PASS_MARK} every check passed, {FAIL_MARK} the checks "
-               "that failed")
+    caption = (f"Scene × variant/build: {trust.PASS_MARK} every check passed, "
+               f"{trust.FAIL_MARK} the checks that failed")
     blocks: list[Block] = []
     for part in range(parts):
         columns = labels[part * size:(part + 1) * size]
@@ -152,18 +142,18 @@ def _matrix_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
 
 
 def _stability_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:
-    trust = trust_table(df, variants)
+    trusted = trust.trust_table(df, variants)
     return [
         Paragraph(CHECKS_INTRO),
         *_matrix_blocks(df, variants),
-        table_block(check_summary(df, variants), "Each check over all checked cells."),
-        Paragraph(build_words(build_trust(df, variants))),
-        Paragraph(trust_words(trust)),
+        table_block(trust.check_summary(df, variants), "Each check over all checked cells."),
+        Paragraph(build_words(trust.build_trust(df, variants))),
+        Paragraph(trust_words(trusted)),
         table_block(
-            trust,
+            trusted,
             "Which build to trust for which scene: trusted where every check passed and one "
-            f"step is within {TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median and "
-            "worst over the scenes). How soon a whole run is a radius off the truth is in the "
+            f"step is within {trust.TRUST_ERR_R:g} r of __float128's (shadow error ÷ r; median "
+            "and worst over the scenes). How soon a whole run is a radius off the truth is in the "
             "accuracy table, not judged: chaos takes every precision there in a dense scene.",
             source=df,
         ),
@@ -178,7 +168,7 @@ def _accuracy_blocks(ctx: Context) -> list[Block]:
     blocks: list[Block] = []
     if timed.any():
         blocks.append(table_block(
-            accuracy_table(df[timed], ctx.cell_keys, ctx.variants),
+            trust.accuracy_table(df[timed], ctx.cell_keys, ctx.variants),
             "Error against run time: the whole-run deviation from the baseline (÷ L), the mean "
             "shadow-step error (one step against __float128, ÷ L) and its worst in radii, the "
             "share of steps whose accepted collisions differ, the energy drift and the steps "
@@ -223,12 +213,12 @@ def build_words(builds: pd.DataFrame) -> str:
             + " ".join(sentences))
 
 
-def trust_words(trust: pd.DataFrame) -> str:
+def trust_words(table: pd.DataFrame) -> str:
     """The trust table in plain words with its numbers; variants alike are named together."""
-    if trust.empty:
+    if table.empty:
         return ""
     sentences = []
-    grouped = trust.groupby(["trusted", "scenes", "not_trusted"], sort=False)
+    grouped = table.groupby(["trusted", "scenes", "not_trusted"], sort=False)
     for (trusted, scenes, not_trusted), rows in grouped:
         names = ", ".join(f"`{v}`" for v in rows["label"])
         if trusted == scenes:
