@@ -66,8 +66,12 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
     if x == "threads":
         base.shade_oversubscribed(ax, df)
     timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
-    return _finish(fig, ax, out, (timed, base.TIME_LABEL), axis.force_log, title or axis.title,
-                   [*extra, *base.marker_handles(marks)])
+    if axis.force_log and len(base.positive_values(timed)) > 1:
+        base.log_axis(ax, "y", timed)
+        ax.set_ylabel(base.TIME_LABEL)
+    else:
+        base.set_y_axis(ax, timed, base.TIME_LABEL)
+    return _finish(fig, ax, out, title or axis.title, [*extra, *base.marker_handles(marks)])
 
 
 def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "n",
@@ -84,21 +88,14 @@ def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "
     base.set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
     # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
     # range on a log axis gets one labelled tick
-    return _finish(fig, ax, out, (rows[PEAK_RSS], MEMORY_LABEL), False,
-                   title or f"Peak memory against {axis.label}", base.marker_handles(marks))
+    base.set_y_axis(ax, rows[PEAK_RSS], MEMORY_LABEL)
+    return _finish(fig, ax, out, title or f"Peak memory against {axis.label}",
+                   base.marker_handles(marks))
 
 
-def _finish(fig: Figure, ax: Axes, out: Path, y: tuple[pd.Series, str], force_log: bool,
-            title: str, handles: Sequence[Line2D]) -> list[Path]:
-    """The y axis (log where `force_log` and the values differ, else as set_y_axis decides),
-    the title, the grid and the legend; the figure saved under `out`. `y`: the values on the
-    y axis and its label."""
-    values, ylabel = y
-    if force_log and len(base.positive_values(values)) > 1:
-        base.log_axis(ax, "y", values)
-        ax.set_ylabel(ylabel)
-    else:
-        base.set_y_axis(ax, values, ylabel)
+def _finish(fig: Figure, ax: Axes, out: Path, title: str, handles: Sequence[Line2D]
+            ) -> list[Path]:
+    """The title, the grid and the legend; the figure saved under `out`."""
     base.set_title(ax, title)
     ax.grid(True, which="major", alpha=0.3)
     base.legend(ax, handles)
@@ -163,11 +160,8 @@ def _thread_metric_figure(
     base.set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
     base.shade_oversubscribed(ax, df)
     ax.set_ylabel(ylabel)
-    base.set_title(ax, title)
-    ax.grid(True, which="major", alpha=0.3)
     ideal_handle = Line2D([], [], ls="--", color="black", label=ideal_label)
-    base.legend(ax, [ideal_handle, *base.marker_handles(marks)])
-    return base.save_figure(fig, out)
+    return _finish(fig, ax, out, title, [ideal_handle, *base.marker_handles(marks)])
 
 
 def fig_speedup(df: pd.DataFrame, out: Path, *, variants: Variants,
