@@ -15,13 +15,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from PIL import Image, ImageDraw, ImageFont
 
-from harness.report.figures.base import (
-    MARGINS,
-    TRAJECTORY_MARGINS,
-    new_figure,
-    save_figure,
-    set_title,
-)
+from harness.report.figures import base
 from harness.store import atomic
 
 # Trajectory pictures.
@@ -65,7 +59,7 @@ def fig_trajectory(
     states = x.shape[1]
     norm = Normalize(vmin=float(ids.min()), vmax=float(max(ids.max(), ids.min() + 1)))
     cmap = mpl.colormaps[TRAJECTORY_CMAP]
-    fig, ax = new_figure(margins=TRAJECTORY_MARGINS)
+    fig, ax = base.new_figure(margins=base.TRAJECTORY_MARGINS)
     colors = cmap(norm(ids))
     ax.add_collection(LineCollection(_segments(x, y), colors=np.repeat(colors, states - 1, axis=0),
                                      lw=1.0, alpha=0.75))
@@ -79,14 +73,14 @@ def fig_trajectory(
     ax.set_xlabel("x [length units]")
     ax.set_ylabel("y [length units]")
     fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="particle index i")
-    set_title(ax, title or f"Trajectories over {states - 1} steps ({len(ids)} particles)")
+    base.set_title(ax, title or f"Trajectories over {states - 1} steps ({len(ids)} particles)")
     handles = [Line2D([], [], ls="none", marker="o", mfc="none", mec="gray", label="start (s = 0)"),
                Line2D([], [], ls="none", marker="o", mfc="gray", mec="black",
                       label=f"end (s = {states - 1})"),
                Line2D([], [], color="gray", label="one step")]
     fig.legend(handles=handles, fontsize="small", loc="upper left",
-               bbox_to_anchor=(0.01, MARGINS["top"]))
-    return save_figure(fig, out)
+               bbox_to_anchor=(0.01, base.MARGINS["top"]))
+    return base.save_figure(fig, out)
 
 
 def gif_trajectory(traj: pd.DataFrame, out: Path, *, box: float) -> Path:
