@@ -12,14 +12,7 @@ from harness.analysis.paired import paired_words
 from harness.analysis.ranks import cores_table, has_ranks, ranks_table
 from harness.analysis.speedup import growth_exponents, with_speedup
 from harness.report.document import Block, Paragraph, Section
-from harness.report.figures.sweeps import (
-    SWEEPS,
-    fig_efficiency,
-    fig_karp_flatt,
-    fig_memory_vs,
-    fig_speedup,
-    fig_time_vs,
-)
+from harness.report.figures import sweeps as plots
 from harness.report.sections.cells import COURSE_NUMBER
 from harness.report.sections.context import Context, table_block
 from harness.store.columns import PEAK_RSS
@@ -37,10 +30,10 @@ def build(ctx: Context) -> list[Section]:
 
 
 def _sweep(ctx: Context, axis: str) -> Section:
-    exp, label = ctx.exp, SWEEPS[axis].label
+    exp, label = ctx.exp, plots.SWEEPS[axis].label
     caption = (f"Median wall time against {label} (cf. the course report's Figure "
                f"{COURSE_NUMBER[axis]}).")
-    blocks: list[Block] = [ctx.figure(fig_time_vs, exp.frame, f"time-vs-{axis.lower()}",
+    blocks: list[Block] = [ctx.figure(plots.fig_time_vs, exp.frame, f"time-vs-{axis.lower()}",
                                       caption, x=axis, variants=ctx.variants,
                                       title=f"{exp.title}: time against {label}")]
     exponents = growth_exponents(exp.frame, ctx.variants, "n") if axis == "n" else None
@@ -50,7 +43,7 @@ def _sweep(ctx: Context, axis: str) -> Section:
             "standard error from the fit.", source=exp.frame)]
     if axis == "n" and PEAK_RSS in exp.frame.columns and exp.frame[PEAK_RSS].notna().any():
         blocks.append(ctx.figure(
-            fig_memory_vs, exp.frame, "memory-vs-n", "Peak resident memory against N: the "
+            plots.fig_memory_vs, exp.frame, "memory-vs-n", "Peak resident memory against N: the "
             "largest resident set of each cell's untimed run of its own program on its input "
             "(a variant's --precise run, a program's run), in MiB.", x=axis, variants=ctx.variants,
             title=f"{exp.title}: peak memory against {label}"))
@@ -59,11 +52,11 @@ def _sweep(ctx: Context, axis: str) -> Section:
 
 # Per figure: the column it needs, how it is drawn, its file's suffix, title and caption.
 FIGURES = (
-    ("speedup", fig_speedup, "speedup", "speedup",
+    ("speedup", plots.fig_speedup, "speedup", "speedup",
      "Speedup against threads; dashed: ideal S = p."),
-    ("speedup", fig_efficiency, "efficiency", "efficiency",
+    ("speedup", plots.fig_efficiency, "efficiency", "efficiency",
      "Parallel efficiency S/p against threads; dashed: ideal 1."),
-    ("serial_fraction", fig_karp_flatt, "karp-flatt", "Karp–Flatt serial fraction",
+    ("serial_fraction", plots.fig_karp_flatt, "karp-flatt", "Karp–Flatt serial fraction",
      "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
      "parallel overhead rather than a fixed serial part."),
 )
