@@ -180,10 +180,6 @@ def from_json(data: dict, base: Path) -> Any:
 # --- report.md ------------------------------------------------------------------------------
 
 
-def _md_cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
-
-
 def file_links(paths: Iterable[Path], out_dir: Path) -> str:
     """`([CSV](figures/x.csv))` for each file, relative to the page's directory."""
     return " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
@@ -196,7 +192,8 @@ def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
     lines = [caption, ""] if caption else []
     rule = ["---:" if right else "---" for right in table.align_right]
     for row in (table.columns, rule, *table.rows):
-        lines.append("| " + " | ".join(_md_cell(v) for v in row) + " |")
+        cells = (v.replace("|", "\\|").replace("\n", " ") for v in row)
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 

@@ -41,12 +41,6 @@ def _trajectory_arrays(traj: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.n
     return ids[keep], xs.to_numpy()[keep], ys.to_numpy()[keep]
 
 
-def _segments(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2)."""
-    points = np.stack([x, y], axis=-1)
-    return np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
-
-
 def fig_trajectory(
     traj: pd.DataFrame, out: Path, *, box: float, title: str | None = None
 ) -> list[Path]:
@@ -61,7 +55,10 @@ def fig_trajectory(
     cmap = mpl.colormaps[TRAJECTORY_CMAP]
     fig, ax = base.new_figure(margins=base.TRAJECTORY_MARGINS)
     colors = cmap(norm(ids))
-    ax.add_collection(LineCollection(_segments(x, y), colors=np.repeat(colors, states - 1, axis=0),
+    # Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2).
+    points = np.stack([x, y], axis=-1)
+    segments = np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
+    ax.add_collection(LineCollection(segments, colors=np.repeat(colors, states - 1, axis=0),
                                      lw=1.0, alpha=0.75))
     ax.scatter(x[:, 0], y[:, 0], s=10, facecolors="none", edgecolors=colors, lw=0.8)
     ax.scatter(x[:, -1], y[:, -1], s=18, c=colors, edgecolors="black", lw=0.4)
