@@ -20,7 +20,7 @@ from types import ModuleType
 
 from harness import programs
 from harness.errors import HarnessError, is_user_os_error, os_error_text
-from harness.report.features import ReportFeature
+from harness.report.parts import ReportFeature
 from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG, Hooks
 
 USAGE_WIDTH = 100

@@ -99,7 +99,7 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
         names = [s.directory.name for s in summaries]
         if not args.dry_run:
             page = None if report is None else render_report(options, report, names)
-            from harness.report.terminal import run_summary
+            from harness.report.summary import run_summary
 
             sys.stdout.write(run_summary(options.results_root, names, page))
     except BrokenPipeError:  # e.g. `--dry-run | head`

@@ -32,9 +32,8 @@ from harness.comparison.verdicts import (
     methods,
     summary,
 )
-from harness.report.document import Table
+from harness.report.document import Table, markdown_table
 from harness.report.figures.base import log_axis, new_figure, save_figure
-from harness.report.markdown import markdown_table
 from harness.store import atomic
 
 OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg

@@ -13,8 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from harness.report.features import ReportFeature
-from harness.report.parts import Count
+from harness.report.parts import Count, ReportFeature
 
 if TYPE_CHECKING:
     from harness.measure.references import References
@@ -22,8 +21,7 @@ if TYPE_CHECKING:
     from harness.plan.cells import Cell
     from harness.plan.cellstore import CellStore
     from harness.report.document import Section
-    from harness.report.load import Experiment
-    from harness.report.sections.context import Context
+    from harness.report.sections.context import Context, Experiment
     from harness.store.result import CellResult
 
 NAME = "programs"

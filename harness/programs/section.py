@@ -20,9 +20,8 @@ from harness.analysis.ranks import RANKS, any_ranked
 from harness.analysis.serving import measured_once
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.base import new_figure, save_figure, set_title
-from harness.report.load import Experiment
 from harness.report.parts import Count
-from harness.report.sections.context import Context, table_block
+from harness.report.sections.context import Context, Experiment, table_block
 from harness.report.summary import subsection_anchor
 from harness.spec.facts import BASELINE, Variants
 from harness.store import atomic

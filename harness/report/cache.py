@@ -1,23 +1,16 @@
-"""Render only what changed: figures keyed by a hash of their data, experiment parts keyed
-by a hash of their input files, both remembered in one manifest beside the figures.
+"""Render only what changed: one manifest beside the figures remembers each figure, keyed by
+a hash of what it is drawn from (the function, its data frames, its arguments) and of the
+plotting code, and each experiment's part (its section, warnings rows and headline facts),
+keyed by a hash of its input files and of the report's code. A figure whose files are missing
+or were altered since is drawn again; a part read back needs neither pandas nor matplotlib.
 
-- A figure is re-drawn only when the hash of what it is drawn from (the function, its data
-  frames, its arguments) or the plotting code changed, or when its files are missing or were
-  altered since. Otherwise the files on disk are reused as they are.
-- An experiment's part of the report (its section, its warnings rows, its headline facts) is
-  rebuilt only when one of its input files or the report's code changed; a hit needs neither
-  pandas nor matplotlib.
+"The code" is every module of the harness a render can load, hashed by its bytes: the layers
+the report stands on (the import-linter contracts keep the report and analysis from importing
+what measures, plans, runs or builds) and the packages of the features whose parts it renders;
+for the figures, those without the report's other modules.
 
-"The code" is every module of the harness that a render can load: the layers the report stands
-on (pyproject.toml's import-linter contracts keep the report and analysis from importing what
-measures, plans, runs or builds), and the packages of the features whose parts it renders
-(harness.report.features), hashed by their bytes; for the figures, those without the report's
-other modules. A figure drawn with the facts of the variants its results were
-measured with (they decide the order and colours of what is drawn) is passed them as an
-argument: its key holds them as their canonical JSON.
-
-Both are keyed by content, never by time, so the rendered report is the same whether a figure
-was drawn or reused. Standard library only (pandas is imported when a frame is hashed).
+Keys are of content, never of time, so the report is the same whether a figure was drawn or
+reused. Standard library only (pandas is imported when a frame is hashed).
 """
 
 from __future__ import annotations
@@ -34,7 +27,6 @@ from harness.store.records import sha256_file
 
 MANIFEST_NAME = ".manifest.json"
 MANIFEST_VERSION = 3
-PACKAGE = "harness"
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 # The code a render can load, as paths under the package (a folder: every module in it): the
 # layers the report stands on; the figures need the same but the report's own other modules.
@@ -59,6 +51,10 @@ def code_version(files: Iterable[Path]) -> str:
         digest.update(str(path.relative_to(PACKAGE_DIR)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
+
+
+def file_digest(path: Path) -> str:
+    return sha256_file(path) if path.is_file() else "absent"
 
 
 class CodeVersions(NamedTuple):
@@ -99,22 +95,16 @@ class Manifest:
         self.fig_dir = fig_dir
         self.path = fig_dir / MANIFEST_NAME
         self.code = code
-        data = self._read()
+        try:
+            data = json.loads(self.path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            data = {}  # no manifest, or a broken one: everything is rebuilt
+        if not isinstance(data, dict) or data.get("version") != MANIFEST_VERSION:
+            data = {}
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})
         self.parts: dict[str, dict[str, Any]] = data.get("parts", {})
         self.touched: list[str] = []  # stems drawn, kept or reused with a part, in order
         self._used_parts: set[str] = set()
-
-    def _read(self) -> dict[str, Any]:
-        try:
-            data = json.loads(self.path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return {}  # no manifest, or a broken one: everything is rebuilt
-        if not isinstance(data, dict) or data.get("version") != MANIFEST_VERSION:
-            return {}
-        return data
-
-    # --- figures ---------------------------------------------------------------------------
 
     def figure_key(self, function: Callable[..., object], args: tuple, kwargs: dict) -> str:
         digest = hashlib.sha256()
@@ -147,8 +137,6 @@ class Manifest:
                                    "files": {p.name: sha256_file(p) for p in paths}}
         return paths
 
-    # --- experiment parts ------------------------------------------------------------------
-
     def part(self, name: str, input_digest: str, build: Callable[[], dict[str, Any]],
              valid: Callable[[dict[str, Any]], bool] | None = None) -> dict[str, Any]:
         """The part stored under `name` when it was made from the same inputs and code, its
@@ -167,8 +155,6 @@ class Manifest:
         part = build()
         self.parts[name] = {"key": key, "part": part, "figures": sorted(self.touched[first:])}
         return part
-
-    # --- writing ---------------------------------------------------------------------------
 
     def save(self) -> None:
         """Keep only what this render used (removed figures and experiments drop out)."""

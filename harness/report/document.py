@@ -1,22 +1,35 @@
-"""The report's document model: plain frozen data that Markdown and HTML both render.
+"""The report's document model, plain frozen data, and its two writers: report.md and
+report.html.
 
 Every block holds strings and paths only (a table is already formatted), so a section can be
 written to JSON and read back unchanged: that is what lets an unchanged section be reused
-instead of rebuilt (harness/report/cache.py). Standard library only.
+instead of rebuilt (harness/report/cache.py).
 
 Running text (paragraphs, bullets, captions, titles) is CommonMark inline markup: `code`,
-**strong**, *emphasis* and [links](#anchor). report.md carries it as written; the HTML writer
-renders it with markdown-it-py, so the page shows no markup characters. Table cells are plain
-text.
+**strong**, *emphasis* and [links](#anchor). report.md carries it as written; report.html is a
+Jinja2 template (templates/report.html) that renders it with markdown-it-py, so the page shows
+no markup characters. Table cells are plain text. The figures are files beside the page
+(figures/), linked relatively, so the page stays small and works offline from a copy of the
+report directory.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, get_args
+from typing import TYPE_CHECKING, Any, get_args
+
+from markupsafe import Markup
+
+if TYPE_CHECKING:
+    import jinja2
+    from markdown_it import MarkdownIt
+
+TEMPLATES = Path(__file__).resolve().parent / "templates"
 
 
 @dataclass(frozen=True)
@@ -162,3 +175,130 @@ def from_json(data: dict, base: Path) -> Any:
 
     cls = BLOCK_KINDS[data["kind"]] if "kind" in data else Section
     return cls(**{k: value(k, v) for k, v in data.items() if k != "kind"})
+
+
+# --- report.md ------------------------------------------------------------------------------
+
+
+def file_links(paths: Iterable[Path], out_dir: Path) -> str:
+    """`([CSV](figures/x.csv))` for each file, relative to the page's directory."""
+    return " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
+                    for p in paths)
+
+
+def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
+    links = file_links(table.files, out_dir) if out_dir is not None else ""
+    caption = f"*{table.caption}* {links}".rstrip() if table.caption else links
+    lines = [caption, ""] if caption else []
+    rule = ["---:" if right else "---" for right in table.align_right]
+    for row in (table.columns, rule, *table.rows):
+        cells = (v.replace("|", "\\|").replace("\n", " ") for v in row)
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
+    lines: list[str] = []
+    for block in blocks:
+        if isinstance(block, Details):
+            # GitHub and most viewers fold it; the blank lines let the Markdown inside render.
+            anchor = f' id="{block.anchor}"' if block.anchor else ""
+            lines += [f"<details{anchor}><summary>{block.summary}</summary>", ""]
+            lines += markdown_blocks(block.blocks, out_dir)
+            lines.append("</details>")
+        elif isinstance(block, Paragraph):
+            lines.append(block.text)
+        elif isinstance(block, Bullets):
+            lines.extend(f"- {item}" for item in block.items)
+        elif isinstance(block, Table):
+            lines.extend(markdown_table(block, out_dir))
+        else:
+            image = block.image.relative_to(out_dir).as_posix()
+            links = file_links(block.alternates, out_dir)
+            lines.append(f"![{block.caption}]({image})")
+            lines.append("")
+            lines.append(f"*{block.caption}* {links}".rstrip())
+        lines.append("")
+    return lines
+
+
+def _section(section: Section, level: int, out_dir: Path) -> list[str]:
+    # An explicit anchor, so that the summary's links land on the same ids in Markdown as in
+    # HTML; Markdown viewers derive their own ids from the heading text, which repeats.
+    lines = [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", "",
+             *markdown_blocks(section.blocks, out_dir)]
+    for sub in section.subsections:
+        lines += _section(sub, level + 1, out_dir)
+    return lines
+
+
+def render_markdown(doc: Document, out_dir: Path) -> str:
+    lines = [f"# {doc.title}", ""]
+    if doc.lead:
+        lines += [doc.lead, ""]
+    if doc.others:
+        links = ", ".join(f"[{link.text}]({link.stem}.md)" for link in doc.others)
+        lines += [f"Other machines: {links}.", ""]
+    for section in (*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix):
+        lines += _section(section, 2, out_dir)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+# --- report.html ----------------------------------------------------------------------------
+
+
+@functools.cache
+def _markdown() -> MarkdownIt:
+    from markdown_it import MarkdownIt
+
+    # CommonMark with raw HTML off: a `<` in the text is shown, never interpreted.
+    return MarkdownIt("commonmark", {"html": False})
+
+
+def inline(text: str) -> Markup:
+    return Markup(_markdown().renderInline(text))
+
+
+# A number's 95% interval after it (`0.0453 [0.0449, 0.0456]`): kept on one line, so that a
+# narrow column breaks between the number and its interval, never inside either.
+_INTERVAL = re.compile(r"^(.*?) (\[[^\[\]]*\])$")
+
+
+def number(text: str) -> Markup:
+    found = _INTERVAL.match(text)
+    if found is None:
+        return Markup.escape(text)
+    return Markup('{} <span class="ci">{}</span>').format(found[1], found[2])
+
+
+@functools.cache
+def _environment() -> jinja2.Environment:
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True,
+                             trim_blocks=True, lstrip_blocks=True,
+                             undefined=jinja2.StrictUndefined)
+    env.filters["inline"] = inline
+    env.filters["number"] = number
+    env.filters["kind"] = kind
+    env.filters["relative"] = lambda path, base: Path(path).relative_to(base).as_posix()
+    env.globals["image_size"] = image_size
+    env.globals["zip"] = zip
+    return env
+
+
+def image_size(path: Path) -> tuple[int, int] | None:
+    """A PNG's or GIF's width and height (so the page reserves their space before they load),
+    or None for anything else."""
+    from PIL import Image  # only here: importing this module stays light
+
+    try:
+        with Image.open(path) as image:  # reads the header only
+            return image.size if image.format in ("PNG", "GIF") else None
+    except OSError:  # not an image PIL knows (an SVG), or missing
+        return None
+
+
+def render_html(doc: Document, out_dir: Path) -> str:
+    template = _environment().get_template("report.html")
+    return template.render(doc=doc, base=Path(out_dir), suffix=".html")

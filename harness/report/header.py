@@ -1,21 +1,24 @@
 """The parts of the report that span experiments: the summary, the environment, how to read
-the tables, and the warnings (each experiment's folded in its section, counted in the
-summary). Built from the experiments' parts (plain data), so
-standard library only."""
+the tables (with the session spread of the page's machine), and the warnings (each
+experiment's folded in its section, counted in the summary). Built from the experiments' parts
+(plain data), so standard library only."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 
+from harness.report.cache import Manifest, file_digest
 from harness.report.document import Bullets, Details, Paragraph, Section, Table
-from harness.report.features import ReportFeature
-from harness.report.parts import HIGHLIGHT_KINDS, Count, ExperimentPart, Fidelity
+from harness.report.machines import UNKNOWN_ID
+from harness.report.parts import HIGHLIGHT_KINDS, Count, ExperimentPart, Fidelity, ReportFeature
+from harness.store.layout import ResultsRoot
+from harness.store.sessions import kept_levels
 
 MAX_WARNING_ROWS = 60  # beyond this a section's warnings table is cut, with a count of the rest
-WARNINGS_ANCHOR = "warnings"
-SUMMARY_ANCHOR = "summary"
 
 
 # Each header line and where env.json keeps it: the contract's flat key first, then the
@@ -114,23 +117,24 @@ def _flagged_count(part: ExperimentPart) -> int:
 
 
 def warnings_anchor(part: ExperimentPart) -> str:
-    return f"{part.section.anchor}-{WARNINGS_ANCHOR}"
+    return f"{part.section.anchor}-warnings"
 
 
-def warnings_details(part: ExperimentPart) -> Details | None:
-    """The experiment's flagged cells, folded, for the top of its own section; None when all
-    its cells are clean."""
+def with_warnings(part: ExperimentPart) -> Section:
+    """The experiment's section with its flagged cells folded under its opening paragraph."""
     table = part.warnings
     if table is None:
-        return None
+        return part.section
     n = len(table.rows)
-    blocks: list[Paragraph | Table] = [
+    folded: list[Paragraph | Table] = [
         dataclasses.replace(table, rows=table.rows[:MAX_WARNING_ROWS])]
     if n > MAX_WARNING_ROWS:
-        blocks.append(Paragraph(f"… and {n - MAX_WARNING_ROWS} more."))
+        folded.append(Paragraph(f"… and {n - MAX_WARNING_ROWS} more."))
     why = ", ".join(f"{kind} ({count})" for kind, count in _kind_counts([part]))
-    summary = f"{n} flagged cell{'' if n == 1 else 's'}: {why}"
-    return Details(summary, tuple(blocks), warnings_anchor(part))
+    details = Details(f"{n} flagged cell{'' if n == 1 else 's'}: {why}", tuple(folded),
+                      warnings_anchor(part))
+    blocks = part.section.blocks
+    return dataclasses.replace(part.section, blocks=(*blocks[:1], details, *blocks[1:]))
 
 
 def warnings_text(parts: Sequence[ExperimentPart]) -> str | None:
@@ -208,16 +212,12 @@ def by_run(parts: Sequence[ExperimentPart], runs: Mapping[str, str]
     return list(grouped.items())
 
 
-def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
-                    runs: Mapping[str, str] | None = None,
-                    features: Sequence[ReportFeature] = ()) -> Section | None:
-    """The headline of the newest run (`runs` as by_run's; without, of every part): what a
-    reader came for, each point linking to where it is shown, and whether others disturbed
-    it; then the earlier runs under their dates. `more` adds lines (what spans machines);
-    `features` their words on their counts."""
-    grouped = by_run(parts, runs or {}) if runs is not None else [("", list(parts))]
-    if not grouped:
-        return None
+def summary_section(grouped: Sequence[tuple[str, list[ExperimentPart]]], more: Sequence[str],
+                    features: Sequence[ReportFeature]) -> Section | None:
+    """The headline of the newest run (the parts `grouped` by by_run): what a reader came for,
+    each point linking to where it is shown, and whether others disturbed it; then the
+    earlier runs under their dates. `more` adds lines (what spans machines); `features` their
+    words on their counts."""
     when, latest = grouped[0]
     items = [text for text in (*(p.disturbed for p in latest),
                                *(_best(latest, k) for k in HIGHLIGHT_KINDS),
@@ -226,11 +226,8 @@ def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
     if not items:
         return None
     items = [f"{text[0].upper()}{text[1:].rstrip('.')}." for text in items]
-    blocks: list[Paragraph | Bullets] = []
-    if runs is not None:
-        names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
-        blocks.append(Paragraph(f"The latest run, {when_text(when)}: {names}."))
-    blocks.append(Bullets(tuple(items)))
+    names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
+    blocks = [Paragraph(f"The latest run, {when_text(when)}: {names}."), Bullets(tuple(items))]
     if len(grouped) > 1:
         blocks.append(Paragraph("Earlier runs, newest first (their sections follow the "
                                 "latest run's):"))
@@ -238,4 +235,92 @@ def summary_section(parts: Sequence[ExperimentPart], more: Sequence[str] = (),
             f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
                                                 for p in group)
             for stamp, group in grouped[1:])))
-    return Section("Summary", SUMMARY_ANCHOR, tuple(blocks))
+    return Section("Summary", "summary", tuple(blocks))
+
+
+# "How to read the numbers" on the session level: the session spread the page's machine has
+# under the results root (learnt by `reruns`, harness.store.sessions, or the stated default)
+# and, where `reruns` measured it, how often its intervals held another rerun's estimate. The
+# spread's home (harness.stats.levels) imports scipy, which an unchanged page never loads: the
+# paragraph is kept in the page's manifest like an experiment's part, keyed by the machine's
+# calibration file and the report's code.
+
+REUSE_COMMAND = "python -m harness reruns CONFIG"  # how a machine gets its own spread
+SESSION_PART = "\0session"  # the paragraph's entry among the manifest's parts
+
+
+def cached_session_words(results_dir: Path, machine_id: str | None, manifest: Manifest) -> str:
+    """session_words, from the manifest where the machine's calibration files and the
+    report's code are unchanged."""
+    machine = machine_id if machine_id not in (None, "", UNKNOWN_ID) else None
+    paths = [ResultsRoot(results_dir).calibration(machine)] if machine is not None else []
+    digest = "\0".join([str(machine), *(file_digest(p) for p in paths)])
+    part = manifest.part(SESSION_PART, digest,
+                         lambda: {"text": session_words(results_dir, machine)},
+                         valid=lambda stored: isinstance(stored.get("text"), str))
+    return part["text"]
+
+
+def session_words(results_dir: Path, machine: str | None) -> str:
+    """The session spreads the page's intervals add (one per noise level the machine's
+    reruns were measured under) and where they come from, with the coverage `reruns`
+    measured for each; or the default and that no reruns were measured."""
+    from harness.stats.levels import DEFAULT_SESSION_SPREAD, noise_of, supersedes
+
+    levels = [] if machine is None else kept_levels([results_dir], machine, supersedes)
+    text = ("Intervals that say where another session's estimate lands (a cell's time "
+            "measured in rounds, a ratio paired by round) add the machine's session spread")
+    if not levels:
+        spread = DEFAULT_SESSION_SPREAD
+        return (f"{text}: {spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for "
+                f"a ratio, {spread.source}. No reruns were measured on this machine "
+                f"(`{REUSE_COMMAND}` learns its spread and how often the intervals hold a "
+                "rerun's estimate): the default applies, meant to be conservative on a quiet "
+                "machine.")
+    if len(levels) > 1:
+        text += (" at the noise of their session (the median share of the cores' time others "
+                 "took over its rounds; between two levels, interpolated)")
+    levels = sorted(levels, key=lambda e: (not math.isfinite(noise_of(e)), noise_of(e)))
+    # A record's interval holds the spread of its own run: one measured before the reruns
+    # kept the default.
+    return (f"{text}: " + "; ".join(_level_text(e, str(machine)) for e in levels) + ". Cells "
+            "measured before then keep the spread of their run (their records' "
+            "`session_spread` and `session_source`).")
+
+
+def _level_text(entry: Mapping[str, object], machine: str) -> str:
+    from harness.stats.levels import SessionSpread
+
+    spread = SessionSpread.of_entry(entry, machine)
+    noise = f", under noise {spread.noise:.1%}" if math.isfinite(spread.noise) else ""
+    text = (f"{spread.absolute:.1%} for a cell's time and {spread.ratio:.1%} for a ratio, "
+            f"{spread.source}{noise}")
+    coverage = entry.get("coverage")
+    if not isinstance(coverage, Mapping):
+        return f"{text} (its reruns kept no coverage)"
+    found = [_coverage_text(name, coverage.get(key)) for key, name in
+             (("absolute", "absolute intervals"), ("ratio", "ratio intervals"))]
+    return (f"{text} (coverage of its {entry.get('reruns', '?')} reruns, the intervals as "
+            "stored: " + "; ".join(found) + ")")
+
+
+def _percent(value: object) -> str:
+    if isinstance(value, int | float) and math.isfinite(value):
+        return f"{value:.1%}"
+    return "–"
+
+
+def _coverage_text(name: str, figures: object) -> str:
+    """One kind of interval's coverage as `reruns` kept it (analysis.reruns)."""
+    if not isinstance(figures, Mapping) or not figures.get("pairs"):
+        return f"{name}: no cell with two reruns"
+    held, pairs = figures.get("held", 0), figures["pairs"]
+    share = held / pairs if isinstance(held, int | float) and isinstance(pairs, int | float) \
+        else math.nan
+    quartiles = [figures.get(k) for k in ("low_half_width", "high_half_width")]
+    spread = f" (quartiles {', '.join(map(_percent, quartiles))})" \
+        if all(isinstance(q, int | float) and math.isfinite(q) for q in quartiles) else ""
+    return (f"{name} held another rerun's estimate in {held} of {pairs} (cell, rerun) pairs "
+            f"({_percent(share)}), moves between reruns {_percent(figures.get('median_move'))} "
+            f"median and {_percent(figures.get('largest_move'))} largest, median half-width "
+            f"{_percent(figures.get('median_half_width'))}{spread}")

@@ -18,13 +18,8 @@ from harness.report.document import Paragraph, Section, Table
 from harness.store.columns import MATCH_COLUMNS, OK, match_values
 from harness.store.records import MACHINE_KEY
 
-LABEL_KEY = "machine"
-MEASURED_AT = "measured_at"
-MEDIAN = "wall_median_s"
 UNKNOWN_ID = "unknown"  # rows from before machine identity was recorded
 SHORT_ID = 8  # characters of a machine id shown beside its label
-ANCHOR = "machines"
-TITLE = "Machines side by side"
 
 
 @dataclass(frozen=True)
@@ -67,8 +62,8 @@ def machines(rows: Rows, preferred: Collection[str] = (),
             seen.setdefault(machine_of(row), []).append(row)
     found = []
     for machine_id, own in seen.items():
-        own_labels = sorted({str(r.get(LABEL_KEY) or "").strip() for r in own} - {""})
-        last = max((str(r.get(MEASURED_AT) or "") for r in own), default="")
+        own_labels = sorted({str(r.get("machine") or "").strip() for r in own} - {""})
+        last = max((str(r.get("measured_at") or "") for r in own), default="")
         found.append(Machine(machine_id, own_labels[0] if own_labels else "", last))
     names = labels or {}
     found = [dataclasses.replace(m, name=names.get(m.id) or _name(m, found)) for m in found]
@@ -97,7 +92,7 @@ def _medians(table: Sequence[Mapping[str, object]], machine_id: str
     for row in table:
         if machine_of(row) != machine_id or row.get("status") != OK:
             continue
-        median = row.get(MEDIAN)
+        median = row.get("wall_median_s")
         if isinstance(median, int | float) and math.isfinite(median) and median > 0:
             medians[match_values(row)] = float(median)
     return medians
@@ -129,4 +124,4 @@ def side_by_side(rows: Rows, shown: Machine, found: Sequence[Machine]) -> Sectio
         f"but the machine ({', '.join(MATCH_COLUMNS)}), both ok. The time ratio is the geometric "
         "mean of the other machine's median over this one's: above 1, this machine was "
         "faster. Each machine's own report (linked under the title) shows its cells in full.")
-    return Section(TITLE, ANCHOR, (text, table))
+    return Section("Machines side by side", "machines", (text, table))

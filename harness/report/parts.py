@@ -1,16 +1,24 @@
 """What each experiment contributes to the report, as plain data: its section, its rows of
-the warnings table, its candidates for the headline and each feature's count of its cells
-(harness.report.features). The parts that span experiments (summary, warnings) are assembled
-from these, so an experiment whose inputs did not change is read back from the manifest
-instead of rebuilt. Standard library only."""
+the warnings table, its candidates for the headline and each feature's count of its cells. The
+parts that span experiments (summary, warnings) are assembled from these, so an experiment
+whose inputs did not change is read back from the manifest instead of rebuilt.
+
+A feature package (harness.programs) describes its part as a ReportFeature, which whoever
+renders (the command line) passes to harness.report.pipeline.render; the report itself imports
+no feature. Standard library only: a feature's sections are built, and pandas imported, only
+for an experiment whose part is not cached."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import astuple, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from harness.report.document import Section, Table, from_json, to_json
+
+if TYPE_CHECKING:
+    from harness.report.sections.context import Context, Experiment
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,19 @@ class Count:
         """Counts summed over experiments, shown at the anchor of the first with cells."""
         return Count(self.cells + other.cells, self.passed + other.passed,
                      self.anchor if self.cells else other.anchor)
+
+
+@dataclass(frozen=True)
+class ReportFeature:
+    """A feature's part of the report: its sections, shown beside the cell table before the
+    core's, and a count of each experiment's cells that the summary's fidelity line sums over
+    the experiments and words."""
+
+    name: str  # its key among an experiment's counts (ExperimentPart.counts)
+    code: str  # its package's folder under harness/: the code its parts and figures are from
+    sections: Callable[[Context], list[Section]]  # an experiment's, none where it has nothing
+    count: Callable[[Experiment, Section], Count | None]  # of the experiment's section
+    sentence: Callable[[Count], str]  # the fidelity line's words for the counts summed
 
 
 # In the summary's order; "phases": where grid's time goes; "ranks": the fastest split of the

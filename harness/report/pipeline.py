@@ -8,11 +8,13 @@ machines/<machine_id>/report.{md,html} with its own figures/, each linking the o
 report.{md,html} at the top is the machine that measured last (or the one asked for).
 
 A feature adds its part to every page through the ReportFeature its package gives
-(harness.report.features), passed in by whoever renders; the report imports no feature."""
+(harness.report.parts), passed in by whoever renders; the report imports no feature."""
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import os
 import shutil
 from collections.abc import Collection, Sequence
@@ -20,10 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from harness.analysis import results
+from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
-from harness.report import machines
-from harness.report.cache import CodeVersions, Manifest, code_versions
-from harness.report.discover import find_experiments, input_digest, read_env
+from harness.report import header, machines
+from harness.report.cache import CodeVersions, Manifest, code_versions, file_digest
 from harness.report.document import (
     Bullets,
     Document,
@@ -31,21 +33,14 @@ from harness.report.document import (
     Paragraph,
     Section,
     document_files,
+    render_html,
+    render_markdown,
 )
-from harness.report.features import ReportFeature
-from harness.report.header import (
-    HOW_TO_READ,
-    by_run,
-    environment_bullets,
-    summary_section,
-    warnings_details,
-)
-from harness.report.html import render_html
-from harness.report.markdown import render_markdown
-from harness.report.parts import ExperimentPart
-from harness.report.spread import cached_session_words
+from harness.report.parts import ExperimentPart, ReportFeature
+from harness.store import layout
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
+from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.locks import directory_lock
 from harness.store.records import MACHINE_KEY, RUN_STARTED
 
@@ -53,26 +48,65 @@ FIGURES_DIR = "figures"
 MACHINES_DIR = "machines"  # other machines' pages: <report>/machines/<machine_id>/
 PAGE_STEM = "report"
 FIGURE_SUFFIXES: frozenset[str] = frozenset({".png", ".svg", ".gif"})
-ENVIRONMENT_ANCHOR = "environment"
-HOW_TO_READ_ANCHOR = "how-to-read"
 TITLE = "collide-bench report"
 
 
-def _shown_path(results_dir: Path) -> Path:
-    # Inside the repository the path is shown relative to it, so a committed report does not
-    # carry the path of the machine that rendered it.
-    if results_dir.resolve().is_relative_to(REPO_ROOT):
-        return results_dir.resolve().relative_to(REPO_ROOT)
-    return results_dir
+# Outputs up to this size are hashed by content; larger ones (never plotted) by size and time.
+HASHED_OUTPUT_BYTES = 4 * 1024 * 1024
+# Experiments the course report presents in this order; any other follows alphabetically.
+PREFERRED_ORDER: tuple[str, ...] = (
+    "strategies", "particles", "square", "radius", "threads", "relative", "grid",
+    "trajectory", "accuracy", "stability",
+)
 
 
-def _with_warnings(part: ExperimentPart) -> Section:
-    """The experiment's section with its flagged cells folded under its opening paragraph."""
-    details = warnings_details(part)
-    if details is None:
-        return part.section
-    blocks = part.section.blocks
-    return dataclasses.replace(part.section, blocks=(*blocks[:1], details, *blocks[1:]))
+def find_experiments(
+    results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
+) -> list[ExperimentDir]:
+    """Every experiment under the results directory with a measured cell, in the course
+    report's order (an experiment still running its first cell has none)."""
+    found = results.experiments(results_dir, include_quick, only)
+    rank = {name: i for i, name in enumerate(PREFERRED_ORDER)}
+    return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
+
+
+def input_digest(exp: ExperimentDir) -> str:
+    """A hash of every file the experiment's section reads: the index of its rows (which
+    holds the sha256 of every export written from them) or, without one, its records; what it
+    was measured with and on; the machines' calibrations its ratios' intervals take their
+    session spread from; the kept outputs (the trajectory figure's)."""
+    parts: dict[str, object] = {
+        "name": exp.name,
+        layout.ENV_JSON: file_digest(exp.env_json),
+        layout.VARIANTS_JSON: file_digest(exp.variants_json),
+    }
+    listing = [exp.results_index] if exp.results_index.is_file() else \
+        layout.record_paths(exp.cells)
+    for path in listing:
+        parts[path.name] = file_digest(path)
+    calibrations = ResultsRoot(exp.path.parent).calibrations
+    for path in sorted(calibrations.iterdir()) if calibrations.is_dir() else []:
+        parts[f"{layout.CALIBRATION_DIR}/{path.name}"] = file_digest(path)
+    outputs = exp.outputs
+    for path in sorted(outputs.iterdir()) if outputs.is_dir() else []:
+        stat = path.stat()
+        parts[f"{layout.OUTPUTS}/{path.name}"] = (
+            file_digest(path) if stat.st_size <= HASHED_OUTPUT_BYTES
+            else f"{stat.st_size}:{stat.st_mtime_ns}")
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def read_env(path: Path) -> dict[str, object]:
+    """env.json as a dict; an absent file is an empty dict (the header says so)."""
+    if not path.exists():
+        return {}
+    try:
+        env = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise HarnessError(f"{path}: cannot read environment: {e}") from e
+    if not isinstance(env, dict):
+        raise HarnessError(f"{path}: expected a JSON object, got {type(env).__name__}")
+    return env
 
 
 def build_document(
@@ -88,14 +122,18 @@ def build_document(
 ) -> Document:
     """The whole page: what it shows, the summary (with the words of `features` on their
     counts), one section per experiment with data (its warnings folded in it), then the
-    machines side by side and how to read the numbers (with `session`, what it says of the
-    session spread: harness.report.spread)."""
-    results_dir = _shown_path(results_dir)
+    machines side by side and how to read the numbers (with `session`, the session spread's
+    words)."""
+    # Inside the repository the path is shown relative to it, so a committed report does not
+    # carry the path of the machine that rendered it.
+    if results_dir.resolve().is_relative_to(REPO_ROOT):
+        results_dir = results_dir.resolve().relative_to(REPO_ROOT)
     if not parts:
         return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))
     runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
-    parts = [part for _, group in by_run(parts, runs) for part in group]
+    grouped = header.by_run(parts, runs)
+    parts = [part for _, group in grouped for part in group]
     names = ", ".join(f"`{p.name}`" for p in parts)
     lead = f"{len(parts)} experiment(s) from `{results_dir}`: {names}."
     if shown is not None:
@@ -106,13 +144,13 @@ def build_document(
                     f"the title); [side by side](#{side_by_side.anchor}) on the cells they "
                     "share with this one")
         appendix.append(side_by_side)
-    environment = environment_bullets(environments)
+    environment = header.environment_bullets(environments)
     if environment:
-        appendix.append(Section("Machine and tools", ENVIRONMENT_ANCHOR, (Bullets(environment),)))
-    appendix.append(Section("How to read the numbers", HOW_TO_READ_ANCHOR,
-                            (Paragraph(HOW_TO_READ), *([Paragraph(session)] if session else []))))
-    return Document(TITLE, lead, tuple(others), summary_section(parts, more, runs, features),
-                    tuple(_with_warnings(p) for p in parts), tuple(appendix))
+        appendix.append(Section("Machine and tools", "environment", (Bullets(environment),)))
+    how = (Paragraph(header.HOW_TO_READ), *([Paragraph(session)] if session else []))
+    appendix.append(Section("How to read the numbers", "how-to-read", how))
+    return Document(TITLE, lead, tuple(others), header.summary_section(grouped, more, features),
+                    tuple(header.with_warnings(p) for p in parts), tuple(appendix))
 
 
 def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Path,
@@ -123,12 +161,10 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
     built."""
     def build() -> dict[str, Any]:
         # Building needs pandas (and matplotlib for a figure that changed): imported only here.
-        from harness.report.load import load_experiment
         from harness.report.sections import experiment_section
+        from harness.report.sections.context import load_experiment
         from harness.report.summary import experiment_part as build_part
 
-        # the experiment carries the facts of the variants its results were measured with:
-        # their order, colours and kinds
         exp = load_experiment(loaded, machine, label)
         section = experiment_section(exp, manifest, [f.sections for f in features])
         return build_part(exp, section, features).to_json(out_dir)
@@ -138,15 +174,6 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
     if features:  # a part built with other features' parts is another part
         digest += "\0" + "\0".join(f.name for f in features)
     return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
-
-
-def _remove_stale_figures(fig_dir: Path, keep: set[Path]) -> None:
-    """Figures of sections that no longer exist would mislead anyone browsing the folder."""
-    if not fig_dir.is_dir():
-        return
-    for path in fig_dir.iterdir():
-        if path.suffix in FIGURE_SUFFIXES and path not in keep:
-            path.unlink(missing_ok=True)
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
@@ -183,11 +210,15 @@ def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_d
     environments = [(f.name, read_env(f.machine(machine_id) if machine_id
                                       and f.machine(machine_id).is_file() else f.env_json))
                     for f in found]
-    session = cached_session_words(results_dir, machine_id, manifest)
+    session = header.cached_session_words(results_dir, machine_id, manifest)
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
                          side_by_side=side_by_side, session=session, features=features)
     _write_page(doc, page_dir)
-    _remove_stale_figures(fig_dir, document_files(doc))
+    keep = document_files(doc)
+    # Figures of sections that no longer exist would mislead anyone browsing the folder.
+    for path in fig_dir.iterdir() if fig_dir.is_dir() else []:
+        if path.suffix in FIGURE_SUFFIXES and path not in keep:
+            path.unlink(missing_ok=True)
     manifest.save()
     return doc
 
@@ -202,17 +233,10 @@ def render(
     features: Sequence[ReportFeature] = (),
 ) -> Path:
     """Render report.md and report.html under `out_dir` from `results_dir`, with the parts of
-    `features` (harness.report.features) on every page.
-
-    Where the results hold several machines, each machine's page goes to
-    machines/<machine_id>/ with its figures, and report.{md,html} is the page of the machine
-    that measured last, or of `machine` (an id or its unique start), its figures linked
-    there: a new machine on top redraws nothing of the others. Results of one machine (or
-    without machine ids) make one page with figures/ beside it.
-
-    Returns the path of report.md. Raises HarnessError for unreadable or malformed results,
-    or a `machine` that is not one of theirs.
-    """
+    `features` on every page; report.{md,html} shows `machine` (an id or its unique start),
+    else the one that measured last, its figures linked from its own page: a new machine on
+    top redraws nothing of the others. Returns the path of report.md; HarnessError for
+    unreadable or malformed results, or a `machine` that is not one of theirs."""
     results_dir, out_dir = Path(results_dir), Path(out_dir)
     found = find_experiments(results_dir, include_quick=include_quick, only=experiments)
     labels = machine_labels(read_machines(f.path for f in found))

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from harness.analysis import strategies as study
 from harness.analysis.migrate import upgrade_experiment
-from harness.report.figures import strategies as figstrategies
+from harness.report.figures import phases as figphases
 from harness.spec.facts import Variants
 from harness.store.columns import parse_list
 
@@ -130,7 +130,7 @@ def test_work_table_needs_p1_and_its_repair() -> None:
 def test_work_figure_writes_png_and_svg(tmp_path: Path, facts: Variants) -> None:
     work = study.work_table(frame(row("p1", 3.0, busy="2.0 0.7", pairs="75 25"),
                                   row("p1_cyclic", 2.0, busy="1.4 1.4", pairs="50 50")))
-    paths = figstrategies.work_figure(work, tmp_path / "work", variants=facts)
+    paths = figphases.work_figure(work, tmp_path / "work", variants=facts)
     assert sorted(p.suffix for p in paths) == [".png", ".svg"]
     assert all(p.stat().st_size > 1000 for p in paths)
 

@@ -18,7 +18,7 @@ from harness.cli import REPORT_FEATURES
 from harness.repo import PUBLISHED_REPORT_DIR, PUBLISHED_RESULTS_DIR
 from harness.report import cache, pipeline
 from harness.report.cache import MANIFEST_NAME
-from harness.report.spread import SESSION_PART
+from harness.report.header import SESSION_PART
 
 from fixture_results import results_with
 from tests.records import rewrite_experiment, rows_of

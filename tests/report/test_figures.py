@@ -10,11 +10,11 @@ import pandas as pd
 import pytest
 from harness.analysis import cells as acells
 from harness.analysis import display, speedup
-from harness.report import load as report_load
 from harness.report.figures import accuracy as figaccuracy
 from harness.report.figures import base as figbase
 from harness.report.figures import sweeps as figsweeps
 from harness.report.figures import trajectory as figtrajectory
+from harness.report.sections.trajectory import read_trajectory
 from harness.spec.facts import Variants
 from harness.store import atomic
 from PIL import Image
@@ -105,7 +105,7 @@ def trajectory() -> tuple[pd.DataFrame, float]:
     df = load("trajectory")
     row = df.iloc[0]
     path = FIXTURE_RESULTS / "trajectory" / "outputs" / f"{row['cell_id']}.txt"
-    return report_load.read_trajectory(path), float(row["L"])
+    return read_trajectory(path), float(row["L"])
 
 
 def test_trajectory_figure_and_animation_are_written(tmp_path: Path) -> None:

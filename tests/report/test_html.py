@@ -15,10 +15,11 @@ from harness.report.document import (
     Section,
     Table,
     from_json,
+    image_size,
+    render_html,
+    render_markdown,
     to_json,
 )
-from harness.report.html import image_size, render_html
-from harness.report.markdown import render_markdown
 
 PNG_3x2 = bytes.fromhex(
     "89504e470d0a1a0a0000000d49484452000000030000000208060000009d74661a0000001149444154789c"

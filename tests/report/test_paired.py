@@ -13,8 +13,8 @@ from harness import stats
 from harness.analysis import paired, results
 from harness.analysis import speedup as speedups
 from harness.report import pipeline
-from harness.report.discover import find_experiments
-from harness.report.load import load_experiment
+from harness.report.pipeline import find_experiments
+from harness.report.sections.context import load_experiment
 from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import RATIO_OVER_BASELINE
 from harness.store.layout import ExperimentDir, ResultsRoot

@@ -15,21 +15,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 from harness.analysis.accuracy import pareto_mask
 from harness.analysis.cells import sort_cells
 from harness.analysis.display import format_value
-from harness.report.figures.base import (
-    BUILD_MARKERS,
-    LEGEND_RIGHT_MARGINS,
-    MARGINS,
-    TIME_LABEL,
-    TITLE_CHARS,
-    _plain_tick,
-    log_axis,
-    new_figure,
-    positive_values,
-    save_figure,
-    set_title,
-    variant_color,
-    wants_log,
-)
+from harness.report.figures import base
 from harness.spec.facts import Variants
 from harness.store.columns import INVALID, TIMED_STATUSES
 
@@ -42,7 +28,7 @@ ERROR_PAD = 10.0  # around a single error level, the y axis spans this factor ei
 def error_floor(errors: pd.Series) -> float:
     """Where zero errors are drawn on a log axis: a decade below the smallest nonzero error
     (or 1e-17, below double rounding relative to L, when every error is zero)."""
-    nonzero = positive_values(errors)
+    nonzero = base.positive_values(errors)
     if not len(nonzero):
         return 1e-17
     return 10.0 ** (math.floor(math.log10(nonzero.min())) - 1)
@@ -50,14 +36,10 @@ def error_floor(errors: pd.Series) -> float:
 
 def fig_error_time(df: pd.DataFrame, out: Path, *, variants: Variants, title: str | None = None,
                    error: str = "max_pos_err", ylabel: str | None = None) -> list[Path]:
-    """Time against deviation from the baseline per variant and build, Pareto front marked.
-
-    Colors tell variants apart (`variants`, their facts, give each its own) and hollow marker
-    shapes builds; the cells on the Pareto front
-    are ringed, joined and named. Exact cells (zero error) sit on a dotted floor line a decade
-    below the smallest nonzero error. Pass the cells of one scene: fronts across scenes mean
-    nothing. `error` names the error column (e.g. the shadow-step error `shadow_pos_err`).
-    """
+    """Time against the deviation from the baseline (the column `error`) per variant (its
+    colour from `variants`) and build (a hollow marker shape), the Pareto front's cells ringed,
+    joined and named, exact cells on a dotted floor a decade below the smallest nonzero error.
+    Pass the cells of one scene: fronts across scenes mean nothing."""
     rows = df[
         df["status"].isin(TIMED_STATUSES)
         & df["wall_median_s"].notna()
@@ -68,32 +50,32 @@ def fig_error_time(df: pd.DataFrame, out: Path, *, variants: Variants, title: st
     shown = rows[error].where(rows[error] > 0, floor)
     times = rows["wall_median_s"]
     builds = list(dict.fromkeys(rows["build"]))
-    markers = {b: BUILD_MARKERS[i % len(BUILD_MARKERS)] for i, b in enumerate(builds)}
-    fig, ax = new_figure(margins=LEGEND_RIGHT_MARGINS)
+    markers = {b: base.BUILD_MARKERS[i % len(base.BUILD_MARKERS)] for i, b in enumerate(builds)}
+    fig, ax = base.new_figure(margins=base.LEGEND_RIGHT_MARGINS)
     for i in range(len(rows)):
         row = rows.iloc[i]
         ax.plot(times.iloc[i], shown.iloc[i], markers[row["build"]], ls="none", ms=8,
-                color=variant_color(str(row["variant"]), variants), mec="black", mew=0.6)
+                color=base.variant_color(str(row["variant"]), variants), mec="black", mew=0.6)
         if row["status"] == INVALID:
             ax.plot(times.iloc[i], shown.iloc[i], "x", color="black", ms=9, mew=2)
     _draw_front(ax, rows, times, shown, pareto_mask(times, rows[error]).to_numpy(dtype=bool))
     has_zero = bool((rows[error] == 0).any())
     if has_zero:
         ax.axhline(floor, ls=":", color="gray")
-    if wants_log(times):
-        log_axis(ax, "x", times)
+    if base.wants_log(times):
+        base.log_axis(ax, "x", times)
     if len(shown) and shown.min() == shown.max():  # one error level: give the log axis a decade
         ax.set_ylim(float(shown.min()) / ERROR_PAD, float(shown.max()) * ERROR_PAD)
-    log_axis(ax, "y", shown)
+    base.log_axis(ax, "y", shown)
     ax.margins(x=0.08, y=0.12)
-    ax.set_xlabel(TIME_LABEL)
+    ax.set_xlabel(base.TIME_LABEL)
     ax.set_ylabel(ylabel or "max position error vs baseline [÷ L]")
-    set_title(ax, title or "Error against run time")
+    base.set_title(ax, title or "Error against run time")
     ax.grid(True, which="major", alpha=0.3)
     handles = _error_time_handles(rows, markers, floor if has_zero else None, variants)
     ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0),
               borderaxespad=0)
-    return save_figure(fig, out)
+    return base.save_figure(fig, out)
 
 
 def _draw_front(ax: Axes, rows: pd.DataFrame, times: pd.Series, shown: pd.Series,
@@ -120,7 +102,7 @@ def _error_time_handles(rows: pd.DataFrame, markers: dict[str, str],
     """The legend of fig_error_time: variants by color, builds by marker, the front, and the
     floor zero errors are drawn at (`zero_floor`, where some are) and invalid cells."""
     handles = [
-        Line2D([], [], ls="none", marker="o", ms=8, color=variant_color(v, variants),
+        Line2D([], [], ls="none", marker="o", ms=8, color=base.variant_color(v, variants),
                mec="black", mew=0.6, label=v)
         for v in dict.fromkeys(rows["variant"])
     ]
@@ -146,7 +128,7 @@ DIVERGENCE_REFERENCES: dict[str, str] = {
     "f64": "against seq in double", "truth": "against the truth (__float128)",
 }
 DIVERGENCE_FIGSIZE = (10.0, 4.5)
-DIVERGENCE_MARGINS: dict[str, float] = {**MARGINS, "left": 0.08, "right": 0.74,
+DIVERGENCE_MARGINS: dict[str, float] = {**base.MARGINS, "left": 0.08, "right": 0.74,
                                         "bottom": 0.12, "top": 0.86}
 BUILD_LINESTYLES: tuple[str, ...] = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
@@ -178,7 +160,7 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
     truth). Pass one scene's rows of divergence.csv. Zero deviations sit on a dotted floor a
     decade below the smallest nonzero one; a dashed line marks a deviation of one radius."""
     references = [r for r in DIVERGENCE_REFERENCES if (div["reference"] == r).any()]
-    fig, axes = new_figure(DIVERGENCE_FIGSIZE, {**DIVERGENCE_MARGINS, "wspace": 0.25},
+    fig, axes = base.new_figure(DIVERGENCE_FIGSIZE, {**DIVERGENCE_MARGINS, "wspace": 0.25},
                            ncols=max(1, len(references)), sharey=True, squeeze=False)
     axes = axes[0]
     values = div["max_pos_dev"].to_numpy(dtype=float)
@@ -196,11 +178,11 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
             y = curve["max_pos_dev"].to_numpy(dtype=float)
             y = np.where(np.isfinite(y), np.maximum(y, floor), top)
             ax.plot(curve["step"], y, ls=styles[build], marker="o", ms=3, lw=1.5, alpha=0.8,
-                    color=variant_color(variant, variants), label=label)
+                    color=base.variant_color(variant, variants), label=label)
         ax.axhline(radius / box, ls="--", color="gray", lw=1)
         ax.axhline(floor, ls=":", color="gray", lw=1)
         ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(FuncFormatter(_plain_tick))
+        ax.yaxis.set_major_formatter(FuncFormatter(base._plain_tick))
         ax.set_ylim(floor / 3, top)
         ax.set_xlabel("step")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -208,10 +190,10 @@ def fig_divergence(div: pd.DataFrame, out: Path, *, box: float, radius: float,
         ax.grid(True, which="major", alpha=0.3)
     axes[0].set_ylabel("max position deviation [÷ L]")
     if title:
-        fig.suptitle(textwrap.fill(title, TITLE_CHARS + 30), fontsize="large", y=0.99)
+        fig.suptitle(textwrap.fill(title, base.TITLE_CHARS + 30), fontsize="large", y=0.99)
     handles, _labels = axes[0].get_legend_handles_labels()
     handles += [Line2D([], [], ls="--", color="gray", label="one radius (r / L)"),
                 Line2D([], [], ls=":", color="gray", label=f"zero (drawn at {floor:.0e})")]
     fig.legend(handles=handles, fontsize="small", loc="upper left",
                bbox_to_anchor=(DIVERGENCE_MARGINS["right"] + 0.01, DIVERGENCE_MARGINS["top"]))
-    return save_figure(fig, out)
+    return base.save_figure(fig, out)

@@ -1,12 +1,8 @@
 """What every figure of the report shares: the figure and its files, colours, markers,
-legends, titles and axes.
-
-A figure function (in the modules beside this one) takes the rows it plots and an output
-*stem* (a path without suffix) and writes `<stem>.png` and `<stem>.svg`, atomically,
-returning both paths. Figures are built on `matplotlib.figure.Figure` with an Agg canvas,
-never through pyplot's global figure list, so rendering keeps no state between calls and
-needs no display.
-"""
+legends, titles and axes. A figure function (in the modules beside this one) takes the rows it
+plots and an output *stem* (a path without suffix) and writes `<stem>.png` and `<stem>.svg`,
+atomically, returning both paths. Figures are built on an Agg canvas, never through pyplot's
+global figure list, so rendering keeps no state between calls and needs no display."""
 
 from __future__ import annotations
 
@@ -14,7 +10,6 @@ import math
 import textwrap
 import zlib
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -27,7 +22,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter, NullLocator
 
-from harness.analysis.cells import INTERVAL_SUFFIXES, sort_cells
+from harness.analysis.cells import INTERVAL_SUFFIXES, series_keys, sort_cells
+from harness.analysis.display import series_label
 from harness.spec.facts import Variants
 from harness.store import atomic
 from harness.store.columns import INVALID, TIMED_STATUSES
@@ -100,16 +96,6 @@ def save_figure(fig: Figure, stem: Path) -> list[Path]:
 # --- shared drawing helpers ---------------------------------------------------------------
 
 
-@dataclass
-class Marks:
-    """Which special markers a figure drew, so its legend explains exactly those."""
-
-    oversubscribed: bool = False
-    invalid: bool = False
-    failed: bool = False
-    intervals: bool = False  # error bars were drawn
-
-
 # Where a plotted column's 95% interval lives: a cell's median has the bootstrap interval of
 # results.csv; a speedup-derived metric has the INTERVAL_SUFFIXES columns of
 # analysis.speedup.with_speedup.
@@ -145,27 +131,27 @@ def variant_color(variant: str, variants: Variants) -> str:
     return PALETTE[(len(families) + zlib.crc32(variant.encode()) % spare) % len(PALETTE)]
 
 
-def series_colors(groups: Sequence[tuple[tuple, pd.DataFrame]], keys: Sequence[str],
-                  variants: Variants) -> list:
-    """Series colors: by variant when series differ only by variant, else by position."""
-    if list(keys) == ["variant"]:
-        return [variant_color(str(values[0]), variants) for values, _ in groups]
-    return [PALETTE[i % len(PALETTE)] for i in range(len(groups))]
-
-
-def series_groups(df: pd.DataFrame, keys: Sequence[str],
-                  variants: Variants) -> list[tuple[tuple, pd.DataFrame]]:
-    """The rows split by `keys` in the tables' canonical order (variants in that of
-    `variants`), each with its key tuple."""
+def series_groups(df: pd.DataFrame, x: str, variants: Variants
+                  ) -> tuple[list[str], list[tuple[tuple, pd.DataFrame, str, str]]]:
+    """What tells the rows' series against `x` apart (analysis.cells.series_keys), and each
+    series' key values, rows, colour and label, in the tables' canonical order (variants in
+    that of `variants`): coloured by variant when series differ only by variant, else by
+    position."""
+    keys = series_keys(df, x)
     ordered = sort_cells(df, keys, variants)
-    if not keys:
-        return [((), ordered)] if len(ordered) else []
-    return [(values if isinstance(values, tuple) else (values,), group)
-            for values, group in ordered.groupby(list(keys), sort=False, dropna=False)]
+    if keys:
+        groups = [(values if isinstance(values, tuple) else (values,), group)
+                  for values, group in ordered.groupby(list(keys), sort=False, dropna=False)]
+    else:
+        groups = [((), ordered)] if len(ordered) else []
+    by_variant = list(keys) == ["variant"]
+    return keys, [(values, rows, variant_color(str(values[0]), variants) if by_variant
+                   else PALETTE[i % len(PALETTE)], series_label(values, keys))
+                  for i, (values, rows) in enumerate(groups)]
 
 
 def plot_series(
-    ax: Axes, rows: pd.DataFrame, x: str, y: str, color: str, label: str, marks: Marks
+    ax: Axes, rows: pd.DataFrame, x: str, y: str, color: str, label: str, marks: set[str]
 ) -> None:
     """One series as a line with markers: hollow where oversubscribed, crossed where invalid,
     and a triangle on the x axis where the cell produced no time (failed, crashed, timeout)."""
@@ -178,23 +164,24 @@ def plot_series(
     ax.plot(xs, ys, "-o", color=color, label=label, markevery=list(np.flatnonzero(~over)))
     bars = interval_errors(timed, y)
     if bars is not None:
-        marks.intervals = True
+        marks.add("intervals")
         ax.errorbar(xs, ys, yerr=bars, fmt="none", ecolor=color, elinewidth=1, capsize=3)
     if over.any():
-        marks.oversubscribed = True
+        marks.add("oversubscribed")
         ax.plot(xs[over], ys[over], "o", ls="none", mfc="white", mec=color, mew=1.5)
     if invalid.any():
-        marks.invalid = True
+        marks.add("invalid")
         ax.plot(xs[invalid], ys[invalid], "x", ls="none", color="black", ms=9, mew=2, zorder=5)
     failed = rows[~rows["status"].isin(TIMED_STATUSES)]
     if len(failed):
-        marks.failed = True
+        marks.add("failed")
         ax.plot(failed[x].to_numpy(dtype=float), np.full(len(failed), 0.03), "v", ls="none",
                 mfc=color, mec="red", mew=1.5, ms=8, transform=ax.get_xaxis_transform(),
                 clip_on=False)
 
 
-# What each special marker of Marks looks like in the legend, in the legend's order.
+# What each special marker looks like in the legend, in the legend's order: a figure's legend
+# explains those its series drew (the `marks` plot_series adds their names to).
 MARK_STYLES: dict[str, dict[str, object]] = {
     "oversubscribed": dict(marker="o", mfc="white", mec="gray", mew=1.5,
                            label="oversubscribed\n(threads > cores)"),
@@ -205,9 +192,9 @@ MARK_STYLES: dict[str, dict[str, object]] = {
 }
 
 
-def marker_handles(marks: Marks) -> list[Line2D]:
+def marker_handles(marks: set[str]) -> list[Line2D]:
     return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
-            for name, style in MARK_STYLES.items() if getattr(marks, name)]
+            for name, style in MARK_STYLES.items() if name in marks]
 
 
 def legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:

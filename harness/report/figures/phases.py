@@ -1,5 +1,7 @@
-"""Where the time goes: stacked bars of each shown cell's --timing phases, in seconds and as
-shares of the simulation time (the frame harness.analysis.phases.plot_frame draws)."""
+"""The bars of the cells' --timing runs: where the time goes, stacked bars of each shown
+cell's phases in seconds and as shares of the simulation time (the frame
+harness.analysis.phases.plot_frame draws); and the work per thread, busy seconds and pair tests
+of each thread per variant (the frame harness.analysis.strategies.work_table builds)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,8 @@ from matplotlib.patches import Patch
 
 from harness.analysis.display import OUTPUT_PHASE, PHASE_NAMES, format_share
 from harness.analysis.phases import BAR, GROUP, PERCENT, PHASES, SIM_PHASES
-from harness.report.figures.base import FIGSIZE, TITLE_CHARS, new_figure, save_figure
+from harness.report.figures import base
+from harness.spec.facts import Variants
 
 PHASE_COLORS: dict[str, str] = dict(zip(PHASES, (
     "#1f77b4",  # broad phase: the blue the eye reads first
@@ -29,7 +32,7 @@ FIG_WIDTH = 9.0
 BAR_IN = 0.3
 TITLE_IN = 0.4  # a line of the title
 TITLE_PAD_IN = 0.1
-TITLE_CHARS = int(TITLE_CHARS * FIG_WIDTH / FIGSIZE[0])  # a wider figure's line
+TITLE_CHARS = int(base.TITLE_CHARS * FIG_WIDTH / base.FIGSIZE[0])  # a wider figure's line
 LEGEND_IN = 0.5
 SCENE_TITLE_IN = 0.28
 TICKS_IN = 0.32
@@ -70,7 +73,7 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
     height = top_in + bars * BAR_IN + (len(groups) - 1) * gap + bottom_in
     widest = max(len(str(b)) for b in frame[BAR])
     left_in = min(max(widest * CHAR_IN + 0.25, LEFT_IN[0]), LEFT_IN[1])
-    fig, ax = new_figure(figsize=(FIG_WIDTH, height))
+    fig, ax = base.new_figure(figsize=(FIG_WIDTH, height))
     ax.remove()
     grid = fig.add_gridspec(
         len(groups), 2, height_ratios=[len(g) for g in groups], width_ratios=(3, 2),
@@ -114,4 +117,28 @@ def fig_phases(frame: pd.DataFrame, stem: Path, *, title: str) -> list[Path]:
                fontsize="small", bbox_to_anchor=(0.5, 1 - title_in / height),
                handlelength=1.2, columnspacing=1.0)
     fig.suptitle(heading, y=1 - TITLE_PAD_IN / height, va="top")
-    return save_figure(fig, stem)
+    return base.save_figure(fig, stem)
+
+
+def work_figure(work: pd.DataFrame, stem: Path, *, variants: Variants) -> list[Path]:
+    """Two panels of grouped bars: busy seconds and pair tests per thread, per variant (its
+    colour from `variants`, their facts)."""
+    fig, panels = base.new_figure(margins={"left": 0.1, "right": 0.98, "bottom": 0.12, "top": 0.8,
+                                      "wspace": 0.4}, ncols=2)
+    shown = list(dict.fromkeys(work["variant"]))
+    width = 0.8 / len(shown)
+    for panel, column, label in ((panels[0], "busy_s", "busy seconds in the pair finder"),
+                                 (panels[1], "pairs", "pair tests")):
+        for k, v in enumerate(shown):
+            rows = work[work["variant"] == v]
+            x = rows["thread"].to_numpy() + (k - (len(shown) - 1) / 2) * width
+            panel.bar(x, rows[column], width, color=base.variant_color(v, variants), label=v)
+        panel.set_xlabel("thread")
+        panel.set_ylabel(label)
+        panel.set_xticks(sorted(work["thread"].unique()))
+        panel.yaxis.set_major_formatter(lambda value, _pos: base.compact_number(value))
+    handles, labels = panels[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(shown), frameon=False,
+               bbox_to_anchor=(0.5, 0.92))
+    fig.suptitle("Work per thread: the seed's p1 (static blocks of rows) against its repairs")
+    return base.save_figure(fig, stem)

@@ -14,27 +14,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from harness.analysis.cells import series_keys
-from harness.analysis.display import series_label
 from harness.analysis.speedup import growth_exponents, single_threaded
-from harness.report.figures.base import (
-    TIME_LABEL,
-    Marks,
-    legend,
-    log_axis,
-    marker_handles,
-    new_figure,
-    plot_series,
-    positive_values,
-    save_figure,
-    series_colors,
-    series_groups,
-    set_title,
-    set_x_axis,
-    set_y_axis,
-    shade_oversubscribed,
-    wants_log,
-)
+from harness.report.figures import base
 from harness.spec.facts import Variants
 from harness.store.columns import OK, PEAK_RSS, TIMED_STATUSES
 
@@ -64,35 +45,33 @@ SWEEPS: dict[str, SweepAxis] = {
 def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
                 title: str | None = None) -> list[Path]:
     """Median wall time against the swept parameter `x` (a key of SWEEPS), one line per
-    series: the course report's Figures 3-6 (N, L, r, threads).
-
-    Against N (log-log) each series' label carries its fitted growth exponent and a dashed
-    guide shows N² (all pairs); against threads each series gets its ideal-scaling line
-    T(p0)·p0/p. `variants` (their facts) order and colour the series.
-    """
+    series ordered and coloured by `variants`. Against N (log-log) each label carries its
+    fitted growth exponent and a dashed guide shows N² (all pairs); against threads each
+    series gets its ideal-scaling line T(p0)·p0/p."""
     axis = SWEEPS[x]
-    keys = series_keys(df, x)
-    groups = series_groups(df, keys, variants)
-    colors = series_colors(groups, keys, variants)
+    keys, groups = base.series_groups(df, x, variants)
     exponents = growth_exponents(df, variants, x) if x == "n" else pd.DataFrame()
-    fig, ax = new_figure()
-    marks = Marks()
+    fig, ax = base.new_figure()
+    marks: set[str] = set()
     extra: list[Line2D] = []
-    for (values, rows), color in zip(groups, colors, strict=True):
-        label = series_label(values, keys)
+    for values, rows, color, label in groups:
         if x == "n":
             label += _exponent_suffix(exponents, keys, values)
-        plot_series(ax, rows, x, "wall_median_s", color, label, marks)
+        base.plot_series(ax, rows, x, "wall_median_s", color, label, marks)
         if x == "threads" and _draw_ideal_threads(ax, rows, color, variants):  # not for seq
             extra = [Line2D([], [], ls="--", color="gray", label="ideal T(p₀)·p₀/p")]
     if x == "n" and _draw_square_guide(ax, df):
         extra.append(Line2D([], [], ls="--", color="gray", lw=2, alpha=0.5, label="∝ N² guide"))
-    set_x_axis(ax, df[x], axis.label, axis.log_base, force_log=axis.force_log)
+    base.set_x_axis(ax, df[x], axis.label, axis.log_base, force_log=axis.force_log)
     if x == "threads":
-        shade_oversubscribed(ax, df)
+        base.shade_oversubscribed(ax, df)
     timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
-    return _finish(fig, ax, out, (timed, TIME_LABEL), axis.force_log, title or axis.title,
-                   [*extra, *marker_handles(marks)])
+    if axis.force_log and len(base.positive_values(timed)) > 1:
+        base.log_axis(ax, "y", timed)
+        ax.set_ylabel(base.TIME_LABEL)
+    else:
+        base.set_y_axis(ax, timed, base.TIME_LABEL)
+    return _finish(fig, ax, out, title or axis.title, [*extra, *base.marker_handles(marks)])
 
 
 def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "n",
@@ -102,35 +81,25 @@ def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "
     per series (variant, threads, ... as they vary)."""
     axis = SWEEPS[x]
     rows = df[df[PEAK_RSS].notna()] if PEAK_RSS in df.columns else df.iloc[:0]
-    keys = series_keys(rows, x)
-    groups = series_groups(rows, keys, variants)
-    fig, ax = new_figure()
-    marks = Marks()
-    for (values, group), color in zip(groups, series_colors(groups, keys, variants),
-                                      strict=True):
-        plot_series(ax, group, x, PEAK_RSS, color, series_label(values, keys), marks)
-    set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
+    fig, ax = base.new_figure()
+    marks: set[str] = set()
+    for _, group, color, label in base.series_groups(rows, x, variants)[1]:
+        base.plot_series(ax, group, x, PEAK_RSS, color, label, marks)
+    base.set_x_axis(ax, rows[x], axis.label, axis.log_base, force_log=True)
     # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
     # range on a log axis gets one labelled tick
-    return _finish(fig, ax, out, (rows[PEAK_RSS], MEMORY_LABEL), False,
-                   title or f"Peak memory against {axis.label}", marker_handles(marks))
+    base.set_y_axis(ax, rows[PEAK_RSS], MEMORY_LABEL)
+    return _finish(fig, ax, out, title or f"Peak memory against {axis.label}",
+                   base.marker_handles(marks))
 
 
-def _finish(fig: Figure, ax: Axes, out: Path, y: tuple[pd.Series, str], force_log: bool,
-            title: str, handles: Sequence[Line2D]) -> list[Path]:
-    """The y axis (log where `force_log` and the values differ, else as set_y_axis decides),
-    the title, the grid and the legend; the figure saved under `out`. `y`: the values on the
-    y axis and its label."""
-    values, ylabel = y
-    if force_log and len(positive_values(values)) > 1:
-        log_axis(ax, "y", values)
-        ax.set_ylabel(ylabel)
-    else:
-        set_y_axis(ax, values, ylabel)
-    set_title(ax, title)
+def _finish(fig: Figure, ax: Axes, out: Path, title: str, handles: Sequence[Line2D]
+            ) -> list[Path]:
+    """The title, the grid and the legend; the figure saved under `out`."""
+    base.set_title(ax, title)
     ax.grid(True, which="major", alpha=0.3)
-    legend(ax, handles)
-    return save_figure(fig, out)
+    base.legend(ax, handles)
+    return base.save_figure(fig, out)
 
 
 def _exponent_suffix(exponents: pd.DataFrame, keys: Sequence[str], values: tuple) -> str:
@@ -183,22 +152,16 @@ def _thread_metric_figure(
     """A per-series plot of a speedup-derived metric against threads, with its ideal line:
     the rows that have it, and those that produced no time (drawn on the axis)."""
     df = df[df[y].notna() | ~df["status"].isin(TIMED_STATUSES)]
-    keys = series_keys(df, "threads")
-    groups = series_groups(df, keys, variants)
-    colors = series_colors(groups, keys, variants)
-    fig, ax = new_figure()
-    marks = Marks()
-    for (values, rows), color in zip(groups, colors, strict=True):
-        plot_series(ax, rows, "threads", y, color, series_label(values, keys), marks)
+    fig, ax = base.new_figure()
+    marks: set[str] = set()
+    for _, rows, color, label in base.series_groups(df, "threads", variants)[1]:
+        base.plot_series(ax, rows, "threads", y, color, label, marks)
     ideal_label = ideal(ax)
-    set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
-    shade_oversubscribed(ax, df)
+    base.set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
+    base.shade_oversubscribed(ax, df)
     ax.set_ylabel(ylabel)
-    set_title(ax, title)
-    ax.grid(True, which="major", alpha=0.3)
     ideal_handle = Line2D([], [], ls="--", color="black", label=ideal_label)
-    legend(ax, [ideal_handle, *marker_handles(marks)])
-    return save_figure(fig, out)
+    return _finish(fig, ax, out, title, [ideal_handle, *base.marker_handles(marks)])
 
 
 def fig_speedup(df: pd.DataFrame, out: Path, *, variants: Variants,
@@ -208,8 +171,8 @@ def fig_speedup(df: pd.DataFrame, out: Path, *, variants: Variants,
     def ideal(ax: Axes) -> str:
         p = np.unique(df["threads"].to_numpy(dtype=float))
         ax.plot(p, p, "--", color="black", lw=1)
-        if wants_log(p):
-            log_axis(ax, "y", p, 2)
+        if base.wants_log(p):
+            base.log_axis(ax, "y", p, 2)
         return "ideal S = p"
 
     return _thread_metric_figure(df, "speedup", "speedup S = T(baseline) / T(p)",

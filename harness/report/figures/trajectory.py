@@ -8,7 +8,6 @@ from typing import IO
 import matplotlib as mpl
 import numpy as np
 import pandas as pd
-from matplotlib.axes import Axes
 from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
@@ -16,13 +15,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from PIL import Image, ImageDraw, ImageFont
 
-from harness.report.figures.base import (
-    MARGINS,
-    TRAJECTORY_MARGINS,
-    new_figure,
-    save_figure,
-    set_title,
-)
+from harness.report.figures import base
 from harness.store import atomic
 
 # Trajectory pictures.
@@ -48,22 +41,6 @@ def _trajectory_arrays(traj: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.n
     return ids[keep], xs.to_numpy()[keep], ys.to_numpy()[keep]
 
 
-def _segments(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2)."""
-    points = np.stack([x, y], axis=-1)
-    return np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
-
-
-def _draw_box(ax: Axes, box: float) -> None:
-    ax.add_patch(Rectangle((0, 0), box, box, fill=False, lw=1.5, color="black"))
-    pad = box * 0.02
-    ax.set_xlim(-pad, box + pad)
-    ax.set_ylim(-pad, box + pad)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [length units]")
-    ax.set_ylabel("y [length units]")
-
-
 def fig_trajectory(
     traj: pd.DataFrame, out: Path, *, box: float, title: str | None = None
 ) -> list[Path]:
@@ -76,28 +53,31 @@ def fig_trajectory(
     states = x.shape[1]
     norm = Normalize(vmin=float(ids.min()), vmax=float(max(ids.max(), ids.min() + 1)))
     cmap = mpl.colormaps[TRAJECTORY_CMAP]
-    fig, ax = new_figure(margins=TRAJECTORY_MARGINS)
+    fig, ax = base.new_figure(margins=base.TRAJECTORY_MARGINS)
     colors = cmap(norm(ids))
-    segments = LineCollection(
-        _segments(x, y), colors=np.repeat(colors, states - 1, axis=0), lw=1.0,
-        alpha=0.75,
-    )
-    ax.add_collection(segments)
+    # Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2).
+    points = np.stack([x, y], axis=-1)
+    segments = np.stack([points[:, :-1], points[:, 1:]], axis=2).reshape(-1, 2, 2)
+    ax.add_collection(LineCollection(segments, colors=np.repeat(colors, states - 1, axis=0),
+                                     lw=1.0, alpha=0.75))
     ax.scatter(x[:, 0], y[:, 0], s=10, facecolors="none", edgecolors=colors, lw=0.8)
     ax.scatter(x[:, -1], y[:, -1], s=18, c=colors, edgecolors="black", lw=0.4)
-    _draw_box(ax, box)
+    ax.add_patch(Rectangle((0, 0), box, box, fill=False, lw=1.5, color="black"))
+    pad = box * 0.02
+    ax.set_xlim(-pad, box + pad)
+    ax.set_ylim(-pad, box + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [length units]")
+    ax.set_ylabel("y [length units]")
     fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="particle index i")
-    set_title(ax, title or f"Trajectories over {states - 1} steps ({len(ids)} particles)")
-    fig.legend(
-        handles=[
-            Line2D([], [], ls="none", marker="o", mfc="none", mec="gray", label="start (s = 0)"),
-            Line2D([], [], ls="none", marker="o", mfc="gray", mec="black",
-                   label=f"end (s = {states - 1})"),
-            Line2D([], [], color="gray", label="one step"),
-        ],
-        fontsize="small", loc="upper left", bbox_to_anchor=(0.01, MARGINS["top"]),
-    )
-    return save_figure(fig, out)
+    base.set_title(ax, title or f"Trajectories over {states - 1} steps ({len(ids)} particles)")
+    handles = [Line2D([], [], ls="none", marker="o", mfc="none", mec="gray", label="start (s = 0)"),
+               Line2D([], [], ls="none", marker="o", mfc="gray", mec="black",
+                      label=f"end (s = {states - 1})"),
+               Line2D([], [], color="gray", label="one step")]
+    fig.legend(handles=handles, fontsize="small", loc="upper left",
+               bbox_to_anchor=(0.01, base.MARGINS["top"]))
+    return base.save_figure(fig, out)
 
 
 def gif_trajectory(traj: pd.DataFrame, out: Path, *, box: float) -> Path:

@@ -1,8 +1,8 @@
-"""One experiment's section: what its rows vary decides the parts it gets. Each part is one
-module here with a `build(ctx) -> list[Section]` that returns nothing where the rows do not
+"""One experiment's section: what its rows vary decides the parts it gets. Each part is a
+function `(ctx) -> list[Section]` in a module here that returns nothing where the rows do not
 support it; BESIDE and MAIN register them, in the order the report shows them after the cell
-table. A new part is a new module and one line below. A feature's sections (the builders of
-the harness.report.features given to the render) come first beside the cell table."""
+table. A feature's sections (the builders of the harness.report.parts.ReportFeature given to
+the render) come first beside the cell table."""
 
 from __future__ import annotations
 
@@ -14,25 +14,15 @@ from harness.analysis.flags import disturbed_text, earlier_config_text
 from harness.analysis.serving import measured_once
 from harness.report.cache import Manifest
 from harness.report.document import Paragraph, Section, slug
-from harness.report.load import Experiment
-from harness.report.sections import (
-    cells,
-    checks,
-    error,
-    phases,
-    ranks,
-    speedup,
-    strategies,
-    sweeps,
-    trajectory,
-)
-from harness.report.sections.context import Context
+from harness.report.sections import cells, checks, strategies, sweeps, trajectory
+from harness.report.sections.context import Context, Experiment
 
 # Parts beside the cell table (the strategy study, where the time goes): they do not count as
 # showing the experiment, so a lone cell still gets its table beside them.
-BESIDE = (strategies.build, phases.build)
+BESIDE = (strategies.build, strategies.build_phases)
 # The parts that show the experiment; the cell table, built last, knows whether any did.
-MAIN = (sweeps.build, speedup.build, ranks.build, error.build, trajectory.build, checks.build)
+MAIN = (sweeps.build, sweeps.build_speedup, sweeps.build_ranks, checks.build_error,
+        trajectory.build, checks.build)
 
 
 def experiment_section(exp: Experiment, figs: Manifest,

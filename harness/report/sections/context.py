@@ -1,26 +1,71 @@
-"""What every part of an experiment's section reads: the experiment, the figure manifest, and
-what its rows vary (decided once, from the rows); and how a part turns its tables and figures
-into blocks, named after the experiment."""
+"""What every part of an experiment's section reads: the experiment (one machine's rows of the
+read model, harness.analysis.results, with their ratios paired by round and divergence
+curves, and the print-mode outputs it kept), the figure manifest, and what its rows vary
+(decided once, from the rows); and how a part turns its tables and figures into blocks, named
+after the experiment."""
 
 from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from harness.analysis import results
 from harness.analysis.accuracy import has_check_data
-from harness.analysis.cells import CELL_KEYS, sweep_axes, varying_keys
+from harness.analysis.cells import CELL_KEYS, MACHINE, sweep_axes, varying_keys
 from harness.analysis.display import display_columns, format_table, is_numeric_column
 from harness.analysis.flags import provenance
+from harness.analysis.paired import paired
+from harness.analysis.serving import serving
 from harness.report.cache import Manifest
 from harness.report.document import Block, Figure, Section, Table, slug
-from harness.report.load import Experiment
-from harness.spec.facts import Variants
+from harness.report.machines import UNKNOWN_ID
+from harness.spec.facts import BASELINE, Variants
 from harness.store.columns import TIMED_STATUSES
+from harness.store.layout import ExperimentDir
+from harness.store.records import MACHINE_KEY
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """One results/<name>/ directory: its cells and its title."""
+
+    name: str
+    directory: ExperimentDir
+    title: str
+    frame: pd.DataFrame
+    divergence: pd.DataFrame | None = None  # the checks' divergence curves, where some cell has
+    ratios: pd.DataFrame | None = None  # its cells' ratios paired by round, where there are
+    variants: Variants = field(default_factory=Variants)  # facts of the variants it measured
+
+
+def load_experiment(found: ExperimentDir | results.Experiment, machine: str | None = None,
+                    label: str = "") -> Experiment:
+    """One experiment read and checked (HarnessError naming what is wrong); with `machine`
+    (an id), only that machine's cells, which go by `label` where given; a serial variant's
+    cell at each thread count it serves (harness.analysis.serving)."""
+    loaded = found if isinstance(found, results.Experiment) else results.load_experiment(found)
+    frame = loaded.frame
+    ratios = paired(loaded.ratios(BASELINE))
+    if machine is not None:
+        frame, ratios = _of_machine(frame, machine), _of_machine(ratios, machine)
+        if label and frame is not None:
+            frame[MACHINE] = label
+    frame = serving(frame, loaded.variants)  # which variants are serial, their facts say
+    return Experiment(loaded.name, loaded.directory, loaded.title, frame, loaded.divergence,
+                      ratios, loaded.variants)
+
+
+def _of_machine(frame: pd.DataFrame | None, machine: str) -> pd.DataFrame | None:
+    """The rows measured on the machine (an id; UNKNOWN_ID for rows without one)."""
+    if frame is None or MACHINE_KEY not in frame.columns:
+        return frame
+    ids = frame[MACHINE_KEY].fillna("").astype(str).str.strip()
+    return frame[ids.replace("", UNKNOWN_ID) == machine].reset_index(drop=True)
 
 
 def table_block(table: pd.DataFrame, caption: str, source: pd.DataFrame | None = None,

@@ -1,15 +1,19 @@
-"""Beside Table 2: the seed's published times against ours with whether the ranking agrees,
-the work of each thread (the seed's p1 against its repairs), the cost of a chunk dispatched by
-a dynamic schedule, and the schedule study. harness.analysis.strategies computes every number
-and sentence; this module only lays them out, and only where the data has them.
+"""The parts beside the cell table. Beside Table 2: the seed's published times against ours
+with whether the ranking agrees, the work of each thread (the seed's p1 against its repairs),
+the cost of a chunk dispatched by a dynamic schedule, and the schedule study
+(harness.analysis.strategies computes every number and sentence). And where the time goes: a
+figure and a table of every shown cell's --timing run split into its phases
+(harness.analysis.phases), for an experiment whose cells have the phase columns. This module
+only lays them out, and only where the data has them.
 """
 
 from __future__ import annotations
 
-from harness.analysis import overhead
+from harness.analysis import overhead, phases
 from harness.analysis import strategies as study
-from harness.report.document import Paragraph, Section
-from harness.report.figures.strategies import work_figure
+from harness.analysis.display import threads_text
+from harness.report.document import Block, Paragraph, Section
+from harness.report.figures.phases import fig_phases, work_figure
 from harness.report.sections.context import Context, table_block
 
 SEED_INTRO = (
@@ -120,3 +124,59 @@ def _overhead(ctx: Context) -> list[Section]:
                     "(medians).", source=df),
         *(Paragraph(s) for s in overhead.overhead_sentences(table, df, ctx.variants)),
     ))]
+
+
+PHASES_ANCHOR = "phases"
+PHASES_INTRO = (
+    "Each cell's `--timing` run (one run beside hyperfine's timed runs) splits its simulation "
+    "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
+    "pair finder with its pair tests: all pairs, or the grid's cells), **wall candidates**, "
+    "merging and **sorting** the candidates, the greedy **resolution** walk, **motion** of the "
+    "discs, and **other**, what `sim_s` holds beyond them (the parallel regions' start-ups "
+    "and closing barriers, the step's bookkeeping). The parallel variants differ only in "
+    "the broad phase; the rest is the shared core's. That run also writes the **output**, "
+    "with `--precise` (every digit, for the validation), some 20 times slower than the "
+    "timed runs' output: it is drawn hatched after the simulation and is left out of the "
+    "shares. Reading the input and starting the process are not counted."
+)
+
+
+def _left_out(sel: phases.Selection) -> str:
+    notes = []
+    if sel.other_threads:
+        notes.append(f"{sel.other_threads} cell(s) at other thread counts are not shown")
+    if sel.scenes_left_out:
+        notes.append(f"{sel.scenes_left_out} more scene(s), those with the least simulation "
+                     f"time, are left out (at most {phases.MAX_BARS} bars)")
+    if sel.without_phases:
+        notes.append(f"{sel.without_phases} timed cell(s) have no phases (a program, or a "
+                     "binary without phase timers)")
+    return "; ".join(notes) + "." if notes else ""
+
+
+def build_phases(ctx: Context) -> list[Section]:
+    sel = phases.select(ctx.exp.frame, ctx.variants)
+    if sel is None:
+        return []
+    frame = phases.plot_frame(sel)
+    rule = (f"at {threads_text(sel.threads)}, the thread count most of the experiment's "
+            "cells with phases ran at (the fewest on a tie)")
+    caption = (
+        f"Phases of each cell's `--timing` run {rule}. Left: seconds, stacked, the output "
+        "hatched after the simulation, the simulation time written at the bar's end"
+        + ("; each scene has its own scale" if frame[phases.GROUP].nunique() > 1 else "")
+        + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
+    )
+    blocks: list[Block] = [
+        Paragraph(PHASES_INTRO),
+        ctx.figure(fig_phases, frame, "phases", caption,
+                   title=f"{ctx.exp.title}: where the time goes"),
+        table_block(phases.phase_table(sel), "Seconds per phase of the cells in the figure, "
+                    "each with its share of the simulation time in parentheses; then the "
+                    "simulation outside the broad phase per particle and step, and the "
+                    "`--precise` output.", source=sel.cells),
+    ]
+    left_out = _left_out(sel)
+    if left_out:
+        blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
+    return [ctx.section("Where the time goes", PHASES_ANCHOR, blocks)]

@@ -3,18 +3,38 @@ Figure 7), and the run animated."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 
 from harness.analysis.cells import sort_cells
 from harness.analysis.display import format_value
+from harness.errors import HarnessError
 from harness.report.document import Block, Paragraph, Section
 from harness.report.figures.trajectory import fig_trajectory, gif_trajectory
-from harness.report.load import Experiment, read_trajectory
-from harness.report.sections.context import Context
+from harness.report.sections.context import Context, Experiment
+from harness.spec.output import OutputFormatError, parse_output, states_by_step
 from harness.store.columns import OK
 
 MAX_TRAJECTORY_BYTES = 64 * 1024 * 1024  # larger print-mode outputs are not plotted
 PRINT_MODE = "print"
+
+
+def read_trajectory(path: Path) -> pd.DataFrame:
+    """A print-mode output (SPEC section 3) as rows step, particle, x, y: the states
+    s = 0..S-1 and the final block at S."""
+    try:
+        output = parse_output(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as e:
+        raise HarnessError(f"{path}: cannot read output: {e}") from e
+    except OutputFormatError as e:
+        raise HarnessError(f"{path}: not a print-mode output (SPEC section 3): {e}") from None
+    steps, particles, positions = states_by_step(output)
+    traj = pd.DataFrame({"step": steps, "particle": particles,
+                         "x": positions[:, 0], "y": positions[:, 1]})
+    if traj.duplicated(["step", "particle"]).any():
+        raise HarnessError(f"{path}: a particle appears twice in one step")
+    return traj
 
 
 def trajectory_cell(exp: Experiment) -> pd.Series | None:
