@@ -21,6 +21,7 @@ import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 from harness import stats
 from harness.errors import StorageError
@@ -138,7 +139,6 @@ def export_fault(stderr: str, export: Path) -> None:
 
 
 PARTIAL_VERSION = 3  # a line after the first holds only the fields that changed
-RECORD_FIELD = "record."  # how a record's field is named among the fields a save compares
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
 GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
            "round_pressure")
@@ -176,8 +176,8 @@ class CellRun:
     capacity_s: float = 0.0  # the cores' seconds over its rounds
     retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
-    # and the JSON text of every other field
-    saved: tuple[Path, dict[str, int], dict[str, str]] | None = field(
+    # and the JSON text of every other field (harness.measure.rounds._texts)
+    saved: tuple[Path, dict[str, int], tuple[dict[str, str], dict[str, str]]] | None = field(
         default=None, init=False, repr=False, compare=False)
 
     @property
@@ -234,30 +234,23 @@ class CellRun:
         (appended; nothing where nothing did), or, where it was not (a new file, another
         run's, one whose last save was cut short), the whole state, written atomically."""
         state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
-        state["record"] = self.record.to_json()
-        fixed = _texts(state)
+        record = state["record"] = self.record.to_json()
+        texts = _texts(state)
         if self.saved is not None and self.saved[0] == path and path.is_file():
             lengths, before = self.saved[1], self.saved[2]
             line = {name: state[name][lengths[name]:] for name in GROWING
                     if len(state[name]) > lengths[name]}
-            record: dict[str, object] = {}
-            for name in sorted(fixed.keys() | before.keys()):
-                if fixed.get(name) == before.get(name):
-                    continue
-                if name.startswith(RECORD_FIELD):  # a record's field, None where it is gone
-                    record[name[len(RECORD_FIELD):]] = state["record"].get(
-                        name[len(RECORD_FIELD):])
-                else:
-                    line[name] = state[name]
-            if record:
-                line["record"] = record
+            line |= _changed(state, texts[0], before[0])
+            changed = _changed(record, texts[1], before[1])  # a field gone: None
+            if changed:
+                line["record"] = changed
             if line:
                 with atomic.writing(path), path.open("a", encoding="utf-8") as handle:
                     handle.write(json.dumps(line, sort_keys=True, default=str) + "\n")
         else:
             atomic.atomic_write_text(path, json.dumps({"version": PARTIAL_VERSION, **state},
                                                       sort_keys=True, default=str) + "\n")
-        self.saved = (path, {name: len(state[name]) for name in GROWING}, fixed)
+        self.saved = (path, {name: len(state[name]) for name in GROWING}, texts)
 
     @classmethod
     def load(cls, path: Path, key: dict[str, object]) -> CellRun | None:
@@ -294,18 +287,19 @@ class CellRun:
         return run
 
 
-def _texts(state: dict[str, object]) -> dict[str, str]:
-    """The JSON text of each field of a partial state that is not a GROWING list, and of each
-    field of its record (named RECORD_FIELD + name): a save writes again only those that
-    changed."""
-    texts = {}
-    for name, value in state.items():
-        if name == "record" and isinstance(value, dict):
-            texts.update({RECORD_FIELD + k: json.dumps(v, sort_keys=True, default=str)
-                          for k, v in value.items()})
-        elif name not in GROWING:
-            texts[name] = json.dumps(value, sort_keys=True, default=str)
-    return texts
+def _texts(state: Mapping[str, Any]) -> tuple[dict[str, str], dict[str, str]]:
+    """The JSON text of each field of a partial state but its record and the GROWING lists,
+    and of each field of its record: a save writes again only those that changed."""
+    fixed = {k: v for k, v in state.items() if k not in GROWING and k != "record"}
+    texts = [{k: json.dumps(v, sort_keys=True, default=str) for k, v in values.items()}
+             for values in (fixed, state["record"])]
+    return texts[0], texts[1]
+
+
+def _changed(values: Mapping[str, object], texts: Mapping[str, str],
+             before: Mapping[str, str]) -> dict[str, object]:
+    return {k: values.get(k) for k in texts.keys() | before.keys()
+            if texts.get(k) != before.get(k)}
 
 
 def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
