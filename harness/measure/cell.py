@@ -151,9 +151,8 @@ class Measurer:
             precise, output = run_process(argv, env, measure.timeout_s, memory=True), ""
         status, exit_code = exit_status(precise.returncode)
         timing = parse_timing(precise.stderr) or {}
-        phases, counts, work = precise_timing(timing)
-        record = record.replace(phases=phases, counts=counts, thread_work=work,
-                                stderr_tail=tail(precise.stderr), peak_rss_mib=peak_mib(precise))
+        record = record.replace(**precise_timing(timing), stderr_tail=tail(precise.stderr),
+                                peak_rss_mib=peak_mib(precise))
         if place is not None:
             record = record.replace(mpi=mpi.timing_fields(timing, place))
         if status != OK:

@@ -28,18 +28,8 @@ from harness.errors import StorageError
 from harness.measure import machine, noise
 from harness.measure.proc import ProcessResult, failure, run_process, tail
 from harness.spec.config import Measure
-from harness.store import atomic
-from harness.store.columns import (
-    CRASHED,
-    FAILED,
-    OK,
-    STOPPED_CI,
-    STOPPED_MAX_RUNS,
-    STOPPED_MAX_TIME,
-    STOPPED_RUNS,
-    TIMED_STATUSES,
-    TIMEOUT,
-)
+from harness.store import atomic, columns
+from harness.store.columns import CRASHED, FAILED, OK, TIMED_STATUSES, TIMEOUT
 from harness.store.hyperfine import HyperfineStats, ResultFormatError, is_unstable, load_hyperfine
 from harness.store.measured import Noise, TimedRun
 from harness.store.result import CellResult
@@ -337,20 +327,20 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
     """Why a cell with these runs (in these rounds) needs no more ("" while it does): an
     adaptive cell stops on its interval from its first runs and stats.MIN_ROUNDS rounds on."""
     if not measure.adaptive:
-        return STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
+        return columns.STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
     taken = _rounds_of(times, rounds, per_round)
     if (len(times) >= measure.first_runs * per_round and len(set(taken)) >= stats.MIN_ROUNDS
             and narrow(times, measure.ci, taken)):
-        return STOPPED_CI
+        return columns.STOPPED_CI
     return limit_reason(measure, times, per_round)
 
 
 def limit_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
     """The limit an adaptive cell with these runs reached ("" while none)."""
     if len(times) >= measure.max_runs * per_round:
-        return STOPPED_MAX_RUNS
+        return columns.STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:
-        return STOPPED_MAX_TIME
+        return columns.STOPPED_MAX_TIME
     return ""
 
 
