@@ -34,28 +34,19 @@ UNNAMED_TEMP_AGE_S = 3600.0
 PROBE_BYTES = 1 << 20
 
 
-def temp_path(path: Path) -> Path:
-    """A fresh empty file beside `path`, named by this process, to be os.replace'd onto it."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=TEMP_SUFFIX,
-                                   prefix=f".{path.name}.{os.getpid()}@{HOST}.")
-    except OSError as exc:
-        raise storage_error(path, exc) from None
-    os.close(fd)
-    return Path(tmp)
-
-
 @contextlib.contextmanager
 def temporary(path: Path) -> Iterator[Path]:
-    """temp_path(path) for the body; removed after it, whatever happens, unless moved."""
-    tmp: Path | None = None
+    """A fresh empty file beside `path`, named by this process, for the body to fill and
+    os.replace onto `path`; removed after it, whatever happens, unless moved."""
+    with writing(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(dir=path.parent, suffix=TEMP_SUFFIX,
+                                    prefix=f".{path.name}.{os.getpid()}@{HOST}.")
+    os.close(fd)
     try:
-        tmp = temp_path(path)
-        yield tmp
+        yield Path(name)
     finally:
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
+        Path(name).unlink(missing_ok=True)
 
 
 @contextlib.contextmanager
