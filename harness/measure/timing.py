@@ -56,8 +56,7 @@ def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
 
 
 def precise(timing: Mapping[str, object]) -> dict[str, typing.Any]:
-    """The record's groups a --timing object fills: the phases, counts and per-thread work
-    (None for what it lacks)."""
+    """The phases, counts and per-thread work of a --timing object (None for what it lacks)."""
     work = {k: tuple(v) if isinstance(v, list) else v for k, v in thread_work(timing).items()}
     return {"phases": Phases(**numbers(timing, Phases)),
             "counts": Counts(**numbers(timing, Counts, int)), "thread_work": ThreadWork(**work)}
@@ -69,8 +68,7 @@ def _number(value: object, kind: type | tuple[type, ...] = (int, float)) -> bool
 
 def numbers(timing: Mapping[str, object], group: type, kind: type | tuple[type, ...] = (int, float)
             ) -> dict[str, typing.Any]:
-    """The fields of the record's `group` as the --timing object gives them: numbers of
-    `kind`, else None."""
+    """The fields of the record's `group` the --timing object gives as numbers of `kind`."""
     return {f.name: timing.get(f.name) if _number(timing.get(f.name), kind) else None
             for f in fields(group)}
 
