@@ -126,17 +126,14 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
     except OutputFormatError:
         return _incomparable(ref.final.n, 0)
     a, b = ref.final, cand.final
-    if a.step != b.step or not np.array_equal(a.index, b.index):
-        return _incomparable(a.n, b.n, identical)
-    pos = max_distance(a.position, b.position)
-    vel = max_distance(a.velocity, b.velocity)
     same_rows = ref.history.shape == cand.history.shape and np.array_equal(
         ref.history[:, :2], cand.history[:, :2])
-    if not same_rows:
+    if a.step != b.step or not np.array_equal(a.index, b.index) or not same_rows:
         return _incomparable(a.n, b.n, identical)
-    if len(ref.history):
-        pos = max(pos, max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
-        vel = max(vel, max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
+    pos = max(max_distance(a.position, b.position),
+              max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
+    vel = max(max_distance(a.velocity, b.velocity),
+              max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
     mismatches = int(np.count_nonzero((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
     return Comparison(identical, True, a.n, b.n, pos / L, vel / L, mismatches)
 
