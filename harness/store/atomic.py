@@ -81,13 +81,9 @@ def check_room(path: Path, what: str) -> None:
     """Raise a StorageError when the file `path`, which a child process was given to write and
     did not finish, can take no more (PROBE_BYTES appended to it are refused): then the place
     failed, not the child. The file is cut back to its size; one that is gone tells nothing."""
+    fd = None
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-    except FileNotFoundError:
-        return
-    except OSError as exc:
-        raise StorageError(f"{path.parent}: cannot write {what}: {exc.strerror}") from None
-    try:
         size = os.fstat(fd).st_size
         left = PROBE_BYTES
         try:
@@ -99,10 +95,13 @@ def check_room(path: Path, what: str) -> None:
         finally:
             with contextlib.suppress(OSError):
                 os.ftruncate(fd, size)
+    except FileNotFoundError:  # only where it opens
+        return
     except OSError as exc:
         raise StorageError(f"{path.parent}: cannot write {what}: {exc.strerror}") from None
     finally:
-        os.close(fd)
+        if fd is not None:
+            os.close(fd)
 
 
 def sweep(directories: Iterable[Path]) -> list[Path]:
