@@ -78,10 +78,8 @@ class References:
     def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
               scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
         """The output kept in memory or at `path`, else run now (with the run) and kept."""
-        if key not in kept:
-            text = self._read(path)
-            if text is not None:
-                kept[key] = text
+        if key not in kept and (text := self._read(path)) is not None:
+            kept[key] = text
         if key in kept:
             return None, kept[key]
         done, kept[key] = self._run(binary, scene, threads, path)
