@@ -231,7 +231,7 @@ class CellRun:
             line = {name: state[name][lengths[name]:] for name in GROWING
                     if len(state[name]) > lengths[name]}
             line |= _changed(state, texts[0], before[0])
-            changed = _changed(record, texts[1], before[1])  # a field gone: None
+            changed = _changed(record, texts[1], before[1])
             if changed:
                 line["record"] = changed
             if line:
@@ -288,6 +288,7 @@ def _texts(state: Mapping[str, Any]) -> tuple[dict[str, str], dict[str, str]]:
 
 def _changed(values: Mapping[str, object], texts: Mapping[str, str],
              before: Mapping[str, str]) -> dict[str, object]:
+    """The values whose JSON text is not the one `before` (None where a value is gone)."""
     return {k: values.get(k) for k in texts.keys() | before.keys()
             if texts.get(k) != before.get(k)}
 
