@@ -251,10 +251,8 @@ class CellRun:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError):
             return None
-        lines = text.splitlines()
+        lines = text.split("\n")[:-1]  # a last line with no newline was cut short
         whole = text.endswith("\n")
-        if not whole:
-            lines = lines[:-1]
         try:
             first = json.loads(lines[0]) if lines else None
             if not isinstance(first, dict) or first.pop("version", None) != PARTIAL_VERSION:
