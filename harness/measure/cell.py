@@ -150,9 +150,8 @@ class Measurer:
             precise, output = run_process(argv, env, measure.timeout_s, memory=True), ""
         status, exit_code = exit_status(precise.returncode)
         timing = parse_timing(precise.stderr) or {}
-        phases, counts, work = precise_timing(timing)
-        record = record.replace(phases=phases, counts=counts, thread_work=work,
-                                stderr_tail=tail(precise.stderr), peak_rss_mib=peak_mib(precise))
+        record = record.replace(**precise_timing(timing), stderr_tail=tail(precise.stderr),
+                                peak_rss_mib=peak_mib(precise))
         if place is not None:
             record = record.replace(mpi=mpi.timing_fields(timing, place))
         if status != OK:
@@ -204,17 +203,17 @@ class Measurer:
         export = self.store.layout.hyperfine(run.cell_id, round_index)
         env = self.environment(subject.threads, subject.schedule or "",
                                subject.ranks is not None)
-        warmup = measure.warmup if not run.exports else 0
-        timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
-                          measure.timeout_s, self.cores)
+        take = functools.partial(time_runs, self.hyperfine, run.command, env, export, runs,
+                                 measure.warmup if not run.exports else 0, measure.timeout_s,
+                                 self.cores)
+        timed = take()
         while (timed.noise is not None and timed.noise.disturbed and self.quiet is not None
                and run.retaken < MAX_RETAKES and self.quiet.wait(machine.round_cores())):
             # kept beside the cell's exports, under a name no reader takes for a round's
             os.replace(export, self.store.layout.disturbed(run.cell_id, round_index,
                                                            run.retaken))
             run.retaken += 1
-            timed = time_runs(self.hyperfine, run.command, env, export, runs, warmup,
-                              measure.timeout_s, self.cores)
+            timed = take()
         run.add(timed, round_index, export)
         if timed.stats is not None and timed.noise is not None:
             self.round_noise.append(timed.noise.share)

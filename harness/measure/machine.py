@@ -123,9 +123,7 @@ def print_flags(repo_root: Path, make: str = "make") -> str | None:
 @functools.cache
 def native_march(compiler: str) -> str | None:
     """What `-march=native` resolves to for this compiler on this CPU (e.g. znver3)."""
-    text = command_output([compiler, "-march=native", "-Q", "--help=target"])
-    if text is None:
-        return None
+    text = command_output([compiler, "-march=native", "-Q", "--help=target"]) or ""
     match = re.search(r"^\s*-march=\s+(\S+)", text, re.MULTILINE)
     return match.group(1) if match else None
 

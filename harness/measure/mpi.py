@@ -8,9 +8,10 @@ from __future__ import annotations
 import os
 import shutil
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, replace
 
 from harness.errors import HarnessError
+from harness.measure.timing import numbers
 from harness.spec.facts import MPI_INSTALL
 from harness.store.measured import Ranks
 
@@ -79,8 +80,6 @@ def environment(given: Mapping[str, str], oversubscribe: bool) -> dict[str, str]
 
 def timing_fields(timing: Mapping[str, object], place: Placement) -> Ranks:
     """The record's MPI group: the placement and the --timing figures."""
-    numbers = {f.name: timing.get(f.name) for f in fields(Ranks)
-               if f.name not in ("ranks_oversubscribed", "ranks_binding")}
-    return Ranks(ranks_oversubscribed=place.oversubscribed, ranks_binding=place.binding,
-                 **{k: float(v) if isinstance(v, int | float) and not isinstance(v, bool)
-                    else None for k, v in numbers.items()})
+    figures = {k: None if v is None else float(v) for k, v in numbers(timing, Ranks).items()}
+    return replace(Ranks(**figures), ranks_oversubscribed=place.oversubscribed,
+                   ranks_binding=place.binding)

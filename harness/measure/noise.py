@@ -47,9 +47,7 @@ def cpu_ticks(cores: Sequence[int], text: str | None = None) -> tuple[int, int] 
 def cpu_pressure_s(text: str | None = None) -> float | None:
     """The seconds so far during which some task waited for a CPU (None: not given)."""
     text = read_text(CPU_PRESSURE) if text is None else text
-    if text is None:
-        return None
-    found = re.search(r"^\s*some\s(?:.*\s)?total=(\d+)(?:\s|$)", text, re.MULTILINE)
+    found = re.search(r"^\s*some\s(?:.*\s)?total=(\d+)(?:\s|$)", text or "", re.MULTILINE)
     return int(found[1]) / 1e6 if found else None
 
 

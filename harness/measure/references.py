@@ -78,10 +78,8 @@ class References:
     def _kept(self, kept: dict[str, str | None], key: str, path: Path, binary: Path,
               scene: scenes.ScenePoint, threads: int) -> tuple[ProcessResult | None, str | None]:
         """The output kept in memory or at `path`, else run now (with the run) and kept."""
-        if key not in kept:
-            text = self._read(path)
-            if text is not None:
-                kept[key] = text
+        if key not in kept and (text := self._read(path)) is not None:
+            kept[key] = text
         if key in kept:
             return None, kept[key]
         done, kept[key] = self._run(binary, scene, threads, path)
@@ -126,17 +124,14 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
     except OutputFormatError:
         return _incomparable(ref.final.n, 0)
     a, b = ref.final, cand.final
-    if a.step != b.step or not np.array_equal(a.index, b.index):
-        return _incomparable(a.n, b.n, identical)
-    pos = max_distance(a.position, b.position)
-    vel = max_distance(a.velocity, b.velocity)
     same_rows = ref.history.shape == cand.history.shape and np.array_equal(
         ref.history[:, :2], cand.history[:, :2])
-    if not same_rows:
+    if a.step != b.step or not np.array_equal(a.index, b.index) or not same_rows:
         return _incomparable(a.n, b.n, identical)
-    if len(ref.history):
-        pos = max(pos, max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
-        vel = max(vel, max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
+    pos = max(max_distance(a.position, b.position),
+              max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
+    vel = max(max_distance(a.velocity, b.velocity),
+              max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
     mismatches = int(np.count_nonzero((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
     return Comparison(identical, True, a.n, b.n, pos / L, vel / L, mismatches)
 

@@ -21,24 +21,15 @@ import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 from harness import stats
 from harness.errors import StorageError
 from harness.measure import machine, noise
 from harness.measure.proc import ProcessResult, failure, run_process, tail
 from harness.spec.config import Measure
-from harness.store import atomic
-from harness.store.columns import (
-    CRASHED,
-    FAILED,
-    OK,
-    STOPPED_CI,
-    STOPPED_MAX_RUNS,
-    STOPPED_MAX_TIME,
-    STOPPED_RUNS,
-    TIMED_STATUSES,
-    TIMEOUT,
-)
+from harness.store import atomic, columns
+from harness.store.columns import CRASHED, FAILED, OK, TIMED_STATUSES, TIMEOUT
 from harness.store.hyperfine import HyperfineStats, ResultFormatError, is_unstable, load_hyperfine
 from harness.store.measured import Noise, TimedRun
 from harness.store.result import CellResult
@@ -138,7 +129,6 @@ def export_fault(stderr: str, export: Path) -> None:
 
 
 PARTIAL_VERSION = 3  # a line after the first holds only the fields that changed
-RECORD_FIELD = "record."  # how a record's field is named among the fields a save compares
 # CellRun's lists that its rounds only append to: a partial file's later lines add to them.
 GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "round_noise",
            "round_pressure")
@@ -176,8 +166,8 @@ class CellRun:
     capacity_s: float = 0.0  # the cores' seconds over its rounds
     retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
-    # and the JSON text of every other field
-    saved: tuple[Path, dict[str, int], dict[str, str]] | None = field(
+    # and the JSON text of every other field (harness.measure.rounds._texts)
+    saved: tuple[Path, dict[str, int], tuple[dict[str, str], dict[str, str]]] | None = field(
         default=None, init=False, repr=False, compare=False)
 
     @property
@@ -234,30 +224,23 @@ class CellRun:
         (appended; nothing where nothing did), or, where it was not (a new file, another
         run's, one whose last save was cut short), the whole state, written atomically."""
         state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
-        state["record"] = self.record.to_json()
-        fixed = _texts(state)
+        record = state["record"] = self.record.to_json()
+        texts = _texts(state)
         if self.saved is not None and self.saved[0] == path and path.is_file():
             lengths, before = self.saved[1], self.saved[2]
             line = {name: state[name][lengths[name]:] for name in GROWING
                     if len(state[name]) > lengths[name]}
-            record: dict[str, object] = {}
-            for name in sorted(fixed.keys() | before.keys()):
-                if fixed.get(name) == before.get(name):
-                    continue
-                if name.startswith(RECORD_FIELD):  # a record's field, None where it is gone
-                    record[name[len(RECORD_FIELD):]] = state["record"].get(
-                        name[len(RECORD_FIELD):])
-                else:
-                    line[name] = state[name]
-            if record:
-                line["record"] = record
+            line |= _changed(state, texts[0], before[0])
+            changed = _changed(record, texts[1], before[1])
+            if changed:
+                line["record"] = changed
             if line:
                 with atomic.writing(path), path.open("a", encoding="utf-8") as handle:
                     handle.write(json.dumps(line, sort_keys=True, default=str) + "\n")
         else:
             atomic.atomic_write_text(path, json.dumps({"version": PARTIAL_VERSION, **state},
                                                       sort_keys=True, default=str) + "\n")
-        self.saved = (path, {name: len(state[name]) for name in GROWING}, fixed)
+        self.saved = (path, {name: len(state[name]) for name in GROWING}, texts)
 
     @classmethod
     def load(cls, path: Path, key: dict[str, object]) -> CellRun | None:
@@ -268,10 +251,8 @@ class CellRun:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError):
             return None
-        lines = text.splitlines()
+        lines = text.split("\n")[:-1]  # a last line with no newline was cut short
         whole = text.endswith("\n")
-        if not whole:
-            lines = lines[:-1]
         try:
             first = json.loads(lines[0]) if lines else None
             if not isinstance(first, dict) or first.pop("version", None) != PARTIAL_VERSION:
@@ -294,18 +275,20 @@ class CellRun:
         return run
 
 
-def _texts(state: dict[str, object]) -> dict[str, str]:
-    """The JSON text of each field of a partial state that is not a GROWING list, and of each
-    field of its record (named RECORD_FIELD + name): a save writes again only those that
-    changed."""
-    texts = {}
-    for name, value in state.items():
-        if name == "record" and isinstance(value, dict):
-            texts.update({RECORD_FIELD + k: json.dumps(v, sort_keys=True, default=str)
-                          for k, v in value.items()})
-        elif name not in GROWING:
-            texts[name] = json.dumps(value, sort_keys=True, default=str)
-    return texts
+def _texts(state: Mapping[str, Any]) -> tuple[dict[str, str], dict[str, str]]:
+    """The JSON text of each field of a partial state but its record and the GROWING lists,
+    and of each field of its record: a save writes again only those that changed."""
+    fixed = {k: v for k, v in state.items() if k not in GROWING and k != "record"}
+    texts = [{k: json.dumps(v, sort_keys=True, default=str) for k, v in values.items()}
+             for values in (fixed, state["record"])]
+    return texts[0], texts[1]
+
+
+def _changed(values: Mapping[str, object], texts: Mapping[str, str],
+             before: Mapping[str, str]) -> dict[str, object]:
+    """The values whose JSON text is not the one `before` (None where a value is gone)."""
+    return {k: values.get(k) for k in texts.keys() | before.keys()
+            if texts.get(k) != before.get(k)}
 
 
 def runs_left(measure: Measure, run: CellRun) -> tuple[float, float]:
@@ -343,20 +326,20 @@ def stop_reason(measure: Measure, times: Sequence[float], per_round: int = 1,
     """Why a cell with these runs (in these rounds) needs no more ("" while it does): an
     adaptive cell stops on its interval from its first runs and stats.MIN_ROUNDS rounds on."""
     if not measure.adaptive:
-        return STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
+        return columns.STOPPED_RUNS if len(times) >= measure.most_runs * per_round else ""
     taken = _rounds_of(times, rounds, per_round)
     if (len(times) >= measure.first_runs * per_round and len(set(taken)) >= stats.MIN_ROUNDS
             and narrow(times, measure.ci, taken)):
-        return STOPPED_CI
+        return columns.STOPPED_CI
     return limit_reason(measure, times, per_round)
 
 
 def limit_reason(measure: Measure, times: Sequence[float], per_round: int = 1) -> str:
     """The limit an adaptive cell with these runs reached ("" while none)."""
     if len(times) >= measure.max_runs * per_round:
-        return STOPPED_MAX_RUNS
+        return columns.STOPPED_MAX_RUNS
     if math.fsum(times) >= measure.max_time_s:
-        return STOPPED_MAX_TIME
+        return columns.STOPPED_MAX_TIME
     return ""
 
 

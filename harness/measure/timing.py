@@ -55,16 +55,22 @@ def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
     return fields
 
 
-def precise(timing: Mapping[str, object]) -> tuple[Phases, Counts, ThreadWork]:
+def precise(timing: Mapping[str, object]) -> dict[str, typing.Any]:
     """The phases, counts and per-thread work of a --timing object (None for what it lacks)."""
-    def number(name: str, kind: type | tuple[type, ...]) -> typing.Any:
-        value = timing.get(name)
-        return value if isinstance(value, kind) and not isinstance(value, bool) else None
-
     work = {k: tuple(v) if isinstance(v, list) else v for k, v in thread_work(timing).items()}
-    return (Phases(**{f.name: number(f.name, (int, float)) for f in fields(Phases)}),
-            Counts(**{f.name: number(f.name, int) for f in fields(Counts)}),
-            ThreadWork(**work))
+    return {"phases": Phases(**numbers(timing, Phases)),
+            "counts": Counts(**numbers(timing, Counts, int)), "thread_work": ThreadWork(**work)}
+
+
+def _number(value: object, kind: type | tuple[type, ...] = (int, float)) -> bool:
+    return isinstance(value, kind) and not isinstance(value, bool)
+
+
+def numbers(timing: Mapping[str, object], group: type, kind: type | tuple[type, ...] = (int, float)
+            ) -> dict[str, typing.Any]:
+    """The fields of the record's `group` the --timing object gives as numbers of `kind`."""
+    return {f.name: timing.get(f.name) if _number(timing.get(f.name), kind) else None
+            for f in fields(group)}
 
 
 # Seconds ompcost may take: four operations at its default 100 ms each, calibration, and the
@@ -83,19 +89,13 @@ def parse_costs(text: str, threads: int) -> dict[str, float | None]:
         raise ValueError("no JSON object")
     if data.get("threads") != threads:
         raise ValueError(f"measured {data.get('threads')!r} threads, not {threads}")
-    costs: dict[str, float | None] = {}
     for column in OMP_COST_COLUMNS:
         if column not in data:
             raise ValueError(f"lacks {column}")
         value = data[column]
-        if value is None:
-            costs[column] = None
-        elif isinstance(value, int | float) and not isinstance(value, bool) and \
-                math.isfinite(value) and value > 0:
-            costs[column] = float(value)
-        else:
+        if value is not None and not (_number(value) and math.isfinite(value) and value > 0):
             raise ValueError(f"{column} is {value!r}, not a positive number of ns")
-    return costs
+    return {c: None if data[c] is None else float(data[c]) for c in OMP_COST_COLUMNS}
 
 
 def measure_costs(binary: Path, threads: int, env: Mapping[str, str]) -> OmpCosts:

@@ -34,28 +34,19 @@ UNNAMED_TEMP_AGE_S = 3600.0
 PROBE_BYTES = 1 << 20
 
 
-def temp_path(path: Path) -> Path:
-    """A fresh empty file beside `path`, named by this process, to be os.replace'd onto it."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=TEMP_SUFFIX,
-                                   prefix=f".{path.name}.{os.getpid()}@{HOST}.")
-    except OSError as exc:
-        raise storage_error(path, exc) from None
-    os.close(fd)
-    return Path(tmp)
-
-
 @contextlib.contextmanager
 def temporary(path: Path) -> Iterator[Path]:
-    """temp_path(path) for the body; removed after it, whatever happens, unless moved."""
-    tmp: Path | None = None
+    """A fresh empty file beside `path`, named by this process, for the body to fill and
+    os.replace onto `path`; removed after it, whatever happens, unless moved."""
+    with writing(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(dir=path.parent, suffix=TEMP_SUFFIX,
+                                    prefix=f".{path.name}.{os.getpid()}@{HOST}.")
+    os.close(fd)
     try:
-        tmp = temp_path(path)
-        yield tmp
+        yield Path(name)
     finally:
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
+        Path(name).unlink(missing_ok=True)
 
 
 @contextlib.contextmanager
@@ -90,13 +81,9 @@ def check_room(path: Path, what: str) -> None:
     """Raise a StorageError when the file `path`, which a child process was given to write and
     did not finish, can take no more (PROBE_BYTES appended to it are refused): then the place
     failed, not the child. The file is cut back to its size; one that is gone tells nothing."""
+    fd = None
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-    except FileNotFoundError:
-        return
-    except OSError as exc:
-        raise StorageError(f"{path.parent}: cannot write {what}: {exc.strerror}") from None
-    try:
         size = os.fstat(fd).st_size
         left = PROBE_BYTES
         try:
@@ -108,10 +95,13 @@ def check_room(path: Path, what: str) -> None:
         finally:
             with contextlib.suppress(OSError):
                 os.ftruncate(fd, size)
+    except FileNotFoundError:  # only where it opens
+        return
     except OSError as exc:
         raise StorageError(f"{path.parent}: cannot write {what}: {exc.strerror}") from None
     finally:
-        os.close(fd)
+        if fd is not None:
+            os.close(fd)
 
 
 def sweep(directories: Iterable[Path]) -> list[Path]:

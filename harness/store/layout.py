@@ -136,7 +136,7 @@ class ExperimentDir:
         return self.outputs / f"{cell_id}{OUTPUT_SUFFIX}"
 
     # The outputs a cell's measurement compares and then deletes (written under a temporary
-    # name beside these: harness.store.atomic.temp_path).
+    # name beside these: harness.store.atomic.temporary).
     def run_output(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}.out"
 

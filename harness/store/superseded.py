@@ -67,14 +67,12 @@ def load_records(directory: Path) -> list[Stored]:
             continue
         stamp = (st.st_ino, st.st_mtime_ns, st.st_size)
         seen = _READ.get(path)
-        if seen is not None and seen[0] == stamp:
-            stored.append(seen[1])
-            continue
-        result = records.read_record(path, layout.cell_id_of(path))
-        if result is not None:
-            item = Stored(result, path)
-            _READ[path] = (stamp, item)
-            stored.append(item)
+        if seen is None or seen[0] != stamp:
+            result = records.read_record(path, layout.cell_id_of(path))
+            if result is None:
+                continue
+            seen = _READ[path] = (stamp, Stored(result, path))
+        stored.append(seen[1])
     return stored
 
 

@@ -60,18 +60,15 @@ def read_kept(path: Path) -> str | None:
     """The reference output kept at `path`; None where there is none, or none that can be
     vouched for (no sha256 beside it): it is to be run again. DamagedFile where its bytes are
     not those written."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        return None
-    except OSError as exc:
-        raise DamagedFile(path, f"kept output cannot be read ({exc.strerror})") from None
-    try:
-        digest = layout.digest_of(path).read_text(encoding="ascii", errors="replace").strip()
-    except FileNotFoundError:
-        return None
-    except OSError as exc:
-        raise DamagedFile(path, f"its sha256 cannot be read ({exc.strerror})") from None
+    read = []
+    for source, what in ((path, "kept output"), (layout.digest_of(path), "its sha256")):
+        try:
+            read.append(source.read_bytes())
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            raise DamagedFile(path, f"{what} cannot be read ({exc.strerror})") from None
+    data, digest = read[0], read[1].decode("ascii", errors="replace").strip()
     actual = hashlib.sha256(data).hexdigest()
     if actual != digest:
         raise DamagedFile(path, f"kept output altered or cut short ({len(data)} bytes, sha256 "
