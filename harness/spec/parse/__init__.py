@@ -17,7 +17,9 @@ from harness.spec.config import (
     DEFAULT_MAX_CELLS,
     DEFAULT_RUNS,
     EXECUTOR_KINDS,
+    METRIC_TIME,
     METRICS,
+    PARALLEL_AXES,
     TOP_KEYS,
     Checks,
     Config,
@@ -49,9 +51,12 @@ ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 # compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
 BASELINE_CHOICES = ("f64", "same", "f128")
 CHECK_NAMES = ("invariants", "shadow", "divergence")
-# The top-level keys of one value each, checked as they are (title's default: the name).
+# The top-level keys checked as they are, their defaults (title's: the name) checked too.
 SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
-           "openmp_costs": kinds.BOOLEAN}
+           "openmp_costs": kinds.BOOLEAN, "threads": kinds.many(kinds.THREADS),
+           "ranks": kinds.many(kinds.RANKS)}
+SCALAR_DEFAULTS = {"keep_output": False, "metric": METRIC_TIME, "openmp_costs": False,
+                   "threads": 1, "ranks": 1}
 
 
 def is_valid_name(name: object) -> bool:
@@ -306,24 +311,18 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
         raise config_error(source, "name", NAME_RULE, name)
     variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants,
                                                            registry.unbuilt)
-    threads = raw.get("threads", 1)
-    ranks = raw.get("ranks", 1)
     scene = parse_scene(raw.get("scene", MISSING), source)
     measure = raw.get("measure", {})
-    scalars = {key: kinds.check(raw[key], key, kind, source)
-               for key, kind in SCALARS.items() if key in raw}
+    given = {"title": name, **SCALAR_DEFAULTS, **raw}
     config = Config(
         source=source,
         name=str(name),
-        **{"title": name, "keep_output": False, **scalars},
+        **{key: kinds.check(given[key], key, kind, source) for key, kind in SCALARS.items()},
         variants=variants,
         builds=builds,
         scene=scene,
-        threads=kinds.check(threads, "threads", kinds.many(kinds.THREADS), source),
-        ranks=kinds.check(ranks, "ranks", kinds.many(kinds.RANKS), source),
         zip_keys=parse_combine(raw.get("combine", "product"), scene,
-                               [k for k, v in (("threads", threads), ("ranks", ranks))
-                                if isinstance(v, list)], source),
+                               [k for k in PARALLEL_AXES if isinstance(given[k], list)], source),
         measure=parse_measure(measure, source),
         validate=parse_validate(raw.get("validate", False), source),
         exclude=parse_exclude(raw.get("exclude", []), source),

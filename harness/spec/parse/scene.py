@@ -223,9 +223,9 @@ def _file_n(path: Path) -> int:
         return 0
 
 
-def scene_bytes(config: Config) -> tuple[int, int, int]:
-    """An estimate of the memory the config's scenes take when planned: bytes, the particles
-    they list, their distinct points."""
+def check_memory(config: Config) -> None:
+    """A config error when its scenes would take more than this machine's free memory, by an
+    estimate of what they take when planned: the files' text and the particles they list."""
     total = listed = 0
     seen: set[tuple[tuple[str, str], ...]] = set()
     for point in expand_points(config):
@@ -245,12 +245,7 @@ def scene_bytes(config: Config) -> tuple[int, int, int]:
         elif config.lists_particles:
             n = int(str(point["n"]))
         listed += max(0, n)
-    return total + listed * LISTED_PARTICLE_BYTES, listed, len(seen)
-
-
-def check_memory(config: Config) -> None:
-    """A config error when its scenes would take more than this machine's free memory."""
-    need, listed, points = scene_bytes(config)
+    need, points = total + listed * LISTED_PARTICLE_BYTES, len(seen)
     free = psutil.virtual_memory().available
     if need > free:
         raise HarnessError(f"{config.source}: key 'scene': its scenes need about "
