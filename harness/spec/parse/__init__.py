@@ -271,11 +271,10 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
             if key == programs.GLOB:
                 continue
             known = (programs.BUILD_PLACEHOLDERS, programs.BUILD_REQUIRED) if is_build else ()
-            try:
-                programs.check_placeholders(template, extra, *known)
-            except programs.TemplateError as exc:
+            problem = programs.template_problem(template, extra, *known)
+            if problem is not None:
                 raise config_error(source, where, f"{BUILD_FORM if is_build else COMMAND_FORM}: "
-                                   f"{exc}", template) from None
+                                   f"{problem}", template)
         for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
             if one in fields and other not in fields:
                 raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "
