@@ -166,14 +166,13 @@ def plan_cells(config: Config, quick: bool = False,
             matching = {k for k, rule in enumerate(config.exclude)
                         if all(c.holds(fields) for c in rule)}
             used |= matching
+            # As the config names it, less what its variant ignores; an excluded cell stays so
             ignored = ignored_by(config, registry, cell)
-            if matching:  # as the config names it, less what its variant ignores
-                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
-            else:  # as it is measured: at the one value of each axis its variant ignores
+            cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
+            if not matching:  # as it is measured: at the one value of each axis it ignores
                 collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
                                   or getattr(cell, a.field) != a.value)
-                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
-                                           collapsed=collapsed,
+                cell = dataclasses.replace(cell, collapsed=collapsed,
                                            **{a.field: a.value for a in ignored})
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
                    cell.threads, cell.ranks, schedule)

@@ -51,10 +51,9 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
                 raise config_error(source, "scene.generator", expected, name)
         if len(set(names)) != len(names):
             raise config_error(source, "scene.generator", "names without repeats", value)
-        infos = [scenes.REGISTRY[str(name)] for name in names]
         # With several generators, a key must be one every one of them takes.
-        keys = {k: kinds.generator_kind(k, d) for k, d in infos[0].defaults.items()
-                 if all(k in info.defaults for info in infos[1:])}
+        keys = {k: kinds.generator_kind(k, d) for k, d in scenes.REGISTRY[names[0]].defaults.items()
+                if all(k in scenes.REGISTRY[name].defaults for name in names)}
         keys["seed"] = kinds.SEED
         kind_name, generator_name = "generator", None if isinstance(value, list) else str(value)
         generators = tuple(map(str, names)) if isinstance(value, list) else ()
