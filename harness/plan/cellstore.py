@@ -122,7 +122,6 @@ def subject(cell: Cell) -> tuple[str, ...]:
 
 
 def now_iso() -> str:
-    """The time a record is written, in UTC to the second."""
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
@@ -174,7 +173,6 @@ class CellStore:
         return binary_path(self.config, self.binaries, cell.variant, cell.build)
 
     def binary_sha(self, cell: Cell) -> str | None:
-        """The hash of what the cell runs: its binary, or a program's fingerprint."""
         program = self.config.program(cell.variant)
         if program is None:
             return self.sha(self.binary(cell))

@@ -103,7 +103,6 @@ class Program:
 
     def shell_command(self, template: str, input_file: Path, threads: int,
                       ranks: int = 1) -> list[str]:
-        """The argv that runs a template for one input, thread and rank count."""
         return self._in_directory(template.format(input=shlex.quote(str(input_file)),
                                                   threads=threads, ranks=ranks))
 
@@ -129,7 +128,6 @@ class Program:
         return replaced if count else None
 
     def source_files(self) -> list[Path]:
-        """Every file of its source (a directory's, recursively), sorted."""
         found = {path for path in self.source if path.is_file()}
         for path in self.source:
             if path.is_dir():
