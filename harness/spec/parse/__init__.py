@@ -6,8 +6,9 @@ harness.spec.parse.scene reads its axes."""
 from __future__ import annotations
 
 import re
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from harness.errors import MISSING, HarnessError, config_error
 from harness.spec import kinds, programs
@@ -160,20 +161,18 @@ def parse_checks(names: object, options: object, source: Path,
     return Checks(items, **fields)
 
 
-def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequence[str],
-                   unbuilt: Collection[str] = ()
-                   ) -> tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, Path], ...],
-                              tuple[programs.Program, ...]]:
-    """The config's variants and builds, its binaries and its programs: a custom binary or a
-    program is a new variant name, listed under `variants` (a class: every program its glob
-    matched), and built f64 only."""
-    binaries = parse_binaries(raw.get("binaries", {}), source, known_variants)
-    taken = (*known_variants, *(b[0] for b in binaries))
+def parse_variants(raw: Mapping[str, object], source: Path,
+                   registry: VariantRegistry) -> dict[str, Any]:
+    """What the config runs, as Config's variants, builds, binaries and programs: a custom
+    binary or a program is a new variant name, listed under `variants` (a class: every program
+    its glob matched), and built f64 only."""
+    binaries = parse_binaries(raw.get("binaries", {}), source, registry.names)
+    taken = (*registry.names, *(b[0] for b in binaries))
     programs_, classes = parse_programs(raw.get("programs", {}), source, taken)
     known = (*taken, *(p.name for p in programs_), *classes)
     asked = raw.get("variants")
     for name in asked if isinstance(asked, list) else ():
-        if name in unbuilt and name not in known:
+        if name in registry.unbuilt and name not in known:
             raise HarnessError(f"{source}: key 'variants': {name!r} is an MPI variant, which "
                                "make leaves out where mpicc is not found; install Open MPI: "
                                f"{MPI_INSTALL}")
@@ -192,7 +191,7 @@ def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequ
         if builds != (DEFAULT_BUILD,):
             raise config_error(source, f"programs.{program.name}", "builds: [f64] with a "
                                "program", list(builds))
-    return variants, builds, binaries, programs_
+    return {"variants": variants, "builds": builds, "binaries": binaries, "programs": programs_}
 
 
 def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path) -> None:
@@ -303,13 +302,11 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     source = Path(path)
     raw = kinds.read_mapping(source)
     registry = registry or default_registry()
-    known_variants = registry.names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
     name = kinds.check(raw.get("name", source.stem), "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
-    variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants,
-                                                           registry.unbuilt)
+    runs = parse_variants(raw, source, registry)
     scene = parse_scene(raw.get("scene", MISSING), source)
     measure = raw.get("measure", {})
     given = {"title": name, **SCALAR_DEFAULTS, **raw}
@@ -317,23 +314,20 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
         source=source,
         name=str(name),
         **{key: kinds.check(given[key], key, kind, source) for key, kind in SCALARS.items()},
-        variants=variants,
-        builds=builds,
+        **runs,
         scene=scene,
         zip_keys=parse_combine(raw.get("combine", "product"), scene,
                                [k for k in PARALLEL_AXES if isinstance(given[k], list)], source),
         measure=parse_measure(measure, source),
         validate=parse_validate(raw.get("validate", False), source),
         exclude=parse_exclude(raw.get("exclude", []), source),
-        binaries=binaries,
         checks=parse_checks(raw.get("checks", []), raw.get("accuracy", {}), source,
-                            known_variants),
+                            registry.names),
         executor=ExecutorSpec(**kinds.settings(raw.get("executor", {}), EXECUTOR, "executor",
                                                source)),
         schedules=parse_schedules(raw.get("schedule"), source),
         variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}), measure,
-                                                 variants, source),
-        programs=programs_,
+                                                 runs["variants"], source),
     )
     check_exclude(config)
     if max_cells is not None:
