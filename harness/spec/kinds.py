@@ -154,6 +154,15 @@ def name_list(value: object, label: str, known: Sequence[str], source: Path,
     return tuple(items)
 
 
+def file_beside(path: str, source: Path, label: str, what: str) -> Path:
+    """`path` relative to the config's directory, resolved; a config error expecting `what`
+    where it is no file."""
+    resolved = (source.resolve().parent / path).resolve()
+    if not resolved.is_file():
+        raise config_error(source, label, f"{what} relative to the config", path)
+    return resolved
+
+
 def mapping(value: object, label: str, source: Path) -> Mapping[str, object]:
     if not isinstance(value, dict):
         raise config_error(source, label, "a mapping", value)

@@ -224,10 +224,7 @@ def parse_binaries(value: object, source: Path,
         _check_new_name(name, label, variants, source)
         if not isinstance(path, str) or not path:
             raise config_error(source, label, "a path to an executable", path)
-        resolved = (source.resolve().parent / path).resolve()
-        if not resolved.is_file():
-            raise config_error(source, label, "an executable file relative to the config", path)
-        result.append((name, resolved))
+        result.append((name, kinds.file_beside(path, source, label, "an executable file")))
     return tuple(result)
 
 

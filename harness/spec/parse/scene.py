@@ -74,18 +74,12 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
     for key, values in raw.items():
         parsed = kinds.check(values, f"scene.{key}", kinds.many(keys[key]), source)
         if key == "file":
-            parsed = tuple(_resolve_file(str(p), source) for p in parsed)
+            parsed = tuple(kinds.file_beside(str(p), source, "scene.file", "an input file")
+                           for p in parsed)
         axes.append((key, parsed))
         if isinstance(values, list):
             listed.add(key)
     return SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
-
-
-def _resolve_file(path: str, source: Path) -> Path:
-    resolved = (source.resolve().parent / path).resolve()
-    if not resolved.is_file():
-        raise config_error(source, "scene.file", "an input file relative to the config", path)
-    return resolved
 
 
 def parse_combine(value: object, scene: SceneSpec, parallel_listed: list[str],
