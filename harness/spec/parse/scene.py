@@ -220,12 +220,8 @@ def check_memory(config: Config) -> None:
     """A config error when its scenes would take more than this machine's free memory, by an
     estimate of what they take when planned: the files' text and the particles they list."""
     total = listed = 0
-    seen: set[tuple[tuple[str, str], ...]] = set()
-    for point in expand_points(config):
-        key = scene_key(point)
-        if key in seen:
-            continue
-        seen.add(key)
+    distinct = {scene_key(point): point for point in expand_points(config)}
+    for point in distinct.values():
         n = 0
         if config.scene.kind == "generator":
             name = str(point.get("generator", config.scene.generator))
@@ -238,7 +234,7 @@ def check_memory(config: Config) -> None:
         elif config.lists_particles:
             n = int(str(point["n"]))
         listed += max(0, n)
-    need, points = total + listed * LISTED_PARTICLE_BYTES, len(seen)
+    need, points = total + listed * LISTED_PARTICLE_BYTES, len(distinct)
     free = psutil.virtual_memory().available
     if need > free:
         raise HarnessError(f"{config.source}: key 'scene': its scenes need about "
