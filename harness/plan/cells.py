@@ -147,9 +147,7 @@ def plan_cells(config: Config, quick: bool = False,
     repeats (--quick can map several points onto one; a variant's cells along an axis it
     ignores are one) and excluded cells (as the config's points name them)."""
     registry = registry or default_registry()
-    cells: list[Cell] = []
-    excluded: list[Cell] = []
-    seen: set[tuple[object, ...]] = set()
+    kept: dict[tuple[object, ...], Cell] = {}  # the first cell of each key, excluded or not
     points: dict[tuple[object, ...], scenes.ScenePoint] = {}
     used: set[int] = set()
     for point in expand_points(config):
@@ -166,20 +164,17 @@ def plan_cells(config: Config, quick: bool = False,
             matching = {k for k, rule in enumerate(config.exclude)
                         if all(c.holds(fields) for c in rule)}
             used |= matching
+            # As the config names it, less what its variant ignores; an excluded cell stays so
             ignored = ignored_by(config, registry, cell)
-            if matching:  # as the config names it, less what its variant ignores
-                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
-            else:  # as it is measured: at the one value of each axis its variant ignores
+            cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored))
+            if not matching:  # as it is measured: at the one value of each axis it ignores
                 collapsed = tuple(a.field for a in ignored if len(getattr(config, a.field)) > 1
                                   or getattr(cell, a.field) != a.value)
-                cell = dataclasses.replace(cell, ignored=tuple(a.field for a in ignored),
-                                           collapsed=collapsed,
+                cell = dataclasses.replace(cell, collapsed=collapsed,
                                            **{a.field: a.value for a in ignored})
             key = (bool(matching), variant, build, scene.input_sha256, scene.seed,
                    cell.threads, cell.ranks, schedule)
-            if key not in seen:
-                seen.add(key)
-                (excluded if matching else cells).append(cell)
+            kept.setdefault(key, cell)
     # A rule that excludes nothing is a mistake (a value the config does not have); --quick
     # lowers n and steps, so there a rule may match nothing by design.
     unused = [k for k in range(len(config.exclude)) if k not in used]
@@ -187,6 +182,7 @@ def plan_cells(config: Config, quick: bool = False,
         rule = config.exclude[unused[0]]
         raise config_error(config.source, f"exclude[{unused[0]}]", "a rule that matches at "
                            "least one cell", ", ".join(c.describe() for c in rule))
-    return Plan(config, quick, tuple(cells), tuple(excluded))
+    return Plan(config, quick, tuple(c for key, c in kept.items() if not key[0]),
+                tuple(c for key, c in kept.items() if key[0]))  # key[0]: excluded
 
 

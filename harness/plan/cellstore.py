@@ -69,13 +69,12 @@ def program_references(config: Config, build_dir: Path, cell: Cell) -> dict[str,
 def cell_binaries(config: Config, build_dir: Path, cell: Cell) -> list[Path]:
     """Every binary the cell's measurement runs: its own (a program runs commands instead),
     its references, what the instruction lane counts, and build/ompcost where it runs."""
-    paths = [] if cell.program else [binary_path(config, build_dir, cell.variant, cell.build)]
+    paths = (list(program_references(config, build_dir, cell).values()) if cell.program
+             else [binary_path(config, build_dir, cell.variant, cell.build)])
     if cell.validate:
         paths.append(baseline_path(config, build_dir, cell.build))
     if cell.checked:
         paths.extend(check_references(config, build_dir, cell.build).values())
-    if cell.program:
-        paths.extend(program_references(config, build_dir, cell).values())
     counted = lane.counted_binary(config, build_dir, cell)
     if counted is not None and counted not in paths:
         paths.append(counted)
@@ -122,7 +121,6 @@ def subject(cell: Cell) -> tuple[str, ...]:
 
 
 def now_iso() -> str:
-    """The time a record is written, in UTC to the second."""
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
@@ -174,7 +172,6 @@ class CellStore:
         return binary_path(self.config, self.binaries, cell.variant, cell.build)
 
     def binary_sha(self, cell: Cell) -> str | None:
-        """The hash of what the cell runs: its binary, or a program's fingerprint."""
         program = self.config.program(cell.variant)
         if program is None:
             return self.sha(self.binary(cell))

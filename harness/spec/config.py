@@ -73,7 +73,6 @@ class Measure:
         return min(max(AUTO_FIRST_RUNS, self.min_runs), self.max_runs)
 
     def at_least(self, runs: int) -> Measure:
-        """These settings with at least `runs` runs a cell."""
         if self.runs is not None:
             return dataclasses.replace(self, runs=max(self.runs, runs))
         return dataclasses.replace(self, min_runs=max(self.min_runs, runs),
@@ -235,7 +234,6 @@ class Config:
         return next((p for p in self.programs if p.name == variant), None)
 
     def is_built(self, variant: str) -> bool:
-        """Whether make builds the variant (neither a custom binary nor a program)."""
         return self.custom_binary(variant) is None and self.program(variant) is None
 
     @property
@@ -261,7 +259,6 @@ def scene_key(point: Mapping[str, object]) -> tuple[tuple[str, str], ...]:
 
 
 def axes(config: Config) -> list[tuple[str, tuple[object, ...]]]:
-    """The config's axes, in order: its scene's keys, threads, ranks."""
     return [*config.scene.axes, ("threads", config.threads), ("ranks", config.ranks)]
 
 

@@ -68,7 +68,6 @@ class SyncFacts:
     tile: int = 0
 
     def per_step(self, n: int) -> dict[str, float]:
-        """Each operation's count in a step of N particles."""
         return {op: getattr(self, op).per_step(n, self.tile) for op in SYNC_OPERATIONS}
 
     def to_json(self) -> dict[str, object]:
@@ -209,7 +208,6 @@ class Variants:
         return tuple(n for n in self.order if self.family(n) == n)
 
     def repaired_by(self, name: str) -> tuple[str, ...]:
-        """The variants that repair `name`, in order."""
         return tuple(n for n in self.order if self.by_name[n].repairs == name)
 
     def to_json(self) -> dict[str, object]:

@@ -104,16 +104,14 @@ RANDOM_KINDS: dict[str, Kind] = {
 }
 
 
+# A generator's own keys, by the type of their defaults (bool first: a bool is an int too).
+DEFAULT_KINDS = ((bool, BOOLEAN), (int, Kind("a 64-bit integer", int_in(-(2**63), 2**63 - 1))),
+                 (float, REAL))
+
+
 def generator_kind(name: str, default: object) -> Kind:
-    if name in RANDOM_KINDS:
-        return RANDOM_KINDS[name]
-    if isinstance(default, bool):
-        return BOOLEAN
-    if isinstance(default, int):
-        return Kind("a 64-bit integer", int_in(-(2**63), 2**63 - 1))
-    if isinstance(default, float):
-        return REAL
-    return STRING
+    return RANDOM_KINDS.get(name) or next(
+        (kind for type_, kind in DEFAULT_KINDS if isinstance(default, type_)), STRING)
 
 
 def reject_unknown(raw: Mapping[str, object], allowed: Sequence[str], prefix: str,
@@ -154,6 +152,15 @@ def name_list(value: object, label: str, known: Sequence[str], source: Path,
     if len(set(items)) != len(items):
         raise config_error(source, label, "names without repeats", value)
     return tuple(items)
+
+
+def file_beside(path: str, source: Path, label: str, what: str) -> Path:
+    """`path` relative to the config's directory, resolved; a config error expecting `what`
+    where it is no file."""
+    resolved = (source.resolve().parent / path).resolve()
+    if not resolved.is_file():
+        raise config_error(source, label, f"{what} relative to the config", path)
+    return resolved
 
 
 def mapping(value: object, label: str, source: Path) -> Mapping[str, object]:
@@ -212,9 +219,9 @@ StrictLoader.add_constructor("tag:yaml.org,2002:int", StrictLoader.construct_yam
 SHAPE_LOADER = getattr(yaml, "CSafeLoader", StrictLoader)
 
 
-def check_shape(text: str) -> None:
-    """A YAMLError where the YAML nests too deep or expands to too many values (each alias
-    counted as the values of its anchor)."""
+def load_yaml(text: str) -> object:
+    """The YAML's value; a YAMLError where it nests too deep or expands to too many values
+    (each alias counted as the values of its anchor), found before any value is made."""
     anchored: dict[str, int] = {}  # anchor -> the values it stands for
     open_at: list[tuple[int, str | None]] = []  # each open collection: values before it, anchor
     values = 0
@@ -238,10 +245,6 @@ def check_shape(text: str) -> None:
         if values > MAX_YAML_VALUES:
             raise yaml.YAMLError(f"more than {MAX_YAML_VALUES} values, each alias counted where "
                                  f"it is used (line {line})")
-
-
-def load_yaml(text: str) -> object:
-    check_shape(text)
     return yaml.load(text, Loader=StrictLoader)
 
 

@@ -55,37 +55,28 @@ def reference_variant(n: int) -> str:
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
 
 
-class TemplateError(ValueError):
-    """A command template that cannot be used; the message says what is wrong."""
-
-
-def check_placeholders(template: str, extra: tuple[str, ...] = (),
-                       known_here: tuple[str, ...] = PLACEHOLDERS,
-                       required: Mapping[str, str] | None = None) -> None:
-    """A TemplateError for an unknown placeholder, a missing required one (`required`: name ->
-    what it stands for; default {input}) or stray braces. `extra`: names allowed beside
-    `known_here` ({path} in a class's template)."""
+def template_problem(template: str, extra: tuple[str, ...] = (),
+                     known_here: tuple[str, ...] = PLACEHOLDERS,
+                     required: Mapping[str, str] | None = None) -> str | None:
+    """What makes a template unusable, or None: an unknown placeholder, a missing required one
+    (`required`: name -> what it stands for; default {input}) or stray braces. `extra`: names
+    allowed beside `known_here` ({path} in a class's template)."""
     known = (*known_here, *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
-        raise TemplateError(f"unbalanced braces ({exc}; write {{{{ and }}}} for a literal "
-                            "brace)") from None
-    names = set()
+        return f"unbalanced braces ({exc}; write {{{{ and }}}} for a literal brace)"
     for _, name, spec, conversion in parsed:
-        if name is None:
-            continue
-        if name not in known or spec or conversion:
+        if name is not None and (name not in known or spec or conversion):
             field = "{" + name + (f"!{conversion}" if conversion else "") + \
                 (f":{spec}" if spec else "") + "}"
-            raise TemplateError(f"unknown placeholder {field} (known: "
-                                + ", ".join("{" + p + "}" for p in known) + ")")
-        names.add(name)
+            return f"unknown placeholder {field} (known: " + ", ".join(
+                "{" + p + "}" for p in known) + ")"
+    names = {name for _, name, _, _ in parsed}
     if required is None and INPUT not in names:
-        raise TemplateError("no {input}: the program must be given the input file")
-    for name, meaning in (required or {}).items():
-        if name not in names:
-            raise TemplateError(f"no {{{name}}} ({meaning})")
+        return "no {input}: the program must be given the input file"
+    return next((f"no {{{name}}} ({meaning})" for name, meaning in (required or {}).items()
+                 if name not in names), None)
 
 
 @dataclass(frozen=True)
@@ -112,7 +103,6 @@ class Program:
 
     def shell_command(self, template: str, input_file: Path, threads: int,
                       ranks: int = 1) -> list[str]:
-        """The argv that runs a template for one input, thread and rank count."""
         return self._in_directory(template.format(input=shlex.quote(str(input_file)),
                                                   threads=threads, ranks=ranks))
 
@@ -138,7 +128,6 @@ class Program:
         return replaced if count else None
 
     def source_files(self) -> list[Path]:
-        """Every file of its source (a directory's, recursively), sorted."""
         found = {path for path in self.source if path.is_file()}
         for path in self.source:
             if path.is_dir():

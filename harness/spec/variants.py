@@ -113,7 +113,6 @@ def default_registry() -> VariantRegistry:
 
 @contextlib.contextmanager
 def using(registry: VariantRegistry) -> Iterator[VariantRegistry]:
-    """default_registry() answers with `registry` inside the block."""
     default_registry()
     _default.append(registry)
     try:

@@ -6,8 +6,9 @@ harness.spec.parse.scene reads its axes."""
 from __future__ import annotations
 
 import re
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from harness.errors import MISSING, HarnessError, config_error
 from harness.spec import kinds, programs
@@ -17,7 +18,9 @@ from harness.spec.config import (
     DEFAULT_MAX_CELLS,
     DEFAULT_RUNS,
     EXECUTOR_KINDS,
+    METRIC_TIME,
     METRICS,
+    PARALLEL_AXES,
     TOP_KEYS,
     Checks,
     Config,
@@ -49,9 +52,12 @@ ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 # compare with build/seq, with seq of the cell's build, or with build/seq-f128 (the truth)
 BASELINE_CHOICES = ("f64", "same", "f128")
 CHECK_NAMES = ("invariants", "shadow", "divergence")
-# The top-level keys of one value each, checked as they are (title's default: the name).
+# The top-level keys checked as they are, their defaults (title's: the name) checked too.
 SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
-           "openmp_costs": kinds.BOOLEAN}
+           "openmp_costs": kinds.BOOLEAN, "threads": kinds.many(kinds.THREADS),
+           "ranks": kinds.many(kinds.RANKS)}
+SCALAR_DEFAULTS = {"keep_output": False, "metric": METRIC_TIME, "openmp_costs": False,
+                   "threads": 1, "ranks": 1}
 
 
 def is_valid_name(name: object) -> bool:
@@ -155,20 +161,18 @@ def parse_checks(names: object, options: object, source: Path,
     return Checks(items, **fields)
 
 
-def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequence[str],
-                   unbuilt: Collection[str] = ()
-                   ) -> tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, Path], ...],
-                              tuple[programs.Program, ...]]:
-    """The config's variants and builds, its binaries and its programs: a custom binary or a
-    program is a new variant name, listed under `variants` (a class: every program its glob
-    matched), and built f64 only."""
-    binaries = parse_binaries(raw.get("binaries", {}), source, known_variants)
-    taken = (*known_variants, *(b[0] for b in binaries))
+def parse_variants(raw: Mapping[str, object], source: Path,
+                   registry: VariantRegistry) -> dict[str, Any]:
+    """What the config runs, as Config's variants, builds, binaries and programs: a custom
+    binary or a program is a new variant name, listed under `variants` (a class: every program
+    its glob matched), and built f64 only."""
+    binaries = parse_binaries(raw.get("binaries", {}), source, registry.names)
+    taken = (*registry.names, *(b[0] for b in binaries))
     programs_, classes = parse_programs(raw.get("programs", {}), source, taken)
     known = (*taken, *(p.name for p in programs_), *classes)
     asked = raw.get("variants")
     for name in asked if isinstance(asked, list) else ():
-        if name in unbuilt and name not in known:
+        if name in registry.unbuilt and name not in known:
             raise HarnessError(f"{source}: key 'variants': {name!r} is an MPI variant, which "
                                "make leaves out where mpicc is not found; install Open MPI: "
                                f"{MPI_INSTALL}")
@@ -187,7 +191,7 @@ def parse_variants(raw: Mapping[str, object], source: Path, known_variants: Sequ
         if builds != (DEFAULT_BUILD,):
             raise config_error(source, f"programs.{program.name}", "builds: [f64] with a "
                                "program", list(builds))
-    return variants, builds, binaries, programs_
+    return {"variants": variants, "builds": builds, "binaries": binaries, "programs": programs_}
 
 
 def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path) -> None:
@@ -220,10 +224,7 @@ def parse_binaries(value: object, source: Path,
         _check_new_name(name, label, variants, source)
         if not isinstance(path, str) or not path:
             raise config_error(source, label, "a path to an executable", path)
-        resolved = (source.resolve().parent / path).resolve()
-        if not resolved.is_file():
-            raise config_error(source, label, "an executable file relative to the config", path)
-        result.append((name, resolved))
+        result.append((name, kinds.file_beside(path, source, label, "an executable file")))
     return tuple(result)
 
 
@@ -266,11 +267,10 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
             if key == programs.GLOB:
                 continue
             known = (programs.BUILD_PLACEHOLDERS, programs.BUILD_REQUIRED) if is_build else ()
-            try:
-                programs.check_placeholders(template, extra, *known)
-            except programs.TemplateError as exc:
+            problem = programs.template_problem(template, extra, *known)
+            if problem is not None:
                 raise config_error(source, where, f"{BUILD_FORM if is_build else COMMAND_FORM}: "
-                                   f"{exc}", template) from None
+                                   f"{problem}", template)
         for one, other in ((programs.SOURCE, programs.BUILD), (programs.BUILD, programs.SOURCE)):
             if one in fields and other not in fields:
                 raise config_error(source, f"{label}.{other}", f"`{other}:` beside `{one}:` "
@@ -299,43 +299,32 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     source = Path(path)
     raw = kinds.read_mapping(source)
     registry = registry or default_registry()
-    known_variants = registry.names
     kinds.reject_unknown(raw, TOP_KEYS, "", source)
     name = kinds.check(raw.get("name", source.stem), "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
-    variants, builds, binaries, programs_ = parse_variants(raw, source, known_variants,
-                                                           registry.unbuilt)
-    threads = raw.get("threads", 1)
-    ranks = raw.get("ranks", 1)
+    runs = parse_variants(raw, source, registry)
     scene = parse_scene(raw.get("scene", MISSING), source)
     measure = raw.get("measure", {})
-    scalars = {key: kinds.check(raw[key], key, kind, source)
-               for key, kind in SCALARS.items() if key in raw}
+    given = {"title": name, **SCALAR_DEFAULTS, **raw}
     config = Config(
         source=source,
         name=str(name),
-        **{"title": name, "keep_output": False, **scalars},
-        variants=variants,
-        builds=builds,
+        **{key: kinds.check(given[key], key, kind, source) for key, kind in SCALARS.items()},
+        **runs,
         scene=scene,
-        threads=kinds.check(threads, "threads", kinds.many(kinds.THREADS), source),
-        ranks=kinds.check(ranks, "ranks", kinds.many(kinds.RANKS), source),
         zip_keys=parse_combine(raw.get("combine", "product"), scene,
-                               [k for k, v in (("threads", threads), ("ranks", ranks))
-                                if isinstance(v, list)], source),
+                               [k for k in PARALLEL_AXES if isinstance(given[k], list)], source),
         measure=parse_measure(measure, source),
         validate=parse_validate(raw.get("validate", False), source),
         exclude=parse_exclude(raw.get("exclude", []), source),
-        binaries=binaries,
         checks=parse_checks(raw.get("checks", []), raw.get("accuracy", {}), source,
-                            known_variants),
+                            registry.names),
         executor=ExecutorSpec(**kinds.settings(raw.get("executor", {}), EXECUTOR, "executor",
                                                source)),
         schedules=parse_schedules(raw.get("schedule"), source),
         variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}), measure,
-                                                 variants, source),
-        programs=programs_,
+                                                 runs["variants"], source),
     )
     check_exclude(config)
     if max_cells is not None:

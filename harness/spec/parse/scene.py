@@ -51,10 +51,9 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
                 raise config_error(source, "scene.generator", expected, name)
         if len(set(names)) != len(names):
             raise config_error(source, "scene.generator", "names without repeats", value)
-        infos = [scenes.REGISTRY[str(name)] for name in names]
         # With several generators, a key must be one every one of them takes.
-        keys = {k: kinds.generator_kind(k, d) for k, d in infos[0].defaults.items()
-                 if all(k in info.defaults for info in infos[1:])}
+        keys = {k: kinds.generator_kind(k, d) for k, d in scenes.REGISTRY[names[0]].defaults.items()
+                if all(k in scenes.REGISTRY[name].defaults for name in names)}
         keys["seed"] = kinds.SEED
         kind_name, generator_name = "generator", None if isinstance(value, list) else str(value)
         generators = tuple(map(str, names)) if isinstance(value, list) else ()
@@ -75,18 +74,12 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
     for key, values in raw.items():
         parsed = kinds.check(values, f"scene.{key}", kinds.many(keys[key]), source)
         if key == "file":
-            parsed = tuple(_resolve_file(str(p), source) for p in parsed)
+            parsed = tuple(kinds.file_beside(str(p), source, "scene.file", "an input file")
+                           for p in parsed)
         axes.append((key, parsed))
         if isinstance(values, list):
             listed.add(key)
     return SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
-
-
-def _resolve_file(path: str, source: Path) -> Path:
-    resolved = (source.resolve().parent / path).resolve()
-    if not resolved.is_file():
-        raise config_error(source, "scene.file", "an input file relative to the config", path)
-    return resolved
 
 
 def parse_combine(value: object, scene: SceneSpec, parallel_listed: list[str],
@@ -223,16 +216,12 @@ def _file_n(path: Path) -> int:
         return 0
 
 
-def scene_bytes(config: Config) -> tuple[int, int, int]:
-    """An estimate of the memory the config's scenes take when planned: bytes, the particles
-    they list, their distinct points."""
+def check_memory(config: Config) -> None:
+    """A config error when its scenes would take more than this machine's free memory, by an
+    estimate of what they take when planned: the files' text and the particles they list."""
     total = listed = 0
-    seen: set[tuple[tuple[str, str], ...]] = set()
-    for point in expand_points(config):
-        key = scene_key(point)
-        if key in seen:
-            continue
-        seen.add(key)
+    distinct = {scene_key(point): point for point in expand_points(config)}
+    for point in distinct.values():
         n = 0
         if config.scene.kind == "generator":
             name = str(point.get("generator", config.scene.generator))
@@ -245,12 +234,7 @@ def scene_bytes(config: Config) -> tuple[int, int, int]:
         elif config.lists_particles:
             n = int(str(point["n"]))
         listed += max(0, n)
-    return total + listed * LISTED_PARTICLE_BYTES, listed, len(seen)
-
-
-def check_memory(config: Config) -> None:
-    """A config error when its scenes would take more than this machine's free memory."""
-    need, listed, points = scene_bytes(config)
+    need, points = total + listed * LISTED_PARTICLE_BYTES, len(distinct)
     free = psutil.virtual_memory().available
     if need > free:
         raise HarnessError(f"{config.source}: key 'scene': its scenes need about "
