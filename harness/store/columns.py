@@ -167,7 +167,6 @@ LIST_COLUMNS: dict[str, type] = {"wall_times_s": float, "wall_times_round": int,
 
 
 def format_list(values: tuple[object, ...] | list[object]) -> str:
-    """A list column's text in results.csv."""
     return " ".join(repr(v) if isinstance(v, float) else str(v) for v in values)
 
 

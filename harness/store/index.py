@@ -1,8 +1,6 @@
-"""Which records an experiment's rows are (docs/results.md: for each planned cell, this
-machine's record or the newest of its group marked `stale`, and every other machine's newest
-timing of it; then each machine's newest record of every other cell it measured, marked
-`earlier_config`), and the index that lists them (results.index.json, written with the
-exports: analysis.export); env.json, variants.json and history.json."""
+"""Which records an experiment's rows are (docs/results.md says which), and the index that
+lists them (results.index.json, written with the exports: analysis.export); env.json,
+variants.json and history.json."""
 
 from __future__ import annotations
 
@@ -68,7 +66,7 @@ def changed_fields(key: CellKey, planned: CellKey | None) -> str:
 
 def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machine_id: str
                  ) -> list[Listed]:
-    """results.csv's records, in plan order (the module's docstring says which); one of no
+    """results.csv's records, in plan order (docs/results.md says which); one of no
     known machine unless a newer timing of the cell exists."""
     groups, timed = by_group(stored), by_group(stored, timed=True)
     rows: list[Listed] = []

@@ -76,8 +76,6 @@ class _Under:
 
 @dataclass(frozen=True)
 class ExperimentDir:
-    """The files of one experiment directory."""
-
     path: Path
     cells = _Under(CELLS)
     history = _Under(HISTORY)
@@ -202,7 +200,6 @@ def digest_of(path: Path) -> Path:
 
 
 def cell_id_of(path: Path) -> str:
-    """The cell id a record file is named by."""
     return path.name[: -len(RECORD_SUFFIX)]
 
 

@@ -182,7 +182,6 @@ class CellKey:
 
 
 def role_fields(cls: type, role: Role) -> tuple[str, ...]:
-    """The names of `cls`'s fields that play `role`."""
     return tuple(f.name for f in fields(cls) if f.metadata["role"] is role)
 
 

@@ -148,7 +148,6 @@ _TOP_NAMES = frozenset({*_SCALARS, "key", TIMES_FIELD, ROUNDS_FIELD})
 
 
 def record_fields() -> frozenset[str]:
-    """Every name a record's field may have."""
     return _TOP_NAMES | set(_leaves())
 
 
