@@ -48,7 +48,6 @@ def key_text(value: object, numeric: bool = True) -> str:
 
 
 def drop_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
-    """The table without `columns` and their companions."""
     gone = {c for col in columns for c in (col, *companions(col))}
     return df.drop(columns=[c for c in df.columns if c in gone])
 

@@ -1,11 +1,7 @@
-"""Records rewritten once, in place (docs/results.md): as the current version keeps them, so
-that no reader needs to know an earlier one (`collide-bench store upgrade PATH...`: the format,
-and a record from before rounds given its runs' times from its hyperfine export, their
-median's interval and low quantile), and
-with the identity their cells have now (`collide-bench store migrate PATH`: a record of a
-variant along an axis its facts say it ignores, harness.spec.facts.IGNORED_AXES, is re-keyed to
-the axis's one value, or moves to history/ where the cell has a record there already; then the
-index lists the new ids and the exports are written again)."""
+"""Records rewritten once, in place (docs/results.md): as the current version keeps them
+(`collide-bench store upgrade PATH...`), so that no reader needs to know an earlier one, and
+with the identity their cells have now (`collide-bench store migrate PATH`: re-keyed along an
+axis their variant's facts say it ignores, harness.spec.facts.IGNORED_AXES)."""
 
 from __future__ import annotations
 
@@ -153,7 +149,6 @@ def relist(exp: ExperimentDir, new_ids: Mapping[str, str], dropped: Iterable[str
 
 
 def _rows(text: str) -> tuple[list[str], list[dict[str, str]]]:
-    """A CSV file's header and rows, as text."""
     reader = csv.reader(io.StringIO(text))
     header = next(reader, [])
     return header, [dict(zip(header, row, strict=False)) for row in reader]

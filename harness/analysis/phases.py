@@ -1,13 +1,8 @@
-"""Where the time goes: each cell's `--timing` run split into its phases (the columns
-store.columns.PHASE_COLUMNS and what sim_s holds beyond them), in seconds and as shares of the
-simulation time, and its output in seconds, as a table, a figure's frame and a headline. The
-output gets no share: the --timing run writes it with --precise (every digit, for the
-validation), some 20x slower than the timed runs' output, so as a share it would shrink every
-other phase.
-
-Which cells: the timed ones with phases, at one thread count per experiment, the count most
-of those cells ran at (the fewest on a tie): a thread sweep shows its single-thread cells, a
-strategy comparison at its one count shows every variant.
+"""Where the time goes (docs/results.md, "Where the time goes"): each cell's `--timing` run
+split into its phases, in seconds and as shares of the simulation time, as a table, a figure's
+frame and a headline. The output gets no share: written with --precise, it would shrink every
+other phase. The cells shown are those at the experiment's most common thread count, so that a
+thread sweep shows its single-thread cells and a strategy comparison every variant.
 """
 
 from __future__ import annotations

@@ -77,7 +77,6 @@ def row(record: Mapping[str, object], experiment: str, title: str,
 
 
 def row_of(item: Listed, exp: ExperimentDir, title: str) -> Row:
-    """A listed record's row in its experiment."""
     return row(item.result.columns, exp.name, title, item.stale, item.config_changed)
 
 

@@ -138,7 +138,6 @@ class Cell:
 
 
 def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
-    """The experiment directories under `path` and whether `path` is a results root."""
     if not path.is_dir():
         raise HarnessError(f"{side} directory not found: {path}")
     found, root = layout.experiments_under(path, layout.has_cells)
