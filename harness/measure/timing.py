@@ -1,10 +1,7 @@
 """What a cell's untimed runs report in a JSON line: a variant's `--timing` run (SPEC section
 5: one JSON object on one line of stderr after the run), the seconds of input, simulation and
-output, counts, the phases of the simulation and the per-thread work; and the OpenMP
-runtime's cost of one operation at the cell's thread count: build/ompcost (tools/ompcost.c)
-run once in the cell's start step, with the cell's environment, when the config says
-`openmp_costs: true`. The record keeps its costs, so the report's cost model multiplies them
-by a strategy's operations at the same thread count, measured on the same machine."""
+output, counts, the phases of the simulation and the per-thread work; and build/ompcost's cost
+of one OpenMP operation at the cell's thread count (docs/configs.md, `openmp_costs`)."""
 
 from __future__ import annotations
 
