@@ -271,11 +271,9 @@ def count_points(config: Config) -> int:
 
 
 def expand_points(config: Config) -> list[dict[str, object]]:
-    """Every combination of the axes (scene keys, threads, ranks), in config order.
-
-    Axes in `config.zip_keys` advance together (they must have equal lengths); that group
-    and every other axis combine as a cross product.
-    """
+    """Every combination of the axes (scene keys, threads, ranks), in config order. Axes in
+    `config.zip_keys` advance together (they must have equal lengths), as one axis of the
+    cross product."""
     listed = axes(config)
     zipped = [(k, v) for k, v in listed if k in config.zip_keys]
     lengths = {len(v) for _, v in zipped}

@@ -1,9 +1,7 @@
 """Reading a config file: what each key accepts, with the checks every parser of a config uses
 (each mistake a `HarnessError` naming the file, the key and what was expected), and its YAML
 read strictly: a key named twice in one mapping is an error (PyYAML would keep the last one),
-and nothing in a file can make the reading unbounded: its size, its nesting depth, the values
-it expands to (an alias counts each time it is used: no "billion laughs") and the digits of an
-integer are limited, checked on the parser's events before a Python value is made."""
+and the reading is bounded before a Python value is made (docs/hostile.md, "The harness")."""
 
 from __future__ import annotations
 
