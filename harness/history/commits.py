@@ -1,10 +1,7 @@
-"""Measuring a config at every commit of a range (`history`): each commit built once in its own
-worktree (harness.runner.sides, as `compare --measure` does), its cells measured by the
-ordinary run into <experiment>/history/<commit>/, a results root of that commit. A cell
-already measured there on this machine is not measured again, so a killed history resumes; a
-commit that does not build is recorded (history/<commit>/build.json) and skipped, not fatal.
-Bisection names the commit of a step between measured commits by measuring the commits
-between against their neighbours, two at a time, in interleaved rounds (harness.runner.pair).
+"""Measuring a config at every commit of a range (`history`, docs/history.md): each commit built
+once in its own worktree (harness.runner.sides), its cells measured by the ordinary run into
+<experiment>/history/<commit>/, a results root of that commit, where a killed history resumes;
+and the bisection that names the commit of a step between measured commits.
 """
 
 from __future__ import annotations

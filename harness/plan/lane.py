@@ -1,10 +1,7 @@
-"""The instruction lane (`metric: instructions`, docs/instructions.md): which counter this
-machine offers, and which binary a cell's count runs. Chosen once per process and recorded with
-every count: perf (`perf stat -e instructions:u`, the kernel's hardware counter, at native
-speed) where it counts, else Valgrind's cachegrind (a VM seldom passes counters through), which
-cannot run AVX-512 code, so it counts a built variant's lane build (build/lane/, x86-64-v3);
-COLLIDE_INSTRUCTIONS_TOOL=perf|cachegrind chooses by hand. The lane runs OpenMP threads with
-OMP_WAIT_POLICY=passive, so that the count is the work and not the spinning of idle threads.
+"""The instruction lane (`metric: instructions`; docs/instructions.md says which counter counts,
+which build it runs and why): which counter this machine offers, perf where it counts, else
+Valgrind's cachegrind, and which binary a cell's count runs. Chosen once per process and
+recorded with every count.
 """
 
 from __future__ import annotations
