@@ -1,13 +1,8 @@
 """Three levels of variation: runs within a round, rounds within a session (one `run` of a
-config), sessions on a machine (docs/compare.md, "Three levels", says how they are modelled).
-
-A round's value is the median of its runs, a cell's the median of its rounds'. The runs of one
-round share the machine's moment and are not independent, so a bootstrap over them reads their
-agreement as certainty: the interval here is a t-interval on the logs of the round values. An
-absolute one adds the session level (SessionSpread, learnt by `reruns` per noise level, else
-DEFAULT_SESSION_SPREAD) for both of two sessions (sqrt 2): a prediction of another session's
-estimate. A ratio of two cells measured in the same rounds is taken round by round, so that the
-machine's speed at that moment cancels.
+config), sessions on a machine (docs/compare.md, "Three levels", says how each is modelled).
+The runs of one round share the machine's moment and are not independent, so a bootstrap over
+them reads their agreement as certainty: the interval here is a t-interval on the logs of the
+round values.
 """
 
 from __future__ import annotations

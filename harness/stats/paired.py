@@ -185,9 +185,8 @@ def paired_change(old: Sequence[float], new: Sequence[float], threshold: float,
     one right after the other, so that the machine's drift is in both. The ratio is the median
     of the per-round ratios, its interval and p-values from the sign test on their logs
     (scipy.stats.quantile_test: the interval is the order statistics that hold the median, the
-    p-values binomial, against +-log(1 + threshold)). Why the median and the sign test: a
-    round whose sides met different states of a shared machine costs the sign test one vote,
-    where it widens a t-test's every interval (docs/compare.md, "Measured together").
+    p-values binomial, against +-log(1 + threshold)); docs/compare.md, "Measured together",
+    says why the sign test.
 
     Rounds may have been added until the cell was decided: the p-values are those of the look
     the rounds count as (look_index, divided by its share of the error rate) and the interval

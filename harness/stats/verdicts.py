@@ -180,10 +180,9 @@ def noise_drift(shares: Sequence[float]) -> float:
 
 def contention_spread(old_pressure: Sequence[float], new_pressure: Sequence[float]) -> float:
     """What to allow on the log ratio of two sides measured apart for the CPU pressure they
-    met differently (a standard deviation): PRESSURE_SLOPE times the difference of their
-    rounds' mean pressures; 0 where either side's was not measured. Why: a burst of others'
-    work can cover one side of a fast cell and not the other, which neither side's spread
-    shows."""
+    met differently (a standard deviation; docs/compare.md, "Measured apart", says why):
+    PRESSURE_SLOPE times the difference of their rounds' mean pressures; 0 where either side's
+    was not measured."""
     if not len(old_pressure) or not len(new_pressure):
         return 0.0
     return PRESSURE_SLOPE * abs(float(np.mean(new_pressure)) - float(np.mean(old_pressure)))
