@@ -106,7 +106,6 @@ class Checker:
         return curves
 
     def _shadow(self, run: _Run) -> tuple[dict[str, object], ...]:
-        """Each shadow step's comparison against the truth."""
         checks, cell, scene = self.store.config.checks, run.cell, run.cell.scene
         runner = functools.partial(shadow.run_binary,
                                    timeout_s=self.store.config.measure.timeout_s)

@@ -1,11 +1,8 @@
-"""What the machine did to a timed round, measured rather than guessed: from /proc/stat, the
-CPU time stolen and the CPU time other processes took on the cores this process may use; from
-getrusage of the reaped children (hyperfine and its runs), their own CPU time and involuntary
-context switches; from /proc/pressure/cpu, how long some task waited for a CPU. A round whose
-cores others took beyond NOISE_LIMIT of their time is left out of a paired comparison
-on both sides (harness.comparison.verdicts). Migrations are not counted: the kernel gives
-them only while the process lives (/proc/<pid>/sched), and the runs are hyperfine's
-children."""
+"""What the machine did to a timed round, measured rather than guessed (docs/compare.md,
+"Noise, measured", names the sources): the CPU time stolen and taken by others on this
+process's cores, the children's own CPU time and involuntary context switches, and the CPU
+pressure. Migrations are not counted: the kernel gives them only while the process lives
+(/proc/<pid>/sched), and the runs are hyperfine's children."""
 
 from __future__ import annotations
 

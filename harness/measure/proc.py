@@ -1,12 +1,7 @@
 """Child processes of a measurement: run one in its own process group under a timeout (the
 whole group is killed past it or on Ctrl-C), its exit status, the tail of its stderr, and
-where asked its peak resident memory.
-
-The memory is build/peakrss's report (tools/peakrss.c): it forks the command and reaps it
-with wait4. The harness cannot reap it itself: the kernel starts a child's ru_maxrss at the
-high-water mark of the memory it was forked with, so a command this Python process started
-would report at least this process's resident set (15 MiB and more), where a small variant
-takes 2-3 MiB."""
+where asked its peak resident memory, as build/peakrss reports it (docs/results.md, "Peak
+memory", says why the harness cannot measure it itself)."""
 
 from __future__ import annotations
 
