@@ -1,13 +1,8 @@
-"""What the seed's strategies pay the OpenMP runtime, in numbers: each strategy's operations per
-step (its binary's `--describe` sync facts: regions, nested regions, barriers, dynamic grabs as
-functions of N) times the steps, times the cost of one operation measured at the cell's thread
-count on the same machine (build/ompcost, the `openmp_costs: true` columns), beside the
-measured time the strategy spends over its repair.
-
-The cost of one operation at a thread count is the median over that thread count's cells: each
-parallel cell ran ompcost once, and on a shared machine a single run can catch a team member
-waiting for a CPU.
-"""
+"""What the seed's strategies pay the OpenMP runtime, in numbers (docs/results.md, "What the
+runtime's operations cost"): each strategy's operations per step (its binary's `--describe`
+sync facts) times the steps, times the cost of one operation at the cell's thread count on the
+same machine (the median over that thread count's cells), beside the measured time the
+strategy spends over its repair."""
 
 from __future__ import annotations
 
