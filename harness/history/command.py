@@ -129,7 +129,6 @@ def publish(config: Config, exp: ExperimentDir, series: Sequence[Series],
 
 def summarise(config: Config, exp: ExperimentDir, series: Sequence[Series],
               order: Mapping[str, int], commits: int, args: argparse.Namespace) -> None:
-    """Publish the series and print their change points and where they went."""
     path, written = publish(config, exp, series, order, args)
     for s in written:
         for k, change in sorted(s.changes.items()):

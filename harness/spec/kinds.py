@@ -30,7 +30,6 @@ class Kind:
 
 
 def accepting(test: Callable[[object], bool]) -> Callable[[object], object]:
-    """A parse that returns the value where `test` accepts it, and raises ValueError where not."""
     def parse(value: object) -> object:
         if not test(value):
             raise ValueError

@@ -141,7 +141,6 @@ class MeasuredInRounds(Protocol):
 
 
 def paired_sides(old: MeasuredInRounds, new: MeasuredInRounds) -> PairedRounds:
-    """paired_series of two sides' rounds."""
     return paired_series(old.by_round(), new.by_round(), old.noise_by_round(),
                          new.noise_by_round(), old.pressure_by_round(), new.pressure_by_round())
 
