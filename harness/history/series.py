@@ -1,13 +1,9 @@
 """A config's history across commits, read from what `history` stored: each cell's value at
 every commit of the range (oldest first), the commits without one and why, each cell's change
 points, and history.csv's rows. A cell is matched across commits on what it measured
-(resultsets.MatchKey), never on its binary.
-
-Change points: E-Divisive Means with Student's t-test, as Hunter / Apache Otava do it, on the
-values' logs, so a step is a ratio whichever way it goes (docs/history.md: the algorithm, why
-not apache-otava itself, its detection and false-positive rates). An exact lane (instruction
-counts: no neighbour changes them) needs no statistics: every commit whose counts differ from
-its predecessor's beyond their own spread is a change point, with p = 0.
+(resultsets.MatchKey), never on its binary. Change points: E-Divisive Means with Student's
+t-test, as Hunter / Apache Otava do it, on the values' logs, so a step is a ratio whichever way
+it goes; an exact lane's need no statistics (docs/history.md, "The method", says why both).
 """
 
 from __future__ import annotations
