@@ -1,11 +1,8 @@
-"""Measure ONE planned cell, in three steps:
-  start: its untimed runs: one `--timing --precise` run under the cell timeout, build/ompcost
-         (measure.timing), validation (measure.references), the checks (measure.checks), a
-         program's run and check (the program_runner the programs feature lends), the
-         instruction lane's counted runs (measure.instructions);
-  time_round: one round of timed runs with hyperfine (measure.rounds);
-  finish: the record, written to cells/<cell_id>.json.
-An executor takes the cells through their rounds, alternating them (harness.executors.rounds).
+"""Measure ONE planned cell in three steps: `start`, its untimed runs (the `--timing --precise`
+run under the cell timeout, build/ompcost, validation, the checks, a program's run and check,
+the instruction lane's counted runs); `time_round`, one round of timed runs with hyperfine
+(measure.rounds); `finish`, the record written to cells/<cell_id>.json. An executor takes the
+cells through their rounds, alternating them (harness.executors.rounds).
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Count the instructions one run executes, with the lane's counter (harness.plan.lane): perf's
 hardware counter or Valgrind's cachegrind, each over every thread and child process of the run.
-
-A cell is counted COUNTS times. A run whose threads take work as they come (dynamic schedules)
-may merge a different split of it, and so execute a few more or fewer instructions: where the
-counts differ, the record keeps them all and the comparison of two cells widens by it
-(harness.analysis.exact)."""
+A cell is counted COUNTS times, and the record keeps every count: a run whose threads take work
+as it comes executes a few more or fewer instructions (docs/instructions.md, "How exact the
+counts are")."""
 
 from __future__ import annotations
 
