@@ -1,11 +1,8 @@
 """A measured cell, typed: what its measurement gave, beside its key (harness.store.model).
-
-CellResult is frozen and versioned, as pyperf's Run and Benchmark are: its timed runs are
-values, and what the measurement found beside them sits in small groups
-(harness.store.measured; None where no measurement filled one). On disk a record is
-CellResult.to_json(): one flat JSON object named by the columns of results.csv and a few more
-that only the record keeps, so that a column is read from one place (docs/results.md).
-Standard library only."""
+CellResult is frozen and versioned, as pyperf's Run and Benchmark are; what the measurement
+found beside its timed runs sits in small groups (harness.store.measured; None where none filled
+one). On disk, one flat JSON object named by results.csv's columns, so that a column is read
+from one place (docs/results.md). Standard library only."""
 
 from __future__ import annotations
 
