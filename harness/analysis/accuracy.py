@@ -124,7 +124,6 @@ def stability_matrix(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """Scene × variant/build: ✓ where every check passed, else ✗ and the failing checks."""
     rows = _checked(df, variants)
     rows = rows.assign(label=rows["variant"] + "/" + rows["build"])
-    # the scenes in the order the experiment ran them
     scenes = list(dict.fromkeys(rows.sort_values("scene_rank", kind="stable")["scene_name"]))
     marks = {}
     for key, cells in rows.groupby(["scene_name", "label"], sort=False):

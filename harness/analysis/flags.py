@@ -145,7 +145,6 @@ def flagged_cells(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """The cells of one experiment a reader must know about (not ok, a program that leaves
     seq, or flagged), one row each with why."""
     flagged = _flagged(df, variants)
-    # ranks only where some cell runs as ranks
     table = pd.DataFrame({k: flagged[k] for k in WARNING_KEYS if k in flagged.columns and (
         k != "ranks" or flagged[k].notna().any())})
     table["issue"] = ["; ".join(text for _, text in issues(row)) for _, row in flagged.iterrows()]

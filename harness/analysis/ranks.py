@@ -76,6 +76,5 @@ def cores_table(df: pd.DataFrame) -> pd.DataFrame:
         return table
     table["fastest"] = table["median_s"] == table.groupby(keys)["median_s"].transform("min")
     table = table.sort_values([*keys, "median_s"], kind="stable").reset_index(drop=True)
-    # the scene's keys name the table's groups only where they vary
     fixed = [k for k in present(table, SCENE_KEYS) if table[k].nunique() == 1]
     return table.drop(columns=fixed)
