@@ -89,7 +89,6 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     repo = args.repo.resolve()
     results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
-    # every K-th commit, the first and the last always kept
     commits = [c for k, c in enumerate(full) if k % args.every == 0 or k == len(full) - 1]
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = measuring_lock(args, args.items)

@@ -256,7 +256,6 @@ class CellStore:
         key = self.cell_key(cell)
         assert key is not None, "a cell is recorded only once its binaries exist"
         program = self.config.program(cell.variant)
-        # what the cell runs itself: a program's command, else the variant's binary
         runs_what = str(self.binary(cell)) if program is None else program.command
         return CellResult(
             cell_id, key, note="", subject=cell.named(), timing=Timing(runs=0, unstable=False),
