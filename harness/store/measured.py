@@ -279,7 +279,7 @@ class Provenance:
     slurm_task: str | None = None
     slurm_state: str | None = None  # set on a record the Slurm submitter wrote for a fault
     retry: bool | None = None  # measured again by the next run (a fault of no cell's)
-    # A record given its cell's current key by `store migrate` (harness.plan.migrate): the id
+    # A record given its cell's current key by `store migrate` (harness.analysis.migrate): the id
     # it had and the values of its key it was measured with, e.g. a serial variant's threads
     migrated_from: JsonObject | None = None
 
