@@ -1,8 +1,6 @@
-"""A serial variant's one cell, shown at every thread count it serves (docs/results.md,
-"A serial variant's cell"): seq runs one thread whatever it is told, so its cells at several
-thread counts are one measurement, which the tables and figures show at each count the other
-cells of its scene ran at (serving), so that every speedup over seq is over the same
-measurement. Counts of cells take each measurement once (measured_once)."""
+"""A serial variant's one cell, shown at every thread count it serves, so that every speedup
+over seq is over the same measurement (docs/results.md, "A serial variant's cell"); counts of
+cells take each measurement once (measured_once)."""
 
 from __future__ import annotations
 
@@ -22,8 +20,7 @@ def serving(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     copy the same measurement (cell id and all), `threads` the count it serves, flagged
     ONE_THREAD_RUN. A serial cell whose scene has no other cells stays as it is, and so do a
     serial variant's rows at other counts (records from before it was measured once); the
-    cell is not copied where such a row is. Frames without a serial variant are returned as
-    they are. Which variants are serial, `variants` (their facts) says."""
+    cell is not copied where such a row is."""
     serial = (variant_fact(df["variant"], lambda facts: not facts.parallel, variants)
               if len(df) else None)
     if serial is None or not serial.any():

@@ -79,7 +79,7 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     `thread_baseline`, a cell whose scene has no seq is measured against its own variant at
     1 thread instead (the thread-scaling convention). Where `ratios` (analysis.paired) pairs a
     row with its baseline by round, the three and their intervals are that ratio's
-    (`speedup_paired`). Which variants do seq's work and which are serial, `variants` says."""
+    (`speedup_paired`)."""
     out = df.copy()
     if TIMES not in df.columns:  # results written before the column
         df = df.assign(**{TIMES: [()] * len(df)})
