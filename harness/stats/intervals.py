@@ -142,10 +142,8 @@ def _two_medians(a: np.ndarray, b: np.ndarray, statistic: Callable[..., np.ndarr
 
 
 def ratio_ci(numerator: Sequence[float], denominator: Sequence[float]) -> Interval:
-    """median(numerator) / median(denominator), each resampled on its own (independent runs).
-
-    compare.py's NEW/OLD is ratio_ci(new, old); a speedup over a baseline is
-    ratio_ci(baseline, cell)."""
+    """median(numerator) / median(denominator), each resampled on its own (independent runs):
+    compare.py's NEW/OLD is ratio_ci(new, old), and a speedup is speedup_ci(baseline, cell)."""
     a, b = clean(numerator), clean(denominator)
     if b.size and float(np.median(b)) == 0.0:
         return Interval(math.nan)
