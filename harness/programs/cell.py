@@ -232,15 +232,17 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                                     cell.ranks)
     done = run_process(command, env, timeout_s, memory=True)
 
-    def ran(record: CellResult, status: str = OK, code: int | None = 0) -> CellRun:
+    def ran(record: CellResult, status: str = OK, code: int | None = 0,
+            failed: str = "") -> CellRun:  # failed: why no verdict (the note)
+        if failed:
+            record = record.replace(agreement=AGREEMENT_FAILED, note=failed)
         return CellRun(cell_id, key, record, status, code, command, run_s=done.seconds)
 
     record = record.replace(command=shlex.join(command), program=_described(program),
                             stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
     status, code = _status(done)
     if status != OK:
-        return ran(record.replace(agreement=AGREEMENT_FAILED,
-                                  note=failure("its run", done, timeout_s)), status, code)
+        return ran(record, status, code, failure("its run", done, timeout_s))
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads,
@@ -251,14 +253,12 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                                  else None)
     status, code = _status(checked)
     if status != OK:
-        return ran(record.replace(agreement=AGREEMENT_FAILED, note=failure(
-            "its check run (print mode)", checked, timeout_s)), status, code)
+        return ran(record, status, code,
+                   failure("its check run (print mode)", checked, timeout_s))
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
-        record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: "
-                                f"{refs[REFERENCE].name}'s print-mode run failed")
-        return ran(record)
+        return ran(record, failed=f"not checked: {refs[REFERENCE].name}'s print-mode run failed")
     replays: list[float] = []
     replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
     judged = time.monotonic()
