@@ -90,11 +90,12 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     if options.dry_run:
         return dry_run(experiment, binaries, out)
     executor = make_executor(options.executor or config.executor.kind)
-    if options.collect and executor.name == "local":
+    here = executor.name == "local"
+    if options.collect and here:
         raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
-    require_mpi(plan, experiment.cores, here=executor.name == "local")
+    require_mpi(plan, experiment.cores, here=here)
     tools = checkout_tools(binaries)  # this checkout's, whichever repository is measured
     make_binaries(options.repo_root, [b for b in binaries if b not in tools], options.make)
     make_binaries(REPO_ROOT, tools, options.make)
@@ -110,13 +111,11 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         log.write(f"warning: {config.name}: threads {', '.join(map(str, over))} exceed the "
                   f"{experiment.cores} cores of this machine (oversubscribed; column "
                   "'oversubscribed')\n")
-    pending, env = lock_and_describe(experiment, pending, here=executor.name == "local")
-    measured: set[str] = set()
+    pending, env = lock_and_describe(experiment, pending, here=here)
     rebuilds = CsvRebuilds(lambda: write_exports(experiment.store))
 
     def on_record(cell: Cell, cid: str, record: CellResult) -> None:
-        experiment.records[cid] = record
-        measured.add(cid)
+        experiment.records[cid] = record  # the pending cells' only once measured
         rebuilds.record_added()
         report_cell(cell, record, log)
 
@@ -134,7 +133,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     write_exports(experiment.store, prune=True)
     if env is not None:
         write_env_after(experiment.directory, env)
-    missing = [cid for _, cid in pending if cid not in measured]
+    missing = [cid for _, cid in pending if cid not in experiment.records]
     if missing and options.collect:  # --collect submits nothing: they are simply not there
         log.write(f"{config.name}: {len(missing)} cell(s) not measured yet\n")
     elif missing:
@@ -142,8 +141,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
     statuses = Counter(str(experiment.records[cid].status) for _, cid in order
                        if cid in experiment.records)  # all of them, but after --collect
-    summary = Summary(experiment.directory, len(order), len(measured),
-                      len(order) - len(measured) - len(missing), statuses)
+    summary = Summary(experiment.directory, len(order), len(pending) - len(missing),
+                      len(order) - len(pending), statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
     log.write(f"{config.name}: {counted(summary.cells, 'cell')} ({summary.measured} measured, "
               f"{summary.cached} cached): {counts or 'none'}; results in "
