@@ -136,12 +136,11 @@ def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
         places = [_own(frames) for frames in accesses[:2]]
         if len(places) != 2 or not all(places):
             continue
-        key = (min(places, key=_place_key), max(places, key=_place_key))
-        names = found.setdefault(key, [])
+        names = found.setdefault((min(places, key=_place_key), max(places, key=_place_key)), [])
         if variable and variable not in names:
             names.append(variable)
     return tuple(Race(a, b, tuple(names)) for (a, b), names in sorted(
-        found.items(), key=lambda item: (_place_key(item[0][0]), _place_key(item[0][1]))))
+        found.items(), key=lambda item: tuple(map(_place_key, item[0]))))
 
 
 def _place_key(place: str) -> tuple[str, int]:
@@ -332,10 +331,9 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
     """The check run again at `threads` and at 1 thread: a nondeterministic verdict where an
     output differs from the first run's, else None (or when a rerun itself fails: its own
     cell says so)."""
-    for again, what in ((threads, f"two runs at {threads} threads"),
-                        (1, f"a run at {threads} threads and one at 1 thread")):
-        if again == 1 and threads == 1:
-            continue
+    for again in dict.fromkeys((threads, 1)):
+        what = (f"two runs at {threads} threads" if again == threads
+                else f"a run at {threads} threads and one at 1 thread")
         argv = program.shell_command(program.check, input_file, again)
         done, text = run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
         if done.returncode != 0:
