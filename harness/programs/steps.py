@@ -141,12 +141,11 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     # The precision the program reaches where it is right: the steps before the first wrong one.
     reached = _reached(explain, [k for k in sorted(open_) if not wrong or k < min(wrong)],
                        open_)
-    open_ = wrong
-    near_ties = explain.near_ties(open_)
-    if not open_:
+    near_ties = explain.near_ties(wrong)
+    if not wrong:
         return StepJudgement(reached, steps_judged=len(pairs), near_ties=near_ties)
-    k = min(open_)
-    i = int(np.flatnonzero(open_[k])[0])
+    k = min(wrong)
+    i = int(np.flatnonzero(wrong[k])[0])
     event = (EVENT_NAMES.get(int(base.kind[k][i]), "free"), int(base.partner[k][i]),
              float(base.t[k][i]))
     return StepJudgement(reached, k + 1, i, event, float(np.max(deviation[k][i])), len(pairs),
