@@ -23,10 +23,6 @@ USER_ERRNOS: frozenset[int] = frozenset({
     errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG, errno.ELOOP})
 
 
-def is_user_os_error(exc: BaseException) -> bool:
-    return isinstance(exc, OSError) and exc.errno in USER_ERRNOS
-
-
 def os_error_text(exc: OSError) -> str:
     """An OS error as `PATH: why` (the path it names, where it names one)."""
     why = exc.strerror or str(exc)

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from harness import programs
-from harness.errors import HarnessError, is_user_os_error, os_error_text
+from harness.errors import USER_ERRNOS, HarnessError, os_error_text
 from harness.report.parts import ReportFeature
 from harness.runner.command import EXIT_ERROR, EXIT_INTERRUPTED, PROG, Hooks
 
@@ -81,7 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_ERROR
     except OSError as exc:  # a full disk, a read-only place, a file where a directory should be
-        if not is_user_os_error(exc):
+        if exc.errno not in USER_ERRNOS:
             raise
         sys.stderr.write(f"error: {os_error_text(exc)}\n")
         return EXIT_ERROR

@@ -113,9 +113,7 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     from harness.report.pipeline import render
 
     check_derived(options.results_root, sys.stderr)
-    if options.quick:
-        path = render(options.results_root, report_dir / QUICK_REPORT, include_quick=True,
-                      experiments=names, features=REPORT_FEATURES)
-    else:
-        path = render(options.results_root, report_dir, features=REPORT_FEATURES)
-    return path.with_suffix(".html")
+    out = report_dir / QUICK_REPORT if options.quick else report_dir
+    return render(options.results_root, out, include_quick=options.quick,
+                  experiments=names if options.quick else None,
+                  features=REPORT_FEATURES).with_suffix(".html")

@@ -65,10 +65,6 @@ class Experiment:
     def config(self) -> Config:
         return self.plan.config
 
-    @property
-    def directory(self) -> Path:
-        return self.store.directory
-
 
 def machine_id(repo_root: Path = REPO_ROOT, make: str = "make") -> str:
     return str(machine.machine(repo_root, make)[records.MACHINE_KEY])

@@ -13,7 +13,7 @@ import math
 import random
 import statistics
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from harness import stats
@@ -23,6 +23,7 @@ from harness.measure.cell import Measurer
 from harness.measure.noise import QuietWait
 from harness.measure.rounds import CellRun, limit_reason, runs_left
 from harness.plan.cells import Cell
+from harness.spec.config import Measure
 from harness.spec.facts import BASELINE
 from harness.store.columns import STOPPED_CI
 from harness.store.result import CellResult
@@ -51,9 +52,13 @@ class Unit:
         assert self.run is not None, "a unit is started before its rounds"
         return self.run
 
-    def left(self) -> tuple[float, float]:
-        return runs_left(self.state.measure(self.measurer.config.measure_for(self.cell.variant)),
-                         self.state)
+    @property
+    def measure(self) -> Measure:
+        return self.state.measure(self.measurer.config.measure_for(self.cell.variant))
+
+    def at_limit(self) -> bool:
+        """Whether the cell reached its max_runs or max_time_s (its interval stopped it first)."""
+        return bool(limit_reason(self.measure, self.state.times, self.state.per_round))
 
 
 OnDone = Callable[[Unit, CellResult], None]
@@ -63,15 +68,18 @@ OnDone = Callable[[Unit, CellResult], None]
 Extend = Callable[[Sequence[Unit]], str]
 
 
+def _partners(units: Sequence[Unit]) -> Iterator[tuple[CellRun, CellRun]]:
+    """The runs of each started unit and its started partner."""
+    for unit in units:
+        if unit.partner is not None and unit.run is not None and unit.partner.run is not None:
+            yield unit.run, unit.partner.run
+
+
 def pair_up(units: Sequence[Unit]) -> None:
     """Partners stop together: one that found its interval narrow goes on while its partner
     needs runs; one that reached a limit stops its partner too."""
-    for unit in units:
-        partner = unit.partner
-        if partner is None or not (unit.state.timed and partner.state.timed):
-            continue
-        a, b = unit.state, partner.state
-        if a.stopped and not b.stopped:
+    for a, b in _partners(units):
+        if a.timed and b.timed and a.stopped and not b.stopped:
             if a.stopped == STOPPED_CI:
                 a.stopped = ""
             else:
@@ -103,25 +111,19 @@ def hold_for_ratios(units: Sequence[Unit]) -> None:
     over the rounds both sides have, and carries the run noise of both sides."""
     going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
     held = [unit for unit in units if unit.run is not None and unit.run.stopped == STOPPED_CI
-            and not _at_limit(unit) and any(id(side) in going or not _ratio_narrow(unit, side)
+            and not unit.at_limit() and any(id(side) in going or not _ratio_narrow(unit, side)
                                             for side in unit.ratio_sides)]
     for unit in held:
         unit.state.stopped = ""
-
-
-def _at_limit(unit: Unit) -> bool:
-    """Whether the cell reached its max_runs or max_time_s (its interval stopped it first)."""
-    measure = unit.state.measure(unit.measurer.config.measure_for(unit.cell.variant))
-    return bool(limit_reason(measure, unit.state.times, unit.state.per_round))
 
 
 def _ratio_narrow(unit: Unit, side: Unit) -> bool:
     """Whether the ratio of the two cells needs no more rounds: within the larger of their
     `ci` over their common rounds, or the other side stopped on something else than its
     interval (its rounds will not grow)."""
-    if side.run is None or side.run.stopped != STOPPED_CI or _at_limit(side):
+    if side.run is None or side.run.stopped != STOPPED_CI or side.at_limit():
         return True
-    ci = max(u.measurer.config.measure_for(u.cell.variant).ci for u in (unit, side))
+    ci = max(u.measure.ci for u in (unit, side))
     return stats.paired_ratio(side.state.by_round(),
                               unit.state.by_round()).interval().half_width() <= ci
 
@@ -135,11 +137,7 @@ def paired_per_round(run_s: float) -> int:
 
 def share_rounds(units: Sequence[Unit]) -> None:
     """Partners not yet timed take the same runs a round, from the slower one's run time."""
-    for unit in units:
-        partner = unit.partner
-        if partner is None or unit.run is None or partner.run is None:
-            continue
-        a, b = unit.state, partner.state
+    for a, b in _partners(units):
         if not a.times and not b.times:
             a.per_round = b.per_round = paired_per_round(max(a.run_s, b.run_s))
 
@@ -236,7 +234,7 @@ def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
             continue
         seconds = unit.state.per_run_s + overhead
         per_run.append(seconds)
-        fewest, most = unit.left()
+        fewest, most = runs_left(unit.measure, unit.state)
         low += fewest * seconds
         high += most * seconds
     if to_start and per_run:

@@ -10,45 +10,28 @@ cell is measured or an experiment's section is built.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING
+import importlib
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
-from harness.report.parts import Count, ReportFeature
+from harness.report.parts import ReportFeature
 
 if TYPE_CHECKING:
-    from harness.measure.references import References
-    from harness.measure.rounds import CellRun
-    from harness.plan.cells import Cell
-    from harness.plan.cellstore import CellStore
-    from harness.report.document import Section
-    from harness.report.sections.context import Context, Experiment
-    from harness.store.result import CellResult
+    from harness.report.parts import Count
 
 NAME = "programs"
 
 
-def start_program(store: CellStore, references: References, cell: Cell, cell_id: str,
-                  key: dict[str, object], record: CellResult, env: Mapping[str, str],
-                  timeout_s: float) -> CellRun:
-    """A program's cell: its run and its check against seq (harness.programs.cell)."""
-    from harness.programs import cell as program_cell
+def _on_call(module: str, name: str) -> Callable[..., Any]:
+    """harness.programs.MODULE's `name`, that module imported at the first call."""
+    def call(*args: Any, **kwargs: Any) -> Any:
+        return getattr(importlib.import_module(f"{__name__}.{module}"), name)(*args, **kwargs)
 
-    return program_cell.start_program(store, references, cell, cell_id, key, record, env,
-                                      timeout_s)
+    return call
 
 
-def sections(ctx: Context) -> list[Section]:
-    """The experiment's programs section, where it has program cells."""
-    from harness.programs import section
-
-    return section.build(ctx)
-
-
-def count(exp: Experiment, section: Section) -> Count | None:
-    """The experiment's program cells and those that agree with seq."""
-    from harness.programs import section as program_section
-
-    return program_section.count(exp, section)
+# A program's cell: its run and its check against seq (Hooks.program_runner).
+start_program = _on_call("cell", "start_program")
 
 
 def sentence(total: Count) -> str:
@@ -57,4 +40,7 @@ def sentence(total: Count) -> str:
             f"rounding or diverges) ([programs](#{total.anchor}))")
 
 
-REPORT = ReportFeature(NAME, "programs", sections, count, sentence)
+# The experiment's programs section, where it has program cells, and the count of its program
+# cells that agree with seq.
+REPORT = ReportFeature(NAME, "programs", _on_call("section", "build"),
+                       _on_call("section", "count"), sentence)

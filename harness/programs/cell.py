@@ -136,12 +136,11 @@ def parse_reports(text: str, directory: Path) -> tuple[Race, ...]:
         places = [_own(frames) for frames in accesses[:2]]
         if len(places) != 2 or not all(places):
             continue
-        key = (min(places, key=_place_key), max(places, key=_place_key))
-        names = found.setdefault(key, [])
+        names = found.setdefault((min(places, key=_place_key), max(places, key=_place_key)), [])
         if variable and variable not in names:
             names.append(variable)
     return tuple(Race(a, b, tuple(names)) for (a, b), names in sorted(
-        found.items(), key=lambda item: (_place_key(item[0][0]), _place_key(item[0][1]))))
+        found.items(), key=lambda item: tuple(map(_place_key, item[0]))))
 
 
 def _place_key(place: str) -> tuple[str, int]:
@@ -232,15 +231,17 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                                     cell.ranks)
     done = run_process(command, env, timeout_s, memory=True)
 
-    def ran(record: CellResult, status: str = OK, code: int | None = 0) -> CellRun:
+    def ran(record: CellResult, status: str = OK, code: int | None = 0,
+            failed: str = "") -> CellRun:  # failed: why no verdict (the note)
+        if failed:
+            record = record.replace(agreement=AGREEMENT_FAILED, note=failed)
         return CellRun(cell_id, key, record, status, code, command, run_s=done.seconds)
 
     record = record.replace(command=shlex.join(command), program=_described(program),
                             stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
     status, code = _status(done)
     if status != OK:
-        return ran(record.replace(agreement=AGREEMENT_FAILED,
-                                  note=failure("its run", done, timeout_s)), status, code)
+        return ran(record, status, code, failure("its run", done, timeout_s))
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads,
@@ -251,14 +252,12 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                                  else None)
     status, code = _status(checked)
     if status != OK:
-        return ran(record.replace(agreement=AGREEMENT_FAILED, note=failure(
-            "its check run (print mode)", checked, timeout_s)), status, code)
+        return ran(record, status, code,
+                   failure("its check run (print mode)", checked, timeout_s))
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
-        record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: "
-                                f"{refs[REFERENCE].name}'s print-mode run failed")
-        return ran(record)
+        return ran(record, failed=f"not checked: {refs[REFERENCE].name}'s print-mode run failed")
     replays: list[float] = []
     replay = _replay(refs[REPLAY], references.environment(cell.threads), timeout_s, replays)
     judged = time.monotonic()
@@ -332,10 +331,9 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
     """The check run again at `threads` and at 1 thread: a nondeterministic verdict where an
     output differs from the first run's, else None (or when a rerun itself fails: its own
     cell says so)."""
-    for again, what in ((threads, f"two runs at {threads} threads"),
-                        (1, f"a run at {threads} threads and one at 1 thread")):
-        if again == 1 and threads == 1:
-            continue
+    for again in dict.fromkeys((threads, 1)):
+        what = (f"two runs at {threads} threads" if again == threads
+                else f"a run at {threads} threads and one at 1 thread")
         argv = program.shell_command(program.check, input_file, again)
         done, text = run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
         if done.returncode != 0:

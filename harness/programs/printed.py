@@ -94,19 +94,22 @@ def _read_rows_numeric(text: str) -> Rows | None:
     counts[final] = numbers[final, 6:8].astype(np.int64)
     value = (field_of >= 2) & (field_of < HISTORY_FIELDS)
     vs, ve = start[value].reshape(-1, 4), end[value].reshape(-1, 4)
-    dots = np.flatnonzero(b == ord("."))
-    j = np.minimum(np.searchsorted(dots, vs), max(len(dots) - 1, 0))
-    has_dot = (dots[j] < ve) & (dots[j] >= vs) if len(dots) else np.zeros(vs.shape, bool)
-    decimals = np.where(has_dot, ve - (dots[j] if len(dots) else 0) - 1, 0)
-    half = 0.5 * 10.0 ** (-decimals.astype(np.float64))
-    exps = np.flatnonzero((b == ord("e")) | (b == ord("E")))
-    if len(exps):
-        k = np.minimum(np.searchsorted(exps, vs), len(exps) - 1)
-        for flat in np.flatnonzero(((exps[k] < ve) & (exps[k] >= vs)).ravel()):
-            half.flat[flat] = half_unit_exp(data[vs.flat[flat]:ve.flat[flat]].decode())
+    dot = _first_in(np.flatnonzero(b == ord(".")), vs, ve)
+    half = 0.5 * 10.0 ** (-np.where(dot >= 0, ve - dot - 1, 0).astype(np.float64))
+    exp = _first_in(np.flatnonzero((b == ord("e")) | (b == ord("E"))), vs, ve)
+    for flat in np.flatnonzero(exp.ravel() >= 0):
+        half.flat[flat] = half_unit_exp(data[vs.flat[flat]:ve.flat[flat]].decode())
     rows = _last_of_each(step, index)
     return Rows(step[rows], index[rows], numbers[rows, 2:6], _Tokens(data, vs[rows], ve[rows]),
                 half[rows], counts[rows])
+
+
+def _first_in(positions: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Per token (its bytes start:end), the first of the sorted byte `positions` in it, or -1."""
+    if not len(positions):
+        return np.full(start.shape, -1)
+    at = positions[np.minimum(np.searchsorted(positions, start), len(positions) - 1)]
+    return np.where((at >= start) & (at < end), at, -1)
 
 
 def _last_of_each(step: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -147,10 +147,7 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def _races(cells: pd.DataFrame) -> str:
     """The races column of a program's cells (the one checked: its highest thread count's)."""
-    if "races" not in cells.columns:
-        return ""
-    found = [str(v) for v in cells["races"].dropna() if str(v)]
-    return found[0] if found else ""
+    return next((str(v) for v in cells.get("races", pd.Series()).dropna() if str(v)), "")
 
 
 def write_csv(table: pd.DataFrame, stem: Path) -> Path:

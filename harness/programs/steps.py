@@ -12,6 +12,7 @@ step none explains is wrong. The method at length: docs/programs.md, "Step by st
 from __future__ import annotations
 
 import itertools
+from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -140,12 +141,11 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     # The precision the program reaches where it is right: the steps before the first wrong one.
     reached = _reached(explain, [k for k in sorted(open_) if not wrong or k < min(wrong)],
                        open_)
-    open_ = wrong
-    near_ties = explain.near_ties(open_)
-    if not open_:
+    near_ties = explain.near_ties(wrong)
+    if not wrong:
         return StepJudgement(reached, steps_judged=len(pairs), near_ties=near_ties)
-    k = min(open_)
-    i = int(np.flatnonzero(open_[k])[0])
+    k = min(wrong)
+    i = int(np.flatnonzero(wrong[k])[0])
     event = (EVENT_NAMES.get(int(base.kind[k][i]), "free"), int(base.partner[k][i]),
              float(base.t[k][i]))
     return StepJudgement(reached, k + 1, i, event, float(np.max(deviation[k][i])), len(pairs),
@@ -205,10 +205,10 @@ class _Explainer:
         self.replay, self.base, self.deviation = replay, base, deviation
         self.slack = ARITH_ULPS * DOUBLE_EPS * L
         # Per (level, step): the particles tried, those explained, and those explained only
-        # by a replay that decided otherwise (a near-tie).
-        self.tried: dict[tuple[float | None, int], np.ndarray] = {}
-        self.good: dict[tuple[float | None, int], np.ndarray] = {}
-        self.tie: dict[tuple[float | None, int], np.ndarray] = {}
+        # by a replay that decided otherwise (a near-tie); none where not replayed.
+        self.tried, self.good, self.tie = (
+            defaultdict[tuple[float | None, int], np.ndarray](lambda: np.zeros(n, dtype=bool))
+            for _ in range(3))
 
     def left(self, levels: tuple[float | None, ...],
              open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
@@ -217,15 +217,15 @@ class _Explainer:
         each on what the ones before it left."""
         # What a level's earlier replays explained needs no replay: subtracted first, so that
         # a level is replayed only on what no level already explains.
-        still = {k: m & ~np.any([self._mask(self.good, level, k) for level in levels], axis=0)
+        still = {k: m & ~np.any([self.good[level, k] for level in levels], axis=0)
                  for k, m in open_.items()}
         still = {k: m for k, m in still.items() if m.any()}
         for level in levels:
-            todo = {k: m & ~self._mask(self.tried, level, k) for k, m in still.items()}
+            todo = {k: m & ~self.tried[level, k] for k, m in still.items()}
             todo = {k: m for k, m in todo.items() if m.any()}
             if todo:
                 self._replay(level, todo)
-            still = {k: m & ~self._mask(self.good, level, k) for k, m in still.items()}
+            still = {k: m & ~self.good[level, k] for k, m in still.items()}
             still = {k: m for k, m in still.items() if m.any()}
             if not still:
                 break
@@ -239,8 +239,8 @@ class _Explainer:
 
     def unexplained(self, level: float | None, steps: list[int]) -> float:
         """The share of the values tried at `level` in `steps` that it left."""
-        tried = sum(int(self._mask(self.tried, level, k).sum()) for k in steps)
-        good = sum(int(self._mask(self.good, level, k).sum()) for k in steps)
+        tried = sum(int(self.tried[level, k].sum()) for k in steps)
+        good = sum(int(self.good[level, k].sum()) for k in steps)
         return (tried - good) / tried if tried else 0.0
 
     def near_ties(self, wrong: dict[int, np.ndarray]) -> int:
@@ -256,11 +256,6 @@ class _Explainer:
                     plain |= self.good[level, step] & ~mask
             count += int(np.count_nonzero(tie & ~plain & ~wrong.get(k, np.zeros_like(tie))))
         return count
-
-    def _mask(self, table: dict[tuple[float | None, int], np.ndarray], level: float | None,
-              k: int) -> np.ndarray:
-        mask = table.get((level, k))
-        return np.zeros(self.n, dtype=bool) if mask is None else mask
 
     def _replay(self, level: float | None, open_: dict[int, np.ndarray]) -> None:
         n = self.n
@@ -304,9 +299,7 @@ class _Explainer:
             explained = ~np.any(best > tolerance, axis=1)
             for table, which in ((self.tried, np.ones(len(rows), dtype=bool)),
                                  (self.good, explained), (self.tie, tie & explained)):
-                mask = self._mask(table, level, k).copy()
-                mask[rows[which]] = True
-                table[level, k] = mask
+                table[level, k][rows[which]] = True
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the

@@ -88,11 +88,12 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     if options.dry_run:
         return dry_run(experiment, binaries, out)
     executor = make_executor(options.executor or config.executor.kind)
-    if options.collect and executor.name == "local":
+    here = executor.name == "local"
+    if options.collect and here:
         raise HarnessError("--collect needs the slurm executor (--executor slurm, or "
                            "executor: {kind: slurm} in the config)")
     require_hyperfine(options.hyperfine)
-    require_mpi(plan, experiment.cores, here=executor.name == "local")
+    require_mpi(plan, experiment.cores, here=here)
     tools = checkout_tools(binaries)  # this checkout's, whichever repository is measured
     make_binaries(options.repo_root, [b for b in binaries if b not in tools], options.make)
     make_binaries(REPO_ROOT, tools, options.make)
@@ -100,7 +101,7 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     if removed:  # the temporary files a killed run left where this one writes
         log.write(f"{config.name}: removed {len(removed)} temporary file(s) a killed run left\n")
     # what the cells' variants are, stored with them: reading results never asks a binary
-    index.write_variants(experiment.directory, registry.known.to_json())
+    index.write_variants(experiment.store.directory, registry.known.to_json())
     order = [(cell, built_cell_id(experiment.store, cell)) for cell in plan.cells]
     pending = not_cached(experiment, order)
     over = sorted({c.threads for c in plan.cells if c.threads > experiment.cores})
@@ -108,13 +109,11 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
         log.write(f"warning: {config.name}: threads {', '.join(map(str, over))} exceed the "
                   f"{experiment.cores} cores of this machine (oversubscribed; column "
                   "'oversubscribed')\n")
-    pending, env = lock_and_describe(experiment, pending, here=executor.name == "local")
-    measured: set[str] = set()
+    pending, env = lock_and_describe(experiment, pending, here=here)
     rebuilds = CsvRebuilds(lambda: write_exports(experiment.store))
 
     def on_record(cell: Cell, cid: str, record: CellResult) -> None:
-        experiment.records[cid] = record
-        measured.add(cid)
+        experiment.records[cid] = record  # the pending cells' only once measured
         rebuilds.record_added()
         report_cell(cell, record, log)
 
@@ -131,8 +130,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
     progress.close()
     write_exports(experiment.store, prune=True)
     if env is not None:
-        write_env_after(experiment.directory, env)
-    missing = [cid for _, cid in pending if cid not in measured]
+        write_env_after(experiment.store.directory, env)
+    missing = [cid for _, cid in pending if cid not in experiment.records]
     if missing and options.collect:  # --collect submits nothing: they are simply not there
         log.write(f"{config.name}: {len(missing)} cell(s) not measured yet\n")
     elif missing:
@@ -140,8 +139,8 @@ def run_experiment(config: Config, options: Options, log: TextIO, out: TextIO,
                            f"for {len(missing)} cell(s): {' '.join(missing)}")
     statuses = Counter(str(experiment.records[cid].status) for _, cid in order
                        if cid in experiment.records)  # all of them, but after --collect
-    summary = Summary(experiment.directory, len(order), len(measured),
-                      len(order) - len(measured) - len(missing), statuses)
+    summary = Summary(experiment.store.directory, len(order), len(pending) - len(missing),
+                      len(order) - len(pending), statuses)
     counts = ", ".join(f"{v} {k}" for k, v in sorted(statuses.items()))
     log.write(f"{config.name}: {counted(summary.cells, 'cell')} ({summary.measured} measured, "
               f"{summary.cached} cached): {counts or 'none'}; results in "
@@ -199,9 +198,9 @@ def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], h
         env = environment.collect(options.repo_root, options.make, options.hyperfine)
         if options.started:
             env[RUN_STARTED] = options.started
-        index.write_env(experiment.directory, env)
+        index.write_env(experiment.store.directory, env)
     elif not pending and not experiment.store.layout.env_json.is_file():
-        index.write_env(experiment.directory, environment.collect(
+        index.write_env(experiment.store.directory, environment.collect(
             options.repo_root, options.make, options.hyperfine))
     return pending, env
 
@@ -288,10 +287,10 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
     lines += [f"  excluded: {cell.label}\n" for cell in plan.excluded]
     out.write(f"{plan.config.name}: {len(plan.cells)} cells ({cached} cached, "
               f"{len(plan.cells) - cached} to run, {len(plan.excluded)} excluded) -> "
-              f"{experiment.directory}\n")
+              f"{experiment.store.directory}\n")
     if missing:
         names = " ".join(str(b.relative_to(REPO_ROOT if b in checkout_tools(missing)
                                            else experiment.options.repo_root)) for b in missing)
         out.write(f"  would build: {names}\n")
     out.writelines(lines)
-    return Summary(experiment.directory, len(plan.cells), 0, cached, {})
+    return Summary(experiment.store.directory, len(plan.cells), 0, cached, {})

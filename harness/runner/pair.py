@@ -22,7 +22,7 @@ from harness.executors.base import Progress, format_seconds, machine_id
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment
 from harness.measure.cell import Measurer, ProgramRunner
-from harness.plan.cells import Plan, plan_cells
+from harness.plan.cells import plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
 from harness.runner.experiment import (
@@ -148,14 +148,6 @@ def with_min_rounds(config: Config, rounds: int = MIN_ROUNDS) -> Config:
         variant_measures=tuple((v, m.at_least(rounds)) for v, m in config.variant_measures))
 
 
-def plans_of(configs: Sequence[Config], registry: VariantRegistry) -> list[Plan]:
-    plans = [plan_cells(with_min_rounds(config), False, registry) for config in configs]
-    for config, plan in zip(configs, plans, strict=True):
-        if not plan.cells:
-            raise HarnessError(f"{config.source}: every cell is excluded: nothing to measure")
-    return plans
-
-
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
                   registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
                   hyperfine: str = "hyperfine", threshold: float = 0.01, q: float = 0.05,
@@ -164,7 +156,10 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
     of measuring is spent; the two results roots, complete, under OUT."""
-    plans = plans_of(configs, registry)
+    plans = [plan_cells(with_min_rounds(config), False, registry) for config in configs]
+    for config, plan in zip(configs, plans, strict=True):
+        if not plan.cells:
+            raise HarnessError(f"{config.source}: every cell is excluded: nothing to measure")
     for side in (old, new):  # every binary built (or found) before anything runs
         build_plans(side, plans)
     require_hyperfine(hyperfine)

@@ -59,9 +59,13 @@ def slurm_command(argv: Sequence[str], check: bool = True) -> subprocess.Complet
         raise SlurmError(f"{shlex.join(argv)} did not answer within "
                          f"{COMMAND_TIMEOUT_S:g} s") from None
     if check and done.returncode != 0:
-        raise SlurmError(f"{shlex.join(argv)} failed (exit {done.returncode}): "
-                         f"{' '.join(done.stderr.split())[-500:]}")
+        raise failed(shlex.join(argv), done)
     return done
+
+
+def failed(shown: str, done: subprocess.CompletedProcess[str]) -> SlurmError:
+    return SlurmError(f"{shown} failed (exit {done.returncode}): "
+                      f"{' '.join(done.stderr.split())[-500:]}")
 
 
 def partition_cpus(partition: str | None) -> int | None:
@@ -101,12 +105,9 @@ def queue_states(job_id: str) -> dict[int, str] | None:
     MinJobAge); None when squeue no longer knows the job."""
     done = slurm_command(["squeue", "-h", "-r", "-t", "all", "-j", job_id, "-o", "%i|%T"],
                          check=False)
-    if done.returncode != 0:
-        if "Invalid job id" in done.stderr:
-            return None
-        raise SlurmError(f"squeue -j {job_id} failed (exit {done.returncode}): "
-                         f"{' '.join(done.stderr.split())[-500:]}")
-    return task_states(done.stdout, job_id) or None
+    if done.returncode != 0 and "Invalid job id" not in done.stderr:
+        raise failed(f"squeue -j {job_id}", done)
+    return None if done.returncode != 0 else task_states(done.stdout, job_id) or None
 
 
 def jobcomp_file() -> Path | None:
