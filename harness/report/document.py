@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, get_args
@@ -108,9 +109,10 @@ class Document:
     appendix: tuple[Section, ...] = ()
 
 
-def kind(block: Block) -> str:
-    """"paragraph", "table", ...: what the JSON form and the HTML template call a block."""
-    return type(block).__name__.lower()
+def kind(item: object) -> str:
+    """"paragraph", "table", ...: what the JSON form and the templates call a block (or any
+    other item)."""
+    return type(item).__name__.lower()
 
 
 def slug(text: str) -> str:
@@ -141,39 +143,42 @@ def document_files(doc: Document) -> set[Path]:
 
 # --- JSON form, for the section cache (paths relative to the report directory) ------------
 
-BLOCK_KINDS: dict[str, type] = {c.__name__.lower(): c for c in get_args(Block)}
+KINDS: dict[str, type] = {c.__name__.lower(): c for c in (*get_args(Block), Section)}
 PATH_FIELDS = ("files", "image", "alternates")
-NESTED_FIELDS = ("blocks", "subsections")
 
 
-def to_json(item: Block | Section, base: Path) -> dict[str, object]:
-    """A block (with its kind) or a section as JSON, paths relative to `base`."""
+def to_json(item: Any, base: Path) -> dict[str, object]:
+    """A block, a section or any other dataclass of them (an experiment's part) as JSON with
+    its kind, paths relative to `base`."""
     def value(v: object) -> object:
         if isinstance(v, Path):
             return v.relative_to(base).as_posix()
         if isinstance(v, tuple):
             return [value(x) for x in v]
-        return to_json(v, base) if dataclasses.is_dataclass(v) else v  # type: ignore[arg-type]
+        if isinstance(v, dict):
+            return {k: value(x) for k, x in v.items()}
+        return to_json(v, base) if dataclasses.is_dataclass(v) else v
 
-    data = {f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}
-    return {"kind": kind(item), **data} if not isinstance(item, Section) else data
+    return {"kind": kind(item),
+            **{f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}}
 
 
-def from_json(data: dict, base: Path) -> Any:
-    if "kind" in data and data["kind"] not in BLOCK_KINDS:
+def from_json(data: dict, base: Path, kinds: Mapping[str, type] = KINDS) -> Any:
+    """What to_json wrote, its kinds those of `kinds`."""
+    if data["kind"] not in kinds:
         raise ValueError(f"unknown block kind {data['kind']!r}")
 
     def value(name: str, v: object) -> object:
-        if name in NESTED_FIELDS:
-            return tuple(from_json(x, base) for x in v)  # type: ignore[attr-defined]
         if name in PATH_FIELDS:
             return base / v if isinstance(v, str) else tuple(base / p for p in v)  # type: ignore[attr-defined]
         if isinstance(v, list):
-            return tuple(tuple(x) if isinstance(x, list) else x for x in v)
+            return tuple(value("", x) for x in v)
+        if isinstance(v, dict):
+            return from_json(v, base, kinds) if "kind" in v else {
+                k: value("", x) for k, x in v.items()}
         return v
 
-    cls = BLOCK_KINDS[data["kind"]] if "kind" in data else Section
-    return cls(**{k: value(k, v) for k, v in data.items() if k != "kind"})
+    return kinds[data["kind"]](**{k: value(k, v) for k, v in data.items() if k != "kind"})
 
 
 # --- report.md ------------------------------------------------------------------------------
