@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import re
-from collections.abc import Iterable
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, get_args
@@ -109,9 +109,10 @@ class Document:
     appendix: tuple[Section, ...] = ()
 
 
-def kind(block: Block) -> str:
-    """"paragraph", "table", ...: what the JSON form and the HTML template call a block."""
-    return type(block).__name__.lower()
+def kind(item: object) -> str:
+    """"paragraph", "table", ...: what the JSON form and the templates call a block (or any
+    other item)."""
+    return type(item).__name__.lower()
 
 
 def slug(text: str) -> str:
@@ -142,53 +143,53 @@ def document_files(doc: Document) -> set[Path]:
 
 # --- JSON form, for the section cache (paths relative to the report directory) ------------
 
-BLOCK_KINDS: dict[str, type] = {c.__name__.lower(): c for c in get_args(Block)}
+KINDS: dict[str, type] = {c.__name__.lower(): c for c in (*get_args(Block), Section)}
 PATH_FIELDS = ("files", "image", "alternates")
-NESTED_FIELDS = ("blocks", "subsections")
 
 
-def to_json(item: Block | Section, base: Path) -> dict[str, object]:
-    """A block (with its kind) or a section as JSON, paths relative to `base`."""
+def to_json(item: Any, base: Path) -> dict[str, object]:
+    """A block, a section or any other dataclass of them (an experiment's part) as JSON with
+    its kind, paths relative to `base`."""
     def value(v: object) -> object:
         if isinstance(v, Path):
             return v.relative_to(base).as_posix()
         if isinstance(v, tuple):
             return [value(x) for x in v]
-        return to_json(v, base) if dataclasses.is_dataclass(v) else v  # type: ignore[arg-type]
+        if isinstance(v, dict):
+            return {k: value(x) for k, x in v.items()}
+        return to_json(v, base) if dataclasses.is_dataclass(v) else v
 
-    data = {f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}
-    return {"kind": kind(item), **data} if not isinstance(item, Section) else data
+    return {"kind": kind(item),
+            **{f.name: value(getattr(item, f.name)) for f in dataclasses.fields(item)}}
 
 
-def from_json(data: dict, base: Path) -> Any:
-    if "kind" in data and data["kind"] not in BLOCK_KINDS:
+def from_json(data: dict, base: Path, kinds: Mapping[str, type] = KINDS) -> Any:
+    """What to_json wrote, its kinds those of `kinds`."""
+    if data["kind"] not in kinds:
         raise ValueError(f"unknown block kind {data['kind']!r}")
 
     def value(name: str, v: object) -> object:
-        if name in NESTED_FIELDS:
-            return tuple(from_json(x, base) for x in v)  # type: ignore[attr-defined]
         if name in PATH_FIELDS:
             return base / v if isinstance(v, str) else tuple(base / p for p in v)  # type: ignore[attr-defined]
         if isinstance(v, list):
-            return tuple(tuple(x) if isinstance(x, list) else x for x in v)
+            return tuple(value("", x) for x in v)
+        if isinstance(v, dict):
+            return from_json(v, base, kinds) if "kind" in v else {
+                k: value("", x) for k, x in v.items()}
         return v
 
-    cls = BLOCK_KINDS[data["kind"]] if "kind" in data else Section
-    return cls(**{k: value(k, v) for k, v in data.items() if k != "kind"})
+    return kinds[data["kind"]](**{k: value(k, v) for k, v in data.items() if k != "kind"})
 
 
 # --- report.md ------------------------------------------------------------------------------
 
 
-def file_links(paths: Iterable[Path], out_dir: Path) -> str:
-    """`([CSV](figures/x.csv))` for each file, relative to the page's directory."""
-    return " ".join(f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
-                    for p in paths)
-
-
-def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
-    links = file_links(table.files, out_dir) if out_dir is not None else ""
-    caption = f"*{table.caption}* {links}".rstrip() if table.caption else links
+def markdown_table(table: Table, out_dir: Path = Path()) -> list[str]:
+    """The table's lines, after its caption and `([CSV](figures/x.csv))` for each of its files
+    (relative to the page's directory)."""
+    links = [f"([{p.suffix[1:].upper()}]({p.relative_to(out_dir).as_posix()}))"
+             for p in table.files]
+    caption = " ".join([f"*{table.caption}*"] * bool(table.caption) + links)
     lines = [caption, ""] if caption else []
     rule = ["---:" if right else "---" for right in table.align_right]
     for row in (table.columns, rule, *table.rows):
@@ -197,51 +198,9 @@ def markdown_table(table: Table, out_dir: Path | None = None) -> list[str]:
     return lines
 
 
-def markdown_blocks(blocks: Iterable[Block], out_dir: Path) -> list[str]:
-    lines: list[str] = []
-    for block in blocks:
-        if isinstance(block, Details):
-            # GitHub and most viewers fold it; the blank lines let the Markdown inside render.
-            anchor = f' id="{block.anchor}"' if block.anchor else ""
-            lines += [f"<details{anchor}><summary>{block.summary}</summary>", ""]
-            lines += markdown_blocks(block.blocks, out_dir)
-            lines.append("</details>")
-        elif isinstance(block, Paragraph):
-            lines.append(block.text)
-        elif isinstance(block, Bullets):
-            lines.extend(f"- {item}" for item in block.items)
-        elif isinstance(block, Table):
-            lines.extend(markdown_table(block, out_dir))
-        else:
-            image = block.image.relative_to(out_dir).as_posix()
-            links = file_links(block.alternates, out_dir)
-            lines.append(f"![{block.caption}]({image})")
-            lines.append("")
-            lines.append(f"*{block.caption}* {links}".rstrip())
-        lines.append("")
-    return lines
-
-
-def _section(section: Section, level: int, out_dir: Path) -> list[str]:
-    # An explicit anchor, so that the summary's links land on the same ids in Markdown as in
-    # HTML; Markdown viewers derive their own ids from the heading text, which repeats.
-    lines = [f'<a id="{section.anchor}"></a>', "", f"{'#' * level} {section.title}", "",
-             *markdown_blocks(section.blocks, out_dir)]
-    for sub in section.subsections:
-        lines += _section(sub, level + 1, out_dir)
-    return lines
-
-
 def render_markdown(doc: Document, out_dir: Path) -> str:
-    lines = [f"# {doc.title}", ""]
-    if doc.lead:
-        lines += [doc.lead, ""]
-    if doc.others:
-        links = ", ".join(f"[{link.text}]({link.stem}.md)" for link in doc.others)
-        lines += [f"Other machines: {links}.", ""]
-    for section in (*([doc.summary] if doc.summary else []), *doc.sections, *doc.appendix):
-        lines += _section(section, 2, out_dir)
-    return "\n".join(lines).rstrip() + "\n"
+    text = _environment().get_template("report.md").render(doc=doc, base=out_dir, suffix=".md")
+    return text.rstrip() + "\n"
 
 
 # --- report.html ----------------------------------------------------------------------------
@@ -275,7 +234,9 @@ def number(text: str) -> Markup:
 def _environment() -> jinja2.Environment:
     import jinja2
 
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True,
+    # report.md carries the text as written: only the HTML template escapes it.
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES),
+                             autoescape=jinja2.select_autoescape(["html"]),
                              trim_blocks=True, lstrip_blocks=True,
                              undefined=jinja2.StrictUndefined)
     env.filters["inline"] = inline
@@ -284,6 +245,7 @@ def _environment() -> jinja2.Environment:
     env.filters["relative"] = lambda path, base: Path(path).relative_to(base).as_posix()
     env.globals["image_size"] = image_size
     env.globals["zip"] = zip
+    env.globals["markdown_table"] = markdown_table
     return env
 
 

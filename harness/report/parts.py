@@ -12,10 +12,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import astuple, dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from harness.report.document import Section, Table, from_json, to_json
+from harness.report.document import KINDS, Section, Table
 
 if TYPE_CHECKING:
     from harness.report.sections.context import Context, Experiment
@@ -92,26 +91,7 @@ class ExperimentPart:
     measured: str = ""  # when its newest cell on the page was measured (ISO 8601)
     disturbed: str = ""  # its cells' disturbance in a sentence (analysis.flags.disturbed_text)
 
-    def to_json(self, base: Path) -> dict[str, Any]:
-        return {
-            "name": self.name, "section": to_json(self.section, base),
-            "warnings": None if self.warnings is None else to_json(self.warnings, base),
-            "warning_kinds": [list(r) for r in self.warning_kinds],
-            "highlights": {k: [h.value, h.text, h.anchor] for k, h in self.highlights.items()},
-            "fidelity": list(astuple(self.fidelity)), "fidelity_anchor": self.fidelity_anchor,
-            "counts": {k: list(astuple(c)) for k, c in self.counts.items()},
-            "measured": self.measured,
-            "disturbed": self.disturbed,
-        }
 
-    @classmethod
-    def from_json(cls, data: dict[str, Any], base: Path) -> ExperimentPart:
-        return cls(
-            data["name"], from_json(data["section"], base),
-            None if data["warnings"] is None else from_json(data["warnings"], base),
-            tuple(tuple(r) for r in data["warning_kinds"]),
-            {k: Highlight(*v) for k, v in data["highlights"].items()},
-            Fidelity(*data["fidelity"]), data["fidelity_anchor"],
-            {k: Count(*v) for k, v in data["counts"].items()},
-            data.get("measured", ""), data.get("disturbed", ""),
-        )
+# What an experiment's part is made of, by the kinds its JSON form names.
+PART_KINDS: dict[str, type] = {
+    **KINDS, **{c.__name__.lower(): c for c in (ExperimentPart, Highlight, Fidelity, Count)}}

@@ -33,10 +33,12 @@ from harness.report.document import (
     Paragraph,
     Section,
     document_files,
+    from_json,
     render_html,
     render_markdown,
+    to_json,
 )
-from harness.report.parts import ExperimentPart, ReportFeature
+from harness.report.parts import PART_KINDS, ExperimentPart, ReportFeature
 from harness.store import layout
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
@@ -167,13 +169,13 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
 
         exp = load_experiment(loaded, machine, label)
         section = experiment_section(exp, manifest, [f.sections for f in features])
-        return build_part(exp, section, features).to_json(out_dir)
+        return to_json(build_part(exp, section, features), out_dir)
 
     found = loaded.directory
     digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
     if features:  # a part built with other features' parts is another part
         digest += "\0" + "\0".join(f.name for f in features)
-    return ExperimentPart.from_json(manifest.part(found.name, digest, build), out_dir)
+    return from_json(manifest.part(found.name, digest, build), out_dir, PART_KINDS)
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:

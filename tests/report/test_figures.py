@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -77,15 +76,12 @@ def test_the_memory_figure_draws_a_series_each_in_mib(tmp_path: Path, facts: Var
     assert all(f">{name} · " in svg for name in set(rows["variant"]))  # one series each
 
 
-@pytest.mark.parametrize(
-    "figure", [figsweeps.fig_speedup, figsweeps.fig_efficiency, figsweeps.fig_karp_flatt]
-)
-def test_thread_metric_figures_are_written(
-    figure: Callable[..., list[Path]], tmp_path: Path, facts: Variants
-) -> None:
+@pytest.mark.parametrize("metric", list(figsweeps.THREAD_METRICS))
+def test_thread_metric_figures_are_written(metric: str, tmp_path: Path, facts: Variants) -> None:
     rows = speedup.with_speedup(load("threads"), facts, thread_baseline=True)
     stem = tmp_path / "metric"
-    assert_figure_files(figure(rows, stem, variants=facts, title="Thread scaling"), stem)
+    assert_figure_files(figsweeps.fig_thread_metric(rows, stem, y=metric, variants=facts,
+                                                    title="Thread scaling"), stem)
 
 
 @pytest.mark.parametrize("experiment", ["accuracy", "relative"])
@@ -203,9 +199,10 @@ def test_threads_figures_draw_one_series_per_machine_with_error_bars(tmp_path: P
     assert acells.series_keys(frame, "threads")[0] == "machine"
     with mpl.rc_context({"svg.fonttype": "none"}):  # text as <text>, so it can be read back
         time_paths = figsweeps.fig_time_vs(frame, tmp_path / "time", x="threads", variants=facts)
-        speed_paths = figsweeps.fig_speedup(speedup.with_speedup(frame, facts,
-                                                                 thread_baseline=True),
-                                        tmp_path / "speedup", variants=facts)
+        speed_paths = figsweeps.fig_thread_metric(speedup.with_speedup(frame, facts,
+                                                                       thread_baseline=True),
+                                                  tmp_path / "speedup", y="speedup",
+                                                  variants=facts)
         single = figsweeps.fig_time_vs(load("threads"), tmp_path / "single", x="threads",
                                        variants=facts)
     for paths in (time_paths, speed_paths):
@@ -232,8 +229,9 @@ def test_thread_counts_past_the_cores_are_shaded_and_named(tmp_path: Path, facts
     frame = load("threads")  # 16 cores, 1-128 threads
     within = frame[frame["threads"] <= 16]
     with mpl.rc_context({"svg.fonttype": "none"}):
-        past = figsweeps.fig_efficiency(speedup.with_speedup(frame, facts, thread_baseline=True),
-                                        tmp_path / "past", variants=facts)
+        past = figsweeps.fig_thread_metric(speedup.with_speedup(frame, facts,
+                                                                thread_baseline=True),
+                                           tmp_path / "past", y="efficiency", variants=facts)
         inside = figsweeps.fig_time_vs(within, tmp_path / "inside", x="threads", variants=facts)
     assert "threads &gt; cores (16)" in svg_text(past[1])
     assert "threads &gt; cores" not in svg_text(inside[1])

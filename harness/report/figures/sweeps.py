@@ -4,7 +4,7 @@ and speedup, efficiency and the Karp-Flatt serial fraction against threads."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -145,62 +145,45 @@ def _draw_square_guide(ax: Axes, df: pd.DataFrame) -> bool:
 # --- speedup, efficiency, serial fraction against threads ---------------------------------
 
 
-def _thread_metric_figure(
-    df: pd.DataFrame, y: str, ylabel: str, title: str, out: Path, ideal: Callable[[Axes], str],
-    variants: Variants,
-) -> list[Path]:
-    """A per-series plot of a speedup-derived metric against threads, with its ideal line:
-    the rows that have it, and those that produced no time (drawn on the axis)."""
+# Per speedup-derived metric (rows from analysis.speedup.with_speedup): its axis label,
+# default title, ideal line's label and level (None: the line S = p).
+THREAD_METRICS: dict[str, tuple[str, str, str, float | None]] = {
+    "speedup": ("speedup S = T(baseline) / T(p)", "Speedup against threads", "ideal S = p",
+                None),
+    "efficiency": ("parallel efficiency E = S / p", "Efficiency against threads",
+                   "ideal E = 1", 1.0),
+    "serial_fraction": ("serial fraction e = (1/S − 1/p) / (1 − 1/p)",
+                        "Karp–Flatt serial fraction against threads", "ideal e = 0", 0.0),
+}
+
+
+def fig_thread_metric(df: pd.DataFrame, out: Path, *, y: str, variants: Variants,
+                      title: str | None = None) -> list[Path]:
+    """The metric `y` (a key of THREAD_METRICS) per series against threads, with its ideal
+    line: S = p (log-log base 2), E = 1, or e = 0 (the Karp-Flatt serial fraction, over
+    p > 1; rising e = overhead). Drawn are the rows that have it, and those that produced no
+    time (on the axis)."""
+    ylabel, default_title, ideal_label, level = THREAD_METRICS[y]
+    p = np.unique(df["threads"].to_numpy(dtype=float))
+    if y == "serial_fraction":
+        df = df[df["threads"] > 1]
     df = df[df[y].notna() | ~df["status"].isin(TIMED_STATUSES)]
     fig, ax = base.new_figure()
     marks: set[str] = set()
     for _, rows, color, label in base.series_groups(df, "threads", variants)[1]:
         base.plot_series(ax, rows, "threads", y, color, label, marks)
-    ideal_label = ideal(ax)
+    if level is None:
+        ax.plot(p, p, "--", color="black", lw=1)
+        if base.wants_log(p):
+            base.log_axis(ax, "y", p, 2)
+    else:
+        ax.axhline(level, ls="--", color="black", lw=1)
+    if y == "efficiency":
+        measured = df["efficiency"].dropna()
+        ax.set_ylim(0, max(1.1, float(measured.max()) * 1.05) if len(measured) else 1.1)
     base.set_x_axis(ax, df["threads"], SWEEPS["threads"].label, 2)
     base.shade_oversubscribed(ax, df)
     ax.set_ylabel(ylabel)
     ideal_handle = Line2D([], [], ls="--", color="black", label=ideal_label)
-    return _finish(fig, ax, out, title, [ideal_handle, *base.marker_handles(marks)])
-
-
-def fig_speedup(df: pd.DataFrame, out: Path, *, variants: Variants,
-                title: str | None = None) -> list[Path]:
-    """Speedup against threads (rows from analysis.speedup.with_speedup), ideal S = p, log-log
-    base 2."""
-    def ideal(ax: Axes) -> str:
-        p = np.unique(df["threads"].to_numpy(dtype=float))
-        ax.plot(p, p, "--", color="black", lw=1)
-        if base.wants_log(p):
-            base.log_axis(ax, "y", p, 2)
-        return "ideal S = p"
-
-    return _thread_metric_figure(df, "speedup", "speedup S = T(baseline) / T(p)",
-                                 title or "Speedup against threads", out, ideal, variants)
-
-
-def fig_efficiency(df: pd.DataFrame, out: Path, *, variants: Variants,
-                   title: str | None = None) -> list[Path]:
-    """Parallel efficiency S/p against threads, ideal 1."""
-    def ideal(ax: Axes) -> str:
-        ax.axhline(1.0, ls="--", color="black", lw=1)
-        measured = df["efficiency"].dropna()
-        top = max(1.1, float(measured.max()) * 1.05) if len(measured) else 1.1
-        ax.set_ylim(0, top)
-        return "ideal E = 1"
-
-    return _thread_metric_figure(df, "efficiency", "parallel efficiency E = S / p",
-                                 title or "Efficiency against threads", out, ideal, variants)
-
-
-def fig_karp_flatt(df: pd.DataFrame, out: Path, *, variants: Variants,
-                   title: str | None = None) -> list[Path]:
-    """The Karp-Flatt serial fraction e against threads p > 1; ideal 0, rising e = overhead."""
-    def ideal(ax: Axes) -> str:
-        ax.axhline(0.0, ls="--", color="black", lw=1)
-        return "ideal e = 0"
-
-    return _thread_metric_figure(df[df["threads"] > 1], "serial_fraction",
-                                 "serial fraction e = (1/S − 1/p) / (1 − 1/p)",
-                                 title or "Karp–Flatt serial fraction against threads", out,
-                                 ideal, variants)
+    return _finish(fig, ax, out, title or default_title,
+                   [ideal_handle, *base.marker_handles(marks)])

@@ -50,13 +50,14 @@ def _sweep(ctx: Context, axis: str) -> Section:
     return ctx.section(f"Time against {label}", axis.lower(), blocks)
 
 
-# Per figure: the column it needs, how it is drawn, its file's suffix, title and caption.
+# Per figure: the column it needs, its metric (figures.sweeps.THREAD_METRICS), its file's
+# suffix, title and caption.
 FIGURES = (
-    ("speedup", plots.fig_speedup, "speedup", "speedup",
+    ("speedup", "speedup", "speedup", "speedup",
      "Speedup against threads; dashed: ideal S = p."),
-    ("speedup", plots.fig_efficiency, "efficiency", "efficiency",
+    ("speedup", "efficiency", "efficiency", "efficiency",
      "Parallel efficiency S/p against threads; dashed: ideal 1."),
-    ("serial_fraction", plots.fig_karp_flatt, "karp-flatt", "Karp–Flatt serial fraction",
+    ("serial_fraction", "serial_fraction", "karp-flatt", "Karp–Flatt serial fraction",
      "Karp–Flatt serial fraction e = (1/S − 1/p)/(1 − 1/p); e growing with p points to "
      "parallel overhead rather than a fixed serial part."),
 )
@@ -68,9 +69,9 @@ def build_speedup(ctx: Context) -> list[Section]:
     exp = ctx.exp
     rows = with_speedup(exp.frame, ctx.variants, thread_baseline=True, ratios=exp.ratios)
     blocks: list[Block] = [
-        ctx.figure(draw, rows, suffix, caption, variants=ctx.variants,
+        ctx.figure(plots.fig_thread_metric, rows, suffix, caption, y=y, variants=ctx.variants,
                    title=f"{exp.title}: {what}")
-        for column, draw, suffix, what, caption in FIGURES if rows[column].notna().any()]
+        for column, y, suffix, what, caption in FIGURES if rows[column].notna().any()]
     if blocks:
         paired = paired_words(exp.ratios)
         blocks[:0] = [*_oversubscribed_words(rows), *([Paragraph(paired)] if paired else [])]
