@@ -18,6 +18,7 @@ from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.store.atomic import writing
+from harness.store.records import read_json
 
 # Where the machine-wide lock lives; the tests point it at their own directory.
 LOCK_DIR_VAR = "COLLIDE_BENCH_LOCK_DIR"
@@ -32,10 +33,7 @@ class LockBusy(HarnessError):
 
 def describe_holder(path: Path) -> str:
     """"pid 123, configs/threads.yaml, since 2026-...": what the holder wrote, as far as read."""
-    try:
-        info = json.loads(path.read_text() or "{}")
-    except (OSError, json.JSONDecodeError):
-        info = {}
+    info = read_json(path)
     if not isinstance(info, dict) or "pid" not in info:
         return "pid unknown"
     return f"pid {info['pid']}, {info.get('config', '?')}, since {info.get('started', '?')}"
