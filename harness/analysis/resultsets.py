@@ -88,7 +88,7 @@ def _short(value: str) -> str:
 
 
 @dataclass(frozen=True)
-class Cell:
+class Cell(stats.MeasuredInRounds):
     """One results.csv row, with its per-run times."""
 
     key: MatchKey  # matched on MATCH_COLUMNS; numeric ones compare as numbers
@@ -119,16 +119,6 @@ class Cell:
     steal_s: float = 0.0  # CPU seconds stolen on its cores over its rounds
     other_cpu_s: float = 0.0  # taken by other processes
     noise_capacity_s: float = 0.0  # the cores' seconds its rounds span
-
-    def noise_by_round(self) -> dict[int, float]:
-        return stats.by_round(self.rounds, self.round_noise)
-
-    def pressure_by_round(self) -> dict[int, float]:
-        return stats.by_round(self.rounds, self.round_pressure)
-
-    def by_round(self) -> dict[int, float]:
-        """The median of its runs in each round (empty without rounds)."""
-        return stats.round_medians(self.times, self.rounds)
 
     @property
     def machine_text(self) -> str:

@@ -11,7 +11,6 @@ from harness.cli import REPORT_FEATURES
 from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
-from harness.plan.cellstore import now_iso
 from harness.repo import REPO_ROOT
 from harness.runner.command import (
     QUICK_REPORT,
@@ -28,6 +27,7 @@ from harness.runner.command import (
 )
 from harness.runner.experiment import run_experiment
 from harness.spec.config import DEFAULT_MAX_CELLS
+from harness.store.records import now_iso
 
 INTERRUPTED = "finished cells are saved; run again to resume"
 # A run waits at most this long, per experiment, for a busy machine to be quiet again: long

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import itertools
 import math
 import statistics
@@ -321,7 +320,7 @@ def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
     return Calibration(
         stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
         rounds_noise=noise.rounds, waited=noise.waited, machine_id=machine,
-        date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        date=records.now_iso(),
         config=config, cells=cells, threshold=threshold, measured_false=measured_false,
         measured_compared=measured_compared, drift=apart.sigma,
         apart_false=sum(f for f, _ in apart_verdicts),

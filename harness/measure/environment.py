@@ -6,7 +6,6 @@ measures."""
 from __future__ import annotations
 
 import contextlib
-import datetime
 import functools
 import os
 import platform
@@ -19,6 +18,7 @@ import psutil
 from harness.measure import machine
 from harness.measure.machine import CPU_SYS, command_output, read_text
 from harness.repo import DEFAULT_REPORT_DIR, DEFAULT_RESULTS_DIR, PUBLISHED_DIR
+from harness.store.records import now_iso
 
 # What measuring writes: a run's own output must not make the sources it measured look
 # modified.
@@ -83,7 +83,7 @@ def collect(repo_root: Path, make: str = "make", hyperfine: str = "hyperfine") -
     # the libgomp the compiler links (its path) and, on Debian, the package's version
     libgomp = command_output([compiler, "-print-file-name=libgomp.so"])
     return {
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "date": now_iso(),
         "hostname": socket.gethostname(),
         "platform": platform.platform(),
         "kernel": platform.release(),

@@ -135,7 +135,7 @@ GROWING = ("times", "rounds", "user_s", "system_s", "exports", "warnings", "roun
 
 
 @dataclass
-class CellRun:
+class CellRun(stats.MeasuredInRounds):
     cell_id: str
     key: dict[str, object]  # the cell's key when it started: a partial file of another is void
     record: CellResult  # what its untimed runs found
@@ -177,15 +177,6 @@ class CellRun:
     @property
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
-
-    def by_round(self) -> dict[int, float]:
-        return stats.round_medians(self.times, self.rounds)
-
-    def noise_by_round(self) -> dict[int, float]:
-        return stats.by_round(self.rounds, self.round_noise)
-
-    def pressure_by_round(self) -> dict[int, float]:
-        return stats.by_round(self.rounds, self.round_pressure)
 
     def measure(self, measure: Measure) -> Measure:
         return measure.at_least(self.min_rounds) if self.min_rounds else measure

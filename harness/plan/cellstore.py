@@ -7,7 +7,6 @@ with. Nothing here measures: records reach the store from whichever executor mea
 from __future__ import annotations
 
 import dataclasses
-import datetime
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +33,7 @@ from harness.store.model import (
     TextMap,
     content_id,
 )
+from harness.store.records import now_iso
 from harness.store.result import CellResult
 
 UNBUILT = "unbuilt"  # the hash of a binary an assume_built store has not seen built
@@ -118,10 +118,6 @@ def measures_openmp_costs(config: Config, cell: Cell) -> bool:
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
     return match_values({**dataclasses.asdict(cell.named()), "schedule": cell.schedule or ""})
-
-
-def now_iso() -> str:
-    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
 @dataclass

@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 from harness.spec.facts import Variants
 from harness.store.atomic import atomic_write_text
-from harness.store.records import sha256_file
+from harness.store.records import read_json, sha256_file
 
 MANIFEST_NAME = ".manifest.json"
 MANIFEST_VERSION = 3
@@ -95,10 +95,7 @@ class Manifest:
         self.fig_dir = fig_dir
         self.path = fig_dir / MANIFEST_NAME
         self.code = code
-        try:
-            data = json.loads(self.path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            data = {}  # no manifest, or a broken one: everything is rebuilt
+        data = read_json(self.path)  # no manifest, or a broken one: everything is rebuilt
         if not isinstance(data, dict) or data.get("version") != MANIFEST_VERSION:
             data = {}
         self.figures: dict[str, dict[str, Any]] = data.get("figures", {})

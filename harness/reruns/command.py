@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import math
 import sys
 from collections.abc import Mapping, Sequence
@@ -37,7 +36,7 @@ from harness.runner.command import (
 )
 from harness.runner.experiment import run_apart
 from harness.spec.facts import BASELINE
-from harness.store import layout, sessions
+from harness.store import layout, records, sessions
 from harness.store.columns import OK
 
 DEFAULT_TIMES = 5
@@ -230,7 +229,7 @@ class MachineReruns:
         """What is kept beside the machine's description (store.sessions)."""
         return {"absolute": self.spread.absolute, "ratio": self.spread.ratio,
                 **({"noise": self.spread.noise} if math.isfinite(self.spread.noise) else {}),
-                "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "date": records.now_iso(),
                 "config": config, "reruns": self.reruns,
                 "coverage": {"absolute": dataclasses.asdict(self.cells),
                              "ratio": dataclasses.asdict(self.ratios)}}

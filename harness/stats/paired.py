@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 from scipy import stats as sps
@@ -129,15 +128,25 @@ def paired_series(old: dict[int, float], new: dict[int, float],
     return PairedRounds([old[k] for k in common], [new[k] for k in common], shift, len(both))
 
 
-class MeasuredInRounds(Protocol):
-    """One side of a pair measured in rounds: its value, interference share and CPU pressure
-    by round."""
+class MeasuredInRounds:
+    """One side of a pair measured in rounds: the seconds of its runs with the round of each,
+    and each round's interference share and CPU pressure (in round order, where measured);
+    its value, share and pressure by round."""
 
-    def by_round(self) -> dict[int, float]: ...
+    times: Sequence[float]
+    rounds: Sequence[int]
+    round_noise: Sequence[float]
+    round_pressure: Sequence[float]
 
-    def noise_by_round(self) -> dict[int, float]: ...
+    def by_round(self) -> dict[int, float]:
+        """The median of its runs in each round (empty without rounds)."""
+        return round_medians(self.times, self.rounds)
 
-    def pressure_by_round(self) -> dict[int, float]: ...
+    def noise_by_round(self) -> dict[int, float]:
+        return by_round(self.rounds, self.round_noise)
+
+    def pressure_by_round(self) -> dict[int, float]:
+        return by_round(self.rounds, self.round_pressure)
 
 
 def paired_sides(old: MeasuredInRounds, new: MeasuredInRounds) -> PairedRounds:

@@ -5,7 +5,6 @@ leaves a stale lock behind."""
 from __future__ import annotations
 
 import contextlib
-import datetime
 import fcntl
 import functools
 import json
@@ -18,6 +17,7 @@ from typing import TextIO
 
 from harness.errors import HarnessError
 from harness.store.atomic import writing
+from harness.store.records import now_iso, read_json
 
 # Where the machine-wide lock lives; the tests point it at their own directory.
 LOCK_DIR_VAR = "COLLIDE_BENCH_LOCK_DIR"
@@ -32,10 +32,7 @@ class LockBusy(HarnessError):
 
 def describe_holder(path: Path) -> str:
     """"pid 123, configs/threads.yaml, since 2026-...": what the holder wrote, as far as read."""
-    try:
-        info = json.loads(path.read_text() or "{}")
-    except (OSError, json.JSONDecodeError):
-        info = {}
+    info = read_json(path)
     if not isinstance(info, dict) or "pid" not in info:
         return "pid unknown"
     return f"pid {info['pid']}, {info.get('config', '?')}, since {info.get('started', '?')}"
@@ -72,7 +69,7 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
         with contextlib.suppress(OSError):  # a world-writable lock left by another user
             os.fchmod(fd, 0o666)
         info = {"pid": os.getpid(), "config": config,
-                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
+                "started": now_iso()}
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
         try:

@@ -3,6 +3,7 @@ the id of its key (harness.store.model.CellKey). Standard library only."""
 
 from __future__ import annotations
 
+import datetime
 import hashlib
 import json
 from pathlib import Path
@@ -17,6 +18,11 @@ MACHINE_KEY = "machine_id"
 # env.json's start of the run that measured the experiment last: the experiments a run measured
 # share it (the report leads with the newest run's).
 RUN_STARTED = "run_started"
+
+
+def now_iso() -> str:
+    """The time now as records and env.json give it: ISO 8601, UTC, to the second."""
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
 def sha256_file(path: Path) -> str:

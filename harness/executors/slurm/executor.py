@@ -27,11 +27,11 @@ from typing import cast
 from harness.executors.base import Experiment, OnRecord, Progress, format_seconds
 from harness.executors.slurm import client
 from harness.plan.cells import Cell
-from harness.plan.cellstore import now_iso
 from harness.spec.config import ExecutorSpec
 from harness.store import atomic, locks
 from harness.store.columns import FAILED, TIMEOUT
 from harness.store.model import CellKey
+from harness.store.records import now_iso
 from harness.store.result import CellResult
 
 LOGS_DIR = "logs"
