@@ -14,7 +14,6 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness import stats
 from harness.analysis import export
 from harness.spec.facts import BASELINE, Variants, ignored_axes
 from harness.store import atomic, layout, locks, records
@@ -173,6 +172,8 @@ def _times_from_export(result: CellResult, export: Path) -> CellResult:
 def _statistics(result: CellResult) -> CellResult:
     """A record older than its statistics with them: the interval of a median measured
     before rounds (where it has none), and the low quantile of its runs."""
+    from harness import stats  # scipy, needed only by `store upgrade`
+
     times = [run.time_s for run in result.times]
     timing = result.timing
     if not times or timing is None:

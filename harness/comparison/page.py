@@ -216,6 +216,8 @@ def ratio_label(rows: Sequence[Row]) -> str:
 def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]:
     """The rows a figure shows, in table order: all when they fit, else the significant ones
     first and then the largest |log ratio|."""
+    if len(rows) <= limit:
+        return list(rows)
     ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind in (UNCHANGED, INCONCLUSIVE),
                                                       -abs(math.log(rows[i].ratio))))
     keep = set(ranked[:limit])

@@ -64,13 +64,12 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
     with tempfile.TemporaryDirectory(prefix="collide-lane-") as tmp:
         logs = Path(tmp) / "logs"
         logs.mkdir()
-        run_env = {**env, **PASSIVE_ENV}
         if input_file is not None:
-            run_env = {k: v for k, v in env.items()
-                       if k in KEPT_ENV or k.startswith(OMP_PREFIXES)} | PASSIVE_ENV
+            env = {k: v for k, v in env.items() if k in KEPT_ENV or k.startswith(OMP_PREFIXES)}
             link = Path(tmp) / "input"
             link.symlink_to(input_file.resolve())
             argv = [*argv[:-1], str(link)]
+        run_env = {**env, **PASSIVE_ENV}
         if tool == PERF:
             wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
                        "--"]

@@ -104,7 +104,6 @@ class References:
         return done, text if done.returncode == 0 else None
 
 
-
 @dataclass(frozen=True)
 class Comparison:
     identical: bool  # byte for byte

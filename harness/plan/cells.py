@@ -68,7 +68,7 @@ class Cell:
 
     def fields(self) -> dict[str, object]:
         """The values exclude rules test: what names it, at its ranks and schedule."""
-        return {**dataclasses.asdict(self.named()), "ranks": self.ranks, "schedule": self.schedule}
+        return {**self.named().values(), "ranks": self.ranks, "schedule": self.schedule}
 
 
 def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[IgnoredAxis]:

@@ -6,7 +6,6 @@ with. Nothing here measures: records reach the store from whichever executor mea
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -111,13 +110,13 @@ def checkout_tools(binaries: Iterable[Path]) -> list[Path]:
 def measures_openmp_costs(config: Config, cell: Cell) -> bool:
     """Whether the cell's start runs build/ompcost: with `openmp_costs: true`, for a built
     variant that uses threads (a serial one's thread count is nominal)."""
-    return (config.openmp_costs and not cell.program and config.is_built(cell.variant)
-            and getattr(default_registry().get(cell.variant), "parallel", False))
+    return bool(config.openmp_costs and not cell.program and config.is_built(cell.variant)
+                and getattr(default_registry().get(cell.variant), "parallel", False))
 
 
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
-    return match_values({**dataclasses.asdict(cell.named()), "schedule": cell.schedule or ""})
+    return match_values({**cell.named().values(), "schedule": cell.schedule or ""})
 
 
 @dataclass

@@ -51,7 +51,8 @@ def wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, 
     """SPEC's wall time of one particle and the axes that hit at it (inf, [] for none)."""
     # Two axes, once per particle on the grading path: a scalar loop is several times faster
     # than numpy on arrays of two.
-    times = [((L - r if w[a] > 0 else r) - q[a]) / w[a] if w[a] else math.inf for a in range(2)]
+    times = [(L - r - q[a]) / w[a] if w[a] > 0 else (r - q[a]) / w[a] if w[a] < 0 else math.inf
+             for a in range(2)]
     tw = min(times)
     return tw, [axis for axis in range(2) if times[axis] == tw and math.isfinite(tw)]
 

@@ -12,7 +12,6 @@ step none explains is wrong. The method at length: docs/programs.md, "Step by st
 from __future__ import annotations
 
 import itertools
-from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -206,9 +205,9 @@ class _Explainer:
         self.slack = ARITH_ULPS * DOUBLE_EPS * L
         # Per (level, step): the particles tried, those explained, and those explained only
         # by a replay that decided otherwise (a near-tie); none where not replayed.
-        self.tried, self.good, self.tie = (
-            defaultdict[tuple[float | None, int], np.ndarray](lambda: np.zeros(n, dtype=bool))
-            for _ in range(3))
+        self.tried: dict[tuple[float | None, int], np.ndarray] = {}
+        self.good: dict[tuple[float | None, int], np.ndarray] = {}
+        self.tie: dict[tuple[float | None, int], np.ndarray] = {}
 
     def left(self, levels: tuple[float | None, ...],
              open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
@@ -217,15 +216,15 @@ class _Explainer:
         each on what the ones before it left."""
         # What a level's earlier replays explained needs no replay: subtracted first, so that
         # a level is replayed only on what no level already explains.
-        still = {k: m & ~np.any([self.good[level, k] for level in levels], axis=0)
+        still = {k: m & ~np.any([self._mask(self.good, level, k) for level in levels], axis=0)
                  for k, m in open_.items()}
         still = {k: m for k, m in still.items() if m.any()}
         for level in levels:
-            todo = {k: m & ~self.tried[level, k] for k, m in still.items()}
+            todo = {k: m & ~self._mask(self.tried, level, k) for k, m in still.items()}
             todo = {k: m for k, m in todo.items() if m.any()}
             if todo:
                 self._replay(level, todo)
-            still = {k: m & ~self.good[level, k] for k, m in still.items()}
+            still = {k: m & ~self._mask(self.good, level, k) for k, m in still.items()}
             still = {k: m for k, m in still.items() if m.any()}
             if not still:
                 break
@@ -239,8 +238,8 @@ class _Explainer:
 
     def unexplained(self, level: float | None, steps: list[int]) -> float:
         """The share of the values tried at `level` in `steps` that it left."""
-        tried = sum(int(self.tried[level, k].sum()) for k in steps)
-        good = sum(int(self.good[level, k].sum()) for k in steps)
+        tried = sum(int(self._mask(self.tried, level, k).sum()) for k in steps)
+        good = sum(int(self._mask(self.good, level, k).sum()) for k in steps)
         return (tried - good) / tried if tried else 0.0
 
     def near_ties(self, wrong: dict[int, np.ndarray]) -> int:
@@ -253,7 +252,7 @@ class _Explainer:
             for (level, step), mask in self.tie.items():
                 if step == k:
                     tie |= mask
-                    plain |= self.good[level, step] & ~mask
+                    plain |= self._mask(self.good, level, step) & ~mask
             count += int(np.count_nonzero(tie & ~plain & ~wrong.get(k, np.zeros_like(tie))))
         return count
 
@@ -299,7 +298,15 @@ class _Explainer:
             explained = ~np.any(best > tolerance, axis=1)
             for table, which in ((self.tried, np.ones(len(rows), dtype=bool)),
                                  (self.good, explained), (self.tie, tie & explained)):
-                table[level, k][rows[which]] = True
+                mask = self._mask(table, level, k).copy()
+                mask[rows[which]] = True
+                table[level, k] = mask
+
+    def _mask(self, table: dict[tuple[float | None, int], np.ndarray], level: float | None,
+              k: int) -> np.ndarray:
+        """The table's mask at (level, k): none of the particles where it holds none."""
+        mask = table.get((level, k))
+        return np.zeros(self.n, dtype=bool) if mask is None else mask
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the

@@ -285,7 +285,7 @@ def dry_run(experiment: Experiment, binaries: Sequence[Path], out: TextIO) -> Su
         check = (" +validate" if cell.validate else "") + (" +checks" if cell.checked else "")
         lines.append(f"  [{k}/{len(plan.cells)}] {cell.label}{check}  {what}\n")
     lines += [f"  excluded: {cell.label}\n" for cell in plan.excluded]
-    out.write(f"{plan.config.name}: {len(plan.cells)} cells ({cached} cached, "
+    out.write(f"{plan.config.name}: {counted(len(plan.cells), 'cell')} ({cached} cached, "
               f"{len(plan.cells) - cached} to run, {len(plan.excluded)} excluded) -> "
               f"{experiment.store.directory}\n")
     if missing:

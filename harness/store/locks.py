@@ -130,3 +130,9 @@ class RunLock(contextlib.ExitStack):
         if not self.held:
             self.enter_context(self._lock())
             self.held = True
+
+    def __exit__(self, *exc: object) -> bool:
+        try:
+            return super().__exit__(*exc)  # type: ignore[arg-type]
+        finally:
+            self.held = False

@@ -4,7 +4,7 @@ filled one. Standard library only."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 JsonObject = dict[str, object]  # kept as it was measured: the harness reads no field of it
 
@@ -34,6 +34,10 @@ class Subject:
     ranks: int | None = None  # MPI ranks, where the cell runs as ranks
     schedule: str | None = None  # OMP_SCHEDULE's value; "" for none
     params: JsonObject | None = None
+
+    def values(self) -> dict[str, object]:
+        """Its fields by name (params shared, not copied)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from harness.analysis.cells import flag
 from harness.analysis.paired import paired_words
 from harness.analysis.ranks import cores_table, has_ranks, ranks_table
 from harness.analysis.speedup import growth_exponents, with_speedup
@@ -80,7 +81,7 @@ def build_speedup(ctx: Context) -> list[Section]:
 
 def _oversubscribed_words(rows: pd.DataFrame) -> list[Paragraph]:
     """Which thread counts pass the machine's cores, and what their numbers then measure."""
-    over = rows[rows["oversubscribed"].fillna(False).astype(bool)]
+    over = rows[flag(rows, "oversubscribed")]
     if over.empty:
         return []
     counts = sorted(int(t) for t in over["threads"].unique())
