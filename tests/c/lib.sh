@@ -21,6 +21,10 @@ HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
+# Open MPI keeps a job's session directory under one /tmp/ompi.HOST.UID that every job of the
+# machine shares; a job that ends removes parts of it while another script's job (the scripts
+# run side by side) creates its own there. Each script's jobs keep theirs under its own TMP.
+export OMPI_MCA_orte_tmpdir_base="$TMP"
 unset OMP_NUM_THREADS OMP_SCHEDULE OMP_DYNAMIC OMP_MAX_ACTIVE_LEVELS || true
 
 pass=0
