@@ -1,7 +1,5 @@
 """The one error type the harness reports to the user (exit status 2, no traceback)."""
 
-from __future__ import annotations
-
 import errno
 import reprlib
 from pathlib import Path

@@ -6,8 +6,6 @@ package is missing, the command is re-executed with .venv/bin/python, or, withou
 error line says what is missing. Standard library only.
 """
 
-from __future__ import annotations
-
 import importlib.util
 import os
 import runpy

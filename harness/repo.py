@@ -4,8 +4,6 @@ Standard library only: the launcher imports this before it knows whether the har
 packages are installed.
 """
 
-from __future__ import annotations
-
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent

@@ -3,8 +3,6 @@ of results.csv): each cell's deviation from its baseline output, the Pareto fron
 against error per scene, which checks each cell passed, the scene x variant/build matrix, and
 which variants and builds are trusted on which scenes, with why."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 

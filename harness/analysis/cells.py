@@ -1,8 +1,6 @@
 """Which columns name a cell, and the selections every table starts from: pure functions of
 one experiment's results frame."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Callable, Iterable, Sequence
 

@@ -2,8 +2,6 @@
 kind of value, intervals and shares written into the value they qualify, series labels. The
 report's tables and figures, and compare's, are written with these."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Callable, Sequence
 

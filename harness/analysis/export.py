@@ -4,8 +4,6 @@ records with results.index.json: the records they list, in order, and the sha256
 as written. An export found missing, cut short or altered is named in one line and written
 again from the records the index lists (repair; docs/results.md, "Checked before trusted")."""
 
-from __future__ import annotations
-
 import csv
 import hashlib
 import io

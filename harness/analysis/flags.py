@@ -2,8 +2,6 @@
 flags that qualify its timing (oversubscribed, unstable, outliers, loaded, stale), the
 warnings table, and which commits measured the cells."""
 
-from __future__ import annotations
-
 import math
 
 import pandas as pd

@@ -3,8 +3,6 @@
 with the identity their cells have now (`collide-bench store migrate PATH`: re-keyed along an
 axis their variant's facts say it ignores, harness.spec.facts.IGNORED_AXES)."""
 
-from __future__ import annotations
-
 import csv
 import dataclasses
 import io

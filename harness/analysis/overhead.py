@@ -4,8 +4,6 @@ sync facts) times the steps, times the cost of one operation at the cell's threa
 same machine (the median over that thread count's cells), beside the measured time the
 strategy spends over its repair."""
 
-from __future__ import annotations
-
 import math
 
 import pandas as pd

@@ -3,8 +3,6 @@ cell's speedup over one thread or over seq, with its efficiency and Karp-Flatt s
 taken from the ratio paired by round where there is one for the cell and its reference. Cells
 without one keep the ratio of medians and its bootstrap over the runs (analysis.speedup)."""
 
-from __future__ import annotations
-
 import math
 
 import numpy as np

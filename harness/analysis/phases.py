@@ -5,8 +5,6 @@ other phase. The cells shown are those at the experiment's most common thread co
 thread sweep shows its single-thread cells and a strategy comparison every variant.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 
 import pandas as pd

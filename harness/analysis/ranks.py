@@ -2,8 +2,6 @@
 split of the same cores into ranks and threads is fastest (is hybrid worth it here?), and what
 the ranks spend communicating and hold in memory."""
 
-from __future__ import annotations
-
 import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS, present, timed_rows

@@ -3,8 +3,6 @@ what ratios.csv holds): its speedup over its variant at one thread and over the 
 variant, taken round by round in the rounds both were measured in, computed from an
 experiment's rows (analysis.results)."""
 
-from __future__ import annotations
-
 import math
 import statistics
 from collections.abc import Callable, Iterable, Mapping

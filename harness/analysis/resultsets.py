@@ -3,8 +3,6 @@ matched on what was measured (MatchKey), never on the machine or the binary, wit
 times and the rounds they came from; one side per result set, after the machine filter and
 de-duplication."""
 
-from __future__ import annotations
-
 import dataclasses
 import math
 import statistics

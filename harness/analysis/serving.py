@@ -2,8 +2,6 @@
 over seq is over the same measurement (docs/results.md, "A serial variant's cell"); counts of
 cells take each measurement once (measured_once)."""
 
-from __future__ import annotations
-
 import pandas as pd
 
 from harness.analysis.cells import SCENE_KEYS, flag, present, variant_fact

@@ -2,8 +2,6 @@
 95% intervals from the cells' run times (harness.stats), and growth exponents: the course
 report's Tables 2-6 and the thread-scaling figures' numbers."""
 
-from __future__ import annotations
-
 from collections.abc import Sequence
 
 import numpy as np

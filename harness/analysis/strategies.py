@@ -5,8 +5,6 @@ The per-thread columns come from `--timing` (store.columns.THREAD_COLUMNS): the 
 pair tests and chunks of every candidate writer, space-separated.
 """
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -9,8 +9,6 @@ bugs keep their traceback). A measuring command also says, in INTERRUPTED (forma
 arguments), what a Ctrl-C or SIGTERM keeps: it then ends with that line and status 130.
 """
 
-from __future__ import annotations
-
 import importlib
 import signal
 import sys

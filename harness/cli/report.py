@@ -1,7 +1,5 @@
 """Render the report from whatever results exist, without re-running anything."""
 
-from __future__ import annotations
-
 import argparse
 import sys
 from pathlib import Path

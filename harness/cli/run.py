@@ -1,7 +1,5 @@
 """Measure the cells of experiment configs, then render the report."""
 
-from __future__ import annotations
-
 import argparse
 import os
 import sys

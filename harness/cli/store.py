@@ -4,8 +4,6 @@ variants' facts of this repository's build with results measured before runs sto
 PATH...`); give records their cell's current key once, where a variant was measured along an
 axis it ignores (`store migrate PATH...`: harness.analysis.migrate)."""
 
-from __future__ import annotations
-
 import argparse
 import sys
 from pathlib import Path

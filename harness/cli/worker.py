@@ -6,8 +6,6 @@ built and no cached record consulted: the caller sends only pending cells, with 
 built on a shared file system. An id not of the plan is one error, and nothing is measured.
 """
 
-from __future__ import annotations
-
 import argparse
 import sys
 from pathlib import Path

@@ -6,8 +6,6 @@ verdict is wrong where nothing changed, the drift between runs measured apart (w
 result sets' comparisons then allow for) and the smallest slow-down a measured one finds.
 """
 
-from __future__ import annotations
-
 import argparse
 import dataclasses
 import itertools

@@ -3,8 +3,6 @@ and, for times, its figure (NEW/OLD per compared cell with its interval, the lin
 threshold band), each written atomically under the output directory (a count's ratio has no
 interval to draw)."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path

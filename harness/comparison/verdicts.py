@@ -7,8 +7,6 @@ binary, because comparing two machines or two commits is the point. A Metric say
 a matched cell is compared by: TIME or INSTRUCTIONS.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 from collections import Counter

@@ -2,8 +2,6 @@
 as Slurm tasks (slurm). A new executor is a class with `name` and `run` (base.Executor),
 registered in EXECUTORS."""
 
-from __future__ import annotations
-
 from collections.abc import Callable
 
 from harness.errors import HarnessError

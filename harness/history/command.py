@@ -4,8 +4,6 @@ Its output: history.csv, and a page per config (<report>/history/<config>.md) wi
 per cell, whose text says what the figures draw.
 """
 
-from __future__ import annotations
-
 import argparse
 import math
 import sys

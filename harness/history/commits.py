@@ -4,8 +4,6 @@ once in its own worktree (harness.runner.sides), its cells measured by the ordin
 and the bisection that names the commit of a step between measured commits.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import io
 import math

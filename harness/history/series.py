@@ -6,8 +6,6 @@ t-test, as Hunter / Apache Otava do it, on the values' logs, so a step is a rati
 it goes; an exact lane's need no statistics (docs/history.md, "The method", says why both).
 """
 
-from __future__ import annotations
-
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace

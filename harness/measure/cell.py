@@ -5,8 +5,6 @@ the instruction lane's counted runs); `time_round`, one round of timed runs with
 cells through their rounds, alternating them (harness.executors.rounds).
 """
 
-from __future__ import annotations
-
 import functools
 import os
 import shlex

@@ -3,8 +3,6 @@ of its scene: the invariants (harness.measure.invariants), the same output at ot
 counts and as seq of its build, divergence curves against seq and the truth, and shadow steps
 (harness.measure.shadow), for the cell's record (store.measured.Checks)."""
 
-from __future__ import annotations
-
 import contextlib
 import dataclasses
 import functools

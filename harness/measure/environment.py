@@ -3,8 +3,6 @@
 library, compiler flags, libgomp, OMP_*, hyperfine, git, load). Only called when a run
 measures."""
 
-from __future__ import annotations
-
 import contextlib
 import functools
 import os

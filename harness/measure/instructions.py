@@ -4,8 +4,6 @@ A cell is counted COUNTS times, and the record keeps every count: a run whose th
 as it comes executes a few more or fewer instructions (docs/instructions.md, "How exact the
 counts are")."""
 
-from __future__ import annotations
-
 import os
 import re
 import tempfile

@@ -8,8 +8,6 @@
   stays within `energy_bound` (the justification is in its docstring).
 """
 
-from __future__ import annotations
-
 import math
 from dataclasses import dataclass
 

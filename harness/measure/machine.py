@@ -5,8 +5,6 @@ machine() is what tells machines apart (CPU, ISA, `-march=native`, topology, mem
 fast: /proc/cpuinfo, psutil and one compiler call, once per process. sample_load() and
 is_loaded() say whether other processes compete for the CPUs."""
 
-from __future__ import annotations
-
 import functools
 import hashlib
 import json

@@ -3,8 +3,6 @@ machine allows, its --timing's MPI figures read. A rank count beyond the machine
 refused unless the config asks for oversubscription (`executor: {oversubscribe: true}`); a
 machine without mpirun is told how to get it."""
 
-from __future__ import annotations
-
 import os
 import shutil
 from collections.abc import Mapping

@@ -4,8 +4,6 @@ process's cores, the children's own CPU time and involuntary context switches, a
 pressure. Migrations are not counted: the kernel gives them only while the process lives
 (/proc/<pid>/sched), and the runs are hyperfine's children."""
 
-from __future__ import annotations
-
 import os
 import re
 import resource

@@ -3,8 +3,6 @@ whole group is killed past it or on Ctrl-C), its exit status, the tail of its st
 where asked its peak resident memory, as build/peakrss reports it (docs/results.md, "Peak
 memory", says why the harness cannot measure it itself)."""
 
-from __future__ import annotations
-
 import contextlib
 import os
 import signal

@@ -8,8 +8,6 @@ particle's position in the two outputs divided by L, `max_vel_err` the same for 
 (both over the final block and, when both outputs have the same print-mode rows, over every
 printed step). `count_mismatches` counts the particles whose pcoll or wcoll differ."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field

@@ -12,8 +12,6 @@ distance between whole trajectories says little about a build. Two measures do:
 `shadow` runs binaries through a `Runner`, so tests can substitute one.
 """
 
-from __future__ import annotations
-
 import math
 import os
 import tempfile

@@ -3,8 +3,6 @@
 output, counts, the phases of the simulation and the per-thread work; and build/ompcost's cost
 of one OpenMP operation at the cell's thread count (docs/configs.md, `openmp_costs`)."""
 
-from __future__ import annotations
-
 import json
 import math
 import typing

@@ -3,8 +3,6 @@ repeats and excluded cells. A cell leaves out what its variant ignores (harness.
 a serial variant's cells at every thread count are one cell, run with one thread. Where a
 program takes part, every scene lists all its particles."""
 
-from __future__ import annotations
-
 import dataclasses
 import itertools
 from collections.abc import Mapping

@@ -4,8 +4,6 @@ hashed into its cell id), its record files, its input files and the fields every
 with. Nothing here measures: records reach the store from whichever executor measured them.
 """
 
-from __future__ import annotations
-
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -4,8 +4,6 @@ Valgrind's cachegrind, and which binary a cell's count runs. Chosen once per pro
 recorded with every count.
 """
 
-from __future__ import annotations
-
 import functools
 import os
 import platform

@@ -8,8 +8,6 @@ any other is judged step by step (harness.programs.steps). The verdicts and what
 docs/programs.md, "The check".
 """
 
-from __future__ import annotations
-
 import typing
 from dataclasses import dataclass, field
 

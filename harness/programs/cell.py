@@ -11,8 +11,6 @@ TSan, blind to libgomp's barriers, would report every parallel loop followed by 
 TSan checks happens-before, not timing: two threads on a small scene find a race.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 import os

@@ -3,8 +3,6 @@ its move, or free motion), and which rule of SPEC section 2 a program's wrong st
 from the program's own states before and after it: the first check that holds names the rule.
 Pure numpy, the SPEC's expressions in its order: it tells a student where to look."""
 
-from __future__ import annotations
-
 import math
 from dataclasses import dataclass
 

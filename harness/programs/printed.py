@@ -2,8 +2,6 @@
 line of each (step, index) standing), the tokens each value was printed as, and whether values
 print as those tokens. Whoever printed it: a program, seq, or two runs of one program."""
 
-from __future__ import annotations
-
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass

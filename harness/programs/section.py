@@ -5,8 +5,6 @@ figure of each wrong program's first wrong step: the particle and its partners b
 where the program put them after it and where the rules do) and the count of program cells that
 agree with seq, for the summary's fidelity line."""
 
-from __future__ import annotations
-
 import json
 from pathlib import Path
 

@@ -13,8 +13,6 @@ Keys are of content, never of time, so the report is the same whether a figure w
 reused. Standard library only (pandas is imported when a frame is hashed).
 """
 
-from __future__ import annotations
-
 import hashlib
 import json
 from collections.abc import Callable, Iterable

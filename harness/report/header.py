@@ -3,8 +3,6 @@ the tables (with the session spread of the page's machine), and the warnings (ea
 experiment's folded in its section, counted in the summary). Built from the experiments' parts
 (plain data), so standard library only."""
 
-from __future__ import annotations
-
 import dataclasses
 import math
 from collections import Counter

@@ -6,8 +6,6 @@ render whose experiments are cached needs no pandas), says which measured last, 
 each other machine's medians with the shown one's on the cells both measured.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 from collections.abc import Collection, Mapping, Sequence

@@ -10,8 +10,6 @@ report.{md,html} at the top is the machine that measured last (or the one asked 
 A feature adds its part to every page through the ReportFeature its package gives
 (harness.report.parts), passed in by whoever renders; the report imports no feature."""
 
-from __future__ import annotations
-
 import dataclasses
 import hashlib
 import json

@@ -6,8 +6,6 @@ their median time and speedup (each with its 95% interval), whether others distu
 fastest strategy, the validation verdict, whether the intervals reached the width asked for;
 then where the report is."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 from pathlib import Path

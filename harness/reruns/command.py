@@ -6,8 +6,6 @@ with the spread just learnt. A cell is the same across reruns (results roots) wh
 the same thing on the same machine in the same experiment, a ratio where its cells and kind are.
 """
 
-from __future__ import annotations
-
 import argparse
 import dataclasses
 import math

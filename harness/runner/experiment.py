@@ -5,8 +5,6 @@ A cell whose id (binary hash, input, seed, threads, settings) has a record is no
 again unless forced, so an interrupted grid resumes where it stopped.
 """
 
-from __future__ import annotations
-
 import contextlib
 import shutil
 import time

@@ -5,8 +5,6 @@ the machine's measuring lock. Each side's results become an ordinary results roo
 OUT/new), written under OUT/.measure and moved into place once both are complete, so that
 `compare OUT/old OUT/new` reads them again."""
 
-from __future__ import annotations
-
 import dataclasses
 import math
 import shutil

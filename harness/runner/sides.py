@@ -3,8 +3,6 @@ whose variants are built in a worktree of their own (cached by commit under
 <results>/.cache/revisions/<sha>/, built with this checkout's compiler), or a directory that
 already holds built variant binaries (e.g. `build`)."""
 
-from __future__ import annotations
-
 import hashlib
 import os
 import shlex

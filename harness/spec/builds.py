@@ -2,8 +2,6 @@
 others (the Makefile's BUILDS builds them: `make build/NAME-f32`, ...), with the unit
 roundoff of the arithmetic each computes in. Names only: harness.spec.variants builds them."""
 
-from __future__ import annotations
-
 DEFAULT_BUILD = "f64"
 TRUTH_BUILD = "f128"  # the accuracy study's truth: __float128
 BUILDS: tuple[str, ...] = ("f64", "f32", "f128", "textbook", "report")

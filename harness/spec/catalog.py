@@ -7,8 +7,6 @@ t = 1, a discriminant of exactly 0, bit-identical tie times), unless the point o
 that rounding decides (45-degree touching, 1e-13 from a wall, grazing at L = 1e7).
 """
 
-from __future__ import annotations
-
 import math
 import random
 from collections.abc import Sequence

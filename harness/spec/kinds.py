@@ -3,8 +3,6 @@
 read strictly: a key named twice in one mapping is an error (PyYAML would keep the last one),
 and the reading is bounded before a Python value is made (docs/hostile.md, "The harness")."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass

@@ -3,8 +3,6 @@
 `S i x y vx vy pcoll wcoll`, one row per particle. Used to validate a cell against its
 baseline, to check its invariants and to draw its trajectories."""
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 
 import numpy as np

@@ -4,8 +4,6 @@ given an input that lists every particle. A program's cells are identified by it
 content of every file they name and of its source, and its build: a rebuilt program is measured
 again."""
 
-from __future__ import annotations
-
 import glob
 import hashlib
 import re

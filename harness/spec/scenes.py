@@ -13,8 +13,6 @@ Its keyword parameters (with defaults; their types are those of the defaults) ar
 a config may set under `scene:`, each one a value or a list of values to sweep.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import functools
 import hashlib

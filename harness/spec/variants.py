@@ -5,8 +5,6 @@ print-variants`); its binary's `--describe` says what it is, so the harness keep
 its own, and a new variant needs no change anywhere else.
 """
 
-from __future__ import annotations
-
 import contextlib
 import functools
 import json

@@ -3,8 +3,6 @@ the two sides of a pair lined up round by round without the rounds interfered wi
 change between two sides measured together: the sign test on the per-round log ratios with the
 rounds' interference taken out, and the smallest slow-down such a comparison finds."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass

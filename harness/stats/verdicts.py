@@ -5,8 +5,6 @@ likely decide an undecided one. And the change between two sides measured apart 
 ratio of their medians with its bootstrap interval, widened by the machine's drift between such
 runs and by the contention each side met, and the drift itself from identical binaries."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -4,8 +4,6 @@ renamed into place. Its writer removes it when it fails or is interrupted, the n
 of a writer killed outright (sweep). An OS error met while writing is a StorageError that
 names the file: a fault of the place, never a result. Standard library only."""
 
-from __future__ import annotations
-
 import contextlib
 import json
 import os

@@ -2,8 +2,6 @@
 their order, with the type each is read back as. Everything that writes or reads results.csv
 (the store, the report, compare) imports it from here. Standard library only."""
 
-from __future__ import annotations
-
 import typing
 from dataclasses import fields
 

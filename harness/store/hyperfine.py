@@ -1,8 +1,6 @@
 """hyperfine's JSON export (`--export-json`, kept as written beside the cell's record), read
 back. Standard library only."""
 
-from __future__ import annotations
-
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass

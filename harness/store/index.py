@@ -2,8 +2,6 @@
 lists them (results.index.json, written with the exports: analysis.export); env.json,
 variants.json and history.json."""
 
-from __future__ import annotations
-
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass

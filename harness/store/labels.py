@@ -4,8 +4,6 @@ each machine's own label ("AMD EPYC (znver3) x2"), and where machines share one,
 them apart among them, in this order: the compiler's target, AVX-512, cores, memory, the
 microarchitecture; the start of the id only where nothing else does. Standard library only."""
 
-from __future__ import annotations
-
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 

@@ -2,8 +2,6 @@
 exclusive flocks, which the kernel releases when the holder dies, so a crashed run never
 leaves a stale lock behind."""
 
-from __future__ import annotations
-
 import contextlib
 import fcntl
 import functools

@@ -1,8 +1,6 @@
 """Cell records: the JSON file of a measured cell (harness.store.result.CellResult), named by
 the id of its key (harness.store.model.CellKey). Standard library only."""
 
-from __future__ import annotations
-
 import datetime
 import hashlib
 import json

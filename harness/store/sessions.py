@@ -8,8 +8,6 @@ SESSION_KEY holds the newest entry; LEVELS_KEY one entry per noise level it was 
 (a newer one supersedes one of about the same noise), from which a session takes the spread
 at its own noise (stats.spread_at: interpolated between the two levels around it)."""
 
-from __future__ import annotations
-
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 

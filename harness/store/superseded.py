@@ -7,8 +7,6 @@ committed cells/ holds what the report shows. A record from before machine ids (
 `machine_id` in its key) belongs to no known machine: any newer record of its group, or that
 timed the same cell (CellKey.timed_group), supersedes it."""
 
-from __future__ import annotations
-
 import functools
 import os
 from collections.abc import Iterable, Sequence

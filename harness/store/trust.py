@@ -4,8 +4,6 @@ line, and what rests on it is rebuilt or measured again. Here, hyperfine's expor
 record and the reference outputs kept under results/.cache/; a record is checked where it is
 read (records.check_record), results.csv in harness.analysis.export. Standard library only."""
 
-from __future__ import annotations
-
 import hashlib
 from pathlib import Path
 

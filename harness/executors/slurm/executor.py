@@ -8,8 +8,6 @@ planned with: `timeout` past its time limit, else `failed` and `retry` (the next
 the cell again).
 """
 
-from __future__ import annotations
-
 import dataclasses
 import datetime
 import math

@@ -1,7 +1,5 @@
 """Error against run time (with the Pareto front) and divergence curves."""
 
-from __future__ import annotations
-
 import math
 import textwrap
 from pathlib import Path

@@ -4,8 +4,6 @@ plots and an output *stem* (a path without suffix) and writes `<stem>.png` and `
 atomically, returning both paths. Figures are built on an Agg canvas, never through pyplot's
 global figure list, so rendering keeps no state between calls and needs no display."""
 
-from __future__ import annotations
-
 import math
 import textwrap
 import zlib

@@ -3,8 +3,6 @@ cell's phases in seconds and as shares of the simulation time (the frame
 harness.analysis.phases.plot_frame draws); and the work per thread, busy seconds and pair tests
 of each thread per variant (the frame harness.analysis.strategies.work_table builds)."""
 
-from __future__ import annotations
-
 import textwrap
 from pathlib import Path
 

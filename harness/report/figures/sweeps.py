@@ -1,8 +1,6 @@
 """Time against a swept parameter (the course report's Figures 3-6), peak memory against N,
 and speedup, efficiency and the Karp-Flatt serial fraction against threads."""
 
-from __future__ import annotations
-
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -1,7 +1,5 @@
 """Trajectories of a print-mode run (the course report's Figure 7), still and animated."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import IO
 

@@ -4,8 +4,6 @@ support it; BESIDE and MAIN register them, in the order the report shows them af
 table. A feature's sections (the builders of the harness.report.parts.ReportFeature given to
 the render) come first beside the cell table."""
 
-from __future__ import annotations
-
 from collections.abc import Callable, Sequence
 
 import pandas as pd

@@ -1,8 +1,6 @@
 """The cell table: one row per cell with its statistics, speedup and validation (the shape
 of the course report's Tables 2-6)."""
 
-from __future__ import annotations
-
 import posixpath
 from collections.abc import Sequence
 

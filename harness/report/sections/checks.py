@@ -2,8 +2,6 @@
 Pareto front; and, for checked cells, pass/fail per scene and check, which build to trust,
 shadow error against time and divergence curves."""
 
-from __future__ import annotations
-
 import numpy as np
 import pandas as pd
 

@@ -4,8 +4,6 @@ curves, and the print-mode outputs it kept), the figure manifest, and what its r
 (decided once, from the rows); and how a part turns its tables and figures into blocks, named
 after the experiment."""
 
-from __future__ import annotations
-
 import functools
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field

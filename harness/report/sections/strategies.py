@@ -7,8 +7,6 @@ figure and a table of every shown cell's --timing run split into its phases
 only lays them out, and only where the data has them.
 """
 
-from __future__ import annotations
-
 from harness.analysis import overhead, phases
 from harness.analysis import strategies as study
 from harness.analysis.display import threads_text

@@ -4,8 +4,6 @@ Karp-Flatt serial fraction against threads; and the cells run as MPI ranks: thei
 ranks at each thread count, ranks against threads on the same cores, and what the ranks spend
 communicating and hold in memory."""
 
-from __future__ import annotations
-
 import pandas as pd
 
 from harness.analysis.cells import flag

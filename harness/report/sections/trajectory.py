@@ -1,8 +1,6 @@
 """Trajectories: every particle's path through a print-mode run (the course report's
 Figure 7), and the run animated."""
 
-from __future__ import annotations
-
 from pathlib import Path
 
 import pandas as pd

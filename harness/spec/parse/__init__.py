@@ -3,8 +3,6 @@
 config runs (its variants, builds, binaries and programs) and how it measures and checks;
 harness.spec.parse.scene reads its axes."""
 
-from __future__ import annotations
-
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path

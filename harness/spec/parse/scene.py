@@ -4,8 +4,6 @@ from their product; and what they would build, counted before anything is built 
 and the memory its scenes take where they list their particles), so that a config past the
 limits is refused at load time with the numbers, not after minutes of building."""
 
-from __future__ import annotations
-
 import contextlib
 import re
 from pathlib import Path
