@@ -12,16 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.analysis import results
-from harness.store import atomic, locks
+from harness.store import atomic, index, locks
 from harness.store.columns import DIVERGENCE_COLUMNS, RATIO_COLUMNS
-from harness.store.index import (
-    Listed,
-    PlannedCell,
-    current_rows,
-    index_files,
-    replaced,
-    write_index,
-)
 from harness.store.layout import ExperimentDir
 from harness.store.superseded import load_records, prune_locked
 from harness.store.trust import DamagedFile
@@ -53,7 +45,8 @@ def render_csv(rows: Sequence[Mapping[str, object]]) -> str:
     return csv_text(results.columns_of(rows), rows)
 
 
-def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> dict[Path, str | None]:
+def render(exp: ExperimentDir, how: Derivation,
+           listed: Sequence[index.Listed]) -> dict[Path, str | None]:
     """Each export's text (None: the file is not to be there)."""
     rows = [results.row_of(item, exp, how.title) for item in listed]
     files: dict[Path, str | None] = {exp.results_csv: render_csv(rows)}
@@ -66,7 +59,7 @@ def render(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> dic
     return files
 
 
-def write(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> None:
+def write(exp: ExperimentDir, how: Derivation, listed: Sequence[index.Listed]) -> None:
     """The exports of the listed records, then the index that lists them (the caller holds
     the directory lock)."""
     files = render(exp, how, listed)
@@ -76,12 +69,12 @@ def write(exp: ExperimentDir, how: Derivation, listed: Sequence[Listed]) -> None
                 path.unlink(missing_ok=True)
         else:
             atomic.atomic_write_text(path, text)
-    write_index(exp, how.experiment, how.title, how.baseline, how.divergence, listed,
+    index.write_index(exp, how.experiment, how.title, how.baseline, how.divergence, listed,
                 {path.name: None if text is None else _sha(text.encode())
                  for path, text in files.items()})
 
 
-def rebuild(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: str,
+def rebuild(experiment_dir: Path, planned: Sequence[index.PlannedCell], machine_id: str,
             experiment: str, title: str, prune_first: bool = False,
             baseline: str | None = None, divergence: bool = False) -> None:
     """The rows of the plan from the records on disk (store.index.current_rows), exported,
@@ -91,9 +84,9 @@ def rebuild(experiment_dir: Path, planned: Sequence[PlannedCell], machine_id: st
     with locks.directory_lock(experiment_dir):
         stored = load_records(exp.cells)
         if prune_first:
-            stored = prune_locked(experiment_dir, stored, replaced(stored, planned))
+            stored = prune_locked(experiment_dir, stored, index.replaced(stored, planned))
         write(exp, Derivation(experiment, title, baseline, divergence),
-              current_rows(stored, planned, machine_id))
+              index.current_rows(stored, planned, machine_id))
 
 
 def repair(exp: ExperimentDir) -> str | None:
@@ -104,7 +97,7 @@ def repair(exp: ExperimentDir) -> str | None:
         return None
     with locks.directory_lock(exp.path):
         try:
-            how_fields, digests = index_files(exp)
+            how_fields, digests = index.index_files(exp)
         except DamagedFile as exc:
             return (f"{exc}: the exports cannot be checked; a run of the experiment's config "
                     "writes them again")

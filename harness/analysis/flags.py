@@ -9,16 +9,7 @@ import pandas as pd
 from harness.analysis.cells import flag, sort_cells
 from harness.analysis.serving import measured_once
 from harness.spec.facts import Variants
-from harness.store.columns import (
-    AGREEMENT_FAILED,
-    AGREEMENTS,
-    CRASHED,
-    FAILED,
-    IDENTICAL,
-    INVALID,
-    OK,
-    UNPLANNED,
-)
+from harness.store import columns
 
 # How each of a cell's flags (store.columns.FLAG_COLUMNS) is written, in the order shown.
 FLAG_WORDS: dict[str, str] = {
@@ -58,10 +49,11 @@ def status_text(row: pd.Series) -> str:
     """A cell's status in a few words: `ok`, `failed (exit 3)`, `invalid: differs from step 3`."""
     text = status = str(row["status"])
     exit_code = row.get("exit_code")
-    if status in (FAILED, CRASHED) and pd.notna(exit_code):
+    if status in (columns.FAILED, columns.CRASHED) and pd.notna(exit_code):
         text = f"{status} (exit {int(exit_code)})"
     agreement = row.get("agreement")
-    if agreement in AGREEMENTS and (agreement != AGREEMENT_FAILED or status == INVALID):
+    if agreement in columns.AGREEMENTS and (agreement != columns.AGREEMENT_FAILED
+                                            or status == columns.INVALID):
         text += f": {agreement_text(row)}"
     return text
 
@@ -69,7 +61,7 @@ def status_text(row: pd.Series) -> str:
 def validation_text(row: pd.Series) -> str:
     """One cell's validation status with the flags that qualify it, e.g. `ok · oversubscribed`."""
     parts = [status_text(row)]
-    if pd.notna(row.get("identical")) and not row["identical"] and row["status"] == OK:
+    if pd.notna(row.get("identical")) and not row["identical"] and row["status"] == columns.OK:
         parts.append("differs from seq")
     parts += [FLAG_WORDS[name] for name in _flags(row)]
     return " · ".join(parts)
@@ -81,19 +73,20 @@ def issues(row: pd.Series) -> list[tuple[str, str]]:
     else its status, and each flag)."""
     found: list[tuple[str, str]] = []
     status = str(row["status"])
-    status_kind = INVALID_OUTPUT if status == INVALID else status  # as the summary counts it
+    status_kind = INVALID_OUTPUT if status == columns.INVALID else status  # as the summary counts
     agreement = row.get("agreement")
-    if agreement in AGREEMENTS and agreement != IDENTICAL and isinstance(row.get("note"), str):
+    if (agreement in columns.AGREEMENTS and agreement != columns.IDENTICAL
+            and isinstance(row.get("note"), str)):
         # A program: its note says where it leaves seq and what seq did. One whose output
         # could not be compared counts by what happened to it.
-        if agreement != AGREEMENT_FAILED:
+        if agreement != columns.AGREEMENT_FAILED:
             kind = str(agreement)
         else:
-            kind = NOT_CHECKED if status == OK else status_kind
+            kind = NOT_CHECKED if status == columns.OK else status_kind
         found.append((kind, str(row["note"])))
-    elif status == INVALID:
+    elif status == columns.INVALID:
         found.append((INVALID_OUTPUT, INVALID_OUTPUT))
-    elif status != OK:
+    elif status != columns.OK:
         found.append((status_kind, status_text(row)))
     for name in _flags(row):
         text = FLAG_WORDS[name]
@@ -122,7 +115,7 @@ def _config_change(changed: object) -> str:
     """What an earlier config differed in, as the warnings say it."""
     if not isinstance(changed, str) or not changed:
         return ""
-    if changed == UNPLANNED:
+    if changed == columns.UNPLANNED:
         return " (the config no longer plans this cell)"
     return f" (it differed in: {', '.join(changed.split())})"
 
@@ -131,9 +124,9 @@ def _flagged(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """The flagged rows of an experiment's cells, in the warnings table's order (variants in
     the order of `variants`)."""
     df = measured_once(df)
-    mask = df["status"] != OK
+    mask = df["status"] != columns.OK
     if "agreement" in df.columns:  # a program that agrees only up to rounding, or drifts
-        mask |= df["agreement"].isin(AGREEMENTS) & (df["agreement"] != IDENTICAL)
+        mask |= df["agreement"].isin(columns.AGREEMENTS) & (df["agreement"] != columns.IDENTICAL)
     for column in FLAG_WORDS:
         mask |= flag(df, column)
     return sort_cells(df[mask], WARNING_ORDER, variants)
@@ -210,7 +203,7 @@ def earlier_config_text(df: pd.DataFrame) -> str:
     if not earlier.any():
         return ""
     changed = sorted({f for text in df.loc[earlier, "config_changed"].dropna().astype(str)
-                      for f in text.split()} - {UNPLANNED})
+                      for f in text.split()} - {columns.UNPLANNED})
     what = f" (it differed in: {', '.join(changed)})" if changed else ""
     count = int(earlier.sum())
     return (f"{count} of these {len(df)} cells {'was' if count == 1 else 'were'} measured under "

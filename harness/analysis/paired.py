@@ -11,16 +11,11 @@ import pandas as pd
 from harness import stats
 from harness.analysis.cells import key_text
 from harness.spec.facts import BASELINE
-from harness.store.columns import (
-    MATCH_COLUMNS,
-    NUMERIC_COLUMNS,
-    RATIO_OVER_BASELINE,
-    RATIO_OVER_ONE_THREAD,
-)
+from harness.store import columns
 from harness.store.records import MACHINE_KEY
 
 # What ties a ratio to a cell: the cell's experiment, what it measured and its machine.
-KEY_COLUMNS: tuple[str, ...] = ("experiment", *MATCH_COLUMNS, MACHINE_KEY)
+KEY_COLUMNS: tuple[str, ...] = ("experiment", *columns.MATCH_COLUMNS, MACHINE_KEY)
 METRICS = ("speedup", "efficiency", "serial_fraction")  # what a speedup gives a cell
 ONE_THREAD = "1 thread"  # a cell's `baseline` where its speedup is over its own one thread
 
@@ -40,7 +35,7 @@ def paired(ratios: pd.DataFrame | None, paired_only: bool = True) -> pd.DataFram
 def cell_keys(frame: pd.DataFrame) -> pd.Series:
     """Per row, the text that names its cell across results.csv and ratios.csv."""
     parts = [frame.get(c, pd.Series("", index=frame.index)).map(
-        lambda v, n=c in NUMERIC_COLUMNS: key_text(v, n)) for c in KEY_COLUMNS]
+        lambda v, n=c in columns.NUMERIC_COLUMNS: key_text(v, n)) for c in KEY_COLUMNS]
     return pd.Series(["\0".join(p) for p in zip(*parts, strict=True)], index=frame.index,
                      dtype=object)
 
@@ -48,7 +43,7 @@ def cell_keys(frame: pd.DataFrame) -> pd.Series:
 def matches(out: pd.DataFrame, ratios: pd.DataFrame, kind: pd.Series) -> pd.Series:
     """Per row of `out`, the index in `ratios` of its paired ratio of this kind (NaN where
     none): over seq against seq itself, over one thread against the same variant."""
-    wanted = ratios[(ratios["kind"] != RATIO_OVER_BASELINE)
+    wanted = ratios[(ratios["kind"] != columns.RATIO_OVER_BASELINE)
                     | (ratios["reference_variant"] == BASELINE)]
     lookup = {(k, t): i for i, k, t in zip(wanted.index, wanted["_key"], wanted["kind"],
                                            strict=True)}
@@ -71,9 +66,9 @@ def use_paired(out: pd.DataFrame, ratios: pd.DataFrame | None, same_build: pd.Se
     out["speedup_paired"] = False
     if ratios is None or ratios.empty or out.empty:
         return
-    kind = out["baseline"].map({BASELINE: RATIO_OVER_BASELINE,
-                                ONE_THREAD: RATIO_OVER_ONE_THREAD}).fillna("")
-    kind = kind.where((kind != RATIO_OVER_BASELINE) | same_build, "")
+    kind = out["baseline"].map({BASELINE: columns.RATIO_OVER_BASELINE,
+                                ONE_THREAD: columns.RATIO_OVER_ONE_THREAD}).fillna("")
+    kind = kind.where((kind != columns.RATIO_OVER_BASELINE) | same_build, "")
     found = matches(out, ratios, kind)
     for position, row in found.dropna().items():
         ratio = ratios.loc[int(row)]

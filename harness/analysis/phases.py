@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from harness.analysis import display
 from harness.analysis.cells import (
     MACHINE,
     SCENE_KEYS,
@@ -18,23 +19,14 @@ from harness.analysis.cells import (
     timed_rows,
     varying_keys,
 )
-from harness.analysis.display import (
-    OTHER_PHASE,
-    OUTPUT_PHASE,
-    PHASE_NAMES,
-    format_share,
-    format_sig3,
-    series_label,
-    threads_text,
-)
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.spec.facts import GRID, Variants
 from harness.store.columns import PHASE_COLUMNS
 
 NS_PER_S = 1e9
 
-PHASES: tuple[str, ...] = tuple(PHASE_NAMES)  # drawing order: sim_s's, then output
-SIM_PHASES: tuple[str, ...] = (*PHASE_COLUMNS, OTHER_PHASE)  # they make up sim_s
+PHASES: tuple[str, ...] = tuple(display.PHASE_NAMES)  # drawing order: sim_s's, then output
+SIM_PHASES: tuple[str, ...] = (*PHASE_COLUMNS, display.OTHER_PHASE)  # they make up sim_s
 TOTAL = "sim_s"  # the simulation time of the --timing run, the whole the shares are of
 REST_NS = "rest_ns"  # the simulation outside the broad phase, ns per particle-step
 BROAD = PHASE_COLUMNS[0]
@@ -67,8 +59,8 @@ def with_phases(rows: pd.DataFrame) -> pd.DataFrame:
     out = rows.copy()
     # Each phase is printed rounded to the microsecond, so their sum may pass sim_s by a few:
     # that is no negative overhead.
-    out[OTHER_PHASE] = (out[TOTAL] - out[list(PHASE_COLUMNS)].sum(axis=1)).clip(lower=0)
-    out[OUTPUT_PHASE] = out[OUTPUT_PHASE].fillna(0.0)
+    out[display.OTHER_PHASE] = (out[TOTAL] - out[list(PHASE_COLUMNS)].sum(axis=1)).clip(lower=0)
+    out[display.OUTPUT_PHASE] = out[display.OUTPUT_PHASE].fillna(0.0)
     whole = out[list(SIM_PHASES)].sum(axis=1)  # sim_s, or a few microseconds above it
     for phase in SIM_PHASES:
         out[f"{phase}{SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
@@ -135,14 +127,15 @@ def _not_shown(rows: pd.DataFrame, chosen: pd.DataFrame) -> pd.DataFrame:
 
 
 def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
-    return [series_label(tuple(row[k] for k in keys), keys) for _, row in cells.iterrows()]
+    return [display.series_label(tuple(row[k] for k in keys), keys) for _, row in cells.iterrows()]
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
     """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
     and the output."""
     shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
-    return sel.cells[[*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, OUTPUT_PHASE]].copy()
+    keep = [*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, display.OUTPUT_PHASE]
+    return sel.cells[keep].copy()
 
 
 def plot_frame(sel: Selection) -> pd.DataFrame:
@@ -164,6 +157,7 @@ def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
     cell = grid.sort_values(["n", TOTAL], kind="stable").iloc[-1]
     share = cell[f"{BROAD}{SHARE_SUFFIX}"]
     return float(cell["n"]), (
-        f"where grid's time goes: the broad phase is {format_share(share)} of its simulation "
-        f"time, the rest of it {format_sig3(cell[REST_NS])} ns per particle-step "
-        f"(N = {int(cell['n'])}, {threads_text(int(cell['threads']))}; {link})")
+        f"where grid's time goes: the broad phase is {display.format_share(share)} of its "
+        f"simulation time, the rest of it {display.format_sig3(cell[REST_NS])} ns per "
+        f"particle-step "
+        f"(N = {int(cell['n'])}, {display.threads_text(int(cell['threads']))}; {link})")

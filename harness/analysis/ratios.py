@@ -9,19 +9,14 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import TypeVar
 
 from harness import stats
-from harness.store.columns import (
-    MATCH_COLUMNS,
-    OK,
-    RATIO_COLUMNS,
-    RATIO_OVER_BASELINE,
-    RATIO_OVER_ONE_THREAD,
-)
+from harness.store import columns
 
 Row = Mapping[str, object]
 T = TypeVar("T")
 # What a ratio's two cells share: the machine and what they measured, but for the variant, its
 # threads and its ranks.
-_SHARED = ("machine_id", *(c for c in MATCH_COLUMNS if c not in ("variant", "threads", "ranks")))
+_SHARED = ("machine_id",
+           *(c for c in columns.MATCH_COLUMNS if c not in ("variant", "threads", "ranks")))
 # A cell among the cells of its group: its variant, threads and ranks (0: not run as ranks).
 Place = tuple[str, int, int]
 
@@ -62,12 +57,12 @@ def references(cells: Mapping[Place, T], variant: str, threads: int, baseline: s
         return []
     found = []
     if threads > 1 and (variant, 1, ranks) in cells:
-        found.append((RATIO_OVER_ONE_THREAD, cells[(variant, 1, ranks)]))
+        found.append((columns.RATIO_OVER_ONE_THREAD, cells[(variant, 1, ranks)]))
     counts = sorted((t, r) for v, t, r in cells if v == baseline)
     pick = next((c for c in counts if c[0] == 1), None) or next(
         (c for c in counts if c[0] == threads), None) or (counts[0] if counts else None)
     if pick is not None:
-        found.append((RATIO_OVER_BASELINE, cells[(baseline, *pick)]))
+        found.append((columns.RATIO_OVER_BASELINE, cells[(baseline, *pick)]))
     return found
 
 
@@ -84,7 +79,7 @@ def ratio_rows(rows: Iterable[Row], baseline: str,
     the two cells' rounds (stats.session_noise)."""
     groups: dict[tuple, dict[Place, Row]] = {}
     for row in rows:
-        if row.get("status") == OK and isinstance(row.get("threads"), int):
+        if row.get("status") == columns.OK and isinstance(row.get("threads"), int):
             cells = groups.setdefault(tuple(row.get(c) for c in _SHARED), {})
             cells.setdefault(place(row["variant"], row["threads"], row.get("ranks")), row)
     found = []
@@ -95,7 +90,7 @@ def ratio_rows(rows: Iterable[Row], baseline: str,
                 session = session_of(machine, stats.session_noise(
                     [*_times(cell, "round_noise"), *_times(reference, "round_noise")]))
                 ratio = ratio_of(reference, cell, session)
-                found.append({**{c: cell.get(c) for c in RATIO_COLUMNS}, "kind": kind,
+                found.append({**{c: cell.get(c) for c in columns.RATIO_COLUMNS}, "kind": kind,
                               "reference_variant": reference["variant"],
                               "reference_threads": reference["threads"],
                               "session_spread": session, **ratio,
@@ -108,7 +103,7 @@ def finite(value: float) -> float | None:
 
 
 def _scaling(kind: str, ratio: object, threads: int) -> dict[str, object]:
-    if kind != RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
+    if kind != columns.RATIO_OVER_ONE_THREAD or not isinstance(ratio, float):
         return {}
     speedup = stats.Interval(ratio)
     return {"efficiency": stats.efficiency(speedup, threads).point,

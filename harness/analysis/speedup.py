@@ -8,16 +8,7 @@ import numpy as np
 import pandas as pd
 
 from harness import stats
-from harness.analysis import paired
-from harness.analysis.cells import (
-    INTERVAL_SUFFIXES,
-    SCENE_KEYS,
-    flag,
-    present,
-    series_keys,
-    sort_cells,
-    variant_fact,
-)
+from harness.analysis import cells, paired
 from harness.analysis.flags import validation_text
 from harness.analysis.serving import ONE_THREAD_RUN
 from harness.spec.builds import DEFAULT_BUILD
@@ -35,13 +26,13 @@ TIMING = {"runs": "runs", "wall_median_s": "median_s", "wall_min_s": "min_s",
 def all_pairs(names: pd.Series, variants: Variants) -> pd.Series:
     """Per row, whether the variant tests every pair with seq's kernel (its --describe among
     `variants`): its speedup over seq is then parallelism alone."""
-    return variant_fact(names, lambda f: f.all_pairs, variants)
+    return cells.variant_fact(names, lambda f: f.all_pairs, variants)
 
 
 def single_threaded(names: pd.Series, variants: Variants) -> pd.Series:
     """Per row, whether the variant runs one thread whatever `--threads` says (its --describe
     among `variants`): a thread count is nominal for it."""
-    return variant_fact(names, lambda f: not f.parallel, variants)
+    return cells.variant_fact(names, lambda f: not f.parallel, variants)
 
 
 def _lookup(df: pd.DataFrame, found: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -61,7 +52,7 @@ def _seq_baseline(df: pd.DataFrame) -> pd.DataFrame:
     seq of the row's own build. seq is single-threaded whatever `threads` says, so its
     lowest-thread cell stands for all."""
     seq = df[df["variant"] == BASELINE].sort_values("threads", kind="stable")
-    keys = present(df, SCENE_KEYS)
+    keys = cells.present(df, cells.SCENE_KEYS)
     base = _lookup(df, seq, [*keys, "build"])
     reference = _lookup(df, seq[seq["build"] == DEFAULT_BUILD], keys)
     has_ref = reference["base_s"].notna()
@@ -92,7 +83,8 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     # seq told to use p threads still uses one: S/p would charge it for threads it never ran.
     same_work &= ~(single_threaded(df["variant"], variants) & (df["threads"] > 1))
     if thread_baseline:
-        own = _lookup(df, df[df["threads"] == 1], [*present(df, SCENE_KEYS), "variant", "build"])
+        own = _lookup(df, df[df["threads"] == 1],
+                      [*cells.present(df, cells.SCENE_KEYS), "variant", "build"])
         use_own = base.isna() & own["base_s"].notna()
         base = base.where(~use_own, own["base_s"])
         base_times = base_times.where(~use_own, own["base_times"])
@@ -108,7 +100,8 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     # The intervals: the bootstrap of the ratio of medians over both cells' run times; NaN
     # where either has fewer than two (a merge that found no reference leaves NaN), so that
     # tables fall back to the point value.
-    out[[f"{metric}{suffix}" for metric in paired.METRICS for suffix in INTERVAL_SUFFIXES]] = np.nan
+    suffixes = cells.INTERVAL_SUFFIXES
+    out[[f"{metric}{suffix}" for metric in paired.METRICS for suffix in suffixes]] = np.nan
     for position, *runs in zip(out.index, base_times, df[TIMES], strict=True):
         base_runs, own_runs = (list(v) if isinstance(v, tuple | list) else [] for v in runs)
         if len(base_runs) >= 2 and len(own_runs) >= 2 and pd.notna(out.at[position, "speedup"]):
@@ -123,12 +116,12 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants, *,
     place of its "first/second/third time, shortest"."""
     rows = with_speedup(df, variants, thread_baseline=thread_baseline, ratios=ratios)
     table = rows[list(keys)].copy()
-    over = flag(rows, "oversubscribed")
+    over = cells.flag(rows, "oversubscribed")
     if "threads" in keys and over.any():
         # beside the thread count, where a sweep past the cores shows it at a glance (the
         # validation column, far right, says it too)
         table.insert(table.columns.get_loc("threads") + 1, "oversubscribed", over)
-    one = flag(rows, ONE_THREAD_RUN)
+    one = cells.flag(rows, ONE_THREAD_RUN)
     if (rows.loc[one, "threads"] != 1).any():  # a serial cell shown where it serves
         at = table.columns.get_loc("threads") + 1 if "threads" in keys else len(keys)
         table.insert(at, ONE_THREAD_RUN, one)
@@ -138,14 +131,14 @@ def cell_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants, *,
             table[column] = rows[column]
     metrics = ("speedup", "efficiency", *(("serial_fraction",) if "threads" in keys else ()))
     table = table.join(rows[[f"{m}{suffix}" for m in metrics
-                             for suffix in ("", *INTERVAL_SUFFIXES)]])
+                             for suffix in ("", *cells.INTERVAL_SUFFIXES)]])
     if "threads" in keys:
         table["baseline"] = rows["baseline"]
     if "imbalance" in rows.columns and rows["imbalance"].notna().any():
         table["imbalance"] = rows["imbalance"]  # max over mean busy seconds of the threads
     table = with_instructions(table, rows)
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
-    return sort_cells(table, keys, variants)
+    return cells.sort_cells(table, keys, variants)
 
 
 def with_instructions(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
@@ -167,7 +160,7 @@ def growth_exponents(df: pd.DataFrame, variants: Variants, x: str = "n") -> pd.D
     """Per series of two distinct x or more, the least-squares fit of log t = k log x + log a
     over its ok cells: an all-pairs variant does Θ(N²) pair tests per step, so its time is a
     straight line with k ≈ 2 on log-log axes, where an exponential would curve upward."""
-    keys = series_keys(df, x)
+    keys = cells.series_keys(df, x)
     ok = df[(df["status"] == OK) & (df["wall_median_s"] > 0) & (df[x] > 0)]
     rows: list[dict[str, object]] = []
     groups = ok.groupby(keys, sort=False, dropna=False) if keys else [((), ok)]
@@ -180,4 +173,4 @@ def growth_exponents(df: pd.DataFrame, variants: Variants, x: str = "n") -> pd.D
                      "exponent_se": fit.stderr, "prefactor_s": fit.coefficient,
                      "points": len(group), "x_min": group[x].min(), "x_max": group[x].max()})
     columns = [*keys, "exponent", "exponent_se", "prefactor_s", "points", "x_min", "x_max"]
-    return sort_cells(pd.DataFrame(rows, columns=columns), keys, variants)
+    return cells.sort_cells(pd.DataFrame(rows, columns=columns), keys, variants)

@@ -10,19 +10,7 @@ from harness.errors import HarnessError
 from harness.executors import EXECUTORS
 from harness.executors.base import Options
 from harness.repo import REPO_ROOT
-from harness.runner.command import (
-    QUICK_REPORT,
-    Hooks,
-    Parser,
-    add_flags,
-    check_derived,
-    directory_option,
-    load_configs,
-    measuring_lock,
-    report_dir,
-    seconds,
-    whole_number,
-)
+from harness.runner import command
 from harness.runner.experiment import run_experiment
 from harness.spec.config import DEFAULT_MAX_CELLS
 from harness.store.records import now_iso
@@ -36,7 +24,7 @@ QUIET_WAIT_VAR = "COLLIDE_BENCH_QUIET_WAIT_S"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = Parser(prog=prog, description="Measure the cells of experiment configs.")
+    parser = command.Parser(prog=prog, description="Measure the cells of experiment configs.")
     parser.add_argument("configs", nargs="+", type=Path, help="experiment YAML files")
     parser.add_argument("--dry-run", action="store_true",
                         help="list the cells and which are cached; measure nothing")
@@ -44,10 +32,11 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="smoke run: n <= 400, steps <= 5, into results/<name>-quick/")
     parser.add_argument("--force", action="store_true", help="re-measure cached cells")
     parser.add_argument("--no-report", action="store_true", help="do not render the report")
-    parser.add_argument("--max-cells", type=whole_number, default=DEFAULT_MAX_CELLS, metavar="N",
+    parser.add_argument("--max-cells", type=command.whole_number, default=DEFAULT_MAX_CELLS,
+                        metavar="N",
                         help="refuse a config that plans more than N cells, counted before "
                         f"anything is built (default {DEFAULT_MAX_CELLS})")
-    add_flags(parser, "--report-dir")
+    command.add_flags(parser, "--report-dir")
     parser.add_argument("--executor", choices=tuple(EXECUTORS), default=None,
                         help="where cells are measured: local (one after another here; the "
                         "default) or slurm (one job-array task per cell); overrides the "
@@ -57,7 +46,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         "run) and record them; submit nothing")
     parser.add_argument("--partition", default=None,
                         help="slurm: the partition (overrides the config's executor.partition)")
-    parser.add_argument("--quiet-wait", type=seconds, default=default_quiet_wait(),
+    parser.add_argument("--quiet-wait", type=command.seconds, default=default_quiet_wait(),
                         metavar="SECONDS",
                         help="how long an experiment may wait, in all, for other processes to "
                         "leave the cores before it takes a round they disturbed again (0: "
@@ -75,17 +64,17 @@ def default_quiet_wait() -> float:
         raise SystemExit(f"error: ${QUIET_WAIT_VAR}: expected seconds, got {text!r}") from None
 
 
-def execute(args: argparse.Namespace, hooks: Hooks) -> int:
-    run_lock = measuring_lock(args, args.configs)
-    options = Options(repo_root=REPO_ROOT, results_root=directory_option(args.results_dir),
+def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
+    run_lock = command.measuring_lock(args, args.configs)
+    options = Options(repo_root=REPO_ROOT, results_root=command.directory_option(args.results_dir),
                       quick=args.quick, force=args.force, dry_run=args.dry_run,
                       hyperfine=args.hyperfine, executor=args.executor, collect=args.collect,
                       partition=args.partition, run_lock=run_lock,
                       quiet_wait_s=args.quiet_wait, started=now_iso(),
                       program_runner=hooks.program_runner)
-    report = None if args.dry_run or args.no_report else report_dir(args)  # checked first
+    report = None if args.dry_run or args.no_report else command.report_dir(args)  # checked first
     try:
-        registry, configs = load_configs(args.configs, args.metric, args.max_cells)
+        registry, configs = command.load_configs(args.configs, args.metric, args.max_cells)
         remote = [c for c in configs if (args.executor or c.executor.kind) != "local"]
         if args.metric is not None and remote:
             # a remote worker reads the config file, not this command line
@@ -110,8 +99,8 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     --quick run's own experiments, in `report_dir/report-quick`."""
     from harness.report.pipeline import render
 
-    check_derived(options.results_root, sys.stderr)
-    out = report_dir / QUICK_REPORT if options.quick else report_dir
+    command.check_derived(options.results_root, sys.stderr)
+    out = command.report_dir / command.QUICK_REPORT if options.quick else command.report_dir
     return render(options.results_root, out, include_quick=options.quick,
                   experiments=names if options.quick else None,
                   features=REPORT_FEATURES).with_suffix(".html")

@@ -18,39 +18,13 @@ from pathlib import Path
 
 from harness import stats
 from harness.analysis.resultsets import Side, experiment_dirs, load_side, noise_profile
+from harness.comparison import verdicts
 from harness.comparison.page import write_outputs
-from harness.comparison.verdicts import (
-    CALIBRATION_KEY,
-    DEFAULT_THRESHOLD,
-    FAIL_ON,
-    FAIL_ON_INCONCLUSIVE,
-    FASTER,
-    FDR_Q,
-    MEASURED_TOGETHER,
-    METRICS,
-    NOT_OK,
-    SLOWER,
-    Drift,
-    allow_noise,
-    compare,
-    exit_status,
-    find_drift,
-    paired_rounds,
-)
 from harness.errors import HarnessError
 from harness.executors.base import machine_id
 from harness.measure import environment
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT
-from harness.runner.command import (
-    Hooks,
-    Parser,
-    add_flags,
-    check_derived,
-    fraction,
-    load_configs,
-    measuring_lock,
-    seconds,
-)
+from harness.runner import command
 from harness.runner.pair import BLOCKS, DEFAULT_BUDGET_S, calibrate, measure_sides
 from harness.runner.sides import resolve
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
@@ -64,7 +38,7 @@ USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --cali
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = Parser(prog=prog, usage=f"{prog} [options] OLD NEW\n       {prog} --measure "
+    parser = command.Parser(prog=prog, usage=f"{prog} [options] OLD NEW\n       {prog} --measure "
                     f"[options] OLD NEW CONFIG...\n       {prog} --calibrate [options] "
                     "CONFIG...",
                     description="Compare two result sets cell by cell (NEW against OLD); with "
@@ -86,21 +60,22 @@ def parser(prog: str) -> argparse.ArgumentParser:
                       "between runs and the smallest slow-down found; kept in "
                       f"<results>/{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
                       f"{layout.RECORD_SUFFIX}")
-    parser.add_argument("--threshold", type=fraction, default=DEFAULT_THRESHOLD,
+    parser.add_argument("--threshold", type=command.fraction, default=verdicts.DEFAULT_THRESHOLD,
                         help=f"a change within it is never called slower or faster (default: "
-                        f"{DEFAULT_THRESHOLD:g})")
-    parser.add_argument("--fail-on", choices=FAIL_ON, default=FAIL_ON_INCONCLUSIVE,
+                        f"{verdicts.DEFAULT_THRESHOLD:g})")
+    parser.add_argument("--fail-on", choices=verdicts.FAIL_ON,
+                        default=verdicts.FAIL_ON_INCONCLUSIVE,
                         help="what fails the gate besides a slower cell (exit 1): with "
                         "'inconclusive' (default) a cell neither shown changed nor shown "
                         "unchanged exits 3; with 'slower' only a slower cell fails")
-    parser.add_argument("--budget", type=seconds, default=None, metavar="SECONDS",
+    parser.add_argument("--budget", type=command.seconds, default=None, metavar="SECONDS",
                         help="with --measure: add rounds to undecided cells until each is "
                         f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g}; "
                         f"with --metric {METRIC_INSTRUCTIONS}, 0: the counts decide)")
     parser.add_argument("--out", type=Path, default=None,
                         help="where compare.md and compare.{png,svg} go, and with --measure the "
                         "sides' results (default: <repo>/results/compare)")
-    add_flags(parser)
+    command.add_flags(parser)
     parser.add_argument("--old-machine", metavar="ID-OR-LABEL",
                         help="use OLD's cells of this machine (machine_id prefix or label part)")
     parser.add_argument("--new-machine", metavar="ID-OR-LABEL",
@@ -109,7 +84,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
     return parser
 
 
-def execute(args: argparse.Namespace, hooks: Hooks) -> int:
+def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     paths = [str(p) for p in args.paths]
     out = args.out if args.out is not None else DEFAULT_OUT
     if args.calibrate:
@@ -128,15 +103,15 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     roots = (old_path, old_path.parent, new_path, new_path.parent, args.results_dir)
     noise = [stats.session_noise(s for c in side.cells.values() for s in c.round_noise)
              for side in (old, new)]
-    drift = find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots,
+    drift = verdicts.find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots,
                        max((n for n in noise if math.isfinite(n)), default=math.nan))
-    return report(old, new, args, out, allow_noise(drift, old, new), ())
+    return report(old, new, args, out, verdicts.allow_noise(drift, old, new), ())
 
 
 def sides(old_path: Path, new_path: Path, old_machine: str | None,
           new_machine: str | None) -> tuple[Side, Side]:
     for path in (old_path, new_path):
-        check_derived(path, sys.stderr)
+        command.check_derived(path, sys.stderr)
     old_dirs, old_root = experiment_dirs(old_path, "OLD")
     new_dirs, new_root = experiment_dirs(new_path, "NEW")
     by_experiment = old_root and new_root
@@ -148,12 +123,12 @@ def sides(old_path: Path, new_path: Path, old_machine: str | None,
     return old, new
 
 
-def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Drift,
+def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: verdicts.Drift,
            head: Sequence[str]) -> int:
     """The comparison by --metric, written and printed; its exit status."""
-    metric = METRICS[args.metric or METRIC_TIME]
-    rows = compare(old, new, args.threshold, drift, metric)
-    if not any(r.compared or r.kind == NOT_OK for r in rows):
+    metric = verdicts.METRICS[args.metric or METRIC_TIME]
+    rows = verdicts.compare(old, new, args.threshold, drift, metric)
+    if not any(r.compared or r.kind == verdicts.NOT_OK for r in rows):
         counted = f" and counted on both sides (measure with --metric {metric.name})" \
             if metric.exact else ""
         raise HarnessError(f"nothing matched: no cell of {new.path} measured what a cell of "
@@ -162,21 +137,21 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: Dri
     text, written = write_outputs(old, new, rows, args.threshold, out, drift,
                                   figure=not args.no_figure, head=head, metric=metric)
     sys.stdout.write(text + "\nwrote " + ", ".join(str(p) for p in written) + "\n")
-    return exit_status(rows, args.fail_on, metric)
+    return verdicts.exit_status(rows, args.fail_on, metric)
 
 
-def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: Hooks) -> int:
-    registry, configs = load_configs(paths[2:], args.metric)
+def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: command.Hooks) -> int:
+    registry, configs = command.load_configs(paths[2:], args.metric)
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
     # The time lane's budget: an instruction count decides its cell exactly, so with that
     # metric the times get only the first look's rounds unless a budget is asked for.
     budget_s = args.budget if args.budget is not None else (
         0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S)
-    lock = measuring_lock(args, paths)
+    lock = command.measuring_lock(args, paths)
     with lock:
         measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
-                                 args.hyperfine, threshold=args.threshold, q=FDR_Q,
+                                 args.hyperfine, threshold=args.threshold, q=verdicts.FDR_Q,
                                  budget_s=budget_s, program_runner=hooks.program_runner)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
@@ -186,12 +161,12 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: Hooks
             f"shuffled from seed {measured.seed}), rounds added to undecided cells for "
             f"{measured.spent_s:.0f} s of a {measured.budget_s:g} s budget; the sides' results: "
             f"{measured.old}, {measured.new}."]
-    return report(old, new, args, out, MEASURED_TOGETHER, head)
+    return report(old, new, args, out, verdicts.MEASURED_TOGETHER, head)
 
 
-def _calibrate(args: argparse.Namespace, paths: list[str], hooks: Hooks) -> int:
-    registry, configs = load_configs(paths, None)
-    lock = measuring_lock(args, paths)
+def _calibrate(args: argparse.Namespace, paths: list[str], hooks: command.Hooks) -> int:
+    registry, configs = command.load_configs(paths, None)
+    lock = command.measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
         together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
@@ -204,7 +179,7 @@ def _calibrate(args: argparse.Namespace, paths: list[str], hooks: Hooks) -> int:
     existing = records.read_json(path)
     atomic.atomic_write_json(path, {**(existing if isinstance(existing, dict) else {}),
                                     **description,
-                                    CALIBRATION_KEY: dataclasses.asdict(result)})
+                                    verdicts.CALIBRATION_KEY: dataclasses.asdict(result)})
     sys.stdout.write("\n".join(result.lines()) + f"\nkept in {path}\n")
     return 0
 
@@ -268,7 +243,8 @@ def paired_spread(old: Side, new: Side) -> list[tuple[float, int]]:
     found = []
     for key, a in old.cells.items():
         b = new.cells.get(key)
-        pair = paired_rounds(a, b) if b is not None and a.status == b.status == OK else None
+        ok = b is not None and a.status == b.status == OK
+        pair = verdicts.paired_rounds(a, b) if ok else None
         if pair is None:
             continue
         sd = stats.paired_change(pair.old, pair.new, 0.0, shift=pair.shift).sd  # 0: one ratio
@@ -294,24 +270,26 @@ def apart_drift(blocks: Sequence[Side]) -> float:
     return stats.log_ratio_drift(ratios, variances)
 
 
-def false_verdicts(old: Side, new: Side, threshold: float, drift: Drift) -> tuple[int, int]:
-    rows = compare(old, new, threshold, drift)
+def false_verdicts(old: Side, new: Side, threshold: float,
+                   drift: verdicts.Drift) -> tuple[int, int]:
+    rows = verdicts.compare(old, new, threshold, drift)
     compared = [r for r in rows if r.compared]
-    return sum(r.kind in (SLOWER, FASTER) for r in compared), len(compared)
+    return sum(r.kind in (verdicts.SLOWER, verdicts.FASTER) for r in compared), len(compared)
 
 
 def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
                      blocks: Sequence[Path], threshold: float) -> Calibration:
     """The calibration from the two sides measured together and the blocks measured apart."""
     old, new = side("OLD", measured[0]), side("NEW", measured[1])
-    measured_false, measured_compared = false_verdicts(old, new, threshold, MEASURED_TOGETHER)
+    measured_false, measured_compared = false_verdicts(old, new, threshold,
+                                                       verdicts.MEASURED_TOGETHER)
     spread = paired_spread(old, new)
     rounds = max((n for _, n in spread), default=0)
     sd = statistics.median(s for s, _ in spread) if spread else math.nan
     cells = len(old.cells)
     block_sides = [side(f"block {k + 1}", root) for k, root in enumerate(blocks)]
     drift = apart_drift(block_sides)
-    apart = Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
+    apart = verdicts.Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
     apart_verdicts = [false_verdicts(a, b, threshold, apart)
                       for a, b in itertools.combinations(block_sides, 2)]
     noise = noise_profile([*old.cells.values(), *new.cells.values()])
@@ -323,7 +301,7 @@ def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
         measured_compared=measured_compared, drift=apart.sigma,
         apart_false=sum(f for f, _ in apart_verdicts),
         apart_compared=sum(c for _, c in apart_verdicts),
-        smallest_one=stats.smallest_detectable(sd, rounds, threshold, FDR_Q / max(1, cells),
-                                               POWER),
-        smallest_all=stats.smallest_detectable(sd, rounds, threshold, FDR_Q, POWER),
+        smallest_one=stats.smallest_detectable(sd, rounds, threshold,
+                                               verdicts.FDR_Q / max(1, cells), POWER),
+        smallest_all=stats.smallest_detectable(sd, rounds, threshold, verdicts.FDR_Q, POWER),
         rounds=rounds)

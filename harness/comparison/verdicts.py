@@ -15,21 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness import stats
-from harness.analysis.resultsets import (
-    INSTRUCTIONS_QUANTITY,
-    NEW_ONLY,
-    NOT_OK,
-    OLD_ONLY,
-    TIME_QUANTITY,
-    Cell,
-    MatchKey,
-    Quantity,
-    Side,
-    matched,
-    noise_profile,
-    not_comparable,
-    spread_width,
-)
+from harness.analysis import resultsets
 from harness.spec.config import METRIC_INSTRUCTIONS
 from harness.store import layout, records, sessions
 from harness.store.columns import STOPPED_UNDECIDED
@@ -81,13 +67,13 @@ class Drift:
 MEASURED_TOGETHER = Drift(0.0, PAIRED)  # sides measured in the same rounds share the drift
 
 
-def allow_noise(drift: Drift, old: Side, new: Side) -> Drift:
+def allow_noise(drift: Drift, old: resultsets.Side, new: resultsets.Side) -> Drift:
     """The drift to allow between two sides measured apart: the machine's (calibrated or
     assumed), or more where others took a larger share of the cores while a side ran
     (stats.noise_drift): a busy machine moves a run's time by what no calibration of it quiet
     saw."""
     shares = {side.name: profile.stolen + profile.others for side in (old, new)
-              if (profile := noise_profile(list(side.cells.values()))).rounds}
+              if (profile := resultsets.noise_profile(list(side.cells.values()))).rounds}
     if not shares or (sigma := stats.noise_drift(list(shares.values()))) <= drift.sigma:
         return drift
     name = max(shares, key=lambda k: shares[k])
@@ -128,10 +114,10 @@ def find_drift(machine_ids: Iterable[str], roots: Iterable[Path],
 class Row:
     """One line of the comparison: a compared cell, or one listed with why it was not."""
 
-    key: MatchKey
+    key: resultsets.MatchKey
     kind: str  # a verdict of its metric, or why it is listed and not compared
-    old: Cell | None
-    new: Cell | None
+    old: resultsets.Cell | None
+    new: resultsets.Cell | None
     ratio: float = math.nan  # NEW/OLD (of the fewest instructions of each side, where counted)
     low: float = math.nan
     high: float = math.nan
@@ -154,7 +140,7 @@ class Row:
                 and not math.isfinite(self.further))
 
 
-def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
+def paired_rounds(old: resultsets.Cell, new: resultsets.Cell) -> stats.PairedRounds | None:
     """The two sides' round medians, round by round, where they were measured together, with
     each round's interference shift; rounds flagged as interfered with on either side left out."""
     if not old.round_seed or old.round_seed != new.round_seed:
@@ -163,12 +149,13 @@ def paired_rounds(old: Cell, new: Cell) -> stats.PairedRounds | None:
     return pair if len(pair.old) >= 2 else None
 
 
-def _inputs(old: Cell, new: Cell) -> list[str]:
+def _inputs(old: resultsets.Cell, new: resultsets.Cell) -> list[str]:
     differ = old.input_sha256 and new.input_sha256 and old.input_sha256 != new.input_sha256
     return ["the input files differ"] if differ else []
 
 
-def compare_cells(old: Cell, new: Cell, threshold: float, drift: Drift, note: str = "") -> Row:
+def compare_cells(old: resultsets.Cell, new: resultsets.Cell, threshold: float, drift: Drift,
+                  note: str = "") -> Row:
     """One matched cell's times, tested; its verdict waits for the false-discovery control
     (decide_times)."""
     sides = (("OLD", old), ("NEW", new))
@@ -209,10 +196,10 @@ def decide_times(rows: list[Row]) -> list[Row]:
     return rows
 
 
-def _count_verdict(old: Cell, new: Cell, notes: list[str]) -> str:
+def _count_verdict(old: resultsets.Cell, new: resultsets.Cell, notes: list[str]) -> str:
     """MORE, FEWER, SAME or WITHIN for two counted cells of one counter."""
     difference = new.instructions - old.instructions
-    old_width, new_width = spread_width(old), spread_width(new)
+    old_width, new_width = resultsets.spread_width(old), resultsets.spread_width(new)
     if old_width == 0 and new_width == 0:
         return MORE if difference > 0 else FEWER if difference < 0 else SAME
     slack = max(old_width, new_width, VARYING_SHARE * old.instructions)
@@ -226,7 +213,7 @@ def _count_verdict(old: Cell, new: Cell, notes: list[str]) -> str:
     return WITHIN
 
 
-def judge_counts(old: Cell, new: Cell, threshold: float = 0.0,
+def judge_counts(old: resultsets.Cell, new: resultsets.Cell, threshold: float = 0.0,
                  drift: Drift = MEASURED_TOGETHER, note: str = "") -> Row:
     """One matched cell's instruction counts, judged exactly (threshold and drift are the
     times'; a count needs neither), or listed with why not."""
@@ -248,10 +235,11 @@ def judge_counts(old: Cell, new: Cell, threshold: float = 0.0,
 
 
 @dataclass(frozen=True)
-class Metric(Quantity):
+class Metric(resultsets.Quantity):
     """What cells are compared by: the quantity, and how a pair of cells is judged by it."""
 
-    judge: Callable[[Cell, Cell, float, Drift, str], Row]  # one matched pair of ok cells
+    # one matched pair of ok cells
+    judge: Callable[[resultsets.Cell, resultsets.Cell, float, Drift, str], Row]
     decide: Callable[[list[Row]], list[Row]]  # the verdicts, across the judged cells
     verdicts: tuple[tuple[str, str], ...]  # (verdict, as the summary counts it)
     listed: tuple[tuple[str, str], ...]  # (kind listed but not compared, as counted)
@@ -260,26 +248,27 @@ class Metric(Quantity):
     undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
 
 
-_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
-                 (NEW_ONLY, "new only"))
-TIME = Metric(*dataclasses.astuple(TIME_QUANTITY), compare_cells, decide_times,
+_NOT_COMPARED = ((resultsets.NOT_OK, "not compared (not ok)"), (resultsets.OLD_ONLY, "old only"),
+                 (resultsets.NEW_ONLY, "new only"))
+TIME = Metric(*dataclasses.astuple(resultsets.TIME_QUANTITY), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
 INSTRUCTIONS = Metric(
-    *dataclasses.astuple(INSTRUCTIONS_QUANTITY), judge_counts, list,
+    *dataclasses.astuple(resultsets.INSTRUCTIONS_QUANTITY), judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
-     (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
+     (resultsets.NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
 METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
 
 
-def compare(old: Side, new: Side, threshold: float = DEFAULT_THRESHOLD,
+def compare(old: resultsets.Side, new: resultsets.Side, threshold: float = DEFAULT_THRESHOLD,
             drift: Drift = MEASURED_TOGETHER, metric: Metric = TIME) -> list[Row]:
     """Every key of either side, in order: compared by `metric`, not compared, or one side
     only."""
     return metric.decide([
-        Row(key, kind, a, b, note=note) if (kind := not_comparable(a, b)) is not None
-        else metric.judge(a, b, threshold, drift, note) for key, a, b, note in matched(old, new)])
+        Row(key, kind, a, b, note=note) if (kind := resultsets.not_comparable(a, b)) is not None
+        else metric.judge(a, b, threshold, drift, note)
+        for key, a, b, note in resultsets.matched(old, new)])
 
 
 def methods(rows: Sequence[Row], threshold: float, drift: Drift,

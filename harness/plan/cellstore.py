@@ -17,19 +17,10 @@ from harness.spec.config import Config
 from harness.spec.facts import BASELINE
 from harness.spec.programs import check_steps
 from harness.spec.variants import default_registry
-from harness.store import atomic, index, records, trust
+from harness.store import atomic, index, model, records, trust
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.measured import Provenance, Timing, Validation
-from harness.store.model import (
-    BinaryKey,
-    CellKey,
-    ChecksKey,
-    CountedKey,
-    ProgramCheckKey,
-    TextMap,
-    content_id,
-)
 from harness.store.records import now_iso
 from harness.store.result import CellResult
 
@@ -198,7 +189,7 @@ class CellStore:
     def check_references(self, cell: Cell) -> dict[str, Path]:
         return check_references(self.config, self.binaries, cell.build)
 
-    def cell_key(self, cell: Cell) -> CellKey | None:
+    def cell_key(self, cell: Cell) -> model.CellKey | None:
         """Everything a measurement depends on; None while a binary the cell runs is missing.
         The parts a cell has only where it checks, counts or measures more than its runs are
         absent from the others' keys, so that those keep the ids they always had."""
@@ -207,22 +198,22 @@ class CellStore:
         binary_sha = self.binary_sha(cell)
         parts: dict[str, object] = {}
         if cell.program:  # what its check compares with, and on how many steps
-            parts["program_check"] = ProgramCheckKey(
+            parts["program_check"] = model.ProgramCheckKey(
                 steps=check_steps(cell.scene.n, cell.scene.steps),
                 reference_sha256=self._hashes(self.program_references(cell)))
         if cell.checked:
-            parts["checks"] = ChecksKey(**self.config.checks.key(),
+            parts["checks"] = model.ChecksKey(**self.config.checks.key(),
                                         reference_sha256=self._hashes(self.check_references(cell)))
         if self.config.counts_instructions:
             counted = self.counted_binary(cell)
-            parts["instructions"] = CountedKey(
+            parts["instructions"] = model.CountedKey(
                 tool=lane.machine_tool(),
                 binary_sha256=binary_sha if counted is None else self.sha(counted))
         if measures_openmp_costs(self.config, cell):
-            parts["openmp_costs"] = BinaryKey(binary_sha256=self.sha(ompcost_path()))
+            parts["openmp_costs"] = model.BinaryKey(binary_sha256=self.sha(ompcost_path()))
         if omp := self.config.executor.omp_env():
-            parts["omp"] = TextMap(tuple(omp.items()))
-        return CellKey(
+            parts["omp"] = model.TextMap(tuple(omp.items()))
+        return model.CellKey(
             variant=cell.variant, build=cell.build, input_sha256=cell.scene.input_sha256,
             seed=cell.scene.seed, threads=cell.threads, validate=cell.validate,
             exact=cell.exact, keep_output=self.config.keep_output, binary_sha256=binary_sha,
@@ -231,8 +222,8 @@ class CellStore:
             **self.config.measure_for(cell.variant).key(),
             **parts)
 
-    def _hashes(self, paths: Mapping[str, Path]) -> TextMap:
-        return TextMap(tuple((name, self.sha(path)) for name, path in paths.items()))
+    def _hashes(self, paths: Mapping[str, Path]) -> model.TextMap:
+        return model.TextMap(tuple((name, self.sha(path)) for name, path in paths.items()))
 
     def cell_id(self, cell: Cell) -> str | None:
         key = self.cell_key(cell)
@@ -296,6 +287,6 @@ class CellStore:
         return path
 
     def baseline_key(self, cell: Cell) -> str:
-        return content_id({"baseline_sha256": self.baseline_sha(cell),
+        return model.content_id({"baseline_sha256": self.baseline_sha(cell),
                                 "input_sha256": cell.scene.input_sha256,
                                 "seed": cell.scene.seed})

@@ -23,16 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.measure.proc import (
-    ProcessResult,
-    exit_status,
-    failure,
-    peak_mib,
-    run_captured,
-    run_process,
-    signal_of,
-    tail,
-)
+from harness.measure import proc
 from harness.measure.references import References
 from harness.measure.rounds import CellRun
 from harness.plan.cells import Cell
@@ -43,15 +34,7 @@ from harness.programs.steps import Replay
 from harness.spec import scenes
 from harness.spec.facts import BASELINE
 from harness.spec.programs import REFERENCE, REPLAY, Program, check_steps
-from harness.store.columns import (
-    AGREEING,
-    AGREEMENT_FAILED,
-    CRASHED,
-    INVALID,
-    NO_RACES,
-    NONDETERMINISTIC,
-    OK,
-)
+from harness.store import columns
 from harness.store.result import CellResult
 
 TSAN_CC = "clang"
@@ -96,7 +79,7 @@ class RaceCheck:
         """The races column: each race's file:lines, `none`, or empty when not checked."""
         if self.races is None:
             return ""
-        return "; ".join(r.describe() for r in self.races) if self.races else NO_RACES
+        return "; ".join(r.describe() for r in self.races) if self.races else columns.NO_RACES
 
 
 # A report: the lines after its WARNING line, up to its separator (or the next report).
@@ -197,9 +180,9 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         return skipped(f"its source is missing: {', '.join(missing)}")
     with tempfile.TemporaryDirectory(prefix="tsan-") as tmp:
         binary = Path(tmp) / f"{program.name}-tsan"
-        built = run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
+        built = proc.run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
         if built.returncode != 0 or not binary.is_file():
-            return skipped(failure(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS})",
+            return skipped(proc.failure(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS})",
                                    built, timeout_s))
         template = program.with_binary(program.command, binary)
         if template is None:
@@ -208,12 +191,12 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         log = Path(tmp) / "tsan"
         run_env = {**env, "OMP_NUM_THREADS": str(TSAN_THREADS), "OMP_TOOL_LIBRARIES": str(archer),
                    "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
-        ran = run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
+        ran = proc.run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
                           timeout_s)
         reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
         races = parse_reports(reports, program.directory)
         if ran.returncode != 0 and not races:
-            return skipped(failure("its ThreadSanitizer run", ran, timeout_s))
+            return skipped(proc.failure("its ThreadSanitizer run", ran, timeout_s))
         note = (f"ThreadSanitizer found {len(races)} data race(s) at {TSAN_THREADS} threads on "
                 f"{description}: " + "; ".join(r.describe() for r in races)) if races else ""
         return RaceCheck(races, note, scene=description)
@@ -227,31 +210,31 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     assert program is not None, "a program cell names a program"
     command = program.shell_command(program.command, store.input_file(cell.scene), cell.threads,
                                     cell.ranks)
-    done = run_process(command, env, timeout_s, memory=True)
+    done = proc.run_process(command, env, timeout_s, memory=True)
 
-    def ran(record: CellResult, status: str = OK, code: int | None = 0,
+    def ran(record: CellResult, status: str = columns.OK, code: int | None = 0,
             failed: str = "") -> CellRun:  # failed: why no verdict (the note)
         if failed:
-            record = record.replace(agreement=AGREEMENT_FAILED, note=failed)
+            record = record.replace(agreement=columns.AGREEMENT_FAILED, note=failed)
         return CellRun(cell_id, key, record, status, code, command, run_s=done.seconds)
 
     record = record.replace(command=shlex.join(command), program=_described(program),
-                            stderr_tail=tail(done.stderr), peak_rss_mib=peak_mib(done))
+                            stderr_tail=proc.tail(done.stderr), peak_rss_mib=proc.peak_mib(done))
     status, code = _status(done)
-    if status != OK:
-        return ran(record, status, code, failure("its run", done, timeout_s))
+    if status != columns.OK:
+        return ran(record, status, code, proc.failure("its run", done, timeout_s))
     steps = check_steps(cell.scene.n, cell.scene.steps)
     scene = scenes.with_run(cell.scene, steps, "print")
     check = program.shell_command(program.check, store.input_file(scene), cell.threads,
                                   cell.ranks)
     record = record.replace(check_command=shlex.join(check), check_steps=steps)
-    checked, text = run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
+    checked, text = proc.run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
                                  store.layout.output(cell_id) if store.config.keep_output
                                  else None)
     status, code = _status(checked)
-    if status != OK:
+    if status != columns.OK:
         return ran(record, status, code,
-                   failure("its check run (print mode)", checked, timeout_s))
+                   proc.failure("its check run (print mode)", checked, timeout_s))
     refs = store.program_references(cell)
     seq = references.print_output(refs[REFERENCE], scene, 1, cache=True)
     if seq is None:
@@ -263,19 +246,19 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     try:
         verdict = judge(text, seq, cell.scene.n, steps, cell.scene.L, cell.scene.r, replay)
     except ReplayError as exc:
-        record = record.replace(agreement=AGREEMENT_FAILED, note=f"not checked: {exc}")
+        record = record.replace(agreement=columns.AGREEMENT_FAILED, note=f"not checked: {exc}")
     # What grading costs beyond the program's run: its print-mode run and the verdict
     # (reading, comparing, the replays); the reference's run is shared by the scene's cells.
     record = record.replace(check_s=checked.seconds + time.monotonic() - judged,
                             replay_s=math.fsum(replays))
     if verdict is None:
         return ran(record)
-    if cell.threads == max(store.config.threads) and verdict.verdict != AGREEMENT_FAILED:
+    if cell.threads == max(store.config.threads) and verdict.verdict != columns.AGREEMENT_FAILED:
         verdict, record = _repeated_and_raced(program, store, cell, store.input_file(scene),
                                               env, timeout_s, text, verdict, record)
     record = record.replace(**verdict.fields(), note=_note(
         verdict.note, steps, cell.scene.steps, refs[REFERENCE].name))
-    return ran(record, OK if verdict.verdict in AGREEING else INVALID)
+    return ran(record, columns.OK if verdict.verdict in columns.AGREEING else columns.INVALID)
 
 
 def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> str:
@@ -316,10 +299,10 @@ def _replay(binary: Path, env: Mapping[str, str], timeout_s: float,
         with tempfile.TemporaryDirectory(prefix="replay-") as tmp:
             states, out = Path(tmp) / "states", Path(tmp) / "successors"
             states.write_bytes(data)
-            done = run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
+            done = proc.run_process([str(binary), "--replay", str(states)], env, timeout_s, out)
             seconds.append(done.seconds)
             if done.returncode != 0:
-                raise ReplayError(failure(f"{binary.name} --replay", done, timeout_s))
+                raise ReplayError(proc.failure(f"{binary.name} --replay", done, timeout_s))
             return out.read_bytes()
     return run
 
@@ -333,13 +316,13 @@ def _repeatable(program: Program, input_file: Path, threads: int, env: Mapping[s
         what = (f"two runs at {threads} threads" if again == threads
                 else f"a run at {threads} threads and one at 1 thread")
         argv = program.shell_command(program.check, input_file, again)
-        done, text = run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
+        done, text = proc.run_captured(argv, {**env, "OMP_NUM_THREADS": str(again)}, timeout_s)
         if done.returncode != 0:
             return None
         found = first_difference(first, text)
         if found is not None:
             step, particle, mine, theirs = found
-            return Agreement(NONDETERMINISTIC, step, particle, steps_compared=0,
+            return Agreement(columns.NONDETERMINISTIC, step, particle, steps_compared=0,
                              note=f"{what} differ: first at step {step}, particle {particle}: "
                                   f"{mine} in the first, {theirs} in the other (a race, or an "
                                   "order of work that depends on the threads)",
@@ -353,11 +336,11 @@ def with_races(verdict: Agreement, check: RaceCheck) -> Agreement:
     the note says why; a verdict of outputs that could not be judged stays."""
     if not check.note:
         return verdict
-    if not check.races or verdict.verdict in (AGREEMENT_FAILED, NONDETERMINISTIC):
+    if not check.races or verdict.verdict in (columns.AGREEMENT_FAILED, columns.NONDETERMINISTIC):
         return dataclasses.replace(verdict, note="; ".join(
             n for n in (verdict.note, check.note) if n))
     alone = verdict.verdict + (f": {verdict.note}" if verdict.note else "")
-    return Agreement(NONDETERMINISTIC, steps_compared=verdict.steps_compared,
+    return Agreement(columns.NONDETERMINISTIC, steps_compared=verdict.steps_compared,
                      note=f"{check.note}; its outputs judged alone: {alone}",
                      details={**verdict.details, "outputs_verdict": verdict.verdict})
 
@@ -371,7 +354,7 @@ def _described(program: Program) -> dict[str, str]:
     return described
 
 
-def _status(done: ProcessResult) -> tuple[str, int | None]:
-    status, code = exit_status(done.returncode)
-    return (CRASHED if signal_of(code) is not None else status), code
+def _status(done: proc.ProcessResult) -> tuple[str, int | None]:
+    status, code = proc.exit_status(done.returncode)
+    return (columns.CRASHED if proc.signal_of(code) is not None else status), code
 

@@ -22,20 +22,8 @@ from typing import Any
 from harness.analysis import results
 from harness.errors import HarnessError
 from harness.repo import REPO_ROOT
-from harness.report import header, machines
+from harness.report import document, header, machines
 from harness.report.cache import CodeVersions, Manifest, code_versions, file_digest
-from harness.report.document import (
-    Bullets,
-    Document,
-    Link,
-    Paragraph,
-    Section,
-    document_files,
-    from_json,
-    render_html,
-    render_markdown,
-    to_json,
-)
 from harness.report.parts import PART_KINDS, ExperimentPart, ReportFeature
 from harness.store import layout
 from harness.store.atomic import atomic_write_text
@@ -115,11 +103,11 @@ def build_document(
     environments: Sequence[tuple[str, dict[str, object]]] = (),
     *,
     shown: machines.Machine | None = None,
-    others: Sequence[Link] = (),
-    side_by_side: Section | None = None,
+    others: Sequence[document.Link] = (),
+    side_by_side: document.Section | None = None,
     session: str = "",
     features: Sequence[ReportFeature] = (),
-) -> Document:
+) -> document.Document:
     """The whole page: what it shows, the summary (with the words of `features` on their
     counts), one section per experiment with data (its warnings folded in it), then the
     machines side by side and how to read the numbers (with `session`, the session spread's
@@ -129,7 +117,7 @@ def build_document(
     if results_dir.resolve().is_relative_to(REPO_ROOT):
         results_dir = results_dir.resolve().relative_to(REPO_ROOT)
     if not parts:
-        return Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
+        return document.Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
                         "first.", tuple(others))
     runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
     grouped = header.by_run(parts, runs)
@@ -146,11 +134,14 @@ def build_document(
         appendix.append(side_by_side)
     environment = header.environment_bullets(environments)
     if environment:
-        appendix.append(Section("Machine and tools", "environment", (Bullets(environment),)))
-    how = (Paragraph(header.HOW_TO_READ), *([Paragraph(session)] if session else []))
-    appendix.append(Section("How to read the numbers", "how-to-read", how))
-    return Document(TITLE, lead, tuple(others), header.summary_section(grouped, more, features),
-                    tuple(header.with_warnings(p) for p in parts), tuple(appendix))
+        appendix.append(document.Section("Machine and tools", "environment",
+                                         (document.Bullets(environment),)))
+    how = (document.Paragraph(header.HOW_TO_READ),
+           *([document.Paragraph(session)] if session else []))
+    appendix.append(document.Section("How to read the numbers", "how-to-read", how))
+    return document.Document(TITLE, lead, tuple(others),
+                             header.summary_section(grouped, more, features),
+                             tuple(header.with_warnings(p) for p in parts), tuple(appendix))
 
 
 def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Path,
@@ -167,13 +158,13 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
 
         exp = load_experiment(loaded, machine, label)
         section = experiment_section(exp, manifest, [f.sections for f in features])
-        return to_json(build_part(exp, section, features), out_dir)
+        return document.to_json(build_part(exp, section, features), out_dir)
 
     found = loaded.directory
     digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
     if features:  # a part built with other features' parts is another part
         digest += "\0" + "\0".join(f.name for f in features)
-    return from_json(manifest.part(found.name, digest, build), out_dir, PART_KINDS)
+    return document.from_json(manifest.part(found.name, digest, build), out_dir, PART_KINDS)
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
@@ -188,15 +179,15 @@ def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:
         pages.rmdir()
 
 
-def _write_page(doc: Document, page_dir: Path) -> None:
-    atomic_write_text(page_dir / f"{PAGE_STEM}.md", render_markdown(doc, page_dir))
-    atomic_write_text(page_dir / f"{PAGE_STEM}.html", render_html(doc, page_dir))
+def _write_page(doc: document.Document, page_dir: Path) -> None:
+    atomic_write_text(page_dir / f"{PAGE_STEM}.md", document.render_markdown(doc, page_dir))
+    atomic_write_text(page_dir / f"{PAGE_STEM}.html", document.render_html(doc, page_dir))
 
 
 def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_dir: Path,
                  code: CodeVersions, machine: machines.Machine | None,
-                 others: Sequence[Link] = (), side_by_side: Section | None = None,
-                 features: Sequence[ReportFeature] = ()) -> Document:
+                 others: Sequence[document.Link] = (), side_by_side: document.Section | None = None,
+                 features: Sequence[ReportFeature] = ()) -> document.Document:
     fig_dir = page_dir / FIGURES_DIR
     page_dir.mkdir(parents=True, exist_ok=True)
     manifest = Manifest(fig_dir, code)
@@ -214,7 +205,7 @@ def _render_page(loaded: Sequence[results.Experiment], results_dir: Path, page_d
     doc = build_document(parts, results_dir, environments, shown=machine, others=others,
                          side_by_side=side_by_side, session=session, features=features)
     _write_page(doc, page_dir)
-    keep = document_files(doc)
+    keep = document.document_files(doc)
     # Figures of sections that no longer exist would mislead anyone browsing the folder.
     for path in fig_dir.iterdir() if fig_dir.is_dir() else []:
         if path.suffix in FIGURE_SUFFIXES and path not in keep:
@@ -259,8 +250,8 @@ def render(
         top = machines.pick(listed, machine)
         pages = {m.id: out_dir / MACHINES_DIR / m.id for m in listed}
 
-        def links(page_dir: Path, shown: str) -> list[Link]:
-            return [Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, page_dir))
+        def links(page_dir: Path, shown: str) -> list[document.Link]:
+            return [document.Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, page_dir))
                          .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:

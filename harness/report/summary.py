@@ -23,14 +23,7 @@ from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeat
 from harness.report.sections.context import Experiment, load_experiment, table_block
 from harness.report.sections.strategies import PHASES_ANCHOR
 from harness.spec.facts import BASELINE, GRID
-from harness.store.columns import (
-    INVALID,
-    OK,
-    STOPPED_CI,
-    STOPPED_MAX_RUNS,
-    STOPPED_MAX_TIME,
-    UNVALIDATED,
-)
+from harness.store import columns
 from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
 from harness.store.records import MACHINE_KEY, read_json
@@ -78,7 +71,7 @@ def strategy_cells(fair: pd.DataFrame) -> pd.DataFrame:
 def fair_cells(rows: pd.DataFrame) -> pd.DataFrame:
     """A headline speedup compares strategies, so it is taken from cells measured fairly: ok,
     not oversubscribed, against seq on the same scene and machine."""
-    return rows[(rows["status"] == OK) & ~flag(rows, "oversubscribed")
+    return rows[(rows["status"] == columns.OK) & ~flag(rows, "oversubscribed")
                 & (rows["baseline"] == BASELINE_SEQ) & rows["speedup"].notna()]
 
 
@@ -118,7 +111,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
         anchor = subsection_anchor(section, "ranks")
         found["ranks"] = Highlight(float(cores), f"{text} ([{exp.name}](#{anchor}))", anchor)
     timed = measured_once(rows)
-    timed = timed[(timed["status"] == OK) & timed["wall_median_s"].notna()]
+    timed = timed[(timed["status"] == columns.OK) & timed["wall_median_s"].notna()]
     if not timed.empty:
         top = timed.sort_values(["n", "wall_median_s"], kind="stable").iloc[-1]
         found["largest"] = Highlight(
@@ -162,17 +155,17 @@ def fidelity(frame: pd.DataFrame) -> Fidelity:
     # counts it (harness.programs.section).
     cells = measured_once(frame)
     df = cells[~is_program(cells)]
-    validated = df["identical"].notna() | (df["status"] == INVALID)
+    validated = df["identical"].notna() | (df["status"] == columns.INVALID)
     checked = (df["checks_passed"].notna() if "checks_passed" in df.columns
                else pd.Series(False, index=df.index))
     return Fidelity(
         validated=int(validated.sum()),
         identical=int((df["identical"].fillna(False).astype(bool) & validated).sum()),
-        invalid=int((df["status"] == INVALID).sum()),
+        invalid=int((df["status"] == columns.INVALID).sum()),
         checked=int(checked.sum()),
         checks_passed=int(df.loc[checked, "checks_passed"].astype(bool).sum()) if checked.any()
         else 0,
-        unvalidated=int((df["status"] == UNVALIDATED).sum()),
+        unvalidated=int((df["status"] == columns.UNVALIDATED).sum()),
     )
 
 
@@ -233,7 +226,7 @@ def _speedup(row: pd.Series) -> str:
 
 
 def _notes(row: pd.Series) -> str:
-    notes = [] if row["status"] == OK else [str(row["status"])]
+    notes = [] if row["status"] == columns.OK else [str(row["status"])]
     notes += [flags.FLAG_WORDS[f] for f in SHOWN_FLAGS if bool(row.get(f)) and pd.notna(row.get(f))]
     if bool(row.get(ONE_THREAD_RUN)) and row["threads"] != 1:  # shown where it serves
         notes.append("run with 1 thread")
@@ -280,11 +273,13 @@ def intervals_text(df: pd.DataFrame) -> str:
     if "stopped" not in df.columns:
         return ""
     stopped = df["stopped"].fillna("").astype(str)
-    adaptive = stopped.isin([STOPPED_CI, STOPPED_MAX_RUNS, STOPPED_MAX_TIME])
-    short = adaptive & (stopped != STOPPED_CI)
+    adaptive = stopped.isin([columns.STOPPED_CI, columns.STOPPED_MAX_RUNS,
+                             columns.STOPPED_MAX_TIME])
+    short = adaptive & (stopped != columns.STOPPED_CI)
     if not adaptive.any():
         return ""
-    text = f"intervals: {int((stopped == STOPPED_CI).sum())} of {int(adaptive.sum())} cells " \
+    narrowed = int((stopped == columns.STOPPED_CI).sum())
+    text = f"intervals: {narrowed} of {int(adaptive.sum())} cells " \
            "narrowed to the width asked for"
     if short.any():
         names = ", ".join(dict.fromkeys(df.loc[short, "variant"].astype(str)))

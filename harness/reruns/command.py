@@ -23,15 +23,7 @@ from harness.errors import HarnessError
 from harness.executors.base import machine_id
 from harness.measure import environment
 from harness.repo import REPO_ROOT
-from harness.runner.command import (
-    Hooks,
-    Parser,
-    add_flags,
-    load_configs,
-    measuring_lock,
-    seconds,
-    whole_number,
-)
+from harness.runner import command
 from harness.runner.experiment import run_apart
 from harness.spec.facts import BASELINE
 from harness.store import layout, records, sessions
@@ -44,7 +36,8 @@ INTERRUPTED = "the reruns so far are under {out}; measure them again (a rerun st
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = Parser(prog=prog, description="Run configs TIMES times, each into a results root "
+    parser = command.Parser(
+        prog=prog, description="Run configs TIMES times, each into a results root "
                     "of its own with every cell measured afresh, a pause between; learn this "
                     "machine's session spread (how far a whole run's estimates move, beyond "
                     "their rounds) under the noise the reruns measured, keep it beside the "
@@ -54,9 +47,9 @@ def parser(prog: str) -> argparse.ArgumentParser:
                     f"{layout.RECORD_SUFFIX}, and report how often each rerun's intervals "
                     "(results.csv's and ratios.csv's) held another rerun's estimate.")
     parser.add_argument("configs", nargs="+", type=Path, help="experiment YAML files")
-    parser.add_argument("--times", type=whole_number, default=DEFAULT_TIMES, metavar="K",
+    parser.add_argument("--times", type=command.whole_number, default=DEFAULT_TIMES, metavar="K",
                         help=f"how many reruns, at least 2 (default: {DEFAULT_TIMES})")
-    parser.add_argument("--pause", type=seconds, default=DEFAULT_PAUSE_S, metavar="SECONDS",
+    parser.add_argument("--pause", type=command.seconds, default=DEFAULT_PAUSE_S, metavar="SECONDS",
                         help=f"the pause between reruns (default: {DEFAULT_PAUSE_S:g})")
     parser.add_argument("--out", type=Path, default=None,
                         help=f"where the reruns' results roots go (default: "
@@ -67,11 +60,11 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="smoke reruns: n <= 400, steps <= 5")
     parser.add_argument("--no-keep", action="store_true",
                         help="report the coverage only; keep no session spread")
-    add_flags(parser)
+    command.add_flags(parser)
     return parser
 
 
-def execute(args: argparse.Namespace, hooks: Hooks) -> int:
+def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     if args.times < 2:
         raise HarnessError(f"--times must be at least 2 to compare reruns, got {args.times}")
     out = args.out = args.out or args.results_dir / layout.RERUNS_DIR  # INTERRUPTED names it
@@ -81,8 +74,8 @@ def execute(args: argparse.Namespace, hooks: Hooks) -> int:
         if missing:
             raise HarnessError(f"--reuse: no rerun in {missing[0]} (measure them first)")
     else:
-        registry, configs = load_configs(args.configs, args.metric)
-        lock = measuring_lock(args, ["reruns", *args.configs])
+        registry, configs = command.load_configs(args.configs, args.metric)
+        lock = command.measuring_lock(args, ["reruns", *args.configs])
         with lock:  # with --results-dir's session spreads: intervals out of sample
             run_apart(configs, roots, registry, lock, sys.stderr, "reruns",
                       args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir,

@@ -16,14 +16,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO, TypeVar
 from harness.analysis import export
 from harness.errors import HarnessError
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT, default_report_dir
-from harness.spec.config import (
-    DEFAULT_MAX_CELLS,
-    METRIC_INSTRUCTIONS,
-    METRIC_TIME,
-    METRICS,
-    Config,
-    with_metric,
-)
+from harness.spec import config
 from harness.spec.parse import load_config
 from harness.spec.variants import VariantRegistry
 from harness.store import layout
@@ -92,9 +85,9 @@ FLAGS: dict[str, dict[str, Any]] = {
                       help="when another run is measuring on this machine, stop with an error "
                       "instead of waiting for it"),
     "--hyperfine": dict(default="hyperfine", help="hyperfine executable"),
-    "--metric": dict(choices=METRICS, default=None,
-                     help=f"what the cells are measured and compared by: {METRIC_TIME} (the "
-                     f"default), or {METRIC_INSTRUCTIONS}: the instructions each executes, "
+    "--metric": dict(choices=config.METRICS, default=None,
+                     help=f"what the cells are measured and compared by: {config.METRIC_TIME} (the "
+                     f"default), or {config.METRIC_INSTRUCTIONS}: the instructions each executes, "
                      "counted and compared exactly, beside the times (overrides a config's "
                      "metric:; docs/instructions.md)"),
     "--report-dir": dict(type=Path, default=None,
@@ -117,10 +110,12 @@ def measuring_lock(args: argparse.Namespace, words: Sequence[object]) -> RunLock
 
 
 def load_configs(paths: Sequence[str | Path], metric: str | None,
-                 max_cells: int = DEFAULT_MAX_CELLS) -> tuple[VariantRegistry, list[Config]]:
+                 max_cells: int = config.DEFAULT_MAX_CELLS,
+                 ) -> tuple[VariantRegistry, list[config.Config]]:
     """This repository's variants, and the configs, each measured by `metric` where given."""
     registry = VariantRegistry(REPO_ROOT)
-    return registry, [with_metric(load_config(p, registry, max_cells), metric) for p in paths]
+    return registry, [config.with_metric(load_config(p, registry, max_cells), metric)
+                      for p in paths]
 
 
 def directory_option(path: Path, flag: str = "--results-dir") -> Path:

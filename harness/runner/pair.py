@@ -23,22 +23,11 @@ from harness.measure.cell import Measurer, ProgramRunner
 from harness.plan.cells import plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
-from harness.runner.experiment import (
-    built_cell_id,
-    require_hyperfine,
-    run_apart,
-    write_env_after,
-    write_exports,
-)
+from harness.runner import experiment
 from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
-from harness.store.columns import (
-    STOPPED_BUDGET,
-    STOPPED_DECIDED,
-    STOPPED_LAST_LOOK,
-    STOPPED_UNDECIDED,
-)
+from harness.store import columns
 from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
@@ -72,7 +61,7 @@ class UntilDecided:
         """The pair's change at its look, as `compare OUT/old OUT/new` will judge it (final:
         it stops undecided now, or did)."""
         series = stats.paired_sides(old.state, new.state)
-        final = final or old.state.stopped in STOPPED_UNDECIDED
+        final = final or old.state.stopped in columns.STOPPED_UNDECIDED
         return stats.paired_change(series.old, series.new, self.threshold,
                                    stats.paired_look(series.measured, final), series.shift)
 
@@ -104,17 +93,17 @@ class UntilDecided:
             verdict = verdicts.get(k, stats.INCONCLUSIVE)
             look = stats.look_index(len(set(old.state.rounds)))
             if spent:
-                self._stop(k, STOPPED_BUDGET, verdict)
+                self._stop(k, columns.STOPPED_BUDGET, verdict)
             elif verdict != stats.INCONCLUSIVE:
-                self._stop(k, STOPPED_DECIDED, verdict)
+                self._stop(k, columns.STOPPED_DECIDED, verdict)
             elif look >= stats.LAST_LOOK:
-                self._stop(k, STOPPED_LAST_LOOK, verdict)
+                self._stop(k, columns.STOPPED_LAST_LOOK, verdict)
             else:
                 for unit in (old, new):
                     unit.state.min_rounds = stats.look_rounds(look + 1)
                     unit.state.stopped = ""
         for k in cut:
-            self._stop(k, STOPPED_BUDGET, verdicts.get(k, stats.INCONCLUSIVE))
+            self._stop(k, columns.STOPPED_BUDGET, verdicts.get(k, stats.INCONCLUSIVE))
         return self.status()
 
     def _stop(self, k: int, reason: str, verdict: str) -> None:
@@ -160,7 +149,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             raise HarnessError(f"{config.source}: every cell is excluded: nothing to measure")
     for side in (old, new):  # every binary built (or found) before anything runs
         build_plans(side, plans)
-    require_hyperfine(hyperfine)
+    experiment.require_hyperfine(hyperfine)
     work = out / WORK_DIR
     here = machine_id()
     pairs: list[tuple[Unit, Unit]] = []
@@ -173,7 +162,7 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             stores.append((side, store))
             measurers.append(Measurer(store, hyperfine, program_runner=program_runner))
         for cell in plan.cells:
-            a, b = (Unit(m, cell, built_cell_id(m.store, cell)) for m in measurers)
+            a, b = (Unit(m, cell, experiment.built_cell_id(m.store, cell)) for m in measurers)
             a.partner, b.partner = b, a
             pairs.append((a, b))
     units = [unit for pair in pairs for unit in pair]
@@ -188,8 +177,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
     until = UntilDecided(pairs, threshold, q, budget_s)
     seed = measure_in_rounds(units, lambda unit, record: None, progress, None, until)
     for side, store in stores:
-        write_exports(store, prune=True)
-        write_env_after(store.directory, env[side.name])
+        experiment.write_exports(store, prune=True)
+        experiment.write_env_after(store.directory, env[side.name])
     for name in SIDE_DIRS.values():
         shutil.rmtree(out / name, ignore_errors=True)
         (work / name).rename(out / name)
@@ -213,6 +202,6 @@ def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
     together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
                              hyperfine, budget_s=0.0, program_runner=program_runner)
     blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
-    run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine,
+    experiment.run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine,
               program_runner=program_runner)
     return together, blocks

@@ -16,14 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from harness.stats.intervals import (
-    CONFIDENCE,
-    LOW_QUANTILE_ESTIMATOR,
-    Z95,
-    Interval,
-    estimate,
-    median_ci,
-)
+from harness.stats import intervals
 from harness.stats.paired import round_medians
 
 # A cell gets its runs in at least this many rounds before its interval may stop it: with
@@ -130,7 +123,7 @@ def spread_at(levels: Sequence[SessionSpread], noise: float) -> SessionSpread:
 
 def t95(rounds: int) -> float:
     """The t-quantile of a 95% interval over this many rounds (rounds - 1 degrees of freedom)."""
-    return float(sps.t.ppf(0.5 + CONFIDENCE / 2, rounds - 1))
+    return float(sps.t.ppf(0.5 + intervals.CONFIDENCE / 2, rounds - 1))
 
 
 @dataclass(frozen=True)
@@ -143,21 +136,22 @@ class RoundEstimate:
     log_se: float  # NaN with fewer than 2 rounds
     rounds: int
 
-    def interval(self) -> Interval:
+    def interval(self) -> intervals.Interval:
         """The 95% interval of the value over its rounds alone, around the point."""
         return self._widened(0.0, 1.0)
 
-    def rerun_interval(self, session: float) -> Interval:
+    def rerun_interval(self, session: float) -> intervals.Interval:
         """Where another session's estimate lies with 95%: the rounds' and the session's
         spread, each counted for both sessions (sqrt 2)."""
         return self._widened(session, math.sqrt(2.0))
 
-    def _widened(self, session: float, factor: float) -> Interval:
+    def _widened(self, session: float, factor: float) -> intervals.Interval:
         """NaN ends with fewer than INTERVAL_MIN_ROUNDS rounds."""
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
-            return Interval(self.point)
-        half = factor * math.hypot(t95(self.rounds) * self.log_se, Z95 * session)
-        return Interval(self.point, self.point * math.exp(-half), self.point * math.exp(half))
+            return intervals.Interval(self.point)
+        half = factor * math.hypot(t95(self.rounds) * self.log_se, intervals.Z95 * session)
+        point = self.point
+        return intervals.Interval(point, point * math.exp(-half), point * math.exp(half))
 
 
 def from_round_values(values: Sequence[float]) -> RoundEstimate:
@@ -174,7 +168,8 @@ def from_round_values(values: Sequence[float]) -> RoundEstimate:
 def cell_estimate(times: Sequence[float], rounds: Sequence[int]) -> RoundEstimate:
     """A cell's estimate from its runs and the round of each (round_medians); where the
     rounds are not recorded, all its runs count as one round."""
-    return from_round_values(list(round_medians(times, rounds).values()) or [estimate(times)])
+    medians = list(round_medians(times, rounds).values())
+    return from_round_values(medians or [intervals.estimate(times)])
 
 
 def round_half_width(times: Sequence[float], rounds: Sequence[int]) -> float:
@@ -240,7 +235,7 @@ class Coverage:
                 f"{self.high_half_width:.1%})")
 
 
-def coverage(cells: Mapping[object, Sequence[Interval | None]]) -> Coverage:
+def coverage(cells: Mapping[object, Sequence[intervals.Interval | None]]) -> Coverage:
     """Coverage of the reruns of each cell (one Interval a rerun, None where the rerun has
     none of the cell): each rerun's interval against every other rerun's point."""
     held = pairs = 0
@@ -269,13 +264,14 @@ def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
     lies (rerun_interval with the machine's `session` spread), widened to hold the median of
     the runs; without (a record from before rounds), the bootstrap over the runs."""
     if rounds is None:
-        interval = median_ci(times)
+        interval = intervals.median_ci(times)
     else:
         spread = DEFAULT_SESSION_SPREAD.absolute if session is None else session
         interval = cell_estimate(times, rounds).rerun_interval(spread)
         if math.isfinite(interval.low) and times:
             median = statistics.median(times)
-            interval = Interval(median, min(interval.low, median), max(interval.high, median))
+            interval = intervals.Interval(median, min(interval.low, median),
+                                          max(interval.high, median))
     return (interval.low if math.isfinite(interval.low) else None,
             interval.high if math.isfinite(interval.high) else None,
-            estimate(times, LOW_QUANTILE_ESTIMATOR))
+            intervals.estimate(times, intervals.LOW_QUANTILE_ESTIMATOR))
