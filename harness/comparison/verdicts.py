@@ -16,6 +16,7 @@ from pathlib import Path
 
 from harness import stats
 from harness.analysis import resultsets
+from harness.analysis.resultsets import NEW_ONLY, NOT_OK, OLD_ONLY  # kinds of compare's rows too
 from harness.spec.config import METRIC_INSTRUCTIONS
 from harness.store import layout, records, sessions
 from harness.store.columns import STOPPED_UNDECIDED
@@ -248,8 +249,8 @@ class Metric(resultsets.Quantity):
     undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
 
 
-_NOT_COMPARED = ((resultsets.NOT_OK, "not compared (not ok)"), (resultsets.OLD_ONLY, "old only"),
-                 (resultsets.NEW_ONLY, "new only"))
+_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
+                 (NEW_ONLY, "new only"))
 TIME = Metric(*dataclasses.astuple(resultsets.TIME_QUANTITY), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
@@ -257,7 +258,7 @@ INSTRUCTIONS = Metric(
     *dataclasses.astuple(resultsets.INSTRUCTIONS_QUANTITY), judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
-     (resultsets.NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
+     (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
 METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
 
 
