@@ -30,8 +30,7 @@ def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Pa
 
 
 def baseline_path(config: Config, build_dir: Path, build: str) -> Path:
-    baseline_build = config.validate.baseline_build or build
-    return binary_path(config, build_dir, BASELINE, baseline_build)
+    return binary_path(config, build_dir, BASELINE, config.validate.baseline_build or build)
 
 
 def check_references(config: Config, build_dir: Path, build: str) -> dict[str, Path]:

@@ -16,10 +16,8 @@ from pathlib import Path
 
 from harness.spec.facts import BASELINE, GRID
 
-# The check run: the cell's scene in print mode, at most CHECK_MAX_STATES particle states,
-# compared with seq's; past CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, and
-# a 50-step reference at 10,000 particles takes it 2 s where seq takes 13 s). `--replay` of the
-# same reference judges each step from the program's own states.
+# The check run (docs/programs.md, "The check"): at most CHECK_MAX_STATES particle states,
+# compared with seq's, past CHECK_SEQ_MAX_N particles with grid's; its `--replay` judges each step.
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 1_999
 FAST_REFERENCE = GRID

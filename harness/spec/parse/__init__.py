@@ -213,10 +213,8 @@ BUILD_FORM = ('a build command template with {cc}, {cflags} and {out} (and optio
 
 def parse_programs(value: object, source: Path, taken: Sequence[str]
                     ) -> tuple[tuple[programs.Program, ...], dict[str, tuple[str, ...]]]:
-    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE, source:
-    PATH, build: TEMPLATE}}` or a class `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one
-    program per file matched, {path} and {dir} in the templates); the programs, and each
-    class's program names."""
+    """`programs: {NAME: ...}`, each one of PROGRAM_FORMS (a class: one program per file its
+    glob matched, {path} and {dir} in its templates); the programs, and each class's names."""
     raw = kinds.mapping(value, "programs", source)
     result = []
     classes: dict[str, tuple[str, ...]] = {}
