@@ -185,9 +185,9 @@ def _check_source(value: object, where: str, source: Path, extra: tuple[str, ...
             isinstance(p, str) and p.strip() for p in listed):
         raise config_error(source, where, expected, value)
     for path in () if extra else listed:
-        if not (source.resolve().parent / path).exists():
-            raise config_error(source, where, f"{expected} (not found: "
-                               f"{source.resolve().parent / path})", value)
+        resolved = source.resolve().parent / path
+        if not resolved.exists():
+            raise config_error(source, where, f"{expected} (not found: {resolved})", value)
 
 
 def parse_binaries(value: object, source: Path,
