@@ -74,9 +74,8 @@ def ignored_by(config: Config, registry: VariantRegistry, cell: Cell) -> list[Ig
     registry does not know use every axis but ranks, unless a program names {ranks}."""
     program = config.program(cell.variant)
     facts = registry.get(cell.variant) if config.is_built(cell.variant) else None
-    if program is not None:  # a command that does not name its ranks runs as one process
+    if program is not None:
         return [] if program.uses_ranks else [RANKS_AXIS]
-    # a custom binary or an unknown variant runs as one process, at every thread count
     return ignored_axes(facts) if facts is not None else [RANKS_AXIS]
 
 

@@ -15,13 +15,11 @@ from harness.spec import programs, scenes
 from harness.spec.builds import DEFAULT_BUILD, TRUTH_BUILD, binary_name
 from harness.spec.config import Config
 from harness.spec.facts import BASELINE
-from harness.spec.programs import check_steps
 from harness.spec.variants import default_registry
 from harness.store import atomic, index, model, records, trust
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.measured import Provenance, Timing, Validation
-from harness.store.records import now_iso
 from harness.store.result import CellResult
 
 UNBUILT = "unbuilt"  # the hash of a binary an assume_built store has not seen built
@@ -32,8 +30,7 @@ def binary_path(config: Config, build_dir: Path, variant: str, build: str) -> Pa
 
 
 def baseline_path(config: Config, build_dir: Path, build: str) -> Path:
-    baseline_build = config.validate.baseline_build or build
-    return binary_path(config, build_dir, BASELINE, baseline_build)
+    return binary_path(config, build_dir, BASELINE, config.validate.baseline_build or build)
 
 
 def check_references(config: Config, build_dir: Path, build: str) -> dict[str, Path]:
@@ -199,7 +196,7 @@ class CellStore:
         parts: dict[str, object] = {}
         if cell.program:  # what its check compares with, and on how many steps
             parts["program_check"] = model.ProgramCheckKey(
-                steps=check_steps(cell.scene.n, cell.scene.steps),
+                steps=programs.check_steps(cell.scene.n, cell.scene.steps),
                 reference_sha256=self._hashes(self.program_references(cell)))
         if cell.checked:
             parts["checks"] = model.ChecksKey(**self.config.checks.key(),
@@ -246,7 +243,8 @@ class CellStore:
             validation=Validation(validated=cell.validate, exact=cell.exact,
                                   baseline_sha256=key.baseline_sha256),
             provenance=Provenance(binary=runs_what, binary_sha256=key.binary_sha256,
-                                  input_sha256=cell.scene.input_sha256, measured_at=now_iso()))
+                                  input_sha256=cell.scene.input_sha256,
+                                  measured_at=records.now_iso()))
 
     # --- records ---
 

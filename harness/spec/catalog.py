@@ -17,22 +17,16 @@ SMALL_L = 100.0  # the box of the few-disc scenes
 MID = SMALL_L / 2
 R = 1.0
 DIAMETER = 2 * R
-NEAR_WALL_GAP = 1e-13  # "inside the wall" distance: its wall time rounds to about zero
-NEAR_CORNER_OFFSET = 1e-12  # off the diagonal: the two axis times differ in the last bits
-UNDERFLOW_SPEED = 1e-170  # |D|^2 = 1e-340 underflows to 0 in double
 HUGE_L = 1e7
 GRAZE_APART = 9e5  # centre distance of the far grazing pairs along x
 GRAZE_SPEED = 5e5  # each disc of a grazing pair, towards the other
 GRAZE_IMPACTS = (0.5, 0.9, 0.999, 0.999999, 1.0, 1.000001)  # impact parameter / 2r
 GRAZE_ROW_SPACING = 100.0
-TIGHT_SLACK = 1e-9  # L - 2r of the box barely larger than a disc
 HEX_GAP = 1e-9  # gap between hexagonally packed neighbours, relative to r
 HEX_SIDE = 7  # discs per row and rows
 HEX_SPEED = 1e-3  # speed of the packed discs (relative to r per step)
 HEX_SEED = 12345
-FAST_FACTOR = 3.7  # speed in units of L per step
 DENSE_N = 400
-DENSE_PACKING = (0.3, 0.5)  # area fraction N*pi*r^2 / L^2
 
 
 def scene(name: str, default_steps: int, doc: str, particles: Sequence[Particle],
@@ -81,7 +75,7 @@ scene("overlap", 3, """Two discs overlapping at the start (centres r apart) and 
 scene("underflow", 3, """A pair with equal velocities (D = 0, b = 0) and a pair approaching at
       |D| = 1e-170, whose a = |D|^2 underflows to 0: the root must not divide by a.""",
       [(20.0, 20.0, 1.0, 1.0), (20.0 + 3.0, 20.0, 1.0, 1.0),
-       (60.0, 60.0, 0.0, 0.0), (60.0 + DIAMETER, 60.0, -UNDERFLOW_SPEED, 0.0)])
+       (60.0, 60.0, 0.0, 0.0), (60.0 + DIAMETER, 60.0, -1e-170, 0.0)])
 
 # --- walls --------------------------------------------------------------------------------
 
@@ -90,11 +84,11 @@ scene("wall_outward", 3, """A disc exactly on the wall (x = L - r) moving outwar
       [(SMALL_L - R, MID, 3.0, 0.5)])
 scene("wall_near", 3, """A disc 1e-13 inside the wall moving outward: its wall time (~3e-14)
       rounds to about zero, and a float build cannot even represent the gap.""",
-      [(SMALL_L - R - NEAR_WALL_GAP, MID, 3.0, 0.5)])
+      [(SMALL_L - R - 1e-13, MID, 3.0, 0.5)])
 scene("near_corner", 4, """A disc 1e-12 off the diagonal with vx == vy: the two axis times
       differ in the last bits, so it bounces off one wall and then stops at the other for the
       rest of the step (compare `corner`, the exact corner hit).""",
-      [(MID, MID + NEAR_CORNER_OFFSET, 20.0, 20.0)])
+      [(MID, MID + 1e-12, 20.0, 20.0)])
 scene("wall_then_pair", 3, """A disc bounces off a wall and then runs into a disc within the
       same step: it has had its one collision, so they end the step overlapping and then pass
       through.""",
@@ -127,9 +121,9 @@ def _hex_packed() -> list[Particle]:
     return particles
 
 
-TIGHT_L = DIAMETER + TIGHT_SLACK
+TIGHT_L = DIAMETER + 1e-9
 TIGHT_HI = TIGHT_L - R  # computed as the core computes it, so the disc is exactly on the wall
-FAST_V = FAST_FACTOR * SMALL_L
+FAST_V = 3.7 * SMALL_L
 
 scene("far_grazing", 2, """L = 1e7, r = 1: pairs 9e5 apart closing at 1e6 per step with impact
       parameters from 0.5 to 1.000001 diameters; b*b - a*c cancels ~24 digits here (the
@@ -158,10 +152,10 @@ scene("no_steps", 0, """S = 0 (by default): the output is the input state, with 
 scene("dense30", 5, """400 generated discs at 30% area packing (overlaps allowed), speeds 8-16 r
       per step: many contacts per disc per step, most of them lost to the one-collision
       rule.""",
-      [], L=math.sqrt(DENSE_N * math.pi * R * R / DENSE_PACKING[0]), n=DENSE_N)
+      [], L=math.sqrt(DENSE_N * math.pi * R * R / 0.3), n=DENSE_N)
 scene("dense50", 5, """400 generated discs at 50% area packing: as dense30, with overlaps at the
       start the rule, not the exception.""",
-      [], L=math.sqrt(DENSE_N * math.pi * R * R / DENSE_PACKING[1]), n=DENSE_N)
+      [], L=math.sqrt(DENSE_N * math.pi * R * R / 0.5), n=DENSE_N)
 
 # Catalog order: head_on and corner are generators of harness.spec.scenes.
 CATALOG_NAMES: tuple[str, ...] = (

@@ -235,15 +235,13 @@ def read_variants(path: Path) -> Variants:
     """A result set's variants.json; no facts where it is absent (results measured before
     they were stored: every variant unknown). A HarnessError naming the file otherwise."""
     try:
-        text = path.read_text(encoding="utf-8")
+        data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         return NO_FACTS
-    except (OSError, UnicodeDecodeError) as exc:
-        raise HarnessError(f"{path}: cannot read the variants' facts: {exc}") from None
-    try:
-        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise HarnessError(f"{path}: not JSON: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise HarnessError(f"{path}: cannot read the variants' facts: {exc}") from None
     return Variants.from_json(data, str(path))
 
 

@@ -16,10 +16,8 @@ from pathlib import Path
 
 from harness.spec.facts import BASELINE, GRID
 
-# The check run: the cell's scene in print mode, at most CHECK_MAX_STATES particle states,
-# compared with seq's; past CHECK_SEQ_MAX_N particles with grid's (byte-identical to seq, and
-# a 50-step reference at 10,000 particles takes it 2 s where seq takes 13 s). `--replay` of the
-# same reference judges each step from the program's own states.
+# The check run (docs/programs.md, "The check"): at most CHECK_MAX_STATES particle states,
+# compared with seq's, past CHECK_SEQ_MAX_N particles with grid's; its `--replay` judges each step.
 CHECK_MAX_STATES = 200_000
 CHECK_SEQ_MAX_N = 1_999
 FAST_REFERENCE = GRID
@@ -53,13 +51,12 @@ def reference_variant(n: int) -> str:
     return BASELINE if n <= CHECK_SEQ_MAX_N else FAST_REFERENCE
 
 
-def template_problem(template: str, extra: tuple[str, ...] = (),
-                     known_here: tuple[str, ...] = PLACEHOLDERS,
-                     required: Mapping[str, str] | None = None) -> str | None:
-    """What makes a template unusable, or None: an unknown placeholder, a missing required one
-    (`required`: name -> what it stands for; default {input}) or stray braces. `extra`: names
-    allowed beside `known_here` ({path} in a class's template)."""
-    known = (*known_here, *extra)
+def template_problem(template: str, extra: tuple[str, ...] = (), build: bool = False
+                     ) -> str | None:
+    """What makes a command template (a `build:` one with `build`) unusable, or None: an
+    unknown placeholder, a missing required one ({input}; a build's BUILD_REQUIRED) or stray
+    braces. `extra`: names allowed beside the known ones ({path} in a class's template)."""
+    known = (*(BUILD_PLACEHOLDERS if build else PLACEHOLDERS), *extra)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as exc:
@@ -71,10 +68,10 @@ def template_problem(template: str, extra: tuple[str, ...] = (),
             return f"unknown placeholder {field} (known: " + ", ".join(
                 "{" + p + "}" for p in known) + ")"
     names = {name for _, name, _, _ in parsed}
-    if required is None and INPUT not in names:
+    if not build and INPUT not in names:
         return "no {input}: the program must be given the input file"
-    return next((f"no {{{name}}} ({meaning})" for name, meaning in (required or {}).items()
-                 if name not in names), None)
+    return next((f"no {{{name}}} ({meaning})" for name, meaning in BUILD_REQUIRED.items()
+                 if build and name not in names), None)
 
 
 @dataclass(frozen=True)

@@ -9,34 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from harness.errors import MISSING, HarnessError, config_error
-from harness.spec import kinds, programs
+from harness.spec import config, kinds, programs
 from harness.spec.builds import BUILDS, DEFAULT_BUILD
-from harness.spec.config import (
-    AUTO_RUNS,
-    DEFAULT_MAX_CELLS,
-    DEFAULT_RUNS,
-    EXECUTOR_KINDS,
-    METRIC_TIME,
-    METRICS,
-    PARALLEL_AXES,
-    TOP_KEYS,
-    Checks,
-    Config,
-    ExecutorSpec,
-    Measure,
-    Validation,
-    expand_points,
-)
 from harness.spec.facts import MPI_INSTALL
-from harness.spec.parse.scene import (
-    check_cells,
-    check_exclude,
-    check_memory,
-    parse_combine,
-    parse_exclude,
-    parse_scene,
-    parse_schedules,
-)
+from harness.spec.parse import scene
 from harness.spec.variants import VariantRegistry, default_registry
 
 # An experiment's, a custom binary's or a program's name: a folder and a file name under
@@ -51,10 +27,10 @@ ADAPTIVE_KEYS = ("ci", "max_runs", "max_time_s")
 BASELINE_CHOICES = ("f64", "same", "f128")
 CHECK_NAMES = ("invariants", "shadow", "divergence")
 # The top-level keys checked as they are, their defaults (title's: the name) checked too.
-SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN, "metric": kinds.one_of(METRICS),
-           "openmp_costs": kinds.BOOLEAN, "threads": kinds.many(kinds.THREADS),
-           "ranks": kinds.many(kinds.RANKS)}
-SCALAR_DEFAULTS = {"keep_output": False, "metric": METRIC_TIME, "openmp_costs": False,
+SCALARS = {"title": kinds.STRING, "keep_output": kinds.BOOLEAN,
+           "metric": kinds.one_of(config.METRICS), "openmp_costs": kinds.BOOLEAN,
+           "threads": kinds.many(kinds.THREADS), "ranks": kinds.many(kinds.RANKS)}
+SCALAR_DEFAULTS = {"keep_output": False, "metric": config.METRIC_TIME, "openmp_costs": False,
                    "threads": 1, "ranks": 1}
 
 
@@ -64,7 +40,7 @@ def is_valid_name(name: object) -> bool:
 
 
 def _runs(value: object) -> object:
-    return None if value == AUTO_RUNS else kinds.int_in(1)(value)
+    return None if value == config.AUTO_RUNS else kinds.int_in(1)(value)
 
 
 def _options(value: object) -> object:
@@ -75,7 +51,7 @@ def _options(value: object) -> object:
 
 MEASURE = {
     "warmup": kinds.NON_NEGATIVE_INT,
-    "runs": kinds.Kind(f"a positive integer or {AUTO_RUNS}", _runs),  # None: auto
+    "runs": kinds.Kind(f"a positive integer or {config.AUTO_RUNS}", _runs),  # None: auto
     "timeout_s": kinds.POSITIVE_REAL,
     "ci": kinds.Kind("a fraction in (0, 1), e.g. 0.02 for +-2%", kinds.real_in(0.0, 1.0)),
     "max_runs": kinds.POSITIVE_INT,
@@ -91,7 +67,7 @@ ACCURACY = {
     "max_n": kinds.optional(kinds.POSITIVE_INT),
 }
 EXECUTOR = {
-    "kind": kinds.one_of(EXECUTOR_KINDS),
+    "kind": kinds.one_of(config.EXECUTOR_KINDS),
     "partition": kinds.STRING,
     "exclusive": kinds.BOOLEAN,
     "time_limit_min": kinds.POSITIVE_INT,
@@ -103,19 +79,20 @@ EXECUTOR = {
 }
 
 
-def parse_measure(value: object, source: Path, label: str = "measure") -> Measure:
+def parse_measure(value: object, source: Path, label: str = "measure") -> config.Measure:
     raw = kinds.mapping(value, label, source)
     kinds.reject_unknown(raw, tuple(MEASURE), f"{label}.", source)
-    if raw.get("runs", DEFAULT_RUNS or AUTO_RUNS) != AUTO_RUNS:  # a misplaced key before its value
+    runs = raw.get("runs", config.DEFAULT_RUNS or config.AUTO_RUNS)
+    if runs != config.AUTO_RUNS:  # a misplaced key before its value
         for key in ADAPTIVE_KEYS:
             if key in raw:
                 raise config_error(source, f"{label}.{key}", "runs: auto beside it (it sets "
                                    "adaptive repetition)", raw[key])
-    return Measure(**kinds.settings(raw, MEASURE, label, source))
+    return config.Measure(**kinds.settings(raw, MEASURE, label, source))
 
 
 def parse_variant_measures(value: object, base: object, variants: Sequence[str],
-                            source: Path) -> tuple[tuple[str, Measure], ...]:
+                            source: Path) -> tuple[tuple[str, config.Measure], ...]:
     """`measure_by_variant: {VARIANT: {warmup, runs, timeout_s, ...}}`, over `measure`'s keys
     (a variant's fixed `runs` drops the adaptive settings of a `runs: auto` it would
     inherit)."""
@@ -129,23 +106,23 @@ def parse_variant_measures(value: object, base: object, variants: Sequence[str],
         # `measure`'s keys are checked already: an unknown key here is the variant's own
         own = kinds.mapping(settings, label, source)
         inherited = kinds.mapping(base, "measure", source)
-        if own.get("runs", AUTO_RUNS) != AUTO_RUNS:  # a fixed count: no adaptive settings
+        if own.get("runs", config.AUTO_RUNS) != config.AUTO_RUNS:  # fixed: no adaptive settings
             inherited = {k: v for k, v in inherited.items() if k not in ADAPTIVE_KEYS}
         result.append((str(variant), parse_measure({**inherited, **own}, source, label)))
     return tuple(result)
 
 
-def parse_validate(value: object, source: Path) -> Validation:
+def parse_validate(value: object, source: Path) -> config.Validation:
     if isinstance(value, bool):
-        return Validation(enabled=value)
+        return config.Validation(enabled=value)
     if not isinstance(value, dict):
         raise config_error(source, "validate",
                            "true, false or {max_n: N, baseline: f64|same|f128}", value)
-    return Validation(True, **kinds.settings(value, VALIDATE, "validate", source))
+    return config.Validation(True, **kinds.settings(value, VALIDATE, "validate", source))
 
 
 def parse_checks(names: object, options: object, source: Path,
-                  variants: Sequence[str]) -> Checks:
+                  variants: Sequence[str]) -> config.Checks:
     items = kinds.name_list(names, "checks", CHECK_NAMES, source, allow_empty=True)
     table = {"truth": kinds.one_of(variants), **ACCURACY}
     raw = kinds.mapping(options, "accuracy", source)
@@ -155,8 +132,8 @@ def parse_checks(names: object, options: object, source: Path,
                            + " where 'accuracy' is set", names)
     fields = kinds.settings(raw, table, "accuracy", source)
     if items and "truth" not in fields:  # the default too must be a variant checks can build
-        kinds.check(Checks.truth, "accuracy.truth", table["truth"], source)
-    return Checks(items, **fields)
+        kinds.check(config.Checks.truth, "accuracy.truth", table["truth"], source)
+    return config.Checks(items, **fields)
 
 
 def parse_variants(raw: Mapping[str, object], source: Path,
@@ -199,18 +176,18 @@ def _check_new_name(name: object, label: str, taken: Sequence[str], source: Path
                            + ", ".join(taken) + ")", name)
 
 
-def _check_source(value: object, where: str, config: Path, extra: tuple[str, ...]) -> None:
+def _check_source(value: object, where: str, source: Path, extra: tuple[str, ...]) -> None:
     """`source:`: a path or a non-empty list of paths relative to the config, each existing
     (a class's, with {path} or {dir}, is checked per program when it is built)."""
     listed = [value] if isinstance(value, str) else value
     expected = "a source file or directory relative to the config, or a list of them"
     if not isinstance(listed, list) or not listed or not all(
             isinstance(p, str) and p.strip() for p in listed):
-        raise config_error(config, where, expected, value)
+        raise config_error(source, where, expected, value)
     for path in () if extra else listed:
-        if not (config.resolve().parent / path).exists():
-            raise config_error(config, where, f"{expected} (not found: "
-                               f"{config.resolve().parent / path})", value)
+        resolved = source.resolve().parent / path
+        if not resolved.exists():
+            raise config_error(source, where, f"{expected} (not found: {resolved})", value)
 
 
 def parse_binaries(value: object, source: Path,
@@ -236,10 +213,8 @@ BUILD_FORM = ('a build command template with {cc}, {cflags} and {out} (and optio
 
 def parse_programs(value: object, source: Path, taken: Sequence[str]
                     ) -> tuple[tuple[programs.Program, ...], dict[str, tuple[str, ...]]]:
-    """`programs: {NAME: TEMPLATE}`, `{NAME: {command: TEMPLATE, check: TEMPLATE, source:
-    PATH, build: TEMPLATE}}` or a class `{NAME: {glob: PATTERN, command: TEMPLATE}}` (one
-    program per file matched, {path} and {dir} in the templates); the programs, and each
-    class's program names."""
+    """`programs: {NAME: ...}`, each one of PROGRAM_FORMS (a class: one program per file its
+    glob matched, {path} and {dir} in its templates); the programs, and each class's names."""
     raw = kinds.mapping(value, "programs", source)
     result = []
     classes: dict[str, tuple[str, ...]] = {}
@@ -264,8 +239,7 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
                                    template)
             if key == programs.GLOB:
                 continue
-            known = (programs.BUILD_PLACEHOLDERS, programs.BUILD_REQUIRED) if is_build else ()
-            problem = programs.template_problem(template, extra, *known)
+            problem = programs.template_problem(template, extra, is_build)
             if problem is not None:
                 raise config_error(source, where, f"{BUILD_FORM if is_build else COMMAND_FORM}: "
                                    f"{problem}", template)
@@ -290,43 +264,44 @@ def parse_programs(value: object, source: Path, taken: Sequence[str]
 
 
 def load_config(path: Path | str, registry: VariantRegistry | None = None,
-                max_cells: int | None = DEFAULT_MAX_CELLS) -> Config:
+                max_cells: int | None = config.DEFAULT_MAX_CELLS) -> config.Config:
     """Read, default and validate one config file; its variants must be among the registry's
     (this repository's, by default) or its own `binaries:`. A config of more than max_cells
     cells (None: any number), or whose scenes would not fit in free memory, is refused."""
     source = Path(path)
     raw = kinds.read_mapping(source)
     registry = registry or default_registry()
-    kinds.reject_unknown(raw, TOP_KEYS, "", source)
+    kinds.reject_unknown(raw, config.TOP_KEYS, "", source)
     name = kinds.check(raw.get("name", source.stem), "name", kinds.STRING, source)
     if not is_valid_name(name):
         raise config_error(source, "name", NAME_RULE, name)
     runs = parse_variants(raw, source, registry)
-    scene = parse_scene(raw.get("scene", MISSING), source)
+    scene_spec = scene.parse_scene(raw.get("scene", MISSING), source)
     measure = raw.get("measure", {})
     given = {"title": name, **SCALAR_DEFAULTS, **raw}
-    config = Config(
+    parallel_listed = [k for k in config.PARALLEL_AXES if isinstance(given[k], list)]
+    loaded = config.Config(
         source=source,
         name=str(name),
         **{key: kinds.check(given[key], key, kind, source) for key, kind in SCALARS.items()},
         **runs,
-        scene=scene,
-        zip_keys=parse_combine(raw.get("combine", "product"), scene,
-                               [k for k in PARALLEL_AXES if isinstance(given[k], list)], source),
+        scene=scene_spec,
+        zip_keys=scene.parse_combine(raw.get("combine", "product"), scene_spec, parallel_listed,
+                                     source),
         measure=parse_measure(measure, source),
         validate=parse_validate(raw.get("validate", False), source),
-        exclude=parse_exclude(raw.get("exclude", []), source),
+        exclude=scene.parse_exclude(raw.get("exclude", []), source),
         checks=parse_checks(raw.get("checks", []), raw.get("accuracy", {}), source,
                             registry.names),
-        executor=ExecutorSpec(**kinds.settings(raw.get("executor", {}), EXECUTOR, "executor",
-                                               source)),
-        schedules=parse_schedules(raw.get("schedule"), source),
+        executor=config.ExecutorSpec(**kinds.settings(raw.get("executor", {}), EXECUTOR,
+                                                      "executor", source)),
+        schedules=scene.parse_schedules(raw.get("schedule"), source),
         variant_measures=parse_variant_measures(raw.get("measure_by_variant", {}), measure,
                                                  runs["variants"], source),
     )
-    check_exclude(config)
+    scene.check_exclude(loaded)
     if max_cells is not None:
-        check_cells(config, max_cells)
-    expand_points(config)  # zip lengths are checked here, so errors surface at load time
-    check_memory(config)
-    return config
+        scene.check_cells(loaded, max_cells)
+    config.expand_points(loaded)  # zip lengths are checked here, so errors surface at load time
+    scene.check_memory(loaded)
+    return loaded

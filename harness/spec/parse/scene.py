@@ -12,17 +12,7 @@ from typing import cast
 import psutil
 
 from harness.errors import MISSING, HarnessError, config_error
-from harness.spec import kinds, scenes
-from harness.spec.config import (
-    EXCLUDE_FIELDS,
-    EXCLUDE_OPS,
-    Condition,
-    Config,
-    SceneSpec,
-    count_points,
-    expand_points,
-    scene_key,
-)
+from harness.spec import config, kinds, scenes
 
 REQUIRED_RANDOM_KEYS = ("n", "L", "r", "steps")
 # `schedule:` values, passed to each cell as OMP_SCHEDULE (it steers p1_runtime's loop).
@@ -32,7 +22,7 @@ SCHEDULE_PATTERN = re.compile(r"^(static|dynamic|guided)(,[1-9][0-9]*)?$|^auto$"
 EXCLUDE_NUMERIC_FIELDS = ("threads", "ranks", "n", "L", "r", "steps", "seed")
 
 
-def parse_scene(value: object, source: Path) -> SceneSpec:
+def parse_scene(value: object, source: Path) -> config.SceneSpec:
     raw = dict(kinds.mapping(value, "scene", source))
     if "generator" in raw and "file" in raw:
         raise config_error(source, "scene.file", "either 'generator' or 'file', not both",
@@ -77,10 +67,10 @@ def parse_scene(value: object, source: Path) -> SceneSpec:
         axes.append((key, parsed))
         if isinstance(values, list):
             listed.add(key)
-    return SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
+    return config.SceneSpec(kind_name, generator_name, tuple(axes), frozenset(listed))
 
 
-def parse_combine(value: object, scene: SceneSpec, parallel_listed: list[str],
+def parse_combine(value: object, scene: config.SceneSpec, parallel_listed: list[str],
                    source: Path) -> tuple[str, ...]:
     """The axes `combine:` zips together (none for `product`); `parallel_listed`: those of
     threads and ranks given as lists."""
@@ -100,10 +90,8 @@ def parse_combine(value: object, scene: SceneSpec, parallel_listed: list[str],
 
 
 def _schedule(value: object) -> object:
-    if not isinstance(value, str):
-        raise ValueError
-    text = value.replace(" ", "").lower()
-    if not SCHEDULE_PATTERN.match(text):
+    text = str(value).replace(" ", "").lower()
+    if not isinstance(value, str) or not SCHEDULE_PATTERN.match(text):
         raise ValueError
     return text
 
@@ -125,7 +113,7 @@ def parse_schedules(value: object, source: Path) -> tuple[str, ...]:
 NUMBER = kinds.Kind("a number", kinds.real)
 
 
-def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], ...]:
+def parse_exclude(value: object, source: Path) -> tuple[tuple[config.Condition, ...], ...]:
     if not isinstance(value, list):
         raise config_error(source, "exclude", "a list of {field: value, field_gt: number}", value)
     rules = []
@@ -137,18 +125,18 @@ def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], .
         conditions = []
         for key, wanted in raw.items():
             field, _, op = str(key).rpartition("_")
-            if field in EXCLUDE_FIELDS and op in EXCLUDE_OPS:
+            if field in config.EXCLUDE_FIELDS and op in config.EXCLUDE_OPS:
                 if field not in EXCLUDE_NUMERIC_FIELDS:
                     raise config_error(source, f"{label}.{key}", "a comparison (_gt, _ge, _lt, "
                                        "_le) of one of " + ", ".join(EXCLUDE_NUMERIC_FIELDS),
                                        wanted)
                 bound = kinds.check(wanted, f"{label}.{key}", NUMBER, source)
-                conditions.append(Condition(field, op, bound))
-            elif key in EXCLUDE_FIELDS:
+                conditions.append(config.Condition(field, op, bound))
+            elif key in config.EXCLUDE_FIELDS:
                 accepted = wanted if isinstance(wanted, list) else [wanted]
-                conditions.append(Condition(str(key), "eq", tuple(accepted)))
+                conditions.append(config.Condition(str(key), "eq", tuple(accepted)))
             else:
-                allowed = ", ".join(EXCLUDE_FIELDS)
+                allowed = ", ".join(config.EXCLUDE_FIELDS)
                 raise config_error(source, f"{label}.{key}", f"one of {allowed}, optionally "
                                    "with _gt, _ge, _lt or _le", "an unknown key")
         rules.append(tuple(conditions))
@@ -159,16 +147,16 @@ def parse_exclude(value: object, source: Path) -> tuple[tuple[Condition, ...], .
 MAX_LISTED_VALUES = 12
 
 
-def check_exclude(config: Config) -> None:
+def check_exclude(loaded: config.Config) -> None:
     """Each value an exclude rule names must be one the config has: a variant, build, thread
     count, schedule or scene value it lists (a typo would silently exclude nothing). Fields
     known only once the scenes are built (a file's n, a generator's default) are checked when
     the plan is made (harness.plan.cells: a rule that matches no cell)."""
     known: dict[str, tuple[object, ...]] = {
-        **dict(config.scene.axes), "variant": config.variants, "build": config.builds,
-        "threads": config.threads, "ranks": config.ranks, "schedule": config.schedules or ("",),
+        **dict(loaded.scene.axes), "variant": loaded.variants, "build": loaded.builds,
+        "threads": loaded.threads, "ranks": loaded.ranks, "schedule": loaded.schedules or ("",),
     }
-    for index, rule in enumerate(config.exclude):
+    for index, rule in enumerate(loaded.exclude):
         for condition in rule:
             values = known.get(condition.field)
             if condition.op != "eq" or values is None:
@@ -177,7 +165,7 @@ def check_exclude(config: Config) -> None:
                 if value not in values:
                     shown = ", ".join(map(str, values[:MAX_LISTED_VALUES]))
                     more = ", ..." if len(values) > MAX_LISTED_VALUES else ""
-                    raise config_error(config.source, f"exclude[{index}].{condition.field}",
+                    raise config_error(loaded.source, f"exclude[{index}].{condition.field}",
                                        f"one of the config's values ({shown}{more})", value)
 
 
@@ -192,14 +180,14 @@ FILE_HEAD_BYTES = 4096
 GIB = 2**30
 
 
-def check_cells(config: Config, max_cells: int) -> None:
+def check_cells(loaded: config.Config, max_cells: int) -> None:
     """A config error when the config plans more than max_cells cells, counted before
     exclusion: points x variants x builds x schedules."""
-    points, schedules = count_points(config), max(1, len(config.schedules))
-    cells = points * len(config.variants) * len(config.builds) * schedules
+    points, schedules = config.count_points(loaded), max(1, len(loaded.schedules))
+    cells = points * len(loaded.variants) * len(loaded.builds) * schedules
     if cells > max_cells:
-        raise HarnessError(f"{config.source}: key 'scene': {cells} cells ({points} points x "
-                           f"{len(config.variants)} variants x {len(config.builds)} builds x "
+        raise HarnessError(f"{loaded.source}: key 'scene': {cells} cells ({points} points x "
+                           f"{len(loaded.variants)} variants x {len(loaded.builds)} builds x "
                            f"{schedules} schedules), more than {max_cells} (run --max-cells N "
                            "to allow more)")
 
@@ -214,28 +202,28 @@ def _file_n(path: Path) -> int:
         return 0
 
 
-def check_memory(config: Config) -> None:
+def check_memory(loaded: config.Config) -> None:
     """A config error when its scenes would take more than this machine's free memory, by an
     estimate of what they take when planned: the files' text and the particles they list."""
     total = listed = 0
-    distinct = {scene_key(point): point for point in expand_points(config)}
+    distinct = {config.scene_key(point): point for point in config.expand_points(loaded)}
     for point in distinct.values():
         n = 0
-        if config.scene.kind == "generator":
-            name = str(point.get("generator", config.scene.generator))
+        if loaded.scene.kind == "generator":
+            name = str(point.get("generator", loaded.scene.generator))
             n = int(str(point.get("n", scenes.REGISTRY[name].defaults.get("n", 0))))
-        elif config.scene.kind == "file":
+        elif loaded.scene.kind == "file":
             path = Path(str(point["file"]))
             with contextlib.suppress(OSError):  # the load says why it cannot be read
                 total += path.stat().st_size * FILE_TEXT_FACTOR
-            n = _file_n(path) if config.lists_particles else 0
-        elif config.lists_particles:
+            n = _file_n(path) if loaded.lists_particles else 0
+        elif loaded.lists_particles:
             n = int(str(point["n"]))
         listed += max(0, n)
     need, points = total + listed * LISTED_PARTICLE_BYTES, len(distinct)
     free = psutil.virtual_memory().available
     if need > free:
-        raise HarnessError(f"{config.source}: key 'scene': its scenes need about "
+        raise HarnessError(f"{loaded.source}: key 'scene': its scenes need about "
                            f"{need / GIB:.1f} GiB ({listed} listed particles over {points} "
                            f"scene points, {LISTED_PARTICLE_BYTES} bytes each), more than this "
                            f"machine's {free / GIB:.1f} GiB of free memory")
