@@ -141,9 +141,9 @@ def write_csv(table: pd.DataFrame, stem: Path) -> Path:
 
 def build(ctx: Context) -> list[Section]:
     frame = ctx.exp.frame
-    if not is_program(frame).any():
-        return []
     programs = frame[is_program(frame)]
+    if programs.empty:
+        return []
     grades = class_table(frame)
     csv = ctx.figs.draw(write_csv, grades, ctx.figs.fig_dir / f"{ctx.name}-programs")[0]
     blocks: list[Block] = [

@@ -208,6 +208,7 @@ class _Explainer:
         self.tried: dict[tuple[float | None, int], np.ndarray] = {}
         self.good: dict[tuple[float | None, int], np.ndarray] = {}
         self.tie: dict[tuple[float | None, int], np.ndarray] = {}
+        self.none = np.zeros(n, dtype=bool)  # no particle (_mask), never written to
 
     def left(self, levels: tuple[float | None, ...],
              open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
@@ -304,9 +305,8 @@ class _Explainer:
 
     def _mask(self, table: dict[tuple[float | None, int], np.ndarray], level: float | None,
               k: int) -> np.ndarray:
-        """The table's mask at (level, k): none of the particles where it holds none."""
-        mask = table.get((level, k))
-        return np.zeros(self.n, dtype=bool) if mask is None else mask
+        """The table's mask at (level, k); no particle where it holds none (read only)."""
+        return table.get((level, k), self.none)
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the
