@@ -161,14 +161,12 @@ def _step_local(ours: Rows, inside: np.ndarray, n: int, L: float, r: float, repl
         states[0], halves[0] = initial, np.full_like(initial, ARITH_ULPS * DOUBLE_EPS * L)
         exact = frozenset({0})
     broken = _first_not_finite(ours, inside)
-    judgeable = any(k + 1 in states for k in states)
-    found = judge_steps(states, halves, n, L, r, replay, exact) if judgeable else None
-    if broken is not None and (found is None or found.wrong_step is None
-                               or broken[0] < found.wrong_step):
+    found = judge_steps(states, halves, n, L, r, replay, exact)
+    if broken is not None and (found.wrong_step is None or broken[0] < found.wrong_step):
         step, i, values = broken
         return _wrong(step, i, values, "every coordinate and velocity is a finite number",
                       steps_compared=compared, details=extra)
-    if found is None:
+    if not found.steps_judged:  # no step k + 1 printed with its step k
         return _failed(f"{departure}, and prints no two consecutive steps: it cannot be judged "
                        "step by step (print every step in the check command)")
     detail = {**extra, "near_ties": found.near_ties, "steps_judged": found.steps_judged}

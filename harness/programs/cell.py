@@ -3,12 +3,9 @@ command once on the cell's input (does it run at all; its peak memory); its chec
 print mode, judged against seq's output (harness.programs.agreement); at the config's highest
 thread count the check twice more, at that count and at 1 thread (outputs that differ:
 nondeterministic), and for a program with `source:` and `build:`, a copy built with
-ThreadSanitizer run on a small scene, each race read as its two accesses' file:line.
-
-The race check uses clang and Archer (LLVM's OpenMP tool, loaded by OMP_TOOL_LIBRARIES), which
-tells TSan of the OpenMP runtime's barriers, locks and tasks: no false positives, where gcc's
-TSan, blind to libgomp's barriers, would report every parallel loop followed by serial code.
-TSan checks happens-before, not timing: two threads on a small scene find a race.
+ThreadSanitizer run on a small scene, each race read as its two accesses' file:line. Why
+clang with Archer (LLVM's OpenMP tool) and not gcc's TSan, and why a small scene is enough:
+docs/programs.md, "Data races".
 """
 
 import dataclasses
@@ -140,8 +137,7 @@ def _shown(file: str, directory: Path) -> str:
 
 def _own(frames: list[str]) -> str:
     """The first frame in the program's own files (a relative path), else the first one."""
-    own = [f for f in frames if not f.startswith("/")]
-    return own[0] if own else (frames[0] if frames else "")
+    return next((f for f in frames if not f.startswith("/")), frames[0] if frames else "")
 
 
 def small_scene(scene: scenes.ScenePoint) -> scenes.ScenePoint:
@@ -254,8 +250,17 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
     if verdict is None:
         return ran(record)
     if cell.threads == max(store.config.threads) and verdict.verdict != columns.AGREEMENT_FAILED:
-        verdict, record = _repeated_and_raced(program, store, cell, store.input_file(scene),
-                                              env, timeout_s, text, verdict, record)
+        # The check's reruns and, for a program built from its source, the race check.
+        verdict = _repeatable(program, store.input_file(scene), cell.threads, env, timeout_s,
+                              text) or verdict
+        if program.build:
+            small = small_scene(cell.scene)
+            races = find_races(program, store.input_file(small), small.describe(), env,
+                               timeout_s)
+            record = record.replace(races=races.column(), race_check={
+                "threads": races.threads, "scene": races.scene, "note": races.note,
+                "races": [dataclasses.asdict(r) for r in races.races or ()]})
+            verdict = with_races(verdict, races)
     record = record.replace(**verdict.fields(), note=_note(
         verdict.note, steps, cell.scene.steps, refs[REFERENCE].name))
     return ran(record, columns.OK if verdict.verdict in columns.AGREEING else columns.INVALID)
@@ -269,23 +274,6 @@ def _note(verdict_note: str, checked_steps: int, steps: int, reference: str) -> 
     if reference != BASELINE:
         where.append(f"against {reference}, byte-identical to {BASELINE}")
     return "; ".join([verdict_note, *where] if verdict_note else where)
-
-
-def _repeated_and_raced(program: Program, store: CellStore, cell: Cell, check_input: Path,
-                        env: Mapping[str, str], timeout_s: float, text: str,
-                        verdict: Agreement, record: CellResult
-                        ) -> tuple[Agreement, CellResult]:
-    """The verdict after the check's reruns and, for a program built from its source, the
-    race check (into the record)."""
-    verdict = _repeatable(program, check_input, cell.threads, env, timeout_s, text) or verdict
-    if program.build:
-        small = small_scene(cell.scene)
-        check = find_races(program, store.input_file(small), small.describe(), env, timeout_s)
-        record = record.replace(races=check.column(), race_check={
-            "threads": check.threads, "scene": check.scene, "note": check.note,
-            "races": [dataclasses.asdict(r) for r in check.races or ()]})
-        verdict = with_races(verdict, check)
-    return verdict, record
 
 
 class ReplayError(RuntimeError):

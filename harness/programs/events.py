@@ -16,7 +16,6 @@ KEPT_SHARE = 0.9
 # A candidate reproduces the move when the particle ends this close to seq's state (relative
 # to L): a few roundings of the coordinates, never a different event.
 MATCH_REL = 1e-9
-AXES = ("x", "y")
 
 
 @dataclass(frozen=True)
@@ -42,7 +41,7 @@ class Event:
 
 
 def wall_name(axis: int, velocity: float) -> str:
-    return f"{AXES[axis]} = {'L - r' if velocity > 0 else 'r'}"
+    return f"{'xy'[axis]} = {'L - r' if velocity > 0 else 'r'}"
 
 
 def wall_time(q: np.ndarray, w: np.ndarray, L: float, r: float) -> tuple[float, list[int]]:

@@ -157,7 +157,6 @@ def _row(fields: list[str]) -> tuple[int, int, list[float], tuple[str, ...], lis
 def half_units(tokens: np.ndarray) -> np.ndarray:
     """Half a unit in the last printed digit of each token (an array of str), vectorised for
     plain decimals; tokens with an exponent take the slow path."""
-    tokens = np.asarray(tokens, dtype=str)
     out = 0.5 * 10.0 ** (-_decimals(tokens).astype(np.float64))
     exponent = np.char.find(np.char.lower(tokens), "e") >= 0
     for k in np.flatnonzero(exponent.ravel()):

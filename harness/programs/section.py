@@ -22,19 +22,7 @@ from harness.report.parts import Count
 from harness.report.sections.context import Context, Experiment, table_block
 from harness.report.summary import subsection_anchor
 from harness.spec.facts import BASELINE, Variants
-from harness.store import atomic
-from harness.store.columns import (
-    AGREEING,
-    AGREEMENT_FAILED,
-    CORRECT,
-    DIFFERS,
-    DIVERGES,
-    IDENTICAL,
-    IMPRECISE,
-    NONDETERMINISTIC,
-    ROUNDING,
-    WRONG,
-)
+from harness.store import atomic, columns
 
 INTRO = (
     "Each program ran its check command on the cell's scene in print mode (its first steps "
@@ -81,10 +69,9 @@ def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
 
 
 # A program's verdict over its cells, the worst first: what a class table shows for it.
-VERDICT_ORDER: tuple[str, ...] = (NONDETERMINISTIC, WRONG, DIFFERS, AGREEMENT_FAILED, IMPRECISE,
-                                  DIVERGES, CORRECT, ROUNDING, IDENTICAL)
-# Verdicts whose times rank: a program that is right (at some precision).
-RANKED: frozenset[str] = frozenset({IMPRECISE, DIVERGES, CORRECT, ROUNDING, IDENTICAL})
+VERDICT_ORDER: tuple[str, ...] = (
+    columns.NONDETERMINISTIC, columns.WRONG, columns.DIFFERS, columns.AGREEMENT_FAILED,
+    columns.IMPRECISE, columns.DIVERGES, columns.CORRECT, columns.ROUNDING, columns.IDENTICAL)
 CLASS_KEYS = ("scene", "n", "L", "r", "steps")
 
 
@@ -103,16 +90,15 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
         verdicts = [v for v in VERDICT_ORDER if v in set(cells["agreement"])]
         verdict = verdicts[0] if verdicts else str(cells["agreement"].iloc[0])
         worst = cells[cells["agreement"] == verdict].sort_values("threads").iloc[0]
-        step = worst.get("first_diff_step")
-        row: dict[str, object] = {"program": variant,
-                                  **dict(zip([*keys, *ranks], group, strict=True)),
-                                  "verdict": verdict,
-                                  "first_wrong_step": (int(step) if verdict == WRONG
-                                                       and pd.notna(step) else None),
-                                  "rule": (str(worst.get("rule")) if verdict == WRONG
-                                           and pd.notna(worst.get("rule")) else ""),
-                                  "repeatable": ("no" if verdict == NONDETERMINISTIC else "yes"),
-                                  "races": _races(cells)}
+        step, rule = worst.get("first_diff_step"), worst.get("rule")
+        wrong = verdict == columns.WRONG
+        row: dict[str, object] = {
+            "program": variant, **dict(zip([*keys, *ranks], group, strict=True)),
+            "verdict": verdict,
+            "first_wrong_step": int(step) if wrong and pd.notna(step) else None,
+            "rule": str(rule) if wrong and pd.notna(rule) else "",
+            "repeatable": "no" if verdict == columns.NONDETERMINISTIC else "yes",
+            "races": _races(cells)}
         times = cells.set_index("threads")["wall_median_s"].dropna()
         for threads, seconds in times.sort_index().items():
             row[f"time_{int(threads)}t_s"] = float(seconds)
@@ -120,16 +106,15 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
         seq_s = seq["wall_median_s"].min()
         top = int(times.index.max()) if len(times) else None
         fastest = float(times[top]) if top is not None else np.nan
-        row["fastest"] = fastest
-        row["threads_max"] = top
-        row["speedup_vs_seq"] = seq_s / fastest if seq_s > 0 else np.nan
-        row["speedup_vs_1t"] = float(times.get(1, np.nan)) / fastest
-        row["efficiency"] = row["speedup_vs_1t"] / top if top else np.nan
+        speedup_1t = float(times.get(1, np.nan)) / fastest
+        row.update(fastest=fastest, threads_max=top,
+                   speedup_vs_seq=seq_s / fastest if seq_s > 0 else np.nan,
+                   speedup_vs_1t=speedup_1t, efficiency=speedup_1t / top if top else np.nan)
         out.append(row)
     table = pd.DataFrame(out)
     if not len(table):
         return table
-    right = table["verdict"].isin(RANKED)
+    right = table["verdict"].isin(columns.AGREEING)  # times rank where it is right
     table["rank"] = table["fastest"].where(right).rank(method="min").astype("Int64")
     table["first_wrong_step"] = table["first_wrong_step"].astype("Int64")
     time_columns = sorted((c for c in table.columns if c.startswith("time_")),
@@ -156,9 +141,9 @@ def write_csv(table: pd.DataFrame, stem: Path) -> Path:
 
 def build(ctx: Context) -> list[Section]:
     frame = ctx.exp.frame
-    if not is_program(frame).any():
-        return []
     programs = frame[is_program(frame)]
+    if programs.empty:
+        return []
     grades = class_table(frame)
     csv = ctx.figs.draw(write_csv, grades, ctx.figs.fig_dir / f"{ctx.name}-programs")[0]
     blocks: list[Block] = [
@@ -173,7 +158,7 @@ def build(ctx: Context) -> list[Section]:
 def _wrong_steps(ctx: Context, programs: pd.DataFrame) -> list[Block]:
     """A figure of each wrong program's first wrong step (its first wrong cell's)."""
     blocks: list[Block] = []
-    wrong = programs[programs["agreement"] == WRONG].sort_values(["variant", "threads"])
+    wrong = programs[programs["agreement"] == columns.WRONG].sort_values(["variant", "threads"])
     for variant, cells in wrong.groupby("variant", sort=True):
         row = cells.iloc[0]
         shown = _neighbourhood(ctx.exp.directory.record(str(row["cell_id"])))
@@ -218,11 +203,10 @@ def fig_wrong_step(data: pd.DataFrame, stem: Path, r: float, title: str) -> list
         ax.add_patch(Circle(start, r, fill=False, color=BEFORE, lw=1.0, ls="--"))
         ax.annotate(str(int(row["particle"])), start, textcoords="offset points",
                     xytext=(4, 4), fontsize=8, color=BEFORE)
-    xs = pd.concat([data[f"x_{w}"] for w in ("before", "program", "reference")])
-    ys = pd.concat([data[f"y_{w}"] for w in ("before", "program", "reference")])
     pad = PAD_RADII * r
-    ax.set_xlim(xs.min() - pad, xs.max() + pad)
-    ax.set_ylim(ys.min() - pad, ys.max() + pad)
+    for axis, set_limits in (("x", ax.set_xlim), ("y", ax.set_ylim)):
+        values = pd.concat([data[f"{axis}_{w}"] for w in ("before", "program", "reference")])
+        set_limits(values.min() - pad, values.max() + pad)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x (length units)")
     ax.set_ylabel("y (length units)")
@@ -241,5 +225,5 @@ def count(exp: Experiment, section: Section) -> Count | None:
     programs = cells[is_program(cells)]
     if programs.empty:
         return None
-    return Count(len(programs), int(programs["agreement"].isin(AGREEING).sum()),
+    return Count(len(programs), int(programs["agreement"].isin(columns.AGREEING).sum()),
                  subsection_anchor(section, ANCHOR))

@@ -131,7 +131,7 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     wrong: dict[int, np.ndarray] = {}
     for chunk in _chunks(sorted(open_)):
         wrong = explain.left(order, {k: open_[k] for k in chunk})
-        if chunk[0] == min(open_) and explain.unexplained(None, chunk) > 0.5:
+        if chunk[0] == min(open_) and explain.printed_left(chunk) > 0.5:
             order = (coarsest, None)
         if wrong:
             k = min(wrong)
@@ -208,6 +208,7 @@ class _Explainer:
         self.tried: dict[tuple[float | None, int], np.ndarray] = {}
         self.good: dict[tuple[float | None, int], np.ndarray] = {}
         self.tie: dict[tuple[float | None, int], np.ndarray] = {}
+        self.none = np.zeros(n, dtype=bool)  # no particle (_mask), never written to
 
     def left(self, levels: tuple[float | None, ...],
              open_: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
@@ -236,10 +237,10 @@ class _Explainer:
         return not any(self.left(levels, {k: open_[k] for k in chunk})
                        for chunk in _chunks(steps))
 
-    def unexplained(self, level: float | None, steps: list[int]) -> float:
-        """The share of the values tried at `level` in `steps` that it left."""
-        tried = sum(int(self._mask(self.tried, level, k).sum()) for k in steps)
-        good = sum(int(self._mask(self.good, level, k).sum()) for k in steps)
+    def printed_left(self, steps: list[int]) -> float:
+        """The share of the values tried at the printed uncertainty in `steps` that it left."""
+        tried = sum(int(self._mask(self.tried, None, k).sum()) for k in steps)
+        good = sum(int(self._mask(self.good, None, k).sum()) for k in steps)
         return (tried - good) / tried if tried else 0.0
 
     def near_ties(self, wrong: dict[int, np.ndarray]) -> int:
@@ -304,9 +305,8 @@ class _Explainer:
 
     def _mask(self, table: dict[tuple[float | None, int], np.ndarray], level: float | None,
               k: int) -> np.ndarray:
-        """The table's mask at (level, k): none of the particles where it holds none."""
-        mask = table.get((level, k))
-        return np.zeros(self.n, dtype=bool) if mask is None else mask
+        """The table's mask at (level, k); no particle where it holds none (read only)."""
+        return table.get((level, k), self.none)
 
     def real_ties(self, k: int, rows: np.ndarray) -> np.ndarray:
         """Which of these particles took, in the program's step k + 1, another event than the

@@ -9,7 +9,7 @@ import functools
 import hashlib
 import math
 import struct
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,7 +65,7 @@ def _seed(*samples: Sequence[float]) -> int:
     return int.from_bytes(digest.digest()[:8], "little")
 
 
-def clean(times: Sequence[float]) -> np.ndarray:
+def clean(times: Iterable[float]) -> np.ndarray:
     return np.asarray([t for t in times if t is not None and math.isfinite(t)], dtype=float)
 
 
@@ -112,12 +112,11 @@ def _bootstrap(statistic: Callable[..., np.ndarray], *samples: tuple[float, ...]
     """The percentile bootstrap interval of `statistic` (vectorized) over the samples, each
     resampled on its own. Remembered, being deterministic: a render asks for the same interval
     from its table, figure and summary, a calibration for what its comparison asks again."""
-    result = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
-                           vectorized=True, paired=False, confidence_level=CONFIDENCE,
-                           n_resamples=N_RESAMPLES, method="percentile",
-                           rng=np.random.default_rng(_seed(*samples)))
-    low, high = (float(end) for end in result.confidence_interval)
-    return low, high
+    ci = sps.bootstrap(tuple(np.asarray(s) for s in samples), statistic,
+                       vectorized=True, paired=False, confidence_level=CONFIDENCE,
+                       n_resamples=N_RESAMPLES, method="percentile",
+                       rng=np.random.default_rng(_seed(*samples))).confidence_interval
+    return float(ci.low), float(ci.high)
 
 
 def _interval(point: float, samples: tuple[np.ndarray, ...],

@@ -90,8 +90,8 @@ NOISE_MARGIN = 0.05
 def session_noise(shares: Iterable[float]) -> float:
     """A session's noise: the median over its rounds (every cell's) of the share of their
     cores' time others took or was stolen (harness.measure.noise); NaN without any."""
-    found = [s for s in shares if s is not None and math.isfinite(s)]
-    return float(np.median(found)) if found else math.nan
+    found = intervals.clean(shares)
+    return float(np.median(found)) if found.size else math.nan
 
 
 def spread_at(levels: Sequence[SessionSpread], noise: float) -> SessionSpread:
@@ -150,8 +150,8 @@ class RoundEstimate:
         if self.rounds < INTERVAL_MIN_ROUNDS or not math.isfinite(self.log_se):
             return intervals.Interval(self.point)
         half = factor * math.hypot(t95(self.rounds) * self.log_se, intervals.Z95 * session)
-        point = self.point
-        return intervals.Interval(point, point * math.exp(-half), point * math.exp(half))
+        return intervals.Interval(self.point, self.point * math.exp(-half),
+                                  self.point * math.exp(half))
 
 
 def from_round_values(values: Sequence[float]) -> RoundEstimate:
@@ -258,7 +258,8 @@ def coverage(cells: Mapping[object, Sequence[intervals.Interval | None]]) -> Cov
 
 
 def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
-                  session: float | None = None) -> tuple[float | None, float | None, float]:
+                  session: float = DEFAULT_SESSION_SPREAD.absolute
+                  ) -> tuple[float | None, float | None, float]:
     """What a cell's per-run times give: the 95% interval of their median (None where there is
     none) and their low quantile. With the round of each run, where another session's estimate
     lies (rerun_interval with the machine's `session` spread), widened to hold the median of
@@ -266,8 +267,7 @@ def time_interval(times: Sequence[float], rounds: Sequence[int] | None = None,
     if rounds is None:
         interval = intervals.median_ci(times)
     else:
-        spread = DEFAULT_SESSION_SPREAD.absolute if session is None else session
-        interval = cell_estimate(times, rounds).rerun_interval(spread)
+        interval = cell_estimate(times, rounds).rerun_interval(session)
         if math.isfinite(interval.low) and times:
             median = statistics.median(times)
             interval = intervals.Interval(median, min(interval.low, median),
