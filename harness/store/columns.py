@@ -47,11 +47,10 @@ MATCH_COLUMNS: tuple[str, ...] = ("variant", "build", *SCENE_COLUMNS, "threads",
                                   "schedule")
 # These columns, in this order, start every results.csv.
 CSV_COLUMNS: tuple[str, ...] = (
-    "experiment", "title", "variant", "build", "scene", "n", "L", "r", "steps", "mode", "seed",
-    "threads", "runs", "wall_mean_s", "wall_stddev_s", "wall_median_s", "wall_min_s",
-    "wall_max_s", "sim_s", "input_s", "output_s", "pair_tests", "status", "exit_code",
-    "identical", "max_pos_err", "max_vel_err", "count_mismatches", "oversubscribed", "unstable",
-    "cores", "cell_id", "binary_sha256",
+    "experiment", "title", "variant", "build", *SCENE_COLUMNS, "threads", "runs", "wall_mean_s",
+    "wall_stddev_s", "wall_median_s", "wall_min_s", "wall_max_s", "sim_s", "input_s", "output_s",
+    "pair_tests", "status", "exit_code", "identical", "max_pos_err", "max_vel_err",
+    "count_mismatches", "oversubscribed", "unstable", "cores", "cell_id", "binary_sha256",
 )
 EXTRA_COLUMNS: tuple[str, ...] = (
     "candidates", "pair_collisions", "wall_collisions", "wall_user_s", "wall_system_s",

@@ -27,10 +27,6 @@ class HyperfineStats:
     def runs(self) -> int:
         return len(self.times)
 
-    @property
-    def unstable(self) -> bool:
-        return is_unstable(self.mean, self.stddev)
-
 
 def is_unstable(mean: float, stddev: float | None) -> bool:
     """stddev >= UNSTABLE_RELATIVE_STDDEV of the mean (never with a single run)."""

@@ -7,18 +7,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.store import atomic, records
+from harness.store import atomic, records, superseded
 from harness.store.columns import UNPLANNED, match_values
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import CellResult
-from harness.store.superseded import (
-    UNKNOWN_MACHINE,
-    Stored,
-    by_group,
-    current_by_machine,
-    superseded,
-)
+from harness.store.superseded import UNKNOWN_MACHINE, Stored
 from harness.store.trust import DamagedFile
 
 
@@ -28,10 +22,6 @@ class PlannedCell:
 
     key: CellKey
     subject: tuple[str, ...] = ()
-
-    @property
-    def cell_id(self) -> str:
-        return self.key.id
 
 
 @dataclass(frozen=True)
@@ -66,7 +56,7 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
                  ) -> list[Listed]:
     """results.csv's records, in plan order (docs/results.md says which); one of no
     known machine unless a newer timing of the cell exists."""
-    groups, timed = by_group(stored), by_group(stored, timed=True)
+    groups, timed = superseded.by_group(stored), superseded.by_group(stored, timed=True)
     rows: list[Listed] = []
     done: set[str] = set()
     for cell in planned:
@@ -75,14 +65,14 @@ def current_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], machi
             continue
         done.add(group)
         members = groups.get(group, [])
-        current = next((m for m in members if m.cell_id == cell.cell_id), None)
-        own = current or current_by_machine(members).get(machine_id)
+        current = next((m for m in members if m.cell_id == cell.key.id), None)
+        own = current or superseded.current_by_machine(members).get(machine_id)
         if own is not None:
             rows.append(Listed(own.result, current is None))
         # another machine's newest timing of the cell, however its runs were taken: a config
         # that changes its measure settings or starts counting instructions does not hide
         # what other machines measured before
-        others = current_by_machine(timed.get(cell.key.timed_group, []))
+        others = superseded.current_by_machine(timed.get(cell.key.timed_group, []))
         for machine in sorted(m for m in others if m != machine_id):
             item = others[machine]
             stale = (item.key.binary_sha256 != cell.key.binary_sha256
@@ -98,7 +88,7 @@ def earlier_rows(stored: Sequence[Stored], planned: Sequence[PlannedCell], rows:
               for r in rows}
     plan_of = {cell.subject: cell.key for cell in planned}
     newest: dict[tuple[str, tuple[str, ...]], Stored] = {}
-    old = {id(s) for s in superseded(stored)}
+    old = {id(s) for s in superseded.superseded(stored)}
     for item in sorted((s for s in stored if id(s) not in old), key=lambda s: s.age):
         place = (item.machine_id, _subject(item))
         if place not in listed:

@@ -66,8 +66,7 @@ def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
             fcntl.flock(fd, fcntl.LOCK_EX)
         with contextlib.suppress(OSError):  # a world-writable lock left by another user
             os.fchmod(fd, 0o666)
-        info = {"pid": os.getpid(), "config": config,
-                "started": now_iso()}
+        info = {"pid": os.getpid(), "config": config, "started": now_iso()}
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
         try:
@@ -118,10 +117,9 @@ class RunLock(contextlib.ExitStack):
     measure (a run of cached cells or --dry-run takes none), held until the run ends, so the
     configs of one run are not interleaved with another run's."""
 
-    def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None,
-                 path: Path | None = None) -> None:
+    def __init__(self, configs: str, wait: bool = True, log: TextIO | None = None) -> None:
         super().__init__()
-        self._lock = functools.partial(measuring_lock, configs, wait, log, path)
+        self._lock = functools.partial(measuring_lock, configs, wait, log)
         self.held = False
 
     def acquire(self) -> None:

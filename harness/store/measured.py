@@ -98,9 +98,8 @@ class Noise:
 
 @dataclass(frozen=True)
 class Phases:
-    """Where the --precise run's time went (--timing), in seconds summed over the run; of the
-    simulation: the variant's pair finder (broad phase and pair tests), wall candidates,
-    merging and sorting the candidates, the greedy resolution walk, moving the discs."""
+    """Where the --precise run's time went (--timing), in seconds summed over the run
+    (docs/results.md, "Where the time goes", says what each phase holds)."""
 
     input_s: float | None = None
     sim_s: float | None = None
@@ -135,19 +134,16 @@ class ThreadWork:
 
 @dataclass(frozen=True)
 class Memory:
-    """The cell's peak resident memory in MiB: the largest ru_maxrss of its untimed runs of its
-    own program on its own input (harness.measure.proc.peak_mib). Not the timed runs:
-    hyperfine's own resident set (about 3 MiB) would hide a small variant's."""
+    """The cell's peak resident memory in MiB (harness.measure.proc.peak_mib; docs/results.md,
+    "Peak memory": of which runs, and why not the timed ones)."""
 
     peak_rss_mib: float | None = None
 
 
 @dataclass(frozen=True)
 class Ranks:
-    """A cell run as MPI ranks: how mpirun placed them (whether more ranks and threads than
-    cores shared them, and its --bind-to), and from the --precise run's --timing: the seconds
-    a rank spent in MPI calls, the bytes a rank moved in a step's exchange (the most over the
-    ranks and their mean) and the ranks' peak resident memory (the most and the sum, MiB)."""
+    """A cell run as MPI ranks: how mpirun placed them, and from the --precise run's --timing
+    the ranks' MPI seconds, bytes per step and memory (docs/results.md, "MPI ranks")."""
 
     ranks_oversubscribed: bool | None = None
     ranks_binding: str | None = None
@@ -212,13 +208,10 @@ class Checks:
 
 @dataclass(frozen=True)
 class ProgramVerdict:
-    """A program's check against seq (harness.programs.cell): its verdict, its first wrong
-    step (or, not wrong, the first step it leaves seq's rounding; None: never), the rule that
-    step breaks, the data races ThreadSanitizer found in it (`FILE:LINE and FILE:LINE
-    (variables)`, `;`-separated; `none`; None where it was not checked: a program without
-    `build:`, or another cell than its highest thread count's), and what grading cost beyond
-    its run (seconds: its print-mode check run and the verdict, and of that the reference's
-    replays)."""
+    """A program's check against seq (harness.programs.cell; docs/programs.md, "The check",
+    "Data races", "How long a check takes"). races: `FILE:LINE and FILE:LINE (variables)`,
+    `;`-separated; `none`; None where not checked (a program without `build:`, or another cell
+    than its highest thread count's)."""
 
     program: JsonObject | None = None
     check_command: str | None = None
@@ -235,10 +228,8 @@ class ProgramVerdict:
 
 @dataclass(frozen=True)
 class Instructions:
-    """The instruction lane (`metric: instructions`, harness.plan.lane): the fewest and the
-    most instructions of the cell's counted runs (user space, every thread), each count, the
-    counter, the binary it ran (under cachegrind a build without AVX-512), and why a count is
-    missing."""
+    """The instruction lane (`metric: instructions`, harness.plan.lane; docs/instructions.md,
+    "What is counted, and with what")."""
 
     instructions: int | None = None
     instructions_max: int | None = None
@@ -250,9 +241,8 @@ class Instructions:
 
 @dataclass(frozen=True)
 class OmpCosts:
-    """The OpenMP runtime's cost of one operation at the cell's thread count on its machine
-    (`openmp_costs: true`, build/ompcost), in ns: an empty parallel region (a team fork and its
-    closing barrier), a barrier inside a team, one chunk of a dynamic schedule, and a region
+    """The OpenMP runtime's cost of one operation at the cell's thread count on its machine, in
+    ns (docs/results.md, "What the runtime's operations cost"); nested_region_ns: a region
     forked by every thread of an outer team at once (None where T*T threads were too many)."""
 
     region_ns: float | None = None

@@ -7,13 +7,12 @@ from one place (docs/results.md). Standard library only."""
 from __future__ import annotations
 
 import functools
-import statistics
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
 from harness.store import measured
-from harness.store.columns import LIST_COLUMNS, TIMED_STATUSES, parse_list
+from harness.store.columns import LIST_COLUMNS, parse_list
 from harness.store.measured import GROUPS, TimedRun
 from harness.store.model import CellKey, KeyFormatError, type_hints, typed
 
@@ -57,11 +56,6 @@ class CellResult:
     provenance: measured.Provenance | None = None
 
     @property
-    def timed(self) -> bool:
-        """Whether its runs are timed: it ran to the end (ok, or invalid output)."""
-        return self.status in TIMED_STATUSES
-
-    @property
     def retry(self) -> bool:
         """Marked to be measured again by the next run (a Slurm task lost with its node)."""
         return bool(self.provenance and self.provenance.retry)
@@ -79,23 +73,6 @@ class CellResult:
         for run in sorted(self.times, key=lambda run: typing.cast(int, run.round)):
             grouped.setdefault(typing.cast(int, run.round), []).append(run.time_s)
         return {k: tuple(v) for k, v in grouped.items()}
-
-    def by_round(self) -> dict[int, float]:
-        """The median of its runs in each round (stats.MeasuredInRounds)."""
-        return {k: statistics.median(v) for k, v in self.round_times().items()}
-
-    def noise_by_round(self) -> dict[int, float]:
-        return self._per_round(self.noise.round_noise if self.noise else None)
-
-    def pressure_by_round(self) -> dict[int, float]:
-        return self._per_round(self.noise.round_pressure if self.noise else None)
-
-    def _per_round(self, values: tuple[float, ...] | None) -> dict[int, float]:
-        """A value recorded once per round, by round; empty unless every round has one."""
-        rounds = list(self.round_times())
-        if values is None or len(rounds) != len(values):
-            return {}
-        return dict(zip(rounds, values, strict=True))
 
     def value(self, name: str) -> object:
         """A results.csv column's value; None where the record has none."""

@@ -1,8 +1,7 @@
-"""Every stored file is checked before it is trusted (docs/results.md): one that cannot be
-read, was cut short, was altered or is not what its name says is a DamagedFile, named in one
-line, and what rests on it is rebuilt or measured again. Here, hyperfine's exports of a
-record and the reference outputs kept under results/.cache/; a record is checked where it is
-read (records.check_record), results.csv in harness.analysis.export. Standard library only."""
+"""Stored files checked before they are trusted (docs/results.md, "Checked before trusted"):
+here hyperfine's exports of a record and the reference outputs kept under results/.cache/; a
+record is checked where it is read (records.check_record), results.csv in
+harness.analysis.export. Standard library only."""
 
 import hashlib
 from pathlib import Path

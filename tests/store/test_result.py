@@ -65,9 +65,6 @@ def test_runs_are_values_with_their_rounds() -> None:
     result = CellResult.from_json(record())
     assert result.times[1] == TimedRun(1.5, 1)
     assert result.round_times() == {0: (1.0, 3.0), 1: (1.5, 2.0)}
-    assert result.by_round() == {0: 2.0, 1: 1.75}
-    assert result.noise_by_round() == {0: 0.1, 1: 0.6}
-    assert result.pressure_by_round() == {}
     before_rounds = CellResult.from_json(record(wall_times_round=None))
     assert before_rounds.times[0] == TimedRun(1.0, None) and before_rounds.round_times() == {}
     assert "wall_times_round" not in before_rounds.to_json()
@@ -121,11 +118,3 @@ def test_no_group_is_named_as_a_field() -> None:
     assert {"subject", "timing", "memory", "mpi", "provenance"} <= groups
     assert not groups & record_fields()
 
-
-def test_two_stored_results_pair_by_round() -> None:
-    from harness import stats
-
-    old = CellResult.from_json(record())
-    new = CellResult.from_json(record(wall_times_s=[2.0, 3.0, 4.0, 6.0]))
-    paired = stats.paired_sides(old, new)  # each round's median, in round order
-    assert (paired.old, paired.new, paired.shift) == ([2.0, 1.75], [4.0, 3.5], [0.0, 0.0])
