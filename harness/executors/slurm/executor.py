@@ -1,11 +1,8 @@
-"""Slurm as an executor (docs/slurm.md): each pending cell is one task of a job array, which
-`collide-bench worker` measures on its node, writing the cell's record into the shared results
-directory. Validation runs on the node: seq's output is cached on the shared file system by the
-first task that needs it (two racing both compute it; os.replace keeps one). A task's state
-comes from its record on disk (the truth for every task that ran to the end), then from Slurm
-(client). A task that ends without a record gets one from the submitter, under the cell id it
-planned with: `timeout` past its time limit, else `failed` and `retry` (the next run submits
-the cell again).
+"""Slurm as an executor: each pending cell is one task of a job array, measured on its node
+(docs/slurm.md says what a task does, and how a fault is recorded). Two tasks that race to
+cache seq's output both compute it; os.replace keeps one. A task's state comes from its record
+on disk (the truth for every task that ran to the end), then from Slurm (client); a task that
+ends without one gets its record from the submitter, under the cell id it planned with.
 """
 
 import dataclasses
@@ -99,7 +96,6 @@ class SlurmExecutor:
                  for cell, cid in pending}
         log = experiment.log
         watch = client.RecordWatch(experiment.store.layout.cells)
-        watch.snapshot()
         with locks.file_lock(slurm_dir / client.LOCK_FILE):
             state = client.JobState.load(slurm_dir / client.JOBS_FILE)
             if not options.force:
