@@ -1,8 +1,6 @@
-"""What the machine did to a timed round, measured rather than guessed (docs/compare.md,
-"Noise, measured", names the sources): the CPU time stolen and taken by others on this
-process's cores, the children's own CPU time and involuntary context switches, and the CPU
-pressure. Migrations are not counted: the kernel gives them only while the process lives
-(/proc/<pid>/sched), and the runs are hyperfine's children."""
+"""What the machine did to a timed round, measured rather than guessed (the sources:
+docs/compare.md, "Noise, measured"). Migrations are not counted: the kernel gives them only
+while the process lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
 
 import os
 import re

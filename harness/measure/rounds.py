@@ -147,7 +147,7 @@ class CellRun(stats.MeasuredInRounds):
     loaded: bool = False
     stopped: str = ""  # why its timing stopped (STOPPED_*); "" while it goes on
     # Runs a round for each run the measure counts: a paired cell's rounds each time a few
-    # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
+    # runs, whose median a stray run cannot move (harness.executors.rounds.share_rounds)
     per_round: int = 1
     # Rounds a comparison asks of the cell beyond its measure's runs (harness.runner.pair)
     min_rounds: int = 0
@@ -161,7 +161,7 @@ class CellRun(stats.MeasuredInRounds):
     capacity_s: float = 0.0  # the cores' seconds over its rounds
     retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
-    # and the JSON text of every other field (harness.measure.rounds._texts)
+    # and the JSON text of every other field (_texts)
     saved: tuple[Path, dict[str, int], tuple[dict[str, str], dict[str, str]]] | None = field(
         default=None, init=False, repr=False, compare=False)
 
