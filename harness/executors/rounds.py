@@ -1,10 +1,7 @@
-"""Measuring many cells in alternating rounds, in this process (the local executor).
-
-First every cell's untimed runs (Measurer.start), then rounds: in each, every cell that still
-needs runs gets one hyperfine call, in an order shuffled from the run's seed, so that the
-machine's slow drift falls on all cells alike. Partners (the two sides of a comparison,
-harness.runner.pair) take the same runs a round, one right after the other, and stop together,
-so that their rounds can be compared pair by pair.
+"""Measuring many cells in alternating rounds, in this process (the local executor): first
+every cell's untimed runs (Measurer.start), then rounds (docs/configs.md, `measure:`).
+Partners (the two sides of a comparison, harness.runner.pair) take the same runs a round, one
+right after the other, and stop together, so that their rounds can be compared pair by pair.
 """
 
 from __future__ import annotations
@@ -69,10 +66,10 @@ Extend = Callable[[Sequence[Unit]], str]
 
 
 def _partners(units: Sequence[Unit]) -> Iterator[tuple[CellRun, CellRun]]:
-    """The runs of each started unit and its started partner."""
+    """The runs of each unit and its partner."""
     for unit in units:
-        if unit.partner is not None and unit.run is not None and unit.partner.run is not None:
-            yield unit.run, unit.partner.run
+        if unit.partner is not None:
+            yield unit.state, unit.partner.state
 
 
 def pair_up(units: Sequence[Unit]) -> None:
@@ -109,10 +106,9 @@ def hold_for_ratios(units: Sequence[Unit]) -> None:
     """A cell that its interval stopped goes on, within its limits, while a cell of its ratios
     still takes rounds, or while one of its ratios is wider than `ci`: a ratio's interval is
     over the rounds both sides have, and carries the run noise of both sides."""
-    going = {id(unit) for unit in units if unit.run is not None and not unit.run.done}
-    held = [unit for unit in units if unit.run is not None and unit.run.stopped == STOPPED_CI
-            and not unit.at_limit() and any(id(side) in going or not _ratio_narrow(unit, side)
-                                            for side in unit.ratio_sides)]
+    going = {unit for unit in units if not unit.state.done}
+    held = [unit for unit in units if unit.state.stopped == STOPPED_CI and not unit.at_limit()
+            and any(side in going or not _ratio_narrow(unit, side) for side in unit.ratio_sides)]
     for unit in held:
         unit.state.stopped = ""
 
@@ -149,19 +145,15 @@ def round_order(units: Sequence[Unit], rng: random.Random) -> list[Unit]:
     Why beside: a burst of others' work lasts from milliseconds to a second, so partners
     timed seconds apart in a round meet different bursts, and their round's ratio carries
     both; timed back to back they mostly meet the same machine."""
-    present = {id(unit) for unit in units}
-    placed: set[int] = set()
+    present = set(units)
+    placed: set[Unit] = set()
     blocks: list[list[Unit]] = []
     for unit in units:
-        if id(unit) in placed:
-            continue
-        block = [unit]
-        partner = unit.partner
-        if partner is not None and id(partner) in present and id(partner) not in placed:
-            block.append(partner)
-        placed.update(id(u) for u in block)
-        rng.shuffle(block)
-        blocks.append(block)
+        if unit not in placed:
+            block = [unit] if unit.partner not in present else [unit, unit.partner]
+            placed.update(block)
+            rng.shuffle(block)
+            blocks.append(block)
     rng.shuffle(blocks)
     return [unit for block in blocks for unit in block]
 
@@ -175,9 +167,8 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     for unit in units:
         unit.run = unit.measurer.resume(unit.cell, unit.cell_id)
     progress.resumed(sum(unit.run is not None for unit in units))
-    active: list[Unit] = []
     for index, unit in enumerate(units):
-        progress.starting(unit.cell_id, eta_s=_eta(units[index:], active)[1])
+        progress.starting(unit.cell_id, eta_s=_eta(units[index:], units[:index])[1])
         started = time.monotonic()
         if unit.run is None:
             unit.run = unit.measurer.start(unit.cell, unit.cell_id)
@@ -185,12 +176,10 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
         unit.measurer.keep(unit.run)  # an interruption from here on keeps its start
         unit.seconds += time.monotonic() - started
         progress.finished(time.monotonic() - started)
-        active.append(unit)
-    share_rounds(active)
-    join_ratios(active)
-    round_index = max((u.state.rounds[-1] for u in active if u.state.rounds), default=0)
-    active = _finish_done(active, on_done)
-    overhead = 0.0  # seconds a round's hyperfine call takes beyond its runs
+    share_rounds(units)
+    join_ratios(units)
+    round_index = max((u.state.rounds[-1] for u in units if u.state.rounds), default=0)
+    active = _finish_done(units, on_done)
     while active:
         round_index += 1
         order = round_order(active, random.Random(f"{seed}:{round_index}"))
@@ -203,7 +192,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
             unit.seconds += time.monotonic() - started
             spent += time.monotonic() - started
             runs += sum(unit.state.times[before:])
-        overhead = max(0.0, spent - runs) / len(order)
+        overhead = max(0.0, spent - runs) / len(order)  # seconds a call takes beyond its runs
         pair_up(order)
         hold_for_ratios(active)
         status = extend(order) if extend is not None else ""
@@ -216,7 +205,7 @@ def measure_in_rounds(units: Sequence[Unit], on_done: OnDone, progress: Progress
     return seed
 
 
-def _finish_done(active: list[Unit], on_done: OnDone) -> list[Unit]:
+def _finish_done(active: Sequence[Unit], on_done: OnDone) -> list[Unit]:
     for unit in active:
         if unit.state.done:
             on_done(unit, unit.measurer.finish(unit.state, unit.seconds))
@@ -230,8 +219,6 @@ def _eta(to_start: Sequence[Unit], started: Sequence[Unit],
     low = high = 0.0
     per_run: list[float] = []
     for unit in started:
-        if unit.run is None:
-            continue
         seconds = unit.state.per_run_s + overhead
         per_run.append(seconds)
         fewest, most = runs_left(unit.measure, unit.state)
@@ -248,12 +235,11 @@ class LocalExecutor:
 
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
-        measurer = Measurer(experiment.store, experiment.options.hyperfine, cores=experiment.cores,
-                            log=experiment.log,
-                            program_runner=experiment.options.program_runner)
-        if experiment.options.quiet_wait_s > 0:
-            measurer.quiet = QuietWait(experiment.options.quiet_wait_s, experiment.log,
-                                       experiment.config.name)
+        options = experiment.options
+        measurer = Measurer(experiment.store, options.hyperfine, cores=experiment.cores,
+                            log=experiment.log, program_runner=options.program_runner)
+        if options.quiet_wait_s > 0:
+            measurer.quiet = QuietWait(options.quiet_wait_s, experiment.log, experiment.config.name)
         units = [Unit(measurer, cell, cid) for cell, cid in pending]
         measure_in_rounds(units, lambda unit, record: on_record(unit.cell, unit.cell_id, record),
-                          progress, experiment.options.round_seed)
+                          progress, options.round_seed)

@@ -16,14 +16,12 @@ from typing import Protocol, TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.measure import environment, machine, mpi, noise
+from harness.measure import environment, machine, mpi, noise, timing
 from harness.measure.checks import Checker
 from harness.measure.instructions import count_runs
 from harness.measure.proc import exit_status, failure, peak_mib, run_captured, run_process, tail
 from harness.measure.references import References, compare
 from harness.measure.rounds import CellRun, next_runs, stop_reason, time_runs, timed_result
-from harness.measure.timing import measure_costs, parse_timing
-from harness.measure.timing import precise as precise_timing
 from harness.plan import lane
 from harness.plan.cells import Cell
 from harness.plan.cellstore import CellStore, measures_openmp_costs, ompcost_path
@@ -144,11 +142,11 @@ class Measurer:
         else:
             precise, output = run_process(argv, env, measure.timeout_s, memory=True), ""
         status, exit_code = exit_status(precise.returncode)
-        timing = parse_timing(precise.stderr) or {}
-        record = record.replace(**precise_timing(timing), stderr_tail=tail(precise.stderr),
+        reported = timing.parse_timing(precise.stderr) or {}
+        record = record.replace(**timing.precise(reported), stderr_tail=tail(precise.stderr),
                                 peak_rss_mib=peak_mib(precise))
         if place is not None:
-            record = record.replace(mpi=mpi.timing_fields(timing, place))
+            record = record.replace(mpi=mpi.timing_fields(reported, place))
         if status != OK:
             record = record.replace(note=failure("--precise run", precise, measure.timeout_s))
         elif cell.validate:
@@ -156,7 +154,8 @@ class Measurer:
         if status in TIMED_STATUSES and cell.checked:
             record = record.replace(checks=self.checker.run_checks(cell))
         if measures_openmp_costs(config, cell):
-            record = record.replace(openmp_costs=measure_costs(ompcost_path(), cell.threads, env))
+            costs = timing.measure_costs(ompcost_path(), cell.threads, env)
+            record = record.replace(openmp_costs=costs)
         return self.count(cell, CellRun(cell_id, key, record, status, exit_code, command,
                                         run_s=precise.seconds))
 

@@ -75,10 +75,9 @@ class Checker:
             "energy_drift_max": inv.energy_drift_max, "energy_bound": inv.energy_bound,
             "pair_collisions_run": inv.pair_collisions, "box_excess": inv.box_excess,
         })
-        others = [t for t in checks.thread_counts if t != cell.threads]
         run.values["chk_threads"] = all(
             self.references.print_output(run.binary, run.printed, t, cache=False) == run.text
-            for t in others)
+            for t in checks.thread_counts if t != cell.threads)
         if cell.promises_exact:
             run.values["chk_exact"] = run.binary == run.refs["seq"] or self.references.print_output(
                 run.refs["seq"], run.printed, 1, cache=True) == run.text

@@ -67,7 +67,6 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
             link = Path(tmp) / "input"
             link.symlink_to(input_file.resolve())
             argv = [*argv[:-1], str(link)]
-        run_env = {**env, **PASSIVE_ENV}
         if tool == PERF:
             wrapper = ["perf", "stat", "-x,", "-e", PERF_EVENT, "-o", str(logs / "perf.csv"),
                        "--"]
@@ -80,7 +79,7 @@ def count_once(tool: str, argv: Sequence[str], env: Mapping[str, str], timeout_s
             wrapper = [*pinned, "valgrind", "--tool=cachegrind", "--cache-sim=no",
                        "--cachegrind-out-file=/dev/null", "--trace-children=yes",
                        f"--log-file={logs}/cachegrind.%p"]
-        done = run_process([*wrapper, *argv], run_env, timeout_s)
+        done = run_process([*wrapper, *argv], {**env, **PASSIVE_ENV}, timeout_s)
         if done.returncode != 0:
             return None, failure(f"its {tool} run", done, timeout_s)
         texts = [p.read_text(errors="replace") for p in sorted(logs.iterdir())]

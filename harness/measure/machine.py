@@ -149,8 +149,7 @@ def container() -> str | None:
 def machine(repo_root: Path | None = None, make: str = "make") -> dict[str, object]:
     """The machine's description (compact; stored in every cell record) with `machine_id` and
     a short `label`. Cached per process: one compiler call a run."""
-    text = read_text(CPUINFO) or ""
-    cpu = cpu_description(parse_cpuinfo(text))
+    cpu = cpu_description(parse_cpuinfo(read_text(CPUINFO) or ""))
     cores = psutil.cpu_count(logical=False)
     logical = psutil.cpu_count(logical=True)
     if cpu["threads_per_core"] is None and cores and logical:

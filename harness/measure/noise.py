@@ -1,8 +1,6 @@
-"""What the machine did to a timed round, measured rather than guessed (docs/compare.md,
-"Noise, measured", names the sources): the CPU time stolen and taken by others on this
-process's cores, the children's own CPU time and involuntary context switches, and the CPU
-pressure. Migrations are not counted: the kernel gives them only while the process lives
-(/proc/<pid>/sched), and the runs are hyperfine's children."""
+"""What the machine did to a timed round, measured rather than guessed (the sources:
+docs/compare.md, "Noise, measured"). Migrations are not counted: the kernel gives them only
+while the process lives (/proc/<pid>/sched), and the runs are hyperfine's children."""
 
 import os
 import re
@@ -14,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.measure.machine import read_text
-from harness.stats import DISTURBED_LIMIT, NOISE_LIMIT
+from harness.stats import DISTURBED_LIMIT
 
 PROC_STAT = Path("/proc/stat")
 # "some total=" is the microseconds during which at least one runnable task waited for a CPU
@@ -52,14 +50,13 @@ class Sample:
     ticks: tuple[int, int] | None  # (busy, steal) on the cores
     own_cpu_s: float  # user + system seconds of the reaped children
     own_nivcsw: int  # their involuntary context switches
-    load1: float
     pressure_s: float | None = None  # seconds some task waited for a CPU (cpu_pressure_s)
 
 
 def sample(cores: Sequence[int]) -> Sample:
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return Sample(time.monotonic(), cpu_ticks(cores), usage.ru_utime + usage.ru_stime,
-                  usage.ru_nivcsw, os.getloadavg()[0], cpu_pressure_s())
+                  usage.ru_nivcsw, cpu_pressure_s())
 
 
 @dataclass(frozen=True)
@@ -71,7 +68,6 @@ class RoundNoise:
     other_cpu_s: float  # busy time on the cores beyond the timed children's own
     own_cpu_s: float
     nivcsw: int  # involuntary context switches of the timed children
-    load1: float
     cores: int
     waited_s: float | None = None  # how long some task waited for a CPU (None: not given)
 
@@ -89,10 +85,6 @@ class RoundNoise:
         if self.waited_s is None or self.wall_s <= 0:
             return None
         return min(1.0, self.waited_s / self.wall_s)
-
-    @property
-    def interfered(self) -> bool:
-        return self.share > NOISE_LIMIT
 
     @property
     def disturbed(self) -> bool:
@@ -113,7 +105,7 @@ def between(before: Sample, after: Sample, cores: int) -> RoundNoise:
     if before.pressure_s is not None and after.pressure_s is not None:
         waited = max(0.0, after.pressure_s - before.pressure_s)
     return RoundNoise(after.at - before.at, steal, other, own,
-                      after.own_nivcsw - before.own_nivcsw, after.load1, cores, waited)
+                      after.own_nivcsw - before.own_nivcsw, cores, waited)
 
 
 def others_share(cores: Sequence[int], seconds: float = 0.5) -> float | None:

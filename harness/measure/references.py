@@ -106,8 +106,6 @@ class References:
 class Comparison:
     identical: bool  # byte for byte
     comparable: bool  # same particles (and steps) in both outputs
-    n_reference: int
-    n_candidate: int
     max_pos_err: float
     max_vel_err: float
     count_mismatches: int
@@ -119,18 +117,18 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
     try:
         cand = parse_output(candidate)
     except OutputFormatError:
-        return _incomparable(ref.final.n, 0)
+        return _incomparable(ref.final.n)
     a, b = ref.final, cand.final
     same_rows = ref.history.shape == cand.history.shape and np.array_equal(
         ref.history[:, :2], cand.history[:, :2])
     if a.step != b.step or not np.array_equal(a.index, b.index) or not same_rows:
-        return _incomparable(a.n, b.n, identical)
+        return _incomparable(a.n, identical)
     pos = max(max_distance(a.position, b.position),
               max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
     vel = max(max_distance(a.velocity, b.velocity),
               max_distance(ref.history[:, 4:6], cand.history[:, 4:6]))
     mismatches = int(np.count_nonzero((a.pcoll != b.pcoll) | (a.wcoll != b.wcoll)))
-    return Comparison(identical, True, a.n, b.n, pos / L, vel / L, mismatches)
+    return Comparison(identical, True, pos / L, vel / L, mismatches)
 
 
 def max_distance(p: np.ndarray, q: np.ndarray) -> float:
@@ -142,5 +140,5 @@ def max_distance(p: np.ndarray, q: np.ndarray) -> float:
     return float(distance.max())
 
 
-def _incomparable(n_ref: int, n_cand: int, identical: bool = False) -> Comparison:
-    return Comparison(identical, False, n_ref, n_cand, INCOMPARABLE, INCOMPARABLE, n_ref)
+def _incomparable(n_ref: int, identical: bool = False) -> Comparison:
+    return Comparison(identical, False, INCOMPARABLE, INCOMPARABLE, n_ref)

@@ -1,13 +1,13 @@
-"""A cell timed in rounds (docs/configs.md): one hyperfine call of a few runs a round, the
-rounds of all pending cells alternating (harness.executors), so that the machine's slow drift
-spreads over every cell instead of biasing the ones measured last. hyperfine is killed as a
-process group if it runs past (warmup + runs) timeouts; its export is kept as written.
+"""A cell timed in rounds (docs/configs.md, `measure:`): one hyperfine call of a few runs a
+round, the rounds of all pending cells alternating (harness.executors.rounds). hyperfine is
+killed as a process group if it runs past (warmup + runs) timeouts; its export is kept as
+written.
 
-CellRun holds what a cell has between rounds, and goes to <cell_id>.partial.jsonl once its
-untimed runs are done and after each of its hyperfine calls, so that an interrupted run
-resumes a cell where it stopped. The file is a log: its first line the whole state, then a
-line a save with what was added to the lists that only grow (GROWING) and the other fields
-that changed, so that a cell of many rounds does not rewrite its runs quadratically often."""
+CellRun holds what a cell has between rounds, kept in <cell_id>.partial.jsonl so that an
+interrupted run resumes a cell where it stopped (docs/configs.md, "What an interrupt loses").
+The file is a log: its first line the whole state, then a line a save with what was added to
+the lists that only grow (GROWING) and the other fields that changed, so that a cell of many
+rounds does not rewrite its runs quadratically often."""
 
 from __future__ import annotations
 
@@ -107,7 +107,11 @@ def outcome(done: ProcessResult, export: Path, target: Path
     if done.returncode != 0:
         status, code = hyperfine_failure(done.stderr)
         if status == FAILED and code is None:  # hyperfine's own failure, not the command's
-            export_fault(done.stderr, export)
+            atomic.check_room(export, "hyperfine's export")
+            found = HYPERFINE_OS_ERROR.search(done.stderr)
+            if found is not None and int(found[1]) in EXPORT_ERRNOS:
+                raise StorageError(f"{export.parent}: cannot write hyperfine's export: "
+                                   f"{os.strerror(int(found[1]))}")
         return status, code, None
     try:
         stats = load_hyperfine(export)
@@ -117,15 +121,6 @@ def outcome(done: ProcessResult, export: Path, target: Path
     with atomic.writing(target):
         os.replace(export, target)
     return OK, 0, stats
-
-
-def export_fault(stderr: str, export: Path) -> None:
-    """A StorageError where the place takes no more (atomic.check_room) or hyperfine says so."""
-    atomic.check_room(export, "hyperfine's export")
-    found = HYPERFINE_OS_ERROR.search(stderr)
-    if found is not None and int(found[1]) in EXPORT_ERRNOS:
-        raise StorageError(f"{export.parent}: cannot write hyperfine's export: "
-                           f"{os.strerror(int(found[1]))}")
 
 
 PARTIAL_VERSION = 3  # a line after the first holds only the fields that changed
@@ -152,7 +147,7 @@ class CellRun(stats.MeasuredInRounds):
     loaded: bool = False
     stopped: str = ""  # why its timing stopped (STOPPED_*); "" while it goes on
     # Runs a round for each run the measure counts: a paired cell's rounds each time a few
-    # runs, whose median a stray run cannot move (harness.executors.rounds.pair_up)
+    # runs, whose median a stray run cannot move (harness.executors.rounds.share_rounds)
     per_round: int = 1
     # Rounds a comparison asks of the cell beyond its measure's runs (harness.runner.pair)
     min_rounds: int = 0
@@ -166,7 +161,7 @@ class CellRun(stats.MeasuredInRounds):
     capacity_s: float = 0.0  # the cores' seconds over its rounds
     retaken: int = 0  # rounds taken again because others disturbed them (Measurer.time_round)
     # The partial file it was last kept in, with the length of each GROWING list there then
-    # and the JSON text of every other field (harness.measure.rounds._texts)
+    # and the JSON text of every other field (_texts)
     saved: tuple[Path, dict[str, int], tuple[dict[str, str], dict[str, str]]] | None = field(
         default=None, init=False, repr=False, compare=False)
 

@@ -5,14 +5,9 @@ experiment.
 
 Not submitit: submitit learns that a job ended from sacct; without Slurm's accounting database
 (slurmdbd + MariaDB, which many small clusters and our test cluster do not run) it never sees
-a cancelled job finish and waits forever. A task's state comes from squeue, which shows a
-finished task with its final state (TIMEOUT, CANCELLED, NODE_FAIL, ...) for MinJobAge (300 s by
-default) after it ended; then the jobcomp/filetxt completion file when the cluster keeps one
-(it needs no database); then sacct where accounting exists.
-
-A node writes its record under its own machine's cell id, which the submitter cannot know, so
-records are matched on their portable id. Submitters take <experiment>/slurm/lock while they
-read Slurm's view of their jobs and submit, so two never submit the same cell.
+a cancelled job finish and waits forever. Where a task's state comes from instead, and the
+lock submitters take: docs/slurm.md. A node writes its record under its own machine's cell
+id, which the submitter cannot know, so records are matched on their portable id.
 """
 
 from __future__ import annotations
@@ -149,9 +144,9 @@ class RecordWatch:
     run started count only once rewritten (--force)."""
 
     cells_dir: Path
-    seen: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (mtime_ns, inode)
+    seen: dict[str, tuple[int, int]] = field(init=False)  # name -> (mtime_ns, inode)
 
-    def snapshot(self) -> None:
+    def __post_init__(self) -> None:
         self.seen = dict(self._stamps())
 
     def _stamps(self) -> Iterator[tuple[str, tuple[int, int]]]:

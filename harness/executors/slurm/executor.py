@@ -1,15 +1,13 @@
-"""Slurm as an executor (docs/slurm.md): each pending cell is one task of a job array, which
-`collide-bench worker` measures on its node, writing the cell's record into the shared results
-directory. Validation runs on the node: seq's output is cached on the shared file system by the
-first task that needs it (two racing both compute it; os.replace keeps one). A task's state
-comes from its record on disk (the truth for every task that ran to the end), then from Slurm
-(client). A task that ends without a record gets one from the submitter, under the cell id it
-planned with: `timeout` past its time limit, else `failed` and `retry` (the next run submits
-the cell again).
+"""Slurm as an executor: each pending cell is one task of a job array, measured on its node
+(docs/slurm.md says what a task does, and how a fault is recorded). Two tasks that race to
+cache seq's output both compute it; os.replace keeps one. A task's state comes from its record
+on disk (the truth for every task that ran to the end), then from Slurm (client); a task that
+ends without one gets its record from the submitter, under the cell id it planned with.
 """
 
 import dataclasses
 import datetime
+import functools
 import math
 import os
 import shlex
@@ -17,7 +15,7 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import cast
@@ -73,8 +71,7 @@ def time_limit_minutes(spec: ExecutorSpec, experiment: Experiment) -> int:
     # The slowest variant's settings (measure_by_variant) bound every task of the array.
     seconds = max(m.worst_case_s() + 2 * m.timeout_s
                   for m in (config.measure, *map(config.measure_for, config.variants)))
-    seconds += TIME_LIMIT_SLACK_S
-    return max(1, math.ceil(seconds / 60))
+    return max(1, math.ceil((seconds + TIME_LIMIT_SLACK_S) / 60))
 
 
 @dataclass
@@ -99,7 +96,6 @@ class SlurmExecutor:
                  for cell, cid in pending}
         log = experiment.log
         watch = client.RecordWatch(experiment.store.layout.cells)
-        watch.snapshot()
         with locks.file_lock(slurm_dir / client.LOCK_FILE):
             state = client.JobState.load(slurm_dir / client.JOBS_FILE)
             if not options.force:
@@ -280,7 +276,7 @@ class SlurmExecutor:
                       for job_id in sorted({t.job_id for t in open_tasks.values()})}
             # after squeue: a task it shows ended has written its record by now
             arrived.update(watch.new_records())
-            finals: dict[str, dict[int, str]] = {}
+            finals = functools.cache(client.completed_states)  # asked once a job a poll
             running = waiting = 0
             for pid, task in list(open_tasks.items()):
                 cell, cid = cells[pid]
@@ -324,13 +320,11 @@ class SlurmExecutor:
 
 
 def _slurm_state(task: Task, states: Mapping[str, dict[int, str] | None],
-                 finals: dict[str, dict[int, str]], arrived: bool) -> str:
-    """A task's Slurm state: squeue's while it lists the task, else sacct's for one whose
-    record has not arrived (asked once a job in `finals`), else none."""
+                 finals: Callable[[str], dict[int, str]], arrived: bool) -> str:
+    """A task's Slurm state: squeue's while it lists the task, else the final one (`finals`)
+    for one whose record has not arrived, else none."""
     seen = (states[task.job_id] or {}).get(task.index)
     if seen is None and not arrived:
-        if task.job_id not in finals:
-            finals[task.job_id] = client.completed_states(task.job_id)
-        return finals[task.job_id].get(task.index, "")
+        return finals(task.job_id).get(task.index, "")
     return seen or ""
 
