@@ -100,7 +100,7 @@ def render_report(options: Options, report_dir: Path, names: list[str]) -> Path:
     from harness.report.pipeline import render
 
     command.check_derived(options.results_root, sys.stderr)
-    out = command.report_dir / command.QUICK_REPORT if options.quick else command.report_dir
+    out = report_dir / command.QUICK_REPORT if options.quick else report_dir
     return render(options.results_root, out, include_quick=options.quick,
                   experiments=names if options.quick else None,
                   features=REPORT_FEATURES).with_suffix(".html")

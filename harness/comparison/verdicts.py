@@ -41,6 +41,8 @@ APART = "measured apart"
 # Verdicts of a compared cell (harness.stats).
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
+# Kinds of a row listed but not compared (harness.analysis.resultsets).
+NOT_OK, OLD_ONLY, NEW_ONLY = resultsets.NOT_OK, resultsets.OLD_ONLY, resultsets.NEW_ONLY
 
 # The instruction lane's verdicts and the kinds of its rows that are listed but not judged.
 MORE = "more instructions"
@@ -248,8 +250,7 @@ class Metric(resultsets.Quantity):
     undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
 
 
-_NOT_COMPARED = ((resultsets.NOT_OK, "not compared (not ok)"), (resultsets.OLD_ONLY, "old only"),
-                 (resultsets.NEW_ONLY, "new only"))
+_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"), (NEW_ONLY, "new only"))
 TIME = Metric(*dataclasses.astuple(resultsets.TIME_QUANTITY), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)
@@ -257,7 +258,7 @@ INSTRUCTIONS = Metric(
     *dataclasses.astuple(resultsets.INSTRUCTIONS_QUANTITY), judge_counts, list,
     ((MORE, "more"), (FEWER, "fewer"), (SAME, "the same"), (WITHIN, "within their variation")),
     ((NOT_COUNTED, "not counted"), (OTHER_TOOL, "counted by different counters"),
-     (resultsets.NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
+     (NOT_OK, "not ok"), _NOT_COMPARED[1], _NOT_COMPARED[2]), MORE, FEWER, "")
 METRICS: dict[str, Metric] = {m.name: m for m in (TIME, INSTRUCTIONS)}
 
 
