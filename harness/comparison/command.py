@@ -150,9 +150,9 @@ def _measure(args: argparse.Namespace, paths: list[str], hooks: command.Hooks) -
         0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S)
     lock = command.measuring_lock(args, paths)
     with lock:
-        measured = measure_sides(old_side, new_side, configs, args.out, registry, lock, sys.stderr,
-                                 args.hyperfine, threshold=args.threshold, q=verdicts.FDR_Q,
-                                 budget_s=budget_s, program_runner=hooks.program_runner)
+        measured = measure_sides(old_side, new_side, configs, args.out, registry,
+                                 command.options(args, hooks, lock), sys.stderr,
+                                 threshold=args.threshold, q=verdicts.FDR_Q, budget_s=budget_s)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
@@ -169,8 +169,8 @@ def _calibrate(args: argparse.Namespace, paths: list[str], hooks: command.Hooks)
     lock = command.measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
-        together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
-                                     args.hyperfine, hooks.program_runner)
+        together, blocks = calibrate(configs, root.calibration_runs, registry,
+                                     command.options(args, hooks, lock), sys.stderr)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
     here = machine_id()
     result = calibration_from(here, " ".join(paths), (together.old, together.new), blocks,

@@ -69,17 +69,16 @@ def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     revisions, paths = split_items(args.items)
     registry, configs = command.load_configs(paths, args.metric)
     repo = args.repo.resolve()
-    results_root = args.results_dir.resolve()
     full = commits_in(revisions, repo)
     commits = [c for k, c in enumerate(full) if k % args.every == 0 or k == len(full) - 1]
     order = {c.sha: k for k, c in enumerate(full)}  # each commit's place in the range
     lock = command.measuring_lock(args, args.items)
+    options = command.options(args, hooks, lock)
     with lock:
-        measure_history(commits, configs, results_root, sys.stderr, repo, args.hyperfine, lock,
-                        hooks.program_runner)
+        measure_history(commits, configs, options, sys.stderr, repo)
         here = machine_id()
         for config in configs:
-            exp = ResultsRoot(results_root).experiment(config.name)
+            exp = ResultsRoot(options.results_root).experiment(config.name)
             metrics = ((TIME_QUANTITY, INSTRUCTIONS_QUANTITY) if config.counts_instructions
                        else (TIME_QUANTITY,))
             found = [series.detect(s, args.max_p) for metric in metrics
@@ -88,8 +87,7 @@ def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
                 raise HarnessError(f"{config.name}: no commit of the range has a measured cell")
             if args.bisect:  # what the series found is kept should bisection stop
                 publish(config, exp, found, order, args)
-                bisect_all(config, found, full, order, results_root, repo, lock, args.hyperfine,
-                           registry, hooks.program_runner)
+                bisect_all(config, found, full, order, options, repo, registry)
             summarise(config, exp, found, order, len(commits), args)
     return 0
 
