@@ -42,12 +42,10 @@ BLOCKS = 3  # a calibration's runs measured apart
 
 @dataclass
 class UntilDecided:
-    """Rounds until decided: after each round, the cell pairs that reached a look of the
-    sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
-    control across every pair); a decided pair stops, an undecided one is given the rounds to
-    the next look while the budget lasts and the last look (stats.LAST_LOOK) is not reached,
-    and once the budget is spent every pair given more rounds stops. The budget counts the
-    seconds from the first look on: every pair gets the first look's rounds."""
+    """Rounds until decided (docs/compare.md, "Rounds until decided"): after each round, the
+    pairs at a look (stats.look_rounds) are judged together (stats.decide); a decided pair
+    stops, an undecided one runs to the next look until the last or until the budget, counted
+    from the first look on (every pair gets the first look's rounds), is spent."""
 
     pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
     threshold: float
