@@ -6,6 +6,7 @@ axis it ignores (`store migrate PATH...`: harness.analysis.migrate)."""
 
 import argparse
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 from harness.errors import HarnessError
@@ -56,42 +57,37 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
 def execute(args: argparse.Namespace, hooks: Hooks) -> int:
     with_results = args.action == "facts"
     directories = [d for path in args.paths for d in experiment_dirs(path, with_results)]
-    if args.action == "facts":
-        facts = VariantRegistry(REPO_ROOT).known.to_json()
-        for directory in directories:
-            index.write_variants(directory, facts)
-            sys.stdout.write(f"{directory}: wrote {layout.VARIANTS_JSON}\n")
-        return 0
-    if args.action == "upgrade":
-        from harness.analysis.migrate import upgrade_experiment
-
-        for directory in directories:
-            try:
-                done = upgrade_experiment(layout.ExperimentDir(directory))
-            except DamagedFile as exc:
-                raise HarnessError(str(exc)) from None
-            sys.stdout.write(f"{directory}: {done.rewritten} of {done.records} record(s) "
-                             "rewritten in the current version\n")
-        return 0
-    if args.action == "migrate":
-        for directory in directories:
-            sys.stdout.write(migrated(directory) + "\n")
-        return 0
+    facts = VariantRegistry(REPO_ROOT).known.to_json() if args.action == "facts" else {}
     for directory in directories:
-        done = prune(directory)
-        sys.stdout.write(f"{directory}: {done.moved} superseded record(s) moved to "
-                         f"{layout.HISTORY}/, {done.remaining} remain in {layout.CELLS}/\n")
+        sys.stdout.write(done(args.action, directory, facts) + "\n")
     return 0
 
 
-def migrated(directory: Path) -> str:
-    """What `store migrate` did to one experiment directory, in one line."""
-    from harness.analysis.migrate import migrate
+def done(action: str, directory: Path, facts: Mapping[str, object]) -> str:
+    """What the action did to one experiment directory, in one line (`facts`: the variants'
+    facts that `store facts` writes)."""
+    if action == "facts":
+        index.write_variants(directory, facts)
+        return f"{directory}: wrote {layout.VARIANTS_JSON}"
+    if action == "upgrade":
+        from harness.analysis.migrate import upgrade_experiment
 
-    facts = read_variants(layout.ExperimentDir(directory).variants_json)
-    if not facts.members:
-        return (f"{directory}: no {layout.VARIANTS_JSON}, so no variant is known to ignore an "
-                f"axis: nothing migrated (`store facts {directory}` writes them)")
-    done = migrate(directory, facts)
-    return (f"{directory}: {done.rekeyed} record(s) given their cell's key, {done.moved} "
-            f"superseded by an equivalent record moved to {layout.HISTORY}/")
+        try:
+            upgraded = upgrade_experiment(layout.ExperimentDir(directory))
+        except DamagedFile as exc:
+            raise HarnessError(str(exc)) from None
+        return (f"{directory}: {upgraded.rewritten} of {upgraded.records} record(s) rewritten "
+                "in the current version")
+    if action == "migrate":
+        from harness.analysis.migrate import migrate
+
+        known = read_variants(layout.ExperimentDir(directory).variants_json)
+        if not known.members:
+            return (f"{directory}: no {layout.VARIANTS_JSON}, so no variant is known to ignore "
+                    f"an axis: nothing migrated (`store facts {directory}` writes them)")
+        migrated = migrate(directory, known)
+        return (f"{directory}: {migrated.rekeyed} record(s) given their cell's key, "
+                f"{migrated.moved} superseded by an equivalent record moved to {layout.HISTORY}/")
+    pruned = prune(directory)
+    return (f"{directory}: {pruned.moved} superseded record(s) moved to {layout.HISTORY}/, "
+            f"{pruned.remaining} remain in {layout.CELLS}/")

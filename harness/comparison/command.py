@@ -12,7 +12,7 @@ import itertools
 import math
 import statistics
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,12 +38,12 @@ USAGE = ("compare OLD NEW | compare --measure OLD NEW CONFIG... | compare --cali
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = command.Parser(prog=prog, usage=f"{prog} [options] OLD NEW\n       {prog} --measure "
-                    f"[options] OLD NEW CONFIG...\n       {prog} --calibrate [options] "
-                    "CONFIG...",
-                    description="Compare two result sets cell by cell (NEW against OLD); with "
-                    "--measure, measure both sides first, together; with --calibrate, learn "
-                    "this machine's drift and false-verdict rate.")
+    parser = command.Parser(
+        prog=prog, usage=f"{prog} [options] OLD NEW\n       {prog} --measure [options] OLD NEW "
+        f"CONFIG...\n       {prog} --calibrate [options] CONFIG...",
+        description="Compare two result sets cell by cell (NEW against OLD); with --measure, "
+        "measure both sides first, together; with --calibrate, learn this machine's drift and "
+        "false-verdict rate.")
     parser.add_argument("paths", nargs="*", metavar="PATH",
                         help="OLD and NEW result directories (results/<name> or a results "
                         "root); with --measure, OLD and NEW revisions or directories of "
@@ -72,7 +72,7 @@ def parser(prog: str) -> argparse.ArgumentParser:
                         help="with --measure: add rounds to undecided cells until each is "
                         f"decided or this much measuring is spent (default: {DEFAULT_BUDGET_S:g}; "
                         f"with --metric {METRIC_INSTRUCTIONS}, 0: the counts decide)")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
                         help="where compare.md and compare.{png,svg} go, and with --measure the "
                         "sides' results (default: <repo>/results/compare)")
     command.add_flags(parser)
@@ -86,7 +86,6 @@ def parser(prog: str) -> argparse.ArgumentParser:
 
 def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     paths = [str(p) for p in args.paths]
-    out = args.out if args.out is not None else DEFAULT_OUT
     if args.calibrate:
         if not paths:
             raise HarnessError(f"--calibrate needs configs ({USAGE})")
@@ -94,7 +93,7 @@ def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     if args.measure:
         if len(paths) < 3:
             raise HarnessError(f"--measure needs OLD, NEW and at least one config ({USAGE})")
-        return _measure(args, paths, out, hooks)
+        return _measure(args, paths, hooks)
     if len(paths) != 2:
         raise HarnessError(f"expected OLD and NEW result directories ({USAGE})")
     old_path, new_path = (Path(p) for p in paths)
@@ -103,9 +102,10 @@ def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     roots = (old_path, old_path.parent, new_path, new_path.parent, args.results_dir)
     noise = [stats.session_noise(s for c in side.cells.values() for s in c.round_noise)
              for side in (old, new)]
-    drift = verdicts.find_drift((c.machine_id for s in (old, new) for c in s.cells.values()), roots,
-                       max((n for n in noise if math.isfinite(n)), default=math.nan))
-    return report(old, new, args, out, verdicts.allow_noise(drift, old, new), ())
+    noisier = max((n for n in noise if math.isfinite(n)), default=math.nan)
+    drift = verdicts.find_drift((c.machine_id for s in (old, new) for c in s.cells.values()),
+                                roots, noisier)
+    return report(old, new, args, verdicts.allow_noise(drift, old, new), ())
 
 
 def sides(old_path: Path, new_path: Path, old_machine: str | None,
@@ -123,7 +123,7 @@ def sides(old_path: Path, new_path: Path, old_machine: str | None,
     return old, new
 
 
-def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: verdicts.Drift,
+def report(old: Side, new: Side, args: argparse.Namespace, drift: verdicts.Drift,
            head: Sequence[str]) -> int:
     """The comparison by --metric, written and printed; its exit status."""
     metric = verdicts.METRICS[args.metric or METRIC_TIME]
@@ -134,13 +134,13 @@ def report(old: Side, new: Side, args: argparse.Namespace, out: Path, drift: ver
         raise HarnessError(f"nothing matched: no cell of {new.path} measured what a cell of "
                            f"{old.path} measured{counted} ({len(old.cells)} and "
                            f"{len(new.cells)} cells)")
-    text, written = write_outputs(old, new, rows, args.threshold, out, drift,
+    text, written = write_outputs(old, new, rows, args.threshold, args.out, drift,
                                   figure=not args.no_figure, head=head, metric=metric)
     sys.stdout.write(text + "\nwrote " + ", ".join(str(p) for p in written) + "\n")
     return verdicts.exit_status(rows, args.fail_on, metric)
 
 
-def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: command.Hooks) -> int:
+def _measure(args: argparse.Namespace, paths: list[str], hooks: command.Hooks) -> int:
     registry, configs = command.load_configs(paths[2:], args.metric)
     old_side = resolve("OLD", paths[0], args.results_dir)
     new_side = resolve("NEW", paths[1], args.results_dir)
@@ -150,9 +150,9 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: comma
         0.0 if args.metric == METRIC_INSTRUCTIONS else DEFAULT_BUDGET_S)
     lock = command.measuring_lock(args, paths)
     with lock:
-        measured = measure_sides(old_side, new_side, configs, out, registry, lock, sys.stderr,
-                                 args.hyperfine, threshold=args.threshold, q=verdicts.FDR_Q,
-                                 budget_s=budget_s, program_runner=hooks.program_runner)
+        measured = measure_sides(old_side, new_side, configs, args.out, registry,
+                                 command.options(args, hooks, lock), sys.stderr,
+                                 threshold=args.threshold, q=verdicts.FDR_Q, budget_s=budget_s)
     old, new = sides(measured.old, measured.new, None, None)
     old, new = (dataclasses.replace(old, path=Path(old_side.label)),
                 dataclasses.replace(new, path=Path(new_side.label)))
@@ -161,7 +161,7 @@ def _measure(args: argparse.Namespace, paths: list[str], out: Path, hooks: comma
             f"shuffled from seed {measured.seed}), rounds added to undecided cells for "
             f"{measured.spent_s:.0f} s of a {measured.budget_s:g} s budget; the sides' results: "
             f"{measured.old}, {measured.new}."]
-    return report(old, new, args, out, verdicts.MEASURED_TOGETHER, head)
+    return report(old, new, args, verdicts.MEASURED_TOGETHER, head)
 
 
 def _calibrate(args: argparse.Namespace, paths: list[str], hooks: command.Hooks) -> int:
@@ -169,8 +169,8 @@ def _calibrate(args: argparse.Namespace, paths: list[str], hooks: command.Hooks)
     lock = command.measuring_lock(args, paths)
     root = layout.ResultsRoot(args.results_dir)
     with lock:
-        together, blocks = calibrate(configs, root.calibration_runs, registry, lock, sys.stderr,
-                                     args.hyperfine, hooks.program_runner)
+        together, blocks = calibrate(configs, root.calibration_runs, registry,
+                                     command.options(args, hooks, lock), sys.stderr)
     description = environment.collect(REPO_ROOT, hyperfine=args.hyperfine)
     here = machine_id()
     result = calibration_from(here, " ".join(paths), (together.old, together.new), blocks,
@@ -270,18 +270,19 @@ def apart_drift(blocks: Sequence[Side]) -> float:
     return stats.log_ratio_drift(ratios, variances)
 
 
-def false_verdicts(old: Side, new: Side, threshold: float,
+def false_verdicts(pairs: Iterable[tuple[Side, Side]], threshold: float,
                    drift: verdicts.Drift) -> tuple[int, int]:
-    rows = verdicts.compare(old, new, threshold, drift)
-    compared = [r for r in rows if r.compared]
-    return sum(r.kind in (verdicts.SLOWER, verdicts.FASTER) for r in compared), len(compared)
+    """Between sides of identical binaries: the verdicts of slower or faster, of the compared."""
+    rows = [r for old, new in pairs for r in verdicts.compare(old, new, threshold, drift)
+            if r.compared]
+    return sum(r.kind in (verdicts.SLOWER, verdicts.FASTER) for r in rows), len(rows)
 
 
 def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
                      blocks: Sequence[Path], threshold: float) -> Calibration:
     """The calibration from the two sides measured together and the blocks measured apart."""
     old, new = side("OLD", measured[0]), side("NEW", measured[1])
-    measured_false, measured_compared = false_verdicts(old, new, threshold,
+    measured_false, measured_compared = false_verdicts([(old, new)], threshold,
                                                        verdicts.MEASURED_TOGETHER)
     spread = paired_spread(old, new)
     rounds = max((n for _, n in spread), default=0)
@@ -290,17 +291,15 @@ def calibration_from(machine: str, config: str, measured: tuple[Path, Path],
     block_sides = [side(f"block {k + 1}", root) for k, root in enumerate(blocks)]
     drift = apart_drift(block_sides)
     apart = verdicts.Drift(drift if math.isfinite(drift) else 0.0, "this calibration")
-    apart_verdicts = [false_verdicts(a, b, threshold, apart)
-                      for a, b in itertools.combinations(block_sides, 2)]
+    apart_false, apart_compared = false_verdicts(itertools.combinations(block_sides, 2),
+                                                 threshold, apart)
     noise = noise_profile([*old.cells.values(), *new.cells.values()])
     return Calibration(
         stolen=noise.stolen, others=noise.others, rounds_interfered=noise.dropped,
         rounds_noise=noise.rounds, waited=noise.waited, machine_id=machine,
-        date=records.now_iso(),
-        config=config, cells=cells, threshold=threshold, measured_false=measured_false,
-        measured_compared=measured_compared, drift=apart.sigma,
-        apart_false=sum(f for f, _ in apart_verdicts),
-        apart_compared=sum(c for _, c in apart_verdicts),
+        date=records.now_iso(), config=config, cells=cells, threshold=threshold,
+        measured_false=measured_false, measured_compared=measured_compared, drift=apart.sigma,
+        apart_false=apart_false, apart_compared=apart_compared,
         smallest_one=stats.smallest_detectable(sd, rounds, threshold,
                                                verdicts.FDR_Q / max(1, cells), POWER),
         smallest_all=stats.smallest_detectable(sd, rounds, threshold, verdicts.FDR_Q, POWER),

@@ -11,32 +11,14 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from harness.analysis.resultsets import FLAG_COLUMNS, Cell, Side, noise_profile
-from harness.comparison.verdicts import (
-    APART,
-    FASTER,
-    INCONCLUSIVE,
-    INSTRUCTIONS,
-    METRICS,
-    NEW_ONLY,
-    NOT_OK,
-    OLD_ONLY,
-    PAIRED,
-    SLOWER,
-    TIME,
-    UNCHANGED,
-    Drift,
-    Metric,
-    Row,
-    methods,
-    summary,
-)
+from harness.comparison import verdicts
 from harness.report.document import Table, markdown_table
 from harness.report.figures.base import log_axis, new_figure, save_figure
 from harness.store import atomic
 
 OUT_STEM = "compare"  # <out>/compare.md, <out>/compare.png, <out>/compare.svg
 MANY_ROUNDS = 1000  # beyond it, "to decide" says only that it is more
-CHANGES = {k for m in METRICS.values() for k in (m.worse, m.better)}  # shown in bold
+CHANGES = {k for m in verdicts.METRICS.values() for k in (m.worse, m.better)}  # shown in bold
 
 
 def _seconds(cell: Cell | None) -> str:
@@ -52,7 +34,7 @@ def _count(cell: Cell | None) -> str:
     return f"{cell.instructions:,.0f}"
 
 
-def ratio_text(row: Row, metric: Metric = TIME) -> str:
+def ratio_text(row: verdicts.Row, metric: verdicts.Metric = verdicts.TIME) -> str:
     """NEW/OLD, with its interval where it has one; a count's to six decimals."""
     if not math.isfinite(row.ratio):
         return "-"
@@ -62,11 +44,11 @@ def ratio_text(row: Row, metric: Metric = TIME) -> str:
     return text
 
 
-def _further_text(row: Row) -> str:
+def _further_text(row: verdicts.Row) -> str:
     """The rounds (together) or runs a side (apart) likely to decide an inconclusive cell."""
-    if row.kind != INCONCLUSIVE:
+    if row.kind != verdicts.INCONCLUSIVE:
         return ""
-    unit = "rounds" if row.method == PAIRED else "runs a side"
+    unit = "rounds" if row.method == verdicts.PAIRED else "runs a side"
     if row.beyond_more_runs:
         return "not by more runs (the drift)"
     if not math.isfinite(row.further):
@@ -76,33 +58,36 @@ def _further_text(row: Row) -> str:
     return f"~{row.further:.0f} {unit}"
 
 
-def _verdict(row: Row) -> str:
+def _verdict(row: verdicts.Row) -> str:
     return f"**{row.kind}**" if row.kind in CHANGES else row.kind
 
 
-Column = tuple[str, bool, Callable[[Row], str]]  # header, right-aligned, its text
+Column = tuple[str, bool, Callable[[verdicts.Row], str]]  # header, right-aligned, its text
 CELL: Column = ("cell", False, lambda r: r.key.label())
 NOTE: Column = ("note", False, lambda r: r.note)
 # Each metric's value of a cell (as its column names it), then the columns after NEW/OLD.
 VALUES: dict[str, tuple[str, Callable[[Cell | None], str]]] = {
-    TIME.name: ("median (s)", _seconds), INSTRUCTIONS.name: ("instructions", _count)}
+    verdicts.TIME.name: ("median (s)", _seconds),
+    verdicts.INSTRUCTIONS.name: ("instructions", _count)}
 COLUMNS: dict[str, tuple[Column, ...]] = {
-    TIME.name: (("p", True, lambda r: f"{r.p_value:.2g}" if math.isfinite(r.p_value) else "-"),
-                ("runs", True, lambda r: f"{len(r.old.times)}/{len(r.new.times)}"),  # type: ignore[union-attr]
-                ("verdict", False, _verdict), ("to decide", False, _further_text),
-                ("measured", False, lambda r: r.method)),
-    INSTRUCTIONS.name: (("NEW − OLD", True, lambda r: f"{r.difference:+,.0f}"
-                      if math.isfinite(r.difference) else "-"),
-                     ("verdict", False, _verdict))}
+    verdicts.TIME.name: (
+        ("p", True, lambda r: f"{r.p_value:.2g}" if math.isfinite(r.p_value) else "-"),
+        ("runs", True, lambda r: f"{len(r.old.times)}/{len(r.new.times)}"),  # type: ignore[union-attr]
+        ("verdict", False, _verdict), ("to decide", False, _further_text),
+        ("measured", False, lambda r: r.method)),
+    verdicts.INSTRUCTIONS.name: (
+        ("NEW − OLD", True, lambda r: f"{r.difference:+,.0f}" if math.isfinite(r.difference)
+         else "-"),
+        ("verdict", False, _verdict))}
 
 
-def _table(columns: Sequence[Column], rows: Iterable[Row]) -> list[str]:
+def _table(columns: Sequence[Column], rows: Iterable[verdicts.Row]) -> list[str]:
     return markdown_table(Table(tuple(c[0] for c in columns),
                                 tuple(tuple(c[2](r) for c in columns) for r in rows),
                                 tuple(c[1] for c in columns), ""))
 
 
-def _sides(old: Side, new: Side, metric: Metric) -> list[str]:
+def _sides(old: Side, new: Side, metric: verdicts.Metric) -> list[str]:
     """A line per side (cells, machine, commit, counter), and the noise each side met."""
     lines = []
     for side in (old, new):
@@ -118,7 +103,8 @@ def _sides(old: Side, new: Side, metric: Metric) -> list[str]:
     return lines
 
 
-def _cautions(rows: Sequence[Row], drift: Drift, metric: Metric) -> list[str]:
+def _cautions(rows: Sequence[verdicts.Row], drift: verdicts.Drift,
+              metric: verdicts.Metric) -> list[str]:
     """What weakens the times' verdicts: drift that more runs cannot beat, flagged cells."""
     if metric.exact:
         return []
@@ -139,16 +125,17 @@ def _cautions(rows: Sequence[Row], drift: Drift, metric: Metric) -> list[str]:
     return lines
 
 
-def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
-                    figure: str | None, drift: Drift, head: Sequence[str] = (),
-                    metric: Metric = TIME) -> str:
+def render_markdown(old: Side, new: Side, rows: Sequence[verdicts.Row], threshold: float,
+                    figure: str | None, drift: verdicts.Drift, head: Sequence[str] = (),
+                    metric: verdicts.Metric = verdicts.TIME) -> str:
     """`head`: lines about how the sides were measured (compare --measure)."""
     by = f" by {metric.name}" if metric.exact else ""
     lines = [f"# Comparison{by}: {new.path} against {old.path}", "", *_sides(old, new, metric)]
-    lines += [f"- {line}" for line in (*head, *methods(rows, threshold, drift, metric))]
-    lines += ["", f"**{summary(rows, metric)}.**", "", *_cautions(rows, drift, metric)]
+    lines += [f"- {line}" for line in (*head, *verdicts.methods(rows, threshold, drift, metric))]
+    lines += ["", f"**{verdicts.summary(rows, metric)}.**", "", *_cautions(rows, drift, metric)]
     header, value = VALUES[metric.name]
-    listed = [r for r in rows if r.kind not in (NOT_OK, OLD_ONLY, NEW_ONLY)]
+    listed = [r for r in rows
+              if r.kind not in (verdicts.NOT_OK, verdicts.OLD_ONLY, verdicts.NEW_ONLY)]
     if listed:
         interval = "" if metric.exact else " [95% CI]"
         lines += [*_table((CELL, (f"OLD {header}", True, lambda r: value(r.old)),
@@ -157,12 +144,12 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
                            *COLUMNS[metric.name], NOTE), listed), ""]
     if figure:
         lines += [f"![NEW/OLD per cell with 95% intervals]({figure})", ""]
-    not_ok = [r for r in rows if r.kind == NOT_OK]
+    not_ok = [r for r in rows if r.kind == verdicts.NOT_OK]
     if not_ok:
         lines += ["## Not compared: a side is not ok", "", *_table((
             CELL, ("OLD status", False, lambda r: r.old.status),  # type: ignore[union-attr]
             ("NEW status", False, lambda r: r.new.status), NOTE), not_ok), ""]  # type: ignore[union-attr]
-    for kind, title in ((OLD_ONLY, "Only in OLD"), (NEW_ONLY, "Only in NEW")):
+    for kind, title in ((verdicts.OLD_ONLY, "Only in OLD"), (verdicts.NEW_ONLY, "Only in NEW")):
         if only := [r for r in rows if r.kind == kind]:
             lines += [f"## {title} (not matched)", "", *_table((
                 CELL, ("status", False, lambda r: (r.old or r.new).status),  # type: ignore[union-attr]
@@ -170,9 +157,9 @@ def render_markdown(old: Side, new: Side, rows: Sequence[Row], threshold: float,
     return "\n".join(lines)
 
 
-def write_outputs(old: Side, new: Side, rows: Sequence[Row], threshold: float, out: Path,
-                  drift: Drift, figure: bool = True, head: Sequence[str] = (),
-                  metric: Metric = TIME) -> tuple[str, list[Path]]:
+def write_outputs(old: Side, new: Side, rows: Sequence[verdicts.Row], threshold: float,
+                  out: Path, drift: verdicts.Drift, figure: bool = True, head: Sequence[str] = (),
+                  metric: verdicts.Metric = verdicts.TIME) -> tuple[str, list[Path]]:
     """compare.md and, for times, its figure under `out`; the Markdown and the paths."""
     figures = write_figure(rows, threshold, out / OUT_STEM) if figure and not metric.exact \
         else []
@@ -194,35 +181,36 @@ LEGEND_BAND_IN = 0.85  # inches at the bottom for the x label and the legend bel
 LABEL_CHAR_IN = 0.068  # inches per character of an 8-point cell label, with room
 PLOT_WIDTH_IN = 5.5  # inches of axes beside the labels
 
-VERDICT_COLORS = {SLOWER: "#d62728", FASTER: "#2ca02c", UNCHANGED: "#1f77b4",
-                  INCONCLUSIVE: "#555555"}
+VERDICT_COLORS = {verdicts.SLOWER: "#d62728", verdicts.FASTER: "#2ca02c",
+                  verdicts.UNCHANGED: "#1f77b4", verdicts.INCONCLUSIVE: "#555555"}
 # What the ratio and its interval are, by the method the cells were compared with.
 RATIO_TEXT = {
-    PAIRED: "NEW / OLD, the median of the per-round ratios with its 95% interval",
-    APART: "NEW / OLD median wall time, with its 95% interval widened by the drift",
+    verdicts.PAIRED: "NEW / OLD, the median of the per-round ratios with its 95% interval",
+    verdicts.APART: "NEW / OLD median wall time, with its 95% interval widened by the drift",
 }
 
 
-def ratio_label(rows: Sequence[Row]) -> str:
+def ratio_label(rows: Sequence[verdicts.Row]) -> str:
     """The x axis label for the methods the shown rows used."""
-    methods = [m for m in (PAIRED, APART) if any(r.method == m for r in rows)]
+    methods = [m for m in (verdicts.PAIRED, verdicts.APART) if any(r.method == m for r in rows)]
     if len(methods) == 1:
         return f"{RATIO_TEXT[methods[0]]} (> 1: slower)"
     return "NEW / OLD with its 95% interval (> 1: slower; the method per cell: compare.md)"
 
 
-def figure_rows(rows: Sequence[Row], limit: int = MAX_FIGURE_CELLS) -> list[Row]:
+def figure_rows(rows: Sequence[verdicts.Row], limit: int = MAX_FIGURE_CELLS) -> list[verdicts.Row]:
     """The rows a figure shows, in table order: all when they fit, else the significant ones
     first and then the largest |log ratio|."""
     if len(rows) <= limit:
         return list(rows)
-    ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind in (UNCHANGED, INCONCLUSIVE),
+    undecided = (verdicts.UNCHANGED, verdicts.INCONCLUSIVE)
+    ranked = sorted(range(len(rows)), key=lambda i: (rows[i].kind in undecided,
                                                       -abs(math.log(rows[i].ratio))))
     keep = set(ranked[:limit])
     return [row for i, row in enumerate(rows) if i in keep]
 
 
-def write_figure(rows: Sequence[Row], threshold: float, stem: Path) -> list[Path]:
+def write_figure(rows: Sequence[verdicts.Row], threshold: float, stem: Path) -> list[Path]:
     plottable = [r for r in rows if r.compared and math.isfinite(r.ratio) and r.ratio > 0]
     if not plottable:
         return []

@@ -16,7 +16,6 @@ from pathlib import Path
 
 from harness import stats
 from harness.analysis import resultsets
-from harness.analysis.resultsets import NEW_ONLY, NOT_OK, OLD_ONLY  # kinds of compare's rows too
 from harness.spec.config import METRIC_INSTRUCTIONS
 from harness.store import layout, records, sessions
 from harness.store.columns import STOPPED_UNDECIDED
@@ -42,6 +41,8 @@ APART = "measured apart"
 # Verdicts of a compared cell (harness.stats).
 SLOWER, FASTER, UNCHANGED, INCONCLUSIVE = stats.SLOWER, stats.FASTER, stats.UNCHANGED, \
     stats.INCONCLUSIVE
+# Kinds of a row listed but not compared (harness.analysis.resultsets).
+NOT_OK, OLD_ONLY, NEW_ONLY = resultsets.NOT_OK, resultsets.OLD_ONLY, resultsets.NEW_ONLY
 
 # The instruction lane's verdicts and the kinds of its rows that are listed but not judged.
 MORE = "more instructions"
@@ -249,8 +250,7 @@ class Metric(resultsets.Quantity):
     undecided: str  # the verdict that fails it with --fail-on inconclusive ("": none)
 
 
-_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"),
-                 (NEW_ONLY, "new only"))
+_NOT_COMPARED = ((NOT_OK, "not compared (not ok)"), (OLD_ONLY, "old only"), (NEW_ONLY, "new only"))
 TIME = Metric(*dataclasses.astuple(resultsets.TIME_QUANTITY), compare_cells, decide_times,
               ((SLOWER, "slower"), (FASTER, "faster"), (UNCHANGED, "unchanged"),
                (INCONCLUSIVE, "inconclusive")), _NOT_COMPARED, SLOWER, FASTER, INCONCLUSIVE)

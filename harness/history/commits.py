@@ -12,11 +12,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TextIO
 
-from harness.analysis.resultsets import Cell, read_cells
+from harness.analysis.resultsets import read_cells
 from harness.errors import HarnessError, StorageError
 from harness.executors.base import Options
-from harness.history.series import Bisection, Series, cell_point
-from harness.measure.cell import ProgramRunner
+from harness.history.series import Bisection, Point, Series, cell_point
 from harness.plan.cells import plan_cells
 from harness.runner.experiment import run_experiment
 from harness.runner.pair import MeasuredSides, measure_sides, with_min_rounds
@@ -24,10 +23,9 @@ from harness.runner.sides import CODE_PATHS, BuildSide, build_plans, git, resolv
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store.atomic import atomic_write_json
-from harness.store.columns import MEASURED_BISECT
+from harness.store.columns import MEASURED_BISECT, MEASURED_SERIES
 from harness.store.index import CommitInfo, save_commits
 from harness.store.layout import ResultsRoot
-from harness.store.locks import RunLock
 
 # A commit's cell gets at least this many runs: the per-commit median the change-point test
 # reads then holds a 5% step at 5% run noise (docs/history.md).
@@ -68,12 +66,11 @@ def describe(sha: str, repo: Path) -> CommitInfo:
     return CommitInfo(sha, subject, touches)
 
 
-def measure_commit(side: BuildSide, config: Config, results_root: Path, log: TextIO,
-                   hyperfine: str, run_lock: RunLock,
-                   program_runner: ProgramRunner | None) -> None:
-    """Build and measure one commit's cells of a config (the ordinary run: its summary goes to
-    the log, not stdout)."""
-    exp = ResultsRoot(results_root).experiment(config.name)
+def measure_commit(side: BuildSide, config: Config, options: Options, log: TextIO) -> None:
+    """Build and measure one commit's cells of a config with `options` (the ordinary run, into
+    the commit's results root under the experiment's; its summary goes to the log, not
+    stdout)."""
+    exp = ResultsRoot(options.results_root).experiment(config.name)
     assert side.commit is not None, "a history measures revisions"
     failed = exp.build_failed(side.commit)
     if failed.is_file():  # did not build (recorded)
@@ -95,83 +92,73 @@ def measure_commit(side: BuildSide, config: Config, results_root: Path, log: Tex
                                    "error": str(exc)})
         log.write(f"{side.commit[:10]}: does not build: recorded, skipped ({exc})\n")
         return
-    options = Options(repo_root=side.repo_root, results_root=exp.commit_root(side.commit),
-                      hyperfine=hyperfine, executor="local", run_lock=run_lock,
-                      program_runner=program_runner)
+    options = dataclasses.replace(options, repo_root=side.repo_root, executor="local",
+                                  results_root=exp.commit_root(side.commit))
     run_experiment(config, options, log, io.StringIO(), registry)
 
 
-def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config],
-                    results_root: Path, log: TextIO, repo: Path, hyperfine: str,
-                    run_lock: RunLock, program_runner: ProgramRunner | None) -> None:
-    """Every commit's cells of every config, oldest first, each commit built once (a
-    program's cells measured by `program_runner`)."""
-    root = ResultsRoot(results_root)
+def measure_history(commits: Sequence[CommitInfo], configs: Sequence[Config], options: Options,
+                    log: TextIO, repo: Path) -> None:
+    """Every commit's cells of every config, oldest first, each commit built once, into the
+    results root of `options`."""
+    root = ResultsRoot(options.results_root)
     for config in configs:
         save_commits(root.experiment(config.name), commits)
     for k, commit in enumerate(commits, start=1):
         log.write(f"history: [{k}/{len(commits)}] {commit.short} {commit.subject}\n")
-        side = resolve(commit.short, commit.sha, results_root, repo)
+        side = resolve(commit.short, commit.sha, options.results_root, repo)
         for config in configs:
-            measure_commit(side, config, results_root, log, hyperfine, run_lock, program_runner)
+            measure_commit(side, config, options, log)
 
 
 def bisect_all(config: Config, series: Sequence[Series], full: Sequence[CommitInfo],
-               order: Mapping[str, int], results_root: Path, repo: Path, lock: RunLock,
-               hyperfine: str, registry: VariantRegistry,
-               program_runner: ProgramRunner | None = None) -> None:
+               order: Mapping[str, int], options: Options, repo: Path,
+               registry: VariantRegistry) -> None:
     """Name the commit of each change point that falls between measured commits with
     unmeasured ones between them (each series' bisections): halve [low, high] (low before the
     step, high after it) by measuring the middle commit against `low`'s, together in
     interleaved rounds; a ratio nearer the step than 1 puts the step at or before the middle.
     `registry`: this repository's variants, as the configs were loaded with."""
+    root = options.results_root
+    exp = ResultsRoot(root).experiment(config.name)
     pairs: dict[tuple[int, int], MeasuredSides] = {}  # another metric's bisection reuses them
-
-    def measured(low: int, middle: int, high: int, label: str) -> MeasuredSides:
-        if (low, middle) not in pairs:
-            old = resolve("OLD", full[low].sha, results_root, repo)
-            new = resolve("NEW", full[middle].sha, results_root, repo)
-            sys.stderr.write(f"bisect: {label}: {full[low].short}..{full[high].short}: "
-                             f"measuring {full[middle].short} against {full[low].short}\n")
-            out = ResultsRoot(results_root).experiment(config.name).bisect(
-                full[low].short, full[middle].short)
-            # Which side of a step already found is all a look needs: the first look's rounds
-            # place it, so no rounds are added to decide the cells' verdicts (budget 0).
-            pairs[(low, middle)] = measure_sides(old, new, [config], out, registry, lock,
-                                                 sys.stderr, hyperfine, budget_s=0.0,
-                                                 program_runner=program_runner)
-        return pairs[(low, middle)]
-
-    for s in series:
-        with_value = [k for k, p in enumerate(s.points) if p.value is not None]
-        for k, change in sorted(s.changes.items()):
-            before = max(m for m in with_value if m < k)
-            low, high = order[s.points[before].commit.sha], order[s.points[k].commit.sha]
-            points = []
-            while high - low > 1:
-                middle = (low + high) // 2
-                sides = measured(low, middle, high, s.label)
-                was = cell_point(full[low], side_cell(sides.old / config.name, s.label),
-                                 s.metric).value
-                point = cell_point(full[middle], side_cell(sides.new / config.name, s.label),
-                                   s.metric, MEASURED_BISECT)
-                points.append(point)
-                if point.value is None or was is None:
-                    raise HarnessError(f"bisect: {s.label} has no {s.metric.name} at both "
-                                       f"{full[low].short} and {full[middle].short}")
-                ratio = point.value.point / was.point
-                if abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2:
-                    high = middle
-                else:
-                    low = middle
-            if points:
-                s.bisections.append(Bisection(k, tuple(points), full[high]))
-                sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
-                                 f"{full[high].short} {full[high].subject!r}\n")
+    steps = [(s, k, change) for s in series for k, change in sorted(s.changes.items())]
+    for s, k, change in steps:
+        before = max(m for m, p in enumerate(s.points[:k]) if p.value is not None)
+        low, high = order[s.points[before].commit.sha], order[s.points[k].commit.sha]
+        points = []
+        while high - low > 1:
+            middle = (low + high) // 2
+            if (low, middle) not in pairs:
+                sys.stderr.write(f"bisect: {s.label}: {full[low].short}..{full[high].short}: "
+                                 f"measuring {full[middle].short} against {full[low].short}\n")
+                # Which side of a step already found is all a look needs: the first look's
+                # rounds place it, so no rounds are added to decide the cells' verdicts (budget 0).
+                pairs[(low, middle)] = measure_sides(
+                    resolve("OLD", full[low].sha, root, repo),
+                    resolve("NEW", full[middle].sha, root, repo), [config],
+                    exp.bisect(full[low].short, full[middle].short), registry, options,
+                    sys.stderr, budget_s=0.0)
+            sides = pairs[(low, middle)]
+            was = side_point(full[low], sides.old / config.name, s).value
+            point = side_point(full[middle], sides.new / config.name, s, MEASURED_BISECT)
+            points.append(point)
+            if point.value is None or was is None:
+                raise HarnessError(f"bisect: {s.label} has no {s.metric.name} at both "
+                                   f"{full[low].short} and {full[middle].short}")
+            ratio = point.value.point / was.point
+            at_step = abs(math.log(ratio)) >= abs(math.log(change.ratio.point)) / 2
+            low, high = (low, middle) if at_step else (middle, high)
+        if points:
+            s.bisections.append(Bisection(k, tuple(points), full[high]))
+            sys.stdout.write(f"{config.name}: {s.label} ({s.metric.name}): bisected to "
+                             f"{full[high].short} {full[high].subject!r}\n")
 
 
-def side_cell(side: Path, label: str) -> Cell:
+def side_point(commit: CommitInfo, side: Path, s: Series,
+               measured: str = MEASURED_SERIES) -> Point:
+    """The commit's point of the series' cell, as a side of a bisection measured it."""
     cells = {c.key.label(): c for c in read_cells(side, False)}
-    if label not in cells:
-        raise HarnessError(f"bisect: {side} has no cell {label}")
-    return cells[label]
+    if s.label not in cells:
+        raise HarnessError(f"bisect: {side} has no cell {s.label}")
+    return cell_point(commit, cells[s.label], s.metric, measured)

@@ -162,8 +162,7 @@ def commit_cells(exp: ExperimentDir, commit: str, machine_id: str) -> dict[Match
     directory = ExperimentDir(exp.commit_root(commit) / exp.name)
     if not directory.results_csv.is_file():
         return {}
-    cells = read_cells(directory.path, False)
-    return {c.key: c for c in cells if c.machine_id == machine_id}
+    return {c.key: c for c in read_cells(directory.path, False) if c.machine_id == machine_id}
 
 
 def read_series(exp: ExperimentDir, commits: Sequence[CommitInfo], metric: Quantity,

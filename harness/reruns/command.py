@@ -37,15 +37,14 @@ INTERRUPTED = "the reruns so far are under {out}; measure them again (a rerun st
 
 def parser(prog: str) -> argparse.ArgumentParser:
     parser = command.Parser(
-        prog=prog, description="Run configs TIMES times, each into a results root "
-                    "of its own with every cell measured afresh, a pause between; learn this "
-                    "machine's session spread (how far a whole run's estimates move, beyond "
-                    "their rounds) under the noise the reruns measured, keep it beside the "
-                    "machine's description (one per noise level: a later run takes the "
-                    "spread at its own noise) in <results>/"
-                    f"{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>"
-                    f"{layout.RECORD_SUFFIX}, and report how often each rerun's intervals "
-                    "(results.csv's and ratios.csv's) held another rerun's estimate.")
+        prog=prog, description="Run configs TIMES times, each into a results root of its own "
+        "with every cell measured afresh, a pause between; learn this machine's session spread "
+        "(how far a whole run's estimates move, beyond their rounds) under the noise the reruns "
+        "measured, keep it beside the machine's description (one per noise level: a later run "
+        "takes the spread at its own noise) in <results>/"
+        f"{layout.CALIBRATION_DIR}/{layout.MACHINES}/<machine_id>{layout.RECORD_SUFFIX}, and "
+        "report how often each rerun's intervals (results.csv's and ratios.csv's) held another "
+        "rerun's estimate.")
     parser.add_argument("configs", nargs="+", type=Path, help="experiment YAML files")
     parser.add_argument("--times", type=command.whole_number, default=DEFAULT_TIMES, metavar="K",
                         help=f"how many reruns, at least 2 (default: {DEFAULT_TIMES})")
@@ -76,10 +75,10 @@ def execute(args: argparse.Namespace, hooks: command.Hooks) -> int:
     else:
         registry, configs = command.load_configs(args.configs, args.metric)
         lock = command.measuring_lock(args, ["reruns", *args.configs])
+        options = command.options(args, hooks, lock, quick=args.quick)
         with lock:  # with --results-dir's session spreads: intervals out of sample
-            run_apart(configs, roots, registry, lock, sys.stderr, "reruns",
-                      args.hyperfine, args.quick, args.pause, spreads_of=args.results_dir,
-                      program_runner=hooks.program_runner)
+            run_apart(configs, roots, registry, options, sys.stderr, "reruns", args.pause,
+                      spreads_of=args.results_dir)
     found = analyse(roots)
     if not found:
         raise HarnessError(f"no cell was measured ok in two reruns under {out}")

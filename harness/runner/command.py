@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO, TypeVar
 
 from harness.analysis import export
 from harness.errors import HarnessError
+from harness.executors.base import Options
 from harness.repo import DEFAULT_RESULTS_DIR, REPO_ROOT, default_report_dir
 from harness.spec import config
 from harness.spec.parse import load_config
@@ -107,6 +108,13 @@ def measuring_lock(args: argparse.Namespace, words: Sequence[object]) -> RunLock
     """This machine's measuring lock, named by the command's words; --no-wait: an error where
     another run holds it, instead of waiting."""
     return RunLock(" ".join(str(w) for w in words), wait=not args.no_wait, log=sys.stderr)
+
+
+def options(args: argparse.Namespace, hooks: Hooks, lock: RunLock, **more: Any) -> Options:
+    """How a measuring command measures: by --hyperfine, into --results-dir, under its lock, a
+    program's cell by the hooks' runner."""
+    return Options(REPO_ROOT, args.results_dir.resolve(), hyperfine=args.hyperfine, run_lock=lock,
+                   program_runner=hooks.program_runner, **more)
 
 
 def load_configs(paths: Sequence[str | Path], metric: str | None,

@@ -6,6 +6,7 @@ again unless forced, so an interrupted grid resumes where it stopped.
 """
 
 import contextlib
+import dataclasses
 import shutil
 import time
 from collections import Counter
@@ -20,7 +21,6 @@ from harness.errors import HarnessError
 from harness.executors import make_executor
 from harness.executors.base import Experiment, Options, Progress
 from harness.measure import environment, machine, mpi
-from harness.measure.cell import ProgramRunner
 from harness.plan.cells import Cell, Plan, plan_cells
 from harness.plan.cellstore import CellStore, checkout_tools, needed_binaries
 from harness.repo import BUILD_DIR, REPO_ROOT
@@ -31,7 +31,6 @@ from harness.store import atomic, index
 from harness.store.columns import DIVERGES, OK
 from harness.store.hyperfine import UNSTABLE_RELATIVE_STDDEV
 from harness.store.layout import ResultsRoot
-from harness.store.locks import RunLock
 from harness.store.records import RUN_STARTED
 from harness.store.result import CellResult
 from harness.store.trust import DamagedFile
@@ -156,14 +155,12 @@ def write_exports(store: CellStore, prune: bool = False) -> None:
 
 
 def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: VariantRegistry,
-              run_lock: RunLock | None, log: TextIO, command: str,
-              hyperfine: str = "hyperfine", quick: bool = False, pause_s: float = 0.0,
-              spreads_of: Path | None = None,
-              program_runner: ProgramRunner | None = None) -> None:
-    """Every config measured afresh (as `run --force --results-dir ROOT`) into each results root
-    in turn, `pause_s` apart so that the runs meet the machine at different moments; with the
-    calibrations of the root `spreads_of` copied in first, so that its session spreads give the
-    intervals. `command` begins the progress lines."""
+              options: Options, log: TextIO, command: str, pause_s: float = 0.0,
+              spreads_of: Path | None = None) -> None:
+    """Every config measured afresh with `options` (as `run --force --results-dir ROOT`) into
+    each results root in turn, `pause_s` apart so that the runs meet the machine at different
+    moments; with the calibrations of the root `spreads_of` copied in first, so that its session
+    spreads give the intervals. `command` begins the progress lines."""
     kept = None if spreads_of is None else ResultsRoot(spreads_of).calibrations
     for k, root in enumerate(roots, start=1):
         if k > 1 and pause_s > 0:
@@ -173,10 +170,9 @@ def run_apart(configs: Sequence[Config], roots: Sequence[Path], registry: Varian
         shutil.rmtree(root, ignore_errors=True)
         if kept is not None and kept.is_dir():
             shutil.copytree(kept, ResultsRoot(root).calibrations)
-        options = Options(repo_root=REPO_ROOT, results_root=root, quick=quick, force=True,
-                          hyperfine=hyperfine, run_lock=run_lock, program_runner=program_runner)
         for config in configs:
-            run_experiment(config, options, log, log, registry)
+            run_experiment(config, dataclasses.replace(options, results_root=root, force=True),
+                           log, log, registry)
 
 
 def lock_and_describe(experiment: Experiment, pending: list[tuple[Cell, str]], here: bool

@@ -16,10 +16,10 @@ from typing import TextIO
 
 from harness import stats
 from harness.errors import HarnessError
-from harness.executors.base import Progress, format_seconds, machine_id
+from harness.executors.base import Options, Progress, format_seconds, machine_id
 from harness.executors.rounds import Unit, measure_in_rounds
 from harness.measure import environment
-from harness.measure.cell import Measurer, ProgramRunner
+from harness.measure.cell import Measurer
 from harness.plan.cells import plan_cells
 from harness.plan.cellstore import CellStore
 from harness.repo import BUILD_DIR, REPO_ROOT
@@ -28,7 +28,6 @@ from harness.runner.sides import BuildSide, build_plans
 from harness.spec.config import Config
 from harness.spec.variants import VariantRegistry
 from harness.store import columns
-from harness.store.locks import RunLock
 
 SIDE_DIRS = {"OLD": "old", "NEW": "new"}
 # The fewest rounds a cell pair gets (the sequential test's first look): the paired test needs
@@ -43,12 +42,10 @@ BLOCKS = 3  # a calibration's runs measured apart
 
 @dataclass
 class UntilDecided:
-    """Rounds until decided: after each round, the cell pairs that reached a look of the
-    sequential test (stats.look_rounds) are judged together (stats.decide, the false-discovery
-    control across every pair); a decided pair stops, an undecided one is given the rounds to
-    the next look while the budget lasts and the last look (stats.LAST_LOOK) is not reached,
-    and once the budget is spent every pair given more rounds stops. The budget counts the
-    seconds from the first look on: every pair gets the first look's rounds."""
+    """Rounds until decided (docs/compare.md, "Rounds until decided"): after each round, the
+    pairs at a look (stats.look_rounds) are judged together (stats.decide); a decided pair
+    stops, an undecided one runs to the next look until the last or until the budget, counted
+    from the first look on (every pair gets the first look's rounds), is spent."""
 
     pairs: list[tuple[Unit, Unit]]  # (OLD, NEW)
     threshold: float
@@ -136,20 +133,20 @@ def with_min_rounds(config: Config, rounds: int = MIN_ROUNDS) -> Config:
 
 
 def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out: Path,
-                  registry: VariantRegistry, run_lock: RunLock | None, log: TextIO,
-                  hyperfine: str = "hyperfine", threshold: float = 0.01, q: float = 0.05,
-                  budget_s: float = DEFAULT_BUDGET_S,
-                  program_runner: ProgramRunner | None = None) -> MeasuredSides:
+                  registry: VariantRegistry, options: Options, log: TextIO,
+                  threshold: float = 0.01, q: float = 0.05,
+                  budget_s: float = DEFAULT_BUDGET_S) -> MeasuredSides:
     """Measure every cell of the configs on both sides in interleaved rounds, adding rounds to
     the undecided ones (at `threshold`, false-discovery rate `q`) until decided or `budget_s`
-    of measuring is spent; the two results roots, complete, under OUT."""
+    of measuring is spent; the two results roots, complete, under OUT. `options`: hyperfine,
+    the measuring lock and the program runner."""
     plans = [plan_cells(with_min_rounds(config), False, registry) for config in configs]
     for config, plan in zip(configs, plans, strict=True):
         if not plan.cells:
             raise HarnessError(f"{config.source}: every cell is excluded: nothing to measure")
     for side in (old, new):  # every binary built (or found) before anything runs
         build_plans(side, plans)
-    experiment.require_hyperfine(hyperfine)
+    experiment.require_hyperfine(options.hyperfine)
     work = out / WORK_DIR
     here = machine_id()
     pairs: list[tuple[Unit, Unit]] = []
@@ -160,7 +157,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
             store = CellStore(plan, side.repo_root, work / SIDE_DIRS[side.name], here,
                               force=True, build_dir=side.build_dir)
             stores.append((side, store))
-            measurers.append(Measurer(store, hyperfine, program_runner=program_runner))
+            measurers.append(Measurer(store, options.hyperfine,
+                                      program_runner=options.program_runner))
         for cell in plan.cells:
             a, b = (Unit(m, cell, experiment.built_cell_id(m.store, cell)) for m in measurers)
             a.partner, b.partner = b, a
@@ -170,9 +168,9 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
               for name, u in zip(SIDE_DIRS, pair, strict=True)}
     progress = Progress("measure", [(u.cell, u.cell_id) for u in units],
                         frozenset(u.cell_id for u in units), log, labels=labels)
-    if run_lock is not None:
-        run_lock.acquire()
-    env = {side.name: environment.collect(side.repo_root, hyperfine=hyperfine)
+    if options.run_lock is not None:
+        options.run_lock.acquire()
+    env = {side.name: environment.collect(side.repo_root, hyperfine=options.hyperfine)
            for side in (old, new)}
     until = UntilDecided(pairs, threshold, q, budget_s)
     seed = measure_in_rounds(units, lambda unit, record: None, progress, None, until)
@@ -188,9 +186,8 @@ def measure_sides(old: BuildSide, new: BuildSide, configs: Sequence[Config], out
                          max(0.0, time.monotonic() - until.started))
 
 
-def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
-              run_lock: RunLock | None, log: TextIO, hyperfine: str = "hyperfine",
-              program_runner: ProgramRunner | None = None) -> tuple[MeasuredSides, list[Path]]:
+def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry, options: Options,
+              log: TextIO) -> tuple[MeasuredSides, list[Path]]:
     """A calibration's measurements (`compare --calibrate`; what they say is
     harness.comparison.command's): this checkout's binaries as two sides measured together
     (OUT/together), then the configs BLOCKS times, one whole run after another, as separate
@@ -199,9 +196,8 @@ def calibrate(configs: Sequence[Config], out: Path, registry: VariantRegistry,
     old, new = (BuildSide(name, str(build_dir), build_dir, REPO_ROOT, None) for name in SIDE_DIRS)
     # The same binaries on both sides: the spread of a fixed number of rounds is what is
     # learnt, so no rounds are added to decide verdicts (budget 0).
-    together = measure_sides(old, new, configs, out / "together", registry, run_lock, log,
-                             hyperfine, budget_s=0.0, program_runner=program_runner)
+    together = measure_sides(old, new, configs, out / "together", registry, options, log,
+                             budget_s=0.0)
     blocks = [out / "apart" / f"block-{k}" for k in range(1, BLOCKS + 1)]
-    experiment.run_apart(configs, blocks, registry, run_lock, log, "calibrate", hyperfine,
-              program_runner=program_runner)
+    experiment.run_apart(configs, blocks, registry, options, log, "calibrate")
     return together, blocks

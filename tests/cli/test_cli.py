@@ -82,9 +82,10 @@ def test_no_module_of_the_harness_edits_sys_path() -> None:
 
 def test_a_run_into_another_results_root_renders_its_own_report(tmp_path: Path) -> None:
     from harness.cli import run as run_cli
+    from harness.runner import command
 
     def report_dir(*argv: str) -> Path:
-        return run_cli.report_dir(run_cli.parser("run").parse_args([*argv, "x.yaml"]))
+        return command.report_dir(run_cli.parser("run").parse_args([*argv, "x.yaml"]))
 
     assert report_dir() == REPO_ROOT / "report"
     assert report_dir("--results-dir", str(REPO_ROOT / "published" / "results")) == (
