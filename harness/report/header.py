@@ -1,7 +1,7 @@
 """The parts of the report that span experiments: the summary, the environment, how to read
 the tables (with the session spread of the page's machine), and the warnings (each
 experiment's folded in its section, counted in the summary). Built from the experiments' parts
-(plain data), so standard library only."""
+(plain data), so without pandas."""
 
 import dataclasses
 import math
@@ -149,11 +149,10 @@ def warnings_text(parts: Sequence[ExperimentPart]) -> str | None:
 
 
 def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
-    candidates = [p.highlights[kind] for p in parts if kind in p.highlights]
-    if not candidates:
-        return None
     # max() keeps the first of equal values: the experiment the report shows first.
-    return max(candidates, key=lambda h: h.value).text
+    best = max((p.highlights[kind] for p in parts if kind in p.highlights),
+               key=lambda h: h.value, default=None)
+    return None if best is None else best.text
 
 
 def fidelity_text(parts: Sequence[ExperimentPart],

@@ -1,10 +1,7 @@
 """An experiment's headline facts: its contribution to the report's summary and warnings and
 each feature's count of its cells, computed from its rows when its section is built
-(harness.report.parts holds the result as plain data); and what a run prints when it ends,
-as hyperfine ends with its own summary: per experiment it measured, this machine's cells with
-their median time and speedup (each with its 95% interval), whether others disturbed them, the
-fastest strategy, the validation verdict, whether the intervals reached the width asked for;
-then where the report is."""
+(harness.report.parts holds the result as plain data); and what a run prints when it ends
+(docs/results.md, "The end of a run")."""
 
 import math
 from collections.abc import Sequence
@@ -21,7 +18,6 @@ from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
 from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeature
 from harness.report.sections.context import Experiment, load_experiment, table_block
-from harness.report.sections.strategies import PHASES_ANCHOR
 from harness.spec.facts import BASELINE, GRID
 from harness.store import columns
 from harness.store.labels import machine_labels, read_machines
@@ -101,7 +97,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
                                   f"faster ({_where(largest)}; {link})", cells)
     selection = phases.select(exp.frame, exp.variants)
     if selection is not None:
-        anchor = subsection_anchor(section, PHASES_ANCHOR)
+        anchor = subsection_anchor(section, "phases")
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
@@ -198,12 +194,11 @@ def figures(value: float) -> str:
     return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
 
 
-def interval_text(point: str, low: object, high: object, scale: float = 1.0, unit: str = ""
-                  ) -> str:
+def interval_text(point: str, low: object, high: object, scale: float = 1.0) -> str:
     """`point [low, high]` where the interval is known, else the point alone."""
     if isinstance(low, float) and isinstance(high, float) and math.isfinite(low) and (
             math.isfinite(high)):
-        return f"{point} [{figures(low * scale)}, {figures(high * scale)}]{unit}"
+        return f"{point} [{figures(low * scale)}, {figures(high * scale)}]"
     return point
 
 
@@ -212,9 +207,8 @@ def _median(row: pd.Series) -> str:
     if not isinstance(median, float) or not math.isfinite(median):
         return "-"
     scale, unit = (1e3, " ms") if median < 1 else (1.0, " s")
-    text = interval_text(figures(median * scale), row.get("wall_median_ci_low_s"),
-                         row.get("wall_median_ci_high_s"), scale, unit)
-    return text if text.endswith(unit) else text + unit
+    return interval_text(figures(median * scale), row.get("wall_median_ci_low_s"),
+                         row.get("wall_median_ci_high_s"), scale) + unit
 
 
 def _speedup(row: pd.Series) -> str:
