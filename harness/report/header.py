@@ -226,12 +226,11 @@ def summary_section(grouped: Sequence[tuple[str, list[ExperimentPart]]], more: S
     names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
     blocks = [Paragraph(f"The latest run, {when_text(when)}: {names}."), Bullets(tuple(items))]
     if len(grouped) > 1:
-        blocks.append(Paragraph("Earlier runs, newest first (their sections follow the "
-                                "latest run's):"))
-        blocks.append(Bullets(tuple(
-            f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
-                                                for p in group)
-            for stamp, group in grouped[1:])))
+        earlier = (f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
+                                                       for p in group)
+                   for stamp, group in grouped[1:])
+        blocks += [Paragraph("Earlier runs, newest first (their sections follow the latest "
+                             "run's):"), Bullets(tuple(earlier))]
     return Section("Summary", "summary", tuple(blocks))
 
 

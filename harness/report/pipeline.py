@@ -153,11 +153,10 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
         section = experiment_section(exp, manifest, [f.sections for f in features])
         return document.to_json(build_part(exp, section, features), out_dir)
 
-    found = loaded.directory
-    digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
+    digest = input_digest(loaded.directory) + (f"\0{machine}\0{label}" if machine else "")
     if features:  # a part built with other features' parts is another part
         digest += "\0" + "\0".join(f.name for f in features)
-    return document.from_json(manifest.part(found.name, digest, build), out_dir, PART_KINDS)
+    return document.from_json(manifest.part(loaded.name, digest, build), out_dir, PART_KINDS)
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:

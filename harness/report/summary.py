@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.analysis import flags, phases
+from harness.analysis import flags, phases, results
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, flag, is_program, varying_keys
 from harness.analysis.display import counted, display_name, format_value, threads_text
 from harness.analysis.ranks import cores_table
@@ -20,9 +20,8 @@ from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeat
 from harness.report.sections.context import Experiment, load_experiment, table_block
 from harness.spec.facts import BASELINE, GRID
 from harness.store import columns
-from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
-from harness.store.records import MACHINE_KEY, read_json
+from harness.store.records import MACHINE_KEY
 
 NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
 # The flags a row shows in the terminal: what qualifies its numbers (not that it was measured
@@ -285,16 +284,16 @@ def intervals_text(df: pd.DataFrame) -> str:
 
 def experiment_summary(found: ExperimentDir) -> list[str]:
     """The lines of one experiment this machine just measured."""
-    env = read_json(found.env_json)
-    machine = env.get(MACHINE_KEY) if isinstance(env, dict) else None
-    exp = load_experiment(found, str(machine) if machine else None)
+    loaded = results.load_experiment(found)
+    machine = loaded.env().get(MACHINE_KEY)
+    exp = load_experiment(loaded, str(machine) if machine else None)
     # one line a cell: a serial variant's once
     df = measured_once(exp.frame[~flag(exp.frame, "earlier_config")]).reset_index(drop=True)
     if df.empty:
         return [f"{found.name}: no cells"]
     df = with_speedup(df, exp.variants, thread_baseline="threads" in varying_keys(df),
                       ratios=exp.ratios)
-    label = machine_labels(read_machines([found.path])).get(str(machine))
+    label = loaded.labels.get(str(machine))
     named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
     lines = [f"{named}: {counted(len(df), 'cell')}" + (f" on {label}" if label else "")]
     extra = [flags.disturbed_text(df), fastest_text(df), validation_text(df), intervals_text(df)]

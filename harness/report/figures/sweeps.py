@@ -52,9 +52,8 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
     marks: set[str] = set()
     extra: list[Line2D] = []
     for values, rows, color, label in groups:
-        if x == "n":
-            label += _exponent_suffix(exponents, keys, values)
-        base.plot_series(ax, rows, x, "wall_median_s", color, label, marks)
+        base.plot_series(ax, rows, x, "wall_median_s", color,
+                         label + _exponent_suffix(exponents, keys, values), marks)
         if x == "threads" and _draw_ideal_threads(ax, rows, color, variants):  # not for seq
             extra = [Line2D([], [], ls="--", color="gray", label="ideal T(p₀)·p₀/p")]
     if x == "n" and _draw_square_guide(ax, df):
