@@ -101,16 +101,6 @@ class Manifest:
         self.touched: list[str] = []  # stems drawn, kept or reused with a part, in order
         self._used_parts: set[str] = set()
 
-    def figure_key(self, function: Callable[..., object], args: tuple, kwargs: dict) -> str:
-        digest = hashlib.sha256()
-        digest.update(f"{function.__module__}.{function.__qualname__}\0{self.code.plot}\0".encode())
-        for value in args:
-            _digest_value(value, digest)
-        for name in sorted(kwargs):
-            digest.update(f"{name}=".encode())
-            _digest_value(kwargs[name], digest)
-        return digest.hexdigest()
-
     def _intact(self, entry: dict[str, Any]) -> bool:
         files = entry.get("files", {})
         return bool(files) and all(
@@ -121,7 +111,14 @@ class Manifest:
              **kwargs: object) -> list[Path]:
         """`function(data, stem, **kwargs)` unless its files from the same inputs are on disk.
         Returns the figure's files (a one-file function's path in a list)."""
-        key = self.figure_key(function, (stem, data), kwargs)
+        digest = hashlib.sha256(
+            f"{function.__module__}.{function.__qualname__}\0{self.code.plot}\0".encode())
+        _digest_value(stem, digest)
+        _digest_value(data, digest)
+        for name in sorted(kwargs):
+            digest.update(f"{name}=".encode())
+            _digest_value(kwargs[name], digest)
+        key = digest.hexdigest()
         self.touched.append(stem.name)
         entry = self.figures.get(stem.name)
         if entry is not None and entry.get("key") == key and self._intact(entry):

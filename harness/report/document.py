@@ -239,13 +239,9 @@ def _environment() -> jinja2.Environment:
                              autoescape=jinja2.select_autoescape(["html"]),
                              trim_blocks=True, lstrip_blocks=True,
                              undefined=jinja2.StrictUndefined)
-    env.filters["inline"] = inline
-    env.filters["number"] = number
-    env.filters["kind"] = kind
-    env.filters["relative"] = lambda path, base: Path(path).relative_to(base).as_posix()
-    env.globals["image_size"] = image_size
-    env.globals["zip"] = zip
-    env.globals["markdown_table"] = markdown_table
+    env.filters.update(inline=inline, number=number, kind=kind,
+                       relative=lambda path, base: Path(path).relative_to(base).as_posix())
+    env.globals.update(image_size=image_size, zip=zip, markdown_table=markdown_table)
     return env
 
 

@@ -1,7 +1,7 @@
 """The parts of the report that span experiments: the summary, the environment, how to read
 the tables (with the session spread of the page's machine), and the warnings (each
 experiment's folded in its section, counted in the summary). Built from the experiments' parts
-(plain data), so standard library only."""
+(plain data), so without pandas."""
 
 import dataclasses
 import math
@@ -149,11 +149,10 @@ def warnings_text(parts: Sequence[ExperimentPart]) -> str | None:
 
 
 def _best(parts: Sequence[ExperimentPart], kind: str) -> str | None:
-    candidates = [p.highlights[kind] for p in parts if kind in p.highlights]
-    if not candidates:
-        return None
     # max() keeps the first of equal values: the experiment the report shows first.
-    return max(candidates, key=lambda h: h.value).text
+    best = max((p.highlights[kind] for p in parts if kind in p.highlights),
+               key=lambda h: h.value, default=None)
+    return None if best is None else best.text
 
 
 def fidelity_text(parts: Sequence[ExperimentPart],
@@ -227,12 +226,11 @@ def summary_section(grouped: Sequence[tuple[str, list[ExperimentPart]]], more: S
     names = ", ".join(f"[{p.name}](#{p.section.anchor})" for p in latest)
     blocks = [Paragraph(f"The latest run, {when_text(when)}: {names}."), Bullets(tuple(items))]
     if len(grouped) > 1:
-        blocks.append(Paragraph("Earlier runs, newest first (their sections follow the "
-                                "latest run's):"))
-        blocks.append(Bullets(tuple(
-            f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
-                                                for p in group)
-            for stamp, group in grouped[1:])))
+        earlier = (f"{when_text(stamp)}: " + ", ".join(f"[{p.name}](#{p.section.anchor})"
+                                                       for p in group)
+                   for stamp, group in grouped[1:])
+        blocks += [Paragraph("Earlier runs, newest first (their sections follow the latest "
+                             "run's):"), Bullets(tuple(earlier))]
     return Section("Summary", "summary", tuple(blocks))
 
 

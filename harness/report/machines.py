@@ -45,26 +45,24 @@ def machine_of(row: Mapping[str, object]) -> str:
     return str(row.get(MACHINE_KEY) or "").strip() or UNKNOWN_ID
 
 
-def machines(rows: Rows, preferred: Collection[str] = (),
-             labels: Mapping[str, str] | None = None) -> list[Machine]:
+def machines(rows: Rows, preferred: Collection[str], labels: Mapping[str, str]
+             ) -> list[Machine]:
     """The machines that measured the rows, the one that measured last first; between equal
     times (rows without `measured_at`) a `preferred` one (the machine an env.json names: it
     measured the latest run), then by id. Empty when no row records its machine. Each goes by
     its name in `labels` (store.labels) where it has one."""
-    if not any(str(row.get(MACHINE_KEY) or "").strip() for table in rows.values()
-               for row in table):
-        return []
     seen: dict[str, list[Mapping[str, object]]] = {}
     for table in rows.values():
         for row in table:
             seen.setdefault(machine_of(row), []).append(row)
+    if set(seen) <= {UNKNOWN_ID}:
+        return []
     found = []
     for machine_id, own in seen.items():
         own_labels = sorted({str(r.get("machine") or "").strip() for r in own} - {""})
         last = max((str(r.get("measured_at") or "") for r in own), default="")
         found.append(Machine(machine_id, own_labels[0] if own_labels else "", last))
-    names = labels or {}
-    found = [dataclasses.replace(m, name=names.get(m.id) or _name(m, found)) for m in found]
+    found = [dataclasses.replace(m, name=labels.get(m.id) or _name(m, found)) for m in found]
     by_id = sorted(found, key=lambda m: m.id)
     # Stable: equal keys keep the order by id.
     return sorted(by_id, key=lambda m: (m.last_measured, m.id in preferred), reverse=True)

@@ -5,8 +5,8 @@ whose inputs did not change is read back from the manifest instead of rebuilt.
 
 A feature package (harness.programs) describes its part as a ReportFeature, which whoever
 renders (the command line) passes to harness.report.pipeline.render; the report itself imports
-no feature. Standard library only: a feature's sections are built, and pandas imported, only
-for an experiment whose part is not cached."""
+no feature. This module needs no pandas: a feature's sections are built, and pandas imported,
+only for an experiment whose part is not cached."""
 
 from __future__ import annotations
 

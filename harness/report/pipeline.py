@@ -1,14 +1,8 @@
 """Assembling the document from the experiments' parts and writing report.md, report.html and
-figures/ under a lock on the report directory. An experiment whose inputs and the report's
-code did not change is read back from the manifest (harness/report/cache.py) without pandas,
-scipy or matplotlib; only the others are loaded and built.
-
-One page shows one machine. Where the results hold several, each has its page
-machines/<machine_id>/report.{md,html} with its own figures/, each linking the others, and
-report.{md,html} at the top is the machine that measured last (or the one asked for).
-
-A feature adds its part to every page through the ReportFeature its package gives
-(harness.report.parts), passed in by whoever renders; the report imports no feature."""
+figures/ under a lock on the report directory, a page a machine (docs/results.md, "One machine
+a page"). An experiment whose inputs and the report's code did not change is read back from
+the manifest (harness/report/cache.py) without pandas, scipy or matplotlib; only the others
+are loaded and built, with the parts of the features passed in (harness.report.parts)."""
 
 import dataclasses
 import hashlib
@@ -28,7 +22,6 @@ from harness.report.parts import PART_KINDS, ExperimentPart, ReportFeature
 from harness.store import layout
 from harness.store.atomic import atomic_write_text
 from harness.store.labels import machine_labels, read_machines
-from harness.store.layout import ExperimentDir, ResultsRoot
 from harness.store.locks import directory_lock
 from harness.store.records import MACHINE_KEY, RUN_STARTED
 
@@ -50,7 +43,7 @@ PREFERRED_ORDER: tuple[str, ...] = (
 
 def find_experiments(
     results_dir: Path, *, include_quick: bool = False, only: Collection[str] | None = None
-) -> list[ExperimentDir]:
+) -> list[layout.ExperimentDir]:
     """Every experiment under the results directory with a measured cell, in the course
     report's order (an experiment still running its first cell has none)."""
     found = results.experiments(results_dir, include_quick, only)
@@ -58,7 +51,7 @@ def find_experiments(
     return sorted(found, key=lambda e: (rank.get(e.name, len(rank)), e.name))
 
 
-def input_digest(exp: ExperimentDir) -> str:
+def input_digest(exp: layout.ExperimentDir) -> str:
     """A hash of every file the experiment's section reads: the index of its rows (which
     holds the sha256 of every export written from them) or, without one, its records; what it
     was measured with and on; the machines' calibrations its ratios' intervals take their
@@ -72,7 +65,7 @@ def input_digest(exp: ExperimentDir) -> str:
         layout.record_paths(exp.cells)
     for path in listing:
         parts[path.name] = file_digest(path)
-    calibrations = ResultsRoot(exp.path.parent).calibrations
+    calibrations = layout.ResultsRoot(exp.path.parent).calibrations
     for path in sorted(calibrations.iterdir()) if calibrations.is_dir() else []:
         parts[f"{layout.CALIBRATION_DIR}/{path.name}"] = file_digest(path)
     outputs = exp.outputs
@@ -160,11 +153,10 @@ def experiment_part(loaded: results.Experiment, manifest: Manifest, out_dir: Pat
         section = experiment_section(exp, manifest, [f.sections for f in features])
         return document.to_json(build_part(exp, section, features), out_dir)
 
-    found = loaded.directory
-    digest = input_digest(found) + (f"\0{machine}\0{label}" if machine else "")
+    digest = input_digest(loaded.directory) + (f"\0{machine}\0{label}" if machine else "")
     if features:  # a part built with other features' parts is another part
         digest += "\0" + "\0".join(f.name for f in features)
-    return document.from_json(manifest.part(found.name, digest, build), out_dir, PART_KINDS)
+    return document.from_json(manifest.part(loaded.name, digest, build), out_dir, PART_KINDS)
 
 
 def _remove_stale_pages(out_dir: Path, keep: Collection[str]) -> None:

@@ -1,10 +1,7 @@
 """An experiment's headline facts: its contribution to the report's summary and warnings and
 each feature's count of its cells, computed from its rows when its section is built
-(harness.report.parts holds the result as plain data); and what a run prints when it ends,
-as hyperfine ends with its own summary: per experiment it measured, this machine's cells with
-their median time and speedup (each with its 95% interval), whether others disturbed them, the
-fastest strategy, the validation verdict, whether the intervals reached the width asked for;
-then where the report is."""
+(harness.report.parts holds the result as plain data); and what a run prints when it ends
+(docs/results.md, "The end of a run")."""
 
 import math
 from collections.abc import Sequence
@@ -12,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.analysis import flags, phases
+from harness.analysis import flags, phases, results
 from harness.analysis.cells import INTERVAL_SUFFIXES, SCENE_KEYS, flag, is_program, varying_keys
 from harness.analysis.display import counted, display_name, format_value, threads_text
 from harness.analysis.ranks import cores_table
@@ -21,12 +18,10 @@ from harness.analysis.speedup import BASELINE_SEQ, with_speedup
 from harness.report.document import Section
 from harness.report.parts import ExperimentPart, Fidelity, Highlight, ReportFeature
 from harness.report.sections.context import Experiment, load_experiment, table_block
-from harness.report.sections.strategies import PHASES_ANCHOR
 from harness.spec.facts import BASELINE, GRID
 from harness.store import columns
-from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import ExperimentDir
-from harness.store.records import MACHINE_KEY, read_json
+from harness.store.records import MACHINE_KEY
 
 NOT_STRATEGIES: frozenset[str] = frozenset({BASELINE, GRID})
 # The flags a row shows in the terminal: what qualifies its numbers (not that it was measured
@@ -101,7 +96,7 @@ def highlights(exp: Experiment, section: Section) -> dict[str, Highlight]:
                                   f"faster ({_where(largest)}; {link})", cells)
     selection = phases.select(exp.frame, exp.variants)
     if selection is not None:
-        anchor = subsection_anchor(section, PHASES_ANCHOR)
+        anchor = subsection_anchor(section, "phases")
         headline = phases.grid_headline(selection, f"[{exp.name}](#{anchor})")
         if headline is not None:
             found["phases"] = Highlight(*headline, anchor)
@@ -198,12 +193,11 @@ def figures(value: float) -> str:
     return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
 
 
-def interval_text(point: str, low: object, high: object, scale: float = 1.0, unit: str = ""
-                  ) -> str:
+def interval_text(point: str, low: object, high: object, scale: float = 1.0) -> str:
     """`point [low, high]` where the interval is known, else the point alone."""
     if isinstance(low, float) and isinstance(high, float) and math.isfinite(low) and (
             math.isfinite(high)):
-        return f"{point} [{figures(low * scale)}, {figures(high * scale)}]{unit}"
+        return f"{point} [{figures(low * scale)}, {figures(high * scale)}]"
     return point
 
 
@@ -212,9 +206,8 @@ def _median(row: pd.Series) -> str:
     if not isinstance(median, float) or not math.isfinite(median):
         return "-"
     scale, unit = (1e3, " ms") if median < 1 else (1.0, " s")
-    text = interval_text(figures(median * scale), row.get("wall_median_ci_low_s"),
-                         row.get("wall_median_ci_high_s"), scale, unit)
-    return text if text.endswith(unit) else text + unit
+    return interval_text(figures(median * scale), row.get("wall_median_ci_low_s"),
+                         row.get("wall_median_ci_high_s"), scale) + unit
 
 
 def _speedup(row: pd.Series) -> str:
@@ -291,16 +284,16 @@ def intervals_text(df: pd.DataFrame) -> str:
 
 def experiment_summary(found: ExperimentDir) -> list[str]:
     """The lines of one experiment this machine just measured."""
-    env = read_json(found.env_json)
-    machine = env.get(MACHINE_KEY) if isinstance(env, dict) else None
-    exp = load_experiment(found, str(machine) if machine else None)
+    loaded = results.load_experiment(found)
+    machine = loaded.env().get(MACHINE_KEY)
+    exp = load_experiment(loaded, str(machine) if machine else None)
     # one line a cell: a serial variant's once
     df = measured_once(exp.frame[~flag(exp.frame, "earlier_config")]).reset_index(drop=True)
     if df.empty:
         return [f"{found.name}: no cells"]
     df = with_speedup(df, exp.variants, thread_baseline="threads" in varying_keys(df),
                       ratios=exp.ratios)
-    label = machine_labels(read_machines([found.path])).get(str(machine))
+    label = loaded.labels.get(str(machine))
     named = found.name if exp.title == found.name else f"{found.name}: {exp.title}"
     lines = [f"{named}: {counted(len(df), 'cell')}" + (f" on {label}" if label else "")]
     extra = [flags.disturbed_text(df), fastest_text(df), validation_text(df), intervals_text(df)]

@@ -126,8 +126,7 @@ DIVERGENCE_REFERENCES: dict[str, str] = {
     "f64": "against seq in double", "truth": "against the truth (__float128)",
 }
 DIVERGENCE_FIGSIZE = (10.0, 4.5)
-DIVERGENCE_MARGINS: dict[str, float] = {**base.MARGINS, "left": 0.08, "right": 0.74,
-                                        "bottom": 0.12, "top": 0.86}
+DIVERGENCE_MARGINS: dict[str, float] = {**base.MARGINS, "left": 0.08, "right": 0.74, "top": 0.86}
 BUILD_LINESTYLES: tuple[str, ...] = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)))
 
 

@@ -37,8 +37,6 @@ LEGEND_INSIDE_MAX = 4  # legend entries that fit inside the axes without hiding 
 # Characters a line of a legend entry beside the axes: longer labels wrap (a label with a
 # machine, "seq · AMD EPYC (znver3) x2 (2257f28b)", ran off the figure's edge).
 LEGEND_WRAP = 24
-# Room on the left for the trajectory legend; the square axes and its colorbar take the rest.
-TRAJECTORY_MARGINS: dict[str, float] = {**MARGINS, "left": 0.26}
 # A stable salt keeps SVG element ids, hence the files, identical between renders.
 SVG_HASH_SALT = "collide-bench"
 
@@ -94,18 +92,13 @@ def save_figure(fig: Figure, stem: Path) -> list[Path]:
 # --- shared drawing helpers ---------------------------------------------------------------
 
 
-# Where a plotted column's 95% interval lives: a cell's median has the bootstrap interval of
-# results.csv; a speedup-derived metric has the INTERVAL_SUFFIXES columns of
-# analysis.speedup.with_speedup.
-INTERVAL_COLUMNS: dict[str, tuple[str, str]] = {
-    "wall_median_s": ("wall_median_ci_low_s", "wall_median_ci_high_s"),
-}
-
-
 def interval_errors(rows: pd.DataFrame, y: str) -> np.ndarray | None:
-    """Error-bar lengths (2 x rows: below, above) of column `y` from its interval columns;
-    zero where a row has no interval; None when no row has one."""
-    low, high = INTERVAL_COLUMNS.get(y, tuple(f"{y}{s}" for s in INTERVAL_SUFFIXES))
+    """Error-bar lengths (2 x rows: below, above) of column `y` from its 95% interval (a
+    cell's median: the bootstrap interval of results.csv; a speedup-derived metric: the
+    INTERVAL_SUFFIXES columns of analysis.speedup.with_speedup); zero where a row has no
+    interval; None when no row has one."""
+    low, high = (("wall_median_ci_low_s", "wall_median_ci_high_s") if y == "wall_median_s"
+                 else (f"{y}{s}" for s in INTERVAL_SUFFIXES))
     if low not in rows.columns or high not in rows.columns:
         return None
     values, lows, highs = (rows[c].to_numpy(dtype=float) for c in (y, low, high))
@@ -190,25 +183,23 @@ MARK_STYLES: dict[str, dict[str, object]] = {
 }
 
 
-def marker_handles(marks: set[str]) -> list[Line2D]:
-    return [Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
-            for name, style in MARK_STYLES.items() if name in marks]
-
-
-def legend(ax: Axes, extra: Sequence[Line2D] = ()) -> None:
-    """The series and marker legend: inside the axes when short, beside them when long, so
-    that it never hides the data."""
-    handles, _labels = ax.get_legend_handles_labels()
-    handles = [*handles, *extra]
-    if not handles:
-        return
-    if len(handles) <= LEGEND_INSIDE_MAX:
+def finish(fig: Figure, ax: Axes, stem: Path, title: str, marks: set[str],
+           extra: Sequence[Line2D] = ()) -> list[Path]:
+    """The title, the grid and the legend, the figure saved under `stem`. The legend holds the
+    series, `extra` and the markers the series drew (`marks`), inside the axes when short,
+    beside them when long, so that it never hides the data."""
+    set_title(ax, title)
+    ax.grid(True, which="major", alpha=0.3)
+    handles = [*ax.get_legend_handles_labels()[0], *extra, *(
+        Line2D([], [], ls="none", **style)  # type: ignore[arg-type]
+        for name, style in MARK_STYLES.items() if name in marks)]
+    if len(handles) > LEGEND_INSIDE_MAX:
+        fig.subplots_adjust(right=LEGEND_RIGHT_MARGINS["right"])
+        ax.legend(handles=handles, labels=[wrap_label(str(h.get_label())) for h in handles],
+                  fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    elif handles:
         ax.legend(handles=handles, fontsize="small", framealpha=0.85)
-        return
-    ax.figure.subplots_adjust(right=LEGEND_RIGHT_MARGINS["right"])
-    labels = [wrap_label(str(h.get_label())) for h in handles]
-    ax.legend(handles=handles, labels=labels, fontsize="small", loc="upper left",
-              bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    return save_figure(fig, stem)
 
 
 def wrap_label(label: str) -> str:
@@ -329,23 +320,23 @@ def shade_oversubscribed(ax: Axes, rows: pd.DataFrame) -> None:
 def spaced_labels(ticks: np.ndarray) -> set[float]:
     """The ticks of a log axis that get their text: each at least MIN_LABEL_RATIO past the last
     labelled one, and always the last (the sweep's end)."""
+    values = sorted(float(t) for t in ticks)
     shown: list[float] = []
-    for value in sorted(float(t) for t in ticks):
+    for value in values:
         if not shown or value >= shown[-1] * MIN_LABEL_RATIO:
             shown.append(value)
-    last = float(max(ticks)) if len(ticks) else None
-    if last is not None and last not in shown:
+    if shown and shown[-1] != values[-1]:
         if len(shown) > 1:
-            shown[-1] = last  # the end of the sweep rather than the value just before it
-        else:
-            shown.append(last)
+            shown.pop()  # the end of the sweep rather than the value just before it
+        shown.append(values[-1])
     return set(shown)
 
 
-def set_y_axis(ax: Axes, values: pd.Series, label: str) -> None:
-    """Label the y axis; logarithmic across decades, else linear from zero."""
+def set_y_axis(ax: Axes, values: pd.Series, label: str, *, force_log: bool = False) -> None:
+    """Label the y axis; logarithmic across decades (with `force_log`, across any two positive
+    values), else linear from zero."""
     ax.set_ylabel(label)
-    if wants_log(values):
+    if wants_log(values) or (force_log and len(positive_values(values)) > 1):
         log_axis(ax, "y", values)
     else:
         ax.set_ylim(bottom=0)

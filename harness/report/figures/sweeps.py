@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from harness.analysis.speedup import growth_exponents, single_threaded
@@ -53,9 +52,8 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
     marks: set[str] = set()
     extra: list[Line2D] = []
     for values, rows, color, label in groups:
-        if x == "n":
-            label += _exponent_suffix(exponents, keys, values)
-        base.plot_series(ax, rows, x, "wall_median_s", color, label, marks)
+        base.plot_series(ax, rows, x, "wall_median_s", color,
+                         label + _exponent_suffix(exponents, keys, values), marks)
         if x == "threads" and _draw_ideal_threads(ax, rows, color, variants):  # not for seq
             extra = [Line2D([], [], ls="--", color="gray", label="ideal T(p₀)·p₀/p")]
     if x == "n" and _draw_square_guide(ax, df):
@@ -64,12 +62,8 @@ def fig_time_vs(df: pd.DataFrame, out: Path, *, x: str, variants: Variants,
     if x == "threads":
         base.shade_oversubscribed(ax, df)
     timed = df.loc[df["status"].isin(TIMED_STATUSES), "wall_median_s"].dropna()
-    if axis.force_log and len(base.positive_values(timed)) > 1:
-        base.log_axis(ax, "y", timed)
-        ax.set_ylabel(base.TIME_LABEL)
-    else:
-        base.set_y_axis(ax, timed, base.TIME_LABEL)
-    return _finish(fig, ax, out, title or axis.title, [*extra, *base.marker_handles(marks)])
+    base.set_y_axis(ax, timed, base.TIME_LABEL, force_log=axis.force_log)
+    return base.finish(fig, ax, out, title or axis.title, marks, extra)
 
 
 def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "n",
@@ -87,17 +81,7 @@ def fig_memory_vs(df: pd.DataFrame, out: Path, *, variants: Variants, x: str = "
     # log where it spans decades (as across N = 200 to 200000), else from zero: a narrower
     # range on a log axis gets one labelled tick
     base.set_y_axis(ax, rows[PEAK_RSS], MEMORY_LABEL)
-    return _finish(fig, ax, out, title or f"Peak memory against {axis.label}",
-                   base.marker_handles(marks))
-
-
-def _finish(fig: Figure, ax: Axes, out: Path, title: str, handles: Sequence[Line2D]
-            ) -> list[Path]:
-    """The title, the grid and the legend; the figure saved under `out`."""
-    base.set_title(ax, title)
-    ax.grid(True, which="major", alpha=0.3)
-    base.legend(ax, handles)
-    return base.save_figure(fig, out)
+    return base.finish(fig, ax, out, title or f"Peak memory against {axis.label}", marks)
 
 
 def _exponent_suffix(exponents: pd.DataFrame, keys: Sequence[str], values: tuple) -> str:
@@ -183,5 +167,4 @@ def fig_thread_metric(df: pd.DataFrame, out: Path, *, y: str, variants: Variants
     base.shade_oversubscribed(ax, df)
     ax.set_ylabel(ylabel)
     ideal_handle = Line2D([], [], ls="--", color="black", label=ideal_label)
-    return _finish(fig, ax, out, title or default_title,
-                   [ideal_handle, *base.marker_handles(marks)])
+    return base.finish(fig, ax, out, title or default_title, marks, [ideal_handle])

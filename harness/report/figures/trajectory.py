@@ -16,8 +16,9 @@ from PIL import Image, ImageDraw, ImageFont
 from harness.report.figures import base
 from harness.store import atomic
 
-# Trajectory pictures.
 TRAJECTORY_CMAP = "turbo"
+# Room on the left for the legend; the square axes and its colorbar take the rest.
+MARGINS: dict[str, float] = {**base.MARGINS, "left": 0.26}
 MAX_TRAJECTORY_PARTICLES = 2000  # more would be an unreadable smear; plot an even subsample
 GIF_PIXELS = 480  # frame width; the box fills it less the padding
 GIF_PAD = 12
@@ -51,7 +52,7 @@ def fig_trajectory(
     states = x.shape[1]
     norm = Normalize(vmin=float(ids.min()), vmax=float(max(ids.max(), ids.min() + 1)))
     cmap = mpl.colormaps[TRAJECTORY_CMAP]
-    fig, ax = base.new_figure(margins=base.TRAJECTORY_MARGINS)
+    fig, ax = base.new_figure(margins=MARGINS)
     colors = cmap(norm(ids))
     # Line segments joining each particle's consecutive states: (particles*(states-1), 2, 2).
     points = np.stack([x, y], axis=-1)

@@ -57,8 +57,7 @@ def build(ctx: Context, alone: bool) -> list[Section]:
                          else "the same variant's median at 1 thread")
                 blocks.append(Paragraph(f"Speedup is against {words}."))
     if table["speedup"].isna().all():
-        unused = ("speedup", "efficiency", "serial_fraction")
-        table = drop_columns(table, unused)
+        table = drop_columns(table, ["speedup", "efficiency", "serial_fraction"])
         blocks.append(Paragraph("No ok seq cell on the same scene: no speedups."))
     elif (df["threads"] == 1).all():
         table = drop_columns(table, ["efficiency"])  # at one thread: the speedup again

@@ -6,7 +6,6 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis import accuracy
-from harness.analysis.accuracy import error_table, has_error_data
 from harness.analysis.cells import SCENE_KEYS
 from harness.analysis.display import series_label
 from harness.report.document import Block, Paragraph, Section
@@ -80,11 +79,11 @@ def error_scenes(df: pd.DataFrame) -> list[pd.DataFrame]:
 
 def build_error(ctx: Context) -> list[Section]:
     """Where the cells carry a deviation worth plotting (a checked catalog aside)."""
-    if ctx.catalog or not has_error_data(ctx.exp.frame):
+    if ctx.catalog or not accuracy.has_error_data(ctx.exp.frame):
         return []
     df = ctx.exp.frame
     blocks: list[Block] = [table_block(
-        error_table(df, ctx.cell_keys, ctx.variants),
+        accuracy.error_table(df, ctx.cell_keys, ctx.variants),
         "Deviation from the baseline output (maximum over particles; positions relative to L) "
         "and median time; ✓ marks the Pareto front of each scene.", source=df,
     )]
@@ -113,13 +112,11 @@ def build_error(ctx: Context) -> list[Section]:
 def build(ctx: Context) -> list[Section]:
     if not accuracy.has_check_data(ctx.exp.frame):
         return []
-    sections = [ctx.section("Stability checks", "stability", _stability_blocks(ctx.exp.frame,
-                                                                             ctx.variants))]
-    accuracy_blocks = _accuracy_blocks(ctx)
-    if accuracy_blocks:
-        sections.append(ctx.section("Accuracy: shadow steps and divergence", "accuracy",
-                                    accuracy_blocks))
-    return sections
+    # A section left without blocks is dropped (harness.report.sections.experiment_section).
+    return [ctx.section("Stability checks", "stability",
+                        _stability_blocks(ctx.exp.frame, ctx.variants)),
+            ctx.section("Accuracy: shadow steps and divergence", "accuracy",
+                        _accuracy_blocks(ctx))]
 
 
 def _matrix_blocks(df: pd.DataFrame, variants: Variants) -> list[Block]:

@@ -10,7 +10,7 @@ only lays them out, and only where the data has them.
 from harness.analysis import overhead, phases
 from harness.analysis import strategies as study
 from harness.analysis.display import threads_text
-from harness.report.document import Block, Paragraph, Section
+from harness.report.document import Paragraph, Section
 from harness.report.figures.phases import fig_phases, work_figure
 from harness.report.sections.context import Context, table_block
 
@@ -124,7 +124,6 @@ def _overhead(ctx: Context) -> list[Section]:
     ))]
 
 
-PHASES_ANCHOR = "phases"
 PHASES_INTRO = (
     "Each cell's `--timing` run (one run beside hyperfine's timed runs) splits its simulation "
     "time (`sim_s`) into phases, summed over the steps: the **broad phase** (the variant's own "
@@ -139,7 +138,8 @@ PHASES_INTRO = (
 )
 
 
-def _left_out(sel: phases.Selection) -> str:
+def _left_out(sel: phases.Selection) -> list[Paragraph]:
+    """What the figure leaves out, where it does, in a paragraph (each note opens with a count)."""
     notes = []
     if sel.other_threads:
         notes.append(f"{sel.other_threads} cell(s) at other thread counts are not shown")
@@ -149,7 +149,7 @@ def _left_out(sel: phases.Selection) -> str:
     if sel.without_phases:
         notes.append(f"{sel.without_phases} timed cell(s) have no phases (a program, or a "
                      "binary without phase timers)")
-    return "; ".join(notes) + "." if notes else ""
+    return [Paragraph("; ".join(notes) + ".")] if notes else []
 
 
 def build_phases(ctx: Context) -> list[Section]:
@@ -165,7 +165,7 @@ def build_phases(ctx: Context) -> list[Section]:
         + ("; each scene has its own scale" if frame[phases.GROUP].nunique() > 1 else "")
         + ". Right: the simulation's phases as shares of it, the broad phase's written on it."
     )
-    blocks: list[Block] = [
+    return [ctx.section("Where the time goes", "phases", (
         Paragraph(PHASES_INTRO),
         ctx.figure(fig_phases, frame, "phases", caption,
                    title=f"{ctx.exp.title}: where the time goes"),
@@ -173,8 +173,5 @@ def build_phases(ctx: Context) -> list[Section]:
                     "each with its share of the simulation time in parentheses; then the "
                     "simulation outside the broad phase per particle and step, and the "
                     "`--precise` output.", source=sel.cells),
-    ]
-    left_out = _left_out(sel)
-    if left_out:
-        blocks.append(Paragraph(left_out[0].upper() + left_out[1:]))
-    return [ctx.section("Where the time goes", PHASES_ANCHOR, blocks)]
+        *_left_out(sel),
+    ))]

@@ -47,14 +47,13 @@ def trajectory_cell(exp: Experiment) -> pd.Series | None:
 
 def build(ctx: Context) -> list[Section]:
     row = trajectory_cell(ctx.exp)
-    return [] if row is None else [_trajectory(ctx, row)]
+    return [] if row is None else [ctx.section("Trajectories", "trajectory", _blocks(ctx, row))]
 
 
-def _trajectory(ctx: Context, row: pd.Series) -> Section:
+def _blocks(ctx: Context, row: pd.Series) -> list[Block]:
     path = ctx.exp.directory.output(str(row["cell_id"]))
     if path.stat().st_size > MAX_TRAJECTORY_BYTES:
-        blocks: list[Block] = [Paragraph(f"`{path.name}` is too large to plot.")]
-        return ctx.section("Trajectories", "trajectory", blocks)
+        return [Paragraph(f"`{path.name}` is too large to plot.")]
     traj = read_trajectory(path)
     box = float(row["L"])
     steps = int(traj["step"].max()) if len(traj) else 0
@@ -64,7 +63,6 @@ def _trajectory(ctx: Context, row: pd.Series) -> Section:
         f"r = {format_value('r', row['r'])}), one color per particle, consecutive "
         "states joined by straight segments (cf. the course report's Figure 7)."
     )
-    blocks = [ctx.figure(fig_trajectory, traj, "trajectory", caption, box=box, title=ctx.exp.title),
-              ctx.figure(gif_trajectory, traj, "trajectory-animation",
-                         "The same run, one frame per step.", box=box)]
-    return ctx.section("Trajectories", "trajectory", blocks)
+    return [ctx.figure(fig_trajectory, traj, "trajectory", caption, box=box, title=ctx.exp.title),
+            ctx.figure(gif_trajectory, traj, "trajectory-animation",
+                       "The same run, one frame per step.", box=box)]
