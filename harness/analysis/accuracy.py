@@ -156,19 +156,17 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants) ->
     return cells.sort_cells(table, keys, variants)
 
 
-def _known(row: pd.Series, column: str) -> float | None:
-    value = row.get(column)
-    return None if pd.isna(value) else float(value)
+def _step_error(row: pd.Series) -> float:
+    """The one-step error in radii (0 where not measured)."""
+    value = row.get("shadow_err_r")
+    return 0.0 if pd.isna(value) else float(value)
 
 
 def _trusted(row: pd.Series) -> bool:
     """Every check passed and one step within TRUST_ERR_R radii of __float128's. (How soon
     the whole run is a radius off the truth is shown, not judged: in a dense scene chaos gets
     every precision there within a few steps.)"""
-    if _failures(row):
-        return False
-    err = _known(row, "shadow_err_r")
-    return err is None or err <= TRUST_ERR_R
+    return not _failures(row) and _step_error(row) <= TRUST_ERR_R
 
 
 def _reason(row: pd.Series) -> str:
@@ -182,9 +180,8 @@ def _reason(row: pd.Series) -> str:
             parts.append(f"energy drift {float(row['energy_drift_max']):.1e}")
         else:
             parts.append(f"{failure} check fails")
-    err = _known(row, "shadow_err_r")
-    if err is not None and err > TRUST_ERR_R:
-        parts.append(f"one-step error {err:.1e} r")
+    if _step_error(row) > TRUST_ERR_R:
+        parts.append(f"one-step error {_step_error(row):.1e} r")
     return f"{row['scene_name']} ({'; '.join(parts)})"
 
 

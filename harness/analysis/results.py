@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # pandas and scipy (harness.stats) only where rows are typed 
     import pandas as pd  # an unchanged report page reads its rows and loads neither
 
 Row = dict[str, object]
-DIVERGENCE_NUMBERS = ("step", "max_pos_dev")
 
 
 def provenance(record: Mapping[str, object]) -> Row:
@@ -216,7 +215,7 @@ class Experiment:
         import pandas as pd
 
         frame = frame_of(rows, columns.DIVERGENCE_COLUMNS)
-        for column in DIVERGENCE_NUMBERS:  # a curve's own columns beside the cell's
+        for column in ("step", "max_pos_dev"):  # a curve's own columns beside the cell's
             frame[column] = pd.to_numeric(frame[column])
         return frame
 
