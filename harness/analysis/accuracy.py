@@ -9,14 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from harness.analysis.cells import (
-    MACHINE,
-    SCENE_KEYS,
-    present,
-    sort_cells,
-    timed_rows,
-    variant_fact,
-)
+from harness.analysis import cells
 from harness.analysis.display import display_name, format_value
 from harness.analysis.flags import validation_text
 from harness.spec.facts import Variants
@@ -27,10 +20,10 @@ def pareto_mask(times: pd.Series, errors: pd.Series) -> pd.Series:
     """True for the cells no other cell beats on both time and error (lower is better)."""
     # By increasing time, a cell is on the front when it is more accurate than every faster
     # one (ties in time go to the more accurate cell, seen first).
-    cells = pd.DataFrame({"time": times, "error": errors}).sort_values(["time", "error"],
+    front = pd.DataFrame({"time": times, "error": errors}).sort_values(["time", "error"],
                                                                        kind="stable")
-    faster = cells["error"].cummin().shift(fill_value=math.inf)
-    return (cells["error"] < faster).reindex(times.index)
+    faster = front["error"].cummin().shift(fill_value=math.inf)
+    return (front["error"] < faster).reindex(times.index)
 
 
 def pareto_by_scene(rows: pd.DataFrame, error: str) -> pd.Series:
@@ -38,7 +31,8 @@ def pareto_by_scene(rows: pd.DataFrame, error: str) -> pd.Series:
     scenes are not comparable, so each scene has its own front); False where `error` is
     missing."""
     mask = pd.Series(False, index=rows.index)
-    for _, group in rows[rows[error].notna()].groupby(present(rows, SCENE_KEYS), dropna=False):
+    scenes = cells.present(rows, cells.SCENE_KEYS)
+    for _, group in rows[rows[error].notna()].groupby(scenes, dropna=False):
         mask[group.index] = pareto_mask(group["wall_median_s"], group[error])
     return mask
 
@@ -56,13 +50,13 @@ def has_error_data(df: pd.DataFrame) -> bool:
 def error_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants) -> pd.DataFrame:
     """Per timed cell with a measured error: time, errors and whether it is on the Pareto front
     (variants in the order of `variants`)."""
-    rows = timed_rows(df)
+    rows = cells.timed_rows(df)
     rows = rows[rows["max_pos_err"].notna()]
     table = rows[[*keys, "wall_median_s", "max_pos_err", "max_vel_err", "count_mismatches"]
                  ].rename(columns={"wall_median_s": "median_s"})
     table["validation"] = rows.apply(validation_text, axis=1) if len(rows) else []
     table["pareto"] = pareto_by_scene(rows, "max_pos_err")
-    return sort_cells(table, keys, variants)
+    return cells.sort_cells(table, keys, variants)
 
 
 # Each check's column and what it tests, in the order the tables show them.
@@ -93,7 +87,7 @@ def has_check_data(df: pd.DataFrame) -> bool:
 def scene_names(df: pd.DataFrame) -> pd.Series:
     """Per row, the name of its input: the scene label, plus the parameters that tell apart
     the inputs sharing that label (e.g. `random N=4000 L=12649.1 S=3`)."""
-    keys = [k for k in SCENE_KEYS if k not in (MACHINE, "scene") and k in df.columns
+    keys = [k for k in cells.SCENE_KEYS if k not in (cells.MACHINE, "scene") and k in df.columns
             and df.groupby("scene", dropna=False)[k].nunique(dropna=False).max() > 1]
     if not keys:
         return df["scene"].astype(str)
@@ -106,7 +100,7 @@ def _checked(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     names = scene_names(rows) if len(rows) else pd.Series([], dtype=object)
     rank = {name: i for i, name in enumerate(dict.fromkeys(names))}
     rows = rows.assign(scene_name=names, scene_rank=names.map(rank))
-    return sort_cells(rows, ["variant", "build"], variants)
+    return cells.sort_cells(rows, ["variant", "build"], variants)
 
 
 def _failures(row: pd.Series) -> list[str]:
@@ -124,8 +118,8 @@ def stability_matrix(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     rows = rows.assign(label=rows["variant"] + "/" + rows["build"])
     scenes = list(dict.fromkeys(rows.sort_values("scene_rank", kind="stable")["scene_name"]))
     marks = {}
-    for key, cells in rows.groupby(["scene_name", "label"], sort=False):
-        failed = list(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
+    for key, group in rows.groupby(["scene_name", "label"], sort=False):
+        failed = list(dict.fromkeys(f for _, r in group.iterrows() for f in _failures(r)))
         marks[key] = f"{FAIL_MARK} " + ", ".join(failed) if failed else PASS_MARK
     return pd.DataFrame({"scene": scenes, **{label: [marks.get((s, label), "") for s in scenes]
                                              for label in dict.fromkeys(rows["label"])}})
@@ -152,29 +146,27 @@ def accuracy_table(df: pd.DataFrame, keys: Sequence[str], variants: Variants) ->
     """Per checked, timed cell: time, whole-run error against the baseline, the shadow-step
     error, collision-set differences, energy drift and steps until r apart from the truth;
     ✓ marks each scene's Pareto front of time against the mean shadow error."""
-    rows = timed_rows(_checked(df, variants))
+    rows = cells.timed_rows(_checked(df, variants))
     table = rows.reindex(columns=[
         *keys, "wall_median_s", "max_pos_err", "shadow_pos_err", "shadow_err_r",
         "shadow_set_diff", "energy_drift_max", "div_steps_to_r"]).rename(
         columns={"wall_median_s": "median_s"})
     table["pareto"] = pareto_by_scene(rows, "shadow_pos_err") \
         if "shadow_pos_err" in rows.columns else False
-    return sort_cells(table, keys, variants)
+    return cells.sort_cells(table, keys, variants)
 
 
-def _known(row: pd.Series, column: str) -> float | None:
-    value = row.get(column)
-    return None if pd.isna(value) else float(value)
+def _step_error(row: pd.Series) -> float:
+    """The one-step error in radii (0 where not measured)."""
+    value = row.get("shadow_err_r")
+    return 0.0 if pd.isna(value) else float(value)
 
 
 def _trusted(row: pd.Series) -> bool:
     """Every check passed and one step within TRUST_ERR_R radii of __float128's. (How soon
     the whole run is a radius off the truth is shown, not judged: in a dense scene chaos gets
     every precision there within a few steps.)"""
-    if _failures(row):
-        return False
-    err = _known(row, "shadow_err_r")
-    return err is None or err <= TRUST_ERR_R
+    return not _failures(row) and _step_error(row) <= TRUST_ERR_R
 
 
 def _reason(row: pd.Series) -> str:
@@ -188,9 +180,8 @@ def _reason(row: pd.Series) -> str:
             parts.append(f"energy drift {float(row['energy_drift_max']):.1e}")
         else:
             parts.append(f"{failure} check fails")
-    err = _known(row, "shadow_err_r")
-    if err is not None and err > TRUST_ERR_R:
-        parts.append(f"one-step error {err:.1e} r")
+    if _step_error(row) > TRUST_ERR_R:
+        parts.append(f"one-step error {_step_error(row):.1e} r")
     return f"{row['scene_name']} ({'; '.join(parts)})"
 
 
@@ -218,15 +209,15 @@ def trust_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     return pd.DataFrame(out, columns=columns)
 
 
-def _short_reason(cells: pd.DataFrame) -> str:
+def _short_reason(group: pd.DataFrame) -> str:
     """The gist of why a scene's cells are not trusted: the worst one-step error in radii,
     else differing collisions, else the failing checks."""
-    errors = cells.get("shadow_err_r", pd.Series(dtype=float)).dropna()
+    errors = group.get("shadow_err_r", pd.Series(dtype=float)).dropna()
     if len(errors) and float(errors.max()) > TRUST_ERR_R:
         return f"{float(errors.max()):.1e} r per step"
-    if "shadow_set_diff" in cells and (cells["shadow_set_diff"].fillna(0) > 0).any():
+    if "shadow_set_diff" in group and (group["shadow_set_diff"].fillna(0) > 0).any():
         return "collisions differ"
-    return ", ".join(dict.fromkeys(f for _, r in cells.iterrows() for f in _failures(r)))
+    return ", ".join(dict.fromkeys(f for _, r in group.iterrows() for f in _failures(r)))
 
 
 def build_trust(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
@@ -235,13 +226,13 @@ def build_trust(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     with why."""
     rows = _checked(df, variants)
     # a variant that is not exact computes contact times with arithmetic of its own
-    rows = rows[~variant_fact(rows["variant"], lambda f: not f.exact, variants)]
+    rows = rows[~cells.variant_fact(rows["variant"], lambda f: not f.exact, variants)]
     out = []
     for build, group in rows.groupby("build", sort=False):
         scenes = list(dict.fromkeys(group["scene_name"]))
         bad = group[~group.apply(_trusted, axis=1)]
-        failing = [f"{scene} ({_short_reason(cells)})"
-                   for scene, cells in bad.groupby("scene_name", sort=False)]
+        failing = [f"{scene} ({_short_reason(cell_rows)})"
+                   for scene, cell_rows in bad.groupby("scene_name", sort=False)]
         out.append({"build": build, "variants": ", ".join(dict.fromkeys(group["variant"])),
                     "scenes": len(scenes), "trusted": len(scenes) - bad["scene_name"].nunique(),
                     "not_trusted": ", ".join(failing)})

@@ -82,15 +82,15 @@ def timed_rows(df: pd.DataFrame) -> pd.DataFrame:
     return df[df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].notna()]
 
 
-def varying_keys(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> list[str]:
-    """The keys that take more than one value across the rows: what the experiment varies."""
-    return [k for k in keys if k in df.columns and df[k].nunique(dropna=False) > 1]
+def varying_keys(df: pd.DataFrame) -> list[str]:
+    """The CELL_KEYS that take more than one value across the rows: what the experiment varies."""
+    return [k for k in CELL_KEYS if k in df.columns and df[k].nunique(dropna=False) > 1]
 
 
-def fixed_params(df: pd.DataFrame, keys: Iterable[str] = CELL_KEYS) -> dict[str, object]:
-    """The keys that take exactly one value across the rows, with that value; not an axis the
+def fixed_params(df: pd.DataFrame) -> dict[str, object]:
+    """The CELL_KEYS that take exactly one value across the rows, with that value; not an axis the
     config did not set (an empty schedule)."""
-    return {key: df[key].iloc[0] for key in keys if key in df.columns and len(df)
+    return {key: df[key].iloc[0] for key in CELL_KEYS if key in df.columns and len(df)
             and df[key].nunique(dropna=False) == 1 and df[key].iloc[0] != ""}
 
 

@@ -183,8 +183,7 @@ def format_value(column: str, value: object) -> str:
 def is_numeric_column(df: pd.DataFrame, column: str) -> bool:
     """Whether a built table's column holds numbers (right-aligned when shown)."""
     dtype = df[column].dtype
-    return column not in ("pareto", "oversubscribed") and pd.api.types.is_numeric_dtype(
-        dtype) and not pd.api.types.is_bool_dtype(dtype)
+    return pd.api.types.is_numeric_dtype(dtype) and not pd.api.types.is_bool_dtype(dtype)
 
 
 SHARE_WHOLE = (10.0, 99.5)  # between these a share is written in whole percent

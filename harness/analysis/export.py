@@ -1,8 +1,7 @@
 """The exports of an experiment's results, for pandas users and spreadsheets: results.csv,
 ratios.csv (analysis.ratios) and divergence.csv (the checks' curves), written beside its
-records with results.index.json: the records they list, in order, and the sha256 of each file
-as written. An export found missing, cut short or altered is named in one line and written
-again from the records the index lists (repair; docs/results.md, "Checked before trusted")."""
+records with results.index.json, which lists them and each file's sha256 as written
+(docs/results.md, "Checked before trusted": repair writes one found altered again)."""
 
 import csv
 import hashlib

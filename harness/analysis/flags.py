@@ -7,6 +7,7 @@ import math
 import pandas as pd
 
 from harness.analysis.cells import flag, sort_cells
+from harness.analysis.display import counted
 from harness.analysis.serving import measured_once
 from harness.spec.facts import Variants
 from harness.store import columns
@@ -167,8 +168,7 @@ def provenance(df: pd.DataFrame) -> str:
         if len(counts) == 1:
             sentences.append(f"Measured at commit `{counts.index[0]}`.")
         elif len(counts) > 1:
-            listed = ", ".join(f"`{c}` ({n} cell{'s' if n > 1 else ''})"
-                               for c, n in sorted(counts.items()))
+            listed = ", ".join(f"`{c}` ({counted(n, 'cell')})" for c, n in sorted(counts.items()))
             sentences.append(f"Measured at commits {listed}.")
         unknown = int((commits == "").sum())
         if counts.any() and unknown:
@@ -204,7 +204,7 @@ def earlier_config_text(df: pd.DataFrame) -> str:
         return ""
     changed = sorted({f for text in df.loc[earlier, "config_changed"].dropna().astype(str)
                       for f in text.split()} - {columns.UNPLANNED})
-    what = f" (it differed in: {', '.join(changed)})" if changed else ""
+    what = _config_change(" ".join(changed))
     count = int(earlier.sum())
     return (f"{count} of these {len(df)} cells {'was' if count == 1 else 'were'} measured under "
             f"an earlier version of the config{what}, by a machine that has not measured it "

@@ -17,7 +17,6 @@ from harness.spec.facts import BASELINE, Variants, ignored_axes
 from harness.store import atomic, layout, locks, records
 from harness.store.hyperfine import ResultFormatError, load_hyperfine
 from harness.store.index import Listed, index_files, index_rows, listed_records
-from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.result import RECORD_VERSION, CellResult, TimedRun, upgrade
 from harness.store.superseded import Stored, load_records, move_to_history
@@ -70,7 +69,7 @@ def sort_out(stored: Sequence[Stored], facts: Variants
 
 def migrate(experiment_dir: Path, facts: Variants) -> Migration:
     """Bring the directory's records to their cells' current keys, under its lock."""
-    exp = ExperimentDir(experiment_dir)
+    exp = layout.ExperimentDir(experiment_dir)
     with locks.directory_lock(experiment_dir):
         rekeyed, moved = sort_out(load_records(exp.cells), facts)
         if rekeyed or moved:
@@ -80,7 +79,7 @@ def migrate(experiment_dir: Path, facts: Variants) -> Migration:
     return Migration(experiment_dir, len(rekeyed), len(moved))
 
 
-def rekey(exp: ExperimentDir, item: Stored, changed: Mapping[str, object]) -> str:
+def rekey(exp: layout.ExperimentDir, item: Stored, changed: Mapping[str, object]) -> str:
     """Give the record its cell's key (its files renamed with its id, the record written
     last); the new id."""
     old = item.cell_id
@@ -110,7 +109,7 @@ def _renamed(name: str, old: str, new: str) -> str:
     return new + name[len(old):] if name.startswith(old) else name
 
 
-def relist(exp: ExperimentDir, new_ids: Mapping[str, str], dropped: Iterable[str]) -> None:
+def relist(exp: layout.ExperimentDir, new_ids: Mapping[str, str], dropped: Iterable[str]) -> None:
     """The index's rows with each re-keyed record under its new id and the dropped ones left
     out, and the exports written again from them; results from before the index (which lists
     every record no newer one supersedes): results.csv's rows as they were but for those, and
@@ -186,7 +185,7 @@ def _statistics(result: CellResult) -> CellResult:
     return result.replace(**changes) if changes else result
 
 
-def upgrade_experiment(exp: ExperimentDir) -> Upgraded:
+def upgrade_experiment(exp: layout.ExperimentDir) -> Upgraded:
     """Every record of the experiment (cells/ and history/) in the current version."""
     read = rewritten = 0
     for directory in (exp.cells, exp.history):

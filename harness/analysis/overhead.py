@@ -1,8 +1,6 @@
-"""What the seed's strategies pay the OpenMP runtime, in numbers (docs/results.md, "What the
-runtime's operations cost"): each strategy's operations per step (its binary's `--describe`
-sync facts) times the steps, times the cost of one operation at the cell's thread count on the
-same machine (the median over that thread count's cells), beside the measured time the
-strategy spends over its repair."""
+"""What the seed's strategies pay the OpenMP runtime (docs/results.md, "What the runtime's
+operations cost"): their operations per step (`--describe`'s sync facts) priced at the cost of
+one measured on the same machine, beside the time each spends over its repair."""
 
 import math
 
@@ -72,11 +70,10 @@ def _median(cells: pd.DataFrame, variant: str) -> float:
 
 
 def overhead_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame | None:
-    """Per seed strategy with sync facts and per thread count it ran at: its operations per
-    step; the predicted seconds of its operations over those of its repair (both priced at the
-    thread count's measured costs); its median, the repair's, and their difference (the
-    measured overhead), from the facts of `variants`. None where no seed strategy ran or no
-    cost was measured."""
+    """Per seed strategy with sync facts (among `variants`) and thread count it ran at: its
+    operations per step, their predicted seconds over its repair's (priced at the thread count's
+    costs), and its median, the repair's and their difference (the measured overhead). None
+    where no seed strategy ran or no cost was measured."""
     costs = cost_table(df)
     if costs is None:
         return None

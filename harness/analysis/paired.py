@@ -1,7 +1,5 @@
-"""The ratios of each cell to its references (analysis.ratios) in the tables and figures: a
-cell's speedup over one thread or over seq, with its efficiency and Karp-Flatt serial fraction,
-taken from the ratio paired by round where there is one for the cell and its reference. Cells
-without one keep the ratio of medians and its bootstrap over the runs (analysis.speedup)."""
+"""The ratios paired by round (analysis.ratios) in the tables and figures: a cell's speedup,
+efficiency and serial fraction where ratios.csv pairs it with its reference (docs/results.md)."""
 
 import math
 

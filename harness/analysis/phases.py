@@ -1,24 +1,12 @@
-"""Where the time goes (docs/results.md, "Where the time goes"): each cell's `--timing` run
-split into its phases, in seconds and as shares of the simulation time, as a table, a figure's
-frame and a headline. The output gets no share: written with --precise, it would shrink every
-other phase. The cells shown are those at the experiment's most common thread count, so that a
-thread sweep shows its single-thread cells and a strategy comparison every variant.
-"""
+"""Where the time goes (docs/results.md, "Where the time goes"): each cell's `--timing` phases,
+in seconds and as shares of sim_s, as a table, a figure's frame and a headline. The output
+gets no share: written with --precise, it would shrink every other phase."""
 
 from dataclasses import dataclass
 
 import pandas as pd
 
-from harness.analysis import display
-from harness.analysis.cells import (
-    MACHINE,
-    SCENE_KEYS,
-    SHARE_SUFFIX,
-    flag,
-    sort_cells,
-    timed_rows,
-    varying_keys,
-)
+from harness.analysis import cells, display
 from harness.analysis.serving import ONE_THREAD_RUN, measured_once
 from harness.spec.facts import GRID, Variants
 from harness.store.columns import PHASE_COLUMNS
@@ -32,7 +20,7 @@ REST_NS = "rest_ns"  # the simulation outside the broad phase, ns per particle-s
 BROAD = PHASE_COLUMNS[0]
 PERCENT = 100.0
 # The dimensions a bar is one of within a scene (the thread count is fixed by the rule above).
-ROW_KEYS: tuple[str, ...] = (MACHINE, "variant", "build", "schedule")
+ROW_KEYS: tuple[str, ...] = (cells.MACHINE, "variant", "build", "schedule")
 # Bars beyond this make a figure too tall to read next to its table: whole scenes are left out,
 # the cheapest (least simulation time) first, until the rest fits (one is always shown).
 MAX_BARS = 36
@@ -49,7 +37,7 @@ def outside_broad_ns(sim_s, broad_s, particle_steps):
 def phase_rows(df: pd.DataFrame) -> pd.DataFrame:
     if not all(c in df.columns for c in PHASE_COLUMNS):
         return df.iloc[0:0]
-    rows = timed_rows(df)
+    rows = cells.timed_rows(df)
     return rows[rows[["sim_s", *PHASE_COLUMNS]].notna().all(axis=1)]
 
 
@@ -63,7 +51,7 @@ def with_phases(rows: pd.DataFrame) -> pd.DataFrame:
     out[display.OUTPUT_PHASE] = out[display.OUTPUT_PHASE].fillna(0.0)
     whole = out[list(SIM_PHASES)].sum(axis=1)  # sim_s, or a few microseconds above it
     for phase in SIM_PHASES:
-        out[f"{phase}{SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
+        out[f"{phase}{cells.SHARE_SUFFIX}"] = (out[phase] / whole * PERCENT).where(whole > 0)
     particle_steps = out["n"] * out["steps"]
     out[REST_NS] = outside_broad_ns(whole, out[BROAD], particle_steps).where(particle_steps > 0)
     return out
@@ -83,8 +71,9 @@ class Selection:
 
 
 def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
-    """The cells at the experiment's most common thread count (the fewest on a tie), in the
-    order of `variants`, or None when no cell has phases."""
+    """The cells at the experiment's most common thread count (the fewest on a tie: a thread
+    sweep shows its single-thread cells, a strategy comparison every variant), in the order of
+    `variants`, or None when no cell has phases."""
     rows = phase_rows(df)
     if rows.empty:
         return None
@@ -92,9 +81,10 @@ def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
     threads = int(min(counts[counts == counts.max()].index))
     chosen = rows[rows["threads"] == threads]
     # A machine is a bar of its own (ROW_KEYS), not a scene.
-    scene_keys = tuple(k for k in SCENE_KEYS if k != MACHINE and k in varying_keys(chosen))
-    row_keys = tuple(k for k in ROW_KEYS if k in varying_keys(chosen)) or ("variant",)
-    ordered = sort_cells(chosen, [*scene_keys, *row_keys], variants)
+    varying = cells.varying_keys(chosen)
+    scene_keys = tuple(k for k in cells.SCENE_KEYS if k != cells.MACHINE and k in varying)
+    row_keys = tuple(k for k in ROW_KEYS if k in varying) or ("variant",)
+    ordered = cells.sort_cells(chosen, [*scene_keys, *row_keys], variants)
     scenes = [g for _, g in ordered.groupby(list(scene_keys), sort=False, dropna=False)] \
         if scene_keys else [ordered]
     # The costliest scenes are where the time matters: those are kept, shown in table order.
@@ -111,7 +101,7 @@ def select(df: pd.DataFrame, variants: Variants) -> Selection | None:
         scene_keys=scene_keys,
         row_keys=row_keys,
         other_threads=len(_not_shown(rows, chosen)),
-        without_phases=len(measured_once(timed_rows(df))) - len(measured_once(rows)),
+        without_phases=len(measured_once(cells.timed_rows(df))) - len(measured_once(rows)),
         scenes_left_out=len(scenes) - len(shown),
     )
 
@@ -122,29 +112,28 @@ def _not_shown(rows: pd.DataFrame, chosen: pd.DataFrame) -> pd.DataFrame:
     others = rows[~rows.index.isin(chosen.index)]
     if ONE_THREAD_RUN in rows.columns:
         shown = set(chosen["cell_id"])
-        others = others[~(flag(others, ONE_THREAD_RUN) & others["cell_id"].isin(shown))]
+        others = others[~(cells.flag(others, ONE_THREAD_RUN) & others["cell_id"].isin(shown))]
     return measured_once(others)
 
 
-def _labels(cells: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
-    return [display.series_label(tuple(row[k] for k in keys), keys) for _, row in cells.iterrows()]
+def _labels(rows: pd.DataFrame, keys: tuple[str, ...]) -> list[str]:
+    return [display.series_label(tuple(row[k] for k in keys), keys) for _, row in rows.iterrows()]
 
 
 def phase_table(sel: Selection) -> pd.DataFrame:
     """Per shown cell: sim_s, each of its phases with its share, the rest per particle-step
     and the output."""
-    shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{SHARE_SUFFIX}")]
+    shares = [c for phase in SIM_PHASES for c in (phase, f"{phase}{cells.SHARE_SUFFIX}")]
     keep = [*sel.scene_keys, *sel.row_keys, TOTAL, *shares, REST_NS, display.OUTPUT_PHASE]
     return sel.cells[keep].copy()
 
 
 def plot_frame(sel: Selection) -> pd.DataFrame:
     """What the figure draws, one row per bar: its scene's label, its own, every phase."""
-    cells = sel.cells
     return pd.DataFrame({
-        GROUP: _labels(cells, sel.scene_keys) if sel.scene_keys else "",
-        BAR: _labels(cells, sel.row_keys),
-        **{phase: cells[phase].to_numpy(dtype=float) for phase in PHASES},
+        GROUP: _labels(sel.cells, sel.scene_keys) if sel.scene_keys else "",
+        BAR: _labels(sel.cells, sel.row_keys),
+        **{phase: sel.cells[phase].to_numpy(dtype=float) for phase in PHASES},
     })
 
 
@@ -155,7 +144,7 @@ def grid_headline(sel: Selection, link: str) -> tuple[float, str] | None:
     if grid.empty:
         return None
     cell = grid.sort_values(["n", TOTAL], kind="stable").iloc[-1]
-    share = cell[f"{BROAD}{SHARE_SUFFIX}"]
+    share = cell[f"{BROAD}{cells.SHARE_SUFFIX}"]
     return float(cell["n"]), (
         f"where grid's time goes: the broad phase is {display.format_share(share)} of its "
         f"simulation time, the rest of it {display.format_sig3(cell[REST_NS])} ns per "

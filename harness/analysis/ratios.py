@@ -1,7 +1,5 @@
-"""Each cell's ratios to its references (store.columns.RATIO_COLUMNS; docs/results.md says
-what ratios.csv holds): its speedup over its variant at one thread and over the baseline
-variant, taken round by round in the rounds both were measured in, computed from an
-experiment's rows (analysis.results)."""
+"""Each cell's ratios to its references, ratios.csv's rows (docs/results.md says what they
+hold), computed from an experiment's rows (analysis.results)."""
 
 import math
 import statistics

@@ -1,8 +1,6 @@
-"""The read model: stored results read from their records, the one reader of them
-(docs/results.md, "Records are the truth"). An experiment's rows are the records its index
-lists (without an index, every record no newer one supersedes), each its record's fields by
-their column names with what the record does not hold derived here once (the machine's label,
-whether hyperfine warned of outliers), typed once into the frame every reader uses."""
+"""The read model, the one reader of stored results (docs/results.md, "Records are the
+truth"): an experiment's rows from the records it lists, with what a record does not hold
+derived once (the machine's label, whether hyperfine warned of outliers), typed once."""
 
 from __future__ import annotations
 
@@ -15,25 +13,7 @@ from typing import TYPE_CHECKING
 
 from harness.errors import HarnessError
 from harness.spec.facts import Variants, read_variants
-from harness.store import hyperfine, layout, sessions
-from harness.store.columns import (
-    BOOL_COLUMNS,
-    CSV_COLUMNS,
-    DIVERGENCE_CELL_COLUMNS,
-    DIVERGENCE_COLUMNS,
-    EXTRA_COLUMNS,
-    FLAG_COLUMNS,
-    LIST_COLUMNS,
-    NUMERIC_COLUMNS,
-    OPTIONAL_GROUPS,
-    PROVENANCE_COLUMNS,
-    RATIO_COLUMNS,
-    RATIO_NUMBERS,
-    REQUIRED_VALUES,
-    STATUSES,
-    TIMED_STATUSES,
-    format_list,
-)
+from harness.store import columns, hyperfine, layout, sessions
 from harness.store.index import Listed, index_rows, index_title, listed_records
 from harness.store.labels import machine_labels, read_machines
 from harness.store.layout import QUICK_SUFFIX, ExperimentDir
@@ -45,14 +25,13 @@ if TYPE_CHECKING:  # pandas and scipy (harness.stats) only where rows are typed 
     import pandas as pd  # an unchanged report page reads its rows and loads neither
 
 Row = dict[str, object]
-DIVERGENCE_NUMBERS = ("step", "max_pos_dev")
 
 
 def provenance(record: Mapping[str, object]) -> Row:
     """PROVENANCE_COLUMNS of a record: its own fields, with the machine's id from its key
     where the record has none, its label from its description, and whether hyperfine warned
     of outliers (from the warnings it kept)."""
-    values: Row = {c: record.get(c) for c in PROVENANCE_COLUMNS}
+    values: Row = {c: record.get(c) for c in columns.PROVENANCE_COLUMNS}
     key = record.get("key")
     if values["machine_id"] is None and isinstance(key, dict):
         values["machine_id"] = key.get(MACHINE_KEY)
@@ -69,8 +48,9 @@ def row(record: Mapping[str, object], experiment: str, title: str,
     """A record's row (its CellResult.columns): its fields by their column names, and its
     provenance; with `config_changed`, the key fields in which it differs from what its
     config plans now."""
-    columns = (*CSV_COLUMNS[2:], *EXTRA_COLUMNS, *(c for g in OPTIONAL_GROUPS for c in g))
-    return {"experiment": experiment, "title": title, **{c: record.get(c) for c in columns},
+    fields = (*columns.CSV_COLUMNS[2:], *columns.EXTRA_COLUMNS,
+              *(c for g in columns.OPTIONAL_GROUPS for c in g))
+    return {"experiment": experiment, "title": title, **{c: record.get(c) for c in fields},
             **provenance(record), "stale": stale,
             "earlier_config": bool(config_changed) or None,
             "config_changed": config_changed or None}
@@ -82,11 +62,12 @@ def row_of(item: Listed, exp: ExperimentDir, title: str) -> Row:
 
 def columns_of(rows: Sequence[Row]) -> tuple[str, ...]:
     """The columns rows have: the fixed ones, then each optional group some row fills."""
-    columns: tuple[str, ...] = (*CSV_COLUMNS, *EXTRA_COLUMNS, *PROVENANCE_COLUMNS)
-    for group in OPTIONAL_GROUPS:
+    found: tuple[str, ...] = (*columns.CSV_COLUMNS, *columns.EXTRA_COLUMNS,
+                              *columns.PROVENANCE_COLUMNS)
+    for group in columns.OPTIONAL_GROUPS:
         if any(row.get(c) not in (None, "") for row in rows for c in group):
-            columns = (*columns, *group)
-    return columns
+            found = (*found, *group)
+    return found
 
 
 def text_of(value: object) -> str:
@@ -94,7 +75,7 @@ def text_of(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, list | tuple):
-        return format_list(value)
+        return columns.format_list(value)
     if isinstance(value, float):
         return "inf" if math.isinf(value) and value > 0 else repr(value)
     return str(value)
@@ -105,28 +86,28 @@ def _typed(name: str, values: list[object]) -> pd.Series:
     booleans, lists tuples of their items' type, anything else its text."""
     import pandas as pd
 
-    if name in NUMERIC_COLUMNS or name in RATIO_NUMBERS:
+    if name in columns.NUMERIC_COLUMNS or name in columns.RATIO_NUMBERS:
         return pd.Series([math.nan if v is None or v == "" else float(v)  # type: ignore[arg-type]
                           for v in values], dtype="float64")
-    if name in BOOL_COLUMNS:
+    if name in columns.BOOL_COLUMNS:
         return pd.Series([None if v is None or v == "" else bool(v) for v in values],
                          dtype="boolean")
-    if name in LIST_COLUMNS:
-        kind = LIST_COLUMNS[name]
+    if name in columns.LIST_COLUMNS:
+        kind = columns.LIST_COLUMNS[name]
         return pd.Series([tuple(kind(x) for x in v) if isinstance(v, list | tuple) else ()
                           for v in values], dtype=object)
     return pd.Series([text_of(v).strip() for v in values], dtype="str")
 
 
-def frame_of(rows: Sequence[Row], columns: Sequence[str] | None = None) -> pd.DataFrame:
-    """Rows as the typed frame every reader uses (columns_of's, or `columns`)."""
+def frame_of(rows: Sequence[Row], names: Sequence[str] | None = None) -> pd.DataFrame:
+    """Rows as the typed frame every reader uses (columns_of's, or `names`)."""
     import pandas as pd
 
     from harness.analysis.cells import flag
 
-    names = columns_of(rows) if columns is None else columns
+    names = columns_of(rows) if names is None else names
     frame = pd.DataFrame({c: _typed(c, [row.get(c) for row in rows]) for c in names})
-    for column in FLAG_COLUMNS:
+    for column in columns.FLAG_COLUMNS:
         if column in frame.columns:  # a flag not recorded is not set
             frame[column] = flag(frame, column)
     return frame
@@ -134,13 +115,13 @@ def frame_of(rows: Sequence[Row], columns: Sequence[str] | None = None) -> pd.Da
 
 def check_rows(df: pd.DataFrame, where: Path) -> None:
     """Every row names its cell and has a known status; timed cells have a median time."""
-    for column in REQUIRED_VALUES:
+    for column in columns.REQUIRED_VALUES:
         empty = df[column].isna() | (df[column].astype(str) == "")
         if empty.any():
             raise HarnessError(f"{where}: cell {df['cell_id'][empty.idxmax()]}: '{column}' "
                                "is empty")
-    for rows, what in ((~df["status"].isin(STATUSES), "is not a status"),
-                       (df["status"].isin(TIMED_STATUSES) & df["wall_median_s"].isna(),
+    for rows, what in ((~df["status"].isin(columns.STATUSES), "is not a status"),
+                       (df["status"].isin(columns.TIMED_STATUSES) & df["wall_median_s"].isna(),
                         "but no wall_median_s")):
         if rows.any():
             k = rows.idxmax()
@@ -192,7 +173,7 @@ def divergence_rows(record: Mapping[str, object]) -> list[Row]:
     curves = record.get("divergence")
     if not isinstance(curves, dict):
         return []
-    base = {c: record.get(c) for c in DIVERGENCE_CELL_COLUMNS}
+    base = {c: record.get(c) for c in columns.DIVERGENCE_CELL_COLUMNS}
     return [{**base, "reference": reference, "step": step, "max_pos_dev": value}
             for reference, curve in curves.items()
             for step, value in enumerate(curve if isinstance(curve, list) else [])]
@@ -224,7 +205,7 @@ class Experiment:
 
     def ratios(self, baseline: str) -> pd.DataFrame:
         """Each cell's ratios to its references, typed as the cells are."""
-        return frame_of(ratio_rows_of(self.rows, self.directory, baseline), RATIO_COLUMNS)
+        return frame_of(ratio_rows_of(self.rows, self.directory, baseline), columns.RATIO_COLUMNS)
 
     @functools.cached_property
     def divergence(self) -> pd.DataFrame | None:
@@ -233,18 +214,10 @@ class Experiment:
             return None
         import pandas as pd
 
-        frame = frame_of(rows, DIVERGENCE_COLUMNS)
-        for column in DIVERGENCE_NUMBERS:  # a curve's own columns beside the cell's
+        frame = frame_of(rows, columns.DIVERGENCE_COLUMNS)
+        for column in ("step", "max_pos_dev"):  # a curve's own columns beside the cell's
             frame[column] = pd.to_numeric(frame[column])
         return frame
-
-    def env(self, machine_id: str | None = None) -> dict[str, object]:
-        """env.json of the machine's latest run here (of the latest run's, without one)."""
-        path = self.directory.machine(machine_id) if machine_id else self.directory.env_json
-        if machine_id and not path.is_file():
-            path = self.directory.env_json
-        found = read_json(path)
-        return found if isinstance(found, dict) else {}
 
 
 def load_experiment(exp: ExperimentDir, labels: Mapping[str, str] | None = None) -> Experiment:
@@ -279,11 +252,10 @@ def experiments(root: Path, include_quick: bool = False,
             and (only is None or exp.name in only) and has_rows(exp)]
 
 
-def load(root: Path, include_quick: bool = False, only: Collection[str] | None = None
-         ) -> list[Experiment]:
+def load(root: Path, include_quick: bool = False) -> list[Experiment]:
     """Every experiment under a results root (or the one experiment `root` is), every
     machine's rows, its machines named among all the root's."""
-    found = experiments(root, include_quick, only)
+    found = experiments(root, include_quick)
     labels = machine_labels(read_machines(exp.path for exp in found))
     return [load_experiment(exp, labels) for exp in found]
 

@@ -15,14 +15,12 @@ import pandas as pd
 from harness import stats
 from harness.analysis import results
 from harness.analysis.cells import key_text
-from harness.analysis.flags import _is_true, short_commit
-from harness.analysis.results import items
+from harness.analysis.flags import short_commit
 from harness.errors import HarnessError
 from harness.spec.config import METRIC_INSTRUCTIONS, METRIC_TIME
 from harness.store import layout, records
 from harness.store.columns import MATCH_COLUMNS, OK
 from harness.store.labels import machine_labels, read_machines
-from harness.store.layout import ExperimentDir
 
 # The flags of store.columns.FLAG_COLUMNS that make a cell's times suspect (stale is a note
 # of its own), in the order a row's note names them.
@@ -137,7 +135,7 @@ def experiment_dirs(path: Path, side: str) -> tuple[list[Path], bool]:
 
 def _env_machine(directory: Path) -> str:
     """A label for results written before the `machine` column: env.json's CPU and host."""
-    env = records.read_json(ExperimentDir(directory).env_json)
+    env = records.read_json(layout.ExperimentDir(directory).env_json)
     if not isinstance(env, dict):
         return ""
     model = str(env.get("cpu_model") or "").strip()
@@ -165,14 +163,14 @@ def noise_profile(cells: Sequence[Cell]) -> stats.NoiseProfile:
 
 def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
     """The rows of one experiment (analysis.results) as cells."""
-    frame = results.load_experiment(ExperimentDir(directory)).frame
+    frame = results.load_experiment(layout.ExperimentDir(directory)).frame
     env_machine = None
     cells = []
     for _, row in frame.iterrows():
         experiment = (_text(row, "experiment") or directory.name) if keyed_on_experiment else ""
         key = MatchKey(experiment, *(key_text(row.get(c)) for c in MATCH_COLUMNS))
-        times = items(row, "wall_times_s")
-        rounds = tuple(int(r) for r in items(row, "wall_times_round"))
+        times = results.items(row, "wall_times_s")
+        rounds = tuple(int(r) for r in results.items(row, "wall_times_round"))
         median = float(row["wall_median_s"]) if pd.notna(row["wall_median_s"]) else math.nan
         if not math.isfinite(median) and times:
             median = statistics.median(times)
@@ -186,12 +184,12 @@ def read_cells(directory: Path, keyed_on_experiment: bool) -> list[Cell]:
         cells.append(Cell(
             key=key, directory=directory, status=_text(row, "status") or "unknown",
             median=median, times=times, machine_id=machine_id, machine=machine,
-            flags=tuple(f for f in FLAG_COLUMNS if _is_true(row.get(f))),
-            stale=_is_true(row.get("stale")), rounds=rounds if len(rounds) == len(times) else (),
+            flags=tuple(f for f in FLAG_COLUMNS if row.get(f)),
+            stale=bool(row.get("stale")), rounds=rounds if len(rounds) == len(times) else (),
             round_seed=_text(row, "round_seed").removesuffix(".0"),
             **{k: _text(row, k) for k in CELL_TEXTS},
             **{k: _number(row, k) for k in ("instructions", "instructions_max")},
-            **{k: items(row, k) for k in ("round_noise", "round_pressure")},
+            **{k: results.items(row, k) for k in ("round_noise", "round_pressure")},
             **{k: _number(row, k, 0.0) for k in ("steal_s", "other_cpu_s", "noise_capacity_s")}))
     return cells
 

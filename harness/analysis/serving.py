@@ -19,9 +19,8 @@ def serving(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     ONE_THREAD_RUN. A serial cell whose scene has no other cells stays as it is, and so do a
     serial variant's rows at other counts (records from before it was measured once); the
     cell is not copied where such a row is."""
-    serial = (variant_fact(df["variant"], lambda facts: not facts.parallel, variants)
-              if len(df) else None)
-    if serial is None or not serial.any():
+    serial = variant_fact(df["variant"], lambda facts: not facts.parallel, variants)
+    if not serial.any():
         return df
     df = df.assign(**{ONE_THREAD_RUN: serial})
     scene = present(df, [*SCENE_KEYS, "schedule"])

@@ -100,8 +100,7 @@ def with_speedup(df: pd.DataFrame, variants: Variants, *, thread_baseline: bool 
     # The intervals: the bootstrap of the ratio of medians over both cells' run times; NaN
     # where either has fewer than two (a merge that found no reference leaves NaN), so that
     # tables fall back to the point value.
-    suffixes = cells.INTERVAL_SUFFIXES
-    out[[f"{metric}{suffix}" for metric in paired.METRICS for suffix in suffixes]] = np.nan
+    out[[f"{m}{s}" for m in paired.METRICS for s in cells.INTERVAL_SUFFIXES]] = np.nan
     for position, *runs in zip(out.index, base_times, df[TIMES], strict=True):
         base_runs, own_runs = (list(v) if isinstance(v, tuple | list) else [] for v in runs)
         if len(base_runs) >= 2 and len(own_runs) >= 2 and pd.notna(out.at[position, "speedup"]):

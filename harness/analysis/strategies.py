@@ -1,9 +1,6 @@
 """The strategies and schedules read back: the seed's published times beside ours, whether
-the ranking agrees, per-thread work, the cost of a dispatched chunk, and the schedule study.
-
-The per-thread columns come from `--timing` (store.columns.THREAD_COLUMNS): the busy seconds,
-pair tests and chunks of every candidate writer, space-separated.
-"""
+the ranking agrees, per-thread work (`--timing`'s store.columns.THREAD_COLUMNS), the cost of a
+dispatched chunk, and the schedule study."""
 
 import math
 from collections.abc import Sequence
@@ -52,8 +49,7 @@ LITTLE_DIFFERENCE = 0.05
 
 def repaired_by(variant: str, variants: Variants) -> str | None:
     """The variant of `variants` that repairs `variant` (its --describe names it), if any."""
-    fixes = variants.repaired_by(variant) if variant in variants else ()
-    return fixes[0] if fixes else None
+    return next(iter(variants.repaired_by(variant)), None)
 
 
 def _one_per_variant(df: pd.DataFrame) -> pd.DataFrame:
@@ -133,16 +129,15 @@ def static_block_imbalance(threads: int) -> float:
 
 def _evidence(variant: str, cells: pd.DataFrame, threads: int, variants: Variants) -> str:
     """One variant's pathology with what was measured of it here."""
-    words = PATHOLOGY.get(variant, "")
+    parts = [f"{variant}: {PATHOLOGY.get(variant, '')}"]
     if variant not in cells.index:
-        return f"{variant}: {words}"
+        return parts[0]
     cell = cells.loc[variant]
-    imbalance = cell.get("imbalance", math.nan)
-    parts = [f"{variant}: {words}"]
     if variant == "p1" and threads > 1:
         parts.append(f"its pair imbalance is {static_block_imbalance(threads):.2f} on {threads} "
                      f"threads against {static_block_imbalance(SEED_THREADS):.2f} on "
                      f"{SEED_THREADS}")
+    imbalance = cell.get("imbalance", math.nan)
     if isinstance(imbalance, float) and math.isfinite(imbalance):
         parts.append(f"busy imbalance {imbalance:.2f} measured")
     repair = repaired_by(variant, variants)
@@ -268,13 +263,12 @@ def schedule_rows(df: pd.DataFrame) -> pd.DataFrame:
         times = list(items(cell, TIMES))
         ci = stats.median_ci(times) if times else stats.Interval(float(cell["wall_median_s"]))
         rows.append({"variant": cell["variant"], "threads": cell["threads"],
-                     "schedule": cell["schedule"], "median": ci, "times": times,
-                     "imbalance": cell.get("imbalance", math.nan),
+                     "schedule": cell["schedule"], "median": ci, "median_s": ci.point,
+                     "times": times, "imbalance": cell.get("imbalance", math.nan),
                      "chunks": sum(items(cell, "threads_chunks")) or math.nan})
     out = pd.DataFrame(rows)
     if out.empty:
         return out
-    out["median_s"] = [c.point for c in out["median"]]
     return out.sort_values(["variant", "threads", "median_s"], kind="stable").reset_index(drop=True)
 
 
