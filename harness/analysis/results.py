@@ -132,13 +132,14 @@ def check_rows(df: pd.DataFrame, where: Path) -> None:
 def listed_whole(exp: ExperimentDir) -> tuple[list[Listed], list[str]]:
     """The records the experiment's rows are, and why each listed one that is damaged or
     missing is left out: those its index lists, in its order; without an index, every record
-    no newer one of its group and machine supersedes."""
+    no newer one of its group and machine supersedes, by when it was measured, then by id (not
+    by file time: a checkout's files all have its own, and the rows would follow them)."""
     rows = index_rows(exp)
     if rows is not None:
         return listed_records(exp, rows)
     stored = load_records(exp.cells)
     old = {id(s) for s in superseded(stored)}
-    return [Listed(s.result, None) for s in sorted(stored, key=lambda s: s.age)
+    return [Listed(s.result, None) for s in sorted(stored, key=lambda s: (s.age[0], s.path.name))
             if id(s) not in old], []
 
 

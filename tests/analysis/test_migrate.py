@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import statistics
 from pathlib import Path
 
 import pytest
-from harness.analysis import export
+from harness.analysis import export, results
 from harness.analysis.migrate import Migration, migrate
 from harness.cli import main
 from harness.spec.facts import VariantFacts, Variants
@@ -77,6 +78,20 @@ def rows(exp: ExperimentDir) -> dict[str, str]:
     lines = exp.results_csv.read_text().splitlines()
     at = lines[0].split(",").index("cell_id")
     return {line.split(",")[at]: line for line in lines[1:]}
+
+
+def test_rows_without_an_index_follow_when_measured_then_id_not_file_times(tmp_path: Path
+                                                                          ) -> None:
+    """Records measured in the same second list in one order, whatever times a checkout gave
+    their files."""
+    exp, ids = experiment(tmp_path, [("p1d", t, "m", 5) for t in (1, 2, 3, 4)], indexed=False)
+    paths = [exp.record(cell_id) for cell_id in ids.values()]
+    orders = []
+    for sign in (1, -1):
+        for k, path in enumerate(paths):
+            os.utime(path, (1000 + sign * k, 1000 + sign * k))
+        orders.append([item.result.cell_id for item in results.listed(exp)])
+    assert orders[0] == orders[1] == sorted(ids.values())
 
 
 @pytest.mark.parametrize("indexed", [True, False])
