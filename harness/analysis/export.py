@@ -69,8 +69,8 @@ def write(exp: ExperimentDir, how: Derivation, listed: Sequence[index.Listed]) -
         else:
             atomic.atomic_write_text(path, text)
     index.write_index(exp, how.experiment, how.title, how.baseline, how.divergence, listed,
-                {path.name: None if text is None else _sha(text.encode())
-                 for path, text in files.items()})
+                      {path.name: None if text is None else _sha(text.encode())
+                       for path, text in files.items()})
 
 
 def rebuild(experiment_dir: Path, planned: Sequence[index.PlannedCell], machine_id: str,

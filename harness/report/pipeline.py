@@ -110,8 +110,8 @@ def build_document(
     if results_dir.resolve().is_relative_to(REPO_ROOT):
         results_dir = results_dir.resolve().relative_to(REPO_ROOT)
     if not parts:
-        return document.Document(TITLE, f"No results in `{results_dir}` yet: run `harness/run.py` "
-                        "first.", tuple(others))
+        return document.Document(TITLE, f"No results in `{results_dir}` yet: run "
+                                 "`harness/run.py` first.", tuple(others))
     runs = {name: str(env[RUN_STARTED]) for name, env in environments if env.get(RUN_STARTED)}
     grouped = header.by_run(parts, runs)
     parts = [part for _, group in grouped for part in group]
@@ -244,7 +244,7 @@ def render(
 
         def links(page_dir: Path, shown: str) -> list[document.Link]:
             return [document.Link(m.name, Path(os.path.relpath(pages[m.id] / PAGE_STEM, page_dir))
-                         .as_posix()) for m in listed if m.id != shown]
+                                  .as_posix()) for m in listed if m.id != shown]
 
         for page in listed:
             doc = _render_page(loaded, results_dir, pages[page.id], code, page,
