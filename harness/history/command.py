@@ -31,11 +31,12 @@ INTERRUPTED = "measured commits are saved; run again to resume"
 
 
 def parser(prog: str) -> argparse.ArgumentParser:
-    parser = command.Parser(prog=prog, usage=f"{prog} [options] RANGE|REVISION... CONFIG...",
-                    description="Measure every cell of the configs at every commit of a range "
-                    "(A..B, oldest first, with A; or a list of revisions), each commit built "
-                    "once in its own worktree; find each cell's change points and write "
-                    "history.csv and a history page per config.")
+    parser = command.Parser(
+        prog=prog, usage=f"{prog} [options] RANGE|REVISION... CONFIG...",
+        description="Measure every cell of the configs at every commit of a range (A..B, "
+        "oldest first, with A; or a list of revisions), each commit built once in its own "
+        "worktree; find each cell's change points and write history.csv and a history page "
+        "per config.")
     parser.add_argument("items", nargs="+", metavar="RANGE|REVISION|CONFIG",
                         help="a range A..B or revisions, then experiment YAML files")
     parser.add_argument("--every", type=command.whole_number, default=1, metavar="K",
