@@ -220,6 +220,11 @@ class Experiment:
             frame[column] = pd.to_numeric(frame[column])
         return frame
 
+    def env(self) -> dict[str, object]:
+        """env.json of the latest run here ({} where there is none)."""
+        found = read_json(self.directory.env_json)
+        return found if isinstance(found, dict) else {}
+
 
 def load_experiment(exp: ExperimentDir, labels: Mapping[str, str] | None = None) -> Experiment:
     """One experiment directory read from its records (HarnessError naming what is wrong)."""
