@@ -102,7 +102,7 @@ def measures_openmp_costs(config: Config, cell: Cell) -> bool:
 
 def subject(cell: Cell) -> tuple[str, ...]:
     """What names the cell to a reader, as records name theirs (store.columns.match_values)."""
-    return match_values({**cell.named().values(), "schedule": cell.schedule or ""})
+    return match_values({**cell.named().values(), "schedule": cell.schedule})
 
 
 @dataclass

@@ -1,7 +1,5 @@
 """Programs, implementations of the model written elsewhere (`programs:` in a config, parsed by
-harness.spec.programs): a program's cell run, its races found (cell) and its printed states
-judged against seq step by step (agreement, printed, steps, events), the report's section and
-the tables a class is graded by (section).
+harness.spec.programs); docs/programs.md, "Where the code is", says what each module does.
 
 The core imports none of it: the command line lends it `start_program` (Hooks.program_runner)
 and REPORT. Standard library only here: what measures or draws is imported when a program's

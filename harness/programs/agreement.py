@@ -76,8 +76,7 @@ def judge(program: str, seq: str, n: int, steps: int, L: float, r: float,
     if not len(mine):
         return _failed("no line matches a (step, particle) that seq prints")
     p, q = ours.values[mine], theirs.values[match]
-    step_of = ours.step[mine]
-    half = ours.half[mine]
+    step_of, half = ours.step[mine], ours.half[mine]
     tolerance = half + ARITH_ULPS * DOUBLE_EPS * L
     with np.errstate(invalid="ignore"):
         deviation = np.where(np.isfinite(p), np.abs(p - q), np.inf)

@@ -1,9 +1,6 @@
-"""Programs in the report: the section (the class table, one row per program, also written as
-`<experiment>-programs.csv` for a gradebook; one line per program cell, the rows that carry a
-verdict, with its verdict and what it and the reference did at the step named (its note); a
-figure of each wrong program's first wrong step: the particle and its partners before the step,
-where the program put them after it and where the rules do) and the count of program cells that
-agree with seq, for the summary's fidelity line."""
+"""Programs in the report: the section (the class table, its CSV, each program cell's verdict
+and a figure of each wrong program's first wrong step: docs/programs.md, "Grading a class") and
+the count of program cells that agree with seq, for the summary's fidelity line."""
 
 import json
 from pathlib import Path
@@ -12,7 +9,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.patches import Circle
 
-from harness.analysis.cells import is_program, sort_cells
+from harness.analysis.cells import is_program, present, sort_cells
 from harness.analysis.flags import agreement_text
 from harness.analysis.ranks import RANKS, any_ranked
 from harness.analysis.serving import measured_once
@@ -56,7 +53,7 @@ def program_table(df: pd.DataFrame, variants: Variants) -> pd.DataFrame:
     """One row per program cell: where it is, its status, its agreement, what its check cost
     and the detail (in the order of `variants`, the programs after them)."""
     rows = df[is_program(df)]
-    keys = [k for k in PROGRAM_KEYS if k in rows.columns]
+    keys = present(rows, PROGRAM_KEYS)
     if any_ranked(rows):
         keys.append(RANKS)
     table = rows[[*keys, "status"]].copy()
@@ -80,7 +77,7 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
     cells) and what explains it, its times, speedups and efficiency at its highest thread
     count, and its rank there among the programs that are right (what each means: INTRO)."""
     rows = df[is_program(df)]
-    keys = [k for k in CLASS_KEYS if k in df.columns]
+    keys = present(df, CLASS_KEYS)
     # an MPI program's rank counts are rows of their own: its times are by thread count
     ranks = [RANKS] if any_ranked(rows) else []
     out = []
@@ -100,8 +97,7 @@ def class_table(df: pd.DataFrame) -> pd.DataFrame:
             "repeatable": "no" if verdict == columns.NONDETERMINISTIC else "yes",
             "races": _races(cells)}
         times = cells.set_index("threads")["wall_median_s"].dropna()
-        for threads, seconds in times.sort_index().items():
-            row[f"time_{int(threads)}t_s"] = float(seconds)
+        row.update({f"time_{int(t)}t_s": float(s) for t, s in times.sort_index().items()})
         seq = df[(df["variant"] == BASELINE) & (df[keys] == scene).all(axis=1)]
         seq_s = seq["wall_median_s"].min()
         top = int(times.index.max()) if len(times) else None

@@ -121,11 +121,8 @@ def judge_steps(states: dict[int, np.ndarray], halves: dict[int, np.ndarray], n:
     open_, deviation = _suspects(states, halves, pairs, base, slack)
     explain = _Explainer(states, halves, n, L, r, replay, base, deviation, exact)
     # A value is wrong when neither the printed uncertainty nor the coarsest level explains it.
-    # Each value's answer at a level is its own (the replays of a step perturb the whole state
-    # alike), so the levels may be tried in any order, each only on what the others left, and
-    # steps in chunks from the first, stopping at the first wrong one. A program whose first
-    # step the printed uncertainty does not explain (a float build: every value) is tried at
-    # the coarsest level first: one replay of every step instead of two.
+    # Each value's answer at a level is its own, so levels and steps are tried in the order that
+    # costs least (docs/programs.md, "Step by step"): the coarsest first for a float build.
     coarsest = PRECISION_LADDER[-1]
     order: tuple[float | None, ...] = (None, coarsest)
     wrong: dict[int, np.ndarray] = {}

@@ -17,26 +17,24 @@ identical distributions with probability 2/20 = 10% (the chance that one sample 
 above the other). That is why a verdict of compare never rests on such an interval alone: it
 tests against a threshold, and widens the interval of runs measured apart by the drift.
 
-Every public name of the modules is re-exported here: callers use `stats.NAME`.
+The names other modules use are re-exported here: callers use `stats.NAME`.
 """
 
-from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, LOW_QUANTILE,
-                                     LOW_QUANTILE_ESTIMATOR, N_RESAMPLES, Z95, Interval, PowerFit,
+from harness.stats.intervals import (CONFIDENCE, DEFAULT_ESTIMATOR, ESTIMATORS, Interval,
                                      difference_ci, efficiency, estimate, estimate_ci, karp_flatt,
                                      median_ci, power_fit, ratio_ci, serial_fraction, speedup_ci)
 from harness.stats.levels import (DEFAULT_SESSION_SPREAD, INTERVAL_MIN_ROUNDS, MIN_ROUNDS,
                                   NOISE_MARGIN, Coverage, RoundEstimate, SessionSpread,
-                                  cell_estimate, coverage, from_round_values, noise_of,
-                                  paired_ratio, round_half_width, session_noise, session_spread,
-                                  spread_at, spreads_of, supersedes, t95, time_interval)
-from harness.stats.paired import (DISTURBED_LIMIT, MAX_DROPPED_SHARE, NOISE_LIMIT, SAME_RATIO,
-                                  SHIFT_MIN_ROUNDS, MeasuredInRounds, NoiseProfile, PairedRounds,
-                                  by_round, interference_slope, noise_profile, paired_change,
-                                  paired_series, paired_sides, round_medians, rounds_to_drop,
-                                  smallest_detectable, without_interference)
+                                  cell_estimate, coverage, from_round_values, paired_ratio,
+                                  round_half_width, session_noise, session_spread, spread_at,
+                                  spreads_of, supersedes, t95, time_interval)
+from harness.stats.paired import (DISTURBED_LIMIT, NOISE_LIMIT, SHIFT_MIN_ROUNDS, MeasuredInRounds,
+                                  NoiseProfile, PairedRounds, interference_slope, noise_profile,
+                                  paired_change, paired_series, paired_sides, round_medians,
+                                  rounds_to_drop, smallest_detectable, without_interference)
 from harness.stats.verdicts import (FASTER, FIRST_LOOK_ROUNDS, INCONCLUSIVE, LAST_LOOK,
-                                    LOOK_GROWTH, NO_CHANGE_KNOWN, NOISE_DRIFT_SLOPE,
-                                    PRESSURE_SLOPE, SLOWER, UNCHANGED, VERDICTS, Change,
-                                    contention_spread, decide, discoveries, drift_change,
-                                    further_rounds, log_ratio_drift, log_spread, look_index,
-                                    look_rounds, look_weight, noise_drift, paired_look)
+                                    NO_CHANGE_KNOWN, NOISE_DRIFT_SLOPE, PRESSURE_SLOPE, SLOWER,
+                                    UNCHANGED, VERDICTS, Change, contention_spread, decide,
+                                    discoveries, drift_change, further_rounds, log_ratio_drift,
+                                    log_spread, look_index, look_rounds, look_weight, noise_drift,
+                                    paired_look)

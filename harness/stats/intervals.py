@@ -98,8 +98,7 @@ def estimate(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> floa
 def estimate_ci(times: Sequence[float], estimator: str = DEFAULT_ESTIMATOR) -> Interval:
     """The estimate with its 95% percentile-bootstrap interval, resampling the runs with the
     same estimator (the interval of a minimum reaches only upwards of it)."""
-    data, stat = clean(times), ESTIMATORS[estimator]
-    return _interval(float(stat(data)) if data.size else math.nan, (data,), stat)
+    return _interval(estimate(times, estimator), (clean(times),), ESTIMATORS[estimator])
 
 
 # The median of the run times with its 95% bootstrap interval (NaN ends with < 2 runs).

@@ -156,8 +156,8 @@ class RoundEstimate:
 
 def from_round_values(values: Sequence[float]) -> RoundEstimate:
     """The estimate from one value a round (each positive; others are left out)."""
-    data = np.asarray([v for v in values if v is not None and math.isfinite(v) and v > 0],
-                      dtype=float)
+    data = intervals.clean(values)
+    data = data[data > 0]
     if data.size == 0:
         return RoundEstimate(math.nan, math.nan, math.nan, 0)
     logs = np.log(data)

@@ -174,11 +174,9 @@ def interference_slope(log_ratios: np.ndarray, shift: np.ndarray) -> float:
 
 
 def without_interference(log_ratios: np.ndarray, shift: Sequence[float] | None) -> np.ndarray:
-    """The rounds' log ratios with the part their interference shift explains taken out: a
-    round where others took the cores during one side only moves its ratio by about the share
-    they took times how much this cell suffers from it, and the ratios left cluster around the
-    change itself (docs/compare.md, "The interference taken out of each round's ratio", says
-    why this is fair under identical sides and what it assumes)."""
+    """The rounds' log ratios less the part their interference shift explains, slope times
+    shift (docs/compare.md, "The interference taken out of each round's ratio", says why this
+    is fair under identical sides and what it assumes)."""
     if shift is None:
         return log_ratios
     s = np.asarray(shift, dtype=float)

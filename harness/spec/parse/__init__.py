@@ -302,6 +302,5 @@ def load_config(path: Path | str, registry: VariantRegistry | None = None,
     scene.check_exclude(loaded)
     if max_cells is not None:
         scene.check_cells(loaded, max_cells)
-    config.expand_points(loaded)  # zip lengths are checked here, so errors surface at load time
-    scene.check_memory(loaded)
+    scene.check_memory(loaded)  # expands the points: zip lengths are checked at load time
     return loaded
