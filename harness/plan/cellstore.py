@@ -199,8 +199,9 @@ class CellStore:
                 steps=programs.check_steps(cell.scene.n, cell.scene.steps),
                 reference_sha256=self._hashes(self.program_references(cell)))
         if cell.checked:
-            parts["checks"] = model.ChecksKey(**self.config.checks.key(),
-                                        reference_sha256=self._hashes(self.check_references(cell)))
+            parts["checks"] = model.ChecksKey(
+                **self.config.checks.key(),
+                reference_sha256=self._hashes(self.check_references(cell)))
         if self.config.counts_instructions:
             counted = self.counted_binary(cell)
             parts["instructions"] = model.CountedKey(

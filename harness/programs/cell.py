@@ -179,7 +179,7 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         built = proc.run_process(program.build_command(clang, TSAN_CFLAGS, binary), env, timeout_s)
         if built.returncode != 0 or not binary.is_file():
             return skipped(proc.failure(f"its build with ThreadSanitizer ({TSAN_CC} {TSAN_CFLAGS})",
-                                   built, timeout_s))
+                                        built, timeout_s))
         template = program.with_binary(program.command, binary)
         if template is None:
             return skipped("its command names no file its build replaces (the program's "
@@ -188,7 +188,7 @@ def find_races(program: Program, input_file: Path, description: str, env: Mappin
         run_env = {**env, "OMP_NUM_THREADS": str(TSAN_THREADS), "OMP_TOOL_LIBRARIES": str(archer),
                    "TSAN_OPTIONS": TSAN_OPTIONS.format(log=log)}
         ran = proc.run_process(program.shell_command(template, input_file, TSAN_THREADS), run_env,
-                          timeout_s)
+                               timeout_s)
         reports = "".join(p.read_text(errors="replace") for p in sorted(Path(tmp).glob("tsan.*")))
         races = parse_reports(reports, program.directory)
         if ran.returncode != 0 and not races:
@@ -225,8 +225,8 @@ def start_program(store: CellStore, references: References, cell: Cell, cell_id:
                                   cell.ranks)
     record = record.replace(check_command=shlex.join(check), check_steps=steps)
     checked, text = proc.run_captured(check, env, timeout_s, store.layout.check_output(cell_id),
-                                 store.layout.output(cell_id) if store.config.keep_output
-                                 else None)
+                                      store.layout.output(cell_id) if store.config.keep_output
+                                      else None)
     status, code = _status(checked)
     if status != columns.OK:
         return ran(record, status, code,
