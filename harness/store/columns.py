@@ -104,11 +104,8 @@ PROGRAM_COLUMNS: tuple[str, ...] = _columns(measured.ProgramVerdict)[2:]
 NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
-# What a --timing JSON line gives that the record keeps under the same names.
-TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.Counts))
-# The OpenMP runtime's costs (measured.OmpCosts), then why a cell has none.
+# The OpenMP runtime's costs (measured.OmpCosts), without its note of why a cell has none.
 OMP_COST_COLUMNS: tuple[str, ...] = _columns(measured.OmpCosts)[:-1]
-OMP_COST_NOTE = _columns(measured.OmpCosts)[-1]
 INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
 MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
 PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from harness.measure import timing
 from harness.store import atomic, columns, records
 from harness.store import hyperfine as hf
 from harness.store.model import CellKey
+from harness.store.result import RECORD_VERSION
 
 from tests.records import write_experiment
 
@@ -81,7 +83,7 @@ def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
            "validate": False, "exact": True, "baseline_sha256": None, "keep_output": False}
     cid = CellKey.from_json(key).id
     path = tmp_path / "c.json"
-    atomic.atomic_write_json(path, {"version": records.RECORD_VERSION, "cell_id": cid,
+    atomic.atomic_write_json(path, {"version": RECORD_VERSION, "cell_id": cid,
                                     "key": key})
     assert records.read_record(path, cid) is not None
     assert records.read_record(path, "abd") is None
@@ -155,16 +157,16 @@ def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs(tmp_path: 
 
 
 def test_thread_work_from_timing() -> None:
-    fields = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
-                                  "threads_chunks": [5, 5]})
-    assert fields["threads_busy_s"] == [0.3, 0.1]
-    assert fields["threads_pairs"] == [30, 10]
-    assert fields["threads_chunks"] == [5, 5]
-    assert fields["imbalance"] == pytest.approx(0.3 / 0.2)
+    work = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
+                               "threads_chunks": [5, 5]})
+    assert work.threads_busy_s == (0.3, 0.1)
+    assert work.threads_pairs == (30, 10)
+    assert work.threads_chunks == (5, 5)
+    assert work.imbalance == pytest.approx(0.3 / 0.2)
 
 
 def test_thread_work_of_an_older_binary_is_empty() -> None:
-    fields = timing.thread_work({"sim_s": 1.0})
+    fields = asdict(timing.thread_work({"sim_s": 1.0}))
     assert set(fields) == {*columns.THREAD_TIMING_KEYS, "imbalance"}
     assert all(v is None for v in fields.values())
 
