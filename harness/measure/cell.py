@@ -181,9 +181,8 @@ class Measurer:
         tool = lane.machine_tool()
         counted = self.store.counted_binary(cell)
         argv = run.command if counted is None else [str(counted), *run.command[1:]]
-        measure = self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule)
-        found = count_runs(tool, argv, env, measure.timeout_s,
+        found = count_runs(tool, argv, env, self.config.measure_for(cell.variant).timeout_s,
                            input_file=None if cell.program else Path(run.command[-1]))
         run.record = run.record.replace(counted=found.instructions(
             tool, lane.described(tool, counted, self.store.binaries)))

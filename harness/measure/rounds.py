@@ -62,14 +62,14 @@ class Timed:
     """What one hyperfine call gave: its statistics, or the status it failed with."""
 
     status: str
-    exit_code: int | None = None
-    note: str = ""
-    stats: HyperfineStats | None = None
-    warnings: list[str] = field(default_factory=list)
-    load_before: dict[str, object] = field(default_factory=dict)
-    load_after: dict[str, object] = field(default_factory=dict)
-    loaded: bool = False
-    noise: noise.RoundNoise | None = None  # what other work did to the call
+    exit_code: int | None
+    note: str
+    stats: HyperfineStats | None
+    warnings: list[str]
+    load_before: dict[str, object]
+    load_after: dict[str, object]
+    loaded: bool
+    noise: noise.RoundNoise | None  # what other work did to the call
 
 
 def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,

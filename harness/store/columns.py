@@ -59,9 +59,8 @@ EXTRA_COLUMNS: tuple[str, ...] = (
 # Where, on what and how surely a cell was measured (docs/results.md says what each means).
 # Computed from the record when results.csv is written, so older records gain them without
 # being measured again; empty where an older record cannot tell (outliers, loaded, machine).
-LOW_QUANTILE_COLUMN = "wall_q25_s"
 PROVENANCE_COLUMNS: tuple[str, ...] = (
-    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", LOW_QUANTILE_COLUMN,
+    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", "wall_q25_s",
     "wall_times_s", "outliers", "loaded", "stale", "earlier_config", "config_changed",
     "git_commit", "measured_at",
 )

@@ -113,7 +113,7 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json(tmp_path: Path) ->
     low, high, q25 = stats.time_interval([1.0, 1.2, 1.1])
     measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
                 "wall_times_s": [1.0, 1.2, 1.1], "wall_median_ci_low_s": low,
-                "wall_median_ci_high_s": high, columns.LOW_QUANTILE_COLUMN: q25, "loaded": False,
+                "wall_median_ci_high_s": high, "wall_q25_s": q25, "loaded": False,
                 "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
     values = results.provenance(measured)
     assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == [1.0, 1.2, 1.1]
@@ -130,8 +130,8 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json(tmp_path: Path) ->
     assert older["wall_times_s"] == list(times)
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
     # the low quantile, kept beside the median: between the fastest run and the median
-    assert min(times) <= older[columns.LOW_QUANTILE_COLUMN] <= sorted(times)[len(times) // 2]
-    assert measured[columns.LOW_QUANTILE_COLUMN] == pytest.approx(1.05)
+    assert min(times) <= older["wall_q25_s"] <= sorted(times)[len(times) // 2]
+    assert measured["wall_q25_s"] == pytest.approx(1.05)
     assert tuple(export.render_csv([older]).splitlines()[0].split(",")[
         -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
 
@@ -149,7 +149,7 @@ def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs(tmp_path: 
     two_rounds, before_rounds = results.load_experiment(exp).rows
     assert two_rounds["wall_median_ci_low_s"] is None
     assert two_rounds["wall_median_ci_high_s"] is None
-    assert two_rounds[columns.LOW_QUANTILE_COLUMN] is not None
+    assert two_rounds["wall_q25_s"] is not None
     assert before_rounds["wall_median_ci_low_s"] is not None
 
 
