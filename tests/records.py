@@ -22,7 +22,7 @@ from harness.store.index import Listed, index_files, index_rows
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
 from harness.store.records import MACHINE_KEY
-from harness.store.result import ROUNDS_FIELD, TIMES_FIELD, CellResult, _leaves
+from harness.store.result import RECORD_VERSION, ROUNDS_FIELD, TIMES_FIELD, CellResult, _leaves
 
 Row = Mapping[str, object]
 # results.csv's columns a record does not hold: what a reader derives, or the listing's marks
@@ -85,7 +85,7 @@ def record_of(row: Row) -> CellResult:
     leaves = _leaves()
     machine_id = str(row.get("machine_id") or "")
     key = _key(row, machine_id)
-    raw: dict[str, object] = {"version": records.RECORD_VERSION, "cell_id": key.id,
+    raw: dict[str, object] = {"version": RECORD_VERSION, "cell_id": key.id,
                               "key": key.to_json(), "measured_at": WHEN}
     for name, value in row.items():
         if name in NOT_RECORDED or (name not in leaves and name not in (

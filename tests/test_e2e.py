@@ -242,6 +242,6 @@ def test_openmp_costs_are_measured_with_each_parallel_cell(
             assert values == ["", "", "", ""], row
         else:
             assert all(float(v) > 0 for v in values), row
-            assert row[columns.OMP_COST_NOTE] == ""
+            assert row["openmp_costs_note"] == ""
     assert main([str(plain), "--results-dir", str(root), "--no-report"]) == 0
     assert "costs: 5 cells (4 measured, 1 cached)" in capsys.readouterr().err  # seq

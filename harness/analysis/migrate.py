@@ -93,7 +93,7 @@ def rekey(exp: layout.ExperimentDir, item: Stored, changed: Mapping[str, object]
                                                              for n in exports),
         migrated_from={"cell_id": old, **{f: getattr(item.key, f) for f in changed}})
     moves = [(path, path.with_name(_renamed(path.name, old, new)))
-             for path in exp.hyperfine_files(old)]
+             for path in exp.hyperfine_exports(old)]
     moves.append((exp.output(old), exp.output(new)))
     with atomic.writing(exp.cells, "rename the records' files in"):
         for source, target in moves:

@@ -47,7 +47,7 @@ def experiment_dirs(path: Path, with_results: bool = False) -> list[Path]:
     if not path.is_dir():
         raise HarnessError(f"{path}: not a directory")
     found, _ = layout.experiments_under(path, lambda exp: layout.has_cells(exp) or (
-        with_results and layout.has_results(exp)))
+        with_results and exp.results_csv.is_file()))
     if not found:
         what = f"{layout.CELLS}/" + (f" or {layout.RESULTS_CSV}" if with_results else "")
         raise HarnessError(f"{path}: no experiment directory (one with {what}) in it")

@@ -151,6 +151,3 @@ class Executor(Protocol):
     def run(self, experiment: Experiment, pending: Sequence[tuple[Cell, str]],
             on_record: OnRecord, progress: Progress) -> None:
         """Measure every pending (cell, cell_id); call on_record once for each."""
-        ...
-
-

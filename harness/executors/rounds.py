@@ -51,7 +51,7 @@ class Unit:
 
     @property
     def measure(self) -> Measure:
-        return self.state.measure(self.measurer.config.measure_for(self.cell.variant))
+        return self.state.measure(self.measurer.config)
 
     def at_limit(self) -> bool:
         """Whether the cell reached its max_runs or max_time_s (its interval stopped it first)."""

@@ -169,7 +169,7 @@ class Measurer:
                      if k.startswith(("OMP_", mpi.RECORDED_PREFIX))},
             machine_id=self.store.machine_id, machine=machine.machine(repo),
             git_commit=environment.git_commit(repo), schedule=cell.schedule)
-        for old in self.store.layout.hyperfine_files(cell_id):
+        for old in self.store.layout.hyperfine_exports(cell_id):
             old.unlink(missing_ok=True)
         return record
 
@@ -181,22 +181,18 @@ class Measurer:
         tool = lane.machine_tool()
         counted = self.store.counted_binary(cell)
         argv = run.command if counted is None else [str(counted), *run.command[1:]]
-        measure = self.config.measure_for(cell.variant)
         env = self.environment(cell.threads, cell.schedule)
-        found = count_runs(tool, argv, env, measure.timeout_s,
+        found = count_runs(tool, argv, env, self.config.measure_for(cell.variant).timeout_s,
                            input_file=None if cell.program else Path(run.command[-1]))
         run.record = run.record.replace(counted=found.instructions(
             tool, lane.described(tool, counted, self.store.binaries)))
         return run
 
     def time_round(self, run: CellRun, round_index: int) -> None:
-        subject = run.record.subject
-        assert subject is not None and subject.threads is not None, "a record names its cell"
-        measure = run.measure(self.config.measure_for(str(subject.variant)))
+        key, measure = run.record.key, run.measure(self.config)
         runs = next_runs(measure, run.times, run.per_round)
         export = self.store.layout.hyperfine(run.cell_id, round_index)
-        env = self.environment(subject.threads, subject.schedule or "",
-                               subject.ranks is not None)
+        env = self.environment(key.threads, key.schedule or "", key.ranks is not None)
         take = functools.partial(time_runs, self.hyperfine, run.command, env, export, runs,
                                  measure.warmup if not run.exports else 0, measure.timeout_s,
                                  self.cores)

@@ -37,14 +37,6 @@ class Invariants:
     box_excess: float  # the farthest a finite coordinate lies outside [r, L - r], / L
     states: int  # printed states, the final block included
 
-    @property
-    def passed(self) -> bool:
-        return self.finite and self.in_box and self.pcoll_even and self.energy
-
-    def failures(self) -> list[str]:
-        names = ("finite", "in_box", "pcoll_even", "energy")
-        return [name for name in names if not getattr(self, name)]
-
 
 def energy_bound(build: str, pair_collisions: int, ulps: float = DEFAULT_ENERGY_ULPS) -> float:
     """The largest relative kinetic-energy drift a correct run of `build` can show.

@@ -117,12 +117,12 @@ def compare(reference: str, candidate: str, L: float) -> Comparison:
     try:
         cand = parse_output(candidate)
     except OutputFormatError:
-        return _incomparable(ref.final.n)
+        return Comparison(False, False, INCOMPARABLE, INCOMPARABLE, ref.final.n)
     a, b = ref.final, cand.final
     same_rows = ref.history.shape == cand.history.shape and np.array_equal(
         ref.history[:, :2], cand.history[:, :2])
     if a.step != b.step or not np.array_equal(a.index, b.index) or not same_rows:
-        return _incomparable(a.n, identical)
+        return Comparison(identical, False, INCOMPARABLE, INCOMPARABLE, a.n)
     pos = max(max_distance(a.position, b.position),
               max_distance(ref.history[:, 2:4], cand.history[:, 2:4]))
     vel = max(max_distance(a.velocity, b.velocity),
@@ -138,7 +138,3 @@ def max_distance(p: np.ndarray, q: np.ndarray) -> float:
     if not np.all(np.isfinite(distance)):
         return INCOMPARABLE
     return float(distance.max())
-
-
-def _incomparable(n_ref: int, identical: bool = False) -> Comparison:
-    return Comparison(identical, False, INCOMPARABLE, INCOMPARABLE, n_ref)

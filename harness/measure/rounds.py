@@ -27,7 +27,7 @@ from harness import stats
 from harness.errors import StorageError
 from harness.measure import machine, noise
 from harness.measure.proc import ProcessResult, failure, run_process, tail
-from harness.spec.config import Measure
+from harness.spec.config import Config, Measure
 from harness.store import atomic, columns
 from harness.store.columns import CRASHED, FAILED, OK, TIMED_STATUSES, TIMEOUT
 from harness.store.hyperfine import HyperfineStats, ResultFormatError, is_unstable, load_hyperfine
@@ -62,14 +62,14 @@ class Timed:
     """What one hyperfine call gave: its statistics, or the status it failed with."""
 
     status: str
-    exit_code: int | None = None
-    note: str = ""
-    stats: HyperfineStats | None = None
-    warnings: list[str] = field(default_factory=list)
-    load_before: dict[str, object] = field(default_factory=dict)
-    load_after: dict[str, object] = field(default_factory=dict)
-    loaded: bool = False
-    noise: noise.RoundNoise | None = None  # what other work did to the call
+    exit_code: int | None
+    note: str
+    stats: HyperfineStats | None
+    warnings: list[str]
+    load_before: dict[str, object]
+    load_after: dict[str, object]
+    loaded: bool
+    noise: noise.RoundNoise | None  # what other work did to the call
 
 
 def time_runs(hyperfine: str, command: Sequence[str], env: Mapping[str, str], target: Path,
@@ -173,7 +173,9 @@ class CellRun(stats.MeasuredInRounds):
     def done(self) -> bool:
         return not self.timed or bool(self.stopped)
 
-    def measure(self, measure: Measure) -> Measure:
+    def measure(self, config: Config) -> Measure:
+        """Its variant's measure, with the rounds a comparison asks beyond it."""
+        measure = config.measure_for(self.record.key.variant)
         return measure.at_least(self.min_rounds) if self.min_rounds else measure
 
     @property

@@ -38,23 +38,21 @@ def imbalance(busy_s: Iterable[float]) -> float | None:
     return max(values) / mean if mean > 0 else None
 
 
-def thread_work(timing: Mapping[str, object]) -> dict[str, object]:
+def thread_work(timing: Mapping[str, object]) -> ThreadWork:
     """The per-thread lists a --timing object gives (None where it lacks one), and imbalance."""
-    fields: dict[str, object] = {}
+    lists: dict[str, typing.Any] = {}
     for key in THREAD_TIMING_KEYS:
         value = timing.get(key)
         ok = isinstance(value, list) and all(isinstance(v, int | float) for v in value)
-        fields[key] = list(value) if ok and value else None
-    busy = fields["threads_busy_s"]
-    fields["imbalance"] = imbalance(busy) if isinstance(busy, list) else None
-    return fields
+        lists[key] = tuple(value) if ok and value else None
+    busy = lists["threads_busy_s"]
+    return ThreadWork(imbalance(busy) if busy else None, **lists)
 
 
 def precise(timing: Mapping[str, object]) -> dict[str, typing.Any]:
     """The phases, counts and per-thread work of a --timing object (None for what it lacks)."""
-    work = {k: tuple(v) if isinstance(v, list) else v for k, v in thread_work(timing).items()}
     return {"phases": Phases(**numbers(timing, Phases)),
-            "counts": Counts(**numbers(timing, Counts, int)), "thread_work": ThreadWork(**work)}
+            "counts": Counts(**numbers(timing, Counts, int)), "thread_work": thread_work(timing)}
 
 
 def _number(value: object, kind: type | tuple[type, ...] = (int, float)) -> bool:

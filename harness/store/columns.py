@@ -59,9 +59,8 @@ EXTRA_COLUMNS: tuple[str, ...] = (
 # Where, on what and how surely a cell was measured (docs/results.md says what each means).
 # Computed from the record when results.csv is written, so older records gain them without
 # being measured again; empty where an older record cannot tell (outliers, loaded, machine).
-LOW_QUANTILE_COLUMN = "wall_q25_s"
 PROVENANCE_COLUMNS: tuple[str, ...] = (
-    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", LOW_QUANTILE_COLUMN,
+    "machine_id", "machine", "wall_median_ci_low_s", "wall_median_ci_high_s", "wall_q25_s",
     "wall_times_s", "outliers", "loaded", "stale", "earlier_config", "config_changed",
     "git_commit", "measured_at",
 )
@@ -104,11 +103,8 @@ PROGRAM_COLUMNS: tuple[str, ...] = _columns(measured.ProgramVerdict)[2:]
 NO_RACES = "none"
 # --timing's per-thread lists, stored as the columns of the same name.
 THREAD_TIMING_KEYS: tuple[str, ...] = THREAD_COLUMNS[2:]
-# What a --timing JSON line gives that the record keeps under the same names.
-TIMING_KEYS: tuple[str, ...] = (*_columns(measured.Phases), *_columns(measured.Counts))
-# The OpenMP runtime's costs (measured.OmpCosts), then why a cell has none.
+# The OpenMP runtime's costs (measured.OmpCosts), without its note of why a cell has none.
 OMP_COST_COLUMNS: tuple[str, ...] = _columns(measured.OmpCosts)[:-1]
-OMP_COST_NOTE = _columns(measured.OmpCosts)[-1]
 INSTRUCTION_COLUMNS: tuple[str, ...] = _columns(measured.Instructions)
 MEMORY_COLUMNS: tuple[str, ...] = _columns(measured.Memory)
 PEAK_RSS = MEMORY_COLUMNS[0]  # peak_rss_mib

@@ -34,7 +34,7 @@ def is_unstable(mean: float, stddev: float | None) -> bool:
 
 
 class ResultFormatError(ValueError):
-    """A hyperfine export or a --timing line that cannot be read."""
+    """A hyperfine export that cannot be read."""
 
 
 def parse_hyperfine(data: Mapping[str, object]) -> HyperfineStats:

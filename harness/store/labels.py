@@ -80,9 +80,7 @@ def machine_labels(machines: Mapping[str, Described]) -> dict[str, str]:
     groups: dict[str, list[str]] = {}
     for mid, name in names.items():
         groups.setdefault(name, []).append(mid)
-    for members in groups.values():
-        if len(members) < 2:
-            continue
+    for members in groups.values():  # a machine alone in its group keeps its label as it is
         extra = {mid: [] for mid in members}  # type: dict[str, list[str]]
         for trait in TRAITS:
             values = {mid: trait(machines[mid]) for mid in members}

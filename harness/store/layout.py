@@ -118,14 +118,11 @@ class ExperimentDir:
                              f"{RECORD_SUFFIX}")
 
     def hyperfine_exports(self, cell_id: str) -> list[Path]:
-        """Every hyperfine export the cell left in cells/, by round."""
+        """Every hyperfine export the cell left in cells/ (the one of all its runs too), by
+        round."""
         found = self.cells.glob(f"{cell_id}{HYPERFINE_INFIX}*")
         return sorted((p for p in found if p.name.endswith(RECORD_SUFFIX)),
                       key=lambda p: export_round(cell_id, p.name) or 0)
-
-    def hyperfine_files(self, cell_id: str) -> list[Path]:
-        """The one export for all its runs, then those of its rounds that exist."""
-        return [self.hyperfine(cell_id), *self.hyperfine_exports(cell_id)]
 
     def partial(self, cell_id: str) -> Path:
         return self.cells / f"{cell_id}.partial.jsonl"
@@ -207,16 +204,11 @@ def has_cells(exp: ExperimentDir) -> bool:
     return exp.cells.is_dir()
 
 
-def has_results(exp: ExperimentDir) -> bool:
-    return exp.results_csv.is_file()
-
-
 def experiments_under(path: Path, is_experiment: Callable[[ExperimentDir], bool]
                       ) -> tuple[list[ExperimentDir], bool]:
     """`path` itself when it is an experiment, else the experiments directly under it (hidden
     directories, the caches, aside), by name; and whether `path` is a results root. The
-    caller says what an experiment is (has_cells, has_results) and what an empty answer
-    means."""
+    caller says what an experiment is (e.g. has_cells) and what an empty answer means."""
     if is_experiment(ExperimentDir(path)):
         return [ExperimentDir(path)], False
     if not path.is_dir():

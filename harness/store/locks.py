@@ -37,14 +37,12 @@ def describe_holder(path: Path) -> str:
 
 
 @contextlib.contextmanager
-def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None,
-                   path: Path | None = None) -> Iterator[Path]:
+def measuring_lock(config: str, wait: bool = True, log: TextIO | None = None) -> Iterator[Path]:
     """Hold the machine-wide measuring lock for the body: a file in a machine-wide place (not
     the repository, so two checkouts see the same lock), into which the holder writes its pid,
     config and start time; a second run prints one line naming them and waits, or with
     `wait=False` refuses (LockBusy, a HarnessError: exit 2)."""
-    if path is None:
-        path = Path(os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()) / LOCK_NAME
+    path = Path(os.environ.get(LOCK_DIR_VAR) or tempfile.gettempdir()) / LOCK_NAME
     path.parent.mkdir(parents=True, exist_ok=True)
     # O_APPEND-free, no truncation on open: the holder's description must survive our open
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)

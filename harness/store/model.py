@@ -181,10 +181,6 @@ class CellKey:
         return _project(self, "group")
 
 
-def role_fields(cls: type, role: Role) -> tuple[str, ...]:
-    return tuple(f.name for f in fields(cls) if f.metadata["role"] is role)
-
-
 def _project(obj: object, projection: str) -> dict[str, object]:
     keeps = _PROJECTIONS[projection]
     out: dict[str, object] = {}

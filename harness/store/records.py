@@ -7,7 +7,6 @@ import json
 from pathlib import Path
 
 from harness.store import atomic
-from harness.store.result import RECORD_VERSION as RECORD_VERSION
 from harness.store.result import CellResult, RecordFormatError
 from harness.store.trust import DamagedFile
 

@@ -112,7 +112,7 @@ def move_to_history(experiment_dir: Path, items: Iterable[Stored]) -> None:
     history = exp.history
     for item in items:
         cid = item.cell_id
-        companions = [(path, history / path.name) for path in exp.hyperfine_files(cid)]
+        companions = [(path, history / path.name) for path in exp.hyperfine_exports(cid)]
         companions.append((exp.output(cid), history / f"{cid}{layout.HISTORY_OUTPUT_SUFFIX}"))
         with atomic.writing(history, "move superseded records into"):
             history.mkdir(parents=True, exist_ok=True)

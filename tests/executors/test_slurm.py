@@ -31,6 +31,7 @@ from harness.spec.config import ExecutorSpec
 from harness.spec.parse import load_config
 from harness.store import atomic, columns, layout, records
 from harness.store.model import CellKey
+from harness.store.result import RECORD_VERSION
 
 from commands import cell_store
 from commands import run_main as main
@@ -237,7 +238,7 @@ def test_a_cancelled_task_is_recorded_and_a_rerun_measures_only_it(
         index = list(job["cells"]).index(held_portable)
         wait_until("the held task running",
                    lambda: task_state(str(job["job_id"]), index) == "RUNNING")
-        slurm_client.cancel(str(job["job_id"]), index)
+        slurm_client.slurm_command(["scancel", f"{job['job_id']}_{index}"])
         proc.wait(timeout=WAIT_S)
     finally:
         proc.kill()
@@ -386,7 +387,7 @@ def test_records_are_matched_without_their_machine(tmp_path: Path) -> None:
         full = {**key, "machine_id": machine}
         cid = CellKey.from_json(full).id
         atomic.atomic_write_json(cells / f"{cid}.json", {
-            "version": records.RECORD_VERSION, "cell_id": cid, "key": full,
+            "version": RECORD_VERSION, "cell_id": cid, "key": full,
             "measured_at": stamp})
         return cid
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from harness.measure.timing import measure_costs, parse_costs
-from harness.store.columns import OMP_COST_COLUMNS, OMP_COST_NOTE
+from harness.store.columns import OMP_COST_COLUMNS
 
 from conftest import build_or_skip
 
@@ -65,7 +65,7 @@ def test_bad_arguments_are_one_line_and_status_2(ompcost: Path, args: list[str],
 
 def test_the_cell_columns_from_a_real_run(ompcost: Path) -> None:
     found = measure_costs(ompcost, 2, {**os.environ})
-    assert getattr(found, OMP_COST_NOTE) is None
+    assert found.openmp_costs_note is None
     costs = [getattr(found, c) for c in OMP_COST_COLUMNS]
     assert all(isinstance(c, float) and c > 0 for c in costs)
 
@@ -101,4 +101,4 @@ def test_a_failed_run_leaves_the_columns_empty_with_a_note(tmp_path: Path, scrip
                                                            note: str) -> None:
     found = measure_costs(fake(tmp_path, script), 2, {**os.environ})
     assert all(getattr(found, c) is None for c in OMP_COST_COLUMNS)
-    assert getattr(found, OMP_COST_NOTE) == note
+    assert found.openmp_costs_note == note

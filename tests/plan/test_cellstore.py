@@ -3,6 +3,7 @@ what counts as cached, and where inputs and reference outputs live."""
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
@@ -12,7 +13,8 @@ from harness.repo import REPO_ROOT
 from harness.spec.config import Measure
 from harness.spec.parse import load_config
 from harness.store import records
-from harness.store.model import CellKey, Role, role_fields
+from harness.store.model import CellKey, Role
+from harness.store.result import RECORD_VERSION
 
 CONFIG = "variants: [seq, p1]\nscene: {n: 10, L: 100, r: 1, steps: 1}\nvalidate: true\n"
 
@@ -43,8 +45,9 @@ def test_the_measure_settings_in_a_key_are_the_fields_it_declares_how_runs_were_
         CONFIG + "measure: {runs: auto, ci: 0.03, max_runs: 9, max_time_s: 5}\n"))
     plan = plan_cells(config)
     measure = config.measure_for("p1")
+    how = {f.name for f in fields(CellKey) if f.metadata["role"] is Role.HOW}
     for each in (measure, Measure(), Measure(runs=None, min_runs=4)):
-        assert set(each.key()) <= set(role_fields(CellKey, Role.HOW))
+        assert set(each.key()) <= how
     key = CellStore(plan, REPO_ROOT, Path("/nonexistent"), "m1").cell_key(plan.cells[1])
     assert key is not None and {k: getattr(key, k) for k in measure.key()} == measure.key()
 
@@ -61,7 +64,7 @@ def test_a_new_record_starts_with_the_cells_identity(store: CellStore) -> None:
     record = store.new_record(cell, cid)
     key = store.cell_key(cell)
     assert record.cell_id == cid and record.key == key
-    assert record.to_json()["version"] == records.RECORD_VERSION and record.value("runs") == 0
+    assert record.to_json()["version"] == RECORD_VERSION and record.value("runs") == 0
     assert record.subject is not None
     assert (record.subject.variant, record.subject.n, record.subject.threads) == ("p1", 10, 1)
     assert record.validation is not None and record.validation.validated

@@ -5,6 +5,7 @@ figure, the cost per chunk, and the schedule study."""
 from __future__ import annotations
 
 import re
+from dataclasses import asdict
 from pathlib import Path
 
 import pandas as pd
@@ -40,8 +41,8 @@ def record(variant: str, times: tuple[float, ...], busy: tuple[float, ...],
         "wall_max_s": ordered[-1], "sim_s": ordered[0], "pair_tests": sum(pairs),
         "identical": True, "cores": 2, "cell_id": f"{variant}-{schedule}",
         "binary_sha256": "ab" * 32, "wall_times_s": list(times), "schedule": schedule,
-        **timing.thread_work({"threads_busy_s": list(busy), "threads_pairs": list(pairs),
-                               "threads_chunks": list(chunks)}),
+        **asdict(timing.thread_work({"threads_busy_s": list(busy), "threads_pairs": list(pairs),
+                                      "threads_chunks": list(chunks)})),
     }
 
 

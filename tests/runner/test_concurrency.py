@@ -94,6 +94,7 @@ from pathlib import Path
 from harness.analysis import export
 from harness.store import atomic, index, records
 from harness.store.model import CellKey
+from harness.store.result import RECORD_VERSION
 directory, machine, count = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
 base = {"variant": "p1", "build": "f64", "seed": 1, "threads": 1, "warmup": 0, "runs": 1,
         "timeout_s": 60.0, "validate": False, "exact": True, "baseline_sha256": None,
@@ -102,7 +103,7 @@ for k in range(count):
     key = {**base, "input_sha256": str(k), "machine_id": machine}
     cid = CellKey.from_json(key).id
     atomic.atomic_write_json(directory / "cells" / f"{cid}.json", {
-        "version": records.RECORD_VERSION, "cell_id": cid, "key": key, "variant": "p1",
+        "version": RECORD_VERSION, "cell_id": cid, "key": key, "variant": "p1",
         "threads": 1, "status": "ok", "measured_at": "2026-01-01T00:00:00+00:00"})
     planned = [index.PlannedCell(CellKey.from_json(
         {**base, "input_sha256": str(j), "machine_id": machine})) for j in range(count)]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from harness.measure import timing
 from harness.store import atomic, columns, records
 from harness.store import hyperfine as hf
 from harness.store.model import CellKey
+from harness.store.result import RECORD_VERSION
 
 from tests.records import write_experiment
 
@@ -81,7 +83,7 @@ def test_read_record_checks_id_and_version(tmp_path: Path) -> None:
            "validate": False, "exact": True, "baseline_sha256": None, "keep_output": False}
     cid = CellKey.from_json(key).id
     path = tmp_path / "c.json"
-    atomic.atomic_write_json(path, {"version": records.RECORD_VERSION, "cell_id": cid,
+    atomic.atomic_write_json(path, {"version": RECORD_VERSION, "cell_id": cid,
                                     "key": key})
     assert records.read_record(path, cid) is not None
     assert records.read_record(path, "abd") is None
@@ -111,7 +113,7 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json(tmp_path: Path) ->
     low, high, q25 = stats.time_interval([1.0, 1.2, 1.1])
     measured = {"machine_id": "ab" * 8, "machine": {"label": "CPU (znver3) x2"},
                 "wall_times_s": [1.0, 1.2, 1.1], "wall_median_ci_low_s": low,
-                "wall_median_ci_high_s": high, columns.LOW_QUANTILE_COLUMN: q25, "loaded": False,
+                "wall_median_ci_high_s": high, "wall_q25_s": q25, "loaded": False,
                 "git_commit": "c" * 40 + "-dirty", "measured_at": "2026-01-01T00:00:00+00:00"}
     values = results.provenance(measured)
     assert values["machine"] == "CPU (znver3) x2" and values["wall_times_s"] == [1.0, 1.2, 1.1]
@@ -128,8 +130,8 @@ def test_provenance_from_a_record_and_from_its_hyperfine_json(tmp_path: Path) ->
     assert older["wall_times_s"] == list(times)
     assert older["wall_median_ci_low_s"] <= sorted(times)[1] <= older["wall_median_ci_high_s"]
     # the low quantile, kept beside the median: between the fastest run and the median
-    assert min(times) <= older[columns.LOW_QUANTILE_COLUMN] <= sorted(times)[len(times) // 2]
-    assert measured[columns.LOW_QUANTILE_COLUMN] == pytest.approx(1.05)
+    assert min(times) <= older["wall_q25_s"] <= sorted(times)[len(times) // 2]
+    assert measured["wall_q25_s"] == pytest.approx(1.05)
     assert tuple(export.render_csv([older]).splitlines()[0].split(",")[
         -len(columns.PROVENANCE_COLUMNS):]) == columns.PROVENANCE_COLUMNS
 
@@ -147,7 +149,7 @@ def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs(tmp_path: 
     two_rounds, before_rounds = results.load_experiment(exp).rows
     assert two_rounds["wall_median_ci_low_s"] is None
     assert two_rounds["wall_median_ci_high_s"] is None
-    assert two_rounds[columns.LOW_QUANTILE_COLUMN] is not None
+    assert two_rounds["wall_q25_s"] is not None
     assert before_rounds["wall_median_ci_low_s"] is not None
 
 
@@ -155,16 +157,16 @@ def test_a_cell_timed_in_too_few_rounds_has_no_interval_from_its_runs(tmp_path: 
 
 
 def test_thread_work_from_timing() -> None:
-    fields = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
-                                  "threads_chunks": [5, 5]})
-    assert fields["threads_busy_s"] == [0.3, 0.1]
-    assert fields["threads_pairs"] == [30, 10]
-    assert fields["threads_chunks"] == [5, 5]
-    assert fields["imbalance"] == pytest.approx(0.3 / 0.2)
+    work = timing.thread_work({"threads_busy_s": [0.3, 0.1], "threads_pairs": [30, 10],
+                               "threads_chunks": [5, 5]})
+    assert work.threads_busy_s == (0.3, 0.1)
+    assert work.threads_pairs == (30, 10)
+    assert work.threads_chunks == (5, 5)
+    assert work.imbalance == pytest.approx(0.3 / 0.2)
 
 
 def test_thread_work_of_an_older_binary_is_empty() -> None:
-    fields = timing.thread_work({"sim_s": 1.0})
+    fields = asdict(timing.thread_work({"sim_s": 1.0}))
     assert set(fields) == {*columns.THREAD_TIMING_KEYS, "imbalance"}
     assert all(v is None for v in fields.values())
 

@@ -12,11 +12,12 @@ import pytest
 from harness.analysis import export, results
 from harness.analysis.migrate import upgrade_experiment
 from harness.cli import main as cli_main
-from harness.store import atomic, index, records
+from harness.store import atomic, index
 from harness.store import superseded as store_history
 from harness.store.columns import match_values
 from harness.store.layout import ExperimentDir
 from harness.store.model import CellKey
+from harness.store.result import RECORD_VERSION
 
 KEY = {"variant": "p1", "build": "f64", "binary_sha256": "a" * 64, "input_sha256": "c" * 64,
        "seed": 1, "threads": 2, "warmup": 0, "runs": 3, "timeout_s": 60.0, "validate": False,
@@ -29,7 +30,7 @@ def put(directory: Path, when: str, times: list[float] | None = None,
     key = {k: v for k, v in {**KEY, **changes}.items() if v is not store_history.UNKNOWN_MACHINE}
     cid = CellKey.from_json(key).id
     times = times if times is not None else [1.0, 1.1, 1.2]
-    record = {"version": records.RECORD_VERSION, "cell_id": cid, "key": key,
+    record = {"version": RECORD_VERSION, "cell_id": cid, "key": key,
               "variant": key["variant"], "threads": key["threads"], "status": "ok",
               "binary_sha256": key["binary_sha256"], "measured_at": when,
               "machine_id": key.get("machine_id"), "wall_median_s": sorted(times)[1]}

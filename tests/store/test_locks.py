@@ -66,19 +66,21 @@ def test_a_second_process_waits_then_runs(tmp_path: Path) -> None:
     assert locks.describe_holder(tmp_path / locks.LOCK_NAME) == "pid unknown"
 
 
-def test_no_wait_refuses_while_another_process_holds_it(tmp_path: Path) -> None:
+def test_no_wait_refuses_while_another_process_holds_it(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(locks.LOCK_DIR_VAR, str(tmp_path))
     holder = start_holder(tmp_path, "configs/a.yaml", tmp_path / "release")
     try:
         wait_for_line(holder, "held")
-        with pytest.raises(locks.LockBusy) as info, locks.measuring_lock(
-                "configs/b.yaml", wait=False, path=tmp_path / locks.LOCK_NAME):
+        with pytest.raises(locks.LockBusy) as info, locks.measuring_lock("configs/b.yaml",
+                                                                         wait=False):
             pytest.fail("took a held lock")
         assert f"pid {holder.pid}, configs/a.yaml" in str(info.value)
         assert "not waiting (--no-wait)" in str(info.value)
     finally:
         (tmp_path / "release").touch()
         holder.communicate(timeout=WAIT_S)
-    with locks.measuring_lock("configs/b.yaml", wait=False, path=tmp_path / locks.LOCK_NAME):
+    with locks.measuring_lock("configs/b.yaml", wait=False):
         pass  # free again once the holder is gone
 
 

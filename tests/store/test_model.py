@@ -4,11 +4,13 @@ back every stored key as written."""
 from __future__ import annotations
 
 import json
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
 from harness.store import columns, records
-from harness.store.model import CellKey, KeyFormatError, Role, role_fields
+from harness.store.model import CellKey, KeyFormatError, Role
+from harness.store.result import RECORD_VERSION
 
 REPO = Path(__file__).resolve().parents[2]
 KEY = {
@@ -67,9 +69,9 @@ def test_projections_follow_the_roles() -> None:
 
 
 def test_roles_are_declared_for_every_field() -> None:
-    declared = {name for role in Role for name in role_fields(CellKey, role)}
-    assert declared == set(CellKey.__dataclass_fields__)
-    assert role_fields(CellKey, Role.MACHINE) == ("machine_id",)
+    roles = {f.name: f.metadata["role"] for f in fields(CellKey)}
+    assert all(isinstance(role, Role) for role in roles.values())
+    assert [name for name, role in roles.items() if role is Role.MACHINE] == ["machine_id"]
 
 
 @pytest.mark.parametrize(("changes", "message"), [
@@ -93,7 +95,7 @@ def test_older_records_read_as_now_and_one_not_under_its_key_id_not_at_all(
     path.write_text(json.dumps(record))
     read = records.read_record(path, good.id)  # a version 1 record: its lists were text
     assert read is not None and read.value("threads_busy_s") == [0.5, 0.25]
-    assert read.to_json()["version"] == records.RECORD_VERSION
+    assert read.to_json()["version"] == RECORD_VERSION
     path.write_text(json.dumps({**record, "key": key(threads=3).to_json()}))
     assert records.read_record(path, good.id) is None
     path.write_text(json.dumps({**record, "threads_busy_s": "0.5 x"}))

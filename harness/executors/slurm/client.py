@@ -80,10 +80,6 @@ def submit_array(script: Path, tasks: int, args: Sequence[str]) -> str:
     return job_id
 
 
-def cancel(job_id: str, task: int | None = None) -> None:
-    slurm_command(["scancel", job_id if task is None else f"{job_id}_{task}"])
-
-
 def task_states(text: str, job_id: str) -> dict[int, str]:
     """task -> state, from lines `JOBID_TASK|STATE` (squeue's, sacct's) of the array job."""
     states: dict[int, str] = {}

@@ -15,7 +15,7 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import cast
@@ -281,17 +281,20 @@ class SlurmExecutor:
             for pid, task in list(open_tasks.items()):
                 cell, cid = cells[pid]
                 record = arrived.get(pid)
-                slurm_state = _slurm_state(task, states, finals, record is not None)
-                if record is not None or slurm_state in client.RUNNING_STATES:
-                    announce(pid, cid)
                 if record is not None:
+                    announce(pid, cid)
                     del open_tasks[pid]
                     # the time a cell costs the sweep (queueing included), so that the
                     # progress lines' ETA follows the throughput
                     progress.finished(time.monotonic() - last_done_at)
                     last_done_at = time.monotonic()
                     self.accept(experiment, cell, cid, record, on_record)
-                elif slurm_state in client.RUNNING_STATES:  # a subset of client.ACTIVE_STATES
+                    continue
+                # squeue's state while it lists the task, else its final one
+                seen = (states[task.job_id] or {}).get(task.index)
+                slurm_state = finals(task.job_id).get(task.index, "") if seen is None else seen
+                if slurm_state in client.RUNNING_STATES:  # a subset of client.ACTIVE_STATES
+                    announce(pid, cid)
                     running += 1
                 elif slurm_state in client.ACTIVE_STATES:
                     waiting += 1
@@ -317,14 +320,3 @@ class SlurmExecutor:
                 last_line, last_at = line, time.monotonic()
             if open_tasks:
                 time.sleep(self.spec.poll_s)
-
-
-def _slurm_state(task: Task, states: Mapping[str, dict[int, str] | None],
-                 finals: Callable[[str], dict[int, str]], arrived: bool) -> str:
-    """A task's Slurm state: squeue's while it lists the task, else the final one (`finals`)
-    for one whose record has not arrived, else none."""
-    seen = (states[task.job_id] or {}).get(task.index)
-    if seen is None and not arrived:
-        return finals(task.job_id).get(task.index, "")
-    return seen or ""
-
