@@ -43,9 +43,12 @@ def setup(tmp_path: Path, real_binaries: Path, runs: int = 3) -> tuple[Path, Pat
 
 
 def start(config: Path, root: Path) -> subprocess.Popen[str]:
+    """The run, taking Ctrl-C as a terminal's foreground job does, even where the tests run in
+    the background of a shell without job control (which starts them with SIGINT ignored)."""
     return subprocess.Popen([sys.executable, "-m", "harness", "run", str(config),
                              "--results-dir", str(root), "--no-report"],
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def wait_for(proc: subprocess.Popen[str], words: str) -> list[str]:
