@@ -180,8 +180,8 @@ def _reason(row: pd.Series) -> str:
             parts.append(f"energy drift {float(row['energy_drift_max']):.1e}")
         else:
             parts.append(f"{failure} check fails")
-    if _step_error(row) > TRUST_ERR_R:
-        parts.append(f"one-step error {_step_error(row):.1e} r")
+    if (error := _step_error(row)) > TRUST_ERR_R:
+        parts.append(f"one-step error {error:.1e} r")
     return f"{row['scene_name']} ({'; '.join(parts)})"
 
 

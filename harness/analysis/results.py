@@ -139,8 +139,8 @@ def listed_whole(exp: ExperimentDir) -> tuple[list[Listed], list[str]]:
         return listed_records(exp, rows)
     stored = load_records(exp.cells)
     old = {id(s) for s in superseded(stored)}
-    return [Listed(s.result, None) for s in sorted(stored, key=lambda s: (s.age[0], s.path.name))
-            if id(s) not in old], []
+    order = sorted(stored, key=lambda s: (s.result.measured_at, s.path.name))
+    return [Listed(s.result, None) for s in order if id(s) not in old], []
 
 
 def listed(exp: ExperimentDir) -> list[Listed]:

@@ -117,7 +117,7 @@ def _ratio_narrow(unit: Unit, side: Unit) -> bool:
     """Whether the ratio of the two cells needs no more rounds: within the larger of their
     `ci` over their common rounds, or the other side stopped on something else than its
     interval (its rounds will not grow)."""
-    if side.run is None or side.run.stopped != STOPPED_CI or side.at_limit():
+    if side.state.stopped != STOPPED_CI or side.at_limit():
         return True
     ci = max(u.measure.ci for u in (unit, side))
     return stats.paired_ratio(side.state.by_round(),

@@ -287,5 +287,5 @@ class CellStore:
 
     def baseline_key(self, cell: Cell) -> str:
         return model.content_id({"baseline_sha256": self.baseline_sha(cell),
-                                "input_sha256": cell.scene.input_sha256,
-                                "seed": cell.scene.seed})
+                                 "input_sha256": cell.scene.input_sha256,
+                                 "seed": cell.scene.seed})

@@ -90,8 +90,10 @@ def parse_combine(value: object, scene: config.SceneSpec, parallel_listed: list[
 
 
 def _schedule(value: object) -> object:
-    text = str(value).replace(" ", "").lower()
-    if not isinstance(value, str) or not SCHEDULE_PATTERN.match(text):
+    if not isinstance(value, str):
+        raise ValueError
+    text = value.replace(" ", "").lower()
+    if not SCHEDULE_PATTERN.match(text):
         raise ValueError
     return text
 
